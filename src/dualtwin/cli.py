@@ -1,0 +1,115 @@
+"""The ``dualtwin`` command line. Thin: every command calls into a package and prints."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+
+from dualtwin.errors import DualtwinError
+
+app = typer.Typer(help="Dual digital twins (Webots on ODE + MuJoCo) for robotics RL.", no_args_is_help=True,
+                  pretty_exceptions_enable=False, add_completion=False)
+suite_app = typer.Typer(help="Scenario suites: validate and run.", no_args_is_help=True)
+webots_app = typer.Typer(help="The headless Webots runtime.", no_args_is_help=True)
+app.add_typer(suite_app, name="suite")
+app.add_typer(webots_app, name="webots")
+console = Console(stderr=False)
+
+
+@suite_app.command("validate")
+def suite_validate(
+    file: Annotated[Path, typer.Argument(help="suite JSON file")],
+    robot: Annotated[str | None, typer.Option(help="also resolve robot-specific keys through this robot")] = None,
+) -> None:
+    """Check a suite file (and, with --robot, that the binding resolves every key)."""
+    from dualtwin.suite.loader import load_suite
+
+    suite = load_suite(file)
+    if robot is not None:
+        from dualtwin.robots.binding import resolve_robot
+        from dualtwin.suite.runner import check_against_binding
+
+        check_against_binding(suite, file, resolve_robot(robot))
+    console.print(f"[green]ok[/green] {file}: suite {suite.suite_name!r}, {len(suite.scenarios)} scenarios, "
+                  f"control period {suite.global_settings.TIME_STEP:g} ms")
+
+
+@suite_app.command("run")
+def suite_run(
+    twin: Annotated[str, typer.Option(help="twin to run on: mujoco or webots")],
+    robot: Annotated[str, typer.Option(help="bundled robot name (cartpole) or path to a binding file")],
+    scenarios: Annotated[Path, typer.Option(help="suite JSON file")],
+    out: Annotated[Path, typer.Option(help="run directory to write")],
+    resume: Annotated[bool, typer.Option(help="continue an interrupted run in OUT")] = False,
+    seed: Annotated[int, typer.Option(help="seed for scenarios that give none")] = 0,
+) -> None:
+    """Run a suite on one twin, writing on-board and ground-truth logs per scenario."""
+    from dualtwin.robots.binding import resolve_robot
+    from dualtwin.suite.runner import SuiteRun
+
+    run = SuiteRun(scenarios, twin, resolve_robot(robot), out, seed=seed)
+    manifest = _run_with_progress(run, resume, f"{twin}: {run.suite.suite_name}")
+    for record in manifest["scenarios"]:
+        console.print(f"  {record['id']:<28} {record['status']}")
+    console.print(f"wrote {out}")
+
+
+def _run_with_progress(run, resume: bool, label: str):  # type: ignore[no-untyped-def]
+    from rich.progress import Progress
+
+    with Progress(console=console, transient=True) as progress:
+        task = progress.add_task(label, total=len(run.suite.scenarios))
+        return run.run(resume=resume, on_scenario=lambda sid, status: progress.advance(task))
+
+
+@app.command("compare")
+def compare(
+    run_a: Annotated[Path, typer.Argument(help="first run directory")],
+    run_b: Annotated[Path, typer.Argument(help="second run directory")],
+    out: Annotated[Path, typer.Option(help="report directory")],
+) -> None:
+    """Compare two runs: metrics.json, PNG overlays and a self-contained report.html."""
+    from dualtwin.divergence import compare_runs, print_summary, write_report
+
+    comparison = compare_runs(run_a, run_b)
+    write_report(comparison, out, label_a=run_a.name, label_b=run_b.name)
+    print_summary(comparison, console)
+    console.print(f"wrote {out / 'report.html'}")
+
+
+@app.command("demo")
+def demo(out: Annotated[Path, typer.Option(help="demo output folder")] = Path("runs/demo")) -> None:
+    """Run the bundled CartPole suite on both twins and write the comparison report."""
+    from dualtwin.demo import run_demo
+
+    run_demo(out, console)
+
+
+@webots_app.command("run")
+def webots_run(
+    world: Annotated[Path, typer.Argument(help=".wbt world file")],
+    controller: Annotated[Path | None, typer.Option(help="controller script (default: the one the world names)")] = None,
+    duration: Annotated[float | None, typer.Option(help="simulated seconds before step() returns -1")] = None,
+) -> None:
+    """Run a Webots world headless with its (unchanged) Python controller."""
+    from dualtwin.webots.runner import run_world
+
+    code = run_world(world, controller, duration)
+    raise typer.Exit(code)
+
+
+def main() -> None:
+    """Entry point: user errors become one line on stderr and exit code 2, never a traceback."""
+    try:
+        app()
+    except DualtwinError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        sys.exit(2)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,113 @@
+"""Divergence between twins: pure metrics, run loading and comparison, and reports.
+
+Typical use::
+
+    from dualtwin.divergence import compare_runs, write_report
+
+    comparison = compare_runs(Path("runs/webots"), Path("runs/mujoco"))
+    write_report(comparison, Path("runs/compare"), "Webots", "MuJoCo")
+
+`report` (matplotlib, rich) is imported lazily so metric users don't pay for it.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from dualtwin.divergence.metrics import (
+    DEFAULT_MAX_LAG_S,
+    DEFAULT_WEIGHTS,
+    ChannelDivergence,
+    CommonSeries,
+    DtwResult,
+    LagResult,
+    Regression,
+    ScoreWeights,
+    Threshold,
+    best_lag,
+    compare_channel,
+    crossing_time,
+    dtw_distance,
+    finite_prefix,
+    is_sign_inverted,
+    max_abs_error,
+    mse,
+    pearson,
+    regression,
+    resample_common,
+    rmse,
+    score_terms,
+    weighted_score,
+)
+from dualtwin.divergence.runs import (
+    DEFAULT_ANGLE_THRESHOLD_RAD,
+    ChannelInfo,
+    Contribution,
+    Run,
+    RunComparison,
+    ScenarioComparison,
+    ScenarioEntry,
+    Series,
+    ToleranceViolation,
+    compare_runs,
+    load_run,
+    load_tsv,
+    resolve_thresholds,
+)
+
+if TYPE_CHECKING:
+    from dualtwin.divergence.report import plot_channel, plot_overlay, print_summary, write_report
+
+_REPORT_NAMES = ("plot_channel", "plot_overlay", "print_summary", "write_report")
+
+
+def __getattr__(name: str) -> Any:
+    if name in _REPORT_NAMES:
+        from dualtwin.divergence import report
+
+        return getattr(report, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+__all__ = [
+    "DEFAULT_ANGLE_THRESHOLD_RAD",
+    "DEFAULT_MAX_LAG_S",
+    "DEFAULT_WEIGHTS",
+    "ChannelDivergence",
+    "ChannelInfo",
+    "CommonSeries",
+    "Contribution",
+    "DtwResult",
+    "LagResult",
+    "Regression",
+    "Run",
+    "RunComparison",
+    "ScenarioComparison",
+    "ScenarioEntry",
+    "ScoreWeights",
+    "Series",
+    "Threshold",
+    "ToleranceViolation",
+    "best_lag",
+    "compare_channel",
+    "compare_runs",
+    "crossing_time",
+    "dtw_distance",
+    "finite_prefix",
+    "is_sign_inverted",
+    "load_run",
+    "load_tsv",
+    "max_abs_error",
+    "mse",
+    "pearson",
+    "plot_channel",
+    "plot_overlay",
+    "print_summary",
+    "regression",
+    "resample_common",
+    "resolve_thresholds",
+    "rmse",
+    "score_terms",
+    "weighted_score",
+    "write_report",
+]

@@ -1,0 +1,656 @@
+"""Load suite run directories and compare two of them scenario by scenario.
+
+A run directory is written by the suite runner::
+
+    RUN/
+      manifest.json
+      scenarios/<id>/onboard.tsv        # TestRobot log: on-board sensors
+      scenarios/<id>/ground_truth.tsv   # TestOrchestrator log: privileged ground truth
+
+Each TSV has a header row, ``time_s`` first, then one column per channel. The manifest says which file
+holds which channel. This module does the I/O; the numbers come from `dualtwin.divergence.metrics`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dualtwin.divergence.metrics import (
+    DEFAULT_MAX_LAG_S,
+    DEFAULT_WEIGHTS,
+    ChannelDivergence,
+    FloatArray,
+    ScoreWeights,
+    Threshold,
+    compare_channel,
+    finite_prefix,
+)
+
+#: Crossing threshold applied to every channel whose name ends in ``_angle_rad``: the paper's pole-fall event.
+DEFAULT_ANGLE_THRESHOLD_RAD = 0.99
+SOURCES = ("onboard", "ground_truth")
+STATUSES = ("completed", "failed", "unstable")
+
+# Metrics a manifest tolerance may bound, compared by absolute value.
+TOLERANCE_METRICS = (
+    "mse",
+    "rmse",
+    "dtw",
+    "dtw_rms",
+    "max_abs_error",
+    "final_diff",
+    "lag_s",
+    "crossing_diff_s",
+    "score",
+)
+
+
+@dataclass(frozen=True, eq=False)
+class Series:
+    """One channel of one scenario: time stamps and values."""
+
+    t: FloatArray
+    y: FloatArray
+
+
+@dataclass(frozen=True)
+class ChannelInfo:
+    """Manifest entry of a channel: which log holds it and its unit."""
+
+    name: str
+    source: str
+    unit: str = ""
+
+
+@dataclass(frozen=True)
+class ScenarioEntry:
+    """Manifest entry of a scenario; log paths are relative to the run directory (None if absent)."""
+
+    id: str
+    index: int
+    name: str
+    status: str
+    failure: Mapping[str, Any] | None = None
+    onboard: str | None = None
+    ground_truth: str | None = None
+
+    def log(self, source: str) -> str | None:
+        return self.onboard if source == "onboard" else self.ground_truth
+
+
+@dataclass(frozen=True)
+class Run:
+    """A loaded run manifest. Logs are read on demand with `series`."""
+
+    path: Path
+    twin: str
+    robot: str
+    suite_name: str
+    control_period_s: float | None
+    seed: int | None
+    scenarios: tuple[ScenarioEntry, ...]
+    channels: Mapping[str, ChannelInfo]
+    tolerances: Mapping[str, Mapping[str, Mapping[str, float]]] = field(default_factory=dict)
+
+    def scenario(self, scenario_id: str) -> ScenarioEntry:
+        for entry in self.scenarios:
+            if entry.id == scenario_id:
+                return entry
+        raise KeyError(f"{self.path}: no scenario {scenario_id!r}")
+
+    def series(self, scenario_id: str) -> dict[str, Series]:
+        """Read the scenario's logs and return every manifest channel found in them.
+
+        A log that the manifest omits or that does not exist contributes nothing, so callers decide
+        whether that is an error (it is not for an unstable scenario).
+        """
+        entry = self.scenario(scenario_id)
+        out: dict[str, Series] = {}
+        for source in SOURCES:
+            rel = entry.log(source)
+            if rel is None or not (self.path / rel).is_file():
+                continue
+            header, data = load_tsv(self.path / rel)
+            for col, name in enumerate(header[1:], start=1):
+                info = self.channels.get(name)
+                if info is not None and info.source == source:
+                    out[name] = Series(t=data[:, 0].copy(), y=data[:, col].copy())
+        return out
+
+
+def load_tsv(path: Path) -> tuple[list[str], FloatArray]:
+    """Read a run log.
+
+    Returns:
+        The header names (first is ``time_s``) and an ``(n_rows, n_columns)`` float64 array; zero rows
+        when the log holds only a header.
+
+    Raises:
+        ValueError: On a missing ``time_s`` column, a malformed row or an unparsable value. A short
+            last row without a trailing newline is dropped: a run that crashed mid-write leaves one.
+    """
+    text = Path(path).read_text(encoding="utf-8")
+    lines = text.splitlines()
+    if not lines or not lines[0].strip():
+        raise ValueError(f"{path}: empty log, expected a header row")
+    header = lines[0].split("\t")
+    if header[0] != "time_s":
+        raise ValueError(f"{path}: first column must be 'time_s', got {header[0]!r}")
+    if len(set(header)) != len(header):
+        raise ValueError(f"{path}: duplicate columns in header {header}")
+    rows: list[list[float]] = []
+    body = lines[1:]
+    for lineno, line in enumerate(body, start=2):
+        if not line.strip():
+            continue
+        cells = line.split("\t")
+        truncated_tail = lineno == len(lines) and not text.endswith("\n")
+        if len(cells) != len(header):
+            if truncated_tail:
+                break
+            raise ValueError(f"{path}:{lineno}: expected {len(header)} columns, got {len(cells)}")
+        try:
+            rows.append([float(c) for c in cells])
+        except ValueError as exc:
+            if truncated_tail:
+                break
+            raise ValueError(f"{path}:{lineno}: {exc}") from None
+    data = np.asarray(rows, dtype=np.float64).reshape(len(rows), len(header))
+    return header, data
+
+
+def _require(manifest: Mapping[str, Any], key: str, path: Path) -> Any:
+    if key not in manifest:
+        raise ValueError(f"{path}: manifest has no {key!r}")
+    return manifest[key]
+
+
+def load_run(path: Path) -> Run:
+    """Load and validate ``path/manifest.json``.
+
+    Raises:
+        ValueError: If required keys are missing, scenario ids repeat or a channel source is unknown.
+    """
+    path = Path(path)
+    manifest_path = path / "manifest.json"
+    try:
+        manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ValueError(f"{path}: not a run directory (no manifest.json)") from None
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{manifest_path}: invalid JSON: {exc}") from None
+
+    channels: dict[str, ChannelInfo] = {}
+    for name, spec in dict(_require(manifest, "channels", manifest_path)).items():
+        source = spec.get("source")
+        if source not in SOURCES:
+            raise ValueError(
+                f"{manifest_path}: channel {name!r} has source {source!r}, expected one of {SOURCES}"
+            )
+        channels[name] = ChannelInfo(name=name, source=source, unit=str(spec.get("unit", "")))
+
+    scenarios: list[ScenarioEntry] = []
+    for i, sc in enumerate(_require(manifest, "scenarios", manifest_path)):
+        if "id" not in sc or "status" not in sc:
+            raise ValueError(f"{manifest_path}: scenario #{i} needs 'id' and 'status'")
+        if sc["status"] not in STATUSES:
+            raise ValueError(
+                f"{manifest_path}: scenario {sc['id']!r} has status {sc['status']!r}, expected one of {STATUSES}"
+            )
+        scenarios.append(
+            ScenarioEntry(
+                id=str(sc["id"]),
+                index=int(sc.get("index", i)),
+                name=str(sc.get("name", sc["id"])),
+                status=str(sc["status"]),
+                failure=sc.get("failure"),
+                onboard=sc.get("onboard"),
+                ground_truth=sc.get("ground_truth"),
+            )
+        )
+    ids = [s.id for s in scenarios]
+    dupes = sorted({i for i in ids if ids.count(i) > 1})
+    if dupes:
+        raise ValueError(f"{manifest_path}: duplicate scenario ids {dupes}")
+
+    period = manifest.get("control_period_s")
+    seed = manifest.get("seed")
+    return Run(
+        path=path,
+        twin=str(_require(manifest, "twin", manifest_path)),
+        robot=str(_require(manifest, "robot", manifest_path)),
+        suite_name=str(manifest.get("suite_name", "")),
+        control_period_s=None if period is None else float(period),
+        seed=None if seed is None else int(seed),
+        scenarios=tuple(scenarios),
+        channels=channels,
+        tolerances=manifest.get("tolerances") or {},
+    )
+
+
+@dataclass(frozen=True)
+class ToleranceViolation:
+    """A metric above its manifest tolerance (``limit``); ``value`` None means only one twin crossed."""
+
+    channel: str
+    metric: str
+    value: float | None
+    limit: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"channel": self.channel, "metric": self.metric, "value": self.value, "limit": self.limit}
+
+
+@dataclass(frozen=True)
+class ScenarioComparison:
+    """One scenario compared between twin A and twin B.
+
+    Attributes:
+        id: Scenario id (matched between the runs).
+        index: Position in the suite.
+        name: Scenario name.
+        status_a: Status in run A (``completed``, ``failed`` or ``unstable``).
+        status_b: Status in run B.
+        failure_a: Run A's failure record, if any.
+        failure_b: Run B's failure record, if any.
+        channels: Metrics per channel; channels that could not be compared are absent.
+        score: Mean channel score, 1.0 when exactly one twin is unstable, None when nothing was comparable.
+        note: Why channels are missing or the score was overridden.
+        tolerance_violations: Metrics above the manifest tolerances.
+        series_a: Run A's raw series (for plots; not serialised).
+        series_b: Run B's raw series.
+    """
+
+    id: str
+    index: int
+    name: str
+    status_a: str
+    status_b: str
+    failure_a: Mapping[str, Any] | None
+    failure_b: Mapping[str, Any] | None
+    channels: Mapping[str, ChannelDivergence]
+    score: float | None
+    note: str | None = None
+    tolerance_violations: tuple[ToleranceViolation, ...] = ()
+    series_a: Mapping[str, Series] = field(default_factory=dict, repr=False, compare=False)
+    series_b: Mapping[str, Series] = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def unstable(self) -> bool:
+        """True if either twin blew up."""
+        return "unstable" in (self.status_a, self.status_b)
+
+    @property
+    def unstable_one_sided(self) -> bool:
+        """True if exactly one twin blew up (the scenario then scores 1.0)."""
+        return (self.status_a == "unstable") != (self.status_b == "unstable")
+
+    @property
+    def within_tolerance(self) -> bool:
+        return not self.tolerance_violations
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "id": self.id,
+            "index": self.index,
+            "name": self.name,
+            "status_a": self.status_a,
+            "status_b": self.status_b,
+            "failure_a": None if self.failure_a is None else dict(self.failure_a),
+            "failure_b": None if self.failure_b is None else dict(self.failure_b),
+            "score": self.score,
+            "note": self.note,
+            "channels": {name: ch.to_dict() for name, ch in self.channels.items()},
+            "tolerance_violations": [v.to_dict() for v in self.tolerance_violations],
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> ScenarioComparison:
+        """Inverse of `to_dict` (without the raw series)."""
+        return cls(
+            id=data["id"],
+            index=int(data["index"]),
+            name=data["name"],
+            status_a=data["status_a"],
+            status_b=data["status_b"],
+            failure_a=data.get("failure_a"),
+            failure_b=data.get("failure_b"),
+            channels={k: ChannelDivergence.from_dict(v) for k, v in data["channels"].items()},
+            score=data.get("score"),
+            note=data.get("note"),
+            tolerance_violations=tuple(ToleranceViolation(**v) for v in data.get("tolerance_violations", [])),
+        )
+
+
+@dataclass(frozen=True)
+class Contribution:
+    """How much one scenario × channel adds to the summary score (``share`` of it, 0..1)."""
+
+    scenario_id: str
+    channel: str | None
+    contribution: float
+    share: float
+
+
+@dataclass(frozen=True)
+class RunComparison:
+    """Two runs of one suite compared scenario by scenario.
+
+    Attributes:
+        run_a: Path of run A.
+        run_b: Path of run B.
+        twin_a: Twin of run A (e.g. ``mujoco``).
+        twin_b: Twin of run B.
+        robot: Robot name (identical in both runs).
+        suite_name: Suite name of run A.
+        scenarios: Per-scenario results in suite order.
+        units: Unit per channel.
+        settings: The resolved comparison settings (thresholds, weights, max lag, definitions).
+        summary_score: Mean scenario score over scenarios with a score, None if none has one.
+    """
+
+    run_a: str
+    run_b: str
+    twin_a: str
+    twin_b: str
+    robot: str
+    suite_name: str
+    scenarios: tuple[ScenarioComparison, ...]
+    units: Mapping[str, str]
+    settings: Mapping[str, Any]
+    summary_score: float | None
+
+    @property
+    def channel_names(self) -> list[str]:
+        return list(self.units)
+
+    @property
+    def within_tolerance(self) -> bool:
+        return all(s.within_tolerance for s in self.scenarios)
+
+    def contributions(self) -> list[Contribution]:
+        """Scenario × channel contributions to the summary score, largest first.
+
+        They sum to the summary score. A scenario scored 1.0 for one-sided instability contributes as
+        one entry with ``channel=None``.
+        """
+        scored = [s for s in self.scenarios if s.score is not None]
+        if not scored or not self.summary_score:
+            return []
+        out: list[Contribution] = []
+        for sc in scored:
+            assert sc.score is not None
+            per_scenario = sc.score / len(scored)
+            if sc.unstable_one_sided or not sc.channels:
+                out.append(Contribution(sc.id, None, per_scenario, per_scenario / self.summary_score))
+                continue
+            for name, ch in sc.channels.items():
+                c = ch.score / len(sc.channels) / len(scored)
+                out.append(Contribution(sc.id, name, c, c / self.summary_score))
+        return sorted(out, key=lambda c: c.contribution, reverse=True)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "run_a": self.run_a,
+            "run_b": self.run_b,
+            "twin_a": self.twin_a,
+            "twin_b": self.twin_b,
+            "robot": self.robot,
+            "suite_name": self.suite_name,
+            "summary_score": self.summary_score,
+            "units": dict(self.units),
+            "settings": _plain(self.settings),
+            "scenarios": [s.to_dict() for s in self.scenarios],
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> RunComparison:
+        """Inverse of `to_dict` (without raw series), e.g. to reload ``metrics.json``."""
+        return cls(
+            run_a=data["run_a"],
+            run_b=data["run_b"],
+            twin_a=data["twin_a"],
+            twin_b=data["twin_b"],
+            robot=data["robot"],
+            suite_name=data["suite_name"],
+            scenarios=tuple(ScenarioComparison.from_dict(s) for s in data["scenarios"]),
+            units=dict(data["units"]),
+            settings=data["settings"],
+            summary_score=data.get("summary_score"),
+        )
+
+
+def _plain(value: Any) -> Any:
+    """Deep-copy mappings and sequences into JSON-ready dicts and lists."""
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def resolve_thresholds(
+    channels: list[str], thresholds: Mapping[str, float | Threshold | None] | None
+) -> dict[str, Threshold]:
+    """Per-channel crossing thresholds: ``*_angle_rad`` defaults to 0.99 rad, overridden by ``thresholds``.
+
+    A value of None in ``thresholds`` switches a default off.
+
+    Raises:
+        ValueError: If ``thresholds`` names a channel that is not compared.
+    """
+    overrides = dict(thresholds or {})
+    unknown = sorted(set(overrides) - set(channels))
+    if unknown:
+        raise ValueError(f"thresholds given for unknown channels {unknown}; channels are {sorted(channels)}")
+    out: dict[str, Threshold] = {}
+    for name in channels:
+        value: float | Threshold | None
+        if name in overrides:
+            value = overrides[name]
+        else:
+            value = DEFAULT_ANGLE_THRESHOLD_RAD if name.endswith("_angle_rad") else None
+        if value is not None:
+            out[name] = value if isinstance(value, Threshold) else Threshold(float(value))
+    return out
+
+
+def _mismatch(what: str, a: set[str], b: set[str], label_a: str, label_b: str) -> str | None:
+    only_a, only_b = sorted(a - b), sorted(b - a)
+    if not only_a and not only_b:
+        return None
+    return f"{what} differ: only in A ({label_a}): {only_a}; only in B ({label_b}): {only_b}"
+
+
+def _check_tolerances(
+    scenario_id: str,
+    tolerances: Mapping[str, Mapping[str, float]],
+    channels: Mapping[str, ChannelDivergence],
+    channel_names: list[str],
+) -> tuple[ToleranceViolation, ...]:
+    violations: list[ToleranceViolation] = []
+    for channel, limits in tolerances.items():
+        if channel not in channel_names:
+            raise ValueError(f"tolerances for scenario {scenario_id!r} name unknown channel {channel!r}")
+        unknown = sorted(set(limits) - set(TOLERANCE_METRICS))
+        if unknown:
+            raise ValueError(
+                f"tolerances for {scenario_id!r}/{channel!r} use unknown metrics {unknown}; "
+                f"allowed: {list(TOLERANCE_METRICS)}"
+            )
+        ch = channels.get(channel)
+        if ch is None:
+            continue  # not comparable (unstable); the scenario status already says so
+        for metric, limit in limits.items():
+            value = getattr(ch, metric)
+            if metric == "crossing_diff_s" and value is None:
+                if (ch.crossing_a_s is None) != (ch.crossing_b_s is None):
+                    violations.append(ToleranceViolation(channel, metric, None, float(limit)))
+                continue
+            if abs(float(value)) > float(limit):
+                violations.append(ToleranceViolation(channel, metric, float(value), float(limit)))
+    return tuple(violations)
+
+
+def compare_runs(
+    run_a: Path,
+    run_b: Path,
+    thresholds: Mapping[str, float | Threshold | None] | None = None,
+    *,
+    max_lag_s: float = DEFAULT_MAX_LAG_S,
+    dtw_window: int | None = None,
+    weights: ScoreWeights = DEFAULT_WEIGHTS,
+) -> RunComparison:
+    """Compare two runs of the same suite, scenario by scenario and channel by channel.
+
+    Scenarios are matched by id and channels by name. A scenario that is ``unstable`` in a twin may have
+    a short log or none: its channels are compared over what overlaps, the rest is noted. When exactly
+    one twin is unstable the scenario scores 1.0 (the maximum), since one twin blowing up is the largest
+    divergence there is. Tolerances come from run A's manifest, completed by run B's.
+
+    Args:
+        run_a: Run directory of twin A (the reference).
+        run_b: Run directory of twin B.
+        thresholds: Crossing thresholds per channel, merged over the defaults (see `resolve_thresholds`).
+        max_lag_s: Largest lag searched by the cross-correlation.
+        dtw_window: Optional Sakoe-Chiba band half-width in samples.
+        weights: Score weights.
+
+    Raises:
+        ValueError: If the robots, scenario ids, channel names or units differ (the message lists what is
+            missing on each side), or a scenario that did not blow up lacks its logs.
+    """
+    a, b = load_run(Path(run_a)), load_run(Path(run_b))
+    problems: list[str] = []
+    if a.robot != b.robot:
+        problems.append(f"robots differ: A ({a.path}) is {a.robot!r}, B ({b.path}) is {b.robot!r}")
+    msg = _mismatch(
+        "scenarios", {s.id for s in a.scenarios}, {s.id for s in b.scenarios}, str(a.path), str(b.path)
+    )
+    if msg:
+        problems.append(msg)
+    msg = _mismatch("channels", set(a.channels), set(b.channels), str(a.path), str(b.path))
+    if msg:
+        problems.append(msg)
+    units_differ = sorted(
+        f"{n}: {a.channels[n].unit!r} vs {b.channels[n].unit!r}"
+        for n in set(a.channels) & set(b.channels)
+        if a.channels[n].unit != b.channels[n].unit
+    )
+    if units_differ:
+        problems.append(f"channel units differ: {units_differ}")
+    if problems:
+        raise ValueError("runs are not comparable:\n  " + "\n  ".join(problems))
+
+    channel_names = list(a.channels)
+    resolved = resolve_thresholds(channel_names, thresholds)
+    tolerances = {**b.tolerances, **a.tolerances}
+    unknown_tol = sorted(set(tolerances) - {s.id for s in a.scenarios})
+    if unknown_tol:
+        raise ValueError(f"tolerances name unknown scenarios {unknown_tol}")
+
+    results: list[ScenarioComparison] = []
+    for entry_a in a.scenarios:
+        entry_b = b.scenario(entry_a.id)
+        series_a, series_b = a.series(entry_a.id), b.series(entry_a.id)
+        for run, entry, series in ((a, entry_a, series_a), (b, entry_b, series_b)):
+            missing = [c for c in channel_names if c not in series]
+            if missing and entry.status != "unstable":
+                raise ValueError(
+                    f"{run.path}: scenario {entry.id!r} ({entry.status}) has no log data for channels {missing}"
+                )
+        channels: dict[str, ChannelDivergence] = {}
+        skipped: list[str] = []
+        for name in channel_names:
+            sa, sb = series_a.get(name), series_b.get(name)
+            if sa is None or sb is None:
+                skipped.append(f"{name} (no log)")
+                continue
+            try:
+                channels[name] = compare_channel(
+                    sa.t,
+                    sa.y,
+                    sb.t,
+                    sb.y,
+                    channel=name,
+                    threshold=resolved.get(name),
+                    max_lag_s=max_lag_s,
+                    dtw_window=dtw_window,
+                    weights=weights,
+                )
+            except ValueError as exc:
+                # Only an unstable twin may leave too little to compare; otherwise the data is broken.
+                if entry_a.status != "unstable" and entry_b.status != "unstable":
+                    raise ValueError(f"scenario {entry_a.id!r}, channel {name!r}: {exc}") from exc
+                skipped.append(f"{name} ({exc})")
+
+        notes: list[str] = []
+        one_sided = (entry_a.status == "unstable") != (entry_b.status == "unstable")
+        score: float | None = float(np.mean([c.score for c in channels.values()])) if channels else None
+        if one_sided:
+            side = "A" if entry_a.status == "unstable" else "B"
+            notes.append(f"unstable in {side} only: scored 1.0")
+            score = 1.0
+        elif entry_a.status == "unstable":
+            notes.append("unstable in both twins")
+        if skipped:
+            notes.append("not compared: " + ", ".join(skipped))
+
+        results.append(
+            ScenarioComparison(
+                id=entry_a.id,
+                index=entry_a.index,
+                name=entry_a.name,
+                status_a=entry_a.status,
+                status_b=entry_b.status,
+                failure_a=entry_a.failure,
+                failure_b=entry_b.failure,
+                channels=channels,
+                score=score,
+                note="; ".join(notes) or None,
+                tolerance_violations=_check_tolerances(
+                    entry_a.id, tolerances.get(entry_a.id, {}), channels, channel_names
+                ),
+                series_a={k: Series(*finite_prefix(v.t, v.y)) for k, v in series_a.items()},
+                series_b={k: Series(*finite_prefix(v.t, v.y)) for k, v in series_b.items()},
+            )
+        )
+
+    scores = [s.score for s in results if s.score is not None]
+    settings = {
+        "thresholds": {k: v.to_dict() for k, v in resolved.items()},
+        "weights": weights.to_dict(),
+        "max_lag_s": max_lag_s,
+        "dtw_window": dtw_window,
+        "definitions": {
+            "difference": "B - A",
+            "dtw": "sqrt(sum of squared differences along the optimal warping path) (dtaidistance)",
+            "dtw_rms": "dtw / sqrt(n), n = samples on the common grid",
+            "lag_s": "positive: B lags A, y_b(t) ~ y_a(t - lag_s)",
+            "crossing": "first time the threshold is reached, linearly interpolated",
+            "score": "weighted mean of terms in [0, 1]; amplitude terms divided by the pooled range",
+            "scenario_score": "mean channel score; 1.0 if exactly one twin is unstable",
+            "summary_score": "mean scenario score over scenarios with a score",
+        },
+    }
+    return RunComparison(
+        run_a=str(a.path),
+        run_b=str(b.path),
+        twin_a=a.twin,
+        twin_b=b.twin,
+        robot=a.robot,
+        suite_name=a.suite_name,
+        scenarios=tuple(results),
+        units={name: a.channels[name].unit for name in channel_names},
+        settings=settings,
+        summary_score=float(np.mean(scores)) if scores else None,
+    )

@@ -1,0 +1,1 @@
+"""Bundled robots and the binding format."""

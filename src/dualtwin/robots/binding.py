@@ -1,0 +1,180 @@
+"""Robot bindings: the declarative map from a suite's words onto each twin.
+
+A binding file (YAML) names the robot's models for every twin and maps:
+
+* initial-condition keys (``initial_angle``) to joint positions/velocities or body positions;
+* action keys (``wheel_velocity``) to actuators, with a control mode and a scale;
+* logged channels to on-board sensors (the TestRobot log) or privileged ground truth (the TestOrchestrator log);
+* failure keys (``failure_pole_angle_rad``) to thresholds on ground-truth channels.
+
+Entity names are shared by both twins (the converter preserves Webots names). A twin section may alias a
+name when a user's models disagree (``aliases: {pole_hinge: POLE_JOINT}``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from dualtwin.errors import DualtwinError
+
+ControlMode = Literal["velocity", "position", "torque"]
+Quantity = Literal["position", "velocity"]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+class TwinModel(_Strict):
+    """Where one twin's model lives, relative to the binding file."""
+
+    model: str = Field(description="MJCF file (mujoco) or .wbt world (webots)")
+    robot: str | None = Field(default=None, description="webots: DEF name of the robot node")
+    aliases: dict[str, str] = Field(default_factory=dict)
+
+
+class InitialCondition(_Strict):
+    joint: str | None = None
+    body: str | None = None
+    quantity: Quantity = "position"
+    axis: Literal["x", "y", "z"] | None = None
+    unit: str = ""
+
+    @model_validator(mode="after")
+    def _one_target(self) -> InitialCondition:
+        if (self.joint is None) == (self.body is None):
+            raise ValueError("give exactly one of 'joint' or 'body'")
+        if self.body is not None and self.axis is None:
+            raise ValueError("a body initial condition needs an 'axis'")
+        return self
+
+
+class Action(_Strict):
+    actuators: list[str] = Field(min_length=1)
+    mode: ControlMode = "velocity"
+    scale: float = 1.0
+    unit: str = ""
+
+
+class Channel(_Strict):
+    """One logged column. Exactly one source: sensors, a joint or a body."""
+
+    sensors: list[str] = Field(default_factory=list)
+    joint: str | None = None
+    body: str | None = None
+    quantity: Quantity = "position"
+    axis: Literal["x", "y", "z", "yaw"] | None = None
+    scale: float = 1.0
+    unit: str = ""
+
+    @model_validator(mode="after")
+    def _one_source(self) -> Channel:
+        sources = [bool(self.sensors), self.joint is not None, self.body is not None]
+        if sum(sources) != 1:
+            raise ValueError("give exactly one of 'sensors', 'joint' or 'body'")
+        if self.body is not None and self.axis is None:
+            raise ValueError("a body channel needs an 'axis' (x, y, z or yaw)")
+        return self
+
+
+class Failure(_Strict):
+    """A failure key in ``global_settings`` becomes a threshold on |channel| in the ground-truth log."""
+
+    channel: str
+
+
+class Binding(_Strict):
+    name: str
+    description: str = ""
+    control_period_ms: float = Field(default=32.0, gt=0)
+    twins: dict[str, TwinModel]
+    initial_conditions: dict[str, InitialCondition] = Field(default_factory=dict)
+    actions: dict[str, Action] = Field(default_factory=dict)
+    onboard: dict[str, Channel] = Field(min_length=1, description="TestRobot log: on-board sensors only")
+    ground_truth: dict[str, Channel] = Field(min_length=1, description="TestOrchestrator log: privileged")
+    failures: dict[str, Failure] = Field(default_factory=dict)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Binding:
+        clash = set(self.initial_conditions) & set(self.actions)
+        if clash:
+            raise ValueError(f"keys are both initial conditions and actions: {sorted(clash)}")
+        for key, channel in self.onboard.items():
+            if not channel.sensors:
+                raise ValueError(f"on-board channel {key!r} must read sensors; ground truth belongs in 'ground_truth'")
+        for key, failure in self.failures.items():
+            if failure.channel not in self.ground_truth:
+                raise ValueError(f"failure {key!r} refers to unknown ground-truth channel {failure.channel!r}")
+        return self
+
+
+class RobotBinding:
+    """A validated binding together with the folder its relative model paths are resolved from."""
+
+    def __init__(self, binding: Binding, path: Path) -> None:
+        self.spec = binding
+        self.path = path
+        self.root = path.parent
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+    def model_path(self, twin: str) -> Path:
+        if twin not in self.spec.twins:
+            raise DualtwinError(f"{self.path}: robot {self.name!r} has no model for twin {twin!r} "
+                                f"(it has: {', '.join(sorted(self.spec.twins))})")
+        path = (self.root / self.spec.twins[twin].model).resolve()
+        if not path.is_file():
+            raise DualtwinError(f"{self.path}: model file for twin {twin!r} not found: {path}")
+        return path
+
+    def twin_name(self, twin: str, name: str) -> str:
+        """The entity's name inside one twin (identity unless aliased)."""
+        section = self.spec.twins.get(twin)
+        return section.aliases.get(name, name) if section else name
+
+    def files(self, twin: str) -> list[Path]:
+        return [self.path, self.model_path(twin)]
+
+
+def load_binding(path: Path) -> RobotBinding:
+    path = Path(path)
+    if not path.is_file():
+        raise DualtwinError(f"{path}: binding file not found")
+    try:
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f":{mark.line + 1}:{mark.column + 1}" if mark else ""
+        raise DualtwinError(f"{path}{where}: invalid YAML: {getattr(exc, 'problem', exc)}") from None
+    try:
+        binding = Binding.model_validate(data)
+    except ValidationError as exc:
+        from dualtwin.suite.loader import validation_message
+
+        raise DualtwinError(validation_message(path, exc)) from None
+    return RobotBinding(binding, path)
+
+
+BUNDLED = Path(__file__).parent
+
+
+def bundled_robots() -> list[str]:
+    return sorted(p.parent.name for p in BUNDLED.glob("*/binding.yaml"))
+
+
+def resolve_robot(name_or_path: str) -> RobotBinding:
+    """``cartpole`` names a bundled robot; anything else is a path to a user's binding file."""
+    candidate = BUNDLED / name_or_path / "binding.yaml"
+    if "/" not in name_or_path and candidate.is_file():
+        return load_binding(candidate)
+    path = Path(name_or_path)
+    if path.is_file():
+        return load_binding(path)
+    raise DualtwinError(f"unknown robot {name_or_path!r}: not a bundled robot ({', '.join(bundled_robots())}) "
+                        "and not a binding file")

@@ -1,0 +1,82 @@
+"""Binding-driven robot I/O: the suite's words applied to, and read from, any twin."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+from dualtwin.robots.binding import Channel, RobotBinding
+from dualtwin.twins.base import Twin
+
+AXES = {"x": 0, "y": 1, "z": 2}
+
+
+def _reader(twin: Twin, channel: Channel) -> Callable[[], float]:
+    scale = channel.scale
+    if channel.sensors:
+        names = list(channel.sensors)
+        if len(names) == 1:
+            name = names[0]
+            return lambda: twin.sensor(name) * scale
+        return lambda: sum(twin.sensor(n) for n in names) / len(names) * scale
+    if channel.joint is not None:
+        joint = channel.joint
+        if channel.quantity == "position":
+            return lambda: twin.joint_position(joint) * scale
+        return lambda: twin.joint_velocity(joint) * scale
+    body = channel.body or ""
+    if channel.axis == "yaw":
+        def yaw() -> float:
+            r = twin.body_orientation(body)
+            return math.atan2(float(r[1, 0]), float(r[0, 0])) * scale
+        return yaw
+    axis = AXES[channel.axis or "x"]
+    if channel.quantity == "position":
+        return lambda: float(twin.body_position(body)[axis]) * scale
+    return lambda: float(twin.body_velocity(body)[axis]) * scale
+
+
+class RobotIO:
+    """Applies initial conditions and actions, and samples the two logs, through a binding."""
+
+    def __init__(self, robot: RobotBinding, twin: Twin) -> None:
+        self.robot = robot
+        self.twin = twin
+        spec = robot.spec
+        self.onboard_names = list(spec.onboard)
+        self.ground_truth_names = list(spec.ground_truth)
+        self._onboard = [_reader(twin, c) for c in spec.onboard.values()]
+        self._ground_truth = [_reader(twin, c) for c in spec.ground_truth.values()]
+        self._gt_index = {name: i for i, name in enumerate(self.ground_truth_names)}
+
+    def apply_initial(self, key: str, value: float) -> None:
+        ic = self.robot.spec.initial_conditions[key]
+        if ic.joint is not None:
+            if ic.quantity == "position":
+                self.twin.set_joint_state(ic.joint, position=value)
+            else:
+                self.twin.set_joint_state(ic.joint, velocity=value)
+        else:
+            self.twin.set_body_position(ic.body or "", AXES[ic.axis or "x"], value)
+
+    def apply_action(self, key: str, value: float) -> None:
+        action = self.robot.spec.actions[key]
+        for actuator in action.actuators:
+            self.twin.command(actuator, action.mode, value * action.scale)
+
+    def sample_onboard(self) -> list[float]:
+        return [read() for read in self._onboard]
+
+    def sample_ground_truth(self) -> list[float]:
+        return [read() for read in self._ground_truth]
+
+    def ground_truth_index(self, channel: str) -> int:
+        return self._gt_index[channel]
+
+    def channel_info(self) -> dict[str, Any]:
+        spec = self.robot.spec
+        return {
+            "onboard": {k: {"source": "onboard", "unit": c.unit} for k, c in spec.onboard.items()},
+            "ground_truth": {k: {"source": "ground_truth", "unit": c.unit} for k, c in spec.ground_truth.items()},
+        }

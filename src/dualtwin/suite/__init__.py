@@ -1,0 +1,1 @@
+"""Scenario suites: format, loading and running."""

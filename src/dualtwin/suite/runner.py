@@ -1,0 +1,218 @@
+"""Runs a suite on a twin and writes one on-board and one ground-truth log per scenario.
+
+Run directory layout::
+
+    RUN/manifest.json                       config, versions, input hashes, seed, scenario statuses
+    RUN/config/suite.json, binding.yaml     exact copies of the inputs
+    RUN/scenarios/<id>/onboard.tsv          TestRobot log (on-board sensors)
+    RUN/scenarios/<id>/ground_truth.tsv     TestOrchestrator log (privileged ground truth)
+
+Every file is written atomically and the manifest is rewritten after each scenario, so a run that dies keeps
+what it finished, and ``resume=True`` runs only the rest.
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from dualtwin.artifacts import package_versions, sha256_file, write_json, write_text
+from dualtwin.errors import DualtwinError, SimulationUnstable
+from dualtwin.robots.binding import RobotBinding
+from dualtwin.robots.io import RobotIO
+from dualtwin.suite.loader import json_path, load_suite, read_json
+from dualtwin.suite.schema import Scenario, Suite
+from dualtwin.twins import make_twin
+from dualtwin.twins.base import Twin
+
+MANIFEST_VERSION = 1
+
+
+def check_against_binding(suite: Suite, suite_path: Path, robot: RobotBinding) -> None:
+    """Every robot-specific key must resolve through the binding, before anything is simulated or written."""
+    spec = robot.spec
+    known = sorted(set(spec.initial_conditions) | set(spec.actions))
+    for i, scenario in enumerate(suite.scenarios):
+        for key, value in scenario.inputs.items():
+            where = json_path(("scenarios", i, key))
+            if key in spec.initial_conditions:
+                if not isinstance(value, float):
+                    raise DualtwinError(f"{suite_path}: {where}: initial condition {key!r} must be a number")
+            elif key not in spec.actions:
+                raise DualtwinError(f"{suite_path}: {where}: unknown robot-specific key {key!r}; "
+                                    f"robot {robot.name!r} knows: {', '.join(known)}")
+        for channel in scenario.tolerances:
+            if channel not in spec.ground_truth and channel not in spec.onboard:
+                raise DualtwinError(f"{suite_path}: {json_path(('scenarios', i, 'tolerances', channel))}: "
+                                    f"unknown channel {channel!r}")
+    for key in suite.global_settings.thresholds:
+        if key not in spec.failures:
+            raise DualtwinError(f"{suite_path}: {json_path(('global_settings', key))}: unknown setting {key!r}; "
+                                f"robot {robot.name!r} knows failure keys: {', '.join(sorted(spec.failures)) or 'none'}")
+
+
+@dataclass
+class ScenarioResult:
+    id: str
+    status: str
+    failure: dict[str, Any] | None
+    steps: int
+
+
+def _format_rows(names: list[str], rows: list[list[float]]) -> str:
+    lines = ["\t".join(["time_s", *names])]
+    lines.extend("\t".join(repr(v) for v in row) for row in rows)
+    return "\n".join(lines) + "\n"
+
+
+def run_scenario(io: RobotIO, scenario: Scenario, seed: int, thresholds: dict[str, float],
+                 fresh: bool) -> tuple[ScenarioResult, list[list[float]], list[list[float]]]:
+    """Simulate one scenario; returns its result and the two logs (rows of time followed by channels)."""
+    twin = io.twin
+    period = twin.control_period
+    if fresh:
+        twin.reset(seed)
+    inputs = scenario.inputs
+    actions = io.robot.spec.actions
+    constant = {k: v for k, v in inputs.items() if k in actions and isinstance(v, float)}
+    signals = {k: v for k, v in inputs.items() if k in actions and not isinstance(v, float)}
+    if fresh:
+        for key, value in inputs.items():
+            if key in io.robot.spec.initial_conditions:
+                io.apply_initial(key, value)
+    for key, value in constant.items():
+        io.apply_action(key, value)
+    failures = [(key, io.robot.spec.failures[key].channel, limit) for key, limit in thresholds.items()]
+    failure_index = [(key, channel, io.ground_truth_index(channel), limit) for key, channel, limit in failures]
+
+    start = twin.time
+    steps = math.ceil(scenario.duration_s / period - 1e-9)
+    onboard = [[0.0, *io.sample_onboard()]]
+    truth = [[0.0, *io.sample_ground_truth()]]
+    status, failure = "completed", None
+    for k in range(steps):
+        t_rel = k * period
+        for key, signal in signals.items():
+            io.apply_action(key, signal(t_rel))
+        try:
+            twin.step()
+        except SimulationUnstable as exc:
+            status, failure = "unstable", {"time_s": round(twin.time - start, 9), "message": str(exc)}
+            break
+        t = round(twin.time - start, 9)
+        onboard_row = [t, *io.sample_onboard()]
+        truth_row = [t, *io.sample_ground_truth()]
+        if not all(math.isfinite(v) for v in onboard_row + truth_row):
+            status, failure = "unstable", {"time_s": t, "message": "non-finite channel value"}
+            break
+        onboard.append(onboard_row)
+        truth.append(truth_row)
+        for key, channel, index, limit in failure_index:
+            if abs(truth_row[index + 1]) > limit:
+                status, failure = "failed", {"key": key, "channel": channel, "time_s": t, "threshold": limit}
+                break
+        if status == "failed":
+            break
+    return ScenarioResult("", status, failure, len(truth) - 1), onboard, truth
+
+
+class SuiteRun:
+    """One suite on one twin, writing into ``out_dir``."""
+
+    def __init__(self, suite_path: Path, twin_name: str, robot: RobotBinding, out_dir: Path,
+                 seed: int = 0, twin: Twin | None = None) -> None:
+        self.suite_path = Path(suite_path)
+        self.suite = load_suite(self.suite_path)
+        check_against_binding(self.suite, self.suite_path, robot)
+        self.robot = robot
+        self.twin_name = twin_name
+        self.out_dir = Path(out_dir)
+        self.seed = seed
+        self.control_period = self.suite.global_settings.control_period_s
+        self._twin = twin
+
+    def _inputs_record(self) -> dict[str, Any]:
+        model = self.robot.model_path(self.twin_name)
+        return {
+            "suite": {"path": str(self.suite_path), "sha256": sha256_file(self.suite_path)},
+            "binding": {"path": str(self.robot.path), "sha256": sha256_file(self.robot.path)},
+            "model": {"path": str(model), "sha256": sha256_file(model)},
+        }
+
+    def run(self, resume: bool = False, on_scenario: Callable[[str, str], None] | None = None) -> dict[str, Any]:
+        out = self.out_dir
+        manifest_path = out / "manifest.json"
+        inputs = self._inputs_record()
+        done: dict[str, dict[str, Any]] = {}
+        if resume and manifest_path.is_file():
+            previous = read_json(manifest_path)
+            same = all(previous.get("inputs", {}).get(k, {}).get("sha256") == v["sha256"] for k, v in inputs.items())
+            if not same or previous.get("seed") != self.seed or previous.get("twin") != self.twin_name:
+                raise DualtwinError(f"{manifest_path}: cannot resume: the suite, binding, model, twin or seed "
+                                    "differ from the interrupted run")
+            done = {s["id"]: s for s in previous.get("scenarios", []) if (out / s["ground_truth"]).is_file()}
+        elif out.exists() and any(out.iterdir()):
+            raise DualtwinError(f"{out}: output folder is not empty; use --resume to continue a run, "
+                                "or choose another folder")
+
+        twin = self._twin or make_twin(self.twin_name, self.robot, self.control_period)
+        io = RobotIO(self.robot, twin)
+        (out / "config").mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(self.suite_path, out / "config" / "suite.json")
+        shutil.copyfile(self.robot.path, out / "config" / "binding.yaml")
+        manifest: dict[str, Any] = {
+            "manifest_version": MANIFEST_VERSION,
+            "suite_name": self.suite.suite_name,
+            "twin": self.twin_name,
+            "robot": self.robot.name,
+            "seed": self.seed,
+            "control_period_s": self.control_period,
+            "inputs": inputs,
+            "versions": package_versions(),
+            "channels": io.channel_info(),
+            "tolerances": {},
+            "scenarios": [],
+        }
+        ids = self.suite.scenario_ids()
+        thresholds = self.suite.global_settings.thresholds
+        need_fresh = True
+        try:
+            for index, (sid, scenario) in enumerate(zip(ids, self.suite.scenarios, strict=True)):
+                next_continues = index + 1 < len(ids) and self.suite.scenarios[index + 1].reset == "continue"
+                fresh = need_fresh or scenario.reset == "fresh"
+                seed = scenario.seed if scenario.seed is not None else self.seed
+                record = {"id": sid, "index": index, "name": scenario.name, "seed": seed,
+                          "reset": "fresh" if fresh else "continue",
+                          "onboard": f"scenarios/{sid}/onboard.tsv",
+                          "ground_truth": f"scenarios/{sid}/ground_truth.tsv"}
+                if scenario.tolerances:
+                    manifest["tolerances"][sid] = {k: v.model_dump(exclude_none=True)
+                                                   for k, v in scenario.tolerances.items()}
+                if sid in done and not next_continues:
+                    manifest["scenarios"].append(done[sid])
+                    need_fresh = True
+                    if on_scenario:
+                        on_scenario(sid, "skipped (done)")
+                    continue
+                result, onboard, truth = run_scenario(io, scenario, seed, thresholds, fresh)
+                # An unstable end state cannot be continued from: the next scenario starts fresh.
+                need_fresh = result.status == "unstable"
+                if sid not in done:
+                    write_text(out / record["onboard"], _format_rows(io.onboard_names, onboard))
+                    write_text(out / record["ground_truth"], _format_rows(io.ground_truth_names, truth))
+                    record.update(status=result.status, failure=result.failure, steps=result.steps)
+                else:
+                    record = done[sid]
+                manifest["scenarios"].append(record)
+                write_json(manifest_path, manifest)
+                if on_scenario:
+                    on_scenario(sid, result.status)
+        finally:
+            if self._twin is None:
+                twin.close()
+        write_json(manifest_path, manifest)
+        return manifest

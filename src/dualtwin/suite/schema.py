@@ -1,0 +1,110 @@
+"""The scenario-suite format.
+
+The paper's ``test_scenarios.json`` loads unchanged: ``suite_name``, ``global_settings`` (``TIME_STEP`` is the
+control period in ms, other keys are robot-specific failure thresholds) and ``scenarios`` whose unknown keys
+(``initial_angle``, ``wheel_velocity`` ...) are robot-specific inputs resolved through the robot binding.
+
+Documented extensions on a scenario: ``seed``, ``reset`` (``fresh`` | ``continue``), ``tolerances`` per channel,
+and time-varying action signals (see :mod:`dualtwin.suite.signals`) as the value of an action key.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, field_validator, model_validator
+
+from dualtwin.suite.signals import Signal
+
+SCENARIO_KEYS = {"name", "duration_s", "type", "description", "seed", "reset", "tolerances"}
+
+
+class Tolerance(BaseModel):
+    """Per-channel budget: a scenario 'agrees' when every given metric is within its bound."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    rmse: float | None = Field(default=None, ge=0)
+    max_abs: float | None = Field(default=None, ge=0)
+    crossing_s: float | None = Field(default=None, ge=0)
+    final: float | None = Field(default=None, ge=0)
+
+
+class GlobalSettings(BaseModel):
+    model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
+    TIME_STEP: float = Field(default=32.0, gt=0, description="control period, ms")
+
+    @model_validator(mode="after")
+    def _extras_are_numbers(self) -> GlobalSettings:
+        for key, value in (self.model_extra or {}).items():
+            if not isinstance(value, int | float) or isinstance(value, bool) or not math.isfinite(value):
+                raise ValueError(f"global setting {key!r} must be a finite number")
+        return self
+
+    @property
+    def control_period_s(self) -> float:
+        return self.TIME_STEP / 1000.0
+
+    @property
+    def thresholds(self) -> dict[str, float]:
+        """Robot-specific settings (failure thresholds), resolved through the binding."""
+        return {k: float(v) for k, v in (self.model_extra or {}).items()}
+
+
+_signal_adapter: TypeAdapter[Any] = TypeAdapter(Signal)
+
+
+class Scenario(BaseModel):
+    model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
+    name: str = Field(min_length=1)
+    duration_s: float = Field(gt=0)
+    type: str | None = None
+    description: str | None = None
+    seed: int | None = Field(default=None, ge=0)
+    reset: Literal["fresh", "continue"] = "fresh"
+    tolerances: dict[str, Tolerance] = Field(default_factory=dict)
+
+    @model_validator(mode="after")
+    def _inputs_are_values_or_signals(self) -> Scenario:
+        for key, value in (self.model_extra or {}).items():
+            if isinstance(value, bool):
+                raise ValueError(f"{key!r} must be a number or a signal object, not a boolean")
+            if isinstance(value, int | float):
+                if not math.isfinite(value):
+                    raise ValueError(f"{key!r} must be finite")
+            elif isinstance(value, dict):
+                _signal_adapter.validate_python(value)
+            else:
+                raise ValueError(f"{key!r} must be a number or a signal object with a 'kind'")
+        return self
+
+    @property
+    def inputs(self) -> dict[str, Any]:
+        """Robot-specific keys: numbers, or parsed signal objects for time-varying actions."""
+        out: dict[str, Any] = {}
+        for key, value in (self.model_extra or {}).items():
+            out[key] = _signal_adapter.validate_python(value) if isinstance(value, dict) else float(value)
+        return out
+
+
+class Suite(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    suite_name: str = Field(min_length=1)
+    global_settings: GlobalSettings = Field(default_factory=GlobalSettings)
+    scenarios: list[Scenario] = Field(min_length=1)
+
+    @field_validator("scenarios")
+    @classmethod
+    def _first_is_fresh(cls, scenarios: list[Scenario]) -> list[Scenario]:
+        if scenarios and scenarios[0].reset == "continue":
+            raise ValueError("the first scenario cannot continue from a previous one; use reset 'fresh'")
+        return scenarios
+
+    def scenario_ids(self) -> list[str]:
+        """Unique ids: names may repeat in the published format, so the index prefixes them."""
+        return [f"{i:02d}_{_slug(s.name)}" for i, s in enumerate(self.scenarios)]
+
+
+def _slug(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("_") or "scenario"

@@ -1,0 +1,88 @@
+"""Webots motor semantics, shared by every twin that has to emulate them (spec §5 of webots-on-ode.md).
+
+Webots turns every controller command into a target velocity ``u`` for the ODE joint motor once per physics
+step: velocity control uses the target velocity, position control runs Webots' PID on the position error
+and clamps it to the target velocity, and an acceleration limit slews the result.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+
+@dataclass
+class MotorParams:
+    """A Webots RotationalMotor/LinearMotor's fields."""
+
+    max_velocity: float = 10.0
+    max_torque: float = 10.0
+    kp: float = 10.0
+    ki: float = 0.0
+    kd: float = 0.0
+    acceleration: float = -1.0
+
+
+@dataclass
+class MotorState:
+    """The controller-side state of one motor, as Webots keeps it (WbMotor)."""
+
+    params: MotorParams
+    target_position: float = 0.0
+    target_velocity: float = 0.0
+    torque: float = 0.0
+    available_torque: float = 0.0
+    torque_mode: bool = False
+    integral: float = 0.0
+    previous_error: float = 0.0
+    current_velocity: float = 0.0
+    gain: float = 1.0
+    extra: dict[str, float] = field(default_factory=dict)
+
+    def reset(self, position: float) -> None:
+        """Webots' initial state: hold the current position at up to max velocity (spec §5.1)."""
+        self.target_position = position
+        self.target_velocity = self.params.max_velocity
+        self.available_torque = self.params.max_torque
+        self.torque = 0.0
+        self.torque_mode = False
+        self.integral = 0.0
+        self.previous_error = 0.0
+        self.current_velocity = 0.0
+
+    def set_velocity(self, velocity: float) -> None:
+        """Velocity control: ``setPosition(inf)`` + ``setVelocity(v)``, clamped to max velocity."""
+        v = velocity * self.gain
+        self.target_position = math.inf
+        self.target_velocity = max(-self.params.max_velocity, min(self.params.max_velocity, v))
+        self.torque_mode = False
+
+    def set_position(self, position: float) -> None:
+        self.target_position = position * self.gain
+        self.target_velocity = self.params.max_velocity
+        self.torque_mode = False
+
+    def set_torque(self, torque: float) -> None:
+        limit = min(self.available_torque, self.params.max_torque)
+        self.torque = max(-limit, min(limit, torque * self.gain))
+        self.torque_mode = True
+
+    def velocity_command(self, position: float, dt: float) -> float:
+        """The velocity ``u`` the joint motor tracks this physics step (WbMotor.computeCurrentDynamicVelocity)."""
+        if self.available_torque == 0.0:
+            u = 0.0
+        elif math.isinf(self.target_position):
+            u = self.target_velocity
+        else:
+            error = self.target_position - position
+            self.integral += error * dt
+            derivative = (error - self.previous_error) / dt
+            out = self.params.kp * error + self.params.ki * self.integral + self.params.kd * derivative
+            self.previous_error = error
+            limit = abs(self.target_velocity)
+            u = out if abs(out) < limit else math.copysign(limit, out)
+        if self.params.acceleration > 0:
+            step = self.params.acceleration * dt
+            u = max(self.current_velocity - step, min(self.current_velocity + step, u))
+        self.current_velocity = u
+        return u

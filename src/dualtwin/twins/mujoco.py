@@ -1,0 +1,386 @@
+"""The MuJoCo twin.
+
+Motors mean what a Webots motor means (see :mod:`dualtwin.twins.base`). ODE's joint motor is a velocity
+constraint that reaches the commanded velocity within one step unless that needs more than the maximum
+torque. MuJoCo has no such constraint, so each motor is a ``general`` actuator switched between:
+
+* a stiff velocity servo (force ``kv (u - qdot)``, integrated implicitly by ``implicitfast``, so any ``kv``
+  is stable) while the torque it needs stays within the limit, and
+* a saturated torque of ``±max_torque`` once it does not, until the velocity reaches ``u`` again.
+
+MuJoCo's own ``forcerange`` clamp is not used for this: when it clamps, ``implicitfast`` drops the servo's
+derivative and a stiff servo chatters. Webots motor fields are read from
+``<custom><numeric name="webots_motor.NAME" data="maxVelocity Kp Ki Kd acceleration"/>``, and the maximum
+torque from the actuator's ``forcerange``.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import mujoco
+import numpy as np
+
+from dualtwin.errors import DualtwinError, SimulationUnstable
+from dualtwin.twins.base import ControlMode, Knob, Twin, unknown_name
+from dualtwin.twins.motors import MotorParams, MotorState
+
+if TYPE_CHECKING:
+    from dualtwin.robots.binding import RobotBinding
+
+# Servo stiffness relative to the joint's own inertia: kv·dt = SERVO_STIFFNESS·I closes 99.9 % of the
+# velocity error of a free joint in one step, like ODE's motor constraint.
+SERVO_STIFFNESS = 1000.0
+
+
+class _Motor:
+    __slots__ = ("name", "index", "qpos", "dof", "kv", "state", "saturated")
+
+    def __init__(self, name: str, index: int, qpos: int, dof: int, kv: float, state: MotorState) -> None:
+        self.name = name
+        self.index = index
+        self.qpos = qpos
+        self.dof = dof
+        self.kv = kv
+        self.state = state
+        self.saturated = 0.0  # 0 = servo; ±1 = applying ±max torque
+
+
+def compile_spec(spec: mujoco.MjSpec, origin: str) -> mujoco.MjModel:
+    try:
+        return spec.compile()
+    except ValueError as exc:
+        message = " ".join(str(exc).split())
+        raise DualtwinError(f"{origin}: MJCF does not compile: {message}") from None
+
+
+def load_spec(path: Path) -> mujoco.MjSpec:
+    if not Path(path).is_file():
+        raise DualtwinError(f"{path}: model file not found")
+    try:
+        return mujoco.MjSpec.from_file(str(path))
+    except ValueError as exc:
+        message = " ".join(str(exc).split())
+        raise DualtwinError(f"{path}: MJCF does not parse: {message}") from None
+
+
+class MuJoCoTwin(Twin):
+    """A MuJoCo model stepped in control periods with Webots motor semantics."""
+
+    name = "mujoco"
+
+    def __init__(self, model: Path | mujoco.MjSpec, control_period: float,
+                 aliases: dict[str, str] | None = None) -> None:
+        origin = str(model) if isinstance(model, Path | str) else "<MjSpec>"
+        self.spec = load_spec(Path(model)) if isinstance(model, Path | str) else model
+        self.model = compile_spec(self.spec, origin)
+        self.data = mujoco.MjData(self.model)
+        self._origin = origin
+        self._aliases = aliases or {}
+        dt = self.model.opt.timestep
+        substeps = control_period / dt
+        if abs(substeps - round(substeps)) > 1e-6 or round(substeps) < 1:
+            raise DualtwinError(f"{origin}: control period {control_period} s is not a whole number of "
+                                f"physics steps of {dt} s")
+        self._substeps = int(round(substeps))
+        self._control_period = control_period
+        self._rng = np.random.default_rng(0)
+        self._noise = np.array(self.model.sensor_noise, dtype=float)
+        self._nominal = self._snapshot_nominal()
+        self._knob_values: dict[str, float] = {}
+        self._motors = self._build_motors()
+        self._motor_by_name = {m.name: m for m in self._motors}
+        self._renderer: mujoco.Renderer | None = None
+        self.reset()
+
+    # ---------------------------------------------------------------- set-up
+    def _id(self, kind: mujoco.mjtObj, name: str, label: str) -> int:
+        resolved = self._aliases.get(name, name)
+        index = mujoco.mj_name2id(self.model, kind, resolved)
+        if index < 0:
+            count = {mujoco.mjtObj.mjOBJ_JOINT: self.model.njnt, mujoco.mjtObj.mjOBJ_BODY: self.model.nbody,
+                     mujoco.mjtObj.mjOBJ_ACTUATOR: self.model.nu, mujoco.mjtObj.mjOBJ_SENSOR: self.model.nsensor,
+                     mujoco.mjtObj.mjOBJ_GEOM: self.model.ngeom, mujoco.mjtObj.mjOBJ_CAMERA: self.model.ncam}[kind]
+            known = [mujoco.mj_id2name(self.model, kind, i) or "" for i in range(count)]
+            raise unknown_name(label, resolved, [k for k in known if k], self._origin)
+        return int(index)
+
+    def _motor_params(self, name: str, actuator: int) -> MotorParams:
+        params = MotorParams()
+        numeric = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_NUMERIC, f"webots_motor.{name}")
+        if numeric >= 0:
+            adr, size = self.model.numeric_adr[numeric], self.model.numeric_size[numeric]
+            values = list(self.model.numeric_data[adr:adr + size]) + [math.nan] * 5
+            for attr, value in zip(("max_velocity", "kp", "ki", "kd", "acceleration"), values[:5], strict=True):
+                if not math.isnan(value):
+                    setattr(params, attr, float(value))
+        if self.model.actuator_forcelimited[actuator]:
+            params.max_torque = float(abs(self.model.actuator_forcerange[actuator, 1]))
+        return params
+
+    def _build_motors(self) -> list[_Motor]:
+        m = self.model
+        motors = []
+        # Webots clamps torque itself; MuJoCo's clamp would disable the implicit servo derivative.
+        mujoco.mj_setConst(m, self.data)
+        for i in range(m.nu):
+            if m.actuator_trntype[i] != mujoco.mjtTrn.mjTRN_JOINT:
+                continue
+            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, i) or f"actuator{i}"
+            joint = int(m.actuator_trnid[i, 0])
+            dof = int(m.jnt_dofadr[joint])
+            params = self._motor_params(name, i)
+            m.actuator_forcelimited[i] = 0
+            m.actuator_ctrllimited[i] = 0
+            inertia = float(m.dof_M0[dof]) + float(m.dof_armature[dof])
+            kv = SERVO_STIFFNESS * inertia / m.opt.timestep
+            motors.append(_Motor(name, i, int(m.jnt_qposadr[joint]), dof, kv, MotorState(params)))
+        return motors
+
+    def _snapshot_nominal(self) -> dict[str, np.ndarray]:
+        m = self.model
+        return {
+            "dof_damping": m.dof_damping.copy(), "dof_frictionloss": m.dof_frictionloss.copy(),
+            "geom_friction": m.geom_friction.copy(), "body_mass": m.body_mass.copy(),
+            "body_inertia": m.body_inertia.copy(), "body_ipos": m.body_ipos.copy(),
+            "geom_solref": m.geom_solref.copy(), "jnt_stiffness": m.jnt_stiffness.copy(),
+        }
+
+    # ---------------------------------------------------------------- Twin API
+    @property
+    def control_period(self) -> float:
+        return self._control_period
+
+    @property
+    def time(self) -> float:
+        return float(self.data.time)
+
+    def reset(self, seed: int | None = None) -> None:
+        mujoco.mj_resetData(self.model, self.data)
+        mujoco.mj_forward(self.model, self.data)
+        self._rng = np.random.default_rng(seed)
+        for motor in self._motors:
+            motor.state.reset(float(self.data.qpos[motor.qpos]))
+            motor.saturated = 0.0
+            self._set_servo(motor)
+        self._bad_qacc = self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
+
+    def set_joint_state(self, joint: str, position: float | None = None, velocity: float | None = None) -> None:
+        j = self._id(mujoco.mjtObj.mjOBJ_JOINT, joint, "joint")
+        m, d = self.model, self.data
+        if position is not None:
+            d.qpos[m.jnt_qposadr[j]] = position
+            # Webots resets the physics of the teleported subtree (spec §4.1).
+            body = m.jnt_bodyid[j]
+            for b in range(m.nbody):
+                if self._in_subtree(b, body):
+                    start, count = m.body_dofadr[b], m.body_dofnum[b]
+                    if count:
+                        d.qvel[start:start + count] = 0.0
+        if velocity is not None:
+            d.qvel[m.jnt_dofadr[j]] = velocity
+        mujoco.mj_forward(m, d)
+
+    def _in_subtree(self, body: int, root: int) -> bool:
+        while body > 0:
+            if body == root:
+                return True
+            body = int(self.model.body_parentid[body])
+        return root == 0
+
+    def set_body_position(self, body: str, axis: int, value: float) -> None:
+        b = self._id(mujoco.mjtObj.mjOBJ_BODY, body, "body")
+        m = self.model
+        joint = m.body_jntadr[b]
+        if joint < 0 or m.jnt_type[joint] != mujoco.mjtJoint.mjJNT_FREE:
+            raise DualtwinError(f"{self._origin}: body {body!r} has no free joint to teleport")
+        self.data.qpos[m.jnt_qposadr[joint] + axis] = value
+        mujoco.mj_forward(m, self.data)
+
+    def command(self, actuator: str, mode: ControlMode, value: float) -> None:
+        motor = self._motor_by_name.get(self._aliases.get(actuator, actuator))
+        if motor is None:
+            raise unknown_name("motor", actuator, list(self._motor_by_name), self._origin)
+        if mode == "velocity":
+            motor.state.set_velocity(value)
+        elif mode == "position":
+            motor.state.set_position(value)
+        else:
+            motor.state.set_torque(value)
+        if motor.state.torque_mode:
+            self._set_torque(motor, motor.state.torque)
+        else:
+            motor.saturated = 0.0
+            self._set_servo(motor)
+
+    def _set_servo(self, motor: _Motor) -> None:
+        m = self.model
+        m.actuator_gainprm[motor.index, 0] = motor.kv
+        m.actuator_biastype[motor.index] = mujoco.mjtBias.mjBIAS_AFFINE
+        m.actuator_biasprm[motor.index, :3] = (0.0, 0.0, -motor.kv)
+
+    def _set_torque(self, motor: _Motor, torque: float) -> None:
+        m = self.model
+        m.actuator_gainprm[motor.index, 0] = 1.0
+        m.actuator_biastype[motor.index] = mujoco.mjtBias.mjBIAS_NONE
+        m.actuator_biasprm[motor.index, :3] = 0.0
+        self.data.ctrl[motor.index] = torque
+
+    def step(self) -> None:
+        m, d = self.model, self.data
+        servos = [mo for mo in self._motors if not mo.state.torque_mode]
+        if not servos:
+            mujoco.mj_step(m, d, nstep=self._substeps)
+        else:
+            dt = m.opt.timestep
+            qpos, qvel, ctrl = d.qpos, d.qvel, d.ctrl
+            for _ in range(self._substeps):
+                for mo in servos:
+                    u = mo.state.velocity_command(float(qpos[mo.qpos]), dt)
+                    limit = mo.state.available_torque
+                    if mo.saturated:
+                        # Leave saturation once full torque would carry the joint past u this step.
+                        if (u - float(qvel[mo.dof])) * mo.saturated <= 0.0 or limit <= 0.0:
+                            mo.saturated = 0.0
+                            self._set_servo(mo)
+                            ctrl[mo.index] = u
+                        else:
+                            ctrl[mo.index] = mo.saturated * limit
+                    else:
+                        ctrl[mo.index] = u
+                mujoco.mj_step(m, d)
+                for mo in servos:
+                    if not mo.saturated:
+                        # Backward-Euler servo torque actually applied this step.
+                        torque = mo.kv * (float(ctrl[mo.index]) - float(qvel[mo.dof]))
+                        if abs(torque) > mo.state.available_torque:
+                            mo.saturated = math.copysign(1.0, torque)
+                            self._set_torque(mo, mo.saturated * mo.state.available_torque)
+        self._check_stable()
+
+    def _check_stable(self) -> None:
+        d = self.data
+        warnings = d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
+        if warnings != self._bad_qacc or not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()):
+            self._bad_qacc = warnings
+            raise SimulationUnstable(f"MuJoCo twin became numerically unstable at t = {d.time:.3f} s")
+
+    def joint_position(self, joint: str) -> float:
+        j = self._id(mujoco.mjtObj.mjOBJ_JOINT, joint, "joint")
+        return float(self.data.qpos[self.model.jnt_qposadr[j]])
+
+    def joint_velocity(self, joint: str) -> float:
+        j = self._id(mujoco.mjtObj.mjOBJ_JOINT, joint, "joint")
+        return float(self.data.qvel[self.model.jnt_dofadr[j]])
+
+    def body_position(self, body: str) -> np.ndarray:
+        return self.data.xpos[self._id(mujoco.mjtObj.mjOBJ_BODY, body, "body")].copy()
+
+    def body_orientation(self, body: str) -> np.ndarray:
+        return self.data.xmat[self._id(mujoco.mjtObj.mjOBJ_BODY, body, "body")].reshape(3, 3).copy()
+
+    def body_velocity(self, body: str) -> np.ndarray:
+        b = self._id(mujoco.mjtObj.mjOBJ_BODY, body, "body")
+        out = np.zeros(6)
+        mujoco.mj_objectVelocity(self.model, self.data, mujoco.mjtObj.mjOBJ_XBODY, b, out, 0)
+        return np.concatenate([out[3:], out[:3]])
+
+    def sensor(self, name: str) -> float:
+        s = self._id(mujoco.mjtObj.mjOBJ_SENSOR, name, "sensor")
+        value = float(self.data.sensordata[self.model.sensor_adr[s]])
+        if self._noise[s] > 0:
+            value += float(self._rng.normal(0.0, self._noise[s]))
+        return value
+
+    # ---------------------------------------------------------------- knobs
+    def knobs(self) -> dict[str, Knob]:
+        m = self.model
+        out: dict[str, Knob] = {}
+        for j in range(m.njnt):
+            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j)
+            if not name or m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
+                continue
+            dof = m.jnt_dofadr[j]
+            damping = float(self._nominal["dof_damping"][dof])
+            friction = float(self._nominal["dof_frictionloss"][dof])
+            out[f"joint.{name}.damping"] = Knob(f"joint.{name}.damping", damping, 0.0, max(10 * damping, 1.0),
+                                                "N*m*s/rad", "joint viscous damping (Webots dampingConstant)")
+            out[f"joint.{name}.friction"] = Knob(f"joint.{name}.friction", friction, 0.0, max(10 * friction, 0.5),
+                                                 "N*m", "joint dry friction (MuJoCo frictionloss, Webots staticFriction)")
+        for g in range(m.ngeom):
+            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g)
+            if name and m.geom_contype[g] | m.geom_conaffinity[g]:
+                mu = float(self._nominal["geom_friction"][g, 0])
+                out[f"geom.{name}.friction"] = Knob(f"geom.{name}.friction", mu, 0.0, 5.0 * max(mu, 0.1), "",
+                                                    "sliding friction coefficient")
+        for b in range(1, m.nbody):
+            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b)
+            if name:
+                mass = float(self._nominal["body_mass"][b])
+                out[f"body.{name}.mass"] = Knob(f"body.{name}.mass", mass, 0.1 * mass, 10 * mass, "kg",
+                                                "body mass (inertia scaled with it)")
+        for mo in self._motors:
+            p = mo.state.params
+            out[f"motor.{mo.name}.max_torque"] = Knob(f"motor.{mo.name}.max_torque", p.max_torque, 0.0,
+                                                      10 * p.max_torque, "N*m", "maximum motor torque")
+            out[f"motor.{mo.name}.gain"] = Knob(f"motor.{mo.name}.gain", 1.0, -2.0, 2.0, "",
+                                                "command gain (sign included)")
+        return out
+
+    def set_knobs(self, values: dict[str, float]) -> None:
+        registry = self.knobs()
+        unknown = sorted(set(values) - set(registry))
+        if unknown:
+            raise DualtwinError(f"{self._origin}: unknown knobs: {', '.join(unknown)}")
+        m, nominal = self.model, self._nominal
+        m.dof_damping[:] = nominal["dof_damping"]
+        m.dof_frictionloss[:] = nominal["dof_frictionloss"]
+        m.geom_friction[:] = nominal["geom_friction"]
+        m.body_mass[:] = nominal["body_mass"]
+        m.body_inertia[:] = nominal["body_inertia"]
+        for mo in self._motors:
+            mo.state.params.max_torque = registry[f"motor.{mo.name}.max_torque"].nominal
+            mo.state.gain = 1.0
+        for key, value in values.items():
+            kind, name, prop = key.split(".", 2)
+            if kind == "joint":
+                dof = m.jnt_dofadr[self._id(mujoco.mjtObj.mjOBJ_JOINT, name, "joint")]
+                (m.dof_damping if prop == "damping" else m.dof_frictionloss)[dof] = value
+            elif kind == "geom":
+                m.geom_friction[self._id(mujoco.mjtObj.mjOBJ_GEOM, name, "geom"), 0] = value
+            elif kind == "body":
+                b = self._id(mujoco.mjtObj.mjOBJ_BODY, name, "body")
+                scale = value / nominal["body_mass"][b]
+                m.body_mass[b] = value
+                m.body_inertia[b] = nominal["body_inertia"][b] * scale
+            elif kind == "motor":
+                mo = self._motor_by_name[name]
+                if prop == "max_torque":
+                    mo.state.params.max_torque = value
+                    mo.state.available_torque = min(mo.state.available_torque, value) if value else value
+                else:
+                    mo.state.gain = value
+        for mo in self._motors:
+            mo.state.available_torque = mo.state.params.max_torque
+        self._knob_values = dict(values)
+
+    def render(self, camera: str, width: int, height: int) -> np.ndarray:
+        cam = self._id(mujoco.mjtObj.mjOBJ_CAMERA, camera, "camera")
+        if self._renderer is None or (self._renderer.width, self._renderer.height) != (width, height):
+            if self._renderer is not None:
+                self._renderer.close()
+            self._renderer = mujoco.Renderer(self.model, height, width)
+        self._renderer.update_scene(self.data, camera=cam)
+        return self._renderer.render()
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+
+def from_binding(robot: RobotBinding, control_period: float) -> MuJoCoTwin:
+    section = robot.spec.twins.get("mujoco")
+    return MuJoCoTwin(robot.model_path("mujoco"), control_period, dict(section.aliases) if section else None)

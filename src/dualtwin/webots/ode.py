@@ -1,0 +1,420 @@
+"""Thin ctypes binding to the system Open Dynamics Engine (``libode.so.8``, Debian ``libode8``).
+
+Only the calls the Webots twin needs are declared. Every pointer argument is declared ``c_void_p`` so
+callers can pass plain integer handles (fast) or ctypes arrays/structures; ``dReal`` is ``double``
+because Webots uses a double-precision ODE (spec §1.5, Appendix A.1) and :func:`load` refuses a
+single-precision build.
+
+Struct layouts (``dMass``, ``dContactGeom``, ``dSurfaceParameters``, ``dContact``) and enum values
+follow the ODE 0.16 headers for ``dDOUBLE``.
+
+Note: the Debian build keeps ODE's internal assertions (its configuration string has no
+``ODE_EXT_no_debug``), so an invalid call aborts the process. Callers must never pass NULL where ODE
+asserts a body (e.g. ``dAreConnectedExcluding(b, NULL, ...)``, spec Appendix A.8) and must stop
+stepping once the state is non-finite.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+from ctypes import CFUNCTYPE, POINTER, Structure, c_char_p, c_double, c_int, c_uint, c_ulong, c_void_p
+from typing import Any
+
+dReal = c_double
+dVector3 = c_double * 4
+dVector4 = c_double * 4
+dMatrix3 = c_double * 12
+dQuaternion = c_double * 4
+
+dInfinity = float("inf")
+
+# dContact surface mode flags (contact.h)
+dContactMu2 = 0x001
+dContactAxisDep = 0x001
+dContactFDir1 = 0x002
+dContactBounce = 0x004
+dContactSoftERP = 0x008
+dContactSoftCFM = 0x010
+dContactMotion1 = 0x020
+dContactMotion2 = 0x040
+dContactMotionN = 0x080
+dContactSlip1 = 0x100
+dContactSlip2 = 0x200
+dContactRolling = 0x400
+dContactApprox0 = 0x0000
+dContactApprox1_1 = 0x1000
+dContactApprox1_2 = 0x2000
+dContactApprox1_N = 0x4000
+dContactApprox1 = 0x7000
+
+# joint parameters (common.h, D_ALL_PARAM_NAMES; groups 2 and 3 start at 0x100 and 0x200)
+dParamLoStop = 0
+dParamHiStop = 1
+dParamVel = 2
+dParamLoVel = 3
+dParamHiVel = 4
+dParamFMax = 5
+dParamFudgeFactor = 6
+dParamBounce = 7
+dParamCFM = 8
+dParamStopERP = 9
+dParamStopCFM = 10
+dParamSuspensionERP = 11
+dParamSuspensionCFM = 12
+dParamERP = 13
+dParamGroup2 = 0x100
+dParamGroup3 = 0x200
+
+# joint types (common.h)
+dJointTypeNone = 0
+dJointTypeBall = 1
+dJointTypeHinge = 2
+dJointTypeSlider = 3
+dJointTypeContact = 4
+dJointTypeUniversal = 5
+dJointTypeHinge2 = 6
+dJointTypeFixed = 7
+dJointTypeNull = 8
+dJointTypeAMotor = 9
+dJointTypeLMotor = 10
+
+dAMotorUser = 0
+dAMotorEuler = 1
+
+# geom classes (collision.h)
+dSphereClass = 0
+dBoxClass = 1
+dCapsuleClass = 2
+dCylinderClass = 3
+dPlaneClass = 4
+dRayClass = 5
+dConvexClass = 6
+dGeomTransformClass = 7
+dTriMeshClass = 8
+dHeightfieldClass = 9
+dSimpleSpaceClass = 10
+
+
+class dMass(Structure):
+    _fields_ = [("mass", c_double), ("c", dVector3), ("I", dMatrix3)]
+
+
+class dSurfaceParameters(Structure):
+    _fields_ = [
+        ("mode", c_int),
+        ("mu", c_double),
+        ("mu2", c_double),
+        ("rho", c_double),
+        ("rho2", c_double),
+        ("rhoN", c_double),
+        ("bounce", c_double),
+        ("bounce_vel", c_double),
+        ("soft_erp", c_double),
+        ("soft_cfm", c_double),
+        ("motion1", c_double),
+        ("motion2", c_double),
+        ("motionN", c_double),
+        ("slip1", c_double),
+        ("slip2", c_double),
+    ]
+
+
+class dContactGeom(Structure):
+    _fields_ = [
+        ("pos", dVector3),
+        ("normal", dVector3),
+        ("depth", c_double),
+        ("g1", c_void_p),
+        ("g2", c_void_p),
+        ("side1", c_int),
+        ("side2", c_int),
+    ]
+
+
+class dContact(Structure):
+    _fields_ = [("surface", dSurfaceParameters), ("geom", dContactGeom), ("fdir1", dVector3)]
+
+
+class dJointFeedback(Structure):
+    _fields_ = [("f1", dVector3), ("t1", dVector3), ("f2", dVector3), ("t2", dVector3)]
+
+
+NearCallback = CFUNCTYPE(None, c_void_p, c_void_p, c_void_p)
+
+P = c_void_p
+D = c_double
+I = c_int  # noqa: E741 - short aliases keep the signature table readable
+
+# name -> (restype, argtypes)
+_SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
+    # init / config
+    "dInitODE2": (c_int, [c_uint]),
+    "dAllocateODEDataForThread": (c_int, [c_uint]),
+    "dCloseODE": (None, []),
+    "dCheckConfiguration": (c_int, [c_char_p]),
+    "dGetConfiguration": (c_char_p, []),
+    "dRandSetSeed": (None, [c_ulong]),
+    "dRandGetSeed": (c_ulong, []),
+    # world
+    "dWorldCreate": (P, []),
+    "dWorldDestroy": (None, [P]),
+    "dWorldSetGravity": (None, [P, D, D, D]),
+    "dWorldGetGravity": (None, [P, P]),
+    "dWorldSetERP": (None, [P, D]),
+    "dWorldGetERP": (D, [P]),
+    "dWorldSetCFM": (None, [P, D]),
+    "dWorldGetCFM": (D, [P]),
+    "dWorldSetDamping": (None, [P, D, D]),
+    "dWorldSetLinearDampingThreshold": (None, [P, D]),
+    "dWorldSetAngularDampingThreshold": (None, [P, D]),
+    "dWorldSetAutoDisableFlag": (None, [P, I]),
+    "dWorldSetAutoDisableTime": (None, [P, D]),
+    "dWorldSetAutoDisableSteps": (None, [P, I]),
+    "dWorldSetAutoDisableLinearThreshold": (None, [P, D]),
+    "dWorldSetAutoDisableAngularThreshold": (None, [P, D]),
+    "dWorldSetContactSurfaceLayer": (None, [P, D]),
+    "dWorldSetContactMaxCorrectingVel": (None, [P, D]),
+    "dWorldStep": (c_int, [P, D]),
+    # spaces
+    "dSimpleSpaceCreate": (P, [P]),
+    "dSpaceDestroy": (None, [P]),
+    "dSpaceAdd": (None, [P, P]),
+    "dSpaceRemove": (None, [P, P]),
+    "dSpaceSetCleanup": (None, [P, I]),
+    "dSpaceGetNumGeoms": (c_int, [P]),
+    "dSpaceCollide": (None, [P, P, P]),
+    "dSpaceCollide2": (None, [P, P, P, P]),
+    # bodies
+    "dBodyCreate": (P, [P]),
+    "dBodyDestroy": (None, [P]),
+    "dBodySetPosition": (None, [P, D, D, D]),
+    "dBodySetRotation": (None, [P, P]),
+    "dBodySetQuaternion": (None, [P, P]),
+    "dBodySetLinearVel": (None, [P, D, D, D]),
+    "dBodySetAngularVel": (None, [P, D, D, D]),
+    "dBodyGetPosition": (P, [P]),
+    "dBodyGetRotation": (P, [P]),
+    "dBodyGetQuaternion": (P, [P]),
+    "dBodyGetLinearVel": (P, [P]),
+    "dBodyGetAngularVel": (P, [P]),
+    "dBodySetMass": (None, [P, P]),
+    "dBodyGetMass": (None, [P, P]),
+    "dBodyAddForce": (None, [P, D, D, D]),
+    "dBodyAddTorque": (None, [P, D, D, D]),
+    "dBodyAddForceAtPos": (None, [P, D, D, D, D, D, D]),
+    "dBodySetForce": (None, [P, D, D, D]),
+    "dBodySetTorque": (None, [P, D, D, D]),
+    "dBodyGetForce": (P, [P]),
+    "dBodyGetTorque": (P, [P]),
+    "dBodyEnable": (None, [P]),
+    "dBodyDisable": (None, [P]),
+    "dBodyIsEnabled": (c_int, [P]),
+    "dBodySetAutoDisableFlag": (None, [P, I]),
+    "dBodySetAutoDisableLinearThreshold": (None, [P, D]),
+    "dBodySetAutoDisableAngularThreshold": (None, [P, D]),
+    "dBodySetAutoDisableTime": (None, [P, D]),
+    "dBodySetAutoDisableSteps": (None, [P, I]),
+    "dBodySetAutoDisableAverageSamplesCount": (None, [P, c_uint]),
+    "dBodySetDamping": (None, [P, D, D]),
+    "dBodySetDampingDefaults": (None, [P]),
+    "dBodySetMaxAngularSpeed": (None, [P, D]),
+    "dBodyGetNumJoints": (c_int, [P]),
+    "dBodyGetJoint": (P, [P, I]),
+    "dBodyGetRelPointPos": (None, [P, D, D, D, P]),
+    "dBodyGetPosRelPoint": (None, [P, D, D, D, P]),
+    "dBodyVectorToWorld": (None, [P, D, D, D, P]),
+    "dBodyVectorFromWorld": (None, [P, D, D, D, P]),
+    "dBodySetGravityMode": (None, [P, I]),
+    # mass
+    "dMassSetZero": (None, [P]),
+    "dMassCheck": (c_int, [P]),
+    "dMassSetParameters": (None, [P, D, D, D, D, D, D, D, D, D, D]),
+    "dMassSetSphere": (None, [P, D, D]),
+    "dMassSetBox": (None, [P, D, D, D, D]),
+    "dMassSetCylinder": (None, [P, D, I, D, D]),
+    "dMassSetCapsule": (None, [P, D, I, D, D]),
+    "dMassSetTrimesh": (None, [P, D, P]),
+    "dMassAdjust": (None, [P, D]),
+    "dMassTranslate": (None, [P, D, D, D]),
+    "dMassRotate": (None, [P, P]),
+    "dMassAdd": (None, [P, P]),
+    # geoms
+    "dCreateBox": (P, [P, D, D, D]),
+    "dCreateSphere": (P, [P, D]),
+    "dCreateCylinder": (P, [P, D, D]),
+    "dCreateCapsule": (P, [P, D, D]),
+    "dCreatePlane": (P, [P, D, D, D, D]),
+    "dGeomDestroy": (None, [P]),
+    "dGeomSetBody": (None, [P, P]),
+    "dGeomGetBody": (P, [P]),
+    "dGeomSetPosition": (None, [P, D, D, D]),
+    "dGeomSetRotation": (None, [P, P]),
+    "dGeomGetPosition": (P, [P]),
+    "dGeomGetRotation": (P, [P]),
+    "dGeomSetOffsetWorldPosition": (None, [P, D, D, D]),
+    "dGeomSetOffsetWorldRotation": (None, [P, P]),
+    "dGeomGetOffsetPosition": (P, [P]),
+    "dGeomSetCategoryBits": (None, [P, c_ulong]),
+    "dGeomSetCollideBits": (None, [P, c_ulong]),
+    "dGeomGetClass": (c_int, [P]),
+    "dGeomGetAABB": (None, [P, P]),
+    "dGeomEnable": (None, [P]),
+    "dGeomDisable": (None, [P]),
+    "dGeomPlaneSetParams": (None, [P, D, D, D, D]),
+    "dGeomTriMeshDataCreate": (P, []),
+    "dGeomTriMeshDataDestroy": (None, [P]),
+    "dGeomTriMeshDataBuildDouble": (None, [P, P, I, I, P, I, I]),
+    "dCreateTriMesh": (P, [P, P, P, P, P]),
+    "dGeomHeightfieldDataCreate": (P, []),
+    "dGeomHeightfieldDataDestroy": (None, [P]),
+    "dGeomHeightfieldDataBuildDouble": (None, [P, P, I, D, D, I, I, D, D, D, I]),
+    "dGeomHeightfieldDataSetBounds": (None, [P, D, D]),
+    "dCreateHeightfield": (P, [P, P, I]),
+    "dCollide": (c_int, [P, P, I, P, I]),
+    # joints
+    "dJointGroupCreate": (P, [I]),
+    "dJointGroupDestroy": (None, [P]),
+    "dJointGroupEmpty": (None, [P]),
+    "dJointCreateContact": (P, [P, P, P]),
+    "dJointCreateHinge": (P, [P, P]),
+    "dJointCreateSlider": (P, [P, P]),
+    "dJointCreateBall": (P, [P, P]),
+    "dJointCreateHinge2": (P, [P, P]),
+    "dJointCreateFixed": (P, [P, P]),
+    "dJointCreateAMotor": (P, [P, P]),
+    "dJointCreateLMotor": (P, [P, P]),
+    "dJointDestroy": (None, [P]),
+    "dJointAttach": (None, [P, P, P]),
+    "dJointGetBody": (P, [P, I]),
+    "dJointGetType": (c_int, [P]),
+    "dJointSetFeedback": (None, [P, P]),
+    "dJointSetHingeAnchor": (None, [P, D, D, D]),
+    "dJointSetHingeAxis": (None, [P, D, D, D]),
+    "dJointGetHingeAnchor": (None, [P, P]),
+    "dJointGetHingeAxis": (None, [P, P]),
+    "dJointGetHingeAngle": (D, [P]),
+    "dJointGetHingeAngleRate": (D, [P]),
+    "dJointSetHingeParam": (None, [P, I, D]),
+    "dJointGetHingeParam": (D, [P, I]),
+    "dJointAddHingeTorque": (None, [P, D]),
+    "dJointSetSliderAxis": (None, [P, D, D, D]),
+    "dJointGetSliderAxis": (None, [P, P]),
+    "dJointGetSliderPosition": (D, [P]),
+    "dJointGetSliderPositionRate": (D, [P]),
+    "dJointSetSliderParam": (None, [P, I, D]),
+    "dJointGetSliderParam": (D, [P, I]),
+    "dJointAddSliderForce": (None, [P, D]),
+    "dJointSetBallAnchor": (None, [P, D, D, D]),
+    "dJointSetHinge2Anchor": (None, [P, D, D, D]),
+    "dJointSetHinge2Axes": (None, [P, P, P]),
+    "dJointGetHinge2Angle1": (D, [P]),
+    "dJointGetHinge2Angle2": (D, [P]),
+    "dJointGetHinge2Angle1Rate": (D, [P]),
+    "dJointGetHinge2Angle2Rate": (D, [P]),
+    "dJointSetHinge2Param": (None, [P, I, D]),
+    "dJointAddHinge2Torques": (None, [P, D, D]),
+    "dJointSetFixed": (None, [P]),
+    "dJointSetAMotorMode": (None, [P, I]),
+    "dJointSetAMotorNumAxes": (None, [P, I]),
+    "dJointSetAMotorAxis": (None, [P, I, I, D, D, D]),
+    "dJointSetAMotorAngle": (None, [P, I, D]),
+    "dJointSetAMotorParam": (None, [P, I, D]),
+    "dJointGetAMotorAngle": (D, [P, I]),
+    "dJointAddAMotorTorques": (None, [P, D, D, D]),
+    "dJointSetLMotorNumAxes": (None, [P, I]),
+    "dJointSetLMotorAxis": (None, [P, I, I, D, D, D]),
+    "dJointSetLMotorParam": (None, [P, I, D]),
+    "dAreConnectedExcluding": (c_int, [P, P, I]),
+}
+
+_LIB: ctypes.CDLL | None = None
+
+_CANDIDATE_NAMES = ("libode.so.8", "libode.so", "libode.so.6", "libode.so.3")
+
+
+class OdeUnavailableError(RuntimeError):
+    """The ODE shared library is missing or unsuitable."""
+
+
+def _open() -> ctypes.CDLL:
+    names = list(_CANDIDATE_NAMES)
+    found = ctypes.util.find_library("ode")
+    if found:
+        names.insert(0, found)
+    errors = []
+    for name in names:
+        try:
+            return ctypes.CDLL(name)
+        except OSError as exc:
+            errors.append(f"{name}: {exc}")
+    raise OdeUnavailableError(
+        "Open Dynamics Engine shared library not found (tried "
+        + ", ".join(names)
+        + "). Install the Debian package 'libode8' (apt-get install libode8)."
+    )
+
+
+def load() -> ctypes.CDLL:
+    """Open, configure and initialise ``libode`` once; return the library handle.
+
+    Raises:
+        OdeUnavailableError: the library is missing or not built in double precision.
+    """
+    global _LIB
+    if _LIB is not None:
+        return _LIB
+    lib = _open()
+    for name, (restype, argtypes) in _SIGNATURES.items():
+        try:
+            fn = getattr(lib, name)
+        except AttributeError as exc:
+            raise OdeUnavailableError(f"libode lacks {name}: an ODE >= 0.16 build is required") from exc
+        fn.restype = restype
+        fn.argtypes = argtypes
+    lib.dInitODE2(0)
+    # 0xFFFFFFFF = dAllocateMaskAll: collision and step data for this thread.
+    lib.dAllocateODEDataForThread(0xFFFFFFFF)
+    if not lib.dCheckConfiguration(b"ODE_double_precision"):
+        raise OdeUnavailableError(
+            "libode is not built in double precision; Webots uses dDOUBLE (spec Appendix A.1)"
+        )
+    _LIB = lib
+    return lib
+
+
+def configuration() -> str:
+    """ODE's build configuration string (e.g. ``"ODE ODE_EXT_trimesh ... ODE_double_precision"``)."""
+    raw = load().dGetConfiguration()
+    return raw.decode() if raw else ""
+
+
+def vec3(ptr: int) -> Any:
+    """A live ``double[3]`` view of an ODE-owned vector (e.g. the result of ``dBodyGetPosition``).
+
+    The memory belongs to the ODE object and stays valid while it exists; reading the view costs no
+    ctypes call, which keeps per-step state checks cheap.
+    """
+    return (c_double * 3).from_address(ptr)
+
+
+def vec4(ptr: int) -> Any:
+    """A live ``double[4]`` view (quaternion) of ODE-owned memory."""
+    return (c_double * 4).from_address(ptr)
+
+
+def mat3(ptr: int) -> Any:
+    """A live ``double[12]`` view of an ODE ``dMatrix3`` (3 rows of 4, the 4th column is padding)."""
+    return (c_double * 12).from_address(ptr)
+
+
+def matrix3(rows: Any) -> Any:
+    """Pack a row-major 3×3 rotation (nested sequences) into a ``dMatrix3``."""
+    m = dMatrix3()
+    for i in range(3):
+        for j in range(3):
+            m[4 * i + j] = float(rows[i][j])
+    return m
+
+
+DOUBLE_P = POINTER(c_double)
