@@ -8,11 +8,11 @@ import os
 import platform
 import sys
 import tempfile
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from importlib import metadata
 from pathlib import Path
-from typing import IO, Any, Iterator
+from typing import IO, Any
 
 TRACKED_PACKAGES = (
     "dualtwin", "mujoco", "numpy", "scipy", "dtaidistance", "cma", "pydantic",

@@ -162,6 +162,15 @@ def test_dtw_matches_dtaidistance_on_small_case() -> None:
     assert dtw_distance(a, b, window=1).distance == pytest.approx(dtai.distance(a, b, window=1, use_c=False))
 
 
+def test_dtw_is_finite_when_diagonal_path_is_optimal() -> None:
+    # Regression: dtaidistance's pruning returned inf here (DTW == Euclidean up to rounding).
+    t_a, t_b = np.arange(0, 156) * DT, np.arange(0, 250) * 0.02
+    line = lambda t: 0.2 * np.sin(0.8 * t) + 0.01 * t  # noqa: E731
+    common = resample_common(t_a, line(t_a), t_b, line(t_b))
+    res = dtw_distance(common.a, common.b)
+    assert res.distance == pytest.approx(np.linalg.norm(common.a - common.b), rel=1e-9)
+
+
 def test_dtw_is_smaller_than_euclidean_for_shifted_signal() -> None:
     t = np.arange(0, 200) * DT
     a, b = signal(t), signal(t - 5 * DT)

@@ -316,7 +316,11 @@ def dtw_distance(a: npt.ArrayLike, b: npt.ArrayLike, *, window: int | None = Non
     if s1.shape != s2.shape or s1.ndim != 1 or s1.size == 0:
         raise ValueError(f"dtw needs two non-empty 1-D series of equal length, got {s1.shape} and {s2.shape}")
     kwargs: dict[str, Any] = {} if window is None else {"window": int(window)}
-    distance = float(_dtw.distance_fast(s1, s2, **kwargs))
+    # dtaidistance's default pruning uses the Euclidean distance as an upper bound and returns inf when
+    # the diagonal path is optimal and rounding puts DTW a hair above it (near-identical series).
+    distance = float(_dtw.distance_fast(s1, s2, use_pruning=False, **kwargs))
+    if not math.isfinite(distance):
+        raise ValueError(f"dtw is not finite ({distance}); are the inputs finite?")
     return DtwResult(distance=distance, rms=distance / math.sqrt(s1.size), n=int(s1.size))
 
 
@@ -370,7 +374,7 @@ def best_lag(
         return LagResult(lag_s=0.0, correlation=None)
     best = float(np.max(score))
     # Among equally good lags prefer the smallest shift (e.g. lag 0 for identical series).
-    ties = np.flatnonzero(score >= best - 1e-12)
+    ties = np.flatnonzero(score >= best - 1e-9)
     i = int(ties[np.argmin(np.abs(lags[ties]))])
     offset = 0.0
     if 0 < i < lags.size - 1 and score[i - 1] >= 0 and score[i + 1] >= 0:

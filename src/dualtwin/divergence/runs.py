@@ -67,6 +67,12 @@ class ChannelInfo:
     name: str
     source: str
     unit: str = ""
+    column: str = ""
+
+    @property
+    def log_column(self) -> str:
+        """The TSV column holding the channel (both logs may use the same column names)."""
+        return self.column or self.name
 
 
 @dataclass(frozen=True)
@@ -118,9 +124,10 @@ class Run:
             if rel is None or not (self.path / rel).is_file():
                 continue
             header, data = load_tsv(self.path / rel)
-            for col, name in enumerate(header[1:], start=1):
-                info = self.channels.get(name)
-                if info is not None and info.source == source:
+            columns = {column: i for i, column in enumerate(header)}
+            for name, info in self.channels.items():
+                col = columns.get(info.log_column)
+                if info.source == source and col is not None and col > 0:
                     out[name] = Series(t=data[:, 0].copy(), y=data[:, col].copy())
         return out
 
@@ -194,7 +201,8 @@ def load_run(path: Path) -> Run:
             raise ValueError(
                 f"{manifest_path}: channel {name!r} has source {source!r}, expected one of {SOURCES}"
             )
-        channels[name] = ChannelInfo(name=name, source=source, unit=str(spec.get("unit", "")))
+        channels[name] = ChannelInfo(name=name, source=source, unit=str(spec.get("unit", "")),
+                                     column=str(spec.get("column", "")))
 
     scenarios: list[ScenarioEntry] = []
     for i, sc in enumerate(_require(manifest, "scenarios", manifest_path)):

@@ -75,8 +75,9 @@ class RobotIO:
         return self._gt_index[channel]
 
     def channel_info(self) -> dict[str, Any]:
+        """Manifest channels: ground truth under its own names, on-board ones as ``onboard/<column>``."""
         spec = self.robot.spec
-        return {
-            "onboard": {k: {"source": "onboard", "unit": c.unit} for k, c in spec.onboard.items()},
-            "ground_truth": {k: {"source": "ground_truth", "unit": c.unit} for k, c in spec.ground_truth.items()},
-        }
+        info: dict[str, Any] = {k: {"source": "ground_truth", "unit": c.unit} for k, c in spec.ground_truth.items()}
+        for key, channel in spec.onboard.items():
+            info[f"onboard/{key}"] = {"source": "onboard", "column": key, "unit": channel.unit}
+        return info

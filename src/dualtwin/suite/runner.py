@@ -46,7 +46,7 @@ def check_against_binding(suite: Suite, suite_path: Path, robot: RobotBinding) -
                 raise DualtwinError(f"{suite_path}: {where}: unknown robot-specific key {key!r}; "
                                     f"robot {robot.name!r} knows: {', '.join(known)}")
         for channel in scenario.tolerances:
-            if channel not in spec.ground_truth and channel not in spec.onboard:
+            if channel not in spec.ground_truth and channel.removeprefix("onboard/") not in spec.onboard:
                 raise DualtwinError(f"{suite_path}: {json_path(('scenarios', i, 'tolerances', channel))}: "
                                     f"unknown channel {channel!r}")
     for key in suite.global_settings.thresholds:
@@ -185,7 +185,7 @@ class SuiteRun:
                 next_continues = index + 1 < len(ids) and self.suite.scenarios[index + 1].reset == "continue"
                 fresh = need_fresh or scenario.reset == "fresh"
                 seed = scenario.seed if scenario.seed is not None else self.seed
-                record = {"id": sid, "index": index, "name": scenario.name, "seed": seed,
+                record: dict[str, Any] = {"id": sid, "index": index, "name": scenario.name, "seed": seed,
                           "reset": "fresh" if fresh else "continue",
                           "onboard": f"scenarios/{sid}/onboard.tsv",
                           "ground_truth": f"scenarios/{sid}/ground_truth.tsv"}

@@ -25,10 +25,15 @@ class Tolerance(BaseModel):
     """Per-channel budget: a scenario 'agrees' when every given metric is within its bound."""
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    mse: float | None = Field(default=None, ge=0)
     rmse: float | None = Field(default=None, ge=0)
-    max_abs: float | None = Field(default=None, ge=0)
-    crossing_s: float | None = Field(default=None, ge=0)
-    final: float | None = Field(default=None, ge=0)
+    dtw: float | None = Field(default=None, ge=0)
+    dtw_rms: float | None = Field(default=None, ge=0)
+    max_abs_error: float | None = Field(default=None, ge=0)
+    final_diff: float | None = Field(default=None, ge=0)
+    lag_s: float | None = Field(default=None, ge=0)
+    crossing_diff_s: float | None = Field(default=None, ge=0)
+    score: float | None = Field(default=None, ge=0)
 
 
 class GlobalSettings(BaseModel):

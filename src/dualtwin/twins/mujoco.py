@@ -30,9 +30,9 @@ from dualtwin.twins.motors import MotorParams, MotorState
 if TYPE_CHECKING:
     from dualtwin.robots.binding import RobotBinding
 
-# Servo stiffness relative to the joint's own inertia: kv·dt = SERVO_STIFFNESS·I closes 99.9 % of the
+# Servo stiffness relative to the joint's own inertia: kv·dt = SERVO_STIFFNESS·I closes 91 % of the
 # velocity error of a free joint in one step, like ODE's motor constraint.
-SERVO_STIFFNESS = 1000.0
+SERVO_STIFFNESS = 10.0
 
 
 class _Motor:

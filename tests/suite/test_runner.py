@@ -1,0 +1,131 @@
+"""The suite runner on the MuJoCo twin: logs, manifest, determinism, atomic resume, failures."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from dualtwin.errors import DualtwinError
+from dualtwin.robots.binding import resolve_robot
+from dualtwin.suite.runner import SuiteRun
+from tests.suite.test_schema import PAPER_SUITE
+
+
+@pytest.fixture
+def paper_suite(tmp_path: Path) -> Path:
+    path = tmp_path / "test_scenarios.json"
+    path.write_text(PAPER_SUITE)
+    return path
+
+
+def read_tsv(path: Path) -> tuple[list[str], list[list[float]]]:
+    lines = path.read_text().splitlines()
+    return lines[0].split("\t"), [[float(v) for v in line.split("\t")] for line in lines[1:]]
+
+
+def test_published_suite_runs_and_pole_rests_on_stop(paper_suite: Path, tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    manifest = SuiteRun(paper_suite, "mujoco", resolve_robot("cartpole"), out).run()
+    assert [s["status"] for s in manifest["scenarios"]] == ["completed"] * 4
+    header, rows = read_tsv(out / "scenarios" / "00_Step_Response" / "ground_truth.tsv")
+    assert header[:3] == ["time_s", "pole_angle_rad", "cart_pos_m"]
+    assert rows[0][1] == pytest.approx(0.001)
+    assert rows[1][0] == pytest.approx(0.032)
+    assert rows[-1][0] == pytest.approx(5.024)  # Webots-style loop: step until t >= duration
+    angles = [r[1] for r in rows]
+    assert max(angles) < 1.1, "the stop at 1 rad holds"
+    assert abs(angles[-1] - 1.0) < 0.02, "the pole ends resting on the +1 rad stop"
+    onboard_header, onboard = read_tsv(out / "scenarios" / "00_Step_Response" / "onboard.tsv")
+    assert onboard_header == ["time_s", "pole_angle_rad", "cart_pos_m"]
+    assert len(onboard) == len(rows)
+    # Moving backwards at 10 rad/s on 0.04 m wheels: about -0.4 m/s.
+    _, run3 = read_tsv(out / "scenarios" / "02_Step_Response_3" / "ground_truth.tsv")
+    assert run3[-1][2] / run3[-1][0] == pytest.approx(-0.4, rel=0.1)
+    for key in ("versions", "inputs", "seed", "channels"):
+        assert key in manifest
+    assert manifest["inputs"]["suite"]["sha256"]
+    assert (out / "config" / "suite.json").read_text() == PAPER_SUITE
+
+
+def test_runs_are_byte_identical(paper_suite: Path, tmp_path: Path) -> None:
+    robot = resolve_robot("cartpole")
+    SuiteRun(paper_suite, "mujoco", robot, tmp_path / "a").run()
+    SuiteRun(paper_suite, "mujoco", robot, tmp_path / "b").run()
+    for sid in ("00_Step_Response", "03_Step_Response_3"):
+        for log in ("onboard.tsv", "ground_truth.tsv"):
+            a = (tmp_path / "a" / "scenarios" / sid / log).read_bytes()
+            assert a == (tmp_path / "b" / "scenarios" / sid / log).read_bytes()
+
+
+def test_resume_runs_only_what_is_missing(paper_suite: Path, tmp_path: Path) -> None:
+    robot = resolve_robot("cartpole")
+    out = tmp_path / "run"
+    SuiteRun(paper_suite, "mujoco", robot, out).run()
+    reference = (out / "scenarios" / "02_Step_Response_3" / "ground_truth.tsv").read_bytes()
+    # Simulate a crash after two scenarios: the last two logs never got written.
+    manifest = json.loads((out / "manifest.json").read_text())
+    manifest["scenarios"] = manifest["scenarios"][:2]
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    shutil.rmtree(out / "scenarios" / "02_Step_Response_3")
+    shutil.rmtree(out / "scenarios" / "03_Step_Response_3")
+    first_mtime = (out / "scenarios" / "00_Step_Response" / "ground_truth.tsv").stat().st_mtime_ns
+    seen: list[tuple[str, str]] = []
+    SuiteRun(paper_suite, "mujoco", robot, out).run(resume=True, on_scenario=lambda s, st: seen.append((s, st)))
+    assert seen[0] == ("00_Step_Response", "skipped (done)")
+    assert (out / "scenarios" / "00_Step_Response" / "ground_truth.tsv").stat().st_mtime_ns == first_mtime
+    assert (out / "scenarios" / "02_Step_Response_3" / "ground_truth.tsv").read_bytes() == reference
+    assert len(json.loads((out / "manifest.json").read_text())["scenarios"]) == 4
+
+
+def test_refuses_to_overwrite_and_resume_checks_inputs(paper_suite: Path, tmp_path: Path) -> None:
+    robot = resolve_robot("cartpole")
+    out = tmp_path / "run"
+    SuiteRun(paper_suite, "mujoco", robot, out).run()
+    with pytest.raises(DualtwinError, match="not empty"):
+        SuiteRun(paper_suite, "mujoco", robot, out).run()
+    with pytest.raises(DualtwinError, match="cannot resume"):
+        SuiteRun(paper_suite, "mujoco", robot, out, seed=3).run(resume=True)
+
+
+def test_failure_threshold_stops_the_scenario(tmp_path: Path) -> None:
+    suite = tmp_path / "suite.json"
+    suite.write_text(json.dumps({
+        "suite_name": "fail", "global_settings": {"TIME_STEP": 32, "failure_pole_angle_rad": 0.5},
+        "scenarios": [{"name": "falls", "duration_s": 5.0, "initial_angle": 0.01}]}))
+    out = tmp_path / "run"
+    manifest = SuiteRun(suite, "mujoco", resolve_robot("cartpole"), out).run()
+    falls = manifest["scenarios"][0]
+    assert falls["status"] == "failed"
+    assert falls["failure"]["channel"] == "pole_angle_rad"
+    assert 0.5 < falls["failure"]["time_s"] < 5.0
+    _, rows = read_tsv(out / "scenarios" / "00_falls" / "ground_truth.tsv")
+    assert rows[-1][0] == pytest.approx(falls["failure"]["time_s"]) and rows[-1][1] > 0.5
+
+
+def test_continue_reset_and_step_signal(tmp_path: Path) -> None:
+    suite = tmp_path / "suite.json"
+    suite.write_text(json.dumps({
+        "suite_name": "continue", "scenarios": [
+            {"name": "falls", "duration_s": 3.0, "initial_angle": 0.01},
+            {"name": "drive", "duration_s": 1.5, "reset": "continue",
+             "wheel_velocity": {"kind": "step", "at_s": 0.5, "before": 0.0, "after": 5.0}}]}))
+    out = tmp_path / "run"
+    manifest = SuiteRun(suite, "mujoco", resolve_robot("cartpole"), out).run()
+    assert manifest["scenarios"][1]["reset"] == "continue"
+    _, rows = read_tsv(out / "scenarios" / "01_drive" / "ground_truth.tsv")
+    assert rows[0][0] == 0.0 and rows[0][1] > 0.9, "continues from the previous end state (pole on its stop)"
+    speeds = [r[4] for r in rows]
+    assert abs(speeds[10]) < 0.05, "wheels still held before the step"
+    assert speeds[-1] == pytest.approx(0.2, rel=0.15), "5 rad/s on 0.04 m wheels after the step"
+
+
+def test_unknown_key_is_rejected_before_writing(tmp_path: Path) -> None:
+    suite = tmp_path / "suite.json"
+    suite.write_text(json.dumps({"suite_name": "x", "scenarios": [{"name": "a", "duration_s": 1, "warp": 2}]}))
+    out = tmp_path / "run"
+    with pytest.raises(DualtwinError, match=r"\$\.scenarios\[0\]\.warp: unknown robot-specific key 'warp'"):
+        SuiteRun(suite, "mujoco", resolve_robot("cartpole"), out).run()
+    assert not out.exists()
