@@ -91,8 +91,10 @@ def run_scenario(io: RobotIO, scenario: Scenario, seed: int, thresholds: dict[st
 
     start = twin.time
     steps = math.ceil(scenario.duration_s / period - 1e-9)
-    onboard = [[0.0, *io.sample_onboard()]]
-    truth = [[0.0, *io.sample_ground_truth()]]
+    # Like the paper's orchestrator, sample after each control period: a Webots supervisor's teleports only
+    # take effect at the next step, so a t = 0 sample would not show the initial condition on every twin.
+    onboard: list[list[float]] = []
+    truth: list[list[float]] = []
     status, failure = "completed", None
     for k in range(steps):
         t_rel = k * period
@@ -117,7 +119,7 @@ def run_scenario(io: RobotIO, scenario: Scenario, seed: int, thresholds: dict[st
                 break
         if status == "failed":
             break
-    return ScenarioResult("", status, failure, len(truth) - 1), onboard, truth
+    return ScenarioResult("", status, failure, len(truth)), onboard, truth
 
 
 class SuiteRun:

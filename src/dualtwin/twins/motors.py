@@ -67,6 +67,11 @@ class MotorState:
         self.torque = max(-limit, min(limit, torque * self.gain))
         self.torque_mode = True
 
+    @property
+    def needs_feedback(self) -> bool:
+        """Position control and acceleration limits change ``u`` every physics step."""
+        return not math.isinf(self.target_position) or self.params.acceleration > 0 or self.available_torque == 0.0
+
     def velocity_command(self, position: float, dt: float) -> float:
         """The velocity ``u`` the joint motor tracks this physics step (WbMotor.computeCurrentDynamicVelocity)."""
         if self.available_torque == 0.0:

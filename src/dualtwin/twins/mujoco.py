@@ -233,32 +233,59 @@ class MuJoCoTwin(Twin):
         servos = [mo for mo in self._motors if not mo.state.torque_mode]
         if not servos:
             mujoco.mj_step(m, d, nstep=self._substeps)
-        else:
-            dt = m.opt.timestep
-            qpos, qvel, ctrl = d.qpos, d.qvel, d.ctrl
+        elif any(mo.saturated or mo.state.needs_feedback for mo in servos):
             for _ in range(self._substeps):
-                for mo in servos:
-                    u = mo.state.velocity_command(float(qpos[mo.qpos]), dt)
-                    limit = mo.state.available_torque
-                    if mo.saturated:
-                        # Leave saturation once full torque would carry the joint past u this step.
-                        if (u - float(qvel[mo.dof])) * mo.saturated <= 0.0 or limit <= 0.0:
-                            mo.saturated = 0.0
-                            self._set_servo(mo)
-                            ctrl[mo.index] = u
-                        else:
-                            ctrl[mo.index] = mo.saturated * limit
-                    else:
-                        ctrl[mo.index] = u
+                self._servo_substep(servos)
+        else:
+            # Plain velocity control: u is constant over the period, so only saturation needs watching.
+            qvel = d.qvel
+            dt = m.opt.timestep
+            checks = []
+            for mo in servos:
+                u = mo.state.velocity_command(0.0, dt)
+                d.ctrl[mo.index] = u
+                checks.append((mo, u, mo.dof, mo.kv, mo.state.available_torque))
+            for k in range(self._substeps):
                 mujoco.mj_step(m, d)
-                for mo in servos:
-                    if not mo.saturated:
-                        # Backward-Euler servo torque actually applied this step.
-                        torque = mo.kv * (float(ctrl[mo.index]) - float(qvel[mo.dof]))
-                        if abs(torque) > mo.state.available_torque:
-                            mo.saturated = math.copysign(1.0, torque)
-                            self._set_torque(mo, mo.saturated * mo.state.available_torque)
+                for mo, u, dof, kv, limit in checks:
+                    torque = kv * (u - qvel[dof])
+                    if torque > limit or -torque > limit:
+                        self._saturate(mo, torque)
+                        for _ in range(self._substeps - k - 1):
+                            self._servo_substep(servos)
+                        self._check_stable()
+                        return
         self._check_stable()
+
+    def _saturate(self, mo: _Motor, torque: float) -> None:
+        mo.saturated = math.copysign(1.0, torque)
+        self._set_torque(mo, mo.saturated * mo.state.available_torque)
+
+    def _servo_substep(self, servos: list[_Motor]) -> None:
+        """One physics step with the Webots PID and the saturation state machine for every servo motor."""
+        m, d = self.model, self.data
+        dt = m.opt.timestep
+        qpos, qvel, ctrl = d.qpos, d.qvel, d.ctrl
+        for mo in servos:
+            u = mo.state.velocity_command(float(qpos[mo.qpos]), dt)
+            limit = mo.state.available_torque
+            if mo.saturated:
+                # Leave saturation once full torque would carry the joint past u this step.
+                if (u - float(qvel[mo.dof])) * mo.saturated <= 0.0 or limit <= 0.0:
+                    mo.saturated = 0.0
+                    self._set_servo(mo)
+                    ctrl[mo.index] = u
+                else:
+                    ctrl[mo.index] = mo.saturated * limit
+            else:
+                ctrl[mo.index] = u
+        mujoco.mj_step(m, d)
+        for mo in servos:
+            if not mo.saturated:
+                # The backward-Euler servo torque actually applied this step.
+                torque = mo.kv * (float(ctrl[mo.index]) - float(qvel[mo.dof]))
+                if abs(torque) > mo.state.available_torque:
+                    self._saturate(mo, torque)
 
     def _check_stable(self) -> None:
         d = self.data

@@ -676,9 +676,7 @@ class _Parser:
                 self.lex.next()
                 self._last_end = tok.end
                 return items
-            if tok.kind in ("number", "string"):
-                items.append(self.lex.next())
-            elif tok.kind == "ident" and tok.text in ("TRUE", "FALSE"):
+            if tok.kind in ("number", "string") or (tok.kind == "ident" and tok.text in ("TRUE", "FALSE")):
                 items.append(self.lex.next())
             elif tok.kind == "ident" and tok.text == "NULL":
                 self.lex.next()

@@ -1,0 +1,80 @@
+"""Foundation benchmark: MuJoCo twin stepping overhead vs a raw mj_step loop, and the bundled suite's wall time.
+
+Run: ``python bench/bench_foundation.py`` (or ``make bench``). Goals: overhead <= 15 %, bundled suite < 1 s.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+import mujoco
+
+from dualtwin.robots.binding import BUNDLED, resolve_robot
+from dualtwin.suite.runner import SuiteRun
+from dualtwin.twins.mujoco import MuJoCoTwin
+
+CONTROL_PERIODS = 3000
+
+
+def best_of(fn, repeats: int = 5) -> float:  # type: ignore[no-untyped-def]
+    best = float("inf")
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - start)
+    return best
+
+
+def main() -> dict[str, float]:
+    twin = MuJoCoTwin(BUNDLED / "cartpole" / "cartpole.xml", 0.032)
+    substeps = round(0.032 / twin.model.opt.timestep)
+    model, data = twin.model, twin.data
+
+    def raw_loop() -> None:
+        for w in ("wheel1", "wheel2", "wheel3", "wheel4"):
+            twin.command(w, "velocity", 6.0)  # the same servo gains, applied by the raw loop below
+        mujoco.mj_resetData(model, data)
+        data.ctrl[:] = 6.0
+        for _ in range(CONTROL_PERIODS * substeps):
+            mujoco.mj_step(model, data)
+
+    def twin_loop(mode: str) -> None:
+        twin.reset()
+        for w in ("wheel1", "wheel2", "wheel3", "wheel4"):
+            twin.command(w, mode, 6.0 if mode == "velocity" else 0.01)
+        for _ in range(CONTROL_PERIODS):
+            twin.step()
+
+    # Interleaved best-of-N, so load from other processes hits baseline and candidates alike.
+    raw = velocity = torque = float("inf")
+    for _ in range(7):
+        raw = min(raw, best_of(raw_loop, 1))
+        velocity = min(velocity, best_of(lambda: twin_loop("velocity"), 1))
+        torque = min(torque, best_of(lambda: twin_loop("torque"), 1))
+
+    suite = BUNDLED / "cartpole" / "suite.json"
+    robot = resolve_robot("cartpole")
+    tmp = Path(tempfile.mkdtemp())
+
+    def run_suite() -> None:
+        shutil.rmtree(tmp / "run", ignore_errors=True)
+        SuiteRun(suite, "mujoco", robot, tmp / "run").run()
+
+    suite_wall = best_of(run_suite, repeats=3)
+    shutil.rmtree(tmp, ignore_errors=True)
+    steps = CONTROL_PERIODS * substeps
+    print("== foundation: MuJoCo twin ==")
+    print(f"raw mj_step loop          {steps / raw:12,.0f} physics steps/s (baseline)")
+    print(f"twin, velocity servos     {steps / velocity:12,.0f} physics steps/s  overhead {velocity / raw - 1:+.1%}"
+          "  (goal <= +15%)")
+    print(f"twin, torque mode         {steps / torque:12,.0f} physics steps/s  overhead {torque / raw - 1:+.1%}")
+    print(f"bundled suite, 6 scenarios  {suite_wall:.3f} s wall  (goal < 1 s)")
+    return {"raw_steps_per_s": steps / raw, "velocity_overhead": velocity / raw - 1,
+            "torque_overhead": torque / raw - 1, "suite_wall_s": suite_wall}
+
+
+if __name__ == "__main__":
+    main()

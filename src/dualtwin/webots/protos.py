@@ -1,0 +1,917 @@
+"""PROTO resolution and expansion: a ``.wbt`` world becomes a tree of base nodes only.
+
+Resolution order for a PROTO ``Name`` (declared by ``EXTERNPROTO "url"`` in the file using it):
+
+1. a relative (or absolute / ``file://``) url, resolved against the declaring file;
+2. ``Name.proto`` in the world's ``protos/`` folder and in ``../protos`` (Webots project layout);
+3. ``Name.proto`` in the user folders: ``proto_paths`` then ``$DUALTWIN_PROTO_PATH`` (os.pathsep list),
+   searched recursively;
+4. with ``$WEBOTS_HOME`` set: ``webots://projects/...`` and
+   ``https://raw.githubusercontent.com/cyberbotics/webots/<version>/projects/...`` urls map to
+   ``$WEBOTS_HOME/projects/...``;
+5. our stand-ins (:mod:`dualtwin.webots.standins`) for Floor, RectangleArena, TexturedBackground and
+   TexturedBackgroundLight;
+6. a PROTO still missing is skipped with a warning when it is known to be visual only (appearances,
+   backgrounds); anything else raises :class:`ProtoNotFoundError`.
+
+Expansion follows Webots: instance values override interface defaults, ``IS`` substitutes (deep
+copies of) them, each PROTO body is its own DEF scope, derived PROTOs expand recursively, procedural
+PROTOs run their JavaScript template with QuickJS (Webots' TemplateEngine algorithm), and ``hidden``
+fields saved in a world override the PROTO body's poses, velocities and joint positions.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import os
+import re
+import tempfile
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from dualtwin.errors import DualtwinError
+from dualtwin.webots import schema
+from dualtwin.webots.nodes import Node, SourceLocation, World, copy_value, values_equal
+from dualtwin.webots.parser import (
+    ExternProto,
+    IsLink,
+    ListValue,
+    NullValue,
+    ParsedProto,
+    ParsedWorld,
+    ProtoFieldDecl,
+    RawField,
+    RawNode,
+    RawUse,
+    Scalars,
+    WebotsSyntaxError,
+    check_node_value,
+    convert_value,
+    decode_source,
+    parse_proto,
+    parse_proto_body,
+    parse_world,
+)
+from dualtwin.webots.standins import STANDIN_PREFIX, STANDIN_PROTOS
+
+__all__ = [
+    "VISUAL_ONLY_PROTOS",
+    "ProtoError",
+    "ProtoNotFoundError",
+    "ProtoResolver",
+    "expand_world",
+    "load_world",
+    "load_world_text",
+]
+
+#: Deepest chain of nested PROTO instances (derived PROTOs count too).
+MAX_PROTO_DEPTH = 32
+WEBOTS_VERSION = "R2023b"
+
+#: PROTOs that carry no physics, skipped (with a warning) when they cannot be found. Appearances are
+#: PBRAppearance-derived; backgrounds and their lights only light the scene. Floors, objects and
+#: devices are deliberately absent: they may have boundingObjects or masses we cannot guess.
+VISUAL_ONLY_PROTOS = frozenset(
+    {
+        "TexturedBackground",
+        "TexturedBackgroundLight",
+        "Asphalt", "BakelitePlastic", "BrushedAluminium", "BrushedSteel", "CarpetFibers", "CementTiles",
+        "ChequeredParquetry", "Copper", "CorrodedMetal", "CorrugatedMetal", "DamascusSteel", "DryMud",
+        "ElectricConduit", "Fabric", "FlexibleAluminiumDuct", "FormedConcrete", "GalvanizedMetal",
+        "GlossyCarPaint", "GlossyPaint", "Grass", "HammeredCopper", "Leather", "LedStrip", "MarbleTiles",
+        "MattePaint", "MetalPipePaint", "MetalStainlessSteelCable", "OldPlywood", "OldSteel", "OsbWood",
+        "PaintedWood", "Parquetry", "Pavement", "PerforatedMetal", "Plaster", "Plastic",
+        "PorcelainChevronTiles", "RedBricks", "ReflectiveSurface", "Roughcast", "RoughConcrete",
+        "RoughOak", "RoughPine", "RoughPolymer", "Rubber", "RustyMetal", "SandyGround", "ScrewThread",
+        "ShinyLeather", "SlatePavement", "Soil", "SolarCell", "SquareStoneTiles", "StonePavement",
+        "StoneBricks", "StoneTiles", "ThreadMetalPlate", "TireRubber", "VarnishedPine", "WaterHexagon",
+    }
+)
+_VISUAL_ONLY_URL_PARTS = ("/projects/appearances/protos/", "/projects/objects/backgrounds/protos/")
+_RAW_GITHUB = re.compile(r"https?://raw\.githubusercontent\.com/cyberbotics/webots/[^/]+/(.+)")
+
+
+class ProtoError(DualtwinError):
+    """A PROTO could not be expanded (template failure, recursion, unsupported Lua template...)."""
+
+
+class ProtoNotFoundError(ProtoError):
+    """A PROTO used by a world or PROTO file was found nowhere on the search path."""
+
+
+# --------------------------------------------------------------------------------------------
+# resolution
+
+
+@dataclass(frozen=True)
+class _Found:
+    path: str  # file path, or STANDIN_PREFIX + name for a stand-in
+    text: str | None = None  # stand-in text
+
+
+class ProtoResolver:
+    """Finds and caches PROTO files for one world.
+
+    Args:
+        world_path: the world file; its ``protos/`` and ``../protos`` folders are searched first.
+        proto_paths: user folders, searched (recursively) after the project folders.
+        use_env: also read ``DUALTWIN_PROTO_PATH`` and ``WEBOTS_HOME``.
+    """
+
+    def __init__(
+        self,
+        world_path: Path | None,
+        proto_paths: Sequence[str | os.PathLike[str]] = (),
+        *,
+        use_env: bool = True,
+    ) -> None:
+        self.project_dirs: list[Path] = []
+        if world_path is not None:
+            wdir = world_path.parent
+            self.project_dirs = [wdir / "protos", wdir.parent / "protos"]
+        self.user_dirs = [Path(p) for p in proto_paths]
+        env_paths = os.environ.get("DUALTWIN_PROTO_PATH", "") if use_env else ""
+        self.user_dirs += [Path(p) for p in env_paths.split(os.pathsep) if p]
+        home = os.environ.get("WEBOTS_HOME", "") if use_env else ""
+        self.webots_home = Path(home) if home else None
+        self._index: dict[Path, dict[str, Path]] = {}
+        self._parsed: dict[str, ParsedProto] = {}
+
+    def _dir_index(self, directory: Path) -> dict[str, Path]:
+        if directory not in self._index:
+            index: dict[str, Path] = {}
+            if directory.is_dir():
+                for root, dirs, files in os.walk(directory):
+                    dirs.sort()
+                    for name in sorted(files):
+                        if name.endswith(".proto"):
+                            index.setdefault(name[:-6], Path(root) / name)
+            self._index[directory] = index
+        return self._index[directory]
+
+    def webots_path(self, url: str) -> Path | None:
+        """Map a ``webots://`` or raw.githubusercontent Webots url into ``$WEBOTS_HOME``."""
+        if self.webots_home is None:
+            return None
+        rel: str | None = None
+        if url.startswith("webots://"):
+            rel = url[len("webots://") :]
+        else:
+            m = _RAW_GITHUB.match(url)
+            if m:
+                rel = m.group(1)
+        if rel is None or ".." in Path(rel).parts:
+            return None
+        return self.webots_home / rel
+
+    def find(self, name: str, url: str | None, declaring_dir: Path | None) -> tuple[_Found | None, list[str]]:
+        """Locate ``name``; returns the hit (or None) and the list of places tried."""
+        tried: list[str] = []
+        is_local = url is not None and ("://" not in url or url.startswith("file://"))
+        if url is not None and is_local:
+            local = Path(url[len("file://") :] if url.startswith("file://") else url)
+            if not local.is_absolute() and declaring_dir is not None:
+                local = declaring_dir / local
+            tried.append(str(local))
+            if local.is_file():
+                return _Found(str(local)), tried
+        elif url is None and declaring_dir is not None:
+            local = declaring_dir / f"{name}.proto"
+            tried.append(str(local))
+            if local.is_file():
+                return _Found(str(local)), tried
+        for directory in [*self.project_dirs, *self.user_dirs]:
+            tried.append(f"{directory}/**/{name}.proto")
+            hit = self._dir_index(directory).get(name)
+            if hit is not None:
+                return _Found(str(hit)), tried
+        if url is not None:
+            mapped = self.webots_path(url)
+            if mapped is not None:
+                tried.append(str(mapped))
+                if mapped.is_file():
+                    return _Found(str(mapped)), tried
+            elif self.webots_home is None and (url.startswith("webots://") or _RAW_GITHUB.match(url)):
+                tried.append("$WEBOTS_HOME (not set)")
+        if name in STANDIN_PROTOS:
+            return _Found(STANDIN_PREFIX + name + ".proto", STANDIN_PROTOS[name]), tried
+        return None, tried
+
+    def load(self, found: _Found, location: SourceLocation) -> ParsedProto:
+        """Parse (once) the PROTO file found by :meth:`find`."""
+        if found.path not in self._parsed:
+            if found.text is not None:
+                text = found.text
+            else:
+                try:
+                    data = Path(found.path).read_bytes()
+                except OSError as exc:
+                    raise ProtoError(f"{location}: cannot read PROTO file {found.path}: {exc}") from None
+                text = decode_source(data, found.path)
+            self._parsed[found.path] = parse_proto(text, found.path)
+        return self._parsed[found.path]
+
+
+# --------------------------------------------------------------------------------------------
+# JavaScript templates
+
+# Minimal versions of Webots' template modules, written for dualtwin (same function names).
+_JS_MODULES = r"""
+const __wbmodules = (function () {
+  const isObj = (v) => v !== null && typeof v === 'object';
+  const hasKeys = (v, keys) => isObj(v) && Object.keys(v).length === keys.length &&
+    keys.every((k) => typeof v[k] === 'number');
+  const wbutility = {
+    isScalar: (v) => typeof v === 'number',
+    isVector2: (v) => hasKeys(v, ['x', 'y']),
+    isVector3: (v) => hasKeys(v, ['x', 'y', 'z']),
+    isColor: (v) => hasKeys(v, ['r', 'g', 'b']),
+    isRotation: (v) => hasKeys(v, ['x', 'y', 'z', 'a']),
+    isArray: (v) => Array.isArray(v),
+    deepCopy: (v) => JSON.parse(JSON.stringify(v)),
+    clamp: (v, lo, hi) => Math.min(Math.max(v, lo), hi),
+  };
+  const wbvector2 = {
+    add: (a, b) => ({x: a.x + b.x, y: a.y + b.y}),
+    minus: (a, b) => ({x: a.x - b.x, y: a.y - b.y}),
+    multiply: (a, s) => ({x: a.x * s, y: a.y * s}),
+    dot: (a, b) => a.x * b.x + a.y * b.y,
+    cross: (a, b) => a.x * b.y - a.y * b.x,
+    norm: (a) => Math.hypot(a.x, a.y),
+    normalize: (a) => { const n = Math.hypot(a.x, a.y); return n > 0 ? {x: a.x / n, y: a.y / n} : {x: 0, y: 0}; },
+    distance: (a, b) => Math.hypot(a.x - b.x, a.y - b.y),
+    angle: (a, b) => Math.atan2(b.y, b.x) - Math.atan2(a.y, a.x),
+    equal: (a, b) => a.x === b.x && a.y === b.y,
+  };
+  const wbvector3 = {
+    add: (a, b) => ({x: a.x + b.x, y: a.y + b.y, z: a.z + b.z}),
+    minus: (a, b) => ({x: a.x - b.x, y: a.y - b.y, z: a.z - b.z}),
+    multiply: (a, s) => ({x: a.x * s, y: a.y * s, z: a.z * s}),
+    dot: (a, b) => a.x * b.x + a.y * b.y + a.z * b.z,
+    cross: (a, b) => ({x: a.y * b.z - a.z * b.y, y: a.z * b.x - a.x * b.z, z: a.x * b.y - a.y * b.x}),
+    norm: (a) => Math.hypot(a.x, a.y, a.z),
+    normalize: (a) => {
+      const n = Math.hypot(a.x, a.y, a.z);
+      return n > 0 ? {x: a.x / n, y: a.y / n, z: a.z / n} : {x: 0, y: 0, z: 0};
+    },
+    distance: (a, b) => Math.hypot(a.x - b.x, a.y - b.y, a.z - b.z),
+    equal: (a, b) => a.x === b.x && a.y === b.y && a.z === b.z,
+  };
+  const toQuaternion = (r) => {
+    const n = Math.hypot(r.x, r.y, r.z) || 1;
+    const s = Math.sin(r.a / 2);
+    return {w: Math.cos(r.a / 2), x: s * r.x / n, y: s * r.y / n, z: s * r.z / n};
+  };
+  const fromQuaternion = (q) => {
+    const n = Math.hypot(q.w, q.x, q.y, q.z) || 1;
+    const w = Math.max(-1, Math.min(1, q.w / n));
+    const a = 2 * Math.acos(w);
+    const s = Math.sqrt(Math.max(0, 1 - w * w));
+    if (s < 1e-12) return {x: 0, y: 0, z: 1, a: 0};
+    return {x: q.x / n / s, y: q.y / n / s, z: q.z / n / s, a: a};
+  };
+  const quaternionMultiply = (p, q) => ({
+    w: p.w * q.w - p.x * q.x - p.y * q.y - p.z * q.z,
+    x: p.w * q.x + p.x * q.w + p.y * q.z - p.z * q.y,
+    y: p.w * q.y - p.x * q.z + p.y * q.w + p.z * q.x,
+    z: p.w * q.z + p.x * q.y - p.y * q.x + p.z * q.w,
+  });
+  const toMatrix3 = (r) => {
+    const q = toQuaternion(r);
+    const {w, x, y, z} = q;
+    return [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
+            2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
+            2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)];
+  };
+  const fromRotationMatrix = (m) => {
+    const t = m[0] + m[4] + m[8];
+    let q;
+    if (t > 0) {
+      const s = Math.sqrt(t + 1) * 2;
+      q = {w: s / 4, x: (m[7] - m[5]) / s, y: (m[2] - m[6]) / s, z: (m[3] - m[1]) / s};
+    } else if (m[0] > m[4] && m[0] > m[8]) {
+      const s = Math.sqrt(1 + m[0] - m[4] - m[8]) * 2;
+      q = {w: (m[7] - m[5]) / s, x: s / 4, y: (m[1] + m[3]) / s, z: (m[2] + m[6]) / s};
+    } else if (m[4] > m[8]) {
+      const s = Math.sqrt(1 + m[4] - m[0] - m[8]) * 2;
+      q = {w: (m[2] - m[6]) / s, x: (m[1] + m[3]) / s, y: s / 4, z: (m[5] + m[7]) / s};
+    } else {
+      const s = Math.sqrt(1 + m[8] - m[0] - m[4]) * 2;
+      q = {w: (m[3] - m[1]) / s, x: (m[2] + m[6]) / s, y: (m[5] + m[7]) / s, z: s / 4};
+    }
+    return fromQuaternion(q);
+  };
+  const rotateVector3ByMatrix3 = (m, v) => ({
+    x: m[0] * v.x + m[1] * v.y + m[2] * v.z,
+    y: m[3] * v.x + m[4] * v.y + m[5] * v.z,
+    z: m[6] * v.x + m[7] * v.y + m[8] * v.z,
+  });
+  const wbrotation = {
+    equal: (a, b) => a.x === b.x && a.y === b.y && a.z === b.z && a.a === b.a,
+    isIdentity: (r) => r.a === 0,
+    toQuaternion, fromQuaternion, quaternionMultiply, toMatrix3, fromRotationMatrix,
+    rotateVector3ByMatrix3,
+    rotateVector3ByRotation: (r, v) => rotateVector3ByMatrix3(toMatrix3(r), v),
+    rotateVector3ByQuaternion: (q, v) => rotateVector3ByMatrix3(toMatrix3(fromQuaternion(q)), v),
+    combine: (a, b) => fromQuaternion(quaternionMultiply(toQuaternion(a), toQuaternion(b))),
+  };
+  const wbgeometry = {
+    circle: (radius, div, cx = 0, cy = 0, shift = 0) => {
+      const out = [];
+      for (let i = 0; i < div; ++i) {
+        const a = shift + 2 * Math.PI * i / div;
+        out.push({x: cx + radius * Math.cos(a), y: cy + radius * Math.sin(a)});
+      }
+      return out;
+    },
+    isPoint2InTriangle: (p, a, b, c) => {
+      const s = (p1, p2, p3) => (p1.x - p3.x) * (p2.y - p3.y) - (p2.x - p3.x) * (p1.y - p3.y);
+      const d1 = s(p, a, b), d2 = s(p, b, c), d3 = s(p, c, a);
+      return !((d1 < 0 || d2 < 0 || d3 < 0) && (d1 > 0 || d2 > 0 || d3 > 0));
+    },
+  };
+  let state = 1;
+  const next = () => {  // mulberry32: deterministic, seedable
+    state = (state + 0x6D2B79F5) | 0;
+    let t = Math.imul(state ^ (state >>> 15), 1 | state);
+    t = (t + Math.imul(t ^ (t >>> 7), 61 | t)) ^ t;
+    return ((t ^ (t >>> 14)) >>> 0) / 4294967296;
+  };
+  const wbrandom = {
+    seed: (s) => { state = s | 0; },
+    real: (lo, hi) => {
+      if (lo === undefined) return next();
+      if (hi === undefined) return next() * lo;
+      return lo + next() * (hi - lo);
+    },
+    integer: (lo, hi) => {
+      if (hi === undefined) { hi = lo; lo = 0; }
+      return lo + Math.floor(next() * (hi - lo + 1));
+    },
+  };
+  return {wbutility, wbvector2, wbvector3, wbrotation, wbgeometry, wbrandom};
+})();
+var wbutility = __wbmodules.wbutility, wbvector2 = __wbmodules.wbvector2,
+  wbvector3 = __wbmodules.wbvector3, wbrotation = __wbmodules.wbrotation,
+  wbgeometry = __wbmodules.wbgeometry, wbrandom = __wbmodules.wbrandom;
+"""
+
+_IMPORT_STAR = re.compile(r"""^\s*import\s+\*\s+as\s+(\w+)\s+from\s+['"]([^'"]+)['"]\s*;?""", re.M)
+_IMPORT_NAMED = re.compile(r"""^\s*import\s+\{([^}]*)\}\s+from\s+['"]([^'"]+)['"]\s*;?""", re.M)
+
+
+def _module_name(spec: str) -> str:
+    base = spec.replace("\\", "/").rsplit("/", 1)[-1]
+    return base[:-3] if base.endswith(".js") else base
+
+
+def _strip_imports(code: str) -> str:
+    """Replace ``import`` lines by bindings to the pre-defined modules (unknown module -> JS error)."""
+
+    def star(m: re.Match[str]) -> str:
+        return f"const {m.group(1)} = __wbmodules[{json.dumps(_module_name(m.group(2)))}];"
+
+    def named(m: re.Match[str]) -> str:
+        names = m.group(1).replace(" as ", ": ")
+        return f"const {{{names}}} = __wbmodules[{json.dumps(_module_name(m.group(2)))}];"
+
+    return _IMPORT_NAMED.sub(named, _IMPORT_STAR.sub(star, code))
+
+
+def template_to_js(template: str, proto: ParsedProto) -> str:
+    """JavaScript statements that build ``___vrml`` from a PROTO body template.
+
+    Raw chunks are emitted as JSON string literals, which escapes backticks, ``${`` and backslashes
+    (Webots pastes them into template literals).
+    """
+    out: list[str] = []
+    pos = 0
+    while True:
+        start = template.find("%<", pos)
+        if start < 0:
+            out.append(f"___vrml += {json.dumps(template[pos:])};")
+            return "\n".join(out)
+        out.append(f"___vrml += {json.dumps(template[pos:start])};")
+        end = template.find(">%", start + 2)
+        if end < 0:
+            loc = proto.location_of(start)
+            raise ProtoError(f"{loc}: expected '>%' closing this template block, found end of file")
+        code = template[start + 2 : end]
+        if code.startswith("="):
+            expr = code[1:].strip().rstrip(";")
+            out.append(f"___vrml += ({expr}\n);")
+        else:
+            out.append(_strip_imports(code))
+        pos = end + 2
+
+
+def _js_number(value: float | int) -> str:
+    if isinstance(value, int):
+        return str(value)
+    if math.isnan(value):
+        return "NaN"
+    if math.isinf(value):
+        return "Infinity" if value > 0 else "-Infinity"
+    return repr(value)
+
+
+_VEC_KEYS = {"SFVec2f": "xy", "SFVec3f": "xyz", "SFColor": "rgb"}
+
+
+# --------------------------------------------------------------------------------------------
+# expansion
+
+
+@dataclass
+class _Scope:
+    """Where raw nodes come from: the file (DEF scope) and, in a PROTO body, the instance values."""
+
+    file: str
+    directory: Path | None
+    externs: dict[str, ExternProto]
+    proto: ParsedProto | None = None
+    values: dict[str, Any] | None = None
+    in_world: bool = False
+    expanded: dict[int, Node | None] = field(default_factory=dict)
+
+
+_HIDDEN_TYPES = (
+    (re.compile(r"(translation|linearVelocity|angularVelocity)_(\d+)"), "SFVec3f"),
+    (re.compile(r"rotation_(\d+)"), "SFRotation"),
+    (re.compile(r"position[23]?_(\d+)_(\d+)"), "SFFloat"),
+)
+
+
+def _hidden_type(name: str) -> str | None:
+    for pattern, vrml_type in _HIDDEN_TYPES:
+        if pattern.fullmatch(name):
+            return vrml_type
+    return None
+
+
+def _generic_value(raw: Any) -> Any:
+    """Best-effort value of a hidden field whose type is unknown."""
+    if isinstance(raw, Scalars):
+        toks = raw.tokens
+        if len(toks) == 1 and toks[0].kind == "string":
+            return toks[0].value
+        if len(toks) == 1 and toks[0].kind == "ident":
+            return toks[0].text == "TRUE"
+        try:
+            floats = [float(t.value) for t in toks]
+        except OverflowError:
+            raise WebotsSyntaxError(raw.location, "a hidden field value", "an out-of-range number") from None
+        return floats[0] if len(floats) == 1 else tuple(floats)
+    if isinstance(raw, ListValue) and all(getattr(i, "kind", "") == "number" for i in raw.items):
+        try:
+            return [float(i.value) for i in raw.items]
+        except OverflowError:
+            raise WebotsSyntaxError(raw.location, "a hidden field value", "an out-of-range number") from None
+    found = "a node" if isinstance(raw, RawNode | RawUse | NullValue) else "a list"
+    raise WebotsSyntaxError(raw.location, "a hidden field value (numbers, string or boolean)", found)
+
+
+def _node_items(value: Any) -> Iterator[Node]:
+    if isinstance(value, Node):
+        yield value
+    elif isinstance(value, list):
+        yield from (v for v in value if isinstance(v, Node))
+
+
+_NON_SCENE_FIELDS = frozenset({"boundingObject", "physics"})
+
+
+def _solids_preorder(root: Node) -> list[Node]:
+    out: list[Node] = []
+
+    def visit(node: Node) -> None:
+        if node.type_name in schema.SOLID_TYPES:
+            out.append(node)
+        for name, value in node.fields.items():
+            if name not in _NON_SCENE_FIELDS:
+                for child in _node_items(value):
+                    visit(child)
+
+    visit(root)
+    return out
+
+
+def _joints_of(solid: Node) -> list[Node]:
+    out: list[Node] = []
+
+    def visit(node: Node) -> None:
+        if node is not solid and node.type_name in schema.SOLID_TYPES:
+            return
+        if node.type_name in schema.JOINT_TYPES:
+            out.append(node)
+        for name, value in node.fields.items():
+            if name not in _NON_SCENE_FIELDS:
+                for child in _node_items(value):
+                    visit(child)
+
+    visit(solid)
+    return out
+
+
+class _Expander:
+    def __init__(self, resolver: ProtoResolver, world_path: str, warnings: list[str]) -> None:
+        self.resolver = resolver
+        self.world_path = world_path
+        self.warnings = warnings
+        self._stack: list[str] = []
+        self._ids = itertools.count(1)
+        self._by_name: dict[str, ParsedProto] = {}
+        self._undeclared_warned: set[tuple[str, str]] = set()
+        self._tmpdir: str | None = None
+
+    # -- nodes -------------------------------------------------------------------------------
+    def expand_ref(self, raw: RawNode | RawUse, scope: _Scope) -> Node | None:
+        if isinstance(raw, RawUse):
+            key = id(raw.target)
+            src = scope.expanded[key] if key in scope.expanded else self.expand_node(raw.target, scope)
+            if src is None:
+                return None
+            if src.type_name in schema.USE_FORBIDDEN_TYPES:
+                what = src.type_name if src.proto_name is None else f"{src.proto_name} (a {src.type_name})"
+                raise WebotsSyntaxError(
+                    raw.location,
+                    "a node that may be USEd (Webots forbids USE of Solid-derived, joint and "
+                    "joint-parameters nodes)",
+                    f"USE of {what} '{raw.name}'",
+                )
+            copy = src.copy()
+            for inner in copy.walk():
+                if inner.def_name is not None or inner.proto_def_name is not None:
+                    inner.use_name = inner.def_name or inner.proto_def_name
+                    inner.def_name = inner.proto_def_name = None
+            copy.use_name = raw.name
+            return copy
+        node = self.expand_node(raw, scope)
+        scope.expanded[id(raw)] = node
+        return node
+
+    def expand_node(self, raw: RawNode, scope: _Scope) -> Node | None:
+        if raw.is_base:
+            return self.expand_base(raw, scope)
+        return self.expand_instance(raw, scope)
+
+    @staticmethod
+    def _set_def(node: Node, def_name: str | None, scope: _Scope) -> None:
+        if scope.in_world:
+            node.def_name, node.proto_def_name = def_name, None
+        else:
+            node.def_name, node.proto_def_name = None, def_name
+
+    def expand_base(self, raw: RawNode, scope: _Scope) -> Node:
+        spec = schema.BASE_NODES[raw.type_name]
+        fields = spec.defaults()
+        locations: dict[str, SourceLocation] = {}
+        for name, rf in raw.fields.items():
+            fields[name] = self.field_value(rf, spec.fields[name].type, scope)
+            locations[name] = rf.location
+        node = Node(raw.type_name, fields, location=raw.location, field_locations=locations)
+        self._set_def(node, raw.def_name, scope)
+        node.hidden = self.hidden_values(raw)
+        return node
+
+    def field_value(self, rf: RawField, vrml_type: str, scope: _Scope) -> Any:
+        if isinstance(rf.value, IsLink):
+            return self.is_value(rf.value, vrml_type, scope)
+        if rf.has_typed:
+            return copy_value(rf.typed)
+        return self.convert(rf.value, vrml_type, scope)
+
+    def convert(self, raw: Any, vrml_type: str, scope: _Scope) -> Any:
+        if vrml_type == "SFNode":
+            check_node_value(raw, vrml_type)
+            return None if isinstance(raw, NullValue) else self.expand_ref(raw, scope)
+        if vrml_type == "MFNode":
+            check_node_value(raw, vrml_type)
+            items = raw.items if isinstance(raw, ListValue) else [raw]
+            return [n for n in (self.expand_ref(i, scope) for i in items) if n is not None]
+        return convert_value(raw, vrml_type)
+
+    def is_value(self, link: IsLink, vrml_type: str, scope: _Scope) -> Any:
+        proto, values = scope.proto, scope.values
+        if proto is None or values is None:
+            raise WebotsSyntaxError(link.location, "a value (IS is only allowed inside a PROTO body)", "IS")
+        decl = proto.interface.get(link.name)
+        if decl is None:
+            raise WebotsSyntaxError(
+                link.location,
+                f"a field of PROTO {proto.name} ({', '.join(proto.interface) or 'none'})",
+                f"IS {link.name}",
+            )
+        if decl.type != vrml_type:
+            raise WebotsSyntaxError(
+                link.location, f"IS to a field of type {vrml_type}", f"'{link.name}' of type {decl.type}"
+            )
+        return copy_value(values[link.name])
+
+    def hidden_values(self, raw: RawNode) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        for name, rf in raw.hidden.items():
+            if isinstance(rf.value, IsLink):
+                raise WebotsSyntaxError(rf.location, "a hidden field value", "IS")
+            vrml_type = _hidden_type(name)
+            out[name] = _generic_value(rf.value) if vrml_type is None else convert_value(rf.value, vrml_type)
+        return out
+
+    # -- PROTO instances ---------------------------------------------------------------------
+    def resolve(self, raw: RawNode, scope: _Scope) -> ParsedProto | None:
+        name = raw.type_name
+        ext = scope.externs.get(name)
+        url = ext.url if ext is not None else None
+        found, tried = self.resolver.find(name, url, scope.directory)
+        if found is None:
+            if name in VISUAL_ONLY_PROTOS or any(p in (url or "") for p in _VISUAL_ONLY_URL_PARTS):
+                self.warnings.append(
+                    f"{raw.location}: PROTO '{name}' not found; skipped because it is visual only"
+                )
+                return None
+            where = f" (EXTERNPROTO \"{url}\")" if url else " (no EXTERNPROTO declares it)"
+            raise ProtoNotFoundError(
+                f"{raw.location}: PROTO '{name}'{where} not found. Searched: {'; '.join(tried)}. "
+                f"Provide {name}.proto in a folder given by proto_paths or DUALTWIN_PROTO_PATH, "
+                "or set WEBOTS_HOME to a Webots installation."
+            )
+        if ext is None and (scope.file, name) not in self._undeclared_warned:
+            self._undeclared_warned.add((scope.file, name))
+            self.warnings.append(f"{raw.location}: PROTO '{name}' used without an EXTERNPROTO declaration")
+        proto = self.resolver.load(found, raw.location)
+        if proto.name != name:
+            raise WebotsSyntaxError(proto.location, f"PROTO {name} (as the file name says)", f"PROTO {proto.name}")
+        self._by_name[name] = proto
+        return proto
+
+    def _proto_scope(self, proto: ParsedProto) -> _Scope:
+        directory = None if proto.path.startswith(STANDIN_PREFIX) else Path(proto.path).parent
+        return _Scope(proto.path, directory, {e.name: e for e in proto.externprotos})
+
+    def default_value(self, decl: ProtoFieldDecl, proto: ParsedProto) -> Any:
+        if decl.type in ("SFNode", "MFNode"):
+            return self.convert(decl.default, decl.type, self._proto_scope(proto))
+        return copy_value(decl.typed_default)
+
+    def expand_instance(self, raw: RawNode, scope: _Scope) -> Node | None:
+        proto = self.resolve(raw, scope)
+        if proto is None:
+            return None
+        if proto.path in self._stack:
+            chain = " -> ".join(Path(p).stem for p in [*self._stack, proto.path])
+            raise ProtoError(f"{raw.location}: PROTO {proto.name} instantiates itself ({chain})")
+        if len(self._stack) >= MAX_PROTO_DEPTH:
+            raise ProtoError(f"{raw.location}: PROTOs nested deeper than {MAX_PROTO_DEPTH} levels")
+        values: dict[str, Any] = {}
+        for fname, rf in raw.fields.items():
+            decl = proto.interface.get(fname)
+            if decl is None:
+                valid = ", ".join(proto.interface) or "none"
+                raise WebotsSyntaxError(
+                    rf.location, f"a field of PROTO {proto.name} ({valid})", f"unknown field '{fname}'"
+                )
+            values[fname] = self.field_value(rf, decl.type, scope)
+            self._check_restriction(decl, values, rf.location, proto)
+        for fname, decl in proto.interface.items():
+            if fname not in values:
+                values[fname] = self.default_value(decl, proto)
+        values = {fname: values[fname] for fname in proto.interface}
+        self._stack.append(proto.path)
+        try:
+            if proto.template is not None:
+                body = self.render(proto, values, raw)
+            else:
+                assert proto.body is not None
+                body = proto.body
+            body_scope = self._proto_scope(proto)
+            body_scope.proto, body_scope.values = proto, values
+            root = self.expand_node(body, body_scope)
+        finally:
+            self._stack.pop()
+        if root is None:
+            return None
+        root.proto_name = raw.type_name
+        root.location = raw.location
+        root.proto_fields = values
+        self._set_def(root, raw.def_name, scope)
+        hidden = self.hidden_values(raw)
+        if hidden:
+            root.hidden = hidden
+            self._apply_hidden(root, hidden, raw.location)
+        return root
+
+    def _check_restriction(
+        self, decl: ProtoFieldDecl, values: dict[str, Any], loc: SourceLocation, proto: ParsedProto
+    ) -> None:
+        if not decl.restrictions or decl.type in ("SFNode", "MFNode"):
+            return
+        value = values[decl.name]
+        items = value if decl.type.startswith("MF") else [value]
+        allowed = decl.restrictions
+        if all(any(values_equal(i, a) for a in allowed) for i in items):
+            return
+        # Webots refuses a value outside the declared restrictions and keeps the default.
+        self.warnings.append(
+            f"{loc}: value of '{decl.name}' is not one of the values allowed by PROTO {proto.name}; "
+            "default used"
+        )
+        values[decl.name] = copy_value(decl.typed_default)
+
+    def _apply_hidden(self, root: Node, hidden: dict[str, Any], loc: SourceLocation) -> None:
+        """Saved state of a PROTO instance overrides its body (Webots' hidden parameters)."""
+        solids = _solids_preorder(root)
+        for name, value in hidden.items():
+            m = re.fullmatch(r"(translation|rotation|linearVelocity|angularVelocity)_(\d+)", name)
+            if m and int(m.group(2)) < len(solids):
+                solids[int(m.group(2))].fields[m.group(1)] = value
+                continue
+            m = re.fullmatch(r"(position[23]?)_(\d+)_(\d+)", name)
+            if m and int(m.group(2)) < len(solids):
+                joints = _joints_of(solids[int(m.group(2))])
+                if int(m.group(3)) < len(joints):
+                    joint = joints[int(m.group(3))]
+                    kind = m.group(1)  # position, position2 or position3
+                    params = joint.fields.get("jointParameters" + kind[len("position") :])
+                    if isinstance(params, Node) and "position" in params.fields:
+                        params.fields["position"] = value
+                        continue
+                    if kind in joint.fields:  # no parameters node: the joint's own hidden field
+                        joint.fields[kind] = value
+                        continue
+            self.warnings.append(f"{loc}: hidden field '{name}' matches nothing in {root.proto_name}; ignored")
+
+    # -- templates ---------------------------------------------------------------------------
+    def render(self, proto: ParsedProto, values: dict[str, Any], raw: RawNode) -> RawNode:
+        assert proto.template is not None
+        if proto.template_language == "lua":
+            raise ProtoError(
+                f"{raw.location}: PROTO {proto.name} ({proto.path}) uses a legacy Lua template (%{{ }}%); "
+                "only JavaScript templates are supported: use a JavaScript version of this PROTO"
+            )
+        try:
+            import quickjs
+        except ImportError as exc:
+            raise ProtoError(
+                f"{raw.location}: PROTO {proto.name} is procedural (JavaScript template) and needs the "
+                f"'quickjs' package, which cannot be imported ({exc}); pip install quickjs"
+            ) from None
+        js_fields = ", ".join(
+            f"{json.dumps(name)}: {{value: {self.js_value(values[name], decl.type)}, "
+            f"defaultValue: {self.js_value(self.default_value(decl, proto), decl.type)}}}"
+            for name, decl in proto.interface.items()
+        )
+        program = "\n".join(
+            [
+                _JS_MODULES,
+                "(function () {",
+                f"const fields = {{{js_fields}}};",
+                f"const context = {self.js_context(proto)};",
+                "let ___vrml = '';",
+                template_to_js(proto.template, proto),
+                "return ___vrml;",
+                "})()",
+            ]
+        )
+        ctx = quickjs.Context()
+        ctx.set_memory_limit(256 * 1024 * 1024)
+        ctx.set_time_limit(20)
+        try:
+            text = ctx.eval(program)
+        except Exception as exc:  # JSException, StackOverflow, interruption: all template failures
+            raise ProtoError(f"{raw.location}: template of PROTO {proto.name} ({proto.path}) failed: {exc}") from None
+        if not isinstance(text, str):
+            raise ProtoError(f"{raw.location}: template of PROTO {proto.name} produced no VRML text")
+        return parse_proto_body(text, f"{proto.path}[generated]")
+
+    def js_context(self, proto: ParsedProto) -> str:
+        world = Path(self.world_path)
+        project = world.parent.parent if world.parent.name == "worlds" else world.parent
+        if self._tmpdir is None:
+            self._tmpdir = tempfile.gettempdir()
+        home = self.resolver.webots_home
+        ctx = {
+            "world": self.world_path,
+            "proto": proto.path,
+            "project_path": str(project),
+            "id": str(next(self._ids)),
+            "coordinate_system": "ENU",
+            "webots_version": {"major": WEBOTS_VERSION, "revision": 0},
+            "webots_home": str(home) if home else "",
+            "temporary_files_path": self._tmpdir,
+            "temporary_fields_path": self._tmpdir,
+            "os": "linux",
+        }
+        return json.dumps(ctx)
+
+    def js_value(self, value: Any, vrml_type: str) -> str:
+        """Webots' JavaScript representation of a field value."""
+        if vrml_type.startswith("MF"):
+            elem = schema.mf_element_type(vrml_type)
+            items = value if isinstance(value, list) else []
+            return "[" + ", ".join(self.js_value(v, elem) for v in items) + "]"
+        if vrml_type == "SFNode":
+            return "undefined" if value is None else self.js_node(value)
+        if vrml_type == "SFBool":
+            return "true" if value else "false"
+        if vrml_type == "SFString":
+            return json.dumps(value)
+        if vrml_type in ("SFInt32", "SFFloat"):
+            return _js_number(value)
+        keys = _VEC_KEYS.get(vrml_type, "xyza")
+        return "{" + ", ".join(f"{k}: {_js_number(v)}" for k, v in zip(keys, value, strict=False)) + "}"
+
+    def js_node(self, node: Node) -> str:
+        proto = self._by_name.get(node.proto_name or "")
+        if node.proto_fields is not None and proto is not None:
+            parts = []
+            for name, decl in proto.interface.items():
+                default = "undefined" if decl.typed_default is None else self.js_value(decl.typed_default, decl.type)
+                value = self.js_value(node.proto_fields.get(name), decl.type)
+                parts.append(f"{json.dumps(name)}: {{value: {value}, defaultValue: {default}}}")
+            return f"{{node_name: {json.dumps(proto.name)}, fields: {{{', '.join(parts)}}}}}"
+        spec = schema.BASE_NODES[node.type_name]
+        parts = [
+            f"{json.dumps(name)}: {{value: {self.js_value(node.fields[name], fs.type)}, "
+            f"defaultValue: {self.js_value(fs.default, fs.type)}}}"
+            for name, fs in spec.fields.items()
+        ]
+        return f"{{node_name: {json.dumps(node.type_name)}, fields: {{{', '.join(parts)}}}}}"
+
+
+# --------------------------------------------------------------------------------------------
+# public API
+
+
+def expand_world(
+    parsed: ParsedWorld,
+    world_path: str | os.PathLike[str] | None = None,
+    proto_paths: Sequence[str | os.PathLike[str]] = (),
+    *,
+    resolver: ProtoResolver | None = None,
+) -> World:
+    """Expand every PROTO instance of a parsed world; the result holds base nodes only.
+
+    Raises:
+        WebotsSyntaxError: a malformed value, unknown field or forbidden USE.
+        ProtoNotFoundError: a physics-relevant PROTO cannot be found.
+        ProtoError: any other PROTO expansion failure.
+    """
+    path = Path(world_path) if world_path is not None else None
+    if resolver is None:
+        resolver = ProtoResolver(path, proto_paths)
+    warnings = list(parsed.warnings)
+    expander = _Expander(resolver, str(path) if path is not None else parsed.path, warnings)
+    scope = _Scope(
+        parsed.path,
+        path.parent if path is not None else None,
+        {e.name: e for e in parsed.externprotos},
+        in_world=True,
+    )
+    nodes: list[Node] = []
+    try:
+        for raw in parsed.nodes:
+            node = expander.expand_ref(raw, scope)
+            if node is not None:
+                nodes.append(node)
+    except RecursionError:
+        raise ProtoError(f"{parsed.path}: world nesting too deep to expand") from None
+    for proto in resolver._parsed.values():
+        for w in proto.warnings:
+            if w not in warnings:
+                warnings.append(w)
+    return World(
+        path=parsed.path,
+        header=parsed.header,
+        nodes=nodes,
+        externprotos=[e.url for e in parsed.externprotos if not e.importable],
+        importable_externprotos=[e.url for e in parsed.externprotos if e.importable],
+        warnings=warnings,
+    )
+
+
+def load_world_text(
+    text: str | bytes,
+    path: str | os.PathLike[str] = "<string>",
+    proto_paths: Sequence[str | os.PathLike[str]] = (),
+) -> World:
+    """Parse and expand world text; ``path`` names it in messages and anchors relative PROTO lookups."""
+    parsed = parse_world(text, str(path))
+    is_file_like = str(path) != "<string>"
+    return expand_world(parsed, path if is_file_like else None, proto_paths)
+
+
+def load_world(path: str | os.PathLike[str], proto_paths: Sequence[str | os.PathLike[str]] = ()) -> World:
+    """Load a ``.wbt`` world and expand its PROTOs (see the module docstring for the search order).
+
+    Raises:
+        OSError: the world file cannot be read.
+        WebotsSyntaxError: malformed world or PROTO (message ``file:line:col: expected X, found Y``).
+        ProtoNotFoundError: a physics-relevant PROTO was found nowhere.
+        ProtoError: another PROTO expansion failure.
+    """
+    data = Path(path).read_bytes()
+    return load_world_text(data, path, proto_paths)
