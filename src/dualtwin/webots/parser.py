@@ -758,9 +758,7 @@ class _Parser:
             restrictions_raw = self.items("}", 0)
             rloc = self.src.loc(brace.start)
         name = self.expect_ident(f"a field name after {ttok.text}")
-        default = self.value(0)
-        if isinstance(default, IsLink):
-            raise self.src.error(name.end, "a default value", "IS")
+        default = self.value(0)  # in_proto is False here, so IS is rejected
         decl = ProtoFieldDecl(keyword, ttok.text, name.text, default, self.src.loc(name.start))
         if ttok.text in ("SFNode", "MFNode"):
             check_node_value(default, ttok.text)

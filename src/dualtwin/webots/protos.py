@@ -70,6 +70,9 @@ __all__ = [
 
 #: Deepest chain of nested PROTO instances (derived PROTOs count too).
 MAX_PROTO_DEPTH = 32
+# A template is arbitrary code: bound it so a bad PROTO fails with a message instead of hanging.
+_JS_TIME_LIMIT = 10  # s of CPU
+_JS_MEMORY_LIMIT = 256 * 1024 * 1024
 WEBOTS_VERSION = "R2023b"
 
 #: PROTOs that carry no physics, skipped (with a warning) when they cannot be found. Appearances are
@@ -197,6 +200,8 @@ class ProtoResolver:
                     return _Found(str(mapped)), tried
             elif self.webots_home is None and (url.startswith("webots://") or _RAW_GITHUB.match(url)):
                 tried.append("$WEBOTS_HOME (not set)")
+            elif not is_local:
+                tried.append(f"{url} (remote urls are not fetched)")
         if name in STANDIN_PROTOS:
             return _Found(STANDIN_PREFIX + name + ".proto", STANDIN_PROTOS[name]), tried
         return None, tried
@@ -777,12 +782,18 @@ class _Expander:
             ]
         )
         ctx = quickjs.Context()
-        ctx.set_memory_limit(256 * 1024 * 1024)
-        ctx.set_time_limit(20)
+        ctx.set_memory_limit(_JS_MEMORY_LIMIT)
+        ctx.set_time_limit(_JS_TIME_LIMIT)
         try:
             text = ctx.eval(program)
         except Exception as exc:  # JSException, StackOverflow, interruption: all template failures
-            raise ProtoError(f"{raw.location}: template of PROTO {proto.name} ({proto.path}) failed: {exc}") from None
+            # The JS stack points into our generated program, not the PROTO file: keep the message only.
+            message = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            if "interrupted" in message:
+                message += f" (the template ran longer than {_JS_TIME_LIMIT} s)"
+            raise ProtoError(
+                f"{raw.location}: template of PROTO {proto.name} ({proto.path}) failed: {message}"
+            ) from None
         if not isinstance(text, str):
             raise ProtoError(f"{raw.location}: template of PROTO {proto.name} produced no VRML text")
         return parse_proto_body(text, f"{proto.path}[generated]")
