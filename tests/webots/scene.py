@@ -163,7 +163,9 @@ def floor(material: str = "default") -> Node:
 
 def box_solid(size: tuple[float, float, float], translation=(0.0, 0.0, 0.0), **kw: Any) -> Node:
     physics = kw.pop("physics", node("Physics"))
-    return node("Solid", translation=tuple(translation), boundingObject=node("Box", size=size), physics=physics, **kw)
+    return node(
+        "Solid", translation=tuple(translation), boundingObject=node("Box", size=size), physics=physics, **kw
+    )
 
 
 def cart_pole(pole_angle: float = 0.0, time_step: float = 16.0) -> World:
@@ -182,14 +184,19 @@ def cart_pole(pole_angle: float = 0.0, time_step: float = 16.0) -> World:
             node(
                 "HingeJoint",
                 jointParameters=node("HingeJointParameters", axis=(0.0, 1.0, 0.0), anchor=(x, y, -0.03)),
-                device=[node("RotationalMotor", name=f"wheel{i}"), node("PositionSensor", name=f"wheel{i} sensor")],
+                device=[
+                    node("RotationalMotor", name=f"wheel{i}"),
+                    node("PositionSensor", name=f"wheel{i} sensor"),
+                ],
                 endPoint=wheel,
             )
         )
     s, c = math.sin(pole_angle), math.cos(pole_angle)
     pole = node(
         "HingeJoint",
-        jointParameters=node("HingeJointParameters", axis=(0.0, 1.0, 0.0), anchor=(0.0, 0.0, 0.04), position=pole_angle),
+        jointParameters=node(
+            "HingeJointParameters", axis=(0.0, 1.0, 0.0), anchor=(0.0, 0.0, 0.04), position=pole_angle
+        ),
         device=[node("PositionSensor", name="pole sensor")],
         endPoint=node(
             "Solid",

@@ -33,6 +33,27 @@ if TYPE_CHECKING:
 # Servo stiffness relative to the joint's own inertia: kv·dt = SERVO_STIFFNESS·I closes 91 % of the
 # velocity error of a free joint in one step, like ODE's motor constraint.
 SERVO_STIFFNESS = 10.0
+# Largest delay, in control periods, that the delay knobs accept.
+MAX_DELAY_PERIODS = 10
+
+
+def restitution_to_dampratio(restitution: float, nominal: float) -> float:
+    """Damping ratio of MuJoCo's contact spring-damper that rebounds with coefficient ``restitution``.
+
+    A linear spring-damper with damping ratio ζ < 1 rebounds with ``e = exp(-ζπ/√(1-ζ²))``. ``e = 0`` keeps a
+    nominal ratio that already does not bounce (ζ >= 1), else uses critical damping.
+    """
+    if restitution <= 0.0:
+        return max(nominal, 1.0)
+    log_e = math.log(min(restitution, 0.999))
+    return -log_e / math.sqrt(math.pi ** 2 + log_e ** 2)
+
+
+def dampratio_to_restitution(dampratio: float) -> float:
+    """Inverse of `restitution_to_dampratio` (0 for ζ >= 1)."""
+    if dampratio >= 1.0:
+        return 0.0
+    return math.exp(-dampratio * math.pi / math.sqrt(1.0 - dampratio ** 2))
 
 
 class _Motor:
@@ -92,6 +113,17 @@ class MuJoCoTwin(Twin):
         self._knob_values: dict[str, float] = {}
         self._motors = self._build_motors()
         self._motor_by_name = {m.name: m for m in self._motors}
+        self._nominal_motor = {m.name: (m.state.params.max_torque, m.state.params.max_velocity) for m in self._motors}
+        # Knob state outside the model arrays: the control delay queues commands until they are due, and
+        # the sensor models (bias, resolution, delay) apply in sensor().
+        self._delay = 0
+        self._pending: list[tuple[int, _Motor, ControlMode, float]] = []
+        self._sensor_bias = np.zeros(self.model.nsensor)
+        self._sensor_quant = np.zeros(self.model.nsensor)
+        self._sensor_delay = np.zeros(self.model.nsensor, dtype=int)
+        self._history: list[np.ndarray] = []
+        self._inertia_changed = False
+        self._scratch = mujoco.MjData(self.model)
         self._renderer: mujoco.Renderer | None = None
         self.reset()
 
@@ -146,6 +178,7 @@ class MuJoCoTwin(Twin):
             "geom_friction": m.geom_friction.copy(), "body_mass": m.body_mass.copy(),
             "body_inertia": m.body_inertia.copy(), "body_ipos": m.body_ipos.copy(),
             "geom_solref": m.geom_solref.copy(), "jnt_stiffness": m.jnt_stiffness.copy(),
+            "sensor_noise": m.sensor_noise.copy(), "body_iquat": m.body_iquat.copy(),
         }
 
     # ---------------------------------------------------------------- Twin API
@@ -161,6 +194,8 @@ class MuJoCoTwin(Twin):
         mujoco.mj_resetData(self.model, self.data)
         mujoco.mj_forward(self.model, self.data)
         self._rng = np.random.default_rng(seed)
+        self._pending.clear()
+        self._history.clear()
         for motor in self._motors:
             motor.state.reset(float(self.data.qpos[motor.qpos]))
             motor.saturated = 0.0
@@ -203,6 +238,29 @@ class MuJoCoTwin(Twin):
         motor = self._motor_by_name.get(self._aliases.get(actuator, actuator))
         if motor is None:
             raise unknown_name("motor", actuator, list(self._motor_by_name), self._origin)
+        if self._delay:
+            # control.delay_periods: the command reaches the motor k control periods late.
+            self._pending.append((self._periods() + self._delay, motor, mode, value))
+            return
+        self._apply_command(motor, mode, value)
+
+    def _periods(self) -> int:
+        """Control periods since reset (teleports do not advance time)."""
+        return int(round(self.data.time / self._control_period))
+
+    def _before_step(self) -> None:
+        """Deliver delayed commands that are due and remember sensor readings for delayed sensors."""
+        if self._pending:
+            now = self._periods()
+            due = [p for p in self._pending if p[0] <= now]
+            self._pending = [p for p in self._pending if p[0] > now]
+            for _, motor, mode, value in due:
+                self._apply_command(motor, mode, value)
+        if self._sensor_delay.any():
+            self._history.append(self.data.sensordata.copy())
+            del self._history[:-MAX_DELAY_PERIODS - 1]
+
+    def _apply_command(self, motor: _Motor, mode: ControlMode, value: float) -> None:
         if mode == "velocity":
             motor.state.set_velocity(value)
         elif mode == "position":
@@ -230,6 +288,8 @@ class MuJoCoTwin(Twin):
 
     def step(self) -> None:
         m, d = self.model, self.data
+        if self._pending or self._sensor_delay.any():
+            self._before_step()
         servos = [mo for mo in self._motors if not mo.state.torque_mode]
         if not servos:
             mujoco.mj_step(m, d, nstep=self._substeps)
@@ -316,44 +376,88 @@ class MuJoCoTwin(Twin):
 
     def sensor(self, name: str) -> float:
         s = self._id(mujoco.mjtObj.mjOBJ_SENSOR, name, "sensor")
-        value = float(self.data.sensordata[self.model.sensor_adr[s]])
+        adr = self.model.sensor_adr[s]
+        delay = int(self._sensor_delay[s])
+        if delay and self._history:
+            # history[-k] is the reading k periods ago; before that much time has passed, the first one.
+            value = float(self._history[max(0, len(self._history) - delay)][adr])
+        else:
+            value = float(self.data.sensordata[adr])
+        value += float(self._sensor_bias[s])
         if self._noise[s] > 0:
             value += float(self._rng.normal(0.0, self._noise[s]))
+        if self._sensor_quant[s] > 0:
+            # Webots' sensor `resolution`: readings are rounded to a multiple of it.
+            value = float(np.round(value / self._sensor_quant[s]) * self._sensor_quant[s])
         return value
 
     # ---------------------------------------------------------------- knobs
+    # The knob table (names shared with the Webots twin) is documented in dualtwin.align.knobs.
     def knobs(self) -> dict[str, Knob]:
         m = self.model
+        nominal = self._nominal
         out: dict[str, Knob] = {}
+
+        def add(name: str, value: float, lower: float, upper: float, unit: str, description: str) -> None:
+            out[name] = Knob(name, float(value), float(lower), float(upper), unit, description)
+
         for j in range(m.njnt):
             name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j)
             if not name or m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
                 continue
             dof = m.jnt_dofadr[j]
-            damping = float(self._nominal["dof_damping"][dof])
-            friction = float(self._nominal["dof_frictionloss"][dof])
-            out[f"joint.{name}.damping"] = Knob(f"joint.{name}.damping", damping, 0.0, max(10 * damping, 1.0),
-                                                "N*m*s/rad", "joint viscous damping (Webots dampingConstant)")
-            out[f"joint.{name}.friction"] = Knob(f"joint.{name}.friction", friction, 0.0, max(10 * friction, 0.5),
-                                                 "N*m", "joint dry friction (MuJoCo frictionloss, Webots staticFriction)")
+            damping = float(nominal["dof_damping"][dof])
+            friction = float(nominal["dof_frictionloss"][dof])
+            add(f"joint.{name}.damping", damping, 0.0, max(10 * damping, 1.0),
+                "N*m*s/rad", "joint viscous damping (Webots dampingConstant)")
+            add(f"joint.{name}.friction", friction, 0.0, max(10 * friction, 0.5),
+                "N*m", "joint dry friction (MuJoCo frictionloss, Webots staticFriction)")
         for g in range(m.ngeom):
             name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g)
             if name and m.geom_contype[g] | m.geom_conaffinity[g]:
-                mu = float(self._nominal["geom_friction"][g, 0])
-                out[f"geom.{name}.friction"] = Knob(f"geom.{name}.friction", mu, 0.0, 5.0 * max(mu, 0.1), "",
-                                                    "sliding friction coefficient")
+                mu = float(nominal["geom_friction"][g, 0])
+                add(f"geom.{name}.friction", mu, 0.0, 5.0 * max(mu, 0.1), "", "sliding friction coefficient")
+                timeconst, dampratio = (float(v) for v in nominal["geom_solref"][g])
+                if timeconst > 0:  # the standard (time constant, damping ratio) form of solref
+                    # MuJoCo clamps time constants below two physics steps (refsafe).
+                    add(f"geom.{name}.solref_timeconst", timeconst, 2 * m.opt.timestep,
+                        max(10 * timeconst, 4 * m.opt.timestep), "s",
+                        "contact softness: time constant of the contact spring-damper (MuJoCo solref[0])")
+                    add(f"geom.{name}.restitution", dampratio_to_restitution(dampratio), 0.0, 0.95, "",
+                        "contact restitution (MuJoCo: solref damping ratio below 1)")
         for b in range(1, m.nbody):
             name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b)
-            if name:
-                mass = float(self._nominal["body_mass"][b])
-                out[f"body.{name}.mass"] = Knob(f"body.{name}.mass", mass, 0.1 * mass, 10 * mass, "kg",
-                                                "body mass (inertia scaled with it)")
+            mass = float(nominal["body_mass"][b])
+            if not name or mass <= 0:
+                continue
+            add(f"body.{name}.mass", mass, 0.1 * mass, 10 * mass, "kg", "body mass (inertia scaled with it)")
+            add(f"body.{name}.inertia_scale", 1.0, 0.1, 10.0, "", "factor on the body's rotational inertia")
+            geoms = [g for g in range(m.ngeom) if m.geom_bodyid[g] == b]
+            reach = max([float(m.geom_rbound[g]) for g in geoms] + [0.0])
+            span = max(0.05, 0.25 * reach)
+            for axis in "xyz":
+                add(f"body.{name}.com_offset_{axis}", 0.0, -span, span, "m",
+                    f"shift of the centre of mass along the body's {axis} axis")
         for mo in self._motors:
-            p = mo.state.params
-            out[f"motor.{mo.name}.max_torque"] = Knob(f"motor.{mo.name}.max_torque", p.max_torque, 0.0,
-                                                      10 * p.max_torque, "N*m", "maximum motor torque")
-            out[f"motor.{mo.name}.gain"] = Knob(f"motor.{mo.name}.gain", 1.0, -2.0, 2.0, "",
-                                                "command gain (sign included)")
+            max_torque, max_velocity = self._nominal_motor[mo.name]
+            add(f"motor.{mo.name}.max_torque", max_torque, 0.0, 10 * max_torque, "N*m", "maximum motor torque")
+            add(f"motor.{mo.name}.max_velocity", max_velocity, 0.1 * max_velocity, 10 * max_velocity, "rad/s",
+                "maximum motor velocity")
+            add(f"motor.{mo.name}.gain", 1.0, -2.0, 2.0, "", "command gain (sign included)")
+        add("control.delay_periods", 0.0, 0.0, MAX_DELAY_PERIODS, "periods",
+            "commands take effect this many control periods late (integer)")
+        for s in range(m.nsensor):
+            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_SENSOR, s)
+            if not name:
+                continue
+            noise = float(nominal["sensor_noise"][s])
+            add(f"sensor.{name}.noise", noise, 0.0, max(10 * noise, 0.05), "",
+                "standard deviation of Gaussian reading noise (Webots noise)")
+            add(f"sensor.{name}.bias", 0.0, -0.1, 0.1, "", "constant offset added to readings")
+            add(f"sensor.{name}.delay", 0.0, 0.0, MAX_DELAY_PERIODS, "periods",
+                "readings are this many control periods old (integer)")
+            add(f"sensor.{name}.quantization", 0.0, 0.0, 0.1, "",
+                "readings are rounded to a multiple of this (Webots resolution; 0 = off)")
         return out
 
     def set_knobs(self, values: dict[str, float]) -> None:
@@ -365,30 +469,84 @@ class MuJoCoTwin(Twin):
         m.dof_damping[:] = nominal["dof_damping"]
         m.dof_frictionloss[:] = nominal["dof_frictionloss"]
         m.geom_friction[:] = nominal["geom_friction"]
+        m.geom_solref[:] = nominal["geom_solref"]
         m.body_mass[:] = nominal["body_mass"]
         m.body_inertia[:] = nominal["body_inertia"]
+        m.body_ipos[:] = nominal["body_ipos"]
         for mo in self._motors:
-            mo.state.params.max_torque = registry[f"motor.{mo.name}.max_torque"].nominal
+            mo.state.params.max_torque, mo.state.params.max_velocity = self._nominal_motor[mo.name]
             mo.state.gain = 1.0
+        self._delay = 0
+        self._noise = np.array(nominal["sensor_noise"], dtype=float)
+        self._sensor_bias[:] = 0.0
+        self._sensor_quant[:] = 0.0
+        self._sensor_delay[:] = 0
+        inertia_scale: dict[int, float] = {}
+        changed_inertia = False
         for key, value in values.items():
-            kind, name, prop = key.split(".", 2)
+            value = float(value)
+            if key == "control.delay_periods":
+                self._delay = int(round(value))
+                continue
+            # Names may contain dots or spaces ("pole sensor"): the kind is first, the property last.
+            kind, rest = key.split(".", 1)
+            name, prop = rest.rsplit(".", 1)
             if kind == "joint":
                 dof = m.jnt_dofadr[self._id(mujoco.mjtObj.mjOBJ_JOINT, name, "joint")]
                 (m.dof_damping if prop == "damping" else m.dof_frictionloss)[dof] = value
             elif kind == "geom":
-                m.geom_friction[self._id(mujoco.mjtObj.mjOBJ_GEOM, name, "geom"), 0] = value
+                g = self._id(mujoco.mjtObj.mjOBJ_GEOM, name, "geom")
+                if prop == "friction":
+                    m.geom_friction[g, 0] = value
+                elif prop == "solref_timeconst":
+                    m.geom_solref[g, 0] = value
+                else:
+                    m.geom_solref[g, 1] = restitution_to_dampratio(value, float(nominal["geom_solref"][g, 1]))
             elif kind == "body":
                 b = self._id(mujoco.mjtObj.mjOBJ_BODY, name, "body")
-                scale = value / nominal["body_mass"][b]
-                m.body_mass[b] = value
-                m.body_inertia[b] = nominal["body_inertia"][b] * scale
+                changed_inertia = True
+                if prop == "mass":
+                    m.body_mass[b] = value
+                elif prop == "inertia_scale":
+                    inertia_scale[b] = value
+                else:
+                    m.body_ipos[b, "xyz".index(prop[-1])] += value
             elif kind == "motor":
                 mo = self._motor_by_name[name]
                 if prop == "max_torque":
                     mo.state.params.max_torque = value
-                    mo.state.available_torque = min(mo.state.available_torque, value) if value else value
+                elif prop == "max_velocity":
+                    mo.state.params.max_velocity = value
                 else:
                     mo.state.gain = value
+            elif kind == "sensor":
+                s = self._id(mujoco.mjtObj.mjOBJ_SENSOR, name, "sensor")
+                if prop == "noise":
+                    self._noise[s] = value
+                elif prop == "bias":
+                    self._sensor_bias[s] = value
+                elif prop == "delay":
+                    self._sensor_delay[s] = int(round(value))
+                else:
+                    self._sensor_quant[s] = value
+        # Inertia follows the mass (same shape, denser material), times an optional extra factor.
+        for b in range(m.nbody):
+            if nominal["body_mass"][b] > 0:
+                factor = m.body_mass[b] / nominal["body_mass"][b] * inertia_scale.get(b, 1.0)
+                m.body_inertia[b] = nominal["body_inertia"][b] * factor
+        if changed_inertia or self._inertia_changed:
+            # Constraint regularisation and derived masses depend on the mass distribution; recompute them as
+            # a compiled model with these values would (so a patched MJCF reproduces the knobs exactly).
+            mujoco.mj_setConst(m, self._scratch)
+            # The compiler's statistics (they scale solver tolerances), which mj_setConst leaves alone.
+            scratch = self._scratch
+            scratch.qpos[:] = m.qpos0
+            mujoco.mj_forward(m, scratch)
+            full = np.zeros((m.nv, m.nv))
+            mujoco.mj_fullM(m, scratch, full)
+            m.stat.meaninertia = float(np.trace(full)) / max(m.nv, 1)
+            m.stat.meanmass = float(np.mean(m.body_mass[1:])) if m.nbody > 1 else 0.0
+            self._inertia_changed = changed_inertia
         for mo in self._motors:
             mo.state.available_torque = mo.state.params.max_torque
         self._knob_values = dict(values)

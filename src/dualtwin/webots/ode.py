@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import threading
 from ctypes import CFUNCTYPE, POINTER, Structure, c_char_p, c_double, c_int, c_uint, c_ulong, c_void_p
 from typing import Any
 
@@ -373,14 +374,31 @@ def load() -> ctypes.CDLL:
         fn.restype = restype
         fn.argtypes = argtypes
     lib.dInitODE2(0)
-    # 0xFFFFFFFF = dAllocateMaskAll: collision and step data for this thread.
-    lib.dAllocateODEDataForThread(0xFFFFFFFF)
     if not lib.dCheckConfiguration(b"ODE_double_precision"):
         raise OdeUnavailableError(
             "libode is not built in double precision; Webots uses dDOUBLE (spec Appendix A.1)"
         )
     _LIB = lib
+    ensure_thread()
     return lib
+
+
+_THREADS = threading.local()
+
+
+def ensure_thread() -> None:
+    """Allocate ODE's per-thread data (collision included) for the calling thread, once.
+
+    ODE requires ``dAllocateODEDataForThread`` in every thread that steps or collides; controllers run
+    by :mod:`dualtwin.webots.runner` may step the simulation from their own threads.
+    """
+    if getattr(_THREADS, "ready", False):
+        return
+    lib = load()
+    # 0xFFFFFFFF = dAllocateMaskAll: collision and step data for this thread.
+    if not lib.dAllocateODEDataForThread(0xFFFFFFFF):
+        raise OdeUnavailableError("dAllocateODEDataForThread failed")
+    _THREADS.ready = True
 
 
 def configuration() -> str:

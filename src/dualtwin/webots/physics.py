@@ -20,7 +20,12 @@ What differs (and why)
     * Asymmetric friction (2–4 ``coulombFriction`` values) and ``frictionRotation`` use the first value
       only (symmetric pyramid); Track surface velocities, fluids, rays and DistanceSensors are not
       simulated.
-    * Hinge suspension (fork-only ODE API, Appendix A.2) and BallJoint motors/springs are not modelled.
+    * Hinge suspension (fork-only ODE API, Appendix A.2) and BallJoint motors/springs are not modelled;
+      upstream ODE never limits the second Hinge2 axis, so its stops are ignored. Brake devices and
+      coupled motors ("name::suffix") are not modelled.
+    * ODE 0.16's ``dJointAddHingeTorque`` negates the torque of reversed hinges (static parent); the
+      torque is pre-negated so a positive ``setTorque`` increases the position for every hinge, as
+      Webots documents (whether its 0.13.1 fork negates too is UNVERIFIED).
     * All geoms go directly into one top-level simple space (no per-body child spaces); geoms of one body
       never collide anyway, so only the order in which ODE reports pairs may differ.
     * ODE's category/collide bits pre-filter pairs that §2.3 rules 4/5 discard anyway (static–static,
@@ -35,15 +40,18 @@ UNVERIFIED choices (spec gaps, most plausible behaviour picked)
       fixed joint; a physics Solid under a physics-less Solid that itself has a physics ancestor is tied
       to that nearest body with a fixed joint (Webots calls this configuration undefined).
     * ``maxContactJoints`` keeps the deepest points in their original collider order.
-    * Hinge2 second axis: position2 = +angle2 + offset2 (spec) and the motor/torque/stop signs are chosen
-      so that a positive command increases position2; ``jointParameters2 NULL`` uses axis ``0 0 1``.
+    * Hinge2 second axis: position2 = +angle2 + offset2 (spec) with motor ``dParamVel2 = -u`` and torque
+      ``(0, -τ)``, the signs for which a positive command turns the endPoint about +axis2 (checked);
+      ``jointParameters2 NULL`` uses axis ``0 0 1``.
     * Joint motor commands and supervisor teleports wake the affected bodies (``dBodyEnable``).
     * Kinematic joints (endPoint without Physics) move at the commanded velocity toward the target
       without the acceleration limit.
     * Damping of merged bodies is volume-weighted; solids without boundingObject get weight 0 unless all
       weights are 0 (then a plain average).
     * Sensors sample at the end of a controller step once their sampling period has elapsed; the
-      Accelerometer differentiates the CoM velocity of its body over the last basic step.
+      Accelerometer differentiates the CoM velocity of its body over the last basic step; Gyro and
+      ``Node.getVelocity`` of a body-less Solid use its nearest body's motion (kinematic joint motion
+      is not added).
 """
 
 from __future__ import annotations
@@ -51,6 +59,7 @@ from __future__ import annotations
 import ctypes
 import math
 import random
+import threading
 import time as _time
 import warnings
 from collections.abc import Callable, Iterable, Sequence
@@ -146,8 +155,18 @@ def _rot_matrix(R: Sequence[float]) -> Any:
 # records
 
 
-@dataclass(eq=False)
-class RobotRec:
+class _ShortRepr:
+    """Records reference each other in cycles; keep reprs to the node's name."""
+
+    def __repr__(self) -> str:
+        owner = getattr(self, "root", None) or getattr(self, "solid", None)
+        node = getattr(self, "node", None) or getattr(owner, "node", None)
+        name = node.fields.get("name", node.def_name or node.type_name) if isinstance(node, Node) else "?"
+        return f"<{type(self).__name__} {name!r}>"
+
+
+@dataclass(eq=False, repr=False)
+class RobotRec(_ShortRepr):
     """A Robot node and the devices found in its subtree."""
 
     node: Node
@@ -160,8 +179,8 @@ class RobotRec:
     category: int = 0
 
 
-@dataclass(eq=False)
-class GeomRec:
+@dataclass(eq=False, repr=False)
+class GeomRec(_ShortRepr):
     """One ODE geom created from a boundingObject primitive."""
 
     ptr: int
@@ -173,8 +192,8 @@ class GeomRec:
     keepalive: tuple[Any, ...] = ()
 
 
-@dataclass(eq=False)
-class SolidRec:
+@dataclass(eq=False, repr=False)
+class SolidRec(_ShortRepr):
     """A Solid-derived node and where it sits in the ODE scene."""
 
     node: Node
@@ -205,8 +224,8 @@ class SolidRec:
         return self.body is not None
 
 
-@dataclass(eq=False)
-class BodyRec:
+@dataclass(eq=False, repr=False)
+class BodyRec(_ShortRepr):
     """One ODE body: a root Solid plus the Solids merged into it (§3.3)."""
 
     index: int
@@ -237,8 +256,8 @@ class BodyRec:
         return Pose(R, m3.sub(p, m3.mat_vec(R, self.com)))
 
 
-@dataclass(eq=False)
-class MotorRec:
+@dataclass(eq=False, repr=False)
+class MotorRec(_ShortRepr):
     """RotationalMotor/LinearMotor state (§5)."""
 
     node: Node
@@ -264,6 +283,7 @@ class MotorRec:
     integral: float = 0.0
     prev_error: float = 0.0
     current_velocity: float = 0.0  # Webots sign
+    torque_params_set: bool = False
     sensor: PositionSensorRec | None = None
     brake: Node | None = None
 
@@ -273,6 +293,7 @@ class MotorRec:
         self.target_velocity = self.max_velocity
         self.available = self.max_force
         self.torque_mode = False
+        self.torque_params_set = False
         self.raw_torque = 0.0
         self.integral = 0.0
         self.prev_error = 0.0
@@ -307,8 +328,8 @@ class MotorRec:
         return u
 
 
-@dataclass(eq=False)
-class PositionSensorRec:
+@dataclass(eq=False, repr=False)
+class PositionSensorRec(_ShortRepr):
     """PositionSensor attached to a joint axis (§5.4)."""
 
     node: Node
@@ -319,8 +340,8 @@ class PositionSensorRec:
     resolution: float
 
 
-@dataclass(eq=False)
-class DeviceRec:
+@dataclass(eq=False, repr=False)
+class DeviceRec(_ShortRepr):
     """A Solid-derived device (GPS, InertialUnit, Gyro, Accelerometer, ...)."""
 
     node: Node
@@ -329,8 +350,8 @@ class DeviceRec:
     name: str
 
 
-@dataclass(eq=False)
-class JointRec:
+@dataclass(eq=False, repr=False)
+class JointRec(_ShortRepr):
     """A Webots joint and its ODE counterpart (§4)."""
 
     node: Node
@@ -396,7 +417,16 @@ class Simulation:
 
     def __init__(self, world: World, *, seed: int | None = None) -> None:
         self.world = world
-        self._lib = ode.load()
+        self._lib = lib = ode.load()
+        ode.ensure_thread()
+        self._thread = threading.get_ident()
+        # cached ctypes function objects for the per-step paths
+        self._step_fn = lib.dWorldStep
+        self._is_enabled = lib.dBodyIsEnabled
+        self._empty_group = lib.dJointGroupEmpty
+        self._hinge_angle = lib.dJointGetHingeAngle
+        self._hinge_rate = lib.dJointGetHingeAngleRate
+        self._slider_pos = lib.dJointGetSliderPosition
         self._warnings: list[str] = []
         self.robots: list[RobotRec] = []
         self.solids: list[SolidRec] = []
@@ -408,6 +438,7 @@ class Simulation:
         self._solid_by_node: dict[int, SolidRec] = {}
         self._joint_by_node: dict[int, JointRec] = {}
         self._pending: list[_PendingOp] = []
+        self._edited: dict[tuple[int, str], Node] = {}
         self._unstable = False
         self._closed = False
         self.step_count = 0
@@ -462,7 +493,9 @@ class Simulation:
         snap = []
         for top in self.world.nodes:
             for node in top.walk():
-                snap.append((node, {k: (list(v) if isinstance(v, list) else v) for k, v in node.fields.items()}))
+                snap.append(
+                    (node, {k: (list(v) if isinstance(v, list) else v) for k, v in node.fields.items()})
+                )
         return snap
 
     def _restore_fields(self) -> None:
@@ -521,7 +554,11 @@ class Simulation:
         self._walk_children([node], Pose(), None, None)
 
     def _walk_children(
-        self, children: Iterable[Node | None], frame_rel: Pose, parent: SolidRec | None, robot: RobotRec | None
+        self,
+        children: Iterable[Node | None],
+        frame_rel: Pose,
+        parent: SolidRec | None,
+        robot: RobotRec | None,
     ) -> None:
         for child in children:
             if child is None:
@@ -551,7 +588,9 @@ class Simulation:
     ) -> SolidRec:
         local = Pose.from_fields(_f(node, "translation", None), _f(node, "rotation", None))
         rel = frame_rel * local
-        solid = SolidRec(node=node, parent=parent, robot=robot, rel=rel, pre=frame_rel, load_rel=rel, joint=joint)
+        solid = SolidRec(
+            node=node, parent=parent, robot=robot, rel=rel, pre=frame_rel, load_rel=rel, joint=joint
+        )
         solid.index = len(self.solids)
         self.solids.append(solid)
         self._solid_by_node[id(node)] = solid
@@ -571,7 +610,9 @@ class Simulation:
         self._walk_children(node.children(), Pose(), solid, robot)
         return solid
 
-    def _add_joint(self, node: Node, frame_rel: Pose, parent: SolidRec | None, robot: RobotRec | None) -> None:
+    def _add_joint(
+        self, node: Node, frame_rel: Pose, parent: SolidRec | None, robot: RobotRec | None
+    ) -> None:
         kind = {"HingeJoint": "hinge", "SliderJoint": "slider", "Hinge2Joint": "hinge2", "BallJoint": "ball"}[
             node.type_name
         ]
@@ -733,7 +774,9 @@ class Simulation:
             full = (i1 + [0.0] * 3)[:3]
             mat = (full[0], i2[0], i2[1], i2[0], full[1], i2[2], i2[1], i2[2], full[2])
             if mass > 0 and com is not None and len(inertia) == 2 and m3.is_positive_definite3(mat):
-                lib.dMassSetParameters(byref(m), mass, 0.0, 0.0, 0.0, full[0], full[1], full[2], i2[0], i2[1], i2[2])
+                lib.dMassSetParameters(
+                    byref(m), mass, 0.0, 0.0, 0.0, full[0], full[1], full[2], i2[0], i2[1], i2[2]
+                )
                 lib.dMassTranslate(byref(m), *com)
                 return m, volume
             self.warn(f"Solid '{solid.name}': invalid inertiaMatrix ignored")
@@ -973,7 +1016,9 @@ class Simulation:
         world = self.world_pose_at_load(solid)
         self._bo_geoms(bo, Pose(), solid, world, (1.0, 1.0, 1.0))
 
-    def _bo_geoms(self, node: Node, local: Pose, solid: SolidRec, solid_world: Pose, scale: Sequence[float]) -> None:
+    def _bo_geoms(
+        self, node: Node, local: Pose, solid: SolidRec, solid_world: Pose, scale: Sequence[float]
+    ) -> None:
         t = node.type_name
         if t in ("Pose", "Transform"):
             sub = local * Pose.from_fields(_f(node, "translation", None), _f(node, "rotation", None))
@@ -995,7 +1040,9 @@ class Simulation:
             return
         self._make_geom(node, local, solid, solid_world, scale)
 
-    def _make_geom(self, node: Node, local: Pose, solid: SolidRec, solid_world: Pose, scale: Sequence[float]) -> None:
+    def _make_geom(
+        self, node: Node, local: Pose, solid: SolidRec, solid_world: Pose, scale: Sequence[float]
+    ) -> None:
         lib = self._lib
         t = node.type_name
         keep: tuple[Any, ...] = ()
@@ -1119,7 +1166,9 @@ class Simulation:
         arr = (ctypes.c_double * len(data_vals))(*data_vals)
         thickness = float(_f(node, "thickness", 1.0))
         data = lib.dGeomHeightfieldDataCreate()
-        lib.dGeomHeightfieldDataBuildDouble(data, arr, 1, width, depth, nx, ny, 1.0, 0.0, max(thickness, 1e-6), 0)
+        lib.dGeomHeightfieldDataBuildDouble(
+            data, arr, 1, width, depth, nx, ny, 1.0, 0.0, max(thickness, 1e-6), 0
+        )
         lib.dGeomHeightfieldDataSetBounds(data, min(data_vals), max(data_vals))
         ptr = lib.dCreateHeightfield(self._space, data, 1)
         extra = Pose(m3.rot_axis_angle((1.0, 0.0, 0.0, math.pi / 2)), (width / 2, depth / 2, 0.0))
@@ -1170,7 +1219,9 @@ class Simulation:
         """Set anchor/axis from the current poses; ODE's zero is this configuration (§4.1)."""
         lib = self._lib
         frame = (
-            self.solid_world_pose(joint.parent) * joint.frame_rel if joint.parent is not None else joint.frame_rel
+            self.solid_world_pose(joint.parent) * joint.frame_rel
+            if joint.parent is not None
+            else joint.frame_rel
         )
         axis = frame.rotate(joint.axis_local[0])
         anchor = frame.apply(joint.anchor_local)
@@ -1198,14 +1249,14 @@ class Simulation:
 
     def _set_stops(self, joint: JointRec, i: int) -> None:
         p = joint.params[i]
-        if p is None or joint.kind == "ball":
-            return
+        if p is None or joint.kind == "ball" or (joint.kind == "hinge2" and i == 1):
+            return  # upstream ODE never limits the second Hinge2 axis (module docstring)
         lo_w, hi_w = float(_f(p, "minStop", 0.0)), float(_f(p, "maxStop", 0.0))
         if lo_w == hi_w:
             return
         off = joint.offsets[i]
-        if joint.kind == "slider" or (joint.kind == "hinge2" and i == 1):
-            lo, hi = lo_w - off, hi_w - off  # §4.3 (and hinge2 axis 2, same sign as its measure)
+        if joint.kind == "slider":
+            lo, hi = lo_w - off, hi_w - off  # §4.3
         else:
             lo = max(-math.pi, min(math.pi, -hi_w + off))  # §4.2
             hi = max(-math.pi, min(math.pi, -lo_w + off))
@@ -1294,7 +1345,9 @@ class Simulation:
             if robot is None or node is robot.node:
                 continue
             if node.type_name in SOLID_TYPES and node.type_name not in ("Solid", "Robot"):
-                dev = DeviceRec(node=node, solid=solid, type_name=node.type_name, name=str(_f(node, "name", "")))
+                dev = DeviceRec(
+                    node=node, solid=solid, type_name=node.type_name, name=str(_f(node, "name", ""))
+                )
                 robot.devices.setdefault(dev.name, dev)
                 self.devices.append(dev)
 
@@ -1489,7 +1542,6 @@ class Simulation:
     # ------------------------------------------------------------------ stepping
 
     def _prepare_step_lists(self) -> None:
-        lib = self._lib
         self._dyn_motors = [m for m in self.motors if not m.joint.kinematic and m.joint.kind != "ball"]
         self._kin_motors = [m for m in self.motors if m.joint.kinematic]
         self._springs = [j for j in self.joints if j.spring]
@@ -1499,12 +1551,6 @@ class Simulation:
         for gr in self.geoms.values():
             if gr.body is None and gr.solid.robot is not None and self._moves(gr.solid):
                 self._moving_static.append(gr)
-        self._step_fn = lib.dWorldStep
-        self._is_enabled = lib.dBodyIsEnabled
-        self._empty_group = lib.dJointGroupEmpty
-        self._hinge_angle = lib.dJointGetHingeAngle
-        self._hinge_rate = lib.dJointGetHingeAngleRate
-        self._slider_pos = lib.dJointGetSliderPosition
         self._views = [(b.pos, b.lvel, b.avel) for b in self.bodies]
 
     def _moves(self, solid: SolidRec) -> bool:
@@ -1532,6 +1578,8 @@ class Simulation:
         Raises:
             SimulationUnstable: the state became non-finite; stepping is refused until :meth:`reset`.
         """
+        if threading.get_ident() != self._thread:
+            ode.ensure_thread()  # ODE needs per-thread data in every stepping thread
         for _ in range(n):
             if self._unstable:
                 raise SimulationUnstable("simulation is unstable; call reset()")
@@ -1563,15 +1611,21 @@ class Simulation:
         kind = joint.kind
         i = motor.axis_index
         if motor.torque_mode:
+            if not motor.torque_params_set:
+                # §5.2: entering torque mode leaves a velocity-0 motor limited to staticFriction
+                self._set_motor_row(joint, i, 0.0, joint.static_friction[i])
+                motor.torque_params_set = True
             tau = motor.raw_torque
             if kind == "hinge":
-                lib.dJointAddHingeTorque(joint.ptr, -tau)
+                # ODE 0.16 negates the torque of reversed hinges itself; undo it so that a positive
+                # torque increases the position for static-base joints too (UNVERIFIED for the fork)
+                lib.dJointAddHingeTorque(joint.ptr, tau if joint.reverse else -tau)
             elif kind == "slider":
                 lib.dJointAddSliderForce(joint.ptr, tau)
             elif i == 0:
                 lib.dJointAddHinge2Torques(joint.ptr, -tau, 0.0)
             else:
-                lib.dJointAddHinge2Torques(joint.ptr, 0.0, tau)
+                lib.dJointAddHinge2Torques(joint.ptr, 0.0, -tau)
             return
         u = motor.command_velocity(dt)
         fmax = max(joint.static_friction[i], motor.available)
@@ -1587,7 +1641,13 @@ class Simulation:
             setp = lib.dJointSetHinge2Param
             g = ode.dParamGroup2 if i == 1 else 0
             setp(joint.ptr, g + ode.dParamFMax, fmax)
-            setp(joint.ptr, g + ode.dParamVel, -u if i == 0 else u)
+            setp(joint.ptr, g + ode.dParamVel, -u)
+
+    def _set_motor_row(self, joint: JointRec, i: int, vel: float, fmax: float) -> None:
+        setp = self._param_setter(joint)
+        g = ode.dParamGroup2 if i == 1 else 0
+        setp(joint.ptr, g + ode.dParamVel, vel)
+        setp(joint.ptr, g + ode.dParamFMax, fmax)
 
     def _apply_spring(self, joint: JointRec) -> None:
         lib = self._lib
@@ -1622,8 +1682,10 @@ class Simulation:
             p0, p1, p2 = pos[0], pos[1], pos[2]
             v0, v1, v2 = lvel[0], lvel[1], lvel[2]
             s = p0 * p0 + p1 * p1 + p2 * p2 + v0 * v0 + v1 * v1 + v2 * v2 + avel[0] + avel[1] + avel[2]
-            if not isfinite(s) or abs(p0) + abs(p1) + abs(p2) > DIVERGED_POSITION or (
-                abs(v0) + abs(v1) + abs(v2) > DIVERGED_VELOCITY
+            if (
+                not isfinite(s)
+                or abs(p0) + abs(p1) + abs(p2) > DIVERGED_POSITION
+                or (abs(v0) + abs(v1) + abs(v2) > DIVERGED_VELOCITY)
             ):
                 self._unstable = True
                 raise SimulationUnstable(
@@ -1722,13 +1784,13 @@ class Simulation:
                     lib.dJointSetAMotorAngle(joint.spring, 0, 0.0)
                 for i, m in enumerate(joint.motors):
                     if m is not None or joint.static_friction[i] > 0:
-                        setp = self._param_setter(joint)
-                        g = ode.dParamGroup2 if i == 1 else 0
-                        setp(joint.ptr, g + ode.dParamVel, 0.0)
-                        setp(joint.ptr, g + ode.dParamFMax, joint.static_friction[i] if m is None else 0.0)
+                        self._set_motor_row(joint, i, 0.0, joint.static_friction[i] if m is None else 0.0)
         for gr in self.geoms.values():
             if gr.body is None:
                 self._place_static_geom(gr, self.solid_world_pose(gr.solid))
+        for (_, name), node in list(self._edited.items()):
+            self._apply_field(node, name)
+        self._edited.clear()
         for motor in self.motors:
             motor.reset_state()
         self._enabled[:] = [True] * len(self.bodies)
@@ -1779,7 +1841,13 @@ class Simulation:
         """The joint of a joint node or of one of its (Hinge)JointParameters nodes."""
         return self._joint_by_node.get(id(node))
 
-    def queue_set_pose(self, solid: SolidRec, translation: Sequence[float] | None, rotation: Sequence[float] | None) -> None:
+    def has_pending(self, target: Any) -> bool:
+        """Whether a queued supervisor operation targets ``target`` (a SolidRec or JointRec)."""
+        return any(op.target is target for op in self._pending)
+
+    def queue_set_pose(
+        self, solid: SolidRec, translation: Sequence[float] | None, rotation: Sequence[float] | None
+    ) -> None:
         """Queue a teleport (translation/rotation field set), applied before the next physics step."""
         self._pending.append(_PendingOp("pose", solid, (translation, rotation)))
 
@@ -1798,17 +1866,20 @@ class Simulation:
                 self._teleport_joint(op.target, axis_index, position)
         self._check_state()
 
-    def _teleport_solid(self, solid: SolidRec, translation: Sequence[float] | None, rotation: Sequence[float] | None) -> None:
-        node = solid.node
-        if translation is not None:
-            node.fields["translation"] = tuple(float(v) for v in translation)
-        if rotation is not None:
-            node.fields["rotation"] = tuple(float(v) for v in rotation)
-        local = Pose.from_fields(_f(node, "translation", None), _f(node, "rotation", None))
-        old_world = self.solid_world_pose(solid)
+    def _teleport_solid(
+        self, solid: SolidRec, translation: Sequence[float] | None, rotation: Sequence[float] | None
+    ) -> None:
         if solid.body is not None and solid.body.root is not solid:
             self.warn(f"moving merged Solid '{solid.name}' is not supported; ignored")
             return
+        node = solid.node
+        current = self.solid_local_pose(solid)  # fields of moving solids are only refreshed lazily
+        t = tuple(float(v) for v in translation) if translation is not None else current.t
+        R = m3.rot_axis_angle(rotation) if rotation is not None else current.R
+        node.fields["translation"] = t
+        node.fields["rotation"] = tuple(rotation) if rotation is not None else m3.axis_angle_from_mat(R)
+        local = Pose(R, t)
+        old_world = self.solid_world_pose(solid)
         if solid.parent is None:
             new_world = solid.pre * local
         else:
@@ -1841,11 +1912,6 @@ class Simulation:
                 lib.dBodySetAngularVel(body.ptr, 0.0, 0.0, 0.0)
                 lib.dBodySetForce(body.ptr, 0.0, 0.0, 0.0)
                 lib.dBodySetTorque(body.ptr, 0.0, 0.0, 0.0)
-            else:
-                lv, av = body.lvel, body.avel
-                nl, na = T.rotate((lv[0], lv[1], lv[2])), T.rotate((av[0], av[1], av[2]))
-                lib.dBodySetLinearVel(body.ptr, *nl)
-                lib.dBodySetAngularVel(body.ptr, *na)
             lib.dBodyEnable(body.ptr)
         stack = [solid]
         while stack:
@@ -1903,11 +1969,98 @@ class Simulation:
         new_rel = self._joint_motion(joint, delta) * child.load_rel if delta else child.load_rel
         new_world = parent_world * new_rel
         self._move_subtree(child, new_world * old_world.inverse(), reset_velocity=True)
+        moved = {id(s) for s in self._subtree(child)}
         for motor in self.motors:
-            if motor.joint.child is not None and id(motor.joint.child) in {id(s) for s in self._subtree(child)}:
+            if motor.joint.child is not None and id(motor.joint.child) in moved:
                 motor.current_velocity = 0.0
         joint.positions[axis_index] = float(position)
         self._read_joint(joint, predict=False)
+
+    # ------------------------------------------------------------------ live field edits
+
+    def field_changed(self, node: Node, name: str) -> bool:
+        """Apply a supervisor's edit of ``node.fields[name]`` to the running ODE scene, as Webots does.
+
+        Webots reacts to field edits at run time (WbJoint/WbMotor/WbPhysics/WbContactProperties update
+        their ODE objects). Supported: joint ``dampingConstant``/``springConstant``/``staticFriction``,
+        motor ``maxVelocity``/``maxTorque``/``maxForce``, ``Physics.mass`` (inertia scaled with it, CoM
+        unchanged), ``ContactProperties`` friction/bounce/soft ERP/CFM, and ``WorldInfo`` ERP/CFM.
+        Returns False for fields whose edit has no physics effect here.
+        """
+        applied = self._apply_field(node, name)
+        if applied:
+            # simulationReset restores the field; reset() then re-applies it so ODE follows.
+            self._edited[(id(node), name)] = node
+        return applied
+
+    def _apply_field(self, node: Node, name: str) -> bool:
+        lib = self._lib
+        value: Any = node.fields.get(name)
+        joint = next((j for j in self.joints if node in j.params), None)
+        if joint is not None:
+            i = joint.params.index(node)
+            if name == "staticFriction":
+                joint.static_friction[i] = float(value)
+                self._set_static_friction(joint, i)
+                return True
+            if name in ("dampingConstant", "springConstant") and i == 0:
+                if joint.spring:
+                    lib.dJointDestroy(joint.spring)
+                    joint.spring = 0
+                self._create_spring(joint)
+                if joint.spring and joint.kind == "hinge":
+                    self._apply_spring(joint)
+                return True
+            return False
+        motor = next((m for m in self.motors if m.node is node), None)
+        if motor is not None:
+            if name == "maxVelocity":
+                motor.max_velocity = float(value)
+                motor.target_velocity = max(-motor.max_velocity, min(motor.max_velocity, motor.target_velocity))
+                return True
+            if name in ("maxTorque", "maxForce"):
+                motor.max_force = float(value)
+                motor.available = motor.max_force
+                return True
+            return False
+        if node.type_name == "Physics" and name == "mass":
+            body = next((b for b in self.bodies if any(m.node.fields.get("physics") is node for m in b.members)), None)
+            if body is None or float(value) <= 0:
+                return False
+            # The merged members' masses, re-read from their (edited) Physics nodes; the inertia scales
+            # with the total and the CoM stays put (exact for single-solid bodies).
+            total = sum(self._solid_mass(member)[0].mass for member in body.members)
+            mass = ode.dMass()
+            lib.dBodyGetMass(body.ptr, byref(mass))
+            lib.dMassAdjust(byref(mass), total)
+            lib.dBodySetMass(body.ptr, byref(mass))
+            body.mass = mass.mass
+            return True
+        if node.type_name == "ContactProperties":
+            self._surfaces.pop(id(node), None)
+            return True
+        if node.type_name == "WorldInfo" and name in ("ERP", "CFM"):
+            if name == "ERP":
+                lib.dWorldSetERP(self._world, float(value))
+            else:
+                lib.dWorldSetCFM(self._world, float(value))
+            return True
+        return False
+
+    def joint_velocity(self, joint: JointRec, axis_index: int = 0) -> float:
+        """Current joint rate in the Webots sign convention (rad/s or m/s)."""
+        lib = self._lib
+        if joint.kinematic or joint.kind == "ball":
+            motor = joint.motors[axis_index] if axis_index < len(joint.motors) else None
+            return motor.current_velocity if motor is not None else 0.0
+        if joint.kind == "hinge":
+            rate = lib.dJointGetHingeAngleRate(joint.ptr)
+            return float(rate if joint.reverse else -rate)
+        if joint.kind == "slider":
+            return float(lib.dJointGetSliderPositionRate(joint.ptr))
+        if axis_index == 0:
+            return float(-lib.dJointGetHinge2Angle1Rate(joint.ptr))
+        return float(lib.dJointGetHinge2Angle2Rate(joint.ptr))
 
     def set_body_velocity(self, solid: SolidRec, velocity: Sequence[float]) -> None:
         """``Node.setVelocity``: set the ODE body's linear (CoM) and angular velocity (world frame)."""
@@ -1951,10 +2104,14 @@ class Simulation:
         return solid.pre.inverse() * parent.inverse() * world
 
     def wake(self, joint: JointRec) -> None:
-        lib = self._lib
+        """Re-enable a joint's sleeping bodies (a motor command changed, UNVERIFIED)."""
+        if not self._auto_disable:
+            return
+        enabled = self._enabled
         for b in (joint.parent_body, joint.child_body):
-            if b is not None:
-                lib.dBodyEnable(b.ptr)
+            if b is not None and not enabled[b.index]:
+                self._lib.dBodyEnable(b.ptr)
+                enabled[b.index] = True
 
     # ------------------------------------------------------------------ sensors
 

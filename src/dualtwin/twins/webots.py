@@ -1,0 +1,379 @@
+"""The Webots twin, written against the Webots controller API only.
+
+Everything here goes through ``Supervisor``, ``Motor``, ``PositionSensor``, ``Node`` and ``Field``, so the same
+adapter drives our headless ODE runtime (:mod:`dualtwin.webots`) and a real Webots installation, where it runs
+as an extern controller of a robot with ``supervisor TRUE`` (see the README).
+
+Names: joints are found by the DEF of their joint node, bodies by the DEF of their Solid, motors and sensors
+by their device ``name``, as in the binding.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from dualtwin.errors import DualtwinError, SimulationUnstable
+from dualtwin.twins.base import ControlMode, Knob, Twin, unknown_name
+
+if TYPE_CHECKING:
+    from dualtwin.robots.binding import RobotBinding
+
+JOINT_TYPES = ("HingeJoint", "SliderJoint", "Hinge2Joint", "BallJoint")
+MOTOR_TYPES = ("RotationalMotor", "LinearMotor")
+
+
+class _Joint:
+    """A joint node with the handles ground truth needs."""
+
+    def __init__(self, node: Any) -> None:
+        self.node = node
+        self.kind = node.getTypeName()
+        self.params = node.getField("jointParameters").getSFNode()
+        if self.params is None:
+            raise DualtwinError(f"joint {node.getDef()!r} has no jointParameters; give it one to use it by name")
+        self.position = self.params.getField("position")
+        self.axis = np.array(self.params.getField("axis").getSFVec3f(), dtype=float)
+        self.axis /= np.linalg.norm(self.axis)
+        self.child = node.getField("endPoint").getSFNode()
+        self.parent = node.getParentNode()
+
+
+class WebotsTwin(Twin):
+    """A Webots robot driven by a supervisor controller, in control periods of simulation time."""
+
+    name = "webots"
+
+    def __init__(self, supervisor: Any, control_period: float, aliases: dict[str, str] | None = None,
+                 origin: str = "webots") -> None:
+        self.sup = supervisor
+        self._origin = origin
+        self._aliases = aliases or {}
+        self._basic_ms = float(supervisor.getBasicTimeStep())
+        period_ms = control_period * 1000.0
+        if abs(period_ms / self._basic_ms - round(period_ms / self._basic_ms)) > 1e-6:
+            raise DualtwinError(f"{origin}: control period {period_ms:g} ms is not a multiple of "
+                                f"basicTimeStep {self._basic_ms:g} ms")
+        self._period_ms = period_ms
+        self._control_period = control_period
+        self._t0 = float(supervisor.getTime())
+        self._joints: dict[str, _Joint] = {}
+        self._bodies: dict[str, Any] = {}
+        self._motors: dict[str, Any] = {}
+        self._sensors: dict[str, Any] = {}
+        self._gains: dict[str, float] = {}
+        self._knob_values: dict[str, float] = {}
+        # Enable every sensor now: a Webots sensor reads NaN until its first sample after enable().
+        for name in self._device_names(None):
+            self._sensor(name)
+        self._fields = self._scan_knob_fields()
+        self._nominal = {name: self._read_knob(name) for name in self._fields}
+        self._knobs = self._build_knobs()
+
+    # ---------------------------------------------------------------- name resolution
+    def _resolve(self, name: str) -> str:
+        return self._aliases.get(name, name)
+
+    def _joint(self, name: str) -> _Joint:
+        joint = self._joints.get(name)
+        if joint is None:
+            node = self.sup.getFromDef(self._resolve(name))
+            if node is None or node.getTypeName() not in JOINT_TYPES:
+                raise unknown_name("joint", self._resolve(name), self._defs(JOINT_TYPES), self._origin)
+            joint = self._joints[name] = _Joint(node)
+        return joint
+
+    def _body(self, name: str) -> Any:
+        node = self._bodies.get(name)
+        if node is None:
+            node = self.sup.getFromDef(self._resolve(name))
+            if node is None:
+                raise unknown_name("body", self._resolve(name), self._defs(None), self._origin)
+            self._bodies[name] = node
+        return node
+
+    def _motor(self, name: str) -> Any:
+        motor = self._motors.get(name)
+        if motor is None:
+            device = self.sup.getDevice(self._resolve(name))
+            if device is None or not hasattr(device, "setVelocity"):
+                raise unknown_name("motor", self._resolve(name), self._device_names(MOTOR_TYPES), self._origin)
+            motor = self._motors[name] = device
+        return motor
+
+    def _sensor(self, name: str) -> Any:
+        sensor = self._sensors.get(name)
+        if sensor is None:
+            device = self.sup.getDevice(self._resolve(name))
+            if device is None or not hasattr(device, "enable"):
+                raise unknown_name("sensor", self._resolve(name), self._device_names(None), self._origin)
+            device.enable(int(self._basic_ms))
+            sensor = self._sensors[name] = device
+        return sensor
+
+    def _walk(self) -> Iterator[Any]:
+        """Every node of the robot's subtree (children, joint endPoints and devices, parameters)."""
+        stack = [self.sup.getSelf()]
+        while stack:
+            node = stack.pop()
+            yield node
+            for field in ("children", "device"):
+                handle = node.getField(field)
+                if handle is not None and handle.getCount() > 0:
+                    stack.extend(n for n in (handle.getMFNode(i) for i in range(handle.getCount())) if n)
+            for field in ("endPoint", "jointParameters", "physics"):
+                handle = node.getField(field)
+                child = handle.getSFNode() if handle is not None else None
+                if child is not None:
+                    stack.append(child)
+
+    def _defs(self, types: tuple[str, ...] | None) -> list[str]:
+        return [n.getDef() for n in self._walk() if n.getDef() and (types is None or n.getTypeName() in types)]
+
+    def _device_names(self, types: tuple[str, ...] | None) -> list[str]:
+        out = []
+        for node in self._walk():
+            kind = node.getTypeName()
+            name_field = node.getField("name")
+            is_device = node.getField("device") is None and name_field is not None and kind != "Robot"
+            wanted = kind.endswith("Sensor") if types is None else kind in types
+            if is_device and wanted:
+                out.append(name_field.getSFString())
+        return out
+
+    # ---------------------------------------------------------------- Twin API
+    @property
+    def control_period(self) -> float:
+        return self._control_period
+
+    @property
+    def time(self) -> float:
+        return round(float(self.sup.getTime()) - self._t0, 9)
+
+    def reset(self, seed: int | None = None) -> None:
+        # Webots reseeds its sensor noise from WorldInfo.randomSeed on reset; a controller cannot choose it.
+        self.sup.simulationReset()
+        self._advance(self._basic_ms)
+        self._t0 = float(self.sup.getTime())
+        # simulationReset restores every field, knobs included: re-apply them.
+        self.set_knobs(dict(self._knob_values))
+
+    def _advance(self, ms: float) -> None:
+        try:
+            result = self.sup.step(int(round(ms)))
+        except SimulationUnstable:
+            raise
+        except RuntimeError as exc:
+            if "unstable" in str(exc).lower() or "nan" in str(exc).lower():
+                raise SimulationUnstable(str(exc)) from None
+            raise
+        if result == -1:
+            raise DualtwinError(f"{self._origin}: the simulation ended")
+
+    def set_joint_state(self, joint: str, position: float | None = None, velocity: float | None = None) -> None:
+        j = self._joint(joint)
+        if position is not None:
+            # Webots teleports the endPoint at the next step and resets its physics (spec §4.1).
+            j.position.setSFFloat(float(position))
+        if velocity is not None:
+            axis = self._world_axis(j)
+            parent_w = self._angular(j.parent)
+            if j.kind == "SliderJoint":
+                linear = np.array(j.child.getVelocity()[:3]) + axis * velocity
+                j.child.setVelocity([*linear, *parent_w])
+            else:
+                omega = parent_w + axis * velocity
+                anchor = self._anchor_world(j)
+                com = np.array(j.child.getCenterOfMass())
+                linear = np.cross(omega, com - anchor)
+                j.child.setVelocity([*linear, *omega])
+
+    def set_body_position(self, body: str, axis: int, value: float) -> None:
+        node = self._body(body)
+        field = node.getField("translation")
+        translation = list(field.getSFVec3f())
+        parent = node.getParentNode()
+        if parent is not None and parent.getTypeName() not in ("Group", ""):
+            raise DualtwinError(f"{self._origin}: body {body!r} is not a top-level Solid; cannot teleport it")
+        translation[axis] = float(value)
+        field.setSFVec3f(translation)
+
+    def command(self, actuator: str, mode: ControlMode, value: float) -> None:
+        motor = self._motor(actuator)
+        value *= self._gains.get(actuator, 1.0)
+        if mode == "velocity":
+            motor.setPosition(math.inf)
+            motor.setVelocity(float(max(-motor.getMaxVelocity(), min(motor.getMaxVelocity(), value))))
+        elif mode == "position":
+            motor.setVelocity(motor.getMaxVelocity())
+            motor.setPosition(float(value))
+        else:
+            limit = motor.getMaxTorque() if hasattr(motor, "getMaxTorque") else motor.getMaxForce()
+            clamped = float(max(-limit, min(limit, value)))
+            (motor.setTorque if hasattr(motor, "setTorque") else motor.setForce)(clamped)
+
+    def step(self) -> None:
+        self._advance(self._period_ms)
+
+    def joint_position(self, joint: str) -> float:
+        return float(self._joint(joint).position.getSFFloat())
+
+    def _world_axis(self, j: _Joint) -> np.ndarray:
+        rotation = np.array(j.parent.getOrientation(), dtype=float).reshape(3, 3)
+        return rotation @ j.axis
+
+    def _anchor_world(self, j: _Joint) -> np.ndarray:
+        anchor_field = j.params.getField("anchor")
+        local = np.array(anchor_field.getSFVec3f() if anchor_field is not None else [0.0, 0.0, 0.0])
+        rotation = np.array(j.parent.getOrientation(), dtype=float).reshape(3, 3)
+        return np.array(j.parent.getPosition(), dtype=float) + rotation @ local
+
+    @staticmethod
+    def _angular(node: Any) -> np.ndarray:
+        return np.array(node.getVelocity()[3:], dtype=float) if node is not None else np.zeros(3)
+
+    def joint_velocity(self, joint: str) -> float:
+        j = self._joint(joint)
+        axis = self._world_axis(j)
+        if j.kind == "SliderJoint":
+            relative = np.array(j.child.getVelocity()[:3]) - np.array(j.parent.getVelocity()[:3])
+            return float(relative @ axis)
+        return float((self._angular(j.child) - self._angular(j.parent)) @ axis)
+
+    def body_position(self, body: str) -> np.ndarray:
+        return np.array(self._body(body).getPosition(), dtype=float)
+
+    def body_orientation(self, body: str) -> np.ndarray:
+        return np.array(self._body(body).getOrientation(), dtype=float).reshape(3, 3)
+
+    def body_velocity(self, body: str) -> np.ndarray:
+        node = self._body(body)
+        velocity = np.array(node.getVelocity(), dtype=float)
+        # Webots reports the CoM's linear velocity; the contract is the frame origin's.
+        offset = np.array(node.getPosition(), dtype=float) - np.array(node.getCenterOfMass(), dtype=float)
+        velocity[:3] += np.cross(velocity[3:], offset)
+        return velocity
+
+    def sensor(self, name: str) -> float:
+        device = self._sensor(name)
+        value = device.getValue() if hasattr(device, "getValue") else device.getValues()[0]
+        return float(value)
+
+    # ---------------------------------------------------------------- knobs, through Field edits
+    def _scan_knob_fields(self) -> dict[str, tuple[Any, str, int | None]]:
+        """Knob name -> (node, field, MF index). Only fields Webots applies live are offered."""
+        fields: dict[str, tuple[Any, str, int | None]] = {}
+        for node in self._walk():
+            kind = node.getTypeName()
+            if kind in JOINT_TYPES and node.getDef():
+                params = node.getField("jointParameters").getSFNode()
+                if params is not None:
+                    fields[f"joint.{node.getDef()}.damping"] = (params, "dampingConstant", None)
+                    fields[f"joint.{node.getDef()}.friction"] = (params, "staticFriction", None)
+            elif kind in MOTOR_TYPES:
+                name = node.getField("name").getSFString()
+                torque = "maxTorque" if kind == "RotationalMotor" else "maxForce"
+                fields[f"motor.{name}.max_torque"] = (node, torque, None)
+                fields[f"motor.{name}.max_velocity"] = (node, "maxVelocity", None)
+            elif kind == "Physics":
+                continue
+            physics = node.getField("physics")
+            physics_node = physics.getSFNode() if physics is not None else None
+            if node.getDef() and physics_node is not None and physics_node.getField("mass").getSFFloat() > 0:
+                fields[f"body.{node.getDef()}.mass"] = (physics_node, "mass", None)
+        root = self.sup.getRoot().getField("children")
+        info = next((n for n in (root.getMFNode(i) for i in range(root.getCount())) if n
+                     and n.getTypeName() == "WorldInfo"), None)
+        if info is not None:
+            fields["world.erp"] = (info, "ERP", None)
+            fields["world.cfm"] = (info, "CFM", None)
+            contacts = info.getField("contactProperties")
+            for i in range(contacts.getCount()):
+                cp = contacts.getMFNode(i)
+                pair = f"{cp.getField('material1').getSFString()}:{cp.getField('material2').getSFString()}"
+                fields[f"contact.{pair}.friction"] = (cp, "coulombFriction", 0)
+                fields[f"contact.{pair}.bounce"] = (cp, "bounce", None)
+                fields[f"contact.{pair}.soft_erp"] = (cp, "softERP", None)
+                fields[f"contact.{pair}.soft_cfm"] = (cp, "softCFM", None)
+        return fields
+
+    def _read_knob(self, name: str) -> float:
+        node, field, index = self._fields[name]
+        handle = node.getField(field)
+        return float(handle.getMFFloat(index) if index is not None else handle.getSFFloat())
+
+    def _write_knob(self, name: str, value: float) -> None:
+        node, field, index = self._fields[name]
+        handle = node.getField(field)
+        if index is not None:
+            handle.setMFFloat(index, float(value))
+        else:
+            handle.setSFFloat(float(value))
+
+    def _build_knobs(self) -> dict[str, Knob]:
+        knobs: dict[str, Knob] = {}
+        units = {"damping": "N*m*s/rad", "friction": "N*m", "max_torque": "N*m", "max_velocity": "rad/s",
+                 "mass": "kg"}
+        for name, nominal in self._nominal.items():
+            prop = name.rsplit(".", 1)[-1]
+            if prop in ("soft_erp", "erp"):
+                lower, upper = 0.01, 1.0
+            elif prop in ("soft_cfm", "cfm"):
+                lower, upper = 1e-9, max(nominal * 100, 1e-2)
+            elif prop == "bounce":
+                lower, upper = 0.0, 1.0
+            elif prop == "mass":
+                lower, upper = 0.1 * nominal, 10 * nominal
+            elif prop == "friction" and name.startswith("contact."):
+                lower, upper = 0.0, 5 * max(nominal, 0.1)
+            else:
+                lower, upper = 0.0, max(10 * nominal, 1.0 if prop == "damping" else 0.5)
+            knobs[name] = Knob(name, nominal, min(lower, nominal), max(upper, nominal), units.get(prop, ""))
+        for motor in self._device_names(MOTOR_TYPES):
+            knobs[f"motor.{motor}.gain"] = Knob(f"motor.{motor}.gain", 1.0, -2.0, 2.0, "",
+                                                 "command gain (sign included)")
+        return knobs
+
+    def knobs(self) -> dict[str, Knob]:
+        return dict(self._knobs)
+
+    def set_knobs(self, values: dict[str, float]) -> None:
+        unknown = sorted(set(values) - set(self._knobs))
+        if unknown:
+            raise DualtwinError(f"{self._origin}: unknown knobs: {', '.join(unknown)}")
+        for name, nominal in self._nominal.items():
+            target = values.get(name, nominal)
+            if self._read_knob(name) != target:
+                self._write_knob(name, target)
+        self._gains = {k.split(".")[1]: v for k, v in values.items() if k.endswith(".gain")}
+        self._knob_values = dict(values)
+
+
+def from_binding(robot: RobotBinding, control_period: float) -> WebotsTwin:
+    """The Webots twin on our headless ODE runtime."""
+    from dualtwin.webots import load_world
+    from dualtwin.webots.controller import Supervisor
+    from dualtwin.webots.physics import Simulation
+
+    section = robot.spec.twins.get("webots")
+    world_path: Path = robot.model_path("webots")
+    world = load_world(world_path)
+    robot_def = section.robot if section else None
+    robot_node = world.find_def(robot_def) if robot_def else None
+    if robot_def and robot_node is None:
+        raise DualtwinError(f"{world_path}: no robot with DEF {robot_def!r}")
+    simulation = Simulation(world)
+    kwargs: dict[str, Any] = {"simulation": simulation}
+    if robot_node is not None:
+        kwargs["robot_node"] = robot_node
+    elif simulation.robots:
+        kwargs["robot_node"] = simulation.robots[0].node
+    supervisor = Supervisor(**kwargs)
+    supervisor.step(int(round(supervisor.getBasicTimeStep())))  # Webots' first step after load: time 0 → dt
+    twin = WebotsTwin(supervisor, control_period, dict(section.aliases) if section else None, str(world_path))
+    twin.reset()
+    return twin

@@ -1,0 +1,991 @@
+"""The subset of Webots' Python controller API used by RL and test controllers, over a :class:`Simulation`.
+
+Timing follows spec §6: commands issued before ``step(ms)`` act on the physics of that call, the
+simulation advances in basic time steps until ``ms`` elapsed, then sensors due for sampling are read
+(values reflect the state after the physics step). ``step`` returns -1 once the run's duration is
+reached.
+
+Two ways to create the API:
+
+* explicitly on an already built simulation::
+
+      sim = Simulation(load_world(path))
+      sup = Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+      while sup.step(32) != -1: ...
+
+* unchanged Webots scripts (``from controller import Supervisor``; ``Supervisor()``) pick the
+  module-level *current runtime* installed by :mod:`dualtwin.webots.runner` (or by
+  :func:`set_current_runtime`).
+
+Several controllers may share one :class:`Runtime` from different threads: the simulation then advances
+only once every registered controller has asked for the next step (Webots' synchronisation).
+
+UNVERIFIED: ``simulationReset()`` takes effect at the next ``step`` call, which then returns at time 0
+without advancing the physics; ``Field`` getters return a value set earlier in the same step.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import threading
+from collections.abc import Sequence
+from typing import Any
+
+from dualtwin.webots import _math3 as m3
+from dualtwin.webots.nodes import Node as SceneNode
+from dualtwin.webots.physics import (
+    DeviceRec,
+    JointRec,
+    MotorRec,
+    PositionSensorRec,
+    RobotRec,
+    Simulation,
+    SimulationUnstable,
+    SolidRec,
+)
+
+__all__ = [
+    "Accelerometer",
+    "Device",
+    "DistanceSensor",
+    "Field",
+    "GPS",
+    "Gyro",
+    "InertialUnit",
+    "Motor",
+    "Node",
+    "PositionSensor",
+    "Robot",
+    "Runtime",
+    "Supervisor",
+    "SimulationUnstable",
+    "current_runtime",
+    "set_current_runtime",
+]
+
+
+def _warn(message: str) -> None:
+    print(f"Warning: {message}", file=sys.stderr)
+
+
+def _finite(*values: float) -> bool:
+    """No NaN among ``values`` (±inf is allowed, e.g. ``setPosition(inf)``); NaN != NaN."""
+    return all(v == v for v in values)
+
+
+# ------------------------------------------------------------------------------------------ runtime
+
+
+class _Client:
+    __slots__ = ("robot", "target", "waiting", "active")
+
+    def __init__(self, robot: Robot) -> None:
+        self.robot = robot
+        self.target = 0.0
+        self.waiting = False
+        self.active = True
+
+
+class Runtime:
+    """Owns the stepping of one :class:`Simulation` for one or more controllers.
+
+    Args:
+        simulation: the simulation to drive.
+        duration_s: simulated seconds after which ``step`` returns -1 (``None``: unlimited).
+        robot_node: the robot a no-argument ``Robot()``/``Supervisor()`` binds to (default: first robot).
+    """
+
+    def __init__(
+        self, simulation: Simulation, duration_s: float | None = None, robot_node: SceneNode | None = None
+    ) -> None:
+        self.simulation = simulation
+        self.duration_s = duration_s
+        self.default_robot_node = robot_node
+        self._cond = threading.Condition()
+        self._clients: list[_Client] = []
+        self._reset_requested = False
+        self.finished = False
+        self._thread_robot = threading.local()
+        self.error: BaseException | None = None
+        self.exit_status: int | None = None
+        # start-up barrier: stepping waits until every expected controller thread has registered a
+        # Robot or finished, so all controllers start at t = 0 like in Webots
+        self._expected = 0
+        self._arrived: set[int] = set()
+        self._thread_clients: dict[int, list[_Client]] = {}
+
+    def expect(self, n: int) -> None:
+        """Hold the first step until ``n`` controller threads registered a Robot or ended."""
+        self._expected = n
+
+    def thread_done(self) -> None:
+        """The calling thread's controller ended: release its Robots from the synchronisation."""
+        with self._cond:
+            tid = threading.get_ident()
+            self._arrived.add(tid)
+            for client in self._thread_clients.pop(tid, []):
+                client.active = False
+                client.waiting = False
+            self._maybe_advance()
+            self._cond.notify_all()
+
+    # -- robot binding for argument-less constructors
+
+    def bind_thread(self, robot_node: SceneNode) -> None:
+        """Make ``Robot()`` created in the calling thread refer to ``robot_node``."""
+        self._thread_robot.node = robot_node
+
+    def robot_node_for_thread(self) -> SceneNode:
+        node = getattr(self._thread_robot, "node", None) or self.default_robot_node
+        if node is None:
+            if not self.simulation.robots:
+                raise RuntimeError("the world has no Robot node")
+            node = self.simulation.robots[0].node
+        return node
+
+    def register(self, robot: Robot) -> _Client:
+        with self._cond:
+            client = _Client(robot)
+            client.target = self.simulation.time
+            self._clients.append(client)
+            tid = threading.get_ident()
+            self._arrived.add(tid)
+            self._thread_clients.setdefault(tid, []).append(client)
+            return client
+
+    def unregister(self, client: _Client) -> None:
+        with self._cond:
+            client.active = False
+            client.waiting = False
+            self._maybe_advance()
+            self._cond.notify_all()
+
+    def request_reset(self) -> None:
+        self._reset_requested = True
+
+    def _limit_reached(self) -> bool:
+        return self.duration_s is not None and self.simulation.time >= self.duration_s - 1e-9
+
+    def advance(self, client: _Client, duration_ms: float) -> int:
+        """Advance the shared simulation by ``duration_ms`` for ``client`` (blocking until done)."""
+        sim = self.simulation
+        with self._cond:
+            if self.finished or self._limit_reached():
+                self.finished = True
+                return -1
+            if self._reset_requested:
+                self._reset_requested = False
+                sim.reset()
+                for c in self._clients:
+                    c.target = 0.0
+                    c.robot._after_reset()
+                return 0
+            n = max(1, math.ceil(duration_ms / sim.basic_time_step - 1e-9))
+            client.target = sim.time + n * sim.basic_time_step / 1000.0
+            client.waiting = True
+            self._maybe_advance()
+            while client.waiting and not self.finished and self.error is None:
+                self._cond.wait()
+            if self.error is not None:
+                err, self.error = self.error, None
+                raise err
+            client.waiting = False
+            return -1 if self._limit_reached() else 0
+
+    def _maybe_advance(self) -> None:
+        # caller holds the condition; steps when every active controller is waiting (synchronisation)
+        if len(self._arrived) < self._expected:
+            return
+        active = [c for c in self._clients if c.active]
+        if not active or not all(c.waiting for c in active):
+            return
+        sim = self.simulation
+        target = min(c.target for c in active)
+        try:
+            while sim.time < target - 1e-9:
+                if self._limit_reached():
+                    break
+                sim.step()
+        except BaseException as exc:
+            self.error = exc
+            for c in active:
+                c.waiting = False
+            self._cond.notify_all()
+            return
+        for c in active:
+            if c.target <= sim.time + 1e-9 or self._limit_reached():
+                c.waiting = False
+        self._cond.notify_all()
+
+
+_CURRENT: Runtime | None = None
+
+
+def set_current_runtime(runtime: Runtime | None) -> None:
+    """Install the runtime used by argument-less ``Robot()``/``Supervisor()`` (the runner does this)."""
+    global _CURRENT
+    _CURRENT = runtime
+
+
+def current_runtime() -> Runtime | None:
+    return _CURRENT
+
+
+# ------------------------------------------------------------------------------------------ devices
+
+
+class Device:
+    """A named robot device."""
+
+    def __init__(self, robot: Robot, name: str, record: Any) -> None:
+        self._robot = robot
+        self._name = name
+        self._record = record
+
+    def getName(self) -> str:
+        return self._name
+
+    def getModel(self) -> str:
+        node = getattr(self._record, "node", None)
+        return str(node.fields.get("model", "")) if node is not None else ""
+
+    def getNodeType(self) -> str:
+        node = getattr(self._record, "node", None)
+        return node.type_name if node is not None else ""
+
+
+class _Sampled(Device):
+    """A sensor with Webots' enable/sampling-period protocol (§5.4)."""
+
+    def __init__(self, robot: Robot, name: str, record: Any) -> None:
+        super().__init__(robot, name, record)
+        self._period = 0
+        self._last_sample: float | None = None
+        self._enabled_at = 0.0
+
+    def enable(self, samplingPeriod: int) -> None:
+        if samplingPeriod <= 0:
+            self.disable()
+            return
+        self._period = int(samplingPeriod)
+        self._enabled_at = self._robot.getTime()
+        self._last_sample = None
+        self._invalidate()
+        self._robot._sensors[id(self)] = self
+
+    def disable(self) -> None:
+        self._period = 0
+        self._robot._sensors.pop(id(self), None)
+
+    def getSamplingPeriod(self) -> int:
+        return self._period
+
+    def _due(self, now: float) -> bool:
+        since = self._enabled_at if self._last_sample is None else self._last_sample
+        return (now - since) * 1000.0 >= self._period - 1e-6
+
+    def _sample(self, now: float) -> None:
+        self._last_sample = now
+        self._read()
+
+    def _invalidate(self) -> None:
+        raise NotImplementedError
+
+    def _read(self) -> None:
+        raise NotImplementedError
+
+
+class PositionSensor(_Sampled):
+    """Joint position sensor (§5.4): NaN until the first sample."""
+
+    ROTATIONAL = 0
+    LINEAR = 1
+
+    _record: PositionSensorRec
+
+    def _invalidate(self) -> None:
+        self._value = math.nan
+
+    def _read(self) -> None:
+        rec = self._record
+        value = rec.joint.positions[rec.axis_index]
+        self._value = self._robot._sim.sensor_noise(value, rec.noise, rec.resolution)
+
+    def getValue(self) -> float:
+        return getattr(self, "_value", math.nan)
+
+    def getType(self) -> int:
+        return self.LINEAR if self._record.joint.kind == "slider" else self.ROTATIONAL
+
+    def getMotor(self) -> Motor | None:
+        rec = self._record
+        motor = rec.joint.motors[rec.axis_index]
+        return self._robot._device_for(motor) if motor is not None else None  # type: ignore[return-value]
+
+
+class Motor(Device):
+    """RotationalMotor / LinearMotor (§5.2)."""
+
+    ROTATIONAL = 0
+    LINEAR = 1
+
+    _record: MotorRec
+
+    def _changed(self) -> None:
+        self._robot._sim.wake(self._record.joint)
+
+    def setPosition(self, position: float) -> None:
+        rec = self._record
+        if not _finite(position):
+            _warn(f"Motor.setPosition() called with an invalid value (NaN) on '{self._name}'")
+            return
+        p = position * rec.multiplier
+        if rec.min_position != rec.max_position and math.isfinite(p):
+            clamped = min(max(p, rec.min_position), rec.max_position)
+            if clamped != p:
+                _warn(f"'{self._name}': requested position {p} outside [minPosition, maxPosition]")
+            p = clamped
+        rec.target_position = p
+        rec.torque_mode = False
+        self._changed()
+
+    def setVelocity(self, velocity: float) -> None:
+        rec = self._record
+        if not _finite(velocity):
+            _warn(f"Motor.setVelocity() called with an invalid value (NaN) on '{self._name}'")
+            return
+        v = velocity * rec.multiplier
+        if abs(v) > rec.max_velocity:
+            _warn(f"'{self._name}': requested velocity {v} exceeds maxVelocity {rec.max_velocity}")
+            v = math.copysign(rec.max_velocity, v)
+        rec.target_velocity = v
+        self._changed()
+
+    def setAcceleration(self, acceleration: float) -> None:
+        if _finite(acceleration):
+            self._record.acceleration = float(acceleration)
+
+    def setAvailableForce(self, force: float) -> None:
+        rec = self._record
+        if not _finite(force) or force < 0:
+            _warn(f"'{self._name}': invalid available force/torque {force}")
+            return
+        rec.available = min(float(force), rec.max_force)
+        self._changed()
+
+    setAvailableTorque = setAvailableForce
+
+    def setForce(self, force: float) -> None:
+        rec = self._record
+        if not _finite(force):
+            _warn(f"Motor.setForce()/setTorque() called with an invalid value (NaN) on '{self._name}'")
+            return
+        f = force * rec.multiplier
+        rec.raw_torque = max(-rec.available, min(rec.available, f))
+        if not rec.torque_mode:
+            rec.torque_mode = True
+            rec.torque_params_set = False
+        self._changed()
+
+    setTorque = setForce
+
+    def setControlPID(self, p: float, i: float, d: float) -> None:
+        rec = self._record
+        rec.kp, rec.ki, rec.kd = float(p), float(i), float(d)
+        rec.integral = 0.0
+        rec.prev_error = 0.0
+
+    def getTargetPosition(self) -> float:
+        return self._record.target_position
+
+    def getMinPosition(self) -> float:
+        return self._record.min_position
+
+    def getMaxPosition(self) -> float:
+        return self._record.max_position
+
+    def getVelocity(self) -> float:
+        return self._record.target_velocity
+
+    def getMaxVelocity(self) -> float:
+        return self._record.max_velocity
+
+    def getAcceleration(self) -> float:
+        return self._record.acceleration
+
+    def getAvailableForce(self) -> float:
+        return self._record.available
+
+    getAvailableTorque = getAvailableForce
+
+    def getMaxForce(self) -> float:
+        return self._record.max_force
+
+    getMaxTorque = getMaxForce
+
+    def getMultiplier(self) -> float:
+        return self._record.multiplier
+
+    def getType(self) -> int:
+        return self.ROTATIONAL if self._record.rotational else self.LINEAR
+
+    def getPositionSensor(self) -> PositionSensor | None:
+        sensor = self._record.sensor
+        return self._robot._device_for(sensor) if sensor is not None else None  # type: ignore[return-value]
+
+
+class _SolidSensor(_Sampled):
+    _record: DeviceRec
+
+    def _invalidate(self) -> None:
+        self._values: list[float] = [math.nan] * 3
+
+    def _pose(self) -> m3.Pose:
+        return self._robot._sim.solid_world_pose(self._record.solid)
+
+
+class GPS(_SolidSensor):
+    """World position of the device (ENU, metres)."""
+
+    def _read(self) -> None:
+        self._values = list(self._pose().t)
+
+    def getValues(self) -> list[float]:
+        return list(self._values)
+
+    def getSpeed(self) -> float:
+        v = self._robot._sim.solid_velocity(self._record.solid)
+        return math.sqrt(v[0] ** 2 + v[1] ** 2 + v[2] ** 2)
+
+
+class Gyro(_SolidSensor):
+    """Angular velocity in the device frame (rad/s)."""
+
+    def _read(self) -> None:
+        v = self._robot._sim.solid_velocity(self._record.solid)
+        self._values = list(m3.mat_t_vec(self._pose().R, v[3:6]))
+
+    def getValues(self) -> list[float]:
+        return list(self._values)
+
+
+class Accelerometer(_SolidSensor):
+    """Proper acceleration in the device frame (m/s²); reads +g upward at rest."""
+
+    def enable(self, samplingPeriod: int) -> None:
+        self._robot._sim.track_acceleration(self._record.solid)
+        super().enable(samplingPeriod)
+
+    def _read(self) -> None:
+        self._values = list(self._robot._sim.acceleration(self._record.solid))
+
+    def getValues(self) -> list[float]:
+        return list(self._values)
+
+
+class InertialUnit(_SolidSensor):
+    """Orientation of the device: roll/pitch/yaw (ENU) and quaternion (x, y, z, w)."""
+
+    def _invalidate(self) -> None:
+        self._R: m3.Mat3 | None = None
+
+    def _read(self) -> None:
+        self._R = self._pose().R
+
+    def getRollPitchYaw(self) -> list[float]:
+        return list(m3.roll_pitch_yaw(self._R)) if self._R is not None else [math.nan] * 3
+
+    def getQuaternion(self) -> list[float]:
+        if self._R is None:
+            return [math.nan] * 4
+        w, x, y, z = m3.quat_from_mat(self._R)
+        return [x, y, z, w]
+
+
+class DistanceSensor(_SolidSensor):
+    """Not simulated (no rays): always reads the lookup-table output of its farthest entry ("nothing")."""
+
+    def _read(self) -> None:
+        table = [row for row in self._record.node.fields.get("lookupTable", []) or [] if len(row) >= 2]
+        self._value = float(table[-1][1]) if table else 0.0
+
+    def _invalidate(self) -> None:
+        self._value = math.nan
+
+    def getValue(self) -> float:
+        return self._value
+
+    def getMaxValue(self) -> float:
+        table = [row for row in self._record.node.fields.get("lookupTable", []) or [] if len(row) >= 2]
+        return max((float(r[1]) for r in table), default=0.0)
+
+
+class _UnsupportedSensor(_SolidSensor):
+    """A sensor the twin does not simulate: enable/disable work, readings are NaN."""
+
+    def _read(self) -> None:
+        self._values = [math.nan] * 3
+
+    def getValue(self) -> float:
+        return math.nan
+
+    def getValues(self) -> list[float]:
+        return list(self._values)
+
+
+_SOLID_DEVICE_CLASSES: dict[str, type[Device]] = {
+    "DistanceSensor": DistanceSensor,
+    "GPS": GPS,
+    "Gyro": Gyro,
+    "Accelerometer": Accelerometer,
+    "InertialUnit": InertialUnit,
+}
+
+
+# ------------------------------------------------------------------------------------------ robot
+
+
+class Robot:
+    """Webots ``Robot``.
+
+    Args:
+        simulation: the simulation to control; default: the current runtime's.
+        robot_node: the Robot node this controller drives; default: the runtime's binding.
+        duration: simulated seconds after which ``step`` returns -1 (only with ``simulation``).
+        runtime: an explicit shared :class:`Runtime` (for several controllers on one simulation).
+    """
+
+    def __init__(
+        self,
+        simulation: Simulation | None = None,
+        robot_node: SceneNode | None = None,
+        duration: float | None = None,
+        runtime: Runtime | None = None,
+    ) -> None:
+        if runtime is None:
+            if simulation is not None:
+                runtime = Runtime(simulation, duration, robot_node)
+            else:
+                runtime = _CURRENT
+                if runtime is None:
+                    raise RuntimeError(
+                        "no Webots-twin runtime: pass simulation=... or run the script through "
+                        "dualtwin.webots.runner.run_world"
+                    )
+        self._runtime = runtime
+        self._sim = runtime.simulation
+        node = robot_node if robot_node is not None else runtime.robot_node_for_thread()
+        rec = next((r for r in self._sim.robots if r.node is node), None)
+        if rec is None:
+            raise ValueError("robot_node is not a Robot of this simulation")
+        self._rec: RobotRec = rec
+        self._devices: dict[int, Device] = {}
+        self._sensors: dict[int, _Sampled] = {}
+        self._client = runtime.register(self)
+
+    # -- timing
+
+    def step(self, duration: int | float | None = None) -> int:
+        """Run the simulation for ``duration`` ms (default: basicTimeStep); -1 when the run is over."""
+        if duration is None:
+            duration = self._sim.basic_time_step
+        result = self._runtime.advance(self._client, float(duration))
+        if result != -1 or self._sensors:
+            now = self._sim.time
+            for sensor in list(self._sensors.values()):
+                if sensor._due(now):
+                    sensor._sample(now)
+        return result
+
+    def _after_reset(self) -> None:
+        for sensor in self._sensors.values():
+            sensor._enabled_at = 0.0
+            sensor._last_sample = None
+            sensor._invalidate()
+
+    def getBasicTimeStep(self) -> float:
+        return self._sim.basic_time_step
+
+    def getTime(self) -> float:
+        return self._sim.time
+
+    # -- identity
+
+    def getName(self) -> str:
+        return self._rec.name
+
+    def getModel(self) -> str:
+        return str(self._rec.node.fields.get("model", ""))
+
+    def getCustomData(self) -> str:
+        return str(self._rec.node.fields.get("customData", ""))
+
+    def setCustomData(self, data: str) -> None:
+        self._rec.node.fields["customData"] = str(data)
+
+    def getSupervisor(self) -> bool:
+        return self._rec.supervisor
+
+    def getSynchronization(self) -> bool:
+        return bool(self._rec.node.fields.get("synchronization", True))
+
+    def getControllerArguments(self) -> list[str]:
+        return [str(a) for a in self._rec.node.fields.get("controllerArgs", []) or []]
+
+    # -- devices
+
+    def getDevice(self, name: str) -> Device | None:
+        rec = self._rec.devices.get(name)
+        if rec is None:
+            _warn(f'Device "{name}" was not found on robot "{self._rec.name}".')
+            return None
+        return self._device_for(rec)
+
+    def getNumberOfDevices(self) -> int:
+        return len(self._rec.devices)
+
+    def getDeviceByIndex(self, index: int) -> Device | None:
+        recs = list(self._rec.devices.values())
+        return self._device_for(recs[index]) if 0 <= index < len(recs) else None
+
+    def _device_for(self, rec: Any) -> Device:
+        dev = self._devices.get(id(rec))
+        if dev is None:
+            if isinstance(rec, MotorRec):
+                dev = Motor(self, rec.name, rec)
+            elif isinstance(rec, PositionSensorRec):
+                dev = PositionSensor(self, rec.name, rec)
+            elif isinstance(rec, DeviceRec):
+                cls = _SOLID_DEVICE_CLASSES.get(rec.type_name, _UnsupportedSensor)
+                dev = cls(self, rec.name, rec)
+                if isinstance(dev, _Sampled):
+                    dev._invalidate()
+            else:
+                dev = Device(self, str(getattr(rec, "name", "")), rec)
+            self._devices[id(rec)] = dev
+        return dev
+
+    # -- termination
+
+    def cleanup(self) -> None:
+        """Leave the synchronised stepping (the controller is done)."""
+        self._runtime.unregister(self._client)
+
+    def __del__(self) -> None:
+        try:
+            if self._client.active:
+                self._runtime.unregister(self._client)
+        except Exception:
+            pass
+
+
+class Supervisor(Robot):
+    """Webots ``Supervisor``: a Robot with scene-tree access (§6)."""
+
+    def getRoot(self) -> Node:
+        root = SceneNode("Group", {"children": list(self._sim.world.nodes)})
+        return Node(self, root)
+
+    def getSelf(self) -> Node:
+        return Node(self, self._rec.node)
+
+    def getFromDef(self, name: str) -> Node | None:
+        """Node by DEF name; ``"A.B"`` scopes B inside A; PROTO internals are not searched."""
+        scope: list[SceneNode] = list(self._sim.world.nodes)
+        found: SceneNode | None = None
+        for part in name.split("."):
+            found = None
+            for top in scope:
+                found = _find_def(top, part)
+                if found is not None:
+                    break
+            if found is None:
+                return None
+            scope = _descendants(found)
+        return Node(self, found) if found is not None else None
+
+    def simulationReset(self) -> None:
+        """Restore the load state at the next ``step`` (controllers keep running)."""
+        self._runtime.request_reset()
+
+    def simulationResetPhysics(self) -> None:
+        self._sim.reset_physics()
+
+    def simulationQuit(self, status: int) -> None:
+        self._runtime.finished = True
+        self._runtime.exit_status = int(status)
+
+
+def _descendants(node: SceneNode) -> list[SceneNode]:
+    out: list[SceneNode] = []
+    for value in node.fields.values():
+        if isinstance(value, SceneNode):
+            out.append(value)
+        elif isinstance(value, list):
+            out.extend(v for v in value if isinstance(v, SceneNode))
+    return out
+
+
+def _find_def(node: SceneNode, name: str) -> SceneNode | None:
+    # PROTO-internal DEFs live in ``proto_def_name`` and are not visible (getFromProtoDef in Webots)
+    if node.def_name == name:
+        return node
+    for child in _descendants(node):
+        found = _find_def(child, name)
+        if found is not None:
+            return found
+    return None
+
+
+# ------------------------------------------------------------------------------------------ scene nodes
+
+
+class Node:
+    """Supervisor handle on a scene node."""
+
+    def __init__(self, supervisor: Supervisor, node: SceneNode) -> None:
+        self._sup = supervisor
+        self._sim: Simulation = supervisor._sim
+        self._node = node
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Node) and other._node is self._node
+
+    def __hash__(self) -> int:
+        return id(self._node)
+
+    @property
+    def scene_node(self) -> SceneNode:
+        return self._node
+
+    def getDef(self) -> str:
+        return self._node.def_name or ""
+
+    def getTypeName(self) -> str:
+        return self._node.proto_name or self._node.type_name
+
+    def getBaseTypeName(self) -> str:
+        return self._node.type_name
+
+    def _solid(self) -> SolidRec | None:
+        return self._sim.solid_for(self._node)
+
+    def _world_pose(self) -> m3.Pose:
+        solid = self._solid()
+        if solid is not None:
+            return self._sim.solid_world_pose(solid)
+        chain = _path_to(self._sim, self._node)
+        if chain is None:
+            return m3.Pose()
+        pose = m3.Pose()
+        for n in chain:
+            s = self._sim.solid_for(n)
+            if s is not None:
+                pose = self._sim.solid_world_pose(s)
+            elif "translation" in n.fields and "rotation" in n.fields:
+                pose = pose * m3.Pose.from_fields(n.fields.get("translation"), n.fields.get("rotation"))
+        return pose
+
+    def getPosition(self) -> list[float]:
+        return list(self._world_pose().t)
+
+    def getOrientation(self) -> list[float]:
+        return list(self._world_pose().R)
+
+    def getPose(self, fromNode: Node | None = None) -> list[float]:
+        pose = self._world_pose()
+        if fromNode is not None:
+            pose = fromNode._world_pose().inverse() * pose
+        R, t = pose.R, pose.t
+        return [R[0], R[1], R[2], t[0], R[3], R[4], R[5], t[1], R[6], R[7], R[8], t[2], 0.0, 0.0, 0.0, 1.0]
+
+    def getVelocity(self) -> list[float]:
+        solid = self._solid()
+        return list(self._sim.solid_velocity(solid)) if solid is not None else [0.0] * 6
+
+    def setVelocity(self, velocity: Sequence[float]) -> None:
+        solid = self._solid()
+        if len(velocity) != 6 or not _finite(*velocity):
+            _warn("Node.setVelocity() needs 6 finite values")
+            return
+        if solid is not None:
+            self._sim.set_body_velocity(solid, [float(v) for v in velocity])
+
+    def getCenterOfMass(self) -> list[float]:
+        solid = self._solid()
+        return list(self._sim.center_of_mass(solid)) if solid is not None else self.getPosition()
+
+    def resetPhysics(self) -> None:
+        solid = self._solid()
+        if solid is not None:
+            self._sim.reset_physics(solid)
+
+    def getField(self, fieldName: str) -> Field | None:
+        if fieldName not in self._node.fields:
+            return None
+        return Field(self, fieldName)
+
+    def getParentNode(self) -> Node | None:
+        chain = _path_to(self._sim, self._node)
+        if not chain or len(chain) < 2:
+            return None
+        return Node(self._sup, chain[-2])
+
+    def getId(self) -> int:
+        return id(self._node)
+
+
+def _path_to(sim: Simulation, target: SceneNode) -> list[SceneNode] | None:
+    """Nodes from a top-level node down to ``target`` (inclusive)."""
+
+    def search(node: SceneNode, path: list[SceneNode]) -> list[SceneNode] | None:
+        path.append(node)
+        if node is target:
+            return path
+        for child in _descendants(node):
+            found = search(child, path)
+            if found is not None:
+                return found
+        path.pop()
+        return None
+
+    for top in sim.world.nodes:
+        found = search(top, [])
+        if found is not None:
+            return found
+    return None
+
+
+class Field:
+    """Supervisor handle on one field of a scene node."""
+
+    def __init__(self, owner: Node, name: str) -> None:
+        self._owner = owner
+        self._sim = owner._sim
+        self._name = name
+
+    def getName(self) -> str:
+        return self._name
+
+    @property
+    def _node(self) -> SceneNode:
+        return self._owner._node
+
+    def _raw(self) -> Any:
+        return self._node.fields.get(self._name)
+
+    def _joint(self) -> JointRec | None:
+        return self._sim.joint_for(self._node) if self._name == "position" else None
+
+    def getCount(self) -> int:
+        value = self._raw()
+        return len(value) if isinstance(value, list) else -1
+
+    # -- SF getters
+
+    def getSFFloat(self) -> float:
+        joint = self._joint()
+        if joint is not None:
+            params = joint.params
+            index = params.index(self._node) if self._node in params else 0
+            return float(joint.positions[index])
+        return float(self._raw())
+
+    def getSFInt32(self) -> int:
+        return int(self._raw())
+
+    def getSFBool(self) -> bool:
+        return bool(self._raw())
+
+    def getSFString(self) -> str:
+        return str(self._raw())
+
+    def getSFVec2f(self) -> list[float]:
+        return [float(v) for v in self._raw()]
+
+    def getSFColor(self) -> list[float]:
+        return [float(v) for v in self._raw()]
+
+    def getSFVec3f(self) -> list[float]:
+        solid = self._sim.solid_for(self._node)
+        if solid is not None and self._name == "translation" and not self._sim.has_pending(solid):
+            return list(self._sim.solid_local_pose(solid).t)
+        return [float(v) for v in self._raw()]
+
+    def getSFRotation(self) -> list[float]:
+        solid = self._sim.solid_for(self._node)
+        if solid is not None and self._name == "rotation" and not self._sim.has_pending(solid):
+            return list(m3.axis_angle_from_mat(self._sim.solid_local_pose(solid).R))
+        return [float(v) for v in self._raw()]
+
+    def getSFNode(self) -> Node | None:
+        value = self._raw()
+        return Node(self._owner._sup, value) if isinstance(value, SceneNode) else None
+
+    def getMFNode(self, index: int) -> Node | None:
+        value = self._raw()
+        if not isinstance(value, list) or not -len(value) <= index < len(value):
+            return None
+        item = value[index]
+        return Node(self._owner._sup, item) if isinstance(item, SceneNode) else None
+
+    def getMFFloat(self, index: int) -> float:
+        return float(self._raw()[index])
+
+    def getMFString(self, index: int) -> str:
+        return str(self._raw()[index])
+
+    # -- SF setters
+
+    def setSFFloat(self, value: float) -> None:
+        if not _finite(value):
+            _warn(f"Field.setSFFloat() called with NaN on '{self._name}'")
+            return
+        joint = self._joint()
+        if joint is not None:
+            params = joint.params
+            index = params.index(self._node) if self._node in params else 0
+            self._node.fields["position"] = float(value)
+            self._sim.queue_set_joint_position(joint, index, float(value))
+            return
+        self._node.fields[self._name] = float(value)
+        self._sim.field_changed(self._node, self._name)
+
+    def setSFInt32(self, value: int) -> None:
+        self._node.fields[self._name] = int(value)
+
+    def setSFBool(self, value: bool) -> None:
+        self._node.fields[self._name] = bool(value)
+
+    def setSFString(self, value: str) -> None:
+        self._node.fields[self._name] = str(value)
+
+    def setMFFloat(self, index: int, value: float) -> None:
+        if not _finite(value):
+            _warn(f"Field.setMFFloat() called with NaN on '{self._name}'")
+            return
+        values = list(self._raw() or [])
+        values[index] = float(value)
+        self._node.fields[self._name] = values
+        self._sim.field_changed(self._node, self._name)
+
+    def setSFVec3f(self, values: Sequence[float]) -> None:
+        if len(values) != 3 or not _finite(*values):
+            _warn(f"Field.setSFVec3f() needs 3 finite values on '{self._name}'")
+            return
+        vec = tuple(float(v) for v in values)
+        solid = self._sim.solid_for(self._node)
+        if solid is not None and self._name == "translation":
+            self._sim.queue_set_pose(solid, vec, None)
+        self._node.fields[self._name] = vec
+
+    def setSFRotation(self, values: Sequence[float]) -> None:
+        if len(values) != 4 or not _finite(*values) or m3.norm(values[:3]) == 0.0:
+            _warn(f"Field.setSFRotation() needs a non-zero axis and finite values on '{self._name}'")
+            return
+        rot = tuple(float(v) for v in values)
+        solid = self._sim.solid_for(self._node)
+        if solid is not None and self._name == "rotation":
+            self._sim.queue_set_pose(solid, None, rot)
+        self._node.fields[self._name] = rot

@@ -1,0 +1,203 @@
+"""Run an existing Webots Python controller unchanged and headless on the ODE twin.
+
+``run_world(world_path, controller, duration_s, proto_paths)`` loads the world, builds a
+:class:`~dualtwin.webots.physics.Simulation` and runs the robots' Python controllers with Webots' project
+layout (``worlds/X.wbt`` beside ``controllers/NAME/NAME.py``, NAME = the Robot's ``controller`` field).
+
+The shim directory is put first on ``sys.path`` so ``from controller import Robot`` resolves to
+:mod:`dualtwin.webots.controller`; each script runs through ``runpy.run_path`` with
+``__name__ == "__main__"``, ``sys.argv = [script, *controllerArgs]`` and the working directory set to its
+folder; its stdout passes through. ``robot.step`` returns -1 once ``duration_s`` of simulated time
+has elapsed. A script that raises has its traceback printed on stderr and makes the exit code 1.
+
+Several robots with Python controllers are supported: each controller runs in its own thread and the
+simulation advances only when all of them have called ``step`` (Webots' synchronisation). The process has
+a single working directory, so it is the first controller's folder. Robots whose controller is not a
+Python script found on disk (C controllers, ``<generic>``, ``<extern>``, ``<none>``) run without a
+controller: their motors keep the initial hold (§5.1).
+"""
+
+from __future__ import annotations
+
+import os
+import runpy
+import sys
+import threading
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+
+from dualtwin.webots import controller as api
+from dualtwin.webots.nodes import Node
+from dualtwin.webots.physics import Simulation, SimulationUnstable
+
+SHIM_DIR = Path(__file__).resolve().parent / "shim"
+NO_CONTROLLER = frozenset({"", "<none>", "<generic>", "<extern>", "void"})
+
+__all__ = ["ControllerSpec", "SHIM_DIR", "find_controllers", "run_controllers", "run_world"]
+
+
+@dataclass
+class ControllerSpec:
+    """A Python controller script bound to one Robot node."""
+
+    robot: Node
+    script: Path
+    args: list[str]
+
+
+def _controller_script(world_path: Path, name: str) -> Path | None:
+    folder = world_path.resolve().parent.parent / "controllers" / name
+    script = folder / f"{name}.py"
+    return script if script.is_file() else None
+
+
+def find_controllers(sim: Simulation, world_path: Path, override: Path | None = None) -> list[ControllerSpec]:
+    """Python controllers to run, one per robot (see the module docstring for the lookup rules).
+
+    ``override`` replaces the script of the robots whose ``controller`` field equals its stem, or else of
+    the first robot that names a controller (or the first robot).
+    """
+    specs: list[ControllerSpec] = []
+    robots = sim.robots
+    override_targets: set[int] = set()
+    if override is not None:
+        override = override.resolve()
+        matching = [r for r in robots if r.controller == override.stem]
+        if not matching:
+            named = [r for r in robots if r.controller not in NO_CONTROLLER]
+            matching = named[:1] or robots[:1]
+        override_targets = {id(r) for r in matching}
+    for robot in robots:
+        args = [str(a) for a in robot.node.fields.get("controllerArgs", []) or []]
+        if id(robot) in override_targets and override is not None:
+            specs.append(ControllerSpec(robot.node, override, args))
+            continue
+        if robot.controller in NO_CONTROLLER:
+            continue
+        script = _controller_script(world_path, robot.controller)
+        if script is None:
+            print(
+                f"Warning: no Python controller '{robot.controller}' for robot '{robot.name}' "
+                f"(looked for controllers/{robot.controller}/{robot.controller}.py); it runs without one",
+                file=sys.stderr,
+            )
+            continue
+        specs.append(ControllerSpec(robot.node, script, args))
+    return specs
+
+
+class _ScriptResult:
+    def __init__(self) -> None:
+        self.code = 0
+
+
+def _run_script(runtime: api.Runtime, spec: ControllerSpec, result: _ScriptResult) -> None:
+    runtime.bind_thread(spec.robot)
+    saved_argv = sys.argv
+    try:
+        sys.argv = [str(spec.script), *spec.args]
+        runpy.run_path(str(spec.script), run_name="__main__")
+    except SystemExit as exc:
+        code = exc.code
+        if code not in (None, 0):
+            result.code = code if isinstance(code, int) else 1
+            if not isinstance(code, int):
+                print(code, file=sys.stderr)
+    except BaseException:  # the controller's own error is its output, like in the Webots console
+        traceback.print_exc(file=sys.stderr)
+        result.code = 1
+    finally:
+        sys.argv = saved_argv
+        runtime.thread_done()
+
+
+def run_world(
+    world_path: str | os.PathLike[str],
+    controller: str | os.PathLike[str] | None = None,
+    duration_s: float | None = None,
+    proto_paths: tuple[str | os.PathLike[str], ...] | list[str | os.PathLike[str]] = (),
+) -> int:
+    """Run a world's Python controllers headless; return the exit code (0 = success).
+
+    Args:
+        world_path: the ``.wbt`` file.
+        controller: a script replacing the robot's controller (see :func:`find_controllers`).
+        duration_s: simulated seconds to run; ``None`` runs until every controller returns.
+        proto_paths: extra PROTO search directories.
+    """
+    from dualtwin.webots import load_world
+
+    path = Path(world_path)
+    world = load_world(path, proto_paths)
+    for message in world.warnings:
+        print(f"Warning: {message}", file=sys.stderr)
+    sim = Simulation(world)
+    try:
+        specs = find_controllers(sim, path, Path(controller) if controller is not None else None)
+        if not specs and duration_s is None:
+            print("Error: no Python controller to run and no duration given", file=sys.stderr)
+            return 2
+        return run_controllers(sim, specs, duration_s)
+    finally:
+        sim.close()
+
+
+def run_controllers(sim: Simulation, specs: list[ControllerSpec], duration_s: float | None) -> int:
+    """Run controller scripts on an already built simulation (left open for inspection).
+
+    Returns:
+        The exit code: 0, the first non-zero ``SystemExit`` code, or 1 if a script raised.
+    """
+    runtime = api.Runtime(sim, duration_s)
+    runtime.expect(len(specs))
+    results = [_ScriptResult() for _ in specs]
+    saved_cwd = os.getcwd()
+    saved_path = list(sys.path)
+    saved_module = sys.modules.pop("controller", None)
+    previous_runtime = api.current_runtime()
+    api.set_current_runtime(runtime)
+    sys.path.insert(0, str(SHIM_DIR))
+    code = 0
+    try:
+        if specs:
+            folders = {s.script.parent for s in specs}
+            if len(folders) > 1:
+                print(
+                    "Warning: controllers live in different folders; the working directory is "
+                    f"{specs[0].script.parent}",
+                    file=sys.stderr,
+                )
+            os.chdir(specs[0].script.parent)
+            if len(specs) == 1:
+                _run_script(runtime, specs[0], results[0])
+            else:
+                threads = [
+                    threading.Thread(
+                        target=_run_script, args=(runtime, s, r), name=f"controller-{i}", daemon=True
+                    )
+                    for i, (s, r) in enumerate(zip(specs, results, strict=True))
+                ]
+                for t in threads:
+                    t.start()
+                for t in threads:
+                    t.join()
+        code = next((r.code for r in results if r.code != 0), 0)
+        if code == 0 and duration_s is not None and not runtime.finished:
+            # controllers returned early: Webots keeps simulating without them
+            try:
+                while sim.time < duration_s - 1e-9:
+                    sim.step()
+            except SimulationUnstable as exc:
+                print(f"Error: {exc}", file=sys.stderr)
+                code = 1
+        if code == 0 and runtime.exit_status is not None:
+            code = runtime.exit_status
+    finally:
+        os.chdir(saved_cwd)
+        sys.path[:] = saved_path
+        sys.modules.pop("controller", None)
+        if saved_module is not None:
+            sys.modules["controller"] = saved_module
+        api.set_current_runtime(previous_runtime)
+    return code

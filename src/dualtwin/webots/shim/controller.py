@@ -1,0 +1,38 @@
+"""Stand-in for Webots' ``controller`` Python module.
+
+:func:`dualtwin.webots.runner.run_world` puts this directory first on ``sys.path`` so unchanged Webots
+scripts doing ``from controller import Robot, Supervisor, Motor, ...`` get the Webots-twin API, bound to
+the runner's current simulation.
+"""
+
+from __future__ import annotations
+
+from dualtwin.webots.controller import (
+    GPS,
+    Accelerometer,
+    Device,
+    DistanceSensor,
+    Field,
+    Gyro,
+    InertialUnit,
+    Motor,
+    Node,
+    PositionSensor,
+    Robot,
+    Supervisor,
+)
+
+__all__ = [
+    "GPS",
+    "Accelerometer",
+    "Device",
+    "DistanceSensor",
+    "Field",
+    "Gyro",
+    "InertialUnit",
+    "Motor",
+    "Node",
+    "PositionSensor",
+    "Robot",
+    "Supervisor",
+]
