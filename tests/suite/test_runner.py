@@ -129,3 +129,27 @@ def test_unknown_key_is_rejected_before_writing(tmp_path: Path) -> None:
     with pytest.raises(DualtwinError, match=r"\$\.scenarios\[0\]\.warp: unknown robot-specific key 'warp'"):
         SuiteRun(suite, "mujoco", resolve_robot("cartpole"), out).run()
     assert not out.exists()
+
+
+@pytest.mark.parametrize("twin_name", ["mujoco", "webots"])
+def test_blow_up_is_an_unstable_scenario_and_the_next_one_recovers(tmp_path: Path, twin_name: str) -> None:
+    from dualtwin.twins import make_twin
+
+    suite = tmp_path / "suite.json"
+    suite.write_text(json.dumps({"suite_name": "unstable", "scenarios": [
+        {"name": "blowup", "duration_s": 0.5, "initial_angular_velocity": 1e12},
+        {"name": "after", "duration_s": 0.5, "initial_angle": 0.1}]}))
+    robot = resolve_robot("cartpole")
+    twin = make_twin(twin_name, robot, 0.032)
+    if twin_name == "mujoco":
+        # MuJoCo's hard stop absorbs the spin; an absurd negative damping makes it diverge instead.
+        twin.set_knobs({"joint.pole_hinge.damping": -1e9})
+    manifest = SuiteRun(suite, twin_name, robot, tmp_path / "run", twin=twin).run()
+    blowup, after = manifest["scenarios"]
+    assert blowup["status"] == "unstable" and "time_s" in blowup["failure"]
+    if twin_name == "mujoco":
+        assert after["status"] in ("unstable", "completed")
+    else:
+        assert after["status"] == "completed"
+        _, rows = read_tsv(tmp_path / "run" / "scenarios" / "01_after" / "ground_truth.tsv")
+        assert rows[0][1] == pytest.approx(0.1, abs=0.01), "the reset after the blow-up recovered"

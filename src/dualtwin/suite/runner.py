@@ -81,9 +81,11 @@ def run_scenario(io: RobotIO, scenario: Scenario, seed: int, thresholds: dict[st
     constant = {k: v for k, v in inputs.items() if k in actions and isinstance(v, float)}
     signals = {k: v for k, v in inputs.items() if k in actions and not isinstance(v, float)}
     if fresh:
-        for key, value in inputs.items():
-            if key in io.robot.spec.initial_conditions:
-                io.apply_initial(key, value)
+        # Positions first: a joint teleport zeroes its subtree's velocity (Webots semantics).
+        conditions = io.robot.spec.initial_conditions
+        keys = [k for k in inputs if k in conditions]
+        for key in sorted(keys, key=lambda k: conditions[k].quantity != "position"):
+            io.apply_initial(key, inputs[key])
     for key, value in constant.items():
         io.apply_action(key, value)
     failures = [(key, io.robot.spec.failures[key].channel, limit) for key, limit in thresholds.items()]

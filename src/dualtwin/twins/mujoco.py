@@ -200,7 +200,7 @@ class MuJoCoTwin(Twin):
             motor.state.reset(float(self.data.qpos[motor.qpos]))
             motor.saturated = 0.0
             self._set_servo(motor)
-        self._bad_qacc = self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
+        self._bad_state = self._bad_state_warnings()
 
     def set_joint_state(self, joint: str, position: float | None = None, velocity: float | None = None) -> None:
         j = self._id(mujoco.mjtObj.mjOBJ_JOINT, joint, "joint")
@@ -347,12 +347,19 @@ class MuJoCoTwin(Twin):
                 if abs(torque) > mo.state.available_torque:
                     self._saturate(mo, torque)
 
+    def _bad_state_warnings(self) -> int:
+        """MuJoCo resets mjData itself after bad qpos/qvel/qacc; its warning counters are the trace left."""
+        w = self.data.warning
+        return sum(w[k].number for k in (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
+                                         mujoco.mjtWarning.mjWARN_BADQACC))
+
     def _check_stable(self) -> None:
         d = self.data
-        warnings = d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
-        if warnings != self._bad_qacc or not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()):
-            self._bad_qacc = warnings
-            raise SimulationUnstable(f"MuJoCo twin became numerically unstable at t = {d.time:.3f} s")
+        warnings = self._bad_state_warnings()
+        if warnings != self._bad_state or not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()):
+            self._bad_state = warnings
+            raise SimulationUnstable(f"MuJoCo twin became numerically unstable (MuJoCo warning: "
+                                     f"bad qpos, qvel or qacc) within the period ending near t = {d.time:.3f} s")
 
     def joint_position(self, joint: str) -> float:
         j = self._id(mujoco.mjtObj.mjOBJ_JOINT, joint, "joint")

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from dualtwin.errors import DualtwinError, SimulationUnstable
+from dualtwin.errors import DualtwinError
 from dualtwin.twins.base import ControlMode, Knob, Twin, unknown_name
 
 if TYPE_CHECKING:
@@ -163,14 +163,7 @@ class WebotsTwin(Twin):
         self.set_knobs(dict(self._knob_values))
 
     def _advance(self, ms: float) -> None:
-        try:
-            result = self.sup.step(int(round(ms)))
-        except SimulationUnstable:
-            raise
-        except RuntimeError as exc:
-            if "unstable" in str(exc).lower() or "nan" in str(exc).lower():
-                raise SimulationUnstable(str(exc)) from None
-            raise
+        result = self.sup.step(int(round(ms)))
         if result == -1:
             raise DualtwinError(f"{self._origin}: the simulation ended")
 

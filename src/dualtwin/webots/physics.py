@@ -67,6 +67,7 @@ from ctypes import byref
 from dataclasses import dataclass, field
 from typing import Any
 
+from dualtwin.errors import DualtwinError, SimulationUnstable
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots import ode
 from dualtwin.webots._math3 import Pose
@@ -104,11 +105,9 @@ JOINT_TYPES = frozenset({"HingeJoint", "SliderJoint", "Hinge2Joint", "BallJoint"
 MOTOR_TYPES = frozenset({"RotationalMotor", "LinearMotor"})
 
 
-class SimulationUnstable(RuntimeError):
-    """The physics state became non-finite (or diverged); call :meth:`Simulation.reset` to recover."""
 
 
-class WorldBuildError(ValueError):
+class WorldBuildError(DualtwinError):
     """The world cannot be turned into an ODE scene."""
 
 

@@ -919,10 +919,13 @@ def load_world(path: str | os.PathLike[str], proto_paths: Sequence[str | os.Path
     """Load a ``.wbt`` world and expand its PROTOs (see the module docstring for the search order).
 
     Raises:
-        OSError: the world file cannot be read.
+        DualtwinError: the world file cannot be read.
         WebotsSyntaxError: malformed world or PROTO (message ``file:line:col: expected X, found Y``).
         ProtoNotFoundError: a physics-relevant PROTO was found nowhere.
         ProtoError: another PROTO expansion failure.
     """
-    data = Path(path).read_bytes()
+    try:
+        data = Path(path).read_bytes()
+    except OSError as exc:
+        raise DualtwinError(f"{path}: cannot read world: {exc.strerror or exc}") from None
     return load_world_text(data, path, proto_paths)
