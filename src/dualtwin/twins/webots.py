@@ -78,11 +78,31 @@ class WebotsTwin(Twin):
     def _resolve(self, name: str) -> str:
         return self._aliases.get(name, name)
 
+    def _find(self, name: str, types: tuple[str, ...] | None) -> Any:
+        """A node by DEF inside this robot first (DEFs may repeat across robots), then by its ``name``
+        field inside the robot, then anywhere in the world (static bodies)."""
+        name = self._resolve(name)
+        nodes = list(self._walk())
+
+        def ok(node: Any) -> bool:
+            return types is None or node.getTypeName() in types
+
+        for node in nodes:
+            if node.getDef() == name and ok(node):
+                return node
+        for node in nodes:
+            field = node.getField("name")
+            is_solid = node.getField("children") is not None and node.getField("boundingObject") is not None
+            if field is not None and is_solid and ok(node) and field.getSFString() == name:
+                return node
+        node = self.sup.getFromDef(name)
+        return node if node is not None and ok(node) else None
+
     def _joint(self, name: str) -> _Joint:
         joint = self._joints.get(name)
         if joint is None:
-            node = self.sup.getFromDef(self._resolve(name))
-            if node is None or node.getTypeName() not in JOINT_TYPES:
+            node = self._find(name, JOINT_TYPES)
+            if node is None:
                 raise unknown_name("joint", self._resolve(name), self._defs(JOINT_TYPES), self._origin)
             joint = self._joints[name] = _Joint(node)
         return joint
@@ -90,7 +110,7 @@ class WebotsTwin(Twin):
     def _body(self, name: str) -> Any:
         node = self._bodies.get(name)
         if node is None:
-            node = self.sup.getFromDef(self._resolve(name))
+            node = self._find(name, None)
             if node is None:
                 raise unknown_name("body", self._resolve(name), self._defs(None), self._origin)
             self._bodies[name] = node
@@ -356,10 +376,14 @@ def from_binding(robot: RobotBinding, control_period: float) -> WebotsTwin:
     world_path: Path = robot.model_path("webots")
     world = load_world(world_path)
     robot_def = section.robot if section else None
-    robot_node = world.find_def(robot_def) if robot_def else None
-    if robot_def and robot_node is None:
-        raise DualtwinError(f"{world_path}: no robot with DEF {robot_def!r}")
     simulation = Simulation(world)
+    robot_node = None
+    if robot_def:
+        robot_node = next((r.node for r in simulation.robots if r.node.def_name == robot_def), None) or next(
+            (r.node for r in simulation.robots if r.name == robot_def), None)
+        if robot_node is None:
+            robots = ", ".join(f"{r.node.def_name or '-'} ({r.name})" for r in simulation.robots) or "none"
+            raise DualtwinError(f"{world_path}: no robot with DEF or name {robot_def!r} (robots: {robots})")
     kwargs: dict[str, Any] = {"simulation": simulation}
     if robot_node is not None:
         kwargs["robot_node"] = robot_node

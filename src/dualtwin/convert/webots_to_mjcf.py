@@ -1,0 +1,1059 @@
+"""Convert a Webots world's robot (and its static environment) into a MuJoCo model with Webots' semantics.
+
+Built on our parser (:func:`dualtwin.webots.load_world`, PROTOs expanded) and ``mujoco.MjSpec``. Mapping
+decisions (see ``shared/reference/anchors-model-generation.md`` §2-3 and ``webots-on-ode.md`` §3-5):
+
+Bodies and masses
+    A Solid that is a joint endPoint (or the robot root) is a MuJoCo body whose frame is the Solid frame *at
+    the file's joint positions*. Plain child Solids (no joint) are merged into their parent body, as Webots
+    merges them into one ODE body; their geoms keep the Solid name as a prefix and a site marks their frame.
+    Masses follow Webots (:mod:`dualtwin.convert.mass`) and are written as an explicit ``inertial``;
+    ``compiler inertiafromgeom="false"`` so no geom adds mass. boundingObject geometry becomes collision
+    geoms (group 3, ``mass=0``); Shapes become visual geoms (group 2, ``contype=conaffinity=0``, ``density=0``).
+    A root Robot with Physics gets a freejoint, without Physics it is welded to the world (fixed base).
+
+Joints
+    HingeJoint -> hinge, SliderJoint -> slide, BallJoint -> ball, Hinge2Joint -> two hinges in the child
+    body (MuJoCo composes a body's joints in order, so axis 2 turns with hinge 1 as in ODE). ``axis``/``anchor`` are in the frame of the joint's parent Pose and are
+    re-expressed in the child body frame. Webots stores the endPoint *at* ``position``, so ``position``
+    becomes ``ref`` (and ``springref``): ``qpos0 = position`` and the XML pose is the pose at ``qpos0``.
+    Signs: a Webots hinge/slider position grows with a right-handed rotation about / a translation along
+    ``axis``, which is MuJoCo's convention too (ODE's internal slider axis reversal, §4.3, is undone by Webots).
+    ``minStop``/``maxStop`` -> ``range`` (limited only if they differ), ``dampingConstant`` -> ``damping``,
+    ``springConstant`` -> ``stiffness``, ``staticFriction`` -> ``frictionloss``.
+
+Devices
+    RotationalMotor/LinearMotor -> ``general`` actuator named by the device, on its joint, ``forcerange`` and
+    ``ctrlrange`` ±maxTorque/maxForce, plus ``<numeric name="webots_motor.NAME" data="maxVelocity Kp Ki Kd
+    acceleration"/>`` (what :mod:`dualtwin.twins.mujoco` reads). PositionSensor -> jointpos; InertialUnit ->
+    framequat, Gyro -> gyro, Accelerometer -> accelerometer, GPS -> framepos, Compass -> magnetometer,
+    DistanceSensor -> rangefinder, TouchSensor -> touch, each at a site at the device pose named by the device.
+
+Cameras
+    R2022a+ Webots devices use the FLU convention: a Camera looks along its +x axis with +z up (R2021b and
+    older worlds, NUE: along -z with +y up). MuJoCo cameras look along -z with +y up, so the MuJoCo camera is
+    the device frame rotated so that (-z, +y) -> (+x, +z). ``fieldOfView`` is horizontal in radians; MuJoCo's
+    ``fovy`` is vertical in degrees: ``fovy = degrees(2 atan(tan(fov/2) h/w))``.
+
+Contacts
+    The ContactProperties matching the robot's and the environment's ``contactMaterial`` (default values if
+    none matches) give ``friction`` = coulombFriction, and ``solref``/``solimp`` from softERP/softCFM: ODE's
+    constraint is a spring-damper with k = ERP/(h CFM), b = (1-ERP)/CFM (h = basicTimeStep). For an
+    effective mass m this is ω = sqrt(k/m), ζ = b / (2 sqrt(k m)); MuJoCo's (timeconst, dampratio) spring has
+    ω = 1/(timeconst ζ), hence timeconst = 2 m / b and dampratio = ζ. m is the robot mass divided by the
+    number of robot bodies with collision geoms; timeconst is clamped to 2 MuJoCo steps (MuJoCo's own
+    minimum). solimp d = 1/(1 + CFM m / h) plays the role of ODE's regularisation. ``bounce`` has no MuJoCo
+    equivalent (noted in the warnings). Robot parts never collide with each other unless ``selfCollision``.
+
+World
+    ``timestep`` = the largest of 2, 1, 0.5, 0.25 ms dividing ``basicTimeStep`` (else basicTimeStep/k <= 2 ms),
+    gravity (0, 0, -g), ``integrator="implicitfast"``, ``cone="pyramidal"`` (ODE's friction pyramid),
+    ``compiler angle="radian"``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+import yaml
+
+from dualtwin.convert.checks import Finding, SmokeResult, lint_spec, smoke_test
+from dualtwin.convert.mass import (
+    FloatArray,
+    MassProps,
+    bounding_primitives,
+    combine,
+    indexed_face_set_mesh,
+    rotation_matrix,
+    solid_mass,
+)
+from dualtwin.errors import DualtwinError
+from dualtwin.webots import schema
+from dualtwin.webots.nodes import Node, World
+from dualtwin.webots.protos import load_world, load_world_text
+
+VISUAL_GROUP = 2
+COLLISION_GROUP = 3
+# Collision bits: robot geoms never touch each other (Webots selfCollision FALSE), everything else does.
+ROBOT_CONTYPE, ROBOT_CONAFFINITY = 2, 1
+ENV_CONTYPE, ENV_CONAFFINITY = 1, 3
+MAX_TIMESTEP_MS = 2.0
+# Mass given to a moving body that has none (a Webots endPoint without Physics is kinematic, not dynamic).
+KINEMATIC_MASS = 1e-3
+
+#: Solid-derived devices that become a site (and a sensor where MuJoCo has one).
+SITE_SENSORS = {
+    "InertialUnit": mujoco.mjtSensor.mjSENS_FRAMEQUAT,
+    "Gyro": mujoco.mjtSensor.mjSENS_GYRO,
+    "Accelerometer": mujoco.mjtSensor.mjSENS_ACCELEROMETER,
+    "GPS": mujoco.mjtSensor.mjSENS_FRAMEPOS,
+    "Compass": mujoco.mjtSensor.mjSENS_MAGNETOMETER,
+    "DistanceSensor": mujoco.mjtSensor.mjSENS_RANGEFINDER,
+    "TouchSensor": mujoco.mjtSensor.mjSENS_TOUCH,
+}
+#: Nodes whose physics has no MuJoCo counterpart we could write by rule: conversion stops with their location.
+UNSUPPORTED = frozenset({"Track", "TrackWheel", "Propeller", "Connector", "VacuumGripper", "Fluid", "Muscle",
+                         "SolidReference", "Cone", "Mesh", "CadShape"})
+#: Nodes without physics that are skipped silently.
+IGNORED = frozenset({"PointLight", "SpotLight", "DirectionalLight", "Fog", "Background", "Viewpoint",
+                     "WorldInfo", "Billboard", "IndexedLineSet", "PointSet"})
+
+
+class ConversionError(DualtwinError):
+    """The world cannot be converted; the message names the node and its ``file:line:col``."""
+
+
+# ------------------------------------------------------------------------------------------------
+# small helpers
+
+
+def _where(node: Node) -> str:
+    return str(node.location) if node.location is not None else "<unknown location>"
+
+
+def _describe(node: Node) -> str:
+    label = node.type_name
+    if node.def_name:
+        label = f"DEF {node.def_name} {label}"
+    return f"{label} at {_where(node)}"
+
+
+def _quat(R: FloatArray) -> list[float]:
+    q = np.zeros(4)
+    mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, dtype=float).reshape(9))
+    return [float(v) for v in q]
+
+
+def _pose(node: Node, scale: float = 1.0) -> FloatArray:
+    T = np.eye(4)
+    T[:3, :3] = rotation_matrix(node.get("rotation", (0.0, 0.0, 1.0, 0.0)))
+    T[:3, 3] = np.asarray(node.get("translation", (0.0, 0.0, 0.0)), dtype=float) * scale
+    return T
+
+
+def _inv(T: FloatArray) -> FloatArray:
+    out = np.eye(4)
+    out[:3, :3] = T[:3, :3].T
+    out[:3, 3] = -T[:3, :3].T @ T[:3, 3]
+    return out
+
+
+def _axis_rotation(axis: Sequence[float] | FloatArray, angle: float) -> FloatArray:
+    return rotation_matrix((*(float(v) for v in axis), angle))
+
+
+def timestep_for(basic_time_step_ms: float) -> float:
+    """A MuJoCo timestep (s) <= 2 ms that divides Webots' basicTimeStep exactly."""
+    for h in (2.0, 1.0, 0.5, 0.25):
+        ratio = basic_time_step_ms / h
+        if h <= basic_time_step_ms and abs(ratio - round(ratio)) < 1e-9:
+            return h / 1000.0
+    k = max(1, math.ceil(basic_time_step_ms / MAX_TIMESTEP_MS))
+    return basic_time_step_ms / k / 1000.0
+
+
+def camera_fovy_degrees(field_of_view: float, width: int, height: int) -> float:
+    """Webots horizontal field of view (rad) -> MuJoCo vertical ``fovy`` (degrees)."""
+    return math.degrees(2.0 * math.atan(math.tan(field_of_view / 2.0) * height / width))
+
+
+def contact_solref(soft_erp: float, soft_cfm: float, step_s: float, mass: float,
+                   mujoco_step_s: float) -> tuple[float, float, float]:
+    """ODE softERP/softCFM at Webots' step -> MuJoCo (timeconst, dampratio) and solimp ``d`` (module docstring)."""
+    erp = min(max(soft_erp, 1e-6), 1.0)
+    cfm = max(soft_cfm, 1e-12)
+    k = erp / (step_s * cfm)
+    b = max((1.0 - erp) / cfm, 1e-9)
+    m = max(mass, 1e-6)
+    dampratio = b / (2.0 * math.sqrt(k * m))
+    timeconst = max(2.0 * m / b, 2.0 * mujoco_step_s)
+    d = 1.0 / (1.0 + cfm * m / step_s)
+    return timeconst, min(dampratio, 1e3), min(max(d, 0.5), 0.9999)
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9]+", "_", text).strip("_").lower() or "x"
+
+
+# ------------------------------------------------------------------------------------------------
+# results
+
+
+@dataclass
+class JointInfo:
+    """What the binding generator needs to know about a converted joint."""
+
+    name: str
+    kind: str  # hinge | slide | ball
+    body: str
+    motors: list[str] = field(default_factory=list)
+    sensors: list[str] = field(default_factory=list)
+    limited: bool = False
+
+
+@dataclass
+class MotorInfo:
+    name: str
+    joint: str
+    linear: bool
+    max_torque: float
+    max_velocity: float
+
+
+@dataclass
+class Conversion:
+    """A converted robot: the spec, its binding, warnings and lint findings."""
+
+    spec: mujoco.MjSpec
+    world_path: str
+    robot: str  # DEF (or name) of the robot node in the world
+    model_name: str
+    root_body: str
+    free_base: bool
+    control_period_ms: float
+    joints: list[JointInfo]
+    motors: list[MotorInfo]
+    sensors: dict[str, str]  # sensor name -> Webots device type
+    warnings: list[str]
+    lint: list[Finding]
+    description: str = ""
+
+    @property
+    def xml(self) -> str:
+        return str(self.spec.to_xml())
+
+    def compile(self) -> mujoco.MjModel:
+        try:
+            return self.spec.compile()
+        except ValueError as exc:
+            raise ConversionError(f"{self.world_path}: converted model does not compile: "
+                                  f"{' '.join(str(exc).split())}") from None
+
+    def smoke(self, duration_s: float = 0.5, seed: int = 0) -> SmokeResult:
+        return smoke_test(self.compile(), duration_s, seed)
+
+    def binding_dict(self, xml_name: str | None = None, webots_model: str | None = None) -> dict[str, Any]:
+        """The binding (our YAML format); model paths are relative to the binding file."""
+        from dualtwin.convert.bindings import make_binding
+
+        return make_binding(self, xml_name or f"{self.model_name}.xml",
+                            webots_model if webots_model is not None else os.path.basename(self.world_path))
+
+    @property
+    def binding(self) -> dict[str, Any]:
+        return self.binding_dict()
+
+    def binding_yaml(self, xml_name: str | None = None, webots_model: str | None = None) -> str:
+        header = f"# Generated by dualtwin convert from {os.path.basename(self.world_path)} (robot {self.robot}).\n"
+        return header + yaml.safe_dump(self.binding_dict(xml_name, webots_model), sort_keys=False, width=110)
+
+    def write(self, xml_path: str | os.PathLike[str], binding_path: str | os.PathLike[str] | None = None) -> None:
+        """Write the MJCF and, if asked, the binding (paths inside it relative to the binding's folder)."""
+        from dualtwin.artifacts import write_text
+        from dualtwin.convert.bindings import validate_binding
+
+        xml_path = Path(xml_path)
+        if binding_path is not None:
+            binding_path = Path(binding_path)
+            base = binding_path.resolve().parent
+            xml_rel = os.path.relpath(xml_path.resolve(), base)
+            wbt_rel = os.path.relpath(Path(self.world_path).resolve(), base)
+            data = self.binding_dict(xml_rel, wbt_rel)
+            validate_binding(data, binding_path)
+            write_text(xml_path, self.xml)
+            write_text(binding_path, self.binding_yaml(xml_rel, wbt_rel))
+        else:
+            write_text(xml_path, self.xml)
+
+
+# ------------------------------------------------------------------------------------------------
+# the converter
+
+
+@dataclass
+class _Geom:
+    name: str
+    body: str
+    material: str
+    robot: bool
+
+
+class _Converter:
+    def __init__(self, world: World, world_path: str) -> None:
+        self.world = world
+        self.world_path = world_path
+        self.spec = mujoco.MjSpec()
+        self.warnings: list[str] = list(world.warnings)
+        self.findings: list[Finding] = []
+        self.used: dict[str, set[str]] = {}
+        info = world.world_info()
+        self.info = info.fields if info is not None else schema.default_fields("WorldInfo")
+        self.basic_ms = float(self.info.get("basicTimeStep", 32.0))
+        self.dt = timestep_for(self.basic_ms)
+        self.nue = str(self.info.get("coordinateSystem", "ENU")).upper() == "NUE"
+        version = re.search(r"R(\d{4})([ab])", world.header or "")
+        self.old_cameras = version is not None and (int(version.group(1)), version.group(2)) < (2022, "a")
+        self.geoms: list[_Geom] = []
+        self.joints: list[JointInfo] = []
+        self.motors: list[MotorInfo] = []
+        self.sensors: dict[str, str] = {}
+        self.body_mass: dict[str, float] = {}
+        self.robot_bodies: list[str] = []
+        self.in_robot = False
+        self.self_collision = False
+        self.mesh_count = 0
+        self.missing_defs: list[str] = []
+
+    # -- names
+    def unique(self, kind: str, base: str) -> str:
+        used = self.used.setdefault(kind, set())
+        name = base or kind
+        i = 1
+        while name in used:
+            name = f"{base}({i})" if kind == "body" else f"{base}_{i}"
+            i += 1
+        used.add(name)
+        return name
+
+    def warn(self, message: str, node: Node | None = None) -> None:
+        text = f"{_where(node)}: {message}" if node is not None else message
+        if text not in self.warnings:
+            self.warnings.append(text)
+
+    def unsupported(self, node: Node, why: str = "") -> ConversionError:
+        extra = f" ({why})" if why else ""
+        return ConversionError(f"{_where(node)}: unsupported node {node.type_name}{extra}; "
+                               "the converter cannot map it to MuJoCo")
+
+    # -- world level
+    def setup(self) -> None:
+        spec = self.spec
+        spec.compiler.degree = False
+        spec.compiler.autolimits = True
+        # Explicit inertials only: MuJoCo must not derive mass from (visual) geoms.
+        spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
+        spec.option.timestep = self.dt
+        spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+        spec.option.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
+        spec.option.gravity = [0.0, 0.0, -float(self.info.get("gravity", 9.81))]
+        if self.nue:
+            self.warn("WorldInfo coordinateSystem is NUE: converted as written (no NUE -> ENU rotation)")
+        self.spec.worldbody.add_light(name=self.unique("light", "sun"), pos=[0, 0, 10], dir=[0, 0, -1],
+                                      type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL)
+
+    def lint_rotations(self, root: Node) -> None:
+        for node in root.walk():
+            rotation = node.fields.get("rotation")
+            if isinstance(rotation, tuple) and len(rotation) == 4 and abs(float(rotation[3])) > 2 * math.pi + 1e-6:
+                self.findings.append(Finding(
+                    "warning", "rotation-in-degrees",
+                    f"{node.type_name} rotation angle {rotation[3]:g} exceeds 2*pi: degrees written as radians?",
+                    _where(node)))
+
+    # -- geometry
+    def add_geom(self, body: Any, geometry: Node, T: FloatArray, scale: float, name: str, *, collision: bool,
+                 rgba: Sequence[float] | None, material: str, static: bool) -> None:
+        kind = geometry.type_name
+        R, t = T[:3, :3], T[:3, 3]
+        kwargs: dict[str, Any] = {"pos": [float(v) for v in t], "quat": _quat(R)}
+        if kind == "Box":
+            size = [float(v) * scale / 2.0 for v in geometry["size"]]
+            kwargs.update(type=mujoco.mjtGeom.mjGEOM_BOX, size=size)
+        elif kind == "Sphere":
+            kwargs.update(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[float(geometry["radius"]) * scale, 0, 0])
+        elif kind in ("Cylinder", "Capsule"):
+            # Both have their axis along local z, as MuJoCo (R2022a+); Capsule height = cylindrical part.
+            gtype = mujoco.mjtGeom.mjGEOM_CYLINDER if kind == "Cylinder" else mujoco.mjtGeom.mjGEOM_CAPSULE
+            kwargs.update(type=gtype, size=[float(geometry["radius"]) * scale,
+                                            float(geometry["height"]) * scale / 2.0, 0])
+        elif kind == "Plane":
+            if not static:
+                self.warn("a Plane cannot move with a body (Webots keeps it static): skipped", geometry)
+                return
+            sx, sy = (float(v) * scale for v in geometry["size"])
+            # Collision planes are infinite in both simulators; a visual plane keeps its drawn size.
+            size = [0.0, 0.0, 1.0] if collision else [sx / 2.0, sy / 2.0, 1.0]
+            kwargs.update(type=mujoco.mjtGeom.mjGEOM_PLANE, size=size)
+        elif kind == "IndexedFaceSet":
+            try:
+                points, faces = indexed_face_set_mesh(geometry, scale)
+            except ValueError as exc:
+                raise ConversionError(f"{_where(geometry)}: IndexedFaceSet: {exc}") from None
+            if len(faces) == 0 or len(points) < 4:
+                self.warn("IndexedFaceSet with fewer than 4 points or no face: skipped", geometry)
+                return
+            self.mesh_count += 1
+            mesh_name = self.unique("mesh", f"{name}_mesh")
+            mesh = self.spec.add_mesh(name=mesh_name)
+            mesh.uservert = points.reshape(-1).tolist()
+            mesh.userface = faces.reshape(-1).tolist()
+            # Only the mesh frame is needed (masses are explicit); shell inertia accepts open/flat meshes.
+            mesh.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
+            if collision:
+                self.warn("IndexedFaceSet collisions use the mesh's convex hull in MuJoCo (a trimesh in ODE)",
+                          geometry)
+            kwargs.update(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh_name)
+        elif kind == "ElevationGrid":
+            if not static:
+                raise self.unsupported(geometry, "ElevationGrid on a moving body")
+            kwargs.update(self.hfield(geometry, name, scale, T))
+        elif kind in ("Cone", "Mesh", "CadShape"):
+            if collision:
+                raise self.unsupported(geometry, "as a boundingObject")
+            self.warn(f"visual {kind} skipped (no MuJoCo primitive; meshes from files are not converted)", geometry)
+            return
+        else:
+            raise self.unsupported(geometry, "as a geometry")
+        geom = body.add_geom(name=name, **kwargs)
+        if collision:
+            robot = self.in_robot
+            geom.contype = ROBOT_CONTYPE if robot and not self.self_collision else (3 if robot else ENV_CONTYPE)
+            geom.conaffinity = ROBOT_CONAFFINITY if robot and not self.self_collision else (3 if robot else ENV_CONAFFINITY)
+            geom.group = COLLISION_GROUP
+            geom.mass = 0.0
+            geom.density = 0.0
+            geom.rgba = [0.5, 0.5, 0.5, 0.3]
+            self.geoms.append(_Geom(name, str(body.name), material, robot))
+        else:
+            geom.contype = 0
+            geom.conaffinity = 0
+            geom.group = VISUAL_GROUP
+            geom.density = 0.0
+            geom.mass = 0.0
+            if rgba is not None:
+                geom.rgba = list(rgba)
+
+    def hfield(self, grid: Node, name: str, scale: float, T: FloatArray) -> dict[str, Any]:
+        nx, ny = int(grid["xDimension"]), int(grid["yDimension"])
+        heights = np.asarray(grid["height"], dtype=float) * scale
+        if nx < 2 or ny < 2 or heights.size != nx * ny:
+            raise ConversionError(f"{_where(grid)}: ElevationGrid needs xDimension, yDimension >= 2 and "
+                                  f"xDimension*yDimension heights (got {nx}x{ny}, {heights.size} heights)")
+        lx, ly = float(grid["xSpacing"]) * scale * (nx - 1), float(grid["ySpacing"]) * scale * (ny - 1)
+        lo, hi = float(heights.min()), float(heights.max())
+        span = max(hi - lo, 1e-6)
+        field_name = self.unique("hfield", f"{name}_hfield")
+        # Webots height[i + j*xDimension] is x index i, y index j; MuJoCo's rows run along y too.
+        self.spec.add_hfield(name=field_name, nrow=ny, ncol=nx,
+                             size=[lx / 2, ly / 2, span, max(float(grid["thickness"]) * scale, 1e-3)],
+                             userdata=((heights - lo) / span).tolist())
+        centre = T[:3, :3] @ np.array([lx / 2, ly / 2, lo]) + T[:3, 3]
+        return {"type": mujoco.mjtGeom.mjGEOM_HFIELD, "hfieldname": field_name,
+                "pos": [float(v) for v in centre]}
+
+    @staticmethod
+    def rgba(shape: Node) -> list[float] | None:
+        appearance = shape.get("appearance")
+        if appearance is None:
+            return None
+        if appearance.type_name == "PBRAppearance":
+            r, g, b = appearance.get("baseColor", (1.0, 1.0, 1.0))
+            return [float(r), float(g), float(b), 1.0 - float(appearance.get("transparency", 0.0))]
+        material = appearance.get("material")
+        if material is not None:
+            r, g, b = material.get("diffuseColor", (0.8, 0.8, 0.8))
+            return [float(r), float(g), float(b), 1.0 - float(material.get("transparency", 0.0))]
+        return None
+
+    # -- solids and bodies
+    def solid_name(self, solid: Node) -> str:
+        return solid.def_name or str(solid.get("name") or solid.type_name.lower())
+
+    def check_scale(self, node: Node) -> float:
+        sx, sy, sz = (float(v) for v in node.get("scale", (1.0, 1.0, 1.0)))
+        if not (math.isclose(sx, sy) and math.isclose(sy, sz)):
+            raise self.unsupported(node, f"non-uniform scale {sx:g} {sy:g} {sz:g}")
+        return sx
+
+    def collect_solid(self, solid: Node, T: FloatArray, scale: float, body: Any, label: str,
+                      masses: list[MassProps], *, dynamic: bool, static: bool) -> None:
+        """Add one Solid's geoms, devices, mass and child joints to ``body`` (Solid frame = T in body frame)."""
+        if solid.type_name in UNSUPPORTED:
+            raise self.unsupported(solid)
+        material = str(solid.get("contactMaterial", "default"))
+        props, mass_warnings = solid_mass(solid, scale=scale)
+        for w in mass_warnings:
+            self.warn(f"{label}: {w}", solid)
+        if props is not None:
+            if not dynamic and not static:
+                pass
+            masses.append(props.transformed(T[:3, :3], T[:3, 3]))
+        for i, prim in enumerate(bounding_primitives(solid.get("boundingObject"), scale=scale)):
+            if prim.geometry.type_name in UNSUPPORTED:
+                raise self.unsupported(prim.geometry, "in a boundingObject")
+            local = np.eye(4)
+            local[:3, :3], local[:3, 3] = prim.rotation, prim.translation
+            name = self.unique("geom", label if i == 0 else f"{label}_{i}")
+            self.add_geom(body, prim.geometry, T @ local, prim.scale, name, collision=True, rgba=None,
+                          material=material, static=static)
+        self.device(solid, T, body, label)
+        self.children(solid.children(), T, scale, body, label, masses, dynamic=dynamic, static=static,
+                      material=material)
+
+    def device(self, solid: Node, T: FloatArray, body: Any, label: str) -> None:
+        kind = solid.type_name
+        if kind in ("Solid", "Robot"):
+            return
+        device_name = str(solid.get("name") or kind.lower())
+        if kind == "Camera":
+            w, h = int(solid["width"]), int(solid["height"])
+            if self.old_cameras:
+                R = T[:3, :3]  # NUE-era cameras already look along -z with +y up
+            else:
+                # FLU: look along +x, +z up. MuJoCo camera axes (x right, y up, z back) in the device frame.
+                R = T[:3, :3] @ np.array([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+            cam = body.add_camera(name=self.unique("camera", device_name), pos=[float(v) for v in T[:3, 3]],
+                                  quat=_quat(R))
+            cam.fovy = camera_fovy_degrees(float(solid["fieldOfView"]), w, h)
+            cam.resolution = [w, h]
+            if str(solid.get("projection", "planar")) != "planar":
+                self.warn(f"camera {device_name!r}: projection {solid['projection']!r} converted as planar", solid)
+            self.sensors[device_name] = kind
+            return
+        site_R = T[:3, :3]
+        if kind == "DistanceSensor":
+            # Webots rays leave along the device's +x; MuJoCo's rangefinder looks along the site's +z.
+            site_R = site_R @ _axis_rotation((0.0, 1.0, 0.0), math.pi / 2)
+            self.warn(f"distance sensor {device_name!r}: MuJoCo rangefinder returns metres along one ray "
+                      "(Webots' lookupTable and aperture are not converted)", solid)
+        site_name = self.unique("site", device_name)
+        site = body.add_site(name=site_name, pos=[float(v) for v in T[:3, 3]], quat=_quat(site_R))
+        site.group = 4
+        if kind == "TouchSensor":
+            site.type = mujoco.mjtGeom.mjGEOM_SPHERE
+            site.size = [0.02, 0, 0]
+        sensor_type = SITE_SENSORS.get(kind)
+        if sensor_type is None:
+            self.warn(f"{kind} {device_name!r} has no MuJoCo sensor: only a site is written", solid)
+            return
+        if kind in ("InertialUnit", "Gyro", "Accelerometer", "Compass") and not self.in_robot:
+            self.warn(f"{kind} {device_name!r} outside the robot", solid)
+        sensor = self.spec.add_sensor(name=self.unique("sensor", device_name), type=sensor_type,
+                                      objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site_name)
+        if kind == "DistanceSensor" and len(sensor.intprm) and int(sensor.intprm[0]) == 0:
+            sensor.intprm[0] = 1  # MuJoCo >= 3.4 rangefinder data spec: distance only (the XML default)
+        noise = float(solid.get("noise", 0.0) or 0.0)
+        if noise > 0:
+            sensor.noise = noise
+        if kind == "GPS":
+            accuracy = float(solid.get("accuracy", 0.0))
+            if accuracy > 0:
+                sensor.noise = accuracy
+        if solid.get("lookupTable"):
+            self.warn(f"{kind} {device_name!r}: lookupTable not converted (MuJoCo reports raw values)", solid)
+        if kind == "InertialUnit":
+            self.warn(f"inertial unit {device_name!r}: MuJoCo framequat gives a quaternion, Webots roll/pitch/yaw",
+                      solid)
+        self.sensors[device_name] = kind
+
+    def children(self, nodes: list[Node], T: FloatArray, scale: float, body: Any, label: str,
+                 masses: list[MassProps], *, dynamic: bool, static: bool, material: str) -> None:
+        shape_index = 0
+        for child in nodes:
+            kind = child.type_name
+            if kind in IGNORED:
+                continue
+            if kind in UNSUPPORTED:
+                raise self.unsupported(child)
+            if kind == "Shape":
+                geometry = child.get("geometry")
+                if geometry is None:
+                    continue
+                if geometry.type_name in ("Cone", "Mesh", "CadShape", "IndexedLineSet", "PointSet"):
+                    self.warn(f"visual {geometry.type_name} skipped", geometry)
+                    continue
+                name = self.unique("geom", f"{label}_visual" if shape_index == 0 else f"{label}_visual_{shape_index}")
+                shape_index += 1
+                self.add_geom(body, geometry, T, scale, name, collision=False, rgba=self.rgba(child),
+                              material=material, static=static)
+            elif kind == "CadShape":
+                self.warn("visual CadShape skipped", child)
+            elif kind == "Group":
+                self.children(child.children(), T, scale, body, label, masses, dynamic=dynamic, static=static,
+                              material=material)
+            elif kind in ("Pose", "Transform"):
+                s = scale * self.check_scale(child) if kind == "Transform" else scale
+                self.children(child.children(), T @ _pose(child, scale), s, body, label, masses, dynamic=dynamic,
+                              static=static, material=material)
+            elif kind in schema.JOINT_TYPES:
+                self.joint(child, T, scale, body, dynamic=dynamic, static=static)
+            elif kind == "Slot":
+                end = child.get("endPoint")
+                if end is not None:
+                    self.children([end], T, scale, body, label, masses, dynamic=dynamic, static=static,
+                                  material=material)
+            elif schema.is_solid_type(kind):
+                if kind == "Robot":
+                    self.warn("nested Robot converted as a Solid", child)
+                sub_label = self.solid_name(child) if child.type_name in ("Solid", "Robot") else str(
+                    child.get("name") or kind.lower())
+                frame_T = T @ _pose(child, scale)
+                # Merged Solids keep their frame as a site so their name survives the merge.
+                if kind in ("Solid", "Robot"):
+                    site = body.add_site(name=self.unique("site", sub_label),
+                                         pos=[float(v) for v in frame_T[:3, 3]], quat=_quat(frame_T[:3, :3]))
+                    site.group = 4
+                self.collect_solid(child, frame_T, scale, body, sub_label, masses, dynamic=dynamic, static=static)
+            elif kind in ("RotationalMotor", "LinearMotor", "PositionSensor", "Brake"):
+                self.warn(f"{kind} outside a joint's device list ignored", child)
+            else:
+                raise self.unsupported(child)
+
+    def make_body(self, parent: Any, solid: Node, T: FloatArray, scale: float, *, static: bool) -> tuple[Any, str]:
+        base = self.solid_name(solid)
+        name = self.unique("body", base)
+        body = parent.add_body(name=name, pos=[float(v) for v in T[:3, 3]], quat=_quat(T[:3, :3]))
+        if self.in_robot:
+            self.robot_bodies.append(name)
+        return body, name
+
+    def finish_body(self, body: Any, name: str, masses: list[MassProps], *, moving: bool, node: Node) -> None:
+        total = combine(masses)
+        if total is None:
+            if not moving:
+                return
+            self.warn(f"body {name!r} moves but has no Physics (kinematic in Webots): given {KINEMATIC_MASS} kg", node)
+            total = MassProps.point(KINEMATIC_MASS, (0, 0, 0), np.eye(3) * KINEMATIC_MASS * 1e-2)
+        body.mass = total.mass
+        body.ipos = [float(v) for v in total.com]
+        body.fullinertia = total.full_inertia()
+        body.explicitinertial = True
+        self.body_mass[name] = total.mass
+
+    def build_body(self, parent: Any, solid: Node, T: FloatArray, scale: float, *, static: bool,
+                   add_joint: Any = None) -> tuple[Any, str]:
+        """A MuJoCo body for ``solid`` at pose T in ``parent``; ``add_joint(body)`` adds its joint(s)."""
+        body, name = self.make_body(parent, solid, T, scale, static=static)
+        if add_joint is not None:
+            add_joint(body, name)
+        masses: list[MassProps] = []
+        dynamic = solid.get("physics") is not None
+        self.collect_solid(solid, np.eye(4), scale, body, name, masses, dynamic=dynamic, static=False)
+        self.finish_body(body, name, masses, moving=add_joint is not None, node=solid)
+        return body, name
+
+    # -- joints
+    def joint_name(self, jnode: Node, devices: list[Node], suffix: str = "") -> str:
+        if jnode.def_name:
+            return self.unique("joint", jnode.def_name + suffix)
+        for kinds in (("RotationalMotor", "LinearMotor"), ("PositionSensor",)):
+            for d in devices:
+                if d.type_name in kinds:
+                    return self.unique("joint", f"{d.get('name')}_joint{suffix}")
+        return self.unique("joint", f"joint{len(self.joints) + 1}{suffix}")
+
+    def joint(self, jnode: Node, T: FloatArray, scale: float, parent: Any, *, dynamic: bool, static: bool) -> None:
+        kind = jnode.type_name
+        end = jnode.get("endPoint")
+        while end is not None and end.type_name == "Slot":
+            end = end.get("endPoint")
+        if end is None:
+            self.warn(f"{kind} without endPoint skipped", jnode)
+            return
+        if end.type_name == "SolidReference":
+            raise self.unsupported(end, "closed kinematic loops")
+        if not schema.is_solid_type(end.type_name):
+            raise self.unsupported(end, "as a joint endPoint")
+        if end.get("physics") is None:
+            self.warn(f"{kind} endPoint has no Physics: Webots moves it kinematically, MuJoCo dynamically", jnode)
+        if self.in_robot:
+            if not jnode.def_name:
+                self.missing_defs.append(f"{kind} at {_where(jnode)}")
+            if not end.def_name:
+                self.missing_defs.append(f"endPoint {end.type_name} {end.get('name')!r} at {_where(end)}")
+        child_T = T @ _pose(end, scale)
+        to_child = _inv(child_T)
+
+        def in_child(axis: Sequence[float]) -> list[float]:
+            v = to_child[:3, :3] @ (T[:3, :3] @ np.asarray(axis, dtype=float))
+            n = float(np.linalg.norm(v))
+            if n < 1e-12:
+                raise ConversionError(f"{_where(jnode)}: {kind} axis is zero")
+            return [float(x) for x in v / n]
+
+        def point_in_child(point: Sequence[float]) -> list[float]:
+            p = T @ np.array([*(np.asarray(point, dtype=float) * scale), 1.0])
+            return [float(x) for x in (to_child @ p)[:3]]
+
+        devices = [d for d in jnode.get("device", []) if d is not None]
+        if kind == "Hinge2Joint":
+            self.hinge2(jnode, end, child_T, T, scale, parent, in_child, point_in_child, static=static)
+            return
+        params_type = {"HingeJoint": "HingeJointParameters", "SliderJoint": "JointParameters",
+                       "BallJoint": "BallJointParameters"}[kind]
+        params_node = jnode.get("jointParameters")
+        params = params_node.fields if params_node is not None else schema.default_fields(params_type)
+        position = float(params.get("position", 0.0)) if params_node is not None else float(jnode.get("position", 0.0))
+        where = params_node if params_node is not None else jnode
+
+        def add(body: Any, body_name: str) -> None:
+            if kind == "BallJoint":
+                name = self.joint_name(jnode, devices)
+                j = body.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_BALL,
+                                   pos=point_in_child(params.get("anchor", (0.0, 0.0, 0.0))))
+                self.set_dynamics(j, params, 0.0, where)
+                if devices or jnode.get("device2") or jnode.get("device3"):
+                    self.warn("BallJoint devices (motors/sensors) are not converted", jnode)
+                if position:
+                    self.warn("BallJoint position is ignored (MuJoCo ball joints start at the XML pose)", jnode)
+                self.joints.append(JointInfo(name, "ball", body_name))
+                return
+            name = self.joint_name(jnode, devices)
+            if kind == "HingeJoint":
+                j = body.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_HINGE, axis=in_child(params["axis"]),
+                                   pos=point_in_child(params.get("anchor", (0.0, 0.0, 0.0))))
+                jkind = "hinge"
+            else:
+                axis = params.get("axis", (0.0, 0.0, 1.0))
+                j = body.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=in_child(axis), pos=[0, 0, 0])
+                jkind = "slide"
+            j.ref = position
+            limited = self.set_limits(j, params, jkind, where)
+            self.set_dynamics(j, params, position, where)
+            info = JointInfo(name, jkind, body_name, limited=limited)
+            self.joint_devices(devices, info, linear=jkind == "slide")
+            self.joints.append(info)
+
+        self.build_body(parent, end, child_T, scale, static=False, add_joint=add)
+
+    def set_limits(self, j: Any, params: dict[str, Any], kind: str, where: Node) -> bool:
+        lo, hi = float(params.get("minStop", 0.0)), float(params.get("maxStop", 0.0))
+        if lo == hi:
+            return False
+        if kind == "hinge":
+            if max(abs(lo), abs(hi)) > 2 * math.pi + 1e-6:
+                self.findings.append(Finding("error", "stop-in-degrees",
+                                             f"hinge stops [{lo:g}, {hi:g}] exceed 2*pi: degrees written as radians?",
+                                             _where(where)))
+            # ODE clamps hinge stops into [-pi, pi] (webots-on-ode.md §4.2).
+            lo, hi = max(lo, -math.pi), min(hi, math.pi)
+        j.range = sorted([lo, hi])
+        j.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+        return True
+
+    def set_dynamics(self, j: Any, params: dict[str, Any], position: float, where: Node) -> None:
+        damping = float(params.get("dampingConstant", 0.0))
+        spring = float(params.get("springConstant", 0.0))
+        friction = float(params.get("staticFriction", 0.0))
+        _set_scalar(j, "damping", damping)
+        if spring:
+            _set_scalar(j, "stiffness", spring)
+            # Webots' spring rests at the initial position, MuJoCo's at springref (default 0).
+            j.springref = position
+        if friction:
+            j.frictionloss = friction
+        if float(params.get("suspensionSpringConstant", 0.0)) or float(params.get("suspensionDampingConstant", 0.0)):
+            self.warn("hinge suspension (Webots' ODE fork) is not converted", where)
+
+    def joint_devices(self, devices: list[Node], info: JointInfo, *, linear: bool) -> None:
+        for d in devices:
+            kind = d.type_name
+            name = str(d.get("name"))
+            if kind in ("RotationalMotor", "LinearMotor"):
+                if (kind == "LinearMotor") != linear:
+                    self.warn(f"{kind} {name!r} on a {'slider' if linear else 'hinge'}", d)
+                limit = float(d.get("maxForce" if kind == "LinearMotor" else "maxTorque"))
+                act_name = self.unique("actuator", name)
+                act = self.spec.add_actuator(name=act_name, target=info.name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+                act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+                act.forcerange = [-limit, limit]
+                act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+                act.ctrlrange = [-limit, limit]
+                kp, ki, kd = (float(v) for v in d.get("controlPID", (10.0, 0.0, 0.0)))
+                self.spec.add_numeric(name=f"webots_motor.{act_name}",
+                                      data=[float(d.get("maxVelocity", 10.0)), kp, ki, kd,
+                                            float(d.get("acceleration", -1.0))])
+                if float(d.get("multiplier", 1.0)) != 1.0:
+                    self.warn(f"motor {name!r}: multiplier {d.get('multiplier')} is not converted", d)
+                if float(d.get("minPosition", 0.0)) != float(d.get("maxPosition", 0.0)):
+                    self.warn(f"motor {name!r}: soft limits minPosition/maxPosition are enforced by the controller "
+                              "side only (not written to MJCF)", d)
+                info.motors.append(act_name)
+                self.motors.append(MotorInfo(act_name, info.name, kind == "LinearMotor", limit,
+                                             float(d.get("maxVelocity", 10.0))))
+            elif kind == "PositionSensor":
+                sensor_name = self.unique("sensor", name)
+                sensor = self.spec.add_sensor(name=sensor_name, type=mujoco.mjtSensor.mjSENS_JOINTPOS,
+                                              objtype=mujoco.mjtObj.mjOBJ_JOINT, objname=info.name)
+                if float(d.get("noise", 0.0)) > 0:
+                    sensor.noise = float(d["noise"])
+                info.sensors.append(sensor_name)
+                self.sensors[sensor_name] = kind
+            elif kind == "Brake":
+                self.warn(f"Brake {name!r} is not converted", d)
+            else:
+                raise self.unsupported(d, "as a joint device")
+
+    def hinge2(self, jnode: Node, end: Node, child_T: FloatArray, T: FloatArray, scale: float, parent: Any,
+               in_child: Any, point_in_child: Any, *, static: bool) -> None:
+        """Hinge2Joint: two hinges (axis 1 in the parent frame, axis 2 turned by position 1)."""
+        p1_node, p2_node = jnode.get("jointParameters"), jnode.get("jointParameters2")
+        p1 = p1_node.fields if p1_node is not None else schema.default_fields("HingeJointParameters")
+        p2 = p2_node.fields if p2_node is not None else schema.default_fields("JointParameters")
+        pos1 = float(p1.get("position", 0.0)) if p1_node is not None else float(jnode.get("position", 0.0))
+        pos2 = float(p2.get("position", 0.0)) if p2_node is not None else float(jnode.get("position2", 0.0))
+        axis1 = np.asarray(p1.get("axis", (1.0, 0.0, 0.0)), dtype=float)
+        # axis2 is written for the first hinge at zero; at the file's pose it is turned by position1.
+        axis2 = _axis_rotation(axis1, pos1) @ np.asarray(p2.get("axis", (0.0, 0.0, 1.0)), dtype=float)
+        anchor = point_in_child(p1.get("anchor", (0.0, 0.0, 0.0)))
+        devices1 = [d for d in jnode.get("device", []) if d is not None]
+        devices2 = [d for d in jnode.get("device2", []) if d is not None]
+        # Both hinges live in the child body: MuJoCo applies a body's joints in order, each about its axis in
+        # the frame left by the previous ones, so axis 2 turns with hinge 1 exactly as ODE's hinge-2 axis 2.
+        # (A separate intermediate body would need a fake mass: MuJoCo rejects massless moving bodies.)
+        def add(body: Any, body_name: str) -> None:
+            name1 = self.joint_name(jnode, devices1)
+            j1 = body.add_joint(name=name1, type=mujoco.mjtJoint.mjJNT_HINGE, axis=in_child(axis1), pos=anchor)
+            j1.ref = pos1
+            limited1 = self.set_limits(j1, p1, "hinge", p1_node or jnode)
+            self.set_dynamics(j1, p1, pos1, p1_node or jnode)
+            info1 = JointInfo(name1, "hinge", body_name, limited=limited1)
+            self.joint_devices(devices1, info1, linear=False)
+            self.joints.append(info1)
+            name2 = self.joint_name(jnode, devices2, suffix="2") if jnode.def_name or devices2 else self.unique(
+                "joint", f"{name1}2")
+            j2 = body.add_joint(name=name2, type=mujoco.mjtJoint.mjJNT_HINGE, axis=in_child(axis2), pos=anchor)
+            j2.ref = pos2
+            limited2 = self.set_limits(j2, p2, "hinge", p2_node or jnode)
+            self.set_dynamics(j2, p2, pos2, p2_node or jnode)
+            info2 = JointInfo(name2, "hinge", body_name, limited=limited2)
+            self.joint_devices(devices2, info2, linear=False)
+            self.joints.append(info2)
+
+        self.build_body(parent, end, child_T, scale, static=False, add_joint=add)
+
+    # -- contacts
+    def contact_properties(self, a: str, b: str) -> dict[str, Any]:
+        for cp in self.info.get("contactProperties", []) or []:
+            if cp is None:
+                continue
+            m1, m2 = str(cp.get("material1")), str(cp.get("material2"))
+            if {m1, m2} == {a, b}:
+                return cp.fields
+        return schema.default_fields("ContactProperties")
+
+    def apply_contacts(self) -> None:
+        robot_geoms = [g for g in self.geoms if g.robot]
+        env_geoms = [g for g in self.geoms if not g.robot]
+        if not robot_geoms:
+            return
+        env_materials = list(dict.fromkeys(g.material for g in env_geoms)) or ["default"]
+        robot_mass = sum(self.body_mass.get(b, 0.0) for b in self.robot_bodies)
+        contact_bodies = max(1, len({g.body for g in robot_geoms}))
+        m_eff = robot_mass / contact_bodies if robot_mass > 0 else 1.0
+        step = self.basic_ms / 1000.0
+        env_params: dict[str, tuple[float, list[float], list[float]]] = {}
+        noted: set[tuple[str, str]] = set()
+        for g in robot_geoms:
+            props = self.contact_properties(g.material, env_materials[0])
+            friction, solref, solimp = self.pair_params(props, m_eff, step)
+            geom = self.spec.geom(g.name)
+            geom.friction = [friction, 0.005, 0.0001]
+            geom.solref = solref
+            geom.solimp = solimp
+            for env_material in env_materials:
+                params = self.pair_params(self.contact_properties(g.material, env_material), m_eff, step)
+                current = env_params.get(env_material)
+                # MuJoCo takes the larger friction of the two geoms: the environment keeps the smallest.
+                if current is None or params[0] < current[0]:
+                    env_params[env_material] = params
+                key = (g.material, env_material)
+                if key not in noted:
+                    noted.add(key)
+                    cp = self.contact_properties(*key)
+                    if float(cp.get("bounce", 0.0)) > 0:
+                        self.warn(f"contact {key[0]!r}/{key[1]!r}: bounce {float(cp['bounce']):g} is not reproduced "
+                                  "(MuJoCo contacts have no restitution model; solref from softERP/softCFM)")
+                    if any(float(v) for v in cp.get("rollingFriction", (0.0, 0.0, 0.0))):
+                        self.warn(f"contact {key[0]!r}/{key[1]!r}: rollingFriction not converted")
+                    if len(cp.get("coulombFriction", [1.0])) > 1:
+                        self.warn(f"contact {key[0]!r}/{key[1]!r}: asymmetric coulombFriction uses the first value")
+        for g in env_geoms:
+            env = env_params.get(g.material)
+            if env is None:
+                continue
+            geom = self.spec.geom(g.name)
+            geom.friction = [env[0], 0.005, 0.0001]
+            geom.solref = env[1]
+            geom.solimp = env[2]
+
+    def pair_params(self, props: dict[str, Any], m_eff: float, step: float) -> tuple[float, list[float], list[float]]:
+        mu = float((props.get("coulombFriction") or [1.0])[0])
+        if mu < 0:  # -1 = infinite friction in Webots
+            mu = 100.0
+        timeconst, dampratio, d = contact_solref(float(props.get("softERP", 0.2)), float(props.get("softCFM", 0.001)),
+                                                 step, m_eff, self.dt)
+        return mu, [timeconst, dampratio], [d, d, 0.001, 0.5, 2.0]
+
+    # -- top level
+    def convert(self, robot_node: Node, robot_label: str) -> Conversion:
+        self.setup()
+        for top in self.world.nodes:
+            self.lint_rotations(top)
+        # Static environment first, so the floor comes first in the file.
+        for top in self.world.nodes:
+            if top is robot_node:
+                continue
+            self.environment(top, np.eye(4), 1.0)
+        self.in_robot = True
+        self.self_collision = bool(robot_node.get("selfCollision", False))
+        T = _pose(robot_node)
+        free = robot_node.get("physics") is not None
+        root_name = ""
+
+        def add_free(body: Any, body_name: str) -> None:
+            nonlocal root_name
+            root_name = body_name
+            body.add_freejoint(name=self.unique("joint", f"{body_name}_free"))
+
+        if free:
+            _, root_name = self.build_body(self.spec.worldbody, robot_node, T, 1.0, static=False, add_joint=add_free)
+        else:
+            _, root_name = self.build_body(self.spec.worldbody, robot_node, T, 1.0, static=False)
+            self.warn("robot has no Physics: converted with a fixed base (welded to the world)", robot_node)
+        self.in_robot = False
+        if self.missing_defs:
+            # The Webots twin addresses joints and bodies by DEF; generated names exist in MuJoCo only.
+            self.warn(f"{len(self.missing_defs)} joint(s)/endPoint(s) have no DEF (first: {self.missing_defs[0]}); "
+                      "the Webots twin finds joints and bodies by DEF, so give them DEFs "
+                      "(dualtwin.convert.faithfulness.prepare_world_for_twins writes such a copy)")
+        self.apply_contacts()
+        model_name = _slug(str(robot_node.get("name") or robot_label))
+        self.spec.modelname = model_name
+        model = None
+        try:
+            model = self.spec.compile()
+        except ValueError as exc:
+            raise ConversionError(f"{self.world_path}: converted model does not compile: "
+                                  f"{' '.join(str(exc).split())}") from None
+        findings = self.findings + lint_spec(self.spec, model)
+        title = str(self.info.get("title", "") or "")
+        return Conversion(
+            spec=self.spec, world_path=self.world_path, robot=robot_label, model_name=model_name,
+            root_body=root_name, free_base=free, control_period_ms=self.basic_ms, joints=self.joints,
+            motors=self.motors, sensors=self.sensors, warnings=self.warnings, lint=findings,
+            description=f"{robot_node.get('name')} converted from {os.path.basename(self.world_path)}"
+                        + (f" ({title})" if title else ""))
+
+    def environment(self, node: Node, T: FloatArray, scale: float) -> None:
+        kind = node.type_name
+        if kind in IGNORED or kind in ("DirectionalLight",):
+            return
+        if kind == "Robot":
+            self.warn(f"robot {node.get('name')!r} is not the converted robot: skipped", node)
+            return
+        if kind in ("Pose", "Transform", "Group"):
+            s = scale * self.check_scale(node) if kind == "Transform" else scale
+            inner = T if kind == "Group" else T @ _pose(node, scale)
+            for child in node.children():
+                self.environment(child, inner, s)
+            return
+        if kind == "Shape":
+            geometry = node.get("geometry")
+            if geometry is not None:
+                self.add_geom(self.spec.worldbody, geometry, T, scale, self.unique("geom", "shape_visual"),
+                              collision=False, rgba=self.rgba(node), material="default", static=True)
+            return
+        if schema.is_solid_type(kind):
+            frame = T @ _pose(node, scale)
+            if node.get("physics") is not None:
+                # A loose physical object: a free body, like in Webots.
+                def add_free(body: Any, body_name: str) -> None:
+                    body.add_freejoint(name=self.unique("joint", f"{body_name}_free"))
+
+                self.build_body(self.spec.worldbody, node, frame, scale, static=False, add_joint=add_free)
+                return
+            label = self.solid_name(node)
+            masses: list[MassProps] = []
+            self.collect_solid(node, frame, scale, self.spec.worldbody, self.unique("body", label), masses,
+                               dynamic=False, static=True)
+            return
+        if kind in UNSUPPORTED:
+            raise self.unsupported(node)
+        self.warn(f"top-level {kind} ignored", node)
+
+
+def _set_scalar(element: Any, attr: str, value: float) -> None:
+    """MuJoCo 4 made joint damping/stiffness arrays (polynomial terms); 3.x has scalars."""
+    current = getattr(element, attr)
+    if isinstance(current, np.ndarray) and current.ndim:
+        current[0] = value
+        setattr(element, attr, current)
+    else:
+        setattr(element, attr, value)
+
+
+# ------------------------------------------------------------------------------------------------
+# public API
+
+
+def find_robots(world: World) -> list[Node]:
+    """Top-level Robot nodes (PROTO instances included, they are expanded to Robot)."""
+    return [n for n in world.nodes if n.type_name == "Robot"]
+
+
+def select_robot(world: World, robot: str | None, origin: str) -> tuple[Node, str]:
+    """The Robot node chosen by DEF or ``name`` (or the only one), and the label the binding uses for it."""
+    robots = find_robots(world)
+    if not robots:
+        raise ConversionError(f"{origin}: world has no robot (no top-level Robot node)")
+
+    def label(node: Node) -> str:
+        return node.def_name or str(node.get("name"))
+
+    if robot is None:
+        if len(robots) > 1:
+            names = ", ".join(label(r) for r in robots)
+            raise ConversionError(f"{origin}: world has {len(robots)} robots ({names}); choose one with --robot")
+        return robots[0], label(robots[0])
+    for node in robots:
+        if node.def_name == robot or node.proto_name == robot:
+            return node, label(node)
+    for node in robots:
+        if str(node.get("name")) == robot:
+            return node, label(node)
+    names = ", ".join(label(r) for r in robots)
+    raise ConversionError(f"{origin}: no robot with DEF or name {robot!r} (robots: {names})")
+
+
+def convert_loaded(world: World, robot: str | None = None, *, world_path: str | None = None) -> Conversion:
+    """Convert an already loaded world (see :func:`convert_world`)."""
+    path = world_path or world.path
+    node, label = select_robot(world, robot, path)
+    return _Converter(world, path).convert(node, label)
+
+
+def convert_world(world_path: str | os.PathLike[str], robot: str | None = None, *,
+                  proto_paths: Sequence[str | os.PathLike[str]] = ()) -> Conversion:
+    """Convert the robot of a Webots world (and its static environment) to a MuJoCo model.
+
+    Args:
+        world_path: the ``.wbt`` file.
+        robot: DEF or ``name`` of the Robot; may be omitted when the world has exactly one.
+        proto_paths: extra folders searched for PROTO files.
+
+    Raises:
+        ConversionError: no robot / ambiguous robot / unsupported node (message has ``file:line:col``) /
+            the converted model does not compile.
+        DualtwinError: the world does not parse or a PROTO is missing.
+    """
+    path = Path(world_path)
+    if not path.is_file():
+        raise ConversionError(f"{path}: world file not found")
+    world = load_world(path, proto_paths)
+    return convert_loaded(world, robot, world_path=str(path))
+
+
+def convert_world_text(text: str, path: str, robot: str | None = None, *,
+                       proto_paths: Sequence[str | os.PathLike[str]] = ()) -> Conversion:
+    """Convert world text (``path`` names it in messages and anchors relative PROTO lookups)."""
+    world = load_world_text(text, path, proto_paths)
+    return convert_loaded(world, robot, world_path=path)
