@@ -102,6 +102,55 @@ def webots_run(
     raise typer.Exit(code)
 
 
+@app.command("convert")
+def convert(
+    world: Annotated[Path, typer.Argument(help=".wbt world to convert")],
+    output: Annotated[Path, typer.Option("-o", "--output", help="MJCF file to write")],
+    robot: Annotated[str | None, typer.Option(help="DEF or name of the robot (default: the only one)")] = None,
+    binding: Annotated[Path | None, typer.Option(help="also write a binding for both twins")] = None,
+) -> None:
+    """Convert a Webots robot to MJCF (deterministic), with Webots' mass, joint and motor semantics."""
+    from dualtwin.convert import ConversionError, convert_world
+
+    conversion = convert_world(world, robot=robot)
+    for warning in conversion.warnings:
+        console.print(f"[yellow]warning[/yellow] {warning}")
+    for finding in conversion.lint:
+        console.print(f"lint {finding}")
+    errors = [f for f in conversion.lint if f.level == "error"]
+    if errors:
+        raise ConversionError(f"{world}: the converted model fails {len(errors)} lint check(s): {errors[0]}")
+    smoke = conversion.smoke()
+    if not smoke.ok:
+        raise ConversionError(f"{world}: the converted model fails the physics smoke test: {smoke.message}")
+    conversion.write(output, binding)
+    console.print(f"wrote {output}" + (f" and {binding}" if binding else ""))
+
+
+@app.command("generate")
+def generate(
+    output: Annotated[Path, typer.Option("-o", "--output", help="output folder for both twins")],
+    from_text: Annotated[Path | None, typer.Option(help="robot described in text (needs an LLM)")] = None,
+    from_json: Annotated[Path | None, typer.Option(help="primitive robot description (JSON)")] = None,
+    from_wbt: Annotated[Path | None, typer.Option(help="Webots world to convert")] = None,
+    max_iterations: Annotated[int, typer.Option(help="LLM generate-compile-repair rounds")] = 5,
+) -> None:
+    """Make both twins (MJCF + .wbt + binding) from text, a primitive JSON or a Webots world."""
+    from dualtwin.genai.generate import Source
+    from dualtwin.genai.generate import generate as run_generate
+
+    given = [(p, f) for p, f in ((from_text, Source.from_text), (from_json, Source.from_json),
+                                  (from_wbt, Source.from_wbt)) if p is not None]
+    if len(given) != 1:
+        raise DualtwinError("give exactly one of --from-text, --from-json or --from-wbt")
+    path, make = given[0]
+    result = run_generate(make(path), output, max_iterations=max_iterations)
+    console.print(f"converged after {result.iterations} LLM iteration(s)" if result.iterations
+                  else "built deterministically")
+    for name, file in result.files.items():
+        console.print(f"  {name:<10} {file}")
+
+
 def main() -> None:
     """Entry point: user errors become one line on stderr and exit code 2, never a traceback."""
     try:
