@@ -76,3 +76,23 @@ def test_run_validate_and_compare(tmp_path: Path) -> None:
     metrics = json.loads((tmp_path / "report" / "metrics.json").read_text())
     assert metrics["comparison"]["summary_score"] == 0.0
     assert (tmp_path / "report" / "report.html").is_file()
+
+
+def test_convert_writes_a_model_the_suite_runs_on(tmp_path: Path) -> None:
+    result = dualtwin("convert", str(CARTPOLE / "cartpole.wbt"), "-o", str(tmp_path / "cp.xml"),
+                      "--binding", str(tmp_path / "binding.yaml"))
+    assert result.returncode == 0, result.stderr
+    path = suite(tmp_path, '{"suite_name": "s", "scenarios": [{"name": "a", "duration_s": 0.2, "wheel_velocity": 2}]}')
+    result = dualtwin("suite", "run", "--twin", "mujoco", "--robot", str(tmp_path / "binding.yaml"),
+                      "--scenarios", str(path), "--out", str(tmp_path / "run"))
+    assert result.returncode == 0, result.stderr
+
+
+def test_convert_and_generate_bad_input(tmp_path: Path) -> None:
+    world = tmp_path / "empty.wbt"
+    world.write_text("#VRML_SIM R2023b utf8\nWorldInfo {\n}\n")
+    result = dualtwin("convert", str(world), "-o", str(tmp_path / "x.xml"))
+    assert result.returncode == 2 and "no robot" in result.stderr and "Traceback" not in result.stderr
+    assert not (tmp_path / "x.xml").exists()
+    result = dualtwin("generate", "-o", str(tmp_path / "out"))
+    assert result.returncode == 2 and "exactly one of" in result.stderr
