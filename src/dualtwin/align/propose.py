@@ -1,0 +1,94 @@
+"""The proposal hook: anything that reads an analysis and suggests knob settings (an LLM later, any function now).
+
+A proposer is ``propose_fn(analysis) -> list[dict[knob, value]]``. Every proposal is checked (selected
+knobs only, values within bounds), re-simulated, and kept only if it lowers the training objective below
+the nominal twin's. Nothing a proposer says is trusted without that test. The best kept proposal becomes
+the starting point of the optimiser, and all outcomes are recorded in ``align_record.json``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from dualtwin.align.knobs import KnobSpec, close_matches
+
+if TYPE_CHECKING:
+    from dualtwin.align.analyze import Analysis
+
+ProposeFn = Callable[["Analysis"], Sequence[Mapping[str, float]]]
+
+
+@dataclass
+class ProposalOutcome:
+    """One proposal and what re-simulating it showed."""
+
+    knobs: dict[str, float]
+    objective: float | None
+    baseline: float
+    accepted: bool
+    reason: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"knobs": self.knobs, "objective": self.objective, "baseline": self.baseline,
+                "accepted": self.accepted, "reason": self.reason}
+
+
+def _invalid(proposal: Mapping[str, Any], specs: Mapping[str, KnobSpec]) -> str | None:
+    if not proposal:
+        return "empty proposal"
+    for name, value in proposal.items():
+        if name not in specs:
+            near = close_matches(str(name), list(specs))
+            return f"knob {name!r} is not being fitted" + (f" (close: {', '.join(near)})" if near else "")
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            return f"knob {name!r}: value {value!r} is not a number"
+        spec = specs[name]
+        if not math.isfinite(number) or not spec.lower <= number <= spec.upper:
+            return f"knob {name!r}: value {value!r} is outside its bounds [{spec.lower:g}, {spec.upper:g}]"
+    return None
+
+
+def try_proposals(
+    propose_fn: ProposeFn,
+    analysis: Analysis,
+    specs: Sequence[KnobSpec],
+    baseline: float,
+    evaluate: Callable[[Sequence[Mapping[str, float]]], list[float]],
+) -> list[ProposalOutcome]:
+    """Ask ``propose_fn``, re-simulate the valid proposals in one batch, keep those that beat ``baseline``.
+
+    Args:
+        propose_fn: The proposer.
+        analysis: Analysis of the reference against the nominal target.
+        specs: The knobs being fitted (proposals may only set these).
+        baseline: Training objective of the nominal target.
+        evaluate: Objective of each knob setting (simulates them, e.g. in parallel).
+    """
+    by_name = {s.name: s for s in specs}
+    proposals = [dict(p) for p in propose_fn(analysis)]
+    outcomes: list[ProposalOutcome | None] = []
+    valid: list[dict[str, float]] = []
+    for proposal in proposals:
+        reason = _invalid(proposal, by_name)
+        if reason is not None:
+            outcomes.append(ProposalOutcome({str(k): v for k, v in proposal.items()}, None, baseline, False, reason))
+        else:
+            valid.append({k: float(v) for k, v in proposal.items()})
+            outcomes.append(None)
+    values = iter(evaluate(valid) if valid else [])
+    settings = iter(valid)
+    out: list[ProposalOutcome] = []
+    for outcome in outcomes:
+        if outcome is not None:
+            out.append(outcome)
+            continue
+        knobs, value = next(settings), next(values)
+        better = value < baseline - 1e-12 * max(1.0, abs(baseline))
+        reason = (f"objective {baseline:.4g} → {value:.4g}: " + ("kept" if better else "rejected, not lower"))
+        out.append(ProposalOutcome(knobs, value, baseline, better, reason))
+    return out

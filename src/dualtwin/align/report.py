@@ -1,0 +1,172 @@
+"""The before/after alignment report: ``report.html`` with tables, findings and three-trace overlays.
+
+Every plot (one grid per scenario) overlays the reference, the target before alignment and the target after it (`plot_overlay`
+from the divergence report), with crossing times marked. The tables take their MSE, DTW, crossing-time
+and endpoint errors from `compare_runs` (reference vs before, reference vs after).
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from dualtwin.align.analyze import Analysis, findings_html
+from dualtwin.artifacts import write_bytes, write_text
+from dualtwin.divergence.metrics import ChannelDivergence
+from dualtwin.divergence.report import _CSS, _png_bytes, _slug, plot_overlay
+from dualtwin.divergence.runs import RunComparison, ScenarioComparison, compare_runs
+
+if TYPE_CHECKING:
+    from dualtwin.align.fit import AlignResult
+
+
+def _f(value: float | None, spec: str = ".4g") -> str:
+    return "–" if value is None else format(value, spec)
+
+
+def _pair(before: float | None, after: float | None) -> str:
+    if before is None and after is None:
+        return "–"
+    arrow = ""
+    if before is not None and after is not None and before != after:
+        arrow = " ✓" if abs(after) < abs(before) else " ✗"
+    return f"{_f(before)} → {_f(after)}{arrow}"
+
+
+def _abs(value: float | None) -> float | None:
+    return None if value is None else abs(value)
+
+
+def _crossing_error(ch: ChannelDivergence | None) -> float | None:
+    if ch is None or ch.threshold is None:
+        return None
+    if ch.crossing_diff_s is not None:
+        return abs(ch.crossing_diff_s)
+    if (ch.crossing_a_s is None) != (ch.crossing_b_s is None):
+        return float("inf")
+    return None
+
+
+def scenario_table(before: RunComparison, after: RunComparison, held: Sequence[str]) -> str:
+    """Per scenario and channel: MSE, DTW, crossing-time and endpoint errors before → after."""
+    rows = ["<tr><th class='l'>scenario</th><th class='l'>set</th><th class='l'>channel</th><th>MSE</th>"
+            "<th>DTW</th><th>|Δ crossing| [s]</th><th>|endpoint error|</th></tr>"]
+    after_by_id = {s.id: s for s in after.scenarios}
+    for sb in before.scenarios:
+        sa = after_by_id.get(sb.id)
+        role = "held out" if sb.id in held else "train"
+        for name in before.channel_names:
+            cb = sb.channels.get(name)
+            ca = sa.channels.get(name) if sa else None
+            rows.append(
+                f"<tr><td class='l'>{html.escape(sb.id)}</td><td class='l'>{role}</td><td class='l'>{html.escape(name)}</td>"
+                f"<td>{_pair(cb.mse if cb else None, ca.mse if ca else None)}</td>"
+                f"<td>{_pair(cb.dtw if cb else None, ca.dtw if ca else None)}</td>"
+                f"<td>{_pair(_crossing_error(cb), _crossing_error(ca))}</td>"
+                f"<td>{_pair(_abs(cb.final_diff) if cb else None, _abs(ca.final_diff) if ca else None)}</td></tr>")
+    return "<table>" + "".join(rows) + "</table>"
+
+
+def _overlay(ax: Axes, sb: ScenarioComparison, sa: ScenarioComparison | None, channel: str, unit: str,
+             labels: tuple[str, str, str]) -> bool:
+    """Reference, before and after traces of one scenario channel on ``ax``; False if nothing to draw."""
+    traces = []
+    crossings: list[float | None] = []
+    cb, ca = sb.channels.get(channel), sa.channels.get(channel) if sa else None
+    for label, series, cross in ((labels[0], sb.series_a.get(channel), cb.crossing_a_s if cb else None),
+                                 (labels[1], sb.series_b.get(channel), cb.crossing_b_s if cb else None),
+                                 (labels[2], sa.series_b.get(channel) if sa else None, ca.crossing_b_s if ca else None)):
+        if series is not None:
+            traces.append((label, series.t, series.y))
+            crossings.append(cross)
+    if not traces:
+        return False
+    lines = plot_overlay(ax, traces, crossings=crossings, threshold=cb.threshold if cb else None,
+                         ylabel=f"{channel} [{unit}]" if unit else channel, title=channel)
+    # A wide translucent reference stays visible when an aligned trace lies exactly on it.
+    lines[0].set_linewidth(4.0)
+    lines[0].set_alpha(0.45)
+    ax.legend(loc="best", fontsize=7)
+    return True
+
+
+def scenario_png(sb: ScenarioComparison, sa: ScenarioComparison | None, channels: Sequence[str],
+                 units: Mapping[str, str], labels: tuple[str, str, str] = ("reference", "before", "after")) -> bytes:
+    """One figure per scenario: a grid with every channel's three-trace overlay."""
+    rows = max(1, math.ceil(len(channels) / 2))
+    # One figure per scenario and no layout engine: rendering is most of a small alignment's wall time.
+    fig = Figure(figsize=(11.0, 2.5 * rows), dpi=90)
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(rows, 2, squeeze=False).ravel()
+    for ax, channel in zip(axes, channels, strict=False):
+        if not _overlay(ax, sb, sa, channel, units.get(channel, ""), labels):
+            ax.set_visible(False)
+    for ax in axes[len(channels):]:
+        ax.set_visible(False)
+    fig.suptitle(sb.id, fontsize=11)
+    fig.subplots_adjust(left=0.07, right=0.98, top=1 - 0.35 / rows, bottom=0.25 / rows, hspace=0.55, wspace=0.22)
+    return _png_bytes(fig)
+
+
+def write_align_report(out_dir: Path, result: AlignResult, reference: Path, before: Path, after: Path,
+                       analysis_before: Analysis, analysis_after: Analysis, train: Sequence[str],
+                       held: Sequence[str], thresholds: Mapping[str, float] | None = None) -> Path:
+    """Write ``report.html`` (and ``plots/*.png``) into ``out_dir``; returns the report path."""
+    comp_before = compare_runs(reference, before, thresholds)
+    comp_after = compare_runs(reference, after, thresholds)
+    labels = ("reference", "before", "after")
+    knob_rows = ["<tr><th class='l'>knob</th><th>nominal</th><th>fitted</th><th>± 95 %</th><th>bounds</th>"
+                 "<th class='l'>at bound</th></tr>"]
+    for k in result.knobs.values():
+        knob_rows.append(f"<tr><td class='l'>{html.escape(k.name)}</td><td>{k.nominal:.5g}</td><td><b>{k.fitted:.5g}</b>"
+                         f"</td><td>{_f(k.half_width_95, '.2g')}</td><td>[{k.lower:.4g}, {k.upper:.4g}]</td>"
+                         f"<td class='l'>{k.at_bound or ''}</td></tr>")
+    summary = [
+        ("optimizer", result.optimizer), ("stop", result.stop_reason),
+        ("evaluations", str(result.evaluations)), ("iterations", str(result.iterations)),
+        ("wall time", f"{result.wall_time_s:.1f} s"),
+        ("objective (train)", _pair(result.objective_before, result.objective_after)),
+        ("objective (held out)", _pair(result.holdout_before, result.holdout_after) if held else "no held-out scenarios"),
+        ("|residual|² (train, least-squares criterion)", _pair(result.residual_before, result.residual_after)),
+        ("summary divergence score", _pair(comp_before.summary_score, comp_after.summary_score)),
+        ("cond(JᵀJ)", _f(result.condition_number, ".3g")),
+        ("train / held out", f"{', '.join(train)} / {', '.join(held) or '–'}"),
+    ]
+    parts = [
+        "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
+        f"<title>Alignment report</title><style>{_CSS}</style></head><body>",
+        f"<h1>Alignment: {html.escape(comp_before.twin_b)} to the reference ({html.escape(comp_before.twin_a)})</h1>",
+        "<table>" + "".join(f"<tr><th class='l'>{html.escape(k)}</th><td class='l'>{html.escape(v)}</td></tr>"
+                            for k, v in summary) + "</table>",
+        "<h2>Knobs</h2><table>" + "".join(knob_rows) + "</table>",
+    ]
+    if result.warnings:
+        parts.append("<h2>Warnings</h2><ul class='viol'>" + "".join(f"<li>{html.escape(w)}</li>"
+                                                                      for w in result.warnings) + "</ul>")
+    if result.proposals:
+        parts.append("<h2>Proposals</h2><ul>" + "".join(
+            f"<li><code>{html.escape(str(p.knobs))}</code>: {html.escape(p.reason)}</li>" for p in result.proposals)
+            + "</ul>")
+    parts += ["<h2>Per scenario (reference vs target: before → after)</h2>",
+              scenario_table(comp_before, comp_after, held),
+              "<h2>Findings before alignment</h2>", findings_html(analysis_before.findings),
+              "<h2>Findings after alignment</h2>", findings_html(analysis_after.findings),
+              "<h2>Overlays</h2>"]
+    after_by_id = {s.id: s for s in comp_after.scenarios}
+    for sb in comp_before.scenarios:
+        parts.append(f"<h3>{html.escape(sb.id)}{' (held out)' if sb.id in held else ''}</h3>")
+        png = scenario_png(sb, after_by_id.get(sb.id), comp_before.channel_names, comp_before.units, labels)
+        write_bytes(out_dir / "plots" / f"{_slug(sb.id)}.png", png)
+        parts.append(f'<img alt="{html.escape(sb.id)}" src="data:image/png;base64,{base64.b64encode(png).decode("ascii")}">')
+    parts.append("</body></html>")
+    path = out_dir / "report.html"
+    write_text(path, "\n".join(parts))
+    return path

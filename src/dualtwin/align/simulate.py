@@ -1,0 +1,257 @@
+"""Simulate a suite on a twin in memory, and evaluate many knob settings serially, in processes or on Ray.
+
+A `SimJob` is plain data (paths, names and knob values), so it pickles cheaply: each worker process builds
+its own binding, suite and twin once and reuses them for every job (``set_knobs`` applies values from
+nominal, so reuse cannot leak one job's knobs into the next). Results are `ScenarioTrace` objects keyed by
+scenario id, with the same channel names as a run directory (ground truth by name, on-board channels as
+``onboard/<column>``), so recorded runs and fresh simulations compare alike.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import multiprocessing
+from collections.abc import Iterable, Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from dualtwin.divergence.runs import Series, load_run
+from dualtwin.errors import DualtwinError
+from dualtwin.robots.binding import RobotBinding, load_binding
+from dualtwin.robots.io import RobotIO
+from dualtwin.suite.loader import load_suite
+from dualtwin.suite.runner import check_against_binding, run_scenario
+from dualtwin.suite.schema import Suite
+from dualtwin.twins import make_twin
+from dualtwin.twins.base import Twin
+
+ExecutorKind = Literal["serial", "process", "ray"]
+EXECUTORS: tuple[str, ...] = ("serial", "process", "ray")
+#: Default worker count: the project machines have 2 cores shared with other work.
+DEFAULT_WORKERS = 2
+
+
+@dataclass(frozen=True, eq=False)
+class ScenarioTrace:
+    """One scenario's logged channels and how it ended.
+
+    Attributes:
+        id: Scenario id.
+        status: ``completed``, ``failed`` (a failure threshold stopped it) or ``unstable``.
+        duration_s: Planned scenario duration.
+        series: Channel name -> time stamps (s since the scenario started) and values.
+    """
+
+    id: str
+    status: str
+    duration_s: float
+    series: Mapping[str, Series] = field(default_factory=dict)
+
+    @property
+    def end_time_s(self) -> float:
+        """Time of the last logged sample (0 if nothing was logged)."""
+        ends = [float(s.t[-1]) for s in self.series.values() if s.t.size]
+        return max(ends) if ends else 0.0
+
+
+Traces = dict[str, ScenarioTrace]
+
+
+@dataclass(frozen=True)
+class SimJob:
+    """Simulate ``scenarios`` of ``suite`` on ``twin`` for ``robot`` with ``knobs`` applied from nominal.
+
+    Scenarios that continue from a previous one are simulated with their predecessors, which are not
+    returned unless asked for.
+    """
+
+    robot: str
+    twin: str
+    suite: str
+    scenarios: tuple[str, ...] | None = None
+    knobs: tuple[tuple[str, float], ...] = ()
+    seed: int = 0
+
+    def with_knobs(self, values: Mapping[str, float]) -> SimJob:
+        return SimJob(self.robot, self.twin, self.suite, self.scenarios, tuple(sorted(values.items())), self.seed)
+
+
+class _Session:
+    """A worker's binding, suite and twin, built once."""
+
+    def __init__(self, robot: str, twin: str, suite: str) -> None:
+        self.robot = load_binding(Path(robot))
+        self.suite_path = Path(suite)
+        self.suite = load_suite(self.suite_path)
+        check_against_binding(self.suite, self.suite_path, self.robot)
+        self.ids = self.suite.scenario_ids()
+        self.twin = make_twin(twin, self.robot, self.suite.global_settings.control_period_s)
+        self.io = RobotIO(self.robot, self.twin)
+        self.channel_names = list(self.io.channel_info())
+
+
+_SESSIONS: dict[tuple[str, str, str], _Session] = {}
+
+
+def _session(job: SimJob) -> _Session:
+    key = (job.robot, job.twin, job.suite)
+    if key not in _SESSIONS:
+        _SESSIONS[key] = _Session(*key)
+    return _SESSIONS[key]
+
+
+def needed_scenarios(suite: Suite, wanted: Iterable[str]) -> list[int]:
+    """Indices to simulate for ``wanted`` ids: each one plus the chain of scenarios it continues from."""
+    ids = suite.scenario_ids()
+    wanted_set = set(wanted)
+    unknown = sorted(wanted_set - set(ids))
+    if unknown:
+        raise DualtwinError(f"unknown scenario ids {unknown}; the suite has {ids}")
+    need: set[int] = set()
+    for i, sid in enumerate(ids):
+        if sid in wanted_set:
+            j = i
+            need.add(j)
+            while j > 0 and suite.scenarios[j].reset == "continue":
+                j -= 1
+                need.add(j)
+    return sorted(need)
+
+
+def simulate_on(io: RobotIO, suite: Suite, wanted: Sequence[str] | None, seed: int) -> Traces:
+    """Run the wanted scenarios (all if None) on ``io.twin`` in memory, resetting like `SuiteRun`."""
+    ids = suite.scenario_ids()
+    indices = needed_scenarios(suite, wanted if wanted is not None else ids)
+    keep = set(wanted if wanted is not None else ids)
+    thresholds = suite.global_settings.thresholds
+    names = [*io.ground_truth_names, *(f"onboard/{n}" for n in io.onboard_names)]
+    out: Traces = {}
+    need_fresh = True
+    previous = -2
+    for index in indices:
+        scenario = suite.scenarios[index]
+        # A skipped predecessor means there is nothing to continue from.
+        fresh = need_fresh or scenario.reset == "fresh" or previous != index - 1
+        scenario_seed = scenario.seed if scenario.seed is not None else seed
+        result, onboard, truth = run_scenario(io, scenario, scenario_seed, thresholds, fresh)
+        need_fresh = result.status == "unstable"
+        previous = index
+        if ids[index] not in keep:
+            continue
+        gt = np.asarray(truth, dtype=np.float64).reshape(len(truth), 1 + len(io.ground_truth_names))
+        ob = np.asarray(onboard, dtype=np.float64).reshape(len(onboard), 1 + len(io.onboard_names))
+        columns = [gt[:, i] for i in range(1, gt.shape[1])] + [ob[:, i] for i in range(1, ob.shape[1])]
+        series = {name: Series(gt[:, 0].copy(), col.copy()) for name, col in zip(names, columns, strict=True)}
+        out[ids[index]] = ScenarioTrace(ids[index], result.status, float(scenario.duration_s), series)
+    return out
+
+
+def simulate(job: SimJob) -> Traces:
+    """Run one job in this process (the worker entry point)."""
+    session = _session(job)
+    session.twin.set_knobs(dict(job.knobs))
+    return simulate_on(session.io, session.suite, job.scenarios, job.seed)
+
+
+def simulate_twin(robot: RobotBinding, twin: Twin, suite_path: Path, knobs: Mapping[str, float],
+                  scenarios: Sequence[str] | None = None, seed: int = 0) -> Traces:
+    """Run scenarios on an existing twin instance with ``knobs`` applied (used in-process, e.g. by tests)."""
+    suite = load_suite(Path(suite_path))
+    check_against_binding(suite, Path(suite_path), robot)
+    twin.set_knobs(dict(knobs))
+    return simulate_on(RobotIO(robot, twin), suite, scenarios, seed)
+
+
+def load_traces(run_dir: Path, scenarios: Sequence[str] | None = None) -> Traces:
+    """A recorded run directory as traces; durations come from the run's copy of the suite if present."""
+    run = load_run(Path(run_dir))
+    durations: dict[str, float] = {}
+    suite_copy = Path(run_dir) / "config" / "suite.json"
+    if suite_copy.is_file():
+        suite = load_suite(suite_copy)
+        durations = {sid: float(s.duration_s) for sid, s in zip(suite.scenario_ids(), suite.scenarios, strict=True)}
+    wanted = [s.id for s in run.scenarios] if scenarios is None else list(scenarios)
+    out: Traces = {}
+    for sid in wanted:
+        series = run.series(sid)
+        # Without the suite copy, the last logged sample stands in for the planned duration.
+        fallback = max((float(v.t[-1]) for v in series.values() if v.t.size), default=0.0)
+        out[sid] = ScenarioTrace(sid, run.scenario(sid).status, durations.get(sid, fallback), series)
+    return out
+
+
+class Evaluator:
+    """Runs `SimJob` batches serially, in a process pool, or on a Ray cluster; counts evaluations.
+
+    The process pool uses the ``forkserver`` start method (no fork of a threaded parent) and keeps its
+    workers for the evaluator's lifetime, so each worker builds its twin once. As with any non-fork start
+    method, a script that aligns in a process pool must guard its entry point with
+    ``if __name__ == "__main__":`` because workers import the main module.
+    """
+
+    def __init__(self, kind: ExecutorKind = "process", workers: int = DEFAULT_WORKERS,
+                 ray_address: str | None = None) -> None:
+        if kind not in EXECUTORS:
+            raise DualtwinError(f"unknown executor {kind!r}; use one of {', '.join(EXECUTORS)}")
+        if workers < 1:
+            raise DualtwinError(f"workers must be at least 1, got {workers}")
+        self.kind = kind
+        self.workers = workers
+        self.evaluations = 0
+        self._pool: ProcessPoolExecutor | None = None
+        self._ray: Any = None
+        self._remote: Any = None
+        if kind == "ray":
+            self._ray, self._remote = _ray_backend(ray_address)
+
+    def map(self, jobs: Sequence[SimJob]) -> list[Traces]:
+        """Simulate every job; results come back in job order."""
+        jobs = list(jobs)
+        if not jobs:
+            return []
+        self.evaluations += len(jobs)
+        if self.kind == "serial" or (self.kind == "process" and (self.workers == 1 or len(jobs) == 1)):
+            return [simulate(job) for job in jobs]
+        if self.kind == "ray":
+            return list(self._ray.get([self._remote.remote(job) for job in jobs]))
+        if self._pool is None:
+            context = multiprocessing.get_context("forkserver")
+            context.set_forkserver_preload(["dualtwin.align.simulate"])
+            self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=context)
+        chunk = max(1, math.ceil(len(jobs) / self.workers))
+        return list(self._pool.map(simulate, jobs, chunksize=chunk))
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+
+    def __enter__(self) -> Evaluator:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def check_executor(kind: str) -> None:
+    """Fail early, before anything is simulated, on an unknown executor or a missing optional dependency."""
+    if kind not in EXECUTORS:
+        raise DualtwinError(f"unknown executor {kind!r}; use one of {', '.join(EXECUTORS)}")
+    if kind == "ray" and importlib.util.find_spec("ray") is None:
+        raise DualtwinError("executor 'ray' needs Ray, which is not installed: pip install 'dualtwin[ray]'")
+
+
+def _ray_backend(address: str | None) -> tuple[Any, Any]:
+    try:
+        import ray  # optional dependency, imported only when asked for
+    except ImportError:
+        raise DualtwinError("executor 'ray' needs Ray, which is not installed: pip install 'dualtwin[ray]'") from None
+    if not ray.is_initialized():
+        # Workers must see the same robot and suite paths (a shared file system) and have dualtwin installed.
+        ray.init(address=address, ignore_reinit_error=True, log_to_driver=False)
+    return ray, ray.remote(simulate)
