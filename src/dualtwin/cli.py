@@ -81,6 +81,55 @@ def compare(
     console.print(f"wrote {out / 'report.html'}")
 
 
+@app.command("analyze")
+def analyze(
+    run_a: Annotated[Path, typer.Argument(help="reference run directory")],
+    run_b: Annotated[Path, typer.Argument(help="run directory of the twin to explain")],
+    out: Annotated[Path, typer.Option(help="analysis directory (analysis.json, analysis.html)")],
+    robot: Annotated[str | None, typer.Option(help="robot, to compute knob sensitivities by re-simulation")] = None,
+    twin: Annotated[str | None, typer.Option(help="the twin of RUN_B, for sensitivities")] = None,
+    knobs: Annotated[list[str] | None, typer.Option(help="knob names or globs for sensitivities")] = None,
+) -> None:
+    """Explain why two runs diverge: dominant scenarios/channels, sign/lag/scale flags, knob sensitivities."""
+    from dualtwin.align import analyze_runs, print_analysis, write_analysis
+
+    analysis = analyze_runs(run_a, run_b, robot=robot, twin_b=twin, knobs=knobs)
+    write_analysis(analysis, out)
+    print_analysis(analysis, console)
+    console.print(f"wrote {out}")
+
+
+@app.command("align")
+def align(
+    reference: Annotated[str, typer.Option(help="reference twin name (run once) or a recorded run directory")],
+    target: Annotated[str, typer.Option(help="twin whose knobs are fitted")],
+    robot: Annotated[str, typer.Option(help="bundled robot name or binding file")],
+    scenarios: Annotated[Path, typer.Option(help="suite JSON file")],
+    knobs: Annotated[list[str], typer.Option(help="knob names or globs (repeat the option)")],
+    out: Annotated[Path, typer.Option(help="output directory")],
+    optimizer: Annotated[str, typer.Option(help="cma or lsq")] = "cma",
+    holdout: Annotated[list[str] | None, typer.Option(help="scenario ids held out for validation")] = None,
+    budget: Annotated[int, typer.Option(help="maximum simulator evaluations")] = 600,
+    seed: Annotated[int, typer.Option(help="optimiser seed")] = 0,
+    resume: Annotated[bool, typer.Option(help="continue from the last checkpoint in OUT")] = False,
+    executor: Annotated[str, typer.Option(help="process (default) or ray")] = "process",
+    address: Annotated[str | None, typer.Option(help="Ray cluster address, with --executor ray")] = None,
+) -> None:
+    """Fit the target twin's knobs to the reference; write knobs, DR ranges, patched model and report."""
+    from dualtwin.align import align as run_align
+    from dualtwin.align import print_result
+
+    if optimizer not in ("cma", "lsq"):
+        raise DualtwinError(f"--optimizer must be cma or lsq, not {optimizer!r}")
+    if executor not in ("process", "ray"):
+        raise DualtwinError(f"--executor must be process or ray, not {executor!r}")
+    result = run_align(Path(reference) if Path(reference).is_dir() else reference, target, robot, scenarios,
+                       knobs, out, optimizer=optimizer, seed=seed, budget=budget, resume=resume,  # type: ignore[arg-type]
+                       executor=executor, ray_address=address, holdout=holdout)  # type: ignore[arg-type]
+    print_result(result, console)
+    console.print(f"wrote {out}")
+
+
 @app.command("demo")
 def demo(out: Annotated[Path, typer.Option(help="demo output folder")] = Path("runs/demo")) -> None:
     """Run the bundled CartPole suite on both twins and write the comparison report."""

@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from pathlib import Path
 from typing import Any, overload
 
 from dualtwin.webots import schema
@@ -325,3 +326,78 @@ def set_field(target: str | World | Node, def_name: str, field: str, value: Any)
         raise ValueError(f"no DEF {def_name} in the tree")
     _set_in_tree(node, path, def_name, value)
     return target
+
+
+def _raw_nodes(nodes: list[Any]) -> Iterator[Any]:
+    """Pre-order walk over a raw (unexpanded) parse tree, this file's nodes only."""
+    from dualtwin.webots.parser import ListValue, RawNode
+
+    for node in nodes:
+        if not isinstance(node, RawNode):
+            continue
+        yield node
+        for raw_field in node.fields.values():
+            value = raw_field.value
+            items = value.items if isinstance(value, ListValue) else [value]
+            yield from _raw_nodes([v for v in items if isinstance(v, RawNode)])
+
+
+def patch_webots_world(world_path: str | Path, knobs: Mapping[str, float]) -> str:
+    """The world's text with the fitted Webots-twin knobs written into its fields.
+
+    Joint and body knobs address their node by DEF; ``motor.*.gain`` is controller-side and skipped. Motors, ContactProperties and WorldInfo usually have no
+    DEF; they get one (``DUALTWIN_<kind>_<n>``) so the edit stays a plain, reviewable field change. Only
+    nodes written in the world file itself can be edited (not nodes inside PROTOs).
+    """
+    path = Path(world_path)
+    text = path.read_text(encoding="utf-8")
+    for name, value in knobs.items():
+        kind, _, rest = name.partition(".")
+        target, _, prop = rest.rpartition(".")
+        if kind == "motor" and prop == "gain":
+            continue  # a controller-side command gain: nothing in the world file changes
+        if kind == "joint":
+            field = {"damping": "jointParameters.dampingConstant", "friction": "jointParameters.staticFriction"}
+            text = set_field(text, target, field[prop], float(value))
+        elif kind == "body" and prop == "mass":
+            text = set_field(text, target, "physics.mass", float(value))
+        elif kind in ("motor", "contact", "world"):
+            text = _set_by_matching_node(text, str(path), kind, target, prop, float(value))
+        else:
+            raise ValueError(f"knob {name!r} has no .wbt field to write")
+    return text
+
+
+def _set_by_matching_node(text: str, origin: str, kind: str, target: str, prop: str, value: float) -> str:
+    from dualtwin.webots.parser import parse_world
+
+    parsed = parse_world(text, origin)
+    field_by_prop = {
+        "max_torque": "maxTorque", "max_velocity": "maxVelocity", "friction": "coulombFriction",
+        "bounce": "bounce", "soft_erp": "softERP", "soft_cfm": "softCFM", "erp": "ERP", "cfm": "CFM",
+    }
+    field = field_by_prop.get(prop)
+    if field is None:
+        raise ValueError(f"knob '{kind}.{target}.{prop}' has no .wbt field to write")
+
+    def string(node: Any, name: str, default: str) -> str:
+        raw = node.fields.get(name)
+        return str(raw.value.tokens[0].value) if raw is not None else default
+
+    def matches(node: Any) -> bool:
+        if kind == "motor":
+            return node.type_name in ("RotationalMotor", "LinearMotor") and string(node, "name", "") == target
+        if kind == "contact":
+            pair = f"{string(node, 'material1', 'default')}:{string(node, 'material2', 'default')}"
+            return node.type_name == "ContactProperties" and pair == target
+        return node.type_name == "WorldInfo"
+
+    node = next((n for n in _raw_nodes(parsed.nodes) if matches(n)), None)
+    if node is None:
+        raise ValueError(f"{origin}: no node for knob '{kind}.{target}.{prop}' in the world file")
+    if node.def_name is None:
+        node_def = f"DUALTWIN_{kind.upper()}_{node.start}"
+        text = text[:node.start] + f"DEF {node_def} " + text[node.start:]
+    else:
+        node_def = node.def_name
+    return set_field(text, node_def, field, [value] if field == "coulombFriction" else value)
