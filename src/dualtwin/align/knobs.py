@@ -12,6 +12,7 @@ knob                               unit       MuJoCo twin                       
 =================================  =========  =====================================  ==========================================
 ``joint.<j>.damping``              N·m·s/rad  ``dof_damping``                        JointParameters ``dampingConstant``
 ``joint.<j>.friction``             N·m        ``dof_frictionloss``                   JointParameters ``staticFriction``
+``joint.<j>.limit_timeconst``      s          ``jnt_solref[0]`` (limit softness)     –  (stops use world ERP/CFM)
 ``body.<b>.mass``                  kg         ``body_mass``, inertia scaled with it  Physics ``mass``
 ``body.<b>.inertia_scale``         –          factor on ``body_inertia``             –
 ``body.<b>.com_offset_x|y|z``      m          shift of ``body_ipos``                 –

@@ -76,6 +76,9 @@ def patch_mjcf(model_path: Path, knobs: Mapping[str, float], aliases: Mapping[st
             joint = _find(spec.joint, name, "joint", origin)
             if prop == "damping":
                 joint.damping[0] = value  # type: ignore[attr-defined]  # an array since MuJoCo 3.7
+            elif prop == "limit_timeconst":
+                j = mujoco.mj_name2id(nominal, mujoco.mjtObj.mjOBJ_JOINT, name)
+                joint.solref_limit = [value, float(nominal.jnt_solref[j, 1])]  # type: ignore[attr-defined]
             else:
                 joint.frictionloss = value  # type: ignore[attr-defined]
         elif kind == "geom":

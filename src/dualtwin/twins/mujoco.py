@@ -24,7 +24,18 @@ import mujoco
 import numpy as np
 
 from dualtwin.errors import DualtwinError, SimulationUnstable
-from dualtwin.twins.base import ControlMode, Knob, Twin, unknown_name
+from dualtwin.twins.base import (
+    BodyState,
+    ControlMode,
+    Knob,
+    MechanicalState,
+    SyncError,
+    Twin,
+    canonical_quat,
+    check_state_names,
+    matrix_from_quat,
+    unknown_name,
+)
 from dualtwin.twins.motors import MotorParams, MotorState
 
 if TYPE_CHECKING:
@@ -35,6 +46,9 @@ if TYPE_CHECKING:
 SERVO_STIFFNESS = 10.0
 # Largest delay, in control periods, that the delay knobs accept.
 MAX_DELAY_PERIODS = 10
+#: set_state refuses states whose contacts overlap deeper than this (m): that is a geometry mismatch or a
+#: bad state, not the millimetres of a resting soft contact.
+MAX_PENETRATION = 0.02
 
 
 def restitution_to_dampratio(restitution: float, nominal: float) -> float:
@@ -125,6 +139,9 @@ class MuJoCoTwin(Twin):
         self._inertia_changed = False
         self._scratch = mujoco.MjData(self.model)
         self._renderer: mujoco.Renderer | None = None
+        # Motors commanded since the last reset; the others hold their position (see set_state).
+        self._commanded: set[str] = set()
+        self.max_penetration = MAX_PENETRATION
         self.reset()
 
     # ---------------------------------------------------------------- set-up
@@ -179,6 +196,7 @@ class MuJoCoTwin(Twin):
             "body_inertia": m.body_inertia.copy(), "body_ipos": m.body_ipos.copy(),
             "geom_solref": m.geom_solref.copy(), "jnt_stiffness": m.jnt_stiffness.copy(),
             "sensor_noise": m.sensor_noise.copy(), "body_iquat": m.body_iquat.copy(),
+            "jnt_solref": m.jnt_solref.copy(),
         }
 
     # ---------------------------------------------------------------- Twin API
@@ -196,6 +214,7 @@ class MuJoCoTwin(Twin):
         self._rng = np.random.default_rng(seed)
         self._pending.clear()
         self._history.clear()
+        self._commanded.clear()
         for motor in self._motors:
             motor.state.reset(float(self.data.qpos[motor.qpos]))
             motor.saturated = 0.0
@@ -238,6 +257,7 @@ class MuJoCoTwin(Twin):
         motor = self._motor_by_name.get(self._aliases.get(actuator, actuator))
         if motor is None:
             raise unknown_name("motor", actuator, list(self._motor_by_name), self._origin)
+        self._commanded.add(motor.name)
         if self._delay:
             # control.delay_periods: the command reaches the motor k control periods late.
             self._pending.append((self._periods() + self._delay, motor, mode, value))
@@ -398,6 +418,100 @@ class MuJoCoTwin(Twin):
             value = float(np.round(value / self._sensor_quant[s]) * self._sensor_quant[s])
         return value
 
+    # ---------------------------------------------------------------- state transfer
+    def _state_entities(self) -> tuple[list[tuple[str, int, int]], list[tuple[str, int, int]]]:
+        """(canonical name, qpos address, dof address) of the free bodies and of the hinge/slide joints."""
+        m = self.model
+        inverse = {v: k for k, v in self._aliases.items()}
+        bodies, joints = [], []
+        free, hinge, slide = (int(k) for k in (mujoco.mjtJoint.mjJNT_FREE, mujoco.mjtJoint.mjJNT_HINGE,
+                                                mujoco.mjtJoint.mjJNT_SLIDE))
+        for j in range(m.njnt):
+            kind = int(m.jnt_type[j])
+            if kind == free:
+                name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, int(m.jnt_bodyid[j]))
+                if name:
+                    bodies.append((inverse.get(name, name), int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j])))
+            elif kind in (hinge, slide):
+                name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j)
+                if name:
+                    joints.append((inverse.get(name, name), int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j])))
+        return bodies, joints
+
+    def get_state(self) -> MechanicalState:
+        """qpos/qvel by name: a free joint's qpos is its body frame's pose, its qvel the frame origin's world
+        linear velocity and the body-frame angular velocity (rotated to world here)."""
+        bodies, joints = self._state_entities()
+        qpos, qvel = self.data.qpos, self.data.qvel
+        out = MechanicalState(float(self.data.time), source=self.name)
+        for name, qa, da in bodies:
+            quat = np.array(qpos[qa + 3:qa + 7], dtype=float)
+            angular = matrix_from_quat(quat) @ np.array(qvel[da + 3:da + 6], dtype=float)
+            out.bodies[name] = BodyState(np.array(qpos[qa:qa + 3], dtype=float), canonical_quat(quat),
+                                         np.array(qvel[da:da + 3], dtype=float), angular)
+        for name, qa, da in joints:
+            out.joint_positions[name] = float(qpos[qa])
+            out.joint_velocities[name] = float(qvel[da])
+        by_qpos = {qa: name for name, qa, _ in joints}
+        for motor in self._motors:
+            held = motor.name not in self._commanded and not motor.state.torque_mode
+            if held and motor.qpos in by_qpos and math.isfinite(motor.state.target_position):
+                out.holds[by_qpos[motor.qpos]] = float(motor.state.target_position)
+        return out
+
+    def set_state(self, state: MechanicalState, *, partial: bool = False) -> None:
+        """Write qpos/qvel by name and recompute the derived quantities (``mj_forward``); the clock is kept.
+
+        Raises:
+            DualtwinError: A body or joint of ``state`` does not exist here (or, unless ``partial``, one of
+                this twin's is missing from ``state``).
+            SyncError: Non-finite values, or contacts overlapping deeper than ``max_penetration``; the twin is
+                left in its previous state.
+        """
+        bodies, joints = self._state_entities()
+        check_state_names(state, [b[0] for b in bodies], [j[0] for j in joints], self._origin, partial)
+        m, d = self.model, self.data
+        saved = (d.qpos.copy(), d.qvel.copy())
+        for name, qa, da in bodies:
+            body = state.bodies.get(name)
+            if body is None:
+                continue
+            quat = canonical_quat(body.quaternion)
+            d.qpos[qa:qa + 3] = body.position
+            d.qpos[qa + 3:qa + 7] = quat
+            d.qvel[da:da + 3] = body.linear_velocity
+            d.qvel[da + 3:da + 6] = matrix_from_quat(quat).T @ np.asarray(body.angular_velocity, dtype=float)
+        for name, qa, da in joints:
+            if name in state.joint_positions:
+                d.qpos[qa] = state.joint_positions[name]
+                d.qvel[da] = state.joint_velocities[name]
+        # Acceleration warm start and actuator forces belong to the old state.
+        d.qacc_warmstart[:] = 0.0
+        mujoco.mj_forward(m, d)
+        depth = -min((float(d.contact[i].dist) for i in range(d.ncon)), default=0.0)
+        if depth > self.max_penetration:
+            pairs = [i for i in range(d.ncon) if -float(d.contact[i].dist) == depth]
+            g1, g2 = (int(d.contact[pairs[0]].geom[k]) for k in (0, 1))
+            names = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g) or f"geom {g}" for g in (g1, g2)]
+            d.qpos[:], d.qvel[:] = saved
+            mujoco.mj_forward(m, d)
+            raise SyncError(f"{self._origin}: the state puts {names[0]!r} {depth * 1000:.1f} mm into {names[1]!r} "
+                            f"(more than {self.max_penetration * 1000:g} mm)", "penetration")
+        self._reseat_motors({qa: state.holds[name] for name, qa, _ in joints if name in state.holds})
+        self._bad_state = self._bad_state_warnings()
+
+    def _reseat_motors(self, holds: dict[int, float]) -> None:
+        """After a state write: held motors hold the state's hold (else the new position); every motor
+        restarts from the servo."""
+        for motor in self._motors:
+            if motor.name not in self._commanded:
+                motor.state.reset(float(self.data.qpos[motor.qpos]))
+                motor.state.target_position = holds.get(motor.qpos, motor.state.target_position)
+            motor.state.current_velocity = 0.0
+            if not motor.state.torque_mode:
+                motor.saturated = 0.0
+                self._set_servo(motor)
+
     # ---------------------------------------------------------------- knobs
     # The knob table (names shared with the Webots twin) is documented in dualtwin.align.knobs.
     def knobs(self) -> dict[str, Knob]:
@@ -419,6 +533,12 @@ class MuJoCoTwin(Twin):
                 "N*m*s/rad", "joint viscous damping (Webots dampingConstant)")
             add(f"joint.{name}.friction", friction, 0.0, max(10 * friction, 0.5),
                 "N*m", "joint dry friction (MuJoCo frictionloss, Webots staticFriction)")
+            limit_timeconst = float(nominal["jnt_solref"][j, 0])
+            if m.jnt_limited[j] and limit_timeconst > 0:
+                # ODE's joint stops are stiff (world ERP/CFM); MuJoCo's limits are soft by default.
+                add(f"joint.{name}.limit_timeconst", limit_timeconst, 2 * m.opt.timestep,
+                    max(10 * limit_timeconst, 4 * m.opt.timestep), "s",
+                    "joint-limit softness: time constant of the limit's spring-damper (MuJoCo solreflimit[0])")
         for g in range(m.ngeom):
             name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g)
             if name and m.geom_contype[g] | m.geom_conaffinity[g]:
@@ -477,6 +597,7 @@ class MuJoCoTwin(Twin):
         m.dof_frictionloss[:] = nominal["dof_frictionloss"]
         m.geom_friction[:] = nominal["geom_friction"]
         m.geom_solref[:] = nominal["geom_solref"]
+        m.jnt_solref[:] = nominal["jnt_solref"]
         m.body_mass[:] = nominal["body_mass"]
         m.body_inertia[:] = nominal["body_inertia"]
         m.body_ipos[:] = nominal["body_ipos"]
@@ -499,8 +620,11 @@ class MuJoCoTwin(Twin):
             kind, rest = key.split(".", 1)
             name, prop = rest.rsplit(".", 1)
             if kind == "joint":
-                dof = m.jnt_dofadr[self._id(mujoco.mjtObj.mjOBJ_JOINT, name, "joint")]
-                (m.dof_damping if prop == "damping" else m.dof_frictionloss)[dof] = value
+                j = self._id(mujoco.mjtObj.mjOBJ_JOINT, name, "joint")
+                if prop == "limit_timeconst":
+                    m.jnt_solref[j, 0] = value
+                else:
+                    (m.dof_damping if prop == "damping" else m.dof_frictionloss)[m.jnt_dofadr[j]] = value
             elif kind == "geom":
                 g = self._id(mujoco.mjtObj.mjOBJ_GEOM, name, "geom")
                 if prop == "friction":
