@@ -1,4 +1,8 @@
-"""``dualtwin demo``: the bundled CartPole suite on both twins, then the divergence report."""
+"""``dualtwin demo``: the whole loop on the bundled CartPole.
+
+Run the bundled suite on both twins, compare them, analyse the divergence, align the MuJoCo twin to the
+Webots twin, re-run, and report before and after.
+"""
 
 from __future__ import annotations
 
@@ -10,8 +14,13 @@ from rich.console import Console
 from dualtwin.robots.binding import BUNDLED, resolve_robot
 from dualtwin.suite.runner import SuiteRun
 
+KNOBS = ["joint.pole_hinge.damping", "joint.pole_hinge.friction", "joint.pole_hinge.limit_timeconst",
+         "geom.floor.friction", "geom.floor.solref_timeconst"]
+HOLDOUT = ["05_Sine_Drive"]
+
 
 def run_demo(out: Path, console: Console) -> None:
+    from dualtwin.align import align, analyze_runs, print_analysis, print_result, write_analysis
     from dualtwin.divergence import compare_runs, print_summary, write_report
 
     robot = resolve_robot("cartpole")
@@ -20,14 +29,25 @@ def run_demo(out: Path, console: Console) -> None:
         shutil.rmtree(out)
     runs = {}
     for twin in ("webots", "mujoco"):
-        console.print(f"[bold]running[/bold] {suite.name} on the {twin} twin")
+        console.print(f"[bold]1. running[/bold] {suite.name} on the {twin} twin")
         run_dir = out / f"run_{twin}"
         manifest = SuiteRun(suite, twin, robot, run_dir).run()
         for record in manifest["scenarios"]:
             console.print(f"  {record['id']:<28} {record['status']}")
         runs[twin] = run_dir
+    console.print("[bold]2. comparing[/bold] the twins")
     comparison = compare_runs(runs["webots"], runs["mujoco"])
-    report_dir = out / "report"
-    write_report(comparison, report_dir, label_a="webots", label_b="mujoco")
+    write_report(comparison, out / "report", label_a="webots", label_b="mujoco")
     print_summary(comparison, console)
-    console.print(f"report: {report_dir / 'report.html'}")
+    console.print("[bold]3. analysing[/bold] the divergence (knob sensitivities by re-simulation)")
+    analysis = analyze_runs(runs["webots"], runs["mujoco"], robot=robot, twin_b="mujoco", knobs=KNOBS)
+    write_analysis(analysis, out / "analysis")
+    print_analysis(analysis, console)
+    console.print(f"[bold]4. aligning[/bold] the MuJoCo twin to the Webots twin ({', '.join(KNOBS)}; "
+                  f"{', '.join(HOLDOUT)} held out)")
+    result = align(runs["webots"], "mujoco", robot, suite, KNOBS, out / "align", optimizer="lsq", budget=200,
+                   holdout=HOLDOUT)
+    print_result(result, console)
+    console.print(f"comparison report: {out / 'report' / 'report.html'}")
+    console.print(f"analysis:          {out / 'analysis' / 'analysis.html'}")
+    console.print(f"before/after:      {out / 'align' / 'report.html'}")
