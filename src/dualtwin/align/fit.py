@@ -633,6 +633,9 @@ def align(
     regularization: float = 0.0,
     propose_fn: ProposeFn | None = None,
     callback: Callable[[GenerationInfo], None] | None = None,
+    objective: Literal["trajectory", "prediction"] = "trajectory",
+    horizons: Sequence[int] = (1, 5),
+    stride: int = 5,
 ) -> AlignResult:
     """Fit the target twin's knobs so its suite runs match the reference; write every artifact to ``out_dir``.
 
@@ -669,10 +672,30 @@ def align(
         propose_fn: Optional proposer ``analysis -> [knob values]``; proposals that lower the objective
             seed the search (see :mod:`dualtwin.align.propose`).
         callback: Called after every generation/iteration, after the checkpoint is written.
+        objective: ``trajectory`` (default: the suite-run objective above) or ``prediction``: short-horizon
+            prediction error from synchronised start states (:mod:`dualtwin.align.prediction`; the reference
+            is then a twin or a trajectory file, and holdout, channels, thresholds, weights and proposals do
+            not apply).
+        horizons: Prediction horizons in control periods (``prediction`` only).
+        stride: A prediction start every ``stride`` periods (``prediction`` only).
 
     Raises:
         DualtwinError: Bad input (unknown knobs, bounds excluding nominal, mismatched reference, ...).
     """
+    if objective == "prediction":
+        unused = [name for name, value in (("holdout", holdout), ("channels", channels), ("thresholds", thresholds),
+                                           ("weights", weights), ("propose_fn", propose_fn)) if value]
+        if unused or executor == "ray":
+            raise DualtwinError(f"the prediction objective does not take {', '.join(unused) or 'executor ray'}")
+        from dualtwin.align.prediction import align_prediction
+
+        return align_prediction(reference_run_or_twin, target_twin_name, robot, suite_path, knob_patterns, out_dir,
+                                optimizer=optimizer, seed=seed, budget=budget, resume=resume, executor=executor,
+                                workers=workers, bounds=bounds, reference_knobs=reference_knobs, horizons=horizons,
+                                stride=stride, popsize=popsize, sigma0=sigma0, patience=patience, fd_step=fd_step,
+                                regularization=regularization, callback=callback)
+    if objective != "trajectory":
+        raise DualtwinError(f"unknown objective {objective!r}; use 'trajectory' or 'prediction'")
     t_start = time.perf_counter()
     out_dir = Path(out_dir)
     binding = resolve_robot(robot) if isinstance(robot, str) else robot
@@ -897,9 +920,16 @@ def print_result(result: AlignResult, console: Console) -> None:
     """The fitted knobs, before → after objectives and warnings, for the terminal."""
     console.print(f"{result.optimizer}: {result.stop_reason}; {result.evaluations} evaluations, "
                   f"{result.iterations} iterations, {result.wall_time_s:.1f} s")
-    console.print(f"objective (train): {result.objective_before:.4g} → [bold]{result.objective_after:.4g}[/]")
+    if result.optimizer == "lsq":
+        # Least squares minimises the trajectory residual; the DTW/event/endpoint objective is reported too.
+        console.print(f"trajectory residual (train, minimised): {result.residual_before:.4g} → "
+                      f"[bold]{result.residual_after:.4g}[/]")
+    console.print(f"DTW + event-time + endpoint objective (train): {result.objective_before:.4g} → "
+                  f"{'[bold]' if result.optimizer == 'cma' else ''}{result.objective_after:.4g}"
+                  f"{'[/]' if result.optimizer == 'cma' else ''}")
     if result.holdout_before is not None and result.holdout_after is not None:
-        console.print(f"objective (held out): {result.holdout_before:.4g} → {result.holdout_after:.4g}")
+        console.print(f"DTW + event-time + endpoint objective (held out): {result.holdout_before:.4g} → "
+                      f"{result.holdout_after:.4g}")
     for k in result.knobs.values():
         hw = f" ± {k.half_width_95:.2g}" if k.half_width_95 is not None else ""
         bound = f" [yellow](at {k.at_bound} bound)[/]" if k.at_bound else ""

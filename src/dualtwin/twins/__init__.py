@@ -6,7 +6,7 @@ import importlib
 from typing import TYPE_CHECKING
 
 from dualtwin.errors import DualtwinError
-from dualtwin.twins.base import ControlMode, Knob, Twin
+from dualtwin.twins.base import BodyState, ControlMode, Knob, MechanicalState, SyncError, Twin
 
 if TYPE_CHECKING:
     from dualtwin.robots.binding import RobotBinding
@@ -29,4 +29,4 @@ def make_twin(name: str, robot: RobotBinding, control_period: float | None = Non
     return twin
 
 
-__all__ = ["TWINS", "ControlMode", "Knob", "Twin", "make_twin"]
+__all__ = ["TWINS", "BodyState", "ControlMode", "Knob", "MechanicalState", "SyncError", "Twin", "make_twin"]

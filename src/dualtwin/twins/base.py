@@ -12,19 +12,258 @@ Actuator commands mean what a Webots motor means, on every twin:
 * ``torque``: apply the torque, clamped to the maximum torque.
 
 Until a motor is first commanded it holds its initial position (Webots' initial state).
+
+Mechanical state (:class:`MechanicalState`, :meth:`Twin.get_state` / :meth:`Twin.set_state`) moves the robot's
+full state from one twin into another (online synchronisation, :mod:`dualtwin.sync`). Its conventions:
+
+* free (root) bodies by name: world position of the body *frame origin*, orientation as a unit quaternion
+  ``(w, x, y, z)`` with ``w >= 0``, linear velocity of the frame origin and angular velocity, both in world
+  coordinates;
+* every hinge and slider joint by name: position (rad or m, multi-turn) and velocity;
+* ``holds``: for each joint whose motor has not been commanded since reset (Webots' initial state: the motor
+  holds a position), the position it holds. A held motor acts like a stiff spring, so this is part of the
+  robot's state even though no controller set it;
+* ``time``: the twin's control clock when the state was read (informational; writing a state does not
+  move a twin's clock).
+
+Writing a state takes effect *now* from the caller's point of view: the next :meth:`Twin.step` evolves from
+it and :meth:`Twin.get_state` returns it until then. After a write, a motor that has not been commanded since
+the last reset holds the state's ``holds`` entry for its joint, or else the *written* position, instead of
+pulling the joint back to where it held before; commanded motors keep their command (the controller's
+intent), and every motor's internal current velocity is zeroed (Webots' joint teleport does that, spec §4.1).
 """
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
-from typing import ClassVar, Literal
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 
 from dualtwin.errors import DualtwinError
 
 ControlMode = Literal["velocity", "position", "torque"]
+
+#: Per-body values of a state vector, in order (see :meth:`MechanicalState.layout`).
+BODY_FIELDS = ("x", "y", "z", "qw", "qx", "qy", "qz", "vx", "vy", "vz", "wx", "wy", "wz")
+#: Per-body channels of a state difference: position, rotation vector of the relative rotation, velocities.
+BODY_DIFF_FIELDS = ("x", "y", "z", "rx", "ry", "rz", "vx", "vy", "vz", "wx", "wy", "wz")
+
+
+class SyncError(DualtwinError):
+    """A state cannot be written into a twin: non-finite values, penetration, or a violent response to it.
+
+    The twin is left as it was before the write where it can be (MuJoCo), else it needs a reset (Webots).
+    ``reason`` is a short keyword (``nonfinite``, ``penetration``, ``unstable``, ``jump``).
+    """
+
+    def __init__(self, message: str, reason: str = "invalid") -> None:
+        super().__init__(message)
+        self.reason = reason
+
+
+def quat_from_matrix(rotation: Any) -> np.ndarray:
+    """Unit quaternion ``(w, x, y, z)`` with ``w >= 0`` of a 3x3 rotation matrix (Shepperd's method).
+
+    Takes a 3x3 array or 9 row-major values (Webots' ``getOrientation``); plain floats keep it cheap.
+    """
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = (float(v) for v in np.asarray(rotation, dtype=float).ravel())
+    trace = m00 + m11 + m22
+    if trace > 0:
+        s = 2.0 * math.sqrt(trace + 1.0)
+        q = (0.25 * s, (m21 - m12) / s, (m02 - m20) / s, (m10 - m01) / s)
+    elif m00 > m11 and m00 > m22:
+        s = 2.0 * math.sqrt(1.0 + m00 - m11 - m22)
+        q = ((m21 - m12) / s, 0.25 * s, (m01 + m10) / s, (m02 + m20) / s)
+    elif m11 > m22:
+        s = 2.0 * math.sqrt(1.0 + m11 - m00 - m22)
+        q = ((m02 - m20) / s, (m01 + m10) / s, 0.25 * s, (m12 + m21) / s)
+    else:
+        s = 2.0 * math.sqrt(1.0 + m22 - m00 - m11)
+        q = ((m10 - m01) / s, (m02 + m20) / s, (m12 + m21) / s, 0.25 * s)
+    n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    sign = -1.0 / n if q[0] < 0 else 1.0 / n
+    return np.array([q[0] * sign, q[1] * sign, q[2] * sign, q[3] * sign])
+
+
+def canonical_quat(q: np.ndarray) -> np.ndarray:
+    """Normalised, with ``w >= 0`` (q and -q are the same rotation; one sign makes states comparable)."""
+    q = np.asarray(q, dtype=float)
+    q = q / np.linalg.norm(q)
+    return -q if q[0] < 0 else q
+
+
+def matrix_from_quat(q: np.ndarray) -> np.ndarray:
+    """3x3 rotation matrix of a quaternion ``(w, x, y, z)`` (normalised first)."""
+    w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def rotation_vector(rotation: np.ndarray) -> np.ndarray:
+    """Axis x angle (rad) of a rotation matrix, angle in [0, pi]."""
+    q = quat_from_matrix(rotation)
+    s = float(np.linalg.norm(q[1:]))
+    if s < 1e-15:
+        return 2.0 * q[1:]
+    return q[1:] / s * 2.0 * math.atan2(s, float(q[0]))
+
+
+@dataclass
+class BodyState:
+    """A free body's pose and velocity (world frame; velocity of the frame origin)."""
+
+    position: np.ndarray
+    quaternion: np.ndarray
+    linear_velocity: np.ndarray
+    angular_velocity: np.ndarray
+
+    def vector(self) -> np.ndarray:
+        return np.concatenate([self.position, self.quaternion, self.linear_velocity, self.angular_velocity])
+
+    @staticmethod
+    def from_vector(values: np.ndarray) -> BodyState:
+        v = np.asarray(values, dtype=float)
+        return BodyState(v[0:3].copy(), v[3:7].copy(), v[7:10].copy(), v[10:13].copy())
+
+    def rotation(self) -> np.ndarray:
+        return matrix_from_quat(self.quaternion)
+
+
+@dataclass
+class MechanicalState:
+    """The full mechanical state of a robot, by name, in the conventions of the module docstring."""
+
+    time: float
+    bodies: dict[str, BodyState] = field(default_factory=dict)
+    joint_positions: dict[str, float] = field(default_factory=dict)
+    joint_velocities: dict[str, float] = field(default_factory=dict)
+    source: str = ""
+    holds: dict[str, float] = field(default_factory=dict)
+
+    def layout(self) -> list[str]:
+        """Names of :meth:`vector`'s entries: ``body/<b>/<field>``, ``joint/<j>/q``, ``joint/<j>/qd``, ``hold/<j>``."""
+        names = [f"body/{b}/{f}" for b in self.bodies for f in BODY_FIELDS]
+        names += [f"joint/{j}/q" for j in self.joint_positions]
+        names += [f"joint/{j}/qd" for j in self.joint_positions]
+        names += [f"hold/{j}" for j in self.holds]
+        return names
+
+    def vector(self) -> np.ndarray:
+        parts = [b.vector() for b in self.bodies.values()]
+        parts.append(np.array(list(self.joint_positions.values()), dtype=float))
+        parts.append(np.array([self.joint_velocities[j] for j in self.joint_positions], dtype=float))
+        parts.append(np.array(list(self.holds.values()), dtype=float))
+        return np.concatenate(parts)
+
+    def values(self, layout: list[str]) -> np.ndarray:
+        """The entries named by ``layout`` (a hold this state lacks is NaN: its motor was commanded since)."""
+        mine = dict(zip(self.layout(), self.vector(), strict=True))
+        missing = [n for n in layout if n not in mine and not n.startswith("hold/")]
+        if missing:
+            raise DualtwinError(f"the state has no {', '.join(missing[:5])}")
+        return np.array([mine.get(n, math.nan) for n in layout], dtype=float)
+
+    @staticmethod
+    def from_vector(layout: list[str], values: np.ndarray, time: float = 0.0, source: str = "") -> MechanicalState:
+        """Inverse of :meth:`vector` (or :meth:`values`) for a ``layout`` written by :meth:`layout`; NaN holds
+        are dropped."""
+        values = np.asarray(values, dtype=float)
+        bodies: dict[str, list[float]] = {}
+        positions: dict[str, float] = {}
+        velocities: dict[str, float] = {}
+        holds: dict[str, float] = {}
+        for name, value in zip(layout, values, strict=True):
+            kind, rest = name.split("/", 1)
+            if kind == "hold":
+                if not math.isnan(value):
+                    holds[rest] = float(value)
+                continue
+            entity, prop = rest.rsplit("/", 1)
+            if kind == "body":
+                bodies.setdefault(entity, []).append(float(value))
+            elif prop == "q":
+                positions[entity] = float(value)
+            else:
+                velocities[entity] = float(value)
+        return MechanicalState(time, {b: BodyState.from_vector(np.array(v)) for b, v in bodies.items()},
+                               positions, velocities, source, holds)
+
+    def is_finite(self) -> bool:
+        return bool(np.isfinite(self.vector()).all()) and math.isfinite(self.time)
+
+    def nonfinite(self) -> list[str]:
+        """Layout names whose values are NaN or infinite."""
+        return [n for n, v in zip(self.layout(), self.vector(), strict=True) if not math.isfinite(v)]
+
+    def diff_channels(self) -> list[str]:
+        """Names of :meth:`difference`'s channels."""
+        names = [f"body/{b}/{f}" for b in self.bodies for f in BODY_DIFF_FIELDS]
+        names += [f"joint/{j}/{p}" for j in self.joint_positions for p in ("q", "qd")]
+        return names
+
+    def difference(self, other: MechanicalState) -> dict[str, float]:
+        """Per-channel ``other - self``; orientations as the rotation vector of ``R_other R_selfᵀ`` (world).
+
+        Raises:
+            DualtwinError: The two states name different bodies or joints.
+        """
+        check_same_entities(self, other, "reference", "other")
+        out: dict[str, float] = {}
+        for name, a in self.bodies.items():
+            b = other.bodies[name]
+            rot = rotation_vector(b.rotation() @ a.rotation().T)
+            values = [*(b.position - a.position), *rot, *(b.linear_velocity - a.linear_velocity),
+                      *(b.angular_velocity - a.angular_velocity)]
+            out.update({f"body/{name}/{f}": float(v) for f, v in zip(BODY_DIFF_FIELDS, values, strict=True)})
+        for joint, q in self.joint_positions.items():
+            out[f"joint/{joint}/q"] = other.joint_positions[joint] - q
+            out[f"joint/{joint}/qd"] = other.joint_velocities[joint] - self.joint_velocities[joint]
+        return out
+
+    def copy(self) -> MechanicalState:
+        return MechanicalState(self.time, {n: BodyState.from_vector(b.vector()) for n, b in self.bodies.items()},
+                               dict(self.joint_positions), dict(self.joint_velocities), self.source, dict(self.holds))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form (lists of floats)."""
+        return {"time": self.time, "source": self.source,
+                "bodies": {n: {"position": b.position.tolist(), "quaternion": b.quaternion.tolist(),
+                               "linear_velocity": b.linear_velocity.tolist(),
+                               "angular_velocity": b.angular_velocity.tolist()} for n, b in self.bodies.items()},
+                "joint_positions": dict(self.joint_positions), "joint_velocities": dict(self.joint_velocities),
+                "holds": dict(self.holds)}
+
+    @staticmethod
+    def from_dict(data: Mapping[str, Any]) -> MechanicalState:
+        bodies = {n: BodyState(np.asarray(b["position"], float), np.asarray(b["quaternion"], float),
+                               np.asarray(b["linear_velocity"], float), np.asarray(b["angular_velocity"], float))
+                  for n, b in dict(data.get("bodies", {})).items()}
+        return MechanicalState(float(data.get("time", 0.0)), bodies,
+                               {k: float(v) for k, v in dict(data.get("joint_positions", {})).items()},
+                               {k: float(v) for k, v in dict(data.get("joint_velocities", {})).items()},
+                               str(data.get("source", "")),
+                               {k: float(v) for k, v in dict(data.get("holds", {})).items()})
+
+
+def check_same_entities(a: MechanicalState, b: MechanicalState, label_a: str, label_b: str) -> None:
+    """Raise a :class:`DualtwinError` naming every body or joint that only one of two states has."""
+    problems = []
+    for kind, ka, kb in (("bodies", set(a.bodies), set(b.bodies)),
+                         ("joints", set(a.joint_positions), set(b.joint_positions))):
+        only_a, only_b = sorted(ka - kb), sorted(kb - ka)
+        if only_a:
+            problems.append(f"{kind} only in {label_a}: {', '.join(only_a)}")
+        if only_b:
+            problems.append(f"{kind} only in {label_b}: {', '.join(only_b)}")
+    if problems:
+        raise DualtwinError("the states cannot be mapped onto each other: " + "; ".join(problems))
 
 
 @dataclass(frozen=True)
@@ -104,6 +343,25 @@ class Twin(ABC):
     def set_knobs(self, values: dict[str, float]) -> None:
         """Set knob values from nominal: knobs not named return to nominal, so nothing compounds."""
 
+    # State transfer (dualtwin.sync). Optional capability: twins without it raise.
+    def get_state(self) -> MechanicalState:
+        """The full mechanical state now (see the module docstring for the conventions)."""
+        raise DualtwinError(f"twin {self.name!r} cannot read its mechanical state")
+
+    def set_state(self, state: MechanicalState, *, partial: bool = False) -> None:
+        """Put the robot into ``state`` now: the next :meth:`step` evolves from it.
+
+        Args:
+            state: A state by name, typically another twin's :meth:`get_state`.
+            partial: Allow ``state`` to name only some of this twin's bodies and joints (the others keep their
+                state). Names this twin does not have are an error either way.
+
+        Raises:
+            DualtwinError: A body or joint cannot be mapped (the message names it).
+            SyncError: The state is invalid here (non-finite values, penetration, violent response).
+        """
+        raise DualtwinError(f"twin {self.name!r} cannot write a mechanical state")
+
     def render(self, camera: str, width: int, height: int) -> np.ndarray:
         """An RGB frame (H, W, 3) uint8. Optional capability."""
         raise DualtwinError(f"twin {self.name!r} cannot render cameras")
@@ -116,6 +374,32 @@ class Twin(ABC):
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def check_state_names(state: MechanicalState, bodies: list[str], joints: list[str], where: str,
+                      partial: bool) -> None:
+    """Raise a :class:`DualtwinError` naming what ``state`` has that the twin lacks (and, unless ``partial``,
+    what the twin has that ``state`` lacks)."""
+    problems = []
+    for kind, have, want in (("body", set(bodies), set(state.bodies)),
+                             ("joint", set(joints), set(state.joint_positions) | set(state.joint_velocities))):
+        missing = sorted(want - have)
+        if missing:
+            problems.append(f"the state has {kind} {', '.join(map(repr, missing))} that this twin lacks "
+                            f"(it has: {', '.join(sorted(have)) or 'none'})")
+        unset = sorted(have - want)
+        if unset and not partial:
+            problems.append(f"the state lacks {kind} {', '.join(map(repr, unset))} of this twin")
+    for joint in set(state.joint_positions) ^ set(state.joint_velocities):
+        problems.append(f"joint {joint!r} needs both a position and a velocity")
+    unknown_holds = sorted(set(state.holds) - set(joints))
+    if unknown_holds:
+        problems.append(f"the state holds joints {', '.join(map(repr, unknown_holds))} that this twin lacks")
+    if problems:
+        raise DualtwinError(f"{where}: cannot map the state: " + "; ".join(problems))
+    if not state.is_finite():
+        bad = state.nonfinite() or ["time"]
+        raise SyncError(f"{where}: the state has non-finite values: {', '.join(bad[:6])}", "nonfinite")
 
 
 def unknown_name(kind: str, name: str, known: list[str], where: str) -> DualtwinError:

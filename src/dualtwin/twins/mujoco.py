@@ -421,6 +421,14 @@ class MuJoCoTwin(Twin):
     # ---------------------------------------------------------------- state transfer
     def _state_entities(self) -> tuple[list[tuple[str, int, int]], list[tuple[str, int, int]]]:
         """(canonical name, qpos address, dof address) of the free bodies and of the hinge/slide joints."""
+        # The compiled model never changes its joints: resolve them once (the state is read every period).
+        cached: tuple[list[tuple[str, int, int]], list[tuple[str, int, int]]] | None = getattr(self, "_entities", None)
+        if cached is None:
+            cached = self._entities = self._find_state_entities()
+            self._qpos_joint = {qa: name for name, qa, _ in cached[1]}
+        return cached
+
+    def _find_state_entities(self) -> tuple[list[tuple[str, int, int]], list[tuple[str, int, int]]]:
         m = self.model
         inverse = {v: k for k, v in self._aliases.items()}
         bodies, joints = [], []
@@ -445,14 +453,17 @@ class MuJoCoTwin(Twin):
         qpos, qvel = self.data.qpos, self.data.qvel
         out = MechanicalState(float(self.data.time), source=self.name)
         for name, qa, da in bodies:
-            quat = np.array(qpos[qa + 3:qa + 7], dtype=float)
-            angular = matrix_from_quat(quat) @ np.array(qvel[da + 3:da + 6], dtype=float)
-            out.bodies[name] = BodyState(np.array(qpos[qa:qa + 3], dtype=float), canonical_quat(quat),
-                                         np.array(qvel[da:da + 3], dtype=float), angular)
-        for name, qa, da in joints:
-            out.joint_positions[name] = float(qpos[qa])
-            out.joint_velocities[name] = float(qvel[da])
-        by_qpos = {qa: name for name, qa, _ in joints}
+            quat = qpos[qa + 3:qa + 7].copy()
+            angular = np.zeros(3)
+            mujoco.mju_rotVecQuat(angular, qvel[da + 3:da + 6], quat)
+            if quat[0] < 0:
+                quat = -quat
+            out.bodies[name] = BodyState(qpos[qa:qa + 3].copy(), quat / math.sqrt(float(quat @ quat)),
+                                         qvel[da:da + 3].copy(), angular)
+        positions, velocities = qpos.tolist(), qvel.tolist()
+        out.joint_positions = {name: positions[qa] for name, qa, _ in joints}
+        out.joint_velocities = {name: velocities[da] for name, _, da in joints}
+        by_qpos = self._qpos_joint
         for motor in self._motors:
             held = motor.name not in self._commanded and not motor.state.torque_mode
             if held and motor.qpos in by_qpos and math.isfinite(motor.state.target_position):

@@ -17,14 +17,60 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from dualtwin.errors import DualtwinError
-from dualtwin.twins.base import ControlMode, Knob, Twin, unknown_name
+from dualtwin.errors import DualtwinError, SimulationUnstable
+from dualtwin.twins.base import (
+    BodyState,
+    ControlMode,
+    Knob,
+    MechanicalState,
+    SyncError,
+    Twin,
+    check_state_names,
+    matrix_from_quat,
+    quat_from_matrix,
+    unknown_name,
+)
 
 if TYPE_CHECKING:
+    from dualtwin.perception.camera import CameraSpec
     from dualtwin.robots.binding import RobotBinding
 
 JOINT_TYPES = ("HingeJoint", "SliderJoint", "Hinge2Joint", "BallJoint")
 MOTOR_TYPES = ("RotationalMotor", "LinearMotor")
+#: Joints whose state get_state/set_state carry (one axis each).
+STATE_JOINT_TYPES = ("HingeJoint", "SliderJoint")
+#: set_state refuses a state to which a free body responds, within one basic step, with a velocity jump
+#: above these (m/s, rad/s): ODE pushing a penetrating body out (softERP 0.2 moves 2 cm of overlap at
+#: 0.5 m/s with an 8 ms step) or a violated joint. Driving and gravity stay far below them.
+MAX_JUMP_LINEAR = 0.5
+MAX_JUMP_ANGULAR = 10.0
+
+
+def _cross(a: Any, b: Any) -> np.ndarray:
+    """Cross product of two 3-vectors (``np.cross`` costs tens of microseconds on tiny inputs)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def _pose_of(node: Any) -> tuple[np.ndarray, np.ndarray]:
+    return (np.array(node.getOrientation(), dtype=float).reshape(3, 3),
+            np.array(node.getPosition(), dtype=float))
+
+
+def _rotation_about(axis: np.ndarray, angle: float) -> np.ndarray:
+    x, y, z = axis
+    c, s_, t = math.cos(angle), math.sin(angle), 1.0 - math.cos(angle)
+    return np.array([[c + t * x * x, t * x * y - s_ * z, t * x * z + s_ * y],
+                     [t * x * y + s_ * z, c + t * y * y, t * y * z - s_ * x],
+                     [t * x * z - s_ * y, t * y * z + s_ * x, c + t * z * z]])
+
+
+def _axis_angle(rotation: np.ndarray) -> list[float]:
+    """A VRML ``rotation`` (axis, angle) for a rotation matrix."""
+    q = quat_from_matrix(rotation)
+    s_ = float(np.linalg.norm(q[1:]))
+    if s_ < 1e-300:
+        return [0.0, 0.0, 1.0, 0.0]
+    return [*(q[1:] / s_), 2.0 * math.atan2(s_, float(q[0]))]
 
 
 class _Joint:
@@ -67,6 +113,11 @@ class WebotsTwin(Twin):
         self._sensors: dict[str, Any] = {}
         self._gains: dict[str, float] = {}
         self._knob_values: dict[str, float] = {}
+        # State transfer: motors commanded since reset (the others hold their position), the state written
+        # and not yet stepped from (the supervisor shows it only after the next step), the resolved structure.
+        self._commanded: set[str] = set()
+        self._written: MechanicalState | None = None
+        self._structure: _Structure | None = None
         # Enable every sensor now: a Webots sensor reads NaN until its first sample after enable().
         for name in self._device_names(None):
             self._sensor(name)
@@ -179,6 +230,8 @@ class WebotsTwin(Twin):
         self.sup.simulationReset()
         self._advance(self._basic_ms)
         self._t0 = float(self.sup.getTime())
+        self._commanded.clear()
+        self._written = None
         # simulationReset restores every field, knobs included: re-apply them.
         self.set_knobs(dict(self._knob_values))
 
@@ -189,6 +242,7 @@ class WebotsTwin(Twin):
 
     def set_joint_state(self, joint: str, position: float | None = None, velocity: float | None = None) -> None:
         j = self._joint(joint)
+        self._written = None
         if position is not None:
             # Webots teleports the endPoint at the next step and resets its physics (spec §4.1).
             j.position.setSFFloat(float(position))
@@ -214,9 +268,11 @@ class WebotsTwin(Twin):
             raise DualtwinError(f"{self._origin}: body {body!r} is not a top-level Solid; cannot teleport it")
         translation[axis] = float(value)
         field.setSFVec3f(translation)
+        self._written = None
 
     def command(self, actuator: str, mode: ControlMode, value: float) -> None:
         motor = self._motor(actuator)
+        self._commanded.add(self._resolve(actuator))
         value *= self._gains.get(actuator, 1.0)
         if mode == "velocity":
             motor.setPosition(math.inf)
@@ -231,6 +287,7 @@ class WebotsTwin(Twin):
 
     def step(self) -> None:
         self._advance(self._period_ms)
+        self._written = None
 
     def joint_position(self, joint: str) -> float:
         return float(self._joint(joint).position.getSFFloat())
@@ -275,6 +332,114 @@ class WebotsTwin(Twin):
         device = self._sensor(name)
         value = device.getValue() if hasattr(device, "getValue") else device.getValues()[0]
         return float(value)
+
+    def render(self, camera: str | CameraSpec, width: int, height: int) -> np.ndarray:
+        """An RGB frame (H, W, 3) uint8 of the current scene, rendered headless (``MUJOCO_GL=egl|osmesa``).
+
+        Our runtime has no renderer: the world's Shapes become a visual-only MuJoCo scene whose mocap bodies
+        follow the Solids' supervisor poses (:mod:`dualtwin.perception.scene`). ``camera`` is a
+        :class:`~dualtwin.perception.camera.CameraSpec`, the name of a Camera device, or ``"viewpoint"``.
+        In real Webots use a Camera device and ``Camera.getImage()`` instead.
+        """
+        from dualtwin.perception.render import render_webots
+
+        return render_webots(self, camera, width, height)
+
+    # ---------------------------------------------------------------- state transfer (supervisor API)
+    def _state_structure(self) -> _Structure:
+        if self._structure is None:
+            self._structure = _Structure(self)
+        return self._structure
+
+    def get_state(self) -> MechanicalState:
+        """Root poses and velocities from ``Node.getPosition/getOrientation/getVelocity`` (the CoM velocity
+        moved to the frame origin), joint positions from their ``position`` fields and joint rates from the
+        relative velocity of the endPoint and the parent Solid along the joint axis.
+
+        Right after :meth:`set_state` the supervisor still shows the pre-write state until the next step; the
+        state written is returned then (it is exactly what the next step starts from).
+        """
+        if self._written is not None:
+            state = self._written.copy()
+            state.time = self.time
+            return state
+        st = self._state_structure()
+        out = MechanicalState(self.time, source=self.name)
+        for name, node in st.bodies.items():
+            position = np.array(node.getPosition(), dtype=float)
+            velocity = np.array(node.getVelocity(), dtype=float)
+            com = np.array(node.getCenterOfMass(), dtype=float)
+            linear = velocity[:3] + _cross(velocity[3:], position - com)
+            out.bodies[name] = BodyState(position, quat_from_matrix(node.getOrientation()), linear, velocity[3:].copy())
+        rates = st.joint_rates()
+        for name, joint in st.joints.items():
+            out.joint_positions[name] = float(joint.position.getSFFloat())
+            out.joint_velocities[name] = rates[name]
+            for motor in st.motors.get(name, []):
+                if motor.getName() not in self._commanded and math.isfinite(motor.getTargetPosition()):
+                    out.holds[name] = float(motor.getTargetPosition())
+        return out
+
+    def set_state(self, state: MechanicalState, *, partial: bool = False) -> None:
+        """Write ``state`` through the supervisor so that the next :meth:`step` evolves from it.
+
+        The writes: each root's ``translation``/``rotation`` fields (a teleport that keeps velocities), each
+        joint's ``position`` field (a teleport of its endPoint that resets the subtree's physics), the held
+        motors' ``Motor.setPosition`` (see the module docstring of :mod:`dualtwin.twins.base`), then
+        ``Node.setVelocity`` of every body, computed by forward kinematics from the written state. Webots
+        executes these in order just before the next physics step.
+
+        Webots steps once with the contact joints of the *old* pose after a teleport (spec §1.6). So the twin
+        writes the state and runs one basic step (its contacts are then collided near the new pose), writes it
+        again and runs a second basic step (with those contacts: a body written into the floor is now pushed
+        out, which the check below sees), and writes it a third time. These basic steps are not counted on the
+        control clock: ``time`` does not move, and the next :meth:`step` starts from ``state`` exactly, with
+        contacts collided within one basic step of it.
+
+        Raises:
+            DualtwinError: A body or joint cannot be mapped, or a root is not a top-level Solid.
+            SyncError: Non-finite values; the physics became unstable; a free body's velocity jumped by more
+                than ``MAX_JUMP_LINEAR`` m/s or ``MAX_JUMP_ANGULAR`` rad/s within a basic step (penetration
+                or a violated joint). The twin then needs a :meth:`reset`.
+        """
+        st = self._state_structure()
+        check_state_names(state, list(st.bodies), list(st.joints), self._origin, partial)
+        # What get_state will answer until the next step: the current state overlaid with the written parts,
+        # and the holds the held motors will have.
+        expected = self.get_state()
+        expected.bodies.update({n: b for n, b in state.copy().bodies.items()})
+        expected.joint_positions.update(state.joint_positions)
+        expected.joint_velocities.update(state.joint_velocities)
+        for name in state.joint_positions:
+            if any(m.getName() not in self._commanded for m in st.motors.get(name, [])):
+                expected.holds[name] = state.holds.get(name, state.joint_positions[name])
+        self._written = None
+        dt = self._basic_ms / 1000.0
+        for settle in (False, True):
+            st.write(state)
+            try:
+                self._advance(self._basic_ms)
+            except SimulationUnstable as exc:
+                raise SyncError(f"{self._origin}: the physics became unstable in the state written ({exc}); "
+                                "reset the twin", "unstable") from None
+            self._t0 += dt
+            if settle:
+                self._check_jump(st, state, dt)
+        st.write(state)
+        self._written = expected
+
+    def _check_jump(self, st: _Structure, state: MechanicalState, dt: float) -> None:
+        for name, body in state.bodies.items():
+            node = st.bodies[name]
+            velocity = np.array(node.getVelocity(), dtype=float)
+            com = np.array(node.getCenterOfMass(), dtype=float)
+            linear = velocity[:3] + np.cross(velocity[3:], np.array(node.getPosition(), dtype=float) - com)
+            jump_v = float(np.linalg.norm(linear - body.linear_velocity))
+            jump_w = float(np.linalg.norm(velocity[3:] - body.angular_velocity))
+            if jump_v > MAX_JUMP_LINEAR or jump_w > MAX_JUMP_ANGULAR:
+                raise SyncError(f"{self._origin}: body {name!r} was thrown by the state written (velocity jump "
+                                f"{jump_v:.3g} m/s, {jump_w:.3g} rad/s in {dt * 1000:g} ms): penetration or a "
+                                "violated joint; reset the twin", "jump")
 
     # ---------------------------------------------------------------- knobs, through Field edits
     def _scan_knob_fields(self) -> dict[str, tuple[Any, str, int | None]]:
@@ -364,6 +529,244 @@ class WebotsTwin(Twin):
                 self._write_knob(name, target)
         self._gains = {k.split(".")[1]: v for k, v in values.items() if k.endswith(".gain")}
         self._knob_values = dict(values)
+
+
+class _Structure:
+    """The robot's roots, joints and held-motor map for state transfer, resolved once through the API."""
+
+    def __init__(self, twin: WebotsTwin) -> None:
+        self.twin = twin
+        inverse = {v: k for k, v in twin._aliases.items()}
+        sup = twin.sup
+        self.bodies: dict[str, Any] = {}
+        me = sup.getSelf()
+        candidates = [me]
+        root = sup.getRoot().getField("children")
+        for i in range(root.getCount()):
+            node = root.getMFNode(i)
+            if node is not None and node != me and node.getDef() and self._has_body(node):
+                candidates.append(node)
+        for node in candidates:
+            if self._has_body(node):
+                name = node.getDef() or node.getField("name").getSFString()
+                self.bodies[inverse.get(name, name)] = node
+        self.joints: dict[str, _Joint] = {}
+        self.motors: dict[str, list[Any]] = {}  # joint name -> its motor devices
+        for node in twin._walk():
+            if node.getTypeName() in STATE_JOINT_TYPES and node.getDef():
+                params = node.getField("jointParameters").getSFNode()
+                end = node.getField("endPoint")
+                if params is None or end is None or end.getSFNode() is None:
+                    continue
+                name = inverse.get(node.getDef(), node.getDef())
+                self.joints[name] = _Joint(node)
+                devices = node.getField("device")
+                names = [devices.getMFNode(i).getField("name").getSFString() for i in range(devices.getCount())
+                         if devices.getMFNode(i) is not None and devices.getMFNode(i).getTypeName() in MOTOR_TYPES]
+                self.motors[name] = [d for d in (sup.getDevice(n) for n in names) if d is not None]
+        self._parents: dict[int, Any] = {}
+        self._joint_of: dict[int, _Joint] = {j.child.getId(): j for j in self.joints.values()}
+        self._slider = any(j.kind == "SliderJoint" for j in self.joints.values())
+        self._plan: tuple[list[Any], list[Any], list[tuple[str, int, int, int, tuple[float, ...], bool]]] | None = None
+        for name in self.joints:
+            self.parent_solid(self.joints[name].node)
+
+    @staticmethod
+    def _has_body(node: Any) -> bool:
+        physics = node.getField("physics")
+        return physics is not None and physics.getSFNode() is not None
+
+    @staticmethod
+    def _is_solid(node: Any) -> bool:
+        return node.getField("physics") is not None
+
+    def parent_solid(self, node: Any) -> Any:
+        """The closest Solid above ``node`` (None for a top-level node)."""
+        key = node.getId()
+        if key not in self._parents:
+            parent = node.getParentNode()
+            while parent is not None and not self._is_solid(parent):
+                parent = parent.getParentNode()
+            self._parents[key] = parent
+        return self._parents[key]
+
+    def _frame(self, joint: _Joint) -> tuple[np.ndarray, np.ndarray]:
+        """World axis and anchor of a joint now (axis and anchor live in the closest upper Pose, spec §4.1)."""
+        rotation, position = _pose_of(joint.parent)
+        anchor_field = joint.params.getField("anchor")
+        anchor = np.array(anchor_field.getSFVec3f() if anchor_field is not None else [0.0, 0.0, 0.0], dtype=float)
+        return rotation @ joint.axis, position + rotation @ anchor
+
+    @staticmethod
+    def _twist(node: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(linear velocity of the CoM, angular velocity, CoM) of the body holding ``node``."""
+        velocity = np.array(node.getVelocity(), dtype=float)
+        return velocity[:3], velocity[3:], np.array(node.getCenterOfMass(), dtype=float)
+
+    def joint_rate(self, joint: _Joint) -> float:
+        name = next(n for n, j in self.joints.items() if j is joint)
+        return self.joint_rates([name])[name]
+
+    def joint_rates(self, names: list[str] | None = None) -> dict[str, float]:
+        """Joint rates: the relative velocity of endPoint and parent Solid along the world joint axis.
+
+        Each node's orientation and velocity is read once per call, from a plan resolved once: the state is
+        read every control period, so this stays in plain floats.
+        """
+        if self._plan is None:
+            self._plan = self._rate_plan()
+        frames, solids, rows = self._plan
+        rotations = [node.getOrientation() for node in frames]
+        velocities = [node.getVelocity() for node in solids]
+        coms = [node.getCenterOfMass() for node in solids] if self._slider else []
+        out = {}
+        wanted = None if names is None else set(names)
+        for name, frame, child, parent, (ax, ay, az), slider in rows:
+            if wanted is not None and name not in wanted:
+                continue
+            r = rotations[frame]
+            axis = (r[0] * ax + r[1] * ay + r[2] * az, r[3] * ax + r[4] * ay + r[5] * az,
+                    r[6] * ax + r[7] * ay + r[8] * az)
+            vc = velocities[child]
+            vp = velocities[parent] if parent >= 0 else (0.0,) * 6
+            if slider:
+                cc = coms[child]
+                cp = coms[parent] if parent >= 0 else cc
+                d = (cc[0] - cp[0], cc[1] - cp[1], cc[2] - cp[2])
+                rel = (vc[0] - vp[0] - (vp[4] * d[2] - vp[5] * d[1]), vc[1] - vp[1] - (vp[5] * d[0] - vp[3] * d[2]),
+                       vc[2] - vp[2] - (vp[3] * d[1] - vp[4] * d[0]))
+            else:
+                rel = (vc[3] - vp[3], vc[4] - vp[4], vc[5] - vp[5])
+            out[name] = float(rel[0] * axis[0] + rel[1] * axis[1] + rel[2] * axis[2])
+        return out
+
+    def _rate_plan(self) -> tuple[list[Any], list[Any], list[tuple[str, int, int, int, tuple[float, ...], bool]]]:
+        frames: list[Any] = []
+        solids: list[Any] = []
+
+        def index(nodes: list[Any], node: Any) -> int:
+            for i, n in enumerate(nodes):
+                if n.getId() == node.getId():
+                    return i
+            nodes.append(node)
+            return len(nodes) - 1
+
+        rows = []
+        for name, joint in self.joints.items():
+            parent = self.parent_solid(joint.node)
+            rows.append((name, index(frames, joint.parent), index(solids, joint.child),
+                         index(solids, parent) if parent is not None else -1,
+                         tuple(float(v) for v in joint.axis), joint.kind == "SliderJoint"))
+        return frames, solids, rows
+
+    def write(self, state: MechanicalState) -> None:
+        """Queue the supervisor writes that put the robot into ``state`` (see ``WebotsTwin.set_state``)."""
+        # Read everything first: once a write is queued, real Webots may answer some getters with it.
+        now: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        nodes: dict[int, Any] = {}
+
+        def remember(node: Any) -> None:
+            key = node.getId()
+            if key not in now:
+                now[key] = _pose_of(node)
+                nodes[key] = node
+
+        frames: dict[str, tuple[np.ndarray, np.ndarray, float, float]] = {}
+        rates = self.joint_rates()
+        for name, joint in self.joints.items():
+            remember(joint.child)
+            parent = self.parent_solid(joint.node)
+            if parent is not None:
+                remember(parent)
+            axis, anchor = self._frame(joint)
+            frames[name] = (axis, anchor, float(joint.position.getSFFloat()), rates[name])
+        for node in self.bodies.values():
+            remember(node)
+        coms = {key: np.array(node.getCenterOfMass(), dtype=float) for key, node in nodes.items()
+                if self._has_body(node)}
+        current = {name: self._twist(node) for name, node in self.bodies.items() if name not in state.bodies}
+
+        # Forward kinematics of the written state: each Solid's new pose and frame-origin twist.
+        new: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+        roots = {node.getId(): name for name, node in self.bodies.items()}
+
+        def solve(node: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+            key = node.getId()
+            if key in new:
+                return new[key]
+            remember(node)
+            rotation_now, position_now = now[key]
+            name = roots.get(key)
+            parent = None if name is not None else self.parent_solid(node)
+            if name is not None and name in state.bodies:
+                body = state.bodies[name]
+                result = (matrix_from_quat(body.quaternion), np.asarray(body.position, dtype=float),
+                          np.asarray(body.linear_velocity, dtype=float), np.asarray(body.angular_velocity, dtype=float))
+            elif parent is None:
+                if name is not None:  # a root the state leaves alone (partial): as it is now
+                    v_com, w, com = current[name]
+                    result = (rotation_now, position_now, v_com + np.cross(w, position_now - com), w)
+                else:
+                    result = (rotation_now, position_now, np.zeros(3), np.zeros(3))
+            else:
+                rp, pp, vp, wp = solve(parent)
+                rp_now, pp_now = now[parent.getId()]
+                rel_r, rel_p = rp_now.T @ rotation_now, rp_now.T @ (position_now - pp_now)
+                joint = self._joint_of.get(key)
+                w, extra_v, anchor_w = wp, np.zeros(3), pp
+                if joint is not None:
+                    jname = next(n for n, j in self.joints.items() if j is joint)
+                    axis_w_now, anchor_w_now, q_now, qd_now = frames[jname]
+                    q = state.joint_positions.get(jname, q_now)
+                    qd = state.joint_velocities.get(jname, qd_now)
+                    axis_p = rp_now.T @ axis_w_now
+                    anchor_p = rp_now.T @ (anchor_w_now - pp_now)
+                    if joint.kind == "SliderJoint":
+                        rel_p = rel_p + axis_p * (q - q_now)
+                        extra_v = (rp @ axis_p) * qd
+                    else:
+                        turn = _rotation_about(axis_p, q - q_now)
+                        rel_r, rel_p = turn @ rel_r, turn @ (rel_p - anchor_p) + anchor_p
+                        w = wp + (rp @ axis_p) * qd
+                        anchor_w = rp @ anchor_p + pp
+                rotation, position = rp @ rel_r, rp @ rel_p + pp
+                velocity = vp + np.cross(wp, position - pp) + extra_v
+                if joint is not None and joint.kind != "SliderJoint":
+                    velocity = velocity + np.cross(w - wp, position - anchor_w)
+                result = (rotation, position, velocity, w)
+            new[key] = result
+            return result
+
+        targets = [self.bodies[n] for n in state.bodies] + [self.joints[n].child for n in state.joint_positions]
+        for node in targets:
+            solve(node)
+        # Teleports first (parents before children), then held motors, then every body's velocity.
+        for name in state.bodies:
+            node = self.bodies[name]
+            parent = node.getParentNode()
+            if parent is not None and parent.getTypeName() not in ("Group", ""):
+                raise DualtwinError(f"{self.twin._origin}: body {name!r} is not a top-level Solid; cannot write its pose")
+            rotation, position, _, _ = new[node.getId()]
+            node.getField("translation").setSFVec3f([float(v) for v in position])
+            node.getField("rotation").setSFRotation(_axis_angle(rotation))
+        for name, joint in self.joints.items():
+            if name in state.joint_positions:
+                joint.position.setSFFloat(float(state.joint_positions[name]))
+        for name, motors in self.motors.items():
+            if name not in state.joint_positions:
+                continue
+            for motor in motors:
+                if motor.getName() not in self.twin._commanded:
+                    multiplier = motor.getMultiplier() if hasattr(motor, "getMultiplier") else 1.0
+                    hold = state.holds.get(name, state.joint_positions[name])
+                    motor.setPosition(float(hold) / (multiplier or 1.0))
+        for key, (rotation, position, velocity, w) in new.items():
+            if key not in coms:
+                continue  # no body of its own: merged into its parent's
+            rotation_now, position_now = now[key]
+            com = rotation @ (rotation_now.T @ (coms[key] - position_now)) + position
+            v_com = velocity + np.cross(w, com - position)
+            nodes[key].setVelocity([*map(float, v_com), *map(float, w)])
 
 
 def from_binding(robot: RobotBinding, control_period: float) -> WebotsTwin:

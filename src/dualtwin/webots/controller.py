@@ -607,6 +607,11 @@ class Robot:
     def getBasicTimeStep(self) -> float:
         return self._sim.basic_time_step
 
+    @property
+    def simulation(self) -> Simulation:
+        """The simulation this controller drives (dualtwin extension, not part of the Webots API)."""
+        return self._sim
+
     def getTime(self) -> float:
         return self._sim.time
 

@@ -1841,8 +1841,21 @@ class Simulation:
         return self._joint_by_node.get(id(node))
 
     def has_pending(self, target: Any) -> bool:
-        """Whether a queued supervisor operation targets ``target`` (a SolidRec or JointRec)."""
-        return any(op.target is target for op in self._pending)
+        """Whether a queued teleport (pose or joint position) targets ``target`` (a SolidRec or JointRec)."""
+        return any(op.target is target and op.kind != "velocity" for op in self._pending)
+
+    def _teleport_pending_for(self, body: BodyRec) -> bool:
+        """Whether a queued teleport will move (and maybe reset) ``body``."""
+        for op in self._pending:
+            if op.kind == "pose":
+                root = op.target
+            elif op.kind == "joint" and op.target.child is not None:
+                root = op.target.child
+            else:
+                continue
+            if any(b is body for b in self._bodies_in_subtree(root)):
+                return True
+        return False
 
     def queue_set_pose(
         self, solid: SolidRec, translation: Sequence[float] | None, rotation: Sequence[float] | None
@@ -1854,6 +1867,13 @@ class Simulation:
         """Queue a joint ``position`` field set (§4.1), applied before the next physics step."""
         self._pending.append(_PendingOp("joint", joint, (axis_index, position)))
 
+    def apply_pending(self) -> None:
+        """Execute the queued supervisor requests now, without a physics step (dualtwin extension, no Webots
+        equivalent: Webots runs them only as part of the next step). Tests use it to inspect a write."""
+        if threading.get_ident() != self._thread:
+            ode.ensure_thread()
+        self._apply_pending()
+
     def _apply_pending(self) -> None:
         ops, self._pending = self._pending, []
         for op in ops:
@@ -1863,6 +1883,8 @@ class Simulation:
             elif op.kind == "joint":
                 axis_index, position = op.value
                 self._teleport_joint(op.target, axis_index, position)
+            elif op.kind == "velocity":
+                self._set_body_velocity_now(op.target, op.value)
         self._check_state()
 
     def _teleport_solid(
@@ -2062,7 +2084,23 @@ class Simulation:
         return float(lib.dJointGetHinge2Angle2Rate(joint.ptr))
 
     def set_body_velocity(self, solid: SolidRec, velocity: Sequence[float]) -> None:
-        """``Node.setVelocity``: set the ODE body's linear (CoM) and angular velocity (world frame)."""
+        """``Node.setVelocity``: set the ODE body's linear (CoM) and angular velocity (world frame).
+
+        Webots executes a supervisor's requests in the order they were made, just before the next physics
+        step. A velocity set after a teleport of the same body (a ``translation``/``rotation`` or joint
+        ``position`` write, which may reset the subtree's velocities, spec §4.1) must therefore survive it:
+        while such a teleport is queued, the velocity is queued behind it. Otherwise it applies at once, as
+        before (the two orders cannot be told apart then).
+        """
+        body = solid.body
+        if body is None:
+            return
+        if self._pending and self._teleport_pending_for(body):
+            self._pending.append(_PendingOp("velocity", solid, tuple(float(v) for v in velocity)))
+            return
+        self._set_body_velocity_now(solid, velocity)
+
+    def _set_body_velocity_now(self, solid: SolidRec, velocity: Sequence[float]) -> None:
         body = solid.body
         if body is None:
             return

@@ -1,0 +1,61 @@
+"""Online synchronisation of twins: state transfer, lockstep runs, prediction error, drift monitoring.
+
+The paper's synchronisation component: an agent between the simulators watches both, and when their states
+drift apart it re-synchronises them or adjusts parameters. Pieces:
+
+* state transfer: :meth:`Twin.get_state` / :meth:`Twin.set_state` (:class:`MechanicalState`, in
+  :mod:`dualtwin.twins.base`), exact to floating-point precision on MuJoCo and through the Webots
+  supervisor API;
+* :func:`run_lockstep`: both twins get the same commands every control period, with a re-sync policy
+  (``never``, ``every:N``, ``threshold:X``), per-channel state differences logged;
+* :func:`prediction_error`: k-step prediction error from synchronised start states (multiple shooting),
+  also an alignment objective (``dualtwin.align.align(..., objective="prediction")``);
+* :class:`Monitor`: sliding-window statistics, a drift alarm with hysteresis, an event log and background
+  re-alignment applied at episode boundaries;
+* :class:`~dualtwin.sync.shadow.ShadowCallback`: a Webots shadow of MuJoCo RL training episodes
+  (imported lazily: it needs Stable-Baselines3);
+* :func:`write_sync_report`: HTML + JSON of prediction curves, drift, alarms and re-alignments.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from dualtwin.sync.channels import DEFAULT_UNIT_SCALES, channel_scales, normalized_error
+from dualtwin.sync.lockstep import EpisodeSummary, LockstepResult, ResyncPolicy, run_lockstep
+from dualtwin.sync.monitor import Monitor, MonitorConfig, RealignSettings, read_events
+from dualtwin.sync.predict import PredictionResult, PredictionSettings, predict, prediction_error
+from dualtwin.sync.record import (
+    CommandTap,
+    Trajectory,
+    load_trajectories,
+    record_trajectories,
+    save_trajectories,
+)
+from dualtwin.twins.base import BodyState, MechanicalState, SyncError
+
+if TYPE_CHECKING:
+    from dualtwin.sync.report import write_sync_report
+    from dualtwin.sync.shadow import ShadowCallback
+
+
+def __getattr__(name: str) -> Any:
+    # Lazy: the report pulls in matplotlib, the shadow callback Stable-Baselines3 and Gymnasium.
+    if name == "write_sync_report":
+        from dualtwin.sync.report import write_sync_report
+
+        return write_sync_report
+    if name == "ShadowCallback":
+        from dualtwin.sync.shadow import ShadowCallback
+
+        return ShadowCallback
+    raise AttributeError(f"module 'dualtwin.sync' has no attribute {name!r}")
+
+
+__all__ = [
+    "DEFAULT_UNIT_SCALES", "BodyState", "CommandTap", "EpisodeSummary", "LockstepResult", "MechanicalState",
+    "Monitor", "MonitorConfig", "PredictionResult", "PredictionSettings", "RealignSettings", "ResyncPolicy",
+    "ShadowCallback", "SyncError", "Trajectory", "channel_scales", "load_trajectories", "normalized_error",
+    "predict", "prediction_error", "read_events", "record_trajectories", "run_lockstep", "save_trajectories",
+    "write_sync_report",
+]

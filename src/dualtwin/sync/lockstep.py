@@ -1,0 +1,547 @@
+"""Lockstep twins: both twins get the same commands every control period; their state difference is logged.
+
+A *primary* twin (usually Webots, the stand-in for the real robot) and a *secondary* twin (usually MuJoCo,
+the model) run the same episodes side by side, period by period: suite scenarios (the paper's inputs), or
+episodes of a policy that acts on the *primary's* observations and sends the same action to both. After
+every period the runner reads both mechanical states, logs the per-channel difference (secondary minus
+primary) and the normalised state error (:mod:`dualtwin.sync.channels`), and applies a re-sync policy:
+
+* ``never``: open loop; the error grows with the chaos of the task and the model mismatch;
+* ``every:N``: every N periods the secondary is put into the primary's state (``set_state``), so errors are
+  measured over horizons of at most N periods (``every:1`` gives the one-period prediction error);
+* ``threshold:X``: the secondary is re-synced whenever the normalised error exceeds X.
+
+A re-sync into a state the secondary refuses (:class:`~dualtwin.twins.base.SyncError`: penetration,
+non-finite values, a violent response) ends the episode, which is recorded as ``skipped`` with the reason.
+
+Output folder::
+
+    OUT/manifest.json                 settings, versions, input hashes, seed, per-episode summary, knob updates
+    OUT/episodes/<id>/state_diff.tsv  time_s, error, resynced, horizon, one column per state channel
+    OUT/primary/, OUT/secondary/      suite-run folders of each twin (``dualtwin compare`` reads them)
+    OUT/trajectories.npz              the primary's states and commands (an alignment/prediction reference)
+    OUT/monitor_events.jsonl          the online monitor's event log, when a monitor is attached
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from dualtwin.artifacts import package_versions, sha256_file, write_json, write_text
+from dualtwin.errors import DualtwinError, SimulationUnstable
+from dualtwin.robots.binding import RobotBinding, resolve_robot
+from dualtwin.robots.io import RobotIO
+from dualtwin.suite.loader import load_suite
+from dualtwin.suite.runner import check_against_binding
+from dualtwin.sync.channels import DiffLayout, channel_scales
+from dualtwin.sync.monitor import Monitor
+from dualtwin.sync.record import (
+    CommandTap,
+    Trajectory,
+    TrajectoryRecorder,
+    apply_commands,
+    plan_scenarios,
+    save_trajectories,
+    start_scenario,
+)
+from dualtwin.twins import make_twin
+from dualtwin.twins.base import SyncError, Twin
+
+LOCKSTEP_SCHEMA = "dualtwin.lockstep/1"
+DEFAULT_POLICY_EPISODES = 5
+DEFAULT_POLICY_STEPS = 300
+
+
+@dataclass(frozen=True)
+class ResyncPolicy:
+    """When the secondary is put back into the primary's state (see the module docstring)."""
+
+    kind: Literal["never", "every", "threshold"] = "never"
+    every: int = 0
+    threshold: float = 0.0
+
+    @staticmethod
+    def parse(text: str | ResyncPolicy) -> ResyncPolicy:
+        """``never``, ``every:N`` (N >= 1) or ``threshold:X`` (X > 0)."""
+        if isinstance(text, ResyncPolicy):
+            return text
+        kind, _, arg = str(text).strip().partition(":")
+        try:
+            if kind == "never" and not arg:
+                return ResyncPolicy()
+            if kind == "every" and int(arg) >= 1:
+                return ResyncPolicy("every", every=int(arg))
+            if kind == "threshold" and float(arg) > 0 and math.isfinite(float(arg)):
+                return ResyncPolicy("threshold", threshold=float(arg))
+        except ValueError:
+            pass
+        raise DualtwinError(f"resync {text!r}: use 'never', 'every:N' (N >= 1) or 'threshold:X' (X > 0)")
+
+    def due(self, periods: int, error: float) -> bool:
+        if self.kind == "every":
+            return periods % self.every == 0
+        if self.kind == "threshold":
+            return error > self.threshold
+        return False
+
+    def __str__(self) -> str:
+        if self.kind == "every":
+            return f"every:{self.every}"
+        if self.kind == "threshold":
+            return f"threshold:{self.threshold:g}"
+        return "never"
+
+
+@dataclass
+class EpisodeSummary:
+    """One lockstep episode: how it ended and how far the twins drifted apart."""
+
+    id: str
+    status: str  # completed | failed | unstable | skipped
+    steps: int
+    resyncs: int
+    mean_error: float
+    max_error: float
+    final_error: float
+    error_by_horizon: dict[int, float] = field(default_factory=dict)
+    statuses: dict[str, str] = field(default_factory=dict)
+    failure: dict[str, Any] | None = None
+    rewards: dict[str, float] | None = None
+    knobs: dict[str, float] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"id": self.id, "status": self.status, "steps": self.steps, "resyncs": self.resyncs,
+                "mean_error": _finite(self.mean_error), "max_error": _finite(self.max_error),
+                "final_error": _finite(self.final_error),
+                "error_by_horizon": {str(h): _finite(v) for h, v in self.error_by_horizon.items()},
+                "statuses": self.statuses, "failure": self.failure, "rewards": self.rewards,
+                "secondary_knobs": self.knobs, "state_diff": f"episodes/{self.id}/state_diff.tsv"}
+
+
+@dataclass
+class LockstepResult:
+    """What :func:`run_lockstep` did and where it wrote it."""
+
+    out_dir: Path
+    manifest: dict[str, Any]
+    episodes: list[EpisodeSummary]
+    knob_updates: list[dict[str, Any]] = field(default_factory=list)
+
+    def error_by_horizon(self) -> dict[int, float]:
+        """Mean normalised error at each horizon (periods since the last sync), over all episodes' rows."""
+        sums: dict[int, list[float]] = {}
+        for ep in self.episodes:
+            for h, v in ep.error_by_horizon.items():
+                sums.setdefault(h, []).append(v)
+        return {h: float(np.mean(v)) for h, v in sorted(sums.items())}
+
+
+def _finite(value: float) -> float | None:
+    return float(value) if math.isfinite(value) else None
+
+
+def _format_rows(names: Sequence[str], rows: Sequence[Sequence[float]]) -> str:
+    """A TSV log like the suite runner's: ``time_s``, the named columns, floats as their shortest ``repr``."""
+    lines = ["\t".join(["time_s", *names])]
+    lines.extend("\t".join(map(repr, row)) for row in rows)
+    return "\n".join(lines) + "\n"
+
+
+class _Side:
+    """One twin of the pair with its tap, I/O and logs for the current episode."""
+
+    def __init__(self, label: str, twin: Twin, robot: RobotBinding) -> None:
+        self.label = label
+        self.tap = CommandTap(twin)
+        # Readers bind to the twin itself (sampled every period); commands and resets go through the tap.
+        self.io = RobotIO(robot, twin)
+        self.io.twin = self.tap
+        self.onboard: list[list[float]] = []
+        self.truth: list[list[float]] = []
+        self.status = "completed"
+        self.failure: dict[str, Any] | None = None
+        self.reward = 0.0
+
+    def begin(self) -> None:
+        self.onboard, self.truth = [], []
+        self.status, self.failure, self.reward = "completed", None, 0.0
+
+    def step(self) -> bool:
+        try:
+            self.tap.step()
+        except SimulationUnstable as exc:
+            self.status, self.failure = "unstable", {"time_s": round(self.tap.time, 9), "message": str(exc)}
+            return False
+        return True
+
+    def sample(self, t: float) -> bool:
+        onboard = [t, *self.io.sample_onboard()]
+        truth = [t, *self.io.sample_ground_truth()]
+        if not all(math.isfinite(v) for v in onboard + truth):
+            self.status, self.failure = "unstable", {"time_s": t, "message": "non-finite channel value"}
+            return False
+        self.onboard.append(onboard)
+        self.truth.append(truth)
+        return True
+
+
+class _Episode:
+    """How one episode starts and what is sent each period: a suite scenario or a policy's actions."""
+
+    def __init__(self, id: str, steps: int, begin: Callable[[], None],
+                 send: Callable[[int], None], after: Callable[[], bool] | None = None,
+                 rewards: Callable[[], dict[str, float]] | None = None) -> None:
+        self.id, self.steps, self.begin, self.send = id, steps, begin, send
+        self.after = after  # returns True when the episode is over (policy termination)
+        self.rewards = rewards
+
+
+def run_lockstep(
+    primary: str | Twin,
+    secondary: str | Twin,
+    robot: str | RobotBinding,
+    *,
+    out_dir: Path,
+    suite: Path | None = None,
+    policy: Path | str | None = None,
+    resync: str | ResyncPolicy = "never",
+    seed: int = 0,
+    episodes: int | None = None,
+    episode_steps: int | None = None,
+    scales: Mapping[str, float] | None = None,
+    primary_knobs: Mapping[str, float] | None = None,
+    secondary_knobs: Mapping[str, float] | None = None,
+    monitor: Monitor | None = None,
+    on_episode: Callable[[EpisodeSummary], None] | None = None,
+) -> LockstepResult:
+    """Run two twins in lockstep over a suite's scenarios or a policy's episodes (see the module docstring).
+
+    Args:
+        primary: Twin name (``webots``) or instance whose state is the reference.
+        secondary: Twin name (``mujoco``) or instance that follows (and is re-synced).
+        robot: Robot name or binding.
+        out_dir: Output folder (must be empty).
+        suite: Suite file; its scenarios are the episodes.
+        policy: Exported ONNX policy folder or training run; it acts on the primary's observations.
+        resync: ``never``, ``every:N`` or ``threshold:X``.
+        seed: Scenario seed (suite) or episode seed base (policy).
+        episodes: Policy episodes (default 5); with a suite, only the first ``episodes`` scenarios.
+        episode_steps: Policy episode length in control periods (default: the policy's time limit, else 300).
+        scales: Channel scale overrides (fnmatch patterns) for the normalised error.
+        primary_knobs: Knob values of the primary twin.
+        secondary_knobs: Knob values of the secondary twin (a monitor's updates are applied on top of them).
+        monitor: Optional online :class:`~dualtwin.sync.monitor.Monitor`; its knob updates are applied to the
+            secondary at episode boundaries only.
+        on_episode: Called with each episode's summary.
+
+    Raises:
+        DualtwinError: Bad input (neither or both of suite/policy, unknown names, non-empty output folder).
+    """
+    if (suite is None) == (policy is None):
+        raise DualtwinError("give exactly one of a suite (scenarios) or a policy (episodes)")
+    policy_obj_resync = ResyncPolicy.parse(resync)
+    binding = resolve_robot(robot) if isinstance(robot, str) else robot
+    out = Path(out_dir)
+    if out.exists() and any(out.iterdir()):
+        raise DualtwinError(f"{out}: output folder is not empty; choose another folder")
+
+    inputs: dict[str, Any] = {"binding": {"path": str(binding.path), "sha256": sha256_file(binding.path)}}
+    suite_obj = None
+    lockstep_policy = None
+    if suite is not None:
+        suite_path = Path(suite)
+        suite_obj = load_suite(suite_path)
+        check_against_binding(suite_obj, suite_path, binding)
+        period = suite_obj.global_settings.control_period_s
+        inputs["suite"] = {"path": str(suite_path), "sha256": sha256_file(suite_path)}
+    else:
+        from dualtwin.sync.policy import load_policy
+
+        lockstep_policy = load_policy(policy or "")
+        period = float(lockstep_policy.task_arguments().get("control_period", 0.032))
+        inputs["policy"] = {"path": str(lockstep_policy.path), "kind": lockstep_policy.kind,
+                            "env_id": lockstep_policy.env_id, "sha256": lockstep_policy.digest()}
+
+    owned: list[Twin] = []
+    twin_a = make_twin(primary, binding, period) if isinstance(primary, str) else primary
+    if isinstance(primary, str):
+        owned.append(twin_a)
+    twin_b = make_twin(secondary, binding, period) if isinstance(secondary, str) else secondary
+    if isinstance(secondary, str):
+        owned.append(twin_b)
+    try:
+        for twin in (twin_a, twin_b):
+            model = binding.model_path(twin.name) if twin.name in binding.spec.twins else None
+            if model is not None:
+                inputs[f"model_{twin.name}"] = {"path": str(model), "sha256": sha256_file(model)}
+        return _run(twin_a, twin_b, binding, out, suite_obj, lockstep_policy, policy_obj_resync, seed, episodes,
+                    episode_steps, scales, dict(primary_knobs or {}), dict(secondary_knobs or {}), monitor,
+                    on_episode, inputs, period)
+    finally:
+        for twin in owned:
+            twin.close()
+
+
+def _run(twin_a: Twin, twin_b: Twin, binding: RobotBinding, out: Path, suite: Any, lockstep_policy: Any,
+         resync: ResyncPolicy, seed: int, n_episodes: int | None, episode_steps: int | None,
+         scales: Mapping[str, float] | None, knobs_a: dict[str, float], knobs_b: dict[str, float],
+         monitor: Monitor | None, on_episode: Callable[[EpisodeSummary], None] | None,
+         inputs: dict[str, Any], period: float) -> LockstepResult:
+    a, b = _Side("primary", twin_a, binding), _Side("secondary", twin_b, binding)
+    a.tap.set_knobs(knobs_a)
+    b.tap.set_knobs(knobs_b)
+    plan = _episodes(a, b, binding, suite, lockstep_policy, seed, n_episodes, episode_steps, period)
+    layout = DiffLayout(a.tap.get_state(), b.tap.get_state())
+    channels = layout.channels
+    scale_map = channel_scales(channels, scales)
+    scale = np.array([scale_map[c] for c in channels])
+    # Differences are needed as they happen only to decide on a threshold re-sync or to feed a monitor;
+    # otherwise they are computed for the whole episode at once (vectorised), which keeps lockstep cheap.
+    online = resync.kind == "threshold" or monitor is not None
+    if monitor is not None:
+        monitor.attach(out / "monitor_events.jsonl", scale_map)
+
+    summaries: list[EpisodeSummary] = []
+    updates: list[dict[str, Any]] = []
+    trajectories: list[Trajectory] = []
+    records: dict[str, list[dict[str, Any]]] = {"primary": [], "secondary": []}
+    clock = 0.0  # simulated seconds over all episodes, for the monitor's event log
+    writer = ThreadPoolExecutor(max_workers=1, thread_name_prefix="lockstep-writer")
+    writes: list[Future[None]] = []
+    for episode in plan:
+        a.begin()
+        b.begin()
+        episode.begin()
+        recorder = TrajectoryRecorder(episode.id, a.tap, a.io.ground_truth_names)
+        if monitor is not None:
+            monitor.episode_start(episode.id, clock)
+        marks: list[tuple[float, float, float]] = []  # time, resynced, horizon
+        rows_a: list[np.ndarray] = []
+        rows_b: list[np.ndarray] = []
+        resyncs, horizon, skipped = 0, 0, None
+        for k in range(episode.steps):
+            episode.send(k)
+            ok_a, ok_b = a.step(), b.step()
+            t = round((k + 1) * period, 9)
+            if ok_a:
+                ok_a = a.sample(t)
+            if ok_b:
+                ok_b = b.sample(t)
+            if not (ok_a and ok_b):
+                break
+            state_a, state_b = a.tap.get_state(), b.tap.get_state()
+            full_a = state_a.vector()
+            va, vb = layout.vectors(full_a, state_b)
+            rows_a.append(va)
+            rows_b.append(vb)
+            error = math.nan
+            if online:
+                diff = layout.differences(va, vb)
+                error = float(layout.errors(diff, scale_map)[0])
+            horizon += 1
+            recorder.after_period(state_a, a.truth[-1][1:], full_a)
+            resynced = resync.due(k + 1, error)
+            if resynced:
+                try:
+                    b.tap.set_state(state_a)
+                except SyncError as exc:
+                    skipped = {"time_s": t, "reason": exc.reason, "message": str(exc)}
+                    resynced = False
+            marks.append((t, 1.0 if resynced else 0.0, float(horizon)))
+            if monitor is not None:
+                finite = np.isfinite(scale)
+                scaled = dict(zip((c for c, keep in zip(channels, finite, strict=True) if keep),
+                                  (diff[0][finite] / scale[finite]).tolist(), strict=True))
+                monitor.observe(clock + t, error, scaled, state=state_a, commands=dict(a.tap.active),
+                                period=period)
+            if skipped is not None:
+                break
+            if resynced:
+                resyncs += 1
+                horizon = 0
+            if episode.after is not None and episode.after():
+                break
+            stop = _threshold_failure(a, suite, binding, t) or _threshold_failure(b, suite, binding, t)
+            if stop:
+                break
+        if rows_a:
+            diffs = layout.differences(np.array(rows_a), np.array(rows_b))
+            errors = layout.errors(diffs, scale_map)
+        else:
+            diffs, errors = np.zeros((0, len(channels))), np.zeros(0)
+        rows = [[t, err, resynced, h, *d] for (t, resynced, h), err, d in zip(marks, errors.tolist(), diffs.tolist(),
+                                                                               strict=True)]
+        clock += len(rows) * period
+        trajectories.append(recorder.finish(a.status))
+        summary = _summarize(episode, rows, resyncs, a, b, skipped, knobs_b)
+        # Logs are formatted and written (with fsync) by a background thread while the next episode runs.
+        writes.append(writer.submit(write_text, out / "episodes" / episode.id / "state_diff.tsv",
+                                    _format_rows(["error", "resynced", "horizon", *channels], rows)))
+        if skipped is None:
+            for side in (a, b):
+                records[side.label].append(_side_logs(out, side, episode.id, len(summaries), writer, writes))
+        summaries.append(summary)
+        if monitor is not None:
+            update = monitor.episode_end(episode.id, clock)
+            if update is not None:
+                # Knob updates land between episodes only: never change physics under a running episode.
+                knobs_b = {**knobs_b, **update["knobs"]}
+                b.tap.set_knobs(knobs_b)
+                updates.append({**update, "applied_before_episode": len(summaries)})
+        if on_episode is not None:
+            on_episode(summary)
+
+    writer.shutdown(wait=True)
+    for write in writes:
+        write.result()  # a failed write fails the run, before any manifest names the file
+    versions = package_versions()
+    save_trajectories(out / "trajectories.npz", trajectories,
+                      {"twin": a.tap.name, "robot": binding.name, "knobs": knobs_a, "seed": seed})
+    name = getattr(suite, "suite_name", None) or f"policy:{getattr(lockstep_policy, 'path', '')}"
+    for side, twin, knobs in ((a, twin_a, knobs_a), (b, twin_b, knobs_b)):
+        write_json(out / side.label / "manifest.json", {
+            "manifest_version": 1, "suite_name": name, "twin": twin.name, "robot": binding.name, "seed": seed,
+            "control_period_s": period, "inputs": inputs, "versions": versions,
+            "channels": side.io.channel_info(), "tolerances": {}, "scenarios": records[side.label],
+            "knobs": knobs, "lockstep": {"role": side.label, "resync": str(resync)}})
+    manifest = {
+        "schema": LOCKSTEP_SCHEMA, "primary": twin_a.name, "secondary": twin_b.name, "robot": binding.name,
+        "mode": "suite" if suite is not None else "policy", "suite_name": name, "resync": str(resync),
+        "seed": seed, "control_period_s": period, "inputs": inputs, "versions": versions,
+        "knobs": {"primary": knobs_a, "secondary_initial": dict(summaries[0].knobs) if summaries else knobs_b},
+        "channels": {c: {"scale": _finite(scale_map[c])} for c in channels},
+        "episodes": [s.to_dict() for s in summaries],
+        "error_by_horizon": {}, "knob_updates": updates,
+        "files": {"primary": "primary", "secondary": "secondary", "trajectories": "trajectories.npz",
+                  "monitor_events": "monitor_events.jsonl" if monitor is not None else None},
+    }
+    result = LockstepResult(out, manifest, summaries, updates)
+    manifest["error_by_horizon"] = {str(h): v for h, v in result.error_by_horizon().items()}
+    write_json(out / "manifest.json", manifest)
+    return result
+
+
+def _threshold_failure(side: _Side, suite: Any, binding: RobotBinding, t: float) -> bool:
+    """The suite's failure thresholds stop an episode, as in the suite runner."""
+    if suite is None or not side.truth:
+        return False
+    for key, limit in suite.global_settings.thresholds.items():
+        channel = binding.spec.failures[key].channel
+        value = side.truth[-1][1 + side.io.ground_truth_index(channel)]
+        if abs(value) > limit:
+            side.status = "failed"
+            side.failure = {"key": key, "channel": channel, "time_s": t, "threshold": limit}
+            return True
+    return False
+
+
+def _summarize(episode: _Episode, rows: list[list[float]], resyncs: int, a: _Side, b: _Side,
+               skipped: dict[str, Any] | None, knobs: dict[str, float]) -> EpisodeSummary:
+    errors = np.array([r[1] for r in rows], dtype=float)
+    by_h: dict[int, list[float]] = {}
+    for r in rows:
+        by_h.setdefault(int(r[3]), []).append(r[1])
+    if skipped is not None:
+        status = "skipped"
+    elif "unstable" in (a.status, b.status):
+        status = "unstable"
+    elif "failed" in (a.status, b.status):
+        status = "failed"
+    else:
+        status = "completed"
+    return EpisodeSummary(
+        episode.id, status, len(rows), resyncs,
+        float(errors.mean()) if errors.size else math.nan, float(errors.max()) if errors.size else math.nan,
+        float(errors[-1]) if errors.size else math.nan,
+        {h: float(np.mean(v)) for h, v in sorted(by_h.items())},
+        {"primary": a.status, "secondary": b.status}, skipped or a.failure or b.failure,
+        episode.rewards() if episode.rewards is not None else None, dict(knobs))
+
+
+def _side_logs(out: Path, side: _Side, episode: str, index: int, writer: ThreadPoolExecutor,
+               writes: list[Future[None]]) -> dict[str, Any]:
+    """Queue one twin's episode logs for writing; returns its manifest entry (a suite-run scenario record)."""
+    onboard = f"scenarios/{episode}/onboard.tsv"
+    truth = f"scenarios/{episode}/ground_truth.tsv"
+    # The row lists are replaced, not cleared, when the next episode begins: the writer may still read them.
+    writes.append(writer.submit(_write_rows, out / side.label / onboard, side.io.onboard_names, side.onboard))
+    writes.append(writer.submit(_write_rows, out / side.label / truth, side.io.ground_truth_names, side.truth))
+    return {"id": episode, "index": index, "name": episode, "status": side.status, "failure": side.failure,
+            "steps": len(side.truth), "onboard": onboard, "ground_truth": truth}
+
+
+def _write_rows(path: Path, names: Sequence[str], rows: Sequence[Sequence[float]]) -> None:
+    write_text(path, _format_rows(names, rows))
+
+
+def _episodes(a: _Side, b: _Side, binding: RobotBinding, suite: Any, lockstep_policy: Any, seed: int,
+              n_episodes: int | None, episode_steps: int | None, period: float) -> list[_Episode]:
+    if suite is not None:
+        plans = plan_scenarios(suite, binding, seed)[: n_episodes or None]
+        episodes = []
+        for index, plan in enumerate(plans):
+
+            def begin(plan: Any = plan, index: int = index) -> None:
+                fresh = plan.fresh or index == 0
+                for side in (a, b):
+                    start_scenario(side.io, plan, plan.seed, fresh)
+
+            def send(k: int, plan: Any = plan) -> None:
+                commands = plan.commands(k, period)
+                for side in (a, b):
+                    apply_commands(side.io, commands)
+
+            episodes.append(_Episode(plan.id, plan.steps, begin, send))
+        return episodes
+    return _policy_episodes(a, b, lockstep_policy, seed, n_episodes, episode_steps)
+
+
+def _policy_episodes(a: _Side, b: _Side, lockstep_policy: Any, seed: int, n_episodes: int | None,
+                     episode_steps: int | None) -> list[_Episode]:
+    from dualtwin.rl.env import TASKS
+
+    args = lockstep_policy.task_arguments()
+    task_name = args.get("task", "cartpole_balance")
+    if task_name not in TASKS:
+        raise DualtwinError(f"policy {lockstep_policy.path}: unknown task {task_name!r}")
+    task_kwargs = dict(args.get("task_kwargs") or {})
+    tasks = {}
+    for side in (a, b):
+        task = TASKS[task_name](continuous=bool(args.get("continuous", False)), **task_kwargs)
+        task.bind(side.io)
+        tasks[side.label] = task
+    limit = getattr(getattr(lockstep_policy, "_loaded", None), "max_episode_steps", None)
+    steps = int(episode_steps or limit or DEFAULT_POLICY_STEPS)
+    rewards: dict[str, float] = {}
+
+    def make(index: int) -> _Episode:
+        def begin() -> None:
+            rewards.clear()
+            for side in (a, b):
+                side.tap.reset(seed + index)
+                # The same episode start on both twins: the same generator seed for the task's draw.
+                tasks[side.label].initialize_episode(np.random.default_rng(seed + index))
+                rewards[side.label] = 0.0
+
+        def send(k: int) -> None:
+            action = lockstep_policy.act(tasks["primary"].observation())
+            for side in (a, b):
+                tasks[side.label].apply_action(action)
+
+        def after() -> bool:
+            for side in (a, b):
+                tasks[side.label].sample()
+                rewards[side.label] += tasks[side.label].reward()
+            return bool(tasks["primary"].terminated())
+
+        return _Episode(f"{index:02d}_episode", steps, begin, send, after, lambda: dict(rewards))
+
+    return [make(i) for i in range(n_episodes or DEFAULT_POLICY_EPISODES)]
+
