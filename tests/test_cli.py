@@ -96,3 +96,17 @@ def test_convert_and_generate_bad_input(tmp_path: Path) -> None:
     assert not (tmp_path / "x.xml").exists()
     result = dualtwin("generate", "-o", str(tmp_path / "out"))
     assert result.returncode == 2 and "exactly one of" in result.stderr
+
+
+def test_lockstep_and_predict_error(tmp_path: Path) -> None:
+    path = suite(tmp_path, '{"suite_name": "s", "scenarios": [{"name": "a", "duration_s": 0.5, "initial_angle": 0.2}]}')
+    result = dualtwin("lockstep", "--robot", "cartpole", "--scenarios", str(path), "--resync", "every:2",
+                      "--out", str(tmp_path / "ls"))
+    assert result.returncode == 0, result.stderr
+    assert (tmp_path / "ls" / "report" / "report.html").is_file()
+    result = dualtwin("predict-error", "--robot", "cartpole", "--scenarios", str(path), "--horizons", "1,5",
+                      "--out", str(tmp_path / "pe"))
+    assert result.returncode == 0, result.stderr
+    result = dualtwin("lockstep", "--robot", "cartpole", "--scenarios", str(path), "--resync", "sometimes",
+                      "--out", str(tmp_path / "bad"))
+    assert result.returncode == 2 and "Traceback" not in result.stderr

@@ -114,6 +114,9 @@ def align(
     resume: Annotated[bool, typer.Option(help="continue from the last checkpoint in OUT")] = False,
     executor: Annotated[str, typer.Option(help="process (default) or ray")] = "process",
     address: Annotated[str | None, typer.Option(help="Ray cluster address, with --executor ray")] = None,
+    objective: Annotated[str, typer.Option(help="trajectory (suite runs) or prediction (short horizons)")]
+    = "trajectory",
+    horizons: Annotated[str, typer.Option(help="prediction horizons in control periods, e.g. 1,5")] = "1,5",
 ) -> None:
     """Fit the target twin's knobs to the reference; write knobs, DR ranges, patched model and report."""
     from dualtwin.align import align as run_align
@@ -123,11 +126,69 @@ def align(
         raise DualtwinError(f"--optimizer must be cma or lsq, not {optimizer!r}")
     if executor not in ("process", "ray"):
         raise DualtwinError(f"--executor must be process or ray, not {executor!r}")
-    result = run_align(Path(reference) if Path(reference).is_dir() else reference, target, robot, scenarios,
-                       knobs, out, optimizer=optimizer, seed=seed, budget=budget, resume=resume,  # type: ignore[arg-type]
-                       executor=executor, ray_address=address, holdout=holdout)  # type: ignore[arg-type]
+    if objective not in ("trajectory", "prediction"):
+        raise DualtwinError(f"--objective must be trajectory or prediction, not {objective!r}")
+    ref: str | Path = Path(reference) if Path(reference).exists() else reference
+    extra = {"objective": objective, "horizons": _int_list(horizons, "--horizons")} if objective == "prediction" else {}
+    result = run_align(ref, target, robot, scenarios, knobs, out, optimizer=optimizer,  # type: ignore[arg-type]
+                       seed=seed, budget=budget, resume=resume, executor=executor,  # type: ignore[arg-type]
+                       ray_address=address, holdout=holdout, **extra)  # type: ignore[arg-type]
     print_result(result, console)
     console.print(f"wrote {out}")
+
+
+def _int_list(text: str, option: str) -> list[int]:
+    try:
+        values = [int(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise DualtwinError(f"{option} must be comma-separated whole numbers, not {text!r}") from None
+    if not values or min(values) < 1:
+        raise DualtwinError(f"{option} must list positive whole numbers, not {text!r}")
+    return values
+
+
+@app.command("lockstep")
+def lockstep(
+    robot: Annotated[str, typer.Option(help="bundled robot name or binding file")],
+    out: Annotated[Path, typer.Option(help="output directory")],
+    primary: Annotated[str, typer.Option(help="twin whose state is the reference")] = "webots",
+    secondary: Annotated[str, typer.Option(help="twin re-seated in the primary's state")] = "mujoco",
+    scenarios: Annotated[Path | None, typer.Option(help="suite JSON file (commands)")] = None,
+    policy: Annotated[Path | None, typer.Option(help="exported policy folder or training run (commands)")] = None,
+    resync: Annotated[str, typer.Option(help="never | every:N | threshold:X")] = "never",
+    episodes: Annotated[int | None, typer.Option(help="episodes to run with --policy")] = None,
+    seed: Annotated[int, typer.Option(help="seed")] = 0,
+) -> None:
+    """Run two twins side by side with the same commands; log the per-period state difference."""
+    from dualtwin.sync import run_lockstep, write_sync_report
+
+    if (scenarios is None) == (policy is None):
+        raise DualtwinError("give exactly one of --scenarios or --policy")
+    result = run_lockstep(primary, secondary, robot, out_dir=out, suite=scenarios, policy=policy, resync=resync,
+                          seed=seed, episodes=episodes)
+    report = write_sync_report(out / "report", lockstep=result)
+    for episode in result.episodes:
+        console.print(f"  {episode.id:<28} mean normalised error {episode.mean_error:.4g}")
+    console.print(f"report: {report}")
+
+
+@app.command("predict-error")
+def predict_error(
+    robot: Annotated[str, typer.Option(help="bundled robot name or binding file")],
+    scenarios: Annotated[Path, typer.Option(help="suite JSON file")],
+    out: Annotated[Path, typer.Option(help="output directory")],
+    primary: Annotated[str, typer.Option(help="reference twin")] = "webots",
+    secondary: Annotated[str, typer.Option(help="predicting twin")] = "mujoco",
+    horizons: Annotated[str, typer.Option(help="horizons in control periods")] = "1,5,25",
+    stride: Annotated[int, typer.Option(help="periods between synchronised start states")] = 5,
+) -> None:
+    """Short-horizon prediction error from synchronised states: the chaos-insensitive model mismatch."""
+    from dualtwin.sync import prediction_error, write_sync_report
+
+    result = prediction_error(primary, secondary, robot, suite=scenarios, out_dir=out,
+                              horizons=_int_list(horizons, "--horizons"), stride=stride)
+    report = write_sync_report(out / "report", prediction=result)
+    console.print(f"report: {report}")
 
 
 @app.command("demo")
