@@ -1,0 +1,383 @@
+"""A Gymnasium env over any twin, with the task kept apart from the twin (dm_control's Physics/Task split).
+
+The twin is physics only. A :class:`Task` reads the robot through its binding's channel names (on-board sensors
+and the supervisor's ground truth, :class:`dualtwin.robots.io.RobotIO`) and turns that into observations,
+rewards and terminations; :class:`TwinEnv` only orchestrates reset, action and step. So one task runs
+unchanged on every twin, and the env's I/O contract (:meth:`TwinEnv.io_contract`) is the same on all of them.
+
+Time limits come from the Gymnasium registry (``TimeLimit``), as for every Gymnasium env:
+``gym.make(id, max_episode_steps=2000)`` changes the default of 1000 control periods.
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from dataclasses import asdict, dataclass
+from typing import Any, Literal
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from dualtwin.errors import DualtwinError, SimulationUnstable
+from dualtwin.robots.binding import RobotBinding, resolve_robot
+from dualtwin.robots.io import RobotIO
+from dualtwin.twins import make_twin
+from dualtwin.twins.base import Twin
+
+Source = Literal["onboard", "privileged"]
+
+
+@dataclass(frozen=True)
+class ObservationTerm:
+    """One entry of the observation vector, and where the robot gets it from."""
+
+    name: str
+    unit: str
+    source: Source
+    channel: str
+    description: str = ""
+
+
+class Task(ABC):
+    """Observation, reward, termination and action semantics, written once against the twin contract."""
+
+    observation_terms: tuple[ObservationTerm, ...]
+
+    @abstractmethod
+    def bind(self, io: RobotIO) -> None:
+        """Resolve the binding's names once, before the first episode."""
+
+    @abstractmethod
+    def action_space(self) -> spaces.Space[Any]: ...
+
+    @abstractmethod
+    def action_contract(self) -> dict[str, Any]:
+        """Names, units and scaling of the action, for the I/O contract."""
+
+    @abstractmethod
+    def initialize_episode(self, rng: np.random.Generator) -> None:
+        """Put the robot in this episode's initial state (the twin has just been reset)."""
+
+    @abstractmethod
+    def apply_action(self, action: Any) -> None: ...
+
+    @abstractmethod
+    def sample(self) -> None:
+        """Read the robot once after a control period; the getters below use this sample."""
+
+    @abstractmethod
+    def observation(self) -> np.ndarray: ...
+
+    @abstractmethod
+    def reward(self) -> float: ...
+
+    @abstractmethod
+    def terminated(self) -> bool: ...
+
+    def info(self) -> dict[str, Any]:
+        return {}
+
+    def contract(self) -> dict[str, Any]:
+        return {}
+
+
+class CartPoleBalance(Task):
+    """Keep the pole up on the wheeled cart (the paper's reward: +1 per control period with |pole| <= 0.3 rad,
+    counted only while the chassis is upright, within ``upright_angle`` of level).
+
+    Observation (float32): cart position and cart velocity (wheel odometry, on-board), pole angle (pole
+    encoder, on-board), pole angular velocity (supervisor, privileged). The episode does not end when the pole
+    falls (the reward counts balanced steps); it ends when the cart leaves ``|x| <= x_limit`` (ground truth).
+    Actions are cart speeds, sent to every wheel as angular velocity = speed / wheel radius.
+
+    ``cart_velocity="ground_truth"`` uses the supervisor's cart velocity instead. It is not the default: it
+    carries the tyres' creep under load, which a memoryless policy cannot separate from the command (PPO does
+    not learn with it within 10 minutes, and neither does a hand-tuned linear controller).
+    """
+
+    GROUND_TRUTH_TERMS = (
+        ObservationTerm("cart_position", "m", "onboard", "cart_pos_m", "mean wheel encoder angle x wheel radius"),
+        ObservationTerm("cart_velocity", "m/s", "privileged", "cart_vel_m_s", "supervisor ground truth"),
+        ObservationTerm("pole_angle", "rad", "onboard", "pole_angle_rad", "pole hinge encoder"),
+        ObservationTerm("pole_angular_velocity", "rad/s", "privileged", "pole_velocity_rad_s",
+                        "supervisor ground truth"),
+    )
+    ODOMETRY_VELOCITY = ObservationTerm(
+        "cart_velocity", "m/s", "onboard", "cart_pos_m",
+        "wheel odometry: change of cart_position over the last control period / control period")
+
+    def __init__(self, *, continuous: bool = False, max_cart_speed: float = 1.5, x_limit: float = 2.4,
+                 balance_angle: float = 0.3, initial_angle: float = 0.05, action_key: str = "wheel_velocity",
+                 pole_joint: str = "pole_hinge",
+                 cart_velocity: Literal["ground_truth", "odometry"] = "odometry",
+                 upright_angle: float = 0.5) -> None:
+        if min(max_cart_speed, x_limit, balance_angle, upright_angle) <= 0 or initial_angle < 0:
+            raise DualtwinError("CartPoleBalance: max_cart_speed, x_limit, balance_angle and upright_angle must "
+                                "be > 0, initial_angle >= 0")
+        self.continuous = continuous
+        self.max_cart_speed = float(max_cart_speed)
+        self.x_limit = float(x_limit)
+        self.balance_angle = float(balance_angle)
+        self.initial_angle = float(initial_angle)
+        self.action_key = action_key
+        self.pole_joint = pole_joint
+        self.upright_angle = float(upright_angle)
+        self._tilt = 0.0
+        if cart_velocity not in ("ground_truth", "odometry"):
+            raise DualtwinError(f"CartPoleBalance: cart_velocity must be 'ground_truth' or 'odometry', "
+                                f"got {cart_velocity!r}")
+        # Odometry velocity is what the wheels (and so the velocity servos) do; the supervisor's cart velocity
+        # also carries the tyres' creep under load, which a memoryless policy cannot separate from the command.
+        self.odometry_velocity = cart_velocity == "odometry"
+        terms = list(self.GROUND_TRUTH_TERMS)
+        if self.odometry_velocity:
+            terms[1] = self.ODOMETRY_VELOCITY
+        self.observation_terms = tuple(terms)
+        self._previous_odometry = 0.0
+        self._odometry_index = 0
+        self._io: RobotIO | None = None
+        self._onboard = np.zeros(0)
+        self._truth = np.zeros(0)
+
+    def bind(self, io: RobotIO) -> None:
+        spec = io.robot.spec
+        for term in self.observation_terms:
+            table = spec.onboard if term.source == "onboard" else spec.ground_truth
+            if term.channel not in table:
+                where = "onboard" if term.source == "onboard" else "ground_truth"
+                raise DualtwinError(f"{io.robot.path}: task cartpole_balance needs {where} channel "
+                                    f"{term.channel!r} (the binding has: {', '.join(sorted(table))})")
+        for channel in ("pole_angle_rad", "cart_pos_m"):
+            if channel not in spec.ground_truth:
+                raise DualtwinError(f"{io.robot.path}: task cartpole_balance needs ground_truth channel {channel!r}")
+        action = spec.actions.get(self.action_key)
+        if action is None or action.mode != "velocity":
+            raise DualtwinError(f"{io.robot.path}: task cartpole_balance needs a velocity action "
+                                f"{self.action_key!r} (the binding has: {', '.join(sorted(spec.actions))})")
+        # Wheel odometry is encoder angle x radius, so the odometry channel's scale is the wheel radius.
+        self.wheel_radius = float(spec.onboard["cart_pos_m"].scale)
+        self.actuators = list(action.actuators)
+        self._io = io
+        onboard, truth = io.onboard_names, io.ground_truth_names
+        self._obs_index = [(0 if t.source == "onboard" else 1,
+                            (onboard if t.source == "onboard" else truth).index(t.channel))
+                           for t in self.observation_terms]
+        self._odometry_index = onboard.index("cart_pos_m")
+        self.cart_body = spec.ground_truth["cart_pos_m"].body or "cart"
+        self._period = io.twin.control_period
+        self._true_angle = truth.index("pole_angle_rad")
+        self._true_x = truth.index("cart_pos_m")
+
+    @property
+    def io(self) -> RobotIO:
+        if self._io is None:
+            raise RuntimeError("task is not bound to a robot")
+        return self._io
+
+    def action_space(self) -> spaces.Space[Any]:
+        if self.continuous:
+            return spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
+        return spaces.Discrete(2)
+
+    def speed_table(self) -> list[float]:
+        return [-self.max_cart_speed, self.max_cart_speed]
+
+    def action_contract(self) -> dict[str, Any]:
+        common = {
+            "names": ["cart_velocity"], "unit": "m/s",
+            "actuators": self.actuators, "actuator_mode": "velocity", "actuator_unit": "rad/s",
+            "wheel_radius_m": self.wheel_radius,
+            "to_actuator": "wheel angular velocity = cart velocity / wheel_radius_m, same for every actuator",
+        }
+        if self.continuous:
+            return {"type": "box", "shape": [1], "low": [-1.0], "high": [1.0], "dtype": "float32",
+                    "scaling": f"cart velocity = clip(action, -1, 1) * {self.max_cart_speed}",
+                    "scale": self.max_cart_speed, **common}
+        return {"type": "discrete", "n": 2, "speed_table": self.speed_table(),
+                "scaling": "cart velocity = speed_table[action]", **common}
+
+    def contract(self) -> dict[str, Any]:
+        return {"name": "cartpole_balance", "cart_velocity": "odometry" if self.odometry_velocity else "ground_truth",
+                "x_limit_m": self.x_limit, "balance_angle_rad": self.balance_angle,
+                "initial_angle_rad": self.initial_angle, "upright_angle_rad": self.upright_angle,
+                "reward": f"+1 per control period while |pole hinge angle| <= {self.balance_angle} rad and the "
+                f"chassis is within {self.upright_angle} rad of upright (ground truth), else 0; no termination "
+                "on the pole angle",
+                "termination": f"|cart x| > {self.x_limit} m (ground truth)"}
+
+    def initialize_episode(self, rng: np.random.Generator) -> None:
+        io = self.io
+        angle = float(rng.uniform(-self.initial_angle, self.initial_angle))
+        io.twin.set_joint_state(self.pole_joint, position=angle, velocity=0.0)
+        # One control period with the wheels held at zero speed: a Webots supervisor's teleport only shows in
+        # the sensors after the next physics step, so this makes the first observation mean the same on all twins.
+        self._command(0.0)
+        self.sample()
+        io.twin.step()
+        self.sample()
+
+    def _command(self, cart_speed: float) -> None:
+        wheel = cart_speed / self.wheel_radius
+        twin = self.io.twin
+        for actuator in self.actuators:
+            twin.command(actuator, "velocity", wheel)
+
+    def cart_speed(self, action: Any) -> float:
+        if self.continuous:
+            value = float(np.clip(np.asarray(action, dtype=np.float64).reshape(-1)[0], -1.0, 1.0))
+            return value * self.max_cart_speed
+        index = int(action)
+        if index not in (0, 1):
+            raise DualtwinError(f"cartpole_balance: discrete action must be 0 or 1, got {action!r}")
+        return self.speed_table()[index]
+
+    def apply_action(self, action: Any) -> None:
+        self._command(self.cart_speed(action))
+
+    def sample(self) -> None:
+        io = self.io
+        if len(self._onboard):
+            self._previous_odometry = float(self._onboard[self._odometry_index])
+        self._onboard = np.asarray(io.sample_onboard(), dtype=np.float64)
+        self._truth = np.asarray(io.sample_ground_truth(), dtype=np.float64)
+        # Angle between the chassis' up axis and the world's: 0 on four wheels, pi upside down.
+        up = float(io.twin.body_orientation(self.cart_body)[2, 2])
+        self._tilt = math.acos(max(-1.0, min(1.0, up)))
+        if not math.isfinite(self._previous_odometry):
+            # Webots sensors read NaN until their first physics step (just after a reset): report zero speed.
+            self._previous_odometry = float(self._onboard[self._odometry_index])
+
+    def observation(self) -> np.ndarray:
+        rows = (self._onboard, self._truth)
+        values = [rows[r][i] for r, i in self._obs_index]
+        if self.odometry_velocity:
+            values[1] = (self._onboard[self._odometry_index] - self._previous_odometry) / self._period
+        return np.array(values, dtype=np.float32)
+
+    def reward(self) -> float:
+        # The pole angle is measured at the hinge, relative to the chassis: a cart lying on its back or side can
+        # hold the hinge within the band with nothing balanced (PPO finds that in MuJoCo). So the chassis must
+        # be upright too; 0.5 rad leaves room for the pitch of full-traction starts (about 0.13 rad).
+        upright = self._tilt <= self.upright_angle
+        return 1.0 if upright and abs(self._truth[self._true_angle]) <= self.balance_angle else 0.0
+
+    def terminated(self) -> bool:
+        return bool(abs(self._truth[self._true_x]) > self.x_limit)
+
+    def info(self) -> dict[str, Any]:
+        return {"true_pole_angle": float(self._truth[self._true_angle]),
+                "true_cart_position": float(self._truth[self._true_x]), "true_cart_tilt": self._tilt}
+
+
+TASKS: dict[str, type[CartPoleBalance]] = {"cartpole_balance": CartPoleBalance}
+
+
+class TwinEnv(gym.Env[np.ndarray, Any]):
+    """A Gymnasium env: one twin (``mujoco``, ``webots``) running one task.
+
+    Args:
+        twin: twin name (:data:`dualtwin.twins.TWINS`).
+        robot: bundled robot name or binding file.
+        task: task name (:data:`TASKS`).
+        continuous: Box([-1], [1]) actions instead of Discrete(2).
+        control_period: seconds of simulation per ``step``.
+        knobs: fixed knob values (from nominal) that define this env's physics; a reset's
+            ``options={"knobs": {...}}`` adds to and overrides them for that episode.
+        render_mode: ``"rgb_array"`` if the twin can render (the task's camera).
+        task_kwargs: extra task arguments (``x_limit``, ``max_cart_speed``...).
+    """
+
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 31}
+
+    def __init__(self, twin: str = "mujoco", robot: str = "cartpole", task: str = "cartpole_balance", *,
+                 continuous: bool = False, control_period: float = 0.032, knobs: dict[str, float] | None = None,
+                 render_mode: str | None = None, camera: str = "side", render_size: tuple[int, int] = (480, 640),
+                 task_kwargs: dict[str, Any] | None = None) -> None:
+        if task not in TASKS:
+            raise DualtwinError(f"unknown task {task!r} (available: {', '.join(sorted(TASKS))})")
+        self.robot: RobotBinding = resolve_robot(robot)
+        self.twin_name = twin
+        self.robot_name = robot
+        self.task_name = task
+        self.twin: Twin = make_twin(twin, self.robot, control_period)
+        self.io = RobotIO(self.robot, self.twin)
+        self.task = TASKS[task](continuous=continuous, **(task_kwargs or {}))
+        self.task.bind(self.io)
+        self.base_knobs = dict(knobs or {})
+        self._check_knobs(self.base_knobs)
+        can_render = type(self.twin).render is not Twin.render
+        # Per instance: the frame rate follows the control period and only rendering twins offer rgb_array.
+        self.metadata = {"render_modes": ["rgb_array"] if can_render else [],
+                         "render_fps": int(round(1.0 / control_period))}
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise DualtwinError(f"render_mode {render_mode!r} is not supported by twin {twin!r} "
+                                f"(supported: {self.metadata['render_modes'] or 'none'})")
+        self.render_mode = render_mode
+        self.camera = camera
+        self.render_size = render_size
+        self.control_period = control_period
+        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(len(self.task.observation_terms),),
+                                            dtype=np.float32)
+        self.action_space = self.task.action_space()
+        self.knob_values: dict[str, float] = {}
+
+    def _check_knobs(self, values: dict[str, float]) -> None:
+        unknown = sorted(set(values) - set(self.twin.knobs()))
+        if unknown:
+            raise DualtwinError(f"twin {self.twin_name!r} has no knobs named: {', '.join(unknown)}")
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
+              ) -> tuple[np.ndarray, dict[str, Any]]:
+        super().reset(seed=seed)
+        overrides = dict((options or {}).get("knobs") or {})
+        knobs = {**self.base_knobs, **overrides}
+        if overrides:
+            self._check_knobs(overrides)
+        # The twin's own noise stream is seeded from ours, so reset(seed=s) fixes the whole episode.
+        self.twin.reset(int(self.np_random.integers(2**31 - 1)))
+        # Every reset, from nominal: episode knobs never compound (mjlab #38).
+        self.twin.set_knobs(knobs)
+        self.knob_values = knobs
+        self.task.initialize_episode(self.np_random)
+        return self.task.observation(), self.task.info()
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        self.task.apply_action(action)
+        try:
+            self.twin.step()
+        except SimulationUnstable as exc:
+            # The episode cannot continue; report it rather than crash a long training run.
+            info = {**self.task.info(), "unstable": str(exc)}
+            return self.task.observation(), 0.0, True, False, info
+        self.task.sample()
+        return self.task.observation(), self.task.reward(), self.task.terminated(), False, self.task.info()
+
+    def render(self) -> np.ndarray | None:  # type: ignore[override]
+        if self.render_mode != "rgb_array":
+            return None
+        height, width = self.render_size
+        return self.twin.render(self.camera, width, height)
+
+    def close(self) -> None:
+        self.twin.close()
+
+    def io_contract(self) -> dict[str, Any]:
+        """What a policy trained here consumes and produces: compared on transfer, shipped with exports."""
+        spec = self.spec
+        return {
+            "env_id": spec.id if spec is not None else None,
+            "twin": self.twin_name,
+            "robot": self.robot_name,
+            "task": self.task.contract(),
+            "control_period_s": self.control_period,
+            "observation": {
+                "shape": list(self.observation_space.shape or ()), "dtype": "float32",
+                "terms": [{"index": i, **asdict(t)} for i, t in enumerate(self.task.observation_terms)],
+            },
+            "action": self.task.action_contract(),
+        }
+
+
+__all__ = ["TASKS", "CartPoleBalance", "ObservationTerm", "Task", "TwinEnv"]

@@ -1,0 +1,115 @@
+"""A trained run restored in one line (model + VecNormalize statistics), and the I/O contract check.
+
+``policy = load_policy("runs/ppo")``; ``action = policy.predict(obs)`` takes a raw env observation.
+"""
+
+from __future__ import annotations
+
+import json
+import pickle
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+
+from dualtwin.errors import DualtwinError
+
+if TYPE_CHECKING:
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecNormalize
+
+
+@dataclass
+class LoadedPolicy:
+    """A trained policy with the observation normalisation it was trained with."""
+
+    run_dir: Path
+    model: PPO
+    vec_normalize: VecNormalize | None
+    env_id: str
+    env_kwargs: dict[str, Any] = field(default_factory=dict)
+    contract: dict[str, Any] = field(default_factory=dict)
+    max_episode_steps: int | None = None
+
+    def normalize(self, obs: np.ndarray) -> np.ndarray:
+        """Raw env observation(s) -> what the network sees (VecNormalize's clip((obs - mean) / std))."""
+        if self.vec_normalize is None:
+            return np.asarray(obs, dtype=np.float32)
+        return np.asarray(self.vec_normalize.normalize_obs(np.asarray(obs, dtype=np.float32)))
+
+    def predict(self, obs: np.ndarray, deterministic: bool = True) -> Any:
+        """The env action for a raw observation (or a batch of them)."""
+        action, _ = self.model.predict(self.normalize(obs), deterministic=deterministic)
+        return action
+
+    def make_env(self, **overrides: Any) -> gym.Env[Any, Any]:
+        """The env the policy was trained in (same id and arguments), without domain randomisation."""
+        from dualtwin.rl import make_env
+
+        kwargs = dict(self.env_kwargs)
+        if self.max_episode_steps is not None:
+            kwargs.setdefault("max_episode_steps", self.max_episode_steps)
+        kwargs.update(overrides)
+        return make_env(self.env_id, **kwargs)
+
+
+def load_policy(run_dir: Path | str, which: Literal["final", "best"] = "final") -> LoadedPolicy:
+    """Restore a training run's policy: ``model.zip`` + ``vecnormalize.pkl`` (``best_*`` with ``which="best"``)."""
+    from stable_baselines3 import PPO
+
+    run = Path(run_dir)
+    record_path = run / "run.json"
+    if not record_path.is_file():
+        raise DualtwinError(f"{run}: not a training run (no run.json)")
+    record = json.loads(record_path.read_text(encoding="utf-8"))
+    prefix = "" if which == "final" else "best_"
+    model_path = run / f"{prefix}model.zip"
+    if not model_path.is_file():
+        hint = " (the run did not finish; resume it)" if which == "final" else ""
+        raise DualtwinError(f"{run}: no {model_path.name}{hint}")
+    stats_path = run / f"{prefix}vecnormalize.pkl"
+    stats: VecNormalize | None = None
+    if stats_path.is_file():
+        # Unpickled without a venv: only its statistics are used (normalize_obs), never stepped.
+        with open(stats_path, "rb") as handle:
+            stats = pickle.load(handle)  # noqa: S301 - our own run artifact
+        stats.training = False
+        stats.norm_reward = False
+    elif record.get("config", {}).get("normalize") not in (False, None):
+        raise DualtwinError(f"{run}: {stats_path.name} is missing; the policy needs its normalisation statistics")
+    model = PPO.load(str(model_path), device="cpu")
+    return LoadedPolicy(run, model, stats, record["env_id"], dict(record.get("env_kwargs") or {}),
+                        dict(record.get("io") or {}), record.get("max_episode_steps"))
+
+
+def _signature(contract: dict[str, Any]) -> dict[str, Any]:
+    obs = contract.get("observation", {})
+    action = dict(contract.get("action", {}))
+    # The actuator wiring may differ between twins; what the policy emits may not.
+    for key in ("actuators", "to_actuator", "wheel_radius_m"):
+        action.pop(key, None)
+    return {
+        "observation names": [t.get("name") for t in obs.get("terms", [])],
+        "observation units": [t.get("unit") for t in obs.get("terms", [])],
+        "observation sources": [f"{t.get('source')}:{t.get('channel')}" for t in obs.get("terms", [])],
+        "observation shape": obs.get("shape"),
+        "observation dtype": obs.get("dtype"),
+        "action": action,
+        "control period": contract.get("control_period_s"),
+    }
+
+
+def contract_mismatches(policy: dict[str, Any], env: dict[str, Any]) -> list[str]:
+    """What differs between a policy's I/O contract and an env's (empty if the policy can run there)."""
+    a, b = _signature(policy), _signature(env)
+    return [f"{key}: policy {a[key]!r} vs env {b[key]!r}" for key in a if a[key] != b[key]]
+
+
+def check_contract(policy: dict[str, Any], env: dict[str, Any], env_id: str) -> None:
+    """Raise a :class:`DualtwinError` naming every mismatch between the policy's and the env's I/O."""
+    problems = contract_mismatches(policy, env)
+    if problems:
+        raise DualtwinError(f"policy trained on {policy.get('env_id')!r} does not match {env_id!r}: "
+                            + "; ".join(problems))

@@ -1,0 +1,193 @@
+"""Domain randomisation and aligned-knob application, both through the twin's knob registry.
+
+Ranges file (written by alignment; JSON or YAML)::
+
+    {"knobs": {"joint.pole_hinge.damping":
+        {"nominal": 0.0, "fitted": 0.05, "low": 0.04, "high": 0.06, "distribution": "uniform"}}}
+
+``low``/``high`` are knob values (``operation: "abs"``, the default) or factors of the twin's nominal value
+(``operation: "scale"``). Every reset draws fresh values and hands them to the env, which applies them with
+``twin.set_knobs`` from nominal: a draw never builds on the previous episode's (mjlab #38).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, Literal
+
+import gymnasium as gym
+import numpy as np
+import yaml
+from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
+
+from dualtwin.errors import DualtwinError
+from dualtwin.twins.base import Knob
+
+
+class KnobRange(BaseModel):
+    """How one knob is drawn at each reset."""
+
+    model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
+
+    low: float
+    high: float
+    distribution: Literal["uniform", "log_uniform"] = "uniform"
+    operation: Literal["abs", "scale"] = "abs"
+    nominal: float | None = None
+    fitted: float | None = None
+
+    @model_validator(mode="after")
+    def _valid(self) -> KnobRange:
+        if self.low > self.high:
+            raise ValueError(f"low ({self.low}) must not exceed high ({self.high})")
+        if self.distribution == "log_uniform" and self.low <= 0:
+            raise ValueError("log_uniform needs low > 0")
+        return self
+
+
+class _RangesFile(BaseModel):
+    model_config = ConfigDict(extra="allow")
+
+    knobs: dict[str, KnobRange]
+
+
+def _read_mapping(source: Path | str | Mapping[str, Any], what: str) -> tuple[dict[str, Any], str]:
+    if isinstance(source, Mapping):
+        return dict(source), f"<{what} dict>"
+    path = Path(source)
+    if not path.is_file():
+        raise DualtwinError(f"{path}: {what} file not found")
+    text = path.read_text(encoding="utf-8")
+    try:
+        data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
+    except (json.JSONDecodeError, yaml.YAMLError) as exc:
+        raise DualtwinError(f"{path}: not valid {'JSON' if path.suffix == '.json' else 'YAML'}: {exc}") from None
+    if not isinstance(data, dict):
+        raise DualtwinError(f"{path}: a {what} file must hold a mapping")
+    return data, str(path)
+
+
+def load_ranges(source: Path | str | Mapping[str, Any]) -> dict[str, KnobRange]:
+    """Read and validate a ranges file (or dict) of the format above."""
+    data, origin = _read_mapping(source, "ranges")
+    try:
+        return dict(_RangesFile.model_validate(data).knobs)
+    except ValidationError as exc:
+        problems = "; ".join(f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in exc.errors())
+        raise DualtwinError(f"{origin}: invalid ranges: {problems}") from None
+
+
+def load_knob_values(source: Path | str | Mapping[str, Any]) -> dict[str, float]:
+    """Aligned knob values from ``{"knobs": {name: {"fitted": v, ...}}}`` or a plain ``{name: value}``."""
+    data, origin = _read_mapping(source, "knobs")
+    entries = data["knobs"] if isinstance(data.get("knobs"), Mapping) else data
+    values: dict[str, float] = {}
+    for name, entry in entries.items():
+        if isinstance(entry, Mapping):
+            value = entry.get("fitted", entry.get("value"))
+        else:
+            value = entry
+        if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+            raise DualtwinError(f"{origin}: knob {name!r} needs a finite number (or a 'fitted' entry), "
+                                f"got {entry!r}")
+        values[str(name)] = float(value)
+    return values
+
+
+def _twin_knobs(env: gym.Env[Any, Any]) -> dict[str, Knob]:
+    twin = getattr(env.unwrapped, "twin", None)
+    if twin is None:
+        raise DualtwinError(f"{env.unwrapped!r} is not a dualtwin env (it has no twin)")
+    knobs: dict[str, Knob] = twin.knobs()
+    return knobs
+
+
+def _check_names(names: list[str], known: dict[str, Knob], origin: str) -> None:
+    unknown = sorted(set(names) - set(known))
+    if unknown:
+        raise DualtwinError(f"{origin}: the twin has no knobs named {', '.join(unknown)} "
+                            f"(it has: {', '.join(sorted(known))})")
+
+
+def draw_knobs(ranges: Mapping[str, KnobRange], nominal: Mapping[str, float],
+               rng: np.random.Generator) -> dict[str, float]:
+    """One draw per knob, in sorted-name order so the stream does not depend on file order. Pure."""
+    values: dict[str, float] = {}
+    for name in sorted(ranges):
+        r = ranges[name]
+        if r.distribution == "log_uniform":
+            u = float(np.exp(rng.uniform(np.log(r.low), np.log(r.high))))
+        else:
+            u = float(rng.uniform(r.low, r.high))
+        values[name] = u * nominal[name] if r.operation == "scale" else u
+    return values
+
+
+class DomainRandomization(gym.Wrapper[Any, Any, Any, Any]):
+    """Fresh knob values at every reset, from nominal, logged in ``info["dr"]``.
+
+    With ``seed=None`` the draws are seeded from the first ``reset(seed=...)``, so a seeded env is reproducible
+    with or without this wrapper's own seed. Leave it off evaluation envs.
+    """
+
+    def __init__(self, env: gym.Env[Any, Any], ranges: Path | str | Mapping[str, Any], seed: int | None = None
+                 ) -> None:
+        super().__init__(env)
+        if isinstance(ranges, Mapping) and ranges and all(isinstance(v, KnobRange) for v in ranges.values()):
+            self.ranges: dict[str, KnobRange] = dict(ranges)
+        else:
+            self.ranges = load_ranges(ranges)
+        known = _twin_knobs(env)
+        _check_names(list(self.ranges), known, "domain randomisation")
+        self.nominal = {name: known[name].nominal for name in self.ranges}
+        for name, r in self.ranges.items():
+            lo, hi = (r.low, r.high) if r.operation == "abs" else (r.low * self.nominal[name], r.high * self.nominal[name])
+            knob = known[name]
+            if min(lo, hi) < knob.lower or max(lo, hi) > knob.upper:
+                raise DualtwinError(f"domain randomisation: range of {name!r} [{lo:g}, {hi:g}] leaves the knob's "
+                                    f"bounds [{knob.lower:g}, {knob.upper:g}]")
+        self._seeded = seed is not None
+        self._rng = np.random.default_rng(seed)
+        self.last_draw: dict[str, float] = {}
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
+              ) -> tuple[Any, dict[str, Any]]:
+        if seed is not None and not self._seeded:
+            # A distinct stream from the env's own (same seed, different spawn key).
+            self._rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(0xD1,)))
+            self._seeded = True
+        values = draw_knobs(self.ranges, self.nominal, self._rng)
+        self.last_draw = values
+        options = dict(options or {})
+        options["knobs"] = {**dict(options.get("knobs") or {}), **values}
+        obs, info = self.env.reset(seed=seed, options=options)
+        return obs, {**info, "dr": dict(values)}
+
+
+class FixedKnobs(gym.Wrapper[Any, Any, Any, Any]):
+    """The same knob values (aligned parameters, say) at every reset, from nominal; logged in ``info["knobs"]``."""
+
+    def __init__(self, env: gym.Env[Any, Any], values: Mapping[str, float]) -> None:
+        super().__init__(env)
+        self.values = {k: float(v) for k, v in values.items()}
+        known = _twin_knobs(env)
+        _check_names(list(self.values), known, "aligned knobs")
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
+              ) -> tuple[Any, dict[str, Any]]:
+        options = dict(options or {})
+        options["knobs"] = {**dict(options.get("knobs") or {}), **self.values}
+        obs, info = self.env.reset(seed=seed, options=options)
+        return obs, {**info, "knobs": dict(self.values)}
+
+
+def apply_knobs(env: gym.Env[Any, Any], knobs_file: Path | str | Mapping[str, Any]) -> FixedKnobs:
+    """Wrap ``env`` so every reset applies the aligned knob values in ``knobs_file`` (see :func:`load_knob_values`)."""
+    return FixedKnobs(env, load_knob_values(knobs_file))
+
+
+__all__ = ["DomainRandomization", "FixedKnobs", "KnobRange", "apply_knobs", "draw_knobs", "load_knob_values",
+           "load_ranges"]

@@ -1,0 +1,466 @@
+"""PPO training (Stable-Baselines3) on any registered dualtwin env, with a run folder users recognise (zoo layout).
+
+Run folder::
+
+    OUT/config.yaml                resolved training config (the YAML given, plus defaults and overrides)
+    OUT/run.json                   env id, seed, versions, I/O contract, status, timings, evaluation timeline
+    OUT/model.zip                  final policy          OUT/vecnormalize.pkl       its observation statistics
+    OUT/best_model.zip             best evaluated policy OUT/best_vecnormalize.pkl  its statistics
+    OUT/evaluations.npz            EvalCallback log      OUT/dr_ranges.json         randomisation ranges, if any
+    OUT/checkpoints/rl_model_<N>_steps.zip (+ rl_model_vecnormalize_<N>_steps.pkl)
+    OUT/tb/                        TensorBoard           OUT/monitor/               Monitor CSVs per env
+
+``resume=True`` continues an interrupted run from its newest checkpoint (the same env, seed and config).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import time
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from dualtwin.artifacts import package_versions, write_json, write_text
+from dualtwin.errors import DualtwinError
+
+if TYPE_CHECKING:
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.callbacks import EvalCallback
+    from stable_baselines3.common.vec_env import VecNormalize
+
+DEFAULT_CONFIG = Path(__file__).parent / "configs" / "ppo_cartpole.yaml"
+RUN_VERSION = 1
+_CHECKPOINT = re.compile(r"^rl_model_(\d+)_steps\.zip$")
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+class NormalizeConfig(_Strict):
+    """VecNormalize settings (its statistics are saved with the model)."""
+
+    norm_obs: bool = True
+    norm_reward: bool = True
+    clip_obs: float = Field(default=10.0, gt=0)
+    clip_reward: float = Field(default=10.0, gt=0)
+
+
+def _paper_net_arch() -> dict[Literal["pi", "vf"], list[int]]:
+    return {"pi": [64, 64], "vf": [64, 64]}
+
+
+class PolicyKwargs(_Strict):
+    net_arch: dict[Literal["pi", "vf"], list[int]] = Field(default_factory=_paper_net_arch)
+    activation_fn: Literal["relu", "tanh", "elu", "leaky_relu"] = "relu"
+    ortho_init: bool = True
+    log_std_init: float = 0.0
+
+
+class PPOConfig(_Strict):
+    """PPO hyperparameters plus the run's evaluation and checkpoint cadence. Step counts are env steps."""
+
+    algo: Literal["ppo"] = "ppo"
+    policy: Literal["MlpPolicy"] = "MlpPolicy"
+    n_timesteps: int = Field(default=400_000, gt=0)
+    n_envs: int = Field(default=8, ge=1)
+    n_steps: int = Field(default=512, ge=2)
+    batch_size: int = Field(default=512, ge=2)
+    n_epochs: int = Field(default=10, ge=1)
+    learning_rate: float | str = Field(default=3e-4, description="a number, or zoo's 'lin_<number>' (linear decay)")
+    gamma: float = Field(default=0.99, gt=0, le=1)
+    gae_lambda: float = Field(default=0.95, gt=0, le=1)
+    clip_range: float = Field(default=0.2, gt=0)
+    ent_coef: float = 0.0
+    vf_coef: float = 0.5
+    max_grad_norm: float = 0.5
+    use_sde: bool = Field(default=False, description="generalised state-dependent exploration (Box actions only)")
+    sde_sample_freq: int = -1
+    normalize: NormalizeConfig | bool = Field(default_factory=NormalizeConfig)
+    policy_kwargs: PolicyKwargs = Field(default_factory=PolicyKwargs)
+    env_kwargs: dict[str, Any] = Field(default_factory=dict, description="extra gym.make arguments")
+    eval_freq: int = Field(default=20_480, ge=0, description="0 disables evaluation")
+    eval_episodes: int = Field(default=5, ge=1)
+    checkpoint_freq: int = Field(default=40_960, ge=0, description="0 disables checkpoints (and resume)")
+    stop_reward: float | None = None
+    max_wall_seconds: float | None = Field(default=None, gt=0, description="stop after this much training time")
+    vec_env: Literal["dummy", "subproc"] = "dummy"
+    torch_threads: int = Field(default=1, ge=1)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> PPOConfig:
+        rollout = self.n_steps * self.n_envs
+        if rollout % self.batch_size:
+            raise ValueError(f"n_steps x n_envs ({rollout}) must be a multiple of batch_size ({self.batch_size})")
+        if isinstance(self.learning_rate, str):
+            _learning_rate(self.learning_rate)
+        return self
+
+    @property
+    def normalize_config(self) -> NormalizeConfig | None:
+        if isinstance(self.normalize, bool):
+            return NormalizeConfig() if self.normalize else None
+        return self.normalize
+
+
+def _learning_rate(value: float | str) -> float | Callable[[float], float]:
+    if isinstance(value, int | float):
+        return float(value)
+    match = re.fullmatch(r"lin_([0-9.eE+-]+)", value.strip())
+    if not match:
+        raise ValueError(f"learning_rate {value!r}: use a number or 'lin_<number>'")
+    start = float(match.group(1))
+    return lambda progress_remaining: progress_remaining * start
+
+
+def load_config(source: Path | str | Mapping[str, Any] | PPOConfig | None = None) -> PPOConfig:
+    """Read a PPO config YAML (the bundled :data:`DEFAULT_CONFIG` if ``None``)."""
+    if isinstance(source, PPOConfig):
+        return source
+    origin = "<config dict>"
+    if source is None or not isinstance(source, Mapping):
+        path = Path(source) if source is not None else DEFAULT_CONFIG
+        if not path.is_file():
+            raise DualtwinError(f"{path}: config file not found")
+        origin = str(path)
+        try:
+            data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        except yaml.YAMLError as exc:
+            raise DualtwinError(f"{path}: invalid YAML: {exc}") from None
+    else:
+        data = dict(source)
+    try:
+        return PPOConfig.model_validate(data or {})
+    except ValidationError as exc:
+        problems = "; ".join(f"{'.'.join(str(p) for p in e['loc']) or 'config'}: {e['msg']}" for e in exc.errors())
+        raise DualtwinError(f"{origin}: invalid PPO config: {problems}") from None
+
+
+def _activation(name: str) -> type[Any]:
+    import torch.nn as nn
+
+    return {"relu": nn.ReLU, "tanh": nn.Tanh, "elu": nn.ELU, "leaky_relu": nn.LeakyReLU}[name]
+
+
+def _read_json(path: Path) -> dict[str, Any]:
+    try:
+        data: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as exc:
+        raise DualtwinError(f"{path}: cannot read run record: {exc}") from None
+    return data
+
+
+def _latest_checkpoint(out: Path, final_steps: int | None) -> tuple[Path, Path, int] | None:
+    """The newest (model, vecnormalize, steps) to resume from: a checkpoint, or the final model if newer."""
+    found: list[tuple[int, Path, Path]] = []
+    folder = out / "checkpoints"
+    if folder.is_dir():
+        for path in folder.iterdir():
+            match = _CHECKPOINT.match(path.name)
+            if match:
+                steps = int(match.group(1))
+                stats = folder / f"rl_model_vecnormalize_{steps}_steps.pkl"
+                found.append((steps, path, stats))
+    if final_steps is not None and (out / "model.zip").is_file():
+        found.append((final_steps, out / "model.zip", out / "vecnormalize.pkl"))
+    if not found:
+        return None
+    steps, model, stats = max(found, key=lambda item: item[0])
+    return model, stats, steps
+
+
+def _make_env_fn(env_id: str, env_kwargs: dict[str, Any], dr: dict[str, Any] | None
+                 ) -> Callable[[], gym.Env[Any, Any]]:
+    def build() -> gym.Env[Any, Any]:
+        from dualtwin.rl import make_env
+        from dualtwin.rl.randomize import DomainRandomization
+
+        env = make_env(env_id, **env_kwargs)
+        return DomainRandomization(env, {"knobs": dr}) if dr else env
+
+    return build
+
+
+def train(env_id: str, config_path: Path | str | Mapping[str, Any] | PPOConfig | None, out_dir: Path | str, *,
+          seed: int = 0, total_timesteps: int | None = None, resume: bool = False,
+          dr_ranges: Path | str | Mapping[str, Any] | None = None, progress_bar: bool = True,
+          verbose: int = 0) -> Path:
+    """Train PPO on ``env_id`` into ``out_dir`` and return it (see the module docstring for its contents).
+
+    Args:
+        env_id: a registered dualtwin env id.
+        config_path: PPO config YAML (``None``: the bundled ``ppo_cartpole.yaml``), a dict or a :class:`PPOConfig`.
+        out_dir: run folder; must be empty unless ``resume``.
+        seed: seeds PyTorch, the envs (``seed + i``) and the evaluation env (``seed + 10_000``).
+        total_timesteps: overrides the config's ``n_timesteps``.
+        resume: continue the interrupted run in ``out_dir`` from its newest checkpoint.
+        dr_ranges: domain randomisation ranges (file or dict) for the training envs; evaluation stays nominal.
+        progress_bar: show SB3's progress bar.
+        verbose: SB3 verbosity.
+    """
+    from dualtwin.rl import check_env_id
+    from dualtwin.rl.randomize import load_ranges
+
+    check_env_id(env_id)
+    config = load_config(config_path)
+    total = int(total_timesteps if total_timesteps is not None else config.n_timesteps)
+    if total <= 0:
+        raise DualtwinError(f"total_timesteps must be positive, got {total}")
+    out = Path(out_dir)
+    dr = {k: v.model_dump(exclude_none=True) for k, v in load_ranges(dr_ranges).items()} if dr_ranges else None
+    config_record = config.model_dump(mode="json")
+    run_path = out / "run.json"
+
+    previous: dict[str, Any] | None = None
+    if resume and run_path.is_file():
+        previous = _read_json(run_path)
+        differ = [name for name, old, new in (("env id", previous.get("env_id"), env_id),
+                                               ("seed", previous.get("seed"), seed),
+                                               ("config", _without_steps(previous.get("config")),
+                                                _without_steps(config_record)),
+                                               ("domain randomisation", previous.get("dr_ranges"), dr))
+                  if old != new]
+        if differ:
+            raise DualtwinError(f"{run_path}: cannot resume: {', '.join(differ)} differ from the interrupted run")
+        if previous.get("status") == "complete" and previous.get("num_timesteps", 0) >= total:
+            return out
+    elif out.exists() and any(out.iterdir()):
+        raise DualtwinError(f"{out}: output folder is not empty; use resume to continue a run, "
+                            "or choose another folder")
+    final_steps = previous.get("num_timesteps") if previous and previous.get("status") == "complete" else None
+    start_from = _latest_checkpoint(out, final_steps) if previous else None
+    config_record["n_timesteps"] = total
+    out.mkdir(parents=True, exist_ok=True)
+    write_text(out / "config.yaml", yaml.safe_dump(config_record, sort_keys=False))
+    if dr:
+        write_json(out / "dr_ranges.json", {"knobs": dr})
+    return _Trainer(env_id, config, out, seed, total, dr, previous, start_from, progress_bar, verbose).run()
+
+
+def _without_steps(config: Any) -> Any:
+    if not isinstance(config, dict):
+        return config
+    return {k: v for k, v in config.items() if k != "n_timesteps"}
+
+
+class _Trainer:
+    """One training session (fresh or resumed); keeps :func:`train` readable."""
+
+    def __init__(self, env_id: str, config: PPOConfig, out: Path, seed: int, total: int,
+                 dr: dict[str, Any] | None, previous: dict[str, Any] | None,
+                 start_from: tuple[Path, Path, int] | None, progress_bar: bool, verbose: int) -> None:
+        self.env_id, self.config, self.out, self.seed, self.total = env_id, config, out, seed, total
+        self.dr, self.previous, self.start_from = dr, previous, start_from
+        self.progress_bar, self.verbose = progress_bar, verbose
+        self.model: PPO | None = None
+        self.contract: dict[str, Any] = {}
+        self.session_start = time.perf_counter()
+        self.start_steps = 0
+        self.max_episode_steps: int | None = None
+        self.timeline: list[dict[str, float]] = list((previous or {}).get("evaluations", []))
+        if start_from is not None:
+            self.timeline = [e for e in self.timeline if e["timesteps"] <= start_from[2]]
+        self.prior_seconds = float((previous or {}).get("timings", {}).get("train_seconds", 0.0))
+        if start_from is None:
+            self.timeline, self.prior_seconds = [], 0.0
+
+    def _record(self, status: str) -> None:
+        """Rewrite run.json (at the start, after every evaluation and at the end), so it always shows progress."""
+        model, contract = self.model, self.contract
+        elapsed = time.perf_counter() - self.session_start
+        session_steps = int(model.num_timesteps) - self.start_steps if model is not None else 0
+        threshold = self.config.stop_reward
+        reached = next((e for e in self.timeline if threshold is not None and e["mean_reward"] >= threshold), None)
+        record = {
+            "run_version": RUN_VERSION,
+            "status": status,
+            "env_id": self.env_id,
+            "env_kwargs": self.config.env_kwargs,
+            "max_episode_steps": self.max_episode_steps,
+            "seed": self.seed,
+            "algo": "ppo",
+            "num_timesteps": int(model.num_timesteps) if model is not None else 0,
+            "total_timesteps": self.total,
+            "config": self.config.model_dump(mode="json"),
+            "dr_ranges": self.dr,
+            "io": contract,
+            "versions": package_versions(),
+            "timings": {
+                "train_seconds": round(self.prior_seconds + elapsed, 3),
+                "session_seconds": round(elapsed, 3),
+                "session_steps": session_steps,
+                "session_steps_per_second": round(session_steps / elapsed, 1) if elapsed > 0 else None,
+                "threshold_reached": reached,
+            },
+            "resumed_from_steps": self.start_from[2] if self.start_from else None,
+            "best_mean_reward": max((e["mean_reward"] for e in self.timeline), default=None),
+            "evaluations": self.timeline,
+        }
+        write_json(self.out / "run.json", record)
+
+    def run(self) -> Path:
+        import torch
+        from stable_baselines3 import PPO
+        from stable_baselines3.common.callbacks import (
+            BaseCallback,
+            CallbackList,
+            CheckpointCallback,
+            EvalCallback,
+            StopTrainingOnRewardThreshold,
+        )
+        from stable_baselines3.common.env_util import make_vec_env
+        from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
+
+        cfg, out = self.config, self.out
+        threads = torch.get_num_threads()
+        torch.set_num_threads(cfg.torch_threads)
+        norm = cfg.normalize_config
+        vec_cls = SubprocVecEnv if cfg.vec_env == "subproc" else DummyVecEnv
+        venv: Any = make_vec_env(_make_env_fn(self.env_id, cfg.env_kwargs, self.dr), n_envs=cfg.n_envs,
+                                 seed=self.seed, monitor_dir=str(out / "monitor"), vec_env_cls=vec_cls,
+                                 monitor_kwargs={"override_existing": self.start_from is None})
+        n_eval = min(cfg.eval_episodes, 8)
+        eval_env: Any = make_vec_env(_make_env_fn(self.env_id, cfg.env_kwargs, None), n_envs=n_eval,
+                                     seed=self.seed + 10_000)
+        contract = self.contract = eval_env.envs[0].unwrapped.io_contract()
+        self.max_episode_steps = eval_env.envs[0].spec.max_episode_steps if eval_env.envs[0].spec else None
+        if norm is not None:
+            if self.start_from is not None:
+                venv = VecNormalize.load(str(self.start_from[1]), venv)
+                venv.training = True
+            else:
+                venv = VecNormalize(venv, norm_obs=norm.norm_obs, norm_reward=norm.norm_reward,
+                                    clip_obs=norm.clip_obs, clip_reward=norm.clip_reward, gamma=cfg.gamma)
+            # Evaluation uses the training statistics (EvalCallback syncs them) and raw rewards.
+            eval_env = VecNormalize(eval_env, training=False, norm_obs=norm.norm_obs, norm_reward=False,
+                                    clip_obs=norm.clip_obs)
+
+        if self.start_from is not None:
+            model = PPO.load(str(self.start_from[0]), env=venv, device="cpu", tensorboard_log=str(out / "tb"))
+        else:
+            pk = cfg.policy_kwargs
+            policy_kwargs: dict[str, Any] = {"net_arch": dict(pk.net_arch), "activation_fn": _activation(pk.activation_fn),
+                                             "ortho_init": pk.ortho_init}
+            if contract["action"]["type"] == "box":
+                policy_kwargs["log_std_init"] = pk.log_std_init
+            model = PPO(cfg.policy, venv, learning_rate=_learning_rate(cfg.learning_rate), n_steps=cfg.n_steps,
+                        batch_size=cfg.batch_size, n_epochs=cfg.n_epochs, gamma=cfg.gamma,
+                        gae_lambda=cfg.gae_lambda, clip_range=cfg.clip_range, ent_coef=cfg.ent_coef,
+                        vf_coef=cfg.vf_coef, max_grad_norm=cfg.max_grad_norm, policy_kwargs=policy_kwargs,
+                        use_sde=cfg.use_sde and contract["action"]["type"] == "box",
+                        sde_sample_freq=cfg.sde_sample_freq,
+                        tensorboard_log=str(out / "tb"), seed=self.seed, device="cpu", verbose=self.verbose)
+
+        self.model = model
+        self.session_start = session_start = time.perf_counter()
+        trainer = self
+
+        class _TimedEval(EvalCallback):
+            """EvalCallback that also appends (steps, mean reward, wall time) to the run's timeline.
+
+            Recorded here rather than in ``callback_after_eval``: SB3 skips that one when the evaluation that
+            crosses ``stop_reward`` ends training, which is exactly the evaluation the timeline must show.
+            """
+
+            def _on_step(self) -> bool:
+                count = len(self.evaluations_results)
+                keep_going = super()._on_step()
+                if len(self.evaluations_results) > count:
+                    rewards = np.asarray(self.evaluations_results[-1], dtype=float)
+                    trainer.timeline.append({
+                        "timesteps": int(self.num_timesteps), "mean_reward": float(rewards.mean()),
+                        "std_reward": float(rewards.std()),
+                        "wall_seconds": round(trainer.prior_seconds + time.perf_counter() - session_start, 3)})
+                    trainer._record("running")
+                return keep_going
+
+        class _WallClockLimit(BaseCallback):
+            """Stops training once this session has run ``seconds`` (a budget, as in the benchmark)."""
+
+            def __init__(self, seconds: float) -> None:
+                super().__init__()
+                self.deadline = time.perf_counter() + seconds
+
+            def _on_step(self) -> bool:
+                return time.perf_counter() < self.deadline
+
+        class _SaveBestStats(BaseCallback):
+            def _on_step(self) -> bool:
+                stats = self.model.get_vec_normalize_env()
+                if stats is not None:
+                    stats.save(str(out / "best_vecnormalize.pkl"))
+                return True
+
+        callbacks: list[BaseCallback] = []
+        if cfg.eval_freq:
+            on_best: list[BaseCallback] = [_SaveBestStats()]
+            if cfg.stop_reward is not None:
+                on_best.append(StopTrainingOnRewardThreshold(cfg.stop_reward, verbose=self.verbose))
+            evaluation = _TimedEval(eval_env, callback_on_new_best=CallbackList(on_best),
+                                    n_eval_episodes=cfg.eval_episodes, eval_freq=max(cfg.eval_freq // cfg.n_envs, 1),
+                                    log_path=str(out), best_model_save_path=str(out), deterministic=True,
+                                    verbose=self.verbose)
+            self._restore_evaluations(evaluation)
+            callbacks.append(evaluation)
+        if cfg.checkpoint_freq:
+            # After evaluation, so a checkpoint at step N comes with the evaluation at step N.
+            callbacks.append(CheckpointCallback(save_freq=max(cfg.checkpoint_freq // cfg.n_envs, 1),
+                                                save_path=str(out / "checkpoints"), name_prefix="rl_model",
+                                                save_vecnormalize=True))
+        if cfg.max_wall_seconds is not None:
+            callbacks.append(_WallClockLimit(cfg.max_wall_seconds))
+        if cfg.stop_reward is not None and cfg.eval_freq == 0:
+            raise DualtwinError("stop_reward needs evaluation (eval_freq > 0)")
+
+        start_steps = self.start_steps = int(model.num_timesteps)
+        self._record("running")
+        try:
+            model.learn(total_timesteps=max(self.total - start_steps, 0), callback=CallbackList(callbacks),
+                        progress_bar=self.progress_bar, reset_num_timesteps=self.start_from is None,
+                        tb_log_name="PPO")
+        except BaseException:
+            # Keep what was learned: the next resume starts here rather than at the last periodic checkpoint.
+            self._emergency_checkpoint(model)
+            self._record("interrupted")
+            raise
+        finally:
+            venv.close()
+            eval_env.close()
+            torch.set_num_threads(threads)
+        model.save(str(out / "model.zip"))
+        stats = model.get_vec_normalize_env()
+        if stats is not None:
+            stats.save(str(out / "vecnormalize.pkl"))
+        self._record("complete")
+        return out
+
+    def _emergency_checkpoint(self, model: PPO) -> None:
+        if not self.config.checkpoint_freq:
+            return
+        folder = self.out / "checkpoints"
+        folder.mkdir(parents=True, exist_ok=True)
+        steps = int(model.num_timesteps)
+        model.save(str(folder / f"rl_model_{steps}_steps.zip"))
+        stats: VecNormalize | None = model.get_vec_normalize_env()
+        if stats is not None:
+            stats.save(str(folder / f"rl_model_vecnormalize_{steps}_steps.pkl"))
+
+    def _restore_evaluations(self, evaluation: EvalCallback) -> None:
+        """On resume, carry the evaluation history (evaluations.npz, best reward) up to the checkpoint."""
+        path = self.out / "evaluations.npz"
+        if self.start_from is None or not path.is_file():
+            return
+        with np.load(path) as data:
+            keep = data["timesteps"] <= self.start_from[2]
+            evaluation.evaluations_timesteps = [int(t) for t in data["timesteps"][keep]]
+            evaluation.evaluations_results = [list(r) for r in data["results"][keep]]
+            evaluation.evaluations_length = [list(r) for r in data["ep_lengths"][keep]]
+        if evaluation.evaluations_results:
+            evaluation.best_mean_reward = float(max(np.mean(r) for r in evaluation.evaluations_results))

@@ -1,0 +1,119 @@
+"""Training: the run folder, restoring a policy, resume after an interruption, and bad inputs."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from tests.rl.conftest import TINY
+
+from dualtwin.errors import DualtwinError
+from dualtwin.rl.policy import load_policy
+from dualtwin.rl.train import DEFAULT_CONFIG, load_config, train
+
+
+def test_bundled_config_is_the_papers() -> None:
+    config = load_config(None)
+    assert config == load_config(DEFAULT_CONFIG)
+    assert config.learning_rate == pytest.approx(3e-4) and config.gamma == pytest.approx(0.99)
+    assert config.n_steps * config.n_envs == 4096
+    assert config.policy_kwargs.net_arch == {"pi": [64, 64], "vf": [64, 64]}
+    assert config.policy_kwargs.activation_fn == "relu"
+    assert config.normalize_config is not None and config.normalize_config.norm_obs
+
+
+def test_run_folder(discrete_run: Path) -> None:
+    for name in ("model.zip", "vecnormalize.pkl", "config.yaml", "run.json", "evaluations.npz", "best_model.zip",
+                 "best_vecnormalize.pkl"):
+        assert (discrete_run / name).is_file(), name
+    assert list((discrete_run / "checkpoints").glob("rl_model_*_steps.zip"))
+    assert list((discrete_run / "checkpoints").glob("rl_model_vecnormalize_*_steps.pkl"))
+    assert list((discrete_run / "tb").rglob("events.out.tfevents.*"))
+    assert list((discrete_run / "monitor").glob("*.monitor.csv"))
+    record = json.loads((discrete_run / "run.json").read_text())
+    assert record["status"] == "complete" and record["seed"] == 0
+    assert record["env_id"] == "dualtwin/CartPole-MuJoCo-v0" and record["num_timesteps"] >= 2048
+    assert "stable-baselines3" in record["versions"] and "torch" in record["versions"]
+    assert record["timings"]["train_seconds"] > 0 and record["evaluations"]
+    assert record["io"]["observation"]["terms"][2]["name"] == "pole_angle"
+    resolved = yaml.safe_load((discrete_run / "config.yaml").read_text())
+    assert resolved["n_timesteps"] == 2048 and resolved["n_envs"] == TINY["n_envs"]
+    with np.load(discrete_run / "evaluations.npz") as data:
+        assert len(data["timesteps"]) == len(record["evaluations"])
+
+
+def test_load_policy_in_one_line(discrete_run: Path) -> None:
+    policy = load_policy(discrete_run)
+    env = policy.make_env()
+    obs, _ = env.reset(seed=0)
+    assert env.action_space.contains(int(policy.predict(obs)))
+    assert policy.predict(np.stack([obs, obs])).shape == (2,)
+    assert load_policy(discrete_run, "best").vec_normalize is not None
+
+
+def test_resume_after_interruption(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from stable_baselines3.common.callbacks import CheckpointCallback
+
+    original = CheckpointCallback._on_step
+
+    def interrupted(self: CheckpointCallback) -> bool:
+        result = original(self)
+        if self.num_timesteps >= 1024:
+            raise KeyboardInterrupt
+        return result
+
+    out = tmp_path / "run"
+    ranges = {"knobs": {"body.pole.mass": {"low": 0.18, "high": 0.22}}}
+    monkeypatch.setattr(CheckpointCallback, "_on_step", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        train("dualtwin/CartPole-MuJoCo-v0", TINY, out, seed=1, total_timesteps=2048, dr_ranges=ranges,
+              progress_bar=False)
+    monkeypatch.setattr(CheckpointCallback, "_on_step", original)
+    record = json.loads((out / "run.json").read_text())
+    assert record["status"] == "interrupted" and not (out / "model.zip").exists()
+    assert (out / "dr_ranges.json").is_file()
+
+    with pytest.raises(DualtwinError, match="not empty"):
+        train("dualtwin/CartPole-MuJoCo-v0", TINY, out, seed=1, total_timesteps=2048, progress_bar=False)
+    with pytest.raises(DualtwinError, match="seed"):
+        train("dualtwin/CartPole-MuJoCo-v0", TINY, out, seed=2, total_timesteps=2048, resume=True,
+              dr_ranges=ranges, progress_bar=False)
+
+    train("dualtwin/CartPole-MuJoCo-v0", TINY, out, seed=1, total_timesteps=2048, resume=True,
+          dr_ranges=ranges, progress_bar=False)
+    record = json.loads((out / "run.json").read_text())
+    assert record["status"] == "complete" and record["num_timesteps"] >= 2048
+    assert record["resumed_from_steps"] == 1024
+    assert (out / "model.zip").is_file() and (out / "vecnormalize.pkl").is_file()
+    # The evaluation history before the interruption is kept.
+    assert record["evaluations"][0]["timesteps"] == 1024
+
+
+def test_bad_inputs(tmp_path: Path) -> None:
+    with pytest.raises(DualtwinError, match="registered dualtwin ids: .*CartPole-MuJoCo-v0"):
+        train("dualtwin/NoSuchEnv-v0", TINY, tmp_path / "a", progress_bar=False)
+    with pytest.raises(DualtwinError, match="batch_size"):
+        train("dualtwin/CartPole-MuJoCo-v0", {**TINY, "batch_size": 100}, tmp_path / "b", progress_bar=False)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("n_envs: [1\n")
+    with pytest.raises(DualtwinError, match="invalid YAML"):
+        load_config(bad)
+    with pytest.raises(DualtwinError, match="unknown_key"):
+        load_config({"unknown_key": 1})
+    with pytest.raises(DualtwinError, match="not found"):
+        load_config(tmp_path / "missing.yaml")
+    with pytest.raises(DualtwinError, match="no run.json"):
+        load_policy(tmp_path)
+
+
+def test_stop_reward_ends_training_and_is_recorded(tmp_path: Path) -> None:
+    out = train("dualtwin/CartPole-MuJoCo-v0", {**TINY, "stop_reward": 0.0}, tmp_path / "run", total_timesteps=8192,
+                progress_bar=False)
+    record = json.loads((out / "run.json").read_text())
+    # The first evaluation (after 1024 steps) crosses the threshold; it ends training and is in the timeline.
+    assert record["status"] == "complete" and record["num_timesteps"] == 1024
+    assert record["timings"]["threshold_reached"]["timesteps"] == 1024
+    assert [e["timesteps"] for e in record["evaluations"]] == [1024]
