@@ -110,3 +110,20 @@ def test_lockstep_and_predict_error(tmp_path: Path) -> None:
     result = dualtwin("lockstep", "--robot", "cartpole", "--scenarios", str(path), "--resync", "sometimes",
                       "--out", str(tmp_path / "bad"))
     assert result.returncode == 2 and "Traceback" not in result.stderr
+
+
+def test_train_export_transfer(tmp_path: Path) -> None:
+    run = tmp_path / "run"
+    result = dualtwin("train", "--env", "dualtwin/CartPole-MuJoCo-Continuous-v0", "--out", str(run), "--steps", "4096")
+    assert result.returncode == 0, result.stderr
+    assert (run / "model.zip").is_file() and (run / "vecnormalize.pkl").is_file()
+    result = dualtwin("export", "--policy", str(run), "--out", str(tmp_path / "export"))
+    assert result.returncode == 0, result.stderr
+    contract = json.loads((tmp_path / "export" / "policy_contract.json").read_text())
+    assert [o["name"] for o in contract["observation"]][:2] == ["cart_position", "cart_velocity"]
+    result = dualtwin("transfer", "--policy", str(run), "--target-env", "dualtwin/CartPole-Webots-Continuous-v0",
+                      "--episodes", "1", "--out", str(tmp_path / "transfer"))
+    assert result.returncode == 0, result.stderr
+    assert "target (before alignment)" in result.stdout
+    result = dualtwin("train", "--env", "dualtwin/Nope-v0", "--out", str(tmp_path / "bad"))
+    assert result.returncode == 2 and "registered dualtwin ids" in result.stderr

@@ -137,6 +137,62 @@ def align(
     console.print(f"wrote {out}")
 
 
+@app.command("train")
+def train(
+    env: Annotated[str, typer.Option(help="registered env id, e.g. dualtwin/CartPole-MuJoCo-Continuous-v0")],
+    out: Annotated[Path, typer.Option(help="run folder")],
+    config: Annotated[Path | None, typer.Option(help="PPO config YAML (default: the bundled paper config)")] = None,
+    seed: Annotated[int, typer.Option(help="seed")] = 0,
+    steps: Annotated[int | None, typer.Option(help="total timesteps (overrides the config)")] = None,
+    resume: Annotated[bool, typer.Option(help="continue an interrupted run from its last checkpoint")] = False,
+    dr: Annotated[Path | None, typer.Option(help="domain-randomisation ranges (dr_ranges.json from align)")] = None,
+    shadow_fraction: Annotated[float, typer.Option(help="share of episodes shadowed in the Webots twin")] = 0.0,
+) -> None:
+    """Train PPO (Stable-Baselines3) on a twin env; VecNormalize stats are saved with the model."""
+    from dualtwin.rl.train import train as run_train
+
+    run = run_train(env, config, out, seed=seed, total_timesteps=steps, resume=resume, dr_ranges=dr,
+                    shadow_fraction=shadow_fraction)
+    console.print(f"wrote {run}")
+
+
+@app.command("transfer")
+def transfer(
+    policy: Annotated[Path, typer.Option(help="training run folder")],
+    target_env: Annotated[str, typer.Option(help="env id of the other twin")],
+    out: Annotated[Path, typer.Option(help="report folder")],
+    aligned: Annotated[Path | None, typer.Option(help="aligned knobs file (knobs.json from align)")] = None,
+    episodes: Annotated[int, typer.Option(help="episodes per row")] = 10,
+    seed: Annotated[int, typer.Option(help="seed")] = 0,
+    which: Annotated[str, typer.Option(help="best or final model")] = "final",
+) -> None:
+    """Evaluate a policy in its source env and in the target twin, before and after alignment (Table 1)."""
+    from dualtwin.rl.transfer import transfer as run_transfer
+
+    if which not in ("best", "final"):
+        raise DualtwinError(f"--which must be best or final, not {which!r}")
+    report = run_transfer(policy, target_env, aligned=aligned, episodes=episodes, seed=seed, out_dir=out,
+                          which=which)  # type: ignore[arg-type]
+    for row in report.rows:
+        console.print(f"  {row.label:<32} {row.summary()}")
+    console.print(f"wrote {out}")
+
+
+@app.command("export")
+def export(
+    policy: Annotated[Path, typer.Option(help="training run folder")],
+    out: Annotated[Path, typer.Option(help="export folder (policy.onnx, policy_contract.json)")],
+    which: Annotated[str, typer.Option(help="best or final model")] = "final",
+) -> None:
+    """Export a policy to ONNX with observation normalisation and action scaling inside the graph."""
+    from dualtwin.rl.export import export_policy
+
+    if which not in ("best", "final"):
+        raise DualtwinError(f"--which must be best or final, not {which!r}")
+    path = export_policy(policy, out, which=which)  # type: ignore[arg-type]
+    console.print(f"wrote {path}")
+
+
 def _int_list(text: str, option: str) -> list[int]:
     try:
         values = [int(v) for v in text.split(",") if v.strip()]

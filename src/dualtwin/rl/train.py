@@ -191,7 +191,7 @@ def _make_env_fn(env_id: str, env_kwargs: dict[str, Any], dr: dict[str, Any] | N
 def train(env_id: str, config_path: Path | str | Mapping[str, Any] | PPOConfig | None, out_dir: Path | str, *,
           seed: int = 0, total_timesteps: int | None = None, resume: bool = False,
           dr_ranges: Path | str | Mapping[str, Any] | None = None, progress_bar: bool = True,
-          verbose: int = 0) -> Path:
+          verbose: int = 0, shadow_fraction: float = 0.0) -> Path:
     """Train PPO on ``env_id`` into ``out_dir`` and return it (see the module docstring for its contents).
 
     Args:
@@ -204,6 +204,9 @@ def train(env_id: str, config_path: Path | str | Mapping[str, Any] | PPOConfig |
         dr_ranges: domain randomisation ranges (file or dict) for the training envs; evaluation stays nominal.
         progress_bar: show SB3's progress bar.
         verbose: SB3 verbosity.
+        shadow_fraction: share of training episodes mirrored into a shadow Webots twin, whose divergence goes
+            to TensorBoard under ``shadow/`` (:class:`dualtwin.sync.shadow.ShadowCallback`; needs
+            ``vec_env: dummy``).
     """
     from dualtwin.rl import check_env_id
     from dualtwin.rl.randomize import load_ranges
@@ -241,7 +244,11 @@ def train(env_id: str, config_path: Path | str | Mapping[str, Any] | PPOConfig |
     write_text(out / "config.yaml", yaml.safe_dump(config_record, sort_keys=False))
     if dr:
         write_json(out / "dr_ranges.json", {"knobs": dr})
-    return _Trainer(env_id, config, out, seed, total, dr, previous, start_from, progress_bar, verbose).run()
+    if shadow_fraction and config.vec_env != "dummy":
+        raise DualtwinError("shadow_fraction needs vec_env: dummy (the shadow mirrors in-process envs)")
+    trainer = _Trainer(env_id, config, out, seed, total, dr, previous, start_from, progress_bar, verbose)
+    trainer.shadow_fraction = float(shadow_fraction)
+    return trainer.run()
 
 
 def _without_steps(config: Any) -> Any:
@@ -259,6 +266,7 @@ class _Trainer:
         self.env_id, self.config, self.out, self.seed, self.total = env_id, config, out, seed, total
         self.dr, self.previous, self.start_from = dr, previous, start_from
         self.progress_bar, self.verbose = progress_bar, verbose
+        self.shadow_fraction = 0.0
         self.model: PPO | None = None
         self.contract: dict[str, Any] = {}
         self.session_start = time.perf_counter()
@@ -290,6 +298,7 @@ class _Trainer:
             "total_timesteps": self.total,
             "config": self.config.model_dump(mode="json"),
             "dr_ranges": self.dr,
+            "shadow_fraction": self.shadow_fraction,
             "io": contract,
             "versions": package_versions(),
             "timings": {
@@ -416,6 +425,10 @@ class _Trainer:
                                                 save_vecnormalize=True))
         if cfg.max_wall_seconds is not None:
             callbacks.append(_WallClockLimit(cfg.max_wall_seconds))
+        if self.shadow_fraction > 0:
+            from dualtwin.sync.shadow import ShadowCallback
+
+            callbacks.append(ShadowCallback(self.shadow_fraction, seed=self.seed))
         if cfg.stop_reward is not None and cfg.eval_freq == 0:
             raise DualtwinError("stop_reward needs evaluation (eval_freq > 0)")
 
