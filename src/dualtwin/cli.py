@@ -16,7 +16,9 @@ app = typer.Typer(help="Dual digital twins (Webots on ODE + MuJoCo) for robotics
 suite_app = typer.Typer(help="Scenario suites: validate and run.", no_args_is_help=True)
 webots_app = typer.Typer(help="The headless Webots runtime.", no_args_is_help=True)
 app.add_typer(suite_app, name="suite")
+perception_app = typer.Typer(help="Learned perception: train and evaluate.", no_args_is_help=True)
 app.add_typer(webots_app, name="webots")
+app.add_typer(perception_app, name="perception")
 console = Console(stderr=False)
 
 
@@ -191,6 +193,93 @@ def export(
         raise DualtwinError(f"--which must be best or final, not {which!r}")
     path = export_policy(policy, out, which=which)  # type: ignore[arg-type]
     console.print(f"wrote {path}")
+
+
+@app.command("collect")
+def collect(
+    env: Annotated[str, typer.Option(help="registered env id whose twin renders the frames")],
+    episodes: Annotated[int, typer.Option(help="episodes in the finished dataset")],
+    out: Annotated[Path, typer.Option(help="dataset folder (shards + manifest.json)")],
+    controller: Annotated[str, typer.Option(help="scripted, random or noisy-policy")] = "scripted",
+    policy: Annotated[Path | None, typer.Option(help="training run, for --controller noisy-policy")] = None,
+    resume: Annotated[bool, typer.Option(help="continue an interrupted collection")] = False,
+    seed: Annotated[int, typer.Option(help="seed")] = 0,
+    width: Annotated[int, typer.Option(help="frame width")] = 64,
+    height: Annotated[int, typer.Option(help="frame height")] = 64,
+    randomize: Annotated[bool, typer.Option(help="visual randomisation (lights, colours, camera jitter)")] = True,
+) -> None:
+    """Record camera frames paired with the supervisor's ground truth (Pattern 2)."""
+    from dualtwin.perception.dataset import collect as run_collect
+
+    path = run_collect(env, episodes, out, controller=controller, policy_run=policy, resume=resume, seed=seed,
+                       width=width, height=height, randomize=randomize)
+    console.print(f"wrote {path}")
+
+
+@perception_app.command("train")
+def perception_train(
+    data: Annotated[Path, typer.Option(help="dataset folder from dualtwin collect")],
+    out: Annotated[Path, typer.Option(help="model folder (perception.onnx + contract)")],
+    epochs: Annotated[int, typer.Option(help="training epochs")] = 15,
+    seed: Annotated[int, typer.Option(help="seed")] = 0,
+) -> None:
+    """Train the small CNN that recovers pole angle and cart position from stacked frames."""
+    from dualtwin.perception.model import train_perception
+
+    console.print(f"wrote {train_perception(data, out, epochs=epochs, seed=seed)}")
+
+
+@perception_app.command("eval")
+def perception_eval(
+    model: Annotated[Path, typer.Option(help="model folder")],
+    data: Annotated[Path, typer.Option(help="dataset folder")],
+) -> None:
+    """MAE per quantity of the exported model on the held-out episodes."""
+    from dualtwin.perception.model import evaluate_perception
+
+    result = evaluate_perception(model, data)
+    for name, value in result.get("mae", {}).items():
+        console.print(f"  MAE {name:<24} {value:.5g}")
+
+
+@app.command("serve")
+def serve(
+    policy: Annotated[Path, typer.Option(help="exported policy folder (policy.onnx + policy_contract.json)")],
+    perception: Annotated[Path, typer.Option(help="perception model folder")],
+    host: Annotated[str, typer.Option(help="address to listen on")] = "127.0.0.1",
+    port: Annotated[int, typer.Option(help="port")] = 8000,
+    api_key_env: Annotated[str | None, typer.Option(help="environment variable holding the API key")] = None,
+) -> None:
+    """Serve the policy plus perception over HTTP (Pattern 3): POST /v1/act, GET /v1/info, GET /healthz."""
+    import os
+
+    from dualtwin.server.app import serve as run_serve
+
+    api_key = None
+    if api_key_env is not None:
+        api_key = os.environ.get(api_key_env)
+        if not api_key:
+            raise DualtwinError(f"--api-key-env: environment variable {api_key_env} is not set")
+    run_serve(policy, perception, host=host, port=port, api_key=api_key)
+
+
+@app.command("deploy")
+def deploy(
+    server: Annotated[str, typer.Option(help="RobotServer URL, e.g. http://127.0.0.1:8000")],
+    env: Annotated[str, typer.Option(help="registered env id to run closed-loop")],
+    episodes: Annotated[int, typer.Option(help="episodes")] = 5,
+    seed: Annotated[int, typer.Option(help="seed")] = 0,
+    api_key_env: Annotated[str | None, typer.Option(help="environment variable holding the API key")] = None,
+) -> None:
+    """Run a twin through the server with on-board sensors and camera only; compare with privileged state."""
+    import json
+    import os
+
+    from dualtwin.server.client import deploy as run_deploy
+
+    result = run_deploy(server, env, episodes, seed=seed,
+                        api_key=os.environ.get(api_key_env) if api_key_env else None)
+    console.print_json(json.dumps(result, default=str))
 
 
 def _int_list(text: str, option: str) -> list[int]:

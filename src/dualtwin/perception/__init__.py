@@ -1,0 +1,38 @@
+"""Learned perception (Pattern 2): cameras on both twins, frame/ground-truth datasets, a small CNN.
+
+``collect`` records camera frames paired with the supervisor's ground truth, ``train_perception`` fits a
+CNN that recovers the privileged state from a stack of frames, ``evaluate_perception`` measures it on held-out
+episodes, and the exported ``perception.onnx`` + ``perception_contract.json`` run without PyTorch
+(:class:`dualtwin.perception.estimator.StateEstimator`, used by the RobotServer).
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from dualtwin.perception.camera import Appearance, CameraSpec, FrameRenderer, camera_for, robot_cameras
+    from dualtwin.perception.dataset import collect, load_dataset
+    from dualtwin.perception.estimator import StateEstimator
+    from dualtwin.perception.model import evaluate_perception, train_perception
+    from dualtwin.perception.render import TwinCamera
+
+_LAZY = {
+    "Appearance": "camera", "CameraSpec": "camera", "FrameRenderer": "camera", "camera_for": "camera",
+    "robot_cameras": "camera", "collect": "dataset", "load_dataset": "dataset", "StateEstimator": "estimator",
+    "evaluate_perception": "model", "train_perception": "model", "TwinCamera": "render",
+}
+
+
+def __getattr__(name: str) -> Any:
+    # Lazy: rendering needs MUJOCO_GL settled and training needs torch; importing the package needs neither.
+    if name in _LAZY:
+        return getattr(importlib.import_module(f"dualtwin.perception.{_LAZY[name]}"), name)
+    raise AttributeError(f"module 'dualtwin.perception' has no attribute {name!r}")
+
+
+__all__ = [
+    "Appearance", "CameraSpec", "FrameRenderer", "StateEstimator", "TwinCamera", "camera_for", "collect",
+    "evaluate_perception", "load_dataset", "robot_cameras", "train_perception",
+]
