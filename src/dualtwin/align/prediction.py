@@ -49,7 +49,7 @@ from dualtwin.align.fit import (
 )
 from dualtwin.align.knobs import KnobSpec, check_values, select_knobs, unit_from_values, values_from_unit
 from dualtwin.align.simulate import DEFAULT_WORKERS, ExecutorKind
-from dualtwin.artifacts import package_versions, sha256_file, write_json, write_text
+from dualtwin.artifacts import json_safe, package_versions, sha256_file, write_json, write_text
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding, load_binding, resolve_robot
 from dualtwin.suite.loader import load_suite, read_json
@@ -389,22 +389,13 @@ def align_prediction(
                    "condition_number": None if result.condition_number is None
                    or not math.isfinite(result.condition_number) else result.condition_number,
                    "stop_reason": result.stop_reason, "warnings": warnings},
-        "prediction": {"before": _plain(table_before), "after": _plain(table_after)},
+        "prediction": {"before": json_safe(table_before), "after": json_safe(table_after)},
         "evaluations": result.evaluations, "simulated_periods": periods, "iterations": result.iterations,
         "wall_time_s": result.wall_time_s, "trace": outcome.trace,
         "model_patch": {"applied": patch.applied, "not_applied": patch.not_applied, "note": patch.note},
         "sysid": sysid_status(), "files": files})
     return result
 
-
-def _plain(value: Any) -> Any:
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_plain(v) for v in value]
-    return value
 
 
 def _report_html(result: AlignResult, before: Mapping[str, Any], after: Mapping[str, Any],

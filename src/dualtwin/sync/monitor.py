@@ -35,6 +35,7 @@ from typing import IO, Any, Literal
 
 import numpy as np
 
+from dualtwin.artifacts import json_safe
 from dualtwin.errors import DualtwinError
 from dualtwin.sync.record import Command, build_trajectory, save_trajectories
 from dualtwin.twins.base import MechanicalState
@@ -141,7 +142,7 @@ class Monitor:
             if self._log is None:
                 self._log_path.parent.mkdir(parents=True, exist_ok=True)
                 self._log = open(self._log_path, "a", encoding="utf-8")  # noqa: SIM115 - held for the run
-            self._log.write(json.dumps(_plain(event), allow_nan=False) + "\n")
+            self._log.write(json.dumps(json_safe(event), allow_nan=False) + "\n")
             self._log.flush()
         return event
 
@@ -281,15 +282,6 @@ def read_events(path: Path) -> list[dict[str, Any]]:
         raise DualtwinError(f"{path}: no monitor event log")
     return [json.loads(line) for line in path.read_text(encoding="utf-8").splitlines() if line.strip()]
 
-
-def _plain(value: Any) -> Any:
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_plain(v) for v in value]
-    return value
 
 
 __all__ = ["Monitor", "MonitorConfig", "RealignSettings", "read_events", "window_stats"]

@@ -19,7 +19,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from dualtwin.artifacts import write_json, write_text
+from dualtwin.artifacts import json_safe, write_json, write_text
 from dualtwin.divergence.report import _CSS, _png_bytes, plot_overlay
 from dualtwin.divergence.runs import load_tsv
 from dualtwin.errors import DualtwinError
@@ -194,17 +194,8 @@ def write_sync_report(out_dir: Path, *, lockstep: LockstepResult | Path | None =
                              f"{html.escape(json.dumps(evidence, sort_keys=True)[:600])}</code></td></tr>")
             parts.append("</table>")
     parts.append("</body></html>")
-    write_json(out / "report.json", _plain(record))
+    write_json(out / "report.json", json_safe(record))
     path = out / "report.html"
     write_text(path, "\n".join(parts))
     return path
 
-
-def _plain(value: Any) -> Any:
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_plain(v) for v in value]
-    return value
