@@ -10,6 +10,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from dualtwin.webots.motor_law import motor_velocity
+
 
 @dataclass
 class MotorParams:
@@ -74,20 +76,11 @@ class MotorState:
 
     def velocity_command(self, position: float, dt: float) -> float:
         """The velocity ``u`` the joint motor tracks this physics step (WbMotor.computeCurrentDynamicVelocity)."""
-        if self.available_torque == 0.0:
-            u = 0.0
-        elif math.isinf(self.target_position):
-            u = self.target_velocity
-        else:
-            error = self.target_position - position
-            self.integral += error * dt
-            derivative = (error - self.previous_error) / dt
-            out = self.params.kp * error + self.params.ki * self.integral + self.params.kd * derivative
-            self.previous_error = error
-            limit = abs(self.target_velocity)
-            u = out if abs(out) < limit else math.copysign(limit, out)
-        if self.params.acceleration > 0:
-            step = self.params.acceleration * dt
-            u = max(self.current_velocity - step, min(self.current_velocity + step, u))
+        p = self.params
+        u, self.integral, self.previous_error = motor_velocity(
+            target_position=self.target_position, target_velocity=self.target_velocity,
+            available=self.available_torque, position=position, integral=self.integral,
+            previous_error=self.previous_error, current_velocity=self.current_velocity, kp=p.kp, ki=p.ki, kd=p.kd,
+            acceleration=p.acceleration, dt=dt)
         self.current_velocity = u
         return u

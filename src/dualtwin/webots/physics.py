@@ -71,6 +71,7 @@ from dualtwin.errors import DualtwinError, SimulationUnstable
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots import ode
 from dualtwin.webots._math3 import Pose
+from dualtwin.webots.motor_law import motor_velocity
 from dualtwin.webots.nodes import Node, World
 
 __all__ = [
@@ -304,25 +305,11 @@ class MotorRec(_ShortRepr):
 
     def command_velocity(self, dt: float) -> float:
         """§5.3 step 2: the velocity (Webots sign) the ODE motor row will be asked for."""
-        if self.available == 0.0:
-            u = 0.0
-        elif math.isinf(self.target_position):
-            u = self.target_velocity
-        else:
-            e = self.target_position - self.joint.positions[self.axis_index]
-            self.integral += e * dt
-            d = (e - self.prev_error) / dt
-            out = self.kp * e + self.ki * self.integral + self.kd * d
-            self.prev_error = e
-            vt = abs(self.target_velocity)
-            u = out if abs(out) < vt else math.copysign(vt, out)
-        if self.acceleration != -1.0:
-            dv = self.acceleration * dt
-            cur = self.current_velocity
-            if u > cur + dv:
-                u = cur + dv
-            elif u < cur - dv:
-                u = cur - dv
+        u, self.integral, self.prev_error = motor_velocity(
+            target_position=self.target_position, target_velocity=self.target_velocity, available=self.available,
+            position=self.joint.positions[self.axis_index], integral=self.integral, previous_error=self.prev_error,
+            current_velocity=self.current_velocity, kp=self.kp, ki=self.ki, kd=self.kd,
+            acceleration=self.acceleration, dt=dt)
         self.current_velocity = u
         return u
 
