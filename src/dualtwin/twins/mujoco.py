@@ -318,7 +318,8 @@ class MuJoCoTwin(Twin):
                 self._servo_substep(servos)
         else:
             # Plain velocity control: u is constant over the period, so only saturation needs watching.
-            qvel = d.qvel
+            # A memoryview reads plain floats: cheaper than NumPy scalars in this per-sub-step check.
+            qvel = memoryview(d.qvel)
             dt = m.opt.timestep
             checks = []
             for mo in servos:
