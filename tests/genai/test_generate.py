@@ -85,13 +85,7 @@ def test_one_description_gives_both_twins_and_runs_one_suite(tmp_path: Path) -> 
     assert model.body("pole").mass[0] == pytest.approx(0.2)
     binding = load_binding(result.files["binding"])
     assert {"pole_sensor_rad", "wheel1_sensor_rad"} <= set(binding.spec.onboard)
-    twins = ["mujoco"]
-    try:
-        import dualtwin.twins.webots  # noqa: F401
-        twins.append("webots")
-    except ImportError:
-        pass
-    for twin in twins:
+    for twin in ("mujoco", "webots"):
         manifest = SuiteRun(result.files["suite"], twin, binding, tmp_path / f"run_{twin}").run()
         assert all(s["status"] == "completed" for s in manifest["scenarios"]), (twin, manifest["scenarios"])
 
