@@ -95,10 +95,6 @@ def test_fixture_suites_run_on_the_converted_model(webots_fixtures: Path, tmp_pa
 
 
 def test_against_the_webots_twin(webots_fixtures: Path, tmp_path: Path) -> None:
-    try:
-        import dualtwin.twins.webots  # noqa: F401
-    except ImportError:
-        pytest.skip("the Webots twin (dualtwin.twins.webots) is not available yet")
     assert webots_twin_available()
     report = converted_vs_webots(CARTPOLE / "cartpole.wbt", tmp_path / "cartpole", suite=CARTPOLE / "suite.json",
                                  base_binding=CARTPOLE / "binding.yaml", report=False)

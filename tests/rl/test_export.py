@@ -6,12 +6,11 @@ import json
 from pathlib import Path
 
 import numpy as np
+import onnxruntime as ort
 import pytest
 
 from dualtwin.rl.export import export_policy
 from dualtwin.rl.policy import load_policy
-
-ort = pytest.importorskip("onnxruntime")
 
 
 def observations(n: int = 3000) -> np.ndarray:

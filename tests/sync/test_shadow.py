@@ -5,10 +5,6 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
-import pytest
-
-pytest.importorskip("stable_baselines3")
-
 
 def test_shadow_callback_logs_divergence_scalars(tmp_path: Path) -> None:
     from stable_baselines3 import PPO
