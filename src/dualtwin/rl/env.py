@@ -317,6 +317,7 @@ class TwinEnv(gym.Env[np.ndarray, Any]):
         self.render_mode = render_mode
         self.camera = camera
         self.render_size = render_size
+        self._frames: Any = None
         self.control_period = control_period
         self.observation_space = spaces.Box(-np.inf, np.inf, shape=(len(self.task.observation_terms),),
                                             dtype=np.float32)
@@ -357,10 +358,18 @@ class TwinEnv(gym.Env[np.ndarray, Any]):
     def render(self) -> np.ndarray | None:  # type: ignore[override]
         if self.render_mode != "rgb_array":
             return None
-        height, width = self.render_size
-        return self.twin.render(self.camera, width, height)
+        if self._frames is None:
+            # The perception renderer: no shadows, reflections or MSAA, 5-30x faster on a CPU than mujoco.Renderer.
+            from dualtwin.perception.render import TwinCamera
+
+            height, width = self.render_size
+            self._frames = TwinCamera(self.twin, self.camera, width, height)
+        return self._frames.render()
 
     def close(self) -> None:
+        if self._frames is not None:
+            self._frames.close()
+            self._frames = None
         self.twin.close()
 
     def io_contract(self) -> dict[str, Any]:
