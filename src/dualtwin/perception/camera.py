@@ -12,12 +12,10 @@ software rasteriser 4x MSAA and the 4096² shadow map cost 10-70 ms a frame, so 
 rendering at ``supersample`` times the size and averaging pixel blocks instead (a few ms). Visual
 randomisation (:class:`Appearance`) edits the built ``mjvScene`` (lights, geom colours), never the model.
 
-Camera specs per robot: a binding may carry (proposed, see :func:`robot_cameras`)::
+Camera specs per robot come from the binding's ``cameras:`` section (see :func:`robot_cameras`)::
 
     cameras:
       perception: {pos: [0, -2.0, 0.6], lookat: [0, 0, 0.6], fovy_deg: 38, width: 64, height: 64}
-
-and bundled robots fall back to :data:`BUNDLED_CAMERAS`.
 """
 
 from __future__ import annotations
@@ -308,30 +306,13 @@ class FrameRenderer:
 #: about 46 pixels per metre at 64x64, so the 2 cm pole is about a pixel wide and a 0.02 rad tilt moves its tip
 #: by about 0.9 pixel; the cart stays in view for |x| up to about 0.5 m (64x64) or 0.7 m (128x96).
 #: ``side`` is the MJCF's own ``side`` camera (pos 0 -3 0.6, looking along +y, fovy 45).
-BUNDLED_CAMERAS: dict[str, dict[str, CameraSpec]] = {
-    "cartpole": {
-        "perception": CameraSpec("perception", pos=(0.0, -2.0, 0.6), lookat=(0.0, 0.0, 0.6), fovy_deg=38.0),
-        "side": CameraSpec("side", pos=(0.0, -3.0, 0.6), lookat=(0.0, 0.0, 0.6), fovy_deg=45.0,
-                           width=128, height=96),
-    },
-}
 DEFAULT_CAMERA = "perception"
 
 
 def robot_cameras(robot: RobotBinding) -> dict[str, CameraSpec]:
-    """The robot's cameras: the binding's ``cameras:`` section when it has one, else the bundled defaults.
-
-    The section is a proposal for the binding schema (a mapping of name -> CameraSpec fields); an older
-    binding without it keeps working.
-    """
-    declared = getattr(robot.spec, "cameras", None)
-    if declared:
-        out = {}
-        for name, value in dict(declared).items():
-            data = value.model_dump(exclude_none=True) if hasattr(value, "model_dump") else dict(value)
-            out[name] = CameraSpec.from_dict(name, data)
-        return out
-    return dict(BUNDLED_CAMERAS.get(robot.name, {}))
+    """The robot's cameras, from its binding's ``cameras:`` section."""
+    return {name: CameraSpec.from_dict(name, value.model_dump(exclude_none=True))
+            for name, value in robot.spec.cameras.items()}
 
 
 @functools.lru_cache(maxsize=64)

@@ -5,7 +5,8 @@ A binding file (YAML) names the robot's models for every twin and maps:
 * initial-condition keys (``initial_angle``) to joint positions/velocities or body positions;
 * action keys (``wheel_velocity``) to actuators, with a control mode and a scale;
 * logged channels to on-board sensors (the TestRobot log) or privileged ground truth (the TestOrchestrator log);
-* failure keys (``failure_pole_angle_rad``) to thresholds on ground-truth channels.
+* failure keys (``failure_pole_angle_rad``) to thresholds on ground-truth channels;
+* optionally, cameras (pose, vertical field of view, resolution) for perception and rendering.
 
 Entity names are shared by both twins (the converter preserves Webots names). A twin section may alias a
 name when a user's models disagree (``aliases: {pole_hinge: POLE_JOINT}``).
@@ -81,6 +82,18 @@ class Channel(_Strict):
         return self
 
 
+class Camera(_Strict):
+    """A pinhole camera for perception and rendering; ``pos``/``lookat`` are in ``body``'s frame when set."""
+
+    pos: tuple[float, float, float]
+    lookat: tuple[float, float, float]
+    up: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    fovy_deg: float = Field(default=45.0, ge=1, le=170, description="vertical field of view, degrees")
+    width: int = Field(default=64, ge=1)
+    height: int = Field(default=64, ge=1)
+    body: str | None = None
+
+
 class Failure(_Strict):
     """A failure key in ``global_settings`` becomes a threshold on |channel| in the ground-truth log."""
 
@@ -97,6 +110,7 @@ class Binding(_Strict):
     onboard: dict[str, Channel] = Field(min_length=1, description="TestRobot log: on-board sensors only")
     ground_truth: dict[str, Channel] = Field(min_length=1, description="TestOrchestrator log: privileged")
     failures: dict[str, Failure] = Field(default_factory=dict)
+    cameras: dict[str, Camera] = Field(default_factory=dict)
 
     @model_validator(mode="after")
     def _consistent(self) -> Binding:
