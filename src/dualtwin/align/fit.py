@@ -533,6 +533,23 @@ def interval_estimate(jac: np.ndarray, r0: np.ndarray, specs: Sequence[KnobSpec]
     return _Uncertainty(half, condition, warnings)
 
 
+def fit_records(specs: Sequence[KnobSpec], fitted: Mapping[str, float],
+                half_widths: Mapping[str, float | None]) -> tuple[dict[str, KnobFit], list[str]]:
+    """Per-knob fit records, and a warning for every knob that left its nominal value to end at a bound."""
+    records: dict[str, KnobFit] = {}
+    warnings: list[str] = []
+    for spec in specs:
+        value = fitted[spec.name]
+        bound = spec.at_bound(value)
+        records[spec.name] = KnobFit(spec.name, spec.unit, spec.nominal, value, spec.lower, spec.upper,
+                                     half_widths.get(spec.name), bound)
+        if bound is not None and value != spec.nominal:
+            edge = spec.lower if bound == "lower" else spec.upper
+            warnings.append(f"{spec.name} ended at its {bound} bound ({edge:g}): the best value may lie beyond "
+                            "it; widen the bounds if that is physical, or suspect a structural mismatch")
+    return records, warnings
+
+
 def overfit_warning(train_before: float, train_after: float, hold_before: float, hold_after: float,
                     hold_best: float) -> str | None:
     """A warning when the training objective fell while the held-out one rose (above its start or its best)."""
@@ -803,16 +820,8 @@ def align(
             uncertainty = _uncertainty(problem, outcome.u, config.fd_step)
         fitted = values_from_unit(specs, outcome.u)
         warnings += uncertainty.warnings
-        knob_fits: dict[str, KnobFit] = {}
-        for spec in specs:
-            value = fitted[spec.name]
-            bound = spec.at_bound(value)
-            knob_fits[spec.name] = KnobFit(spec.name, spec.unit, spec.nominal, value, spec.lower, spec.upper,
-                                           uncertainty.half_widths.get(spec.name), bound)
-            if bound is not None and value != spec.nominal:
-                edge = spec.lower if bound == "lower" else spec.upper
-                warnings.append(f"{spec.name} ended at its {bound} bound ({edge:g}): the best value may lie beyond "
-                                "it; widen the bounds if that is physical, or suspect a structural mismatch")
+        knob_fits, bound_warnings = fit_records(specs, fitted, uncertainty.half_widths)
+        warnings += bound_warnings
         if hold is not None and before.holdout is not None and after.holdout is not None:
             best_seen = min((t["holdout_of_best"] for t in outcome.trace if t.get("holdout_of_best") is not None),
                             default=after.holdout)

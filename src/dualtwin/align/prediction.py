@@ -37,7 +37,6 @@ from dualtwin.align.fit import (
     AlignConfig,
     AlignResult,
     GenerationInfo,
-    KnobFit,
     Optimizer,
     _fit_cma,
     _fit_lsq,
@@ -45,6 +44,7 @@ from dualtwin.align.fit import (
     _Point,
     _Problem,
     _uncertainty,
+    fit_records,
     sysid_status,
 )
 from dualtwin.align.knobs import KnobSpec, check_values, select_knobs, unit_from_values, values_from_unit
@@ -337,14 +337,8 @@ def align_prediction(
         periods = evaluator.periods
     fitted = values_from_unit(specs, outcome.u)
     warnings += uncertainty.warnings
-    knob_fits: dict[str, KnobFit] = {}
-    for spec in specs:
-        value = fitted[spec.name]
-        bound = spec.at_bound(value)
-        knob_fits[spec.name] = KnobFit(spec.name, spec.unit, spec.nominal, value, spec.lower, spec.upper,
-                                       uncertainty.half_widths.get(spec.name), bound)
-        if bound is not None and value != spec.nominal:
-            warnings.append(f"{spec.name} ended at its {bound} bound: the best value may lie beyond it")
+    knob_fits, bound_warnings = fit_records(specs, fitted, uncertainty.half_widths)
+    warnings += bound_warnings
     files: dict[str, str] = {"config": "align_config.json", "reference": REFERENCE_FILE}
     write_json(out / "knobs.json", {"schema": "dualtwin.knobs/1", "twin": target_twin_name, "robot": binding.name,
                                     "optimizer": optimizer, "objective": "prediction", "values": fitted,
