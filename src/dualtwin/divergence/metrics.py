@@ -27,6 +27,8 @@ import numpy as np
 import numpy.typing as npt
 from dtaidistance import dtw as _dtw
 
+from dualtwin.artifacts import json_safe
+
 FloatArray = npt.NDArray[np.float64]
 
 #: Default max lag searched by the cross-correlation, in seconds.
@@ -202,7 +204,7 @@ class ChannelDivergence:
         out = asdict(self)
         out["threshold"] = None if self.threshold is None else self.threshold.to_dict()
         out["score_terms"] = dict(self.score_terms)
-        return _json_safe(out)
+        return json_safe(out)
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> ChannelDivergence:
@@ -213,15 +215,6 @@ class ChannelDivergence:
         kwargs["score_terms"] = dict(kwargs.get("score_terms", {}))
         return cls(**kwargs)
 
-
-def _json_safe(value: Any) -> Any:
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_json_safe(v) for v in value]
-    return value
 
 
 def _as_series(t: npt.ArrayLike, y: npt.ArrayLike, name: str) -> tuple[FloatArray, FloatArray]:

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from dualtwin.artifacts import package_versions, sha256_file, write_json, write_text
+from dualtwin.artifacts import json_safe, package_versions, sha256_file, write_json, write_text
 from dualtwin.errors import DualtwinError, SimulationUnstable
 from dualtwin.robots.binding import RobotBinding, resolve_robot
 from dualtwin.suite.loader import load_suite
@@ -288,17 +288,8 @@ def prediction_error(primary: str | Twin, secondary: str | Twin, robot: str | Ro
         "knobs": {"primary": dict(primary_knobs or {}), "secondary": dict(secondary_knobs or {})},
         "inputs": {"suite": {"path": str(suite_path), "sha256": sha256_file(suite_path)},
                    "binding": {"path": str(binding.path), "sha256": sha256_file(binding.path)}},
-        "versions": package_versions(), "table": _json_safe(table), "files": files,
+        "versions": package_versions(), "table": json_safe(table), "files": files,
     }
     write_json(out / files["json"], record)
     return PredictionResult(out, table, files)
 
-
-def _json_safe(value: Any) -> Any:
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_json_safe(v) for v in value]
-    return value
