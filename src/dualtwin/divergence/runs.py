@@ -14,7 +14,6 @@ holds which channel. This module does the I/O; the numbers come from `dualtwin.d
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from dualtwin.artifacts import json_safe
 from dualtwin.divergence.metrics import (
     DEFAULT_MAX_LAG_S,
     DEFAULT_WEIGHTS,
@@ -414,7 +414,7 @@ class RunComparison:
             "suite_name": self.suite_name,
             "summary_score": self.summary_score,
             "units": dict(self.units),
-            "settings": _plain(self.settings),
+            "settings": json_safe(self.settings),
             "scenarios": [s.to_dict() for s in self.scenarios],
         }
 
@@ -434,16 +434,6 @@ class RunComparison:
             summary_score=data.get("summary_score"),
         )
 
-
-def _plain(value: Any) -> Any:
-    """Deep-copy mappings and sequences into JSON-ready dicts and lists."""
-    if isinstance(value, Mapping):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_plain(v) for v in value]
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 def resolve_thresholds(
