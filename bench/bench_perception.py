@@ -16,6 +16,8 @@ Environment variables:
   ``CartPole-MuJoCo-Continuous-v0`` for ``DUALTWIN_BENCH_PPO_SECONDS`` (default 900; 0 skips training); if that
   policy does not reach half the episode cap, the reference linear policy
   (:mod:`dualtwin.perception.reference_policy`) is used as well, and the output says so.
+* ``DUALTWIN_BENCH_PERCEPTION_MODEL``: a trained perception model folder to use instead of training one here
+  (its accuracy is still measured on the benchmark's datasets; e.g. the ``model`` folder of an earlier run).
 * ``DUALTWIN_BENCH_EPISODES`` (default 60), ``DUALTWIN_BENCH_EPOCHS`` (default 12), ``DUALTWIN_BENCH_DEPLOY_EPISODES``
   (default 5), ``DUALTWIN_BENCH_PERCEPTION_OUT`` (keep the datasets and models there; default a temporary folder).
 """
@@ -76,14 +78,18 @@ def accuracy(root: Path, episodes: int, epochs: int) -> tuple[Path, dict[str, An
     data = collect(MUJOCO, episodes, root / "data-mujoco", seed=0, resume=(root / "data-mujoco").exists())
     collect_s = time.perf_counter() - start
     start = time.perf_counter()
-    model = train_perception(data, root / "model", epochs=epochs, seed=0, threads=2, verbose=True)
+    given = os.environ.get("DUALTWIN_BENCH_PERCEPTION_MODEL")
+    model = Path(given) if given else train_perception(data, root / "model", epochs=epochs, seed=0, threads=2,
+                                                       verbose=True)
     train_s = time.perf_counter() - start
+    if given:
+        print(f"  using the trained model {given} (not trained here)")
     webots = collect(WEBOTS, max(4, episodes // 10), root / "data-webots", seed=1000,
                      resume=(root / "data-webots").exists())
     result: dict[str, Any] = {"episodes": episodes, "epochs": epochs, "collect_s": round(collect_s, 1),
                               "train_s": round(train_s, 1)}
     for label, dataset in (("mujoco_heldout", data), ("webots", webots)):
-        for velocity in ("frame-stack", "alpha-beta"):
+        for velocity in ("frame-stack", "kalman"):
             report = evaluate_perception(model, dataset, velocity=velocity)
             result[f"{label}_{velocity}"] = {k: report[k] for k in ("frames", "mae", "mae_constant")}
         report = result[f"{label}_frame-stack"]
@@ -92,8 +98,8 @@ def accuracy(root: Path, episodes: int, epochs: int) -> tuple[Path, dict[str, An
               f"{const['pole_angle']:.4f}), pole rate {mae['pole_angular_velocity']:.3f} rad/s "
               f"({const['pole_angular_velocity']:.3f}), cart {mae['cart_position']:.4f} m "
               f"({const['cart_position']:.4f}), cart velocity {mae['cart_velocity']:.3f} m/s "
-              f"({const['cart_velocity']:.3f}); alpha-beta pole rate "
-              f"{result[f'{label}_alpha-beta']['mae']['pole_angular_velocity']:.3f} rad/s")
+              f"({const['cart_velocity']:.3f}); Kalman pole rate "
+              f"{result[f'{label}_kalman']['mae']['pole_angular_velocity']:.3f} rad/s")
     print(f"  collect {collect_s:.0f} s, train {train_s:.0f} s; goal pole-angle MAE <= {GOAL_POLE_MAE} rad on "
           f"held-out MuJoCo frames: {'met' if result['mujoco_heldout_frame-stack']['mae']['pole_angle'] <= GOAL_POLE_MAE else 'NOT met'}")
     return model, result

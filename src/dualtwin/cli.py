@@ -91,11 +91,14 @@ def analyze(
     robot: Annotated[str | None, typer.Option(help="robot, to compute knob sensitivities by re-simulation")] = None,
     twin: Annotated[str | None, typer.Option(help="the twin of RUN_B, for sensitivities")] = None,
     knobs: Annotated[list[str] | None, typer.Option(help="knob names or globs for sensitivities")] = None,
+    llm: Annotated[bool, typer.Option(help="also ask the configured LLM (DUALTWIN_LLM_*) to explain the findings "
+                                           "and propose knob changes, each re-simulated")] = False,
 ) -> None:
     """Explain why two runs diverge: dominant scenarios/channels, sign/lag/scale flags, knob sensitivities."""
     from dualtwin.align import analyze_runs, print_analysis, write_analysis
 
-    analysis = analyze_runs(run_a, run_b, robot=robot, twin_b=twin, knobs=knobs)
+    proposer = _llm_proposer(run_a.name, run_b.name) if llm else None
+    analysis = analyze_runs(run_a, run_b, robot=robot, twin_b=twin, knobs=knobs, propose_fn=proposer)
     write_analysis(analysis, out)
     print_analysis(analysis, console)
     console.print(f"wrote {out}")
@@ -119,6 +122,9 @@ def align(
     objective: Annotated[str, typer.Option(help="trajectory (suite runs) or prediction (short horizons)")]
     = "trajectory",
     horizons: Annotated[str, typer.Option(help="prediction horizons in control periods, e.g. 1,5")] = "1,5",
+    llm: Annotated[bool, typer.Option(help="ask the configured LLM to explain the findings and propose starting "
+                                           "knob values; proposals are kept only if they lower the objective")]
+    = False,
 ) -> None:
     """Fit the target twin's knobs to the reference; write knobs, DR ranges, patched model and report."""
     from dualtwin.align import align as run_align
@@ -131,12 +137,26 @@ def align(
     if objective not in ("trajectory", "prediction"):
         raise DualtwinError(f"--objective must be trajectory or prediction, not {objective!r}")
     ref: str | Path = Path(reference) if Path(reference).exists() else reference
-    extra = {"objective": objective, "horizons": _int_list(horizons, "--horizons")} if objective == "prediction" else {}
+    extra: dict[str, object] = (
+        {"objective": objective, "horizons": _int_list(horizons, "--horizons")} if objective == "prediction" else {})
+    if llm:
+        extra["propose_fn"] = _llm_proposer(str(reference), target)
     result = run_align(ref, target, robot, scenarios, knobs, out, optimizer=optimizer,  # type: ignore[arg-type]
                        seed=seed, budget=budget, resume=resume, executor=executor,  # type: ignore[arg-type]
                        ray_address=address, holdout=holdout, **extra)  # type: ignore[arg-type]
     print_result(result, console)
+    from dualtwin.align.narrate import print_narrative
+
+    print_narrative(result.narrative, console)
     console.print(f"wrote {out}")
+
+
+def _llm_proposer(label_a: str, label_b: str):  # type: ignore[no-untyped-def]
+    """The LLM proposer for --llm (the provider is configured by DUALTWIN_LLM_* or DUALTWIN_LLM_CONFIG)."""
+    from dualtwin.align.narrate import LLMProposer
+    from dualtwin.genai.llm import make_llm
+
+    return LLMProposer(make_llm(), label_a=label_a, label_b=label_b)
 
 
 @app.command("train")
@@ -149,32 +169,39 @@ def train(
     resume: Annotated[bool, typer.Option(help="continue an interrupted run from its last checkpoint")] = False,
     dr: Annotated[Path | None, typer.Option(help="domain-randomisation ranges (dr_ranges.json from align)")] = None,
     shadow_fraction: Annotated[float, typer.Option(help="share of episodes shadowed in the Webots twin")] = 0.0,
+    aligned: Annotated[Path | None, typer.Option(
+        help="train in the aligned twin: knobs.json from align --target <this env's twin>")] = None,
+    init_from: Annotated[Path | None, typer.Option(
+        help="fine-tune: start from this run's best policy and normalisation (same env id)")] = None,
 ) -> None:
     """Train PPO (Stable-Baselines3) on a twin env; VecNormalize stats are saved with the model."""
     from dualtwin.rl.train import train as run_train
 
     run = run_train(env, config, out, seed=seed, total_timesteps=steps, resume=resume, dr_ranges=dr,
-                    shadow_fraction=shadow_fraction)
+                    shadow_fraction=shadow_fraction, aligned=aligned, init_from=init_from)
     console.print(f"wrote {run}")
 
 
 @app.command("transfer")
 def transfer(
-    policy: Annotated[Path, typer.Option(help="training run folder")],
+    policy: Annotated[Path, typer.Option(help="run folder of the policy trained in the nominal source twin")],
     target_env: Annotated[str, typer.Option(help="env id of the other twin")],
     out: Annotated[Path, typer.Option(help="report folder")],
-    aligned: Annotated[Path | None, typer.Option(help="aligned knobs file (knobs.json from align)")] = None,
+    policy_aligned: Annotated[Path | None, typer.Option(
+        help="run folder of a policy trained in the aligned source twin (train --aligned knobs.json)")] = None,
+    policy_dr: Annotated[Path | None, typer.Option(
+        help="run folder of a policy trained with calibrated DR (train --dr dr_ranges.json)")] = None,
     episodes: Annotated[int, typer.Option(help="episodes per row")] = 10,
     seed: Annotated[int, typer.Option(help="seed")] = 0,
     which: Annotated[str, typer.Option(help="best or final model")] = "final",
 ) -> None:
-    """Evaluate a policy in its source env and in the target twin, before and after alignment (Table 1)."""
+    """Evaluate policies in their source twin and in the target twin: before and after alignment, with DR (Table 1)."""
     from dualtwin.rl.transfer import transfer as run_transfer
 
     if which not in ("best", "final"):
         raise DualtwinError(f"--which must be best or final, not {which!r}")
-    report = run_transfer(policy, target_env, aligned=aligned, episodes=episodes, seed=seed, out_dir=out,
-                          which=which)  # type: ignore[arg-type]
+    report = run_transfer(policy, target_env, policy_aligned=policy_aligned, policy_dr=policy_dr,
+                          episodes=episodes, seed=seed, out_dir=out, which=which)
     for row in report.rows:
         console.print(f"  {row.label:<32} {row.summary()}")
     console.print(f"wrote {out}")

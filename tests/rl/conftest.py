@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import importlib.util
+import json
 import os
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -42,18 +44,38 @@ def tiny_config() -> dict[str, object]:
     return dict(TINY)
 
 
-def _train(tmp: Path, env_id: str, steps: int, extra: dict[str, object] | None = None) -> Path:
+def _train(tmp: Path, env_id: str, steps: int, extra: dict[str, object] | None = None, **kwargs: Any) -> Path:
     import torch
 
     from dualtwin.rl.train import train
 
     torch.set_num_threads(1)
-    return train(env_id, {**TINY, **(extra or {})}, tmp, seed=0, total_timesteps=steps, progress_bar=False)
+    return train(env_id, {**TINY, **(extra or {})}, tmp, seed=0, total_timesteps=steps, progress_bar=False,
+                 **kwargs)
 
 
 @pytest.fixture(scope="session")
 def discrete_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return _train(tmp_path_factory.mktemp("discrete") / "run", "dualtwin/CartPole-MuJoCo-v0", 2048)
+
+
+# The aligned source twin: a heavier pole (tests/rl/test_transfer.py's stand-in target has the same).
+ALIGNED_KNOBS = {"schema": "dualtwin.knobs/1", "twin": "mujoco",
+                 "knobs": {"body.pole.mass": {"nominal": 0.2, "fitted": 0.3}}}
+
+
+@pytest.fixture(scope="session")
+def aligned_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("aligned")
+    knobs = folder / "knobs.json"
+    knobs.write_text(json.dumps(ALIGNED_KNOBS))
+    return _train(folder / "run", "dualtwin/CartPole-MuJoCo-v0", 1024, aligned=knobs)
+
+
+@pytest.fixture(scope="session")
+def dr_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    ranges = {"knobs": {"body.pole.mass": {"low": 0.15, "high": 0.35}}}
+    return _train(tmp_path_factory.mktemp("dr") / "run", "dualtwin/CartPole-MuJoCo-v0", 1024, dr_ranges=ranges)
 
 
 @pytest.fixture(scope="session")

@@ -15,6 +15,8 @@ from dualtwin.errors import DualtwinError
 from dualtwin.rl.randomize import DomainRandomization, apply_knobs, load_knob_values, load_ranges
 
 OBS_NAMES = ["cart_position", "cart_velocity", "pole_angle", "pole_angular_velocity"]
+# The CartPole task's own checks; the Pioneer task's are in test_pioneer_task.py.
+CARTPOLE_IDS = [p for p in ALL_IDS if str(p.id).startswith("CartPole")]
 
 
 def rollout(env: gym.Env, seed: int, steps: int = 30) -> np.ndarray:
@@ -39,7 +41,7 @@ def test_check_env(env_id: str) -> None:
     env.close()
 
 
-@pytest.mark.parametrize("env_id", ALL_IDS)
+@pytest.mark.parametrize("env_id", CARTPOLE_IDS)
 def test_spaces_and_contract(env_id: str) -> None:
     env = gym.make(env_id)
     assert env.spec is not None and env.spec.max_episode_steps == 1000
@@ -74,10 +76,11 @@ def test_same_seed_same_rollout(env_id: str) -> None:
 @pytest.mark.parametrize("env_id", ALL_IDS)
 def test_make_vec_sync(env_id: str) -> None:
     envs = gym.make_vec(env_id, num_envs=2, vectorization_mode="sync")
+    shape = (2, *(envs.single_observation_space.shape or ()))
     obs, _ = envs.reset(seed=3)
-    assert obs.shape == (2, 4)
+    assert obs.shape == shape and shape[1] >= 4
     obs, reward, terminated, truncated, _ = envs.step(envs.action_space.sample())
-    assert obs.shape == (2, 4) and reward.shape == (2,)
+    assert obs.shape == shape and reward.shape == (2,)
     envs.close()
 
 
@@ -86,12 +89,14 @@ def test_reward_counts_balanced_steps_and_never_ends_on_the_pole() -> None:
     assert env.spec is not None and env.spec.max_episode_steps == 2000
     env.reset(seed=0)
     env.unwrapped.twin.set_joint_state("pole_hinge", position=0.6)  # fallen beyond the 0.3 rad band
-    rewards = []
+    rewards, angles = [], []
     for _ in range(40):
         _, reward, terminated, truncated, info = env.step(0 if len(rewards) % 2 else 1)
         rewards.append(reward)
+        angles.append(abs(info["true_pole_angle"]))
         assert not terminated and not truncated
-    assert abs(info["true_pole_angle"]) > 0.3 and rewards[-1] == 0.0
+    # The alternating pushes may swing the pole back through the band late in the run.
+    assert min(angles[:10]) > 0.3 and rewards[-1] == 0.0
     env.close()
 
 
@@ -234,7 +239,7 @@ def test_odometry_cart_velocity_is_onboard() -> None:
         gym.make("dualtwin/CartPole-MuJoCo-v0", task_kwargs={"cart_velocity": "radar"})
 
 
-@pytest.mark.parametrize("env_id", ALL_IDS)
+@pytest.mark.parametrize("env_id", CARTPOLE_IDS)
 def test_ground_truth_variant_observations_are_finite(env_id: str) -> None:
     env = gym.make(env_id, task_kwargs={"cart_velocity": "ground_truth"})
     obs, _ = env.reset(seed=0)
@@ -258,3 +263,16 @@ def test_no_reward_while_the_cart_is_tipped_over(monkeypatch: pytest.MonkeyPatch
     assert reward == 0.0 and not terminated
     contract = env.unwrapped.io_contract()
     assert contract["task"]["upright_angle_rad"] == pytest.approx(0.5)
+
+
+def test_integer_knobs_draw_every_value_alike() -> None:
+    from dualtwin.rl.randomize import draw_knobs
+
+    ranges = load_ranges({"knobs": {"control.delay_periods": {"low": 0, "high": 2, "integer": True}}})
+    rng = np.random.default_rng(0)
+    draws = [draw_knobs(ranges, {"control.delay_periods": 0.0}, rng)["control.delay_periods"] for _ in range(3000)]
+    values, counts = np.unique(draws, return_counts=True)
+    # Rounding a uniform float would give 0 and 2 a quarter each, 1 a half.
+    assert values.tolist() == [0.0, 1.0, 2.0] and np.all(np.abs(counts / 3000 - 1 / 3) < 0.04)
+    with pytest.raises(DualtwinError, match="no integer"):
+        load_ranges({"knobs": {"control.delay_periods": {"low": 0.2, "high": 0.8, "integer": True}}})

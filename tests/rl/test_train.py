@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import pytest
 import yaml
@@ -117,3 +119,56 @@ def test_stop_reward_ends_training_and_is_recorded(tmp_path: Path) -> None:
     assert record["status"] == "complete" and record["num_timesteps"] == 1024
     assert record["timings"]["threshold_reached"]["timesteps"] == 1024
     assert [e["timesteps"] for e in record["evaluations"]] == [1024]
+
+
+def test_train_in_aligned_twin(aligned_run: Path) -> None:
+    knobs_file = aligned_run.parent / "knobs.json"
+    record = json.loads((aligned_run / "run.json").read_text())
+    assert record["aligned"]["values"] == {"body.pole.mass": 0.3} and record["aligned"]["twin"] == "mujoco"
+    assert record["aligned"]["file"] == str(knobs_file.resolve())
+    assert record["aligned"]["sha256"] == hashlib.sha256(knobs_file.read_bytes()).hexdigest()
+    assert json.loads((aligned_run / "aligned_knobs.json").read_text()) == record["aligned"]
+    # The source env rebuilt from the run is the aligned twin, at every reset.
+    env = load_policy(aligned_run).make_env()
+    for seed in (0, 1):
+        env.reset(seed=seed)
+        twin = env.unwrapped.twin
+        pole = mujoco.mj_name2id(twin.model, mujoco.mjtObj.mjOBJ_BODY, "pole")
+        assert twin.model.body_mass[pole] == pytest.approx(0.3)
+
+
+def test_train_aligned_rejects_foreign_knobs(tmp_path: Path) -> None:
+    env_id = "dualtwin/CartPole-MuJoCo-v0"
+    webots = tmp_path / "webots_knobs.json"
+    webots.write_text(json.dumps({"twin": "webots", "knobs": {"body.pole.mass": {"fitted": 0.3}}}))
+    with pytest.raises(DualtwinError, match="fitted for the webots twin, but .*CartPole-MuJoCo-v0 runs the mujoco"):
+        train(env_id, TINY, tmp_path / "a", total_timesteps=512, aligned=webots, progress_bar=False)
+    with pytest.raises(DualtwinError, match="has no knobs named body.nope.mass"):
+        train(env_id, TINY, tmp_path / "b", total_timesteps=512, aligned={"body.nope.mass": 1.0},
+              progress_bar=False)
+    with pytest.raises(DualtwinError, match="outside the knob's bounds"):
+        train(env_id, TINY, tmp_path / "c", total_timesteps=512, aligned={"body.pole.mass": -1.0},
+              progress_bar=False)
+    # Nothing was trained or written.
+    assert not any((tmp_path / name).exists() for name in "abc")
+
+
+def test_fine_tune_from_a_run(discrete_run: Path, tmp_path: Path) -> None:
+    out = train("dualtwin/CartPole-MuJoCo-v0", {**TINY, "learning_rate": 1e-5}, tmp_path / "tuned",
+                total_timesteps=512, init_from=discrete_run, aligned={"body.pole.mass": 0.3}, progress_bar=False)
+    record = json.loads((out / "run.json").read_text())
+    start = discrete_run / "best_model.zip"
+    assert record["init_from"]["model"] == str(start.resolve())
+    assert record["init_from"]["sha256"] == hashlib.sha256(start.read_bytes()).hexdigest()
+    assert record["num_timesteps"] == 512
+    # The network comes from the initial run, the PPO settings from this config.
+    tuned = load_policy(out).model
+    assert tuned.learning_rate == pytest.approx(1e-5) and tuned.lr_schedule(1.0) == pytest.approx(1e-5)
+    # The normalisation statistics carried on from the initial policy's rather than starting afresh
+    # (512 steps plus the first reset of each env).
+    before, after = load_policy(discrete_run, "best").vec_normalize, load_policy(out).vec_normalize
+    assert before is not None and after is not None
+    assert after.obs_rms.count == pytest.approx(before.obs_rms.count + 512 + int(TINY["n_envs"]))
+    with pytest.raises(DualtwinError, match="can only be fine-tuned on that env"):
+        train("dualtwin/CartPole-MuJoCo-Continuous-v0", TINY, tmp_path / "x", total_timesteps=512,
+              init_from=discrete_run, progress_bar=False)

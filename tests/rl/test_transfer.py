@@ -4,41 +4,67 @@ from __future__ import annotations
 
 import json
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from dualtwin.errors import DualtwinError
 from dualtwin.rl.transfer import transfer
 
-# The "other twin": same ids and spaces, heavier pole. Aligning it back to nominal must reproduce the source.
+# The "other twin": same ids and spaces, heavier pole; the aligned run (conftest) trained with the same mass.
 OTHER = {"knobs": {"body.pole.mass": 0.3}}
 
 
-def test_transfer_report(discrete_run: Path, tmp_path: Path) -> None:
+def test_transfer_report(discrete_run: Path, aligned_run: Path, dr_run: Path, tmp_path: Path) -> None:
     out = tmp_path / "transfer"
-    report = transfer(discrete_run, "dualtwin/CartPole-MuJoCo-v0", aligned={"body.pole.mass": 0.2}, episodes=2,
-                      seed=3, out_dir=out, target_kwargs=OTHER, max_episode_steps=80)
+    report = transfer(discrete_run, "dualtwin/CartPole-MuJoCo-v0", policy_aligned=aligned_run, policy_dr=dr_run,
+                      episodes=2, seed=3, out_dir=out, target_kwargs=OTHER, max_episode_steps=80)
     labels = [r.label for r in report.rows]
-    assert labels == ["source", "target (before alignment)", "target (after alignment)"]
-    source, before, after = report.rows
+    assert labels == ["source", "target (before alignment)", "source (aligned twin)", "target (after alignment)",
+                      "source (trained with DR)", "target (with calibrated DR)"]
+    source, before, aligned_source, after, dr_source, dr_target = report.rows
     assert len(source.rewards) == 2 and all(n <= 80 for n in source.lengths)
     if source.mean > 0:
         assert source.ratio == pytest.approx(1.0)
-    # Same seeds and (after alignment) the same physics as the source: identical episodes.
-    assert after.rewards == source.rewards and after.lengths == source.lengths
+        assert after.ratio == pytest.approx(after.mean / source.mean)
+    assert [r.policy_run for r in report.rows] == [str(discrete_run)] * 2 + [str(aligned_run)] * 2 + [str(dr_run)] * 2
+    # The aligned policy's training env is the aligned twin (knobs from its run), here the same physics as the
+    # target: same seeds, identical episodes. The DR policy's own env is the nominal one.
+    assert aligned_source.knobs == {"body.pole.mass": 0.3} and dr_source.knobs is None and source.knobs is None
+    assert after.rewards == aligned_source.rewards and after.lengths == aligned_source.lengths
     assert before.trajectory is not None and len(before.trajectory.time_s) == before.lengths[0]
+    assert report.aligned is not None and report.aligned["values"] == {"body.pole.mass": 0.3}
+    assert report.dr_ranges is not None and set(report.dr_ranges) == {"body.pole.mass"}
     for name in ("transfer.json", "report.md", "trajectory.png"):
         assert (out / name).is_file(), name
     data = json.loads((out / "transfer.json").read_text())
-    assert data["rows"][1]["label"] == "target (before alignment)" and len(data["rows"][2]["rewards"]) == 2
-    assert "± " in (out / "report.md").read_text()
+    assert [r["label"] for r in data["rows"]] == labels and len(data["rows"][3]["rewards"]) == 2
+    assert data["aligned"]["sha256"] == report.aligned["sha256"] and len(data["aligned"]["sha256"]) == 64
+    text = (out / "report.md").read_text()
+    assert "± " in text and "`body.pole.mass` = 0.3" in text and "[0.15, 0.35]" in text
+    assert dr_target.mean == pytest.approx(np.mean(dr_target.rewards))
 
 
 def test_transfer_without_alignment(discrete_run: Path) -> None:
     report = transfer(discrete_run, "dualtwin/CartPole-MuJoCo-v0", episodes=1, target_kwargs=OTHER,
                       max_episode_steps=30)
     assert [r.label for r in report.rows] == ["source", "target (before alignment)"]
+
+
+def test_companion_policies_are_checked(discrete_run: Path, dr_run: Path, continuous_run: Path) -> None:
+    # A run without aligned knobs as the aligned policy, a nominal run as the DR one, another env's run.
+    with pytest.raises(DualtwinError, match="not trained in an aligned twin.*train --aligned"):
+        transfer(discrete_run, "dualtwin/CartPole-MuJoCo-v0", policy_aligned=dr_run, episodes=1,
+                 max_episode_steps=10)
+    with pytest.raises(DualtwinError, match="not trained with domain randomisation"):
+        transfer(discrete_run, "dualtwin/CartPole-MuJoCo-v0", policy_dr=discrete_run, episodes=1,
+                 max_episode_steps=10)
+    with pytest.raises(DualtwinError, match="trained on 'dualtwin/CartPole-MuJoCo-Continuous-v0'"):
+        transfer(discrete_run, "dualtwin/CartPole-MuJoCo-v0", policy_dr=continuous_run, episodes=1,
+                 max_episode_steps=10)
 
 
 def test_action_space_mismatch_is_named(discrete_run: Path) -> None:
@@ -57,12 +83,9 @@ def test_observation_mismatch_is_named(discrete_run: Path, tmp_path: Path) -> No
         transfer(run, "dualtwin/CartPole-MuJoCo-v0", episodes=1, max_episode_steps=10)
 
 
-def test_unknown_target_and_bad_knobs(discrete_run: Path) -> None:
+def test_unknown_target(discrete_run: Path) -> None:
     with pytest.raises(DualtwinError, match="registered dualtwin ids"):
         transfer(discrete_run, "dualtwin/CartPole-Gazebo-v0", episodes=1)
-    with pytest.raises(DualtwinError, match="no knobs named"):
-        transfer(discrete_run, "dualtwin/CartPole-MuJoCo-v0", aligned={"body.nope.mass": 1.0}, episodes=1,
-                 max_episode_steps=10)
 
 
 def test_observation_source_mismatch_is_named(discrete_run: Path) -> None:
@@ -70,3 +93,22 @@ def test_observation_source_mismatch_is_named(discrete_run: Path) -> None:
     with pytest.raises(DualtwinError, match="observation sources"):
         transfer(discrete_run, "dualtwin/CartPole-MuJoCo-v0", episodes=1, max_episode_steps=10,
                  target_kwargs={"task_kwargs": {"cart_velocity": "ground_truth"}})
+
+
+def test_cli_table_1_and_foreign_knobs(discrete_run: Path, aligned_run: Path, dr_run: Path, tmp_path: Path) -> None:
+    def dualtwin(*args: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run([sys.executable, "-m", "dualtwin.cli", *args], capture_output=True, text=True,
+                              timeout=300)
+
+    result = dualtwin("transfer", "--policy", str(discrete_run), "--target-env", "dualtwin/CartPole-MuJoCo-v0",
+                      "--policy-aligned", str(aligned_run), "--policy-dr", str(dr_run), "--episodes", "1",
+                      "--out", str(tmp_path / "t"))
+    assert result.returncode == 0, result.stderr
+    for label in ("target (before alignment)", "target (after alignment)", "target (with calibrated DR)"):
+        assert label in result.stdout
+    knobs = tmp_path / "knobs.json"
+    knobs.write_text(json.dumps({"twin": "webots", "knobs": {"body.pole.mass": {"fitted": 0.3}}}))
+    result = dualtwin("train", "--env", "dualtwin/CartPole-MuJoCo-v0", "--out", str(tmp_path / "run"),
+                      "--aligned", str(knobs))
+    assert result.returncode != 0 and "Traceback" not in result.stderr
+    assert "fitted for the webots twin" in result.stderr and not (tmp_path / "run").exists()

@@ -223,6 +223,21 @@ def test_models_that_are_not_onnx_fail_at_startup(policy_dir: Path, perception_d
     shutil.copy(perception_dir / "perception.onnx", bad_policy / "policy.onnx")
     with pytest.raises(DualtwinError, match="sha256|does not take"):
         create_app(bad_policy, perception_dir)
+    # The Kalman filter needs the model's held-out error as its noise; without it serving fails at startup.
+    no_noise = tmp_path / "no-noise"
+    shutil.copytree(perception_dir, no_noise)
+    contract = json.loads((no_noise / "perception_contract.json").read_text())
+    del contract["validation"]
+    (no_noise / "perception_contract.json").write_text(json.dumps(contract))
+    with pytest.raises(DualtwinError, match="no validation MAE"):
+        create_app(policy_dir, no_noise)
+    create_app(policy_dir, no_noise, velocity="frame-stack")  # the CNN's own velocities need no noise model
+    # A modified model part is refused like a modified model.
+    tampered = tmp_path / "tampered"
+    shutil.copytree(perception_dir, tampered)
+    shutil.copy(tampered / "perception_head.onnx", tampered / "perception_frame.onnx")
+    with pytest.raises(DualtwinError, match="sha256 differs"):
+        create_app(policy_dir, tampered)
 
 
 def test_deploy_closes_the_loop_through_the_server(policy_dir: Path, perception_dir: Path, serve_app: Any) -> None:

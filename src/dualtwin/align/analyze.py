@@ -54,7 +54,9 @@ from rich.markup import escape
 from scipy import stats
 
 from dualtwin.align.knobs import KnobSpec, select_knobs
+from dualtwin.align.narrate import narrative_html, print_narrative
 from dualtwin.align.objective import ObjectiveValue, build_spec, evaluate
+from dualtwin.align.propose import ProposalOutcome, ProposeFn, try_proposals
 from dualtwin.align.simulate import Evaluator, ExecutorKind, SimJob, check_executor, load_traces
 from dualtwin.artifacts import write_json, write_text
 from dualtwin.divergence.metrics import ChannelDivergence
@@ -155,6 +157,10 @@ class Analysis:
     sensitivity: list[KnobSensitivity] = field(default_factory=list)
     objective: ObjectiveValue | None = None
     notes: list[str] = field(default_factory=list)
+    #: Outcomes of proposals (e.g. an LLM's), each re-simulated; empty unless a proposer was given.
+    proposals: list[ProposalOutcome] = field(default_factory=list)
+    #: The LLM narrative (`dualtwin.align.narrate.Narrative.to_dict`), labelled as LLM output; None without --llm.
+    narrative: dict[str, Any] | None = None
 
     @property
     def dominant(self) -> list[Contribution]:
@@ -172,6 +178,8 @@ class Analysis:
             "sensitivity": [s.model_dump(mode="json") for s in self.sensitivity],
             "objective": None if self.objective is None else self.objective.to_dict(),
             "notes": list(self.notes),
+            "proposals": [p.to_dict() for p in self.proposals],
+            **({"llm_narrative": self.narrative} if self.narrative is not None else {}),
             "comparison": self.comparison.to_dict(),
         }
 
@@ -452,7 +460,8 @@ def detect_input_growth(comparison: RunComparison, suite: Suite | None) -> list[
                   for sid, s in zip(ids, suite.scenarios, strict=True) if sid in scores]
         points = [(m, v) for m, v in points if math.isfinite(m)]
         magnitudes = [m for m, _ in points]
-        if len(points) < 3 or len(set(magnitudes)) < 2:
+        # Identical scores (twins that agree everywhere) have no rank correlation to speak of.
+        if len(points) < 3 or len(set(magnitudes)) < 2 or len({v for _, v in points}) < 2:
             continue
         rho = float(stats.spearmanr(magnitudes, [v for _, v in points]).statistic)
         low = float(np.mean([v for m, v in points if m == min(magnitudes)]))
@@ -583,6 +592,7 @@ def analyze_runs(
     workers: int = 2,
     step: float = 0.05,
     thresholds: Mapping[str, float] | None = None,
+    propose_fn: ProposeFn | None = None,
 ) -> Analysis:
     """Explain the divergence of run B from run A (the reference). Deterministic.
 
@@ -596,6 +606,9 @@ def analyze_runs(
         workers: Process-pool size.
         step: Perturbation as a fraction of each knob's normalised range.
         thresholds: Crossing thresholds per channel (default: 0.99 rad on ``*_angle_rad``).
+        propose_fn: Optional proposer (an LLM, see `dualtwin.align.narrate`). It sees the finished
+            analysis; with a robot and twin its proposals are re-simulated and kept only if they lower the
+            objective, else none can be kept. Its narrative, if any, is attached, labelled as such.
 
     Raises:
         DualtwinError: Runs that are not comparable (the message lists what is missing on each side),
@@ -635,14 +648,37 @@ def analyze_runs(
         own = executor if isinstance(executor, Evaluator) else Evaluator(kind, workers)
         try:
             objective, sensitivity = knob_sensitivity(run_a, job, specs, own, step, thresholds)
+            recorded = evaluate(build_spec(load_traces(run_a), list(objective.per_scenario), thresholds=thresholds),
+                                load_traces(run_b))
+            if abs(recorded.total - objective.total) > 1e-6 * max(1.0, abs(recorded.total)):
+                notes.append(f"twin {twin_b!r} at nominal does not reproduce run B (objective {objective.total:.4g} "
+                             f"vs {recorded.total:.4g} recorded); sensitivities are relative to the nominal twin")
+            analysis = _finish(config, comparison, findings, sensitivity, objective, notes, available)
+            if propose_fn is not None:
+                spec = build_spec(load_traces(run_a), list(objective.per_scenario), thresholds=thresholds)
+
+                def simulate_objectives(values: Sequence[Mapping[str, float]]) -> list[float]:
+                    return [evaluate(spec, r).total for r in own.map([job.with_knobs(v) for v in values])]
+
+                analysis.proposals = try_proposals(propose_fn, analysis, specs, objective.total, simulate_objectives)
         finally:
             if own is not executor:
                 own.close()
-        recorded = evaluate(build_spec(load_traces(run_a), list(objective.per_scenario), thresholds=thresholds),
-                            load_traces(run_b))
-        if abs(recorded.total - objective.total) > 1e-6 * max(1.0, abs(recorded.total)):
-            notes.append(f"twin {twin_b!r} at nominal does not reproduce run B (objective {objective.total:.4g} vs "
-                         f"{recorded.total:.4g} recorded); sensitivities are relative to the nominal twin")
+    else:
+        analysis = _finish(config, comparison, findings, sensitivity, objective, notes, available)
+        if propose_fn is not None:
+            # Nothing can be re-simulated without the robot and twin, so no proposal can be kept.
+            analysis.proposals = try_proposals(propose_fn, analysis, [], math.inf, lambda values: [])
+            notes.append("proposals need --robot and --twin to be re-simulated; none was kept")
+    narrative = getattr(propose_fn, "narrative", None)
+    if narrative is not None:
+        analysis.narrative = narrative.to_dict()
+    return analysis
+
+
+def _finish(config: AnalysisConfig, comparison: RunComparison, findings: list[Finding],
+            sensitivity: list[KnobSensitivity], objective: ObjectiveValue | None, notes: list[str],
+            available: list[str] | None) -> Analysis:
     findings = attach_knobs(findings, sensitivity, available)
     if not findings:
         notes.append("no finding: the runs agree within the detectors' thresholds")
@@ -709,6 +745,7 @@ def write_analysis(analysis: Analysis, out_dir: Path) -> Path:
                   sensitivity_html(analysis.sensitivity)]
     if analysis.notes:
         parts.append("<ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in analysis.notes) + "</ul>")
+    parts.append(narrative_html(analysis.narrative))
     parts += ["<h2>Dominant scenario × channel pairs</h2>", *images, "</body></html>"]
     path = out_dir / "analysis.html"
     write_text(path, "\n".join(parts))
@@ -733,3 +770,4 @@ def print_analysis(analysis: Analysis, console: Console, *, top: int = 10) -> No
             console.print(f"    {escape(s.knob):<40} {s.sensitivity:10.4g}  {s.best_direction}")
     for note in analysis.notes:
         console.print(f"[yellow]note:[/] {escape(note)}")
+    print_narrative(analysis.narrative, console)

@@ -15,7 +15,9 @@ candidate but never steer the search. They show whether the fit generalises.
 * ``optimizer="lsq"``: ``mujoco.minimize.least_squares`` (bounded Levenberg-Marquardt with a
   finite-difference Jacobian whose perturbed points are simulated in parallel) on the residual vector.
   When it stops, the points four finite-difference steps away along each knob are tried, and the fit
-  restarts from a better one (``lsq_restarts`` times at most).
+  restarts from a better one (``lsq_restarts`` times at most). Integer knobs (delays, physics sub-steps)
+  have no derivative: each is first set to its best value by simulating every integer in its bounds, then
+  held while least squares fits the continuous knobs.
   ``mujoco.sysid`` is not used, even when it is installed: it computes residuals with ``mujoco.rollout``
   on the MJCF's own actuators, while our MuJoCo twin emulates Webots motors (a velocity servo with torque
   saturation, switched per physics step in Python), control delays and sensor models outside MuJoCo.
@@ -174,6 +176,8 @@ class AlignResult:
     condition_number: float | None = None
     files: dict[str, str] = field(default_factory=dict)
     proposals: list[ProposalOutcome] = field(default_factory=list)
+    #: The LLM narrative (labelled as LLM output) when the proposer was an LLM; None otherwise.
+    narrative: dict[str, Any] | None = None
 
     @property
     def fitted(self) -> dict[str, float]:
@@ -377,6 +381,10 @@ def _write_cma_checkpoint(out_dir: Path, config: AlignConfig, es: Any, problem: 
 
 
 # ------------------------------------------------------------------ least squares
+#: Rounds of re-screening integer knobs at the fitted continuous values (least squares only).
+LSQ_INTEGER_ROUNDS = 2
+
+
 def _fit_lsq(problem: _Problem, config: AlignConfig, out_dir: Path, x0: Sequence[float], f0: float, resume: bool,
              callback: Callable[[GenerationInfo], None] | None) -> _Outcome:
     minimize = _mujoco_module("minimize")
@@ -392,9 +400,21 @@ def _fit_lsq(problem: _Problem, config: AlignConfig, out_dir: Path, x0: Sequence
         problem.evaluations = int(state["evaluations"])
     seen: dict[tuple[float, ...], _Point] = {}
     offset = len(trace)
+    integer = [i for i, s in enumerate(problem.specs) if s.integer]
+    free = [i for i in range(len(problem.specs)) if i not in integer]
+    if integer and not trace:
+        start = _screen_integers(problem, start, integer, config.budget)
+    held = list(start)
+
+    def expand(x: Sequence[float] | np.ndarray) -> list[float]:
+        """The full unit vector: least squares moves the continuous knobs, integer ones stay as screened."""
+        full = list(held)
+        for j, i in enumerate(free):
+            full[i] = min(1.0, max(0.0, float(x[j])))
+        return full
 
     def residual(x: np.ndarray) -> np.ndarray:
-        columns = [list(map(float, x[:, j])) for j in range(x.shape[1])]
+        columns = [expand(x[:, j]) for j in range(x.shape[1])]
         if problem.evaluations + len(columns) > config.budget:
             raise _BudgetExhausted
         points = problem.run(columns)
@@ -403,7 +423,7 @@ def _fit_lsq(problem: _Problem, config: AlignConfig, out_dir: Path, x0: Sequence
         return np.stack([p.residual for p in points], axis=1).astype(np.float64)
 
     def on_iteration(logs: list[Any]) -> None:
-        u = [min(1.0, max(0.0, float(v))) for v in np.asarray(logs[-1].candidate).ravel()]
+        u = expand(np.asarray(logs[-1].candidate).ravel())
         point = seen.get(tuple(u))
         entry: dict[str, Any] = {"iteration": offset + len(logs), "evaluations": problem.evaluations,
                  "best": point.train if point else None, "lsq_objective": float(logs[-1].objective),
@@ -419,46 +439,83 @@ def _fit_lsq(problem: _Problem, config: AlignConfig, out_dir: Path, x0: Sequence
     def sq(p: _Point) -> float:
         return float(p.residual @ p.residual)
 
-    u, reason, restarts = start, "done", 0
-    for attempt in range(config.lsq_restarts + 1):
-        offset = len(trace)
-        output = io.StringIO()
-        try:
-            x, _ = minimize.least_squares(np.asarray(u, dtype=np.float64), residual,
-                                          bounds=[np.zeros(len(u)), np.ones(len(u))], eps=config.fd_step,
-                                          # Every rejected step costs a suite simulation: raise the damping
-                                          # 3x per rejection (not 1.26x) and give up at 1e6 (not 1e8).
-                                          mu_factor=10 ** 0.5, mu_max=1e6,
-                                          max_iter=config.lsq_max_iter, verbose=1, output=output,
-                                          iter_callback=on_iteration)
-            u = [min(1.0, max(0.0, float(v))) for v in np.asarray(x).ravel()]
-            final = [line for line in output.getvalue().splitlines() if line.startswith("Terminated after")]
-            reason = final[-1].split(": ", 1)[-1].split(" y:")[0] if final else "done"
-        except _BudgetExhausted:
-            best = min(seen.values(), key=sq, default=None)
-            u = best.u if best is not None else u
-            reason = f"budget ({problem.evaluations} of {config.budget} evaluations used)"
+    def fit_continuous(u: list[float]) -> tuple[list[float], str, int, bool]:
+        """Least squares with restarts from a better neighbour; (u, reason, restarts, budget exhausted)."""
+        nonlocal offset
+        held[:] = u
+        reason, restarts = "done", 0
+        for attempt in range(config.lsq_restarts + 1):
+            offset = len(trace)
+            output = io.StringIO()
+            try:
+                x, _ = minimize.least_squares(np.asarray([u[i] for i in free], dtype=np.float64), residual,
+                                              bounds=[np.zeros(len(free)), np.ones(len(free))], eps=config.fd_step,
+                                              # Every rejected step costs a suite simulation: raise the damping
+                                              # 3x per rejection (not 1.26x) and give up at 1e6 (not 1e8).
+                                              mu_factor=10 ** 0.5, mu_max=1e6,
+                                              max_iter=config.lsq_max_iter, verbose=1, output=output,
+                                              iter_callback=on_iteration)
+                u = expand(np.asarray(x).ravel())
+                final = [line for line in output.getvalue().splitlines() if line.startswith("Terminated after")]
+                reason = final[-1].split(": ", 1)[-1].split(" y:")[0] if final else "done"
+            except _BudgetExhausted:
+                best = min(seen.values(), key=sq, default=None)
+                u = best.u if best is not None else u
+                return u, f"budget ({problem.evaluations} of {config.budget} evaluations used)", restarts, True
+            # Rough residuals (impacts sampled once per control period) can trap a Gauss-Newton step in a dent:
+            # probe a few finite-difference steps away and restart from a better point if there is one.
+            kick = 4 * config.fd_step
+            probes = [p for i in free for p in (
+                [*u[:i], min(1.0, u[i] + kick), *u[i + 1:]], [*u[:i], max(0.0, u[i] - kick), *u[i + 1:]]) if p != u]
+            if attempt == config.lsq_restarts or not probes or problem.evaluations + len(probes) + 1 > config.budget:
+                break
+            here = seen.get(tuple(u)) or problem.run([u])[0]
+            scored = problem.run(probes)
+            for p in scored:
+                seen[tuple(p.u)] = p
+            better = min(scored, key=sq)
+            if sq(better) >= sq(here) * (1 - 1e-9):
+                break
+            u = better.u
+            restarts += 1
+        return u, reason, restarts, False
+
+    u = list(start)
+    if not free:
+        return _Outcome(u, 0, "integer knobs screened; no continuous knob to fit", trace)
+    u, reason, restarts, spent = fit_continuous(u)
+    # Integer and continuous knobs can stand in for each other (a coarser step for less damping): screen the
+    # integers again at the fitted values and refit until they settle.
+    for _ in range(LSQ_INTEGER_ROUNDS):
+        if not integer or spent:
             break
-        # Rough residuals (impacts sampled once per control period) can trap a Gauss-Newton step in a dent:
-        # probe a few finite-difference steps away and restart from a better point if there is one.
-        kick = 4 * config.fd_step
-        probes = [p for i in range(len(u)) for p in (
-            [*u[:i], min(1.0, u[i] + kick), *u[i + 1:]], [*u[:i], max(0.0, u[i] - kick), *u[i + 1:]]) if p != u]
-        if attempt == config.lsq_restarts or not probes or problem.evaluations + len(probes) + 1 > config.budget:
+        again = _screen_integers(problem, u, integer, config.budget)
+        if again == u:
             break
-        here = seen.get(tuple(u)) or problem.run([u])[0]
-        scored = problem.run(probes)
-        for p in scored:
-            seen[tuple(p.u)] = p
-        better = min(scored, key=sq)
-        if sq(better) >= sq(here) * (1 - 1e-9):
-            break
-        u = better.u
-        restarts += 1
+        u, reason, more, spent = fit_continuous(again)
+        restarts += more
     if restarts:
         reason += f" (after {restarts} restart{'s' if restarts > 1 else ''} from a better neighbour)"
     iterations = len(trace)
     return _Outcome(u, iterations, reason, trace)
+
+
+def _screen_integers(problem: _Problem, u: Sequence[float], integer: Sequence[int], budget: int) -> list[float]:
+    """Set each integer knob to its best value, trying every integer in its bounds with the others held.
+
+    Least squares needs residuals that change smoothly with the knobs; an integer knob's do not. Its values
+    are few, so they are all simulated (in parallel) and the best is held while the continuous knobs are fitted.
+    """
+    u = list(u)
+    for i in integer:
+        spec = problem.specs[i]
+        values = range(math.ceil(spec.lower), math.floor(spec.upper) + 1)
+        points = [[*u[:i], spec.to_unit(v), *u[i + 1:]] for v in values]
+        if problem.evaluations + len(points) > budget:
+            break
+        scored = problem.run([u, *points])
+        u = min(scored, key=lambda p: float(p.residual @ p.residual)).u
+    return u
 
 
 # ------------------------------------------------------------------ uncertainty
@@ -750,11 +807,6 @@ def align(
         # Everything checkable is checked before the output folder is touched, so a typo costs nothing.
         registry = target.knobs()
         specs = select_knobs(registry, list(knob_patterns), config.bounds, where=f"twin {target_twin_name!r}")
-        if optimizer == "lsq":
-            integer = [s.name for s in specs if s.integer]
-            if integer:
-                raise DualtwinError(f"least squares needs continuous knobs; {', '.join(integer)} take integer "
-                                    "values: use optimizer 'cma'")
         channel_names = list(RobotIO(binding, target).channel_info())
         if kind == "run":
             _check_reference(load_traces(Path(reference_run_or_twin)), ids, channel_names, Path(reference_run_or_twin))
@@ -851,7 +903,7 @@ def align(
     write_json(out_dir / "dr_ranges.json", dr_document(specs, fitted, ranges, source, config.dr_min_rel_width))
     files["dr_ranges"] = "dr_ranges.json"
 
-    patch = _patch_model(binding, target_twin_name, fitted)
+    patch = _patch_model(binding, target_twin_name, fitted, period)
     if patch.text is not None:
         suffix = ".xml" if target_twin_name == "mujoco" else ".wbt"
         name = f"{binding.name}_aligned{suffix}"
@@ -864,6 +916,9 @@ def align(
         evaluations=problem.evaluations, iterations=outcome.iterations, wall_time_s=0.0,
         stop_reason=outcome.stop_reason, warnings=warnings, condition_number=uncertainty.condition,
         files=files, proposals=proposals)
+    narrative = getattr(propose_fn, "narrative", None)
+    if narrative is not None:
+        result.narrative = narrative.to_dict()
 
     from dualtwin.align.report import write_align_report
 
@@ -878,10 +933,13 @@ def align(
     return result
 
 
-def _patch_model(binding: RobotBinding, twin: str, fitted: Mapping[str, float]) -> PatchResult:
+def _patch_model(binding: RobotBinding, twin: str, fitted: Mapping[str, float],
+                 control_period: float | None = None) -> PatchResult:
+    """The patched target model; ``control_period`` (default: the binding's) is the one the knobs were fitted at."""
     if twin == "mujoco":
         section = binding.spec.twins.get("mujoco")
-        return patch_mjcf(binding.model_path("mujoco"), fitted, dict(section.aliases) if section else None)
+        period = control_period if control_period is not None else binding.spec.control_period_ms / 1000.0
+        return patch_mjcf(binding.model_path("mujoco"), fitted, dict(section.aliases) if section else None, period)
     if twin == "webots":
         return patch_webots(binding.model_path("webots"), fitted)
     return PatchResult(None, note=f"no model patcher for twin {twin!r}; knobs.json holds the values")
@@ -919,6 +977,7 @@ def _record(config: AlignConfig, result: AlignResult, outcome: _Outcome, patch: 
         "trace": outcome.trace,
         "findings_before": [f.model_dump(mode="json") for f in analysis.findings],
         "proposals": [p.to_dict() for p in result.proposals],
+        **({"llm_narrative": result.narrative} if result.narrative is not None else {}),
         "model_patch": {"applied": patch.applied, "not_applied": patch.not_applied, "note": patch.note},
         "sysid": sysid_status(),
         "files": result.files,

@@ -20,6 +20,7 @@ knob                               unit       MuJoCo twin                       
 ``motor.<m>.max_velocity``         rad/s      Webots-motor emulation limit           RotationalMotor ``maxVelocity``
 ``motor.<m>.gain``                 –          command × gain (sign included)         command × gain (controller side)
 ``control.delay_periods``          periods    commands act k control periods late    –
+``physics.substeps``               steps      timestep = control period / k          –  (``basicTimeStep``, fixed at load)
 ``sensor.<s>.noise``               unit of s  Gaussian σ added in ``sensor()``       –  (sensor ``noise``)
 ``sensor.<s>.bias``                unit of s  offset added in ``sensor()``           –
 ``sensor.<s>.delay``               periods    readings k control periods old         –
@@ -31,6 +32,9 @@ contact restitution                –          ``geom.<g>.restitution``: solref
 contact softness                   s / –      ``geom.<g>.solref_timeconst``          ``contact.<p>.soft_erp``,
                                               (``geom_solref[0]``)                   ``contact.<p>.soft_cfm``
 world softness                     –          –                                      ``world.erp``, ``world.cfm`` (WorldInfo)
+``geom.<g>.radius``                m          ``geom_size[0]`` of a cylinder,        –  (a wheel's rolling radius; ODE's soft
+                                              sphere or capsule                      contacts let it sink)
+``option.impratio``                –          friction/normal impedance ratio        –  (closest: ``forceDependentSlip``)
 =================================  =========  =====================================  ==========================================
 
 MuJoCo combines a contact's sliding friction as the *maximum* of its two geoms' values (unless geom
@@ -43,7 +47,8 @@ ODE, a contact spring ``k`` and damper ``c`` with time step ``h`` give ``ERP = h
 ``CFM = 1/(hk+c)``: that is how a MuJoCo time constant and damping ratio map onto soft ERP/CFM.
 
 Knobs whose unit is ``periods`` (or ``steps``) are integer-valued: optimisers see a continuous value that
-the twin rounds, so they are fitted with CMA-ES, not least squares. Knobs whose bounds span a factor of
+the twin rounds. CMA-ES searches them like the others; least squares first tries every integer in their
+bounds and holds the best while it fits the continuous knobs. Knobs whose bounds span a factor of
 50 or more above zero (masses, velocity limits, contact time constants) are searched in log space.
 """
 

@@ -52,8 +52,13 @@ def _find(getter: object, name: str, kind: str, origin: str) -> object:
     return element
 
 
-def patch_mjcf(model_path: Path, knobs: Mapping[str, float], aliases: Mapping[str, str] | None = None) -> PatchResult:
-    """The MJCF at ``model_path`` with ``knobs`` written in (values as the MuJoCo twin applies them)."""
+def patch_mjcf(model_path: Path, knobs: Mapping[str, float], aliases: Mapping[str, str] | None = None,
+               control_period: float | None = None) -> PatchResult:
+    """The MJCF at ``model_path`` with ``knobs`` written in (values as the MuJoCo twin applies them).
+
+    ``control_period`` (s) turns ``physics.substeps`` into the option ``timestep``; without it that knob is
+    listed as not applied.
+    """
     origin = str(model_path)
     spec = mujoco.MjSpec.from_file(origin)
     nominal = spec.compile()
@@ -65,6 +70,20 @@ def patch_mjcf(model_path: Path, knobs: Mapping[str, float], aliases: Mapping[st
         value = float(value)
         if key.startswith("control."):
             not_applied[key] = NOT_IN_MJCF["delay"]
+            continue
+        if key == "physics.substeps":
+            if control_period is None:
+                not_applied[key] = "the timestep needs the control period"
+                continue
+            steps = int(round(value))
+            # The twin keeps the compiled step bit for bit at the nominal count (see MuJoCoTwin._set_substeps).
+            if abs(control_period / nominal.opt.timestep - steps) > 1e-6:
+                spec.option.timestep = control_period / steps
+            applied.append(key)
+            continue
+        if key == "option.impratio":
+            spec.option.impratio = value
+            applied.append(key)
             continue
         kind, rest = key.split(".", 1)
         name, prop = rest.rsplit(".", 1)
@@ -86,6 +105,8 @@ def patch_mjcf(model_path: Path, knobs: Mapping[str, float], aliases: Mapping[st
             g = mujoco.mj_name2id(nominal, mujoco.mjtObj.mjOBJ_GEOM, name)
             if prop == "friction":
                 geom.friction[0] = value  # type: ignore[attr-defined]
+            elif prop == "radius":
+                geom.size[0] = value  # type: ignore[attr-defined]
             elif prop == "solref_timeconst":
                 geom.solref = [value, float(nominal.geom_solref[g, 1])]  # type: ignore[attr-defined]
             else:

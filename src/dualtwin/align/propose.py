@@ -4,6 +4,10 @@ A proposer is ``propose_fn(analysis) -> list[dict[knob, value]]``. Every proposa
 knobs only, values within bounds), re-simulated, and kept only if it lowers the training objective below
 the nominal twin's. Nothing a proposer says is trusted without that test. The best kept proposal becomes
 the starting point of the optimiser, and all outcomes are recorded in ``align_record.json``.
+
+A proposer may also define ``select(specs)``, called first with the knobs it may set (names and bounds), and
+``record(outcomes)``, called last with the re-simulation outcomes in proposal order. The LLM proposer
+(`dualtwin.align.narrate.LLMProposer`) uses them to tell the LLM its options and to keep its narrative.
 """
 
 from __future__ import annotations
@@ -70,6 +74,9 @@ def try_proposals(
         evaluate: Objective of each knob setting (simulates them, e.g. in parallel).
     """
     by_name = {s.name: s for s in specs}
+    select = getattr(propose_fn, "select", None)
+    if callable(select):
+        select(list(specs))
     proposals = [dict(p) for p in propose_fn(analysis)]
     outcomes: list[ProposalOutcome | None] = []
     valid: list[dict[str, float]] = []
@@ -91,4 +98,7 @@ def try_proposals(
         better = value < baseline - 1e-12 * max(1.0, abs(baseline))
         reason = (f"objective {baseline:.4g} → {value:.4g}: " + ("kept" if better else "rejected, not lower"))
         out.append(ProposalOutcome(knobs, value, baseline, better, reason))
+    record = getattr(propose_fn, "record", None)
+    if callable(record):
+        record(out)
     return out

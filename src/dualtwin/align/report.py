@@ -19,6 +19,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from dualtwin.align.analyze import Analysis, findings_html
+from dualtwin.align.narrate import narrative_html
 from dualtwin.artifacts import write_bytes, write_text
 from dualtwin.divergence.metrics import ChannelDivergence
 from dualtwin.divergence.report import _CSS, _png_bytes, _slug, plot_overlay
@@ -155,6 +156,7 @@ def write_align_report(out_dir: Path, result: AlignResult, reference: Path, befo
         parts.append("<h2>Proposals</h2><ul>" + "".join(
             f"<li><code>{html.escape(str(p.knobs))}</code>: {html.escape(p.reason)}</li>" for p in result.proposals)
             + "</ul>")
+    parts.append(narrative_html(result.narrative))
     parts += ["<h2>Per scenario (reference vs target: before → after)</h2>",
               scenario_table(comp_before, comp_after, held),
               "<h2>Findings before alignment</h2>", findings_html(analysis_before.findings),

@@ -18,6 +18,8 @@ smooth-L1 on the normalised state plus the masks' binary cross-entropy.
 Folder written by :func:`train_perception`::
 
     perception.onnx            the model (opset 17)
+    perception_frame.onnx      the same model in two parts, for streams: one frame -> its mask moments ...
+    perception_head.onnx       ... and the k frames' moments -> the state (each frame is segmented once)
     perception_contract.json   input shape/dtype/normalisation, outputs and units, camera, frame period, metrics
     training.json              config, split (held-out episodes), per-epoch losses, dataset fingerprint
     weights.npz                the trained weights as plain arrays (fine-tuning, parity checks)
@@ -261,6 +263,7 @@ def train_perception(dataset_dir: Path | str, out_dir: Path | str, *, epochs: in
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     path = _export(net, out, stack, height, width)
+    parts = _export_parts(net, out, stack, height, width)
     # Weights as plain arrays (no pickle) for fine-tuning and parity checks: load_weights() rebuilds the net.
     with atomic_open(out / WEIGHTS_FILE, "wb") as handle:
         np.savez(handle, **{k: v.detach().numpy() for k, v in net.state_dict().items()})
@@ -273,7 +276,9 @@ def train_perception(dataset_dir: Path | str, out_dir: Path | str, *, epochs: in
         "seconds": round(time.perf_counter() - start, 1),
     }
     write_json(out / "training.json", training)
-    write_json(out / CONTRACT_FILE, _contract(path, data, stack, height, width, mean, std, history[-1]))
+    contract = _contract(path, data, stack, height, width, mean, std, history[-1])
+    contract["onnx"]["parts"] = parts
+    write_json(out / CONTRACT_FILE, contract)
     return out
 
 
@@ -333,6 +338,45 @@ def _export(net: Any, out: Path, stack: int, height: int, width: int) -> Path:
     return path
 
 
+FRAME_PART_FILE = "perception_frame.onnx"
+HEAD_PART_FILE = "perception_head.onnx"
+
+
+def _export_parts(net: Any, out: Path, stack: int, height: int, width: int) -> dict[str, Any]:
+    """The model split at the per-frame moments. A stream (a robot, a server session) then segments each new
+    frame once and keeps the moments of the last k, instead of segmenting all k frames every period."""
+    import torch
+
+    class Part(torch.nn.Module):
+        def __init__(self, head: bool) -> None:
+            super().__init__()
+            self.net, self.is_head = net, head  # a submodule: its weights export as initializers
+
+        def forward(self, x: torch.Tensor) -> torch.Tensor:
+            if self.is_head:
+                return self.net.head_from(x) * self.net.std + self.net.mean  # type: ignore[no-any-return]
+            return self.net.features(self.net.masks(x))  # type: ignore[no-any-return]
+
+    parts: dict[str, Any] = {}
+    for key, module, example, names, axes in (
+            ("frame", Part(False), torch.zeros((1, height, width, 3), dtype=torch.uint8), ("frames", "features"),
+             {"frames": {0: "n"}, "features": {0: "n"}}),
+            ("head", Part(True), torch.zeros((1, stack, N_FEATURES)), ("features", "state"),
+             {"features": {0: "batch"}, "state": {0: "batch"}})):
+        file = FRAME_PART_FILE if key == "frame" else HEAD_PART_FILE
+        tmp = out / f".{file}.tmp"
+        with torch.no_grad(), warnings.catch_warnings():
+            warnings.filterwarnings("ignore", category=DeprecationWarning)
+            warnings.filterwarnings("ignore", category=UserWarning)
+            torch.onnx.export(module.eval(), (example,), str(tmp), input_names=[names[0]], output_names=[names[1]],
+                              opset_version=OPSET, dynamo=False, dynamic_axes=axes)
+        tmp.replace(out / file)
+        parts[key] = {"file": file, "sha256": sha256_file(out / file),
+                      "input": f"{names[0]} {list(example.shape[1:])} {str(example.dtype).removeprefix('torch.')}",
+                      "output": f"{names[1]} [{N_FEATURES if key == 'frame' else len(STATE_NAMES)}]"}
+    return parts
+
+
 def _contract(path: Path, data: Dataset, stack: int, height: int, width: int, mean: np.ndarray, std: np.ndarray,
               last: dict[str, float]) -> dict[str, Any]:
     m = data.manifest
@@ -359,21 +403,21 @@ def _contract(path: Path, data: Dataset, stack: int, height: int, width: int, me
         "trained_on": {"env_id": m.get("env_id"), "twin": m.get("twin"), "robot": m.get("robot"),
                        "controller": m.get("controller"), "randomization": m.get("randomization", {}).get("enabled"),
                        "frames": len(data)},
-        "velocity": {"default": "alpha-beta",
-                     "options": {"alpha-beta": "α-β filter on the CNN's positions (see StateEstimator)",
+        "velocity": {"default": "kalman",
+                     "options": {"kalman": "Kalman filter on the CNN's newest-frame positions (see StateEstimator)",
                                  "frame-stack": "the CNN's velocity outputs (motion across the k frames)"}},
         "validation": {k: v for k, v in last.items() if k.startswith("val_mae_")},
         "versions": package_versions(),
     }
 
 
-def evaluate_perception(model_dir: Path | str, dataset_dir: Path | str, *, velocity: str = "alpha-beta"
+def evaluate_perception(model_dir: Path | str, dataset_dir: Path | str, *, velocity: str = "kalman"
                         ) -> dict[str, Any]:
     """MAE per state quantity of the exported model (ONNX Runtime) on held-out episodes of a dataset.
 
     If the dataset is the one the model was trained on, only its held-out episodes count; any other dataset
     (another seed, twin or controller) is held out entirely. Also reports a constant predictor (the training
-    mean) as the baseline to beat, and the per-episode α-β filter for comparison.
+    mean) as the baseline to beat, and the per-episode Kalman filter (velocities from positions) for comparison.
     """
     import json
 
@@ -394,14 +438,15 @@ def evaluate_perception(model_dir: Path | str, dataset_dir: Path | str, *, veloc
         raise DualtwinError(f"{dataset_dir}: frames are {res[0]}x{res[1]}, the model takes "
                             f"{estimator.resolution[0]}x{estimator.resolution[1]}")
     raw = estimator.predict_stacks(data.frames[stack_indices(data, rows, estimator.stack)])
+    single = estimator.predict_single(data.frames[rows])
     filtered = np.zeros_like(raw)
     # The filter runs through each episode in time order, as it would on the robot.
     for episode in episodes:
         sel = np.flatnonzero(data.episode[rows] == episode)
         sel = sel[np.argsort(data.step[rows][sel])]
-        session = estimator.session(velocity="alpha-beta")
+        session = estimator.session(velocity="kalman")
         for j in sel:
-            filtered[j] = session.filter(raw[j])
+            filtered[j] = session.filter(single[j])  # what a kalman session computes for this frame
     truth = data.state[rows]
     mean = np.asarray(estimator.contract["normalization"]["mean"], dtype=np.float32)
     chosen = raw if velocity == "frame-stack" else filtered
@@ -412,7 +457,7 @@ def evaluate_perception(model_dir: Path | str, dataset_dir: Path | str, *, veloc
     return {
         "model": str(model), "dataset": str(dataset_dir), "heldout_episodes": [int(e) for e in episodes],
         "frames": int(len(rows)), "same_dataset_as_training": same, "velocity": velocity,
-        "mae": table(chosen), "mae_frame_stack": table(raw), "mae_alpha_beta": table(filtered),
+        "mae": table(chosen), "mae_frame_stack": table(raw), "mae_kalman": table(filtered),
         "mae_constant": table(np.broadcast_to(mean, truth.shape)),
         "units": dict(zip(STATE_NAMES, STATE_UNITS, strict=True)),
     }

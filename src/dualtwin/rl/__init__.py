@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 import gymnasium as gym
 
 from dualtwin.errors import DualtwinError
+from dualtwin.rl.drive_to_goal import DriveToGoal
 from dualtwin.rl.env import CartPoleBalance, ObservationTerm, Task, TwinEnv
 from dualtwin.rl.randomize import DomainRandomization, FixedKnobs, apply_knobs, load_knob_values, load_ranges
 
@@ -30,14 +31,23 @@ ENV_IDS: dict[str, dict[str, Any]] = {
     "dualtwin/CartPole-Webots-v0": {"twin": "webots", "continuous": False},
     "dualtwin/CartPole-MuJoCo-Continuous-v0": {"twin": "mujoco", "continuous": True},
     "dualtwin/CartPole-Webots-Continuous-v0": {"twin": "webots", "continuous": True},
+    "dualtwin/Pioneer-DriveToGoal-MuJoCo-v0": {"twin": "mujoco", "robot": "pioneer3at", "task": "drive_to_goal",
+                                               "continuous": True},
+    "dualtwin/Pioneer-DriveToGoal-Webots-v0": {"twin": "webots", "robot": "pioneer3at", "task": "drive_to_goal",
+                                               "continuous": True},
 }
+# Episode caps (control periods) of ids that do not use DEFAULT_MAX_EPISODE_STEPS. 250 x 32 ms = 8 s: the
+# farthest goal (2.5 m) behind the robot takes about 5 s at full wheel speed (half a turn in place, then 2.5 m).
+MAX_EPISODE_STEPS: dict[str, int] = {"dualtwin/Pioneer-DriveToGoal-MuJoCo-v0": 250,
+                                     "dualtwin/Pioneer-DriveToGoal-Webots-v0": 250}
 
 
 def _register() -> None:
     for env_id, kwargs in ENV_IDS.items():
         if env_id not in gym.registry:
             gym.register(id=env_id, entry_point="dualtwin.rl.env:TwinEnv",
-                         max_episode_steps=DEFAULT_MAX_EPISODE_STEPS, kwargs=dict(kwargs))
+                         max_episode_steps=MAX_EPISODE_STEPS.get(env_id, DEFAULT_MAX_EPISODE_STEPS),
+                         kwargs=dict(kwargs))
 
 
 _register()
@@ -73,7 +83,7 @@ def __getattr__(name: str) -> Any:
 
 
 __all__ = [
-    "ENV_IDS", "CartPoleBalance", "DomainRandomization", "FixedKnobs", "LoadedPolicy", "ObservationTerm", "Task",
-    "TransferReport", "TwinEnv", "apply_knobs", "check_env_id", "export_policy", "load_knob_values",
-    "load_policy", "load_ranges", "make_env", "registered_ids",
+    "ENV_IDS", "MAX_EPISODE_STEPS", "CartPoleBalance", "DomainRandomization", "DriveToGoal", "FixedKnobs",
+    "LoadedPolicy", "ObservationTerm", "Task", "TransferReport", "TwinEnv", "apply_knobs", "check_env_id",
+    "export_policy", "load_knob_values", "load_policy", "load_ranges", "make_env", "registered_ids",
 ]

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import Any, Literal
 
@@ -271,7 +272,8 @@ class CartPoleBalance(Task):
                 "true_cart_position": float(self._truth[self._true_x]), "true_cart_tilt": self._tilt}
 
 
-TASKS: dict[str, type[CartPoleBalance]] = {"cartpole_balance": CartPoleBalance}
+# Task name -> constructor (keyword arguments: ``continuous`` and the task's own); task modules add theirs.
+TASKS: dict[str, Callable[..., Task]] = {"cartpole_balance": CartPoleBalance}
 
 
 class TwinEnv(gym.Env[np.ndarray, Any]):
@@ -285,7 +287,7 @@ class TwinEnv(gym.Env[np.ndarray, Any]):
         control_period: seconds of simulation per ``step``.
         knobs: fixed knob values (from nominal) that define this env's physics; a reset's
             ``options={"knobs": {...}}`` adds to and overrides them for that episode.
-        render_mode: ``"rgb_array"`` if the twin can render (the task's camera).
+        render_mode: ``"rgb_array"`` if the twin can render and the binding declares ``camera``.
         task_kwargs: extra task arguments (``x_limit``, ``max_cart_speed``...).
     """
 
@@ -303,17 +305,23 @@ class TwinEnv(gym.Env[np.ndarray, Any]):
         self.task_name = task
         self.twin: Twin = make_twin(twin, self.robot, control_period)
         self.io = RobotIO(self.robot, self.twin)
-        self.task = TASKS[task](continuous=continuous, **(task_kwargs or {}))
+        try:
+            self.task = TASKS[task](continuous=continuous, **(task_kwargs or {}))
+        except TypeError as exc:  # an argument the task does not take
+            raise DualtwinError(f"task {task!r}: {exc}") from None
         self.task.bind(self.io)
         self.base_knobs = dict(knobs or {})
         self._check_knobs(self.base_knobs)
-        can_render = type(self.twin).render is not Twin.render
+        # The camera must be declared in the binding so that every twin renders the same view.
+        can_render = type(self.twin).render is not Twin.render and camera in self.robot.spec.cameras
         # Per instance: the frame rate follows the control period and only rendering twins offer rgb_array.
         self.metadata = {"render_modes": ["rgb_array"] if can_render else [],
                          "render_fps": int(round(1.0 / control_period))}
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise DualtwinError(f"render_mode {render_mode!r} is not supported by twin {twin!r} "
-                                f"(supported: {self.metadata['render_modes'] or 'none'})")
+            raise DualtwinError(f"render_mode {render_mode!r} is not supported by twin {twin!r} with robot "
+                                f"{robot!r} and camera {camera!r} (supported: "
+                                f"{self.metadata['render_modes'] or 'none'}; cameras in the binding: "
+                                f"{', '.join(sorted(self.robot.spec.cameras)) or 'none'})")
         self.render_mode = render_mode
         self.camera = camera
         self.render_size = render_size

@@ -38,6 +38,7 @@ class KnobRange(BaseModel):
     operation: Literal["abs", "scale"] = "abs"
     nominal: float | None = None
     fitted: float | None = None
+    integer: bool = False
 
     @model_validator(mode="after")
     def _valid(self) -> KnobRange:
@@ -45,6 +46,8 @@ class KnobRange(BaseModel):
             raise ValueError(f"low ({self.low}) must not exceed high ({self.high})")
         if self.distribution == "log_uniform" and self.low <= 0:
             raise ValueError("log_uniform needs low > 0")
+        if self.integer and math.ceil(self.low) > math.floor(self.high):
+            raise ValueError(f"integer knob: no integer in [{self.low}, {self.high}]")
         return self
 
 
@@ -97,6 +100,28 @@ def load_knob_values(source: Path | str | Mapping[str, Any]) -> dict[str, float]
     return values
 
 
+def read_aligned(source: Path | str | Mapping[str, Any]) -> dict[str, Any]:
+    """An aligned-knobs record: ``values``, the ``twin`` they were fitted for (``None`` if the file does not
+    say), and, for a file, its ``file`` path and ``sha256``. Reads ``align``'s ``knobs.json`` or a plain mapping."""
+    from dualtwin.artifacts import sha256_file
+
+    values = load_knob_values(source)
+    data, _ = _read_mapping(source, "knobs")
+    twin = data.get("twin")
+    record: dict[str, Any] = {"twin": str(twin) if twin is not None else None, "values": values}
+    if not isinstance(source, Mapping):
+        record.update(file=str(Path(source).resolve()), sha256=sha256_file(Path(source)))
+    return record
+
+
+def check_aligned_twin(record: Mapping[str, Any], twin: str, env_id: str) -> None:
+    """Refuse knobs fitted for another twin: a knob name can exist on both twins with another meaning."""
+    if record.get("twin") not in (None, twin):
+        where = record.get("file") or "the aligned knobs"
+        raise DualtwinError(f"{where}: these knobs were fitted for the {record['twin']} twin, but {env_id} runs "
+                            f"the {twin} twin (align with --target {twin}, or train in a {record['twin']} env)")
+
+
 def _twin_knobs(env: gym.Env[Any, Any]) -> dict[str, Knob]:
     twin = getattr(env.unwrapped, "twin", None)
     if twin is None:
@@ -118,6 +143,11 @@ def draw_knobs(ranges: Mapping[str, KnobRange], nominal: Mapping[str, float],
     values: dict[str, float] = {}
     for name in sorted(ranges):
         r = ranges[name]
+        if r.integer:
+            # Every integer in [low, high] equally likely: a uniform float rounded by the twin would give the
+            # two end values half the weight of the others (e.g. control.delay_periods in [0, 2]).
+            values[name] = float(rng.integers(math.ceil(r.low), math.floor(r.high) + 1))
+            continue
         if r.distribution == "log_uniform":
             u = float(np.exp(rng.uniform(np.log(r.low), np.log(r.high))))
         else:
@@ -189,5 +219,5 @@ def apply_knobs(env: gym.Env[Any, Any], knobs_file: Path | str | Mapping[str, An
     return FixedKnobs(env, load_knob_values(knobs_file))
 
 
-__all__ = ["DomainRandomization", "FixedKnobs", "KnobRange", "apply_knobs", "draw_knobs", "load_knob_values",
-           "load_ranges"]
+__all__ = ["DomainRandomization", "FixedKnobs", "KnobRange", "apply_knobs", "check_aligned_twin", "draw_knobs",
+           "load_knob_values", "load_ranges", "read_aligned"]

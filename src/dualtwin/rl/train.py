@@ -7,10 +7,14 @@ Run folder::
     OUT/model.zip                  final policy          OUT/vecnormalize.pkl       its observation statistics
     OUT/best_model.zip             best evaluated policy OUT/best_vecnormalize.pkl  its statistics
     OUT/evaluations.npz            EvalCallback log      OUT/dr_ranges.json         randomisation ranges, if any
+    OUT/aligned_knobs.json         the aligned knob values trained with, if any (run.json: their file and hash)
     OUT/checkpoints/rl_model_<N>_steps.zip (+ rl_model_vecnormalize_<N>_steps.pkl)
     OUT/tb/                        TensorBoard           OUT/monitor/               Monitor CSVs per env
 
 ``resume=True`` continues an interrupted run from its newest checkpoint (the same env, seed and config).
+``aligned=`` trains in the aligned twin: the fitted knobs (``align``'s ``knobs.json``) define the training and
+evaluation envs' physics, from nominal at every reset, and go into the run's ``env_kwargs``, so whatever
+rebuilds the source env later (transfer, export checks) gets the aligned twin back.
 """
 
 from __future__ import annotations
@@ -191,7 +195,8 @@ def _make_env_fn(env_id: str, env_kwargs: dict[str, Any], dr: dict[str, Any] | N
 def train(env_id: str, config_path: Path | str | Mapping[str, Any] | PPOConfig | None, out_dir: Path | str, *,
           seed: int = 0, total_timesteps: int | None = None, resume: bool = False,
           dr_ranges: Path | str | Mapping[str, Any] | None = None, progress_bar: bool = True,
-          verbose: int = 0, shadow_fraction: float = 0.0) -> Path:
+          verbose: int = 0, shadow_fraction: float = 0.0,
+          aligned: Path | str | Mapping[str, Any] | None = None, init_from: Path | str | None = None) -> Path:
     """Train PPO on ``env_id`` into ``out_dir`` and return it (see the module docstring for its contents).
 
     Args:
@@ -207,12 +212,24 @@ def train(env_id: str, config_path: Path | str | Mapping[str, Any] | PPOConfig |
         shadow_fraction: share of training episodes mirrored into a shadow Webots twin, whose divergence goes
             to TensorBoard under ``shadow/`` (:class:`dualtwin.sync.shadow.ShadowCallback`; needs
             ``vec_env: dummy``).
+        aligned: aligned knob values (``knobs.json`` from ``dualtwin align --target <this env's twin>``, or a
+            ``{name: value}`` dict) applied to every training and evaluation env; domain randomisation, if
+            any, draws on top of them.
+        init_from: fine-tune: start from this run's best policy (``best_model.zip``, else ``model.zip``) and its
+            VecNormalize statistics, which keep adapting; the network is that run's, the PPO settings (learning
+            rate, rollout, epochs...) this config's. The run must be on the same env id. Typical use: a policy trained in the nominal twin, fine-tuned in the
+            aligned twin (``aligned=``) or with calibrated domain randomisation.
     """
     from dualtwin.rl import check_env_id
     from dualtwin.rl.randomize import load_ranges
 
     check_env_id(env_id)
     config = load_config(config_path)
+    aligned_record = _aligned_record(env_id, config, aligned) if aligned is not None else None
+    init_record = _init_record(env_id, init_from) if init_from is not None else None
+    if init_record is not None and (init_record["vecnormalize"] is None) != (config.normalize_config is None):
+        raise DualtwinError(f"{init_from}: its observation normalisation does not match this config's "
+                            "'normalize' setting; a fine-tuned policy must see the inputs it was trained on")
     total = int(total_timesteps if total_timesteps is not None else config.n_timesteps)
     if total <= 0:
         raise DualtwinError(f"total_timesteps must be positive, got {total}")
@@ -228,7 +245,11 @@ def train(env_id: str, config_path: Path | str | Mapping[str, Any] | PPOConfig |
                                                ("seed", previous.get("seed"), seed),
                                                ("config", _without_steps(previous.get("config")),
                                                 _without_steps(config_record)),
-                                               ("domain randomisation", previous.get("dr_ranges"), dr))
+                                               ("domain randomisation", previous.get("dr_ranges"), dr),
+                                               ("aligned knobs", _values(previous.get("aligned")),
+                                                _values(aligned_record)),
+                                               ("initial policy", (previous.get("init_from") or {}).get("sha256"),
+                                                (init_record or {}).get("sha256")))
                   if old != new]
         if differ:
             raise DualtwinError(f"{run_path}: cannot resume: {', '.join(differ)} differ from the interrupted run")
@@ -244,11 +265,66 @@ def train(env_id: str, config_path: Path | str | Mapping[str, Any] | PPOConfig |
     write_text(out / "config.yaml", yaml.safe_dump(config_record, sort_keys=False))
     if dr:
         write_json(out / "dr_ranges.json", {"knobs": dr})
+    if aligned_record is not None:
+        write_json(out / "aligned_knobs.json", aligned_record)
     if shadow_fraction and config.vec_env != "dummy":
         raise DualtwinError("shadow_fraction needs vec_env: dummy (the shadow mirrors in-process envs)")
     trainer = _Trainer(env_id, config, out, seed, total, dr, previous, start_from, progress_bar, verbose)
     trainer.shadow_fraction = float(shadow_fraction)
+    trainer.aligned = aligned_record
+    trainer.init_from = init_record
+    if aligned_record is not None:
+        kwargs = dict(config.env_kwargs)
+        trainer.env_kwargs = {**kwargs, "knobs": {**dict(kwargs.get("knobs") or {}), **aligned_record["values"]}}
     return trainer.run()
+
+
+def _init_record(env_id: str, run: Path | str) -> dict[str, Any]:
+    """The policy a fine-tuning run starts from: its files and hash, checked against ``env_id``."""
+    from dualtwin.artifacts import sha256_file
+
+    folder = Path(run)
+    if not (folder / "run.json").is_file():
+        raise DualtwinError(f"{folder}: not a training run (no run.json) to start from")
+    record = _read_json(folder / "run.json")
+    if record.get("env_id") != env_id:
+        raise DualtwinError(f"{folder}: trained on {record.get('env_id')!r}; it can only be fine-tuned on that env, "
+                            f"not {env_id!r}")
+    for prefix in ("best_", ""):
+        model, stats = folder / f"{prefix}model.zip", folder / f"{prefix}vecnormalize.pkl"
+        if model.is_file():
+            return {"run": str(folder.resolve()), "model": str(model.resolve()), "sha256": sha256_file(model),
+                    "vecnormalize": str(stats.resolve()) if stats.is_file() else None}
+    raise DualtwinError(f"{folder}: no best_model.zip or model.zip to start from")
+
+
+def _values(record: Any) -> Any:
+    return record.get("values") if isinstance(record, dict) else None
+
+
+def _aligned_record(env_id: str, config: PPOConfig, aligned: Path | str | Mapping[str, Any]) -> dict[str, Any]:
+    """Read the aligned knobs and check, before any training, that they belong to this env's twin."""
+    from dualtwin.rl import make_env
+    from dualtwin.rl.randomize import check_aligned_twin, read_aligned
+
+    record = read_aligned(aligned)
+    env: Any = make_env(env_id, **{k: v for k, v in config.env_kwargs.items() if k != "knobs"})
+    try:
+        twin = env.unwrapped.twin_name
+        check_aligned_twin(record, twin, env_id)
+        known = env.unwrapped.twin.knobs()
+    finally:
+        env.close()
+    unknown = sorted(set(record["values"]) - set(known))
+    if unknown:
+        raise DualtwinError(f"{record.get('file') or 'aligned knobs'}: the {twin} twin of {env_id} has no knobs "
+                            f"named {', '.join(unknown)} (it has: {', '.join(sorted(known))})")
+    for name, value in record["values"].items():
+        knob = known[name]
+        if not knob.lower <= value <= knob.upper:
+            raise DualtwinError(f"{record.get('file') or 'aligned knobs'}: {name} = {value:g} is outside the "
+                                f"knob's bounds [{knob.lower:g}, {knob.upper:g}]")
+    return record
 
 
 def _without_steps(config: Any) -> Any:
@@ -267,6 +343,9 @@ class _Trainer:
         self.dr, self.previous, self.start_from = dr, previous, start_from
         self.progress_bar, self.verbose = progress_bar, verbose
         self.shadow_fraction = 0.0
+        self.aligned: dict[str, Any] | None = None
+        self.init_from: dict[str, Any] | None = None
+        self.env_kwargs: dict[str, Any] = dict(config.env_kwargs)
         self.model: PPO | None = None
         self.contract: dict[str, Any] = {}
         self.session_start = time.perf_counter()
@@ -290,7 +369,7 @@ class _Trainer:
             "run_version": RUN_VERSION,
             "status": status,
             "env_id": self.env_id,
-            "env_kwargs": self.config.env_kwargs,
+            "env_kwargs": self.env_kwargs,
             "max_episode_steps": self.max_episode_steps,
             "seed": self.seed,
             "algo": "ppo",
@@ -298,6 +377,8 @@ class _Trainer:
             "total_timesteps": self.total,
             "config": self.config.model_dump(mode="json"),
             "dr_ranges": self.dr,
+            "aligned": self.aligned,
+            "init_from": self.init_from,
             "shadow_fraction": self.shadow_fraction,
             "io": contract,
             "versions": package_versions(),
@@ -332,17 +413,21 @@ class _Trainer:
         torch.set_num_threads(cfg.torch_threads)
         norm = cfg.normalize_config
         vec_cls = SubprocVecEnv if cfg.vec_env == "subproc" else DummyVecEnv
-        venv: Any = make_vec_env(_make_env_fn(self.env_id, cfg.env_kwargs, self.dr), n_envs=cfg.n_envs,
+        venv: Any = make_vec_env(_make_env_fn(self.env_id, self.env_kwargs, self.dr), n_envs=cfg.n_envs,
                                  seed=self.seed, monitor_dir=str(out / "monitor"), vec_env_cls=vec_cls,
                                  monitor_kwargs={"override_existing": self.start_from is None})
         n_eval = min(cfg.eval_episodes, 8)
-        eval_env: Any = make_vec_env(_make_env_fn(self.env_id, cfg.env_kwargs, None), n_envs=n_eval,
+        eval_env: Any = make_vec_env(_make_env_fn(self.env_id, self.env_kwargs, None), n_envs=n_eval,
                                      seed=self.seed + 10_000)
         contract = self.contract = eval_env.envs[0].unwrapped.io_contract()
         self.max_episode_steps = eval_env.envs[0].spec.max_episode_steps if eval_env.envs[0].spec else None
+        # A checkpoint to resume from, else (fine-tuning) the initial policy; either way its statistics go on.
+        load: tuple[str, str | None] | None = (str(self.start_from[0]), str(self.start_from[1])) \
+            if self.start_from is not None else \
+            (self.init_from["model"], self.init_from["vecnormalize"]) if self.init_from is not None else None
         if norm is not None:
-            if self.start_from is not None:
-                venv = VecNormalize.load(str(self.start_from[1]), venv)
+            if load is not None and load[1] is not None:
+                venv = VecNormalize.load(load[1], venv)
                 venv.training = True
             else:
                 venv = VecNormalize(venv, norm_obs=norm.norm_obs, norm_reward=norm.norm_reward,
@@ -351,8 +436,19 @@ class _Trainer:
             eval_env = VecNormalize(eval_env, training=False, norm_obs=norm.norm_obs, norm_reward=False,
                                     clip_obs=norm.clip_obs)
 
-        if self.start_from is not None:
-            model = PPO.load(str(self.start_from[0]), env=venv, device="cpu", tensorboard_log=str(out / "tb"))
+        if load is not None:
+            # Fine-tuning keeps the network but takes this config's PPO settings (a lower learning rate, say);
+            # SB3 rebuilds the rollout buffer and schedules from them.
+            tuning = {} if self.start_from is not None else {
+                "learning_rate": _learning_rate(cfg.learning_rate), "n_steps": cfg.n_steps,
+                "batch_size": cfg.batch_size, "n_epochs": cfg.n_epochs, "gamma": cfg.gamma,
+                "gae_lambda": cfg.gae_lambda, "clip_range": cfg.clip_range, "ent_coef": cfg.ent_coef,
+                "vf_coef": cfg.vf_coef, "max_grad_norm": cfg.max_grad_norm, "sde_sample_freq": cfg.sde_sample_freq}
+            model = PPO.load(load[0], env=venv, device="cpu", tensorboard_log=str(out / "tb"), custom_objects=tuning)
+            if self.start_from is None:
+                # Fine-tuning is a new run: its own seed and step count.
+                model.set_random_seed(self.seed)
+                model.num_timesteps = 0
         else:
             pk = cfg.policy_kwargs
             policy_kwargs: dict[str, Any] = {"net_arch": dict(pk.net_arch), "activation_fn": _activation(pk.activation_fn),

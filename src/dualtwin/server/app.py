@@ -257,6 +257,7 @@ def create_app(policy_dir: Path | str, perception_dir: Path | str, *, api_key: s
     # Loaded once, here, so a bad file fails before anything listens; the lifespan owns them afterwards.
     models = ServerModels.load(policy_dir, perception_dir)
     policy, perception = models.policy, models.perception
+    perception.session(velocity)  # a model the velocity mode cannot use fails here, not at the first request
     onboard = policy.onboard
     height, width = perception.height, perception.width
     policy_bytes = (policy.directory / POLICY_FILE).read_bytes()

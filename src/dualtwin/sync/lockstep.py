@@ -14,6 +14,11 @@ primary) and the normalised state error (:mod:`dualtwin.sync.channels`), and app
 A re-sync into a state the secondary refuses (:class:`~dualtwin.twins.base.SyncError`: penetration,
 non-finite values, a violent response) ends the episode, which is recorded as ``skipped`` with the reason.
 
+The primary never depends on the secondary. So when an episode's commands are known in advance (a suite),
+it runs one twin at a time, the primary's whole episode and then the secondary's against the primary's
+recorded states, with the results of stepping them period by period (``interleave=True``) but without
+switching simulators every period. Policy episodes interleave: the action comes from the primary each period.
+
 Output folder::
 
     OUT/manifest.json                 settings, versions, input hashes, seed, per-episode summary, knob updates
@@ -43,6 +48,7 @@ from dualtwin.suite.runner import check_against_binding
 from dualtwin.sync.channels import DiffLayout, channel_scales
 from dualtwin.sync.monitor import Monitor
 from dualtwin.sync.record import (
+    Command,
     CommandTap,
     Trajectory,
     TrajectoryRecorder,
@@ -52,7 +58,7 @@ from dualtwin.sync.record import (
     start_scenario,
 )
 from dualtwin.twins import make_twin
-from dualtwin.twins.base import SyncError, Twin
+from dualtwin.twins.base import StateLayout, SyncError, Twin
 
 LOCKSTEP_SCHEMA = "dualtwin.lockstep/1"
 DEFAULT_POLICY_EPISODES = 5
@@ -184,7 +190,8 @@ class _Side:
     def sample(self, t: float) -> bool:
         onboard = [t, *self.io.sample_onboard()]
         truth = [t, *self.io.sample_ground_truth()]
-        if not all(math.isfinite(v) for v in onboard + truth):
+        # One sum instead of a test per value (read every period): NaN and infinities propagate through it.
+        if not math.isfinite(sum(onboard) + sum(truth)):
             self.status, self.failure = "unstable", {"time_s": t, "message": "non-finite channel value"}
             return False
         self.onboard.append(onboard)
@@ -197,10 +204,116 @@ class _Episode:
 
     def __init__(self, id: str, steps: int, begin: Callable[[], None],
                  send: Callable[[int], None], after: Callable[[], bool] | None = None,
-                 rewards: Callable[[], dict[str, float]] | None = None) -> None:
+                 rewards: Callable[[], dict[str, float]] | None = None,
+                 send_to: Callable[[int, _Side], None] | None = None) -> None:
         self.id, self.steps, self.begin, self.send = id, steps, begin, send
         self.after = after  # returns True when the episode is over (policy termination)
         self.rewards = rewards
+        self.send_to = send_to  # the same commands for one side: the episode can run one twin at a time
+
+
+class _Comparison:
+    """The per-period work of a lockstep episode once both twins stepped a period: log the two state vectors,
+    re-sync the secondary when the policy says so, feed the monitor. Calling it returns True to stop."""
+
+    def __init__(self, a: _Side, b: _Side, layout: DiffLayout, scale_map: Mapping[str, float],
+                 resync: ResyncPolicy, recorder: TrajectoryRecorder, monitor: Monitor | None, clock: float,
+                 period: float) -> None:
+        self.a, self.b, self.layout, self.scale_map, self.resync = a, b, layout, scale_map, resync
+        self.recorder, self.monitor, self.clock, self.period = recorder, monitor, clock, period
+        self.channels = layout.channels
+        self.scale = np.array([scale_map[c] for c in self.channels])
+        # Differences are needed as they happen only to decide on a threshold re-sync or to feed a monitor;
+        # otherwise they are computed for the whole episode at once (vectorised), which keeps lockstep cheap.
+        self.online = resync.kind == "threshold" or monitor is not None
+        self.marks: list[tuple[float, float, float]] = []  # time, resynced, horizon
+        self.rows_a: list[np.ndarray] = []
+        self.rows_b: list[np.ndarray] = []
+        self.resyncs, self.horizon = 0, 0
+        self.skipped: dict[str, Any] | None = None
+
+    def __call__(self, k: int, t: float, names_a: StateLayout, full_a: np.ndarray, truth_a: Sequence[float],
+                 active_a: dict[str, Command]) -> bool:
+        # State vectors only: a state object is built when a re-sync or the monitor needs one.
+        va, vb = self.layout.vectors(full_a, self.b.tap.state_vector()[1])
+        self.rows_a.append(va)
+        self.rows_b.append(vb)
+        error = math.nan
+        if self.online:
+            diff = self.layout.differences(va, vb)
+            error = float(self.layout.errors(diff, self.scale_map)[0])
+        self.horizon += 1
+        self.recorder.after_period(names_a, full_a, truth_a, active_a)
+        resynced = self.resync.due(k + 1, error)
+        monitor = self.monitor
+        state_a = names_a.state(full_a, t, self.a.tap.name) if resynced or monitor is not None else None
+        if resynced and state_a is not None:
+            try:
+                self.b.tap.set_state(state_a)
+            except SyncError as exc:
+                self.skipped = {"time_s": t, "reason": exc.reason, "message": str(exc)}
+                resynced = False
+        self.marks.append((t, 1.0 if resynced else 0.0, float(self.horizon)))
+        if monitor is not None:
+            finite = np.isfinite(self.scale)
+            scaled = dict(zip((c for c, keep in zip(self.channels, finite, strict=True) if keep),
+                              (diff[0][finite] / self.scale[finite]).tolist(), strict=True))
+            monitor.observe(self.clock + t, error, scaled, state=state_a, commands=active_a, period=self.period)
+        if self.skipped is not None:
+            return True
+        if resynced:
+            self.resyncs += 1
+            self.horizon = 0
+        return False
+
+
+def _blocked(episode: _Episode, a: _Side, b: _Side, period: float, suite: Any, binding: RobotBinding,
+             compare: Callable[[int, float, StateLayout, np.ndarray, Sequence[float], dict[str, Command]], bool]
+             ) -> None:
+    """Run an episode whose commands are known in advance one twin at a time: the primary's whole episode,
+    then the secondary's against it. The primary never depends on the secondary, so this gives the
+    interleaved loop's results exactly, without alternating between two simulators every period (which
+    costs each of them its caches). Where the secondary ends the episode first, the primary's logs are cut
+    back to that period and its status is what it was then."""
+    assert episode.send_to is not None
+    primary: list[tuple[StateLayout, np.ndarray, dict[str, Command]]] = []
+    a_failed_at_end = False
+    for k in range(episode.steps):
+        episode.send_to(k, a)
+        t = round((k + 1) * period, 9)
+        if not (a.step() and a.sample(t)):
+            break
+        primary.append((*a.tap.state_vector(), dict(a.tap.active)))
+        if _threshold_failure(a, suite, binding, t):
+            a_failed_at_end = True
+            break
+    status, failure = a.status, a.failure
+    kept = len(primary)  # the primary's samples the episode keeps
+    own_end = status == "completed"  # the episode ends where the primary's own run ended
+    for k in range(len(primary) + (status == "unstable")):
+        episode.send_to(k, b)
+        t = round((k + 1) * period, 9)
+        ok_b = b.step() and b.sample(t)
+        if k == len(primary):  # the primary went unstable here: both stepped and sampled, nothing compared
+            own_end = True
+            break
+        if not ok_b:
+            kept = k + 1
+            break
+        names_a, full_a, active_a = primary[k]
+        if compare(k, t, names_a, full_a, a.truth[k][1:], active_a):
+            kept = k + 1  # skipped: no threshold was checked in this period
+            break
+        if k == len(primary) - 1 and a_failed_at_end:
+            own_end = True
+            break
+        if _threshold_failure(b, suite, binding, t):
+            kept = k + 1
+            break
+    if not own_end or kept < len(primary):
+        status, failure = "completed", None
+    del a.onboard[kept:], a.truth[kept:]
+    a.status, a.failure = status, failure
 
 
 def run_lockstep(
@@ -220,6 +333,7 @@ def run_lockstep(
     secondary_knobs: Mapping[str, float] | None = None,
     monitor: Monitor | None = None,
     on_episode: Callable[[EpisodeSummary], None] | None = None,
+    interleave: bool = False,
 ) -> LockstepResult:
     """Run two twins in lockstep over a suite's scenarios or a policy's episodes (see the module docstring).
 
@@ -240,6 +354,9 @@ def run_lockstep(
         monitor: Optional online :class:`~dualtwin.sync.monitor.Monitor`; its knob updates are applied to the
             secondary at episode boundaries only.
         on_episode: Called with each episode's summary.
+        interleave: Step the two twins period by period even when the commands are known in advance (a
+            suite). By default such episodes run the primary first and then the secondary against it, which
+            gives the same results faster.
 
     Raises:
         DualtwinError: Bad input (neither or both of suite/policy, unknown names, non-empty output folder).
@@ -283,7 +400,7 @@ def run_lockstep(
                 inputs[f"model_{twin.name}"] = {"path": str(model), "sha256": sha256_file(model)}
         return _run(twin_a, twin_b, binding, out, suite_obj, lockstep_policy, policy_obj_resync, seed, episodes,
                     episode_steps, scales, dict(primary_knobs or {}), dict(secondary_knobs or {}), monitor,
-                    on_episode, inputs, period)
+                    on_episode, inputs, period, interleave)
     finally:
         for twin in owned:
             twin.close()
@@ -293,7 +410,7 @@ def _run(twin_a: Twin, twin_b: Twin, binding: RobotBinding, out: Path, suite: An
          resync: ResyncPolicy, seed: int, n_episodes: int | None, episode_steps: int | None,
          scales: Mapping[str, float] | None, knobs_a: dict[str, float], knobs_b: dict[str, float],
          monitor: Monitor | None, on_episode: Callable[[EpisodeSummary], None] | None,
-         inputs: dict[str, Any], period: float) -> LockstepResult:
+         inputs: dict[str, Any], period: float, interleave: bool = False) -> LockstepResult:
     a, b = _Side("primary", twin_a, binding), _Side("secondary", twin_b, binding)
     a.tap.set_knobs(knobs_a)
     b.tap.set_knobs(knobs_b)
@@ -301,10 +418,6 @@ def _run(twin_a: Twin, twin_b: Twin, binding: RobotBinding, out: Path, suite: An
     layout = DiffLayout(a.tap.get_state(), b.tap.get_state())
     channels = layout.channels
     scale_map = channel_scales(channels, scales)
-    scale = np.array([scale_map[c] for c in channels])
-    # Differences are needed as they happen only to decide on a threshold re-sync or to feed a monitor;
-    # otherwise they are computed for the whole episode at once (vectorised), which keeps lockstep cheap.
-    online = resync.kind == "threshold" or monitor is not None
     if monitor is not None:
         monitor.attach(out / "monitor_events.jsonl", scale_map)
 
@@ -322,57 +435,28 @@ def _run(twin_a: Twin, twin_b: Twin, binding: RobotBinding, out: Path, suite: An
         recorder = TrajectoryRecorder(episode.id, a.tap, a.io.ground_truth_names)
         if monitor is not None:
             monitor.episode_start(episode.id, clock)
-        marks: list[tuple[float, float, float]] = []  # time, resynced, horizon
-        rows_a: list[np.ndarray] = []
-        rows_b: list[np.ndarray] = []
-        resyncs, horizon, skipped = 0, 0, None
-        for k in range(episode.steps):
-            episode.send(k)
-            ok_a, ok_b = a.step(), b.step()
-            t = round((k + 1) * period, 9)
-            if ok_a:
-                ok_a = a.sample(t)
-            if ok_b:
-                ok_b = b.sample(t)
-            if not (ok_a and ok_b):
-                break
-            state_a, state_b = a.tap.get_state(), b.tap.get_state()
-            full_a = state_a.vector()
-            va, vb = layout.vectors(full_a, state_b)
-            rows_a.append(va)
-            rows_b.append(vb)
-            error = math.nan
-            if online:
-                diff = layout.differences(va, vb)
-                error = float(layout.errors(diff, scale_map)[0])
-            horizon += 1
-            recorder.after_period(state_a, a.truth[-1][1:], full_a)
-            resynced = resync.due(k + 1, error)
-            if resynced:
-                try:
-                    b.tap.set_state(state_a)
-                except SyncError as exc:
-                    skipped = {"time_s": t, "reason": exc.reason, "message": str(exc)}
-                    resynced = False
-            marks.append((t, 1.0 if resynced else 0.0, float(horizon)))
-            if monitor is not None:
-                finite = np.isfinite(scale)
-                scaled = dict(zip((c for c, keep in zip(channels, finite, strict=True) if keep),
-                                  (diff[0][finite] / scale[finite]).tolist(), strict=True))
-                monitor.observe(clock + t, error, scaled, state=state_a, commands=dict(a.tap.active),
-                                period=period)
-            if skipped is not None:
-                break
-            if resynced:
-                resyncs += 1
-                horizon = 0
-            if episode.after is not None and episode.after():
-                break
-            stop = _threshold_failure(a, suite, binding, t) or _threshold_failure(b, suite, binding, t)
-            if stop:
-                break
-        if rows_a:
-            diffs = layout.differences(np.array(rows_a), np.array(rows_b))
+        compare = _Comparison(a, b, layout, scale_map, resync, recorder, monitor, clock, period)
+        if episode.send_to is None or interleave:
+            # Interleaved: the primary's next commands may depend on both twins (a policy's episode end).
+            for k in range(episode.steps):
+                episode.send(k)
+                ok_a, ok_b = a.step(), b.step()
+                t = round((k + 1) * period, 9)
+                ok_a = ok_a and a.sample(t)
+                ok_b = ok_b and b.sample(t)
+                if not (ok_a and ok_b):
+                    break
+                if compare(k, t, *a.tap.state_vector(), a.truth[-1][1:], dict(a.tap.active)):
+                    break
+                if episode.after is not None and episode.after():
+                    break
+                if _threshold_failure(a, suite, binding, t) or _threshold_failure(b, suite, binding, t):
+                    break
+        else:
+            _blocked(episode, a, b, period, suite, binding, compare)
+        marks, resyncs, skipped = compare.marks, compare.resyncs, compare.skipped
+        if compare.rows_a:
+            diffs = layout.differences(np.array(compare.rows_a), np.array(compare.rows_b))
             errors = layout.errors(diffs, scale_map)
         else:
             diffs, errors = np.zeros((0, len(channels))), np.zeros(0)
@@ -498,7 +582,10 @@ def _episodes(a: _Side, b: _Side, binding: RobotBinding, suite: Any, lockstep_po
                 for side in (a, b):
                     apply_commands(side.io, commands)
 
-            episodes.append(_Episode(plan.id, plan.steps, begin, send))
+            def send_to(k: int, side: _Side, plan: Any = plan) -> None:
+                apply_commands(side.io, plan.commands(k, period))
+
+            episodes.append(_Episode(plan.id, plan.steps, begin, send, send_to=send_to))
         return episodes
     return _policy_episodes(a, b, lockstep_policy, seed, n_episodes, episode_steps)
 

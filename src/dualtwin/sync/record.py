@@ -29,7 +29,7 @@ from dualtwin.errors import DualtwinError, SimulationUnstable
 from dualtwin.robots.binding import RobotBinding
 from dualtwin.robots.io import RobotIO
 from dualtwin.suite.schema import Suite
-from dualtwin.twins.base import ControlMode, Knob, MechanicalState, Twin
+from dualtwin.twins.base import ControlMode, Knob, MechanicalState, StateLayout, Twin
 
 TRAJECTORIES_SCHEMA = "dualtwin.trajectories/1"
 MODES: tuple[ControlMode, ...] = ("velocity", "position", "torque")
@@ -95,6 +95,9 @@ class CommandTap(Twin):
 
     def get_state(self) -> MechanicalState:
         return self.inner.get_state()
+
+    def state_vector(self) -> tuple[StateLayout, np.ndarray]:
+        return self.inner.state_vector()
 
     def set_state(self, state: MechanicalState, *, partial: bool = False) -> None:
         self.inner.set_state(state, partial=partial)
@@ -216,23 +219,23 @@ class TrajectoryRecorder:
         self.period = tap.control_period
         self.channels = list(channels)
         self.layout: list[str] | None = None
-        self._holds: list[str] = []
+        self._first: StateLayout | None = None
         self._states: list[np.ndarray] = []
         self._active: list[dict[str, Command]] = []
         self._truth: list[list[float]] = []
 
-    def after_period(self, state: MechanicalState, truth: Sequence[float] = (), vector: np.ndarray | None = None) -> None:
-        """Record the state reached by the period just stepped and the commands that drove it (``vector``:
-        ``state.vector()`` if the caller has it already)."""
-        if self.layout is None:
-            self.layout = state.layout()
-            self._holds = list(state.holds)
-        # The same holds (the usual case) mean the same layout: skip the name lookup.
-        if list(state.holds) == self._holds:
-            self._states.append(state.vector() if vector is None else vector)
-        else:
-            self._states.append(state.values(self.layout))
-        self._active.append(dict(self.tap.active))
+    def after_period(self, layout: StateLayout, vector: np.ndarray, truth: Sequence[float] = (),
+                     active: Mapping[str, Command] | None = None) -> None:
+        """Record the state reached by the period just stepped (a twin's :meth:`~Twin.state_vector`) and the
+        commands that drove it (``active``: the tap's active commands then; default: now)."""
+        if self._first is None:
+            self._first, self.layout = layout, list(layout.names)
+        # Twins reuse one layout object per set of holds: the usual case costs an identity test.
+        if layout is self._first or layout.names == self.layout:
+            self._states.append(vector)
+        else:  # a motor was commanded since (its hold is gone: NaN), or a hold appeared after a reset
+            self._states.append(layout.state(vector).values(self._first.names if self.layout is None else self.layout))
+        self._active.append(dict(self.tap.active if active is None else active))
         self._truth.append([float(v) for v in truth])
 
     def finish(self, status: str = "completed") -> Trajectory:
@@ -286,7 +289,7 @@ def record_trajectories(twin: Twin, robot: RobotBinding, suite: Suite, scenarios
             except SimulationUnstable:
                 status = "unstable"
                 break
-            recorder.after_period(tap.get_state(), io.sample_ground_truth())
+            recorder.after_period(*tap.state_vector(), io.sample_ground_truth())
         out.append(recorder.finish(status))
     return out
 

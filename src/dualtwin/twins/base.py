@@ -19,7 +19,11 @@ full state from one twin into another (online synchronisation, :mod:`dualtwin.sy
 * free (root) bodies by name: world position of the body *frame origin*, orientation as a unit quaternion
   ``(w, x, y, z)`` with ``w >= 0``, linear velocity of the frame origin and angular velocity, both in world
   coordinates;
-* every hinge and slider joint by name: position (rad or m, multi-turn) and velocity;
+* every hinge and slider joint by name: position (rad or m, multi-turn) and velocity. A Webots Hinge2Joint
+  ``H`` is two such joints, ``H`` (axis 1) and ``H2`` (axis 2), as the Webots-to-MJCF converter names its two
+  hinges. A ball joint ``B`` is three entries ``B/rx``, ``B/ry``, ``B/rz``: the rotation vector of the child
+  body's orientation relative to its parent body, and as velocities the child's angular velocity relative
+  to the parent in the child's frame (MuJoCo's ball ``qvel``);
 * ``holds``: for each joint whose motor has not been commanded since reset (Webots' initial state: the motor
   holds a position), the position it holds. A held motor acts like a stiff spring, so this is part of the
   robot's state even though no controller set it;
@@ -37,7 +41,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Literal
 
@@ -70,7 +74,8 @@ def quat_from_matrix(rotation: Any) -> np.ndarray:
 
     Takes a 3x3 array or 9 row-major values (Webots' ``getOrientation``); plain floats keep it cheap.
     """
-    m00, m01, m02, m10, m11, m12, m20, m21, m22 = (float(v) for v in np.asarray(rotation, dtype=float).ravel())
+    values = rotation if isinstance(rotation, tuple | list) else np.asarray(rotation, dtype=float).ravel().tolist()
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = (float(v) for v in values)
     trace = m00 + m11 + m22
     if trace > 0:
         s = 2.0 * math.sqrt(trace + 1.0)
@@ -115,6 +120,16 @@ def rotation_vector(rotation: np.ndarray) -> np.ndarray:
     return q[1:] / s * 2.0 * math.atan2(s, float(q[0]))
 
 
+def state_names(bodies: Iterable[str], joints: Iterable[str], holds: Iterable[str]) -> list[str]:
+    """Names of a state vector's entries (see :meth:`MechanicalState.layout`)."""
+    joints = list(joints)
+    names = [f"body/{b}/{f}" for b in bodies for f in BODY_FIELDS]
+    names += [f"joint/{j}/q" for j in joints]
+    names += [f"joint/{j}/qd" for j in joints]
+    names += [f"hold/{j}" for j in holds]
+    return names
+
+
 @dataclass
 class BodyState:
     """A free body's pose and velocity (world frame; velocity of the frame origin)."""
@@ -149,11 +164,7 @@ class MechanicalState:
 
     def layout(self) -> list[str]:
         """Names of :meth:`vector`'s entries: ``body/<b>/<field>``, ``joint/<j>/q``, ``joint/<j>/qd``, ``hold/<j>``."""
-        names = [f"body/{b}/{f}" for b in self.bodies for f in BODY_FIELDS]
-        names += [f"joint/{j}/q" for j in self.joint_positions]
-        names += [f"joint/{j}/qd" for j in self.joint_positions]
-        names += [f"hold/{j}" for j in self.holds]
-        return names
+        return state_names(self.bodies, self.joint_positions, self.holds)
 
     def vector(self) -> np.ndarray:
         parts = [b.vector() for b in self.bodies.values()]
@@ -252,6 +263,28 @@ class MechanicalState:
                                {k: float(v) for k, v in dict(data.get("holds", {})).items()})
 
 
+class StateLayout:
+    """The entry names of a twin's state vector (:meth:`MechanicalState.vector`) for given bodies, joints and
+    held joints. Twins keep one per set of holds, so per-period reads (:meth:`Twin.state_vector`) neither
+    build nor parse names."""
+
+    def __init__(self, bodies: Iterable[str], joints: Iterable[str], holds: Iterable[str]) -> None:
+        self.bodies, self.joints, self.holds = tuple(bodies), tuple(joints), tuple(holds)
+        self.names = state_names(self.bodies, self.joints, self.holds)
+        self.core = 13 * len(self.bodies) + 2 * len(self.joints)
+
+    def state(self, values: Sequence[float] | np.ndarray, time: float = 0.0, source: str = "") -> MechanicalState:
+        """The state whose :meth:`~MechanicalState.vector` is ``values`` (in this layout)."""
+        v = values.tolist() if isinstance(values, np.ndarray) else list(values)
+        bodies = {name: BodyState(np.array(v[o:o + 3]), np.array(v[o + 3:o + 7]), np.array(v[o + 7:o + 10]),
+                                  np.array(v[o + 10:o + 13]))
+                  for name, o in zip(self.bodies, range(0, 13 * len(self.bodies), 13), strict=True)}
+        s, n = 13 * len(self.bodies), len(self.joints)
+        return MechanicalState(time, bodies, dict(zip(self.joints, v[s:s + n], strict=True)),
+                               dict(zip(self.joints, v[s + n:s + 2 * n], strict=True)), source,
+                               dict(zip(self.holds, v[s + 2 * n:], strict=True)))
+
+
 def check_same_entities(a: MechanicalState, b: MechanicalState, label_a: str, label_b: str) -> None:
     """Raise a :class:`DualtwinError` naming every body or joint that only one of two states has."""
     problems = []
@@ -347,6 +380,13 @@ class Twin(ABC):
     def get_state(self) -> MechanicalState:
         """The full mechanical state now (see the module docstring for the conventions)."""
         raise DualtwinError(f"twin {self.name!r} cannot read its mechanical state")
+
+    def state_vector(self) -> tuple[StateLayout, np.ndarray]:
+        """:meth:`get_state` as its layout and :meth:`MechanicalState.vector`, for loops that read the state
+        every period (lockstep): twins override it to skip building the state object. The layout object is
+        shared between calls; do not modify it."""
+        state = self.get_state()
+        return StateLayout(state.bodies, state.joint_positions, state.holds), state.vector()
 
     def set_state(self, state: MechanicalState, *, partial: bool = False) -> None:
         """Put the robot into ``state`` now: the next :meth:`step` evolves from it.

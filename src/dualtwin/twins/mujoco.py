@@ -4,14 +4,24 @@ Motors mean what a Webots motor means (see :mod:`dualtwin.twins.base`). ODE's jo
 constraint that reaches the commanded velocity within one step unless that needs more than the maximum
 torque. MuJoCo has no such constraint, so each motor is a ``general`` actuator switched between:
 
-* a stiff velocity servo (force ``kv (u - qdot)``, integrated implicitly by ``implicitfast``, so any ``kv``
-  is stable) while the torque it needs stays within the limit, and
+* a stiff velocity servo (torque ``kv (u - qdot)``) while the torque it needs stays within the limit, and
 * a saturated torque of ``±max_torque`` once it does not, until the velocity reaches ``u`` again.
 
-MuJoCo's own ``forcerange`` clamp is not used for this: when it clamps, ``implicitfast`` drops the servo's
-derivative and a stiff servo chatters. Webots motor fields are read from
+The servo is integrated implicitly (backward Euler, so any ``kv`` is stable), but not with MuJoCo's implicit
+actuator damping: ``implicitfast`` adds ``dt·kv`` to the joint's inertia only *after* the constraint solver
+ran, so contacts see a free-spinning joint. A wheel then "gives" under friction that the motor actually
+resists, and skid-steer turning came out 2.5x too slow against ODE, whose motor row is solved together with
+the contacts. Instead the servo torque is applied explicitly from the velocity at the start of the step and
+``dt·kv`` is added to the joint's ``armature`` while the servo is active: for the joint alone that is the
+same backward-Euler update, and the constraint solver sees the motor's stiffness. MuJoCo's own
+``forcerange`` clamp is not used: a clamped stiff servo chatters. Webots motor fields are read from
 ``<custom><numeric name="webots_motor.NAME" data="maxVelocity Kp Ki Kd acceleration"/>``, and the maximum
 torque from the actuator's ``forcerange``.
+
+Contacts mean what Webots' contacts mean when the model asks for it with
+``<custom><text name="webots_contact" data="approx1"/></custom>`` (the converter writes it): ODE's square
+friction limit, emulated with a turned MuJoCo pyramid (:mod:`dualtwin.twins.ode_friction`). Hand-written
+models without it step with plain ``mj_step``.
 """
 
 from __future__ import annotations
@@ -25,10 +35,10 @@ import numpy as np
 
 from dualtwin.errors import DualtwinError, SimulationUnstable
 from dualtwin.twins.base import (
-    BodyState,
     ControlMode,
     Knob,
     MechanicalState,
+    StateLayout,
     SyncError,
     Twin,
     canonical_quat,
@@ -37,13 +47,23 @@ from dualtwin.twins.base import (
     unknown_name,
 )
 from dualtwin.twins.motors import MotorParams, MotorState
+from dualtwin.twins.ode_friction import FrictionBox, contact_semantics
 
 if TYPE_CHECKING:
     from dualtwin.robots.binding import RobotBinding
 
-# Servo stiffness relative to the joint's own inertia: kv·dt = SERVO_STIFFNESS·I closes 91 % of the
-# velocity error of a free joint in one step, like ODE's motor constraint.
-SERVO_STIFFNESS = 10.0
+# Servo stiffness relative to the joint's own inertia: kv·dt = SERVO_STIFFNESS·I closes 99 % of the
+# velocity error of a free joint in one step, close to ODE's motor constraint (a hard row at the world CFM).
+# The solver sees it as armature, so it also sets how hard a wheel resists contact friction: at 10 (91 %)
+# the Pioneer turned in place 18 % slower than in ODE, at 100 3 %.
+SERVO_STIFFNESS = 100.0
+# On a free joint the servo applies 1/(1 + SERVO_STIFFNESS) of its explicit torque ``kv (u - qdot)`` (the
+# armature takes the rest): a torque above the limit times this factor saturates before the step, as ODE's
+# bounded motor row would, instead of overshooting for one step.
+PREDICT_SATURATION = 1.0 + SERVO_STIFFNESS
+# Geoms whose size[0] is a radius (the geom.<g>.radius knob).
+ROUND_GEOMS = frozenset({int(mujoco.mjtGeom.mjGEOM_CYLINDER), int(mujoco.mjtGeom.mjGEOM_SPHERE),
+                         int(mujoco.mjtGeom.mjGEOM_CAPSULE)})
 # Largest delay, in control periods, that the delay knobs accept.
 MAX_DELAY_PERIODS = 10
 #: set_state refuses states whose contacts overlap deeper than this (m): that is a geometry mismatch or a
@@ -120,6 +140,8 @@ class MuJoCoTwin(Twin):
             raise DualtwinError(f"{origin}: control period {control_period} s is not a whole number of "
                                 f"physics steps of {dt} s")
         self._substeps = int(round(substeps))
+        self._nominal_substeps = self._substeps
+        self._nominal_timestep = float(dt)
         self._control_period = control_period
         self._rng = np.random.default_rng(0)
         self._noise = np.array(self.model.sensor_noise, dtype=float)
@@ -127,6 +149,7 @@ class MuJoCoTwin(Twin):
         self._knob_values: dict[str, float] = {}
         self._motors = self._build_motors()
         self._motor_by_name = {m.name: m for m in self._motors}
+        self._nominal_kv = {m.name: m.kv for m in self._motors}
         self._nominal_motor = {m.name: (m.state.params.max_torque, m.state.params.max_velocity) for m in self._motors}
         # Knob state outside the model arrays: the control delay queues commands until they are due, and
         # the sensor models (bias, resolution, delay) apply in sensor().
@@ -142,6 +165,10 @@ class MuJoCoTwin(Twin):
         # Motors commanded since the last reset; the others hold their position (see set_state).
         self._commanded: set[str] = set()
         self.max_penetration = MAX_PENETRATION
+        #: "approx1" when contacts follow Webots' friction pyramid (see the module docstring), else None.
+        self.contact_semantics = contact_semantics(self.model, origin)
+        # One physics step; every stepping path below goes through it.
+        self._mj_step = FrictionBox().step if self.contact_semantics else mujoco.mj_step
         self.reset()
 
     # ---------------------------------------------------------------- set-up
@@ -196,7 +223,9 @@ class MuJoCoTwin(Twin):
             "body_inertia": m.body_inertia.copy(), "body_ipos": m.body_ipos.copy(),
             "geom_solref": m.geom_solref.copy(), "jnt_stiffness": m.jnt_stiffness.copy(),
             "sensor_noise": m.sensor_noise.copy(), "body_iquat": m.body_iquat.copy(),
-            "jnt_solref": m.jnt_solref.copy(),
+            "jnt_solref": m.jnt_solref.copy(), "dof_armature": m.dof_armature.copy(),
+            "geom_size": m.geom_size.copy(), "geom_rbound": m.geom_rbound.copy(), "geom_aabb": m.geom_aabb.copy(),
+            "impratio": np.array(m.opt.impratio),
         }
 
     # ---------------------------------------------------------------- Twin API
@@ -294,16 +323,19 @@ class MuJoCoTwin(Twin):
             self._set_servo(motor)
 
     def _set_servo(self, motor: _Motor) -> None:
+        """Servo mode: ctrl is the explicit torque ``kv (u - qdot)``, and ``dt·kv`` of armature makes it implicit."""
         m = self.model
-        m.actuator_gainprm[motor.index, 0] = motor.kv
-        m.actuator_biastype[motor.index] = mujoco.mjtBias.mjBIAS_AFFINE
-        m.actuator_biasprm[motor.index, :3] = (0.0, 0.0, -motor.kv)
+        m.actuator_gainprm[motor.index, 0] = 1.0
+        m.actuator_biastype[motor.index] = mujoco.mjtBias.mjBIAS_NONE
+        m.actuator_biasprm[motor.index, :3] = 0.0
+        m.dof_armature[motor.dof] = self._nominal["dof_armature"][motor.dof] + motor.kv * m.opt.timestep
 
     def _set_torque(self, motor: _Motor, torque: float) -> None:
         m = self.model
         m.actuator_gainprm[motor.index, 0] = 1.0
         m.actuator_biastype[motor.index] = mujoco.mjtBias.mjBIAS_NONE
         m.actuator_biasprm[motor.index, :3] = 0.0
+        m.dof_armature[motor.dof] = self._nominal["dof_armature"][motor.dof]
         self.data.ctrl[motor.index] = torque
 
     def step(self) -> None:
@@ -312,7 +344,11 @@ class MuJoCoTwin(Twin):
             self._before_step()
         servos = [mo for mo in self._motors if not mo.state.torque_mode]
         if not servos:
-            mujoco.mj_step(m, d, nstep=self._substeps)
+            if self._mj_step is mujoco.mj_step:
+                mujoco.mj_step(m, d, nstep=self._substeps)
+            else:
+                for _ in range(self._substeps):
+                    self._mj_step(m, d)
         elif any(mo.saturated or mo.state.needs_feedback for mo in servos):
             for _ in range(self._substeps):
                 self._servo_substep(servos)
@@ -321,14 +357,23 @@ class MuJoCoTwin(Twin):
             # A memoryview reads plain floats: cheaper than NumPy scalars in this per-sub-step check.
             qvel = memoryview(d.qvel)
             dt = m.opt.timestep
+            ctrl = d.ctrl
             checks = []
             for mo in servos:
                 u = mo.state.velocity_command(0.0, dt)
-                d.ctrl[mo.index] = u
-                checks.append((mo, u, mo.dof, mo.kv, mo.state.available_torque))
+                checks.append((mo, u, mo.index, mo.dof, mo.kv, mo.state.available_torque))
             for k in range(self._substeps):
-                mujoco.mj_step(m, d)
-                for mo, u, dof, kv, limit in checks:
+                for mo, u, index, dof, kv, limit in checks:
+                    torque = ctrl[index] = kv * (u - qvel[dof])
+                    if torque > PREDICT_SATURATION * limit or -torque > PREDICT_SATURATION * limit:
+                        self._saturate(mo, torque)
+                        for _ in range(self._substeps - k):
+                            self._servo_substep(servos)
+                        self._check_stable()
+                        return
+                self._mj_step(m, d)
+                for mo, u, _, dof, kv, limit in checks:
+                    # The torque the implicit servo applied over the step (see the module docstring).
                     torque = kv * (u - qvel[dof])
                     if torque > limit or -torque > limit:
                         self._saturate(mo, torque)
@@ -347,24 +392,29 @@ class MuJoCoTwin(Twin):
         m, d = self.model, self.data
         dt = m.opt.timestep
         qpos, qvel, ctrl = d.qpos, d.qvel, d.ctrl
+        targets = {}
         for mo in servos:
-            u = mo.state.velocity_command(float(qpos[mo.qpos]), dt)
+            u = targets[mo.index] = mo.state.velocity_command(float(qpos[mo.qpos]), dt)
             limit = mo.state.available_torque
             if mo.saturated:
                 # Leave saturation once full torque would carry the joint past u this step.
                 if (u - float(qvel[mo.dof])) * mo.saturated <= 0.0 or limit <= 0.0:
                     mo.saturated = 0.0
                     self._set_servo(mo)
-                    ctrl[mo.index] = u
+                    ctrl[mo.index] = mo.kv * (u - float(qvel[mo.dof]))
                 else:
                     ctrl[mo.index] = mo.saturated * limit
             else:
-                ctrl[mo.index] = u
-        mujoco.mj_step(m, d)
+                torque = mo.kv * (u - float(qvel[mo.dof]))
+                if abs(torque) > PREDICT_SATURATION * limit:
+                    self._saturate(mo, torque)
+                else:
+                    ctrl[mo.index] = torque
+        self._mj_step(m, d)
         for mo in servos:
             if not mo.saturated:
                 # The backward-Euler servo torque actually applied this step.
-                torque = mo.kv * (float(ctrl[mo.index]) - float(qvel[mo.dof]))
+                torque = mo.kv * (targets[mo.index] - float(qvel[mo.dof]))
                 if abs(torque) > mo.state.available_torque:
                     self._saturate(mo, torque)
 
@@ -420,56 +470,63 @@ class MuJoCoTwin(Twin):
         return value
 
     # ---------------------------------------------------------------- state transfer
-    def _state_entities(self) -> tuple[list[tuple[str, int, int]], list[tuple[str, int, int]]]:
-        """(canonical name, qpos address, dof address) of the free bodies and of the hinge/slide joints."""
+    def _state_plan(self) -> _StatePlan:
         # The compiled model never changes its joints: resolve them once (the state is read every period).
-        cached: tuple[list[tuple[str, int, int]], list[tuple[str, int, int]]] | None = getattr(self, "_entities", None)
-        if cached is None:
-            cached = self._entities = self._find_state_entities()
-            self._qpos_joint = {qa: name for name, qa, _ in cached[1]}
-        return cached
+        plan: _StatePlan | None = getattr(self, "_plan", None)
+        if plan is None:
+            plan = self._plan = _StatePlan(self.model, {v: k for k, v in self._aliases.items()})
+        return plan
 
-    def _find_state_entities(self) -> tuple[list[tuple[str, int, int]], list[tuple[str, int, int]]]:
-        m = self.model
-        inverse = {v: k for k, v in self._aliases.items()}
-        bodies, joints = [], []
-        free, hinge, slide = (int(k) for k in (mujoco.mjtJoint.mjJNT_FREE, mujoco.mjtJoint.mjJNT_HINGE,
-                                                mujoco.mjtJoint.mjJNT_SLIDE))
-        for j in range(m.njnt):
-            kind = int(m.jnt_type[j])
-            if kind == free:
-                name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, int(m.jnt_bodyid[j]))
-                if name:
-                    bodies.append((inverse.get(name, name), int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j])))
-            elif kind in (hinge, slide):
-                name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j)
-                if name:
-                    joints.append((inverse.get(name, name), int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j])))
-        return bodies, joints
+    def _held(self, plan: _StatePlan) -> list[tuple[str, float]]:
+        """(joint, hold target) of the motors that have not been commanded since reset (the state's holds)."""
+        out = []
+        for motor in self._motors:
+            if motor.name not in self._commanded and not motor.state.torque_mode and motor.qpos in plan.by_qpos:
+                target = motor.state.target_position
+                if math.isfinite(target):
+                    out.append((plan.by_qpos[motor.qpos], float(target)))
+        return out
+
+    def _read_state(self) -> tuple[StateLayout, list[float]]:
+        """qpos/qvel by name: a free joint's qpos is its body frame's pose, its qvel the frame origin's world
+        linear velocity and the body-frame angular velocity (rotated to world here); a ball joint's quaternion
+        becomes its rotation vector and its qvel (child-frame angular velocity) is kept as it is."""
+        plan = self._state_plan()
+        held = self._held(plan)
+        layout = plan.layout(tuple(name for name, _ in held))
+        # Plain floats: a few dozen numbers, read every control period in lockstep.
+        qpos, qvel = self.data.qpos.tolist(), self.data.qvel.tolist()
+        out: list[float] = []
+        for qa, da in plan.bodies:
+            w, x, y, z = qpos[qa + 3:qa + 7]
+            norm = (-1.0 if w < 0 else 1.0) / math.sqrt(w * w + x * x + y * y + z * z)
+            w, x, y, z = w * norm, x * norm, y * norm, z * norm
+            a, b, c = qvel[da + 3:da + 6]
+            # v + 2w(q×v) + 2q×(q×v): the body-frame angular velocity in world coordinates.
+            tx, ty, tz = 2 * (y * c - z * b), 2 * (z * a - x * c), 2 * (x * b - y * a)
+            out += [*qpos[qa:qa + 3], w, x, y, z, *qvel[da:da + 3],
+                    a + w * tx + y * tz - z * ty, b + w * ty + z * tx - x * tz, c + w * tz + x * ty - y * tx]
+        positions = [qpos[qa] for qa in plan.scalar_qpos]
+        velocities = [qvel[da] for da in plan.scalar_dof]
+        for qa, da in zip(plan.ball_qpos, plan.ball_dof, strict=True):
+            rotvec = np.zeros(3)
+            quat = np.array(qpos[qa:qa + 4])
+            mujoco.mju_quat2Vel(rotvec, quat / np.linalg.norm(quat), 1.0)
+            positions += rotvec.tolist()
+            velocities += qvel[da:da + 3]
+        out += positions
+        out += velocities
+        out += [target for _, target in held]
+        return layout, out
+
+    def state_vector(self) -> tuple[StateLayout, np.ndarray]:
+        layout, values = self._read_state()
+        return layout, np.array(values)
 
     def get_state(self) -> MechanicalState:
-        """qpos/qvel by name: a free joint's qpos is its body frame's pose, its qvel the frame origin's world
-        linear velocity and the body-frame angular velocity (rotated to world here)."""
-        bodies, joints = self._state_entities()
-        qpos, qvel = self.data.qpos, self.data.qvel
-        out = MechanicalState(float(self.data.time), source=self.name)
-        for name, qa, da in bodies:
-            quat = qpos[qa + 3:qa + 7].copy()
-            angular = np.zeros(3)
-            mujoco.mju_rotVecQuat(angular, qvel[da + 3:da + 6], quat)
-            if quat[0] < 0:
-                quat = -quat
-            out.bodies[name] = BodyState(qpos[qa:qa + 3].copy(), quat / math.sqrt(float(quat @ quat)),
-                                         qvel[da:da + 3].copy(), angular)
-        positions, velocities = qpos.tolist(), qvel.tolist()
-        out.joint_positions = {name: positions[qa] for name, qa, _ in joints}
-        out.joint_velocities = {name: velocities[da] for name, _, da in joints}
-        by_qpos = self._qpos_joint
-        for motor in self._motors:
-            held = motor.name not in self._commanded and not motor.state.torque_mode
-            if held and motor.qpos in by_qpos and math.isfinite(motor.state.target_position):
-                out.holds[by_qpos[motor.qpos]] = float(motor.state.target_position)
-        return out
+        """See :meth:`_read_state` for how qpos/qvel map to the state."""
+        layout, values = self._read_state()
+        return layout.state(values, float(self.data.time), self.name)
 
     def set_state(self, state: MechanicalState, *, partial: bool = False) -> None:
         """Write qpos/qvel by name and recompute the derived quantities (``mj_forward``); the clock is kept.
@@ -480,11 +537,11 @@ class MuJoCoTwin(Twin):
             SyncError: Non-finite values, or contacts overlapping deeper than ``max_penetration``; the twin is
                 left in its previous state.
         """
-        bodies, joints = self._state_entities()
-        check_state_names(state, [b[0] for b in bodies], [j[0] for j in joints], self._origin, partial)
+        plan = self._state_plan()
+        check_state_names(state, plan.body_names, plan.joint_names, self._origin, partial)
         m, d = self.model, self.data
         saved = (d.qpos.copy(), d.qvel.copy())
-        for name, qa, da in bodies:
+        for name, (qa, da) in zip(plan.body_names, plan.bodies, strict=True):
             body = state.bodies.get(name)
             if body is None:
                 continue
@@ -493,10 +550,20 @@ class MuJoCoTwin(Twin):
             d.qpos[qa + 3:qa + 7] = quat
             d.qvel[da:da + 3] = body.linear_velocity
             d.qvel[da + 3:da + 6] = matrix_from_quat(quat).T @ np.asarray(body.angular_velocity, dtype=float)
-        for name, qa, da in joints:
+        for name, qa, da in zip(plan.joint_names, plan.scalar_qpos, plan.scalar_dof, strict=False):
             if name in state.joint_positions:
                 d.qpos[qa] = state.joint_positions[name]
                 d.qvel[da] = state.joint_velocities[name]
+        for k, (qa, da) in enumerate(zip(plan.ball_qpos, plan.ball_dof, strict=True)):
+            names = plan.joint_names[plan.scalar + 3 * k:plan.scalar + 3 * k + 3]
+            if names[0] in state.joint_positions:
+                rotvec = np.array([state.joint_positions[c] for c in names], dtype=float)
+                angle = float(np.linalg.norm(rotvec))
+                quat = np.array([1.0, 0.0, 0.0, 0.0])
+                if angle > 0:
+                    mujoco.mju_axisAngle2Quat(quat, rotvec / angle, angle)
+                d.qpos[qa:qa + 4] = quat
+                d.qvel[da:da + 3] = [state.joint_velocities[c] for c in names]
         # Acceleration warm start and actuator forces belong to the old state.
         d.qacc_warmstart[:] = 0.0
         mujoco.mj_forward(m, d)
@@ -509,7 +576,7 @@ class MuJoCoTwin(Twin):
             mujoco.mj_forward(m, d)
             raise SyncError(f"{self._origin}: the state puts {names[0]!r} {depth * 1000:.1f} mm into {names[1]!r} "
                             f"(more than {self.max_penetration * 1000:g} mm)", "penetration")
-        self._reseat_motors({qa: state.holds[name] for name, qa, _ in joints if name in state.holds})
+        self._reseat_motors({qa: state.holds[name] for qa, name in plan.by_qpos.items() if name in state.holds})
         self._bad_state = self._bad_state_warnings()
 
     def _reseat_motors(self, holds: dict[int, float]) -> None:
@@ -548,8 +615,8 @@ class MuJoCoTwin(Twin):
             limit_timeconst = float(nominal["jnt_solref"][j, 0])
             if m.jnt_limited[j] and limit_timeconst > 0:
                 # ODE's joint stops are stiff (world ERP/CFM); MuJoCo's limits are soft by default.
-                add(f"joint.{name}.limit_timeconst", limit_timeconst, 2 * m.opt.timestep,
-                    max(10 * limit_timeconst, 4 * m.opt.timestep), "s",
+                add(f"joint.{name}.limit_timeconst", limit_timeconst, 2 * self._nominal_timestep,
+                    max(10 * limit_timeconst, 4 * self._nominal_timestep), "s",
                     "joint-limit softness: time constant of the limit's spring-damper (MuJoCo solreflimit[0])")
         for g in range(m.ngeom):
             name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g)
@@ -559,11 +626,20 @@ class MuJoCoTwin(Twin):
                 timeconst, dampratio = (float(v) for v in nominal["geom_solref"][g])
                 if timeconst > 0:  # the standard (time constant, damping ratio) form of solref
                     # MuJoCo clamps time constants below two physics steps (refsafe).
-                    add(f"geom.{name}.solref_timeconst", timeconst, 2 * m.opt.timestep,
-                        max(10 * timeconst, 4 * m.opt.timestep), "s",
+                    add(f"geom.{name}.solref_timeconst", timeconst, 2 * self._nominal_timestep,
+                        max(10 * timeconst, 4 * self._nominal_timestep), "s",
                         "contact softness: time constant of the contact spring-damper (MuJoCo solref[0])")
                     add(f"geom.{name}.restitution", dampratio_to_restitution(dampratio), 0.0, 0.95, "",
                         "contact restitution (MuJoCo: solref damping ratio below 1)")
+                if m.geom_type[g] in ROUND_GEOMS:
+                    # A wheel's effective rolling radius: ODE's soft contacts let it sink (0.6 mm on the Pioneer).
+                    radius = float(nominal["geom_size"][g, 0])
+                    add(f"geom.{name}.radius", radius, 0.9 * radius, 1.1 * radius, "m",
+                        "radius of a cylinder, sphere or capsule geom (a wheel's rolling radius)")
+        # How hard friction is against the normal force: the slip of MuJoCo's soft friction (Webots: the
+        # contact's forceDependentSlip has a similar role, with no common scale).
+        add("option.impratio", float(nominal["impratio"]), 0.1, 100.0, "",
+            "ratio of frictional to normal constraint impedance (MuJoCo option impratio)")
         for b in range(1, m.nbody):
             name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b)
             mass = float(nominal["body_mass"][b])
@@ -585,6 +661,12 @@ class MuJoCoTwin(Twin):
             add(f"motor.{mo.name}.gain", 1.0, -2.0, 2.0, "", "command gain (sign included)")
         add("control.delay_periods", 0.0, 0.0, MAX_DELAY_PERIODS, "periods",
             "commands take effect this many control periods late (integer)")
+        # The integration step is part of a twin's behaviour: ODE's symplectic Euler at Webots' basicTimeStep
+        # leads a 2 ms MuJoCo model on unstable motion and resolves stop and contact impacts within one
+        # coarse step. Down to a quarter of the nominal steps (8 ms for 2 ms models), up to twice as many.
+        nominal_steps = self._nominal_substeps
+        add("physics.substeps", nominal_steps, max(1, nominal_steps // 4), 2 * nominal_steps, "steps",
+            "physics steps per control period (MuJoCo timestep = control period / steps; integer)")
         for s in range(m.nsensor):
             name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_SENSOR, s)
             if not name:
@@ -609,6 +691,10 @@ class MuJoCoTwin(Twin):
         m.dof_frictionloss[:] = nominal["dof_frictionloss"]
         m.geom_friction[:] = nominal["geom_friction"]
         m.geom_solref[:] = nominal["geom_solref"]
+        m.geom_size[:] = nominal["geom_size"]
+        m.geom_rbound[:] = nominal["geom_rbound"]
+        m.geom_aabb[:] = nominal["geom_aabb"]
+        m.opt.impratio = float(nominal["impratio"])
         m.jnt_solref[:] = nominal["jnt_solref"]
         m.body_mass[:] = nominal["body_mass"]
         m.body_inertia[:] = nominal["body_inertia"]
@@ -617,6 +703,7 @@ class MuJoCoTwin(Twin):
             mo.state.params.max_torque, mo.state.params.max_velocity = self._nominal_motor[mo.name]
             mo.state.gain = 1.0
         self._delay = 0
+        self._set_substeps(self._nominal_substeps)
         self._noise = np.array(nominal["sensor_noise"], dtype=float)
         self._sensor_bias[:] = 0.0
         self._sensor_quant[:] = 0.0
@@ -627,6 +714,12 @@ class MuJoCoTwin(Twin):
             value = float(value)
             if key == "control.delay_periods":
                 self._delay = int(round(value))
+                continue
+            if key == "option.impratio":
+                m.opt.impratio = value
+                continue
+            if key == "physics.substeps":
+                self._set_substeps(int(round(value)))
                 continue
             # Names may contain dots or spaces ("pole sensor"): the kind is first, the property last.
             kind, rest = key.split(".", 1)
@@ -641,6 +734,12 @@ class MuJoCoTwin(Twin):
                 g = self._id(mujoco.mjtObj.mjOBJ_GEOM, name, "geom")
                 if prop == "friction":
                     m.geom_friction[g, 0] = value
+                elif prop == "radius":
+                    m.geom_size[g, 0] = value
+                    # Broad-phase bounds only need to enclose the geom.
+                    grow = max(0.0, value - float(nominal["geom_size"][g, 0]))
+                    m.geom_rbound[g] = nominal["geom_rbound"][g] + grow
+                    m.geom_aabb[g, 3:] = nominal["geom_aabb"][g, 3:] + grow
                 elif prop == "solref_timeconst":
                     m.geom_solref[g, 0] = value
                 else:
@@ -679,7 +778,10 @@ class MuJoCoTwin(Twin):
                 m.body_inertia[b] = nominal["body_inertia"][b] * factor
         if changed_inertia or self._inertia_changed:
             # Constraint regularisation and derived masses depend on the mass distribution; recompute them as
-            # a compiled model with these values would (so a patched MJCF reproduces the knobs exactly).
+            # a compiled model with these values would (so a patched MJCF reproduces the knobs exactly). A
+            # compiled model has no servo armature (_set_servo), so that is left out while they are computed.
+            servo_armature = m.dof_armature.copy()
+            m.dof_armature[:] = nominal["dof_armature"]
             mujoco.mj_setConst(m, self._scratch)
             # The compiler's statistics (they scale solver tolerances), which mj_setConst leaves alone.
             scratch = self._scratch
@@ -689,10 +791,25 @@ class MuJoCoTwin(Twin):
             mujoco.mj_fullM(m, scratch, full)
             m.stat.meaninertia = float(np.trace(full)) / max(m.nv, 1)
             m.stat.meanmass = float(np.mean(m.body_mass[1:])) if m.nbody > 1 else 0.0
+            m.dof_armature[:] = servo_armature
             self._inertia_changed = changed_inertia
         for mo in self._motors:
             mo.state.available_torque = mo.state.params.max_torque
         self._knob_values = dict(values)
+
+    def _set_substeps(self, substeps: int) -> None:
+        """Integrate each control period in ``substeps`` steps; servo stiffness follows the step (kv ∝ 1/dt)."""
+        if substeps < 1:
+            raise DualtwinError(f"{self._origin}: physics.substeps must be at least 1, got {substeps}")
+        # The nominal step exactly as compiled (the division may differ in the last bit).
+        nominal = substeps == self._nominal_substeps
+        self.model.opt.timestep = self._nominal_timestep if nominal else self._control_period / substeps
+        self._substeps = substeps
+        ratio = substeps / self._nominal_substeps
+        for mo in self._motors:
+            mo.kv = self._nominal_kv[mo.name] * ratio
+            if not mo.state.torque_mode and not mo.saturated:
+                self._set_servo(mo)
 
     def render(self, camera: str, width: int, height: int) -> np.ndarray:
         cam = self._id(mujoco.mjtObj.mjOBJ_CAMERA, camera, "camera")
@@ -707,6 +824,47 @@ class MuJoCoTwin(Twin):
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
+
+
+#: Names of a ball joint's three state entries: ``<joint>/rx`` ... (see :mod:`dualtwin.twins.base`).
+BALL_COMPONENTS = ("rx", "ry", "rz")
+
+
+class _StatePlan:
+    """Where each state entry lives in qpos/qvel: free bodies, hinge/slide joints, then ball joints."""
+
+    def __init__(self, m: mujoco.MjModel, inverse: dict[str, str]) -> None:
+        self.body_names: list[str] = []
+        self.bodies: list[tuple[int, int]] = []
+        scalars: list[tuple[str, int, int]] = []
+        balls: list[tuple[str, int, int]] = []
+        kinds = mujoco.mjtJoint
+        for j in range(m.njnt):
+            kind = int(m.jnt_type[j])
+            qa, da = int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j])
+            if kind == kinds.mjJNT_FREE:
+                name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, int(m.jnt_bodyid[j]))
+                if name:  # unnamed bodies and joints are scenery, not robot state
+                    self.body_names.append(inverse.get(name, name))
+                    self.bodies.append((qa, da))
+                continue
+            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j)
+            if name:
+                (balls if kind == kinds.mjJNT_BALL else scalars).append((inverse.get(name, name), qa, da))
+        self.scalar = len(scalars)
+        self.joint_names = [n for n, _, _ in scalars] + [f"{n}/{c}" for n, _, _ in balls for c in BALL_COMPONENTS]
+        self.scalar_qpos = [qa for _, qa, _ in scalars]
+        self.scalar_dof = [da for _, _, da in scalars]
+        self.ball_qpos = [qa for _, qa, _ in balls]
+        self.ball_dof = [da for _, _, da in balls]
+        self.by_qpos = {qa: n for n, qa, _ in scalars}
+        self._layouts: dict[tuple[str, ...], StateLayout] = {}
+
+    def layout(self, holds: tuple[str, ...]) -> StateLayout:
+        layout = self._layouts.get(holds)
+        if layout is None:
+            layout = self._layouts[holds] = StateLayout(self.body_names, self.joint_names, holds)
+        return layout
 
 
 def from_binding(robot: RobotBinding, control_period: float) -> MuJoCoTwin:

@@ -11,7 +11,7 @@ by their device ``name``, as in the binding.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -19,15 +19,16 @@ import numpy as np
 
 from dualtwin.errors import DualtwinError, SimulationUnstable
 from dualtwin.twins.base import (
-    BodyState,
     ControlMode,
     Knob,
     MechanicalState,
+    StateLayout,
     SyncError,
     Twin,
     check_state_names,
     matrix_from_quat,
     quat_from_matrix,
+    rotation_vector,
     unknown_name,
 )
 
@@ -37,8 +38,6 @@ if TYPE_CHECKING:
 
 JOINT_TYPES = ("HingeJoint", "SliderJoint", "Hinge2Joint", "BallJoint")
 MOTOR_TYPES = ("RotationalMotor", "LinearMotor")
-#: Joints whose state get_state/set_state carry (one axis each).
-STATE_JOINT_TYPES = ("HingeJoint", "SliderJoint")
 #: set_state refuses a state to which a free body responds, within one basic step, with a velocity jump
 #: above these (m/s, rad/s): ODE pushing a penetrating body out (softERP 0.2 moves 2 cm of overlap at
 #: 0.5 m/s with an 8 ms step) or a violated joint. Driving and gravity stay far below them.
@@ -351,34 +350,54 @@ class WebotsTwin(Twin):
             self._structure = _Structure(self)
         return self._structure
 
-    def get_state(self) -> MechanicalState:
-        """Root poses and velocities from ``Node.getPosition/getOrientation/getVelocity`` (the CoM velocity
-        moved to the frame origin), joint positions from their ``position`` fields and joint rates from the
-        relative velocity of the endPoint and the parent Solid along the joint axis.
+    def _read_state(self) -> tuple[StateLayout, list[float]]:
+        """Root poses and velocities from ``Node.getPose/getVelocity`` (the CoM velocity moved to the frame
+        origin), joint positions from their ``position`` fields, joint rates from the relative angular (or,
+        for sliders, linear) velocity of the endPoint and the parent Solid along the joint axes, and ball
+        joints from the endPoint's rotation relative to the parent Solid."""
+        st = self._state_structure()
+        out: list[float] = []
+        known: dict[int, Sequence[float]] = {}
+        for node in st.bodies.values():
+            pose = node.getPose()
+            position = (pose[3], pose[7], pose[11])
+            known[node.getId()] = (pose[0], pose[1], pose[2], pose[4], pose[5], pose[6], pose[8], pose[9], pose[10])
+            v = node.getVelocity()
+            com = node.getCenterOfMass()
+            # Velocity of the frame origin: v_com + w x (origin - com).
+            d = (position[0] - com[0], position[1] - com[1], position[2] - com[2])
+            out += [*position, *quat_from_matrix(known[node.getId()]),
+                    v[0] + v[4] * d[2] - v[5] * d[1], v[1] + v[5] * d[0] - v[3] * d[2],
+                    v[2] + v[3] * d[1] - v[4] * d[0], v[3], v[4], v[5]]
+        positions, velocities = st.joint_states(known)
+        out += positions
+        out += velocities
+        holds: list[str] = []
+        for name, motors in st.motors.items():
+            for motor in motors:
+                if motor.getName() not in self._commanded and math.isfinite(motor.getTargetPosition()):
+                    holds.append(name)
+                    out.append(float(motor.getTargetPosition()))
+                    break
+        return st.layout(tuple(holds)), out
 
-        Right after :meth:`set_state` the supervisor still shows the pre-write state until the next step; the
-        state written is returned then (it is exactly what the next step starts from).
-        """
+    def state_vector(self) -> tuple[StateLayout, np.ndarray]:
+        if self._written is not None:
+            written = self._written
+            return StateLayout(written.bodies, written.joint_positions, written.holds), written.vector()
+        layout, values = self._read_state()
+        return layout, np.array(values)
+
+    def get_state(self) -> MechanicalState:
+        """See :meth:`_read_state`. Right after :meth:`set_state` the supervisor still shows the pre-write
+        state until the next step; the state written is returned then (it is exactly what the next step
+        starts from)."""
         if self._written is not None:
             state = self._written.copy()
             state.time = self.time
             return state
-        st = self._state_structure()
-        out = MechanicalState(self.time, source=self.name)
-        for name, node in st.bodies.items():
-            position = np.array(node.getPosition(), dtype=float)
-            velocity = np.array(node.getVelocity(), dtype=float)
-            com = np.array(node.getCenterOfMass(), dtype=float)
-            linear = velocity[:3] + _cross(velocity[3:], position - com)
-            out.bodies[name] = BodyState(position, quat_from_matrix(node.getOrientation()), linear, velocity[3:].copy())
-        rates = st.joint_rates()
-        for name, joint in st.joints.items():
-            out.joint_positions[name] = float(joint.position.getSFFloat())
-            out.joint_velocities[name] = rates[name]
-            for motor in st.motors.get(name, []):
-                if motor.getName() not in self._commanded and math.isfinite(motor.getTargetPosition()):
-                    out.holds[name] = float(motor.getTargetPosition())
-        return out
+        layout, values = self._read_state()
+        return layout.state(values, self.time, self.name)
 
     def set_state(self, state: MechanicalState, *, partial: bool = False) -> None:
         """Write ``state`` through the supervisor so that the next :meth:`step` evolves from it.
@@ -403,7 +422,7 @@ class WebotsTwin(Twin):
                 or a violated joint). The twin then needs a :meth:`reset`.
         """
         st = self._state_structure()
-        check_state_names(state, list(st.bodies), list(st.joints), self._origin, partial)
+        check_state_names(state, list(st.bodies), st.names, self._origin, partial)
         # What get_state will answer until the next step: the current state overlaid with the written parts,
         # and the holds the held motors will have.
         expected = self.get_state()
@@ -531,6 +550,35 @@ class WebotsTwin(Twin):
         self._knob_values = dict(values)
 
 
+class _Hinge2:
+    """A Hinge2Joint: two state joints, ``<DEF>`` (axis 1, fixed in the parent) and ``<DEF>2`` (axis 2,
+    turning with axis 1), as the Webots-to-MJCF converter names its two hinges."""
+
+    def __init__(self, node: Any, second: str) -> None:
+        self.node = node
+        self.second = second
+        params = [node.getField(f).getSFNode() for f in ("jointParameters", "jointParameters2")]
+        if params[0] is None or params[1] is None:
+            raise DualtwinError(f"Hinge2Joint {node.getDef()!r} needs jointParameters and jointParameters2 "
+                                "for its state to be read and written")
+        self.params, self.params2 = params
+        self.position, self.position2 = (p.getField("position") for p in params)
+        self.axis, self.axis2 = (np.array(p.getField("axis").getSFVec3f(), dtype=float) for p in params)
+        self.axis /= np.linalg.norm(self.axis)
+        self.axis2 /= np.linalg.norm(self.axis2)
+        self.child = node.getField("endPoint").getSFNode()
+        self.parent = node.getParentNode()
+
+    def world_axes(self, q1: float) -> tuple[np.ndarray, np.ndarray]:
+        """World axes now: axis 2 is given for axis 1 at zero and turns with it (as ODE's hinge-2 axis 2)."""
+        rotation = np.array(self.parent.getOrientation(), dtype=float).reshape(3, 3)
+        return rotation @ self.axis, rotation @ (_rotation_about(self.axis, q1) @ self.axis2)
+
+
+#: State joints of a BallJoint ``B``: ``B/rx``, ``B/ry``, ``B/rz`` (see :mod:`dualtwin.twins.base`).
+BALL_COMPONENTS = ("rx", "ry", "rz")
+
+
 class _Structure:
     """The robot's roots, joints and held-motor map for state transfer, resolved once through the API."""
 
@@ -551,25 +599,84 @@ class _Structure:
                 name = node.getDef() or node.getField("name").getSFString()
                 self.bodies[inverse.get(name, name)] = node
         self.joints: dict[str, _Joint] = {}
-        self.motors: dict[str, list[Any]] = {}  # joint name -> its motor devices
+        self.hinge2: dict[str, _Hinge2] = {}
+        self.balls: dict[str, Any] = {}  # name -> (joint node, endPoint)
+        self.motors: dict[str, list[Any]] = {}  # state joint name -> its motor devices
+
+        def motors(node: Any, field: str) -> list[Any]:
+            devices = node.getField(field)
+            names = [devices.getMFNode(i).getField("name").getSFString() for i in range(devices.getCount())
+                     if devices.getMFNode(i) is not None and devices.getMFNode(i).getTypeName() in MOTOR_TYPES]
+            return [d for d in (sup.getDevice(n) for n in names) if d is not None]
+
         for node in twin._walk():
-            if node.getTypeName() in STATE_JOINT_TYPES and node.getDef():
-                params = node.getField("jointParameters").getSFNode()
-                end = node.getField("endPoint")
-                if params is None or end is None or end.getSFNode() is None:
-                    continue
-                name = inverse.get(node.getDef(), node.getDef())
+            kind = node.getTypeName()
+            if kind not in JOINT_TYPES or not node.getDef():
+                continue
+            end = node.getField("endPoint")
+            if end is None or end.getSFNode() is None:
+                continue
+            name = inverse.get(node.getDef(), node.getDef())
+            if kind == "BallJoint":
+                self.balls[name] = (node, end.getSFNode())
+            elif kind == "Hinge2Joint":
+                second = inverse.get(node.getDef() + "2", node.getDef() + "2")
+                self.hinge2[name] = _Hinge2(node, second)
+                self.motors[name], self.motors[second] = motors(node, "device"), motors(node, "device2")
+            elif node.getField("jointParameters").getSFNode() is not None:
                 self.joints[name] = _Joint(node)
-                devices = node.getField("device")
-                names = [devices.getMFNode(i).getField("name").getSFString() for i in range(devices.getCount())
-                         if devices.getMFNode(i) is not None and devices.getMFNode(i).getTypeName() in MOTOR_TYPES]
-                self.motors[name] = [d for d in (sup.getDevice(n) for n in names) if d is not None]
+                self.motors[name] = motors(node, "device")
+        self.names = [*self.joints, *(n for name, h in self.hinge2.items() for n in (name, h.second)),
+                      *(f"{b}/{c}" for b in self.balls for c in BALL_COMPONENTS)]
+        self._layouts: dict[tuple[str, ...], StateLayout] = {}
         self._parents: dict[int, Any] = {}
         self._joint_of: dict[int, _Joint] = {j.child.getId(): j for j in self.joints.values()}
+        self._hinge2_of: dict[int, tuple[str, _Hinge2]] = {h.child.getId(): (n, h) for n, h in self.hinge2.items()}
+        self._ball_of: dict[int, str] = {end.getId(): n for n, (_, end) in self.balls.items()}
         self._slider = any(j.kind == "SliderJoint" for j in self.joints.values())
         self._plan: tuple[list[Any], list[Any], list[tuple[str, int, int, int, tuple[float, ...], bool]]] | None = None
         for name in self.joints:
             self.parent_solid(self.joints[name].node)
+
+    def layout(self, holds: tuple[str, ...]) -> StateLayout:
+        layout = self._layouts.get(holds)
+        if layout is None:
+            layout = self._layouts[holds] = StateLayout(self.bodies, self.names, holds)
+        return layout
+
+    def joint_states(self, known: dict[int, Sequence[float]] | None = None) -> tuple[list[float], list[float]]:
+        """Positions and rates of every state joint, in :attr:`names` order (``known``: see
+        :meth:`joint_rates`)."""
+        rates = self.joint_rates(known=known)
+        positions = [float(j.position.getSFFloat()) for j in self.joints.values()]
+        velocities = [rates[n] for n in self.joints]
+        for h in self.hinge2.values():
+            q1, q2 = float(h.position.getSFFloat()), float(h.position2.getSFFloat())
+            a1, a2 = h.world_axes(q1)
+            # The relative angular velocity is q1' a1 + q2' a2: solve the 2x2 normal equations.
+            rel = self._angular(h.child) - self._angular(self.parent_solid(h.node))
+            g11, g12, g22 = float(a1 @ a1), float(a1 @ a2), float(a2 @ a2)
+            b1, b2 = float(a1 @ rel), float(a2 @ rel)
+            det = g11 * g22 - g12 * g12
+            positions += [q1, q2]
+            velocities += [(g22 * b1 - g12 * b2) / det, (g11 * b2 - g12 * b1) / det]
+        for joint, end in self.balls.values():
+            rotation, relative = self._relative_rotation(joint, end)
+            positions += rotation_vector(relative).tolist()
+            w_child = self._angular(end)
+            w_rel = w_child - self._angular(self.parent_solid(joint))
+            velocities += (np.array(end.getOrientation(), dtype=float).reshape(3, 3).T @ w_rel).tolist()
+        return positions, velocities
+
+    def _relative_rotation(self, joint: Any, end: Any) -> tuple[np.ndarray, np.ndarray]:
+        """(parent Solid's world rotation, the endPoint's rotation relative to it)."""
+        parent = self.parent_solid(joint)
+        rp = np.array(parent.getOrientation(), dtype=float).reshape(3, 3) if parent is not None else np.eye(3)
+        return rp, rp.T @ np.array(end.getOrientation(), dtype=float).reshape(3, 3)
+
+    @staticmethod
+    def _angular(node: Any) -> np.ndarray:
+        return np.array(node.getVelocity()[3:], dtype=float) if node is not None else np.zeros(3)
 
     @staticmethod
     def _has_body(node: Any) -> bool:
@@ -592,10 +699,16 @@ class _Structure:
 
     def _frame(self, joint: _Joint) -> tuple[np.ndarray, np.ndarray]:
         """World axis and anchor of a joint now (axis and anchor live in the closest upper Pose, spec §4.1)."""
-        rotation, position = _pose_of(joint.parent)
-        anchor_field = joint.params.getField("anchor")
-        anchor = np.array(anchor_field.getSFVec3f() if anchor_field is not None else [0.0, 0.0, 0.0], dtype=float)
-        return rotation @ joint.axis, position + rotation @ anchor
+        rotation, _ = _pose_of(joint.parent)
+        return rotation @ joint.axis, self._anchor(joint.parent, joint.params)
+
+    @staticmethod
+    def _anchor(frame: Any, params: Any) -> np.ndarray:
+        """World anchor of a joint now, from its parameters' ``anchor`` in the closest upper Pose ``frame``."""
+        rotation, position = _pose_of(frame)
+        field = params.getField("anchor") if params is not None else None
+        anchor = np.array(field.getSFVec3f() if field is not None else [0.0, 0.0, 0.0], dtype=float)
+        return position + rotation @ anchor
 
     @staticmethod
     def _twist(node: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -607,16 +720,19 @@ class _Structure:
         name = next(n for n, j in self.joints.items() if j is joint)
         return self.joint_rates([name])[name]
 
-    def joint_rates(self, names: list[str] | None = None) -> dict[str, float]:
+    def joint_rates(self, names: list[str] | None = None,
+                    known: dict[int, Sequence[float]] | None = None) -> dict[str, float]:
         """Joint rates: the relative velocity of endPoint and parent Solid along the world joint axis.
 
         Each node's orientation and velocity is read once per call, from a plan resolved once: the state is
-        read every control period, so this stays in plain floats.
+        read every control period, so this stays in plain floats. ``known``: row-major orientations already
+        read, by node id (a root body is often the joints' frame).
         """
         if self._plan is None:
             self._plan = self._rate_plan()
         frames, solids, rows = self._plan
-        rotations = [node.getOrientation() for node in frames]
+        known = known or {}
+        rotations = [known.get(node.getId()) or node.getOrientation() for node in frames]
         velocities = [node.getVelocity() for node in solids]
         coms = [node.getCenterOfMass() for node in solids] if self._slider else []
         out = {}
@@ -659,6 +775,39 @@ class _Structure:
                          tuple(float(v) for v in joint.axis), joint.kind == "SliderJoint"))
         return frames, solids, rows
 
+    @staticmethod
+    def _local_fields(node: Any) -> tuple[np.ndarray, np.ndarray]:
+        """(rotation matrix, translation) of a Solid's ``rotation`` and ``translation`` fields now."""
+        rotation = node.getField("rotation").getSFRotation()
+        axis = np.array(rotation[:3], dtype=float)
+        return _rotation_about(axis / np.linalg.norm(axis), float(rotation[3])), \
+            np.array(node.getField("translation").getSFVec3f(), dtype=float)
+
+    def _turn_free(self, key: int, state: MechanicalState, free: tuple[np.ndarray, ...], q_now: dict[str, float],
+                   qd_now: dict[str, float], rp_now: np.ndarray, pp_now: np.ndarray, rel_r: np.ndarray,
+                   rel_p: np.ndarray, rp: np.ndarray, pp: np.ndarray, wp: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """A Hinge2/ball endPoint's pose relative to its parent Solid, angular velocity and world anchor in the
+        written state (``rel_r``/``rel_p``: its relative pose now; ``rp``/``pp``/``wp``: the parent written)."""
+        a1_w, a2_w, anchor_now = free[0], free[1], free[2]
+        anchor_p = rp_now.T @ (anchor_now - pp_now)
+        if key in self._hinge2_of:
+            name, h = self._hinge2_of[key]
+            a1, a2 = rp_now.T @ a1_w, rp_now.T @ a2_w
+            first = _rotation_about(a1, state.joint_positions.get(name, q_now[name]) - q_now[name])
+            turn = first @ _rotation_about(a2, state.joint_positions.get(h.second, q_now[h.second]) - q_now[h.second])
+            rates = (state.joint_velocities.get(name, qd_now[name]), state.joint_velocities.get(h.second, qd_now[h.second]))
+            new_r = turn @ rel_r
+            w = wp + rp @ (a1 * rates[0] + (first @ a2) * rates[1])
+        else:
+            entries = [f"{self._ball_of[key]}/{c}" for c in BALL_COMPONENTS]
+            rotvec = np.array([state.joint_positions.get(e, q_now[e]) for e in entries], dtype=float)
+            angle = float(np.linalg.norm(rotvec))
+            new_r = _rotation_about(rotvec / angle, angle) if angle > 0 else np.eye(3)
+            turn = new_r @ rel_r.T
+            w = wp + rp @ new_r @ np.array([state.joint_velocities.get(e, qd_now[e]) for e in entries], dtype=float)
+        return new_r, turn @ (rel_p - anchor_p) + anchor_p, w, rp @ anchor_p + pp
+
     def write(self, state: MechanicalState) -> None:
         """Queue the supervisor writes that put the robot into ``state`` (see ``WebotsTwin.set_state``)."""
         # Read everything first: once a write is queued, real Webots may answer some getters with it.
@@ -682,6 +831,27 @@ class _Structure:
             frames[name] = (axis, anchor, float(joint.position.getSFFloat()), rates[name])
         for node in self.bodies.values():
             remember(node)
+        # Hinge2 and ball endPoints are written as poses relative to the parent Solid (their translation and
+        # rotation fields), so their axes, anchors and current fields are read here too.
+        names = self.names
+        positions, velocities = self.joint_states()
+        joint_q, joint_qd = dict(zip(names, positions, strict=True)), dict(zip(names, velocities, strict=True))
+        free: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+        for name, h in self.hinge2.items():
+            a1, a2 = h.world_axes(joint_q[name])
+            free[h.child.getId()] = (a1, a2, self._anchor(h.parent, h.params), *self._local_fields(h.child))
+        for joint, end in self.balls.values():
+            params = joint.getField("jointParameters").getSFNode()
+            free[end.getId()] = (np.zeros(3), np.zeros(3), self._anchor(joint.getParentNode(), params),
+                                 *self._local_fields(end))
+        for key in free:
+            child = self.hinge2[self._hinge2_of[key][0]].child if key in self._hinge2_of else \
+                self.balls[self._ball_of[key]][1]
+            remember(child)
+            parent = self.parent_solid(child)
+            if parent is not None:
+                remember(parent)
+        relatives: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
         coms = {key: np.array(node.getCenterOfMass(), dtype=float) for key, node in nodes.items()
                 if self._has_body(node)}
         current = {name: self._twist(node) for name, node in self.bodies.items() if name not in state.bodies}
@@ -714,6 +884,12 @@ class _Structure:
                 rel_r, rel_p = rp_now.T @ rotation_now, rp_now.T @ (position_now - pp_now)
                 joint = self._joint_of.get(key)
                 w, extra_v, anchor_w = wp, np.zeros(3), pp
+                turned = key in free
+                if turned:
+                    before = (rel_r, rel_p)
+                    rel_r, rel_p, w, anchor_w = self._turn_free(key, state, free[key], joint_q, joint_qd, rp_now,
+                                                                pp_now, rel_r, rel_p, rp, pp, wp)
+                    relatives[key] = (*before, rel_r, rel_p)
                 if joint is not None:
                     jname = next(n for n, j in self.joints.items() if j is joint)
                     axis_w_now, anchor_w_now, q_now, qd_now = frames[jname]
@@ -731,13 +907,17 @@ class _Structure:
                         anchor_w = rp @ anchor_p + pp
                 rotation, position = rp @ rel_r, rp @ rel_p + pp
                 velocity = vp + np.cross(wp, position - pp) + extra_v
-                if joint is not None and joint.kind != "SliderJoint":
+                if turned or (joint is not None and joint.kind != "SliderJoint"):
                     velocity = velocity + np.cross(w - wp, position - anchor_w)
                 result = (rotation, position, velocity, w)
             new[key] = result
             return result
 
-        targets = [self.bodies[n] for n in state.bodies] + [self.joints[n].child for n in state.joint_positions]
+        targets = [self.bodies[n] for n in state.bodies] + [self.joints[n].child for n in state.joint_positions
+                                                             if n in self.joints]
+        targets += [h.child for n, h in self.hinge2.items() if n in state.joint_positions or h.second in
+                    state.joint_positions]
+        targets += [end for n, (_, end) in self.balls.items() if f"{n}/{BALL_COMPONENTS[0]}" in state.joint_positions]
         for node in targets:
             solve(node)
         # Teleports first (parents before children), then held motors, then every body's velocity.
@@ -752,6 +932,17 @@ class _Structure:
         for name, joint in self.joints.items():
             if name in state.joint_positions:
                 joint.position.setSFFloat(float(state.joint_positions[name]))
+        for name, h in self.hinge2.items():
+            for field, entry in ((h.position, name), (h.position2, h.second)):
+                if entry in state.joint_positions:
+                    field.setSFFloat(float(state.joint_positions[entry]))
+        for key, (rel_r_now, rel_p_now, rel_r, rel_p) in relatives.items():
+            # The fields are relative to the parent Solid through fixed Poses: turn them by the relative motion.
+            _, _, _, local_r, local_t = free[key]
+            node = nodes[key]
+            node.getField("translation").setSFVec3f([float(v) for v in local_r @ (rel_r_now.T @ (rel_p - rel_p_now))
+                                                     + local_t])
+            node.getField("rotation").setSFRotation(_axis_angle(local_r @ rel_r_now.T @ rel_r))
         for name, motors in self.motors.items():
             if name not in state.joint_positions:
                 continue
