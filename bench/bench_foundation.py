@@ -35,7 +35,12 @@ def main() -> dict[str, float]:
 
     def raw_loop() -> None:
         for w in ("wheel1", "wheel2", "wheel3", "wheel4"):
-            twin.command(w, "velocity", 6.0)  # the same servo gains, applied by the raw loop below
+            twin.command(w, "velocity", 6.0)  # the servo's armature, as the twin sets it
+            # MuJoCo computes the same servo torque kv (6 - qdot) itself: the physics without the twin's Python.
+            motor = twin._motor_by_name[w]
+            model.actuator_gainprm[motor.index, 0] = motor.kv
+            model.actuator_biastype[motor.index] = mujoco.mjtBias.mjBIAS_AFFINE
+            model.actuator_biasprm[motor.index, :3] = (0.0, 0.0, -motor.kv)
         mujoco.mj_resetData(model, data)
         data.ctrl[:] = 6.0
         for _ in range(CONTROL_PERIODS * substeps):

@@ -130,17 +130,25 @@ def reusable(name: str, root: Path) -> Path | None:
     return out if os.environ.get("DUALTWIN_BENCH_RL_REUSE") == "1" and complete else None
 
 
+def reused_or_fresh(name: str, root: Path) -> tuple[Path, bool]:
+    """(run folder, whether it is a finished run to reuse); a fresh folder is emptied first."""
+    reuse = reusable(name, root)
+    if reuse is not None:
+        return reuse, True
+    out = root / name
+    if out.exists():
+        shutil.rmtree(out)
+    return out, False
+
+
 def train_to_threshold(name: str, env_id: str, root: Path, budget: float, env_kwargs: dict[str, Any] | None = None,
                        label: str | None = None, **train_kwargs: Any) -> dict[str, Any]:
     from dualtwin.rl.train import load_config, train
 
     label = label or env_id.split("/")[-1]
-    reuse = reusable(name, root)
-    if reuse is not None:
-        return summarise(reuse, label)
-    out = root / name
-    if out.exists():
-        shutil.rmtree(out)
+    out, reused = reused_or_fresh(name, root)
+    if reused:
+        return summarise(out, label)
     config = load_config(None).model_copy(update={"stop_reward": THRESHOLD, "n_timesteps": 5_000_000,
                                                   "max_wall_seconds": budget, "env_kwargs": env_kwargs or {}})
     start = time.perf_counter()
@@ -152,12 +160,9 @@ def fine_tune(name: str, root: Path, start: Path, label: str, **train_kwargs: An
     """FINE_TUNE_STEPS of PPO from ``start``'s best policy in the aligned twin or with DR (not to a threshold)."""
     from dualtwin.rl.train import load_config, train
 
-    reuse = reusable(name, root)
-    if reuse is not None:
-        return summarise(reuse, label)
-    out = root / name
-    if out.exists():
-        shutil.rmtree(out)
+    out, reused = reused_or_fresh(name, root)
+    if reused:
+        return summarise(out, label)
     # A tenth of the learning rate: at 3e-4 both fine-tunings drifted off the converged policy (DR: mean
     # evaluation reward 811 -> 306 within 100 k steps).
     config = load_config(None).model_copy(update={"n_timesteps": FINE_TUNE_STEPS, "learning_rate": 3e-5})

@@ -216,3 +216,7 @@ def test_lsq_screens_integer_knobs_then_fits_the_continuous_ones(tmp_path: Path,
     assert rel_error(result) < 0.05
     trace = json.loads((tmp_path / "out" / "align_record.json").read_text())["trace"]
     assert trace and all(float(entry["knobs"]["control.delay_periods"]).is_integer() for entry in trace)
+    # The integer knob gets a 95 % interval from its residuals at every integer, so the calibrated DR range
+    # is the delays the data cannot tell apart, not the knob's whole bounds (0..10).
+    delay = json.loads((tmp_path / "out" / "dr_ranges.json").read_text())["knobs"]["control.delay_periods"]
+    assert delay["low"] <= 2 <= delay["high"] and delay["high"] - delay["low"] < 10

@@ -10,7 +10,8 @@ Values are absolute (not factors) and lie within the knob's bounds; ``low <= fit
 The CMA-ES source is the spread of the best ``top_fraction`` of the last generations' candidates. The
 least-squares source is the fitted value ± the 95 % half-width. A range narrower than ``min_rel_width``
 of the fitted value (of the bound span when the value is 0) is widened to it, because a zero-width
-range randomises nothing; such knobs are listed in ``widened``.
+range randomises nothing; such knobs are listed in ``widened``. Integer knobs are not widened: their
+range is the integers their 95 % interval holds, possibly just the fitted one.
 """
 
 from __future__ import annotations
@@ -63,12 +64,13 @@ def dr_document(specs: Sequence[KnobSpec], fitted: Mapping[str, float], ranges: 
         low, high = min(low, value), max(high, value)
         reference = abs(value) if value != 0 else spec.upper - spec.lower
         min_width = min_rel_width * reference
-        if high - low < min_width:
+        if high - low < min_width and not spec.integer:
             widened.append(spec.name)
             low, high = min(low, value - min_width / 2), max(high, value + min_width / 2)
         low, high = max(spec.lower, low), min(spec.upper, high)
         if spec.integer:
-            low, high = float(math.floor(low)), float(math.ceil(high))
+            # The integers inside the range; a single one is an honest answer (the data tells it apart).
+            low, high = float(math.ceil(low - 1e-9)), float(math.floor(high + 1e-9))
         entry: dict[str, Any] = {"nominal": spec.nominal, "fitted": value, "low": low, "high": high,
                                  "distribution": "uniform", "unit": spec.unit}
         if spec.integer:

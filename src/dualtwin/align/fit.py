@@ -531,6 +531,9 @@ def _uncertainty(problem: _Problem, u: Sequence[float], step: float) -> _Uncerta
     specs = problem.specs
     cont = [i for i, s in enumerate(specs) if not s.integer]
     half: dict[str, float | None] = {s.name: None for s in specs}
+    for i, spec in enumerate(specs):
+        if spec.integer:
+            half[spec.name] = _integer_half_width(problem, u, i)
     if not cont:
         return _Uncertainty(half, None, [])
     points = [list(u)]
@@ -543,6 +546,23 @@ def _uncertainty(problem: _Problem, u: Sequence[float], step: float) -> _Uncerta
     jac = np.stack([(res.residual - r0) / (p[i] - u[i]) for res, p, i in zip(results[1:], points[1:], cont,
                                                                           strict=True)], axis=1)
     return interval_estimate(jac, r0, [specs[i] for i in cont], [u[i] for i in cont], half)
+
+
+def _integer_half_width(problem: _Problem, u: Sequence[float], i: int) -> float:
+    """95 % half-width of an integer knob from its residuals at every integer, the other knobs held.
+
+    An integer knob has no Jacobian column. Its interval holds the values whose residual sum of squares stays
+    within the one-parameter likelihood-ratio bound ``SSR <= SSR_min (1 + t²/dof)``, the same 95 % level as the
+    continuous knobs' intervals (conditional on the others, so it is, if anything, narrow).
+    """
+    spec = problem.specs[i]
+    values = list(range(math.ceil(spec.lower), math.floor(spec.upper) + 1))
+    results = problem.run([[*u[:i], spec.to_unit(v), *u[i + 1:]] for v in values])
+    ssr = [float(r.residual @ r.residual) for r in results]
+    dof = max(len(results[0].residual) - len(problem.specs), 1)
+    limit = min(ssr) * (1.0 + float(stats.t.ppf(0.975, dof)) ** 2 / dof)
+    fitted = spec.from_unit(u[i])
+    return float(max(abs(v - fitted) for v, s in zip(values, ssr, strict=True) if s <= limit))
 
 
 def interval_estimate(jac: np.ndarray, r0: np.ndarray, specs: Sequence[KnobSpec], u: Sequence[float],

@@ -47,9 +47,8 @@ Contacts
 
 World
     ``timestep`` = the largest of 2, 1, 0.5, 0.25 ms dividing ``basicTimeStep`` (else basicTimeStep/k <= 2 ms),
-    gravity (0, 0, -g), ``integrator="implicitfast"``, ``cone="pyramidal"`` and
-    ``<custom><text name="webots_contact" data="approx1"/></custom>``, which makes the MuJoCo twin turn the
-    pyramid into ODE's square friction limit (:mod:`dualtwin.twins.ode_friction`), ``compiler angle="radian"``.
+    gravity (0, 0, -g), ``integrator="implicitfast"``, ``cone="pyramidal"`` (ODE's friction pyramid),
+    ``compiler angle="radian"``.
 """
 
 from __future__ import annotations
@@ -77,7 +76,6 @@ from dualtwin.convert.mass import (
     solid_mass,
 )
 from dualtwin.errors import DualtwinError
-from dualtwin.twins.ode_friction import APPROX1, CONTACT_TEXT
 from dualtwin.webots import schema
 from dualtwin.webots.nodes import Node, World
 from dualtwin.webots.protos import load_world, load_world_text
@@ -345,7 +343,6 @@ class _Converter:
         spec.option.timestep = self.dt
         spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
         spec.option.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
-        spec.add_text(name=CONTACT_TEXT, data=APPROX1)
         spec.option.gravity = [0.0, 0.0, -float(self.info.get("gravity", 9.81))]
         if self.nue:
             self.warn("WorldInfo coordinateSystem is NUE: converted as written (no NUE -> ENU rotation)")

@@ -81,7 +81,6 @@ class DriveToGoal(Task):
             ObservationTerm("right_wheel_speed", "rad/s", "onboard", right_encoder,
                             "right encoders: change of angle over the last control period / control period"),
         )
-        self._io: RobotIO | None = None
         self.goal = np.zeros(2)
         self.start_heading = 0.0
         self._encoders = np.zeros(2)
@@ -114,12 +113,6 @@ class DriveToGoal(Task):
         self._encoder_index = [io.onboard_names.index(n) for n in self.encoders]
         self._pose_index = [io.ground_truth_index(c) for c in self.pose_channels]
         self._period = io.twin.control_period
-
-    @property
-    def io(self) -> RobotIO:
-        if self._io is None:
-            raise RuntimeError("task is not bound to a robot")
-        return self._io
 
     # ------------------------------------------------------------------ actions
     def action_space(self) -> spaces.Space[Any]:

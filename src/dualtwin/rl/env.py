@@ -45,6 +45,14 @@ class Task(ABC):
     """Observation, reward, termination and action semantics, written once against the twin contract."""
 
     observation_terms: tuple[ObservationTerm, ...]
+    _io: RobotIO | None = None
+
+    @property
+    def io(self) -> RobotIO:
+        """The robot this task was bound to."""
+        if self._io is None:
+            raise RuntimeError("task is not bound to a robot")
+        return self._io
 
     @abstractmethod
     def bind(self, io: RobotIO) -> None:
@@ -138,7 +146,6 @@ class CartPoleBalance(Task):
         self.observation_terms = tuple(terms)
         self._previous_odometry = 0.0
         self._odometry_index = 0
-        self._io: RobotIO | None = None
         self._onboard = np.zeros(0)
         self._truth = np.zeros(0)
 
@@ -170,12 +177,6 @@ class CartPoleBalance(Task):
         self._period = io.twin.control_period
         self._true_angle = truth.index("pole_angle_rad")
         self._true_x = truth.index("cart_pos_m")
-
-    @property
-    def io(self) -> RobotIO:
-        if self._io is None:
-            raise RuntimeError("task is not bound to a robot")
-        return self._io
 
     def action_space(self) -> spaces.Space[Any]:
         if self.continuous:

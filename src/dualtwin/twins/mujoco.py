@@ -18,15 +18,16 @@ same backward-Euler update, and the constraint solver sees the motor's stiffness
 ``<custom><numeric name="webots_motor.NAME" data="maxVelocity Kp Ki Kd acceleration"/>``, and the maximum
 torque from the actuator's ``forcerange``.
 
-Contacts mean what Webots' contacts mean when the model asks for it with
-``<custom><text name="webots_contact" data="approx1"/></custom>`` (the converter writes it): ODE's square
-friction limit, emulated with a turned MuJoCo pyramid (:mod:`dualtwin.twins.ode_friction`). Hand-written
-models without it step with plain ``mj_step``.
+A model with ``<custom><text name="webots_contact" data="approx1"/></custom>`` gets ODE's square friction
+limit (Webots' ``dContactApprox1``) from a turned MuJoCo pyramid (:mod:`dualtwin.twins.ode_friction`); others
+step with plain ``mj_step``. The converter does not write it: on the Pioneer it moved no result closer to the
+Webots twin and costs 40-60 % more time per step (README, Pioneer section).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -167,8 +168,10 @@ class MuJoCoTwin(Twin):
         self.max_penetration = MAX_PENETRATION
         #: "approx1" when contacts follow Webots' friction pyramid (see the module docstring), else None.
         self.contact_semantics = contact_semantics(self.model, origin)
+        self._friction_box = FrictionBox() if self.contact_semantics else None
         # One physics step; every stepping path below goes through it.
-        self._mj_step = FrictionBox().step if self.contact_semantics else mujoco.mj_step
+        self._mj_step: Callable[[mujoco.MjModel, mujoco.MjData], None] = (
+            self._friction_box.step if self._friction_box else mujoco.mj_step)
         self.reset()
 
     # ---------------------------------------------------------------- set-up
@@ -344,7 +347,7 @@ class MuJoCoTwin(Twin):
             self._before_step()
         servos = [mo for mo in self._motors if not mo.state.torque_mode]
         if not servos:
-            if self._mj_step is mujoco.mj_step:
+            if self._friction_box is None:
                 mujoco.mj_step(m, d, nstep=self._substeps)
             else:
                 for _ in range(self._substeps):
@@ -354,27 +357,30 @@ class MuJoCoTwin(Twin):
                 self._servo_substep(servos)
         else:
             # Plain velocity control: u is constant over the period, so only saturation needs watching.
-            # A memoryview reads plain floats: cheaper than NumPy scalars in this per-sub-step check.
+            # Memoryviews read and write plain floats: cheaper than NumPy scalars in this per-sub-step loop.
             qvel = memoryview(d.qvel)
             dt = m.opt.timestep
-            ctrl = d.ctrl
+            ctrl: memoryview[float] = memoryview(d.ctrl)
             checks = []
             for mo in servos:
                 u = mo.state.velocity_command(0.0, dt)
                 checks.append((mo, u, mo.index, mo.dof, mo.kv, mo.state.available_torque))
+            for mo, u, index, dof, kv, limit in checks:
+                torque = ctrl[index] = kv * (u - qvel[dof])
+                if torque > PREDICT_SATURATION * limit or -torque > PREDICT_SATURATION * limit:
+                    self._saturate(mo, torque)
+                    for _ in range(self._substeps):
+                        self._servo_substep(servos)
+                    self._check_stable()
+                    return
+            mj_step = self._mj_step
             for k in range(self._substeps):
+                mj_step(m, d)
                 for mo, u, index, dof, kv, limit in checks:
+                    # kv (u - qdot) is both the torque the implicit servo applied over this step (see the module
+                    # docstring) and the explicit torque of the next one. Above the limit it saturates; the
+                    # looser PREDICT_SATURATION bound on the next step's torque then never binds.
                     torque = ctrl[index] = kv * (u - qvel[dof])
-                    if torque > PREDICT_SATURATION * limit or -torque > PREDICT_SATURATION * limit:
-                        self._saturate(mo, torque)
-                        for _ in range(self._substeps - k):
-                            self._servo_substep(servos)
-                        self._check_stable()
-                        return
-                self._mj_step(m, d)
-                for mo, u, _, dof, kv, limit in checks:
-                    # The torque the implicit servo applied over the step (see the module docstring).
-                    torque = kv * (u - qvel[dof])
                     if torque > limit or -torque > limit:
                         self._saturate(mo, torque)
                         for _ in range(self._substeps - k - 1):
