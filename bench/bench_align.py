@@ -26,6 +26,7 @@ import numpy as np
 import yaml
 
 from dualtwin.align import align
+from dualtwin.demo import CHANNELS, HOLDOUT, KNOBS
 from dualtwin.divergence import compare_runs
 from dualtwin.divergence.metrics import dtw_distance
 from dualtwin.robots.binding import BUNDLED, load_binding
@@ -33,12 +34,7 @@ from dualtwin.suite.runner import SuiteRun
 from dualtwin.twins import make_twin
 
 SUITE = BUNDLED / "cartpole" / "suite.json"
-HOLDOUT = ["05_Sine_Drive"]
 FALL = "00_Step_Response"
-KNOBS = ["physics.substeps", "joint.pole_hinge.damping", "joint.pole_hinge.friction",
-         "joint.pole_hinge.limit_timeconst", "geom.floor.friction", "geom.floor.solref_timeconst",
-         "geom.floor.restitution"]
-CHANNELS = ["pole_angle_rad"]
 PAPER = {"dtw": (0.184, 0.061), "mse": (0.029, 0.009), "fall_s": (2.06, 1.61), "webots_fall_s": 1.52}
 
 

@@ -18,7 +18,8 @@ always measured in this run.
 odometry; and with the supervisor's cart velocity instead) and ``CartPole-MuJoCo-v0`` until the mean evaluation
 reward reaches 95 % of the episode cap (950 of 1000) or the budget runs out.
 (b) Env steps/s with random actions: our MuJoCo env vs Gymnasium's ``InvertedPendulum-v5``, interleaved.
-(c) ``dualtwin align --reference webots --target mujoco`` (least squares, bench_align.py's knobs), then the
+(c) ``dualtwin align --reference webots --target mujoco`` (least squares, the knobs, channel and held-out scenario of
+``dualtwin demo`` and bench_align.py), then the
 continuous policy of (a) fine-tuned (learning rate 3e-5) for 102,400 steps in the aligned MuJoCo twin (``train(aligned=knobs.json,
 init_from=...)``) and with its calibrated domain randomisation (``train(dr_ranges=dr_ranges.json, ...)``).
 (d) Table 1: the nominal, aligned and DR policies in ``CartPole-Webots-Continuous-v0`` (10 episodes each),
@@ -172,19 +173,21 @@ def fine_tune(name: str, root: Path, start: Path, label: str, **train_kwargs: An
 
 
 def alignment(root: Path) -> Path:
-    """The MuJoCo twin aligned to the Webots twin (bench_align.py's knobs and held-out scenario), or a reused one."""
+    """The MuJoCo twin aligned to the Webots twin as ``dualtwin demo`` and bench_align.py align it, or a reused one."""
     given = os.environ.get("DUALTWIN_BENCH_RL_ALIGN")
     out = Path(given) if given else root / "align"
     if given or (os.environ.get("DUALTWIN_BENCH_RL_REUSE") == "1" and (out / "knobs.json").is_file()):
         print(f"  reusing {out}")
     else:
-        from bench_align import HOLDOUT, KNOBS, SUITE
         from dualtwin.align import align
+        from dualtwin.demo import CHANNELS, HOLDOUT, KNOBS
+        from dualtwin.robots.binding import BUNDLED
 
         if out.exists():
             shutil.rmtree(out)
         start = time.perf_counter()
-        align("webots", "mujoco", "cartpole", SUITE, KNOBS, out, optimizer="lsq", budget=200, holdout=HOLDOUT)
+        align("webots", "mujoco", "cartpole", BUNDLED / "cartpole" / "suite.json", KNOBS, out, optimizer="lsq",
+              budget=300, holdout=HOLDOUT, channels=CHANNELS)
         print(f"  least squares, {len(KNOBS)} knobs, {time.perf_counter() - start:.0f} s")
     fitted = json.loads((out / "knobs.json").read_text())["knobs"]
     ranges = json.loads((out / "dr_ranges.json").read_text())["knobs"]
