@@ -42,8 +42,14 @@ Contacts
     effective mass m this is ω = sqrt(k/m), ζ = b / (2 sqrt(k m)); MuJoCo's (timeconst, dampratio) spring has
     ω = 1/(timeconst ζ), hence timeconst = 2 m / b and dampratio = ζ. m is the robot mass divided by the
     number of robot bodies with collision geoms; timeconst is clamped to 2 MuJoCo steps (MuJoCo's own
-    minimum). solimp d = 1/(1 + CFM m / h) plays the role of ODE's regularisation. ``bounce`` has no MuJoCo
-    equivalent (noted in the warnings). Robot parts never collide with each other unless ``selfCollision``.
+    minimum). solimp d = 1/(1 + CFM m / h) plays the role of ODE's regularisation. This matches the response
+    shape, not ODE's per-point stiffness or static sink: a MuJoCo row gives f = (a_ref - a)/R, a_ref = -B v -
+    K d r, R = (1-d)/d Â, with Â = 2 mu^2 (1 + mu^2) (w1 + w2)/impratio on the pyramid (w = ``body_invweight0``),
+    and the 4 edge rows of a condim-3 point sum to a spring 4Kd/R, a damper 4B/R and an added mass 4/R: 195 kN/m
+    for the Pioneer's wheels against ODE's 25 kN/m (sink 0.076 vs 0.60 mm). The exact per-point map (B = 1/h,
+    R = 4/(h(b + k h)), Kd = k R/4, MuJoCo step h) gives ODE's sink but shares the larger R with the friction
+    rows, which then creep; it missed the Pioneer's held-out goals by more, so it is not used (README, Pioneer
+    section). ``bounce`` has no MuJoCo equivalent (noted in the warnings). Robot parts never collide with each other unless ``selfCollision``.
 
 World
     ``timestep`` = the largest of 2, 1, 0.5, 0.25 ms dividing ``basicTimeStep`` (else basicTimeStep/k <= 2 ms),

@@ -174,6 +174,14 @@ class _Side:
         self.status = "completed"
         self.failure: dict[str, Any] | None = None
         self.reward = 0.0
+        self.thresholds: list[tuple[str, str, int, float]] = []  # key, channel, column in a truth row, limit
+
+    def watch(self, suite: Any, binding: RobotBinding) -> None:
+        """Check the suite's failure thresholds (if any) on this side, as the suite runner does."""
+        if suite is not None:
+            self.thresholds = [(key, channel, 1 + self.io.ground_truth_index(channel), limit)
+                               for key, limit in suite.global_settings.thresholds.items()
+                               for channel in (binding.spec.failures[key].channel,)]
 
     def begin(self) -> None:
         self.onboard, self.truth = [], []
@@ -186,6 +194,18 @@ class _Side:
             self.status, self.failure = "unstable", {"time_s": round(self.tap.time, 9), "message": str(exc)}
             return False
         return True
+
+    def failed(self, t: float) -> bool:
+        """Whether the last sample crosses a failure threshold (which ends the episode)."""
+        if not self.truth:
+            return False
+        row = self.truth[-1]
+        for key, channel, column, limit in self.thresholds:
+            if abs(row[column]) > limit:
+                self.status = "failed"
+                self.failure = {"key": key, "channel": channel, "time_s": t, "threshold": limit}
+                return True
+        return False
 
     def sample(self, t: float) -> bool:
         onboard = [t, *self.io.sample_onboard()]
@@ -267,7 +287,7 @@ class _Comparison:
         return False
 
 
-def _blocked(episode: _Episode, a: _Side, b: _Side, period: float, suite: Any, binding: RobotBinding,
+def _blocked(episode: _Episode, a: _Side, b: _Side, period: float,
              compare: Callable[[int, float, StateLayout, np.ndarray, Sequence[float], dict[str, Command]], bool]
              ) -> None:
     """Run an episode whose commands are known in advance one twin at a time: the primary's whole episode,
@@ -284,7 +304,7 @@ def _blocked(episode: _Episode, a: _Side, b: _Side, period: float, suite: Any, b
         if not (a.step() and a.sample(t)):
             break
         primary.append((*a.tap.state_vector(), dict(a.tap.active)))
-        if _threshold_failure(a, suite, binding, t):
+        if a.failed(t):
             a_failed_at_end = True
             break
     status, failure = a.status, a.failure
@@ -307,7 +327,7 @@ def _blocked(episode: _Episode, a: _Side, b: _Side, period: float, suite: Any, b
         if k == len(primary) - 1 and a_failed_at_end:
             own_end = True
             break
-        if _threshold_failure(b, suite, binding, t):
+        if b.failed(t):
             kept = k + 1
             break
     if not own_end or kept < len(primary):
@@ -412,6 +432,8 @@ def _run(twin_a: Twin, twin_b: Twin, binding: RobotBinding, out: Path, suite: An
          monitor: Monitor | None, on_episode: Callable[[EpisodeSummary], None] | None,
          inputs: dict[str, Any], period: float, interleave: bool = False) -> LockstepResult:
     a, b = _Side("primary", twin_a, binding), _Side("secondary", twin_b, binding)
+    a.watch(suite, binding)
+    b.watch(suite, binding)
     a.tap.set_knobs(knobs_a)
     b.tap.set_knobs(knobs_b)
     plan = _episodes(a, b, binding, suite, lockstep_policy, seed, n_episodes, episode_steps, period)
@@ -450,24 +472,24 @@ def _run(twin_a: Twin, twin_b: Twin, binding: RobotBinding, out: Path, suite: An
                     break
                 if episode.after is not None and episode.after():
                     break
-                if _threshold_failure(a, suite, binding, t) or _threshold_failure(b, suite, binding, t):
+                if a.failed(t) or b.failed(t):
                     break
         else:
-            _blocked(episode, a, b, period, suite, binding, compare)
+            _blocked(episode, a, b, period, compare)
         marks, resyncs, skipped = compare.marks, compare.resyncs, compare.skipped
         if compare.rows_a:
             diffs = layout.differences(np.array(compare.rows_a), np.array(compare.rows_b))
             errors = layout.errors(diffs, scale_map)
         else:
             diffs, errors = np.zeros((0, len(channels))), np.zeros(0)
-        rows = [[t, err, resynced, h, *d] for (t, resynced, h), err, d in zip(marks, errors.tolist(), diffs.tolist(),
-                                                                               strict=True)]
+        times, resynced, horizons = np.array(marks, dtype=float).reshape(-1, 3).T
+        rows = np.column_stack([times, errors, resynced, horizons, diffs]).tolist()
         clock += len(rows) * period
         trajectories.append(recorder.finish(a.status))
-        summary = _summarize(episode, rows, resyncs, a, b, skipped, knobs_b)
+        summary = _summarize(episode, errors, horizons, resyncs, a, b, skipped, knobs_b)
         # Logs are formatted and written (with fsync) by a background thread while the next episode runs.
-        writes.append(writer.submit(write_text, out / "episodes" / episode.id / "state_diff.tsv",
-                                    _format_rows(["error", "resynced", "horizon", *channels], rows)))
+        writes.append(writer.submit(_write_rows, out / "episodes" / episode.id / "state_diff.tsv",
+                                    ["error", "resynced", "horizon", *channels], rows))
         if skipped is None:
             for side in (a, b):
                 records[side.label].append(_side_logs(out, side, episode.id, len(summaries), writer, writes))
@@ -512,26 +534,16 @@ def _run(twin_a: Twin, twin_b: Twin, binding: RobotBinding, out: Path, suite: An
     return result
 
 
-def _threshold_failure(side: _Side, suite: Any, binding: RobotBinding, t: float) -> bool:
-    """The suite's failure thresholds stop an episode, as in the suite runner."""
-    if suite is None or not side.truth:
-        return False
-    for key, limit in suite.global_settings.thresholds.items():
-        channel = binding.spec.failures[key].channel
-        value = side.truth[-1][1 + side.io.ground_truth_index(channel)]
-        if abs(value) > limit:
-            side.status = "failed"
-            side.failure = {"key": key, "channel": channel, "time_s": t, "threshold": limit}
-            return True
-    return False
-
-
-def _summarize(episode: _Episode, rows: list[list[float]], resyncs: int, a: _Side, b: _Side,
+def _summarize(episode: _Episode, errors: np.ndarray, horizons: np.ndarray, resyncs: int, a: _Side, b: _Side,
                skipped: dict[str, Any] | None, knobs: dict[str, float]) -> EpisodeSummary:
-    errors = np.array([r[1] for r in rows], dtype=float)
-    by_h: dict[int, list[float]] = {}
-    for r in rows:
-        by_h.setdefault(int(r[3]), []).append(r[1])
+    """``errors``: the normalised error of every period logged; ``horizons``: periods since the last sync then."""
+    # Mean error per horizon: a stable sort keeps each group's order, so np.mean sums as it would the group
+    # alone; a group of one (every period without re-syncs) is its value.
+    order = np.argsort(horizons, kind="stable")
+    grouped = errors[order]
+    levels, starts, counts = np.unique(horizons[order], return_index=True, return_counts=True)
+    by_h = {int(h): float(grouped[i]) if n == 1 else float(np.mean(grouped[i:i + n]))
+            for h, i, n in zip(levels.tolist(), starts.tolist(), counts.tolist(), strict=True)}
     if skipped is not None:
         status = "skipped"
     elif "unstable" in (a.status, b.status):
@@ -541,10 +553,10 @@ def _summarize(episode: _Episode, rows: list[list[float]], resyncs: int, a: _Sid
     else:
         status = "completed"
     return EpisodeSummary(
-        episode.id, status, len(rows), resyncs,
+        episode.id, status, len(errors), resyncs,
         float(errors.mean()) if errors.size else math.nan, float(errors.max()) if errors.size else math.nan,
         float(errors[-1]) if errors.size else math.nan,
-        {h: float(np.mean(v)) for h, v in sorted(by_h.items())},
+        by_h,
         {"primary": a.status, "secondary": b.status}, skipped or a.failure or b.failure,
         episode.rewards() if episode.rewards is not None else None, dict(knobs))
 

@@ -75,7 +75,12 @@ def quat_from_matrix(rotation: Any) -> np.ndarray:
     Takes a 3x3 array or 9 row-major values (Webots' ``getOrientation``); plain floats keep it cheap.
     """
     values = rotation if isinstance(rotation, tuple | list) else np.asarray(rotation, dtype=float).ravel().tolist()
-    m00, m01, m02, m10, m11, m12, m20, m21, m22 = (float(v) for v in values)
+    return np.array(quat_tuple(tuple(float(v) for v in values)))
+
+
+def quat_tuple(m: Sequence[float]) -> tuple[float, float, float, float]:
+    """:func:`quat_from_matrix` of 9 row-major Python floats, as a tuple (state reads call it every period)."""
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = m
     trace = m00 + m11 + m22
     if trace > 0:
         s = 2.0 * math.sqrt(trace + 1.0)
@@ -91,7 +96,7 @@ def quat_from_matrix(rotation: Any) -> np.ndarray:
         q = ((m10 - m01) / s, (m02 + m20) / s, (m12 + m21) / s, 0.25 * s)
     n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
     sign = -1.0 / n if q[0] < 0 else 1.0 / n
-    return np.array([q[0] * sign, q[1] * sign, q[2] * sign, q[3] * sign])
+    return q[0] * sign, q[1] * sign, q[2] * sign, q[3] * sign
 
 
 def canonical_quat(q: np.ndarray) -> np.ndarray:

@@ -28,6 +28,7 @@ from dualtwin.twins.base import (
     check_state_names,
     matrix_from_quat,
     quat_from_matrix,
+    quat_tuple,
     rotation_vector,
     unknown_name,
 )
@@ -357,28 +358,31 @@ class WebotsTwin(Twin):
         joints from the endPoint's rotation relative to the parent Solid."""
         st = self._state_structure()
         out: list[float] = []
-        known: dict[int, Sequence[float]] = {}
-        for node in st.bodies.values():
+        rotations: dict[int, Sequence[float]] = {}
+        velocities: dict[int, Sequence[float]] = {}
+        for key, node in st.roots:
             pose = node.getPose()
-            position = (pose[3], pose[7], pose[11])
-            known[node.getId()] = (pose[0], pose[1], pose[2], pose[4], pose[5], pose[6], pose[8], pose[9], pose[10])
-            v = node.getVelocity()
+            px, py, pz = pose[3], pose[7], pose[11]
+            rotations[key] = r = (pose[0], pose[1], pose[2], pose[4], pose[5], pose[6], pose[8], pose[9], pose[10])
+            velocities[key] = v = node.getVelocity()
             com = node.getCenterOfMass()
             # Velocity of the frame origin: v_com + w x (origin - com).
-            d = (position[0] - com[0], position[1] - com[1], position[2] - com[2])
-            out += [*position, *quat_from_matrix(known[node.getId()]),
-                    v[0] + v[4] * d[2] - v[5] * d[1], v[1] + v[5] * d[0] - v[3] * d[2],
-                    v[2] + v[3] * d[1] - v[4] * d[0], v[3], v[4], v[5]]
-        positions, velocities = st.joint_states(known)
+            dx, dy, dz = px - com[0], py - com[1], pz - com[2]
+            out += [px, py, pz, *quat_tuple(r), v[0] + v[4] * dz - v[5] * dy, v[1] + v[5] * dx - v[3] * dz,
+                    v[2] + v[3] * dy - v[4] * dx, v[3], v[4], v[5]]
+        positions, rates = st.joint_states(rotations, velocities)
         out += positions
-        out += velocities
+        out += rates
         holds: list[str] = []
-        for name, motors in st.motors.items():
-            for motor in motors:
-                if motor.getName() not in self._commanded and math.isfinite(motor.getTargetPosition()):
-                    holds.append(name)
-                    out.append(float(motor.getTargetPosition()))
-                    break
+        commanded = self._commanded
+        for name, motors in st.hold_motors:
+            for motor, motor_name in motors:
+                if motor_name not in commanded:
+                    target = motor.getTargetPosition()
+                    if math.isfinite(target):
+                        holds.append(name)
+                        out.append(float(target))
+                        break
         return st.layout(tuple(holds)), out
 
     def state_vector(self) -> tuple[StateLayout, np.ndarray]:
@@ -628,13 +632,17 @@ class _Structure:
                 self.motors[name] = motors(node, "device")
         self.names = [*self.joints, *(n for name, h in self.hinge2.items() for n in (name, h.second)),
                       *(f"{b}/{c}" for b in self.balls for c in BALL_COMPONENTS)]
+        # Read every control period in lockstep: node ids and motor names resolved once.
+        self.roots = [(node.getId(), node) for node in self.bodies.values()]
+        self.hold_motors = [(name, [(m, m.getName()) for m in motors]) for name, motors in self.motors.items()]
         self._layouts: dict[tuple[str, ...], StateLayout] = {}
         self._parents: dict[int, Any] = {}
         self._joint_of: dict[int, _Joint] = {j.child.getId(): j for j in self.joints.values()}
         self._hinge2_of: dict[int, tuple[str, _Hinge2]] = {h.child.getId(): (n, h) for n, h in self.hinge2.items()}
         self._ball_of: dict[int, str] = {end.getId(): n for n, (_, end) in self.balls.items()}
         self._slider = any(j.kind == "SliderJoint" for j in self.joints.values())
-        self._plan: tuple[list[Any], list[Any], list[tuple[str, int, int, int, tuple[float, ...], bool]]] | None = None
+        self._plan: tuple[list[tuple[int, Any]], list[tuple[int, Any]],
+                          list[tuple[int, int, int, tuple[float, ...], bool]]] | None = None
         for name in self.joints:
             self.parent_solid(self.joints[name].node)
 
@@ -644,12 +652,12 @@ class _Structure:
             layout = self._layouts[holds] = StateLayout(self.bodies, self.names, holds)
         return layout
 
-    def joint_states(self, known: dict[int, Sequence[float]] | None = None) -> tuple[list[float], list[float]]:
-        """Positions and rates of every state joint, in :attr:`names` order (``known``: see
-        :meth:`joint_rates`)."""
-        rates = self.joint_rates(known=known)
+    def joint_states(self, known: dict[int, Sequence[float]] | None = None,
+                     known_velocities: dict[int, Sequence[float]] | None = None) -> tuple[list[float], list[float]]:
+        """Positions and rates of every state joint, in :attr:`names` order (``known``, ``known_velocities``:
+        see :meth:`_rates`)."""
+        velocities = self._rates(known or {}, known_velocities or {})
         positions = [float(j.position.getSFFloat()) for j in self.joints.values()]
-        velocities = [rates[n] for n in self.joints]
         for h in self.hinge2.values():
             q1, q2 = float(h.position.getSFFloat()), float(h.position2.getSFFloat())
             a1, a2 = h.world_axes(q1)
@@ -722,24 +730,27 @@ class _Structure:
 
     def joint_rates(self, names: list[str] | None = None,
                     known: dict[int, Sequence[float]] | None = None) -> dict[str, float]:
-        """Joint rates: the relative velocity of endPoint and parent Solid along the world joint axis.
+        """Joint rates: the relative velocity of endPoint and parent Solid along the world joint axis (``known``:
+        see :meth:`_rates`)."""
+        rates = zip(self.joints, self._rates(known or {}, {}), strict=True)
+        return {n: r for n, r in rates if names is None or n in names}
+
+    def _rates(self, known: dict[int, Sequence[float]], known_velocities: dict[int, Sequence[float]]) -> list[float]:
+        """:meth:`joint_rates` of every hinge/slider, in :attr:`joints` order.
 
         Each node's orientation and velocity is read once per call, from a plan resolved once: the state is
-        read every control period, so this stays in plain floats. ``known``: row-major orientations already
-        read, by node id (a root body is often the joints' frame).
+        read every control period, so this stays in plain floats. ``known``/``known_velocities``: row-major
+        orientations and ``getVelocity`` values already read, by node id (a root body is often the joints'
+        frame and a parent Solid).
         """
         if self._plan is None:
             self._plan = self._rate_plan()
         frames, solids, rows = self._plan
-        known = known or {}
-        rotations = [known.get(node.getId()) or node.getOrientation() for node in frames]
-        velocities = [node.getVelocity() for node in solids]
-        coms = [node.getCenterOfMass() for node in solids] if self._slider else []
-        out = {}
-        wanted = None if names is None else set(names)
-        for name, frame, child, parent, (ax, ay, az), slider in rows:
-            if wanted is not None and name not in wanted:
-                continue
+        rotations = [known.get(key) or node.getOrientation() for key, node in frames]
+        velocities = [known_velocities.get(key) or node.getVelocity() for key, node in solids]
+        coms = [node.getCenterOfMass() for _, node in solids] if self._slider else []
+        out = []
+        for frame, child, parent, (ax, ay, az), slider in rows:
             r = rotations[frame]
             axis = (r[0] * ax + r[1] * ay + r[2] * az, r[3] * ax + r[4] * ay + r[5] * az,
                     r[6] * ax + r[7] * ay + r[8] * az)
@@ -753,24 +764,26 @@ class _Structure:
                        vc[2] - vp[2] - (vp[3] * d[1] - vp[4] * d[0]))
             else:
                 rel = (vc[3] - vp[3], vc[4] - vp[4], vc[5] - vp[5])
-            out[name] = float(rel[0] * axis[0] + rel[1] * axis[1] + rel[2] * axis[2])
+            out.append(float(rel[0] * axis[0] + rel[1] * axis[1] + rel[2] * axis[2]))
         return out
 
-    def _rate_plan(self) -> tuple[list[Any], list[Any], list[tuple[str, int, int, int, tuple[float, ...], bool]]]:
-        frames: list[Any] = []
-        solids: list[Any] = []
+    def _rate_plan(self) -> tuple[list[tuple[int, Any]], list[tuple[int, Any]],
+                                  list[tuple[int, int, int, tuple[float, ...], bool]]]:
+        frames: list[tuple[int, Any]] = []
+        solids: list[tuple[int, Any]] = []
 
-        def index(nodes: list[Any], node: Any) -> int:
-            for i, n in enumerate(nodes):
-                if n.getId() == node.getId():
+        def index(nodes: list[tuple[int, Any]], node: Any) -> int:
+            key = node.getId()
+            for i, (k, _) in enumerate(nodes):
+                if k == key:
                     return i
-            nodes.append(node)
+            nodes.append((key, node))
             return len(nodes) - 1
 
         rows = []
-        for name, joint in self.joints.items():
+        for joint in self.joints.values():
             parent = self.parent_solid(joint.node)
-            rows.append((name, index(frames, joint.parent), index(solids, joint.child),
+            rows.append((index(frames, joint.parent), index(solids, joint.child),
                          index(solids, parent) if parent is not None else -1,
                          tuple(float(v) for v in joint.axis), joint.kind == "SliderJoint"))
         return frames, solids, rows
