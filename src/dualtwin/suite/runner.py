@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 import shutil
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -63,9 +63,10 @@ class ScenarioResult:
     steps: int
 
 
-def _format_rows(names: list[str], rows: list[list[float]]) -> str:
+def format_rows(names: Sequence[str], rows: Sequence[Sequence[float]]) -> str:
+    """A TSV log: ``time_s``, the named columns, floats as their shortest ``repr`` (exact round trip)."""
     lines = ["\t".join(["time_s", *names])]
-    lines.extend("\t".join(repr(v) for v in row) for row in rows)
+    lines.extend("\t".join(map(repr, row)) for row in rows)
     return "\n".join(lines) + "\n"
 
 
@@ -206,8 +207,8 @@ class SuiteRun:
                 # An unstable end state cannot be continued from: the next scenario starts fresh.
                 need_fresh = result.status == "unstable"
                 if sid not in done:
-                    write_text(out / record["onboard"], _format_rows(io.onboard_names, onboard))
-                    write_text(out / record["ground_truth"], _format_rows(io.ground_truth_names, truth))
+                    write_text(out / record["onboard"], format_rows(io.onboard_names, onboard))
+                    write_text(out / record["ground_truth"], format_rows(io.ground_truth_names, truth))
                     record.update(status=result.status, failure=result.failure, steps=result.steps)
                 else:
                     record = done[sid]

@@ -44,7 +44,7 @@ from dualtwin.errors import DualtwinError, SimulationUnstable
 from dualtwin.robots.binding import RobotBinding, resolve_robot
 from dualtwin.robots.io import RobotIO
 from dualtwin.suite.loader import load_suite
-from dualtwin.suite.runner import check_against_binding
+from dualtwin.suite.runner import check_against_binding, format_rows
 from dualtwin.sync.channels import DiffLayout, channel_scales
 from dualtwin.sync.monitor import Monitor
 from dualtwin.sync.record import (
@@ -151,13 +151,6 @@ class LockstepResult:
 
 def _finite(value: float) -> float | None:
     return float(value) if math.isfinite(value) else None
-
-
-def _format_rows(names: Sequence[str], rows: Sequence[Sequence[float]]) -> str:
-    """A TSV log like the suite runner's: ``time_s``, the named columns, floats as their shortest ``repr``."""
-    lines = ["\t".join(["time_s", *names])]
-    lines.extend("\t".join(map(repr, row)) for row in rows)
-    return "\n".join(lines) + "\n"
 
 
 class _Side:
@@ -574,7 +567,7 @@ def _side_logs(out: Path, side: _Side, episode: str, index: int, writer: ThreadP
 
 
 def _write_rows(path: Path, names: Sequence[str], rows: Sequence[Sequence[float]]) -> None:
-    write_text(path, _format_rows(names, rows))
+    write_text(path, format_rows(names, rows))
 
 
 def _episodes(a: _Side, b: _Side, binding: RobotBinding, suite: Any, lockstep_policy: Any, seed: int,
@@ -583,6 +576,7 @@ def _episodes(a: _Side, b: _Side, binding: RobotBinding, suite: Any, lockstep_po
         plans = plan_scenarios(suite, binding, seed)[: n_episodes or None]
         episodes = []
         for index, plan in enumerate(plans):
+            sent: list[dict[str, float]] = []  # the commands of each period, once evaluated
 
             def begin(plan: Any = plan, index: int = index) -> None:
                 fresh = plan.fresh or index == 0
@@ -594,8 +588,11 @@ def _episodes(a: _Side, b: _Side, binding: RobotBinding, suite: Any, lockstep_po
                 for side in (a, b):
                     apply_commands(side.io, commands)
 
-            def send_to(k: int, side: _Side, plan: Any = plan) -> None:
-                apply_commands(side.io, plan.commands(k, period))
+            def send_to(k: int, side: _Side, plan: Any = plan, sent: list[dict[str, float]] = sent) -> None:
+                # The primary's pass evaluates the signals; the secondary's replays what it was sent.
+                if k == len(sent):
+                    sent.append(plan.commands(k, period))
+                apply_commands(side.io, sent[k])
 
             episodes.append(_Episode(plan.id, plan.steps, begin, send, send_to=send_to))
         return episodes

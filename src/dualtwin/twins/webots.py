@@ -256,7 +256,7 @@ class WebotsTwin(Twin):
                 omega = parent_w + axis * velocity
                 anchor = self._anchor_world(j)
                 com = np.array(j.child.getCenterOfMass())
-                linear = np.cross(omega, com - anchor)
+                linear = _cross(omega, com - anchor)
                 j.child.setVelocity([*linear, *omega])
 
     def set_body_position(self, body: str, axis: int, value: float) -> None:
@@ -325,7 +325,7 @@ class WebotsTwin(Twin):
         velocity = np.array(node.getVelocity(), dtype=float)
         # Webots reports the CoM's linear velocity; the contract is the frame origin's.
         offset = np.array(node.getPosition(), dtype=float) - np.array(node.getCenterOfMass(), dtype=float)
-        velocity[:3] += np.cross(velocity[3:], offset)
+        velocity[:3] += _cross(velocity[3:], offset)
         return velocity
 
     def sensor(self, name: str) -> float:
@@ -456,7 +456,7 @@ class WebotsTwin(Twin):
             node = st.bodies[name]
             velocity = np.array(node.getVelocity(), dtype=float)
             com = np.array(node.getCenterOfMass(), dtype=float)
-            linear = velocity[:3] + np.cross(velocity[3:], np.array(node.getPosition(), dtype=float) - com)
+            linear = velocity[:3] + _cross(velocity[3:], np.array(node.getPosition(), dtype=float) - com)
             jump_v = float(np.linalg.norm(linear - body.linear_velocity))
             jump_w = float(np.linalg.norm(velocity[3:] - body.angular_velocity))
             if jump_v > MAX_JUMP_LINEAR or jump_w > MAX_JUMP_ANGULAR:
@@ -888,7 +888,7 @@ class _Structure:
             elif parent is None:
                 if name is not None:  # a root the state leaves alone (partial): as it is now
                     v_com, w, com = current[name]
-                    result = (rotation_now, position_now, v_com + np.cross(w, position_now - com), w)
+                    result = (rotation_now, position_now, v_com + _cross(w, position_now - com), w)
                 else:
                     result = (rotation_now, position_now, np.zeros(3), np.zeros(3))
             else:
@@ -919,9 +919,9 @@ class _Structure:
                         w = wp + (rp @ axis_p) * qd
                         anchor_w = rp @ anchor_p + pp
                 rotation, position = rp @ rel_r, rp @ rel_p + pp
-                velocity = vp + np.cross(wp, position - pp) + extra_v
+                velocity = vp + _cross(wp, position - pp) + extra_v
                 if turned or (joint is not None and joint.kind != "SliderJoint"):
-                    velocity = velocity + np.cross(w - wp, position - anchor_w)
+                    velocity = velocity + _cross(w - wp, position - anchor_w)
                 result = (rotation, position, velocity, w)
             new[key] = result
             return result
@@ -969,7 +969,7 @@ class _Structure:
                 continue  # no body of its own: merged into its parent's
             rotation_now, position_now = now[key]
             com = rotation @ (rotation_now.T @ (coms[key] - position_now)) + position
-            v_com = velocity + np.cross(w, com - position)
+            v_com = velocity + _cross(w, com - position)
             nodes[key].setVelocity([*map(float, v_com), *map(float, w)])
 
 
