@@ -26,13 +26,13 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 from typing import Any
+
+from _output import output_folder
 
 os.environ.setdefault("MUJOCO_GL", "egl")  # a benchmark script, not library code
 
@@ -189,25 +189,19 @@ def main() -> dict[str, Any]:
     import torch
 
     torch.set_num_threads(2)
-    keep = os.environ.get("DUALTWIN_BENCH_PERCEPTION_OUT")
-    root = Path(keep) if keep else Path(tempfile.mkdtemp(prefix="dualtwin-bench-perception-"))
-    root.mkdir(parents=True, exist_ok=True)
     episodes = int(os.environ.get("DUALTWIN_BENCH_EPISODES", "60"))
     epochs = int(os.environ.get("DUALTWIN_BENCH_EPOCHS", "12"))
     deploy_episodes = int(os.environ.get("DUALTWIN_BENCH_DEPLOY_EPISODES", "5"))
     print(f"Perception benchmark (MUJOCO_GL={os.environ.get('MUJOCO_GL')}; shared machine, load average "
           f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs)")
     results: dict[str, Any] = {}
-    try:
+    with output_folder("DUALTWIN_BENCH_PERCEPTION_OUT", "perception") as (root, _):
         print("(a) rendering speed, perception camera")
         results["rendering"] = rendering_speed()
         print(f"(b) accuracy: {episodes} MuJoCo episodes (64x64, randomised), {epochs} epochs")
         model, results["accuracy"] = accuracy(root, episodes, epochs)
         print(f"(c) closed loop through the RobotServer, {deploy_episodes} episodes per twin")
         results["closed_loop"] = closed_loop(root, model, deploy_episodes)
-    finally:
-        if not keep:
-            shutil.rmtree(root, ignore_errors=True)
     return results
 
 

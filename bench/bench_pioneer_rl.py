@@ -24,7 +24,6 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import tempfile
 import time
 from pathlib import Path
 from typing import Any
@@ -32,6 +31,7 @@ from typing import Any
 import numpy as np
 
 import dualtwin.rl  # noqa: F401 - registers the env ids
+from _output import output_folder
 from dualtwin.artifacts import sha256_file
 from dualtwin.rl.drive_to_goal import proportional_action
 
@@ -103,13 +103,10 @@ def main() -> dict[str, Any]:
 
     torch.set_num_threads(1)
     episodes = int(os.environ.get("DUALTWIN_BENCH_PIONEER_EPISODES", "50"))
-    keep = os.environ.get("DUALTWIN_BENCH_PIONEER_OUT")
-    root = Path(keep) if keep else Path(tempfile.mkdtemp(prefix="dualtwin-bench-pioneer-rl-"))
-    root.mkdir(parents=True, exist_ok=True)
     results: dict[str, Any] = {"episodes": episodes, "files_sha256": physics_files()}
     print("Pioneer learning benchmark (drive to a goal; PPO, bundled ppo_pioneer.yaml, seed 0, 1 torch thread)")
     print("  robot and twin files (sha256): " + ", ".join(f"{k} {v}" for k, v in results["files_sha256"].items()))
-    try:
+    with output_folder("DUALTWIN_BENCH_PIONEER_OUT", "pioneer-rl") as (root, keep):
         print("(a) training in the MuJoCo twin")
         start = time.perf_counter()
         run, reused = training_run(root)
@@ -149,9 +146,6 @@ def main() -> dict[str, Any]:
               f"source twin: {100 * policy_vs_baseline:.1f} %")
         if keep:
             (root / "bench_pioneer_rl.json").write_text(json.dumps(results, indent=1, default=str))
-    finally:
-        if not keep:
-            shutil.rmtree(root, ignore_errors=True)
     return results
 
 

@@ -33,7 +33,6 @@ import json
 import os
 import shutil
 import sys
-import tempfile
 import time
 import types
 from pathlib import Path
@@ -43,6 +42,7 @@ import gymnasium as gym
 import numpy as np
 
 import dualtwin.rl  # noqa: F401 - registers the env ids
+from _output import output_folder
 
 THRESHOLD = 950.0
 CONTINUOUS = "dualtwin/CartPole-MuJoCo-Continuous-v0"
@@ -218,35 +218,31 @@ def main() -> dict[str, Any]:
 
     torch.set_num_threads(1)
     budget = float(os.environ.get("DUALTWIN_BENCH_RL_SECONDS", "600"))
-    keep = os.environ.get("DUALTWIN_BENCH_RL_OUT")
-    root = Path(keep) if keep else Path(tempfile.mkdtemp(prefix="dualtwin-bench-rl-"))
-    root.mkdir(parents=True, exist_ok=True)
     print("RL benchmark (PPO, bundled ppo_cartpole.yaml, seed 0, 1 torch thread)")
     results: dict[str, Any] = {"budget_seconds": budget}
-    print("(b) env throughput")
-    results["throughput"] = throughput()
-    print(f"(a) PPO until mean eval reward >= {THRESHOLD:.0f}/1000 or {budget:.0f} s")
-    results["continuous"] = train_to_threshold("continuous", CONTINUOUS, root, budget)
-    # The same task with the supervisor's cart velocity instead of odometry: in the MuJoCo twin the chassis
-    # creeps on its soft tyre contacts, so the true cart velocity is not the velocity the wheels (which the
-    # action sets) turn at, and a memoryless policy cannot tell them apart.
-    results["continuous_ground_truth"] = train_to_threshold(
-        "continuous_ground_truth", CONTINUOUS, root, budget, GROUND_TRUTH_VELOCITY,
-        "CartPole-MuJoCo-Continuous-v0 (supervisor cart velocity)")
-    results["discrete"] = train_to_threshold("discrete", DISCRETE, root, budget)
-    print("(c) align the MuJoCo twin to the Webots twin (the knobs and DR ranges for Table 1)")
-    aligned = alignment(root)
-    # Fine-tuned from the nominal policy: from scratch, seed 0 PPO takes off only after ~450 k steps and other
-    # random streams (these knobs, DR draws) can miss the 10-minute budget (see the README).
-    start = Path(results["continuous"]["run"])
-    results["aligned"] = fine_tune("aligned", root, start, "fine-tuned in the aligned MuJoCo twin",
-                                   aligned=aligned / "knobs.json")
-    results["dr"] = fine_tune("dr", root, start, "fine-tuned with calibrated DR", dr_ranges=aligned / "dr_ranges.json")
-    print(f"(d) Table 1: transfer to {WEBOTS} (10 episodes per row, best evaluated policies)")
-    runs = {name: Path(results[name]["run"]) for name in ("continuous", "aligned", "dr")}
-    results["transfer"] = table_1(runs, root / "transfer")
-    if not keep:
-        shutil.rmtree(root, ignore_errors=True)
+    with output_folder("DUALTWIN_BENCH_RL_OUT", "rl") as (root, _):
+        print("(b) env throughput")
+        results["throughput"] = throughput()
+        print(f"(a) PPO until mean eval reward >= {THRESHOLD:.0f}/1000 or {budget:.0f} s")
+        results["continuous"] = train_to_threshold("continuous", CONTINUOUS, root, budget)
+        # The same task with the supervisor's cart velocity instead of odometry: in the MuJoCo twin the chassis
+        # creeps on its soft tyre contacts, so the true cart velocity is not the velocity the wheels (which the
+        # action sets) turn at, and a memoryless policy cannot tell them apart.
+        results["continuous_ground_truth"] = train_to_threshold(
+            "continuous_ground_truth", CONTINUOUS, root, budget, GROUND_TRUTH_VELOCITY,
+            "CartPole-MuJoCo-Continuous-v0 (supervisor cart velocity)")
+        results["discrete"] = train_to_threshold("discrete", DISCRETE, root, budget)
+        print("(c) align the MuJoCo twin to the Webots twin (the knobs and DR ranges for Table 1)")
+        aligned = alignment(root)
+        # Fine-tuned from the nominal policy: from scratch, seed 0 PPO takes off only after ~450 k steps and other
+        # random streams (these knobs, DR draws) can miss the 10-minute budget (see the README).
+        start = Path(results["continuous"]["run"])
+        results["aligned"] = fine_tune("aligned", root, start, "fine-tuned in the aligned MuJoCo twin",
+                                       aligned=aligned / "knobs.json")
+        results["dr"] = fine_tune("dr", root, start, "fine-tuned with calibrated DR", dr_ranges=aligned / "dr_ranges.json")
+        print(f"(d) Table 1: transfer to {WEBOTS} (10 episodes per row, best evaluated policies)")
+        runs = {name: Path(results[name]["run"]) for name in ("continuous", "aligned", "dr")}
+        results["transfer"] = table_1(runs, root / "transfer")
     names = ("continuous", "continuous_ground_truth", "discrete", "aligned", "dr")
     rewards = [results[k]["best"]["mean_reward"] for k in names if results[k]["best"]]
     results["summary"] = {"best_rewards": rewards, "mean": float(np.mean(rewards)) if rewards else None}

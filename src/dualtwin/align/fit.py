@@ -508,14 +508,19 @@ def _screen_integers(problem: _Problem, u: Sequence[float], integer: Sequence[in
     """
     u = list(u)
     for i in integer:
-        spec = problem.specs[i]
-        values = range(math.ceil(spec.lower), math.floor(spec.upper) + 1)
-        points = [[*u[:i], spec.to_unit(v), *u[i + 1:]] for v in values]
+        _, points = _integer_sweep(problem, u, i)
         if problem.evaluations + len(points) > budget:
             break
         scored = problem.run([u, *points])
         u = min(scored, key=lambda p: float(p.residual @ p.residual)).u
     return u
+
+
+def _integer_sweep(problem: _Problem, u: Sequence[float], i: int) -> tuple[list[int], list[list[float]]]:
+    """Every integer value of knob ``i`` within its bounds, and ``u`` with knob ``i`` set to each of them."""
+    spec = problem.specs[i]
+    values = list(range(math.ceil(spec.lower), math.floor(spec.upper) + 1))
+    return values, [[*u[:i], spec.to_unit(v), *u[i + 1:]] for v in values]
 
 
 # ------------------------------------------------------------------ uncertainty
@@ -555,13 +560,12 @@ def _integer_half_width(problem: _Problem, u: Sequence[float], i: int) -> float:
     within the one-parameter likelihood-ratio bound ``SSR <= SSR_min (1 + t²/dof)``, the same 95 % level as the
     continuous knobs' intervals (conditional on the others, so it is, if anything, narrow).
     """
-    spec = problem.specs[i]
-    values = list(range(math.ceil(spec.lower), math.floor(spec.upper) + 1))
-    results = problem.run([[*u[:i], spec.to_unit(v), *u[i + 1:]] for v in values])
+    values, points = _integer_sweep(problem, u, i)
+    results = problem.run(points)  # cached when the last screening ran at this point
     ssr = [float(r.residual @ r.residual) for r in results]
     dof = max(len(results[0].residual) - len(problem.specs), 1)
     limit = min(ssr) * (1.0 + float(stats.t.ppf(0.975, dof)) ** 2 / dof)
-    fitted = spec.from_unit(u[i])
+    fitted = problem.specs[i].from_unit(u[i])
     return float(max(abs(v - fitted) for v, s in zip(values, ssr, strict=True) if s <= limit))
 
 
