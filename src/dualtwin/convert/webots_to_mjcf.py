@@ -166,6 +166,21 @@ def timestep_for(basic_time_step_ms: float) -> float:
     return basic_time_step_ms / k / 1000.0
 
 
+def appearance_rgba(shape: Any) -> list[float] | None:
+    """A Shape's colour and opacity (PBR ``baseColor`` or Material ``diffuseColor``), None without either."""
+    appearance = shape.get("appearance")
+    if appearance is None:
+        return None
+    if appearance.type_name == "PBRAppearance":
+        r, g, b = appearance.get("baseColor", (1.0, 1.0, 1.0))
+        return [float(r), float(g), float(b), 1.0 - float(appearance.get("transparency", 0.0))]
+    material = appearance.get("material")
+    if material is not None:
+        r, g, b = material.get("diffuseColor", (0.8, 0.8, 0.8))
+        return [float(r), float(g), float(b), 1.0 - float(material.get("transparency", 0.0))]
+    return None
+
+
 def camera_fovy_degrees(field_of_view: float, width: int, height: int) -> float:
     """Webots horizontal field of view (rad) -> MuJoCo vertical ``fovy`` (degrees)."""
     return math.degrees(2.0 * math.atan(math.tan(field_of_view / 2.0) * height / width))
@@ -455,20 +470,6 @@ class _Converter:
         return {"type": mujoco.mjtGeom.mjGEOM_HFIELD, "hfieldname": field_name,
                 "pos": [float(v) for v in centre]}
 
-    @staticmethod
-    def rgba(shape: Node) -> list[float] | None:
-        appearance = shape.get("appearance")
-        if appearance is None:
-            return None
-        if appearance.type_name == "PBRAppearance":
-            r, g, b = appearance.get("baseColor", (1.0, 1.0, 1.0))
-            return [float(r), float(g), float(b), 1.0 - float(appearance.get("transparency", 0.0))]
-        material = appearance.get("material")
-        if material is not None:
-            r, g, b = material.get("diffuseColor", (0.8, 0.8, 0.8))
-            return [float(r), float(g), float(b), 1.0 - float(material.get("transparency", 0.0))]
-        return None
-
     # -- solids and bodies
     def solid_name(self, solid: Node) -> str:
         return solid.def_name or str(solid.get("name") or solid.type_name.lower())
@@ -578,7 +579,7 @@ class _Converter:
                     continue
                 name = self.unique("geom", f"{label}_visual" if shape_index == 0 else f"{label}_visual_{shape_index}")
                 shape_index += 1
-                self.add_geom(body, geometry, T, scale, name, collision=False, rgba=self.rgba(child),
+                self.add_geom(body, geometry, T, scale, name, collision=False, rgba=appearance_rgba(child),
                               material=material, static=static)
             elif kind == "CadShape":
                 self.warn("visual CadShape skipped", child)
@@ -966,7 +967,7 @@ class _Converter:
             geometry = node.get("geometry")
             if geometry is not None:
                 self.add_geom(self.spec.worldbody, geometry, T, scale, self.unique("geom", "shape_visual"),
-                              collision=False, rgba=self.rgba(node), material="default", static=True)
+                              collision=False, rgba=appearance_rgba(node), material="default", static=True)
             return
         if schema.is_solid_type(kind):
             frame = T @ _pose(node, scale)

@@ -25,6 +25,7 @@ import mujoco
 import numpy as np
 
 from dualtwin.convert.mass import indexed_face_set_mesh, rotation_matrix
+from dualtwin.convert.webots_to_mjcf import appearance_rgba
 from dualtwin.errors import DualtwinError
 from dualtwin.perception.camera import ResolvedCamera
 from dualtwin.webots import schema
@@ -46,16 +47,8 @@ def _quat(R: np.ndarray) -> np.ndarray:
 
 
 def _rgba(shape: Any) -> list[float]:
-    appearance = shape.get("appearance")
-    if appearance is not None:
-        if appearance.type_name == "PBRAppearance":
-            r, g, b = appearance.get("baseColor", (1.0, 1.0, 1.0))
-            return [float(r), float(g), float(b), 1.0 - float(appearance.get("transparency", 0.0))]
-        material = appearance.get("material")
-        if material is not None:
-            r, g, b = material.get("diffuseColor", (0.8, 0.8, 0.8))
-            return [float(r), float(g), float(b), 1.0 - float(material.get("transparency", 0.0))]
-    return [1.0, 1.0, 1.0, 1.0]  # Webots draws a Shape without appearance in white
+    # Webots draws a Shape without appearance in white.
+    return appearance_rgba(shape) or [1.0, 1.0, 1.0, 1.0]
 
 
 def _children(handle: Any, field: str) -> list[Any]:
