@@ -7,25 +7,16 @@ from __future__ import annotations
 
 import shutil
 import tempfile
-import time
 from pathlib import Path
 
 import mujoco
 
+from _common import best_of
 from dualtwin.robots.binding import BUNDLED, resolve_robot
 from dualtwin.suite.runner import SuiteRun
 from dualtwin.twins.mujoco import MuJoCoTwin
 
 CONTROL_PERIODS = 3000
-
-
-def best_of(fn, repeats: int = 5) -> float:  # type: ignore[no-untyped-def]
-    best = float("inf")
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - start)
-    return best
 
 
 def main() -> dict[str, float]:

@@ -32,7 +32,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from _output import output_folder
+from _common import output_folder
 
 os.environ.setdefault("MUJOCO_GL", "egl")  # a benchmark script, not library code
 

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 import dualtwin.rl  # noqa: F401 - registers the env ids
-from _output import output_folder
+from _common import output_folder
 from dualtwin.artifacts import sha256_file
 from dualtwin.rl.drive_to_goal import proportional_action
 

@@ -42,7 +42,7 @@ import gymnasium as gym
 import numpy as np
 
 import dualtwin.rl  # noqa: F401 - registers the env ids
-from _output import output_folder
+from _common import output_folder
 
 THRESHOLD = 950.0
 CONTINUOUS = "dualtwin/CartPole-MuJoCo-Continuous-v0"

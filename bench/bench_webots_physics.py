@@ -16,6 +16,7 @@ import math
 import time
 from ctypes import byref
 
+from _common import best_of
 from dualtwin.robots.binding import BUNDLED
 from dualtwin.webots import load_world, ode
 from dualtwin.webots.controller import Supervisor
@@ -23,15 +24,6 @@ from dualtwin.webots.physics import Simulation
 
 STEPS = 5000
 GOAL = 5000.0
-
-
-def best_of(fn, repeats: int = 3) -> float:  # type: ignore[no-untyped-def]
-    best = float("inf")
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - start)
-    return best
 
 
 def raw_ode_cartpole(steps: int) -> float:

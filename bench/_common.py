@@ -1,11 +1,12 @@
-"""Where a benchmark writes: the folder an environment variable names (kept), else a temporary one (removed)."""
+"""What the benchmarks share: where they write, and best-of-N timing."""
 
 from __future__ import annotations
 
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator
+import time
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -21,3 +22,13 @@ def output_folder(variable: str, name: str) -> Iterator[tuple[Path, bool]]:
     finally:
         if not keep:
             shutil.rmtree(root, ignore_errors=True)
+
+
+def best_of(fn: Callable[[], object], repeats: int) -> float:
+    """The shortest wall time of ``repeats`` calls: the least disturbed by other load on the machine."""
+    best = float("inf")
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - start)
+    return best
