@@ -17,6 +17,7 @@ from dualtwin.convert import (
     convert_world_text,
     lint_spec,
     smoke_test,
+    stop_solref,
     timestep_for,
 )
 from dualtwin.convert.mass import rotation_matrix
@@ -99,6 +100,25 @@ def test_hinge_ref_axis_anchor_and_dynamics() -> None:
     expected = R @ (np.array([0.4, 0, 0.5]) - [0.1, 0, 0.2]) + [0.1, 0, 0.2]
     assert d0.xpos[arm] == pytest.approx(expected)
     assert d0.xmat[arm].reshape(3, 3) == pytest.approx(np.eye(3), abs=1e-12)
+
+
+def test_stops_are_stiff_limits_from_stop_erp_and_cfm() -> None:
+    # basicTimeStep 8 ms -> MuJoCo 2 ms; WorldInfo ERP/CFM by default, stopERP/stopCFM when set.
+    world = "WorldInfo { basicTimeStep 8 ERP 0.4 CFM 0.01 }\n"
+    m = convert(world + HINGE).compile()
+    j = m.joint("J").id
+    inertia = 1.0 / m.dof_invweight0[m.jnt_dofadr[j]]
+    assert m.jnt_solref[j] == pytest.approx([0.004, math.sqrt(0.008 / (4 * 0.002 * 0.4))])
+    d = 1.0 / (1.0 + 0.01 * inertia / 0.002)
+    assert d < 0.999
+    assert m.jnt_solimp[j][:2] == pytest.approx([d, d])
+    own = convert(world + HINGE.replace("staticFriction 0.05", "staticFriction 0.05 stopERP 0.8 stopCFM 0")).compile()
+    assert own.jnt_solref[j] == pytest.approx([0.004, math.sqrt(0.008 / (4 * 0.002 * 0.8))])
+    assert own.jnt_solimp[j][:2] == pytest.approx([0.9999, 0.9999])  # a hard stop, within MuJoCo's range
+    # One MuJoCo step of the mapped limit: b = 1/h removes the approach velocity, h k = ERP/H pushes out.
+    timeconst, dampratio, _ = stop_solref(0.2, 1e-5, 0.008, 0.1, 0.002)
+    b, k = 2 / timeconst, 1 / (timeconst * dampratio) ** 2
+    assert b * 0.002 == pytest.approx(1.0) and k * 0.002 == pytest.approx(0.2 / 0.008)
 
 
 def test_motor_and_sensor_names_and_parameters() -> None:

@@ -62,6 +62,19 @@ def test_joint_teleport(twin: Twin) -> None:
     assert twin.joint_position("pole_hinge") == pytest.approx(0.3, abs=0.02)
 
 
+def test_a_loaded_stop_holds_like_a_webots_stop(twin: Twin) -> None:
+    # Webots stops are hard (ODE ERP 0.2, CFM 1e-5): the pole falling onto its +1 rad stop barely
+    # overshoots and then rests on it. A default MuJoCo limit would rest 2.3 mrad past it.
+    twin.reset()
+    twin.set_joint_state("pole_hinge", position=0.9)
+    angles = []
+    for _ in range(40):
+        twin.step()
+        angles.append(twin.joint_position("pole_hinge"))
+    assert max(angles) < 1.003
+    assert angles[-1] == pytest.approx(1.0, abs=2e-4)
+
+
 def test_initial_hold_keeps_wheels_braked(twin: Twin) -> None:
     """Webots motors hold their initial position until commanded, even while the pole falls."""
     twin.reset()

@@ -11,6 +11,7 @@ from dualtwin.convert.webots_to_mjcf import (
     convert_loaded,
     convert_world,
     convert_world_text,
+    stop_solref,
     timestep_for,
 )
 
@@ -26,5 +27,6 @@ __all__ = [
     "convert_world_text",
     "lint_spec",
     "smoke_test",
+    "stop_solref",
     "timestep_for",
 ]
