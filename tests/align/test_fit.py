@@ -221,3 +221,13 @@ def test_lsq_screens_integer_knobs_then_fits_the_continuous_ones(tmp_path: Path,
     # is the delays the data cannot tell apart, not the knob's whole bounds (0..10).
     delay = json.loads((tmp_path / "out" / "dr_ranges.json").read_text())["knobs"]["control.delay_periods"]
     assert delay["low"] <= 2 <= delay["high"] and delay["high"] - delay["low"] < 10
+
+
+def test_cma_starts_from_the_best_integer_setting(tmp_path: Path, robot: RobotBinding, suite3: Path) -> None:
+    # A coarse step far from the nominal 16 sub-steps: every integer is simulated before CMA-ES starts, so the
+    # search begins there instead of wandering across a rough landscape in rounded steps.
+    ref = record(robot, suite3, tmp_path / "ref", {"physics.substeps": 4})
+    result = align(ref, "mujoco", robot, suite3, ["physics.substeps", DAMPING], tmp_path / "out", optimizer="cma",
+                   executor="serial", budget=40, popsize=4, seed=2)
+    assert result.fitted["physics.substeps"] == 4 and result.fitted[DAMPING] < 1e-3
+    assert result.objective_after < 1e-3 * result.objective_before

@@ -323,9 +323,14 @@ def _fit_cma(problem: _Problem, config: AlignConfig, out_dir: Path, x0: Sequence
                                 "tolx": config.tolx, "verbose": -9, "verb_log": 0, "verb_disp": 0}
         if config.popsize:
             opts["popsize"] = config.popsize
+        integer = [i for i, spec in enumerate(problem.specs) if spec.integer]
+        if integer:
+            screened = problem.run([_screen_integers(problem, x0, integer, config.budget, lambda p: p.train)])[0]
+            if screened.train < f0:
+                x0, f0 = screened.u, screened.train
         es = cma.CMAEvolutionStrategy(list(x0), config.sigma0, opts)
         trace, archive = [], []
-        # The start point (nominal, or the best kept proposal) is the one to beat.
+        # The start point (nominal, the best kept proposal, or the best integer setting) is the one to beat.
         best_u, best_f, stale = list(x0), f0, 0
     while True:
         reason = _cma_stop(es, problem, config, stale, best_f)
@@ -403,7 +408,7 @@ def _fit_lsq(problem: _Problem, config: AlignConfig, out_dir: Path, x0: Sequence
     integer = [i for i, s in enumerate(problem.specs) if s.integer]
     free = [i for i in range(len(problem.specs)) if i not in integer]
     if integer and not trace:
-        start = _screen_integers(problem, start, integer, config.budget)
+        start = _screen_integers(problem, start, integer, config.budget, _residual_norm)
     held = list(start)
 
     def expand(x: Sequence[float] | np.ndarray) -> list[float]:
@@ -436,9 +441,6 @@ def _fit_lsq(problem: _Problem, config: AlignConfig, out_dir: Path, x0: Sequence
             callback(GenerationInfo(entry["iteration"], problem.evaluations, float(point.train if point else math.nan),
                                     problem.values(u), point.holdout if point else None))
 
-    def sq(p: _Point) -> float:
-        return float(p.residual @ p.residual)
-
     def fit_continuous(u: list[float]) -> tuple[list[float], str, int, bool]:
         """Least squares with restarts from a better neighbour; (u, reason, restarts, budget exhausted)."""
         nonlocal offset
@@ -459,7 +461,7 @@ def _fit_lsq(problem: _Problem, config: AlignConfig, out_dir: Path, x0: Sequence
                 final = [line for line in output.getvalue().splitlines() if line.startswith("Terminated after")]
                 reason = final[-1].split(": ", 1)[-1].split(" y:")[0] if final else "done"
             except _BudgetExhausted:
-                best = min(seen.values(), key=sq, default=None)
+                best = min(seen.values(), key=_residual_norm, default=None)
                 u = best.u if best is not None else u
                 return u, f"budget ({problem.evaluations} of {config.budget} evaluations used)", restarts, True
             # Rough residuals (impacts sampled once per control period) can trap a Gauss-Newton step in a dent:
@@ -473,8 +475,8 @@ def _fit_lsq(problem: _Problem, config: AlignConfig, out_dir: Path, x0: Sequence
             scored = problem.run(probes)
             for p in scored:
                 seen[tuple(p.u)] = p
-            better = min(scored, key=sq)
-            if sq(better) >= sq(here) * (1 - 1e-9):
+            better = min(scored, key=_residual_norm)
+            if _residual_norm(better) >= _residual_norm(here) * (1 - 1e-9):
                 break
             u = better.u
             restarts += 1
@@ -489,7 +491,7 @@ def _fit_lsq(problem: _Problem, config: AlignConfig, out_dir: Path, x0: Sequence
     for _ in range(LSQ_INTEGER_ROUNDS):
         if not integer or spent:
             break
-        again = _screen_integers(problem, u, integer, config.budget)
+        again = _screen_integers(problem, u, integer, config.budget, _residual_norm)
         if again == u:
             break
         u, reason, more, spent = fit_continuous(again)
@@ -500,11 +502,13 @@ def _fit_lsq(problem: _Problem, config: AlignConfig, out_dir: Path, x0: Sequence
     return _Outcome(u, iterations, reason, trace)
 
 
-def _screen_integers(problem: _Problem, u: Sequence[float], integer: Sequence[int], budget: int) -> list[float]:
-    """Set each integer knob to its best value, trying every integer in its bounds with the others held.
+def _screen_integers(problem: _Problem, u: Sequence[float], integer: Sequence[int], budget: int,
+                     criterion: Callable[[_Point], float]) -> list[float]:
+    """Set each integer knob to its best value by ``criterion``, trying every integer with the others held.
 
-    Least squares needs residuals that change smoothly with the knobs; an integer knob's do not. Its values
-    are few, so they are all simulated (in parallel) and the best is held while the continuous knobs are fitted.
+    An integer knob's effect does not change smoothly (least squares cannot follow it, and CMA-ES's rounded
+    steps rarely cross a rough landscape to a distant value). Its values are few, so they are all simulated
+    (in parallel) and the optimiser starts from the best.
     """
     u = list(u)
     for i in integer:
@@ -512,8 +516,12 @@ def _screen_integers(problem: _Problem, u: Sequence[float], integer: Sequence[in
         if problem.evaluations + len(points) > budget:
             break
         scored = problem.run([u, *points])
-        u = min(scored, key=lambda p: float(p.residual @ p.residual)).u
+        u = min(scored, key=criterion).u
     return u
+
+
+def _residual_norm(p: _Point) -> float:
+    return float(p.residual @ p.residual)
 
 
 def _integer_sweep(problem: _Problem, u: Sequence[float], i: int) -> tuple[list[int], list[list[float]]]:
@@ -887,7 +895,7 @@ def align(
 
             def criterion(p: _Point) -> float:
                 # Each optimiser is judged by what it minimises: the objective, or the residual norm.
-                return p.train if optimizer == "cma" else float(p.residual @ p.residual)
+                return p.train if optimizer == "cma" else _residual_norm(p)
 
             if criterion(after) > criterion(before):
                 # Never hand back something worse than where we started.
