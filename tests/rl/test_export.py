@@ -67,3 +67,24 @@ def test_continuous_parity(continuous_run: Path, tmp_path: Path) -> None:
     assert np.abs(velocity).max() <= 1.5 + 1e-6
     contract = json.loads((tmp_path / "policy_contract.json").read_text())
     assert contract["action"]["type"] == "box" and contract["action"]["scale"] == pytest.approx(1.5)
+
+
+def test_pioneer_export_gives_both_wheel_commands(tmp_path: Path) -> None:
+    from tests.rl.conftest import _train
+
+    run = _train(tmp_path / "run", "dualtwin/Pioneer-DriveToGoal-MuJoCo-v0", 512, {"eval_freq": 0})
+    path = export_policy(run, tmp_path / "export")
+    policy = load_policy(run)
+    contract = json.loads((tmp_path / "export" / "policy_contract.json").read_text())
+    names = [o["name"] for o in contract["onnx"]["outputs"]]
+    assert names == ["action", "left_wheel_speed", "right_wheel_speed"]
+    assert {o.get("unit") for o in contract["onnx"]["outputs"][1:]} == {"rad/s"}
+    session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    n_obs = session.get_inputs()[0].shape[1]
+    obs = np.random.default_rng(1).normal(size=(200, n_obs)).astype(np.float32)
+    action, left, right = session.run(names, {"observation": obs})
+    expected = policy.predict(obs)
+    assert action.shape == expected.shape == (200, 2)
+    np.testing.assert_allclose(action, expected, atol=2e-5)
+    scale = contract["action"]["scale"]
+    np.testing.assert_allclose(np.stack([left, right], axis=1), expected * scale, atol=1e-4 * scale)

@@ -4,6 +4,10 @@ from __future__ import annotations
 
 import hashlib
 import json
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import mujoco
@@ -56,27 +60,31 @@ def test_load_policy_in_one_line(discrete_run: Path) -> None:
     assert load_policy(discrete_run, "best").vec_normalize is not None
 
 
-def test_resume_after_interruption(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from stable_baselines3.common.callbacks import CheckpointCallback
-
-    original = CheckpointCallback._on_step
-
-    def interrupted(self: CheckpointCallback) -> bool:
-        result = original(self)
-        if self.num_timesteps >= 1024:
-            raise KeyboardInterrupt
-        return result
-
+def test_resume_after_interruption(tmp_path: Path) -> None:
+    # A real Ctrl-C: training runs in its own process and gets SIGINT once its first checkpoint is on disk.
     out = tmp_path / "run"
     ranges = {"knobs": {"body.pole.mass": {"low": 0.18, "high": 0.22}}}
-    monkeypatch.setattr(CheckpointCallback, "_on_step", interrupted)
-    with pytest.raises(KeyboardInterrupt):
-        train("dualtwin/CartPole-MuJoCo-v0", TINY, out, seed=1, total_timesteps=2048, dr_ranges=ranges,
-              progress_bar=False)
-    monkeypatch.setattr(CheckpointCallback, "_on_step", original)
+    script = (f"from dualtwin.rl.train import train\n"
+              f"train('dualtwin/CartPole-MuJoCo-v0', {TINY!r}, {str(out)!r}, seed=1, total_timesteps=10**7, "
+              f"dr_ranges={ranges!r}, progress_bar=False)\n")
+    process = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        for _ in range(1200):
+            if list((out / "checkpoints").glob("rl_model_*_steps.zip")) or process.poll() is not None:
+                break
+            time.sleep(0.05)
+        assert process.poll() is None, "training ended before its first checkpoint"
+        process.send_signal(signal.SIGINT)
+        _, stderr = process.communicate(timeout=120)
+    finally:
+        process.kill()
+    assert process.returncode != 0 and b"KeyboardInterrupt" in stderr
     record = json.loads((out / "run.json").read_text())
     assert record["status"] == "interrupted" and not (out / "model.zip").exists()
     assert (out / "dr_ranges.json").is_file()
+    interrupted_at = record["num_timesteps"]
+    # What was learned up to the signal is kept, not only the last periodic checkpoint.
+    assert (out / "checkpoints" / f"rl_model_{interrupted_at}_steps.zip").is_file() and interrupted_at >= 1024
 
     with pytest.raises(DualtwinError, match="not empty"):
         train("dualtwin/CartPole-MuJoCo-v0", TINY, out, seed=1, total_timesteps=2048, progress_bar=False)
@@ -84,11 +92,12 @@ def test_resume_after_interruption(tmp_path: Path, monkeypatch: pytest.MonkeyPat
         train("dualtwin/CartPole-MuJoCo-v0", TINY, out, seed=2, total_timesteps=2048, resume=True,
               dr_ranges=ranges, progress_bar=False)
 
-    train("dualtwin/CartPole-MuJoCo-v0", TINY, out, seed=1, total_timesteps=2048, resume=True,
+    total = interrupted_at + 1024
+    train("dualtwin/CartPole-MuJoCo-v0", TINY, out, seed=1, total_timesteps=total, resume=True,
           dr_ranges=ranges, progress_bar=False)
     record = json.loads((out / "run.json").read_text())
-    assert record["status"] == "complete" and record["num_timesteps"] >= 2048
-    assert record["resumed_from_steps"] == 1024
+    assert record["status"] == "complete" and record["num_timesteps"] >= total
+    assert record["resumed_from_steps"] == interrupted_at
     assert (out / "model.zip").is_file() and (out / "vecnormalize.pkl").is_file()
     # The evaluation history before the interruption is kept.
     assert record["evaluations"][0]["timesteps"] == 1024

@@ -125,10 +125,10 @@ class OnnxPolicy:
         return self.contract["action"].get("type") == "discrete"
 
     def run(self, observation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Raw observations [batch, n] -> (env actions, cart velocity commands)."""
+        """Raw observations [batch, n] -> (env actions, physical commands [batch, one per contract name])."""
         obs = np.asarray(observation, dtype=np.float32).reshape(-1, len(self.terms))
-        action, command = self.session.run(None, {self.session.get_inputs()[0].name: obs})
-        return np.asarray(action), np.asarray(command)
+        action, *commands = self.session.run(None, {self.session.get_inputs()[0].name: obs})
+        return np.asarray(action), np.stack([np.asarray(c) for c in commands], axis=-1)
 
     def action(self, observation: np.ndarray) -> Any:
         """The env action for one raw observation (int for discrete policies, float32 [1] for continuous)."""

@@ -22,6 +22,7 @@ import numpy as np
 from gymnasium import spaces
 
 from dualtwin.errors import DualtwinError, SimulationUnstable
+from dualtwin.rl.randomize import check_knob_names
 from dualtwin.robots.binding import RobotBinding, resolve_robot
 from dualtwin.robots.io import RobotIO
 from dualtwin.twins import make_twin
@@ -334,9 +335,7 @@ class TwinEnv(gym.Env[np.ndarray, Any]):
         self.knob_values: dict[str, float] = {}
 
     def _check_knobs(self, values: dict[str, float]) -> None:
-        unknown = sorted(set(values) - set(self.twin.knobs()))
-        if unknown:
-            raise DualtwinError(f"twin {self.twin_name!r} has no knobs named: {', '.join(unknown)}")
+        check_knob_names(list(values), self.twin.knobs(), f"twin {self.twin_name!r}")
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
               ) -> tuple[np.ndarray, dict[str, Any]]:

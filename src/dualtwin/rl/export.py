@@ -1,9 +1,10 @@
 """Export a trained policy to ONNX with its normalisation and action scaling inside the graph, plus a contract.
 
-``policy.onnx`` takes the raw observation (``observation``, float32 [batch, 4], in the contract's order and
+``policy.onnx`` takes the raw observation (``observation``, float32 [batch, n], in the contract's order and
 units) and returns ``action`` (what the Gymnasium env takes: the index for discrete policies, the clipped
-value in [-1, 1] for continuous ones) and ``cart_velocity`` (the command in m/s, after the speed table or the
-scaling). ``policy_contract.json`` says so in data: observation names, units, order, on-board vs privileged,
+values in [-1, 1] for continuous ones) and one float32 [batch] output per physical command the action
+contract names, in its unit after the speed table or the scaling: ``cart_velocity`` (m/s) for the CartPole,
+``left_wheel_speed`` and ``right_wheel_speed`` (rad/s) for the Pioneer. ``policy_contract.json`` says so in data: observation names, units, order, on-board vs privileged,
 normalisation statistics, action names/units/scaling, control period, env id, source twin and versions.
 """
 
@@ -21,6 +22,11 @@ from dualtwin.rl.policy import LoadedPolicy, load_policy
 
 OPSET = 17
 CONTRACT_VERSION = 1
+
+
+def command_names(action: dict[str, Any]) -> list[str]:
+    """The physical commands an action contract names (the ONNX outputs after ``action``)."""
+    return [str(name) for name in action["names"]]
 
 
 def _graph_module(policy: LoadedPolicy) -> Any:
@@ -58,7 +64,7 @@ def _graph_module(policy: LoadedPolicy) -> Any:
             else:
                 self.scale = float(action["scale"])
 
-        def forward(self, observation: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        def forward(self, observation: torch.Tensor) -> tuple[torch.Tensor, ...]:
             x = (observation - self.mean) * self.inv_std
             if np.isfinite(self.clip):
                 x = torch.clamp(x, -self.clip, self.clip)
@@ -70,7 +76,7 @@ def _graph_module(policy: LoadedPolicy) -> Any:
                 return index, self.speed_table[index]
             # The Gaussian's mean is the deterministic action; SB3 clips it to the Box, then the env scales.
             clipped = torch.clamp(out, -1.0, 1.0)
-            return clipped, clipped[..., 0] * self.scale
+            return (clipped, *(clipped[..., i] * self.scale for i in range(clipped.shape[-1])))
 
     return Exported().eval()
 
@@ -88,6 +94,7 @@ def export_policy(policy_run: Path | str, out_dir: Path | str, which: str = "fin
     module = _graph_module(policy)
     n_obs = int(contract["observation"]["shape"][0])
     example = torch.zeros((1, n_obs), dtype=torch.float32)
+    commands = command_names(contract["action"])
     path = out / "policy.onnx"
     tmp = out / ".policy.onnx.tmp"
     # The TorchScript exporter (dynamo=False) needs no onnxscript (not a dependency) and handles this small MLP;
@@ -95,9 +102,8 @@ def export_policy(policy_run: Path | str, out_dir: Path | str, which: str = "fin
     with torch.no_grad(), warnings.catch_warnings():
         warnings.filterwarnings("ignore", category=DeprecationWarning)
         torch.onnx.export(module, (example,), str(tmp), input_names=["observation"],
-                          output_names=["action", "cart_velocity"], opset_version=OPSET, dynamo=False,
-                          dynamic_axes={"observation": {0: "batch"}, "action": {0: "batch"},
-                                        "cart_velocity": {0: "batch"}})
+                          output_names=["action", *commands], opset_version=OPSET, dynamo=False,
+                          dynamic_axes={name: {0: "batch"} for name in ("observation", "action", *commands)})
     tmp.replace(path)
     write_json(out / "policy_contract.json", _contract(policy, path))
     return path
@@ -118,8 +124,8 @@ def _contract(policy: LoadedPolicy, onnx_path: Path) -> dict[str, Any]:
         {"name": "action", "dtype": "int64" if discrete else "float32",
          "shape": ["batch"] if discrete else ["batch", 1],
          "meaning": "env action: index into speed_table" if discrete else "env action, clipped to [-1, 1]"},
-        {"name": "cart_velocity", "dtype": "float32", "shape": ["batch"], "unit": "m/s",
-         "meaning": action["scaling"]},
+        *({"name": name, "dtype": "float32", "shape": ["batch"], "unit": action["unit"], "meaning": action["scaling"]}
+          for name in command_names(action)),
     ]
     return {
         "contract_version": CONTRACT_VERSION,

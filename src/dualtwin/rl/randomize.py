@@ -130,7 +130,8 @@ def _twin_knobs(env: gym.Env[Any, Any]) -> dict[str, Knob]:
     return knobs
 
 
-def _check_names(names: list[str], known: dict[str, Knob], origin: str) -> None:
+def check_knob_names(names: list[str], known: dict[str, Knob], origin: str) -> None:
+    """Every name is a knob of the twin, else an error listing the knobs it has."""
     unknown = sorted(set(names) - set(known))
     if unknown:
         raise DualtwinError(f"{origin}: the twin has no knobs named {', '.join(unknown)} "
@@ -171,7 +172,7 @@ class DomainRandomization(gym.Wrapper[Any, Any, Any, Any]):
         else:
             self.ranges = load_ranges(ranges)
         known = _twin_knobs(env)
-        _check_names(list(self.ranges), known, "domain randomisation")
+        check_knob_names(list(self.ranges), known, "domain randomisation")
         self.nominal = {name: known[name].nominal for name in self.ranges}
         for name, r in self.ranges.items():
             lo, hi = (r.low, r.high) if r.operation == "abs" else (r.low * self.nominal[name], r.high * self.nominal[name])
@@ -204,7 +205,7 @@ class FixedKnobs(gym.Wrapper[Any, Any, Any, Any]):
         super().__init__(env)
         self.values = {k: float(v) for k, v in values.items()}
         known = _twin_knobs(env)
-        _check_names(list(self.values), known, "aligned knobs")
+        check_knob_names(list(self.values), known, "aligned knobs")
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
               ) -> tuple[Any, dict[str, Any]]:

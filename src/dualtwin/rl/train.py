@@ -305,7 +305,7 @@ def _values(record: Any) -> Any:
 def _aligned_record(env_id: str, config: PPOConfig, aligned: Path | str | Mapping[str, Any]) -> dict[str, Any]:
     """Read the aligned knobs and check, before any training, that they belong to this env's twin."""
     from dualtwin.rl import make_env
-    from dualtwin.rl.randomize import check_aligned_twin, read_aligned
+    from dualtwin.rl.randomize import check_aligned_twin, check_knob_names, read_aligned
 
     record = read_aligned(aligned)
     env: Any = make_env(env_id, **{k: v for k, v in config.env_kwargs.items() if k != "knobs"})
@@ -315,10 +315,7 @@ def _aligned_record(env_id: str, config: PPOConfig, aligned: Path | str | Mappin
         known = env.unwrapped.twin.knobs()
     finally:
         env.close()
-    unknown = sorted(set(record["values"]) - set(known))
-    if unknown:
-        raise DualtwinError(f"{record.get('file') or 'aligned knobs'}: the {twin} twin of {env_id} has no knobs "
-                            f"named {', '.join(unknown)} (it has: {', '.join(sorted(known))})")
+    check_knob_names(list(record["values"]), known, f"{record.get('file') or 'aligned knobs'} ({env_id})")
     for name, value in record["values"].items():
         knob = known[name]
         if not knob.lower <= value <= knob.upper:

@@ -347,7 +347,7 @@ def create_app(policy_dir: Path | str, perception_dir: Path | str, *, api_key: s
         action_value: Any = int(action[0]) if policy.discrete else [float(v) for v in np.ravel(action[0])]
         return json.dumps({
             "session": body.session, "new_session": created, "step": steps, "action": action_value,
-            "command": {action_names[0]: float(np.ravel(command)[0]), "unit": action_unit},
+            "command": {**dict(zip(action_names, (float(v) for v in command[0]), strict=True)), "unit": action_unit},
             "observation": observation, "sources": sources, "estimate": estimated, "time_s": body.time_s,
         }).encode()
 
