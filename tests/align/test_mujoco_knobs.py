@@ -58,16 +58,23 @@ def test_sensor_bias_delay_quantization_and_noise(twin: MuJoCoTwin) -> None:
 
 
 def test_knobs_apply_from_nominal_and_reset(twin: MuJoCoTwin) -> None:
-    before = twin.model.body_inertia.copy(), twin.model.geom_solref.copy(), twin.model.body_ipos.copy()
+    m = twin.model
+    before = m.body_inertia.copy(), m.geom_solref.copy(), m.body_ipos.copy(), m.geom_solimp.copy(), m.jnt_solimp.copy()
     for _ in range(3):  # repeated settings must not compound
         twin.set_knobs({"body.pole.mass": 0.4, "body.pole.inertia_scale": 2.0, "body.pole.com_offset_z": 0.05,
-                        "geom.floor.solref_timeconst": 0.04, "geom.floor.restitution": 0.3})
-    pole = mujoco.mj_name2id(twin.model, mujoco.mjtObj.mjOBJ_BODY, "pole")
-    assert twin.model.body_inertia[pole] == pytest.approx(before[0][pole] * 2.0 * 2.0)
-    assert twin.model.body_ipos[pole, 2] == pytest.approx(before[2][pole, 2] + 0.05)
+                        "geom.floor.solref_timeconst": 0.04, "geom.floor.restitution": 0.3,
+                        "geom.floor.impedance": 0.99, "joint.pole_hinge.limit_impedance": 0.95})
+    pole = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "pole")
+    assert m.body_inertia[pole] == pytest.approx(before[0][pole] * 2.0 * 2.0)
+    assert m.body_ipos[pole, 2] == pytest.approx(before[2][pole, 2] + 0.05)
+    floor, hinge = m.geom("floor").id, m.joint("pole_hinge").id
+    # dmax moves to the knob's value; dmin keeps its ratio to dmax (0.9 / 0.95 for the floor).
+    assert m.geom_solimp[floor, :2] == pytest.approx([0.99 * 0.9 / 0.95, 0.99])
+    assert m.jnt_solimp[hinge, :2] == pytest.approx([0.95, 0.95])
     twin.set_knobs({})
-    for now, then in zip((twin.model.body_inertia, twin.model.geom_solref, twin.model.body_ipos), before, strict=True):
-        assert np.array_equal(now, then)
+    now = m.body_inertia, m.geom_solref, m.body_ipos, m.geom_solimp, m.jnt_solimp
+    for current, then in zip(now, before, strict=True):
+        assert np.array_equal(current, then)
 
 
 def test_restitution_maps_to_a_damping_ratio() -> None:
@@ -79,7 +86,8 @@ def test_restitution_maps_to_a_damping_ratio() -> None:
 def test_patched_mjcf_reproduces_the_knobs(robot: RobotBinding, twin: MuJoCoTwin, suite3) -> None:  # noqa: ANN001
     knobs = {"joint.pole_hinge.damping": 0.05, "joint.pole_hinge.friction": 0.01, "geom.floor.friction": 0.7,
              "body.pole.mass": 0.25, "body.pole.inertia_scale": 1.2, "body.pole.com_offset_z": 0.03,
-             "geom.wheel1_geom.solref_timeconst": 0.03, "motor.wheel1.max_torque": 1.5,
+             "geom.wheel1_geom.solref_timeconst": 0.03, "geom.floor.impedance": 0.99,
+             "joint.pole_hinge.limit_impedance": 0.97, "motor.wheel1.max_torque": 1.5,
              "motor.wheel2.max_velocity": 20.0, "motor.wheel3.gain": 1.1}
     result = patch_mjcf(robot.model_path("mujoco"), knobs)
     assert "motor.wheel3.gain" in result.not_applied and "body.pole.mass" in result.applied

@@ -103,7 +103,7 @@ def test_hinge_ref_axis_anchor_and_dynamics() -> None:
 
 
 def test_stops_are_stiff_limits_from_stop_erp_and_cfm() -> None:
-    # basicTimeStep 8 ms -> MuJoCo 2 ms; WorldInfo ERP/CFM by default, stopERP/stopCFM when set.
+    # basicTimeStep 8 ms -> MuJoCo 2 ms; the stops get WorldInfo ERP/CFM, as ODE gives them at creation.
     world = "WorldInfo { basicTimeStep 8 ERP 0.4 CFM 0.01 }\n"
     m = convert(world + HINGE).compile()
     j = m.joint("J").id
@@ -112,9 +112,12 @@ def test_stops_are_stiff_limits_from_stop_erp_and_cfm() -> None:
     d = 1.0 / (1.0 + 0.01 * inertia / 0.002)
     assert d < 0.999
     assert m.jnt_solimp[j][:2] == pytest.approx([d, d])
-    own = convert(world + HINGE.replace("staticFriction 0.05", "staticFriction 0.05 stopERP 0.8 stopCFM 0")).compile()
-    assert own.jnt_solref[j] == pytest.approx([0.004, math.sqrt(0.008 / (4 * 0.002 * 0.8))])
-    assert own.jnt_solimp[j][:2] == pytest.approx([0.9999, 0.9999])  # a hard stop, within MuJoCo's range
+    # Webots passes stopERP/stopCFM to ODE only when they change at run time: kept out, with a warning.
+    own = convert(world + HINGE.replace("staticFriction 0.05", "staticFriction 0.05 stopERP 0.8 stopCFM 0"))
+    assert own.compile().jnt_solref[j] == pytest.approx(m.jnt_solref[j])
+    assert any("stopERP/stopCFM" in w for w in own.warnings)
+    hard = convert("WorldInfo { basicTimeStep 8 CFM 0 }\n" + HINGE).compile()
+    assert hard.jnt_solimp[j][:2] == pytest.approx([0.9999, 0.9999])  # a hard stop, within MuJoCo's range
     # One MuJoCo step of the mapped limit: b = 1/h removes the approach velocity, h k = ERP/H pushes out.
     timeconst, dampratio, _ = stop_solref(0.2, 1e-5, 0.008, 0.1, 0.002)
     b, k = 2 / timeconst, 1 / (timeconst * dampratio) ** 2

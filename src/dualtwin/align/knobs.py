@@ -13,6 +13,7 @@ knob                               unit       MuJoCo twin                       
 ``joint.<j>.damping``              N·m·s/rad  ``dof_damping``                        JointParameters ``dampingConstant``
 ``joint.<j>.friction``             N·m        ``dof_frictionloss``                   JointParameters ``staticFriction``
 ``joint.<j>.limit_timeconst``      s          ``jnt_solref[0]`` (limit softness)     –  (stops use world ERP/CFM)
+``joint.<j>.limit_impedance``      –          ``jnt_solimp`` dmax (limit hardness)   –  (stops use world ERP/CFM)
 ``body.<b>.mass``                  kg         ``body_mass``, inertia scaled with it  Physics ``mass``
 ``body.<b>.inertia_scale``         –          factor on ``body_inertia``             –
 ``body.<b>.com_offset_x|y|z``      m          shift of ``body_ipos``                 –
@@ -30,7 +31,9 @@ contact friction                   –          ``geom.<g>.friction`` (per geom,
 contact restitution                –          ``geom.<g>.restitution``: solref       ``contact.<p>.bounce``
                                               damping ratio ζ, e = exp(-ζπ/√(1-ζ²))
 contact softness                   s / –      ``geom.<g>.solref_timeconst``          ``contact.<p>.soft_erp``,
-                                              (``geom_solref[0]``)                   ``contact.<p>.soft_cfm``
+                                              (``geom_solref[0]``),                  ``contact.<p>.soft_cfm``
+                                              ``geom.<g>.impedance`` (``geom_solimp``
+                                              dmax, dmin keeps its ratio)
 world softness                     –          –                                      ``world.erp``, ``world.cfm`` (WorldInfo)
 ``geom.<g>.radius``                m          ``geom_size[0]`` of a cylinder,        –  (a wheel's rolling radius; ODE's soft
                                               sphere or capsule                      contacts let it sink)
@@ -47,8 +50,8 @@ ODE, a contact spring ``k`` and damper ``c`` with time step ``h`` give ``ERP = h
 ``CFM = 1/(hk+c)``: that is how a MuJoCo time constant and damping ratio map onto soft ERP/CFM.
 
 Knobs whose unit is ``periods`` (or ``steps``) are integer-valued: optimisers see a continuous value that
-the twin rounds. CMA-ES searches them like the others; least squares first tries every integer in their
-bounds and holds the best while it fits the continuous knobs. Knobs whose bounds span a factor of
+the twin rounds. Both optimisers first try every integer in their bounds and start from the best; least
+squares then holds it while it fits the continuous knobs, CMA-ES moves it in rounded steps. Knobs whose bounds span a factor of
 50 or more above zero (masses, velocity limits, contact time constants) are searched in log space.
 """
 

@@ -23,7 +23,7 @@ import mujoco
 import numpy as np
 
 from dualtwin.errors import DualtwinError
-from dualtwin.twins.mujoco import restitution_to_dampratio
+from dualtwin.twins.mujoco import impedance_pair, restitution_to_dampratio
 
 #: Knob properties that have no MJCF field.
 NOT_IN_MJCF: dict[str, str] = {
@@ -98,6 +98,10 @@ def patch_mjcf(model_path: Path, knobs: Mapping[str, float], aliases: Mapping[st
             elif prop == "limit_timeconst":
                 j = mujoco.mj_name2id(nominal, mujoco.mjtObj.mjOBJ_JOINT, name)
                 joint.solref_limit = [value, float(nominal.jnt_solref[j, 1])]  # type: ignore[attr-defined]
+            elif prop == "limit_impedance":
+                j = mujoco.mj_name2id(nominal, mujoco.mjtObj.mjOBJ_JOINT, name)
+                joint.solimp_limit = [*impedance_pair(nominal.jnt_solimp[j], value),  # type: ignore[attr-defined]
+                                      *(float(v) for v in nominal.jnt_solimp[j, 2:])]
             else:
                 joint.frictionloss = value  # type: ignore[attr-defined]
         elif kind == "geom":
@@ -109,6 +113,9 @@ def patch_mjcf(model_path: Path, knobs: Mapping[str, float], aliases: Mapping[st
                 geom.size[0] = value  # type: ignore[attr-defined]
             elif prop == "solref_timeconst":
                 geom.solref = [value, float(nominal.geom_solref[g, 1])]  # type: ignore[attr-defined]
+            elif prop == "impedance":
+                geom.solimp = [*impedance_pair(nominal.geom_solimp[g], value),  # type: ignore[attr-defined]
+                               *(float(v) for v in nominal.geom_solimp[g, 2:])]
             else:
                 geom.solref = [float(nominal.geom_solref[g, 0]),  # type: ignore[attr-defined]
                                restitution_to_dampratio(value, float(nominal.geom_solref[g, 1]))]

@@ -23,7 +23,8 @@ Joints
     ``springConstant`` -> ``stiffness``, ``staticFriction`` -> ``frictionloss``.
 
 Stops
-    Webots stops are hard ODE limits with ``stopERP``/``stopCFM`` (-1: WorldInfo ERP/CFM). In one ODE step of
+    Webots stops are hard ODE limits with the WorldInfo ERP/CFM (ODE's defaults at joint creation; Webots
+    passes ``stopERP``/``stopCFM`` only when they change at run time, webots-on-ode.md §4.2). In one ODE step of
     length H a violated stop loses its approach velocity and is pushed out at ERP r / H; CFM leaves a blend
     d = 1/(1 + CFM m / h) of the unconstrained motion (m the joint's effective inertia, 1/``dof_invweight0``).
     A MuJoCo limit with impedance d and reference acceleration -b v - k r does the same in one MuJoCo step h
@@ -354,7 +355,7 @@ class _Converter:
         self.self_collision = False
         self.mesh_count = 0
         self.missing_defs: list[str] = []
-        self.stops: list[tuple[Any, float, float]] = []  # (MjSpec joint, stop ERP, stop CFM)
+        self.stops: list[tuple[Any, float, float]] = []  # (MjSpec joint, ERP, CFM)
 
     # -- names
     def unique(self, kind: str, base: str) -> str:
@@ -767,9 +768,10 @@ class _Converter:
             lo, hi = max(lo, -math.pi), min(hi, math.pi)
         j.range = sorted([lo, hi])
         j.limited = mujoco.mjtLimited.mjLIMITED_TRUE
-        erp, cfm = float(params.get("stopERP", -1.0)), float(params.get("stopCFM", -1.0))
-        self.stops.append((j, erp if erp >= 0 else float(self.info.get("ERP", 0.2)),
-                           cfm if cfm >= 0 else float(self.info.get("CFM", 1e-5))))
+        if float(params.get("stopERP", -1.0)) >= 0 or float(params.get("stopCFM", -1.0)) >= 0:
+            self.warn("stopERP/stopCFM reach ODE only when changed at run time (webots-on-ode.md §4.2, unverified); "
+                      "the stops are converted with WorldInfo ERP/CFM, which ODE gives them at creation", where)
+        self.stops.append((j, float(self.info.get("ERP", 0.2)), float(self.info.get("CFM", 1e-5))))
         return True
 
     def apply_stops(self) -> None:

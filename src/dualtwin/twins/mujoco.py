@@ -27,7 +27,7 @@ Webots twin and costs 40-60 % more time per step (README, Pioneer section).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -82,6 +82,15 @@ def restitution_to_dampratio(restitution: float, nominal: float) -> float:
         return max(nominal, 1.0)
     log_e = math.log(min(restitution, 0.999))
     return -log_e / math.sqrt(math.pi ** 2 + log_e ** 2)
+
+
+#: Bounds of the impedance knobs (MuJoCo solimp dmax): from very soft to MuJoCo's hardest.
+IMPEDANCE_BOUNDS = (0.5, 0.9999)
+
+
+def impedance_pair(nominal_solimp: Sequence[float], dmax: float) -> tuple[float, float]:
+    """(dmin, dmax) for a new dmax, dmin keeping its nominal ratio to dmax (the impedance curve's shape)."""
+    return float(nominal_solimp[0]) * dmax / float(nominal_solimp[1]), dmax
 
 
 def dampratio_to_restitution(dampratio: float) -> float:
@@ -227,6 +236,7 @@ class MuJoCoTwin(Twin):
             "geom_solref": m.geom_solref.copy(), "jnt_stiffness": m.jnt_stiffness.copy(),
             "sensor_noise": m.sensor_noise.copy(), "body_iquat": m.body_iquat.copy(),
             "jnt_solref": m.jnt_solref.copy(), "dof_armature": m.dof_armature.copy(),
+            "geom_solimp": m.geom_solimp.copy(), "jnt_solimp": m.jnt_solimp.copy(),
             "geom_size": m.geom_size.copy(), "geom_rbound": m.geom_rbound.copy(), "geom_aabb": m.geom_aabb.copy(),
             "impratio": np.array(m.opt.impratio),
         }
@@ -624,6 +634,8 @@ class MuJoCoTwin(Twin):
                 add(f"joint.{name}.limit_timeconst", limit_timeconst, 2 * self._nominal_timestep,
                     max(10 * limit_timeconst, 4 * self._nominal_timestep), "s",
                     "joint-limit softness: time constant of the limit's spring-damper (MuJoCo solreflimit[0])")
+                add(f"joint.{name}.limit_impedance", float(nominal["jnt_solimp"][j, 1]), *IMPEDANCE_BOUNDS, "",
+                    "joint-limit hardness: MuJoCo solimplimit dmax (dmin keeps its ratio to it)")
         for g in range(m.ngeom):
             name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g)
             if name and m.geom_contype[g] | m.geom_conaffinity[g]:
@@ -637,6 +649,8 @@ class MuJoCoTwin(Twin):
                         "contact softness: time constant of the contact spring-damper (MuJoCo solref[0])")
                     add(f"geom.{name}.restitution", dampratio_to_restitution(dampratio), 0.0, 0.95, "",
                         "contact restitution (MuJoCo: solref damping ratio below 1)")
+                add(f"geom.{name}.impedance", float(nominal["geom_solimp"][g, 1]), *IMPEDANCE_BOUNDS, "",
+                    "contact hardness: MuJoCo solimp dmax (dmin keeps its ratio to it; Webots softCFM)")
                 if m.geom_type[g] in ROUND_GEOMS:
                     # A wheel's effective rolling radius: ODE's soft contacts let it sink (0.6 mm on the Pioneer).
                     radius = float(nominal["geom_size"][g, 0])
@@ -702,6 +716,8 @@ class MuJoCoTwin(Twin):
         m.geom_aabb[:] = nominal["geom_aabb"]
         m.opt.impratio = float(nominal["impratio"])
         m.jnt_solref[:] = nominal["jnt_solref"]
+        m.geom_solimp[:] = nominal["geom_solimp"]
+        m.jnt_solimp[:] = nominal["jnt_solimp"]
         m.body_mass[:] = nominal["body_mass"]
         m.body_inertia[:] = nominal["body_inertia"]
         m.body_ipos[:] = nominal["body_ipos"]
@@ -734,6 +750,8 @@ class MuJoCoTwin(Twin):
                 j = self._id(mujoco.mjtObj.mjOBJ_JOINT, name, "joint")
                 if prop == "limit_timeconst":
                     m.jnt_solref[j, 0] = value
+                elif prop == "limit_impedance":
+                    m.jnt_solimp[j, :2] = impedance_pair(nominal["jnt_solimp"][j], value)
                 else:
                     (m.dof_damping if prop == "damping" else m.dof_frictionloss)[m.jnt_dofadr[j]] = value
             elif kind == "geom":
@@ -748,6 +766,8 @@ class MuJoCoTwin(Twin):
                     m.geom_aabb[g, 3:] = nominal["geom_aabb"][g, 3:] + grow
                 elif prop == "solref_timeconst":
                     m.geom_solref[g, 0] = value
+                elif prop == "impedance":
+                    m.geom_solimp[g, :2] = impedance_pair(nominal["geom_solimp"][g], value)
                 else:
                     m.geom_solref[g, 1] = restitution_to_dampratio(value, float(nominal["geom_solref"][g, 1]))
             elif kind == "body":
