@@ -79,6 +79,7 @@ def test_pioneer_export_gives_both_wheel_commands(tmp_path: Path) -> None:
     names = [o["name"] for o in contract["onnx"]["outputs"]]
     assert names == ["action", "left_wheel_speed", "right_wheel_speed"]
     assert {o.get("unit") for o in contract["onnx"]["outputs"][1:]} == {"rad/s"}
+    assert contract["onnx"]["outputs"][0]["shape"] == ["batch", 2]
     session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     n_obs = session.get_inputs()[0].shape[1]
     obs = np.random.default_rng(1).normal(size=(200, n_obs)).astype(np.float32)

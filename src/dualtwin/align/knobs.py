@@ -51,8 +51,9 @@ ODE, a contact spring ``k`` and damper ``c`` with time step ``h`` give ``ERP = h
 
 Knobs whose unit is ``periods`` (or ``steps``) are integer-valued: optimisers see a continuous value that
 the twin rounds. Both optimisers first try every integer in their bounds and start from the best; least
-squares then holds it while it fits the continuous knobs, CMA-ES moves it in rounded steps. Knobs whose bounds span a factor of
-50 or more above zero (masses, velocity limits, contact time constants) are searched in log space.
+squares then holds it while it fits the continuous knobs, CMA-ES moves it in rounded steps. Knobs whose
+bounds span a factor of 50 or more above zero (masses, velocity limits, contact time constants) are searched
+in log space.
 """
 
 from __future__ import annotations

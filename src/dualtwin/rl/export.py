@@ -4,8 +4,9 @@
 units) and returns ``action`` (what the Gymnasium env takes: the index for discrete policies, the clipped
 values in [-1, 1] for continuous ones) and one float32 [batch] output per physical command the action
 contract names, in its unit after the speed table or the scaling: ``cart_velocity`` (m/s) for the CartPole,
-``left_wheel_speed`` and ``right_wheel_speed`` (rad/s) for the Pioneer. ``policy_contract.json`` says so in data: observation names, units, order, on-board vs privileged,
-normalisation statistics, action names/units/scaling, control period, env id, source twin and versions.
+``left_wheel_speed`` and ``right_wheel_speed`` (rad/s) for the Pioneer. ``policy_contract.json`` says so in
+data: observation names, units, order, on-board vs privileged, normalisation statistics, action
+names/units/scaling, control period, env id, source twin and versions.
 """
 
 from __future__ import annotations
@@ -122,7 +123,7 @@ def _contract(policy: LoadedPolicy, onnx_path: Path) -> dict[str, Any]:
                          "clip": float(stats.clip_obs)}
     outputs = [
         {"name": "action", "dtype": "int64" if discrete else "float32",
-         "shape": ["batch"] if discrete else ["batch", 1],
+         "shape": ["batch"] if discrete else ["batch", len(command_names(action))],
          "meaning": "env action: index into speed_table" if discrete else "env action, clipped to [-1, 1]"},
         *({"name": name, "dtype": "float32", "shape": ["batch"], "unit": action["unit"], "meaning": action["scaling"]}
           for name in command_names(action)),

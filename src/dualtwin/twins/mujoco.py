@@ -84,7 +84,8 @@ def restitution_to_dampratio(restitution: float, nominal: float) -> float:
     return -log_e / math.sqrt(math.pi ** 2 + log_e ** 2)
 
 
-#: Bounds of the impedance knobs (MuJoCo solimp dmax): from very soft to MuJoCo's hardest.
+#: Bounds of the impedance knobs (MuJoCo solimp dmax): from very soft (or the nominal, if softer) to MuJoCo's
+#: hardest.
 IMPEDANCE_BOUNDS = (0.5, 0.9999)
 
 
@@ -634,7 +635,8 @@ class MuJoCoTwin(Twin):
                 add(f"joint.{name}.limit_timeconst", limit_timeconst, 2 * self._nominal_timestep,
                     max(10 * limit_timeconst, 4 * self._nominal_timestep), "s",
                     "joint-limit softness: time constant of the limit's spring-damper (MuJoCo solreflimit[0])")
-                add(f"joint.{name}.limit_impedance", float(nominal["jnt_solimp"][j, 1]), *IMPEDANCE_BOUNDS, "",
+                dmax = float(nominal["jnt_solimp"][j, 1])
+                add(f"joint.{name}.limit_impedance", dmax, min(IMPEDANCE_BOUNDS[0], dmax), IMPEDANCE_BOUNDS[1], "",
                     "joint-limit hardness: MuJoCo solimplimit dmax (dmin keeps its ratio to it)")
         for g in range(m.ngeom):
             name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g)
@@ -649,7 +651,8 @@ class MuJoCoTwin(Twin):
                         "contact softness: time constant of the contact spring-damper (MuJoCo solref[0])")
                     add(f"geom.{name}.restitution", dampratio_to_restitution(dampratio), 0.0, 0.95, "",
                         "contact restitution (MuJoCo: solref damping ratio below 1)")
-                add(f"geom.{name}.impedance", float(nominal["geom_solimp"][g, 1]), *IMPEDANCE_BOUNDS, "",
+                dmax = float(nominal["geom_solimp"][g, 1])
+                add(f"geom.{name}.impedance", dmax, min(IMPEDANCE_BOUNDS[0], dmax), IMPEDANCE_BOUNDS[1], "",
                     "contact hardness: MuJoCo solimp dmax (dmin keeps its ratio to it; Webots softCFM)")
                 if m.geom_type[g] in ROUND_GEOMS:
                     # A wheel's effective rolling radius: ODE's soft contacts let it sink (0.6 mm on the Pioneer).
