@@ -102,7 +102,7 @@ def test_hinge_ref_axis_anchor_and_dynamics() -> None:
     assert d0.xmat[arm].reshape(3, 3) == pytest.approx(np.eye(3), abs=1e-12)
 
 
-def test_stops_are_stiff_limits_from_stop_erp_and_cfm() -> None:
+def test_stops_are_stiff_limits_from_world_erp_and_cfm() -> None:
     # basicTimeStep 8 ms -> MuJoCo 2 ms; the stops get WorldInfo ERP/CFM, as ODE gives them at creation.
     world = "WorldInfo { basicTimeStep 8 ERP 0.4 CFM 0.01 }\n"
     m = convert(world + HINGE).compile()
