@@ -85,22 +85,19 @@ class TwinCamera:
     def render(self, appearance: Appearance | None = None, camera: CameraSpec | str | None = None) -> np.ndarray:
         """The twin's current state as an RGB frame (height, width, 3) uint8."""
         resolved = self.resolve(camera)
-        if self._scene is not None:
-            self._scene.sync()
-            data = self._scene.data
-        else:
-            data = self.twin.data  # type: ignore[attr-defined]
-        return self.renderer.render(data, resolved, appearance)
+        return self.renderer.render(self._current_data(), resolved, appearance)
 
     def labels(self, bodies: list[str], camera: CameraSpec | str | None = None) -> np.ndarray:
         """Per-pixel coverage (uint8) of each named body's visual geoms: [height, width, len(bodies)]."""
         resolved = self.resolve(camera)
+        return self.renderer.render_labels(self._current_data(), resolved, [self._geoms(body) for body in bodies])
+
+    def _current_data(self) -> Any:
+        """MjData holding the twin's current state: its own, or the Webots twin's scene synced to it."""
         if self._scene is not None:
             self._scene.sync()
-            data = self._scene.data
-        else:
-            data = self.twin.data  # type: ignore[attr-defined]
-        return self.renderer.render_labels(data, resolved, [self._geoms(body) for body in bodies])
+            return self._scene.data
+        return self.twin.data  # type: ignore[attr-defined]
 
     def _geoms(self, body: str) -> np.ndarray:
         import mujoco
