@@ -19,6 +19,7 @@ controller: their motors keep the initial hold (§5.1).
 
 from __future__ import annotations
 
+import math
 import os
 import runpy
 import sys
@@ -27,6 +28,7 @@ import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
+from dualtwin.errors import DualtwinError
 from dualtwin.webots import controller as api
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import Simulation, SimulationUnstable
@@ -34,7 +36,7 @@ from dualtwin.webots.physics import Simulation, SimulationUnstable
 SHIM_DIR = Path(__file__).resolve().parent / "shim"
 NO_CONTROLLER = frozenset({"", "<none>", "<generic>", "<extern>", "void"})
 
-__all__ = ["ControllerSpec", "SHIM_DIR", "find_controllers", "run_controllers", "run_world"]
+__all__ = ["ControllerSpec", "SHIM_DIR", "check_duration", "find_controllers", "run_controllers", "run_world"]
 
 
 @dataclass
@@ -46,10 +48,41 @@ class ControllerSpec:
     args: list[str]
 
 
-def _controller_script(world_path: Path, name: str) -> Path | None:
-    folder = world_path.resolve().parent.parent / "controllers" / name
-    script = folder / f"{name}.py"
-    return script if script.is_file() else None
+def _is_controller_name(name: str) -> bool:
+    # A controller field is a folder name, never a path: Webots looks only in the project's
+    # controllers/<name>/ folder, so separators, '.', '..' and control characters are refused.
+    return (
+        name not in (".", "..")
+        and not any(c in name for c in "/\\:")
+        and all(c.isprintable() for c in name)
+    )
+
+
+def _controller_script(world_path: Path, robot: Node, name: str) -> Path | None:
+    """``controllers/<name>/<name>.py`` of the world's project, or None when absent.
+
+    The world file is data: its ``controller`` field may not reach outside the project's
+    ``controllers/`` folder, neither by its spelling nor through a symbolic link.
+
+    Raises:
+        DualtwinError: the field is a path, not a controller name, or the script resolves outside.
+    """
+    where = f"{robot.location}: " if robot.location is not None else f"{world_path}: "
+    if not _is_controller_name(name):
+        raise DualtwinError(
+            f"{where}controller {name!r} is not a controller name: Webots runs "
+            "controllers/<name>/<name>.py of the world's project, so the field may not hold a path"
+        )
+    controllers = world_path.resolve().parent.parent / "controllers"
+    script = controllers / name / f"{name}.py"
+    if not script.is_file():
+        return None
+    if not script.resolve().is_relative_to(controllers.resolve()):
+        raise DualtwinError(
+            f"{where}controller {name!r} resolves to {script.resolve()}, outside the project's "
+            f"controllers folder {controllers}: refused"
+        )
+    return script
 
 
 def find_controllers(sim: Simulation, world_path: Path, override: Path | None = None) -> list[ControllerSpec]:
@@ -75,7 +108,7 @@ def find_controllers(sim: Simulation, world_path: Path, override: Path | None = 
             continue
         if robot.controller in NO_CONTROLLER:
             continue
-        script = _controller_script(world_path, robot.controller)
+        script = _controller_script(world_path, robot.node, robot.controller)
         if script is None:
             print(
                 f"Warning: no Python controller '{robot.controller}' for robot '{robot.name}' "
@@ -112,6 +145,20 @@ def _run_script(runtime: api.Runtime, spec: ControllerSpec, result: _ScriptResul
         runtime.thread_done()
 
 
+def check_duration(duration_s: float | None) -> None:
+    """Refuse a run length that is not a finite number of seconds > 0 (NaN would run forever).
+
+    Raises:
+        DualtwinError: naming the ``--duration`` option, which is where users give it.
+    """
+    if duration_s is None:
+        return
+    if isinstance(duration_s, bool) or not isinstance(duration_s, (int, float)):
+        raise DualtwinError(f"--duration: expected a number of seconds, got {duration_s!r}")
+    if not math.isfinite(duration_s) or duration_s <= 0:
+        raise DualtwinError(f"--duration: must be a finite number of seconds > 0, got {duration_s:g}")
+
+
 def run_world(
     world_path: str | os.PathLike[str],
     controller: str | os.PathLike[str] | None = None,
@@ -128,6 +175,7 @@ def run_world(
     """
     from dualtwin.webots import load_world
 
+    check_duration(duration_s)
     path = Path(world_path)
     world = load_world(path, proto_paths)
     for message in world.warnings:
