@@ -1,3 +1,22 @@
-"""dualtwin: dual digital twins (Webots on ODE + MuJoCo) for robotics RL."""
+"""dualtwin: dual digital twins (Webots on ODE + MuJoCo) for robotics RL.
+
+Importing the package does two light things, before any dualtwin module imports MuJoCo:
+
+* picks a headless OpenGL backend for MuJoCo where there is no display (:mod:`dualtwin.headless`;
+  :func:`gl_backend` says which and why);
+* registers the ``dualtwin/...`` Gymnasium env ids when Gymnasium is installed (:mod:`dualtwin.registration`,
+  entry-point strings only), so ``gym.make("dualtwin/CartPole-MuJoCo-v0")`` works after ``import dualtwin``
+  (the ecosystem's idiom: ``gym.register_envs(dualtwin)``).
+"""
+
+from dualtwin.headless import GLChoice, gl_backend
 
 __version__ = "0.1.0"
+
+gl_backend()
+
+from dualtwin.registration import register_envs  # noqa: E402 - after the backend choice, on purpose
+
+register_envs()
+
+__all__ = ["GLChoice", "__version__", "gl_backend", "register_envs"]

@@ -22,6 +22,17 @@ app.add_typer(perception_app, name="perception")
 console = Console(stderr=False)
 
 
+@app.callback()
+def _global_options(
+    verbose: Annotated[bool, typer.Option("--verbose", "-v", help="print setup details (e.g. the OpenGL backend) "
+                                                                   "on stderr")] = False,
+) -> None:
+    if verbose:
+        from dualtwin import gl_backend
+
+        print(gl_backend().describe(), file=sys.stderr)
+
+
 @suite_app.command("validate")
 def suite_validate(
     file: Annotated[Path, typer.Argument(help="suite JSON file")],

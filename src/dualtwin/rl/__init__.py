@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 import gymnasium as gym
 
 from dualtwin.errors import DualtwinError
+from dualtwin.registration import ENV_IDS, MAX_EPISODE_STEPS, NAMESPACE, register_envs
 from dualtwin.rl.drive_to_goal import DriveToGoal
 from dualtwin.rl.env import CartPoleBalance, ObservationTerm, Task, TwinEnv
 from dualtwin.rl.randomize import DomainRandomization, FixedKnobs, apply_knobs, load_knob_values, load_ranges
@@ -22,35 +23,8 @@ if TYPE_CHECKING:
     from dualtwin.rl.policy import LoadedPolicy, load_policy
     from dualtwin.rl.transfer import TransferReport
 
-NAMESPACE = "dualtwin"
-DEFAULT_MAX_EPISODE_STEPS = 1000
-
-# id -> TwinEnv keyword arguments. Every id gets the same conformance tests (tests/rl/test_env.py).
-ENV_IDS: dict[str, dict[str, Any]] = {
-    "dualtwin/CartPole-MuJoCo-v0": {"twin": "mujoco", "continuous": False},
-    "dualtwin/CartPole-Webots-v0": {"twin": "webots", "continuous": False},
-    "dualtwin/CartPole-MuJoCo-Continuous-v0": {"twin": "mujoco", "continuous": True},
-    "dualtwin/CartPole-Webots-Continuous-v0": {"twin": "webots", "continuous": True},
-    "dualtwin/Pioneer-DriveToGoal-MuJoCo-v0": {"twin": "mujoco", "robot": "pioneer3at", "task": "drive_to_goal",
-                                               "continuous": True},
-    "dualtwin/Pioneer-DriveToGoal-Webots-v0": {"twin": "webots", "robot": "pioneer3at", "task": "drive_to_goal",
-                                               "continuous": True},
-}
-# Episode caps (control periods) of ids that do not use DEFAULT_MAX_EPISODE_STEPS. 250 x 32 ms = 8 s: the
-# farthest goal (2.5 m) behind the robot takes about 5 s at full wheel speed (half a turn in place, then 2.5 m).
-MAX_EPISODE_STEPS: dict[str, int] = {"dualtwin/Pioneer-DriveToGoal-MuJoCo-v0": 250,
-                                     "dualtwin/Pioneer-DriveToGoal-Webots-v0": 250}
-
-
-def _register() -> None:
-    for env_id, kwargs in ENV_IDS.items():
-        if env_id not in gym.registry:
-            gym.register(id=env_id, entry_point="dualtwin.rl.env:TwinEnv",
-                         max_episode_steps=MAX_EPISODE_STEPS.get(env_id, DEFAULT_MAX_EPISODE_STEPS),
-                         kwargs=dict(kwargs))
-
-
-_register()
+# The ids live in dualtwin.registration (light), so that `import dualtwin` registers them without this package.
+register_envs()
 
 
 def registered_ids() -> list[str]:
