@@ -375,11 +375,12 @@ def predict_error(
 
 
 @app.command("demo")
-def demo(out: Annotated[Path, typer.Option(help="demo output folder")] = Path("runs/demo")) -> None:
+def demo(out: Annotated[Path, typer.Option(help="demo output folder (new or empty)")] = Path("runs/demo"),
+         resume: Annotated[bool, typer.Option(help="continue an earlier demo in OUT")] = False) -> None:
     """Run the bundled CartPole suite on both twins and write the comparison report."""
     from dualtwin.demo import run_demo
 
-    run_demo(out, console)
+    run_demo(out, console, resume=resume)
 
 
 @webots_app.command("run")

@@ -6,11 +6,11 @@ Webots twin, re-run, and report before and after.
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 from rich.console import Console
 
+from dualtwin.artifacts import package_versions, prepare_output_dir, write_json
 from dualtwin.robots.binding import BUNDLED, resolve_robot
 from dualtwin.suite.runner import SuiteRun
 
@@ -23,19 +23,29 @@ CHANNELS = ["pole_angle_rad"]
 HOLDOUT = ["05_Sine_Drive"]
 
 
-def run_demo(out: Path, console: Console) -> None:
+KIND = "demo"
+
+
+def run_demo(out: Path, console: Console, resume: bool = False) -> None:
+    """Run the whole loop into ``out``: a new or empty folder, or (with ``resume``) an earlier demo's folder.
+
+    The folder is never deleted: a folder holding anything but an earlier demo is refused (``--out .`` cannot
+    wipe a working directory), and an earlier demo is continued only when asked, its finished runs kept.
+    """
     from dualtwin.align import align, analyze_runs, print_analysis, print_result, write_analysis
     from dualtwin.divergence import compare_runs, print_summary, write_report
 
     robot = resolve_robot("cartpole")
     suite = BUNDLED / "cartpole" / "suite.json"
-    if out.exists():
-        shutil.rmtree(out)
+    prepare_output_dir(out, KIND, resume=resume, resumable=True)
+    write_json(out / "manifest.json", {"kind": KIND, "demo": {"robot": "cartpole", "knobs": KNOBS,
+                                                              "channels": CHANNELS, "holdout": HOLDOUT},
+                                       "versions": package_versions()})
     runs = {}
     for twin in ("webots", "mujoco"):
         console.print(f"[bold]1. running[/bold] {suite.name} on the {twin} twin")
         run_dir = out / f"run_{twin}"
-        manifest = SuiteRun(suite, twin, robot, run_dir).run()
+        manifest = SuiteRun(suite, twin, robot, run_dir).run(resume=resume)
         for record in manifest["scenarios"]:
             console.print(f"  {record['id']:<28} {record['status']}")
         runs[twin] = run_dir
@@ -50,7 +60,7 @@ def run_demo(out: Path, console: Console) -> None:
     console.print(f"[bold]4. aligning[/bold] the MuJoCo twin to the Webots twin ({', '.join(KNOBS)}; fitted on "
                   f"{', '.join(CHANNELS)}; {', '.join(HOLDOUT)} held out)")
     result = align(runs["webots"], "mujoco", robot, suite, KNOBS, out / "align", optimizer="lsq", budget=300,
-                   holdout=HOLDOUT, channels=CHANNELS)
+                   holdout=HOLDOUT, channels=CHANNELS, resume=resume)
     print_result(result, console)
     console.print(f"comparison report: {out / 'report' / 'report.html'}")
     console.print(f"analysis:          {out / 'analysis' / 'analysis.html'}")

@@ -84,7 +84,7 @@ def test_refuses_to_overwrite_and_resume_checks_inputs(paper_suite: Path, tmp_pa
     robot = resolve_robot("cartpole")
     out = tmp_path / "run"
     SuiteRun(paper_suite, "mujoco", robot, out).run()
-    with pytest.raises(DualtwinError, match="not empty"):
+    with pytest.raises(DualtwinError, match="earlier suite-run output; use --resume"):
         SuiteRun(paper_suite, "mujoco", robot, out).run()
     with pytest.raises(DualtwinError, match="cannot resume"):
         SuiteRun(paper_suite, "mujoco", robot, out, seed=3).run(resume=True)

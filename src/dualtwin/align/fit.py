@@ -43,7 +43,6 @@ import io
 import json
 import math
 import pickle
-import shutil
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -64,7 +63,14 @@ from dualtwin.align.objective import ObjectiveSpec, ObjectiveWeights, build_spec
 from dualtwin.align.patch import PatchResult, patch_mjcf, patch_webots
 from dualtwin.align.propose import ProposalOutcome, ProposeFn, try_proposals
 from dualtwin.align.simulate import Evaluator, ExecutorKind, SimJob, Traces, check_executor, load_traces
-from dualtwin.artifacts import package_versions, sha256_file, write_bytes, write_json, write_text
+from dualtwin.artifacts import (
+    package_versions,
+    remove_output_dir,
+    sha256_file,
+    write_bytes,
+    write_json,
+    write_text,
+)
 from dualtwin.divergence.runs import load_run
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding, resolve_robot
@@ -686,7 +692,7 @@ def _record_run_knobs(run_dir: Path, knobs: Mapping[str, float]) -> None:
 def _run_suite(suite: Path, twin_name: str, robot: RobotBinding, out: Path, seed: int, twin: Twin,
                knobs: Mapping[str, float], resume: bool) -> Path:
     if out.exists() and not resume:
-        shutil.rmtree(out)
+        remove_output_dir(out, "suite-run")  # only a suite run this alignment wrote, never a foreign folder
     twin.set_knobs(dict(knobs))
     SuiteRun(suite, twin_name, robot, out, seed=seed, twin=twin).run(resume=resume)
     _record_run_knobs(out, knobs)

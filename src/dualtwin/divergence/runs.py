@@ -13,7 +13,6 @@ holds which channel. This module does the I/O; the numbers come from `dualtwin.d
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from dualtwin.artifacts import json_safe
+from dualtwin.artifacts import json_safe, read_json, verify_logs
 from dualtwin.divergence.metrics import (
     DEFAULT_MAX_LAG_S,
     DEFAULT_WEIGHTS,
@@ -32,6 +31,7 @@ from dualtwin.divergence.metrics import (
     compare_channel,
     finite_prefix,
 )
+from dualtwin.errors import DualtwinError
 
 #: Crossing threshold applied to every channel whose name ends in ``_angle_rad``: the paper's pole-fall event.
 DEFAULT_ANGLE_THRESHOLD_RAD = 0.99
@@ -146,12 +146,12 @@ def load_tsv(path: Path) -> tuple[list[str], FloatArray]:
     text = Path(path).read_text(encoding="utf-8")
     lines = text.splitlines()
     if not lines or not lines[0].strip():
-        raise ValueError(f"{path}: empty log, expected a header row")
+        raise DualtwinError(f"{path}: empty log, expected a header row")
     header = lines[0].split("\t")
     if header[0] != "time_s":
-        raise ValueError(f"{path}: first column must be 'time_s', got {header[0]!r}")
+        raise DualtwinError(f"{path}: first column must be 'time_s', got {header[0]!r}")
     if len(set(header)) != len(header):
-        raise ValueError(f"{path}: duplicate columns in header {header}")
+        raise DualtwinError(f"{path}: duplicate columns in header {header}")
     rows: list[list[float]] = []
     body = lines[1:]
     for lineno, line in enumerate(body, start=2):
@@ -162,20 +162,20 @@ def load_tsv(path: Path) -> tuple[list[str], FloatArray]:
         if len(cells) != len(header):
             if truncated_tail:
                 break
-            raise ValueError(f"{path}:{lineno}: expected {len(header)} columns, got {len(cells)}")
+            raise DualtwinError(f"{path}:{lineno}: expected {len(header)} columns, got {len(cells)}")
         try:
             rows.append([float(c) for c in cells])
         except ValueError as exc:
             if truncated_tail:
                 break
-            raise ValueError(f"{path}:{lineno}: {exc}") from None
+            raise DualtwinError(f"{path}:{lineno}: {exc}") from None
     data = np.asarray(rows, dtype=np.float64).reshape(len(rows), len(header))
     return header, data
 
 
 def _require(manifest: Mapping[str, Any], key: str, path: Path) -> Any:
     if key not in manifest:
-        raise ValueError(f"{path}: manifest has no {key!r}")
+        raise DualtwinError(f"{path}: manifest has no {key!r}")
     return manifest[key]
 
 
@@ -187,18 +187,17 @@ def load_run(path: Path) -> Run:
     """
     path = Path(path)
     manifest_path = path / "manifest.json"
-    try:
-        manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ValueError(f"{path}: not a run directory (no manifest.json)") from None
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{manifest_path}: invalid JSON: {exc}") from None
+    if not path.is_dir() or not manifest_path.exists():
+        raise DualtwinError(f"{path}: not a run directory (no manifest.json)")
+    manifest = read_json(manifest_path, "run manifest")
+    if not isinstance(manifest, dict):
+        raise DualtwinError(f"{manifest_path}: a run manifest must be a JSON object")
 
     channels: dict[str, ChannelInfo] = {}
     for name, spec in dict(_require(manifest, "channels", manifest_path)).items():
         source = spec.get("source")
         if source not in SOURCES:
-            raise ValueError(
+            raise DualtwinError(
                 f"{manifest_path}: channel {name!r} has source {source!r}, expected one of {SOURCES}"
             )
         channels[name] = ChannelInfo(name=name, source=source, unit=str(spec.get("unit", "")),
@@ -207,9 +206,9 @@ def load_run(path: Path) -> Run:
     scenarios: list[ScenarioEntry] = []
     for i, sc in enumerate(_require(manifest, "scenarios", manifest_path)):
         if "id" not in sc or "status" not in sc:
-            raise ValueError(f"{manifest_path}: scenario #{i} needs 'id' and 'status'")
+            raise DualtwinError(f"{manifest_path}: scenario #{i} needs 'id' and 'status'")
         if sc["status"] not in STATUSES:
-            raise ValueError(
+            raise DualtwinError(
                 f"{manifest_path}: scenario {sc['id']!r} has status {sc['status']!r}, expected one of {STATUSES}"
             )
         scenarios.append(
@@ -226,7 +225,11 @@ def load_run(path: Path) -> Run:
     ids = [s.id for s in scenarios]
     dupes = sorted({i for i in ids if ids.count(i) > 1})
     if dupes:
-        raise ValueError(f"{manifest_path}: duplicate scenario ids {dupes}")
+        raise DualtwinError(f"{manifest_path}: duplicate scenario ids {dupes}")
+    # Logs are verified against the manifest's row counts and hashes (dualtwin.artifacts.log_record) before
+    # anything is compared. Runs written before manifests recorded them (no 'logs') load unverified.
+    if "logs" in manifest:
+        verify_logs(path, manifest["logs"], manifest_path)
 
     period = manifest.get("control_period_s")
     seed = manifest.get("seed")
@@ -449,7 +452,7 @@ def resolve_thresholds(
     overrides = dict(thresholds or {})
     unknown = sorted(set(overrides) - set(channels))
     if unknown:
-        raise ValueError(f"thresholds given for unknown channels {unknown}; channels are {sorted(channels)}")
+        raise DualtwinError(f"thresholds given for unknown channels {unknown}; channels are {sorted(channels)}")
     out: dict[str, Threshold] = {}
     for name in channels:
         value: float | Threshold | None
@@ -478,10 +481,10 @@ def _check_tolerances(
     violations: list[ToleranceViolation] = []
     for channel, limits in tolerances.items():
         if channel not in channel_names:
-            raise ValueError(f"tolerances for scenario {scenario_id!r} name unknown channel {channel!r}")
+            raise DualtwinError(f"tolerances for scenario {scenario_id!r} name unknown channel {channel!r}")
         unknown = sorted(set(limits) - set(TOLERANCE_METRICS))
         if unknown:
-            raise ValueError(
+            raise DualtwinError(
                 f"tolerances for {scenario_id!r}/{channel!r} use unknown metrics {unknown}; "
                 f"allowed: {list(TOLERANCE_METRICS)}"
             )
@@ -547,14 +550,14 @@ def compare_runs(
     if units_differ:
         problems.append(f"channel units differ: {units_differ}")
     if problems:
-        raise ValueError("runs are not comparable:\n  " + "\n  ".join(problems))
+        raise DualtwinError("runs are not comparable:\n  " + "\n  ".join(problems))
 
     channel_names = list(a.channels)
     resolved = resolve_thresholds(channel_names, thresholds)
     tolerances = {**b.tolerances, **a.tolerances}
     unknown_tol = sorted(set(tolerances) - {s.id for s in a.scenarios})
     if unknown_tol:
-        raise ValueError(f"tolerances name unknown scenarios {unknown_tol}")
+        raise DualtwinError(f"tolerances name unknown scenarios {unknown_tol}")
 
     results: list[ScenarioComparison] = []
     for entry_a in a.scenarios:
@@ -563,7 +566,7 @@ def compare_runs(
         for run, entry, series in ((a, entry_a, series_a), (b, entry_b, series_b)):
             missing = [c for c in channel_names if c not in series]
             if missing and entry.status != "unstable":
-                raise ValueError(
+                raise DualtwinError(
                     f"{run.path}: scenario {entry.id!r} ({entry.status}) has no log data for channels {missing}"
                 )
         channels: dict[str, ChannelDivergence] = {}
@@ -588,7 +591,7 @@ def compare_runs(
             except ValueError as exc:
                 # Only an unstable twin may leave too little to compare; otherwise the data is broken.
                 if entry_a.status != "unstable" and entry_b.status != "unstable":
-                    raise ValueError(f"scenario {entry_a.id!r}, channel {name!r}: {exc}") from exc
+                    raise DualtwinError(f"scenario {entry_a.id!r}, channel {name!r}: {exc}") from exc
                 skipped.append(f"{name} ({exc})")
 
         notes: list[str] = []

@@ -15,12 +15,20 @@ from __future__ import annotations
 
 import math
 import shutil
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from dualtwin.artifacts import package_versions, sha256_file, write_json, write_text
+from dualtwin.artifacts import (
+    check_output_dir,
+    log_record,
+    package_versions,
+    sha256_file,
+    verify_logs,
+    write_json,
+    write_text,
+)
 from dualtwin.errors import DualtwinError, SimulationUnstable
 from dualtwin.robots.binding import RobotBinding
 from dualtwin.robots.io import RobotIO
@@ -29,7 +37,11 @@ from dualtwin.suite.schema import Scenario, Suite
 from dualtwin.twins import make_twin
 from dualtwin.twins.base import Twin
 
-MANIFEST_VERSION = 1
+# Version 2 adds ``kind`` ("suite-run") and ``logs``: per log file (relative path) its data rows, bytes and
+# SHA-256 (see dualtwin.artifacts.log_record), so every reader can verify the logs it compares.
+MANIFEST_VERSION = 2
+KIND = "suite-run"
+MAX_SEED = 2**32 - 1
 
 
 def check_against_binding(suite: Suite, suite_path: Path, robot: RobotBinding) -> None:
@@ -71,8 +83,13 @@ def format_rows(names: Sequence[str], rows: Sequence[Sequence[float]]) -> str:
 
 
 def run_scenario(io: RobotIO, scenario: Scenario, seed: int, thresholds: dict[str, float],
-                 fresh: bool) -> tuple[ScenarioResult, list[list[float]], list[list[float]]]:
-    """Simulate one scenario; returns its result and the two logs (rows of time followed by channels)."""
+                 fresh: bool, offsets: Mapping[str, float] | None = None,
+                 ) -> tuple[ScenarioResult, list[list[float]], list[list[float]]]:
+    """Simulate one scenario; returns its result and the two logs (rows of time followed by channels).
+
+    ``offsets`` (initial-condition key -> shift) move a fresh scenario's initial conditions, for ensembles
+    (`dualtwin.suite.ensemble`): a key the scenario does not set is shifted from the twin's reset value.
+    """
     twin = io.twin
     period = twin.control_period
     if fresh:
@@ -84,9 +101,11 @@ def run_scenario(io: RobotIO, scenario: Scenario, seed: int, thresholds: dict[st
     if fresh:
         # Positions first: a joint teleport zeroes its subtree's velocity (Webots semantics).
         conditions = io.robot.spec.initial_conditions
-        keys = [k for k in inputs if k in conditions]
-        for key in sorted(keys, key=lambda k: conditions[k].quantity != "position"):
-            io.apply_initial(key, inputs[key])
+        values = {k: v for k, v in inputs.items() if k in conditions}
+        for key, shift in (offsets or {}).items():
+            values[key] = (values[key] if key in values else io.read_initial(key)) + shift
+        for key in sorted(values, key=lambda k: conditions[k].quantity != "position"):
+            io.apply_initial(key, values[key])
     for key, value in constant.items():
         io.apply_action(key, value)
     failures = [(key, io.robot.spec.failures[key].channel, limit) for key, limit in thresholds.items()]
@@ -133,6 +152,8 @@ class SuiteRun:
         self.suite_path = Path(suite_path)
         self.suite = load_suite(self.suite_path)
         check_against_binding(self.suite, self.suite_path, robot)
+        if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
+            raise DualtwinError(f"--seed must be a whole number from 0 to {MAX_SEED}, not {seed!r}")
         self.robot = robot
         self.twin_name = twin_name
         self.out_dir = Path(out_dir)
@@ -153,16 +174,26 @@ class SuiteRun:
         manifest_path = out / "manifest.json"
         inputs = self._inputs_record()
         done: dict[str, dict[str, Any]] = {}
-        if resume and manifest_path.is_file():
+        logs: dict[str, Any] = {}
+        # One output policy (dualtwin.artifacts): empty or new, or this command's own earlier run with resume.
+        # A run that failed before its first manifest (only config/ written) is resumable too.
+        if check_output_dir(out, KIND, resume=resume, resumable=True) and manifest_path.is_file():
             previous = read_json(manifest_path)
             same = all(previous.get("inputs", {}).get(k, {}).get("sha256") == v["sha256"] for k, v in inputs.items())
             if not same or previous.get("seed") != self.seed or previous.get("twin") != self.twin_name:
                 raise DualtwinError(f"{manifest_path}: cannot resume: the suite, binding, model, twin or seed "
                                     "differ from the interrupted run")
-            done = {s["id"]: s for s in previous.get("scenarios", []) if (out / s["ground_truth"]).is_file()}
-        elif out.exists() and any(out.iterdir()):
-            raise DualtwinError(f"{out}: output folder is not empty; use --resume to continue a run, "
-                                "or choose another folder")
+            old_logs = previous.get("logs") if isinstance(previous.get("logs"), dict) else {}
+            for s in previous.get("scenarios", []):
+                names = [s.get("onboard"), s.get("ground_truth")]
+                if not all(isinstance(n, str) and (out / n).is_file() for n in names):
+                    continue
+                try:  # a finished scenario whose logs changed since is run again
+                    verify_logs(out, {n: old_logs[n] for n in names if n in old_logs}, manifest_path)
+                except DualtwinError:
+                    continue
+                done[s["id"]] = s
+                logs.update({n: old_logs[n] if n in old_logs else log_record(out / n) for n in names})
 
         twin = self._twin or make_twin(self.twin_name, self.robot, self.control_period)
         io = RobotIO(self.robot, twin)
@@ -171,6 +202,7 @@ class SuiteRun:
         shutil.copyfile(self.robot.path, out / "config" / "binding.yaml")
         manifest: dict[str, Any] = {
             "manifest_version": MANIFEST_VERSION,
+            "kind": KIND,
             "suite_name": self.suite.suite_name,
             "twin": self.twin_name,
             "robot": self.robot.name,
@@ -181,6 +213,7 @@ class SuiteRun:
             "channels": io.channel_info(),
             "tolerances": {},
             "scenarios": [],
+            "logs": logs,
         }
         ids = self.suite.scenario_ids()
         thresholds = self.suite.global_settings.thresholds
@@ -209,15 +242,19 @@ class SuiteRun:
                 if sid not in done:
                     write_text(out / record["onboard"], format_rows(io.onboard_names, onboard))
                     write_text(out / record["ground_truth"], format_rows(io.ground_truth_names, truth))
+                    for name in (record["onboard"], record["ground_truth"]):
+                        logs[name] = log_record(out / name)
                     record.update(status=result.status, failure=result.failure, steps=result.steps)
                 else:
                     record = done[sid]
                 manifest["scenarios"].append(record)
+                manifest["logs"] = dict(sorted(logs.items()))  # scenario order: ids start with the index
                 write_json(manifest_path, manifest)
                 if on_scenario:
                     on_scenario(sid, result.status)
         finally:
             if self._twin is None:
                 twin.close()
+        manifest["logs"] = dict(sorted(logs.items()))
         write_json(manifest_path, manifest)
         return manifest
