@@ -58,7 +58,7 @@ from dualtwin.sync.record import (
     start_scenario,
 )
 from dualtwin.twins import make_twin
-from dualtwin.twins.base import StateLayout, SyncError, Twin
+from dualtwin.twins.base import MechanicalState, StateLayout, SyncError, Twin
 
 LOCKSTEP_SCHEMA = "dualtwin.lockstep/1"
 DEFAULT_POLICY_EPISODES = 5
@@ -149,6 +149,78 @@ class LockstepResult:
         return {h: float(np.mean(v)) for h, v in sorted(sums.items())}
 
 
+#: Control periods both twins settle from reset, without commands, before their resting contacts are compared.
+REST_PERIODS = 16
+
+
+@dataclass
+class RestCalibration:
+    """How a state is carried from the primary's contact compliance to the secondary's (see `calibrate_rest`).
+
+    ``depth_ratio``: the secondary's resting contact depth over the primary's, applied by a secondary that can
+    scale contact depths itself (``reseat_depth_ratio``, the MuJoCo twin); ``height_offset``: otherwise, per
+    free body, the secondary's resting height minus the primary's, added to the written height.
+    """
+
+    depth_ratio: float | None = None
+    height_offset: dict[str, float] = field(default_factory=dict)
+
+    def apply(self, state: MechanicalState) -> MechanicalState:
+        if not self.height_offset:
+            return state
+        moved = state.copy()
+        for name, dz in self.height_offset.items():
+            if name in moved.bodies:
+                moved.bodies[name].position[2] += dz
+        return moved
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"periods": REST_PERIODS, "depth_ratio": self.depth_ratio, "height_offset_m": self.height_offset}
+
+
+def calibrate_rest(primary: Twin, secondary: Twin, seed: int = 0) -> RestCalibration:
+    """Measure how the two twins' resting contacts differ, so that re-seating at rest is exact.
+
+    Why: at rest nothing in the transferred state is missing, but the two engines rest at different contact
+    depths under the same weight (ODE's ERP/CFM spring against MuJoCo's solref/solimp). Writing the primary's
+    depth into the secondary leaves it off its own equilibrium: the contacts push it out and it bounces
+    within the period, so re-seating every period at rest was worse than free-running (where each twin sits at
+    its own depth and only a constant offset remains). Other candidates were checked on the bundled CartPole
+    and changed nothing: MuJoCo's ``qacc_warmstart`` (Newton converges from either start), and the motors'
+    integrator, saturation and slew state (zero at rest and without an acceleration limit).
+
+    Both twins are reset, settle for `REST_PERIODS` without commands, and the secondary's resting depth is
+    compared with the depth it has in the primary's resting state. Both twins are left reset afterwards.
+    """
+    for twin in (primary, secondary):
+        twin.reset(seed)
+        for _ in range(REST_PERIODS):
+            twin.step()
+    rest_a, rest_b = primary.get_state(), secondary.get_state()
+    calibration = RestCalibration()
+    depth = getattr(secondary, "contact_depth", None)
+    if depth is not None and hasattr(secondary, "reseat_depth_ratio"):
+        own = float(depth())
+        secondary.reseat_depth_ratio = 1.0
+        try:
+            secondary.set_state(rest_a)
+        except SyncError:
+            written = 0.0  # refused here: the episodes' re-syncs will be refused and skipped the same way
+        else:
+            written = float(depth())
+        # Within a millionth the engines rest alike (the same twin on both sides differs by the state's
+        # float round trip, ~1e-9): then the state is written exactly as read.
+        if own > 0 and written > 0 and abs(own / written - 1.0) > 1e-6:
+            calibration.depth_ratio = own / written
+    else:
+        calibration.height_offset = {
+            name: float(body.position[2] - rest_a.bodies[name].position[2])
+            for name, body in rest_b.bodies.items() if name in rest_a.bodies}
+    for twin in (primary, secondary):
+        twin.reset(seed)
+    return calibration
+
+
 def _finite(value: float) -> float | None:
     return float(value) if math.isfinite(value) else None
 
@@ -231,8 +303,9 @@ class _Comparison:
 
     def __init__(self, a: _Side, b: _Side, layout: DiffLayout, scale_map: Mapping[str, float],
                  resync: ResyncPolicy, recorder: TrajectoryRecorder, monitor: Monitor | None, clock: float,
-                 period: float) -> None:
+                 period: float, rest: RestCalibration | None = None) -> None:
         self.a, self.b, self.layout, self.scale_map, self.resync = a, b, layout, scale_map, resync
+        self.rest = rest
         self.recorder, self.monitor, self.clock, self.period = recorder, monitor, clock, period
         self.channels = layout.channels
         self.scale = np.array([scale_map[c] for c in self.channels])
@@ -262,7 +335,7 @@ class _Comparison:
         state_a = names_a.state(full_a, t, self.a.tap.name) if resynced or monitor is not None else None
         if resynced and state_a is not None:
             try:
-                self.b.tap.set_state(state_a)
+                self.b.tap.set_state(self.rest.apply(state_a) if self.rest is not None else state_a)
             except SyncError as exc:
                 self.skipped = {"time_s": t, "reason": exc.reason, "message": str(exc)}
                 resynced = False
@@ -406,6 +479,7 @@ def run_lockstep(
     twin_b = make_twin(secondary, binding, period) if isinstance(secondary, str) else secondary
     if isinstance(secondary, str):
         owned.append(twin_b)
+    depth_ratio = getattr(twin_b, "reseat_depth_ratio", None)
     try:
         for twin in (twin_a, twin_b):
             model = binding.model_path(twin.name) if twin.name in binding.spec.twins else None
@@ -415,6 +489,8 @@ def run_lockstep(
                     episode_steps, scales, dict(primary_knobs or {}), dict(secondary_knobs or {}), monitor,
                     on_episode, inputs, period, interleave)
     finally:
+        if depth_ratio is not None:
+            twin_b.reseat_depth_ratio = depth_ratio  # type: ignore[attr-defined]
         for twin in owned:
             twin.close()
 
@@ -429,6 +505,9 @@ def _run(twin_a: Twin, twin_b: Twin, binding: RobotBinding, out: Path, suite: An
     b.watch(suite, binding)
     a.tap.set_knobs(knobs_a)
     b.tap.set_knobs(knobs_b)
+    rest = calibrate_rest(twin_a, twin_b, seed) if resync.kind != "never" else None
+    if rest is not None and rest.depth_ratio is not None:
+        twin_b.reseat_depth_ratio = rest.depth_ratio  # type: ignore[attr-defined]  # run_lockstep restores it
     plan = _episodes(a, b, binding, suite, lockstep_policy, seed, n_episodes, episode_steps, period)
     layout = DiffLayout(a.tap.get_state(), b.tap.get_state())
     channels = layout.channels
@@ -450,7 +529,7 @@ def _run(twin_a: Twin, twin_b: Twin, binding: RobotBinding, out: Path, suite: An
         recorder = TrajectoryRecorder(episode.id, a.tap, a.io.ground_truth_names)
         if monitor is not None:
             monitor.episode_start(episode.id, clock)
-        compare = _Comparison(a, b, layout, scale_map, resync, recorder, monitor, clock, period)
+        compare = _Comparison(a, b, layout, scale_map, resync, recorder, monitor, clock, period, rest)
         if episode.send_to is None or interleave:
             # Interleaved: the primary's next commands may depend on both twins (a policy's episode end).
             for k in range(episode.steps):
@@ -514,6 +593,7 @@ def _run(twin_a: Twin, twin_b: Twin, binding: RobotBinding, out: Path, suite: An
         "schema": LOCKSTEP_SCHEMA, "primary": twin_a.name, "secondary": twin_b.name, "robot": binding.name,
         "mode": "suite" if suite is not None else "policy", "suite_name": name, "resync": str(resync),
         "seed": seed, "control_period_s": period, "inputs": inputs, "versions": versions,
+        "rest_calibration": rest.to_dict() if rest is not None else None,
         "knobs": {"primary": knobs_a, "secondary_initial": dict(summaries[0].knobs) if summaries else knobs_b},
         "channels": {c: {"scale": _finite(scale_map[c])} for c in channels},
         "episodes": [s.to_dict() for s in summaries],

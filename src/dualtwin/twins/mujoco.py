@@ -176,6 +176,8 @@ class MuJoCoTwin(Twin):
         # Motors commanded since the last reset; the others hold their position (see set_state).
         self._commanded: set[str] = set()
         self.max_penetration = MAX_PENETRATION
+        #: set_state scales the written state's contact depths by this (see :meth:`set_state`); 1 = as written.
+        self.reseat_depth_ratio = 1.0
         #: "approx1" when contacts follow Webots' friction pyramid (see the module docstring), else None.
         self.contact_semantics = contact_semantics(self.model, origin)
         self._friction_box = FrictionBox() if self.contact_semantics else None
@@ -581,9 +583,12 @@ class MuJoCoTwin(Twin):
                     mujoco.mju_axisAngle2Quat(quat, rotvec / angle, angle)
                 d.qpos[qa:qa + 4] = quat
                 d.qvel[da:da + 3] = [state.joint_velocities[c] for c in names]
-        # Acceleration warm start and actuator forces belong to the old state.
+        # Acceleration warm start and actuator forces belong to the old state. (Keeping the warm start
+        # instead changes nothing measurable: the Newton solver converges from either start.)
         d.qacc_warmstart[:] = 0.0
         mujoco.mj_forward(m, d)
+        if self.reseat_depth_ratio != 1.0:
+            self._scale_contact_depths(self.reseat_depth_ratio)
         depth = -min((float(d.contact[i].dist) for i in range(d.ncon)), default=0.0)
         if depth > self.max_penetration:
             pairs = [i for i in range(d.ncon) if -float(d.contact[i].dist) == depth]
@@ -595,6 +600,49 @@ class MuJoCoTwin(Twin):
                             f"(more than {self.max_penetration * 1000:g} mm)", "penetration")
         self._reseat_motors({qa: state.holds[name] for qa, name in plan.by_qpos.items() if name in state.holds})
         self._bad_state = self._bad_state_warnings()
+
+    def contact_depth(self) -> float:
+        """Mean depth (m, positive) of the contacts that overlap now; 0 without any."""
+        d = self.data
+        depths = [-float(d.contact[i].dist) for i in range(d.ncon) if d.contact[i].dist < 0]
+        return float(np.mean(depths)) if depths else 0.0
+
+    def _scale_contact_depths(self, ratio: float) -> None:
+        """Move the free bodies so that every overlapping contact is ``ratio`` times as deep as written.
+
+        Why: a resting contact's depth is set by the engine's contact compliance under the load, not by the
+        motion. ODE's ERP/CFM spring and MuJoCo's solref/solimp give different depths for the same weight (on
+        the bundled CartPole MuJoCo rests about 1.9 times as deep as the Webots twin), so a state written at
+        the other engine's depth is not at rest here: the contacts push the body out and it bounces within
+        the period. Scaling the depths (``ratio``: this twin's resting depth over the other's, measured by
+        lockstep at rest) carries the contact *load* across instead of the geometry. One linear least-squares
+        step on the free joints' degrees of freedom (the contact normals' Jacobian) is exact for planar
+        contacts; joints and velocities are not touched.
+        """
+        m, d = self.model, self.data
+        free = [int(m.jnt_dofadr[j]) + k for j in range(m.njnt)
+                if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE for k in range(6)]
+        rows: list[np.ndarray] = []
+        wanted: list[float] = []
+        jacp = np.zeros((3, m.nv))
+        for i in range(d.ncon):
+            contact = d.contact[i]
+            if contact.dist >= 0 or not free:
+                continue
+            normal = np.array(contact.frame[:3])  # from geom 1 to geom 2: moving geom 2 along it separates them
+            row = np.zeros(m.nv)
+            for geom, sign in ((contact.geom[0], -1.0), (contact.geom[1], 1.0)):
+                mujoco.mj_jac(m, d, jacp, None, contact.pos, int(m.geom_bodyid[geom]))
+                row += sign * (normal @ jacp)
+            rows.append(row[free])
+            wanted.append((ratio - 1.0) * float(contact.dist))
+        if not rows:
+            return
+        delta = np.linalg.lstsq(np.array(rows), np.array(wanted), rcond=None)[0]
+        step = np.zeros(m.nv)
+        step[free] = delta
+        mujoco.mj_integratePos(m, d.qpos, step, 1.0)
+        mujoco.mj_forward(m, d)
 
     def _reseat_motors(self, holds: dict[int, float]) -> None:
         """After a state write: held motors hold the state's hold (else the new position); every motor
