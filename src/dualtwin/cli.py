@@ -59,13 +59,38 @@ def suite_run(
     out: Annotated[Path, typer.Option(help="run directory to write")],
     resume: Annotated[bool, typer.Option(help="continue an interrupted run in OUT")] = False,
     seed: Annotated[int, typer.Option(help="seed for scenarios that give none")] = 0,
+    ensemble: Annotated[int, typer.Option(help="run each scenario N times (N >= 2, the unperturbed member "
+                                               "included) with initial conditions moved by --perturb")] = 0,
+    perturb: Annotated[list[str] | None, typer.Option(help="KEY=EPS: move initial condition KEY by up to "
+                                                           "±EPS in the ensemble members (repeatable)")] = None,
+    executor: Annotated[str, typer.Option(help="where ensemble members run: process, serial or ray")] = "process",
+    workers: Annotated[int, typer.Option(help="process-pool size for ensemble members")] = 2,
 ) -> None:
-    """Run a suite on one twin, writing on-board and ground-truth logs per scenario."""
+    """Run a suite on one twin, writing on-board and ground-truth logs per scenario (and ensemble members)."""
     from dualtwin.robots.binding import resolve_robot
     from dualtwin.suite.runner import SuiteRun
 
-    run = SuiteRun(scenarios, twin, resolve_robot(robot), out, seed=seed)
-    manifest = _run_with_progress(run, resume, f"{twin}: {run.suite.suite_name}")
+    binding = resolve_robot(robot)
+    if ensemble or perturb:
+        from rich.progress import Progress
+
+        from dualtwin.parallel import check_executor
+        from dualtwin.suite.ensemble import EnsembleRun, make_spec, parse_perturb
+
+        check_executor(executor)
+        spec = make_spec(ensemble, parse_perturb(perturb or []), binding, seed=seed)
+        members = EnsembleRun(scenarios, twin, binding, out, spec, seed=seed, executor=executor,  # type: ignore[arg-type]
+                              workers=workers)
+        with Progress(console=console, transient=True) as progress:
+            task = progress.add_task(f"{twin}: {members.suite.suite_name}", total=len(members.suite.scenarios))
+            extra = progress.add_task("ensemble members", total=spec.members - 1)
+            manifest = members.run(resume=resume, on_scenario=lambda sid, status: progress.advance(task),
+                                   on_member=lambda k, n: progress.advance(extra))
+        console.print(f"ensemble: {spec.members} members per scenario, perturbed "
+                      + ", ".join(f"{k} by ±{v:g}" for k, v in spec.perturb.items()))
+    else:
+        run = SuiteRun(scenarios, twin, binding, out, seed=seed)
+        manifest = _run_with_progress(run, resume, f"{twin}: {run.suite.suite_name}")
     for record in manifest["scenarios"]:
         console.print(f"  {record['id']:<28} {record['status']}")
     console.print(f"wrote {out}")

@@ -9,19 +9,15 @@ scenario id, with the same channel names as a run directory (ground truth by nam
 
 from __future__ import annotations
 
-import importlib.util
-import math
-import multiprocessing
 from collections.abc import Iterable, Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
 
 import numpy as np
 
 from dualtwin.divergence.runs import Series, load_run
 from dualtwin.errors import DualtwinError
+from dualtwin.parallel import DEFAULT_WORKERS, EXECUTORS, ExecutorKind, ParallelMap, check_executor
 from dualtwin.robots.binding import RobotBinding, load_binding
 from dualtwin.robots.io import RobotIO
 from dualtwin.suite.loader import load_suite
@@ -30,10 +26,9 @@ from dualtwin.suite.schema import Suite
 from dualtwin.twins import make_twin
 from dualtwin.twins.base import Twin
 
-ExecutorKind = Literal["serial", "process", "ray"]
-EXECUTORS: tuple[str, ...] = ("serial", "process", "ray")
-#: Default worker count: the project machines have 2 cores shared with other work.
-DEFAULT_WORKERS = 2
+# Re-exported for callers that import them from here (fit, analyze, prediction).
+__all__ = ["DEFAULT_WORKERS", "EXECUTORS", "Evaluator", "ExecutorKind", "ScenarioTrace", "SimJob", "Traces",
+           "check_executor", "load_traces", "needed_scenarios", "simulate", "simulate_on", "simulate_twin"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -196,62 +191,23 @@ class Evaluator:
 
     def __init__(self, kind: ExecutorKind = "process", workers: int = DEFAULT_WORKERS,
                  ray_address: str | None = None) -> None:
-        if kind not in EXECUTORS:
-            raise DualtwinError(f"unknown executor {kind!r}; use one of {', '.join(EXECUTORS)}")
-        if workers < 1:
-            raise DualtwinError(f"workers must be at least 1, got {workers}")
+        # The generic parallel map lives in `dualtwin.parallel`, shared with suite ensembles.
+        self._map = ParallelMap(kind, workers, ray_address, preload=["dualtwin.align.simulate"])
         self.kind = kind
         self.workers = workers
         self.evaluations = 0
-        self._pool: ProcessPoolExecutor | None = None
-        self._ray: Any = None
-        self._remote: Any = None
-        if kind == "ray":
-            self._ray, self._remote = _ray_backend(ray_address)
 
     def map(self, jobs: Sequence[SimJob]) -> list[Traces]:
         """Simulate every job; results come back in job order."""
         jobs = list(jobs)
-        if not jobs:
-            return []
         self.evaluations += len(jobs)
-        if self.kind == "serial" or (self.kind == "process" and (self.workers == 1 or len(jobs) == 1)):
-            return [simulate(job) for job in jobs]
-        if self.kind == "ray":
-            return list(self._ray.get([self._remote.remote(job) for job in jobs]))
-        if self._pool is None:
-            context = multiprocessing.get_context("forkserver")
-            context.set_forkserver_preload(["dualtwin.align.simulate"])
-            self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=context)
-        chunk = max(1, math.ceil(len(jobs) / self.workers))
-        return list(self._pool.map(simulate, jobs, chunksize=chunk))
+        return self._map.map(simulate, jobs)
 
     def close(self) -> None:
-        if self._pool is not None:
-            self._pool.shutdown(wait=True, cancel_futures=True)
-            self._pool = None
+        self._map.close()
 
     def __enter__(self) -> Evaluator:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-def check_executor(kind: str) -> None:
-    """Fail early, before anything is simulated, on an unknown executor or a missing optional dependency."""
-    if kind not in EXECUTORS:
-        raise DualtwinError(f"unknown executor {kind!r}; use one of {', '.join(EXECUTORS)}")
-    if kind == "ray" and importlib.util.find_spec("ray") is None:
-        raise DualtwinError("executor 'ray' needs Ray, which is not installed: pip install 'dualtwin[ray]'")
-
-
-def _ray_backend(address: str | None) -> tuple[Any, Any]:
-    try:
-        import ray  # optional dependency, imported only when asked for
-    except ImportError:
-        raise DualtwinError("executor 'ray' needs Ray, which is not installed: pip install 'dualtwin[ray]'") from None
-    if not ray.is_initialized():
-        # Workers must see the same robot and suite paths (a shared file system) and have dualtwin installed.
-        ray.init(address=address, ignore_reinit_error=True, log_to_driver=False)
-    return ray, ray.remote(simulate)

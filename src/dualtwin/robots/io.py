@@ -60,6 +60,15 @@ class RobotIO:
         else:
             self.twin.set_body_position(ic.body or "", AXES[ic.axis or "x"], value)
 
+    def read_initial(self, key: str) -> float:
+        """The twin's current value of an initial-condition key (its nominal right after a reset)."""
+        ic = self.robot.spec.initial_conditions[key]
+        if ic.joint is not None:
+            if ic.quantity == "position":
+                return float(self.twin.joint_position(ic.joint))
+            return float(self.twin.joint_velocity(ic.joint))
+        return float(self.twin.body_position(ic.body or "")[AXES[ic.axis or "x"]])
+
     def apply_action(self, key: str, value: float) -> None:
         action = self.robot.spec.actions[key]
         for actuator in action.actuators:

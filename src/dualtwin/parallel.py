@@ -1,0 +1,112 @@
+"""One parallel map for every package that simulates many times: serially, in a process pool, or on Ray.
+
+Alignment (`dualtwin.align.simulate`) and suite ensembles (`dualtwin.suite.ensemble`) both run many
+independent simulations. They share this executor so a campaign that outgrows one machine moves to a Ray
+cluster with one option (``--executor ray``), whichever command started it. This module sits below every
+other package (it imports only `dualtwin.errors`), so the suite layer can use it without importing align.
+
+Decisions:
+
+* The process pool uses the ``forkserver`` start method (no fork of a threaded parent) and keeps its
+  workers for the executor's lifetime, so a worker that caches a twin builds it once. Modules named in
+  ``preload`` are imported by the fork server before it forks workers.
+* As with any non-fork start method, a script that maps in a process pool must guard its entry point with
+  ``if __name__ == "__main__":`` because workers import the main module.
+* Results come back in input order for every kind, so the same inputs give the same outputs whatever runs
+  them.
+* Ray workers must see the same paths (a shared file system) and have dualtwin installed.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import multiprocessing
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any, Literal, TypeVar
+
+from dualtwin.errors import DualtwinError
+
+ExecutorKind = Literal["serial", "process", "ray"]
+EXECUTORS: tuple[str, ...] = ("serial", "process", "ray")
+#: Default worker count: the project machines have 2 cores shared with other work.
+DEFAULT_WORKERS = 2
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+_NO_RAY = "executor 'ray' needs Ray, which is not installed: pip install 'dualtwin[ray]'"
+
+
+def check_executor(kind: str) -> None:
+    """Fail early, before anything is simulated, on an unknown executor or a missing optional dependency."""
+    if kind not in EXECUTORS:
+        raise DualtwinError(f"unknown executor {kind!r}; use one of {', '.join(EXECUTORS)}")
+    if kind == "ray" and importlib.util.find_spec("ray") is None:
+        raise DualtwinError(_NO_RAY)
+
+
+def ray_backend(address: str | None) -> Any:
+    """The ``ray`` module, initialised (joining ``address`` or a running instance, else starting one)."""
+    try:
+        import ray  # optional dependency, imported only when asked for
+    except ImportError:
+        raise DualtwinError(_NO_RAY) from None
+    if not ray.is_initialized():
+        ray.init(address=address, ignore_reinit_error=True, log_to_driver=False)
+    return ray
+
+
+class ParallelMap:
+    """Applies one picklable, module-level function to many inputs; results in input order.
+
+    Args:
+        kind: ``serial`` (in this process), ``process`` (a local pool) or ``ray``.
+        workers: Pool size for ``process``.
+        ray_address: Ray cluster address (None: a running instance or a new local one).
+        preload: Modules the process pool's fork server imports once (e.g. the one defining the function).
+    """
+
+    def __init__(self, kind: ExecutorKind = "process", workers: int = DEFAULT_WORKERS,
+                 ray_address: str | None = None, preload: Sequence[str] = ()) -> None:
+        check_executor(kind)
+        if workers < 1:
+            raise DualtwinError(f"workers must be at least 1, got {workers}")
+        self.kind = kind
+        self.workers = workers
+        self.preload = list(preload)
+        self._pool: ProcessPoolExecutor | None = None
+        self._ray: Any = ray_backend(ray_address) if kind == "ray" else None
+        self._remote: dict[Callable[..., Any], Any] = {}
+
+    def map(self, fn: Callable[[T], R], items: Sequence[T]) -> list[R]:
+        """``[fn(x) for x in items]``, run by this executor."""
+        items = list(items)
+        if not items:
+            return []
+        if self.kind == "serial" or (self.kind == "process" and (self.workers == 1 or len(items) == 1)):
+            return [fn(x) for x in items]
+        if self.kind == "ray":
+            remote = self._remote.get(fn)
+            if remote is None:
+                remote = self._remote[fn] = self._ray.remote(fn)
+            return list(self._ray.get([remote.remote(x) for x in items]))
+        if self._pool is None:
+            context = multiprocessing.get_context("forkserver")
+            if self.preload:
+                context.set_forkserver_preload(self.preload)
+            self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=context)
+        chunk = max(1, math.ceil(len(items) / self.workers))
+        return list(self._pool.map(fn, items, chunksize=chunk))
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+
+    def __enter__(self) -> ParallelMap:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
