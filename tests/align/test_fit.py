@@ -97,7 +97,7 @@ def test_resume_after_a_crash_continues_from_the_checkpoint(tmp_path: Path, robo
     with pytest.raises(RuntimeError, match="simulated crash"):
         align(ref, "mujoco", robot, suite, [DAMPING], tmp_path / "crashed", callback=crash, **kwargs)
     checkpoint = json.loads((tmp_path / "crashed" / "checkpoint.json").read_text())
-    assert checkpoint["iteration"] == 2 and len(list((tmp_path / "crashed").glob("cma_state_*.pkl"))) == 1
+    assert checkpoint["iteration"] == 2 and not list((tmp_path / "crashed").glob("*.pkl"))
     with pytest.raises(DualtwinError, match="not empty"):
         align(ref, "mujoco", robot, suite, [DAMPING], tmp_path / "crashed", **kwargs)
     seen: list[int] = []

@@ -7,9 +7,12 @@ candidate but never steer the search. They show whether the fit generalises.
 * ``optimizer="cma"``: CMA-ES (`cma`) in the unit cube of the knobs' normalised ranges (log-scaled for
   wide positive ranges), seeded through a private random generator, with each population evaluated in
   parallel, with the best point so far injected into every population (elitist: a start that is
-  already good is kept, not lost). After every generation the strategy is pickled with `cma`'s own pickling
-  (``cma_state_<n>.pkl``), and then ``checkpoint.json`` (the commit point) is written atomically, so
-  ``resume=True`` loses at most one generation and continues exactly as an uninterrupted run would.
+  already good is kept, not lost). After every generation ``checkpoint.json`` (the commit point) is written
+  atomically with every generation's injected point, asked solutions and their objective values (JSON, no
+  pickle). ``resume=True`` rebuilds a freshly seeded strategy and replays ``ask``/``tell`` on those records:
+  the strategy's sampler is seeded, so the replay reproduces its state bit for bit (each replayed generation is
+  checked against the recorded solutions), loses at most one generation, and continues exactly as an
+  uninterrupted run would. Nothing in an output folder is ever unpickled, and no path is read from it.
   It stops on the evaluation budget, CMA's own tolerances (``tolfun``, ``tolx``), ``patience``
   generations without improvement, or an exact match.
 * ``optimizer="lsq"``: ``mujoco.minimize.least_squares`` (bounded Levenberg-Marquardt with a
@@ -42,7 +45,6 @@ import importlib
 import io
 import json
 import math
-import pickle
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -67,7 +69,6 @@ from dualtwin.artifacts import (
     package_versions,
     remove_output_dir,
     sha256_file,
-    write_bytes,
     write_json,
     write_text,
 )
@@ -280,7 +281,7 @@ class _Outcome:
 
 
 class _Randn:
-    """CMA's normal sampler on a private generator: it pickles with the strategy, so resume is exact."""
+    """CMA's normal sampler on a private generator: a fresh strategy with the same seed replays exactly."""
 
     def __init__(self, seed: int) -> None:
         self.rng = np.random.default_rng(seed)
@@ -312,29 +313,27 @@ def _fit_cma(problem: _Problem, config: AlignConfig, out_dir: Path, x0: Sequence
     checkpoint = out_dir / "checkpoint.json"
     if resume and checkpoint.is_file():
         state = read_json(checkpoint)
-        if state.get("config") != config.digest():
+        if not isinstance(state, dict) or state.get("config") != config.digest():
             raise DualtwinError(f"{checkpoint}: cannot resume: written by a different configuration")
-        es = pickle.loads((out_dir / state["state_file"]).read_bytes())
-        if es.countiter != state["iteration"]:
-            raise DualtwinError(f"{checkpoint}: the CMA state does not match the checkpoint")
-        problem.evaluations = int(state["evaluations"])
-        trace: list[dict[str, Any]] = state["trace"]
-        archive: list[list[tuple[list[float], float]]] = [[(list(u), float(f)) for u, f in gen]
-                                                          for gen in state["archive"]]
-        best_u, best_f, stale = list(state["best_u"]), float(state["best_value"]), int(state["stale"])
-        if state.get("incumbent"):
-            problem.restore_point(state["incumbent"])
+        es, x0, generations = _replay_cma(checkpoint, state, config)
+        try:
+            problem.evaluations = int(state["evaluations"])
+            trace: list[dict[str, Any]] = list(state["trace"])
+            archive: list[list[tuple[list[float], float]]] = [[(list(u), float(f)) for u, f in gen]
+                                                              for gen in state["archive"]]
+            best_u, best_f, stale = list(state["best_u"]), float(state["best_value"]), int(state["stale"])
+            if state.get("incumbent"):
+                problem.restore_point(state["incumbent"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise DualtwinError(f"{checkpoint}: damaged CMA checkpoint ({type(exc).__name__}: {exc})") from None
     else:
-        opts: dict[str, Any] = {"bounds": [0.0, 1.0], "randn": _Randn(config.seed), "tolfun": config.tolfun,
-                                "tolx": config.tolx, "verbose": -9, "verb_log": 0, "verb_disp": 0}
-        if config.popsize:
-            opts["popsize"] = config.popsize
         integer = [i for i, spec in enumerate(problem.specs) if spec.integer]
         if integer:
             screened = problem.run([_screen_integers(problem, x0, integer, config.budget, lambda p: p.train)])[0]
             if screened.train < f0:
                 x0, f0 = screened.u, screened.train
-        es = cma.CMAEvolutionStrategy(list(x0), config.sigma0, opts)
+        es = _new_cma(list(x0), config)
+        generations = []
         trace, archive = [], []
         # The start point (nominal, the best kept proposal, or the best integer setting) is the one to beat.
         best_u, best_f, stale = list(x0), f0, 0
@@ -344,11 +343,13 @@ def _fit_cma(problem: _Problem, config: AlignConfig, out_dir: Path, x0: Sequence
             break
         # Elitist injection: the incumbent (at first the start point) joins every population, so when the
         # start is already good the search contracts around it instead of drifting off with a worse mean.
-        es.inject([es.boundary_handler.inverse(np.asarray(best_u))] if es.boundary_handler is not None
-                  else [np.asarray(best_u)], force=True)
+        injected = list(best_u)
+        _cma_inject(es, injected)
         candidates = es.ask()
         points = problem.run([list(map(float, x)) for x in candidates])
         es.tell(candidates, [p.train for p in points])
+        generations.append({"inject": injected, "asked": [[float(v) for v in x] for x in candidates],
+                            "fitness": [p.train for p in points]})
         gen_best = min(points, key=lambda p: p.train)
         if not math.isfinite(best_f) or gen_best.train < best_f - 1e-12 * max(1.0, abs(best_f)):
             best_u, best_f, stale = gen_best.u, gen_best.train, 0
@@ -361,7 +362,7 @@ def _fit_cma(problem: _Problem, config: AlignConfig, out_dir: Path, x0: Sequence
         trace.append({"iteration": int(es.countiter), "evaluations": problem.evaluations,
                       "best_in_generation": gen_best.train, "best": best_f, "holdout_of_best": holdout,
                       "sigma": float(es.sigma), "mean": problem.values(list(es.mean))})
-        _write_cma_checkpoint(out_dir, config, es, problem, trace, archive, best_u, best_f, stale)
+        _write_cma_checkpoint(out_dir, config, es, problem, trace, archive, best_u, best_f, stale, x0, generations)
         if callback is not None:
             callback(GenerationInfo(int(es.countiter), problem.evaluations, best_f, problem.values(best_u),
                                     holdout, float(es.sigma)))
@@ -374,21 +375,80 @@ def _fit_cma(problem: _Problem, config: AlignConfig, out_dir: Path, x0: Sequence
     return _Outcome(best_u, int(es.countiter), reason, trace, population)
 
 
+#: CMA-ES checkpoints record the ask/tell history (JSON); version 1 named a pickled strategy, never loaded now.
+CMA_CHECKPOINT_SCHEMA = "dualtwin.align.checkpoint/2"
+
+
+def _new_cma(x0: list[float], config: AlignConfig) -> Any:
+    opts: dict[str, Any] = {"bounds": [0.0, 1.0], "randn": _Randn(config.seed), "tolfun": config.tolfun,
+                            "tolx": config.tolx, "verbose": -9, "verb_log": 0, "verb_disp": 0}
+    if config.popsize:
+        opts["popsize"] = config.popsize
+    return cma.CMAEvolutionStrategy(x0, config.sigma0, opts)
+
+
+def _cma_inject(es: Any, u: list[float]) -> None:
+    es.inject([es.boundary_handler.inverse(np.asarray(u))] if es.boundary_handler is not None
+              else [np.asarray(u)], force=True)
+
+
+def confined_path(folder: Path, value: Any, where: str) -> Path:
+    """``folder / value`` if that stays inside ``folder``; else a :class:`DualtwinError` naming ``where``."""
+    if not isinstance(value, str) or not value:
+        raise DualtwinError(f"{where}: expected a file name inside {folder}, got {value!r}")
+    root = folder.resolve()
+    path = (root / value).resolve()
+    if not path.is_relative_to(root):
+        raise DualtwinError(f"{where}: {value!r} points outside the output folder {folder}; refused")
+    return path
+
+
+def _replay_cma(checkpoint: Path, state: dict[str, Any], config: AlignConfig
+                ) -> tuple[Any, list[float], list[dict[str, Any]]]:
+    """A fresh strategy brought to the checkpoint's generation by replaying its recorded ask/tell history.
+
+    Returns the strategy, the start point and the history (to be extended by the resumed run).
+    """
+    # Any path named in a checkpoint is confined to its folder, whatever it is used for.
+    for key, value in state.items():
+        if key.endswith("_file"):
+            confined_path(checkpoint.parent, value, f"{checkpoint}: {key}")
+    if state.get("schema") != CMA_CHECKPOINT_SCHEMA:
+        raise DualtwinError(f"{checkpoint}: checkpoint format {state.get('schema')!r} (a pickled CMA state) is not "
+                            "resumable: pickles from a run folder are never loaded; start the alignment again in a new "
+                            "folder")
+    try:
+        x0 = [float(v) for v in state["x0"]]
+        history = [([float(v) for v in g["inject"]], [[float(v) for v in x] for x in g["asked"]],
+                    [float(f) for f in g["fitness"]]) for g in state["generations"]]
+        iteration = int(state["iteration"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise DualtwinError(f"{checkpoint}: damaged CMA checkpoint ({type(exc).__name__}: {exc})") from None
+    es = _new_cma(x0, config)
+    for n, (injected, asked, fitness) in enumerate(history, start=1):
+        es.stop()  # as in the original loop (the stop test runs before every generation)
+        _cma_inject(es, injected)
+        candidates = es.ask()
+        if len(candidates) != len(asked) or not np.array_equal(np.asarray(candidates, float), np.asarray(asked)):
+            raise DualtwinError(f"{checkpoint}: generation {n} does not replay to the recorded solutions (a "
+                                "different cma version?); start the alignment again in a new folder")
+        es.tell(candidates, fitness)
+    if es.countiter != iteration:
+        raise DualtwinError(f"{checkpoint}: the CMA history ({es.countiter} generations) does not match the "
+                            f"checkpoint's iteration {iteration}")
+    return es, x0, [{"inject": i, "asked": a, "fitness": f} for i, a, f in history]
+
+
 def _write_cma_checkpoint(out_dir: Path, config: AlignConfig, es: Any, problem: _Problem,
                           trace: list[dict[str, Any]], archive: list[list[tuple[list[float], float]]],
-                          best_u: list[float], best_f: float, stale: int) -> None:
-    name = f"cma_state_{int(es.countiter):04d}.pkl"
-    write_bytes(out_dir / name, es.pickle_dumps())
+                          best_u: list[float], best_f: float, stale: int, x0: Sequence[float],
+                          generations: list[dict[str, Any]]) -> None:
     write_json(out_dir / "checkpoint.json", {
-        "schema": "dualtwin.align.checkpoint/1", "config": config.digest(), "optimizer": "cma",
-        "iteration": int(es.countiter), "state_file": name, "evaluations": problem.evaluations,
-        "best_u": best_u, "best_value": best_f, "stale": stale, "incumbent": problem.point_state(best_u), "trace": trace,
-        "archive": [[[u, f] for u, f in gen] for gen in archive],
+        "schema": CMA_CHECKPOINT_SCHEMA, "config": config.digest(), "optimizer": "cma",
+        "iteration": int(es.countiter), "x0": list(x0), "generations": generations,
+        "evaluations": problem.evaluations, "best_u": best_u, "best_value": best_f, "stale": stale,
+        "incumbent": problem.point_state(best_u), "trace": trace, "archive": [[[u, f] for u, f in gen] for gen in archive],
     })
-    # Older states are superseded only once the checkpoint naming the new one is in place.
-    for old in out_dir.glob("cma_state_*.pkl"):
-        if old.name != name:
-            old.unlink(missing_ok=True)
 
 
 # ------------------------------------------------------------------ least squares
