@@ -18,6 +18,7 @@ converge stops at ``max_iterations``, keeps its best attempt and the (redacted) 
 
 from __future__ import annotations
 
+import copy
 import json
 import shutil
 import time
@@ -26,19 +27,21 @@ from pathlib import Path
 from string import Template
 from typing import Any, Literal
 
+import mujoco
+import numpy as np
+
 from dualtwin.artifacts import write_json, write_text
 from dualtwin.convert.checks import Finding, SmokeResult, smoke_test
 from dualtwin.errors import DualtwinError
 from dualtwin.genai.cases import CaseLibrary, examples_text
 from dualtwin.genai.llm import MAX_RESPONSE_CHARS, LLMClient, Message
+from dualtwin.genai.paper_dialect import Dialect, detect, load_any_description, read_description
 from dualtwin.genai.primitive import (
     CompiledRobot,
     RobotDescription,
     compile_description,
     json_schema,
-    load_description,
     mjcf_to_description,
-    parse_description,
 )
 
 PROMPTS = Path(__file__).parent / "prompts"
@@ -94,6 +97,8 @@ class Attempt:
     description: RobotDescription | None = None
     compiled: CompiledRobot | None = None
     smoke: SmokeResult | None = None
+    dialect: str = "dualtwin"
+    assumptions: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -110,6 +115,8 @@ class GenerationResult:
     smoke: SmokeResult | None = None
     errors: list[str] = field(default_factory=list)  # one per failed iteration
     best_stage: str = ""
+    dialect: str = "dualtwin"  # the schema the (best) description was written in
+    assumptions: list[str] = field(default_factory=list)  # what reading the paper's schema had to assume
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -118,6 +125,7 @@ class GenerationResult:
             "transcript": str(self.transcript_path) if self.transcript_path else None,
             "warnings": self.warnings, "lint": [f.to_dict() for f in self.lint],
             "smoke": self.smoke.to_dict() if self.smoke else None, "errors": self.errors,
+            "dialect": self.dialect, "assumptions": self.assumptions,
         }
 
 
@@ -179,6 +187,11 @@ def check_description(desc: RobotDescription, wbt_path: str, iteration: int = 0)
     if errors:
         attempt.error = "lint errors:\n" + "\n".join(str(f) for f in errors)
         return attempt
+    overlaps = overlapping_parts(model)
+    if overlaps:
+        attempt.error = "parts overlap at the initial pose (the physics would push them apart violently):\n" + \
+            "\n".join(overlaps)
+        return attempt
     attempt.stage = 4
     smoke = smoke_test(model)
     attempt.smoke = smoke
@@ -189,16 +202,62 @@ def check_description(desc: RobotDescription, wbt_path: str, iteration: int = 0)
     return attempt
 
 
-def check_reply(reply: str, wbt_path: str, iteration: int) -> Attempt:
+#: Penetration at the initial pose beyond which two parts (or a part and the floor) count as overlapping.
+OVERLAP_TOLERANCE_M = 0.002
+
+
+def overlapping_parts(model: mujoco.MjModel) -> list[str]:
+    """One line per pair of bodies that interpenetrate at the initial pose, naming both and the fix.
+
+    A robot's parts do not collide with each other in either twin (Webots' ``selfCollision`` is off by default,
+    and the converter mirrors that), so an overlap is not a physics failure but a description that cannot be
+    what its author meant: it is checked on a copy in which every collision geom collides with every other.
+    MuJoCo still leaves a body and its parent out (parts on a joint may interpenetrate around their axle).
+    """
+    model = copy.copy(model)
+    solid = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
+    model.geom_contype[solid] = 1
+    model.geom_conaffinity[solid] = 1
+    model.body_contype[:] = 1  # the broad phase filters on the bodies' union of their geoms' bits
+    model.body_conaffinity[:] = 1
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    worst: dict[tuple[str, str], tuple[float, np.ndarray]] = {}
+    for contact in data.contact[: data.ncon]:
+        depth = -float(contact.dist)
+        if depth <= OVERLAP_TOLERANCE_M:
+            continue
+        b1, b2 = (int(model.geom_bodyid[g]) for g in (contact.geom1, contact.geom2))
+        names = tuple(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or "floor" if b else "floor"
+                      for b in (b1, b2))
+        key = (names[0], names[1])
+        if key not in worst or depth > worst[key][0]:
+            worst[key] = (depth, np.asarray(contact.frame[:3], float).copy())
+    lines = []
+    for (first, second), (depth, normal) in sorted(worst.items()):
+        if first == "floor":
+            lines.append(f"part {second!r} starts {1000 * depth:.1f} mm inside the floor: raise the robot (the root "
+                         f"part's position z) by at least {1000 * depth:.1f} mm")
+            continue
+        lines.append(f"parts {first!r} and {second!r} overlap by {1000 * depth:.1f} mm: move {second!r} by "
+                     f"{1000 * depth:.1f} mm along {np.round(normal, 3).tolist()} (world frame), or shrink one of them")
+    return lines
+
+
+def check_reply(reply: str, wbt_path: str, iteration: int, dialect: Dialect = "auto") -> Attempt:
+    """Parse, translate (either dialect), compile and check one LLM reply."""
     try:
         data = extract_json(reply)
     except ValueError as exc:
         return Attempt(iteration, 0, error=str(exc))
+    chosen = detect(data) if dialect == "auto" else dialect
     try:
-        desc = parse_description(data, "the JSON")
+        read = read_description(data, "the JSON", chosen)
     except DualtwinError as exc:
-        return Attempt(iteration, 1, error=str(exc))
-    return check_description(desc, wbt_path, iteration)
+        return Attempt(iteration, 1, error=str(exc), dialect=chosen)
+    attempt = check_description(read.description, wbt_path, iteration)
+    attempt.dialect, attempt.assumptions = read.dialect, read.assumptions
+    return attempt
 
 
 # ------------------------------------------------------------------------------------------------
@@ -238,12 +297,20 @@ def _finish(result: GenerationResult, out_dir: Path) -> GenerationResult:
 # the sources
 
 
-def _from_json(path: Path, out_dir: Path) -> GenerationResult:
-    desc = load_description(path)
+def _from_json(path: Path, out_dir: Path, dialect: Dialect) -> GenerationResult:
+    read = load_any_description(path, dialect)
+    desc = read.description
     attempt = check_description(desc, str(confined(out_dir, f"{desc.robot_name}.wbt")))
-    result = GenerationResult(out_dir, attempt.stage == 5, 0, best_stage=STAGES[attempt.stage])
+    result = GenerationResult(out_dir, attempt.stage == 5, 0, best_stage=STAGES[attempt.stage],
+                              dialect=read.dialect, assumptions=read.assumptions)
+    if read.dialect != "dualtwin":
+        # the same record an LLM reply gets: which schema was read and every assumption made reading it
+        result.transcript_path = confined(out_dir, "transcript.json")
+        write_json(result.transcript_path, [{"role": "input", "content": str(path), "dialect": read.dialect,
+                                             "assumptions": read.assumptions}])
+        result.files["transcript"] = result.transcript_path
     if attempt.compiled is not None:
-        result.files = _write_compiled(attempt.compiled, out_dir)
+        result.files.update(_write_compiled(attempt.compiled, out_dir))
         result.warnings = list(attempt.compiled.conversion.warnings)
         result.lint = list(attempt.compiled.conversion.lint)
     result.smoke = attempt.smoke
@@ -293,7 +360,7 @@ def _from_wbt(path: Path, robot: str | None, out_dir: Path) -> GenerationResult:
 
 
 def _from_text(path: Path, out_dir: Path, llm: LLMClient | None, max_iterations: int,
-               cases: CaseLibrary | None) -> GenerationResult:
+               cases: CaseLibrary | None, dialect: Dialect = "auto") -> GenerationResult:
     from dualtwin.genai.llm import make_llm
 
     if not path.is_file():
@@ -331,10 +398,10 @@ def _from_text(path: Path, out_dir: Path, llm: LLMClient | None, max_iterations:
             _save_outputs(result, best, transcript, client, out_dir)
             raise GenerationFailed(f"LLM call failed at iteration {iteration}: {exc}", result) from None
         result.iterations = iteration
-        attempt = check_reply(reply, wbt_path, iteration)
+        attempt = check_reply(reply, wbt_path, iteration, dialect)
         transcript.append({"role": "assistant", "iteration": iteration, "content": reply,
                            "seconds": round(time.monotonic() - started, 3), "stage": STAGES[attempt.stage],
-                           "error": attempt.error})
+                           "error": attempt.error, "dialect": attempt.dialect, "assumptions": attempt.assumptions})
         if best is None or attempt.stage >= best.stage:
             best = attempt
         if attempt.stage == 5:
@@ -359,6 +426,7 @@ def _save_outputs(result: GenerationResult, best: Attempt | None, transcript: li
         result.best_stage = STAGES[best.stage]
         result.converged = best.stage == 5
         result.smoke = best.smoke
+        result.dialect, result.assumptions = best.dialect, best.assumptions
         if best.compiled is not None:
             result.files = _write_compiled(best.compiled, out_dir)
             result.warnings = list(best.compiled.conversion.warnings)
@@ -374,9 +442,11 @@ def _save_outputs(result: GenerationResult, best: Attempt | None, transcript: li
 
 
 def generate(source: Source, out_dir: Path | str, *, llm: LLMClient | None = None,
-             max_iterations: int = DEFAULT_MAX_ITERATIONS, cases: CaseLibrary | None = None) -> GenerationResult:
+             max_iterations: int = DEFAULT_MAX_ITERATIONS, cases: CaseLibrary | None = None,
+             dialect: Dialect = "auto") -> GenerationResult:
     """Generate both twins (``<name>.wbt``, ``<name>.xml``), ``binding.yaml``, ``suite.json`` and
-    ``generation.json`` (plus ``robot.json`` and, for text, ``transcript.json``) in ``out_dir``.
+    ``generation.json`` (plus ``robot.json`` and, for text or the paper's schema, ``transcript.json``) in ``out_dir``.
+    ``dialect`` names the JSON schema of a description (ours, the paper's, or ``auto`` to detect it).
 
     Raises:
         GenerationFailed: the loop did not converge (best attempt and transcript are kept); CLI exit 2.
@@ -385,12 +455,12 @@ def generate(source: Source, out_dir: Path | str, *, llm: LLMClient | None = Non
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     if source.kind == "json":
-        return _from_json(source.path, out)
+        return _from_json(source.path, out, dialect)
     if source.kind == "wbt":
         if not source.path.is_file():
             raise DualtwinError(f"{source.path}: world file not found")
         return _from_wbt(source.path, source.robot, out)
-    return _from_text(source.path, out, llm, max_iterations, cases)
+    return _from_text(source.path, out, llm, max_iterations, cases, dialect)
 
 
 def explain_divergence(metrics: dict[str, Any], llm: LLMClient, *, label_a: str = "Webots",

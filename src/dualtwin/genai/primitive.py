@@ -64,6 +64,8 @@ class Joint(_Strict):
     anchor: Vec3 | None = Field(default=None, description="hinge: point on the axis, parent frame; default = part position")
     limits: tuple[float, float] | None = Field(default=None, description="[min, max] in rad (hinge) or m (slider)")
     damping: float = Field(default=0.0, ge=0.0, le=1e4, description="viscous damping, N*m*s/rad or N*s/m")
+    stiffness: float = Field(default=0.0, ge=0.0, le=1e6,
+                             description="spring constant towards the pose in the file, N*m/rad or N/m")
     sensor: str | None = Field(default=None, pattern=DEVICE_PATTERN,
                                description="PositionSensor on a joint without motor (a motor names its own)")
 
@@ -105,6 +107,7 @@ class Part(_Strict):
     joint: Joint | None = Field(default=None, description="root: null = free-floating, fixed = fixed base")
     motor: Motor | None = None
     color: tuple[float, float, float] | None = Field(default=None, description="RGB in [0, 1]")
+    material: str | None = Field(default=None, max_length=64, description="free-text label; not used by physics")
 
     @model_validator(mode="after")
     def _check(self) -> Part:
@@ -295,6 +298,8 @@ def _attachment(desc: RobotDescription, part: Part) -> Node:
     if joint.sensor and not (part.motor is not None and part.motor.sensor == joint.sensor):
         devices.append(_node("PositionSensor", name=joint.sensor))
     params: dict[str, Any] = {"axis": _f3(joint.axis), "dampingConstant": float(joint.damping)}
+    if joint.stiffness:
+        params["springConstant"] = float(joint.stiffness)
     if joint.limits is not None:
         params.update(minStop=float(joint.limits[0]), maxStop=float(joint.limits[1]))
     if joint.type == "hinge":
