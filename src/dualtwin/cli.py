@@ -421,6 +421,21 @@ def webots_run(
     raise typer.Exit(code)
 
 
+@webots_app.command("fetch")
+def webots_fetch(
+    worlds: Annotated[list[Path], typer.Argument(help=".wbt world files")],
+    out: Annotated[Path | None, typer.Option(help="fill this folder (for DUALTWIN_PROTO_MIRROR on an offline "
+                                                  "machine) instead of your PROTO cache")] = None,
+) -> None:
+    """Download every PROTO (and bounding-object mesh) the worlds need, verified, for offline runs."""
+    from dualtwin.webots.fetch import fetch_command
+
+    report, root = fetch_command(worlds, out, say=lambda line: print(line, file=sys.stderr))
+    for warning in report.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+    print(f"{len(report.protos)} PROTO files and {len(report.assets)} meshes ready in {root}")
+
+
 @app.command("convert")
 def convert(
     world: Annotated[Path, typer.Argument(help=".wbt world to convert")],

@@ -9,10 +9,16 @@ Resolution order for a PROTO ``Name`` (declared by ``EXTERNPROTO "url"`` in the 
 4. with ``$WEBOTS_HOME`` set: ``webots://projects/...`` and
    ``https://raw.githubusercontent.com/cyberbotics/webots/<version>/projects/...`` urls map to
    ``$WEBOTS_HOME/projects/...``;
-5. our stand-ins (:mod:`dualtwin.webots.standins`) for Floor, RectangleArena, TexturedBackground and
+5. a remote url (``http(s)``, ``webots://`` at the R2023b tag, or relative inside a remote PROTO) already
+   fetched: our verified cache, a mirror folder, Webots' own asset cache (:mod:`.proto_cache`);
+6. our stand-ins (:mod:`dualtwin.webots.standins`) for Floor, RectangleArena, TexturedBackground and
    TexturedBackgroundLight;
-6. a PROTO still missing is skipped with a warning when it is known to be visual only (appearances,
+7. a remote url downloaded into the cache, as Webots downloads it on load (unless offline);
+8. a PROTO still missing is skipped with a warning when it is known to be visual only (appearances,
    backgrounds); anything else raises :class:`ProtoNotFoundError`.
+
+Stand-ins rank below a fetched file (``dualtwin webots fetch`` makes the real one win) but above the
+network, so a world whose only remote PROTOs have stand-ins loads without a connection attempt.
 
 Expansion follows Webots: instance values override interface defaults, ``IS`` substitutes (deep
 copies of) them, each PROTO body is its own DEF scope, derived PROTOs expand recursively, procedural
@@ -56,6 +62,14 @@ from dualtwin.webots.parser import (
     parse_proto_body,
     parse_world,
 )
+from dualtwin.webots.proto_cache import (
+    WEBOTS_VERSION,
+    CacheCorruptError,
+    FetchError,
+    ProtoCache,
+    is_remote,
+    remote_url,
+)
 from dualtwin.webots.standins import STANDIN_PREFIX, STANDIN_PROTOS
 
 __all__ = [
@@ -73,7 +87,6 @@ MAX_PROTO_DEPTH = 32
 # A template is arbitrary code: bound it so a bad PROTO fails with a message instead of hanging.
 _JS_TIME_LIMIT = 10  # s of CPU
 _JS_MEMORY_LIMIT = 256 * 1024 * 1024
-WEBOTS_VERSION = "R2023b"
 
 #: PROTOs that carry no physics, skipped (with a warning) when they cannot be found. Appearances are
 #: PBRAppearance-derived; backgrounds and their lights only light the scene. Floors, objects and
@@ -122,7 +135,9 @@ class ProtoResolver:
     Args:
         world_path: the world file; its ``protos/`` and ``../protos`` folders are searched first.
         proto_paths: user folders, searched (recursively) after the project folders.
-        use_env: also read ``DUALTWIN_PROTO_PATH`` and ``WEBOTS_HOME``.
+        use_env: also read ``DUALTWIN_PROTO_PATH``, ``WEBOTS_HOME`` and the PROTO cache settings.
+        cache: where remote urls are looked up and downloaded; default: the user's cache configured by the
+            environment (:class:`~dualtwin.webots.proto_cache.ProtoCache`), none without ``use_env``.
     """
 
     def __init__(
@@ -131,7 +146,10 @@ class ProtoResolver:
         proto_paths: Sequence[str | os.PathLike[str]] = (),
         *,
         use_env: bool = True,
+        cache: ProtoCache | None = None,
     ) -> None:
+        self.use_env = use_env
+        self._cache = cache
         self.project_dirs: list[Path] = []
         if world_path is not None:
             wdir = world_path.parent
@@ -171,10 +189,26 @@ class ProtoResolver:
             return None
         return self.webots_home / rel
 
-    def find(self, name: str, url: str | None, declaring_dir: Path | None) -> tuple[_Found | None, list[str]]:
-        """Locate ``name``; returns the hit (or None) and the list of places tried."""
+    @property
+    def cache(self) -> ProtoCache | None:
+        """The PROTO cache, created from the environment on first use (``None`` without ``use_env``)."""
+        if self._cache is None and self.use_env:
+            self._cache = ProtoCache()
+        return self._cache
+
+    def find(
+        self, name: str, url: str | None, declaring_dir: Path | None, declaring_url: str | None = None
+    ) -> tuple[_Found | None, list[str]]:
+        """Locate ``name``; returns the hit (or None) and the list of places tried.
+
+        ``declaring_url`` is the url of the remote PROTO holding the declaration (relative urls join it).
+
+        Raises:
+            CacheCorruptError: a cached copy no longer matches the hash recorded at its fetch.
+        """
         tried: list[str] = []
-        is_local = url is not None and ("://" not in url or url.startswith("file://"))
+        remote = remote_url(url, declaring_url) if url is not None else None
+        is_local = url is not None and remote is None and ("://" not in url or url.startswith("file://"))
         if url is not None and is_local:
             local = Path(url[len("file://") :] if url.startswith("file://") else url)
             if not local.is_absolute() and declaring_dir is not None:
@@ -182,7 +216,7 @@ class ProtoResolver:
             tried.append(str(local))
             if local.is_file():
                 return _Found(str(local)), tried
-        elif url is None and declaring_dir is not None:
+        elif url is None and declaring_dir is not None and declaring_url is None:
             local = declaring_dir / f"{name}.proto"
             tried.append(str(local))
             if local.is_file():
@@ -200,10 +234,25 @@ class ProtoResolver:
                     return _Found(str(mapped)), tried
             elif self.webots_home is None and (url.startswith("webots://") or _RAW_GITHUB.match(url)):
                 tried.append("$WEBOTS_HOME (not set)")
-            elif not is_local:
-                tried.append(f"{url} (remote urls are not fetched)")
+        cache = self.cache if remote is not None else None
+        if remote is not None and cache is not None:
+            hit = cache.cached(remote)
+            tried.append(f"{remote} in the PROTO cache {cache.root}")
+            if hit is not None:
+                return _Found(remote, cache.read_text(remote)), tried
         if name in STANDIN_PROTOS:
             return _Found(STANDIN_PREFIX + name + ".proto", STANDIN_PROTOS[name]), tried
+        if remote is not None and cache is not None:
+            try:
+                cache.get(remote)
+            except CacheCorruptError:
+                raise
+            except FetchError as exc:
+                tried.append(str(exc))
+            else:
+                return _Found(remote, cache.read_text(remote)), tried
+        elif remote is not None:
+            tried.append(f"{remote} (no PROTO cache: remote urls are not fetched)")
         return None, tried
 
     def load(self, found: _Found, location: SourceLocation) -> ParsedProto:
@@ -631,7 +680,9 @@ class _Expander:
         name = raw.type_name
         ext = scope.externs.get(name)
         url = ext.url if ext is not None else None
-        found, tried = self.resolver.find(name, url, scope.directory)
+        found, tried = self.resolver.find(
+            name, url, scope.directory, scope.file if is_remote(scope.file) else None
+        )
         if found is None:
             if name in VISUAL_ONLY_PROTOS or any(p in (url or "") for p in _VISUAL_ONLY_URL_PARTS):
                 self.warnings.append(
@@ -642,7 +693,8 @@ class _Expander:
             raise ProtoNotFoundError(
                 f"{raw.location}: PROTO '{name}'{where} not found. Searched: {'; '.join(tried)}. "
                 f"Provide {name}.proto in a folder given by proto_paths or DUALTWIN_PROTO_PATH, "
-                "or set WEBOTS_HOME to a Webots installation."
+                "set WEBOTS_HOME to a Webots installation, or run 'dualtwin webots fetch WORLD' where the "
+                "network is reachable (DUALTWIN_PROTO_MIRROR points at a fetched folder or a mirror)."
             )
         if ext is None and (scope.file, name) not in self._undeclared_warned:
             self._undeclared_warned.add((scope.file, name))
@@ -654,7 +706,8 @@ class _Expander:
         return proto
 
     def _proto_scope(self, proto: ParsedProto) -> _Scope:
-        directory = None if proto.path.startswith(STANDIN_PREFIX) else Path(proto.path).parent
+        remote_or_standin = proto.path.startswith(STANDIN_PREFIX) or is_remote(proto.path)
+        directory = None if remote_or_standin else Path(proto.path).parent
         return _Scope(proto.path, directory, {e.name: e for e in proto.externprotos})
 
     def default_value(self, decl: ProtoFieldDecl, proto: ParsedProto) -> Any:

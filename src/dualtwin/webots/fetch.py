@@ -1,0 +1,178 @@
+"""Pre-fetch everything a world needs from the network: ``dualtwin webots fetch WORLD... [--out FOLDER]``.
+
+What is fetched, following what Webots downloads when it loads a world:
+
+- every ``EXTERNPROTO`` and ``IMPORTABLE EXTERNPROTO`` the world declares with a remote url (``http(s)``, or
+  ``webots://`` at the R2023b tag), and, transitively, every remote PROTO those files declare (relative urls
+  join the declaring file's url). Local PROTO files are read for their own declarations but not copied;
+- assets only where physics needs them: the ``url`` of a ``Mesh`` inside a ``boundingObject`` of the expanded
+  world. Textures, sounds and visual meshes are never fetched.
+
+The world is then expanded from the fetched files (offline) to prove it loads; its warnings are returned.
+Errors stop the command at the first url that cannot be fetched, naming it and the declaration.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from dualtwin.artifacts import check_input_file, check_output_dir, write_json
+from dualtwin.errors import DualtwinError
+from dualtwin.webots.nodes import Node
+from dualtwin.webots.parser import ExternProto, decode_source, parse_proto, parse_world
+from dualtwin.webots.proto_cache import (
+    LAYOUT,
+    WEBOTS_VERSION,
+    FetchError,
+    ProtoCache,
+    default_cache_root,
+    is_remote,
+    remote_url,
+)
+
+__all__ = ["PROTO_FOLDER_KIND", "FetchReport", "fetch_command", "fetch_worlds"]
+
+PROTO_FOLDER_KIND = "proto-cache"
+
+#: More distinct files than any real world declares: stops a hostile PROTO chain that never ends.
+MAX_FILES = 5000
+
+
+@dataclass
+class FetchReport:
+    """What ``fetch_worlds`` made available."""
+
+    protos: list[str] = field(default_factory=list)  # remote PROTO urls, in discovery order
+    assets: list[str] = field(default_factory=list)  # remote mesh urls needed by bounding objects
+    warnings: list[str] = field(default_factory=list)  # warnings of loading each world afterwards
+
+
+def _declarations(
+    externs: Sequence[ExternProto], parent_url: str | None, local_dir: Path | None, where: str
+) -> list[tuple[ExternProto, str | None, Path | None, str]]:
+    return [(e, parent_url, local_dir, where) for e in externs]
+
+
+def fetch_worlds(
+    worlds: Sequence[str | os.PathLike[str]],
+    cache: ProtoCache,
+    proto_paths: Sequence[str | os.PathLike[str]] = (),
+) -> FetchReport:
+    """Fetch every remote file the worlds need into ``cache`` (see the module docstring).
+
+    Raises:
+        DualtwinError: a world or local PROTO cannot be read or parsed.
+        FetchError: a url could not be fetched (the message names it and where it is declared).
+    """
+    from dualtwin.webots.protos import ProtoResolver, expand_world
+
+    report = FetchReport()
+    seen: set[str] = set()
+    for world in worlds:
+        path = Path(world)
+        try:
+            data = path.read_bytes()
+        except OSError as exc:
+            raise DualtwinError(f"{path}: cannot read world: {exc.strerror or exc}") from None
+        parsed = parse_world(data, str(path))
+        queue = _declarations(parsed.externprotos, None, path.parent, str(path))
+        while queue:
+            ext, parent_url, local_dir, where = queue.pop(0)
+            url = remote_url(ext.url, parent_url)
+            if url is None:  # a local file: follow its declarations, nothing to fetch
+                local = Path(ext.url[len("file://") :] if ext.url.startswith("file://") else ext.url)
+                if not local.is_absolute() and local_dir is not None:
+                    local = local_dir / local
+                key = str(local.resolve())
+                if key in seen or not local.is_file():
+                    continue  # a missing local file is reported when the world loads
+                seen.add(key)
+                proto = parse_proto(decode_source(local.read_bytes(), str(local)), str(local))
+                queue += _declarations(proto.externprotos, None, local.parent, str(local))
+                continue
+            if url in seen:
+                continue
+            seen.add(url)
+            if len(seen) > MAX_FILES:
+                raise FetchError(f"{ext.location}: more than {MAX_FILES} PROTO files declared; stopped")
+            try:
+                text = cache.read_text(url)
+            except FetchError as exc:
+                raise FetchError(f"{ext.location}: EXTERNPROTO \"{ext.url}\": {exc}") from None
+            report.protos.append(url)
+            proto = parse_proto(text, url)
+            queue += _declarations(proto.externprotos, url, None, url)
+        resolver = ProtoResolver(path, proto_paths, cache=cache)
+        loaded = expand_world(parsed, path, proto_paths, resolver=resolver)
+        report.warnings += loaded.warnings
+        for url, location in _bounding_meshes(loaded.nodes):
+            if url in seen:
+                continue
+            seen.add(url)
+            try:
+                cache.get(url, asset=True)
+            except FetchError as exc:
+                raise FetchError(f"{location}: mesh of a bounding object: {exc}") from None
+            report.assets.append(url)
+    return report
+
+
+def _bounding_meshes(nodes: Sequence[Node]) -> list[tuple[str, str]]:
+    """Remote urls of Mesh geometries inside bounding objects, with where each is written."""
+    out: list[tuple[str, str]] = []
+    for top in nodes:
+        for node in top.walk():
+            bounding = node.fields.get("boundingObject")
+            if not isinstance(bounding, Node):
+                continue
+            for geom in bounding.walk():
+                if geom.type_name != "Mesh":
+                    continue
+                origin = geom.location.file if geom.location is not None else ""
+                origin = origin.removesuffix("[generated]")
+                for entry in geom.fields.get("url", []) or []:
+                    url = remote_url(str(entry), origin if is_remote(origin) else None)
+                    if url is not None:
+                        out.append((url, str(geom.location)))
+    return out
+
+
+def fetch_command(
+    worlds: Sequence[str | os.PathLike[str]],
+    out: str | os.PathLike[str] | None = None,
+    say: Callable[[str], None] | None = None,
+) -> tuple[FetchReport, Path]:
+    """``dualtwin webots fetch``: fill the user's cache, or the folder ``out`` for an offline machine.
+
+    ``out`` becomes a cache root of its own with a ``manifest.json`` (kind ``proto-cache``) listing every
+    file with its SHA-256; it is filled from the user's cache and mirror where possible, then the network.
+    Running the command again on the same folder adds to it. Returns the report and the root written.
+
+    Raises:
+        DualtwinError: bad ``out`` folder, unreadable world, or a url that cannot be fetched.
+    """
+    for world in worlds:
+        check_input_file(Path(world), "world")
+    if out is None:
+        cache = ProtoCache(copy_sources=True, progress=say)
+    else:
+        root = Path(out)
+        check_output_dir(root, PROTO_FOLDER_KIND, resume=True, resumable=True)
+        # a folder for an offline machine must hold every file, wherever it was found here
+        cache = ProtoCache(root, sources=[default_cache_root()], copy_sources=True, progress=say)
+    try:
+        report = fetch_worlds(worlds, cache)
+    finally:
+        cache.close()
+    if out is not None:
+        write_json(cache.root / "manifest.json", {
+            "kind": PROTO_FOLDER_KIND,
+            "layout": LAYOUT,
+            "webots_version": WEBOTS_VERSION,
+            "usage": "export DUALTWIN_PROTO_MIRROR=<this folder>",
+            "files": cache.entries(),
+        })
+    return report, cache.root
