@@ -116,7 +116,7 @@ def test_train_export_transfer(tmp_path: Path) -> None:
     run = tmp_path / "run"
     result = dualtwin("train", "--env", "dualtwin/CartPole-MuJoCo-Continuous-v0", "--out", str(run), "--steps", "4096")
     assert result.returncode == 0, result.stderr
-    assert (run / "model.zip").is_file() and (run / "vecnormalize.pkl").is_file()
+    assert (run / "model.zip").is_file() and (run / "vecnormalize.json").is_file()
     result = dualtwin("export", "--policy", str(run), "--out", str(tmp_path / "export"))
     assert result.returncode == 0, result.stderr
     contract = json.loads((tmp_path / "export" / "policy_contract.json").read_text())

@@ -32,11 +32,11 @@ def test_bundled_config_is_the_papers() -> None:
 
 
 def test_run_folder(discrete_run: Path) -> None:
-    for name in ("model.zip", "vecnormalize.pkl", "config.yaml", "run.json", "evaluations.npz", "best_model.zip",
-                 "best_vecnormalize.pkl"):
+    for name in ("model.zip", "vecnormalize.json", "config.yaml", "run.json", "evaluations.npz", "best_model.zip",
+                 "best_vecnormalize.json"):
         assert (discrete_run / name).is_file(), name
     assert list((discrete_run / "checkpoints").glob("rl_model_*_steps.zip"))
-    assert list((discrete_run / "checkpoints").glob("rl_model_vecnormalize_*_steps.pkl"))
+    assert list((discrete_run / "checkpoints").glob("rl_model_vecnormalize_*_steps.json"))
     assert list((discrete_run / "tb").rglob("events.out.tfevents.*"))
     assert list((discrete_run / "monitor").glob("*.monitor.csv"))
     record = json.loads((discrete_run / "run.json").read_text())
@@ -98,7 +98,7 @@ def test_resume_after_interruption(tmp_path: Path) -> None:
     record = json.loads((out / "run.json").read_text())
     assert record["status"] == "complete" and record["num_timesteps"] >= total
     assert record["resumed_from_steps"] == interrupted_at
-    assert (out / "model.zip").is_file() and (out / "vecnormalize.pkl").is_file()
+    assert (out / "model.zip").is_file() and (out / "vecnormalize.json").is_file()
     # The evaluation history before the interruption is kept.
     assert record["evaluations"][0]["timesteps"] == 1024
 

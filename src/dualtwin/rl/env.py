@@ -99,7 +99,8 @@ class CartPoleBalance(Task):
 
     Observation (float32): cart position and cart velocity (wheel odometry, on-board), pole angle (pole
     encoder, on-board), pole angular velocity (supervisor, privileged). The episode does not end when the pole
-    falls (the reward counts balanced steps); it ends when the cart leaves ``|x| <= x_limit`` (ground truth).
+    falls (the reward counts balanced steps) unless ``terminate_on_fall``; it ends when the cart leaves
+    ``|x| <= x_limit`` (ground truth).
     Actions are cart speeds, sent to every wheel as angular velocity = speed / wheel radius.
 
     ``cart_velocity="ground_truth"`` uses the supervisor's cart velocity instead. It is not the default: it
@@ -122,10 +123,14 @@ class CartPoleBalance(Task):
                  balance_angle: float = 0.3, initial_angle: float = 0.05, action_key: str = "wheel_velocity",
                  pole_joint: str = "pole_hinge",
                  cart_velocity: Literal["ground_truth", "odometry"] = "odometry",
-                 upright_angle: float = 0.5) -> None:
+                 upright_angle: float = 0.5, terminate_on_fall: bool = False) -> None:
         if min(max_cart_speed, x_limit, balance_angle, upright_angle) <= 0 or initial_angle < 0:
             raise DualtwinError("CartPoleBalance: max_cart_speed, x_limit, balance_angle and upright_angle must "
                                 "be > 0, initial_angle >= 0")
+        # The paper's published controller (and Gymnasium's CartPole) end the episode when the pole leaves the
+        # band. Without it a fallen pole rests on its stiff stops at +-1 rad for the rest of the 1000 steps: most
+        # of every early rollout is zero-reward samples from states the policy can never recover from.
+        self.terminate_on_fall = bool(terminate_on_fall)
         self.continuous = continuous
         self.max_cart_speed = float(max_cart_speed)
         self.x_limit = float(x_limit)
@@ -208,7 +213,10 @@ class CartPoleBalance(Task):
                 "reward": f"+1 per control period while |pole hinge angle| <= {self.balance_angle} rad and the "
                 f"chassis is within {self.upright_angle} rad of upright (ground truth), else 0; no termination "
                 "on the pole angle",
-                "termination": f"|cart x| > {self.x_limit} m (ground truth)"}
+                "termination": f"|cart x| > {self.x_limit} m (ground truth)"
+                + (f" or |pole hinge angle| > {self.balance_angle} rad or chassis tilt > {self.upright_angle} rad"
+                   if self.terminate_on_fall else ""),
+                "terminate_on_fall": self.terminate_on_fall}
 
     def initialize_episode(self, rng: np.random.Generator) -> None:
         io = self.io
@@ -267,6 +275,9 @@ class CartPoleBalance(Task):
         return 1.0 if upright and abs(self._truth[self._true_angle]) <= self.balance_angle else 0.0
 
     def terminated(self) -> bool:
+        if self.terminate_on_fall and (abs(self._truth[self._true_angle]) > self.balance_angle
+                                       or self._tilt > self.upright_angle):
+            return True
         return bool(abs(self._truth[self._true_x]) > self.x_limit)
 
     def info(self) -> dict[str, Any]:

@@ -6,7 +6,6 @@
 from __future__ import annotations
 
 import json
-import pickle
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
@@ -55,31 +54,42 @@ class LoadedPolicy:
         return make_env(self.env_id, **kwargs)
 
 
-def load_policy(run_dir: Path | str, which: Literal["final", "best"] = "final") -> LoadedPolicy:
-    """Restore a training run's policy: ``model.zip`` + ``vecnormalize.pkl`` (``best_*`` with ``which="best"``)."""
-    from stable_baselines3 import PPO
+def load_policy(run_dir: Path | str, which: Literal["final", "best"] = "final", *,
+                trust_pickles: bool | None = None) -> LoadedPolicy:
+    """Restore a training run's policy: ``model.zip`` + ``vecnormalize.json`` (``best_*`` with ``which="best"``).
+
+    Nothing is unpickled (:mod:`dualtwin.rl.runfiles`); an old run's ``vecnormalize.pkl``, or a model zip whose
+    pickled entries its ``run.json`` cannot rebuild, is refused unless ``trust_pickles`` (default: the
+    CLI's ``--trust-pickles``, :func:`dualtwin.rl.runfiles.trusting_pickles`).
+    """
+    from dualtwin.rl.runfiles import load_model, load_normalization, stats_path
 
     run = Path(run_dir)
     record_path = run / "run.json"
     if not record_path.is_file():
         raise DualtwinError(f"{run}: not a training run (no run.json)")
-    record = json.loads(record_path.read_text(encoding="utf-8"))
+    try:
+        record = json.loads(record_path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DualtwinError(f"{record_path}: cannot read the run record: {exc}") from None
+    if not isinstance(record, dict) or not isinstance(record.get("env_id"), str):
+        raise DualtwinError(f"{record_path}: not a training run record (no env_id)")
     prefix = "" if which == "final" else "best_"
     model_path = run / f"{prefix}model.zip"
     if not model_path.is_file():
         hint = " (the run did not finish; resume it)" if which == "final" else ""
         raise DualtwinError(f"{run}: no {model_path.name}{hint}")
-    stats_path = run / f"{prefix}vecnormalize.pkl"
+    found = stats_path(run, f"{prefix}vecnormalize")
     stats: VecNormalize | None = None
-    if stats_path.is_file():
-        # Unpickled without a venv: only its statistics are used (normalize_obs), never stepped.
-        with open(stats_path, "rb") as handle:
-            stats = pickle.load(handle)  # noqa: S301 - our own run artifact
+    if found is not None:
+        shape = tuple((record.get("io") or {}).get("observation", {}).get("shape") or ()) or None
+        stats = load_normalization(found, trust_pickles=trust_pickles, obs_shape=shape)
         stats.training = False
         stats.norm_reward = False
     elif record.get("config", {}).get("normalize") not in (False, None):
-        raise DualtwinError(f"{run}: {stats_path.name} is missing; the policy needs its normalisation statistics")
-    model = PPO.load(str(model_path), device="cpu")
+        raise DualtwinError(f"{run}: {prefix}vecnormalize.json is missing; the policy needs its normalisation "
+                            "statistics")
+    model = load_model(model_path, record, trust_pickles=trust_pickles)
     return LoadedPolicy(run, model, stats, record["env_id"], dict(record.get("env_kwargs") or {}),
                         dict(record.get("io") or {}), record.get("max_episode_steps"))
 

@@ -4,11 +4,15 @@ Run folder::
 
     OUT/config.yaml                resolved training config (the YAML given, plus defaults and overrides)
     OUT/run.json                   env id, seed, versions, I/O contract, status, timings, evaluation timeline
-    OUT/model.zip                  final policy          OUT/vecnormalize.pkl       its observation statistics
-    OUT/best_model.zip             best evaluated policy OUT/best_vecnormalize.pkl  its statistics
+    OUT/model.zip                  final policy          OUT/vecnormalize.json      its observation statistics
+    OUT/best_model.zip             best evaluated policy OUT/best_vecnormalize.json its statistics
     OUT/evaluations.npz            EvalCallback log      OUT/dr_ranges.json         randomisation ranges, if any
     OUT/aligned_knobs.json         the aligned knob values trained with, if any (run.json: their file and hash)
-    OUT/checkpoints/rl_model_<N>_steps.zip (+ rl_model_vecnormalize_<N>_steps.pkl)
+    OUT/checkpoints/rl_model_<N>_steps.zip (+ rl_model_vecnormalize_<N>_steps.json)
+
+Nothing in a run folder is unpickled when it is read back (:mod:`dualtwin.rl.runfiles`): statistics are JSON,
+and the model zips load with every pickled entry rebuilt from ``run.json``. Runs written before that
+(``vecnormalize.pkl``) load only with ``trust_pickles=True``.
     OUT/tb/                        TensorBoard           OUT/monitor/               Monitor CSVs per env
 
 ``resume=True`` continues an interrupted run from its newest checkpoint (the same env, seed and config).
@@ -32,6 +36,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from dualtwin.artifacts import package_versions, write_json, write_text
 from dualtwin.errors import DualtwinError
+from dualtwin.rl.runfiles import load_model, load_normalization, save_normalization, stats_path
 
 if TYPE_CHECKING:
     import gymnasium as gym
@@ -104,7 +109,7 @@ class PPOConfig(_Strict):
         if rollout % self.batch_size:
             raise ValueError(f"n_steps x n_envs ({rollout}) must be a multiple of batch_size ({self.batch_size})")
         if isinstance(self.learning_rate, str):
-            _learning_rate(self.learning_rate)
+            learning_rate_schedule(self.learning_rate)
         return self
 
     @property
@@ -114,7 +119,7 @@ class PPOConfig(_Strict):
         return self.normalize
 
 
-def _learning_rate(value: float | str) -> float | Callable[[float], float]:
+def learning_rate_schedule(value: float | str) -> float | Callable[[float], float]:
     if isinstance(value, int | float):
         return float(value)
     match = re.fullmatch(r"lin_([0-9.eE+-]+)", value.strip())
@@ -147,7 +152,7 @@ def load_config(source: Path | str | Mapping[str, Any] | PPOConfig | None = None
         raise DualtwinError(f"{origin}: invalid PPO config: {problems}") from None
 
 
-def _activation(name: str) -> type[Any]:
+def activation(name: str) -> type[Any]:
     import torch.nn as nn
 
     return {"relu": nn.ReLU, "tanh": nn.Tanh, "elu": nn.ELU, "leaky_relu": nn.LeakyReLU}[name]
@@ -170,10 +175,11 @@ def _latest_checkpoint(out: Path, final_steps: int | None) -> tuple[Path, Path, 
             match = _CHECKPOINT.match(path.name)
             if match:
                 steps = int(match.group(1))
-                stats = folder / f"rl_model_vecnormalize_{steps}_steps.pkl"
+                stats = stats_path(folder, f"rl_model_vecnormalize_{steps}_steps") \
+                    or folder / f"rl_model_vecnormalize_{steps}_steps.json"
                 found.append((steps, path, stats))
     if final_steps is not None and (out / "model.zip").is_file():
-        found.append((final_steps, out / "model.zip", out / "vecnormalize.pkl"))
+        found.append((final_steps, out / "model.zip", stats_path(out, "vecnormalize") or out / "vecnormalize.json"))
     if not found:
         return None
     steps, model, stats = max(found, key=lambda item: item[0])
@@ -196,7 +202,8 @@ def train(env_id: str, config_path: Path | str | Mapping[str, Any] | PPOConfig |
           seed: int = 0, total_timesteps: int | None = None, resume: bool = False,
           dr_ranges: Path | str | Mapping[str, Any] | None = None, progress_bar: bool = True,
           verbose: int = 0, shadow_fraction: float = 0.0,
-          aligned: Path | str | Mapping[str, Any] | None = None, init_from: Path | str | None = None) -> Path:
+          aligned: Path | str | Mapping[str, Any] | None = None, init_from: Path | str | None = None,
+          trust_pickles: bool | None = None) -> Path:
     """Train PPO on ``env_id`` into ``out_dir`` and return it (see the module docstring for its contents).
 
     Args:
@@ -219,6 +226,8 @@ def train(env_id: str, config_path: Path | str | Mapping[str, Any] | PPOConfig |
             VecNormalize statistics, which keep adapting; the network is that run's, the PPO settings (learning
             rate, rollout, epochs...) this config's. The run must be on the same env id. Typical use: a policy trained in the nominal twin, fine-tuned in the
             aligned twin (``aligned=``) or with calibrated domain randomisation.
+        trust_pickles: allow unpickling an old run's ``vecnormalize.pkl`` (resume or ``init_from``); pickles
+            can run code, so only for files the user trusts.
     """
     from dualtwin.rl import check_env_id
     from dualtwin.rl.randomize import load_ranges
@@ -273,6 +282,7 @@ def train(env_id: str, config_path: Path | str | Mapping[str, Any] | PPOConfig |
     trainer.shadow_fraction = float(shadow_fraction)
     trainer.aligned = aligned_record
     trainer.init_from = init_record
+    trainer.trust_pickles = trust_pickles
     if aligned_record is not None:
         kwargs = dict(config.env_kwargs)
         trainer.env_kwargs = {**kwargs, "knobs": {**dict(kwargs.get("knobs") or {}), **aligned_record["values"]}}
@@ -291,10 +301,10 @@ def _init_record(env_id: str, run: Path | str) -> dict[str, Any]:
         raise DualtwinError(f"{folder}: trained on {record.get('env_id')!r}; it can only be fine-tuned on that env, "
                             f"not {env_id!r}")
     for prefix in ("best_", ""):
-        model, stats = folder / f"{prefix}model.zip", folder / f"{prefix}vecnormalize.pkl"
+        model, stats = folder / f"{prefix}model.zip", stats_path(folder, f"{prefix}vecnormalize")
         if model.is_file():
             return {"run": str(folder.resolve()), "model": str(model.resolve()), "sha256": sha256_file(model),
-                    "vecnormalize": str(stats.resolve()) if stats.is_file() else None}
+                    "vecnormalize": str(stats.resolve()) if stats is not None else None}
     raise DualtwinError(f"{folder}: no best_model.zip or model.zip to start from")
 
 
@@ -342,6 +352,7 @@ class _Trainer:
         self.shadow_fraction = 0.0
         self.aligned: dict[str, Any] | None = None
         self.init_from: dict[str, Any] | None = None
+        self.trust_pickles: bool | None = None
         self.env_kwargs: dict[str, Any] = dict(config.env_kwargs)
         self.model: PPO | None = None
         self.contract: dict[str, Any] = {}
@@ -398,7 +409,6 @@ class _Trainer:
         from stable_baselines3.common.callbacks import (
             BaseCallback,
             CallbackList,
-            CheckpointCallback,
             EvalCallback,
             StopTrainingOnRewardThreshold,
         )
@@ -424,7 +434,7 @@ class _Trainer:
             (self.init_from["model"], self.init_from["vecnormalize"]) if self.init_from is not None else None
         if norm is not None:
             if load is not None and load[1] is not None:
-                venv = VecNormalize.load(load[1], venv)
+                venv = load_normalization(Path(load[1]), venv, trust_pickles=self.trust_pickles)
                 venv.training = True
             else:
                 venv = VecNormalize(venv, norm_obs=norm.norm_obs, norm_reward=norm.norm_reward,
@@ -437,22 +447,26 @@ class _Trainer:
             # Fine-tuning keeps the network but takes this config's PPO settings (a lower learning rate, say);
             # SB3 rebuilds the rollout buffer and schedules from them.
             tuning = {} if self.start_from is not None else {
-                "learning_rate": _learning_rate(cfg.learning_rate), "n_steps": cfg.n_steps,
+                "learning_rate": learning_rate_schedule(cfg.learning_rate), "n_steps": cfg.n_steps,
                 "batch_size": cfg.batch_size, "n_epochs": cfg.n_epochs, "gamma": cfg.gamma,
                 "gae_lambda": cfg.gae_lambda, "clip_range": cfg.clip_range, "ent_coef": cfg.ent_coef,
                 "vf_coef": cfg.vf_coef, "max_grad_norm": cfg.max_grad_norm, "sde_sample_freq": cfg.sde_sample_freq}
-            model = PPO.load(load[0], env=venv, device="cpu", tensorboard_log=str(out / "tb"), custom_objects=tuning)
+            # Every pickled entry of the zip is rebuilt from the run record it came with (nothing is unpickled).
+            source = self.previous if self.start_from is not None else \
+                _read_json(Path(self.init_from["run"]) / "run.json") if self.init_from is not None else {}
+            model = load_model(Path(load[0]), source or {}, env=venv, tensorboard_log=str(out / "tb"),
+                               custom_objects=tuning, trust_pickles=self.trust_pickles)
             if self.start_from is None:
                 # Fine-tuning is a new run: its own seed and step count.
                 model.set_random_seed(self.seed)
                 model.num_timesteps = 0
         else:
             pk = cfg.policy_kwargs
-            policy_kwargs: dict[str, Any] = {"net_arch": dict(pk.net_arch), "activation_fn": _activation(pk.activation_fn),
+            policy_kwargs: dict[str, Any] = {"net_arch": dict(pk.net_arch), "activation_fn": activation(pk.activation_fn),
                                              "ortho_init": pk.ortho_init}
             if contract["action"]["type"] == "box":
                 policy_kwargs["log_std_init"] = pk.log_std_init
-            model = PPO(cfg.policy, venv, learning_rate=_learning_rate(cfg.learning_rate), n_steps=cfg.n_steps,
+            model = PPO(cfg.policy, venv, learning_rate=learning_rate_schedule(cfg.learning_rate), n_steps=cfg.n_steps,
                         batch_size=cfg.batch_size, n_epochs=cfg.n_epochs, gamma=cfg.gamma,
                         gae_lambda=cfg.gae_lambda, clip_range=cfg.clip_range, ent_coef=cfg.ent_coef,
                         vf_coef=cfg.vf_coef, max_grad_norm=cfg.max_grad_norm, policy_kwargs=policy_kwargs,
@@ -493,11 +507,23 @@ class _Trainer:
             def _on_step(self) -> bool:
                 return time.perf_counter() < self.deadline
 
+        class _Checkpoint(BaseCallback):
+            """SB3's CheckpointCallback, with the statistics as JSON (its own writes them as a pickle)."""
+
+            def __init__(self, every: int) -> None:
+                super().__init__()
+                self.every = every
+
+            def _on_step(self) -> bool:
+                if self.n_calls % self.every == 0:
+                    trainer._emergency_checkpoint(model, force=True)
+                return True
+
         class _SaveBestStats(BaseCallback):
             def _on_step(self) -> bool:
                 stats = self.model.get_vec_normalize_env()
                 if stats is not None:
-                    stats.save(str(out / "best_vecnormalize.pkl"))
+                    save_normalization(stats, out / "best_vecnormalize.json")
                 return True
 
         callbacks: list[BaseCallback] = []
@@ -513,9 +539,7 @@ class _Trainer:
             callbacks.append(evaluation)
         if cfg.checkpoint_freq:
             # After evaluation, so a checkpoint at step N comes with the evaluation at step N.
-            callbacks.append(CheckpointCallback(save_freq=max(cfg.checkpoint_freq // cfg.n_envs, 1),
-                                                save_path=str(out / "checkpoints"), name_prefix="rl_model",
-                                                save_vecnormalize=True))
+            callbacks.append(_Checkpoint(max(cfg.checkpoint_freq // cfg.n_envs, 1)))
         if cfg.max_wall_seconds is not None:
             callbacks.append(_WallClockLimit(cfg.max_wall_seconds))
         if self.shadow_fraction > 0:
@@ -543,12 +567,12 @@ class _Trainer:
         model.save(str(out / "model.zip"))
         stats = model.get_vec_normalize_env()
         if stats is not None:
-            stats.save(str(out / "vecnormalize.pkl"))
+            save_normalization(stats, out / "vecnormalize.json")
         self._record("complete")
         return out
 
-    def _emergency_checkpoint(self, model: PPO) -> None:
-        if not self.config.checkpoint_freq:
+    def _emergency_checkpoint(self, model: PPO, force: bool = False) -> None:
+        if not self.config.checkpoint_freq and not force:
             return
         folder = self.out / "checkpoints"
         folder.mkdir(parents=True, exist_ok=True)
@@ -556,7 +580,7 @@ class _Trainer:
         model.save(str(folder / f"rl_model_{steps}_steps.zip"))
         stats: VecNormalize | None = model.get_vec_normalize_env()
         if stats is not None:
-            stats.save(str(folder / f"rl_model_vecnormalize_{steps}_steps.pkl"))
+            save_normalization(stats, folder / f"rl_model_vecnormalize_{steps}_steps.json")
 
     def _restore_evaluations(self, evaluation: EvalCallback) -> None:
         """On resume, carry the evaluation history (evaluations.npz, best reward) up to the checkpoint."""
