@@ -11,6 +11,12 @@ from rich.console import Console
 
 from dualtwin.errors import DualtwinError
 
+# Loading a training run written before its statistics were JSON (or by another tool) means unpickling files
+# from it, which can run code: only on the user's explicit word.
+TrustPickles = Annotated[bool, typer.Option(
+    "--trust-pickles", help="allow unpickling a run's legacy vecnormalize.pkl or foreign model entries "
+    "(pickles can run code: only for files you trust)")]
+
 app = typer.Typer(help="Dual digital twins (Webots on ODE + MuJoCo) for robotics RL.", no_args_is_help=True,
                   pretty_exceptions_enable=False, add_completion=False)
 suite_app = typer.Typer(help="Scenario suites: validate and run.", no_args_is_help=True)
@@ -209,12 +215,14 @@ def train(
         help="train in the aligned twin: knobs.json from align --target <this env's twin>")] = None,
     init_from: Annotated[Path | None, typer.Option(
         help="fine-tune: start from this run's best policy and normalisation (same env id)")] = None,
+    trust_pickles: TrustPickles = False,
 ) -> None:
     """Train PPO (Stable-Baselines3) on a twin env; VecNormalize stats are saved with the model."""
     from dualtwin.rl.train import train as run_train
 
     run = run_train(env, config, out, seed=seed, total_timesteps=steps, resume=resume, dr_ranges=dr,
-                    shadow_fraction=shadow_fraction, aligned=aligned, init_from=init_from)
+                    shadow_fraction=shadow_fraction, aligned=aligned, init_from=init_from,
+                    trust_pickles=trust_pickles)
     console.print(f"wrote {run}")
 
 
@@ -230,14 +238,18 @@ def transfer(
     episodes: Annotated[int, typer.Option(help="episodes per row")] = 10,
     seed: Annotated[int, typer.Option(help="seed")] = 0,
     which: Annotated[str, typer.Option(help="best or final model")] = "final",
+    trust_pickles: TrustPickles = False,
 ) -> None:
     """Evaluate policies in their source twin and in the target twin: before and after alignment, with DR (Table 1)."""
     from dualtwin.rl.transfer import transfer as run_transfer
 
     if which not in ("best", "final"):
         raise DualtwinError(f"--which must be best or final, not {which!r}")
-    report = run_transfer(policy, target_env, policy_aligned=policy_aligned, policy_dr=policy_dr,
-                          episodes=episodes, seed=seed, out_dir=out, which=which)
+    from dualtwin.rl.runfiles import trusting_pickles
+
+    with trusting_pickles(trust_pickles):
+        report = run_transfer(policy, target_env, policy_aligned=policy_aligned, policy_dr=policy_dr,
+                              episodes=episodes, seed=seed, out_dir=out, which=which)
     for row in report.rows:
         console.print(f"  {row.label:<32} {row.summary()}")
     console.print(f"wrote {out}")
@@ -248,13 +260,17 @@ def export(
     policy: Annotated[Path, typer.Option(help="training run folder")],
     out: Annotated[Path, typer.Option(help="export folder (policy.onnx, policy_contract.json)")],
     which: Annotated[str, typer.Option(help="best or final model")] = "final",
+    trust_pickles: TrustPickles = False,
 ) -> None:
     """Export a policy to ONNX with observation normalisation and action scaling inside the graph."""
     from dualtwin.rl.export import export_policy
 
     if which not in ("best", "final"):
         raise DualtwinError(f"--which must be best or final, not {which!r}")
-    path = export_policy(policy, out, which=which)  # type: ignore[arg-type]
+    from dualtwin.rl.runfiles import trusting_pickles
+
+    with trusting_pickles(trust_pickles):
+        path = export_policy(policy, out, which=which)  # type: ignore[arg-type]
     console.print(f"wrote {path}")
 
 
@@ -270,12 +286,16 @@ def collect(
     width: Annotated[int, typer.Option(help="frame width")] = 64,
     height: Annotated[int, typer.Option(help="frame height")] = 64,
     randomize: Annotated[bool, typer.Option(help="visual randomisation (lights, colours, camera jitter)")] = True,
+    trust_pickles: TrustPickles = False,
 ) -> None:
     """Record camera frames paired with the supervisor's ground truth (Pattern 2)."""
     from dualtwin.perception.dataset import collect as run_collect
 
-    path = run_collect(env, episodes, out, controller=controller, policy_run=policy, resume=resume, seed=seed,
-                       width=width, height=height, randomize=randomize)
+    from dualtwin.rl.runfiles import trusting_pickles
+
+    with trusting_pickles(trust_pickles):
+        path = run_collect(env, episodes, out, controller=controller, policy_run=policy, resume=resume, seed=seed,
+                           width=width, height=height, randomize=randomize)
     console.print(f"wrote {path}")
 
 
@@ -366,14 +386,18 @@ def lockstep(
     resync: Annotated[str, typer.Option(help="never | every:N | threshold:X")] = "never",
     episodes: Annotated[int | None, typer.Option(help="episodes to run with --policy")] = None,
     seed: Annotated[int, typer.Option(help="seed")] = 0,
+    trust_pickles: TrustPickles = False,
 ) -> None:
     """Run two twins side by side with the same commands; log the per-period state difference."""
     from dualtwin.sync import run_lockstep, write_sync_report
 
     if (scenarios is None) == (policy is None):
         raise DualtwinError("give exactly one of --scenarios or --policy")
-    result = run_lockstep(primary, secondary, robot, out_dir=out, suite=scenarios, policy=policy, resync=resync,
-                          seed=seed, episodes=episodes)
+    from dualtwin.rl.runfiles import trusting_pickles
+
+    with trusting_pickles(trust_pickles):
+        result = run_lockstep(primary, secondary, robot, out_dir=out, suite=scenarios, policy=policy, resync=resync,
+                              seed=seed, episodes=episodes)
     report = write_sync_report(out / "report", lockstep=result)
     for episode in result.episodes:
         console.print(f"  {episode.id:<28} mean normalised error {episode.mean_error:.4g}")
