@@ -15,6 +15,7 @@ import base64
 import hashlib
 import io
 import json
+import math
 import tempfile
 import time
 from pathlib import Path
@@ -48,7 +49,98 @@ def _client(server_url: str, api_key: str | None, timeout: float) -> Any:
     import httpx
 
     headers = {"X-API-Key": api_key} if api_key else {}
-    return httpx.Client(base_url=server_url.rstrip("/"), headers=headers, timeout=timeout)
+    try:
+        return httpx.Client(base_url=server_url.rstrip("/"), headers=headers, timeout=timeout)
+    except (httpx.InvalidURL, TypeError, ValueError) as exc:
+        raise DualtwinError(f"--server {server_url!r}: not a usable URL ({exc})") from None
+
+
+#: The env options a server may set (from the policy's training run): what shapes the policy's observations
+#: and the physics it was trained on. The twin, robot and task are the user's choice (the env id); rendering and
+#: the episode cap are the client's. Everything else a server sends is refused, not passed to ``make_env``.
+SERVER_ENV_OPTIONS = ("continuous", "control_period", "knobs", "task_kwargs")
+
+
+def _declared_options(factory: Any) -> dict[str, Any]:
+    """Keyword parameters of ``factory`` (a class or function) with their annotated types."""
+    import inspect
+    import typing
+
+    function = factory.__init__ if inspect.isclass(factory) else factory
+    hints = typing.get_type_hints(function)
+    return {name: hints.get(name, Any) for name, p in inspect.signature(function).parameters.items()
+            if name != "self" and p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)}
+
+
+def _check_value(where: str, value: Any, hint: Any) -> Any:
+    from pydantic import TypeAdapter, ValidationError
+
+    try:
+        # Strict: a JSON string is not a number and 1 is not True.
+        checked = TypeAdapter(hint).validate_python(value, strict=True)
+    except ValidationError as exc:
+        first = exc.errors(include_url=False)[0]
+        raise DualtwinError(f"{where}: {first['msg'].lower()} (got {value!r})") from None
+    except Exception:  # noqa: BLE001 - an annotation pydantic cannot check: accept plain JSON scalars only
+        if value is None or isinstance(value, bool | int | float | str):
+            return value
+        raise DualtwinError(f"{where}: expected a plain value, got {type(value).__name__}") from None
+    _check_finite(where, checked)
+    return checked
+
+
+def _check_finite(where: str, value: Any) -> None:
+    if isinstance(value, float) and not math.isfinite(value):
+        raise DualtwinError(f"{where}: must be finite, got {value!r}")
+    items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list | tuple) else ()
+    for key, item in items:
+        _check_finite(f"{where}.{key}", item)
+
+
+def check_env_kwargs(env_id: str, env_kwargs: Any, where: str = "/v1/info policy.env_kwargs") -> dict[str, Any]:
+    """The server-supplied env options, checked against the env's declared options (names and types).
+
+    Only :data:`SERVER_ENV_OPTIONS` are accepted, each against the type ``TwinEnv`` declares for it; the task's
+    options (``task_kwargs``) against the task class's own signature; knob values must be finite numbers.
+
+    Raises:
+        DualtwinError: one line naming the JSON path of the first unknown or invalid option.
+    """
+    import gymnasium as gym
+
+    from dualtwin.rl import check_env_id
+    from dualtwin.rl.env import TASKS
+
+    if env_kwargs is None:
+        return {}
+    if not isinstance(env_kwargs, dict):
+        raise DualtwinError(f"{where}: expected an object, got {type(env_kwargs).__name__}")
+    spec = gym.spec(check_env_id(env_id))
+    factory = gym.envs.registration.load_env_creator(spec.entry_point) if isinstance(spec.entry_point, str) \
+        else spec.entry_point
+    declared = _declared_options(factory)
+    checked: dict[str, Any] = {}
+    for key, value in env_kwargs.items():
+        if key not in SERVER_ENV_OPTIONS or key not in declared:
+            allowed = [k for k in SERVER_ENV_OPTIONS if k in declared]
+            raise DualtwinError(f"{where}.{key}: not an option a server may set for {env_id} "
+                                f"(allowed: {', '.join(allowed)})")
+        if key == "task_kwargs":
+            if not isinstance(value, dict):
+                raise DualtwinError(f"{where}.task_kwargs: expected an object, got {type(value).__name__}")
+            task = str(spec.kwargs.get("task", "cartpole_balance"))
+            options = {k: v for k, v in _declared_options(TASKS[task]).items() if k != "continuous"}
+            for name, item in value.items():
+                if name not in options:
+                    raise DualtwinError(f"{where}.task_kwargs.{name}: not an option of task {task!r} "
+                                        f"(options: {', '.join(options)})")
+                _check_value(f"{where}.task_kwargs.{name}", item, options[name])
+            checked[key] = dict(value)
+        else:
+            checked[key] = _check_value(f"{where}.{key}", value, declared[key])
+            if key == "control_period" and checked[key] <= 0:
+                raise DualtwinError(f"{where}.control_period: must be > 0, got {value!r}")
+    return checked
 
 
 def _check(response: Any, what: str) -> Any:
@@ -79,9 +171,56 @@ def _env_action(action: Any, discrete: bool) -> Any:
     return int(action) if discrete else np.asarray(action, dtype=np.float32).reshape(-1)
 
 
+def _json(response: Any, what: str) -> Any:
+    _check(response, what)
+    try:
+        return response.json()
+    except ValueError:  # (DualtwinError is a ValueError too: checked above, outside the try)
+        raise DualtwinError(f"{what}: the server's answer is not JSON") from None
+
+
+#: What the client reads from ``/v1/info`` (JSON paths), checked before use: a server is not trusted either.
+INFO_FIELDS = {"policy": dict, "policy.observation": list, "policy.action": dict, "policy.control_period_s": float,
+               "perception": dict, "perception.resolution": list, "perception.camera": dict}
+
+
+def _read_info(http: Any) -> dict[str, Any]:
+    info = _json(http.get("/v1/info"), "GET /v1/info")
+    for path, kind in INFO_FIELDS.items():
+        node: Any = info
+        for part in path.split("."):
+            node = node.get(part) if isinstance(node, dict) else None
+        if not isinstance(node, kind) and not (kind is float and isinstance(node, int)):
+            raise DualtwinError(f"GET /v1/info: {path} is missing or not a {kind.__name__} (not a dualtwin RobotServer?)")
+    resolution = info["perception"]["resolution"]
+    if len(resolution) != 2 or not all(isinstance(v, int) and 0 < v <= 4096 for v in resolution):
+        raise DualtwinError(f"GET /v1/info: perception.resolution must be [width, height] in 1..4096, got {resolution}")
+    if not all(isinstance(t, dict) and isinstance(t.get("name"), str) for t in info["policy"]["observation"]):
+        raise DualtwinError("GET /v1/info: policy.observation must list terms with a name")
+    return info
+
+
 def deploy(server_url: str, env_id: str, episodes: int, *, seed: int = 0, api_key: str | None = None,
            policy_dir: Path | str | None = None, max_steps: int | None = None, frame_format: str = "png",
            compare: bool = True, timeout: float = 10.0) -> dict[str, Any]:
+    """Run ``episodes`` episodes through the server (see :func:`_deploy`); a server that cannot be reached or
+    answers out of protocol is a :class:`DualtwinError` naming the URL.
+    """
+    import httpx
+
+    try:
+        return _deploy(server_url, env_id, episodes, seed=seed, api_key=api_key, policy_dir=policy_dir,
+                       max_steps=max_steps, frame_format=frame_format, compare=compare, timeout=timeout)
+    except httpx.TimeoutException as exc:
+        raise DualtwinError(f"--server {server_url}: no answer within {timeout:g} s ({type(exc).__name__})") from None
+    except httpx.TransportError as exc:
+        raise DualtwinError(f"--server {server_url}: cannot reach the RobotServer ({type(exc).__name__}: "
+                            f"{str(exc) or 'connection failed'})") from None
+
+
+def _deploy(server_url: str, env_id: str, episodes: int, *, seed: int = 0, api_key: str | None = None,
+            policy_dir: Path | str | None = None, max_steps: int | None = None, frame_format: str = "png",
+            compare: bool = True, timeout: float = 10.0) -> dict[str, Any]:
     """Run ``episodes`` episodes of ``env_id`` through the server; compare with the privileged-state policy.
 
     Args:
@@ -107,7 +246,13 @@ def deploy(server_url: str, env_id: str, episodes: int, *, seed: int = 0, api_ke
     if episodes < 1:
         raise DualtwinError("episodes must be >= 1")
     with _client(server_url, api_key, timeout) as http:
-        info = _check(http.get("/v1/info"), "GET /v1/info").json()
+        info = _read_info(http)
+        # The policy's env arguments (task options such as odometry velocity) define what it observes. They come
+        # from the server: checked against the env's declared options before anything is built with them.
+        served_kwargs = info["policy"].get("env_kwargs") or {}
+        if isinstance(served_kwargs, dict):
+            served_kwargs = {k: v for k, v in served_kwargs.items() if k != "max_episode_steps"}
+        kwargs = check_env_kwargs(env_id, served_kwargs)
         policy = OnnxPolicy.load(policy_dir) if policy_dir is not None else _served_policy(http, info)
         terms = info["policy"]["observation"]
         onboard = [i for i, t in enumerate(terms) if t.get("source") == "onboard"]
@@ -116,8 +261,6 @@ def deploy(server_url: str, env_id: str, episodes: int, *, seed: int = 0, api_ke
         camera = dict(info["perception"]["camera"] or {})
         name = str(camera.pop("name", "camera"))
         spec = CameraSpec.from_dict(name, camera).with_size(width, height)
-        # The policy's env arguments (task options such as odometry velocity) define what it observes.
-        kwargs = {k: v for k, v in (info["policy"].get("env_kwargs") or {}).items() if k != "max_episode_steps"}
         if max_steps:
             kwargs["max_episode_steps"] = max_steps
         env = make_env(env_id, **kwargs)
@@ -144,11 +287,18 @@ def deploy(server_url: str, env_id: str, episodes: int, *, seed: int = 0, api_ke
                             "reset": step == 0, "time_s": float(twin_env.twin.time),
                         }
                         start = time.perf_counter()
-                        reply = _check(http.post("/v1/act", json=request), "POST /v1/act").json()
+                        reply = _json(http.post("/v1/act", json=request), "POST /v1/act")
                         latencies.append(time.perf_counter() - start)
-                        estimate = reply["observation"]
-                        errors.append([abs(estimate[terms[i]["name"]] - float(obs[i])) for i in privileged])
-                        obs, reward, terminated, truncated, _ = env.step(_env_action(reply["action"], discrete))
+                        try:
+                            estimate = reply["observation"]
+                            errors.append([abs(float(estimate[terms[i]["name"]]) - float(obs[i])) for i in privileged])
+                            action = _env_action(reply["action"], discrete)
+                        except (KeyError, TypeError, ValueError):
+                            raise DualtwinError("POST /v1/act: the answer lacks a valid 'observation' or 'action'") from None
+                        if not env.action_space.contains(action):
+                            raise DualtwinError(f"POST /v1/act: action {reply['action']!r} is outside the env's action "
+                                                f"space {env.action_space}")
+                        obs, reward, terminated, truncated, _ = env.step(action)
                         total += float(reward)
                         step += 1
                         done = terminated or truncated
