@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import sys
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 from rich.console import Console
@@ -41,12 +42,13 @@ def _global_options(
 
 @suite_app.command("validate")
 def suite_validate(
-    file: Annotated[Path, typer.Argument(help="suite JSON file")],
+    file: Annotated[Path, typer.Argument(help="suite JSON file, or a bundled robot's name for its suite")],
     robot: Annotated[str | None, typer.Option(help="also resolve robot-specific keys through this robot")] = None,
 ) -> None:
     """Check a suite file (and, with --robot, that the binding resolves every key)."""
-    from dualtwin.suite.loader import load_suite
+    from dualtwin.suite.loader import load_suite, resolve_suite
 
+    file = resolve_suite(file)
     suite = load_suite(file)
     if robot is not None:
         from dualtwin.robots.binding import resolve_robot
@@ -509,13 +511,114 @@ def generate(
         console.print(f"  {name:<10} {file}")
 
 
-def main() -> None:
-    """Entry point: user errors become one line on stderr and exit code 2, never a traceback."""
+# ------------------------------------------------------------------ the CLI's promise
+# Ranges for numeric options, by option name, the same in every command (a new command's --seed is checked like
+# every other). (low, high): None means unbounded; high may be a float for float options. Numeric options not
+# named here must be >= 0. Every float option must be finite. Violations are usage errors naming the option.
+MAX_SEED = 2**32 - 1
+OPTION_RANGES: dict[str, tuple[float | None, float | None]] = {
+    "seed": (0, MAX_SEED), "port": (1, 65535), "episodes": (1, 1_000_000), "budget": (1, 10_000_000),
+    "epochs": (1, 100_000), "steps": (1, 10**10), "stride": (1, 1_000_000), "width": (8, 4096),
+    "height": (8, 4096), "max_iterations": (1, 100), "workers": (1, 1024), "shadow_fraction": (0, 1),
+    "duration": (0, 86_400), "ensemble": (0, 10_000),
+}
+
+
+def _check_number(name: str, value: float) -> str | None:
+    """Why ``value`` is not acceptable for the option ``name`` (see OPTION_RANGES), or None."""
+    import math
+
+    low, high = OPTION_RANGES.get(name, (0, None))
+    if isinstance(value, float) and not math.isfinite(value):
+        return f"{value!r} is not a finite number"
+    if (low is not None and value < low) or (high is not None and value > high):
+        def text(bound: float) -> str:
+            return str(int(bound)) if float(bound).is_integer() else f"{bound:g}"
+
+        return f"{value!r} is out of range (must be " + (
+            f"from {text(low or 0)} to {text(high)})" if high is not None else f">= {text(low or 0)})")
+    return None
+
+
+def _policy_callback(original: Any) -> Any:
+    """A parameter callback applying the option policies to the converted value, then ``original``'s."""
+
+    def callback(ctx: Any, param: Any, value: Any) -> Any:
+        option = (param.opts or [param.name or "?"])[0]
+        values = value if isinstance(value, list | tuple) else [value]
+        for item in values:
+            if isinstance(item, int | float) and not isinstance(item, bool):
+                problem = _check_number(param.name or "", item)
+                if problem:
+                    raise DualtwinError(f"{option}: {problem}")
+        if param.name == "scenarios" and isinstance(value, Path):
+            # A bundled robot's name means its bundled suite, from any folder (suite.loader.resolve_suite).
+            from dualtwin.suite.loader import resolve_suite
+
+            try:
+                value = resolve_suite(value)
+            except DualtwinError as exc:
+                raise DualtwinError(f"{option}: {exc}") from None
+        return original(ctx, param, value) if original is not None else value
+
+    return callback
+
+
+def _harden(command: Any) -> Any:
+    """Apply the option policies above to every parameter of every command, recursively (new commands too)."""
+    for param in command.params:
+        if not getattr(param, "_dualtwin_policy", False):
+            param.callback = _policy_callback(param.callback)
+            param._dualtwin_policy = True
+    for sub in getattr(command, "commands", {}).values():
+        _harden(sub)
+    return command
+
+
+def one_line(message: str) -> str:
+    """The error promise: one line, whatever the message's own line breaks."""
+    return "; ".join(part.strip() for part in str(message).splitlines() if part.strip())
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point: user errors become one line on stderr and exit code 2, never a traceback.
+
+    Usage errors (unknown option, bad number, missing option) are printed by us, not by click/typer's boxes, so
+    they keep the same one-line form; ``argv`` (default ``sys.argv[1:]``) lets tests call this in-process.
+    """
+    from typer.exceptions import Abort, TyperException
+
+    code = 0
     try:
-        app()
+        command = _harden(typer.main.get_command(app))
+        result = command.main(args=list(sys.argv[1:] if argv is None else argv), prog_name="dualtwin",
+                              standalone_mode=False)
+        code = result if isinstance(result, int) else 0
+    except Abort:
+        print("error: interrupted", file=sys.stderr)
+        code = 130
+    except TyperException as exc:  # click's usage errors, as vendored by typer: bad value, missing option...
+        ctx = getattr(exc, "ctx", None)
+        if type(exc).__name__ == "NoArgsIsHelpError" and ctx is not None:
+            print(ctx.get_help())  # a group without a subcommand: its help, as before
+        else:
+            where = f"{ctx.command_path}: " if ctx is not None else ""
+            print(f"error: {where}{one_line(exc.format_message())}", file=sys.stderr)
+        code = getattr(exc, "exit_code", 2) or 2
     except DualtwinError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        sys.exit(2)
+        print(f"error: {one_line(str(exc))}", file=sys.stderr)
+        code = 2
+    except OSError as exc:
+        # A file the user named cannot be read or written (permissions, a folder where a file belongs, a full
+        # disk): their input, not our bug. Errors without a file name are bugs and keep their traceback.
+        if exc.filename is None:
+            raise
+        print(f"error: {exc.filename}: {exc.strerror or exc}", file=sys.stderr)
+        code = 2
+    sys.stdout.flush()
+    if argv is None:
+        sys.exit(code)
+    return code
 
 
 if __name__ == "__main__":

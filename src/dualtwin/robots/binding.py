@@ -71,6 +71,10 @@ class Channel(_Strict):
     axis: Literal["x", "y", "z", "yaw"] | None = None
     scale: float = 1.0
     unit: str = ""
+    resolution: float | None = Field(
+        default=None, gt=0, description="smallest meaningful difference, in the channel's unit; differences at "
+        "or below it never rank and raise no sign or scale finding (default by unit: 1 mm for m, 1 mrad for rad, "
+        "see dualtwin.divergence.metrics.DEFAULT_RESOLUTION_BY_UNIT)")
 
     @model_validator(mode="after")
     def _one_source(self) -> Channel:
@@ -157,11 +161,12 @@ class RobotBinding:
 
 
 def load_binding(path: Path) -> RobotBinding:
+    from dualtwin.artifacts import read_text_file
+
     path = Path(path)
-    if not path.is_file():
-        raise DualtwinError(f"{path}: binding file not found")
+    text = read_text_file(path, "binding file")
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f":{mark.line + 1}:{mark.column + 1}" if mark else ""

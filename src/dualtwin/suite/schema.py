@@ -20,6 +20,14 @@ from dualtwin.suite.signals import Signal
 
 SCENARIO_KEYS = {"name", "duration_s", "type", "description", "seed", "reset", "tolerances"}
 
+# Sane ranges, so a typo cannot start a run that grows memory for hours with no output: a scenario lasts at
+# most one simulated day, a suite asks for at most MAX_SUITE_PERIODS control periods in all (every period is
+# one row in each log; about 9 simulated hours at the paper's 32 ms), and the control period is 0.01 ms-60 s.
+MAX_DURATION_S = 86_400.0
+MAX_SUITE_PERIODS = 1_000_000
+MIN_TIME_STEP_MS, MAX_TIME_STEP_MS = 0.01, 60_000.0
+MAX_SEED = 2**32 - 1
+
 
 class Tolerance(BaseModel):
     """Per-channel budget: a scenario 'agrees' when every given metric is within its bound."""
@@ -38,7 +46,7 @@ class Tolerance(BaseModel):
 
 class GlobalSettings(BaseModel):
     model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
-    TIME_STEP: float = Field(default=32.0, gt=0, description="control period, ms")
+    TIME_STEP: float = Field(default=32.0, ge=MIN_TIME_STEP_MS, le=MAX_TIME_STEP_MS, description="control period, ms")
 
     @model_validator(mode="after")
     def _extras_are_numbers(self) -> GlobalSettings:
@@ -63,10 +71,10 @@ _signal_adapter: TypeAdapter[Any] = TypeAdapter(Signal)
 class Scenario(BaseModel):
     model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
     name: str = Field(min_length=1)
-    duration_s: float = Field(gt=0)
+    duration_s: float = Field(gt=0, le=MAX_DURATION_S)
     type: str | None = None
     description: str | None = None
-    seed: int | None = Field(default=None, ge=0)
+    seed: int | None = Field(default=None, ge=0, le=MAX_SEED)
     reset: Literal["fresh", "continue"] = "fresh"
     tolerances: dict[str, Tolerance] = Field(default_factory=dict)
 
@@ -105,6 +113,14 @@ class Suite(BaseModel):
         if scenarios and scenarios[0].reset == "continue":
             raise ValueError("the first scenario cannot continue from a previous one; use reset 'fresh'")
         return scenarios
+
+    @model_validator(mode="after")
+    def _bounded_total(self) -> Suite:
+        periods = sum(math.ceil(s.duration_s / self.global_settings.control_period_s - 1e-9) for s in self.scenarios)
+        if periods > MAX_SUITE_PERIODS:
+            raise ValueError(f"the scenarios ask for {periods} control periods in all (duration_s / TIME_STEP); "
+                             f"at most {MAX_SUITE_PERIODS} are allowed: shorten duration_s or split the suite")
+        return self
 
     def scenario_ids(self) -> list[str]:
         """Unique ids: names may repeat in the published format, so the index prefixes them."""
