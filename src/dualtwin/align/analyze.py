@@ -40,7 +40,6 @@ from __future__ import annotations
 import base64
 import fnmatch
 import html
-import json
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -687,36 +686,53 @@ def _finish(config: AnalysisConfig, comparison: RunComparison, findings: list[Fi
 
 # ------------------------------------------------------------------ output
 def findings_html(findings: Sequence[Finding]) -> str:
-    """An ordered list of findings with their evidence, for reports."""
+    """An ordered list of findings with their evidence (as small tables with rounded numbers), for reports."""
+    from dualtwin.reporting import evidence_html
+
     if not findings:
         return "<p>No finding: the runs agree within the detectors' thresholds.</p>"
     items = []
     for f in findings:
         knobs = f" <br><small>knobs to try: <code>{html.escape(', '.join(f.knobs))}</code></small>" if f.knobs else ""
-        evidence = html.escape(json.dumps(f.evidence, default=str)[:600])
         items.append(f"<li><b>{html.escape(f.kind.replace('_', ' '))}</b> ({100 * f.share:.0f} % of the divergence): "
-                     f"{html.escape(f.message)}{knobs}<br><small>evidence: <code>{evidence}</code></small></li>")
+                     f"{html.escape(f.message)}{knobs}<br><small>evidence:</small>{evidence_html(f.evidence)}</li>")
     return "<ol>" + "".join(items) + "</ol>"
 
 
+def _change_text(s: KnobSensitivity, direction: str) -> str:
+    """A sensitivity cell in words where there is no number: never ``nan``."""
+    value = s.change.get(direction)
+    if value is None:
+        return "not tried (at bound)" if s.tried else "not computed"
+    if not math.isfinite(value):
+        return f"unstable ({', '.join(s.unstable)})" if s.unstable else "not computed"
+    return "no effect" if value == 0 else f"{value:+.3g}"
+
+
 def sensitivity_html(sensitivity: Sequence[KnobSensitivity], top: int = 15) -> str:
+    from dualtwin.reporting import html_table
+
     if not sensitivity:
         return ""
-    rows = ["<tr><th class='l'>knob</th><th>nominal</th><th>Δobjective up</th><th>Δobjective down</th>"
-            "<th>sensitivity</th><th class='l'>to move toward A</th></tr>"]
+    rows = []
     for s in sensitivity[:top]:
-        rows.append(f"<tr><td class='l'>{html.escape(s.knob)}</td><td>{s.nominal:.4g}</td>"
-                    f"<td>{s.change.get('up', float('nan')):+.3g}</td><td>{s.change.get('down', float('nan')):+.3g}</td>"
-                    f"<td>{s.sensitivity:.3g}</td><td class='l'>{s.best_direction}</td></tr>")
-    return "<table>" + "".join(rows) + "</table>"
+        sens = ("not computed" if not math.isfinite(s.sensitivity)
+                else "no effect" if s.sensitivity == 0 else f"{s.sensitivity:.3g}")
+        direction = "no effect" if s.best_direction == "none" else s.best_direction
+        rows.append([s.knob + (f" [{s.unit}]" if s.unit else ""), f"{s.nominal:.4g}", _change_text(s, "up"),
+                     _change_text(s, "down"), sens, direction])
+    return html_table(["knob", "nominal", "Δobjective up", "Δobjective down", "sensitivity", "to move toward A"],
+                      rows, left=(0, 5))
 
 
 def write_analysis(analysis: Analysis, out_dir: Path) -> Path:
     """Write ``analysis.json``, the divergence report (``report.html``) and ``analysis.html``; returns the latter."""
-    from dualtwin.divergence.report import _CSS, _png_bytes, plot_channel, write_report
+    from dualtwin.divergence.report import plot_channel, twin_labels, write_report
+    from dualtwin.reporting import CSS as _CSS
+    from dualtwin.reporting import png_bytes as _png_bytes
 
     out_dir = Path(out_dir)
-    label_a, label_b = Path(analysis.config.run_a).name or "A", Path(analysis.config.run_b).name or "B"
+    label_a, label_b = twin_labels(analysis.comparison)  # twin names from the manifests, not folder names
     write_report(analysis.comparison, out_dir, label_a, label_b)
     write_json(out_dir / "analysis.json", analysis.to_dict())
     images = []
@@ -740,7 +756,7 @@ def write_analysis(analysis: Analysis, out_dir: Path) -> Path:
     ]
     if analysis.sensitivity:
         parts += ["<h2>Knob sensitivity</h2>",
-                  f"<p>Objective at nominal: {analysis.objective.total if analysis.objective else float('nan'):.4g}; "
+                  f"<p>Objective at nominal: {f'{analysis.objective.total:.4g}' if analysis.objective else 'not computed'}; "
                   f"each knob moved by {analysis.config.step:g} of its range.</p>",
                   sensitivity_html(analysis.sensitivity)]
     if analysis.notes:

@@ -394,7 +394,7 @@ def align_prediction(
 
 def _report_html(result: AlignResult, before: Mapping[str, Any], after: Mapping[str, Any],
                  config: PredictionAlignConfig) -> str:
-    from dualtwin.divergence.report import _CSS
+    from dualtwin.reporting import CSS as _CSS
 
     rows = "".join(
         f"<tr><td class='l'>{html.escape(n)}</td><td>{k.nominal:.5g}</td><td>{k.fitted:.5g}</td>"

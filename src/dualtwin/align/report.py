@@ -1,13 +1,13 @@
 """The before/after alignment report: ``report.html`` with tables, findings and three-trace overlays.
 
-Every plot (one grid per scenario) overlays the reference, the target before alignment and the target after it (`plot_overlay`
-from the divergence report), with crossing times marked. The tables take their MSE, DTW, crossing-time
+Every plot (one grid per scenario) overlays the reference, the target before alignment and the target after it
+(`dualtwin.reporting.plot_overlay`, one channel and unit per axes), labelled by twin name, with crossing times
+marked. The tables take their MSE, DTW, crossing-time
 and endpoint errors from `compare_runs` (reference vs before, reference vs after).
 """
 
 from __future__ import annotations
 
-import base64
 import html
 import math
 from collections.abc import Mapping, Sequence
@@ -22,8 +22,8 @@ from dualtwin.align.analyze import Analysis, findings_html
 from dualtwin.align.narrate import narrative_html
 from dualtwin.artifacts import write_bytes, write_text
 from dualtwin.divergence.metrics import ChannelDivergence
-from dualtwin.divergence.report import _CSS, _png_bytes, _slug, plot_overlay
 from dualtwin.divergence.runs import RunComparison, ScenarioComparison, compare_runs
+from dualtwin.reporting import evidence_html, html_table, img_html, page_head, plot_overlay, png_bytes, slug
 
 if TYPE_CHECKING:
     from dualtwin.align.fit import AlignResult
@@ -42,6 +42,11 @@ def _pair(before: float | None, after: float | None) -> str:
     return f"{_f(before)} → {_f(after)}{arrow}"
 
 
+def trace_labels(reference_twin: str, target_twin: str) -> tuple[str, str, str]:
+    """Legend labels from the runs' twin names (folder names repeat): reference, target before, target after."""
+    return f"{reference_twin} (reference)", f"{target_twin} before", f"{target_twin} after"
+
+
 def _abs(value: float | None) -> float | None:
     return None if value is None else abs(value)
 
@@ -58,22 +63,22 @@ def _crossing_error(ch: ChannelDivergence | None) -> float | None:
 
 def scenario_table(before: RunComparison, after: RunComparison, held: Sequence[str]) -> str:
     """Per scenario and channel: MSE, DTW, crossing-time and endpoint errors before → after."""
-    rows = ["<tr><th class='l'>scenario</th><th class='l'>set</th><th class='l'>channel</th><th>MSE</th>"
-            "<th>DTW</th><th>|Δ crossing| [s]</th><th>|endpoint error|</th></tr>"]
+    rows = []
     after_by_id = {s.id: s for s in after.scenarios}
+    units = before.units
     for sb in before.scenarios:
         sa = after_by_id.get(sb.id)
         role = "held out" if sb.id in held else "train"
         for name in before.channel_names:
             cb = sb.channels.get(name)
             ca = sa.channels.get(name) if sa else None
-            rows.append(
-                f"<tr><td class='l'>{html.escape(sb.id)}</td><td class='l'>{role}</td><td class='l'>{html.escape(name)}</td>"
-                f"<td>{_pair(cb.mse if cb else None, ca.mse if ca else None)}</td>"
-                f"<td>{_pair(cb.dtw if cb else None, ca.dtw if ca else None)}</td>"
-                f"<td>{_pair(_crossing_error(cb), _crossing_error(ca))}</td>"
-                f"<td>{_pair(_abs(cb.final_diff) if cb else None, _abs(ca.final_diff) if ca else None)}</td></tr>")
-    return "<table>" + "".join(rows) + "</table>"
+            unit = f" [{units[name]}]" if units.get(name) else ""
+            rows.append([sb.id, role, name + unit, _pair(cb.mse if cb else None, ca.mse if ca else None),
+                         _pair(cb.dtw if cb else None, ca.dtw if ca else None),
+                         _pair(_crossing_error(cb), _crossing_error(ca)),
+                         _pair(_abs(cb.final_diff) if cb else None, _abs(ca.final_diff) if ca else None)])
+    return html_table(["scenario", "set", "channel", "MSE", "DTW", "|Δ crossing| [s]", "|endpoint error|"], rows,
+                      left=(0, 1, 2))
 
 
 def _overlay(ax: Axes, sb: ScenarioComparison, sa: ScenarioComparison | None, channel: str, unit: str,
@@ -91,7 +96,7 @@ def _overlay(ax: Axes, sb: ScenarioComparison, sa: ScenarioComparison | None, ch
     if not traces:
         return False
     lines = plot_overlay(ax, traces, crossings=crossings, threshold=cb.threshold if cb else None,
-                         ylabel=f"{channel} [{unit}]" if unit else channel, title=channel)
+                         ylabel=f"{channel} [{unit or 'unit not recorded'}]", title=channel)
     # A wide translucent reference stays visible when an aligned trace lies exactly on it.
     lines[0].set_linewidth(4.0)
     lines[0].set_alpha(0.45)
@@ -114,7 +119,7 @@ def scenario_png(sb: ScenarioComparison, sa: ScenarioComparison | None, channels
         ax.set_visible(False)
     fig.suptitle(sb.id, fontsize=11)
     fig.subplots_adjust(left=0.07, right=0.98, top=1 - 0.35 / rows, bottom=0.25 / rows, hspace=0.55, wspace=0.22)
-    return _png_bytes(fig)
+    return png_bytes(fig)
 
 
 def write_align_report(out_dir: Path, result: AlignResult, reference: Path, before: Path, after: Path,
@@ -123,13 +128,9 @@ def write_align_report(out_dir: Path, result: AlignResult, reference: Path, befo
     """Write ``report.html`` (and ``plots/*.png``) into ``out_dir``; returns the report path."""
     comp_before = compare_runs(reference, before, thresholds)
     comp_after = compare_runs(reference, after, thresholds)
-    labels = ("reference", "before", "after")
-    knob_rows = ["<tr><th class='l'>knob</th><th>nominal</th><th>fitted</th><th>± 95 %</th><th>bounds</th>"
-                 "<th class='l'>at bound</th></tr>"]
-    for k in result.knobs.values():
-        knob_rows.append(f"<tr><td class='l'>{html.escape(k.name)}</td><td>{k.nominal:.5g}</td><td><b>{k.fitted:.5g}</b>"
-                         f"</td><td>{_f(k.half_width_95, '.2g')}</td><td>[{k.lower:.4g}, {k.upper:.4g}]</td>"
-                         f"<td class='l'>{k.at_bound or ''}</td></tr>")
+    labels = trace_labels(comp_before.twin_a, comp_before.twin_b)
+    knob_rows = [[k.name, f"{k.nominal:.5g}", f"<b>{k.fitted:.5g}</b>", _f(k.half_width_95, ".2g"),
+                  f"[{k.lower:.4g}, {k.upper:.4g}]", k.at_bound or ""] for k in result.knobs.values()]
     summary = [
         ("optimizer", result.optimizer), ("stop", result.stop_reason),
         ("evaluations", str(result.evaluations)), ("iterations", str(result.iterations)),
@@ -142,19 +143,18 @@ def write_align_report(out_dir: Path, result: AlignResult, reference: Path, befo
         ("train / held out", f"{', '.join(train)} / {', '.join(held) or '–'}"),
     ]
     parts = [
-        "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
-        f"<title>Alignment report</title><style>{_CSS}</style></head><body>",
+        page_head(f"Alignment: {comp_before.twin_b} to {comp_before.twin_a}"),
         f"<h1>Alignment: {html.escape(comp_before.twin_b)} to the reference ({html.escape(comp_before.twin_a)})</h1>",
-        "<table>" + "".join(f"<tr><th class='l'>{html.escape(k)}</th><td class='l'>{html.escape(v)}</td></tr>"
-                            for k, v in summary) + "</table>",
-        "<h2>Knobs</h2><table>" + "".join(knob_rows) + "</table>",
+        html_table(["", ""], summary, left=(0, 1)),
+        "<h2>Knobs</h2>",
+        html_table(["knob", "nominal", "fitted", "± 95 %", "bounds", "at bound"], knob_rows, left=(0, 5), raw=(2,)),
     ]
     if result.warnings:
         parts.append("<h2>Warnings</h2><ul class='viol'>" + "".join(f"<li>{html.escape(w)}</li>"
                                                                       for w in result.warnings) + "</ul>")
     if result.proposals:
         parts.append("<h2>Proposals</h2><ul>" + "".join(
-            f"<li><code>{html.escape(str(p.knobs))}</code>: {html.escape(p.reason)}</li>" for p in result.proposals)
+            f"<li>{evidence_html(dict(p.knobs))} {html.escape(p.reason)}</li>" for p in result.proposals)
             + "</ul>")
     parts.append(narrative_html(result.narrative))
     parts += ["<h2>Per scenario (reference vs target: before → after)</h2>",
@@ -166,8 +166,8 @@ def write_align_report(out_dir: Path, result: AlignResult, reference: Path, befo
     for sb in comp_before.scenarios:
         parts.append(f"<h3>{html.escape(sb.id)}{' (held out)' if sb.id in held else ''}</h3>")
         png = scenario_png(sb, after_by_id.get(sb.id), comp_before.channel_names, comp_before.units, labels)
-        write_bytes(out_dir / "plots" / f"{_slug(sb.id)}.png", png)
-        parts.append(f'<img alt="{html.escape(sb.id)}" src="data:image/png;base64,{base64.b64encode(png).decode("ascii")}">')
+        write_bytes(out_dir / "plots" / f"{slug(sb.id)}.png", png)
+        parts.append(img_html(png, sb.id))
     parts.append("</body></html>")
     path = out_dir / "report.html"
     write_text(path, "\n".join(parts))

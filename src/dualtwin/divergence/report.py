@@ -1,99 +1,54 @@
 """Divergence reports: ``metrics.json``, overlay PNGs, a self-contained ``report.html`` and a terminal table.
 
 Everything here consumes a `RunComparison`; no metric is computed in this module. Figures use
-matplotlib's object API with the Agg canvas, so no pyplot state or global backend is touched.
+matplotlib's object API with the Agg canvas, so no pyplot state or global backend is touched. Page, table
+and plot helpers come from :mod:`dualtwin.reporting`. Twins are labelled by the twin names their run
+manifests record (folder names repeat: ``runs/a/webots`` vs ``runs/b/webots``).
 """
 
 from __future__ import annotations
 
-import base64
 import html
-import io
 import json
-import os
-import re
-import tempfile
-from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-import numpy.typing as npt
-from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
-from matplotlib.lines import Line2D
 from rich.console import Console
 from rich.markup import escape
-from rich.table import Table
 from rich.text import Text
 
-from dualtwin.divergence.metrics import ChannelDivergence, Threshold
+from dualtwin.artifacts import write_bytes, write_text
+from dualtwin.divergence.metrics import ChannelDivergence
 from dualtwin.divergence.runs import RunComparison, ScenarioComparison
+from dualtwin.reporting import (
+    Column,
+    Trace,
+    esc,
+    evidence_html,
+    fmt,
+    html_table,
+    img_html,
+    page_head,
+    plot_overlay,
+    png_bytes,
+    print_table,
+    slug,
+)
 
 METRICS_SCHEMA = "dualtwin.divergence/1"
-#: A trace for `plot_overlay`: ``(label, t, y)``.
-Trace = tuple[str, npt.ArrayLike, npt.ArrayLike]
+
+__all__ = ["METRICS_SCHEMA", "Trace", "plot_channel", "plot_overlay", "print_summary", "twin_labels",
+           "write_report"]
 
 
-def _atomic_write(path: Path, data: bytes) -> None:
-    """Write to a temp file beside ``path`` then rename, so readers never see a partial file."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def plot_overlay(
-    ax: Axes,
-    traces: Sequence[Trace],
-    *,
-    crossings: Sequence[float | None] | None = None,
-    threshold: Threshold | None = None,
-    ylabel: str = "",
-    title: str = "",
-) -> list[Line2D]:
-    """Overlay any number of traces on one axes, with optional threshold and crossing markers.
-
-    Args:
-        ax: Target axes.
-        traces: ``(label, t, y)`` per line, e.g. two twins, or before/after alignment.
-        crossings: Crossing time per trace (None: no marker), drawn as a dotted line in the trace's colour.
-        threshold: Drawn as dashed grey line(s); both signs for an ``abs`` threshold.
-        ylabel: Y axis label.
-        title: Axes title.
-
-    Returns:
-        The trace lines, in order.
-    """
-    if crossings is not None and len(crossings) != len(traces):
-        raise ValueError(f"{len(crossings)} crossing times for {len(traces)} traces")
-    lines: list[Line2D] = []
-    for label, t, y in traces:
-        (line,) = ax.plot(np.asarray(t, dtype=float), np.asarray(y, dtype=float), label=label, linewidth=1.4)
-        lines.append(line)
-    if threshold is not None:
-        levels = [threshold.value, -threshold.value] if threshold.mode == "abs" else [threshold.value]
-        for level in levels:
-            ax.axhline(level, color="0.5", linestyle="--", linewidth=0.8)
-    for line, when in zip(lines, crossings or [], strict=False):
-        if when is not None:
-            ax.axvline(when, color=line.get_color(), linestyle=":", linewidth=1.2)
-            ax.plot([when], [0.0], marker="v", color=line.get_color(), markersize=6, clip_on=False)
-    ax.set_xlabel("time [s]")
-    if ylabel:
-        ax.set_ylabel(ylabel)
-    if title:
-        ax.set_title(title, fontsize=10)
-    ax.grid(True, alpha=0.3)
-    if traces:
-        ax.legend(loc="best", fontsize=8)
-    return lines
+def twin_labels(comparison: RunComparison) -> tuple[str, str]:
+    """Display names of the two sides from their manifests: the twin names, marked A/B when they are equal."""
+    a, b = comparison.twin_a or "A", comparison.twin_b or "B"
+    if a == b:
+        return f"{a} (A)", f"{b} (B)"
+    return a, b
 
 
 def plot_channel(
@@ -118,31 +73,10 @@ def plot_channel(
         traces,
         crossings=crossings,
         threshold=metrics.threshold if metrics else None,
-        ylabel=f"{channel} [{unit}]" if unit else channel,
+        ylabel=f"{channel} [{unit or 'unit not recorded'}]",
         title=f"{scenario.id}: {channel}",
     )
     return fig
-
-
-def _png_bytes(fig: Figure) -> bytes:
-    buf = io.BytesIO()
-    # No "Software" stamp, so identical data gives identical files.
-    fig.savefig(buf, format="png", metadata={"Software": None})
-    return buf.getvalue()
-
-
-def _slug(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9._-]+", "_", text).strip("_") or "x"
-
-
-def _fmt(value: Any) -> str:
-    if value is None:
-        return "–"
-    if isinstance(value, bool):
-        return "yes" if value else "no"
-    if isinstance(value, float):
-        return f"{value:.4g}"
-    return str(value)
 
 
 # (column title, attribute) shared by the HTML and terminal tables.
@@ -162,146 +96,104 @@ _COLUMNS: tuple[tuple[str, str], ...] = (
     ("score", "score"),
 )
 
-_CSS = """
-body{font-family:system-ui,sans-serif;margin:2em;color:#222;max-width:1200px}
-table{border-collapse:collapse;margin:0.6em 0 1.2em}
-th,td{border:1px solid #ccc;padding:3px 8px;text-align:right;font-size:13px}
-th{background:#f2f2f2}td.l,th.l{text-align:left}
-.completed{color:#1a7f37}.failed{color:#b35900}.unstable{color:#c62828;font-weight:bold}
-.viol{color:#c62828}img{max-width:100%;margin:4px 0}code{background:#f5f5f5;padding:0 3px}
-section{border-top:2px solid #ddd;margin-top:1.5em}
-"""
-
-
-def _e(value: Any) -> str:
-    return html.escape(_fmt(value))
-
-
 def _status(status: str) -> str:
     return f'<span class="{html.escape(status)}">{html.escape(status)}</span>'
 
 
 def _metrics_table(channels: dict[str, ChannelDivergence], units: dict[str, str]) -> str:
-    head = (
-        '<tr><th class="l">channel</th>'
-        + "".join(f"<th>{html.escape(t)}</th>" for t, _ in _COLUMNS)
-        + "</tr>"
-    )
     rows = []
     for name, ch in channels.items():
-        unit = f" [{units.get(name, '')}]" if units.get(name) else ""
-        cells = "".join(f"<td>{_e(getattr(ch, attr))}</td>" for _, attr in _COLUMNS)
-        rows.append(f'<tr><td class="l">{html.escape(name + unit)}</td>{cells}</tr>')
-    return f"<table>{head}{''.join(rows)}</table>"
+        unit = f" [{units[name]}]" if units.get(name) else ""
+        rows.append([name + unit, *(getattr(ch, attr) for _, attr in _COLUMNS)])
+    return html_table(["channel", *(t for t, _ in _COLUMNS)], rows)
 
 
 def _render_html(
     comparison: RunComparison, label_a: str, label_b: str, images: dict[tuple[str, str], bytes]
 ) -> str:
     units = dict(comparison.units)
+    title = f"Divergence: {label_a} vs {label_b}"
     parts: list[str] = [
-        "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
-        f"<title>Divergence: {html.escape(label_a)} vs {html.escape(label_b)}</title>",
-        f"<style>{_CSS}</style></head><body>",
+        page_head(title),
         f"<h1>Divergence report: {html.escape(label_a)} vs {html.escape(label_b)}</h1>",
-        "<table>",
-        f'<tr><th class="l">robot</th><td class="l">{_e(comparison.robot)}</td></tr>',
-        f'<tr><th class="l">suite</th><td class="l">{_e(comparison.suite_name)}</td></tr>',
-        f'<tr><th class="l">A: {html.escape(label_a)}</th><td class="l">{_e(comparison.twin_a)} '
-        f"<code>{_e(comparison.run_a)}</code></td></tr>",
-        f'<tr><th class="l">B: {html.escape(label_b)}</th><td class="l">{_e(comparison.twin_b)} '
-        f"<code>{_e(comparison.run_b)}</code></td></tr>",
-        f'<tr><th class="l">summary score</th><td class="l"><b>{_e(comparison.summary_score)}</b> '
-        "(0 = identical, 1 = maximal)</td></tr>",
-        f'<tr><th class="l">within tolerances</th><td class="l">{_e(comparison.within_tolerance)}</td></tr>',
-        "</table>",
+        html_table(["", ""], [
+            ["robot", comparison.robot],
+            ["suite", comparison.suite_name],
+            [f"A: {label_a}", f"twin {comparison.twin_a}, run {comparison.run_a}"],
+            [f"B: {label_b}", f"twin {comparison.twin_b}, run {comparison.run_b}"],
+            ["summary score", f"{fmt(comparison.summary_score)} (0 = identical, 1 = maximal)"],
+            ["within tolerances", comparison.within_tolerance],
+        ], left=(0, 1)),
     ]
 
     contributions = comparison.contributions()[:10]
     if contributions:
-        parts.append("<h2>What dominates the divergence</h2><table>")
-        parts.append(
-            '<tr><th class="l">scenario</th><th class="l">channel</th><th>contribution</th><th>share</th></tr>'
-        )
-        for c in contributions:
-            parts.append(
-                f'<tr><td class="l">{_e(c.scenario_id)}</td><td class="l">{_e(c.channel or "(instability)")}</td>'
-                f"<td>{_e(c.contribution)}</td><td>{c.share * 100:.1f} %</td></tr>"
-            )
-        parts.append("</table>")
+        parts.append("<h2>What dominates the divergence</h2>")
+        parts.append(html_table(
+            ["scenario", "channel", "contribution", "share"],
+            [[c.scenario_id, c.channel or "(instability)", c.contribution, f"{c.share * 100:.1f} %"]
+             for c in contributions], left=(0, 1)))
 
-    parts.append("<h2>Scenarios</h2><table>")
-    parts.append(
-        f'<tr><th class="l">scenario</th><th>{html.escape(label_a)}</th><th>{html.escape(label_b)}</th>'
-        '<th>score</th><th class="l">tolerances</th><th class="l">note</th></tr>'
-    )
+    parts.append("<h2>Scenarios</h2>")
+    rows = []
     for sc in comparison.scenarios:
-        tol = (
-            "ok"
-            if sc.within_tolerance
-            else f'<span class="viol">{len(sc.tolerance_violations)} exceeded</span>'
-        )
-        parts.append(
-            f'<tr><td class="l"><a href="#{_slug(sc.id)}">{_e(sc.id)}</a></td><td>{_status(sc.status_a)}</td>'
-            f'<td>{_status(sc.status_b)}</td><td>{_e(sc.score)}</td><td class="l">{tol}</td>'
-            f'<td class="l">{_e(sc.note)}</td></tr>'
-        )
-    parts.append("</table>")
+        tol = "ok" if sc.within_tolerance else f'<span class="viol">{len(sc.tolerance_violations)} exceeded</span>'
+        rows.append([f'<a href="#{slug(sc.id)}">{html.escape(sc.id)}</a>', _status(sc.status_a),
+                     _status(sc.status_b), sc.score, tol, esc(sc.note, missing="")])
+    parts.append(html_table(["scenario", label_a, label_b, "score", "tolerances", "note"], rows,
+                            left=(0, 4, 5), raw=(0, 1, 2, 4, 5)))
 
     settings = comparison.settings
-    parts.append("<h2>Settings and definitions</h2><table>")
-    for key, value in settings.get("definitions", {}).items():
-        parts.append(f'<tr><th class="l">{_e(key)}</th><td class="l">{_e(value)}</td></tr>')
-    for key in ("weights", "thresholds", "max_lag_s", "dtw_window"):
-        parts.append(
-            f'<tr><th class="l">{key}</th><td class="l"><code>{html.escape(json.dumps(settings.get(key)))}</code></td></tr>'
-        )
-    parts.append("</table>")
+    parts.append("<h2>Settings and definitions</h2>")
+    setting_rows: list[list[Any]] = [[key, esc(value)] for key, value in settings.get("definitions", {}).items()]
+    setting_rows += [[key, evidence_html(settings.get(key))] for key in ("weights", "thresholds", "max_lag_s",
+                                                                          "dtw_window")]
+    parts.append(html_table(["setting", "value"], setting_rows, left=(0, 1), raw=(1,)))
 
     for sc in comparison.scenarios:
-        parts.append(f'<section id="{_slug(sc.id)}"><h2>{_e(sc.id)}</h2>')
+        parts.append(f'<section id="{slug(sc.id)}"><h2>{esc(sc.id)}</h2>')
         parts.append(
             f"<p>{html.escape(label_a)}: {_status(sc.status_a)} · {html.escape(label_b)}: {_status(sc.status_b)}"
-            f" · score <b>{_e(sc.score)}</b></p>"
+            f" · score <b>{esc(sc.score)}</b></p>"
         )
         for label, failure in ((label_a, sc.failure_a), (label_b, sc.failure_b)):
             if failure:
-                parts.append(
-                    f"<p>{html.escape(label)} failure: <code>{html.escape(json.dumps(failure))}</code></p>"
-                )
+                parts.append(f"<p>{html.escape(label)} failure:</p>{evidence_html(failure)}")
         if sc.note:
-            parts.append(f"<p><i>{_e(sc.note)}</i></p>")
+            parts.append(f"<p><i>{esc(sc.note)}</i></p>")
         if sc.channels:
             parts.append(_metrics_table(dict(sc.channels), units))
         if sc.tolerance_violations:
             parts.append('<ul class="viol">')
             for v in sc.tolerance_violations:
-                parts.append(f"<li>{_e(v.channel)} {_e(v.metric)} = {_e(v.value)} &gt; {_e(v.limit)}</li>")
+                parts.append(f"<li>{esc(v.channel)} {esc(v.metric)} = {esc(v.value)} &gt; {esc(v.limit)}</li>")
             parts.append("</ul>")
         for channel in comparison.channel_names:
             png = images.get((sc.id, channel))
             if png is not None:
-                data = base64.b64encode(png).decode("ascii")
-                parts.append(f'<img alt="{_e(sc.id)} {_e(channel)}" src="data:image/png;base64,{data}">')
+                parts.append(img_html(png, f"{sc.id} {channel}"))
         parts.append("</section>")
     parts.append("</body></html>")
     return "\n".join(parts)
 
 
-def write_report(comparison: RunComparison, out_dir: Path, label_a: str, label_b: str) -> Path:
+def write_report(comparison: RunComparison, out_dir: Path, label_a: str | None = None,
+                 label_b: str | None = None) -> Path:
     """Write ``metrics.json``, ``plots/<scenario>__<channel>.png`` and ``report.html`` into ``out_dir``.
 
-    Every file is written atomically (temp name, then ``os.replace``).
+    Every file is written atomically (`dualtwin.artifacts`).
 
     Args:
         comparison: Result of `compare_runs`.
         out_dir: Output directory, created if needed.
-        label_a: Display name of twin A (e.g. ``"Webots"``).
-        label_b: Display name of twin B.
+        label_a: Display name of side A (default: its twin name, from the run manifest; see `twin_labels`).
+        label_b: Display name of side B.
 
     Returns:
         Path of ``report.html``.
     """
+    default_a, default_b = twin_labels(comparison)
+    label_a, label_b = label_a or default_a, label_b or default_b
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     metrics = {
@@ -310,7 +202,7 @@ def write_report(comparison: RunComparison, out_dir: Path, label_a: str, label_b
         "label_b": label_b,
         "comparison": comparison.to_dict(),
     }
-    _atomic_write(out_dir / "metrics.json", (json.dumps(metrics, indent=2, allow_nan=False) + "\n").encode())
+    write_text(out_dir / "metrics.json", json.dumps(metrics, indent=2, allow_nan=False) + "\n")
 
     images: dict[tuple[str, str], bytes] = {}
     for sc in comparison.scenarios:
@@ -318,43 +210,43 @@ def write_report(comparison: RunComparison, out_dir: Path, label_a: str, label_b
             if channel not in sc.series_a and channel not in sc.series_b:
                 continue
             fig = plot_channel(sc, channel, label_a, label_b, comparison.units.get(channel, ""))
-            png = _png_bytes(fig)
+            png = png_bytes(fig)
             images[(sc.id, channel)] = png
-            _atomic_write(out_dir / "plots" / f"{_slug(sc.id)}__{_slug(channel)}.png", png)
+            write_bytes(out_dir / "plots" / f"{slug(sc.id)}__{slug(channel)}.png", png)
 
     report = out_dir / "report.html"
-    _atomic_write(report, _render_html(comparison, label_a, label_b, images).encode("utf-8"))
+    write_text(report, _render_html(comparison, label_a, label_b, images))
     return report
 
 
-def print_summary(comparison: RunComparison, console: Console, *, top: int = 5) -> None:
-    """Print a per-scenario, per-channel table, the summary score and the top contributors."""
-    table = Table(title=f"Divergence: {comparison.twin_a} (A) vs {comparison.twin_b} (B), {comparison.robot}")
-    for col in ("scenario", "A", "B", "channel", "RMSE", "DTW rms", "lag [s]", "Δcross [s]", "r", "score"):
-        table.add_column(col, justify="left" if col in ("scenario", "A", "B", "channel") else "right")
+#: Columns of the terminal summary table.
+SUMMARY_COLUMNS = (Column("scenario", False), Column("A", False), Column("B", False), Column("channel", False),
+                   Column("RMSE"), Column("DTW rms"), Column("lag [s]"), Column("Δcross [s]"), Column("r"),
+                   Column("score"))
+
+
+def summary_rows(comparison: RunComparison) -> list[list[str | Text] | None]:
+    """One row per scenario and channel (complete on every row, so piped output can be filtered)."""
     style = {"completed": "green", "failed": "yellow", "unstable": "bold red"}
+    rows: list[list[str | Text] | None] = []
     for sc in comparison.scenarios:
         a = Text(sc.status_a, style=style.get(sc.status_a, ""))
         b = Text(sc.status_b, style=style.get(sc.status_b, ""))
         if not sc.channels:
-            table.add_row(Text(sc.id), a, b, "–", "–", "–", "–", "–", "–", _fmt(sc.score))
-        for i, (name, ch) in enumerate(sc.channels.items()):
-            first = i == 0
-            table.add_row(
-                Text(sc.id) if first else "",
-                a if first else "",
-                b if first else "",
-                Text(name),
-                _fmt(ch.rmse),
-                _fmt(ch.dtw_rms),
-                _fmt(ch.lag_s),
-                _fmt(ch.crossing_diff_s),
-                _fmt(ch.correlation),
-                _fmt(ch.score),
-            )
-        table.add_section()
-    console.print(table)
-    console.print(f"summary score: [bold]{_fmt(comparison.summary_score)}[/] (0 = identical, 1 = maximal)")
+            rows.append([sc.id, a, b, "–", "–", "–", "–", "–", "–", fmt(sc.score)])
+        for name, ch in sc.channels.items():
+            rows.append([sc.id, a, b, name, fmt(ch.rmse), fmt(ch.dtw_rms), fmt(ch.lag_s), fmt(ch.crossing_diff_s),
+                         fmt(ch.correlation), fmt(ch.score)])
+        rows.append(None)
+    return rows
+
+
+def print_summary(comparison: RunComparison, console: Console, *, top: int = 5) -> None:
+    """Print a per-scenario, per-channel table, the summary score and the top contributors."""
+    label_a, label_b = twin_labels(comparison)
+    print_table(console, SUMMARY_COLUMNS, summary_rows(comparison),
+                title=f"Divergence: {label_a} vs {label_b}, {comparison.robot}")
+    console.print(f"summary score: [bold]{fmt(comparison.summary_score)}[/] (0 = identical, 1 = maximal)")
     for c in comparison.contributions()[:top]:
         console.print(
             f"  {c.share * 100:5.1f} %  {escape(c.scenario_id)} / {escape(c.channel or '(instability)')}"
@@ -363,5 +255,5 @@ def print_summary(comparison: RunComparison, console: Console, *, top: int = 5) 
         for v in sc.tolerance_violations:
             console.print(
                 f"  [red]tolerance exceeded[/] {escape(sc.id)} / {escape(v.channel)}: "
-                f"{v.metric} = {_fmt(v.value)} > {_fmt(v.limit)}"
+                f"{v.metric} = {fmt(v.value)} > {fmt(v.limit)}"
             )

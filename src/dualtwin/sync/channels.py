@@ -39,6 +39,23 @@ DEFAULT_UNIT_SCALES: dict[str, float] = {
 }
 
 
+#: Unit of a state channel by its last name part. A joint's ``q``/``qd`` is an angle for a hinge and a length
+#: for a slider; the state does not say which, so its unit names both.
+CHANNEL_UNITS: dict[str, str] = {
+    "x": "m", "y": "m", "z": "m", "rx": "rad", "ry": "rad", "rz": "rad",
+    "vx": "m/s", "vy": "m/s", "vz": "m/s", "wx": "rad/s", "wy": "rad/s", "wz": "rad/s",
+    "q": "rad or m", "qd": "rad/s or m/s",
+}
+
+
+def channel_unit(name: str) -> str:
+    """Unit of a state-difference channel (``body/cart/vx`` → ``m/s``); ``hold/...`` entries are positions."""
+    last = name.rsplit("/", 1)[-1]
+    if name.startswith("hold/"):
+        return CHANNEL_UNITS["q"]
+    return CHANNEL_UNITS.get(last, "unit not recorded")
+
+
 def channel_scales(channels: Iterable[str], overrides: Mapping[str, float] | None = None) -> dict[str, float]:
     """Scale of every channel: the default for its last name part, replaced by the first matching override."""
     out: dict[str, float] = {}

@@ -195,36 +195,36 @@ def plot_prediction(series: Sequence[tuple[str, Mapping[str, Any]]], path: Path,
     from matplotlib.figure import Figure
 
     from dualtwin.artifacts import write_bytes
-    from dualtwin.divergence.report import _png_bytes
+    from dualtwin.reporting import plot_unit_groups
+    from dualtwin.reporting import png_bytes as _png_bytes
+    from dualtwin.sync.channels import channel_unit
 
     if not series:
         raise ValueError("nothing to plot")
-    fig = Figure(figsize=(10.0, 3.8), dpi=100, layout="constrained")
-    FigureCanvasAgg(fig)
-    left, right = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
-    for label, tab in series:
-        hs = [int(h) for h in tab["by_horizon"]]
-        values = [tab["by_horizon"][str(h)]["normalized_rms"] for h in hs]
-        left.plot(hs, np.maximum(values, 1e-16), marker="o", label=label)
-    left.set_xscale("log")
-    left.set_yscale("log")
-    left.set_xlabel("horizon [control periods]")
-    left.set_ylabel("normalised RMS prediction error")
-    left.grid(True, which="both", alpha=0.3)
-    left.legend(fontsize=8)
     main = series[0][1]
     hs = [int(h) for h in main["by_horizon"]]
     last = main["by_horizon"][str(hs[-1])]["rms"]
     chosen = list(channels) if channels else sorted(last, key=lambda c: -abs(last[c]) if math.isfinite(last[c]) else 0)[:6]
-    for c in chosen:
-        right.plot(hs, [max(main["by_horizon"][str(h)]["rms"][c], 1e-16) for h in hs], marker=".", label=c)
-    right.set_xscale("log")
-    right.set_yscale("log")
-    right.set_xlabel("horizon [control periods]")
-    right.set_ylabel("RMS error (channel units)")
-    right.set_title(series[0][0], fontsize=9)
-    right.grid(True, which="both", alpha=0.3)
-    right.legend(fontsize=7)
+    # One axes per unit: metres, radians and their rates never share an axis.
+    units = list(dict.fromkeys(channel_unit(c) for c in chosen))
+    fig = Figure(figsize=(4.0 * (1 + max(1, len(units))), 3.8), dpi=100, layout="constrained")
+    FigureCanvasAgg(fig)
+    grid = fig.add_gridspec(1, 1 + max(1, len(units)))
+    left = fig.add_subplot(grid[0, 0])
+    for label, tab in series:
+        hs_ = [int(h) for h in tab["by_horizon"]]
+        values = [tab["by_horizon"][str(h)]["normalized_rms"] for h in hs_]
+        left.plot(hs_, np.maximum(values, 1e-16), marker="o", label=label)
+    left.set_xscale("log")
+    left.set_yscale("log")
+    left.set_xlabel("horizon [control periods]")
+    left.set_ylabel("normalised RMS prediction error [1 = one scale unit]")
+    left.grid(True, which="both", alpha=0.3)
+    left.legend(fontsize=8)
+    right = fig.add_subfigure(grid[0, 1:])
+    plot_unit_groups(right, {c: (hs, [max(main["by_horizon"][str(h)]["rms"][c], 1e-16) for h in hs]) for c in chosen},
+                     channel_unit, quantity="RMS error", xlabel="horizon [control periods]", log=True)
+    right.suptitle(series[0][0], fontsize=9)
     write_bytes(path, _png_bytes(fig))
     return path
 

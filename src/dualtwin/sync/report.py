@@ -1,15 +1,13 @@
 """The synchronisation report: prediction-error curves, drift over time, alarms and re-alignments.
 
 ``write_sync_report(out, lockstep=..., prediction=..., events=...)`` writes ``report.json`` (every number
-shown) and a self-contained ``report.html`` with embedded PNGs, built with the divergence report's helpers
-(:func:`dualtwin.divergence.report.plot_overlay`, its stylesheet and PNG writer).
+shown) and a self-contained ``report.html`` with embedded PNGs, built with :mod:`dualtwin.reporting`. Twins are
+named by their twin names from the lockstep manifest; monitor evidence shows as tables, not JSON.
 """
 
 from __future__ import annotations
 
-import base64
 import html
-import json
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -20,10 +18,11 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from dualtwin.artifacts import json_safe, write_json, write_text
-from dualtwin.divergence.report import _CSS, _png_bytes, plot_overlay
 from dualtwin.divergence.runs import load_tsv
 from dualtwin.errors import DualtwinError
+from dualtwin.reporting import esc, evidence_html, html_table, img_html, page_head, plot_overlay, png_bytes
 from dualtwin.suite.loader import read_json
+from dualtwin.sync.channels import channel_unit
 from dualtwin.sync.lockstep import LockstepResult
 from dualtwin.sync.monitor import read_events
 from dualtwin.sync.predict import PredictionResult, plot_prediction
@@ -34,16 +33,8 @@ TABLE_EVENTS = ("alarm_raised", "alarm_cleared", "realign_started", "knobs_updat
                 "realign_failed", "realign_skipped")
 
 
-def _img(png: bytes, alt: str) -> str:
-    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{base64.b64encode(png).decode("ascii")}">'
-
-
-def _fmt(value: Any) -> str:
-    if value is None:
-        return "–"
-    if isinstance(value, float):
-        return f"{value:.4g}" if math.isfinite(value) else "–"
-    return html.escape(str(value))
+_img = img_html
+_fmt = esc
 
 
 def _lockstep_data(source: LockstepResult | Path) -> tuple[Path, dict[str, Any]]:
@@ -76,14 +67,15 @@ def _drift_png(folder: Path, manifest: Mapping[str, Any], events: Sequence[Mappi
         series.append({"episode": episode["id"], "start_s": offset, "end_s": float(t[-1]),
                        "mean_error": float(np.mean(err)), "max_error": float(np.max(err))})
         offset = float(t[-1])
-    plot_overlay(ax, traces, ylabel="normalised state error", title="drift over time (episodes back to back)")
+    plot_overlay(ax, traces, ylabel="normalised state error [1 = one scale unit off]",
+                 title="drift over time (episodes back to back)")
     for when in resync_times[:400]:
         ax.axvline(when, color="0.8", linewidth=0.5, zorder=0)
     colors = {"alarm_raised": "red", "alarm_cleared": "green", "knobs_updated": "purple"}
     for event in events:
         if event.get("event") in colors:
             ax.axvline(float(event["t"]), color=colors[event["event"]], linestyle="--", linewidth=1.2)
-    return _png_bytes(fig), series
+    return png_bytes(fig), series
 
 
 def write_sync_report(out_dir: Path, *, lockstep: LockstepResult | Path | None = None,
@@ -100,8 +92,7 @@ def write_sync_report(out_dir: Path, *, lockstep: LockstepResult | Path | None =
         raise DualtwinError("nothing to report: give a lockstep run, a prediction-error run or monitor events")
     out = Path(out_dir)
     record: dict[str, Any] = {"schema": REPORT_SCHEMA, "title": title}
-    parts = ["<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>", f"<title>{html.escape(title)}</title>",
-             f"<style>{_CSS}</style></head><body><h1>{html.escape(title)}</h1>"]
+    parts = [page_head(title), f"<h1>{html.escape(title)}</h1>"]
 
     event_list: list[dict[str, Any]] = []
     folder: Path | None = None
@@ -133,22 +124,18 @@ def write_sync_report(out_dir: Path, *, lockstep: LockstepResult | Path | None =
         parts.append("<h2>Short-horizon prediction error</h2><p>From synchronised start states along the "
                      "reference trajectories; normalised RMS over all state channels (1 = one scale unit off).</p>")
         horizons = [str(h) for h in labelled[0][1]["horizons"]]
-        parts.append("<table><tr><th class='l'>series</th>" + "".join(f"<th>h = {h}</th>" for h in horizons) + "</tr>")
-        for label, table in labelled:
-            cells = "".join(f"<td>{_fmt(table['by_horizon'].get(h, {}).get('normalized_rms'))}</td>" for h in horizons)
-            parts.append(f"<tr><td class='l'>{html.escape(label)}</td>{cells}</tr>")
-        parts.append("</table>")
+        parts.append(html_table(["series", *(f"h = {h}" for h in horizons)],
+                                [[label, *(table["by_horizon"].get(h, {}).get("normalized_rms") for h in horizons)]
+                                 for label, table in labelled]))
         main = labelled[0][1]
         last = main["by_horizon"][horizons[-1]]["rms"]
         top = sorted(last, key=lambda c: -(last[c] if last[c] is not None and math.isfinite(last[c]) else -1))[:8]
-        parts.append(f"<table><tr><th class='l'>channel ({html.escape(labelled[0][0])})</th>"
-                     + "".join(f"<th>RMS h = {h}</th>" for h in horizons)
-                     + "".join(f"<th>no-change h = {h}</th>" for h in horizons) + "</tr>")
-        for c in top:
-            cells = "".join(f"<td>{_fmt(main['by_horizon'][h]['rms'][c])}</td>" for h in horizons)
-            cells += "".join(f"<td>{_fmt(main['by_horizon'][h]['no_change_rms'][c])}</td>" for h in horizons)
-            parts.append(f"<tr><td class='l'>{html.escape(c)}</td>{cells}</tr>")
-        parts.append("</table>" + _img(png_path.read_bytes(), "prediction error"))
+        parts.append(html_table(
+            [f"channel ({labelled[0][0]})", *(f"RMS h = {h}" for h in horizons),
+             *(f"no-change h = {h}" for h in horizons)],
+            [[f"{c} [{channel_unit(c)}]", *(main["by_horizon"][h]["rms"][c] for h in horizons),
+              *(main["by_horizon"][h]["no_change_rms"][c] for h in horizons)] for c in top]))
+        parts.append(_img(png_path.read_bytes(), "prediction error"))
 
     # Lockstep drift.
     if folder is not None:
@@ -161,19 +148,15 @@ def write_sync_report(out_dir: Path, *, lockstep: LockstepResult | Path | None =
                      f"{_fmt(manifest.get('secondary'))}, re-sync <code>{_fmt(manifest.get('resync'))}</code>; grey "
                      "lines: re-syncs; red/green dashed: alarm raised/cleared; purple: knob update.</p>")
         parts.append(_img(png, "drift over time"))
-        parts.append("<table><tr><th class='l'>episode</th><th>status</th><th>periods</th><th>re-syncs</th>"
-                     "<th>mean error</th><th>max error</th><th>final error</th></tr>")
-        for ep in manifest.get("episodes", []):
-            parts.append(f"<tr><td class='l'>{_fmt(ep['id'])}</td><td>{_fmt(ep['status'])}</td><td>{ep['steps']}</td>"
-                         f"<td>{ep['resyncs']}</td><td>{_fmt(ep['mean_error'])}</td><td>{_fmt(ep['max_error'])}</td>"
-                         f"<td>{_fmt(ep['final_error'])}</td></tr>")
-        parts.append("</table>")
+        parts.append(html_table(
+            ["episode", "status", "periods", "re-syncs", "mean error", "max error", "final error"],
+            [[ep["id"], ep["status"], ep["steps"], ep["resyncs"], ep["mean_error"], ep["max_error"], ep["final_error"]]
+             for ep in manifest.get("episodes", [])]))
         by_h = manifest.get("error_by_horizon", {})
         if by_h:
             shown = list(by_h.items())[:30]
-            parts.append("<h3>Error by periods since the last sync</h3><table><tr><th>periods</th>"
-                         + "".join(f"<th>{h}</th>" for h, _ in shown) + "</tr><tr><td>mean error</td>"
-                         + "".join(f"<td>{_fmt(v)}</td>" for _, v in shown) + "</tr></table>")
+            parts.append("<h3>Error by periods since the last sync</h3>")
+            parts.append(html_table(["periods", *(str(h) for h, _ in shown)], [["mean error", *(v for _, v in shown)]]))
 
     # Alarms and re-alignments.
     if event_list:
@@ -185,14 +168,11 @@ def write_sync_report(out_dir: Path, *, lockstep: LockstepResult | Path | None =
         if not listed:
             parts.append("<p>No alarm was raised.</p>")
         else:
-            parts.append("<table><tr><th>t [s]</th><th class='l'>episode</th><th class='l'>event</th>"
-                         "<th class='l'>evidence</th></tr>")
-            for e in listed:
-                evidence = {k: v for k, v in e.items() if k not in ("seq", "t", "episode", "event")}
-                parts.append(f"<tr><td>{_fmt(e['t'])}</td><td class='l'>{_fmt(e.get('episode'))}</td>"
-                             f"<td class='l'>{_fmt(e['event'])}</td><td class='l'><code>"
-                             f"{html.escape(json.dumps(evidence, sort_keys=True)[:600])}</code></td></tr>")
-            parts.append("</table>")
+            parts.append(html_table(
+                ["t [s]", "episode", "event", "evidence"],
+                [[e["t"], e.get("episode"), str(e["event"]),
+                  evidence_html({k: v for k, v in sorted(e.items()) if k not in ("seq", "t", "episode", "event")})]
+                 for e in listed], left=(1, 2, 3), raw=(3,)))
     parts.append("</body></html>")
     write_json(out / "report.json", json_safe(record))
     path = out / "report.html"

@@ -1,0 +1,113 @@
+"""HTML building blocks for self-contained reports: stylesheet, tables that scroll, readable evidence, PNGs.
+
+Decisions: numbers are rounded to 4 significant digits for reading (the JSON beside each report keeps full
+precision); a value that is not a finite number is never printed as ``nan``: the caller says what it means
+(``missing``), or it shows as "–"; every table sits in a ``div.scroll`` (``overflow-x:auto``) so a wide one
+scrolls inside the page instead of running off it.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import math
+import re
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
+
+from matplotlib.figure import Figure
+
+CSS = """
+body{font-family:system-ui,sans-serif;margin:2em;color:#222;max-width:1200px}
+.scroll{overflow-x:auto;max-width:100%;margin:0.6em 0 1.2em}
+table{border-collapse:collapse}
+th,td{border:1px solid #ccc;padding:3px 8px;text-align:right;font-size:13px;white-space:nowrap}
+td.wrap{white-space:normal;min-width:16em}
+th{background:#f2f2f2}td.l,th.l{text-align:left}
+table.evidence{margin:2px 0}table.evidence th,table.evidence td{font-size:12px;padding:1px 6px}
+.completed{color:#1a7f37}.failed{color:#b35900}.unstable{color:#c62828;font-weight:bold}
+.viol{color:#c62828}img{max-width:100%;margin:4px 0}code{background:#f5f5f5;padding:0 3px}
+section{border-top:2px solid #ddd;margin-top:1.5em}
+"""
+
+
+def png_bytes(fig: Figure) -> bytes:
+    """A figure as PNG bytes, without the "Software" stamp, so identical data gives identical files."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", metadata={"Software": None})
+    return buf.getvalue()
+
+
+def slug(text: str) -> str:
+    """A file-name and HTML-id safe form of ``text`` (never empty)."""
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", text).strip("_") or "x"
+
+
+def fmt(value: Any, spec: str = ".4g", missing: str = "–") -> str:
+    """A value for reading: floats rounded by ``spec``, booleans as yes/no, None and non-finite as ``missing``."""
+    if value is None:
+        return missing
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, float | int) and not isinstance(value, bool):
+        if isinstance(value, float) and not math.isfinite(value):
+            return missing
+        return format(value, spec) if isinstance(value, float) else str(value)
+    return str(value)
+
+
+def esc(value: Any, spec: str = ".4g", missing: str = "–") -> str:
+    """`fmt`, HTML-escaped."""
+    return html.escape(fmt(value, spec, missing))
+
+
+def page_head(title: str) -> str:
+    """The opening of a self-contained report page (doctype, title, stylesheet, ``<body>``)."""
+    return (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
+            f"<style>{CSS}</style></head><body>")
+
+
+def html_table(headers: Sequence[str], rows: Iterable[Sequence[Any]], *, left: Iterable[int] = (0,),
+               raw: Iterable[int] = (), cls: str = "") -> str:
+    """A table in a horizontal scroll box.
+
+    Args:
+        headers: Column titles (plain text).
+        rows: Cell values; formatted with `fmt` and escaped, except in ``raw`` columns (HTML, already safe).
+        left: Indices of left-aligned (text) columns.
+        raw: Indices of columns whose cells are trusted HTML.
+        cls: CSS class of the table.
+    """
+    lefts, raws = set(left), set(raw)
+    klass = f" class='{cls}'" if cls else ""
+    head = "".join(f"<th{' class=l' if i in lefts else ''}>{html.escape(h)}</th>" for i, h in enumerate(headers))
+    body = []
+    for row in rows:
+        cells = "".join(
+            f"<td{' class=l' if i in lefts else ''}>{v if i in raws else esc(v)}</td>" for i, v in enumerate(row))
+        body.append(f"<tr>{cells}</tr>")
+    return f"<div class='scroll'><table{klass}><tr>{head}</tr>{''.join(body)}</table></div>"
+
+
+def evidence_html(evidence: Any, depth: int = 0) -> str:
+    """Evidence (nested dicts and lists of numbers) as small readable tables with rounded numbers, not JSON."""
+    if isinstance(evidence, Mapping):
+        if not evidence:
+            return "–"
+        rows = "".join(f"<tr><th class=l>{html.escape(str(k).replace('_', ' '))}</th>"
+                       f"<td class=l>{evidence_html(v, depth + 1)}</td></tr>" for k, v in evidence.items())
+        return f"<table class='evidence'>{rows}</table>"
+    if isinstance(evidence, list | tuple):
+        if not evidence:
+            return "–"
+        if all(not isinstance(v, Mapping | list | tuple) for v in evidence):
+            shown = ", ".join(esc(v) for v in evidence[:12])
+            return shown + (f", … ({len(evidence)} values)" if len(evidence) > 12 else "")
+        return "<br>".join(evidence_html(v, depth + 1) for v in evidence[:12])
+    return esc(evidence)
+
+
+def img_html(png: bytes, alt: str) -> str:
+    """An embedded PNG."""
+    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{base64.b64encode(png).decode("ascii")}">'

@@ -1,0 +1,94 @@
+"""Plot helpers on matplotlib's object API (Agg canvas; no pyplot state, no global backend).
+
+Rule: one unit per axis. Traces of different units go on separate axes (`plot_unit_groups`), and every
+axis label carries its unit.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from matplotlib.axes import Axes
+from matplotlib.figure import FigureBase
+from matplotlib.lines import Line2D
+
+#: A trace for `plot_overlay`: ``(label, t, y)``.
+Trace = tuple[str, npt.ArrayLike, npt.ArrayLike]
+
+
+def plot_overlay(
+    ax: Axes,
+    traces: Sequence[Trace],
+    *,
+    crossings: Sequence[float | None] | None = None,
+    threshold: Any = None,
+    ylabel: str = "",
+    title: str = "",
+    xlabel: str = "time [s]",
+) -> list[Line2D]:
+    """Overlay any number of traces (of one unit) on one axes, with optional threshold and crossing markers.
+
+    Args:
+        ax: Target axes.
+        traces: ``(label, t, y)`` per line, e.g. two twins, or before/after alignment.
+        crossings: Crossing time per trace (None: no marker), drawn as a dotted line in the trace's colour.
+        threshold: An object with ``value`` and ``mode`` (``"abs"`` draws both signs), drawn dashed grey.
+        ylabel: Y axis label, with its unit.
+        title: Axes title.
+        xlabel: X axis label.
+
+    Returns:
+        The trace lines, in order.
+    """
+    if crossings is not None and len(crossings) != len(traces):
+        raise ValueError(f"{len(crossings)} crossing times for {len(traces)} traces")
+    lines: list[Line2D] = []
+    for label, t, y in traces:
+        (line,) = ax.plot(np.asarray(t, dtype=float), np.asarray(y, dtype=float), label=label, linewidth=1.4)
+        lines.append(line)
+    if threshold is not None:
+        levels = [threshold.value, -threshold.value] if threshold.mode == "abs" else [threshold.value]
+        for level in levels:
+            ax.axhline(level, color="0.5", linestyle="--", linewidth=0.8)
+    for line, when in zip(lines, crossings or [], strict=False):
+        if when is not None:
+            ax.axvline(when, color=line.get_color(), linestyle=":", linewidth=1.2)
+            ax.plot([when], [0.0], marker="v", color=line.get_color(), markersize=6, clip_on=False)
+    ax.set_xlabel(xlabel)
+    if ylabel:
+        ax.set_ylabel(ylabel)
+    if title:
+        ax.set_title(title, fontsize=10)
+    ax.grid(True, alpha=0.3)
+    if traces:
+        ax.legend(loc="best", fontsize=8)
+    return lines
+
+
+def plot_unit_groups(fig: FigureBase, series: Mapping[str, tuple[npt.ArrayLike, npt.ArrayLike]],
+                     unit_of: Callable[[str], str], *, quantity: str, xlabel: str, log: bool = False,
+                     max_axes: int = 4) -> list[Axes]:
+    """One axes per unit for named ``(x, y)`` series, labelled ``<quantity> [<unit>]``.
+
+    Series keep their order; units appear in order of first use; at most ``max_axes`` units are drawn.
+    """
+    groups: dict[str, list[str]] = {}
+    for name in series:
+        groups.setdefault(unit_of(name), []).append(name)
+    chosen = list(groups.items())[:max_axes]
+    axes = fig.subplots(1, max(1, len(chosen)), squeeze=False).ravel().tolist()
+    for ax, (unit, names) in zip(axes, chosen, strict=False):
+        for name in names:
+            x, y = series[name]
+            ax.plot(np.asarray(x, dtype=float), np.asarray(y, dtype=float), marker=".", label=name)
+        if log:
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(f"{quantity} [{unit}]")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    return axes
