@@ -111,15 +111,26 @@ def test_one_sided_instability_ranks_first(tmp_path: Path) -> None:
     assert "twin B is numerically unstable in 1 of 3 scenarios" in findings[0].message
 
 
-def test_mismatched_runs_list_what_is_missing_on_each_side(tmp_path: Path) -> None:
-    a, _ = runs(tmp_path / "x", cart)
-    _, other = runs(tmp_path / "y", cart, ids=["00_a", "01_b", "03_d"])
-    with pytest.raises(DualtwinError, match=r"only in A .*\['02_c'\]; only in B .*\['03_d'\]"):
-        analyze_runs(a, other)
-    fewer = fabricate_run(tmp_path / "z", {sid: {"pole_angle_rad": (T, pole(T))} for sid in IDS},
-                          channels={"pole_angle_rad": CHANNELS["pole_angle_rad"]})
-    with pytest.raises(DualtwinError, match=r"channels differ: only in A .*\['cart_pos_m'\]; only in B .*\[\]"):
-        analyze_runs(a, fewer)
+def test_mismatched_runs_work_on_what_both_have(tmp_path: Path) -> None:
+    """Issue 15.2: fewer scenarios or channels on one side are left out with why; nothing shared is one line."""
+    a, _ = runs(tmp_path / "x", lambda t: -cart(t))
+    _, other = runs(tmp_path / "y", lambda t: -cart(t), ids=["00_a", "01_b", "03_d"])
+    analysis = analyze_runs(a, other)
+    assert [s.id for s in analysis.comparison.scenarios] == ["00_a", "01_b"]
+    saved = analysis.to_dict()
+    assert saved["left_out"]["scenarios"]["02_c"].startswith("only in A")
+    assert saved["left_out"]["scenarios"]["03_d"].startswith("only in B")
+    assert any(n.startswith("left out scenario 03_d: only in B") for n in analysis.notes)
+    fewer = fabricate_run(tmp_path / "z", {sid: {"cart_pos_m": (T, -cart(T))} for sid in IDS},
+                          channels={"cart_pos_m": CHANNELS["cart_pos_m"]})
+    analysis = analyze_runs(a, fewer)
+    assert analysis.comparison.channel_names == ["cart_pos_m"]
+    assert list(analysis.to_dict()["left_out"]["channels"]) == ["pole_angle_rad"]
+    pole_only = fabricate_run(tmp_path / "p", {sid: {"pole_angle_rad": (T, pole(T))} for sid in IDS},
+                              channels={"pole_angle_rad": CHANNELS["pole_angle_rad"]})
+    with pytest.raises(DualtwinError, match="no channel in common") as err:
+        analyze_runs(fewer, pole_only)
+    assert "\n" not in str(err.value)
     with pytest.raises(DualtwinError, match="both a robot and the twin"):
         analyze_runs(a, a, twin_b="mujoco")
 

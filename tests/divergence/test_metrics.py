@@ -274,7 +274,11 @@ def test_compare_runs_matches_scenarios_and_channels(make_run: Callable[..., Pat
     assert first.channels["wheel_vel_rad_s"].lag_s == pytest.approx(0.1, abs=DT)
     assert second.score == pytest.approx(0.0, abs=1e-12)
     assert comp.summary_score == pytest.approx(first.score / 2)
-    assert sum(c.contribution for c in comp.contributions()) == pytest.approx(comp.summary_score)
+    # Ranked by significance (rmse / resolution): the identical scenario never ranks; shares sum to 1.
+    ranked = comp.contributions()
+    assert ranked and {c.scenario_id for c in ranked} == {"00_Step"}
+    assert sum(c.share for c in ranked) == pytest.approx(1.0)
+    assert ranked[0].contribution == first.channels[ranked[0].channel or ""].significance > 1
     custom = compare_runs(a, b, thresholds={"pole_angle_rad": None, "cart_pos_m": 0.1})
     assert custom.scenarios[0].channels["pole_angle_rad"].threshold is None
     assert custom.scenarios[0].channels["cart_pos_m"].threshold == Threshold(0.1)
@@ -291,11 +295,24 @@ def test_mismatched_scenarios_and_channels_list_both_sides(make_run: Callable[..
         "02_Drop": {"pole_angle_rad": (T, T)},
     }
     b = make_run("b", data_b, channels=channels_b)
+    # Only what both runs have is compared; what one side lacks is listed with why (issue 15.2).
+    comp = compare_runs(a, b)
+    assert [s.id for s in comp.scenarios] == ["00_Step"] and comp.channel_names == ["pole_angle_rad"]
+    assert set(comp.scenarios[0].channels) == {"pole_angle_rad"}
+    assert sorted(comp.left_out["scenarios"]) == ["01_Push", "02_Drop"]
+    assert comp.left_out["scenarios"]["01_Push"].startswith("only in A")
+    assert sorted(comp.left_out["channels"]) == ["cart_pos_m", "cart_vel_m_s", "wheel_vel_rad_s"]
+    assert comp.left_out["channels"]["cart_vel_m_s"].startswith("only in B")
+    assert type(comp).from_dict(comp.to_dict()).left_out == comp.to_dict()["left_out"]
+    # Nothing shared: one line naming both sides.
+    c = make_run("c", {"00_Step": {"cart_vel_m_s": (T, T)}}, channels={"cart_vel_m_s": channels_b["cart_vel_m_s"]})
     with pytest.raises(ValueError) as err:
-        compare_runs(a, b)
+        compare_runs(a, c)
     msg = str(err.value)
-    assert "only in A" in msg and "['01_Push']" in msg and "['02_Drop']" in msg
-    assert "['cart_pos_m', 'wheel_vel_rad_s']" in msg and "['cart_vel_m_s']" in msg
+    assert "\n" not in msg and "no channel in common" in msg and "['cart_vel_m_s']" in msg
+    d = make_run("d", {"09_Other": cartpole_like(T)})
+    with pytest.raises(ValueError, match=r"no scenario in common: A .* has \['00_Step', '01_Push'\]"):
+        compare_runs(a, d)
 
 
 def test_unstable_scenario_is_reported_not_crashed(make_run: Callable[..., Path]) -> None:

@@ -16,17 +16,25 @@ finding                    detected when (per channel, over scenarios)          
 =========================  ==========================================================================  =====
 
 Every test looks only at scenarios in which the channel moves: its range there must be at least 5 % of
-its largest range over the suite. A pole resting on its stop (1.0 rad in one twin, 1.0013 rad in the
-other) carries no sign, lag or gain, only noise. Endpoint differences are likewise measured against the
-channel's largest range, as the alignment objective does.
+its largest range over the suite, and above the channel's resolution. A pole resting on its stop (1.0 rad
+in one twin, 1.0013 rad in the other) carries no sign, lag or gain, only noise. Endpoint differences are
+likewise measured against the channel's largest range, as the alignment objective does.
+
+Physical significance gates every finding (issue 15.5): a difference at or below the channel's
+resolution (declared by the binding, else 1 mm for m, 1 mrad for rad) or within the reproducibility
+floor (when either run is an ensemble) raises no sign, lag, scale or endpoint finding, and an event-time
+difference within the members' own spread of crossing times raises none either. A 13 µm cart wobble has
+no direction worth reporting, and a chaotic bounce that each twin cannot reproduce itself is no defect.
 
 A lag or a gain must be consistent to count: the same value (within 1.5 samples or 15 %) must explain at
 least half of the scenarios in which the channel diverges. A real control delay or command gain acts
 alike in every driven scenario. A dynamics difference (a more damped pole falls later) only looks like a
 shift or a gain here and there, and is left to the event-time and endpoint findings.
 
-Findings are ranked by tier, then by the share of the summary divergence score in the scenario × channel
-pairs they cover. Structural mismatches come first because no parameter fit can repair them. Symptoms
+Findings are ranked by tier, then by the share of the divergence in the scenario × channel pairs they
+cover, where pairs weigh by their significance (RMSE ÷ the larger of resolution and floor, see
+`dualtwin.divergence.RunComparison.contributions`), not by a score divided by the channel's own range.
+Structural mismatches come first because no parameter fit can repair them. Symptoms
 come last: a late pole fall has many possible causes.
 
 With a robot and a twin for B, each knob is also perturbed from nominal in both directions (``step`` of
@@ -177,10 +185,27 @@ class Analysis:
             "sensitivity": [s.model_dump(mode="json") for s in self.sensitivity],
             "objective": None if self.objective is None else self.objective.to_dict(),
             "notes": list(self.notes),
+            "left_out": {k: dict(v) for k, v in self.comparison.left_out.items()},
+            "floors": floor_table(self.comparison),
             "proposals": [p.to_dict() for p in self.proposals],
             **({"llm_narrative": self.narrative} if self.narrative is not None else {}),
             "comparison": self.comparison.to_dict(),
         }
+
+
+def floor_table(comparison: RunComparison) -> list[dict[str, Any]]:
+    """Every scenario × channel judged against a reproducibility floor, largest floor ratio first."""
+    rows = [{"scenario": sc.id, "channel": name, "ratio": f.ratio, "floor_dtw": f.floor_dtw,
+             "dtw": sc.channels[name].dtw, "horizon_s": f.horizon_s, "verdict": f.verdict}
+            for sc in comparison.scenarios for name, f in sc.floors.items() if name in sc.channels]
+    return sorted(rows, key=lambda r: (-(r["ratio"] if r["ratio"] is not None else math.inf),
+                                       r["scenario"], r["channel"]))
+
+
+def left_out_notes(comparison: RunComparison) -> list[str]:
+    """One note per scenario or channel that only one run has (a recording logs fewer channels)."""
+    return [f"left out {what[:-1]} {name}: {why}" for what, names in comparison.left_out.items()
+            for name, why in names.items()]
 
 
 # ------------------------------------------------------------------ pure detectors
@@ -199,7 +224,13 @@ def channel_ranges(comparison: RunComparison) -> dict[str, float]:
 def _moving(comparison: RunComparison, name: str) -> list[tuple[ScenarioComparison, ChannelDivergence]]:
     """Pairs of ``name`` in scenarios where the channel moves (see the module docstring)."""
     full = channel_ranges(comparison).get(name, 0.0)
-    return [(sc, ch) for sc, n, ch in _pairs(comparison) if n == name and ch.scale >= MOVING_MIN * full]
+    return [(sc, ch) for sc, n, ch in _pairs(comparison)
+            if n == name and ch.scale >= MOVING_MIN * full and ch.scale > (ch.resolution or 0.0)]
+
+
+def significant(ch: ChannelDivergence) -> bool:
+    """The pair's difference exceeds its resolution and floor (always true without a resolution)."""
+    return ch.significance is None or ch.significance > 1.0
 
 
 def _share_of(comparison: RunComparison, pairs: Sequence[tuple[str, str | None]]) -> float:
@@ -251,7 +282,8 @@ def _label(channel: str) -> str:
 
 def _diverging(comparison: RunComparison, name: str) -> list[tuple[ScenarioComparison, ChannelDivergence]]:
     full = channel_ranges(comparison).get(name, 0.0)
-    return [(sc, ch) for sc, ch in _moving(comparison, name) if ch.rmse >= DIVERGING_MIN * full]
+    return [(sc, ch) for sc, ch in _moving(comparison, name)
+            if ch.rmse >= DIVERGING_MIN * full and significant(ch)]
 
 
 def _consistent(hits: list[Any], value: Callable[[Any], float], tolerance: float,
@@ -287,7 +319,7 @@ def detect_sign_inversion(comparison: RunComparison) -> list[Finding]:
     out: list[Finding] = []
     total = len(comparison.scenarios)
     for name in comparison.channel_names:
-        hits = [(sc, ch) for sc, ch in _moving(comparison, name) if ch.sign_inverted]
+        hits = [(sc, ch) for sc, ch in _moving(comparison, name) if ch.sign_inverted and significant(ch)]
         if not hits:
             continue
         message = (f"{_label(name)} has the opposite sign in {_count(len(hits), total)} "
@@ -380,7 +412,8 @@ def detect_event_time(comparison: RunComparison) -> list[Finding]:
                 continue
             if (ch.crossing_a_s is None) != (ch.crossing_b_s is None):
                 one_sided.append((sc, ch))
-            elif ch.crossing_diff_s is not None and abs(ch.crossing_diff_s) >= EVENT_MIN_SAMPLES * ch.dt_s:
+            elif (ch.crossing_diff_s is not None and abs(ch.crossing_diff_s) >= EVENT_MIN_SAMPLES * ch.dt_s
+                  and abs(ch.crossing_diff_s) > crossing_floor_s(sc, name)):
                 timed.append((sc, ch))
         if not timed and not one_sided:
             continue
@@ -405,6 +438,16 @@ def detect_event_time(comparison: RunComparison) -> list[Finding]:
     return out
 
 
+def crossing_floor_s(sc: ScenarioComparison, name: str) -> float:
+    """The larger spread of crossing times among either side's ensemble members (0 without an ensemble)."""
+    judged = sc.floors.get(name)
+    if judged is None:
+        return 0.0
+    spreads = [f.crossing_spread_s for f in (judged.floor_a, judged.floor_b)
+               if f is not None and f.crossing_spread_s is not None]
+    return max(spreads, default=0.0)
+
+
 def detect_endpoint(comparison: RunComparison, units: Mapping[str, str] | None = None) -> list[Finding]:
     out: list[Finding] = []
     total = len(comparison.scenarios)
@@ -412,7 +455,8 @@ def detect_endpoint(comparison: RunComparison, units: Mapping[str, str] | None =
     ranges = channel_ranges(comparison)
     for name in comparison.channel_names:
         hits = [(sc, ch) for sc, n, ch in _pairs(comparison)
-                if n == name and abs(ch.final_diff) >= ENDPOINT_MIN_FRACTION * ranges.get(name, ch.scale)]
+                if n == name and abs(ch.final_diff) >= ENDPOINT_MIN_FRACTION * ranges.get(name, ch.scale)
+                and abs(ch.final_diff) > (ch.resolution or 0.0) and significant(ch)]
         if not hits:
             continue
         worst_sc, worst = max(hits, key=lambda h: abs(h[1].final_diff))
@@ -626,7 +670,7 @@ def analyze_runs(
         raise DualtwinError(str(exc)) from None
     suite, suite_path = _suite_of(run_a, run_b)
     findings = detect_findings(comparison, suite)
-    notes: list[str] = []
+    notes: list[str] = left_out_notes(comparison)
     sensitivity: list[KnobSensitivity] = []
     objective: ObjectiveValue | None = None
     available: list[str] | None = None
@@ -780,6 +824,11 @@ def print_analysis(analysis: Analysis, console: Console, *, top: int = 10) -> No
                       f"{escape(finding.message)}")
         if finding.knobs:
             console.print(f"    knobs to try: {escape(', '.join(finding.knobs[:4]))}")
+    floors = floor_table(analysis.comparison)
+    if floors:
+        console.print("against the reproducibility floor (largest ratio first):")
+        for row in floors[:top]:
+            console.print(f"    {escape(row['scenario'])} / {escape(row['channel'])}: {escape(row['verdict'])}")
     if analysis.sensitivity:
         console.print("most sensitive knobs:")
         for s in analysis.sensitivity[:5]:

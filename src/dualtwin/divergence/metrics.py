@@ -14,6 +14,16 @@ suite run, an alignment objective or a unit test. Conventions used throughout:
 * **Crossings.** The first time ``|y| >= threshold`` (or a signed crossing, see `Threshold`), linearly
   interpolated between samples, on each series' own samples.
 * **Score.** A weighted mean of dimensionless terms in ``[0, 1]`` (0 = identical), see `ScoreWeights`.
+* **Resolution.** The smallest difference in a channel that means anything physically (a binding declares it
+  per channel, else `default_resolution` by unit: 1 mm for m, 1 mrad for rad). A difference at or below it
+  never raises a sign inversion and never ranks (``significance <= 1``).
+* **Reproducibility floor.** The divergence of a twin against itself when its initial conditions move by a
+  tiny amount (an ensemble, see `dualtwin.divergence.floor`). ``floor_ratio`` = divergence between the twins ÷ the larger
+  floor: near 1 is as close as the physics allows.
+* **Significance.** ``rmse / max(resolution, rmse floor)`` (the floor: the worst member's RMSE, see
+  `dualtwin.divergence.floor`): how many times larger than anything the channel can resolve or reproduce
+  the difference is. Divergences are ranked by it, not by the score (whose
+  amplitude terms are divided by the channel's own range, so a channel that barely moves would dominate).
 """
 
 from __future__ import annotations
@@ -37,6 +47,18 @@ DEFAULT_MAX_LAG_S = 1.0
 SIGN_INVERSION_MAX_CORRELATION = -0.8
 #: ... and a regression slope of B on A at or below this value.
 SIGN_INVERSION_MAX_SLOPE = -0.1
+
+#: Resolution by unit when the binding declares none (documented in the README's divergence section).
+DEFAULT_RESOLUTION_BY_UNIT: dict[str, float] = {
+    "m": 1e-3, "mm": 1.0, "rad": 1e-3, "deg": 0.05, "m/s": 1e-2, "rad/s": 1e-2, "deg/s": 0.5,
+    "s": 1e-3, "N": 1e-2, "N*m": 1e-3, "N·m": 1e-3,
+}
+#: Resolution of a channel whose unit is unknown or unlisted, in its own unit.
+FALLBACK_RESOLUTION = 1e-3
+#: A floor ratio at or below this reads "as close as the physics allows".
+FLOOR_RATIO_CLOSE = 1.5
+#: ... and at or below this "near the floor".
+FLOOR_RATIO_NEAR = 3.0
 
 # Relative tolerance below which a series counts as constant or two grids count as equal.
 _REL_EPS = 1e-12
@@ -198,6 +220,10 @@ class ChannelDivergence:
     scale: float
     score: float
     score_terms: Mapping[str, float] = field(default_factory=dict)
+    #: Smallest meaningful difference in the channel's unit (see the module docstring).
+    resolution: float | None = None
+    #: ``rmse / max(resolution, rmse floor)``; ranks divergences, <= 1 never ranks.
+    significance: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict; non-finite floats become None."""
@@ -498,10 +524,13 @@ def compare_channel(
     max_lag_s: float = DEFAULT_MAX_LAG_S,
     dtw_window: int | None = None,
     weights: ScoreWeights = DEFAULT_WEIGHTS,
+    resolution: float | None = None,
 ) -> ChannelDivergence:
     """Compute every divergence metric of one channel between twin A and twin B.
 
-    Samples from the first non-finite value on are dropped (see `finite_prefix`).
+    Samples from the first non-finite value on are dropped (see `finite_prefix`). With a ``resolution``, a
+    pair whose RMSE or either range is at or below it is never flagged as sign-inverted (a 13 µm cart
+    wobble has no meaningful direction), and ``significance`` is ``rmse / resolution``.
 
     Args:
         t_a: Time stamps of A in seconds.
@@ -513,10 +542,13 @@ def compare_channel(
         max_lag_s: Largest lag searched by the cross-correlation.
         dtw_window: Optional Sakoe-Chiba band half-width in samples of the common grid.
         weights: Score weights.
+        resolution: Smallest meaningful difference in the channel's unit (None: no significance).
 
     Raises:
         ValueError: If either series is malformed or the overlap holds fewer than 2 finite samples.
     """
+    if resolution is not None and not (math.isfinite(resolution) and resolution > 0):
+        raise ValueError(f"resolution must be positive and finite, got {resolution!r}")
     ta, ya = finite_prefix(t_a, y_a)
     tb, yb = finite_prefix(t_b, y_b)
     common = resample_common(ta, ya, tb, yb)
@@ -573,7 +605,8 @@ def compare_channel(
         lag_correlation=lag.correlation,
         slope=reg.slope,
         intercept=reg.intercept,
-        sign_inverted=is_sign_inverted(corr, reg.slope),
+        sign_inverted=is_sign_inverted(corr, reg.slope) and resolves(resolution, math.sqrt(err),
+                                                                     float(np.ptp(a)), float(np.ptp(b))),
         threshold=thr,
         crossing_a_s=cross_a,
         crossing_b_s=cross_b,
@@ -581,4 +614,42 @@ def compare_channel(
         scale=scale,
         score=weighted_score(terms, weights),
         score_terms=terms,
+        resolution=resolution,
+        significance=None if resolution is None else significance(math.sqrt(err), resolution),
     )
+
+
+# ------------------------------------------------------------------ resolution, floor, significance
+def default_resolution(unit: str) -> float:
+    """The resolution of a channel in ``unit`` when its binding declares none (see the module docstring)."""
+    return DEFAULT_RESOLUTION_BY_UNIT.get(unit.strip(), FALLBACK_RESOLUTION)
+
+
+def resolves(resolution: float | None, *amounts: float) -> bool:
+    """True when every amount (a difference, a range) exceeds the resolution (always, without one)."""
+    return resolution is None or all(x > resolution for x in amounts)
+
+
+def significance(divergence: float, resolution: float, floor: float | None = None) -> float:
+    """``divergence / max(resolution, floor)``: above 1 the difference is resolvable and reproducible."""
+    return float(divergence / max(resolution, floor or 0.0))
+
+
+def predictability_horizon(t: npt.ArrayLike, ys: npt.ArrayLike, resolution: float) -> tuple[float, float | None]:
+    """Members' largest spread and the first time it exceeds ``resolution``.
+
+    Args:
+        t: Common time stamps, shape ``(n,)``.
+        ys: Member values on ``t``, shape ``(members, n)``.
+        resolution: The channel's resolution.
+
+    Returns:
+        ``(largest spread, first time spread > resolution or None)``.
+    """
+    t_arr = np.asarray(t, dtype=np.float64)
+    y_arr = np.asarray(ys, dtype=np.float64)
+    if y_arr.ndim != 2 or y_arr.shape[1] != t_arr.size or t_arr.size == 0:
+        raise ValueError(f"members must have shape (members, {t_arr.size}), got {y_arr.shape}")
+    spread = np.ptp(y_arr, axis=0)
+    over = np.flatnonzero(spread > resolution)
+    return float(spread.max()), (float(t_arr[over[0]]) if over.size else None)

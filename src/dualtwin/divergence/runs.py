@@ -13,14 +13,16 @@ holds which channel. This module does the I/O; the numbers come from `dualtwin.d
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from dualtwin.artifacts import json_safe, read_json, verify_logs
+from dualtwin.divergence.floor import ChannelFloor, FloorJudgement, ensemble_floor, judge_against_floor
 from dualtwin.divergence.metrics import (
     DEFAULT_MAX_LAG_S,
     DEFAULT_WEIGHTS,
@@ -29,7 +31,9 @@ from dualtwin.divergence.metrics import (
     ScoreWeights,
     Threshold,
     compare_channel,
+    default_resolution,
     finite_prefix,
+    significance,
 )
 from dualtwin.errors import DualtwinError
 
@@ -68,6 +72,13 @@ class ChannelInfo:
     source: str
     unit: str = ""
     column: str = ""
+    #: Declared by the binding (None: `dualtwin.divergence.metrics.default_resolution` of the unit).
+    resolution: float | None = None
+
+    @property
+    def resolved_resolution(self) -> float:
+        """The channel's resolution: declared, else the default for its unit."""
+        return self.resolution if self.resolution is not None else default_resolution(self.unit)
 
     @property
     def log_column(self) -> str:
@@ -84,6 +95,21 @@ class ScenarioEntry:
     name: str
     status: str
     failure: Mapping[str, Any] | None = None
+    onboard: str | None = None
+    ground_truth: str | None = None
+    #: Ensemble members 1..N-1 (`dualtwin.suite.ensemble`); member 0 is this entry's own logs.
+    members: tuple[MemberEntry, ...] = ()
+
+    def log(self, source: str) -> str | None:
+        return self.onboard if source == "onboard" else self.ground_truth
+
+
+@dataclass(frozen=True)
+class MemberEntry:
+    """One perturbed ensemble member of a scenario: its logs (relative to the run) and how it ended."""
+
+    member: int
+    status: str
     onboard: str | None = None
     ground_truth: str | None = None
 
@@ -104,6 +130,8 @@ class Run:
     scenarios: tuple[ScenarioEntry, ...]
     channels: Mapping[str, ChannelInfo]
     tolerances: Mapping[str, Mapping[str, Mapping[str, float]]] = field(default_factory=dict)
+    #: ``simulated`` (a twin ran the suite) or ``recorded`` (imported from logs we did not make).
+    kind: str = "simulated"
 
     def scenario(self, scenario_id: str) -> ScenarioEntry:
         for entry in self.scenarios:
@@ -111,13 +139,22 @@ class Run:
                 return entry
         raise KeyError(f"{self.path}: no scenario {scenario_id!r}")
 
+    def members(self, scenario_id: str) -> list[dict[str, Series]]:
+        """Every ensemble member's series of a scenario, member 0 (the main logs) first; [] without members."""
+        entry = self.scenario(scenario_id)
+        if not entry.members:
+            return []
+        return [self.series(scenario_id), *(self._read(m) for m in entry.members)]
+
     def series(self, scenario_id: str) -> dict[str, Series]:
         """Read the scenario's logs and return every manifest channel found in them.
 
         A log that the manifest omits or that does not exist contributes nothing, so callers decide
         whether that is an error (it is not for an unstable scenario).
         """
-        entry = self.scenario(scenario_id)
+        return self._read(self.scenario(scenario_id))
+
+    def _read(self, entry: ScenarioEntry | MemberEntry) -> dict[str, Series]:
         out: dict[str, Series] = {}
         for source in SOURCES:
             rel = entry.log(source)
@@ -179,6 +216,27 @@ def _require(manifest: Mapping[str, Any], key: str, path: Path) -> Any:
     return manifest[key]
 
 
+def _members(record: Mapping[str, Any], root: Path, manifest_path: Path) -> tuple[MemberEntry, ...]:
+    """A scenario's ensemble members; their log paths must stay inside the run folder (a manifest is data)."""
+    out: list[MemberEntry] = []
+    raw = record.get("members") or []
+    if not isinstance(raw, list):
+        raise DualtwinError(f"{manifest_path}: scenario {record.get('id')!r}: 'members' must be a list")
+    for j, m in enumerate(raw):
+        where = f"{manifest_path}: scenario {record.get('id')!r}: members[{j}]"
+        if not isinstance(m, dict) or not isinstance(m.get("member"), int) or m.get("status") not in STATUSES:
+            raise DualtwinError(f"{where}: needs an integer 'member' and a 'status' in {STATUSES}")
+        logs = {}
+        for source in SOURCES:
+            rel = m.get(source)
+            if rel is not None and (not isinstance(rel, str)
+                                    or not (root / rel).resolve().is_relative_to(root.resolve())):
+                raise DualtwinError(f"{where}: {source} log {rel!r} is outside the run folder")
+            logs[source] = rel
+        out.append(MemberEntry(member=int(m["member"]), status=str(m["status"]), **logs))
+    return tuple(out)
+
+
 def load_run(path: Path) -> Run:
     """Load and validate ``path/manifest.json``.
 
@@ -200,8 +258,14 @@ def load_run(path: Path) -> Run:
             raise DualtwinError(
                 f"{manifest_path}: channel {name!r} has source {source!r}, expected one of {SOURCES}"
             )
+        resolution = spec.get("resolution")
+        if resolution is not None and not (isinstance(resolution, int | float) and not isinstance(resolution, bool)
+                                           and math.isfinite(resolution) and resolution > 0):
+            raise DualtwinError(f"{manifest_path}: channel {name!r}: resolution must be a positive number, "
+                                f"got {resolution!r}")
         channels[name] = ChannelInfo(name=name, source=source, unit=str(spec.get("unit", "")),
-                                     column=str(spec.get("column", "")))
+                                     column=str(spec.get("column", "")),
+                                     resolution=None if resolution is None else float(resolution))
 
     scenarios: list[ScenarioEntry] = []
     for i, sc in enumerate(_require(manifest, "scenarios", manifest_path)):
@@ -220,6 +284,7 @@ def load_run(path: Path) -> Run:
                 failure=sc.get("failure"),
                 onboard=sc.get("onboard"),
                 ground_truth=sc.get("ground_truth"),
+                members=_members(sc, path, manifest_path),
             )
         )
     ids = [s.id for s in scenarios]
@@ -233,9 +298,15 @@ def load_run(path: Path) -> Run:
 
     period = manifest.get("control_period_s")
     seed = manifest.get("seed")
+    kind = str(manifest.get("kind", "simulated"))
+    # A recorded run was made by no twin of ours: its "twin" is optional and only labels it.
+    twin = manifest.get("twin") or ("recorded" if kind == "recorded" else None)
+    if twin is None:
+        raise DualtwinError(f"{manifest_path}: manifest has no 'twin'")
     return Run(
         path=path,
-        twin=str(_require(manifest, "twin", manifest_path)),
+        twin=str(twin),
+        kind=kind,
         robot=str(_require(manifest, "robot", manifest_path)),
         suite_name=str(manifest.get("suite_name", "")),
         control_period_s=None if period is None else float(period),
@@ -290,6 +361,8 @@ class ScenarioComparison:
     score: float | None
     note: str | None = None
     tolerance_violations: tuple[ToleranceViolation, ...] = ()
+    #: Per channel, the divergence judged against the sides' reproducibility floors (ensembles only).
+    floors: Mapping[str, FloorJudgement] = field(default_factory=dict)
     series_a: Mapping[str, Series] = field(default_factory=dict, repr=False, compare=False)
     series_b: Mapping[str, Series] = field(default_factory=dict, repr=False, compare=False)
 
@@ -320,6 +393,7 @@ class ScenarioComparison:
             "note": self.note,
             "channels": {name: ch.to_dict() for name, ch in self.channels.items()},
             "tolerance_violations": [v.to_dict() for v in self.tolerance_violations],
+            "floors": {name: f.to_dict() for name, f in self.floors.items()},
         }
 
     @classmethod
@@ -337,6 +411,7 @@ class ScenarioComparison:
             score=data.get("score"),
             note=data.get("note"),
             tolerance_violations=tuple(ToleranceViolation(**v) for v in data.get("tolerance_violations", [])),
+            floors={k: FloorJudgement.from_dict(v) for k, v in (data.get("floors") or {}).items()},
         )
 
 
@@ -365,6 +440,8 @@ class RunComparison:
         units: Unit per channel.
         settings: The resolved comparison settings (thresholds, weights, max lag, definitions).
         summary_score: Mean scenario score over scenarios with a score, None if none has one.
+        left_out: What only one run has and was therefore not compared: ``{"scenarios": {id: why},
+            "channels": {name: why}}`` (a recording usually logs fewer channels than a twin).
     """
 
     run_a: str
@@ -377,6 +454,7 @@ class RunComparison:
     units: Mapping[str, str]
     settings: Mapping[str, Any]
     summary_score: float | None
+    left_out: Mapping[str, Mapping[str, str]] = field(default_factory=dict)
 
     @property
     def channel_names(self) -> list[str]:
@@ -387,11 +465,26 @@ class RunComparison:
         return all(s.within_tolerance for s in self.scenarios)
 
     def contributions(self) -> list[Contribution]:
-        """Scenario × channel contributions to the summary score, largest first.
+        """Scenario × channel pairs ranked by physical significance, largest first.
 
-        They sum to the summary score. A scenario scored 1.0 for one-sided instability contributes as
-        one entry with ``channel=None``.
+        ``contribution`` is the pair's significance (``rmse / max(resolution, rmse floor)``, see
+        `dualtwin.divergence.metrics`) and ``share`` its part of the sum over ranked pairs. Pairs at or below
+        their resolution or floor (significance <= 1) never rank. A scenario in which exactly one twin blew
+        up is one entry with ``channel=None`` that counts as much as every other ranked pair together.
+
+        Comparisons without significances (loaded from older JSON) rank by the score as before: shares of
+        the summary score, summing to it.
         """
+        pairs = [(sc, name, ch) for sc in self.scenarios for name, ch in sc.channels.items()]
+        if pairs and all(ch.significance is not None for _, _, ch in pairs):
+            ranked = [(sc.id, name, float(ch.significance or 0.0)) for sc, name, ch in pairs
+                      if not sc.unstable_one_sided and (ch.significance or 0.0) > 1.0]
+            rest = sum(v for *_, v in ranked)
+            blown = [sc.id for sc in self.scenarios if sc.unstable_one_sided]
+            entries = [(sid, None, rest or 1.0) for sid in blown] + ranked
+            total = sum(v for *_, v in entries)
+            return sorted((Contribution(sid, name, v, v / total) for sid, name, v in entries),
+                          key=lambda c: (-c.contribution, c.scenario_id, c.channel or ""))
         scored = [s for s in self.scenarios if s.score is not None]
         if not scored or not self.summary_score:
             return []
@@ -419,6 +512,7 @@ class RunComparison:
             "units": dict(self.units),
             "settings": json_safe(self.settings),
             "scenarios": [s.to_dict() for s in self.scenarios],
+            "left_out": {k: dict(v) for k, v in self.left_out.items()},
         }
 
     @classmethod
@@ -435,6 +529,7 @@ class RunComparison:
             units=dict(data["units"]),
             settings=data["settings"],
             summary_score=data.get("summary_score"),
+            left_out=data.get("left_out") or {},
         )
 
 
@@ -465,11 +560,51 @@ def resolve_thresholds(
     return out
 
 
-def _mismatch(what: str, a: set[str], b: set[str], label_a: str, label_b: str) -> str | None:
-    only_a, only_b = sorted(a - b), sorted(b - a)
-    if not only_a and not only_b:
+def left_out(what: str, a: list[str], b: list[str], label_a: str, label_b: str) -> dict[str, str]:
+    """Names only one side has, each with why it is left out of the comparison."""
+    out = {name: f"only in A ({label_a}): B has no such {what}" for name in a if name not in b}
+    out.update({name: f"only in B ({label_b}): A has no such {what}" for name in b if name not in a})
+    return out
+
+
+def shared_names(what: str, a: list[str], b: list[str], label_a: str, label_b: str) -> list[str]:
+    """The names both sides have, in A's order.
+
+    Raises:
+        ValueError: One line naming both sides' names when nothing is shared.
+    """
+    shared = [name for name in a if name in b]
+    if not shared:
+        raise DualtwinError(f"runs are not comparable: no {what} in common: A ({label_a}) has {a}; "
+                         f"B ({label_b}) has {b}")
+    return shared
+
+
+def _side_floor(members: list[dict[str, Series]], name: str, resolution: float,
+                threshold: Threshold | None, dtw_window: int | None) -> ChannelFloor | None:
+    series = [(m[name].t, m[name].y) for m in members if name in m]
+    if len(series) < 2 or len(series) != len(members):
         return None
-    return f"{what} differ: only in A ({label_a}): {only_a}; only in B ({label_b}): {only_b}"
+    try:
+        return ensemble_floor(series, resolution=resolution, threshold=threshold, dtw_window=dtw_window)
+    except ValueError:
+        return None  # a member that blew up at once leaves nothing to measure a floor on
+
+
+def _floors(a: Run, b: Run, scenario_id: str, channels: Mapping[str, ChannelDivergence],
+            resolution: Mapping[str, float], thresholds: Mapping[str, Threshold],
+            dtw_window: int | None) -> dict[str, FloorJudgement]:
+    """Each compared channel judged against the floors of whichever sides are ensembles."""
+    members_a, members_b = a.members(scenario_id), b.members(scenario_id)
+    if not members_a and not members_b:
+        return {}
+    out: dict[str, FloorJudgement] = {}
+    for name, ch in channels.items():
+        fa = _side_floor(members_a, name, resolution[name], thresholds.get(name), dtw_window) if members_a else None
+        fb = _side_floor(members_b, name, resolution[name], thresholds.get(name), dtw_window) if members_b else None
+        if fa is not None or fb is not None:
+            out[name] = judge_against_floor(ch, fa, fb)
+    return out
 
 
 def _check_tolerances(
@@ -510,6 +645,7 @@ def compare_runs(
     max_lag_s: float = DEFAULT_MAX_LAG_S,
     dtw_window: int | None = None,
     weights: ScoreWeights = DEFAULT_WEIGHTS,
+    resolutions: Mapping[str, float] | None = None,
 ) -> RunComparison:
     """Compare two runs of the same suite, scenario by scenario and channel by channel.
 
@@ -525,42 +661,58 @@ def compare_runs(
         max_lag_s: Largest lag searched by the cross-correlation.
         dtw_window: Optional Sakoe-Chiba band half-width in samples.
         weights: Score weights.
+        resolutions: Resolution per channel, over the manifests' (declared by the bindings) and the
+            defaults by unit. A difference at or below it never ranks and is never called a sign inversion.
+
+    When a run holds ensemble members (``suite run --ensemble``), each channel's divergence is also judged
+    against the reproducibility floor (``floors``) and ranked against it (``significance``).
+
+    Only the scenarios and channels both runs have are compared (a recording usually logs fewer channels
+    than a twin, or covers fewer scenarios); what only one side has is listed in ``left_out`` with why.
 
     Raises:
-        ValueError: If the robots, scenario ids, channel names or units differ (the message lists what is
-            missing on each side), or a scenario that did not blow up lacks its logs.
+        ValueError: If the robots or the units of a shared channel differ, if the runs share no scenario
+            or no channel (the message lists each side's names), or a scenario that did not blow up lacks
+            its logs.
     """
     a, b = load_run(Path(run_a)), load_run(Path(run_b))
-    problems: list[str] = []
     if a.robot != b.robot:
-        problems.append(f"robots differ: A ({a.path}) is {a.robot!r}, B ({b.path}) is {b.robot!r}")
-    msg = _mismatch(
-        "scenarios", {s.id for s in a.scenarios}, {s.id for s in b.scenarios}, str(a.path), str(b.path)
-    )
-    if msg:
-        problems.append(msg)
-    msg = _mismatch("channels", set(a.channels), set(b.channels), str(a.path), str(b.path))
-    if msg:
-        problems.append(msg)
+        raise DualtwinError(f"runs are not comparable: robots differ: A ({a.path}) is {a.robot!r}, "
+                         f"B ({b.path}) is {b.robot!r}")
+    if a.suite_name and b.suite_name and a.suite_name != b.suite_name:
+        raise DualtwinError(f"runs are not comparable: suites differ: A ({a.path}) ran {a.suite_name!r}, "
+                            f"B ({b.path}) ran {b.suite_name!r}")
+    ids_a, ids_b = [s.id for s in a.scenarios], [s.id for s in b.scenarios]
+    shared_ids = shared_names("scenario", ids_a, ids_b, str(a.path), str(b.path))
+    channel_names = shared_names("channel", list(a.channels), list(b.channels), str(a.path), str(b.path))
     units_differ = sorted(
         f"{n}: {a.channels[n].unit!r} vs {b.channels[n].unit!r}"
-        for n in set(a.channels) & set(b.channels)
+        for n in channel_names
         if a.channels[n].unit != b.channels[n].unit
     )
     if units_differ:
-        problems.append(f"channel units differ: {units_differ}")
-    if problems:
-        raise DualtwinError("runs are not comparable:\n  " + "\n  ".join(problems))
+        raise DualtwinError(f"runs are not comparable: channel units differ: {units_differ}")
+    excluded = {"scenarios": left_out("scenario", ids_a, ids_b, str(a.path), str(b.path)),
+                "channels": left_out("channel", list(a.channels), list(b.channels), str(a.path), str(b.path))}
 
-    channel_names = list(a.channels)
     resolved = resolve_thresholds(channel_names, thresholds)
-    tolerances = {**b.tolerances, **a.tolerances}
-    unknown_tol = sorted(set(tolerances) - {s.id for s in a.scenarios})
+    unknown_res = sorted(set(resolutions or {}) - set(channel_names))
+    if unknown_res:
+        raise DualtwinError(f"resolutions given for channels not compared {unknown_res}; "
+                            f"channels are {channel_names}")
+    resolution = {n: float((resolutions or {}).get(n) or a.channels[n].resolution or b.channels[n].resolution
+                           or default_resolution(a.channels[n].unit or b.channels[n].unit))
+                  for n in channel_names}
+    # Tolerances of a channel only one run logs have nothing to bound; a name neither run has stays an error.
+    only_one_side = set(excluded["channels"])
+    tolerances = {sid: {c: v for c, v in limits.items() if c not in only_one_side}
+                  for sid, limits in {**b.tolerances, **a.tolerances}.items()}
+    unknown_tol = sorted(set(tolerances) - set(ids_a) - set(ids_b))
     if unknown_tol:
         raise DualtwinError(f"tolerances name unknown scenarios {unknown_tol}")
 
     results: list[ScenarioComparison] = []
-    for entry_a in a.scenarios:
+    for entry_a in (s for s in a.scenarios if s.id in shared_ids):
         entry_b = b.scenario(entry_a.id)
         series_a, series_b = a.series(entry_a.id), b.series(entry_a.id)
         for run, entry, series in ((a, entry_a, series_a), (b, entry_b, series_b)):
@@ -587,6 +739,7 @@ def compare_runs(
                     max_lag_s=max_lag_s,
                     dtw_window=dtw_window,
                     weights=weights,
+                    resolution=resolution[name],
                 )
             except ValueError as exc:
                 # Only an unstable twin may leave too little to compare; otherwise the data is broken.
@@ -606,6 +759,10 @@ def compare_runs(
         if skipped:
             notes.append("not compared: " + ", ".join(skipped))
 
+        floors = _floors(a, b, entry_a.id, channels, resolution, resolved, dtw_window)
+        channels = {name: replace(ch, significance=significance(ch.rmse, resolution[name],
+                                                                floors[name].floor_rmse_max if name in floors else None))
+                    for name, ch in channels.items()}
         results.append(
             ScenarioComparison(
                 id=entry_a.id,
@@ -621,6 +778,7 @@ def compare_runs(
                 tolerance_violations=_check_tolerances(
                     entry_a.id, tolerances.get(entry_a.id, {}), channels, channel_names
                 ),
+                floors=floors,
                 series_a={k: Series(*finite_prefix(v.t, v.y)) for k, v in series_a.items()},
                 series_b={k: Series(*finite_prefix(v.t, v.y)) for k, v in series_b.items()},
             )
@@ -641,7 +799,15 @@ def compare_runs(
             "score": "weighted mean of terms in [0, 1]; amplitude terms divided by the pooled range",
             "scenario_score": "mean channel score; 1.0 if exactly one twin is unstable",
             "summary_score": "mean scenario score over scenarios with a score",
+            "resolution": "smallest meaningful difference per channel: the binding's, else 1 mm for m, 1 mrad "
+                          "for rad (dualtwin.divergence.metrics.DEFAULT_RESOLUTION_BY_UNIT)",
+            "floor": "a side's ensemble members against its unperturbed member 0, mean over members",
+            "floor_ratio": "dtw between the sides / the larger dtw floor; near 1: as close as the physics allows",
+            "horizon_s": "first time the members' spread exceeds the resolution: where prediction stops",
+            "significance": "rmse / max(resolution, worst member rmse of either side); pairs rank by it, "
+                            "<= 1 never ranks",
         },
+        "resolutions": resolution,
     }
     return RunComparison(
         run_a=str(a.path),
@@ -654,4 +820,5 @@ def compare_runs(
         units={name: a.channels[name].unit for name in channel_names},
         settings=settings,
         summary_score=float(np.mean(scores)) if scores else None,
+        left_out={k: v for k, v in excluded.items() if v},
     )

@@ -89,4 +89,9 @@ class RobotIO:
         info: dict[str, Any] = {k: {"source": "ground_truth", "unit": c.unit} for k, c in spec.ground_truth.items()}
         for key, channel in spec.onboard.items():
             info[f"onboard/{key}"] = {"source": "onboard", "column": key, "unit": channel.unit}
+        # A declared resolution travels with the run (comparisons rank by it); the default by unit is not
+        # written, so runs of bindings that declare none keep their manifests unchanged.
+        for key, channel in [*spec.ground_truth.items(), *((f"onboard/{k}", c) for k, c in spec.onboard.items())]:
+            if channel.resolution is not None:
+                info[key]["resolution"] = channel.resolution
         return info
