@@ -21,7 +21,7 @@ from dualtwin.divergence.metrics import Threshold
 from dualtwin.divergence.runs import Series
 from dualtwin.errors import DualtwinError
 
-T = np.arange(1, 48) * 0.032
+T = (np.arange(1, 48) * 0.032).astype(np.float64)
 
 
 def trace(sid: str, angle: np.ndarray, cart: np.ndarray, status: str = "completed") -> ScenarioTrace:

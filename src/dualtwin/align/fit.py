@@ -58,6 +58,7 @@ from rich.console import Console
 from rich.markup import escape
 from scipy import stats
 
+from dualtwin.align import nuisance
 from dualtwin.align.analyze import Analysis, analyze_runs
 from dualtwin.align.dr import dr_document, ranges_from_intervals, ranges_from_population
 from dualtwin.align.knobs import KnobSpec, check_values, select_knobs, unit_from_values, values_from_unit
@@ -185,10 +186,15 @@ class AlignResult:
     proposals: list[ProposalOutcome] = field(default_factory=list)
     #: The LLM narrative (labelled as LLM output) when the proposer was an LLM; None otherwise.
     narrative: dict[str, Any] | None = None
+    #: Fitted nuisance knobs (per-scenario initial conditions, time offsets): about the reference, not the
+    #: model, so never in ``knobs``, ``fitted``, knobs.json, the patched model or the DR ranges.
+    nuisance: dict[str, KnobFit] = field(default_factory=dict)
+    #: Scenarios and channels of the suite or the reference that only one side has, with why (not fitted).
+    left_out: dict[str, dict[str, str]] = field(default_factory=dict)
 
     @property
     def fitted(self) -> dict[str, float]:
-        """Fitted values, ready for ``twin.set_knobs``."""
+        """Fitted physics values, ready for ``twin.set_knobs`` (nuisance knobs excluded)."""
         return {name: k.fitted for name, k in self.knobs.items()}
 
 
@@ -728,18 +734,48 @@ def _reference_kind(reference: str | Path) -> Literal["run", "twin"]:
                         f"twin ({', '.join(sorted(TWINS))})")
 
 
-def _check_reference(reference: Traces, ids: Sequence[str], channels: Sequence[str], where: Path) -> None:
-    problems = []
-    only_suite, only_ref = sorted(set(ids) - set(reference)), sorted(set(reference) - set(ids))
-    if only_suite or only_ref:
-        problems.append(f"scenarios differ: only in the suite: {only_suite}; only in the reference: {only_ref}")
-    logged = set().union(*(set(t.series) for t in reference.values())) if reference else set()
-    if reference and set(channels) != logged and not all(t.status == "unstable" for t in reference.values()):
-        only_b, only_r = sorted(set(channels) - logged), sorted(logged - set(channels))
-        if only_b or only_r:
-            problems.append(f"channels differ: only in the robot binding: {only_b}; only in the reference: {only_r}")
-    if problems:
-        raise DualtwinError(f"{where}: the reference does not match the suite and robot:\n  " + "\n  ".join(problems))
+@dataclass(frozen=True)
+class SharedWithReference:
+    """The scenarios and channels that both the suite/robot and the reference have, and what was left out."""
+
+    scenarios: list[str]
+    channels: list[str]
+    left_out: dict[str, dict[str, str]]
+
+
+def shared_with_reference(reference: Traces, ids: Sequence[str], channels: Sequence[str],
+                          where: Path) -> SharedWithReference:
+    """Scenarios (suite order) and channels (binding order) both sides have; what one side lacks, with why.
+
+    A recording usually logs fewer channels than the twin, and may cover only some scenarios: alignment fits
+    what is shared and says what it left out.
+
+    Raises:
+        DualtwinError: One line naming both sides when no scenario or no channel is shared.
+    """
+    scenarios = [s for s in ids if s in reference]
+    if not scenarios:
+        raise DualtwinError(f"{where}: the reference shares no scenario with the suite: the suite has {list(ids)}, "
+                            f"the reference has {sorted(reference)}")
+    logged = [c for c in dict.fromkeys(c for sid in scenarios for c in reference[sid].series)]
+    shared = [c for c in channels if c in logged]
+    if not shared and not all(reference[s].status == "unstable" for s in scenarios):
+        raise DualtwinError(f"{where}: the reference shares no channel with the robot binding: the binding logs "
+                            f"{list(channels)}, the reference {logged}")
+    left: dict[str, dict[str, str]] = {"scenarios": {}, "channels": {}}
+    for sid in ids:
+        if sid not in reference:
+            left["scenarios"][sid] = "not in the reference: simulated, not fitted"
+    for sid in reference:
+        if sid not in ids:
+            left["scenarios"][sid] = "not in the suite: nothing to simulate"
+    for c in channels:
+        if c not in logged:
+            left["channels"][c] = "not logged by the reference"
+    for c in logged:
+        if c not in channels:
+            left["channels"][c] = "not a channel of the robot binding"
+    return SharedWithReference(scenarios, shared, {k: v for k, v in left.items() if v})
 
 
 def _record_run_knobs(run_dir: Path, knobs: Mapping[str, float]) -> None:
@@ -879,8 +915,7 @@ def align(
     unknown = sorted(set(held) - set(ids))
     if unknown:
         raise DualtwinError(f"holdout names unknown scenarios {unknown}; the suite has {ids}")
-    train_ids = [s for s in ids if s not in held]
-    if not train_ids:
+    if not [s for s in ids if s not in held]:
         raise DualtwinError("every scenario is held out; nothing is left to fit")
     if optimizer not in ("cma", "lsq"):
         raise DualtwinError(f"unknown optimizer {optimizer!r}; use 'cma' or 'lsq'")
@@ -903,11 +938,29 @@ def align(
     target = make_twin(target_twin_name, binding, period)
     try:
         # Everything checkable is checked before the output folder is touched, so a typo costs nothing.
-        registry = target.knobs()
-        specs = select_knobs(registry, list(knob_patterns), config.bounds, where=f"twin {target_twin_name!r}")
         channel_names = list(RobotIO(binding, target).channel_info())
+        fitted_ids = [s for s in ids if s not in held]
+        left: dict[str, dict[str, str]] = {}
         if kind == "run":
-            _check_reference(load_traces(Path(reference_run_or_twin)), ids, channel_names, Path(reference_run_or_twin))
+            shared = shared_with_reference(load_traces(Path(reference_run_or_twin)), ids, channel_names,
+                                           Path(reference_run_or_twin))
+            missing_held = [s for s in held if s not in shared.scenarios]
+            if missing_held:
+                raise DualtwinError(f"holdout names scenarios the reference does not have: {missing_held}")
+            fitted_ids = [s for s in shared.scenarios if s not in held]
+            if not fitted_ids:
+                raise DualtwinError(f"every scenario the reference has ({shared.scenarios}) is held out; "
+                                    "nothing is left to fit")
+            if channels is not None:
+                absent = [c for c in channels if c not in shared.channels]
+                if absent:
+                    raise DualtwinError(f"channels {absent} are not shared by the reference and the robot binding; "
+                                        f"shared: {shared.channels}")
+            left = shared.left_out
+        # Physics knobs of the target twin, and nuisance knobs (initial conditions, time offsets) of the
+        # fitted scenarios; `nuisance` explains why the two are kept apart.
+        registry = {**target.knobs(), **nuisance.registry(suite, binding, fitted_ids)}
+        specs = select_knobs(registry, list(knob_patterns), config.bounds, where=f"twin {target_twin_name!r}")
 
         # Output folder: fresh, or the same configuration when resuming.
         config_path = out_dir / "align_config.json"
@@ -933,14 +986,19 @@ def align(
             finally:
                 ref_twin.close()
         reference = load_traces(ref_dir)
-        _check_reference(reference, ids, channel_names, ref_dir)
-        train = build_spec(reference, train_ids, channels, thresholds=thresholds, weights=config.weights)
+        shared = shared_with_reference(reference, ids, channel_names, ref_dir)
+        train_ids = [s for s in shared.scenarios if s not in held]
+        train = build_spec(reference, train_ids, channels if channels is not None else shared.channels,
+                           thresholds=thresholds, weights=config.weights)
         hold = build_spec(reference, held, train.channels, thresholds=thresholds, weights=config.weights) if held else None
         warnings = [f"scenario {s} is unstable in the reference and is not fitted" for s in train.skipped]
+        left = shared.left_out
+        warnings += [f"left out: {what[:-1]} {name}: {why}" for what, names in left.items() for name, why in names.items()]
 
         before_dir = _run_suite(suite_path, target_twin_name, binding, out_dir / "runs" / "before", sim_seed, target,
                                 {}, resume)
-        job = SimJob(str(binding.path), target_twin_name, str(suite_path.resolve()), tuple(ids), (), sim_seed)
+        job = SimJob(str(binding.path), target_twin_name, str(suite_path.resolve()), tuple(shared.scenarios), (),
+                     sim_seed)
         with Evaluator(executor, workers, ray_address) as evaluator:
             problem = _Problem(specs, job, train, hold, evaluator, budget, config.regularization)
             nominal_u = unit_from_values(specs, {})
@@ -968,9 +1026,11 @@ def align(
                 outcome.u, after = nominal_u, before
                 warnings.append("no knob setting beat the nominal twin; the fitted values are the nominal ones")
             uncertainty = _uncertainty(problem, outcome.u, config.fd_step)
-        fitted = values_from_unit(specs, outcome.u)
+        fitted, fitted_nuisance = nuisance.split(values_from_unit(specs, outcome.u))
         warnings += uncertainty.warnings
-        knob_fits, bound_warnings = fit_records(specs, fitted, uncertainty.half_widths)
+        all_fits, bound_warnings = fit_records(specs, {**fitted, **fitted_nuisance}, uncertainty.half_widths)
+        knob_fits = {n: k for n, k in all_fits.items() if not nuisance.is_nuisance(n)}
+        nuisance_fits = {n: k for n, k in all_fits.items() if nuisance.is_nuisance(n)}
         warnings += bound_warnings
         if hold is not None and before.holdout is not None and after.holdout is not None:
             best_seen = min((t["holdout_of_best"] for t in outcome.trace if t.get("holdout_of_best") is not None),
@@ -979,7 +1039,13 @@ def align(
             if overfit:
                 warnings.append(overfit)
 
-        after_dir = _run_suite(suite_path, target_twin_name, binding, out_dir / "runs" / "after", sim_seed, target,
+        # The after run uses the fitted initial conditions too, so it shows what the fit matched; time offsets
+        # only move the objective's time axis and are not in the run.
+        after_suite = suite_path
+        if any(nuisance.parse(n, ids)[1] != nuisance.TIME_OFFSET for n in fitted_nuisance):
+            after_suite = out_dir / "suite_with_nuisance.json"
+            write_json(after_suite, nuisance.apply_to_document(read_json(suite_path), ids, fitted_nuisance))
+        after_dir = _run_suite(after_suite, target_twin_name, binding, out_dir / "runs" / "after", sim_seed, target,
                                fitted, False)
         analysis_after = analyze_runs(ref_dir, after_dir, thresholds=thresholds)
     finally:
@@ -996,9 +1062,12 @@ def align(
         ranges = ranges_from_population(specs, outcome.population, config.dr_top_fraction)
         source = "cma-population"
     else:
-        ranges = ranges_from_intervals(specs, fitted, uncertainty.half_widths)
+        ranges = ranges_from_intervals([s for s in specs if not nuisance.is_nuisance(s.name)], fitted,
+                                       uncertainty.half_widths)
         source = "lsq-interval" if optimizer == "lsq" else "jacobian-interval"
-    write_json(out_dir / "dr_ranges.json", dr_document(specs, fitted, ranges, source, config.dr_min_rel_width))
+    physics_specs = [s for s in specs if not nuisance.is_nuisance(s.name)]
+    ranges = {k: v for k, v in ranges.items() if not nuisance.is_nuisance(k)}
+    write_json(out_dir / "dr_ranges.json", dr_document(physics_specs, fitted, ranges, source, config.dr_min_rel_width))
     files["dr_ranges"] = "dr_ranges.json"
 
     patch = _patch_model(binding, target_twin_name, fitted, period)
@@ -1013,7 +1082,7 @@ def align(
         residual_before=float(before.residual @ before.residual), residual_after=float(after.residual @ after.residual),
         evaluations=problem.evaluations, iterations=outcome.iterations, wall_time_s=0.0,
         stop_reason=outcome.stop_reason, warnings=warnings, condition_number=uncertainty.condition,
-        files=files, proposals=proposals)
+        files=files, proposals=proposals, nuisance=nuisance_fits, left_out=left)
     narrative = getattr(propose_fn, "narrative", None)
     if narrative is not None:
         result.narrative = narrative.to_dict()
@@ -1062,6 +1131,9 @@ def _record(config: AlignConfig, result: AlignResult, outcome: _Outcome, patch: 
         "knob_specs": [s.to_dict() for s in specs],
         "result": {
             "knobs": {n: k.to_dict() for n, k in result.knobs.items()},
+            # Per-scenario initial conditions and time offsets: about the reference, not in the aligned model.
+            "nuisance": {n: k.to_dict() for n, k in result.nuisance.items()},
+            "left_out": result.left_out,
             "objective_before": result.objective_before, "objective_after": result.objective_after,
             "holdout_before": result.holdout_before, "holdout_after": result.holdout_after,
             "residual_norm2_before": result.residual_before, "residual_norm2_after": result.residual_after,
@@ -1100,6 +1172,12 @@ def print_result(result: AlignResult, console: Console) -> None:
         hw = f" ± {k.half_width_95:.2g}" if k.half_width_95 is not None else ""
         bound = f" [yellow](at {k.at_bound} bound)[/]" if k.at_bound else ""
         console.print(f"  {escape(k.name):<40} {k.nominal:10.5g} → {k.fitted:10.5g}{hw}{bound}")
+    if result.nuisance:
+        console.print("nuisance knobs (this reference's initial conditions and time offsets; not in the aligned model):")
+        for k in result.nuisance.values():
+            hw = f" ± {k.half_width_95:.2g}" if k.half_width_95 is not None else ""
+            bound = f" [yellow](at {k.at_bound} bound)[/]" if k.at_bound else ""
+            console.print(f"  {escape(k.name):<40} {k.nominal:10.5g} → {k.fitted:10.5g}{hw} {escape(k.unit)}{bound}")
     for warning in result.warnings:
         console.print(f"[yellow]warning:[/] {escape(warning)}")
     console.print(f"wrote {result.out_dir / result.files.get('report', 'report.html')}")

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dualtwin.align import nuisance
 from dualtwin.divergence.runs import Series, load_run
 from dualtwin.errors import DualtwinError
 from dualtwin.parallel import DEFAULT_WORKERS, EXECUTORS, ExecutorKind, ParallelMap, check_executor
@@ -146,20 +147,41 @@ def simulate_on(io: RobotIO, suite: Suite, wanted: Sequence[str] | None, seed: i
     return out
 
 
+def simulate_with_nuisance(io: RobotIO, suite: Suite, knobs: Mapping[str, float], wanted: Sequence[str] | None,
+                           seed: int) -> Traces:
+    """`simulate_on` with physics knobs set on the twin and nuisance knobs applied to the suite and time axes.
+
+    Nuisance initial conditions replace the scenario's; a nuisance time offset moves the scenario's time
+    stamps onto the reference's clock (see :mod:`dualtwin.align.nuisance`).
+    """
+    physics, extra = nuisance.split(knobs)
+    io.twin.set_knobs(physics)
+    if not extra:
+        return simulate_on(io, suite, wanted, seed)
+    traces = simulate_on(io, nuisance.apply_to_suite(suite, extra), wanted, seed)
+    for sid, offset in nuisance.time_offsets(extra, suite.scenario_ids()).items():
+        if sid in traces:
+            trace = traces[sid]
+            traces[sid] = ScenarioTrace(trace.id, trace.status, trace.duration_s,
+                                        nuisance.shift_series(trace.series, offset))
+    return traces
+
+
 def simulate(job: SimJob) -> Traces:
     """Run one job in this process (the worker entry point)."""
     session = _session(job)
-    session.twin.set_knobs(dict(job.knobs))
-    return simulate_on(session.io, session.suite, job.scenarios, job.seed)
+    return simulate_with_nuisance(session.io, session.suite, dict(job.knobs), job.scenarios, job.seed)
 
 
 def simulate_twin(robot: RobotBinding, twin: Twin, suite_path: Path, knobs: Mapping[str, float],
                   scenarios: Sequence[str] | None = None, seed: int = 0) -> Traces:
-    """Run scenarios on an existing twin instance with ``knobs`` applied (used in-process, e.g. by tests)."""
+    """Run scenarios on an existing twin instance with ``knobs`` applied (used in-process, e.g. by tests).
+
+    ``knobs`` may hold nuisance knobs (``scenario.<id>.<key>``) besides the twin's own.
+    """
     suite = load_suite(Path(suite_path))
     check_against_binding(suite, Path(suite_path), robot)
-    twin.set_knobs(dict(knobs))
-    return simulate_on(RobotIO(robot, twin), suite, scenarios, seed)
+    return simulate_with_nuisance(RobotIO(robot, twin), suite, knobs, scenarios, seed)
 
 
 def load_traces(run_dir: Path, scenarios: Sequence[str] | None = None) -> Traces:
