@@ -1,4 +1,4 @@
-"""Perception benchmark: rendering speed, perception accuracy, and perception-only closed-loop control.
+"""Perception benchmark: rendering speed, perception accuracy, and closed-loop control with perception in the loop.
 
 Run: ``python bench/bench_perception.py`` (or ``make bench``); ``MUJOCO_GL`` defaults to ``egl`` here.
 
@@ -8,7 +8,10 @@ Run: ``python bench/bench_perception.py`` (or ``make bench``); ``MUJOCO_GL`` def
     dataset from the Webots twin (never seen in training). Goal: pole-angle MAE <= 0.02 rad.
 (c) Closed loop: serve a policy + the perception model (uvicorn subprocess) and run episodes with on-board
     sensors and camera only (``deploy``) in both twins, against the privileged-state policy on the same reset
-    seeds. Goal: >= 90 % of the privileged reward in both twins.
+    seeds. Goal: >= 90 % of the privileged reward in both twins. This is *not* camera-only control: the
+    CartPole policy reads cart position, cart velocity and pole angle from on-board sensors (wheel encoders,
+    odometry, pole hinge encoder); perception supplies only the pole rate. The output names the loop
+    (``perception_pole_angular_velocity_only``) and which inputs came from where.
 
 Environment variables:
 
@@ -80,7 +83,7 @@ def accuracy(root: Path, episodes: int, epochs: int) -> tuple[Path, dict[str, An
     start = time.perf_counter()
     given = os.environ.get("DUALTWIN_BENCH_PERCEPTION_MODEL")
     model = Path(given) if given else train_perception(data, root / "model", epochs=epochs, seed=0, threads=2,
-                                                       verbose=True)
+                                                       progress=lambda event: print(f"  {event.line()}", flush=True))
     train_s = time.perf_counter() - start
     if given:
         print(f"  using the trained model {given} (not trained here)")
@@ -173,7 +176,10 @@ def closed_loop(root: Path, model: Path, deploy_episodes: int) -> dict[str, Any]
                 report = deploy(url, env_id, deploy_episodes, seed=100)
                 rows[env_id] = report
                 ratio = report["ratio"]
-                print(f"  {label} on {env_id.split('/')[-1]}: perception {report['mean_perception_reward']:.1f} vs "
+                print(f"  {label} on {env_id.split('/')[-1]}, {report['loop']} (perception: "
+                      f"{', '.join(report['inputs_from_perception'])}; on-board sensors: "
+                      f"{', '.join(report['inputs_from_onboard_sensors'])})")
+                print(f"    perception in the loop {report['mean_perception_reward']:.1f} vs "
                       f"privileged {report['mean_privileged_reward']:.1f} -> "
                       f"{'n/a' if ratio is None else f'{100 * ratio:.0f} %'} (goal >= {100 * GOAL_RATIO:.0f} %); "
                       f"estimate MAE {json.dumps({k: round(v, 3) for k, v in report['estimate_mae'].items()})}; "

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from dualtwin.errors import DualtwinError
-from dualtwin.perception.dataset import load_dataset
+from dualtwin.perception.dataset import episode_identity, load_dataset
 from dualtwin.perception.estimator import ACCEL_STD, StateEstimator, _Track
 from dualtwin.perception.model import evaluate_perception, load_weights, stack_indices
 
@@ -31,7 +31,9 @@ def test_model_folder_and_contract(tiny_model: Path) -> None:
 
 def test_beats_a_constant_predictor_on_heldout_episodes(tiny_model: Path, tiny_dataset: Path) -> None:
     report = evaluate_perception(tiny_model, tiny_dataset, velocity="frame-stack")
-    assert report["same_dataset_as_training"] and report["frames"] > 0
+    training = json.loads((tiny_model / "training.json").read_text())
+    assert report["heldout_episodes"] == sorted(training["heldout_episodes"]) and report["frames"] > 0
+    assert report["excluded_training_episodes"] == len(training["train_episodes"])
     # The network itself (the Kalman filter's noise model trusts this tiny model little, so it is not judged here).
     mae, constant = report["mae"], report["mae_constant"]
     assert mae == report["mae_frame_stack"]
@@ -104,15 +106,69 @@ def test_kalman_track_rejects_noise_without_lag() -> None:
     assert final[1] == pytest.approx(0.5, abs=1e-6)
 
 
-def test_other_dataset_is_entirely_heldout_and_bad_models_fail_clearly(tiny_model: Path, tiny_dataset: Path,
-                                                                       tmp_path: Path) -> None:
-    copy = tmp_path / "data"
-    shutil.copytree(tiny_dataset, copy)
-    manifest = json.loads((copy / "manifest.json").read_text())
-    manifest["shards"] = manifest["shards"][:1]
-    (copy / "manifest.json").write_text(json.dumps(manifest))
-    report = evaluate_perception(tiny_model, copy)
-    assert not report["same_dataset_as_training"] and report["heldout_episodes"] == [0, 1]
+def _subset(dataset: Path, shard_index: int, out: Path) -> Path:
+    """A copy of ``dataset`` that lists only one of its shards (a different shard list: a new fingerprint)."""
+    shutil.copytree(dataset, out)
+    manifest = json.loads((out / "manifest.json").read_text())
+    manifest["shards"] = manifest["shards"][shard_index:shard_index + 1]
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    return out
+
+
+def test_training_episodes_are_excluded_from_any_dataset_by_identity(tiny_model: Path, tiny_dataset: Path,
+                                                                     tmp_path: Path) -> None:
+    # Before episode identities, a subset of the training set (or a resumed extension of it) had another shard
+    # list, counted as a different dataset and was scored entirely as held out: training frames included.
+    contract = json.loads((tiny_model / "perception_contract.json").read_text())
+    training = json.loads((tiny_model / "training.json").read_text())
+    manifest = json.loads((tiny_dataset / "manifest.json").read_text())
+    ids = {e: i for shard in manifest["shards"] for e, i in zip(range(shard["episodes"][0], shard["episodes"][1] + 1),
+                                                                   shard["episode_ids"], strict=True)}
+    assert ids[0] == episode_identity("dualtwin/CartPole-MuJoCo-Continuous-v0", 3, 0)
+    assert sorted(contract["trained_on"]["episode_ids"]) == sorted(ids[e] for e in training["train_episodes"])
+    train = set(training["train_episodes"])
+    outcomes = []
+    for k, shard in enumerate(manifest["shards"]):
+        episodes = list(range(shard["episodes"][0], shard["episodes"][1] + 1))
+        subset = _subset(tiny_dataset, k, tmp_path / f"subset{k}")
+        held = [e for e in episodes if e not in train]
+        if not held:
+            with pytest.raises(DualtwinError, match="nothing is held out"):
+                evaluate_perception(tiny_model, subset)
+            outcomes.append("error")
+            continue
+        report = evaluate_perception(tiny_model, subset)
+        assert report["heldout_episodes"] == held
+        assert report["excluded_episodes"] == [e for e in episodes if e in train]
+        assert report["excluded_training_episodes"] == len(episodes) - len(held)
+        outcomes.append("scored")
+    assert "error" in outcomes and "scored" in outcomes  # both cases were exercised
+
+
+def test_identities_name_env_seed_and_episode() -> None:
+    base = episode_identity("dualtwin/CartPole-MuJoCo-v0", 0, 1)
+    assert base == episode_identity("dualtwin/CartPole-MuJoCo-v0", 0, 1)
+    others = {episode_identity("dualtwin/CartPole-Webots-v0", 0, 1), episode_identity("dualtwin/CartPole-MuJoCo-v0",
+                                                                                     1, 1),
+              episode_identity("dualtwin/CartPole-MuJoCo-v0", 0, 2)}
+    assert base not in others and len(others) == 3
+
+
+def test_a_model_without_training_identities_cannot_be_evaluated(tiny_model: Path, tiny_dataset: Path,
+                                                                 tmp_path: Path) -> None:
+    old = tmp_path / "old_model"
+    shutil.copytree(tiny_model, old)
+    contract = json.loads((old / "perception_contract.json").read_text())
+    del contract["trained_on"]["episode_ids"]
+    (old / "perception_contract.json").write_text(json.dumps(contract))
+    training = json.loads((old / "training.json").read_text())
+    del training["train_episode_ids"]
+    (old / "training.json").write_text(json.dumps(training))
+    with pytest.raises(DualtwinError, match="does not record which episodes it trained on"):
+        evaluate_perception(old, tiny_dataset)
+
+
+def test_bad_models_fail_clearly(tiny_model: Path, tmp_path: Path) -> None:
     broken = tmp_path / "model"
     shutil.copytree(tiny_model, broken)
     (broken / "perception.onnx").write_bytes(b"\x00not onnx")

@@ -30,6 +30,11 @@ hash), the visual randomisation, state names and units, every shard's episodes, 
 package versions. Shards are written atomically and the manifest is rewritten after each, so a crash keeps the
 finished shards; ``collect(..., resume=True)`` continues after them. Each episode's seeds (env reset, controller,
 appearance, camera jitter) derive only from ``(seed, episode)``, so resumed data equals uninterrupted data.
+
+Every shard record lists its episodes' *identities* (``episode_ids``, see `episode_identity`): a hash of the env
+id, the seed and the episode index, which fix the episode's start state, appearance and camera. A model records
+the identities it trained on, and evaluation leaves those episodes out whatever dataset they arrive in (a
+subset, a resumed extension, a copy), instead of trusting a whole-dataset fingerprint.
 """
 
 from __future__ import annotations
@@ -43,6 +48,7 @@ import numpy as np
 
 from dualtwin.artifacts import atomic_open, package_versions, sha256_file, write_json
 from dualtwin.errors import DualtwinError
+from dualtwin.reporting import Progress, ProgressCallback
 
 FORMAT = "dualtwin-perception-dataset"
 FORMAT_VERSION = 1
@@ -68,6 +74,34 @@ KEYS = ("frames", "state", "time_s", "episode", "step", "observation", "action",
 
 def shard_name(index: int) -> str:
     return f"shard-{index:05d}.npz"
+
+
+def episode_identity(env_id: str, seed: int, episode: int) -> str:
+    """The identity of one collected episode: a hash of what fixes its start state, appearance and camera.
+
+    Why these three: the episode's every seed derives from ``(seed, episode)`` (`episode_seeds`) and the env id
+    names the twin and task; the same triple in another collection (another controller or resolution) starts
+    from the same scene, so it counts as the same episode. Excluding it is the safe side of a held-out set.
+    """
+    import hashlib
+
+    return hashlib.sha256(f"{env_id}|{int(seed)}|{int(episode)}".encode()).hexdigest()[:24]
+
+
+def episode_identities(manifest: dict[str, Any]) -> dict[int, str]:
+    """Episode index -> identity for every finished episode of a dataset manifest.
+
+    Shards written before identities were recorded get them computed from the manifest's env id and seed.
+    """
+    env_id, seed = str(manifest.get("env_id")), int(manifest.get("seed", 0))
+    out: dict[int, str] = {}
+    for shard in manifest.get("shards", []):
+        first, last = (int(v) for v in shard["episodes"])
+        ids = shard.get("episode_ids") or [episode_identity(env_id, seed, e) for e in range(first, last + 1)]
+        if len(ids) != last - first + 1:
+            raise DualtwinError(f"shard {shard.get('file')!r}: {len(ids)} episode ids for episodes {first}..{last}")
+        out.update(zip(range(first, last + 1), (str(i) for i in ids), strict=True))
+    return out
 
 
 def episode_seeds(seed: int, episode: int) -> dict[str, int]:
@@ -96,7 +130,7 @@ def _state_reader(env: Any) -> Any:
 def collect(env_id: str, episodes: int, out_dir: Path | str, *, controller: str = "scripted",
             policy_run: Path | str | None = None, resume: bool = False, seed: int = 0, width: int = 64,
             height: int = 64, randomize: bool = True, camera: str | None = None, max_steps: int = 250,
-            episodes_per_shard: int = 10) -> Path:
+            episodes_per_shard: int = 10, progress: ProgressCallback | None = None) -> Path:
     """Record ``episodes`` episodes of frames + ground truth into ``out_dir`` (see the module docstring).
 
     Args:
@@ -112,6 +146,7 @@ def collect(env_id: str, episodes: int, out_dir: Path | str, *, controller: str 
         camera: camera name in the robot's cameras (default: ``perception``).
         max_steps: control periods per episode at most (episodes also end on termination).
         episodes_per_shard: episodes per shard file.
+        progress: Called after each recorded episode (stage ``collect``).
 
     Returns:
         The dataset folder.
@@ -158,6 +193,8 @@ def collect(env_id: str, episodes: int, out_dir: Path | str, *, controller: str 
         ctrl = make_controller(controller, env.action_space, twin_env.control_period,
                                getattr(twin_env.task, "max_cart_speed", 1.5), policy_run)
         cam = TwinCamera(twin_env.twin, spec, width, height)
+        counter = Progress(progress, "collect", episodes)
+        counter.done = shards[-1]["episodes"][1] + 1 if shards else 0
         try:
             for index in range(len(shards), n_shards):
                 first = index * episodes_per_shard
@@ -170,6 +207,7 @@ def collect(env_id: str, episodes: int, out_dir: Path | str, *, controller: str 
                     episode_spec = spec.jittered(np.random.default_rng(seeds["camera"]), **CAMERA_JITTER) \
                         if randomize else spec
                     _episode(env, ctrl, cam, episode_spec, appearance, read_state, seeds, episode, rows)
+                    counter.advance(message=f"{len(rows['frames'])} frames in this shard")
                 path = out / shard_name(index)
                 with atomic_open(path, "wb") as handle:
                     np.savez_compressed(
@@ -182,7 +220,8 @@ def collect(env_id: str, episodes: int, out_dir: Path | str, *, controller: str 
                         action=np.stack(rows["action"]).astype(np.float32),
                         masks=np.stack(rows["masks"]).astype(np.uint8))
                 shards.append({"file": path.name, "episodes": [first, last], "frames": len(rows["frames"]),
-                               "sha256": sha256_file(path)})
+                               "sha256": sha256_file(path),
+                               "episode_ids": [episode_identity(env_id, seed, e) for e in range(first, last + 1)]})
                 _write_manifest(out, settings, shards, episodes)
         finally:
             cam.close()

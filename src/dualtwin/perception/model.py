@@ -36,7 +36,8 @@ import numpy as np
 
 from dualtwin.artifacts import atomic_open, package_versions, sha256_file, write_json
 from dualtwin.errors import DualtwinError
-from dualtwin.perception.dataset import STATE_NAMES, STATE_UNITS, Dataset, load_dataset
+from dualtwin.perception.dataset import STATE_NAMES, STATE_UNITS, Dataset, episode_identities, load_dataset
+from dualtwin.reporting import Progress, ProgressCallback
 
 if TYPE_CHECKING:
     import torch
@@ -169,7 +170,7 @@ def _windows(rows: np.ndarray, episode: np.ndarray, length: int, rng: np.random.
 def train_perception(dataset_dir: Path | str, out_dir: Path | str, *, epochs: int = 15, seed: int = 0,
                      stack: int = DEFAULT_STACK, batch_size: int = 64, learning_rate: float = 2e-3,
                      holdout: float = 0.2, threads: int = 2, max_seconds: float | None = None,
-                     verbose: bool = False) -> Path:
+                     progress: ProgressCallback | None = None) -> Path:
     """Train the CNN on a dataset folder, export ``perception.onnx`` + contract into ``out_dir``; returns out_dir.
 
     Args:
@@ -182,7 +183,10 @@ def train_perception(dataset_dir: Path | str, out_dir: Path | str, *, epochs: in
         holdout: fraction of episodes held out for validation and :func:`evaluate_perception`.
         threads: ``torch.set_num_threads`` (keep small on shared machines).
         max_seconds: stop early after this much training time (the best epoch so far is exported).
-        verbose: print one line per epoch.
+        progress: Called after every epoch (stage ``perception train``) with the losses and held-out MAE.
+
+    The model's contract records the identities of the episodes it trained on
+    (:func:`dualtwin.perception.dataset.episode_identity`), so that evaluation can leave them out of any dataset.
     """
     import torch
 
@@ -192,6 +196,11 @@ def train_perception(dataset_dir: Path | str, out_dir: Path | str, *, epochs: in
     torch.manual_seed(seed)
     data = load_dataset(dataset_dir)
     train_eps, test_eps = split_episodes(data.episodes, holdout, seed)
+    identities = episode_identities(data.manifest)
+    missing = sorted(set(int(e) for e in data.episodes) - set(identities))
+    if missing:
+        raise DualtwinError(f"{dataset_dir}: episodes {missing[:5]} have no identity in the manifest")
+    counter = Progress(progress, "perception train", epochs)
     train_rows = np.flatnonzero(np.isin(data.episode, train_eps))
     test_rows = np.flatnonzero(np.isin(data.episode, test_eps))
     labels = data.state.astype(np.float32)
@@ -250,10 +259,8 @@ def train_perception(dataset_dir: Path | str, out_dir: Path | str, *, epochs: in
         history.append({"epoch": epoch + 1, "train_loss": total / max(seen, 1), "val_loss": val_loss,
                         **{f"val_mae_{n}": float(v) for n, v in zip(STATE_NAMES, mae, strict=True)},
                         "seconds": round(time.perf_counter() - start, 1)})
-        if verbose:
-            print(f"epoch {epoch + 1}/{epochs}: train {total / max(seen, 1):.4f} val {val_loss:.4f} "
-                  f"MAE pole {mae[2]:.4f} rad, {mae[3]:.3f} rad/s; cart {mae[0]:.4f} m, {mae[1]:.3f} m/s "
-                  f"({time.perf_counter() - start:.0f} s)", flush=True)
+        counter.advance(message=f"loss {total / max(seen, 1):.4f}, held-out loss {val_loss:.4f}; held-out MAE pole "
+                                f"{mae[2]:.4f} rad, {mae[3]:.3f} rad/s; cart {mae[0]:.4f} m, {mae[1]:.3f} m/s")
         if best is None or val_loss < best[0]:
             best = (val_loss, {k: v.detach().clone() for k, v in net.state_dict().items()})
         if max_seconds is not None and time.perf_counter() - start > max_seconds:
@@ -272,11 +279,16 @@ def train_perception(dataset_dir: Path | str, out_dir: Path | str, *, epochs: in
         "seed": seed, "epochs": epochs, "epochs_run": len(history), "stack": stack, "batch_size": batch_size,
         "learning_rate": learning_rate, "holdout": holdout, "threads": threads, "loss_weights": list(LOSS_WEIGHTS),
         "train_episodes": [int(e) for e in train_eps], "heldout_episodes": [int(e) for e in test_eps],
+        "train_episode_ids": [identities[int(e)] for e in train_eps],
+        "heldout_episode_ids": [identities[int(e)] for e in test_eps],
         "train_frames": int(len(train_rows)), "heldout_frames": int(len(test_rows)), "history": history,
         "seconds": round(time.perf_counter() - start, 1),
     }
     write_json(out / "training.json", training)
     contract = _contract(path, data, stack, height, width, mean, std, history[-1])
+    # What the model has seen, by episode identity: evaluation excludes these from any dataset.
+    contract["trained_on"]["episodes"] = len(train_eps)
+    contract["trained_on"]["episode_ids"] = sorted(identities[int(e)] for e in train_eps)
     contract["onnx"]["parts"] = parts
     write_json(out / CONTRACT_FILE, contract)
     return out
@@ -296,6 +308,23 @@ def load_weights(model_dir: Path | str) -> Any:
     with np.load(folder / WEIGHTS_FILE, allow_pickle=False) as arrays:
         net.load_state_dict({k: torch.from_numpy(arrays[k]) for k in arrays.files})
     return net.eval()
+
+
+def trained_episode_ids(model_dir: Path, contract: dict[str, Any]) -> set[str]:
+    """The identities of the episodes a model trained on, from its contract (else its ``training.json``)."""
+    import json
+
+    ids = (contract.get("trained_on") or {}).get("episode_ids")
+    if ids is None:
+        path = Path(model_dir) / "training.json"
+        try:
+            ids = json.loads(path.read_text(encoding="utf-8")).get("train_episode_ids") if path.is_file() else None
+        except (OSError, ValueError, AttributeError):
+            ids = None
+    if not isinstance(ids, list):
+        raise DualtwinError(f"{model_dir}: the model does not record which episodes it trained on, so no dataset "
+                            "can be shown to be held out; retrain it with this version")
+    return {str(i) for i in ids}
 
 
 def fingerprint(manifest: dict[str, Any]) -> str:
@@ -415,21 +444,27 @@ def evaluate_perception(model_dir: Path | str, dataset_dir: Path | str, *, veloc
                         ) -> dict[str, Any]:
     """MAE per state quantity of the exported model (ONNX Runtime) on held-out episodes of a dataset.
 
-    If the dataset is the one the model was trained on, only its held-out episodes count; any other dataset
-    (another seed, twin or controller) is held out entirely. Also reports a constant predictor (the training
-    mean) as the baseline to beat, and the per-episode Kalman filter (velocities from positions) for comparison.
-    """
-    import json
+    Held out means: not trained on, by episode identity (:func:`dualtwin.perception.dataset.episode_identity`).
+    Every episode of the dataset whose identity the model's contract lists as trained on is left out, whatever
+    dataset it arrives in (the training set, a subset of it, a resumed extension, a copy); the report says how
+    many were. A dataset with nothing left is an error, not a score. Also reports a constant predictor (the
+    training mean) as the baseline to beat, and the per-episode Kalman filter (velocities from positions).
 
+    Raises:
+        DualtwinError: The model does not record its training episodes, or no held-out episode remains.
+    """
     from dualtwin.perception.estimator import StateEstimator
 
     model = Path(model_dir)
     estimator = StateEstimator.load(model)
     data = load_dataset(dataset_dir)
-    training_path = model / "training.json"
-    training = json.loads(training_path.read_text(encoding="utf-8")) if training_path.is_file() else {}
-    same = training.get("dataset_fingerprint") == fingerprint(data.manifest)
-    episodes = np.asarray(training["heldout_episodes"]) if same else data.episodes
+    trained = trained_episode_ids(model, estimator.contract)
+    identities = episode_identities(data.manifest)
+    excluded = sorted(e for e in (int(v) for v in data.episodes) if identities.get(e) in trained)
+    episodes = np.asarray([int(e) for e in data.episodes if int(e) not in excluded], dtype=np.int64)
+    if not len(episodes):
+        raise DualtwinError(f"{dataset_dir}: all {len(excluded)} episode(s) were used to train {model}; "
+                            "nothing is held out (collect another seed to evaluate)")
     rows = np.flatnonzero(np.isin(data.episode, episodes))
     if not len(rows):
         raise DualtwinError(f"{dataset_dir}: no held-out frames to evaluate on")
@@ -456,7 +491,8 @@ def evaluate_perception(model_dir: Path | str, dataset_dir: Path | str, *, veloc
 
     return {
         "model": str(model), "dataset": str(dataset_dir), "heldout_episodes": [int(e) for e in episodes],
-        "frames": int(len(rows)), "same_dataset_as_training": same, "velocity": velocity,
+        "excluded_training_episodes": len(excluded), "excluded_episodes": excluded,
+        "frames": int(len(rows)), "velocity": velocity,
         "mae": table(chosen), "mae_frame_stack": table(raw), "mae_kalman": table(filtered),
         "mae_constant": table(np.broadcast_to(mean, truth.shape)),
         "units": dict(zip(STATE_NAMES, STATE_UNITS, strict=True)),

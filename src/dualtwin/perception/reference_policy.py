@@ -1,7 +1,8 @@
 """A hand-written privileged-state policy in the exported-policy format, for smoke tests and benchmarks.
 
 When no trained policy is at hand, the perception pipeline and the RobotServer still need a policy that balances
-the pole, to show whether perception-only control keeps the reward of privileged-state control. This one is a
+the pole, to show whether control with perception in the loop keeps the reward of privileged-state control
+(here perception supplies only the pole rate; the other inputs are on-board sensors). This one is a
 linear state feedback for the continuous CartPole with **odometry cart velocity** (``task_kwargs:
 {cart_velocity: odometry}``): the wheels are velocity servos, so the odometry velocity is the last command,
 and the policy adds an acceleration ``a = 25 θ + 4 θ' + 0.5 x + 1 x'`` over one control period::

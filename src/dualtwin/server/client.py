@@ -322,6 +322,12 @@ def _deploy(server_url: str, env_id: str, episodes: int, *, seed: int = 0, api_k
     mean_base = float(np.mean(baseline)) if baseline else None
     return {
         "server": server_url, "env_id": env_id, "episodes": episodes, "seed": seed, "frame_format": frame_format,
+        # What the served loop actually estimates: only the policy's privileged inputs come from the camera; the
+        # rest are the robot's own sensors (for the CartPole PPO policy: the pole rate only, not camera-only).
+        "loop": ("camera_only" if not onboard else
+                 "perception_" + "+".join(str(terms[i]["name"]) for i in privileged) + "_only"),
+        "inputs_from_perception": [terms[i]["name"] for i in privileged],
+        "inputs_from_onboard_sensors": [terms[i]["name"] for i in onboard],
         "perception_rewards": served, "privileged_rewards": baseline,
         "mean_perception_reward": mean_served, "mean_privileged_reward": mean_base,
         "ratio": mean_served / mean_base if mean_base else None,
