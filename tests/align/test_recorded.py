@@ -72,8 +72,9 @@ def test_align_fits_the_shared_channels_and_scenarios_and_says_what_it_left_out(
     assert any("left out: scenario 01_sine" in w for w in with_nuisance.warnings)
     record = json.loads((with_nuisance.out_dir / "align_record.json").read_text())
     assert record["result"]["left_out"] == left
-    # The before/after analysis compared only what both sides have.
-    assert (with_nuisance.out_dir / "report.html").is_file()
+    # The report has the nuisance knobs in their own section, after the physics knobs.
+    report = (with_nuisance.out_dir / "report.html").read_text()
+    assert report.index("<h2>Knobs</h2>") < report.index("Nuisance knobs") < report.index(KICK)
 
 
 def test_nuisance_knobs_are_recovered_with_the_physics(with_nuisance: AlignResult) -> None:

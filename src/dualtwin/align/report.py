@@ -149,6 +149,14 @@ def write_align_report(out_dir: Path, result: AlignResult, reference: Path, befo
         "<h2>Knobs</h2>",
         html_table(["knob", "nominal", "fitted", "± 95 %", "bounds", "at bound"], knob_rows, left=(0, 5), raw=(2,)),
     ]
+    if result.nuisance:
+        # Initial conditions and time offsets of this reference: fitted with the physics, not part of the model.
+        nuisance_rows = [[k.name, f"{k.nominal:.5g}", f"<b>{k.fitted:.5g}</b>", _f(k.half_width_95, ".2g"),
+                          f"[{k.lower:.4g}, {k.upper:.4g}]", k.unit, k.at_bound or ""] for k in result.nuisance.values()]
+        parts += ["<h2>Nuisance knobs (this reference's initial conditions and time offsets; not in the aligned "
+                  "model)</h2>",
+                  html_table(["knob", "nominal", "fitted", "± 95 %", "bounds", "unit", "at bound"], nuisance_rows,
+                             left=(0, 5, 6), raw=(2,))]
     if result.warnings:
         parts.append("<h2>Warnings</h2><ul class='viol'>" + "".join(f"<li>{html.escape(w)}</li>"
                                                                       for w in result.warnings) + "</ul>")
