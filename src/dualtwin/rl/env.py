@@ -123,7 +123,8 @@ class CartPoleBalance(Task):
                  balance_angle: float = 0.3, initial_angle: float = 0.05, action_key: str = "wheel_velocity",
                  pole_joint: str = "pole_hinge",
                  cart_velocity: Literal["ground_truth", "odometry"] = "odometry",
-                 upright_angle: float = 0.5, terminate_on_fall: bool = False) -> None:
+                 upright_angle: float = 0.5, terminate_on_fall: bool = False,
+                 max_wheel_speed: float | None = None, observation_ranges: list[float] | None = None) -> None:
         if min(max_cart_speed, x_limit, balance_angle, upright_angle) <= 0 or initial_angle < 0:
             raise DualtwinError("CartPoleBalance: max_cart_speed, x_limit, balance_angle and upright_angle must "
                                 "be > 0, initial_angle >= 0")
@@ -131,6 +132,19 @@ class CartPoleBalance(Task):
         # band. Without it a fallen pole rests on its stiff stops at +-1 rad for the rest of the 1000 steps: most
         # of every early rollout is zero-reward samples from states the policy can never recover from.
         self.terminate_on_fall = bool(terminate_on_fall)
+        # The paper's published controller commands wheel speed (+-5 rad/s), not cart speed: with it the cart
+        # speed follows from the binding's wheel radius (0.04 m on the bundled CartPole: +-0.2 m/s).
+        if max_wheel_speed is not None and max_wheel_speed <= 0:
+            raise DualtwinError("CartPoleBalance: max_wheel_speed must be > 0")
+        self.max_wheel_speed = None if max_wheel_speed is None else float(max_wheel_speed)
+        # Fixed observation scaling (the published controller divides each term by a range and clips to +-1).
+        self.observation_ranges: np.ndarray | None = None
+        if observation_ranges is not None:
+            ranges = np.asarray(observation_ranges, dtype=np.float64).reshape(-1)
+            if ranges.shape != (4,) or not (np.isfinite(ranges).all() and (ranges > 0).all()):
+                raise DualtwinError("CartPoleBalance: observation_ranges must be 4 positive numbers (cart "
+                                    "position, cart velocity, pole angle, pole angular velocity)")
+            self.observation_ranges = ranges
         self.continuous = continuous
         self.max_cart_speed = float(max_cart_speed)
         self.x_limit = float(x_limit)
@@ -149,6 +163,10 @@ class CartPoleBalance(Task):
         terms = list(self.GROUND_TRUTH_TERMS)
         if self.odometry_velocity:
             terms[1] = self.ODOMETRY_VELOCITY
+        if self.observation_ranges is not None:
+            terms = [ObservationTerm(t.name, f"{t.unit} / {r:g}", t.source, t.channel,
+                                     f"{t.description}; divided by {r:g} {t.unit} and clipped to [-1, 1]")
+                     for t, r in zip(terms, self.observation_ranges, strict=True)]
         self.observation_terms = tuple(terms)
         self._previous_odometry = 0.0
         self._odometry_index = 0
@@ -172,6 +190,8 @@ class CartPoleBalance(Task):
                                 f"{self.action_key!r} (the binding has: {', '.join(sorted(spec.actions))})")
         # Wheel odometry is encoder angle x radius, so the odometry channel's scale is the wheel radius.
         self.wheel_radius = float(spec.onboard["cart_pos_m"].scale)
+        if self.max_wheel_speed is not None:
+            self.max_cart_speed = self.max_wheel_speed * self.wheel_radius
         self.actuators = list(action.actuators)
         self._io = io
         onboard, truth = io.onboard_names, io.ground_truth_names
@@ -216,7 +236,8 @@ class CartPoleBalance(Task):
                 "termination": f"|cart x| > {self.x_limit} m (ground truth)"
                 + (f" or |pole hinge angle| > {self.balance_angle} rad or chassis tilt > {self.upright_angle} rad"
                    if self.terminate_on_fall else ""),
-                "terminate_on_fall": self.terminate_on_fall}
+                "terminate_on_fall": self.terminate_on_fall, "max_wheel_speed_rad_s": self.max_wheel_speed,
+                "observation_ranges": None if self.observation_ranges is None else self.observation_ranges.tolist()}
 
     def initialize_episode(self, rng: np.random.Generator) -> None:
         io = self.io
@@ -265,6 +286,8 @@ class CartPoleBalance(Task):
         values = [rows[r][i] for r, i in self._obs_index]
         if self.odometry_velocity:
             values[1] = (self._onboard[self._odometry_index] - self._previous_odometry) / self._period
+        if self.observation_ranges is not None:
+            return np.clip(np.asarray(values) / self.observation_ranges, -1.0, 1.0).astype(np.float32)
         return np.array(values, dtype=np.float32)
 
     def reward(self) -> float:

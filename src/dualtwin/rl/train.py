@@ -23,7 +23,7 @@ rebuilds the source env later (transfer, export checks) gets the aligned twin ba
 
 from __future__ import annotations
 
-import json
+import contextlib
 import re
 import time
 from collections.abc import Callable, Mapping
@@ -36,6 +36,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from dualtwin.artifacts import package_versions, write_json, write_text
 from dualtwin.errors import DualtwinError
+from dualtwin.rl.curves import evaluation_line
 from dualtwin.rl.runfiles import load_model, load_normalization, save_normalization, stats_path
 
 if TYPE_CHECKING:
@@ -44,7 +45,8 @@ if TYPE_CHECKING:
     from stable_baselines3.common.callbacks import EvalCallback
     from stable_baselines3.common.vec_env import VecNormalize
 
-DEFAULT_CONFIG = Path(__file__).parent / "configs" / "ppo_cartpole.yaml"
+CONFIGS = Path(__file__).parent / "configs"
+DEFAULT_CONFIG = CONFIGS / "ppo_cartpole.yaml"
 RUN_VERSION = 1
 _CHECKPOINT = re.compile(r"^rl_model_(\d+)_steps\.zip$")
 
@@ -136,11 +138,19 @@ def load_config(source: Path | str | Mapping[str, Any] | PPOConfig | None = None
     origin = "<config dict>"
     if source is None or not isinstance(source, Mapping):
         path = Path(source) if source is not None else DEFAULT_CONFIG
+        if not path.is_file() and re.fullmatch(r"[A-Za-z0-9_]+", str(source)):
+            # A bundled config by name (``--config ppo_cartpole``), as ``--robot cartpole`` names a bundled robot.
+            path = CONFIGS / f"{source}.yaml"
+            if not path.is_file():
+                raise DualtwinError(f"--config {source}: no such file and no bundled config of that name "
+                                    f"(bundled: {', '.join(bundled_configs())})")
         if not path.is_file():
             raise DualtwinError(f"{path}: config file not found")
         origin = str(path)
+        from dualtwin.artifacts import read_text_file
+
         try:
-            data = yaml.safe_load(path.read_text(encoding="utf-8"))
+            data = yaml.safe_load(read_text_file(path, "PPO config"))
         except yaml.YAMLError as exc:
             raise DualtwinError(f"{path}: invalid YAML: {exc}") from None
     else:
@@ -152,6 +162,11 @@ def load_config(source: Path | str | Mapping[str, Any] | PPOConfig | None = None
         raise DualtwinError(f"{origin}: invalid PPO config: {problems}") from None
 
 
+def bundled_configs() -> list[str]:
+    """Names of the bundled PPO configs (``--config NAME``)."""
+    return sorted(p.stem for p in CONFIGS.glob("*.yaml"))
+
+
 def activation(name: str) -> type[Any]:
     import torch.nn as nn
 
@@ -159,11 +174,9 @@ def activation(name: str) -> type[Any]:
 
 
 def _read_json(path: Path) -> dict[str, Any]:
-    try:
-        data: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as exc:
-        raise DualtwinError(f"{path}: cannot read run record: {exc}") from None
-    return data
+    from dualtwin.artifacts import read_json_object
+
+    return read_json_object(path, what="run record")  # names file, line and column; refuses a non-object
 
 
 def _latest_checkpoint(out: Path, final_steps: int | None) -> tuple[Path, Path, int] | None:
@@ -203,7 +216,7 @@ def train(env_id: str, config_path: Path | str | Mapping[str, Any] | PPOConfig |
           dr_ranges: Path | str | Mapping[str, Any] | None = None, progress_bar: bool = True,
           verbose: int = 0, shadow_fraction: float = 0.0,
           aligned: Path | str | Mapping[str, Any] | None = None, init_from: Path | str | None = None,
-          trust_pickles: bool | None = None) -> Path:
+          trust_pickles: bool | None = None, report: Callable[[str], None] | None = None) -> Path:
     """Train PPO on ``env_id`` into ``out_dir`` and return it (see the module docstring for its contents).
 
     Args:
@@ -228,6 +241,8 @@ def train(env_id: str, config_path: Path | str | Mapping[str, Any] | PPOConfig |
             aligned twin (``aligned=``) or with calibrated domain randomisation.
         trust_pickles: allow unpickling an old run's ``vecnormalize.pkl`` (resume or ``init_from``); pickles
             can run code, so only for files the user trusts.
+        report: called with one line per evaluation (steps, mean reward, mean length, wall time); the CLI
+            prints them to stderr.
     """
     from dualtwin.rl import check_env_id
     from dualtwin.rl.randomize import load_ranges
@@ -239,6 +254,9 @@ def train(env_id: str, config_path: Path | str | Mapping[str, Any] | PPOConfig |
     if init_record is not None and (init_record["vecnormalize"] is None) != (config.normalize_config is None):
         raise DualtwinError(f"{init_from}: its observation normalisation does not match this config's "
                             "'normalize' setting; a fine-tuned policy must see the inputs it was trained on")
+    if shadow_fraction and config.vec_env != "dummy":
+        raise DualtwinError("shadow_fraction needs vec_env: dummy in the config (the shadow mirrors in-process "
+                            "envs; the bundled configs use subproc)")
     total = int(total_timesteps if total_timesteps is not None else config.n_timesteps)
     if total <= 0:
         raise DualtwinError(f"total_timesteps must be positive, got {total}")
@@ -276,13 +294,12 @@ def train(env_id: str, config_path: Path | str | Mapping[str, Any] | PPOConfig |
         write_json(out / "dr_ranges.json", {"knobs": dr})
     if aligned_record is not None:
         write_json(out / "aligned_knobs.json", aligned_record)
-    if shadow_fraction and config.vec_env != "dummy":
-        raise DualtwinError("shadow_fraction needs vec_env: dummy (the shadow mirrors in-process envs)")
     trainer = _Trainer(env_id, config, out, seed, total, dr, previous, start_from, progress_bar, verbose)
     trainer.shadow_fraction = float(shadow_fraction)
     trainer.aligned = aligned_record
     trainer.init_from = init_record
     trainer.trust_pickles = trust_pickles
+    trainer.report = report
     if aligned_record is not None:
         kwargs = dict(config.env_kwargs)
         trainer.env_kwargs = {**kwargs, "knobs": {**dict(kwargs.get("knobs") or {}), **aligned_record["values"]}}
@@ -353,6 +370,7 @@ class _Trainer:
         self.aligned: dict[str, Any] | None = None
         self.init_from: dict[str, Any] | None = None
         self.trust_pickles: bool | None = None
+        self.report: Callable[[str], None] | None = None
         self.env_kwargs: dict[str, Any] = dict(config.env_kwargs)
         self.model: PPO | None = None
         self.contract: dict[str, Any] = {}
@@ -490,11 +508,14 @@ class _Trainer:
                 keep_going = super()._on_step()
                 if len(self.evaluations_results) > count:
                     rewards = np.asarray(self.evaluations_results[-1], dtype=float)
+                    lengths = np.asarray(self.evaluations_length[-1], dtype=float)
                     trainer.timeline.append({
                         "timesteps": int(self.num_timesteps), "mean_reward": float(rewards.mean()),
-                        "std_reward": float(rewards.std()),
+                        "std_reward": float(rewards.std()), "mean_length": float(lengths.mean()),
                         "wall_seconds": round(trainer.prior_seconds + time.perf_counter() - session_start, 3)})
                     trainer._record("running")
+                    if trainer.report is not None:
+                        trainer.report(evaluation_line(trainer.timeline[-1], trainer.total))
                 return keep_going
 
         class _WallClockLimit(BaseCallback):
@@ -559,6 +580,8 @@ class _Trainer:
             # Keep what was learned: the next resume starts here rather than at the last periodic checkpoint.
             self._emergency_checkpoint(model)
             self._record("interrupted")
+            with contextlib.suppress(Exception):  # the interruption is what the user must see
+                self._curve()
             raise
         finally:
             venv.close()
@@ -569,7 +592,14 @@ class _Trainer:
         if stats is not None:
             save_normalization(stats, out / "vecnormalize.json")
         self._record("complete")
+        self._curve()
         return out
+
+    def _curve(self) -> None:
+        """learning_curve.csv/png from the Monitor CSVs (training episodes, not the evaluations)."""
+        from dualtwin.rl.curves import write_learning_curve
+
+        write_learning_curve(self.out, f"{self.env_id}, seed {self.seed}: training episodes")
 
     def _emergency_checkpoint(self, model: PPO, force: bool = False) -> None:
         if not self.config.checkpoint_freq and not force:
