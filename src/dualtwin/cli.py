@@ -207,7 +207,9 @@ def _llm_proposer(label_a: str, label_b: str):  # type: ignore[no-untyped-def]
 def train(
     env: Annotated[str, typer.Option(help="registered env id, e.g. dualtwin/CartPole-MuJoCo-Continuous-v0")],
     out: Annotated[Path, typer.Option(help="run folder")],
-    config: Annotated[Path | None, typer.Option(help="PPO config YAML (default: the bundled paper config)")] = None,
+    config: Annotated[Path | None, typer.Option(
+        help="PPO config YAML, or a bundled config's name (ppo_cartpole, ppo_cartpole_text, ppo_cartpole_code, "
+        "ppo_cartpole_continuous; default ppo_cartpole)")] = None,
     seed: Annotated[int, typer.Option(help="seed")] = 0,
     steps: Annotated[int | None, typer.Option(help="total timesteps (overrides the config)")] = None,
     resume: Annotated[bool, typer.Option(help="continue an interrupted run from its last checkpoint")] = False,
@@ -224,7 +226,7 @@ def train(
 
     run = run_train(env, config, out, seed=seed, total_timesteps=steps, resume=resume, dr_ranges=dr,
                     shadow_fraction=shadow_fraction, aligned=aligned, init_from=init_from,
-                    trust_pickles=trust_pickles)
+                    trust_pickles=trust_pickles, report=lambda line: typer.echo(line, err=True))
     console.print(f"wrote {run}")
 
 
