@@ -117,13 +117,26 @@ def compare(
     run_a: Annotated[Path, typer.Argument(help="first run directory")],
     run_b: Annotated[Path, typer.Argument(help="second run directory")],
     out: Annotated[Path, typer.Option(help="report directory")],
+    as_json: Annotated[bool, typer.Option("--json", help="print metrics.json's comparison to stdout "
+                                                         "instead of the table")] = False,
 ) -> None:
-    """Compare two runs: metrics.json, PNG overlays and a self-contained report.html."""
+    """Compare two runs: metrics.json, PNG overlays and a self-contained report.html.
+
+    Only the scenarios and channels both runs have are compared (what one side lacks is listed); with an
+    ensemble run (suite run --ensemble) each channel is also judged against the reproducibility floor.
+    """
     from dualtwin.divergence import compare_runs, print_summary, write_report
 
     comparison = compare_runs(run_a, run_b)
     write_report(comparison, out, label_a=run_a.name, label_b=run_b.name)
+    if as_json:
+        import json
+
+        print(json.dumps(comparison.to_dict(), indent=2, allow_nan=False))
+        return
     print_summary(comparison, console)
+    for line in comparison.judgement_lines():
+        console.print(f"  {line}", markup=False, highlight=False)
     console.print(f"wrote {out / 'report.html'}")
 
 
@@ -137,6 +150,8 @@ def analyze(
     knobs: Annotated[list[str] | None, typer.Option(help="knob names or globs for sensitivities")] = None,
     llm: Annotated[bool, typer.Option(help="also ask the configured LLM (DUALTWIN_LLM_*) to explain the findings "
                                            "and propose knob changes, each re-simulated")] = False,
+    as_json: Annotated[bool, typer.Option("--json", help="print analysis.json to stdout instead of the "
+                                                         "findings")] = False,
 ) -> None:
     """Explain why two runs diverge: dominant scenarios/channels, sign/lag/scale flags, knob sensitivities."""
     from dualtwin.align import analyze_runs, print_analysis, write_analysis
@@ -144,6 +159,11 @@ def analyze(
     proposer = _llm_proposer(run_a.name, run_b.name) if llm else None
     analysis = analyze_runs(run_a, run_b, robot=robot, twin_b=twin, knobs=knobs, propose_fn=proposer)
     write_analysis(analysis, out)
+    if as_json:
+        import json
+
+        print(json.dumps(analysis.to_dict(), indent=2, default=str))
+        return
     print_analysis(analysis, console)
     console.print(f"wrote {out}")
 

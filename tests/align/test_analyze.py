@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -170,3 +171,72 @@ def test_sensitivity_names_the_damping(tmp_path: Path, robot: RobotBinding, damp
     assert "increase it" in events[0].message
     assert not analysis.notes  # the nominal twin reproduces run B exactly
     assert analysis.objective is not None and analysis.objective.total > 0
+
+
+# ------------------------------------------------------------------ analyze on a recording (issue 15.3)
+def recording(run: Path, out: Path, seed: int = 0) -> Path:
+    """A hand-built recorded run of a twin run, as real logs come: only the paper's two channels, values
+    rounded to 3 decimals, time stamps with up to 2 ms of jitter, ``kind: recorded`` and no twin name."""
+    manifest = json.loads((run / "manifest.json").read_text())
+    rng = np.random.default_rng(seed)
+    scenarios = []
+    for sc in manifest["scenarios"]:
+        table = np.genfromtxt(run / sc["ground_truth"], names=True, delimiter="\t")
+        t = table["time_s"] + rng.uniform(-0.002, 0.002, table.size)
+        rel = f"scenarios/{sc['id']}/ground_truth.tsv"
+        (out / rel).parent.mkdir(parents=True)
+        rows = [f"{ti:.4f}\t{p:.3f}\t{c:.3f}" for ti, p, c in zip(t, table["pole_angle_rad"], table["cart_pos_m"],
+                                                                   strict=True)]
+        (out / rel).write_text("time_s\tpole_angle_rad\tcart_pos_m\n" + "\n".join(rows) + "\n")
+        scenarios.append({"id": sc["id"], "index": sc["index"], "name": sc["name"], "status": sc["status"],
+                          "ground_truth": rel})
+    (out / "manifest.json").write_text(json.dumps({
+        "kind": "recorded", "robot": manifest["robot"], "suite_name": manifest["suite_name"],
+        "channels": {"pole_angle_rad": {"source": "ground_truth", "unit": "rad"},
+                     "cart_pos_m": {"source": "ground_truth", "unit": "m"}},
+        "scenarios": scenarios}))
+    return out
+
+
+def on_recording(tmp_path: Path, robot: RobotBinding, suite3: Path, nominal_run: Path,
+                 knobs: dict[str, float]) -> list[Any]:
+    twin_run = record(robot, suite3, tmp_path / "twin", knobs)
+    analysis = analyze_runs(nominal_run, recording(twin_run, tmp_path / "rec"))
+    assert analysis.comparison.channel_names == ["pole_angle_rad", "cart_pos_m"]
+    assert "cart_vel_m_s" in analysis.comparison.left_out["channels"]  # the recording logs two channels
+    assert analysis.comparison.twin_b == "recorded"
+    return analysis.findings
+
+
+def test_recording_with_an_inverted_cart(tmp_path: Path, robot: RobotBinding, suite3: Path,
+                                         nominal_run: Path) -> None:
+    """A cart that moves the other way for the same wheel command: sign inversion, explained by motor gain."""
+    findings = on_recording(tmp_path, robot, suite3, nominal_run, {f"motor.wheel{i}.gain": -1.0 for i in range(1, 5)})
+    signs = [f for f in findings if f.kind == "sign_inversion" and f.channel == "cart_pos_m"]
+    assert signs and signs[0].scenarios == ["01_sine", "02_drive"] and signs[0].knobs[0] == "motor.*.gain"
+    assert findings[0].kind == "sign_inversion"
+
+
+def test_recording_with_a_control_delay(tmp_path: Path, robot: RobotBinding, suite3: Path,
+                                        nominal_run: Path) -> None:
+    findings = on_recording(tmp_path, robot, suite3, nominal_run, {"control.delay_periods": 3})
+    lags = [f for f in findings if f.kind == "lag" and f.channel == "cart_pos_m"]
+    assert lags and lags[0].evidence["lag_periods"] == pytest.approx(3.0, abs=0.5)
+    assert lags[0].evidence["lagging"] == "B" and lags[0].knobs[0] == "control.delay_periods"
+    # (The late drive lets the pole fall the other way in 02_drive: a real sign flip of the pole, not the cart.)
+    assert not [f for f in findings if f.kind in ("sign_inversion", "scale_mismatch") and f.channel == "cart_pos_m"]
+
+
+def test_recording_with_a_wheel_gain(tmp_path: Path, robot: RobotBinding, suite3: Path, nominal_run: Path) -> None:
+    findings = on_recording(tmp_path, robot, suite3, nominal_run, {f"motor.wheel{i}.gain": 1.4 for i in range(1, 5)})
+    scales = [f for f in findings if f.kind == "scale_mismatch" and f.channel == "cart_pos_m"]
+    assert scales and scales[0].evidence["slope"] == pytest.approx(1.4, rel=0.1)
+    assert scales[0].knobs[0] == "motor.*.gain"
+    assert not [f for f in findings if f.kind == "sign_inversion"]
+
+
+def test_recording_of_the_same_twin_raises_no_structural_finding(tmp_path: Path, robot: RobotBinding,
+                                                                 suite3: Path, nominal_run: Path) -> None:
+    """The control: rounding to 1 mm and 2 ms jitter alone raise no sign, lag or scale finding."""
+    findings = on_recording(tmp_path, robot, suite3, nominal_run, {})
+    assert not [f for f in findings if f.kind in ("sign_inversion", "lag", "scale_mismatch")]

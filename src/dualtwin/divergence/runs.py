@@ -464,6 +464,14 @@ class RunComparison:
     def within_tolerance(self) -> bool:
         return all(s.within_tolerance for s in self.scenarios)
 
+    def judgement_lines(self) -> list[str]:
+        """Plain-word lines: what was left out and why, and each channel judged against its floor."""
+        lines = [f"left out {what[:-1]} {name}: {why}" for what, names in self.left_out.items()
+                 for name, why in names.items()]
+        for sc in self.scenarios:
+            lines.extend(f"{sc.id} / {name}: {judged.verdict}" for name, judged in sc.floors.items())
+        return lines
+
     def contributions(self) -> list[Contribution]:
         """Scenario × channel pairs ranked by physical significance, largest first.
 
