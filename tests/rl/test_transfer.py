@@ -112,3 +112,39 @@ def test_cli_table_1_and_foreign_knobs(discrete_run: Path, aligned_run: Path, dr
                       "--aligned", str(knobs))
     assert result.returncode != 0 and "Traceback" not in result.stderr
     assert "fitted for the webots twin" in result.stderr and not (tmp_path / "run").exists()
+
+
+def test_the_control_row_repeats_the_fine_tuning_in_the_nominal_twin(discrete_run: Path, tmp_path: Path) -> None:
+    from tests.rl.conftest import ALIGNED_KNOBS, _train
+
+    knobs = tmp_path / "knobs.json"
+    knobs.write_text(json.dumps(ALIGNED_KNOBS))
+    tuned = _train(tmp_path / "aligned", "dualtwin/CartPole-MuJoCo-v0", 512, init_from=discrete_run, aligned=knobs)
+    control = _train(tmp_path / "control", "dualtwin/CartPole-MuJoCo-v0", 512, init_from=discrete_run)
+    out = tmp_path / "transfer"
+    report = transfer(discrete_run, "dualtwin/CartPole-MuJoCo-v0", policy_aligned=tuned, policy_control=control,
+                      episodes=2, seed=3, out_dir=out, target_kwargs=OTHER, max_episode_steps=60)
+    labels = [r.label for r in report.rows]
+    assert labels == ["source", "target (before alignment)", "source (aligned twin)", "target (after alignment)",
+                      "source (fine-tuned, nominal twin)", "target (fine-tuned in the nominal twin)"]
+    source, _, _, after, control_source, control_target = report.rows
+    assert control_source.knobs is None and control_target.policy_run == str(control)
+    assert report.episode_cap == 60 and report.source_converged == (source.mean >= 59.4)
+    if source.mean > 0:
+        assert control_target.ratio == pytest.approx(control_target.mean / source.mean)
+        assert report.alignment_gain == pytest.approx(after.ratio - control_target.ratio)  # type: ignore[operator]
+    data = json.loads((out / "transfer.json").read_text())
+    assert data["alignment_gain"] == report.alignment_gain and data["episode_cap"] == 60
+    text = (out / "report.md").read_text()
+    if report.source_converged is False:
+        assert "The source is not converged" in text
+    if report.alignment_gain is not None:
+        assert "What alignment adds beyond the same fine-tuning" in text
+    # A control that is not a nominal fine-tuning, or not the same fine-tuning, is refused before any episode.
+    with pytest.raises(DualtwinError, match="control must be fine-tuned in the nominal twin"):
+        transfer(discrete_run, "dualtwin/CartPole-MuJoCo-v0", policy_control=discrete_run, episodes=1)
+    with pytest.raises(DualtwinError, match="control must be fine-tuned in the nominal twin"):
+        transfer(discrete_run, "dualtwin/CartPole-MuJoCo-v0", policy_control=tuned, episodes=1)
+    longer = _train(tmp_path / "longer", "dualtwin/CartPole-MuJoCo-v0", 1024, init_from=discrete_run)
+    with pytest.raises(DualtwinError, match="not the same fine-tuning.*steps"):
+        transfer(discrete_run, "dualtwin/CartPole-MuJoCo-v0", policy_aligned=tuned, policy_control=longer, episodes=1)

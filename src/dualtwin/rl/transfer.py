@@ -9,6 +9,14 @@ modified: it stands for the real system. Each row gets per-episode rewards, mean
 source mean. Episode ``i`` of every row starts from the same seed (``seed + i``), so rows differ only by the
 policy, the twin and its knobs.
 
+The control row. A policy fine-tuned in the aligned twin has had more training than the source policy, so
+"after alignment" beating "before alignment" does not by itself show that alignment helped. The control is
+the same fine-tuning (same start, steps and settings) in the *nominal* source twin
+(``dualtwin train --init-from SOURCE`` without ``--aligned``), evaluated in the target:
+``policy_control``. What alignment adds beyond fine-tuning is the aligned row's ratio minus the control row's
+(``alignment_gain``). Every ratio is to the one source row, which should be converged (``source_converged``:
+mean >= 99 % of the episode cap) so that no row can gain by finishing the source's training.
+
 Output folder: ``transfer.json``, ``report.md`` and ``trajectory.png`` (episode 0: pole angle and cart
 position over time, every row overlaid).
 """
@@ -25,6 +33,11 @@ import numpy as np
 from dualtwin.artifacts import package_versions, write_json, write_text
 from dualtwin.errors import DualtwinError
 from dualtwin.rl.policy import LoadedPolicy, check_contract, load_policy
+
+AFTER_ALIGNMENT = "target (after alignment)"
+CONTROL = "target (fine-tuned in the nominal twin)"
+# A source is converged when it balances this share of the episode cap (990 of 1000).
+CONVERGED = 0.99
 
 
 @dataclass
@@ -80,6 +93,23 @@ class TransferReport:
     aligned: dict[str, Any] | None = None
     dr_ranges: dict[str, Any] | None = None
     out_dir: Path | None = None
+    episode_cap: int | None = None
+
+    @property
+    def source_converged(self) -> bool | None:
+        """Whether the source row balances >= 99 % of the episode cap (None: no cap known)."""
+        if not self.episode_cap:
+            return None
+        return self.rows[0].mean >= CONVERGED * self.episode_cap
+
+    @property
+    def alignment_gain(self) -> float | None:
+        """Target ratio after alignment minus the fine-tuning control's (None without both rows)."""
+        labels = {r.label: r for r in self.rows}
+        aligned, control = labels.get(AFTER_ALIGNMENT), labels.get(CONTROL)
+        if aligned is None or control is None or aligned.ratio is None or control.ratio is None:
+            return None
+        return aligned.ratio - control.ratio
 
     def row(self, label: str) -> EvalRow:
         for r in self.rows:
@@ -96,6 +126,8 @@ class TransferReport:
             rows.append(item)
         return {"policy_run": self.policy_run, "source_env": self.source_env, "target_env": self.target_env,
                 "episodes": self.episodes, "seed": self.seed, "aligned": self.aligned, "dr_ranges": self.dr_ranges,
+                "episode_cap": self.episode_cap, "source_converged": self.source_converged,
+                "alignment_gain": self.alignment_gain,
                 "std": "sample standard deviation (ddof=1) over episodes", "rows": rows,
                 "versions": package_versions()}
 
@@ -110,6 +142,15 @@ class TransferReport:
         for r in self.rows:
             ratio = f"{100 * r.ratio:.1f} %" if r.ratio is not None else "–"
             lines.append(f"| {r.label} | `{r.env_id}` | `{r.policy_run}` | {r.mean:.1f} ± {r.std:.1f} | {ratio} |")
+        if self.source_converged is False:
+            lines += ["", f"**The source is not converged** ({self.rows[0].mean:.1f} < {CONVERGED:.0%} of the "
+                      f"{self.episode_cap}-step cap): rows trained for longer can gain by finishing its training, "
+                      "so their ratios overstate what transfer, alignment or DR did."]
+        gain = self.alignment_gain
+        if gain is not None:
+            lines += ["", f"What alignment adds beyond the same fine-tuning in the nominal twin: "
+                      f"{100 * gain:+.1f} percentage points of the source reward in the target "
+                      f"({AFTER_ALIGNMENT} vs {CONTROL})."]
         if self.aligned:
             where = f" (`{self.aligned['file']}`, sha256 {self.aligned.get('sha256', '')[:12]})" \
                 if self.aligned.get("file") else ""
@@ -176,7 +217,8 @@ def _companion(path: Path | str, which: str, main: LoadedPolicy, role: str) -> L
 
 
 def transfer(policy_run: Path | str, target_env_id: str, *, policy_aligned: Path | str | None = None,
-             policy_dr: Path | str | None = None, episodes: int = 10, seed: int = 0,
+             policy_dr: Path | str | None = None, policy_control: Path | str | None = None,
+             episodes: int = 10, seed: int = 0,
              out_dir: Path | str | None = None, target_kwargs: dict[str, Any] | None = None,
              max_episode_steps: int | None = None, which: str = "final") -> TransferReport:
     """Evaluate policies trained in one twin in ``target_env_id``: the paper's Table 1.
@@ -192,6 +234,9 @@ def transfer(policy_run: Path | str, target_env_id: str, *, policy_aligned: Path
         target_env_id: registered dualtwin env id to transfer to.
         policy_aligned: run folder of a policy trained in the aligned source twin (same env id as ``policy_run``).
         policy_dr: run folder of a policy trained with calibrated domain randomisation (same env id).
+        policy_control: run folder of the control: the aligned policy's fine-tuning repeated in the nominal
+            source twin (``train(init_from=...)`` without ``aligned``); rows ``source (fine-tuned, nominal
+            twin)`` and ``target (fine-tuned in the nominal twin)``.
         episodes: episodes per row.
         seed: episode ``i`` resets with ``seed + i`` in every row.
         out_dir: write ``transfer.json``, ``report.md`` and ``trajectory.png`` here.
@@ -213,7 +258,16 @@ def transfer(policy_run: Path | str, target_env_id: str, *, policy_aligned: Path
         if not record.get("aligned"):
             raise DualtwinError(f"{policy_aligned}: not trained in an aligned twin (run.json has no 'aligned' "
                                 "knobs); train it with `dualtwin train --aligned knobs.json`")
-        companions.append(("source (aligned twin)", "target (after alignment)", aligned_policy))
+        companions.append(("source (aligned twin)", AFTER_ALIGNMENT, aligned_policy))
+    if policy_control is not None:
+        control_policy = _companion(policy_control, which, policy, "control")
+        control_record = _run_record(control_policy)
+        if control_record.get("aligned") or control_record.get("dr_ranges") or not control_record.get("init_from"):
+            raise DualtwinError(f"{policy_control}: the control must be fine-tuned in the nominal twin (train "
+                                "--init-from SOURCE, without --aligned or --dr); run.json says otherwise")
+        if policy_aligned is not None:
+            _check_same_fine_tuning(_run_record(aligned_policy), control_record, policy_aligned, policy_control)
+        companions.append(("source (fine-tuned, nominal twin)", CONTROL, control_policy))
     if policy_dr is not None:
         dr_policy = _companion(policy_dr, which, policy, "domain-randomised")
         if not _run_record(dr_policy).get("dr_ranges"):
@@ -257,10 +311,25 @@ def transfer(policy_run: Path | str, target_env_id: str, *, policy_aligned: Path
     aligned = _run_record(companions[0][2]).get("aligned") if policy_aligned is not None else None
     dr = _run_record(companions[-1][2]).get("dr_ranges") if policy_dr is not None else None
     report = TransferReport(str(policy_run), policy.env_id, target_env_id, episodes, seed, rows,
-                            aligned=aligned, dr_ranges=dr)
+                            aligned=aligned, dr_ranges=dr, episode_cap=limit)
     if out_dir is not None:
         write_report(report, Path(out_dir))
     return report
+
+
+def _check_same_fine_tuning(aligned: dict[str, Any], control: dict[str, Any], aligned_path: Path | str,
+                            control_path: Path | str) -> None:
+    """The control differs from the aligned fine-tuning only by the knobs: same start, steps, seed and config."""
+    def key(record: dict[str, Any]) -> dict[str, Any]:
+        config = {k: v for k, v in (record.get("config") or {}).items() if k != "env_kwargs"}
+        return {"initial policy": (record.get("init_from") or {}).get("sha256"), "seed": record.get("seed"),
+                "steps": record.get("total_timesteps"), "config": config}
+
+    a, c = key(aligned), key(control)
+    differ = [name for name in a if a[name] != c[name]]
+    if differ:
+        raise DualtwinError(f"{control_path}: not the same fine-tuning as {aligned_path} ({', '.join(differ)} "
+                            "differ); the control must repeat it in the nominal twin")
 
 
 def _run_record(policy: LoadedPolicy) -> dict[str, Any]:
