@@ -259,6 +259,9 @@ def transfer(
         help="run folder of a policy trained in the aligned source twin (train --aligned knobs.json)")] = None,
     policy_dr: Annotated[Path | None, typer.Option(
         help="run folder of a policy trained with calibrated DR (train --dr dr_ranges.json)")] = None,
+    policy_control: Annotated[Path | None, typer.Option(
+        help="run folder of the control: the aligned policy's fine-tuning repeated in the nominal twin "
+        "(train --init-from POLICY without --aligned)")] = None,
     episodes: Annotated[int, typer.Option(help="episodes per row")] = 10,
     seed: Annotated[int, typer.Option(help="seed")] = 0,
     which: Annotated[str, typer.Option(help="best or final model")] = "final",
@@ -273,7 +276,7 @@ def transfer(
 
     with trusting_pickles(trust_pickles):
         report = run_transfer(policy, target_env, policy_aligned=policy_aligned, policy_dr=policy_dr,
-                              episodes=episodes, seed=seed, out_dir=out, which=which)
+                              policy_control=policy_control, episodes=episodes, seed=seed, out_dir=out, which=which)
     for row in report.rows:
         console.print(f"  {row.label:<32} {row.summary()}")
     console.print(f"wrote {out}")
