@@ -10,6 +10,7 @@ from typing import Annotated, Any
 import typer
 from rich.console import Console
 
+from dualtwin.artifacts import check_output_dir
 from dualtwin.errors import DualtwinError
 
 # Loading a training run written before its statistics were JSON (or by another tool) means unpickling files
@@ -78,14 +79,15 @@ def suite_run(
     from dualtwin.robots.binding import resolve_robot
     from dualtwin.suite.runner import SuiteRun
 
+    from dualtwin.parallel import check_executor
+
+    check_executor(executor)  # even without --ensemble, so a typo never passes silently
     binding = resolve_robot(robot)
     if ensemble or perturb:
         from rich.progress import Progress
 
-        from dualtwin.parallel import check_executor
         from dualtwin.suite.ensemble import EnsembleRun, make_spec, parse_perturb
 
-        check_executor(executor)
         spec = make_spec(ensemble, parse_perturb(perturb or []), binding, seed=seed)
         members = EnsembleRun(scenarios, twin, binding, out, spec, seed=seed, executor=executor,  # type: ignore[arg-type]
                               workers=workers)
@@ -127,6 +129,8 @@ def compare(
     """
     from dualtwin.divergence import compare_runs, print_summary, write_report
 
+    check_output_dir(out, "compare")
+    _runs(run_a, run_b)
     comparison = compare_runs(run_a, run_b)
     write_report(comparison, out, label_a=run_a.name, label_b=run_b.name)
     if as_json:
@@ -156,6 +160,14 @@ def analyze(
     """Explain why two runs diverge: dominant scenarios/channels, sign/lag/scale flags, knob sensitivities."""
     from dualtwin.align import analyze_runs, print_analysis, write_analysis
 
+    check_output_dir(out, "analyze")
+    if (knobs or twin) and robot is None:
+        raise DualtwinError("--knobs and --twin compute sensitivities by re-simulation: give --robot too")
+    _runs(run_a, run_b)
+    if robot is not None:
+        from dualtwin.robots.binding import resolve_robot
+
+        resolve_robot(robot)
     proposer = _llm_proposer(run_a.name, run_b.name) if llm else None
     analysis = analyze_runs(run_a, run_b, robot=robot, twin_b=twin, knobs=knobs, propose_fn=proposer)
     write_analysis(analysis, out)
@@ -170,12 +182,15 @@ def analyze(
 
 @app.command("align")
 def align(
-    reference: Annotated[str, typer.Option(help="reference twin name (run once) or a recorded run directory")],
     target: Annotated[str, typer.Option(help="twin whose knobs are fitted")],
     robot: Annotated[str, typer.Option(help="bundled robot name or binding file")],
     scenarios: Annotated[Path, typer.Option(help="suite JSON file")],
     knobs: Annotated[list[str], typer.Option(help="knob names or globs (repeat the option)")],
     out: Annotated[Path, typer.Option(help="output directory")],
+    reference: Annotated[str | None, typer.Option(help="reference twin (mujoco or webots), run once; always a twin "
+                                                       "name, never a folder")] = None,
+    reference_run: Annotated[Path | None, typer.Option(help="reference: a recorded or earlier run folder "
+                                                            "(manifest.json), instead of --reference")] = None,
     optimizer: Annotated[str, typer.Option(help="cma or lsq")] = "cma",
     holdout: Annotated[list[str] | None, typer.Option(help="scenario ids held out for validation")] = None,
     budget: Annotated[int, typer.Option(help="maximum simulator evaluations")] = 600,
@@ -200,11 +215,26 @@ def align(
         raise DualtwinError(f"--executor must be process or ray, not {executor!r}")
     if objective not in ("trajectory", "prediction"):
         raise DualtwinError(f"--objective must be trajectory or prediction, not {objective!r}")
-    ref: str | Path = Path(reference) if Path(reference).exists() else reference
+    horizon_list = _int_list(horizons, "--horizons")  # checked even when unused, so a typo never passes
+    check_output_dir(out, "align", resume=resume, resumable=True)
+    # Explicit, so a folder that happens to be named like a twin never changes what --reference means.
+    if (reference is None) == (reference_run is None):
+        raise DualtwinError("give exactly one of --reference TWIN or --reference-run RUN_DIR")
+    if reference is not None:
+        from dualtwin.twins import TWINS
+
+        if reference not in TWINS:
+            raise DualtwinError(f"--reference must name a twin ({', '.join(sorted(TWINS))}), not {reference!r}; "
+                                "for a run folder use --reference-run")
+    else:
+        from dualtwin.divergence.runs import load_run
+
+        load_run(reference_run)  # type: ignore[arg-type]  # a folder that is not a run is one line, here
+    ref: str | Path = reference if reference is not None else reference_run  # type: ignore[assignment]
     extra: dict[str, object] = (
-        {"objective": objective, "horizons": _int_list(horizons, "--horizons")} if objective == "prediction" else {})
+        {"objective": objective, "horizons": horizon_list} if objective == "prediction" else {})
     if llm:
-        extra["propose_fn"] = _llm_proposer(str(reference), target)
+        extra["propose_fn"] = _llm_proposer(str(ref), target)
     result = run_align(ref, target, robot, scenarios, knobs, out, optimizer=optimizer,  # type: ignore[arg-type]
                        seed=seed, budget=budget, resume=resume, executor=executor,  # type: ignore[arg-type]
                        ray_address=address, holdout=holdout, **extra)  # type: ignore[arg-type]
@@ -244,6 +274,7 @@ def train(
     """Train PPO (Stable-Baselines3) on a twin env; VecNormalize stats are saved with the model."""
     from dualtwin.rl.train import train as run_train
 
+    check_output_dir(out, "train", resume=resume, resumable=True)
     run = run_train(env, config, out, seed=seed, total_timesteps=steps, resume=resume, dr_ranges=dr,
                     shadow_fraction=shadow_fraction, aligned=aligned, init_from=init_from,
                     trust_pickles=trust_pickles, report=lambda line: typer.echo(line, err=True))
@@ -272,6 +303,13 @@ def transfer(
 
     if which not in ("best", "final"):
         raise DualtwinError(f"--which must be best or final, not {which!r}")
+    check_output_dir(out, "transfer")
+    from dualtwin.rl import check_env_id
+
+    check_env_id(target_env)
+    for option, folder in (("--policy", policy), ("--policy-aligned", policy_aligned), ("--policy-dr", policy_dr),
+                           ("--policy-control", policy_control)):
+        _training_run(folder, option)
     from dualtwin.rl.runfiles import trusting_pickles
 
     with trusting_pickles(trust_pickles):
@@ -294,6 +332,7 @@ def export(
 
     if which not in ("best", "final"):
         raise DualtwinError(f"--which must be best or final, not {which!r}")
+    check_output_dir(out, "export")
     from dualtwin.rl.runfiles import trusting_pickles
 
     with trusting_pickles(trust_pickles):
@@ -318,6 +357,9 @@ def collect(
     """Record camera frames paired with the supervisor's ground truth (Pattern 2)."""
     from dualtwin.perception.dataset import collect as run_collect
 
+    check_output_dir(out, "collect", resume=resume, resumable=True)
+    if policy is not None and controller != "noisy-policy":
+        raise DualtwinError("--policy is used only with --controller noisy-policy")
     from dualtwin.rl.runfiles import trusting_pickles
 
     with trusting_pickles(trust_pickles):
@@ -336,6 +378,7 @@ def perception_train(
     """Train the small CNN that recovers pole angle and cart position from stacked frames."""
     from dualtwin.perception.model import train_perception
 
+    check_output_dir(out, "perception-train")
     console.print(f"wrote {train_perception(data, out, epochs=epochs, seed=seed)}")
 
 
@@ -392,6 +435,25 @@ def deploy(
     console.print_json(json.dumps(result, default=str))
 
 
+def _runs(*folders: Path) -> None:
+    """Every folder must be a run whose logs verify, before any progress is shown or anything is written."""
+    from dualtwin.divergence.runs import load_run
+
+    for folder in folders:
+        load_run(folder)
+
+
+def _training_run(folder: Path | None, option: str) -> None:
+    """A training run folder (``run.json``) given to ``option``: checked before any work starts."""
+    if folder is None:
+        return
+    from dualtwin.artifacts import read_json_object
+
+    if not folder.is_dir() or not (folder / "run.json").exists():
+        raise DualtwinError(f"{option} {folder}: not a training run folder (no run.json)")
+    read_json_object(folder / "run.json", ("env_id",), what="training run record")
+
+
 def _int_list(text: str, option: str) -> list[int]:
     try:
         values = [int(v) for v in text.split(",") if v.strip()]
@@ -420,6 +482,7 @@ def lockstep(
 
     if (scenarios is None) == (policy is None):
         raise DualtwinError("give exactly one of --scenarios or --policy")
+    check_output_dir(out, "lockstep")
     from dualtwin.rl.runfiles import trusting_pickles
 
     with trusting_pickles(trust_pickles):
@@ -444,8 +507,10 @@ def predict_error(
     """Short-horizon prediction error from synchronised states: the chaos-insensitive model mismatch."""
     from dualtwin.sync import prediction_error, write_sync_report
 
+    horizon_list = _int_list(horizons, "--horizons")
+    check_output_dir(out, "predict-error")
     result = prediction_error(primary, secondary, robot, suite=scenarios, out_dir=out,
-                              horizons=_int_list(horizons, "--horizons"), stride=stride)
+                              horizons=horizon_list, stride=stride)
     report = write_sync_report(out / "report", prediction=result)
     console.print(f"report: {report}")
 
@@ -468,6 +533,10 @@ def webots_run(
     """Run a Webots world headless with its (unchanged) Python controller."""
     from dualtwin.webots.runner import run_world
 
+    if controller is not None:
+        from dualtwin.artifacts import read_text_file
+
+        read_text_file(controller, "controller script")  # missing, a folder, a pipe or binary: one line
     code = run_world(world, controller, duration)
     raise typer.Exit(code)
 
@@ -495,8 +564,13 @@ def convert(
     binding: Annotated[Path | None, typer.Option(help="also write a binding for both twins")] = None,
 ) -> None:
     """Convert a Webots robot to MJCF (deterministic), with Webots' mass, joint and motor semantics."""
+    from dualtwin.artifacts import check_output_file
     from dualtwin.convert import ConversionError, convert_world
 
+    # An existing model file is never replaced (nothing marks it as ours); a binding this command wrote is.
+    check_output_file(output, "--output")
+    if binding is not None:
+        check_output_file(binding, "--binding", marker="# Generated by dualtwin convert")
     conversion = convert_world(world, robot=robot)
     for warning in conversion.warnings:
         console.print(f"[yellow]warning[/yellow] {warning}")
@@ -529,6 +603,14 @@ def generate(
     if len(given) != 1:
         raise DualtwinError("give exactly one of --from-text, --from-json or --from-wbt")
     path, make = given[0]
+    from dualtwin.artifacts import read_text_file
+
+    read_text_file(path, "robot description")  # before the output folder is made
+    if from_json is not None:
+        from dualtwin.artifacts import read_json
+
+        read_json(from_json, "robot description")
+    check_output_dir(output, "generate", option="--output")
     result = run_generate(make(path), output, max_iterations=max_iterations)
     console.print(f"converged after {result.iterations} LLM iteration(s)" if result.iterations
                   else "built deterministically")

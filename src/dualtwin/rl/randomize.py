@@ -60,10 +60,10 @@ class _RangesFile(BaseModel):
 def _read_mapping(source: Path | str | Mapping[str, Any], what: str) -> tuple[dict[str, Any], str]:
     if isinstance(source, Mapping):
         return dict(source), f"<{what} dict>"
+    from dualtwin.artifacts import read_text_file
+
     path = Path(source)
-    if not path.is_file():
-        raise DualtwinError(f"{path}: {what} file not found")
-    text = path.read_text(encoding="utf-8")
+    text = read_text_file(path, f"{what} file")  # a directory, a pipe or binary data is one clear error
     try:
         data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
     except (json.JSONDecodeError, yaml.YAMLError) as exc:

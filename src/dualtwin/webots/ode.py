@@ -22,6 +22,8 @@ import threading
 from ctypes import CFUNCTYPE, POINTER, Structure, c_char_p, c_double, c_int, c_uint, c_ulong, c_void_p
 from typing import Any
 
+from dualtwin.errors import DualtwinError
+
 dReal = c_double
 dVector3 = c_double * 4
 dVector4 = c_double * 4
@@ -334,8 +336,9 @@ _LIB: ctypes.CDLL | None = None
 _CANDIDATE_NAMES = ("libode.so.8", "libode.so", "libode.so.6", "libode.so.3")
 
 
-class OdeUnavailableError(RuntimeError):
-    """The ODE shared library is missing or unsuitable."""
+class OdeUnavailableError(DualtwinError, RuntimeError):
+    """The ODE shared library is missing or unsuitable: the user's fix (install ``libode8``), so a user error
+    (one line from the CLI); still a RuntimeError for callers that catch it as one."""
 
 
 def _open() -> ctypes.CDLL:
