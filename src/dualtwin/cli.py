@@ -529,6 +529,7 @@ def webots_run(
     world: Annotated[Path, typer.Argument(help=".wbt world file")],
     controller: Annotated[Path | None, typer.Option(help="controller script (default: the one the world names)")] = None,
     duration: Annotated[float | None, typer.Option(help="simulated seconds before step() returns -1")] = None,
+    keys: Annotated[Path | None, typer.Option(help="key script replayed by Keyboard: lines 'TIME KEY [HOLD]'")] = None,
 ) -> None:
     """Run a Webots world headless with its (unchanged) Python controller."""
     from dualtwin.webots.runner import run_world
@@ -537,7 +538,7 @@ def webots_run(
         from dualtwin.artifacts import read_text_file
 
         read_text_file(controller, "controller script")  # missing, a folder, a pipe or binary: one line
-    code = run_world(world, controller, duration)
+    code = run_world(world, controller, duration, keys=keys)
     raise typer.Exit(code)
 
 

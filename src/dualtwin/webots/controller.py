@@ -22,6 +22,15 @@ only once every registered controller has asked for the next step (Webots' synch
 
 UNVERIFIED: ``simulationReset()`` takes effect at the next ``step`` call, which then returns at time 0
 without advancing the physics; ``Field`` getters return a value set earlier in the same step.
+
+The run's clock (what ``duration_s`` bounds and key scripts refer to) is the simulated time summed across
+resets; the step that carries a reset counts its requested duration, as Webots simulates that step before
+resetting, so a controller resetting in a loop still reaches the end. After ``step`` returned -1, a runtime
+made with ``stop_after_end`` (the runner's) stops a controller at its next ``step`` call, as Webots' library
+exits the controller there; a library user's runtime keeps returning -1.
+
+Numeric arguments go through :mod:`.api_args`: scalars and one-element arrays of any numeric type are taken,
+anything else is a ``TypeError`` at the call naming the method.
 """
 
 from __future__ import annotations
@@ -29,10 +38,14 @@ from __future__ import annotations
 import math
 import sys
 import threading
+import time
 from collections.abc import Sequence
 from typing import Any
 
 from dualtwin.webots import _math3 as m3
+from dualtwin.webots.api_args import as_float, as_floats, as_int
+from dualtwin.webots.contacts import contact_points, solids_of, static_balance
+from dualtwin.webots.keyboard import Keyboard, KeyScript
 from dualtwin.webots.nodes import Node as SceneNode
 from dualtwin.webots.physics import (
     DeviceRec,
@@ -47,6 +60,9 @@ from dualtwin.webots.physics import (
 
 __all__ = [
     "Accelerometer",
+    "ContactPoint",
+    "ControllerStopped",
+    "Keyboard",
     "Device",
     "DistanceSensor",
     "Field",
@@ -77,14 +93,28 @@ def _finite(*values: float) -> bool:
 # ------------------------------------------------------------------------------------------ runtime
 
 
+SIMULATION_MODE_PAUSE = 0
+SIMULATION_MODE_REAL_TIME = 1
+SIMULATION_MODE_FAST = 2
+
+
+class ControllerStopped(SystemExit):
+    """Raised in a controller that calls ``step`` again after it returned -1: Webots ends it there."""
+
+    def __init__(self) -> None:
+        super().__init__(0)
+
+
 class _Client:
-    __slots__ = ("robot", "target", "waiting", "active")
+    __slots__ = ("robot", "target", "waiting", "active", "ended_at", "thread")
 
     def __init__(self, robot: Robot) -> None:
         self.robot = robot
         self.target = 0.0
         self.waiting = False
         self.active = True
+        self.ended_at: float | None = None  # monotonic wall time at which step() returned -1
+        self.thread = threading.get_ident()
 
 
 class Runtime:
@@ -92,15 +122,30 @@ class Runtime:
 
     Args:
         simulation: the simulation to drive.
-        duration_s: simulated seconds after which ``step`` returns -1 (``None``: unlimited).
+        duration_s: simulated seconds after which ``step`` returns -1 (``None``: unlimited), counted
+            across ``simulationReset``.
         robot_node: the robot a no-argument ``Robot()``/``Supervisor()`` binds to (default: first robot).
+        keys: scripted key presses for ``Keyboard`` (``None``: no key is ever pressed).
+        stop_after_end: a ``step`` call after -1 raises :class:`ControllerStopped` (the runner's choice).
     """
 
     def __init__(
-        self, simulation: Simulation, duration_s: float | None = None, robot_node: SceneNode | None = None
+        self,
+        simulation: Simulation,
+        duration_s: float | None = None,
+        robot_node: SceneNode | None = None,
+        *,
+        keys: KeyScript | None = None,
+        stop_after_end: bool = False,
     ) -> None:
         self.simulation = simulation
         self.duration_s = duration_s
+        self.keys = keys
+        self.stop_after_end = stop_after_end
+        self.elapsed_before_reset = 0.0
+        self.mode = SIMULATION_MODE_FAST  # headless: every mode runs as fast as the machine allows
+        self._node_ids: dict[int, int] | None = None
+        self._id_nodes: dict[int, SceneNode] = {}
         self.default_robot_node = robot_node
         self._cond = threading.Condition()
         self._clients: list[_Client] = []
@@ -164,24 +209,63 @@ class Runtime:
     def request_reset(self) -> None:
         self._reset_requested = True
 
+    @property
+    def clock(self) -> float:
+        """Simulated seconds since the run started, across resets (what ``duration_s`` bounds)."""
+        return self.elapsed_before_reset + self.simulation.time
+
     def _limit_reached(self) -> bool:
-        return self.duration_s is not None and self.simulation.time >= self.duration_s - 1e-9
+        return self.duration_s is not None and self.clock >= self.duration_s - 1e-9
+
+    def _end(self, client: _Client) -> int:
+        self.finished = True
+        if client.ended_at is None:
+            client.ended_at = time.monotonic()
+        return -1
+
+    def ended_clients(self) -> list[tuple[int, float]]:
+        """(thread id, wall time of the -1) of controllers that were told the run is over."""
+        with self._cond:
+            return [(c.thread, c.ended_at) for c in self._clients if c.ended_at is not None and c.active]
+
+    def node_ids(self) -> tuple[dict[int, int], dict[int, SceneNode]]:
+        """Webots-style unique ids: the root is 0, then every node of the scene tree in pre-order."""
+        if self._node_ids is None:
+            ids: dict[int, int] = {}
+            nodes: dict[int, SceneNode] = {}
+            stack = list(reversed(self.simulation.world.nodes))
+            while stack:
+                node = stack.pop()
+                if id(node) in ids:
+                    continue  # a USE'd node is one node, as in Webots
+                ids[id(node)] = len(ids) + 1
+                nodes[ids[id(node)]] = node
+                stack.extend(reversed(_descendants(node)))
+            self._node_ids, self._id_nodes = ids, nodes
+        return self._node_ids, self._id_nodes
 
     def advance(self, client: _Client, duration_ms: float) -> int:
         """Advance the shared simulation by ``duration_ms`` for ``client`` (blocking until done)."""
         sim = self.simulation
         with self._cond:
-            if self.finished or self._limit_reached():
-                self.finished = True
+            if client.ended_at is not None:
+                if self.stop_after_end:
+                    raise ControllerStopped()
                 return -1
+            if self.finished or self._limit_reached():
+                return self._end(client)
+            if self.mode == SIMULATION_MODE_PAUSE and duration_ms == 0:
+                return 0  # step(0) exchanges commands without time passing, even paused
+            n = max(1, math.ceil(duration_ms / sim.basic_time_step - 1e-9))
             if self._reset_requested:
                 self._reset_requested = False
+                # Webots simulates the step that carries the request, then resets: the run's clock counts it
+                self.elapsed_before_reset += sim.time + n * sim.basic_time_step / 1000.0
                 sim.reset()
                 for c in self._clients:
                     c.target = 0.0
                     c.robot._after_reset()
-                return 0
-            n = max(1, math.ceil(duration_ms / sim.basic_time_step - 1e-9))
+                return self._end(client) if self._limit_reached() else 0
             client.target = sim.time + n * sim.basic_time_step / 1000.0
             client.waiting = True
             self._maybe_advance()
@@ -191,7 +275,7 @@ class Runtime:
                 err, self.error = self.error, None
                 raise err
             client.waiting = False
-            return -1 if self._limit_reached() else 0
+            return self._end(client) if self.finished or self._limit_reached() else 0
 
     def _maybe_advance(self) -> None:
         # caller holds the condition; steps when every active controller is waiting (synchronisation)
@@ -199,6 +283,14 @@ class Runtime:
             return
         active = [c for c in self._clients if c.active]
         if not active or not all(c.waiting for c in active):
+            return
+        if self.mode == SIMULATION_MODE_PAUSE:
+            # every controller waits for time to pass and headless nobody presses play: the run is over
+            _warn("a controller paused the simulation and, headless, nothing can resume it: the run ends")
+            self.finished = True
+            for c in active:
+                c.waiting = False
+            self._cond.notify_all()
             return
         sim = self.simulation
         target = min(c.target for c in active)
@@ -264,11 +356,12 @@ class _Sampled(Device):
         self._last_sample: float | None = None
         self._enabled_at = 0.0
 
-    def enable(self, samplingPeriod: int) -> None:
-        if samplingPeriod <= 0:
+    def enable(self, samplingPeriod: Any) -> None:
+        period = as_int(samplingPeriod, f"{type(self).__name__}.enable")
+        if period <= 0:
             self.disable()
             return
-        self._period = int(samplingPeriod)
+        self._period = period
         self._enabled_at = self._robot.getTime()
         self._last_sample = None
         self._invalidate()
@@ -335,8 +428,9 @@ class Motor(Device):
     def _changed(self) -> None:
         self._robot._sim.wake(self._record.joint)
 
-    def setPosition(self, position: float) -> None:
+    def setPosition(self, position: Any) -> None:
         rec = self._record
+        position = as_float(position, "Motor.setPosition")
         if not _finite(position):
             _warn(f"Motor.setPosition() called with an invalid value (NaN) on '{self._name}'")
             return
@@ -350,8 +444,9 @@ class Motor(Device):
         rec.torque_mode = False
         self._changed()
 
-    def setVelocity(self, velocity: float) -> None:
+    def setVelocity(self, velocity: Any) -> None:
         rec = self._record
+        velocity = as_float(velocity, "Motor.setVelocity")
         if not _finite(velocity):
             _warn(f"Motor.setVelocity() called with an invalid value (NaN) on '{self._name}'")
             return
@@ -362,12 +457,14 @@ class Motor(Device):
         rec.target_velocity = v
         self._changed()
 
-    def setAcceleration(self, acceleration: float) -> None:
+    def setAcceleration(self, acceleration: Any) -> None:
+        acceleration = as_float(acceleration, "Motor.setAcceleration")
         if _finite(acceleration):
             self._record.acceleration = float(acceleration)
 
-    def setAvailableForce(self, force: float) -> None:
+    def setAvailableForce(self, force: Any) -> None:
         rec = self._record
+        force = as_float(force, "Motor.setAvailableForce")
         if not _finite(force) or force < 0:
             _warn(f"'{self._name}': invalid available force/torque {force}")
             return
@@ -376,8 +473,9 @@ class Motor(Device):
 
     setAvailableTorque = setAvailableForce
 
-    def setForce(self, force: float) -> None:
+    def setForce(self, force: Any) -> None:
         rec = self._record
+        force = as_float(force, "Motor.setForce")
         if not _finite(force):
             _warn(f"Motor.setForce()/setTorque() called with an invalid value (NaN) on '{self._name}'")
             return
@@ -390,9 +488,13 @@ class Motor(Device):
 
     setTorque = setForce
 
-    def setControlPID(self, p: float, i: float, d: float) -> None:
+    def setControlPID(self, p: Any, i: Any, d: Any) -> None:
         rec = self._record
-        rec.kp, rec.ki, rec.kd = float(p), float(i), float(d)
+        gains = [as_float(v, "Motor.setControlPID") for v in (p, i, d)]
+        if not _finite(*gains):
+            _warn(f"Motor.setControlPID() called with NaN on '{self._name}'; ignored")
+            return
+        rec.kp, rec.ki, rec.kd = gains
         rec.integral = 0.0
         rec.prev_error = 0.0
 
@@ -473,7 +575,7 @@ class Gyro(_SolidSensor):
 class Accelerometer(_SolidSensor):
     """Proper acceleration in the device frame (m/s²); reads +g upward at rest."""
 
-    def enable(self, samplingPeriod: int) -> None:
+    def enable(self, samplingPeriod: Any) -> None:
         self._robot._sim.track_acceleration(self._record.solid)
         super().enable(samplingPeriod)
 
@@ -582,20 +684,26 @@ class Robot:
         self._rec: RobotRec = rec
         self._devices: dict[int, Device] = {}
         self._sensors: dict[int, _Sampled] = {}
+        self._keyboard: Keyboard | None = None
+        self._mode = runtime.mode
         self._client = runtime.register(self)
 
     # -- timing
 
-    def step(self, duration: int | float | None = None) -> int:
+    def step(self, duration: Any = None) -> int:
         """Run the simulation for ``duration`` ms (default: basicTimeStep); -1 when the run is over."""
-        if duration is None:
-            duration = self._sim.basic_time_step
-        result = self._runtime.advance(self._client, float(duration))
+        ms = self._sim.basic_time_step if duration is None else as_float(duration, "Robot.step")
+        if not ms >= 0 or math.isinf(ms):
+            raise ValueError(f"Robot.step() expects a duration >= 0 ms, got {ms!r}")
+        result = self._runtime.advance(self._client, ms)
+        self._mode = self._runtime.mode  # simulationGetMode() reports the mode at the last step
         if result != -1 or self._sensors:
             now = self._sim.time
             for sensor in list(self._sensors.values()):
                 if sensor._due(now):
                     sensor._sample(now)
+        if self._keyboard is not None:
+            self._keyboard._after_step(self._sim.time, self._runtime.clock)
         return result
 
     def _after_reset(self) -> None:
@@ -603,6 +711,18 @@ class Robot:
             sensor._enabled_at = 0.0
             sensor._last_sample = None
             sensor._invalidate()
+        if self._keyboard is not None:
+            self._keyboard._after_reset()
+
+    def getKeyboard(self) -> Keyboard:
+        """The keyboard (disabled until ``enable``); headless it reads the run's key script, or nothing."""
+        if self._keyboard is None:
+            self._keyboard = Keyboard(self, self._runtime.keys)
+        return self._keyboard
+
+    @property
+    def keyboard(self) -> Keyboard:
+        return self.getKeyboard()
 
     def getBasicTimeStep(self) -> float:
         return self._sim.basic_time_step
@@ -688,9 +808,34 @@ class Robot:
 class Supervisor(Robot):
     """Webots ``Supervisor``: a Robot with scene-tree access (§6)."""
 
+    SIMULATION_MODE_PAUSE = SIMULATION_MODE_PAUSE
+    SIMULATION_MODE_REAL_TIME = SIMULATION_MODE_REAL_TIME
+    SIMULATION_MODE_FAST = SIMULATION_MODE_FAST
+
+    def simulationGetMode(self) -> int:
+        """The mode at the last ``step`` (Webots caches it there)."""
+        return self._mode
+
+    def simulationSetMode(self, mode: Any) -> None:
+        """Headless, REAL_TIME and FAST both run as fast as possible; PAUSE ends a run nobody can resume."""
+        value = as_int(mode, "Supervisor.simulationSetMode")
+        if value not in (SIMULATION_MODE_PAUSE, SIMULATION_MODE_REAL_TIME, SIMULATION_MODE_FAST):
+            _warn(f"Supervisor.simulationSetMode(): unknown mode {value}; ignored")
+            return
+        self._runtime.mode = value
+
+    def getFromId(self, id: Any) -> Node | None:  # noqa: A002 - Webots' parameter name
+        """The node with this unique id (see :meth:`Node.getId`), or None."""
+        wanted = as_int(id, "Supervisor.getFromId")
+        if wanted == 0:
+            return self.getRoot()
+        node = self._runtime.node_ids()[1].get(wanted)
+        return Node(self, node) if node is not None else None
+
     def getRoot(self) -> Node:
-        root = SceneNode("Group", {"children": list(self._sim.world.nodes)})
-        return Node(self, root)
+        root = Node(self, SceneNode("Group", {"children": list(self._sim.world.nodes)}))
+        root._is_root = True
+        return root
 
     def getSelf(self) -> Node:
         return Node(self, self._rec.node)
@@ -717,9 +862,10 @@ class Supervisor(Robot):
     def simulationResetPhysics(self) -> None:
         self._sim.reset_physics()
 
-    def simulationQuit(self, status: int) -> None:
+    def simulationQuit(self, status: Any) -> None:
+        code = as_int(status, "Supervisor.simulationQuit")
         self._runtime.finished = True
-        self._runtime.exit_status = int(status)
+        self._runtime.exit_status = code
 
 
 def _descendants(node: SceneNode) -> list[SceneNode]:
@@ -753,6 +899,7 @@ class Node:
         self._sup = supervisor
         self._sim: Simulation = supervisor._sim
         self._node = node
+        self._is_root = False
 
     def __eq__(self, other: object) -> bool:
         return isinstance(other, Node) and other._node is self._node
@@ -811,11 +958,12 @@ class Node:
 
     def setVelocity(self, velocity: Sequence[float]) -> None:
         solid = self._solid()
-        if len(velocity) != 6 or not _finite(*velocity):
+        values = as_floats(velocity, "Node.setVelocity")
+        if len(values) != 6 or not _finite(*values):
             _warn("Node.setVelocity() needs 6 finite values")
             return
         if solid is not None:
-            self._sim.set_body_velocity(solid, [float(v) for v in velocity])
+            self._sim.set_body_velocity(solid, values)
 
     def getCenterOfMass(self) -> list[float]:
         solid = self._solid()
@@ -838,7 +986,65 @@ class Node:
         return Node(self._sup, chain[-2])
 
     def getId(self) -> int:
-        return id(self._node)
+        """Unique id: 0 for the root, then the scene tree's nodes in pre-order (stable for a world)."""
+        if self._is_root:
+            return 0
+        return self._sup._runtime.node_ids()[0].get(id(self._node), -1)
+
+    # -- contacts (computed on demand, see dualtwin.webots.contacts)
+
+    def _contact_solids(self, include_descendants: bool) -> list[SolidRec]:
+        solid = self._solid()
+        return solids_of(self._sim, solid, bool(include_descendants)) if solid is not None else []
+
+    def getContactPoints(self, includeDescendants: bool = False) -> list[ContactPoint]:
+        """Contact points of this Solid (and its descendants) from the last step, in world coordinates."""
+        ids = self._sup._runtime.node_ids()[0]
+        return [
+            ContactPoint(list(c.point), ids.get(id(c.solid.node), -1))
+            for c in contact_points(self._sim, self._contact_solids(includeDescendants))
+        ]
+
+    def getNumberOfContactPoints(self, includeDescendants: bool = False) -> int:
+        return len(contact_points(self._sim, self._contact_solids(includeDescendants)))
+
+    def getContactPoint(self, index: Any) -> list[float]:
+        points = self.getContactPoints(True)
+        i = as_int(index, "Node.getContactPoint")
+        return list(points[i].point) if 0 <= i < len(points) else [math.nan] * 3
+
+    def getContactPointNode(self, index: Any) -> Node | None:
+        points = self.getContactPoints(True)
+        i = as_int(index, "Node.getContactPointNode")
+        return self._sup.getFromId(points[i].node_id) if 0 <= i < len(points) else None
+
+    def enableContactPointsTracking(self, samplingPeriod: Any, includeDescendants: bool = False) -> None:
+        as_int(samplingPeriod, "Node.enableContactPointsTracking")  # queries always read the last step
+
+    def disableContactPointsTracking(self) -> None:
+        pass
+
+    def getStaticBalance(self) -> bool:
+        """Whether the centre of mass projects (along gravity) inside the support polygon of the contacts."""
+        solids = self._contact_solids(True)
+        return static_balance(self._sim, solids, contact_points(self._sim, solids)) if solids else False
+
+
+class ContactPoint:
+    """One contact: ``point`` (world coordinates) and ``node_id`` (the touching Solid of the queried tree)."""
+
+    def __init__(self, point: list[float], node_id: int) -> None:
+        self.point = point
+        self.node_id = node_id
+
+    def getPoint(self) -> list[float]:
+        return list(self.point)
+
+    def getNodeId(self) -> int:
+        return self.node_id
+
+    def __repr__(self) -> str:
+        return f"ContactPoint(point={self.point}, node_id={self.node_id})"
 
 
 def _path_to(sim: Simulation, target: SceneNode) -> list[SceneNode] | None:
@@ -943,7 +1149,8 @@ class Field:
 
     # -- SF setters
 
-    def setSFFloat(self, value: float) -> None:
+    def setSFFloat(self, value: Any) -> None:
+        value = as_float(value, "Field.setSFFloat")
         if not _finite(value):
             _warn(f"Field.setSFFloat() called with NaN on '{self._name}'")
             return
@@ -957,8 +1164,8 @@ class Field:
         self._node.fields[self._name] = float(value)
         self._sim.field_changed(self._node, self._name)
 
-    def setSFInt32(self, value: int) -> None:
-        self._node.fields[self._name] = int(value)
+    def setSFInt32(self, value: Any) -> None:
+        self._node.fields[self._name] = as_int(value, "Field.setSFInt32")
 
     def setSFBool(self, value: bool) -> None:
         self._node.fields[self._name] = bool(value)
@@ -966,7 +1173,9 @@ class Field:
     def setSFString(self, value: str) -> None:
         self._node.fields[self._name] = str(value)
 
-    def setMFFloat(self, index: int, value: float) -> None:
+    def setMFFloat(self, index: Any, value: Any) -> None:
+        index = as_int(index, "Field.setMFFloat")
+        value = as_float(value, "Field.setMFFloat")
         if not _finite(value):
             _warn(f"Field.setMFFloat() called with NaN on '{self._name}'")
             return
@@ -976,6 +1185,7 @@ class Field:
         self._sim.field_changed(self._node, self._name)
 
     def setSFVec3f(self, values: Sequence[float]) -> None:
+        values = as_floats(values, "Field.setSFVec3f")
         if len(values) != 3 or not _finite(*values):
             _warn(f"Field.setSFVec3f() needs 3 finite values on '{self._name}'")
             return
@@ -986,6 +1196,7 @@ class Field:
         self._node.fields[self._name] = vec
 
     def setSFRotation(self, values: Sequence[float]) -> None:
+        values = as_floats(values, "Field.setSFRotation")
         if len(values) != 4 or not _finite(*values) or m3.norm(values[:3]) == 0.0:
             _warn(f"Field.setSFRotation() needs a non-zero axis and finite values on '{self._name}'")
             return

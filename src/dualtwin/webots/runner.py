@@ -8,7 +8,10 @@ The shim directory is put first on ``sys.path`` so ``from controller import Robo
 :mod:`dualtwin.webots.controller`; each script runs through ``runpy.run_path`` with
 ``__name__ == "__main__"``, ``sys.argv = [script, *controllerArgs]`` and the working directory set to its
 folder; its stdout passes through. ``robot.step`` returns -1 once ``duration_s`` of simulated time
-has elapsed. A script that raises has its traceback printed on stderr and makes the exit code 1.
+has elapsed, counted across ``simulationReset``. As in Webots, a controller that calls ``step`` again after
+-1 is ended there (exit status 0), and one still running 1 s of real time after its -1 is terminated with a
+warning (Webots' "Forced termination"). A script that raises has its traceback printed on stderr and makes
+the exit code 1. ``keys`` names a key script replayed by ``Keyboard`` (:mod:`dualtwin.webots.keyboard`).
 
 Several robots with Python controllers are supported: each controller runs in its own thread and the
 simulation advances only when all of them have called ``step`` (Webots' synchronisation). The process has
@@ -19,21 +22,26 @@ controller: their motors keep the initial hold (§5.1).
 
 from __future__ import annotations
 
+import ctypes
 import math
 import os
 import runpy
 import sys
 import threading
+import time
 import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
 from dualtwin.errors import DualtwinError
 from dualtwin.webots import controller as api
+from dualtwin.webots.keyboard import KeyScript, load_key_script
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import Simulation, SimulationUnstable
 
 SHIM_DIR = Path(__file__).resolve().parent / "shim"
+#: Real seconds a controller may keep running after step() returned -1 (Webots waits 1 s, then terminates it).
+TERMINATION_GRACE_S = 1.0
 NO_CONTROLLER = frozenset({"", "<none>", "<generic>", "<extern>", "void"})
 
 __all__ = ["ControllerSpec", "SHIM_DIR", "check_duration", "find_controllers", "run_controllers", "run_world"]
@@ -120,17 +128,38 @@ def find_controllers(sim: Simulation, world_path: Path, override: Path | None = 
     return specs
 
 
+# Guards the "is this script still running" flag against the watchdog's asynchronous stop.
+_GUARD = threading.Lock()
+
+
 class _ScriptResult:
     def __init__(self) -> None:
         self.code = 0
+        self.running = False
+        self.forced = False
+        self.thread: int | None = None
 
 
 def _run_script(runtime: api.Runtime, spec: ControllerSpec, result: _ScriptResult) -> None:
     runtime.bind_thread(spec.robot)
     saved_argv = sys.argv
+    result.thread = threading.get_ident()
     try:
-        sys.argv = [str(spec.script), *spec.args]
-        runpy.run_path(str(spec.script), run_name="__main__")
+        try:
+            sys.argv = [str(spec.script), *spec.args]
+            with _GUARD:
+                result.running = True
+            runpy.run_path(str(spec.script), run_name="__main__")
+        finally:
+            with _GUARD:  # from here on the watchdog leaves this thread alone
+                result.running = False
+    except api.ControllerStopped:
+        if result.forced:
+            print(
+                f"Warning: controller {spec.script.name} was still running {TERMINATION_GRACE_S:g} s after "
+                "step() returned -1: forced termination",
+                file=sys.stderr,
+            )
     except SystemExit as exc:
         code = exc.code
         if code not in (None, 0):
@@ -164,18 +193,24 @@ def run_world(
     controller: str | os.PathLike[str] | None = None,
     duration_s: float | None = None,
     proto_paths: tuple[str | os.PathLike[str], ...] | list[str | os.PathLike[str]] = (),
+    keys: str | os.PathLike[str] | None = None,
 ) -> int:
     """Run a world's Python controllers headless; return the exit code (0 = success).
 
     Args:
         world_path: the ``.wbt`` file.
         controller: a script replacing the robot's controller (see :func:`find_controllers`).
-        duration_s: simulated seconds to run; ``None`` runs until every controller returns.
+        duration_s: simulated seconds to run (across resets); ``None`` runs until every controller returns.
         proto_paths: extra PROTO search directories.
+        keys: a key script for ``Keyboard`` (format in :mod:`dualtwin.webots.keyboard`).
+
+    Raises:
+        DualtwinError: a bad duration, key script, world or controller field (before anything runs).
     """
     from dualtwin.webots import load_world
 
     check_duration(duration_s)
+    script = load_key_script(Path(keys)) if keys is not None else None
     path = Path(world_path)
     world = load_world(path, proto_paths)
     for message in world.warnings:
@@ -186,20 +221,41 @@ def run_world(
         if not specs and duration_s is None:
             print("Error: no Python controller to run and no duration given", file=sys.stderr)
             return 2
-        return run_controllers(sim, specs, duration_s)
+        return run_controllers(sim, specs, duration_s, keys=script)
     finally:
         sim.close()
 
 
-def run_controllers(sim: Simulation, specs: list[ControllerSpec], duration_s: float | None) -> int:
+def _watch(runtime: api.Runtime, results: list[_ScriptResult], stop: threading.Event) -> None:
+    """Terminate controllers still running ``TERMINATION_GRACE_S`` real seconds after their -1."""
+    while not stop.wait(0.02):
+        now = time.monotonic()
+        for thread, ended in runtime.ended_clients():
+            if now - ended < TERMINATION_GRACE_S:
+                continue
+            for result in results:
+                with _GUARD:
+                    if result.thread == thread and result.running and not result.forced:
+                        result.forced = True
+                        ctypes.pythonapi.PyThreadState_SetAsyncExc(
+                            ctypes.c_ulong(thread), ctypes.py_object(api.ControllerStopped)
+                        )
+
+
+def run_controllers(
+    sim: Simulation, specs: list[ControllerSpec], duration_s: float | None, keys: KeyScript | None = None
+) -> int:
     """Run controller scripts on an already built simulation (left open for inspection).
 
     Returns:
         The exit code: 0, the first non-zero ``SystemExit`` code, or 1 if a script raised.
     """
-    runtime = api.Runtime(sim, duration_s)
+    runtime = api.Runtime(sim, duration_s, keys=keys, stop_after_end=True)
     runtime.expect(len(specs))
     results = [_ScriptResult() for _ in specs]
+    stop_watch = threading.Event()
+    watchdog = threading.Thread(target=_watch, args=(runtime, results, stop_watch), daemon=True)
+    watchdog.start()
     saved_cwd = os.getcwd()
     saved_path = list(sys.path)
     saved_module = sys.modules.pop("controller", None)
@@ -234,7 +290,7 @@ def run_controllers(sim: Simulation, specs: list[ControllerSpec], duration_s: fl
         if code == 0 and duration_s is not None and not runtime.finished:
             # controllers returned early: Webots keeps simulating without them
             try:
-                while sim.time < duration_s - 1e-9:
+                while runtime.clock < duration_s - 1e-9:
                     sim.step()
             except SimulationUnstable as exc:
                 print(f"Error: {exc}", file=sys.stderr)
@@ -242,6 +298,8 @@ def run_controllers(sim: Simulation, specs: list[ControllerSpec], duration_s: fl
         if code == 0 and runtime.exit_status is not None:
             code = runtime.exit_status
     finally:
+        stop_watch.set()
+        watchdog.join()
         os.chdir(saved_cwd)
         sys.path[:] = saved_path
         sys.modules.pop("controller", None)

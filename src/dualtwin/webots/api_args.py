@@ -1,0 +1,77 @@
+"""Numeric arguments of the controller API, accepted the way users pass them and checked at the call.
+
+Webots' Python API wraps floats in ``ctypes.c_double``: Python and NumPy scalars pass, but a one-element array
+(``model.predict()`` returns shape ``(1,)``) raises on recent NumPy, and integer arguments (sampling periods)
+refuse floats and NumPy integers with a ``ctypes.ArgumentError``. Users pass all of these, so we accept every
+real scalar, 0-d array and one-element array, and whole numbers where Webots wants an ``int``. Anything else is
+a ``TypeError`` raised at the call and naming the method: storing a bad value would fail much later, inside
+the physics step, far from its cause.
+"""
+
+from __future__ import annotations
+
+import numbers
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+__all__ = ["as_float", "as_int", "as_floats"]
+
+
+def _describe(value: Any) -> str:
+    if isinstance(value, np.ndarray):
+        return f"a NumPy array of shape {value.shape} and dtype {value.dtype}"
+    return f"{type(value).__name__} {value!r}"[:120]
+
+
+def as_float(value: Any, method: str) -> float:
+    """``value`` as a float: a real Python or NumPy scalar, a 0-d or one-element numeric array.
+
+    Raises:
+        TypeError: naming ``method`` (e.g. ``"Motor.setVelocity"``) and what was passed.
+    """
+    if isinstance(value, bool | np.bool_):
+        return float(value)
+    if isinstance(value, numbers.Real | np.integer | np.floating):
+        return float(value)
+    if isinstance(value, np.ndarray) and value.size == 1 and value.dtype.kind in "biuf":
+        return float(value.reshape(()))
+    raise TypeError(
+        f"{method}() expects a number (a Python or NumPy scalar or a one-element array), got {_describe(value)}"
+    )
+
+
+def as_int(value: Any, method: str) -> int:
+    """``value`` as an int: a whole number given as any scalar or one-element array ``as_float`` accepts.
+
+    Raises:
+        TypeError: not a number, or not a whole number, naming ``method``.
+    """
+    if isinstance(value, int | np.integer) and not isinstance(value, bool):
+        return int(value)
+    number = as_float(value, method)
+    if not number.is_integer():
+        raise TypeError(f"{method}() expects a whole number, got {number!r}")
+    return int(number)
+
+
+def as_floats(values: Any, method: str, count: int | None = None) -> list[float]:
+    """A sequence (list, tuple or NumPy array) of numbers as floats, optionally of exactly ``count`` items.
+
+    Raises:
+        TypeError: not a sequence of numbers, naming ``method``.
+        ValueError: the wrong number of items.
+    """
+    if isinstance(values, np.ndarray):
+        if values.dtype.kind not in "biuf":
+            raise TypeError(f"{method}() expects numbers, got {_describe(values)}")
+        items: Sequence[Any] = values.reshape(-1).tolist()
+    elif isinstance(values, list | tuple):
+        items = values
+    else:
+        raise TypeError(f"{method}() expects a list of numbers, got {_describe(values)}")
+    out = [as_float(v, method) for v in items]
+    if count is not None and len(out) != count:
+        raise ValueError(f"{method}() expects {count} values, got {len(out)}")
+    return out
