@@ -62,10 +62,26 @@ from dualtwin.align import nuisance
 from dualtwin.align.analyze import Analysis, analyze_runs
 from dualtwin.align.dr import dr_document, ranges_from_intervals, ranges_from_population
 from dualtwin.align.knobs import KnobSpec, check_values, select_knobs, unit_from_values, values_from_unit
-from dualtwin.align.objective import ObjectiveSpec, ObjectiveWeights, build_spec, evaluate, residuals
+from dualtwin.align.objective import (
+    ObjectiveSpec,
+    ObjectiveWeights,
+    build_spec,
+    evaluate,
+    mean_trace,
+    residuals,
+)
 from dualtwin.align.patch import PatchResult, patch_mjcf, patch_webots
 from dualtwin.align.propose import ProposalOutcome, ProposeFn, try_proposals
-from dualtwin.align.simulate import Evaluator, ExecutorKind, SimJob, Traces, check_executor, load_traces
+from dualtwin.align.simulate import (
+    Evaluator,
+    ExecutorKind,
+    SimJob,
+    Traces,
+    check_executor,
+    ensemble_offsets,
+    load_member_traces,
+    load_traces,
+)
 from dualtwin.artifacts import (
     package_versions,
     remove_output_dir,
@@ -128,6 +144,9 @@ class AlignConfig(BaseModel):
     dr_top_fraction: float = Field(default=0.25, gt=0, le=1)
     dr_generations: int = Field(default=3, ge=1)
     dr_min_rel_width: float = Field(default=0.02, ge=0)
+    ensemble: Literal["off", "mean"] = Field(
+        default="off", description="mean: fit the ensemble mean of the reference run's members, the target "
+        "simulated with the same initial-condition shifts")
 
     def digest(self) -> str:
         return hashlib.sha256(self.model_dump_json().encode()).hexdigest()
@@ -214,7 +233,8 @@ class _Problem:
     """Unit-cube points -> simulations -> objective values and residuals, with evaluation counting."""
 
     def __init__(self, specs: Sequence[KnobSpec], job: SimJob, train: ObjectiveSpec, holdout: ObjectiveSpec | None,
-                 evaluator: Evaluator, budget: int, regularization: float = 0.0) -> None:
+                 evaluator: Evaluator, budget: int, regularization: float = 0.0,
+                 members: Sequence[Mapping[str, float]] = ()) -> None:
         self.specs = list(specs)
         self.regularization = regularization
         self.u0 = np.array(unit_from_values(specs, {}))
@@ -222,6 +242,9 @@ class _Problem:
         self.objective_scale = 0.0
         self.residual_scale = 0.0
         self.job = job
+        # Ensemble members' initial-condition shifts: each point is simulated once per member and scored by
+        # the members' mean trace (see objective.mean_trace); empty for a single trajectory.
+        self.members = [dict(m) for m in members]
         self.train = train
         self.holdout = holdout
         self.evaluator = evaluator
@@ -253,7 +276,7 @@ class _Problem:
     def run(self, points: Sequence[Sequence[float]]) -> list[_Point]:
         points = [[min(1.0, max(0.0, float(x))) for x in p] for p in points]
         fresh = [p for i, p in enumerate(points) if tuple(p) not in self._cache and p not in points[:i]]
-        results = self.evaluator.map([self.job.with_knobs(self.values(p)) for p in fresh])
+        results = self._simulate([self.values(p) for p in fresh])
         self.evaluations += len(fresh)
         for p, r in zip(fresh, results, strict=True):
             self._cache[tuple(p)] = self._score(list(p), r)
@@ -261,9 +284,21 @@ class _Problem:
 
     def run_values(self, values: Sequence[Mapping[str, float]]) -> list[float]:
         """Train objective of explicit knob settings (for proposals)."""
-        results = self.evaluator.map([self.job.with_knobs(v) for v in values])
+        results = self._simulate(list(values))
         self.evaluations += len(values)
         return [evaluate(self.train, r).total for r in results]
+
+    def _simulate(self, values: Sequence[Mapping[str, float]]) -> list[Traces]:
+        """Traces per knob setting: one simulation, or the ensemble mean of one simulation per member."""
+        if not self.members:
+            return self.evaluator.map([self.job.with_knobs(v) for v in values])
+        n = len(self.members)
+        runs = self.evaluator.map([self.job.with_knobs(v).with_offsets(m) for v in values for m in self.members])
+        out: list[Traces] = []
+        for i in range(len(values)):
+            group = runs[i * n:(i + 1) * n]
+            out.append({sid: mean_trace([g[sid] for g in group]) for sid in group[0]})
+        return out
 
     def _score(self, u: list[float], traces: Traces) -> _Point:
         train = evaluate(self.train, traces).total
@@ -778,6 +813,27 @@ def shared_with_reference(reference: Traces, ids: Sequence[str], channels: Seque
     return SharedWithReference(scenarios, shared, {k: v for k, v in left.items() if v})
 
 
+def _check_ensemble_reference(reference: str | Path, kind: str, scenarios: Sequence[str],
+                              binding: RobotBinding) -> list[dict[str, float]]:
+    """The member shifts of an ensemble reference run, checked before anything is written."""
+    if kind != "run":
+        raise DualtwinError("ensemble 'mean' needs a reference run with ensemble members (suite run --ensemble N "
+                            "--perturb KEY=EPS), not a twin")
+    offsets = ensemble_offsets(Path(reference))
+    if len(offsets) < 2:
+        raise DualtwinError(f"{reference}: ensemble 'mean' needs a run with ensemble members; this one has none "
+                            "(make it with suite run --ensemble N --perturb KEY=EPS)")
+    unknown = sorted({k for o in offsets for k in o} - set(binding.spec.initial_conditions))
+    if unknown:
+        raise DualtwinError(f"{reference}: ensemble shifts name {unknown}, which are not initial conditions of "
+                            f"robot {binding.name!r}")
+    members = load_member_traces(Path(reference), list(scenarios))
+    lacking = [s for s in scenarios if len(members.get(s, [])) != len(offsets)]
+    if lacking:
+        raise DualtwinError(f"{reference}: scenarios {lacking} do not hold all {len(offsets)} ensemble members")
+    return offsets
+
+
 def _record_run_knobs(run_dir: Path, knobs: Mapping[str, float]) -> None:
     """Add the knob values a run was made with to its manifest (provenance)."""
     manifest = read_json(run_dir / "manifest.json")
@@ -842,6 +898,7 @@ def align(
     propose_fn: ProposeFn | None = None,
     callback: Callable[[GenerationInfo], None] | None = None,
     objective: Literal["trajectory", "prediction"] = "trajectory",
+    ensemble: Literal["off", "mean"] = "off",
     horizons: Sequence[int] = (1, 5),
     stride: int = 5,
 ) -> AlignResult:
@@ -886,6 +943,11 @@ def align(
             not apply).
         horizons: Prediction horizons in control periods (``prediction`` only).
         stride: A prediction start every ``stride`` periods (``prediction`` only).
+        ensemble: ``off`` (default) fits the reference's own trajectory. ``mean`` needs a reference run with
+            ensemble members (``suite run --ensemble N --perturb KEY=EPS``): the objective compares the
+            members' mean with the mean of the target simulated with the same initial-condition shifts, so a
+            chaotic scenario is fitted on what its members share. Each candidate then costs N simulations
+            (``budget`` still counts candidates).
 
     Raises:
         DualtwinError: Bad input (unknown knobs, bounds excluding nominal, mismatched reference, ...).
@@ -930,7 +992,7 @@ def align(
         thresholds=None if thresholds is None else dict(thresholds), optimizer=optimizer, seed=seed,
         budget=budget, popsize=popsize, sigma0=sigma0, patience=patience, fd_step=fd_step,
         regularization=regularization, executor=executor, workers=workers, ray_address=ray_address,
-        weights=weights or ObjectiveWeights())
+        weights=weights or ObjectiveWeights(), ensemble=ensemble)
     if kind == "run" and reference_knobs:
         raise DualtwinError("reference_knobs apply only when the reference is a twin, not a recorded run")
 
@@ -957,6 +1019,9 @@ def align(
                     raise DualtwinError(f"channels {absent} are not shared by the reference and the robot binding; "
                                         f"shared: {shared.channels}")
             left = shared.left_out
+        members: list[dict[str, float]] = []
+        if ensemble == "mean":
+            members = _check_ensemble_reference(reference_run_or_twin, kind, fitted_ids + held, binding)
         # Physics knobs of the target twin, and nuisance knobs (initial conditions, time offsets) of the
         # fitted scenarios; `nuisance` explains why the two are kept apart.
         registry = {**target.knobs(), **nuisance.registry(suite, binding, fitted_ids)}
@@ -986,6 +1051,8 @@ def align(
             finally:
                 ref_twin.close()
         reference = load_traces(ref_dir)
+        if members:
+            reference.update({sid: mean_trace(m) for sid, m in load_member_traces(ref_dir).items()})
         shared = shared_with_reference(reference, ids, channel_names, ref_dir)
         train_ids = [s for s in shared.scenarios if s not in held]
         train = build_spec(reference, train_ids, channels if channels is not None else shared.channels,
@@ -1000,7 +1067,7 @@ def align(
         job = SimJob(str(binding.path), target_twin_name, str(suite_path.resolve()), tuple(shared.scenarios), (),
                      sim_seed)
         with Evaluator(executor, workers, ray_address) as evaluator:
-            problem = _Problem(specs, job, train, hold, evaluator, budget, config.regularization)
+            problem = _Problem(specs, job, train, hold, evaluator, budget, config.regularization, members)
             nominal_u = unit_from_values(specs, {})
             before = problem.run([nominal_u])[0]
             problem.calibrate(before)
@@ -1168,16 +1235,20 @@ def print_result(result: AlignResult, console: Console) -> None:
     if result.holdout_before is not None and result.holdout_after is not None:
         console.print(f"DTW + event-time + endpoint objective (held out): {result.holdout_before:.4g} → "
                       f"{result.holdout_after:.4g}")
-    for k in result.knobs.values():
-        hw = f" ± {k.half_width_95:.2g}" if k.half_width_95 is not None else ""
-        bound = f" [yellow](at {k.at_bound} bound)[/]" if k.at_bound else ""
-        console.print(f"  {escape(k.name):<40} {k.nominal:10.5g} → {k.fitted:10.5g}{hw}{bound}")
+    from dualtwin.reporting import Column, print_table
+
+    columns = [Column("knob", False), Column("nominal"), Column("fitted"), Column("± 95 %"), Column("unit", False),
+               Column("note", False)]
+
+    def knob_rows(knobs: Mapping[str, KnobFit]) -> list[list[str]]:
+        return [[k.name, f"{k.nominal:.5g}", f"{k.fitted:.5g}",
+                 f"{k.half_width_95:.2g}" if k.half_width_95 is not None else "–", k.unit,
+                 f"at {k.at_bound} bound" if k.at_bound else ""] for k in knobs.values()]
+
+    print_table(console, columns, knob_rows(result.knobs))
     if result.nuisance:
         console.print("nuisance knobs (this reference's initial conditions and time offsets; not in the aligned model):")
-        for k in result.nuisance.values():
-            hw = f" ± {k.half_width_95:.2g}" if k.half_width_95 is not None else ""
-            bound = f" [yellow](at {k.at_bound} bound)[/]" if k.at_bound else ""
-            console.print(f"  {escape(k.name):<40} {k.nominal:10.5g} → {k.fitted:10.5g}{hw} {escape(k.unit)}{bound}")
+        print_table(console, columns, knob_rows(result.nuisance))
     for warning in result.warnings:
         console.print(f"[yellow]warning:[/] {escape(warning)}")
     console.print(f"wrote {result.out_dir / result.files.get('report', 'report.html')}")

@@ -91,6 +91,38 @@ class ObjectiveValue:
                 "unstable": list(self.unstable)}
 
 
+def mean_trace(members: Sequence[ScenarioTrace]) -> ScenarioTrace:
+    """The ensemble mean of one scenario's members (member 0 first), on member 0's time stamps.
+
+    At each time stamp the mean is over the members whose finite log reaches it, so a member that a failure
+    threshold stopped early drops out rather than being extrapolated. The mean has member 0's status and
+    duration: whether the unperturbed run failed or blew up is what the event and stability terms judge.
+    A pole landing on a hard stop is chaotic (a 1 µrad change moves the bounces); the mean keeps what the
+    members share and averages out what no engine can reproduce.
+    """
+    if not members:
+        raise DualtwinError("an ensemble mean needs at least one member")
+    first = members[0]
+    if len(members) == 1 or first.status == "unstable":
+        return first
+    series: dict[str, Series] = {}
+    for name, base in first.series.items():
+        t, _ = finite_prefix(base.t, base.y)
+        stack = np.full((len(members), t.size), np.nan)
+        for i, member in enumerate(members):
+            s = member.series.get(name)
+            if s is None:
+                continue
+            tm, ym = finite_prefix(s.t, s.y)
+            if tm.size:
+                inside = (t >= tm[0] - 1e-9) & (t <= tm[-1] + 1e-9)
+                stack[i, inside] = np.interp(t[inside], tm, ym)
+        with np.errstate(invalid="ignore"):
+            mean = np.nanmean(stack, axis=0) if t.size else np.zeros(0)
+        series[name] = Series(t.copy(), mean)
+    return ScenarioTrace(first.id, first.status, first.duration_s, series)
+
+
 def pseudo_huber(x: float, delta: float) -> float:
     """``δ(√(1 + (x/δ)²) - 1)``: ``x²/2δ`` near 0, ``|x| - δ`` for large ``|x|``."""
     return delta * (math.sqrt(1.0 + (x / delta) ** 2) - 1.0)

@@ -9,6 +9,7 @@ scenario id, with the same channel names as a run directory (ground truth by nam
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,7 +22,7 @@ from dualtwin.errors import DualtwinError
 from dualtwin.parallel import DEFAULT_WORKERS, EXECUTORS, ExecutorKind, ParallelMap, check_executor
 from dualtwin.robots.binding import RobotBinding, load_binding
 from dualtwin.robots.io import RobotIO
-from dualtwin.suite.loader import load_suite
+from dualtwin.suite.loader import load_suite, read_json
 from dualtwin.suite.runner import check_against_binding, run_scenario
 from dualtwin.suite.schema import Suite
 from dualtwin.twins import make_twin
@@ -72,9 +73,16 @@ class SimJob:
     scenarios: tuple[str, ...] | None = None
     knobs: tuple[tuple[str, float], ...] = ()
     seed: int = 0
+    #: Ensemble member shifts of initial conditions at fresh starts (`dualtwin.suite.ensemble`); () for none.
+    offsets: tuple[tuple[str, float], ...] = ()
 
     def with_knobs(self, values: Mapping[str, float]) -> SimJob:
-        return SimJob(self.robot, self.twin, self.suite, self.scenarios, tuple(sorted(values.items())), self.seed)
+        return SimJob(self.robot, self.twin, self.suite, self.scenarios, tuple(sorted(values.items())), self.seed,
+                      self.offsets)
+
+    def with_offsets(self, offsets: Mapping[str, float]) -> SimJob:
+        return SimJob(self.robot, self.twin, self.suite, self.scenarios, self.knobs, self.seed,
+                      tuple(sorted(offsets.items())))
 
 
 class _Session:
@@ -119,8 +127,12 @@ def needed_scenarios(suite: Suite, wanted: Iterable[str]) -> list[int]:
     return sorted(need)
 
 
-def simulate_on(io: RobotIO, suite: Suite, wanted: Sequence[str] | None, seed: int) -> Traces:
-    """Run the wanted scenarios (all if None) on ``io.twin`` in memory, resetting like `SuiteRun`."""
+def simulate_on(io: RobotIO, suite: Suite, wanted: Sequence[str] | None, seed: int,
+                offsets: Mapping[str, float] | None = None) -> Traces:
+    """Run the wanted scenarios (all if None) on ``io.twin`` in memory, resetting like `SuiteRun`.
+
+    ``offsets`` shift initial conditions at fresh starts, as an ensemble member does.
+    """
     ids = suite.scenario_ids()
     indices = needed_scenarios(suite, wanted if wanted is not None else ids)
     keep = set(wanted if wanted is not None else ids)
@@ -134,7 +146,8 @@ def simulate_on(io: RobotIO, suite: Suite, wanted: Sequence[str] | None, seed: i
         # A skipped predecessor means there is nothing to continue from.
         fresh = need_fresh or scenario.reset == "fresh" or previous != index - 1
         scenario_seed = scenario.seed if scenario.seed is not None else seed
-        result, onboard, truth = run_scenario(io, scenario, scenario_seed, thresholds, fresh)
+        result, onboard, truth = run_scenario(io, scenario, scenario_seed, thresholds, fresh,
+                                              offsets if fresh else None)
         need_fresh = result.status == "unstable"
         previous = index
         if ids[index] not in keep:
@@ -148,7 +161,7 @@ def simulate_on(io: RobotIO, suite: Suite, wanted: Sequence[str] | None, seed: i
 
 
 def simulate_with_nuisance(io: RobotIO, suite: Suite, knobs: Mapping[str, float], wanted: Sequence[str] | None,
-                           seed: int) -> Traces:
+                           seed: int, offsets: Mapping[str, float] | None = None) -> Traces:
     """`simulate_on` with physics knobs set on the twin and nuisance knobs applied to the suite and time axes.
 
     Nuisance initial conditions replace the scenario's; a nuisance time offset moves the scenario's time
@@ -157,8 +170,8 @@ def simulate_with_nuisance(io: RobotIO, suite: Suite, knobs: Mapping[str, float]
     physics, extra = nuisance.split(knobs)
     io.twin.set_knobs(physics)
     if not extra:
-        return simulate_on(io, suite, wanted, seed)
-    traces = simulate_on(io, nuisance.apply_to_suite(suite, extra), wanted, seed)
+        return simulate_on(io, suite, wanted, seed, offsets)
+    traces = simulate_on(io, nuisance.apply_to_suite(suite, extra), wanted, seed, offsets)
     for sid, offset in nuisance.time_offsets(extra, suite.scenario_ids()).items():
         if sid in traces:
             trace = traces[sid]
@@ -170,7 +183,8 @@ def simulate_with_nuisance(io: RobotIO, suite: Suite, knobs: Mapping[str, float]
 def simulate(job: SimJob) -> Traces:
     """Run one job in this process (the worker entry point)."""
     session = _session(job)
-    return simulate_with_nuisance(session.io, session.suite, dict(job.knobs), job.scenarios, job.seed)
+    return simulate_with_nuisance(session.io, session.suite, dict(job.knobs), job.scenarios, job.seed,
+                                  dict(job.offsets) or None)
 
 
 def simulate_twin(robot: RobotBinding, twin: Twin, suite_path: Path, knobs: Mapping[str, float],
@@ -200,6 +214,44 @@ def load_traces(run_dir: Path, scenarios: Sequence[str] | None = None) -> Traces
         fallback = max((float(v.t[-1]) for v in series.values() if v.t.size), default=0.0)
         out[sid] = ScenarioTrace(sid, run.scenario(sid).status, durations.get(sid, fallback), series)
     return out
+
+
+def load_member_traces(run_dir: Path, scenarios: Sequence[str] | None = None) -> dict[str, list[ScenarioTrace]]:
+    """Every ensemble member of each scenario (member 0, the main logs, first); {} when the run has none."""
+    run = load_run(Path(run_dir))
+    main = load_traces(run_dir, scenarios)
+    out: dict[str, list[ScenarioTrace]] = {}
+    for sid, trace in main.items():
+        entry = run.scenario(sid)
+        if not entry.members:
+            continue
+        members = [trace]
+        for m, series in zip(entry.members, run.members(sid)[1:], strict=True):
+            members.append(ScenarioTrace(sid, m.status, trace.duration_s, series))
+        out[sid] = members
+    return out
+
+
+def ensemble_offsets(run_dir: Path) -> list[dict[str, float]]:
+    """Each member's initial-condition shifts from an ensemble run's manifest (member 0 first); [] if none."""
+    manifest = read_json(Path(run_dir) / "manifest.json")
+    ensemble = manifest.get("ensemble")
+    if not isinstance(ensemble, dict):
+        return []
+    where = f"{Path(run_dir) / 'manifest.json'}: ensemble.offsets"
+    offsets: list[dict[str, float]] = []
+    for k, record in enumerate(ensemble.get("offsets") or []):
+        shift = record.get("shift") if isinstance(record, dict) else None
+        if not isinstance(shift, dict) or record.get("member") != k:
+            raise DualtwinError(f"{where}[{k}]: needs 'member': {k} and a 'shift' object")
+        try:
+            values = {str(key): float(v) for key, v in shift.items()}
+        except (TypeError, ValueError):
+            values = {"": math.nan}
+        if not all(math.isfinite(v) for v in values.values()):
+            raise DualtwinError(f"{where}[{k}].shift: values must be finite numbers")
+        offsets.append(values)
+    return offsets
 
 
 class Evaluator:

@@ -1,0 +1,86 @@
+"""Alignment on ensembles (issue 15.4): fit the members' mean instead of one chaotic trajectory."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+import yaml
+
+from dualtwin.align import align
+from dualtwin.align.objective import mean_trace
+from dualtwin.align.simulate import ScenarioTrace, ensemble_offsets, load_member_traces
+from dualtwin.divergence.runs import Series
+from dualtwin.errors import DualtwinError
+from dualtwin.robots.binding import BUNDLED, RobotBinding, load_binding
+from dualtwin.suite.ensemble import EnsembleRun, make_spec
+
+from .conftest import TRUE_DAMPING
+
+DAMPING = "joint.pole_hinge.damping"
+MEMBERS = 3
+
+
+def damped_binding(folder: Path) -> RobotBinding:
+    """The CartPole binding with the true damping written into its MJCF (an ensemble run takes no knobs)."""
+    spec = mujoco.MjSpec.from_file(str(BUNDLED / "cartpole" / "cartpole.xml"))
+    spec.joint("pole_hinge").damping[0] = TRUE_DAMPING
+    (folder / "cartpole_damped.xml").write_text(spec.to_xml())
+    binding = yaml.safe_load((BUNDLED / "cartpole" / "binding.yaml").read_text())
+    binding["twins"]["mujoco"]["model"] = "cartpole_damped.xml"
+    binding["twins"]["webots"]["model"] = str(BUNDLED / "cartpole" / "cartpole.wbt")
+    (folder / "binding.yaml").write_text(yaml.safe_dump(binding, sort_keys=False))
+    return load_binding(folder / "binding.yaml")
+
+
+@pytest.fixture(scope="module")
+def ensemble_ref(tmp_path_factory: pytest.TempPathFactory, suite3: Path) -> Path:
+    folder = tmp_path_factory.mktemp("ensemble")
+    robot = damped_binding(folder)
+    out = folder / "reference"
+    EnsembleRun(suite3, "mujoco", robot, out, make_spec(MEMBERS, {"initial_angle": 0.02}, robot),
+                executor="serial").run()
+    return out
+
+
+def test_mean_trace_is_the_pointwise_mean_of_the_members_that_reach_each_time() -> None:
+    t = (np.arange(1, 6) * 0.5).astype(np.float64)
+    members = [ScenarioTrace("s", "completed", 2.5, {"x": Series(t, np.ones(5))}),
+               ScenarioTrace("s", "failed", 2.5, {"x": Series(t[:3], np.full(3, 3.0))}),
+               ScenarioTrace("s", "completed", 2.5, {"x": Series(t, np.full(5, 5.0))})]
+    mean = mean_trace(members)
+    assert mean.status == "completed" and np.array_equal(mean.series["x"].t, t)
+    # The member that stopped at 1.5 s counts until then, and is not extrapolated after.
+    assert mean.series["x"].y.tolist() == [3.0, 3.0, 3.0, 3.0, 3.0]
+    members[1] = ScenarioTrace("s", "failed", 2.5, {"x": Series(t[:3], np.full(3, 6.0))})
+    assert mean_trace(members).series["x"].y.tolist() == [4.0, 4.0, 4.0, 3.0, 3.0]
+    assert mean_trace(members[:1]) is members[0]
+    with pytest.raises(DualtwinError):
+        mean_trace([])
+
+
+def test_align_fits_the_ensemble_mean(tmp_path: Path, robot: RobotBinding, suite3: Path, ensemble_ref: Path) -> None:
+    offsets = ensemble_offsets(ensemble_ref)
+    assert len(offsets) == MEMBERS and offsets[1] == {"initial_angle": 0.02}
+    members = load_member_traces(ensemble_ref)
+    fall = members["00_fall"]
+    # The members differ, so their mean is not member 0's trajectory.
+    gap = np.abs(mean_trace(fall).series["pole_angle_rad"].y - fall[0].series["pole_angle_rad"].y).max()
+    assert gap > 0.01
+    result = align(ensemble_ref, "mujoco", robot, suite3, [DAMPING], tmp_path / "out", optimizer="lsq", budget=30,
+                   executor="serial", ensemble="mean")
+    assert result.fitted[DAMPING] == pytest.approx(TRUE_DAMPING, rel=2e-2)
+    assert result.objective_after < 0.05 * result.objective_before
+    record = json.loads((tmp_path / "out" / "align_record.json").read_text())
+    assert record["config"]["ensemble"] == "mean"
+
+
+def test_ensemble_mean_needs_members(tmp_path: Path, robot: RobotBinding, suite3: Path, damped_ref: Path) -> None:
+    with pytest.raises(DualtwinError, match="needs a run with ensemble members; this one has none"):
+        align(damped_ref, "mujoco", robot, suite3, [DAMPING], tmp_path / "a", executor="serial", ensemble="mean")
+    with pytest.raises(DualtwinError, match="not a twin"):
+        align("webots", "mujoco", robot, suite3, [DAMPING], tmp_path / "b", executor="serial", ensemble="mean")
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
