@@ -32,6 +32,8 @@ def test_compare_fewer_channels_json_and_nothing_shared(tmp_path: Path, make_run
     assert result["left_out"]["scenarios"]["01_Push"].startswith("only in A")
     saved = json.loads((tmp_path / "out" / "metrics.json").read_text())
     assert saved["comparison"]["left_out"] == result["left_out"]
+    page = (tmp_path / "out" / "report.html").read_text()
+    assert "Left out" in page and "only in A" in page
     table = dualtwin("compare", str(a), str(b), "--out", str(tmp_path / "out2"))
     assert "left out channel cart_pos_m: only in A" in table.stdout
 
@@ -39,11 +41,14 @@ def test_compare_fewer_channels_json_and_nothing_shared(tmp_path: Path, make_run
                     channels={"cart_pos_m": CHANNELS["cart_pos_m"]})
     bad = dualtwin("compare", str(b), str(cart), "--out", str(tmp_path / "never"))
     assert bad.returncode == 2 and "Traceback" not in bad.stderr
-    assert bad.stderr.startswith("error: runs are not comparable: no channel in common")
-    assert bad.stderr.strip().count("\n") == 0 and not (tmp_path / "never").exists()
+    errors = [line for line in bad.stderr.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and errors[0].startswith("error: runs are not comparable: no channel in common")
+    assert not (tmp_path / "never").exists()
 
     manifest = json.loads((cart / "manifest.json").read_text())
     manifest["suite_name"] = "another"
     (cart / "manifest.json").write_text(json.dumps(manifest))
     other = dualtwin("compare", str(a), str(cart), "--out", str(tmp_path / "never"))
-    assert other.returncode == 2 and "suites differ" in other.stderr and other.stderr.strip().count("\n") == 0
+    errors = [line for line in other.stderr.splitlines() if line.startswith("error:")]
+    assert other.returncode == 2 and len(errors) == 1 and "suites differ" in errors[0]
+    assert "Traceback" not in other.stderr

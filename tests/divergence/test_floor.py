@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dualtwin.divergence import compare_runs
+from dualtwin.divergence import compare_runs, write_report
 from dualtwin.divergence.floor import ensemble_floor, floor_verdict, judge_against_floor, simulate_floor
 from dualtwin.divergence.metrics import compare_channel, default_resolution, predictability_horizon
 from dualtwin.errors import DualtwinError
@@ -108,6 +108,8 @@ def test_compare_judges_against_the_floor_and_ranks_by_significance(tmp_path: Pa
     saved = comp.to_dict()["scenarios"][0]["floors"]["pole_angle_rad"]
     assert saved["verdict"] == judged.verdict and saved["floor_a"]["members"] == 3
     assert type(comp).from_dict(comp.to_dict()).scenarios[0].floors["pole_angle_rad"] == judged
+    page = write_report(comp, tmp_path / "report").read_text()
+    assert "Against the reproducibility floor" in page and "as close as the physics allows" in page
 
     late = _ensemble_dir(tmp_path / "late", [{"pole_angle_rad": chaotic(T - 0.3, 0.0), "cart_pos_m": cart}],
                          "mujoco")

@@ -134,6 +134,18 @@ def _render_html(
             [[c.scenario_id, c.channel or "(instability)", c.contribution, f"{c.share * 100:.1f} %"]
              for c in contributions], left=(0, 1)))
 
+    left_out = [[what[:-1], name, why] for what, names in comparison.left_out.items() for name, why in names.items()]
+    if left_out:
+        parts.append("<h2>Left out</h2><p>Only what both runs have is compared.</p>")
+        parts.append(html_table(["what", "name", "why"], left_out, left=(0, 1, 2)))
+    floors = [[sc.id, name, sc.channels[name].dtw, judged.floor_dtw, judged.ratio, judged.verdict]
+              for sc in comparison.scenarios for name, judged in sc.floors.items() if name in sc.channels]
+    if floors:
+        parts.append("<h2>Against the reproducibility floor</h2><p>The floor is each side's ensemble members "
+                     "against its unperturbed member; a ratio near 1 is as close as the physics allows.</p>")
+        parts.append(html_table(["scenario", "channel", "DTW", "floor DTW", "ratio", "verdict"], floors,
+                                left=(0, 1, 5)))
+
     parts.append("<h2>Scenarios</h2>")
     rows = []
     for sc in comparison.scenarios:
