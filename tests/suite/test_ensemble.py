@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import subprocess
 import sys
@@ -130,3 +131,19 @@ def test_bad_input_is_one_line(robot: RobotBinding, suite: Path, tmp_path: Path)
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert len(errors) == 1 and "--perturb 'initial_speed'" in errors[0]
     assert not out.exists()
+
+
+@pytest.mark.skipif(importlib.util.find_spec("ray") is None, reason="Ray is not installed (pip install 'dualtwin[ray]')")
+def test_members_on_ray_match_the_process_pool(robot: RobotBinding, suite: Path) -> None:
+    """One option moves the members to a Ray cluster (here a real local one): same members, same values."""
+    import ray
+
+    spec = make_spec(3, {"initial_angle": 1e-6}, robot, seed=3)
+    ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)
+    try:
+        on_ray = simulate_members(spec, robot, "mujoco", suite, scenarios=["00_fall"], executor="ray")
+    finally:
+        ray.shutdown()
+    in_pool = simulate_members(spec, robot, "mujoco", suite, scenarios=["00_fall"], executor="process")
+    assert [m["00_fall"].ground_truth for m in on_ray] == [m["00_fall"].ground_truth for m in in_pool]
+    assert on_ray[1]["00_fall"].ground_truth != on_ray[0]["00_fall"].ground_truth
