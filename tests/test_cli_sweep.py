@@ -21,7 +21,9 @@ Valid value per kind (what a new command's required option gets):
     wbt           the bundled cartpole.wbt                       missing, directory, binary
     file          (optional inputs only)                         missing, directory, binary
     run           a finished suite run of the small suite        missing, file-for-folder, not-a-run, bad-manifest
-    folder        placeholder (trained policy, model, dataset)   missing, file-for-folder, not-a-model
+    folder        placeholder (trained policy, model, dataset)   missing, file-for-folder, not-a-model,
+                                                                  corrupt-model (every record file holds bad
+                                                                  JSON, every model file garbage bytes)
     out           a new folder name                              non-empty-foreign, file-for-folder
     outfile       a new file name                                foreign-file, directory
     robot         cartpole                                       unknown-robot
@@ -58,6 +60,11 @@ from dualtwin.robots.binding import BUNDLED
 CARTPOLE_WBT = BUNDLED / "cartpole" / "cartpole.wbt"
 SMALL_SUITE = '{"suite_name": "s", "scenarios": [{"name": "a", "duration_s": 0.1, "initial_angle": 0.1}]}'
 CASE_SECONDS = 30
+# The files a training run, exported policy, perception model or dataset is recognised by: a "corrupt-model"
+# folder holds all of them, damaged, so every loader's JSON and ONNX error paths are exercised.
+CORRUPT_RECORDS = ("run.json", "policy_contract.json", "perception_contract.json", "manifest.json",
+                   "training.json", "vecnormalize.json")
+CORRUPT_MODELS = ("policy.onnx", "perception.onnx", "model.zip", "best_model.zip")
 
 # ------------------------------------------------------------------ classification of every parameter
 # "name" applies to every command; "command path:name" overrides it for one command.
@@ -91,7 +98,7 @@ FAMILIES: dict[str, tuple[str, ...]] = {
     "wbt": ("missing", "directory", "binary"),
     "file": ("missing", "directory", "binary"),
     "run": ("missing", "file-for-folder", "not-a-run", "bad-manifest"),
-    "folder": ("missing", "file-for-folder", "not-a-model"),
+    "folder": ("missing", "file-for-folder", "not-a-model", "corrupt-model"),
     "out": ("non-empty-foreign", "file-for-folder"),
     "outfile": ("foreign-file", "directory"),
     "robot": ("unknown-robot",), "twin": ("unknown-twin",), "env": ("unknown-env",), "knob": ("unknown-knob",),
@@ -241,6 +248,14 @@ def bad_value(case: Case, here: Path, url: str) -> str:
         path = here / f"notone_{name}"
         path.mkdir()
         (path / "notes.txt").write_text("someone's folder\n")
+        return str(path)
+    if family == "corrupt-model":
+        path = here / f"corrupt_{name}"
+        path.mkdir()
+        for record in CORRUPT_RECORDS:
+            (path / record).write_text('{"env_id": "x",\n  "broken": ')
+        for model in CORRUPT_MODELS:
+            (path / model).write_bytes(b"\x08\x07garbage, not a model" * 20)
         return str(path)
     if family == "bad-manifest":
         path = here / f"badmanifest_{name}"

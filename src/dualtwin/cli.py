@@ -76,12 +76,14 @@ def suite_run(
     workers: Annotated[int, typer.Option(help="process-pool size for ensemble members")] = 2,
 ) -> None:
     """Run a suite on one twin, writing on-board and ground-truth logs per scenario (and ensemble members)."""
+    from dualtwin.parallel import check_executor
     from dualtwin.robots.binding import resolve_robot
     from dualtwin.suite.runner import SuiteRun
 
-    from dualtwin.parallel import check_executor
-
-    check_executor(executor)  # even without --ensemble, so a typo never passes silently
+    try:  # even without --ensemble, so a typo never passes silently
+        check_executor(executor)
+    except DualtwinError as exc:
+        raise DualtwinError(f"--executor: {exc}") from None
     binding = resolve_robot(robot)
     if ensemble or perturb:
         from rich.progress import Progress

@@ -39,7 +39,6 @@ subset, a resumed extension, a copy), instead of trusting a whole-dataset finger
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -257,7 +256,9 @@ def _prepare(out: Path, settings: dict[str, Any], resume: bool) -> list[dict[str
     """The shards already finished (resume) after checking the settings match; [] for a fresh folder."""
     manifest_path = out / MANIFEST
     if resume and manifest_path.is_file():
-        manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
+        from dualtwin.artifacts import read_json_object
+
+        manifest = read_json_object(manifest_path, what="dataset manifest")
         differ = [k for k, v in settings.items() if manifest.get(k) != v]
         if differ:
             raise DualtwinError(f"{manifest_path}: cannot resume: {', '.join(differ)} differ from the "
@@ -315,7 +316,9 @@ def read_manifest(directory: Path | str) -> dict[str, Any]:
     path = Path(directory) / MANIFEST
     if not path.is_file():
         raise DualtwinError(f"{directory}: not a perception dataset (no {MANIFEST})")
-    manifest: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
+    from dualtwin.artifacts import read_json_object
+
+    manifest: dict[str, Any] = read_json_object(path, what="dataset manifest")  # names file, line and column
     if manifest.get("format") != FORMAT or manifest.get("format_version") != FORMAT_VERSION:
         raise DualtwinError(f"{path}: unsupported dataset format {manifest.get('format')!r} "
                             f"v{manifest.get('format_version')} (this version reads {FORMAT} v{FORMAT_VERSION})")

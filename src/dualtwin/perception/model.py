@@ -296,12 +296,12 @@ def train_perception(dataset_dir: Path | str, out_dir: Path | str, *, epochs: in
 
 def load_weights(model_dir: Path | str) -> Any:
     """The trained PyTorch module of a model folder (from ``weights.npz`` and the contract; no pickle)."""
-    import json
-
     import torch
 
     folder = Path(model_dir)
-    contract = json.loads((folder / CONTRACT_FILE).read_text(encoding="utf-8"))
+    from dualtwin.artifacts import read_json_object
+
+    contract = read_json_object(folder / CONTRACT_FILE, ("onnx", "normalization"), what="perception contract")
     _, stack, height, width, _ = contract["onnx"]["inputs"][0]["shape"]
     norm = contract["normalization"]
     net = _build(int(stack), int(height), int(width), np.asarray(norm["mean"]), np.asarray(norm["std"]))

@@ -7,7 +7,6 @@ episode start) is rebuilt from them and bound to each twin. Imports of ONNX Runt
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -63,11 +62,17 @@ def load_policy(path: Path | str) -> LockstepPolicy:
         contract_path = folder / "policy_contract.json"
         if not contract_path.is_file():
             raise DualtwinError(f"{folder}: policy.onnx without policy_contract.json")
-        contract = json.loads(contract_path.read_text(encoding="utf-8"))
+        from dualtwin.artifacts import read_json_object
+
+        contract = read_json_object(contract_path, what="policy contract")  # names file, line and column
         options = ort.SessionOptions()
         options.intra_op_num_threads = 1
-        session = ort.InferenceSession(str(folder / "policy.onnx"), sess_options=options,
-                                       providers=["CPUExecutionProvider"])
+        try:
+            session = ort.InferenceSession(str(folder / "policy.onnx"), sess_options=options,
+                                           providers=["CPUExecutionProvider"])
+        except Exception as exc:  # noqa: BLE001 - onnxruntime raises several private exception types
+            first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+            raise DualtwinError(f"{folder / 'policy.onnx'}: not a valid ONNX policy ({first[:200]})") from None
         return LockstepPolicy(folder, "onnx", str(contract.get("env_id", "")), dict(contract.get("env_kwargs") or {}),
                               contract, _session=session)
     if (folder / "run.json").is_file():
