@@ -77,6 +77,7 @@ __all__ = [
     "Supervisor",
     "SimulationUnstable",
     "current_runtime",
+    "device_class",
     "set_current_runtime",
 ]
 
@@ -643,6 +644,17 @@ _SOLID_DEVICE_CLASSES: dict[str, type[Device]] = {
     "Accelerometer": Accelerometer,
     "InertialUnit": InertialUnit,
 }
+
+
+def device_class(type_name: str) -> type[Any] | None:
+    """The API class that reads a device node type, or None when the twin only returns NaN for it."""
+    if type_name in ("RotationalMotor", "LinearMotor"):
+        return Motor
+    if type_name == "PositionSensor":
+        return PositionSensor
+    if type_name == "Keyboard":
+        return Keyboard
+    return _SOLID_DEVICE_CLASSES.get(type_name)
 
 
 # ------------------------------------------------------------------------------------------ robot

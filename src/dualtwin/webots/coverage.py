@@ -1,0 +1,197 @@
+"""What the headless Webots twin covers: every Webots node and device, supported / partial / not, and why.
+
+The registry below is data, kept next to the code it describes; ``tests/webots/test_coverage.py`` holds it to
+that code (every node the parser knows has exactly one entry; a device marked supported has a controller
+class that reads it, one marked "not" has none; a geometry marked supported really creates a collision geom;
+every joint type builds an ODE joint) and checks that ``docs/webots-coverage.md`` is this module's rendering.
+Regenerate the page with ``python -m dualtwin.webots.coverage``.
+
+Statuses: ``supported`` (Webots' semantics, tested), ``partial`` (works, with the limits given),
+``visual`` (parsed and kept in the scene tree for supervisors; nothing to simulate headless, not rendered),
+``not`` (parsed and kept, but without effect: the reason says what is missing).
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+__all__ = ["CATEGORIES", "REGISTRY", "STATUSES", "Coverage", "main", "render_markdown"]
+
+STATUSES = ("supported", "partial", "visual", "not")
+CATEGORIES = {
+    "scene": "Scene structure and world",
+    "physics": "Physics",
+    "geometry": "Geometry (as boundingObject)",
+    "joint": "Joints and mechanisms",
+    "device": "Devices",
+    "visual": "Appearance, lights and view",
+}
+
+
+@dataclass(frozen=True)
+class Coverage:
+    name: str
+    category: str
+    status: str
+    reason: str
+    node: bool = True  # False: a controller-side device without a scene node (Keyboard, Mouse, Joystick)
+
+
+_NOT_YET_DEVICE = "not yet: enable/disable work, readings are NaN"
+
+REGISTRY: tuple[Coverage, ...] = (
+    # -- scene structure and world
+    Coverage("WorldInfo", "scene", "partial",
+             "basicTimeStep, gravity, ERP/CFM, damping, contactProperties, auto-disable, maxContactJoints "
+             "follow Webots; randomSeed does not seed sensor noise; a NUE world only gets its gravity "
+             "direction"),
+    Coverage("Solid", "scene", "supported",
+             "bodies with mass from Physics/boundingObject, merging and the static basis, kinematic solids, "
+             "supervisor pose/velocity edits"),
+    Coverage("Robot", "scene", "supported",
+             "Python controllers run unchanged (runner), supervisor API, selfCollision, controllerArgs; C "
+             "controllers do not run"),
+    Coverage("Group", "scene", "supported", "children expanded"),
+    Coverage("Pose", "scene", "supported", "frames of children and bounding objects"),
+    Coverage("Transform", "scene", "partial", "scale honoured inside boundingObjects only (warning elsewhere)"),
+    Coverage("Slot", "scene", "supported", "its endPoint is placed as a child"),
+    Coverage("Billboard", "scene", "visual", "a view-facing group; no physics"),
+    Coverage("CadShape", "scene", "visual", "visual mesh; no physics"),
+    Coverage("Charger", "scene", "not", "behaves as a Solid; battery charging is not simulated"),
+    Coverage("Fluid", "scene", "not", "not yet: no buoyancy or drag"),
+    Coverage("ImmersionProperties", "scene", "not", "not yet: no fluid forces"),
+    # -- physics
+    Coverage("Physics", "physics", "supported",
+             "density or mass, centerOfMass, inertiaMatrix, damping (volume-weighted over merged solids)"),
+    Coverage("Damping", "physics", "supported", "linear and angular, converted per step as Webots does"),
+    Coverage("ContactProperties", "physics", "partial",
+             "material pairs, Coulomb friction, bounce, soft ERP/CFM follow Webots; asymmetric friction and "
+             "frictionRotation use the first value only; rollingFriction and forceDependentSlip are ignored"),
+    # -- geometry
+    Coverage("Box", "geometry", "supported", "ODE box"),
+    Coverage("Sphere", "geometry", "supported", "ODE sphere"),
+    Coverage("Capsule", "geometry", "supported", "ODE capsule"),
+    Coverage("Cylinder", "geometry", "supported", "ODE cylinder (upstream 0.16 contacts may differ from the fork)"),
+    Coverage("Plane", "geometry", "supported", "static infinite plane (a Plane on a body stays static)"),
+    Coverage("IndexedFaceSet", "geometry", "supported", "ODE triangle mesh"),
+    Coverage("ElevationGrid", "geometry", "partial", "static height field; on a dynamic body it stays static"),
+    Coverage("Mesh", "geometry", "not",
+             "not yet: no collision geometry (mass 1 kg); meshes of bounding objects are fetched for when it is"),
+    Coverage("Cone", "geometry", "visual", "not a bounding geometry in Webots either (ignored with a warning)"),
+    Coverage("IndexedLineSet", "geometry", "visual", "lines; no collision in Webots"),
+    Coverage("PointSet", "geometry", "visual", "points; no collision in Webots"),
+    Coverage("Coordinate", "geometry", "supported", "vertices of IndexedFaceSet"),
+    Coverage("Normal", "geometry", "visual", "shading normals"),
+    Coverage("TextureCoordinate", "geometry", "visual", "texture mapping"),
+    # -- joints and mechanisms
+    Coverage("HingeJoint", "joint", "partial",
+             "position, stops, springs, dampers, static friction; no suspension (an ODE-fork-only API)"),
+    Coverage("SliderJoint", "joint", "supported", "stops; springs emulated with an equivalent LMotor row"),
+    Coverage("Hinge2Joint", "joint", "partial", "upstream ODE never limits the second axis: its stops are ignored"),
+    Coverage("BallJoint", "joint", "partial", "free ball joint; its motors and springs are not modelled"),
+    Coverage("JointParameters", "joint", "supported", "slider axis, position, stops, spring, damping, friction"),
+    Coverage("HingeJointParameters", "joint", "supported", "axis, anchor and the JointParameters fields"),
+    Coverage("BallJointParameters", "joint", "supported", "anchor"),
+    Coverage("SolidReference", "joint", "not",
+             "not yet: closed kinematic loops are ignored with a warning (the joint is dropped)"),
+    Coverage("Track", "joint", "not", "not yet: behaves as a Solid; no belt motion, its motors are not exposed"),
+    Coverage("TrackWheel", "joint", "not", "not yet (Track)"),
+    Coverage("Propeller", "joint", "not", "not yet: no thrust or torque, its motor is not exposed"),
+    Coverage("Muscle", "joint", "visual", "a visual muscle shape"),
+    # -- devices
+    Coverage("RotationalMotor", "device", "partial",
+             "velocity, position (Webots' PID) and torque control with limits, acceleration and the initial "
+             "hold; coupled motors ('name::suffix') do not move together"),
+    Coverage("LinearMotor", "device", "partial", "as RotationalMotor"),
+    Coverage("PositionSensor", "device", "supported", "sampled joint position with noise and resolution"),
+    Coverage("Brake", "device", "not", "not yet: braking torque is not applied"),
+    Coverage("GPS", "device", "supported", "world position and speed (no noise model)"),
+    Coverage("Gyro", "device", "supported", "angular velocity in the device frame"),
+    Coverage("Accelerometer", "device", "supported", "proper acceleration in the device frame"),
+    Coverage("InertialUnit", "device", "supported", "roll/pitch/yaw and quaternion"),
+    Coverage("DistanceSensor", "device", "partial",
+             "not yet simulated by rays: always reads its lookup table's value for 'nothing in range'"),
+    Coverage("Compass", "device", "not", _NOT_YET_DEVICE),
+    Coverage("Altimeter", "device", "not", _NOT_YET_DEVICE),
+    Coverage("TouchSensor", "device", "not", _NOT_YET_DEVICE),
+    Coverage("Lidar", "device", "not", _NOT_YET_DEVICE),
+    Coverage("RangeFinder", "device", "not", _NOT_YET_DEVICE),
+    Coverage("Camera", "device", "not", _NOT_YET_DEVICE + " (the MuJoCo twin renders cameras)"),
+    Coverage("Recognition", "device", "not", "not yet (Camera)"),
+    Coverage("Lens", "device", "not", "not yet (Camera)"),
+    Coverage("LensFlare", "device", "not", "not yet (Camera)"),
+    Coverage("Focus", "device", "not", "not yet (Camera)"),
+    Coverage("Zoom", "device", "not", "not yet (Camera)"),
+    Coverage("Radar", "device", "not", _NOT_YET_DEVICE),
+    Coverage("LightSensor", "device", "not", _NOT_YET_DEVICE),
+    Coverage("Emitter", "device", "not", "not yet: nothing is sent"),
+    Coverage("Receiver", "device", "not", _NOT_YET_DEVICE),
+    Coverage("Display", "device", "not", "not yet: no image buffer"),
+    Coverage("Speaker", "device", "not", "not yet: no sound"),
+    Coverage("LED", "device", "not", "not yet: set/get are not available"),
+    Coverage("Pen", "device", "not", "not yet: no ink"),
+    Coverage("Connector", "device", "not", "behaves as a Solid; locking is not simulated"),
+    Coverage("VacuumGripper", "device", "not", "behaves as a Solid; gripping is not simulated"),
+    Coverage("Keyboard", "device", "supported",
+             "headless getKey() is -1; 'webots run --keys FILE' replays scripted presses", node=False),
+    Coverage("Mouse", "device", "not", "not yet: no pointer headless", node=False),
+    Coverage("Joystick", "device", "not", "not yet", node=False),
+    # -- appearance, lights and view
+    Coverage("Shape", "visual", "supported", "its geometry is a collision shape inside boundingObjects"),
+    Coverage("Appearance", "visual", "visual", "not rendered"),
+    Coverage("PBRAppearance", "visual", "visual", "not rendered"),
+    Coverage("Material", "visual", "visual", "not rendered"),
+    Coverage("ImageTexture", "visual", "visual", "not rendered; never downloaded"),
+    Coverage("TextureTransform", "visual", "visual", "not rendered"),
+    Coverage("Color", "visual", "visual", "not rendered"),
+    Coverage("Background", "visual", "visual", "not rendered"),
+    Coverage("DirectionalLight", "visual", "visual", "not rendered"),
+    Coverage("PointLight", "visual", "visual", "not rendered"),
+    Coverage("SpotLight", "visual", "visual", "not rendered"),
+    Coverage("Fog", "visual", "visual", "not rendered"),
+    Coverage("Viewpoint", "visual", "visual", "no viewer headless"),
+)
+
+
+def render_markdown() -> str:
+    """The coverage page (deterministic: registry order within categories)."""
+    counts = {s: sum(1 for c in REGISTRY if c.status == s) for s in STATUSES}
+    lines = [
+        "<!-- generated by python -m dualtwin.webots.coverage from dualtwin/webots/coverage.py; do not edit -->",
+        "",
+        "# Webots coverage",
+        "",
+        "What the headless Webots twin does with every Webots R2023b node and device. Generated from the",
+        "registry in `dualtwin/webots/coverage.py`, which the tests hold to the code.",
+        "",
+        "- **supported**: Webots' semantics, tested;",
+        "- **partial**: works, within the limits given;",
+        "- **visual**: kept in the scene tree (supervisors can read it), nothing to simulate headless, not rendered;",
+        "- **not**: parsed and kept, without effect yet.",
+        "",
+        "Totals: " + ", ".join(f"{counts[s]} {s}" for s in STATUSES) + f" ({len(REGISTRY)} entries).",
+        "",
+    ]
+    for key, title in CATEGORIES.items():
+        lines += [f"## {title}", "", "| node | status | notes |", "|---|---|---|"]
+        for c in REGISTRY:
+            if c.category == key:
+                name = f"`{c.name}`" + ("" if c.node else " (controller only)")
+                lines.append(f"| {name} | {c.status} | {c.reason.replace('|', '/')} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Write the page to ``docs/webots-coverage.md`` of the checkout (or the path given)."""
+    args = sys.argv[1:] if argv is None else argv
+    target = Path(args[0]) if args else Path(__file__).resolve().parents[3] / "docs" / "webots-coverage.md"
+    target.write_text(render_markdown(), encoding="utf-8")
+    print(f"wrote {target}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
