@@ -172,3 +172,17 @@ def test_cli_refuses_a_legacy_run_in_one_line_and_trusts_it_on_request(discrete_
                             text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     assert (tmp_path / "trusted" / "policy.onnx").is_file()
+
+
+def test_statistics_without_observation_normalisation(tmp_path: Path) -> None:
+    """The published-controller config scales observations itself (norm_obs false): only reward statistics."""
+    from tests.rl.conftest import _train
+
+    run = _train(tmp_path / "run", "dualtwin/CartPole-MuJoCo-v0", 512,
+                 {"normalize": {"norm_obs": False, "norm_reward": True}, "checkpoint_freq": 256})
+    stats = json.loads((run / "vecnormalize.json").read_text())
+    assert stats["obs_rms"] is None and stats["ret_rms"]["count"] > 0
+    policy = load_policy(run)
+    obs, _ = policy.make_env().reset(seed=0)
+    np.testing.assert_array_equal(policy.normalize(obs), obs)
+    assert int(policy.predict(obs)) in (0, 1)

@@ -89,7 +89,8 @@ def save_normalization(stats: VecNormalize, path: Path) -> None:
     write_json(path, {"format": STATS_FORMAT, "norm_obs": bool(stats.norm_obs), "norm_reward": bool(stats.norm_reward),
                       "clip_obs": float(stats.clip_obs), "clip_reward": float(stats.clip_reward),
                       "gamma": float(stats.gamma), "epsilon": float(stats.epsilon),
-                      "obs_rms": rms(stats.obs_rms), "ret_rms": rms(stats.ret_rms)})
+                      # Without observation normalisation VecNormalize keeps no observation statistics.
+                      "obs_rms": rms(stats.obs_rms) if stats.norm_obs else None, "ret_rms": rms(stats.ret_rms)})
 
 
 def _read_rms(data: Any, where: str, shape: tuple[int, ...] | None) -> Any:
@@ -137,7 +138,6 @@ def load_normalization(path: Path, venv: VecEnv | None = None, *, trust_pickles:
         raise DualtwinError(f"{path}: cannot read normalisation statistics: {exc}") from None
     if not isinstance(data, dict) or data.get("format") != STATS_FORMAT:
         raise DualtwinError(f"{path}: not a normalisation file (\"format\" must be {STATS_FORMAT!r})")
-    obs_rms = _read_rms(data.get("obs_rms"), f"{path}: obs_rms", obs_shape)
     ret_rms = _read_rms(data.get("ret_rms"), f"{path}: ret_rms", ())
     settings: dict[str, Any] = {}
     for key, kind in (("norm_obs", bool), ("norm_reward", bool), ("clip_obs", float), ("clip_reward", float),
@@ -149,23 +149,26 @@ def load_normalization(path: Path, venv: VecEnv | None = None, *, trust_pickles:
                               or not math.isfinite(value) or value <= 0):
             raise DualtwinError(f"{path}: {key} must be a positive number")
         settings[key] = value
+    obs_rms = _read_rms(data.get("obs_rms"), f"{path}: obs_rms", obs_shape) if settings["norm_obs"] else None
     if venv is not None:
         stats = VecNormalize(venv, training=True, norm_obs=settings["norm_obs"], norm_reward=settings["norm_reward"],
                              clip_obs=settings["clip_obs"], clip_reward=settings["clip_reward"],
                              gamma=settings["gamma"], epsilon=settings["epsilon"])
-        current: Any = stats.obs_rms
-        if settings["norm_obs"] and current.mean.shape != obs_rms.mean.shape:
-            raise DualtwinError(f"{path}: statistics of shape {list(obs_rms.mean.shape)}, the env's observations "
-                                f"have shape {list(current.mean.shape)}")
-        stats.obs_rms, stats.ret_rms = obs_rms, ret_rms
+        if obs_rms is not None:
+            current: Any = stats.obs_rms
+            if current.mean.shape != obs_rms.mean.shape:
+                raise DualtwinError(f"{path}: statistics of shape {list(obs_rms.mean.shape)}, the env's "
+                                    f"observations have shape {list(current.mean.shape)}")
+            stats.obs_rms = obs_rms
+        stats.ret_rms = ret_rms
         return stats
     # No env to wrap: the statistics only normalise observations (LoadedPolicy, export). This is the state
     # VecNormalize.load restores before set_venv(), built from plain numbers.
-    shape = obs_rms.mean.shape
+    shape = obs_rms.mean.shape if obs_rms is not None else (obs_shape or ())
     state = {"num_envs": 1, "observation_space": spaces.Box(-np.inf, np.inf, shape=shape, dtype=np.float32),
              "action_space": spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32), "reset_infos": [{}],
              "_seeds": [None], "_options": [{}], "render_mode": None, "metadata": {}, "norm_obs_keys": None,
-             "obs_rms": obs_rms, "ret_rms": ret_rms, "training": False, "old_reward": np.array([]),
+             **({"obs_rms": obs_rms} if obs_rms is not None else {}), "ret_rms": ret_rms, "training": False, "old_reward": np.array([]),
              "class_attributes": {}, "returns": np.zeros(1), **settings}
     stats = VecNormalize.__new__(VecNormalize)
     stats.__setstate__(state)
