@@ -14,7 +14,7 @@ from dualtwin.align.analyze import analyze_runs, write_analysis
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding
 from tests.align.conftest import record, write_suite
-from tests.divergence._rundirs import fabricate_run
+from tests.divergence._rundirs import fabricate_ensemble, fabricate_run
 
 DT = 0.032
 T = np.arange(1, 63) * DT  # ~2 s, logged after each control period like the runner
@@ -240,3 +240,18 @@ def test_recording_of_the_same_twin_raises_no_structural_finding(tmp_path: Path,
     """The control: rounding to 1 mm and 2 ms jitter alone raise no sign, lag or scale finding."""
     findings = on_recording(tmp_path, robot, suite3, nominal_run, {})
     assert not [f for f in findings if f.kind in ("sign_inversion", "lag", "scale_mismatch")]
+
+
+def test_event_time_within_the_members_spread_is_no_finding(tmp_path: Path) -> None:
+    """A pole that falls 0.06 s late is no finding when the reference's own members spread by 0.2 s."""
+    members = [{"pole_angle_rad": pole(T - shift), "cart_pos_m": cart(T)} for shift in (0.0, 0.1, -0.1)]
+    a = fabricate_ensemble(tmp_path / "a", members, "webots", T)
+    near = fabricate_ensemble(tmp_path / "near", [{"pole_angle_rad": pole(T - 0.06), "cart_pos_m": cart(T)}],
+                              "mujoco", T)
+    far = fabricate_ensemble(tmp_path / "far", [{"pole_angle_rad": pole(T - 0.4), "cart_pos_m": cart(T)}],
+                             "mujoco", T)
+    assert not [f for f in analyze_runs(a, near).findings if f.kind == "event_time"]
+    found = [f for f in analyze_runs(a, far).findings if f.kind == "event_time"]
+    assert found and found[0].evidence["00_fall"]["crossing_diff_s"] == pytest.approx(0.4, abs=0.02)
+    floors = analyze_runs(a, far).to_dict()["floors"]
+    assert floors[0]["channel"] == "pole_angle_rad" and floors[0]["ratio"] > 1

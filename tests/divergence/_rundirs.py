@@ -87,3 +87,24 @@ def cartpole_like(
         "cart_pos_m": (t, 0.2 * np.sin(0.8 * ts) + 0.01 * ts),
         "wheel_vel_rad_s": (t, 3.0 * np.cos(2.0 * ts)),
     }
+
+
+def fabricate_ensemble(root: Path, members: list[dict[str, np.ndarray]], twin: str,
+                       t: np.ndarray) -> Path:
+    """A one-scenario run folder (``00_fall``) with ensemble members laid out as
+    `dualtwin.suite.ensemble` writes them; member 0 is the main log."""
+    root.mkdir(parents=True)
+    channels = {"pole_angle_rad": {"source": "ground_truth", "unit": "rad"},
+                "cart_pos_m": {"source": "ground_truth", "unit": "m"}}
+    names = list(channels)
+    write_tsv(root / "scenarios/00_fall/ground_truth.tsv", names, t, [members[0][n] for n in names])
+    record = {"id": "00_fall", "index": 0, "name": "fall", "status": "completed",
+              "ground_truth": "scenarios/00_fall/ground_truth.tsv", "members": []}
+    for k, m in enumerate(members[1:], start=1):
+        rel = f"scenarios/00_fall/members/{k}/ground_truth.tsv"
+        write_tsv(root / rel, names, t, [m[n] for n in names])
+        record["members"].append({"member": k, "status": "completed", "ground_truth": rel})
+    manifest = {"twin": twin, "robot": "cartpole", "suite_name": "unit", "scenarios": [record],
+                "channels": channels}
+    (root / "manifest.json").write_text(json.dumps(manifest))
+    return root

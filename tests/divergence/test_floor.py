@@ -17,7 +17,7 @@ from dualtwin.robots.binding import resolve_robot
 from dualtwin.suite.ensemble import EnsembleRun, make_spec
 from dualtwin.suite.runner import SuiteRun
 from dualtwin.twins import make_twin
-from tests.divergence._rundirs import write_tsv
+from tests.divergence._rundirs import fabricate_ensemble
 
 DT = 0.032
 T = np.arange(1, 95) * DT  # 3 s logged after each control period
@@ -75,30 +75,12 @@ def test_differences_below_the_resolution_are_no_sign_inversion() -> None:
         compare_channel(T, a, T, a, resolution=0.0)
 
 
-def _ensemble_dir(root: Path, members: list[dict[str, np.ndarray]], twin: str) -> Path:
-    """A run folder with ensemble members laid out as `dualtwin.suite.ensemble` writes them."""
-    root.mkdir(parents=True)
-    channels = {"pole_angle_rad": {"source": "ground_truth", "unit": "rad"},
-                "cart_pos_m": {"source": "ground_truth", "unit": "m"}}
-    names = list(channels)
-    write_tsv(root / "scenarios/00_fall/ground_truth.tsv", names, T, [members[0][n] for n in names])
-    record = {"id": "00_fall", "index": 0, "name": "fall", "status": "completed",
-              "ground_truth": "scenarios/00_fall/ground_truth.tsv", "members": []}
-    for k, m in enumerate(members[1:], start=1):
-        rel = f"scenarios/00_fall/members/{k}/ground_truth.tsv"
-        write_tsv(root / rel, names, T, [m[n] for n in names])
-        record["members"].append({"member": k, "status": "completed", "ground_truth": rel})
-    manifest = {"twin": twin, "robot": "cartpole", "suite_name": "unit", "scenarios": [record],
-                "channels": channels}
-    (root / "manifest.json").write_text(json.dumps(manifest))
-    return root
-
-
 def test_compare_judges_against_the_floor_and_ranks_by_significance(tmp_path: Path) -> None:
     cart = 0.2 * np.sin(T)
     members_a = [{"pole_angle_rad": chaotic(T, e), "cart_pos_m": cart + 5e-6 * e * 1e6} for e in (0, 1e-6, -1e-6)]
-    a = _ensemble_dir(tmp_path / "a", members_a, "webots")
-    same = _ensemble_dir(tmp_path / "b", [{"pole_angle_rad": chaotic(T, 5e-7), "cart_pos_m": cart - 2e-5}], "mujoco")
+    a = fabricate_ensemble(tmp_path / "a", members_a, "webots", T)
+    same = fabricate_ensemble(tmp_path / "b", [{"pole_angle_rad": chaotic(T, 5e-7), "cart_pos_m": cart - 2e-5}],
+                              "mujoco", T)
     comp = compare_runs(a, same)
     judged = comp.scenarios[0].floors["pole_angle_rad"]
     assert judged.floor_b is None and judged.floor_a is not None and judged.floor_a.members == 3
@@ -108,18 +90,20 @@ def test_compare_judges_against_the_floor_and_ranks_by_significance(tmp_path: Pa
     saved = comp.to_dict()["scenarios"][0]["floors"]["pole_angle_rad"]
     assert saved["verdict"] == judged.verdict and saved["floor_a"]["members"] == 3
     assert type(comp).from_dict(comp.to_dict()).scenarios[0].floors["pole_angle_rad"] == judged
+    both = compare_runs(a, a).scenarios[0].floors["pole_angle_rad"]  # two ensembles: both floors, no divergence
+    assert both.floor_a == both.floor_b == judged.floor_a and both.ratio == 0.0
     page = write_report(comp, tmp_path / "report").read_text()
     assert "Against the reproducibility floor" in page and "as close as the physics allows" in page
 
-    late = _ensemble_dir(tmp_path / "late", [{"pole_angle_rad": chaotic(T - 0.3, 0.0), "cart_pos_m": cart}],
-                         "mujoco")
+    late = fabricate_ensemble(tmp_path / "late", [{"pole_angle_rad": chaotic(T - 0.3, 0.0), "cart_pos_m": cart}],
+                              "mujoco", T)
     ranked = compare_runs(a, late).contributions()
     assert [(c.scenario_id, c.channel) for c in ranked] == [("00_fall", "pole_angle_rad")]
     assert ranked[0].share == pytest.approx(1.0)
 
 
 def test_member_paths_stay_in_the_run(tmp_path: Path) -> None:
-    a = _ensemble_dir(tmp_path / "a", [{"pole_angle_rad": T, "cart_pos_m": T}] * 2, "webots")
+    a = fabricate_ensemble(tmp_path / "a", [{"pole_angle_rad": T, "cart_pos_m": T}] * 2, "webots", T)
     manifest = json.loads((a / "manifest.json").read_text())
     manifest["scenarios"][0]["members"][0]["ground_truth"] = "../../etc/passwd"
     (a / "manifest.json").write_text(json.dumps(manifest))

@@ -198,8 +198,14 @@ def floor_table(comparison: RunComparison) -> list[dict[str, Any]]:
     rows = [{"scenario": sc.id, "channel": name, "ratio": f.ratio, "floor_dtw": f.floor_dtw,
              "dtw": sc.channels[name].dtw, "horizon_s": f.horizon_s, "verdict": f.verdict}
             for sc in comparison.scenarios for name, f in sc.floors.items() if name in sc.channels]
-    return sorted(rows, key=lambda r: (-(r["ratio"] if r["ratio"] is not None else math.inf),
-                                       r["scenario"], r["channel"]))
+
+    def rank(row: dict[str, Any]) -> float:
+        # No floor (members agree exactly): any divergence is infinitely above it, none is nothing to show.
+        if row["ratio"] is not None:
+            return float(row["ratio"])
+        return math.inf if row["dtw"] > 0 else -1.0
+
+    return sorted(rows, key=lambda r: (-rank(r), r["scenario"], r["channel"]))
 
 
 def left_out_notes(comparison: RunComparison) -> list[str]:
