@@ -168,7 +168,7 @@ class _Server:
 
         self.httpd = Quiet(("127.0.0.1", 0), partial(Handler, directory=str(root)))
         self.base = f"http://127.0.0.1:{self.httpd.server_address[1]}/"
-        self.thread = threading.Thread(target=self.httpd.serve_forever, daemon=True)
+        self.thread = threading.Thread(target=self.httpd.serve_forever, args=(0.05,), daemon=True)
         self.thread.start()
 
     def stop(self) -> None:
@@ -364,3 +364,24 @@ def test_cli_fetch_into_user_cache_and_bad_out(webots_fixtures: Path, tmp_path: 
     bad = subprocess.run([*cmd, str(world), "--out", str(busy)], capture_output=True, text=True, env=env, timeout=120)
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "--out" in bad.stderr
     assert (busy / "notes.txt").read_text() == "mine"
+
+
+def test_interrupted_fetch_into_a_folder_resumes(tmp_path: Path, online: _Server) -> None:
+    world = tmp_path / "two.wbt"
+    world.write_text(
+        HEADER
+        + 'EXTERNPROTO "webots://projects/appearances/protos/TireRubber.proto"\n'
+        + 'EXTERNPROTO "webots://projects/later/protos/Later.proto"\n'
+        + "Solid { children [ Shape { appearance TireRubber { } } ] }\nLater { }\n"
+    )
+    out = tmp_path / "folder"
+    with pytest.raises(FetchError) as info:
+        fetch_command([world], out, say=None)
+    assert "two.wbt:3:1" in str(info.value) and "Later.proto" in str(info.value) and "HTTP 404" in str(info.value)
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert [f["url"] for f in manifest["files"]] == [OFFICIAL + "projects/appearances/protos/TireRubber.proto"]
+    later = online.root / "R2023b" / "projects" / "later" / "protos" / "Later.proto"
+    later.parent.mkdir(parents=True)
+    later.write_text(HEADER + "PROTO Later [ ] { Solid { } }\n")
+    report, _ = fetch_command([world], out, say=None)  # the same folder: continued, not refused
+    assert len(json.loads((out / "manifest.json").read_text())["files"]) == 2 and report.warnings == []

@@ -163,16 +163,21 @@ def fetch_command(
         check_output_dir(root, PROTO_FOLDER_KIND, resume=True, resumable=True)
         # a folder for an offline machine must hold every file, wherever it was found here
         cache = ProtoCache(root, sources=[default_cache_root()], copy_sources=True, progress=say)
+        _write_manifest(cache)  # first, so an interrupted fetch leaves a folder the next one continues
     try:
         report = fetch_worlds(worlds, cache)
     finally:
         cache.close()
-    if out is not None:
-        write_json(cache.root / "manifest.json", {
-            "kind": PROTO_FOLDER_KIND,
-            "layout": LAYOUT,
-            "webots_version": WEBOTS_VERSION,
-            "usage": "export DUALTWIN_PROTO_MIRROR=<this folder>",
-            "files": cache.entries(),
-        })
+        if out is not None:
+            _write_manifest(cache)
     return report, cache.root
+
+
+def _write_manifest(cache: ProtoCache) -> None:
+    write_json(cache.root / "manifest.json", {
+        "kind": PROTO_FOLDER_KIND,
+        "layout": LAYOUT,
+        "webots_version": WEBOTS_VERSION,
+        "usage": "export DUALTWIN_PROTO_MIRROR=<this folder>",
+        "files": cache.entries(),
+    })

@@ -236,7 +236,10 @@ class ProtoCache:
         if path is None and self.webots_assets is not None:
             flat = self.webots_assets / cache_key(url)
             if flat.is_file():
-                path = self._store(url, flat.read_bytes(), f"imported {url} from Webots' cache {flat}")
+                try:
+                    path = self._store(url, flat.read_bytes(), f"imported {url} from Webots' cache {flat}")
+                except (FetchError, OSError):
+                    path = flat  # our cache is not writable: read Webots' copy as it is
         if path is not None:
             self._verified[url] = path
         return path
@@ -267,6 +270,13 @@ class ProtoCache:
         return decode_source(self.get(url).read_bytes(), url)
 
     # -- downloading and storing
+
+    def describe(self) -> str:
+        """Where :meth:`cached` looks, for messages."""
+        places = [f"the PROTO cache {self.root}"] + [f"the folder {s}" for s in self.sources]
+        if self.webots_assets is not None:
+            places.append(f"Webots' cache {self.webots_assets}")
+        return ", ".join(places)
 
     def source_url(self, url: str) -> str:
         """Where ``url`` is downloaded from: the mirror for official Webots urls, else itself."""

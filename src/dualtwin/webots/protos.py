@@ -237,7 +237,7 @@ class ProtoResolver:
         cache = self.cache if remote is not None else None
         if remote is not None and cache is not None:
             hit = cache.cached(remote)
-            tried.append(f"{remote} in the PROTO cache {cache.root}")
+            tried.append(f"{remote} in {cache.describe()}")
             if hit is not None:
                 return _Found(remote, cache.read_text(remote)), tried
         if name in STANDIN_PROTOS:
