@@ -1,0 +1,140 @@
+"""CSV/TSV logs with a YAML mapping: units, scales, sources, globs, and bad inputs."""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from dualtwin.divergence.runs import load_run
+from dualtwin.errors import DualtwinError
+from dualtwin.recorded import import_table
+
+
+def _write_csvs(folder: Path, suite: Path, period: float = 0.032) -> list[Path]:
+    """One CSV per scenario in a user's own units: ms, degrees (sign flipped), millimetres."""
+    scenarios = json.loads(suite.read_text())["scenarios"]
+    folder.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for i, sc in enumerate(scenarios):
+        t = np.arange(0.0, sc["duration_s"] + 1e-9, 0.01)  # 100 Hz, from the initial state
+        angle = sc.get("initial_angle", 0.0) * np.cos(2 * t)
+        cart = 0.1 * t * (i + 1)
+        lines = ["stamp_ms,theta_deg,x_mm,enc_rad"]
+        lines += [f"{a * 1000:.3f},{-math.degrees(b)!r},{c * 1000!r},{b!r}"
+                  for a, b, c in zip(t.tolist(), angle.tolist(), cart.tolist(), strict=True)]
+        path = folder / f"log_{i}.csv"  # names sort wrongly as text past 9 (natural sort needed)
+        path.write_text("\n".join(lines) + "\n")
+        paths.append(path)
+    return paths
+
+
+MAPPING = {
+    "files": "logs/log_*.csv",
+    "time": {"column": "stamp_ms", "unit": "ms"},
+    "channels": [
+        {"name": "pole_angle_rad", "column": "theta_deg", "unit": "deg", "scale": -1},
+        {"name": "cart_pos_m", "column": "x_mm", "unit": "mm"},
+        {"name": "pole_angle_rad", "source": "onboard", "column": "enc_rad", "unit": "rad"},
+    ],
+}
+
+
+def _mapping(folder: Path, **changes: object) -> Path:
+    data = {**MAPPING, **changes}
+    path = folder / "mapping.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+def test_csv_in_other_units_and_signs_becomes_a_run(tmp_path: Path, cartpole_suite: Path) -> None:
+    _write_csvs(tmp_path / "logs", cartpole_suite)
+    run = import_table(_mapping(tmp_path), cartpole_suite, "cartpole", tmp_path / "run")
+    loaded = load_run(run)
+    assert loaded.kind == "recorded"
+    assert set(loaded.channels) == {"pole_angle_rad", "cart_pos_m", "onboard/pole_angle_rad"}
+    manifest = json.loads((run / "manifest.json").read_text())
+    assert manifest["units"]["pole_angle_rad"] == {"recorded": "deg", "binding": "rad", "scale": -1.0,
+                                                   "factor": pytest.approx(math.pi / 180)}
+    assert manifest["units"]["cart_pos_m"]["factor"] == pytest.approx(1e-3)
+    assert manifest["inputs"]["mapping"]["path"].endswith("mapping.yaml")
+    assert (run / "config" / "mapping.yaml").is_file()
+    series = loaded.series("01_Step_Response_2")
+    t = series["pole_angle_rad"].t
+    assert t[0] == pytest.approx(0.032) and np.allclose(np.diff(t), 0.032)
+    # -1 * degrees → radians gives back the angle; both sources agree; mm → m.
+    np.testing.assert_allclose(series["pole_angle_rad"].y, np.cos(2 * t), atol=2e-4)
+    np.testing.assert_allclose(series["onboard/pole_angle_rad"].y, np.cos(2 * t), atol=2e-4)
+    np.testing.assert_allclose(series["cart_pos_m"].y, 0.2 * t, atol=1e-9)
+    assert [s["sources"] for s in manifest["scenarios"]] == [[f"logs/log_{i}.csv"] for i in range(6)]
+    assert manifest["scenarios"][0]["timing"]["origin"] == "simulation"
+
+
+def test_explicit_file_list_and_tsv(tmp_path: Path, cartpole_suite: Path) -> None:
+    paths = _write_csvs(tmp_path / "logs", cartpole_suite)
+    for p in paths:
+        p.with_suffix(".tsv").write_text(p.read_text().replace(",", "\t"))
+    mapping = _mapping(tmp_path, files=[f"logs/log_{i}.tsv" for i in range(6)])
+    run = import_table(mapping, cartpole_suite, "cartpole", tmp_path / "run")
+    assert json.loads((run / "manifest.json").read_text())["mapping"]["files"][0] == "logs/log_0.tsv"
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"channels": [{"name": "cart_pos_m", "column": "theta_deg", "unit": "deg"}]},
+     r"channel 'cart_pos_m': unit 'deg' cannot be converted to the binding's 'm'"),
+    ({"channels": [{"name": "cart_pos_m", "column": "x_mm", "unit": "furlong"}]},
+     r"'furlong' is not a unit dualtwin converts"),
+    ({"channels": [{"name": "cart_speed", "column": "x_mm", "unit": "mm"}]},
+     r"no ground_truth channel 'cart_speed'"),
+    ({"channels": [{"name": "cart_pos_m", "column": "x_cm", "unit": "cm"}]},
+     r"log_0.csv:1: no column 'x_cm' \(channel 'cart_pos_m'\); the header has: stamp_ms, theta_deg"),
+    ({"time": {"column": "stamp_ms", "unit": "minutes"}}, r"mapping.yaml: \$.time.unit: Input should be"),
+    ({"files": "logs/nothing_*.csv"}, r"pattern 'logs/nothing_\*.csv' matches nothing"),
+    ({"files": ["../outside.csv"] * 6}, r"'../outside.csv' is outside the data folder"),
+    ({"files": ["logs/log_0.csv"]}, r"1 file\(s\) for 6 scenario\(s\)"),
+    ({"files": [f"logs/log_{i}.csv" for i in range(5)] + ["logs"]}, r"logs: is a directory"),
+])
+def test_bad_mappings_and_files_are_one_clear_error(tmp_path: Path, cartpole_suite: Path, change: dict,
+                                                    message: str) -> None:
+    _write_csvs(tmp_path / "logs", cartpole_suite)
+    (tmp_path / "outside.csv").write_text("a,b\n1,2\n")
+    with pytest.raises(DualtwinError, match=message):
+        import_table(_mapping(tmp_path, **change), cartpole_suite, "cartpole", tmp_path / "run")
+    assert not (tmp_path / "run").exists()
+
+
+def test_bad_table_contents(tmp_path: Path, cartpole_suite: Path) -> None:
+    paths = _write_csvs(tmp_path / "logs", cartpole_suite)
+    lines = paths[3].read_text().splitlines()
+    lines[5], lines[6] = lines[6], lines[5]
+    paths[3].write_text("\n".join(lines) + "\n")
+    with pytest.raises(DualtwinError, match=r"log_3.csv:7: time stamps must increase"):
+        import_table(_mapping(tmp_path), cartpole_suite, "cartpole", tmp_path / "run")
+    assert not (tmp_path / "run").exists()
+
+
+def test_invalid_yaml_mapping_names_the_line(tmp_path: Path, cartpole_suite: Path) -> None:
+    bad = tmp_path / "mapping.yaml"
+    bad.write_text("files: [a\nchannels: {")
+    with pytest.raises(DualtwinError, match=r"mapping.yaml:\d+:\d+: invalid YAML"):
+        import_table(bad, cartpole_suite, "cartpole", tmp_path / "run")
+
+
+def test_wrong_unit_through_the_cli_is_one_line_and_exit_2(tmp_path: Path, cartpole_suite: Path,
+                                                          run_cli: Callable[..., tuple[int, str, str]]) -> None:
+    _write_csvs(tmp_path / "logs", cartpole_suite)
+    mapping = _mapping(tmp_path, channels=[{"name": "pole_angle_rad", "column": "x_mm", "unit": "mm"}])
+    code, out, err = run_cli("import", "table", str(mapping), "--suite", str(cartpole_suite), "--robot",
+                             "cartpole", "--out", str(tmp_path / "run"))
+    assert code == 2
+    assert err.count("\n") == 1 and err.startswith("error: ") and "unit 'mm' cannot be converted" in err
+    assert "Traceback" not in err and not (tmp_path / "run").exists()
+    code, out, err = run_cli("import", "table", str(_mapping(tmp_path)), "--suite", str(cartpole_suite),
+                             "--robot", "cartpole", "--out", str(tmp_path / "run"))
+    assert code == 0, err
+    assert "wrote" in out and (tmp_path / "run" / "manifest.json").is_file()
