@@ -12,6 +12,14 @@ from rich.console import Console
 
 from dualtwin.artifacts import check_output_dir
 from dualtwin.errors import DualtwinError
+from dualtwin.reporting import (
+    Column,
+    ProgressEvent,
+    configure_console,
+    emit_json,
+    print_table,
+    report_progress,
+)
 
 # Loading a training run written before its statistics were JSON (or by another tool) means unpickling files
 # from it, which can run code: only on the user's explicit word.
@@ -27,7 +35,10 @@ app.add_typer(suite_app, name="suite")
 perception_app = typer.Typer(help="Learned perception: train and evaluate.", no_args_is_help=True)
 app.add_typer(webots_app, name="webots")
 app.add_typer(perception_app, name="perception")
-console = Console(stderr=False)
+console = configure_console(Console(stderr=False))
+#: ``--json``: the results as one JSON document on stdout; progress and messages go to stderr.
+JsonOutput = Annotated[bool, typer.Option("--json", help="print the results as JSON on stdout (progress and "
+                                                          "messages go to stderr)")]
 
 
 @app.callback()
@@ -74,6 +85,7 @@ def suite_run(
                                                            "±EPS in the ensemble members (repeatable)")] = None,
     executor: Annotated[str, typer.Option(help="where ensemble members run: process, serial or ray")] = "process",
     workers: Annotated[int, typer.Option(help="process-pool size for ensemble members")] = 2,
+    json_out: JsonOutput = False,
 ) -> None:
     """Run a suite on one twin, writing on-board and ground-truth logs per scenario (and ensemble members)."""
     from dualtwin.parallel import check_executor
@@ -103,17 +115,23 @@ def suite_run(
     else:
         run = SuiteRun(scenarios, twin, binding, out, seed=seed)
         manifest = _run_with_progress(run, resume, f"{twin}: {run.suite.suite_name}")
-    for record in manifest["scenarios"]:
-        console.print(f"  {record['id']:<28} {record['status']}")
+    if json_out:
+        emit_json({"out": str(out), "manifest": manifest})
+        return
+    print_table(console, [Column("scenario", False), Column("status", False)],
+                [[record["id"], record["status"]] for record in manifest["scenarios"]])
     console.print(f"wrote {out}")
 
 
 def _run_with_progress(run, resume: bool, label: str):  # type: ignore[no-untyped-def]
-    from rich.progress import Progress
+    total = len(run.suite.scenarios)
+    done = [0]
+    with report_progress() as progress:
+        def on_scenario(sid: str, status: str) -> None:
+            done[0] += 1
+            progress(ProgressEvent(label, done[0], total, f"{sid} {status}"))
 
-    with Progress(console=console, transient=True) as progress:
-        task = progress.add_task(label, total=len(run.suite.scenarios))
-        return run.run(resume=resume, on_scenario=lambda sid, status: progress.advance(task))
+        return run.run(resume=resume, on_scenario=on_scenario)
 
 
 @app.command("compare")
@@ -133,12 +151,14 @@ def compare(
 
     check_output_dir(out, "compare")
     _runs(run_a, run_b)
-    comparison = compare_runs(run_a, run_b)
-    write_report(comparison, out, label_a=run_a.name, label_b=run_b.name)
+    with report_progress() as progress:
+        progress(ProgressEvent("compare", 0, 1, f"{run_a} vs {run_b}"))
+        comparison = compare_runs(run_a, run_b)
+        progress(ProgressEvent("compare", 1, 1, "runs compared"))
+        # Labels are the twins named in the run manifests (folder names repeat).
+        write_report(comparison, out, progress=progress)
     if as_json:
-        import json
-
-        print(json.dumps(comparison.to_dict(), indent=2, allow_nan=False))
+        emit_json(comparison.to_dict())
         return
     print_summary(comparison, console)
     for line in comparison.judgement_lines():
@@ -171,12 +191,15 @@ def analyze(
 
         resolve_robot(robot)
     proposer = _llm_proposer(run_a.name, run_b.name) if llm else None
-    analysis = analyze_runs(run_a, run_b, robot=robot, twin_b=twin, knobs=knobs, propose_fn=proposer)
-    write_analysis(analysis, out)
+    with report_progress() as progress:
+        stage = "analyze" + (" (re-simulating knob sensitivities)" if robot and knobs else "")
+        progress(ProgressEvent(stage, 0, 2, f"{run_a} vs {run_b}"))
+        analysis = analyze_runs(run_a, run_b, robot=robot, twin_b=twin, knobs=knobs, propose_fn=proposer)
+        progress(ProgressEvent(stage, 1, 2, "analysed; writing the reports"))
+        write_analysis(analysis, out)
+        progress(ProgressEvent(stage, 2, 2, "done"))
     if as_json:
-        import json
-
-        print(json.dumps(analysis.to_dict(), indent=2, default=str))
+        emit_json(analysis.to_dict())
         return
     print_analysis(analysis, console)
     console.print(f"wrote {out}")
@@ -206,6 +229,7 @@ def align(
     llm: Annotated[bool, typer.Option(help="ask the configured LLM to explain the findings and propose starting "
                                            "knob values; proposals are kept only if they lower the objective")]
     = False,
+    json_out: JsonOutput = False,
 ) -> None:
     """Fit the target twin's knobs to the reference; write knobs, DR ranges, patched model and report."""
     from dualtwin.align import align as run_align
@@ -237,14 +261,40 @@ def align(
         {"objective": objective, "horizons": horizon_list} if objective == "prediction" else {})
     if llm:
         extra["propose_fn"] = _llm_proposer(str(ref), target)
-    result = run_align(ref, target, robot, scenarios, knobs, out, optimizer=optimizer,  # type: ignore[arg-type]
-                       seed=seed, budget=budget, resume=resume, executor=executor,  # type: ignore[arg-type]
-                       ray_address=address, holdout=holdout, **extra)  # type: ignore[arg-type]
+    with report_progress() as progress:
+        best = [float("inf")]
+
+        def on_generation(info: Any) -> None:
+            # One event per CMA generation / least-squares iteration: evaluations so far and the best objective
+            # seen (least squares reports its current iterate, which can be worse than an earlier one).
+            best[0] = min(best[0], float(info.best_value))
+            progress(ProgressEvent("align", int(info.evaluations), budget,
+                                   f"iteration {info.iteration}, best objective so far {best[0]:.4g}"))
+
+        result = run_align(ref, target, robot, scenarios, knobs, out, optimizer=optimizer,  # type: ignore[arg-type]
+                           seed=seed, budget=budget, resume=resume, executor=executor,  # type: ignore[arg-type]
+                           ray_address=address, holdout=holdout, callback=on_generation,
+                           **extra)  # type: ignore[arg-type]
+    if json_out:
+        emit_json(_align_json(result))
+        return
     print_result(result, console)
     from dualtwin.align.narrate import print_narrative
 
     print_narrative(result.narrative, console)
     console.print(f"wrote {out}")
+
+
+def _align_json(result: Any) -> dict[str, Any]:
+    """What ``align --json`` prints: the fit's summary, knobs and files (the same numbers as the report)."""
+    return {"out": str(result.out_dir), "optimizer": result.optimizer, "stop_reason": result.stop_reason,
+            "evaluations": result.evaluations, "iterations": result.iterations, "wall_time_s": result.wall_time_s,
+            "objective_before": result.objective_before, "objective_after": result.objective_after,
+            "holdout_before": result.holdout_before, "holdout_after": result.holdout_after,
+            "knobs": {n: k.to_dict() for n, k in result.knobs.items()},
+            "nuisance": {n: k.to_dict() for n, k in (getattr(result, "nuisance", None) or {}).items()},
+            "left_out": dict(getattr(result, "left_out", None) or {}),
+            "warnings": list(result.warnings), "files": dict(result.files)}
 
 
 def _llm_proposer(label_a: str, label_b: str):  # type: ignore[no-untyped-def]
@@ -299,6 +349,7 @@ def transfer(
     seed: Annotated[int, typer.Option(help="seed")] = 0,
     which: Annotated[str, typer.Option(help="best or final model")] = "final",
     trust_pickles: TrustPickles = False,
+    json_out: JsonOutput = False,
 ) -> None:
     """Evaluate policies in their source twin and in the target twin: before and after alignment, with DR (Table 1)."""
     from dualtwin.rl.transfer import transfer as run_transfer
@@ -314,11 +365,16 @@ def transfer(
         _training_run(folder, option)
     from dualtwin.rl.runfiles import trusting_pickles
 
-    with trusting_pickles(trust_pickles):
+    with trusting_pickles(trust_pickles), report_progress() as progress:
+        progress(ProgressEvent("transfer", 0, None, f"{episodes} episodes per row, in the source and target twins"))
         report = run_transfer(policy, target_env, policy_aligned=policy_aligned, policy_dr=policy_dr,
                               policy_control=policy_control, episodes=episodes, seed=seed, out_dir=out, which=which)
-    for row in report.rows:
-        console.print(f"  {row.label:<32} {row.summary()}")
+        progress(ProgressEvent("transfer", len(report.rows), len(report.rows), "rows evaluated"))
+    if json_out:
+        emit_json({"out": str(out), "rows": [{"label": row.label, "summary": row.summary()} for row in report.rows]})
+        return
+    print_table(console, [Column("row", False), Column("result", False)],
+                [[row.label, row.summary()] for row in report.rows])
     console.print(f"wrote {out}")
 
 
@@ -364,9 +420,9 @@ def collect(
         raise DualtwinError("--policy is used only with --controller noisy-policy")
     from dualtwin.rl.runfiles import trusting_pickles
 
-    with trusting_pickles(trust_pickles):
+    with trusting_pickles(trust_pickles), report_progress() as progress:
         path = run_collect(env, episodes, out, controller=controller, policy_run=policy, resume=resume, seed=seed,
-                           width=width, height=height, randomize=randomize)
+                           width=width, height=height, randomize=randomize, progress=progress)
     console.print(f"wrote {path}")
 
 
@@ -381,20 +437,31 @@ def perception_train(
     from dualtwin.perception.model import train_perception
 
     check_output_dir(out, "perception-train")
-    console.print(f"wrote {train_perception(data, out, epochs=epochs, seed=seed)}")
+    with report_progress() as progress:
+        path = train_perception(data, out, epochs=epochs, seed=seed, progress=progress)
+    console.print(f"wrote {path}")
 
 
 @perception_app.command("eval")
 def perception_eval(
     model: Annotated[Path, typer.Option(help="model folder")],
     data: Annotated[Path, typer.Option(help="dataset folder")],
+    json_out: JsonOutput = False,
 ) -> None:
-    """MAE per quantity of the exported model on the held-out episodes."""
+    """MAE per quantity of the exported model on the episodes it did not train on (by episode identity)."""
     from dualtwin.perception.model import evaluate_perception
 
     result = evaluate_perception(model, data)
-    for name, value in result.get("mae", {}).items():
-        console.print(f"  MAE {name:<24} {value:.5g}")
+    if json_out:
+        emit_json(result)
+        return
+    console.print(f"{len(result['heldout_episodes'])} held-out episode(s), {result['frames']} frames; "
+                  f"{result['excluded_training_episodes']} training episode(s) of this dataset left out")
+    units = result.get("units", {})
+    print_table(console, [Column("quantity", False), Column("MAE"), Column("constant predictor"),
+                          Column("unit", False)],
+                [[name, f"{value:.5g}", f"{result['mae_constant'][name]:.5g}", units.get(name, "")]
+                 for name, value in result.get("mae", {}).items()])
 
 
 @app.command("serve")
@@ -478,6 +545,7 @@ def lockstep(
     episodes: Annotated[int | None, typer.Option(help="episodes to run with --policy")] = None,
     seed: Annotated[int, typer.Option(help="seed")] = 0,
     trust_pickles: TrustPickles = False,
+    json_out: JsonOutput = False,
 ) -> None:
     """Run two twins side by side with the same commands; log the per-period state difference."""
     from dualtwin.sync import run_lockstep, write_sync_report
@@ -491,8 +559,13 @@ def lockstep(
         result = run_lockstep(primary, secondary, robot, out_dir=out, suite=scenarios, policy=policy, resync=resync,
                               seed=seed, episodes=episodes)
     report = write_sync_report(out / "report", lockstep=result)
-    for episode in result.episodes:
-        console.print(f"  {episode.id:<28} mean normalised error {episode.mean_error:.4g}")
+    if json_out:
+        emit_json({"report": str(report), "manifest": result.manifest})
+        return
+    print_table(console, [Column("episode", False), Column("status", False), Column("periods"), Column("re-syncs"),
+                          Column("mean normalised error"), Column("max normalised error")],
+                [[e.id, e.status, str(e.steps), str(e.resyncs), f"{e.mean_error:.4g}", f"{e.max_error:.4g}"]
+                 for e in result.episodes])
     console.print(f"report: {report}")
 
 
@@ -505,6 +578,7 @@ def predict_error(
     secondary: Annotated[str, typer.Option(help="predicting twin")] = "mujoco",
     horizons: Annotated[str, typer.Option(help="horizons in control periods")] = "1,5,25",
     stride: Annotated[int, typer.Option(help="periods between synchronised start states")] = 5,
+    json_out: JsonOutput = False,
 ) -> None:
     """Short-horizon prediction error from synchronised states: the chaos-insensitive model mismatch."""
     from dualtwin.sync import prediction_error, write_sync_report
@@ -514,6 +588,12 @@ def predict_error(
     result = prediction_error(primary, secondary, robot, suite=scenarios, out_dir=out,
                               horizons=horizon_list, stride=stride)
     report = write_sync_report(out / "report", prediction=result)
+    if json_out:
+        emit_json({"report": str(report), "prediction": result.table})
+        return
+    by_h = result.table.get("by_horizon", {})
+    print_table(console, [Column("horizon [periods]"), Column("normalised RMS error")],
+                [[str(h), f"{row.get('normalized_rms', float('nan')):.4g}"] for h, row in by_h.items()])
     console.print(f"report: {report}")
 
 

@@ -836,9 +836,13 @@ def print_analysis(analysis: Analysis, console: Console, *, top: int = 10) -> No
         for row in floors[:top]:
             console.print(f"    {escape(row['scenario'])} / {escape(row['channel'])}: {escape(row['verdict'])}")
     if analysis.sensitivity:
+        from dualtwin.reporting import Column, print_table
+
         console.print("most sensitive knobs:")
-        for s in analysis.sensitivity[:5]:
-            console.print(f"    {escape(s.knob):<40} {s.sensitivity:10.4g}  {s.best_direction}")
+        print_table(console, [Column("knob", False), Column("sensitivity"), Column("to move toward A", False)],
+                    [[s.knob, "no effect" if s.sensitivity == 0 else f"{s.sensitivity:.4g}",
+                      "no effect" if s.best_direction == "none" else s.best_direction]
+                     for s in analysis.sensitivity[:5]])
     for note in analysis.notes:
         console.print(f"[yellow]note:[/] {escape(note)}")
     print_narrative(analysis.narrative, console)

@@ -394,30 +394,25 @@ def align_prediction(
 
 def _report_html(result: AlignResult, before: Mapping[str, Any], after: Mapping[str, Any],
                  config: PredictionAlignConfig) -> str:
-    from dualtwin.reporting import CSS as _CSS
+    from dualtwin.reporting import html_table, img_html, page_head
 
-    rows = "".join(
-        f"<tr><td class='l'>{html.escape(n)}</td><td>{k.nominal:.5g}</td><td>{k.fitted:.5g}</td>"
-        f"<td>{'–' if k.half_width_95 is None else f'{k.half_width_95:.2g}'}</td></tr>" for n, k in result.knobs.items())
+    knobs = html_table(["knob", "nominal", "fitted", "± 95 %", "unit"],
+                       [[n, f"{k.nominal:.5g}", f"{k.fitted:.5g}",
+                         "–" if k.half_width_95 is None else f"{k.half_width_95:.2g}", k.unit]
+                        for n, k in result.knobs.items()])
     horizons = [str(h) for h in config.horizons]
-    pred = "".join(
-        f"<tr><td>{h}</td><td>{before.get('by_horizon', {}).get(h, {}).get('normalized_rms', math.nan):.4g}</td>"
-        f"<td>{after.get('by_horizon', {}).get(h, {}).get('normalized_rms', math.nan):.4g}</td></tr>" for h in horizons)
+    pred = html_table(["horizon [periods]", "before", "after"],
+                      [[h, before.get("by_horizon", {}).get(h, {}).get("normalized_rms"),
+                        after.get("by_horizon", {}).get(h, {}).get("normalized_rms")] for h in horizons], left=())
     warnings = "".join(f"<li>{html.escape(w)}</li>" for w in result.warnings)
     image = ""
     if "plot" in result.files:
-        import base64
-
-        data = base64.b64encode((result.out_dir / result.files["plot"]).read_bytes()).decode("ascii")
-        image = f'<img alt="prediction error" src="data:image/png;base64,{data}">'
+        image = img_html((result.out_dir / result.files["plot"]).read_bytes(), "prediction error")
     cond = "–" if result.condition_number is None else f"{result.condition_number:.4g}"
-    return (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>Prediction alignment</title>"
-            f"<style>{_CSS}</style></head><body><h1>Alignment with the prediction objective</h1>"
+    return (f"{page_head('Prediction alignment')}<h1>Alignment with the prediction objective</h1>"
             f"<p>target <b>{html.escape(config.target)}</b>, reference <code>{html.escape(config.reference)}</code>, "
             f"optimizer {html.escape(result.optimizer)}: {html.escape(result.stop_reason)}; "
             f"{result.evaluations} evaluations; cond(JᵀJ) {cond}</p>"
             f"<p>objective (mean squared normalised prediction error): {result.objective_before:.4g} → "
-            f"<b>{result.objective_after:.4g}</b></p>"
-            f"<table><tr><th class='l'>knob</th><th>nominal</th><th>fitted</th><th>±95 %</th></tr>{rows}</table>"
-            f"<h2>Normalised RMS prediction error</h2><table><tr><th>horizon [periods]</th><th>before</th>"
-            f"<th>after</th></tr>{pred}</table>{image}<ul>{warnings}</ul></body></html>")
+            f"<b>{result.objective_after:.4g}</b></p>{knobs}"
+            f"<h2>Normalised RMS prediction error</h2>{pred}{image}<ul>{warnings}</ul></body></html>")

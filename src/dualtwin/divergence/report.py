@@ -24,6 +24,8 @@ from dualtwin.divergence.metrics import ChannelDivergence
 from dualtwin.divergence.runs import RunComparison, ScenarioComparison
 from dualtwin.reporting import (
     Column,
+    Progress,
+    ProgressCallback,
     Trace,
     esc,
     evidence_html,
@@ -190,7 +192,7 @@ def _render_html(
 
 
 def write_report(comparison: RunComparison, out_dir: Path, label_a: str | None = None,
-                 label_b: str | None = None) -> Path:
+                 label_b: str | None = None, *, progress: ProgressCallback | None = None) -> Path:
     """Write ``metrics.json``, ``plots/<scenario>__<channel>.png`` and ``report.html`` into ``out_dir``.
 
     Every file is written atomically (`dualtwin.artifacts`).
@@ -200,6 +202,7 @@ def write_report(comparison: RunComparison, out_dir: Path, label_a: str | None =
         out_dir: Output directory, created if needed.
         label_a: Display name of side A (default: its twin name, from the run manifest; see `twin_labels`).
         label_b: Display name of side B.
+        progress: Called after each scenario's plots (stage ``report``).
 
     Returns:
         Path of ``report.html``.
@@ -217,6 +220,7 @@ def write_report(comparison: RunComparison, out_dir: Path, label_a: str | None =
     write_text(out_dir / "metrics.json", json.dumps(metrics, indent=2, allow_nan=False) + "\n")
 
     images: dict[tuple[str, str], bytes] = {}
+    counter = Progress(progress, "report", len(comparison.scenarios))
     for sc in comparison.scenarios:
         for channel in comparison.channel_names:
             if channel not in sc.series_a and channel not in sc.series_b:
@@ -225,6 +229,7 @@ def write_report(comparison: RunComparison, out_dir: Path, label_a: str | None =
             png = png_bytes(fig)
             images[(sc.id, channel)] = png
             write_bytes(out_dir / "plots" / f"{slug(sc.id)}__{slug(channel)}.png", png)
+        counter.advance(message=sc.id)
 
     report = out_dir / "report.html"
     write_text(report, _render_html(comparison, label_a, label_b, images))

@@ -8,6 +8,8 @@ package may use this module.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 from dualtwin.reporting.pages import (
     CSS,
     esc,
@@ -19,9 +21,22 @@ from dualtwin.reporting.pages import (
     png_bytes,
     slug,
 )
-from dualtwin.reporting.plots import Trace, plot_overlay, plot_unit_groups
 from dualtwin.reporting.progress import Progress, ProgressCallback, ProgressEvent, report_progress
 from dualtwin.reporting.tables import Column, configure_console, emit_json, print_table
+
+if TYPE_CHECKING:
+    from dualtwin.reporting.plots import Trace, plot_overlay, plot_unit_groups
+
+_PLOT_NAMES = ("Trace", "plot_overlay", "plot_unit_groups")
+
+
+def __getattr__(name: str) -> Any:
+    # matplotlib is imported only when a plot helper is used, so the CLI starts fast.
+    if name in _PLOT_NAMES:
+        from dualtwin.reporting import plots
+
+        return getattr(plots, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 __all__ = [
     "CSS",

@@ -14,9 +14,10 @@ import io
 import math
 import re
 from collections.abc import Iterable, Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from matplotlib.figure import Figure
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 CSS = """
 body{font-family:system-ui,sans-serif;margin:2em;color:#222;max-width:1200px}
@@ -97,7 +98,8 @@ def evidence_html(evidence: Any, depth: int = 0) -> str:
             return "–"
         rows = "".join(f"<tr><th class=l>{html.escape(str(k).replace('_', ' '))}</th>"
                        f"<td class=l>{evidence_html(v, depth + 1)}</td></tr>" for k, v in evidence.items())
-        return f"<table class='evidence'>{rows}</table>"
+        table = f"<table class='evidence'>{rows}</table>"
+        return f"<div class='scroll'>{table}</div>" if depth == 0 else table
     if isinstance(evidence, list | tuple):
         if not evidence:
             return "–"
