@@ -332,3 +332,34 @@ def test_controller_still_busy_after_minus_one_is_terminated(
     captured = capsys.readouterr()
     assert "cleanup" in captured.out and "forced termination" in captured.err
     assert 0.9 < elapsed < 10.0
+
+
+def test_add_force_and_torque_act_for_one_basic_step() -> None:
+    text = """#VRML_SIM R2023b utf8
+WorldInfo { basicTimeStep 8 gravity 0 }
+DEF FREE Solid {
+  rotation 0 0 1 1.5707963267948966
+  boundingObject Box { size 0.1 0.1 0.1 } physics Physics { density -1 mass 2 }
+}
+DEF ME Robot { supervisor TRUE }
+"""
+    sim = Simulation(load_world_text(text))
+    sup = Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    free = sup.getFromDef("FREE")
+    free.addForce(np.array([10.0, 0.0, 0.0]), False)
+    sup.step(32)  # four basic steps: the force acts during the first only
+    assert free.getVelocity()[:3] == pytest.approx([10 / 2 * 0.008, 0.0, 0.0], abs=1e-12)
+    free.setVelocity([0.0] * 6)
+    sup.step(8)
+    free.addForce([1.0, 0.0, 0.0], True)  # the Solid's x axis is the world's y axis
+    sup.step(8)
+    assert free.getVelocity()[:3] == pytest.approx([0.0, 1 / 2 * 0.008, 0.0], abs=1e-12)
+    free.setVelocity([0.0] * 6)
+    sup.step(8)
+    free.addTorque([0.0, 0.0, 0.01], False)
+    sup.step(8)
+    inertia = 2 * (0.1**2 + 0.1**2) / 12
+    assert free.getVelocity()[3:] == pytest.approx([0.0, 0.0, 0.01 / inertia * 0.008], abs=1e-12)
+    with pytest.raises(TypeError, match=r"Node\.addForce\(\)"):
+        free.addForce(["1", 0, 0], False)
+    sim.close()

@@ -986,6 +986,30 @@ class Node:
         if solid is not None:
             self._sim.reset_physics(solid)
 
+    def _push(self, method: str, vector: Any, relative: Any, torque: bool) -> None:
+        """Add a force or torque to the Solid's body for the next basic step only (ODE clears it after)."""
+        values = as_floats(vector, method)
+        if len(values) != 3 or not _finite(*values):
+            _warn(f"{method}() needs 3 finite values")
+            return
+        solid = self._solid()
+        if solid is None or solid.body is None:
+            _warn(f"{method}() called on a node without physics: ignored")
+            return
+        if relative:
+            values = list(m3.mat_vec(self._sim.solid_world_pose(solid).R, values))
+        lib = self._sim._lib
+        (lib.dBodyAddTorque if torque else lib.dBodyAddForce)(solid.body.ptr, *values)
+        lib.dBodyEnable(solid.body.ptr)
+
+    def addForce(self, force: Sequence[float], relative: bool) -> None:
+        """A force at the centre of mass, in world axes (or the Solid's with ``relative``), for one step."""
+        self._push("Node.addForce", force, relative, torque=False)
+
+    def addTorque(self, torque: Sequence[float], relative: bool) -> None:
+        """A torque on the body, in world axes (or the Solid's with ``relative``), for one step."""
+        self._push("Node.addTorque", torque, relative, torque=True)
+
     def getField(self, fieldName: str) -> Field | None:
         if fieldName not in self._node.fields:
             return None
