@@ -499,8 +499,9 @@ def deploy(
 
     from dualtwin.server.client import deploy as run_deploy
 
-    result = run_deploy(server, env, episodes, seed=seed,
-                        api_key=os.environ.get(api_key_env) if api_key_env else None)
+    with report_progress() as progress:
+        result = run_deploy(server, env, episodes, seed=seed,
+                            api_key=os.environ.get(api_key_env) if api_key_env else None, progress=progress)
     console.print_json(json.dumps(result, default=str))
 
 

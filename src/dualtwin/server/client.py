@@ -25,6 +25,7 @@ import numpy as np
 
 from dualtwin.errors import DualtwinError
 from dualtwin.perception.onnx_policy import POLICY_CONTRACT, POLICY_FILE, OnnxPolicy
+from dualtwin.reporting import Progress, ProgressCallback
 
 
 def encode_png(frame: np.ndarray) -> str:
@@ -202,7 +203,7 @@ def _read_info(http: Any) -> dict[str, Any]:
 
 def deploy(server_url: str, env_id: str, episodes: int, *, seed: int = 0, api_key: str | None = None,
            policy_dir: Path | str | None = None, max_steps: int | None = None, frame_format: str = "png",
-           compare: bool = True, timeout: float = 10.0) -> dict[str, Any]:
+           compare: bool = True, timeout: float = 10.0, progress: ProgressCallback | None = None) -> dict[str, Any]:
     """Run ``episodes`` episodes through the server (see :func:`_deploy`); a server that cannot be reached or
     answers out of protocol is a :class:`DualtwinError` naming the URL.
     """
@@ -210,7 +211,8 @@ def deploy(server_url: str, env_id: str, episodes: int, *, seed: int = 0, api_ke
 
     try:
         return _deploy(server_url, env_id, episodes, seed=seed, api_key=api_key, policy_dir=policy_dir,
-                       max_steps=max_steps, frame_format=frame_format, compare=compare, timeout=timeout)
+                       max_steps=max_steps, frame_format=frame_format, compare=compare, timeout=timeout,
+                       progress=progress)
     except httpx.TimeoutException as exc:
         raise DualtwinError(f"--server {server_url}: no answer within {timeout:g} s ({type(exc).__name__})") from None
     except httpx.TransportError as exc:
@@ -220,7 +222,7 @@ def deploy(server_url: str, env_id: str, episodes: int, *, seed: int = 0, api_ke
 
 def _deploy(server_url: str, env_id: str, episodes: int, *, seed: int = 0, api_key: str | None = None,
             policy_dir: Path | str | None = None, max_steps: int | None = None, frame_format: str = "png",
-            compare: bool = True, timeout: float = 10.0) -> dict[str, Any]:
+            compare: bool = True, timeout: float = 10.0, progress: ProgressCallback | None = None) -> dict[str, Any]:
     """Run ``episodes`` episodes of ``env_id`` through the server; compare with the privileged-state policy.
 
     Args:
@@ -234,6 +236,8 @@ def _deploy(server_url: str, env_id: str, episodes: int, *, seed: int = 0, api_k
         frame_format: ``png`` or ``raw`` frames.
         compare: also run the privileged-state policy.
         timeout: seconds per request.
+        progress: Called after each episode, through the server (stage ``deploy``) and with the privileged
+            policy (stage ``deploy: privileged baseline``).
 
     Returns:
         Rewards per episode for both, their means and ratio, the estimate's error on the privileged
@@ -274,6 +278,8 @@ def _deploy(server_url: str, env_id: str, episodes: int, *, seed: int = 0, api_k
             camera_renderer = TwinCamera(twin_env.twin, spec, width, height)
             discrete = info["policy"]["action"].get("type") == "discrete"
             served, errors, latencies = [], [], []
+            served_progress = Progress(progress, "deploy", episodes)
+            baseline_progress = Progress(progress, "deploy: privileged baseline", episodes)
             try:
                 for episode in range(episodes):
                     obs, _ = env.reset(seed=seed + episode)
@@ -303,6 +309,7 @@ def _deploy(server_url: str, env_id: str, episodes: int, *, seed: int = 0, api_k
                         step += 1
                         done = terminated or truncated
                     served.append(total)
+                    served_progress.advance(message=f"reward {total:g}")
             finally:
                 camera_renderer.close()
             baseline: list[float] = []
@@ -315,6 +322,7 @@ def _deploy(server_url: str, env_id: str, episodes: int, *, seed: int = 0, api_k
                         total += float(reward)
                         done = terminated or truncated
                     baseline.append(total)
+                    baseline_progress.advance(message=f"reward {total:g}")
         finally:
             env.close()
     lat = np.asarray(latencies) * 1000.0
