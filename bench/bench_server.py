@@ -58,7 +58,7 @@ def models(root: Path) -> tuple[Path, Path]:
         export_reference_policy(root / "policy")
         policy = str(root / "policy")
     if perception is None:
-        os.environ.setdefault("MUJOCO_GL", "egl")  # a benchmark script, not library code
+        # No MUJOCO_GL needed: without a display, `import dualtwin` picks EGL (else OSMesa) itself.
         from dualtwin.perception.dataset import collect
         from dualtwin.perception.model import train_perception
 

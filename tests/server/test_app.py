@@ -105,7 +105,7 @@ def png(image_size: tuple[int, int], mode: str = "RGB") -> str:
     return base64.b64encode(buffer.getvalue()).decode()
 
 
-BAD = {
+BAD: dict[str, tuple[dict[str, Any], int, str]] = {
     "malformed base64": ({"frame": {"png_base64": "@@not base64@@"}}, 422, "base64"),
     "not an image": ({"frame": {"png_base64": base64.b64encode(b"hello world").decode()}}, 422, "PNG"),
     "truncated png": ({"frame": {"png_base64": png((SIZE, SIZE))[:60]}}, 422, "PNG"),

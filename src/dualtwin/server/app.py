@@ -15,34 +15,47 @@ Endpoints:
 * ``GET /v1/policy.onnx``: the served policy file (lets a client compare with privileged-state control).
 
 Safety: models are ONNX only, loaded once by ONNX Runtime when the app is created (a file that is not ONNX
-is a :class:`DualtwinError` before anything listens); nothing from the user is unpickled. Optional API key
-(``X-API-Key``, compared in constant time; 401 otherwise), request bodies above ``max_body_bytes`` get 413
-before they are parsed, frames above ``max_frame_pixels`` get 413 before they are decoded, everything else
-malformed gets 400/422 with a message. Endpoints are synchronous, so FastAPI runs them in its thread pool;
-ONNX Runtime sessions are safe for concurrent ``run`` calls. Each session id keeps its own frame history and
-filter; at most ``max_sessions`` are kept (least recently used dropped first).
+is a :class:`DualtwinError` before anything listens); nothing from the user is unpickled. Optional API keys
+(``X-API-Key``, compared in constant time; 401 otherwise); with a key set, ``/openapi.json`` needs it too and
+the browser docs (``/docs``, ``/redoc``, which cannot send the header) are off. Every client is bounded:
+request bodies above ``max_body_bytes`` get 413 before they are parsed, frames above ``max_frame_pixels`` get
+413 before they are decoded (PNG only: Pillow is told to try no other format), an optional request rate per
+client (429), and sessions (below); everything else malformed gets 400/422 with a message, never a 5xx.
+ONNX Runtime sessions are safe for concurrent ``run`` calls; inference runs in the thread pool.
+
+Sessions (decision): a session id names one robot's frame history and filter *within its owner's namespace*.
+The owner is the API key the request carries, or, without keys, the client's network address: another key
+or another machine cannot reset, poison or evict a robot's history, whatever session id it sends. Each owner
+keeps at most ``max_sessions`` (its own least recently used dropped first), the server at most
+``max_total_sessions`` (a new session beyond that gets 429 rather than evicting someone else's), and a
+session idle for ``session_idle_s`` (monotonic wall clock: server housekeeping, not a log) is dropped.
 """
 
 from __future__ import annotations
 
 import base64
 import binascii
+import hashlib
 import hmac
 import io
+import ipaddress
 import json
 import math
+import sys
 import threading
 import time
 from collections import OrderedDict
-from collections.abc import AsyncIterator, Awaitable, Callable, MutableMapping
+from collections.abc import AsyncIterator, Awaitable, Callable, MutableMapping, Sequence
 from contextlib import asynccontextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-from fastapi import Depends, FastAPI, HTTPException, Request
+from fastapi import Depends, FastAPI, HTTPException, Request, Security
+from fastapi.openapi.utils import get_openapi
 from fastapi.responses import JSONResponse, Response
+from fastapi.security import APIKeyHeader
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from starlette.concurrency import run_in_threadpool
 
@@ -54,6 +67,10 @@ API_VERSION = "v1"
 DEFAULT_MAX_BODY_BYTES = 1 << 20
 DEFAULT_MAX_FRAME_PIXELS = 1 << 20
 DEFAULT_MAX_SESSIONS = 64
+DEFAULT_MAX_TOTAL_SESSIONS = 1024
+DEFAULT_SESSION_IDLE_S = 600.0
+#: Sensor readings beyond float32's range would become inf inside the policy.
+FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 Scope = MutableMapping[str, Any]
 Message = MutableMapping[str, Any]
@@ -71,54 +88,132 @@ class FramePayload(_Strict):
 
     png_base64: str | None = None
     data_base64: str | None = None
-    shape: list[int] | None = Field(default=None, description="[height, width, 3] for raw data")
+    shape: list[int] | None = Field(default=None, max_length=3, description="[height, width, 3] for raw data")
     dtype: Literal["uint8"] | None = None
 
 
 class ActRequest(_Strict):
     session: str = Field(min_length=1, max_length=128, pattern=r"^[A-Za-z0-9_.:\-]+$",
-                         description="client-chosen id; frame history and filter are kept per session")
+                         description="client-chosen id; frame history and filter are kept per session, in the "
+                                     "namespace of the caller's API key (or address, without keys)")
     sensors: dict[str, float] = Field(description="on-board readings named as the policy's onboard observations")
     frame: FramePayload
     reset: bool = Field(default=False, description="start a new episode: drop this session's history first")
     time_s: float | None = Field(default=None, description="robot time of the readings (echoed back)")
 
 
+class ActResponse(BaseModel):
+    """The action for one request, and what it was computed from."""
+
+    session: str
+    new_session: bool = Field(description="true if this request started the session (new, reset or expired)")
+    step: int = Field(description="frames seen by this session")
+    action: int | list[float] = Field(description="the policy's action (discrete index or normalised vector)")
+    command: dict[str, float | str | None] = Field(description="the action in physical units, with 'unit'")
+    observation: dict[str, float] = Field(description="the observation the policy saw")
+    sources: dict[str, str] = Field(description="'onboard' (from the request) or 'perception' per observation")
+    estimate: dict[str, float] = Field(description="the perception model's estimate")
+    time_s: float | None
+
+
+class ErrorResponse(BaseModel):
+    detail: Any = Field(description="what was wrong: a message, or pydantic's list of validation errors")
+
+
 @dataclass
 class _Session:
     estimator: EstimatorSession
+    last_used: float
     lock: threading.Lock = field(default_factory=threading.Lock)
     requests: int = 0
 
 
 class _Sessions:
-    """At most ``limit`` sessions, least recently used dropped first; thread-safe."""
+    """Sessions keyed by (owner, session id): per-owner LRU bound, a global bound, idle expiry; thread-safe."""
 
-    def __init__(self, estimator: StateEstimator, velocity: str, limit: int) -> None:
-        self.estimator, self.velocity, self.limit = estimator, velocity, limit
-        self._items: OrderedDict[str, _Session] = OrderedDict()
+    def __init__(self, estimator: StateEstimator, velocity: str, limit: int, total: int, idle_s: float,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.estimator, self.velocity, self.limit, self.total, self.idle_s = estimator, velocity, limit, total, idle_s
+        self.clock = clock
+        self._owners: dict[str, OrderedDict[str, _Session]] = {}
+        # Every session in order of last use, oldest first: expiry pops from the front.
+        self._order: OrderedDict[tuple[str, str], None] = OrderedDict()
         self._lock = threading.Lock()
         self.evicted = 0
+        self.expired = 0
 
-    def get(self, key: str) -> tuple[_Session, bool]:
+    def get(self, owner: str, key: str) -> tuple[_Session, bool]:
+        now = self.clock()
         with self._lock:
-            item = self._items.get(key)
-            created = item is None
-            if item is None:
-                item = self._items[key] = _Session(self.estimator.session(self.velocity))
-                while len(self._items) > self.limit:
-                    self._items.popitem(last=False)
-                    self.evicted += 1
-            else:
-                self._items.move_to_end(key)
-            return item, created
+            self._expire(now)
+            mine = self._owners.setdefault(owner, OrderedDict())
+            item = mine.get(key)
+            if item is not None:
+                mine.move_to_end(key)
+                self._order.move_to_end((owner, key))
+                item.last_used = now
+                return item, False
+            if len(mine) >= self.limit:
+                # Only the owner's own oldest session makes room: nobody else's history is touched.
+                old, _ = mine.popitem(last=False)
+                del self._order[(owner, old)]
+                self.evicted += 1
+            elif len(self._order) >= self.total:
+                if not mine:
+                    del self._owners[owner]
+                raise HTTPException(429, f"the server holds its maximum of {self.total} sessions; retry later "
+                                         f"(sessions idle for {self.idle_s:g} s are dropped)")
+            item = mine[key] = _Session(self.estimator.session(self.velocity), now)
+            self._order[(owner, key)] = None
+            return item, True
+
+    def _expire(self, now: float) -> None:
+        while self._order:
+            owner, key = next(iter(self._order))
+            mine = self._owners[owner]
+            if now - mine[key].last_used < self.idle_s:
+                break
+            del self._order[(owner, key)]
+            del mine[key]
+            if not mine:
+                del self._owners[owner]
+            self.expired += 1
+
+    def count(self, owner: str) -> int:
+        with self._lock:
+            self._expire(self.clock())
+            return len(self._owners.get(owner, ()))
 
     def __len__(self) -> int:
-        return len(self._items)
+        return len(self._order)
 
     def clear(self) -> None:
         with self._lock:
-            self._items.clear()
+            self._owners.clear()
+            self._order.clear()
+
+
+class _RateLimit:
+    """A token bucket per owner: ``rate`` requests/s sustained, bursts of ``burst``; thread-safe."""
+
+    def __init__(self, rate: float, burst: float, clock: Callable[[], float] = time.monotonic) -> None:
+        self.rate, self.burst, self.clock = rate, burst, clock
+        self._buckets: dict[str, tuple[float, float]] = {}
+        self._lock = threading.Lock()
+
+    def allow(self, owner: str) -> bool:
+        now = self.clock()
+        with self._lock:
+            tokens, then = self._buckets.get(owner, (self.burst, now))
+            tokens = min(self.burst, tokens + (now - then) * self.rate)
+            if len(self._buckets) > 4096:  # forget owners whose buckets are full again (bounded memory)
+                self._buckets = {k: v for k, v in self._buckets.items()
+                                 if v[0] + (now - v[1]) * self.rate < self.burst}
+            if tokens < 1.0:
+                self._buckets[owner] = (tokens, now)
+                return False
+            self._buckets[owner] = (tokens - 1.0, now)
+            return True
 
 
 @dataclass
@@ -210,7 +305,8 @@ def decode_frame(payload: FramePayload, height: int, width: int, max_pixels: int
         from PIL import Image, UnidentifiedImageError
 
         try:
-            image = Image.open(io.BytesIO(raw))
+            # PNG only: Pillow must not parse (or even identify) the header of any other format it knows.
+            image = Image.open(io.BytesIO(raw), formats=["PNG"])
             w, h = image.size  # header only: the pixels are not decoded yet
             if w * h > max_pixels:
                 raise HTTPException(413, f"frame of {w}x{h} pixels exceeds the limit of {max_pixels} pixels")
@@ -223,7 +319,11 @@ def decode_frame(payload: FramePayload, height: int, width: int, max_pixels: int
             pixels = np.asarray(image.convert("RGB"), dtype=np.uint8)
         except HTTPException:
             raise
-        except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as exc:
+        except UnidentifiedImageError:
+            raise HTTPException(422, "frame: not a PNG image") from None
+        except Image.DecompressionBombError:  # Pillow's own header check, for sizes far beyond ours
+            raise HTTPException(413, f"frame: the PNG header claims more than {max_pixels} pixels") from None
+        except Exception as exc:  # noqa: BLE001 - any decoder failure on untrusted bytes is the client's bad data
             raise HTTPException(422, f"frame: not a readable PNG image ({type(exc).__name__})") from None
         return pixels
     if payload.shape is None or payload.dtype is None:
@@ -240,20 +340,40 @@ def decode_frame(payload: FramePayload, height: int, width: int, max_pixels: int
     return np.frombuffer(raw, dtype=np.uint8).reshape(height, width, 3)
 
 
-def create_app(policy_dir: Path | str, perception_dir: Path | str, *, api_key: str | None = None,
+def _keys(api_key: str | Sequence[str] | None) -> list[bytes]:
+    keys = [api_key] if isinstance(api_key, str) else list(api_key or [])
+    if any(not isinstance(k, str) or not k for k in keys):
+        raise DualtwinError("an API key must not be empty (omit it to serve without one)")
+    return [k.encode() for k in keys]
+
+
+def create_app(policy_dir: Path | str, perception_dir: Path | str, *, api_key: str | Sequence[str] | None = None,
                max_body_bytes: int = DEFAULT_MAX_BODY_BYTES, max_frame_pixels: int = DEFAULT_MAX_FRAME_PIXELS,
-               max_sessions: int = DEFAULT_MAX_SESSIONS, velocity: str = DEFAULT_VELOCITY) -> FastAPI:
+               max_sessions: int = DEFAULT_MAX_SESSIONS, max_total_sessions: int = DEFAULT_MAX_TOTAL_SESSIONS,
+               session_idle_s: float = DEFAULT_SESSION_IDLE_S, max_requests_per_s: float | None = None,
+               velocity: str = DEFAULT_VELOCITY) -> FastAPI:
     """The RobotServer app for an exported policy folder and a perception model folder.
+
+    Args:
+        api_key: one key or several; each key is its own session namespace. None: no key, sessions are kept
+            per client address.
+        max_sessions: sessions per key (or per client address without keys).
+        max_total_sessions: sessions in the whole server.
+        session_idle_s: a session unused this long is dropped.
+        max_requests_per_s: optional sustained request rate per key or client address (bursts of one
+            second's worth); 429 beyond it.
 
     Raises:
         DualtwinError: a model is missing, is not ONNX, or the two do not fit together (before serving).
     """
-    if max_body_bytes < 1024 or max_frame_pixels < 1 or max_sessions < 1:
-        raise DualtwinError("max_body_bytes must be >= 1024, max_frame_pixels and max_sessions >= 1")
+    if max_body_bytes < 1024 or max_frame_pixels < 1 or max_sessions < 1 or max_total_sessions < max_sessions:
+        raise DualtwinError("max_body_bytes must be >= 1024, max_frame_pixels and max_sessions >= 1, and "
+                            "max_total_sessions >= max_sessions")
+    if not session_idle_s > 0 or (max_requests_per_s is not None and not max_requests_per_s > 0):
+        raise DualtwinError("session_idle_s and max_requests_per_s must be > 0")
     if velocity not in VELOCITY_MODES:
         raise DualtwinError(f"unknown velocity mode {velocity!r} (available: {', '.join(VELOCITY_MODES)})")
-    if api_key is not None and not api_key:
-        raise DualtwinError("the API key must not be empty (omit it to serve without one)")
+    keys = _keys(api_key)
     # Loaded once, here, so a bad file fails before anything listens; the lifespan owns them afterwards.
     models = ServerModels.load(policy_dir, perception_dir)
     policy, perception = models.policy, models.perception
@@ -261,25 +381,41 @@ def create_app(policy_dir: Path | str, perception_dir: Path | str, *, api_key: s
     onboard = policy.onboard
     height, width = perception.height, perception.width
     policy_bytes = (policy.directory / POLICY_FILE).read_bytes()
+    limiter = _RateLimit(max_requests_per_s, max(1.0, max_requests_per_s)) if max_requests_per_s else None
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         app.state.models = models
-        app.state.sessions = _Sessions(perception, velocity, max_sessions)
+        app.state.sessions = _Sessions(perception, velocity, max_sessions, max_total_sessions, session_idle_s)
         app.state.started = time.time()
         yield
         app.state.sessions.clear()
 
-    app = FastAPI(title="dualtwin RobotServer", version=API_VERSION, lifespan=lifespan)
-    key_bytes = api_key.encode() if api_key else None
+    # With a key the schema needs it too, and the browser docs (which cannot send the header) are off.
+    app = FastAPI(title="dualtwin RobotServer", version=API_VERSION, lifespan=lifespan,
+                  openapi_url=None if keys else "/openapi.json", docs_url=None if keys else "/docs",
+                  redoc_url=None if keys else "/redoc")
+    key_header = APIKeyHeader(name="X-API-Key", auto_error=False,
+                              description="the server's API key; sessions are kept per key")
 
-    def check_key(request: Request) -> None:
-        if key_bytes is None:
-            return
-        given = request.headers.get("x-api-key", "")
-        # Constant-time compare: the time taken reveals nothing about how much of the key matched.
-        if not hmac.compare_digest(given.encode(), key_bytes):
-            raise HTTPException(401, "missing or wrong API key (header X-API-Key)")
+    async def owner(request: Request, given: str | None = Security(key_header)) -> str:
+        """Who is asking: their key's namespace (401 without a valid key), or their address without keys."""
+        if keys:
+            presented = (given or "").encode()
+            # Constant-time compare against every key: the time taken reveals nothing about a key.
+            matched = [hmac.compare_digest(presented, key) for key in keys]
+            if not any(matched):
+                raise HTTPException(401, "missing or wrong API key (header X-API-Key)")
+            who = "key:" + hashlib.sha256(presented).hexdigest()[:16]
+        else:
+            who = "client:" + (request.client.host if request.client else "unknown")
+        if limiter is not None and not limiter.allow(who):
+            raise HTTPException(429, f"more than {max_requests_per_s:g} requests/s from this client; slow down")
+        return who
+
+    errors: dict[int | str, dict[str, Any]] = {
+        401: {"model": ErrorResponse, "description": "missing or wrong API key"},
+        429: {"model": ErrorResponse, "description": "request rate or session limit reached"}}
 
     info = {
         "api_version": API_VERSION,
@@ -298,11 +434,13 @@ def create_app(policy_dir: Path | str, perception_dir: Path | str, *, api_key: s
             "estimated": [t["name"] for t in policy.terms if t["name"] not in onboard],
             "frame": {"formats": ["png_base64", "data_base64 + shape + dtype"], "shape": [height, width, 3],
                       "dtype": "uint8", "order": "RGB, row-major from the top-left pixel"},
-            "session": "one id per robot/episode stream; reset=true at an episode start",
+            "session": "one id per robot/episode stream; reset=true at an episode start; ids are scoped to the "
+                       "API key (or the client address without keys)",
         },
         "limits": {"max_body_bytes": max_body_bytes, "max_frame_pixels": max_frame_pixels,
-                   "max_sessions": max_sessions},
-        "auth": "X-API-Key header" if key_bytes else None,
+                   "max_sessions": max_sessions, "max_total_sessions": max_total_sessions,
+                   "session_idle_s": session_idle_s, "max_requests_per_s": max_requests_per_s},
+        "auth": "X-API-Key header" if keys else None,
     }
 
     @app.exception_handler(DualtwinError)
@@ -310,30 +448,42 @@ def create_app(policy_dir: Path | str, perception_dir: Path | str, *, api_key: s
         return JSONResponse(status_code=422, content={"detail": str(exc)})
 
     @app.get("/healthz")
-    def healthz() -> dict[str, Any]:
+    async def healthz() -> dict[str, str]:
         return {"status": "ok"}
 
-    @app.get(f"/{API_VERSION}/info", dependencies=[Depends(check_key)])
-    def get_info(request: Request) -> dict[str, Any]:
-        return {**info, "sessions": len(request.app.state.sessions)}
+    @app.get(f"/{API_VERSION}/info", responses=errors)
+    async def get_info(request: Request, who: str = Depends(owner)) -> dict[str, Any]:
+        """The I/O contract; ``sessions`` counts the caller's own sessions."""
+        return {**info, "sessions": request.app.state.sessions.count(who)}
 
-    @app.get(f"/{API_VERSION}/policy.onnx", dependencies=[Depends(check_key)])
-    def get_policy() -> Response:
+    @app.get(f"/{API_VERSION}/policy.onnx", dependencies=[Depends(owner)], response_class=Response,
+             responses={200: {"content": {"application/octet-stream": {"schema": {"type": "string",
+                                                                                  "format": "binary"}}},
+                              "description": "the served ONNX policy"}, **errors})
+    async def get_policy() -> Response:
         return Response(policy_bytes, media_type="application/octet-stream")
+
+    if keys:
+        @app.get("/openapi.json", include_in_schema=False, dependencies=[Depends(owner)])
+        async def get_openapi_json() -> JSONResponse:
+            return JSONResponse(app.openapi())
 
     action_names = policy.contract["action"].get("names", ["command"])
     action_unit = policy.contract["action"].get("unit")
     sources = {name: "onboard" if name in onboard else "perception" for name in policy.names}
 
-    def compute(body: ActRequest, sessions: _Sessions) -> bytes:
+    def compute(body: ActRequest, sessions: _Sessions, who: str) -> bytes:
         missing = [n for n in onboard if n not in body.sensors]
         unknown = sorted(set(body.sensors) - set(onboard))
         if missing or unknown:
             parts = ([f"missing {missing}"] if missing else []) + ([f"unknown {unknown}"] if unknown else [])
             raise HTTPException(422, f"sensors: {'; '.join(parts)}; send exactly the on-board observations "
                                      f"{onboard}")
+        huge = sorted(n for n, v in body.sensors.items() if abs(v) > FLOAT32_MAX)
+        if huge:
+            raise HTTPException(422, f"sensors: {huge} beyond the float32 range the policy computes in")
         frame = decode_frame(body.frame, height, width, max_frame_pixels)
-        session, created = sessions.get(body.session)
+        session, created = sessions.get(who, body.session)
         with session.lock:  # one request at a time per session: the frame history is ordered
             if body.reset:
                 session.estimator.reset()
@@ -345,39 +495,75 @@ def create_app(policy_dir: Path | str, perception_dir: Path | str, *, api_key: s
                        for name in policy.names}
         action, command = policy.run(np.array([list(observation.values())], dtype=np.float32))
         action_value: Any = int(action[0]) if policy.discrete else [float(v) for v in np.ravel(action[0])]
-        return json.dumps({
+        reply = {
             "session": body.session, "new_session": created, "step": steps, "action": action_value,
             "command": {**dict(zip(action_names, (float(v) for v in command[0]), strict=True)), "unit": action_unit},
             "observation": observation, "sources": sources, "estimate": estimated, "time_s": body.time_s,
-        }).encode()
+        }
+        try:
+            return json.dumps(reply, allow_nan=False).encode()
+        except ValueError:  # a non-finite estimate or action: the input drove the models out of range
+            raise HTTPException(422, "the frame and sensors drove the models to a non-finite result") from None
 
-    @app.post(f"/{API_VERSION}/act", openapi_extra={"requestBody": {"required": True, "content": {
-        "application/json": {"schema": ActRequest.model_json_schema()}}}})
-    async def act(request: Request) -> Response:
+    @app.post(f"/{API_VERSION}/act", response_model=None, responses={
+        200: {"model": ActResponse, "description": "the action"},
+        400: {"model": ErrorResponse, "description": "malformed request (e.g. an invalid Content-Length)"},
+        413: {"model": ErrorResponse, "description": "body or frame above the limits"},
+        422: {"model": ErrorResponse, "description": "invalid request"}, **errors},
+        openapi_extra={"requestBody": {"required": True, "content": {
+            "application/json": {"schema": {"$ref": "#/components/schemas/ActRequest"}}}}})
+    async def act(request: Request, who: str = Depends(owner)) -> Response:
         """The action for on-board sensor readings and a camera frame (see /v1/info for the contract)."""
-        check_key(request)
         # Parsed and validated by pydantic's JSON parser in one pass (faster than FastAPI's dict round trip).
         try:
             body = ActRequest.model_validate_json(await request.body())
         except ValidationError as exc:
-            errors = exc.errors(include_url=False, include_context=False, include_input=False)
-            return JSONResponse(status_code=422, content={"detail": errors})
+            problems = exc.errors(include_url=False, include_context=False, include_input=False)
+            return JSONResponse(status_code=422, content={"detail": problems})
         # Inference runs in the thread pool: ONNX Runtime releases the GIL, so requests overlap on the cores.
-        payload = await run_in_threadpool(compute, body, request.app.state.sessions)
+        payload = await run_in_threadpool(compute, body, request.app.state.sessions, who)
         return Response(payload, media_type="application/json")
 
+    def openapi() -> dict[str, Any]:
+        # The request body is parsed by hand (one pass), so its schema is added to the components here.
+        if app.openapi_schema is None:
+            schema = get_openapi(title=app.title, version=app.version, routes=app.routes)
+            components = schema.setdefault("components", {}).setdefault("schemas", {})
+            body = ActRequest.model_json_schema(ref_template="#/components/schemas/{model}")
+            components.update(body.pop("$defs", {}))
+            components["ActRequest"] = body
+            app.openapi_schema = schema
+        return app.openapi_schema
+
+    app.openapi = openapi  # type: ignore[method-assign]
     app.add_middleware(_BodyLimit, limit=max_body_bytes)
     return app
 
 
+def is_loopback(host: str) -> bool:
+    """True for addresses only this machine can reach (127.0.0.0/8, ::1, localhost)."""
+    if host.strip().lower() == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False  # a host name: it may resolve to any interface
+
+
 def serve(policy_dir: Path | str, perception_dir: Path | str, host: str = "127.0.0.1", port: int = 8000,
-          api_key: str | None = None, *, max_body_bytes: int = DEFAULT_MAX_BODY_BYTES,
+          api_key: str | Sequence[str] | None = None, *, max_body_bytes: int = DEFAULT_MAX_BODY_BYTES,
           max_frame_pixels: int = DEFAULT_MAX_FRAME_PIXELS, max_sessions: int = DEFAULT_MAX_SESSIONS,
-          velocity: str = DEFAULT_VELOCITY, log_level: str = "info") -> None:
+          max_total_sessions: int = DEFAULT_MAX_TOTAL_SESSIONS, session_idle_s: float = DEFAULT_SESSION_IDLE_S,
+          max_requests_per_s: float | None = None, velocity: str = DEFAULT_VELOCITY, log_level: str = "info") -> None:
     """Run the RobotServer with uvicorn until interrupted (models are checked before it listens)."""
     import uvicorn
 
     app = create_app(policy_dir, perception_dir, api_key=api_key, max_body_bytes=max_body_bytes,
-                     max_frame_pixels=max_frame_pixels, max_sessions=max_sessions, velocity=velocity)
+                     max_frame_pixels=max_frame_pixels, max_sessions=max_sessions,
+                     max_total_sessions=max_total_sessions, session_idle_s=session_idle_s,
+                     max_requests_per_s=max_requests_per_s, velocity=velocity)
+    if not api_key and not is_loopback(host):
+        print(f"warning: serving on {host} without an API key: anyone who can reach port {port} can drive the "
+              "policy and read its contract; set one with --api-key-env", file=sys.stderr)
     # No per-request access log: at hundreds of requests/s it costs more than inference.
     uvicorn.run(app, host=host, port=port, log_level=log_level, access_log=False)
