@@ -208,3 +208,31 @@ def test_a_robot_without_the_paper_channels_is_refused(tmp_path: Path, webots_ru
     with pytest.raises(DualtwinError, match="suite|pole_angle_rad"):
         import_paper(logs, cartpole_suite, "pioneer3at", tmp_path / "run")
     assert not (tmp_path / "run").exists()
+
+
+def test_cli_journey_import_compare_analyze(tmp_path: Path, webots_run: Path, mujoco_run: Path,
+                                            cartpole_suite: Path, write_paper_logs: Callable[..., Path],
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    from dualtwin.cli import main
+
+    logs = write_paper_logs(webots_run, tmp_path / "logs")
+    real = tmp_path / "real"
+    assert main(["import", "paper", str(logs), "--suite", str(cartpole_suite), "--robot", "cartpole",
+                 "--out", str(real)]) == 0
+    assert main(["compare", str(real), str(mujoco_run), "--out", str(tmp_path / "cmp")]) == 0
+    assert main(["analyze", str(real), str(mujoco_run), "--out", str(tmp_path / "an")]) == 0
+    out = capsys.readouterr().out
+    assert "left out channel pole_velocity_rad_s" in out
+    assert (tmp_path / "cmp" / "report.html").is_file() and (tmp_path / "an" / "analysis.json").is_file()
+    metrics = json.loads((tmp_path / "cmp" / "metrics.json").read_text())["comparison"]
+    assert {c for s in metrics["scenarios"] for c in s["channels"]} == {"pole_angle_rad", "cart_pos_m"}
+    assert metrics["twin_a"] == "recorded" and "pole_velocity_rad_s" in metrics["left_out"]["channels"]
+    # A log edited after the import is refused by every reader (the manifest holds its SHA-256).
+    log = real / "scenarios" / "00_Step_Response" / "ground_truth.tsv"
+    log.write_text(log.read_text().replace("\n0.", "\n1.", 1))
+    with pytest.raises(DualtwinError, match="ground_truth.tsv"):
+        load_run(real)
+    assert main(["import", "paper", str(tmp_path / "nowhere"), "--suite", str(cartpole_suite), "--robot",
+                 "cartpole", "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("error: ") and "nowhere: does not exist" in err[-1]
