@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 import socket
-import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -17,11 +16,7 @@ pytest.importorskip("fastapi")
 pytest.importorskip("uvicorn")
 pytest.importorskip("stable_baselines3")
 
-# Tests may choose a default backend (library code never does): Mesa EGL, headless, no GPU. MuJoCo reads the
-# variable when it is first imported; once another test module has imported it, leave the environment alone
-# (other tests read it to decide whether rendering is available).
-if "mujoco" not in sys.modules:
-    os.environ.setdefault("MUJOCO_GL", "egl")
+# No MUJOCO_GL here: without a display, `import dualtwin` picks EGL (else OSMesa) itself (tests/test_headless.py).
 
 ENV = "dualtwin/CartPole-MuJoCo-Continuous-v0"
 SIZE = 32
