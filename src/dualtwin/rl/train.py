@@ -607,10 +607,11 @@ class _Trainer:
         folder = self.out / "checkpoints"
         folder.mkdir(parents=True, exist_ok=True)
         steps = int(model.num_timesteps)
-        model.save(str(folder / f"rl_model_{steps}_steps.zip"))
+        # Statistics first: a checkpoint counts (resume looks for the zip) only once both files are there.
         stats: VecNormalize | None = model.get_vec_normalize_env()
         if stats is not None:
             save_normalization(stats, folder / f"rl_model_vecnormalize_{steps}_steps.json")
+        model.save(str(folder / f"rl_model_{steps}_steps.zip"))
 
     def _restore_evaluations(self, evaluation: EvalCallback) -> None:
         """On resume, carry the evaluation history (evaluations.npz, best reward) up to the checkpoint."""
