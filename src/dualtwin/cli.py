@@ -371,7 +371,7 @@ def transfer(
                               policy_control=policy_control, episodes=episodes, seed=seed, out_dir=out, which=which)
         progress(ProgressEvent("transfer", len(report.rows), len(report.rows), "rows evaluated"))
     if json_out:
-        emit_json({"out": str(out), "rows": [{"label": row.label, "summary": row.summary()} for row in report.rows]})
+        emit_json({"out": str(out), **report.to_dict()})
         return
     print_table(console, [Column("row", False), Column("result", False)],
                 [[row.label, row.summary()] for row in report.rows])
