@@ -68,7 +68,8 @@ def _drift_png(folder: Path, manifest: Mapping[str, Any], events: Sequence[Mappi
                        "mean_error": float(np.mean(err)), "max_error": float(np.max(err))})
         offset = float(t[-1])
     plot_overlay(ax, traces, ylabel="normalised state error [1 = one scale unit off]",
-                 title="drift over time (episodes back to back)")
+                 title=f"{manifest.get('secondary', 'secondary')} against {manifest.get('primary', 'primary')} "
+                       "(primary): drift over time, episodes back to back")
     for when in resync_times[:400]:
         ax.axvline(when, color="0.8", linewidth=0.5, zorder=0)
     colors = {"alarm_raised": "red", "alarm_cleared": "green", "knobs_updated": "purple"}
