@@ -11,12 +11,23 @@ the physics step, far from its cause.
 from __future__ import annotations
 
 import numbers
+import sys
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
-__all__ = ["as_float", "as_int", "as_floats"]
+__all__ = ["as_float", "as_floats", "as_int", "finite", "warn"]
+
+
+def warn(message: str) -> None:
+    """A warning for the controller's user, on stderr as Webots prints them in its console."""
+    print(f"Warning: {message}", file=sys.stderr)
+
+
+def finite(*values: float) -> bool:
+    """No NaN among ``values`` (±inf is allowed, e.g. ``setPosition(inf)``); NaN != NaN."""
+    return all(v == v for v in values)
 
 
 def _describe(value: Any) -> str:
