@@ -84,6 +84,7 @@ class _TopicReader:
         self.values: list[list[float]] = []
         self._names: list[str] | None = None
         self._element_index: list[int | None] = []
+        self._resolved = False  # _element_index is valid for _names (None: a message without a name list)
         self._paths = [(ch, tuple(ch.field.split("."))) for ch in self.channels]
 
     def _fail(self, channel: BagChannel, why: str) -> DualtwinError:
@@ -95,7 +96,7 @@ class _TopicReader:
             names = _get(message, "name")
         except (AttributeError, KeyError):
             names = None
-        if names is not None and (names is self._names or names == self._names):
+        if self._resolved and (names is self._names or names == self._names):
             return self._element_index
         out: list[int | None] = []
         for ch in self.channels:
@@ -108,7 +109,7 @@ class _TopicReader:
                 out.append(list(names).index(ch.element))
             except ValueError:
                 raise self._fail(ch, f"no entry {ch.element!r} in its name list {list(names)}") from None
-        self._names, self._element_index = names, out
+        self._names, self._element_index, self._resolved = names, out, True
         return out
 
     def add(self, message: Any, log_time: int) -> None:
