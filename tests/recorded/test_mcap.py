@@ -110,6 +110,7 @@ def test_time_ranges_in_one_bag_with_yaw_and_joint_names(tmp_path: Path, write_b
     ("field", r"topic /odom, message 0: the message has no field 'pos'"),
     ("not_number", r"the value is not a number but list"),
     ("garbage", r"scenario_2.mcap: not an MCAP file"),
+    ("empty", r"scenario_2.mcap: not an MCAP file"),
     ("truncated", r"scenario_2.mcap: cannot read the bag"),
     ("directory", r"scenario_2.mcap: is a directory"),
     ("ranges", r"time ranges cut one bag into scenarios, but files gives 6"),
@@ -130,6 +131,8 @@ def test_bad_bags_are_one_clear_error(tmp_path: Path, cartpole_suite: Path, cart
         del data["channels"][0]["element"]
     elif case == "garbage":
         bag.write_bytes(bytes(range(256)) * 8)
+    elif case == "empty":
+        bag.write_bytes(b"")
     elif case == "truncated":
         bag.write_bytes(bag.read_bytes()[: bag.stat().st_size // 2])
     elif case == "directory":
@@ -155,3 +158,17 @@ def test_header_stamps_that_go_backwards(tmp_path: Path, cartpole_suite: Path, c
     with pytest.raises(DualtwinError, match=r"scenario_4.mcap: topic /joint_states, message 50: stamps must increase"):
         import_mcap(_mapping(tmp_path, data), cartpole_suite, "cartpole", tmp_path / "run")
     assert not (tmp_path / "run").exists()
+
+
+def test_nan_in_a_bag_makes_the_scenario_unstable(tmp_path: Path, cartpole_suite: Path, cartpole_bags: Path,
+                                                  write_bag: Callable[..., Path]) -> None:
+    _cartpole_bags(tmp_path / "bags", cartpole_bags)
+    t = np.arange(0.0, 4.0 + 1e-9, 0.01)
+    pole = np.sin(t)
+    pole[150] = np.nan  # 1.5 s
+    write_bag(tmp_path / "bags" / "scenario_4.mcap", t, {"pole_hinge": pole}, odom=(0 * t, 0 * t))
+    run = import_mcap(_mapping(tmp_path, CARTPOLE_MAPPING), cartpole_suite, "cartpole", tmp_path / "run")
+    record = json.loads((run / "manifest.json").read_text())["scenarios"][4]
+    assert record["status"] == "unstable" and record["steps"] == 46  # grid points before 1.5 s
+    assert "topic /joint_states, message 150" in record["failure"]["message"]
+    assert load_run(run).series(record["id"])["pole_angle_rad"].t[-1] < 1.5
