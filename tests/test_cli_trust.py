@@ -303,3 +303,14 @@ def test_serve_with_damaged_model_folders_is_one_line(tmp_path: Path, capsys: py
     folder = corrupt_folder(tmp_path / "damaged")
     code, err = run_cli(["serve", "--policy", str(folder), "--perception", str(folder), "--port", "1"], capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1 and "damaged" in err
+
+
+def test_compare_of_runs_that_differ_is_one_line(two_runs: tuple[Path, Path], tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    a, b = two_runs
+    manifest = json.loads((b / "manifest.json").read_text())
+    manifest["robot"] = "pioneer3at"
+    (b / "manifest.json").write_text(json.dumps(manifest))
+    code, err = run_cli(["compare", str(a), str(b), "--out", str(tmp_path / "report")], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "not comparable" in err and "pioneer3at" in err
+    assert not (tmp_path / "report").exists()

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -18,8 +19,30 @@ from dualtwin.reporting import (
     configure_console,
     emit_json,
     print_table,
-    report_progress,
 )
+from dualtwin.reporting import (
+    report_progress as _report_progress,
+)
+
+
+@contextmanager
+def report_progress() -> Iterator[Any]:
+    """:func:`dualtwin.reporting.report_progress`, holding back each stage's opening (0-done) event until its
+    first advance: a command refused while it validates its inputs prints only its one error line."""
+    with _report_progress() as show:
+        held: dict[str, Any] = {}
+
+        def progress(event: Any) -> None:
+            if event.done == 0 and event.stage not in held:
+                held[event.stage] = event
+                return
+            opening = held.get(event.stage)
+            if opening is not None:
+                held[event.stage] = None
+                show(opening)
+            show(event)
+
+        yield progress
 
 # Loading a training run written before its statistics were JSON (or by another tool) means unpickling files
 # from it, which can run code: only on the user's explicit word.
