@@ -11,11 +11,15 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from dualtwin.align import AlignResult, align
 from dualtwin.align.nuisance import SHARED_TIME_OFFSET, apply_to_suite, registry, time_offsets
+from dualtwin.align.objective import event_difference
 from dualtwin.align.patch import patch_mjcf
+from dualtwin.divergence.metrics import Threshold
+from dualtwin.divergence.runs import Series
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding
 from dualtwin.suite.loader import load_suite
@@ -145,3 +149,13 @@ def test_nuisance_registry_names_bounds_and_application(robot: RobotBinding, sui
     assert offsets == {"00_fall": 0.02, "01_sine": 0.02, "02_drive": pytest.approx(0.03)}
     with pytest.raises(DualtwinError, match="no scenario '09_x'"):
         apply_to_suite(suite, {"scenario.09_x.initial_angle": 0.1})
+
+
+def test_a_series_starting_beyond_the_threshold_has_no_crossing_to_shift() -> None:
+    """A pole resting on its stop starts beyond 0.99 rad; shifting the candidate earlier must not make an event."""
+    t = (np.arange(1, 30) * 0.032).astype(np.float64)
+    ref = Series(t, np.ones(t.size))
+    shifted = Series(t - LATE, np.ones(t.size))
+    assert event_difference(ref, shifted, Threshold(0.99)) == 0.0
+    falling = Series(t, np.clip(0.5 + t, None, 1.0))
+    assert event_difference(falling, Series(t - LATE, falling.y), Threshold(0.99)) == pytest.approx(-LATE)

@@ -200,9 +200,18 @@ def _crossing_or_end(t: FloatArray, y: FloatArray, threshold: Threshold) -> tupl
 
 
 def event_difference(ref: Series, cand: Series, threshold: Threshold) -> float:
-    """Signed crossing-time difference (candidate - reference) in seconds; a missing crossing counts at the log end."""
+    """Signed crossing-time difference (candidate - reference) in seconds; a missing crossing counts at the log end.
+
+    Crossings are looked for from the later of the two first samples on: a candidate shifted onto the
+    reference's clock (a nuisance time offset) starts earlier, and a series that starts beyond the threshold
+    (a pole resting on its stop) would otherwise "cross" at its own first sample.
+    """
     ta, ya = finite_prefix(ref.t, ref.y)
     tb, yb = finite_prefix(cand.t, cand.y)
+    if ta.size and tb.size:
+        start = max(float(ta[0]), float(tb[0])) - 1e-9
+        keep_a, keep_b = ta >= start, tb >= start
+        ta, ya, tb, yb = ta[keep_a], ya[keep_a], tb[keep_b], yb[keep_b]
     ca, ca_eff = _crossing_or_end(ta, ya, threshold)
     cb, cb_eff = _crossing_or_end(tb, yb, threshold)
     if ca is None and cb is None:
