@@ -363,3 +363,19 @@ DEF ME Robot { supervisor TRUE }
     with pytest.raises(TypeError, match=r"Node\.addForce\(\)"):
         free.addForce(["1", 0, 0], False)
     sim.close()
+
+
+@pytest.mark.parametrize("kind", ["missing", "directory", "pipe", "binary"])
+def test_unreadable_key_script_is_one_error(tmp_path: Path, kind: str) -> None:
+    import os
+
+    world = _project(tmp_path, "raise SystemExit('must not run')\n")
+    keys = tmp_path / "keys"
+    if kind == "directory":
+        keys.mkdir()
+    elif kind == "pipe":
+        os.mkfifo(keys)
+    elif kind == "binary":
+        keys.write_bytes(b"\xff\xfe\x00\x01")
+    with pytest.raises(DualtwinError, match=r"^--keys .*keys"):
+        run_world(world, None, 0.1, keys=keys)

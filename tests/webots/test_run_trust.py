@@ -112,3 +112,12 @@ def test_named_controller_in_its_folder_runs(tmp_path: Path, capsys: pytest.Capt
     )
     assert run_world(world, None, 0.04) == 0
     assert "done 0.04" in capsys.readouterr().out
+
+
+def test_world_that_is_a_pipe_is_one_error(tmp_path: Path) -> None:
+    import os
+
+    fifo = tmp_path / "w.wbt"
+    os.mkfifo(fifo)
+    with pytest.raises(DualtwinError, match="not a regular file"):
+        run_world(fifo, None, 0.1)

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from dualtwin.artifacts import check_input_file
 from dualtwin.errors import DualtwinError
 from dualtwin.webots.api_args import as_int
 
@@ -106,11 +107,10 @@ def load_key_script(path: str | Path) -> KeyScript:
     """
     path = Path(path)
     try:
+        check_input_file(path, "key script")  # a pipe would block the read forever
         text = path.read_bytes().decode("utf-8")
-    except FileNotFoundError:
-        raise DualtwinError(f"--keys {path}: file not found") from None
-    except IsADirectoryError:
-        raise DualtwinError(f"--keys {path}: is a directory, expected a key script") from None
+    except DualtwinError as exc:
+        raise DualtwinError(f"--keys {exc}") from None
     except UnicodeDecodeError:
         raise DualtwinError(f"--keys {path}: not UTF-8 text") from None
     except OSError as exc:

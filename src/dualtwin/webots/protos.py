@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from dualtwin.artifacts import check_input_file
 from dualtwin.errors import DualtwinError
 from dualtwin.webots import schema
 from dualtwin.webots.js_template import JS_MODULES, VEC_KEYS, js_number, strip_imports
@@ -802,6 +803,7 @@ def load_world(path: str | os.PathLike[str], proto_paths: Sequence[str | os.Path
         ProtoNotFoundError: a physics-relevant PROTO was found nowhere.
         ProtoError: another PROTO expansion failure.
     """
+    check_input_file(Path(path), "world")  # a folder or a pipe (which would block the read) is one error
     try:
         data = Path(path).read_bytes()
     except OSError as exc:
