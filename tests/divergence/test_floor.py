@@ -166,3 +166,15 @@ def test_declared_resolution_travels_with_the_run(tmp_path: Path, make_run: Call
     assert comp.settings["resolutions"]["pole_angle_rad"] == 1e-3
     assert compare_runs(tmp_path / "a", tmp_path / "a", resolutions={"cart_pos_m": 0.2}).scenarios[0] \
         .channels["cart_pos_m"].resolution == 0.2
+
+
+def test_predictable_scenarios_read_against_the_resolution() -> None:
+    """Members that never spread beyond the resolution: the verdict reads the divergence against it."""
+    smooth = [(T, 0.1 * T + e) for e in (0.0, 1e-9, -1e-9)]
+    floor = ensemble_floor(smooth, resolution=1e-3)
+    assert floor.horizon_s is None
+    apart = judge_against_floor(compare_channel(T, 0.1 * T, T, 0.1 * T + 0.05, resolution=1e-3), floor, None)
+    assert apart.ratio is not None and apart.ratio > 1e6  # a ratio to numerical noise says nothing ...
+    assert "× the channel's resolution in a predictable scenario" in apart.verdict  # ... this does
+    same = judge_against_floor(compare_channel(T, 0.1 * T, T, 0.1 * T + 1e-4, resolution=1e-3), floor, None)
+    assert same.verdict.startswith("agree within the channel's resolution")

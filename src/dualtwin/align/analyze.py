@@ -194,18 +194,16 @@ class Analysis:
 
 
 def floor_table(comparison: RunComparison) -> list[dict[str, Any]]:
-    """Every scenario × channel judged against a reproducibility floor, largest floor ratio first."""
+    """Every scenario × channel judged against a reproducibility floor, most significant first.
+
+    Significance (not the floor ratio) orders them: in a predictable scenario the members agree to within
+    numerical noise, so any ratio there is huge and says nothing; the verdict reads it against the resolution.
+    """
     rows = [{"scenario": sc.id, "channel": name, "ratio": f.ratio, "floor_dtw": f.floor_dtw,
-             "dtw": sc.channels[name].dtw, "horizon_s": f.horizon_s, "verdict": f.verdict}
+             "dtw": sc.channels[name].dtw, "significance": sc.channels[name].significance,
+             "horizon_s": f.horizon_s, "verdict": f.verdict}
             for sc in comparison.scenarios for name, f in sc.floors.items() if name in sc.channels]
-
-    def rank(row: dict[str, Any]) -> float:
-        # No floor (members agree exactly): any divergence is infinitely above it, none is nothing to show.
-        if row["ratio"] is not None:
-            return float(row["ratio"])
-        return math.inf if row["dtw"] > 0 else -1.0
-
-    return sorted(rows, key=lambda r: (-rank(r), r["scenario"], r["channel"]))
+    return sorted(rows, key=lambda r: (-(r["significance"] or 0.0), r["scenario"], r["channel"]))
 
 
 def left_out_notes(comparison: RunComparison) -> list[str]:
@@ -832,7 +830,7 @@ def print_analysis(analysis: Analysis, console: Console, *, top: int = 10) -> No
             console.print(f"    knobs to try: {escape(', '.join(finding.knobs[:4]))}")
     floors = floor_table(analysis.comparison)
     if floors:
-        console.print("against the reproducibility floor (largest ratio first):")
+        console.print("against the reproducibility floor (most significant first):")
         for row in floors[:top]:
             console.print(f"    {escape(row['scenario'])} / {escape(row['channel'])}: {escape(row['verdict'])}")
     if analysis.sensitivity:

@@ -170,8 +170,22 @@ class FloorJudgement:
         return cls(**kwargs)
 
 
-def floor_verdict(ratio: float | None, horizon_s: float | None = None) -> str:
-    """The floor ratio in words."""
+def floor_verdict(ratio: float | None, horizon_s: float | None = None, *,
+                  resolution_multiple: float | None = None) -> str:
+    """The floor ratio in words.
+
+    Args:
+        ratio: Divergence ÷ floor (None: the floor is 0).
+        horizon_s: Where the members stop being predictable (None: they never do).
+        resolution_multiple: The divergence (DTW rms) ÷ the channel's resolution. Given with no horizon, the
+            scenario is predictable (members agree within the resolution), so a floor ratio would only
+            measure numerical noise: the verdict reads against the resolution instead.
+    """
+    if horizon_s is None and resolution_multiple is not None:
+        if resolution_multiple <= 1.0:
+            return "agree within the channel's resolution (a predictable scenario: the members do too)"
+        return (f"{resolution_multiple:.3g}× the channel's resolution in a predictable scenario (the members agree "
+                "within it): a modelling difference, not chaos")
     where = "" if horizon_s is None else f"; the members stop being predictable at t = {horizon_s:.3g} s"
     if ratio is None:
         return "no reproducibility floor (the members agree exactly)" + where
@@ -184,7 +198,11 @@ def floor_verdict(ratio: float | None, horizon_s: float | None = None) -> str:
 
 def judge_against_floor(divergence: ChannelDivergence, floor_a: ChannelFloor | None,
                         floor_b: ChannelFloor | None) -> FloorJudgement:
-    """Floor ratio of a divergence between two twins: its DTW ÷ the larger of the two sides' DTW floors."""
+    """Floor ratio of a divergence between two twins: its DTW ÷ the larger of the two sides' DTW floors.
+
+    The verdict reads the ratio in words where the members stop being predictable; where they never do
+    (their spread stays within the divergence's resolution) it reads the divergence against the resolution.
+    """
     floors = [f for f in (floor_a, floor_b) if f is not None]
     if not floors:
         raise ValueError("judging against a floor needs at least one side's floor")
@@ -194,10 +212,11 @@ def judge_against_floor(divergence: ChannelDivergence, floor_a: ChannelFloor | N
     horizon = min(horizons) if horizons else None
     ratio = divergence.dtw / floor_dtw if floor_dtw > 0 else None
     ratio_rmse = divergence.rmse / floor_rmse if floor_rmse > 0 else None
+    multiple = None if divergence.resolution is None else divergence.dtw_rms / divergence.resolution
     return FloorJudgement(floor_a=floor_a, floor_b=floor_b, floor_dtw=floor_dtw, floor_rmse=floor_rmse,
                           floor_rmse_max=max(f.rmse_max for f in floors),
                           ratio=ratio, ratio_rmse=ratio_rmse, horizon_s=horizon,
-                          verdict=floor_verdict(ratio, horizon))
+                          verdict=floor_verdict(ratio, horizon, resolution_multiple=multiple))
 
 
 def simulate_floor(
