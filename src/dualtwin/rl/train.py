@@ -101,6 +101,9 @@ class PPOConfig(_Strict):
     eval_episodes: int = Field(default=5, ge=1)
     checkpoint_freq: int = Field(default=40_960, ge=0, description="0 disables checkpoints (and resume)")
     stop_reward: float | None = None
+    stop_episode_length: float | None = Field(
+        default=None, gt=0, description="stop once the mean length of the last 100 training episodes reaches this "
+        "(the rolling mean the paper's Figure 10 plots)")
     max_wall_seconds: float | None = Field(default=None, gt=0, description="stop after this much training time")
     vec_env: Literal["dummy", "subproc"] = "dummy"
     torch_threads: int = Field(default=1, ge=1)
@@ -257,6 +260,8 @@ def train(env_id: str, config_path: Path | str | Mapping[str, Any] | PPOConfig |
     if shadow_fraction and config.vec_env != "dummy":
         raise DualtwinError("shadow_fraction needs vec_env: dummy in the config (the shadow mirrors in-process "
                             "envs; the bundled configs use subproc)")
+    if config.stop_reward is not None and config.eval_freq == 0:  # before the run folder exists (issue 14)
+        raise DualtwinError("stop_reward needs evaluation (eval_freq > 0)")
     total = int(total_timesteps if total_timesteps is not None else config.n_timesteps)
     if total <= 0:
         raise DualtwinError(f"total_timesteps must be positive, got {total}")
@@ -540,6 +545,19 @@ class _Trainer:
                     trainer._emergency_checkpoint(model, force=True)
                 return True
 
+        class _RollingLengthStop(BaseCallback):
+            """Stops once SB3's window of the last 100 training episodes is full and its mean length >= ``goal``."""
+
+            def __init__(self, goal: float) -> None:
+                super().__init__()
+                self.goal = goal
+
+            def _on_step(self) -> bool:
+                window = self.model.ep_info_buffer
+                if window is None or len(window) < (window.maxlen or 0):
+                    return True
+                return float(np.mean([info["l"] for info in window])) < self.goal
+
         class _SaveBestStats(BaseCallback):
             def _on_step(self) -> bool:
                 stats = self.model.get_vec_normalize_env()
@@ -563,6 +581,8 @@ class _Trainer:
             callbacks.append(_Checkpoint(max(cfg.checkpoint_freq // cfg.n_envs, 1)))
         if cfg.max_wall_seconds is not None:
             callbacks.append(_WallClockLimit(cfg.max_wall_seconds))
+        if cfg.stop_episode_length is not None:
+            callbacks.append(_RollingLengthStop(cfg.stop_episode_length))
         if self.shadow_fraction > 0:
             from dualtwin.sync.shadow import ShadowCallback
 
