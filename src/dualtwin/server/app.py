@@ -531,6 +531,21 @@ def create_app(policy_dir: Path | str, perception_dir: Path | str, *, api_key: s
             components = schema.setdefault("components", {}).setdefault("schemas", {})
             body = ActRequest.model_json_schema(ref_template="#/components/schemas/{model}")
             components.update(body.pop("$defs", {}))
+            # This server's contract, more precisely than the generic model can say: exactly its on-board
+            # sensors, and a frame that is either a base64 PNG or base64 raw pixels of the camera's shape.
+            body["properties"]["sensors"] = {
+                "type": "object", "description": body["properties"]["sensors"].get("description", ""),
+                "properties": {name: {"type": "number"} for name in onboard}, "required": list(onboard),
+                "additionalProperties": False}
+            components["FramePayload"] = {"description": components["FramePayload"].get("description", ""), "oneOf": [
+                {"type": "object", "properties": {"png_base64": {"type": "string", "format": "byte"}},
+                 "required": ["png_base64"], "additionalProperties": False},
+                {"type": "object", "properties": {
+                    "data_base64": {"type": "string", "format": "byte"},
+                    "shape": {"type": "array", "items": {"type": "integer", "minimum": 1}, "minItems": 3,
+                              "maxItems": 3},
+                    "dtype": {"type": "string", "enum": ["uint8"]}},
+                 "required": ["data_base64", "shape", "dtype"], "additionalProperties": False}]}
             components["ActRequest"] = body
             app.openapi_schema = schema
         return app.openapi_schema
