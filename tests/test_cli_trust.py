@@ -314,3 +314,19 @@ def test_compare_of_runs_that_differ_is_one_line(two_runs: tuple[Path, Path], tm
     code, err = run_cli(["compare", str(a), str(b), "--out", str(tmp_path / "report")], capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1 and "not comparable" in err and "pioneer3at" in err
     assert not (tmp_path / "report").exists()
+
+
+def test_train_with_an_inconsistent_config_leaves_nothing(tmp_path: Path,
+                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    import yaml
+
+    from dualtwin.rl.train import DEFAULT_CONFIG
+
+    config = yaml.safe_load(DEFAULT_CONFIG.read_text())
+    config.update(stop_reward=100.0, eval_freq=0)
+    path = tmp_path / "config.yaml"
+    path.write_text(yaml.safe_dump(config))
+    out = tmp_path / "train"
+    code, err = run_cli(["train", "--env", "dualtwin/CartPole-MuJoCo-Continuous-v0", "--out", str(out),
+                         "--config", str(path)], capsys)
+    assert code == 2 and "stop_reward needs evaluation" in err and not out.exists()
