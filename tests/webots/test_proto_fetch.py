@@ -309,7 +309,8 @@ def test_fetch_then_fixture_worlds_load_offline_without_warnings(
 
 def test_bounding_mesh_fetched_texture_and_visual_mesh_not(tmp_path: Path, online: _Server) -> None:
     world = tmp_path / "meshy.wbt"
-    world.write_text(HEADER + 'EXTERNPROTO "webots://projects/objects/meshy/protos/Meshy.proto"\nMeshy { }\n')
+    # an official https url written out in the world, as Webots R2023b saves them
+    world.write_text(HEADER + f'EXTERNPROTO "{OFFICIAL}projects/objects/meshy/protos/Meshy.proto"\nMeshy {{ }}\n')
     cache = ProtoCache(tmp_path / "cache", progress=None)
     report = fetch_worlds([world], cache)
     assert report.assets == [OFFICIAL + "projects/objects/meshy/protos/meshes/hull.obj"]
@@ -349,7 +350,9 @@ def test_webots_asset_cache_is_read_and_then_verified(
     assert len(list(ours.glob("*.json"))) == 5
 
 
-def test_cli_fetch_into_user_cache_and_bad_out(webots_fixtures: Path, tmp_path: Path, online: _Server) -> None:
+def test_cli_fetch_into_user_cache_and_bad_out(
+    webots_fixtures: Path, tmp_path: Path, online: _Server, monkeypatch: pytest.MonkeyPatch
+) -> None:
     world = _copy_world(webots_fixtures, tmp_path, "inverted_pendulum.wbt")
     env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path / "cli-cache"), "DUALTWIN_PROTO_MIRROR": online.base}
     env.pop("DUALTWIN_PROTO_OFFLINE", None)
@@ -358,6 +361,12 @@ def test_cli_fetch_into_user_cache_and_bad_out(webots_fixtures: Path, tmp_path: 
     assert ok.returncode == 0, ok.stderr
     assert "2 PROTO files" in ok.stdout and "downloaded" in ok.stderr
     assert len(list((tmp_path / "cli-cache" / "dualtwin" / "protos" / "v1").glob("*.json"))) == 2
+    # offline, from the cache the command filled: the served Floor, not our stand-in, and no warnings
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cli-cache"))
+    monkeypatch.setenv("DUALTWIN_PROTO_OFFLINE", "1")
+    loaded = load_world(world)
+    floor = next(n for n in loaded.nodes if n.proto_name == "Floor")
+    assert loaded.warnings == [] and all(loc.file.startswith(OFFICIAL) for loc in floor.field_locations.values())
     busy = tmp_path / "busy"
     busy.mkdir()
     (busy / "notes.txt").write_text("mine")
