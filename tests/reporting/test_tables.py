@@ -44,27 +44,38 @@ def test_piped_compare_prints_every_number_and_name_whole(twin_runs: tuple[Path,
     assert "compare: 1/1" in done.stderr and "report: 2/2" in done.stderr
 
 
+def cli(*args: str) -> tuple[int, str, str]:
+    """The typer app in process, stdout and stderr captured separately (neither is a terminal)."""
+    from typer.testing import CliRunner
+
+    from dualtwin.cli import app
+
+    result = CliRunner().invoke(app, list(args))
+    return result.exit_code, result.stdout, result.stderr
+
+
 def test_json_output_is_the_only_thing_on_stdout(twin_runs: tuple[Path, Path], tmp_path: Path) -> None:
     webots, mujoco = twin_runs
-    done = dualtwin("compare", str(webots), str(mujoco), "--out", str(tmp_path / "cmp"), "--json")
-    assert done.returncode == 0, done.stderr
-    data = json.loads(done.stdout)
+    code, out, err = cli("compare", str(webots), str(mujoco), "--out", str(tmp_path / "cmp"), "--json")
+    assert code == 0, err
+    data = json.loads(out)
     assert data["twin_a"] == "webots" and len(data["scenarios"]) == 2
-    assert "report: 2/2" in done.stderr
+    assert "report: 2/2" in err
 
 
 def test_piped_lockstep_table_and_json(suite_file: Path, tmp_path: Path) -> None:
-    done = dualtwin("lockstep", "--robot", "cartpole", "--scenarios", str(suite_file), "--out", str(tmp_path / "ls"))
-    assert done.returncode == 0, done.stderr
-    assert "…" not in done.stdout
-    assert "00_a_rather_long_scenario_name_that_tables_must_keep_whole" in done.stdout
+    code, out, err = cli("lockstep", "--robot", "cartpole", "--scenarios", str(suite_file), "--out",
+                         str(tmp_path / "ls"))
+    assert code == 0, err
+    assert "…" not in out
+    assert "00_a_rather_long_scenario_name_that_tables_must_keep_whole" in out
     manifest = json.loads((tmp_path / "ls" / "manifest.json").read_text())
     for episode in manifest["episodes"]:
-        assert f"{episode['mean_error']:.4g}" in done.stdout
-    again = dualtwin("lockstep", "--robot", "cartpole", "--scenarios", str(suite_file), "--out",
-                     str(tmp_path / "ls2"), "--json")
-    assert again.returncode == 0, again.stderr
-    assert json.loads(again.stdout)["manifest"]["episodes"][0]["id"].startswith("00_a_rather_long")
+        assert f"{episode['mean_error']:.4g}" in out
+    code, out, err = cli("lockstep", "--robot", "cartpole", "--scenarios", str(suite_file), "--out",
+                         str(tmp_path / "ls2"), "--json")
+    assert code == 0, err
+    assert json.loads(out)["manifest"]["episodes"][0]["id"].startswith("00_a_rather_long")
 
 
 LONG = "joint.a_very_long_knob_or_channel_name_that_must_not_be_cut.damping"
