@@ -48,7 +48,8 @@ def contact_points(sim: Simulation, solids: list[SolidRec]) -> list[Contact]:
     """Contacts of the geoms of ``solids`` with every other geom, in a deterministic order."""
     mine: list[GeomRec] = [g for s in solids for g in s.geoms]
     own = {g.ptr for g in mine}
-    others = [g for ptr, g in sorted(sim.geoms.items()) if ptr not in own]
+    # scene order (the order geoms were built), not pointer order, which changes from run to run
+    others = [g for ptr, g in sim.geoms.items() if ptr not in own]
     array = (ode.dContactGeom * _CAPACITY)()
     collide = sim._lib.dCollide
     size = ctypes.sizeof(ode.dContactGeom)
