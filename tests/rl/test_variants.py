@@ -108,3 +108,15 @@ def test_train_writes_the_learning_curve_and_reports_each_evaluation(tmp_path: P
     curve = read_learning_curve(out)
     assert curve.control_period_s == pytest.approx(0.032)
     assert curve.steps_to(1e9) is None and curve.steps_to(0) == curve.env_steps[0]
+
+
+def test_training_stops_when_the_rolling_episode_length_reaches_its_goal(tmp_path: Path) -> None:
+    out = train("dualtwin/CartPole-MuJoCo-v0", {**TINY, "eval_freq": 0, "checkpoint_freq": 0, "stop_episode_length": 1,
+                                                "env_kwargs": {"max_episode_steps": 10}},
+                tmp_path / "run", seed=0, total_timesteps=20_000, progress_bar=False)
+    import json
+
+    steps = json.loads((out / "run.json").read_text())["num_timesteps"]
+    # Every episode lasts >= 1 step, so the goal holds once 100 episodes (about 1,000 steps) have finished.
+    assert 1000 <= steps < 2000
+    assert read_learning_curve(out).steps_to(1) is not None
