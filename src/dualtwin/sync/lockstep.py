@@ -191,6 +191,9 @@ def calibrate_rest(primary: Twin, secondary: Twin, seed: int = 0) -> RestCalibra
 
     Both twins are reset, settle for `REST_PERIODS` without commands, and the secondary's resting depth is
     compared with the depth it has in the primary's resting state. Both twins are left reset afterwards.
+    The calibration uses the knobs set when it runs: a monitor's knob update that changes the secondary's
+    contact compliance mid-run is not re-calibrated (suite scenarios may continue from the previous one's
+    state, so the twins cannot be reset between episodes to measure again).
     """
     for twin in (primary, secondary):
         twin.reset(seed)
