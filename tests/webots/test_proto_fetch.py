@@ -394,3 +394,11 @@ def test_interrupted_fetch_into_a_folder_resumes(tmp_path: Path, online: _Server
     later.write_text(HEADER + "PROTO Later [ ] { Solid { } }\n")
     report, _ = fetch_command([world], out, say=None)  # the same folder: continued, not refused
     assert len(json.loads((out / "manifest.json").read_text())["files"]) == 2 and report.warnings == []
+
+
+def test_mirror_that_is_neither_folder_nor_url_is_named(
+    webots_fixtures: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("DUALTWIN_PROTO_MIRROR", str(tmp_path / "no-such-folder"))
+    with pytest.raises(FetchError, match="DUALTWIN_PROTO_MIRROR .*no-such-folder"):
+        load_world(_copy_world(webots_fixtures, tmp_path, "pioneer3at.wbt"))

@@ -170,8 +170,10 @@ class ProtoCache:
         if mirror is not None:
             if is_remote(mirror):
                 self.mirror_url = mirror if mirror.endswith("/") else mirror + "/"
-            else:
+            elif Path(mirror).is_dir():
                 self.sources.insert(0, Path(mirror))
+            else:
+                raise FetchError(f"DUALTWIN_PROTO_MIRROR {mirror}: neither a folder nor an http(s) base url")
         if offline is None:
             offline = env.get("DUALTWIN_PROTO_OFFLINE", "").strip().lower() in _TRUE
         self.offline = offline
