@@ -186,3 +186,18 @@ def test_statistics_without_observation_normalisation(tmp_path: Path) -> None:
     obs, _ = policy.make_env().reset(seed=0)
     np.testing.assert_array_equal(policy.normalize(obs), obs)
     assert int(policy.predict(obs)) in (0, 1)
+
+
+def test_loaders_of_other_commands_follow_the_trust_setting(discrete_run: Path, tmp_path: Path) -> None:
+    """lockstep --policy and collect --policy load runs through dualtwin.sync; --trust-pickles reaches them."""
+    from dualtwin.sync.policy import load_policy as load_for_lockstep
+
+    run = _copy(discrete_run, tmp_path)
+    load_policy(run).vec_normalize.save(str(run / "vecnormalize.pkl"))  # type: ignore[union-attr]
+    (run / "vecnormalize.json").unlink()
+    with pytest.raises(DualtwinError, match="trust-pickles"):
+        load_for_lockstep(run)
+    with trusting_pickles():
+        assert load_for_lockstep(run).env_id == "dualtwin/CartPole-MuJoCo-v0"
+    with pytest.raises(DualtwinError, match="trust-pickles"):  # the setting ends with its block
+        load_for_lockstep(run)
