@@ -121,20 +121,25 @@ def suite_run(
         raise DualtwinError(f"--executor: {exc}") from None
     binding = resolve_robot(robot)
     if ensemble or perturb:
-        from rich.progress import Progress
-
         from dualtwin.suite.ensemble import EnsembleRun, make_spec, parse_perturb
 
         spec = make_spec(ensemble, parse_perturb(perturb or []), binding, seed=seed)
         members = EnsembleRun(scenarios, twin, binding, out, spec, seed=seed, executor=executor,  # type: ignore[arg-type]
                               workers=workers)
-        with Progress(console=console, transient=True) as progress:
-            task = progress.add_task(f"{twin}: {members.suite.suite_name}", total=len(members.suite.scenarios))
-            extra = progress.add_task("ensemble members", total=spec.members - 1)
-            manifest = members.run(resume=resume, on_scenario=lambda sid, status: progress.advance(task),
-                                   on_member=lambda k, n: progress.advance(extra))
-        console.print(f"ensemble: {spec.members} members per scenario, perturbed "
-                      + ", ".join(f"{k} by ±{v:g}" for k, v in spec.perturb.items()))
+        label, total, done = f"{twin}: {members.suite.suite_name}", len(members.suite.scenarios), [0, 0]
+        with report_progress() as progress:
+            def on_scenario(sid: str, status: str) -> None:
+                done[0] += 1
+                progress(ProgressEvent(label, done[0], total, f"{sid} {status}"))
+
+            def on_member(member: int, count: int) -> None:
+                done[1] += 1
+                progress(ProgressEvent("ensemble members", done[1], count, f"member {member}"))
+
+            manifest = members.run(resume=resume, on_scenario=on_scenario, on_member=on_member)
+        if not json_out:
+            console.print(f"ensemble: {spec.members} members per scenario, perturbed "
+                          + ", ".join(f"{k} by ±{v:g}" for k, v in spec.perturb.items()))
     else:
         run = SuiteRun(scenarios, twin, binding, out, seed=seed)
         manifest = _run_with_progress(run, resume, f"{twin}: {run.suite.suite_name}")
