@@ -28,6 +28,9 @@ def test_paper_logs_of_a_webots_run_compare_against_the_twin(
     manifest = _manifest(run)
     assert manifest["kind"] == "recorded" and manifest["format"] == "paper"
     assert set(manifest["channels"]) == {"pole_angle_rad", "cart_pos_m"}
+    # 3 decimals are the default resolution of rad and m already: recorded, not raised.
+    assert manifest["channels"]["pole_angle_rad"]["recorded_rounding"] == pytest.approx(0.001)
+    assert "resolution" not in manifest["channels"]["pole_angle_rad"]
     for source in manifest["sources"]:
         assert source["sha256"] == hashlib.sha256(Path(source["path"]).read_bytes()).hexdigest()
     assert manifest["mapping"]["time"]["column"] == "time_s"

@@ -138,3 +138,16 @@ def test_wrong_unit_through_the_cli_is_one_line_and_exit_2(tmp_path: Path, cartp
                              "--robot", "cartpole", "--out", str(tmp_path / "run"))
     assert code == 0, err
     assert "wrote" in out and (tmp_path / "run" / "manifest.json").is_file()
+
+
+def test_coarse_rounding_raises_the_channel_resolution(tmp_path: Path, cartpole_suite: Path) -> None:
+    paths = _write_csvs(tmp_path / "logs", cartpole_suite)
+    for path in paths:  # degrees to one decimal: 1.7 mrad, coarser than the 1 mrad default of rad
+        header, *rows = path.read_text().splitlines()
+        rows = [",".join([c[0], f"{float(c[1]):.1f}", *c[2:]]) for c in (r.split(",") for r in rows)]
+        path.write_text("\n".join([header, *rows]) + "\n")
+    run = import_table(_mapping(tmp_path), cartpole_suite, "cartpole", tmp_path / "run")
+    channels = json.loads((run / "manifest.json").read_text())["channels"]
+    assert channels["pole_angle_rad"]["resolution"] == pytest.approx(math.radians(0.1))
+    assert load_run(run).channels["pole_angle_rad"].resolved_resolution == pytest.approx(math.radians(0.1))
+    assert "resolution" not in channels["onboard/pole_angle_rad"]  # full precision there

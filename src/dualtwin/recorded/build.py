@@ -44,6 +44,7 @@ from dualtwin.artifacts import (
     read_json,
     sha256_file,
 )
+from dualtwin.divergence.metrics import default_resolution
 from dualtwin.errors import DualtwinError
 from dualtwin.recorded.mapping import ChannelBase
 from dualtwin.recorded.units import conversion_factor
@@ -298,6 +299,27 @@ def tsv_text(names: list[str], rows: list[list[float]]) -> str:
     return head + repr(rows)[2:-2].replace("], [", "\n").replace(", ", "\t") + "\n"
 
 
+def _resolutions(channels: dict[str, Any], recording: Recording, records: list[dict[str, Any]]) -> None:
+    """Carry the binding's declared resolution, raised to the recording's rounding when that is coarser.
+
+    A log rounded to 3 decimals cannot show a difference below 0.001 of its unit; comparisons must not rank
+    one (`dualtwin.divergence.metrics.significance`). The rounding is converted to the binding's unit, and
+    the resolution written only when it is declared or the rounding exceeds the unit's default.
+    """
+    spec = recording.robot.spec
+    for ch in recording.channels:
+        name = ch.run_name
+        declared = (spec.ground_truth if ch.source == "ground_truth" else spec.onboard)[ch.name].resolution
+        steps = [r["timing"]["rounded_to"][name] for r in records
+                 if name in r.get("timing", {}).get("rounded_to", {})]
+        rounding = max(steps) * abs(unit_record(recording.robot, ch)["factor"] * ch.scale) if steps else None
+        if rounding is not None:
+            channels[name]["recorded_rounding"] = rounding
+        base = declared if declared is not None else default_resolution(channels[name]["unit"])
+        if declared is not None or (rounding is not None and rounding > base):
+            channels[name]["resolution"] = max(base, rounding or 0.0)
+
+
 def _sha256_bytes(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
@@ -339,6 +361,7 @@ def build_files(recording: Recording, progress: ProgressCallback | None = None) 
     for key, ch in robot.spec.onboard.items():
         if f"onboard/{key}" in imported:
             channels[f"onboard/{key}"] = {"source": "onboard", "column": key, "unit": ch.unit}
+    _resolutions(channels, recording, records)
     tolerances: dict[str, Any] = {}
     for sid, scenario in zip(ids, suite.scenarios, strict=True):
         kept = {k: v.model_dump(exclude_none=True) for k, v in scenario.tolerances.items() if k in channels}
