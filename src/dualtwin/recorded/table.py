@@ -23,8 +23,8 @@ from dualtwin.recorded.build import (
     ticker,
     write_recording,
 )
+from dualtwin.recorded.delimited import Table, read_table
 from dualtwin.recorded.mapping import TableMapping, load_mapping, resolve_files
-from dualtwin.recorded.tables import Table, read_table
 from dualtwin.reporting.progress import ProgressCallback
 from dualtwin.robots.binding import RobotBinding, resolve_robot
 from dualtwin.suite.loader import load_suite
