@@ -24,7 +24,7 @@ from dualtwin.server.app import create_app  # noqa: E402
 from .conftest import RunningServer  # noqa: E402
 
 KEY = "fuzz-key"
-EXAMPLES = {GenerationMode.POSITIVE: 60, GenerationMode.NEGATIVE: 40}
+EXAMPLES = {GenerationMode.POSITIVE: 40, GenerationMode.NEGATIVE: 40}
 
 
 @pytest.fixture(scope="module")
