@@ -77,11 +77,14 @@ def test_csv_in_other_units_and_signs_becomes_a_run(tmp_path: Path, cartpole_sui
 
 def test_explicit_file_list_and_tsv(tmp_path: Path, cartpole_suite: Path) -> None:
     paths = _write_csvs(tmp_path / "logs", cartpole_suite)
-    for p in paths:
-        p.with_suffix(".tsv").write_text(p.read_text().replace(",", "\t"))
+    for p in paths:  # tab-separated, with CRLF line ends and a byte-order mark, as spreadsheets export them
+        p.with_suffix(".tsv").write_bytes(("\ufeff" + p.read_text().replace(",", "\t")).replace("\n", "\r\n")
+                                          .encode())
     mapping = _mapping(tmp_path, files=[f"logs/log_{i}.tsv" for i in range(6)])
     run = import_table(mapping, cartpole_suite, "cartpole", tmp_path / "run")
     assert json.loads((run / "manifest.json").read_text())["mapping"]["files"][0] == "logs/log_0.tsv"
+    cart = load_run(run).series("01_Step_Response_2")["cart_pos_m"]
+    np.testing.assert_allclose(cart.y[:3], 0.2 * np.array([0.032, 0.064, 0.096]), atol=1e-12)
 
 
 @pytest.mark.parametrize("change, message", [

@@ -68,7 +68,7 @@ def read_table(path: Path, delimiter: str = "auto") -> Table:
             number of cells or a cell that is not a number (file and line named).
     """
     path = Path(path)
-    text = read_text_file(path, "log file")
+    text = read_text_file(path, "log file").removeprefix("\ufeff")  # spreadsheet exports start with a BOM
     if "\x00" in text:
         raise DualtwinError(f"{path}: not a text log (binary data at character {text.index(chr(0))})")
     if not text.strip():
