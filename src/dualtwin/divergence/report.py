@@ -237,7 +237,8 @@ def write_report(comparison: RunComparison, out_dir: Path, label_a: str | None =
 
 
 #: Columns of the terminal summary table.
-SUMMARY_COLUMNS = (Column("scenario", False), Column("A", False), Column("B", False), Column("channel", False),
+SUMMARY_COLUMNS = (Column("scenario", False, group=True), Column("A", False, group=True),
+                   Column("B", False, group=True), Column("channel", False),
                    Column("RMSE"), Column("DTW rms"), Column("lag [s]"), Column("Δcross [s]"), Column("r"),
                    Column("score"))
 

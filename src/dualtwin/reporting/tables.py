@@ -26,10 +26,13 @@ Row = Sequence[str | Text] | None
 
 @dataclass(frozen=True)
 class Column:
-    """A table column: its title, and whether it holds numbers (right-aligned) or text."""
+    """A table column: its title, whether it holds numbers (right-aligned) or text, and whether a value equal
+    to the row above is left blank on a terminal (``group``: a scenario id over its channels' rows). Off a
+    terminal every row is complete, so it can be filtered on its own."""
 
     title: str
     numeric: bool = True
+    group: bool = False
 
 
 def configure_console(console: Console) -> Console:
@@ -50,14 +53,27 @@ def print_table(console: Console, columns: Sequence[Column], rows: Sequence[Row]
     """
     if console.is_terminal:
         table = Table(title=title)
-        for col in columns:
-            table.add_column(col.title, justify="right" if col.numeric else "left", overflow="fold")
+        for i, col in enumerate(columns):
+            # A number column is never narrower than its widest number (names fold instead); if even that does
+            # not fit, the table is wider than the terminal, which wraps it: nothing is cut.
+            widest = max((len(_plain(r[i])) for r in rows if r is not None and i < len(r)), default=0)
+            longest_word = max((len(w) for w in col.title.split()), default=0)
+            # Text folds, but not into slivers: up to 16 characters of it stay on one line.
+            table.add_column(Text(col.title), justify="right" if col.numeric else "left", overflow="fold",
+                             min_width=max(widest if col.numeric else min(widest, 16), longest_word))
+        previous: Sequence[str | Text] | None = None
         for row in rows:
             if row is None:
                 table.add_section()
-            else:
-                table.add_row(*(cell if isinstance(cell, Text) else Text(str(cell)) for cell in row))
-        console.print(table)
+                previous = None
+                continue
+            shown = [Text("") if col.group and previous is not None and i < len(previous)
+                     and _plain(previous[i]) == _plain(cell) else cell if isinstance(cell, Text) else Text(str(cell))
+                     for i, (cell, col) in enumerate(zip(row, columns, strict=False))]
+            table.add_row(*shown)
+            previous = row
+        # crop=False: a table wider than the terminal wraps there instead of losing its right-hand columns.
+        console.print(table, crop=False)
         return
     body = [[_plain(c) for c in row] for row in rows if row is not None]
     header = [c.title for c in columns]
