@@ -66,8 +66,10 @@ def report_progress(stream: TextIO | None = None, *, force_plain: bool = False) 
     from rich.progress import Progress as RichProgress
 
     tasks: dict[str, TaskID] = {}
-    with RichProgress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                      TextColumn("{task.fields[message]}"), console=console, transient=False) as bars:
+    # markup=False: stage names and messages (scenario ids, knob names) are shown as they are.
+    with RichProgress(TextColumn("{task.description}", markup=False), BarColumn(bar_width=24), MofNCompleteColumn(),
+                      TimeElapsedColumn(), TextColumn("{task.fields[message]}", markup=False), console=console,
+                      transient=False) as bars:
         def rich_event(event: ProgressEvent) -> None:
             task = tasks.get(event.stage)
             if task is None:
