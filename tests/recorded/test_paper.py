@@ -239,3 +239,19 @@ def test_cli_journey_import_compare_analyze(tmp_path: Path, webots_run: Path, mu
                  "cartpole", "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith("error: ") and "nowhere: does not exist" in err[-1]
+
+
+def test_align_takes_an_imported_recording_as_reference(tmp_path: Path, webots_run: Path, cartpole_suite: Path,
+                                                       write_paper_logs: Callable[..., Path],
+                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    from dualtwin.cli import main
+
+    real = import_paper(write_paper_logs(webots_run, tmp_path / "logs"), cartpole_suite, "cartpole",
+                        tmp_path / "real")
+    code = main(["align", "--reference-run", str(real), "--target", "mujoco", "--robot", "cartpole",
+                 "--scenarios", str(cartpole_suite), "--knobs", "joint.pole_hinge.damping", "--budget", "4",
+                 "--out", str(tmp_path / "aligned")])
+    assert code == 0, capsys.readouterr().err
+    assert (tmp_path / "aligned" / "knobs.json").is_file()
+    captured = capsys.readouterr()
+    assert "not logged by the reference" in captured.out + captured.err  # the twin-only channels, left out
