@@ -757,6 +757,13 @@ def _change_text(s: KnobSensitivity, direction: str) -> str:
     return "no effect" if value == 0 else f"{value:+.3g}"
 
 
+def direction_text(s: KnobSensitivity) -> str:
+    """Which way to move a knob, in words: ``none`` means the nominal beat both tries (or nothing changed)."""
+    if s.best_direction != "none":
+        return s.best_direction
+    return "no effect" if s.sensitivity == 0 else "keep nominal (both directions worse)"
+
+
 def sensitivity_html(sensitivity: Sequence[KnobSensitivity], top: int = 15) -> str:
     from dualtwin.reporting import html_table
 
@@ -766,7 +773,7 @@ def sensitivity_html(sensitivity: Sequence[KnobSensitivity], top: int = 15) -> s
     for s in sensitivity[:top]:
         sens = ("not computed" if not math.isfinite(s.sensitivity)
                 else "no effect" if s.sensitivity == 0 else f"{s.sensitivity:.3g}")
-        direction = "no effect" if s.best_direction == "none" else s.best_direction
+        direction = direction_text(s)
         rows.append([s.knob + (f" [{s.unit}]" if s.unit else ""), f"{s.nominal:.4g}", _change_text(s, "up"),
                      _change_text(s, "down"), sens, direction])
     return html_table(["knob", "nominal", "Δobjective up", "Δobjective down", "sensitivity", "to move toward A"],
@@ -839,7 +846,7 @@ def print_analysis(analysis: Analysis, console: Console, *, top: int = 10) -> No
         console.print("most sensitive knobs:")
         print_table(console, [Column("knob", False), Column("sensitivity"), Column("to move toward A", False)],
                     [[s.knob, "no effect" if s.sensitivity == 0 else f"{s.sensitivity:.4g}",
-                      "no effect" if s.best_direction == "none" else s.best_direction]
+                      direction_text(s)]
                      for s in analysis.sensitivity[:5]])
     for note in analysis.notes:
         console.print(f"[yellow]note:[/] {escape(note)}")
