@@ -39,3 +39,16 @@ def test_other_units_are_an_error(unit: str, target: str) -> None:
 def test_rounding_is_detected() -> None:
     assert quantum(np.array([0.123, 1.5, -2.001])) == pytest.approx(0.001)
     assert quantum(np.array([0.1234567891, 1.0])) is None
+
+
+def test_mapping_examples_in_the_docs_are_valid() -> None:
+    import re
+    from textwrap import dedent
+
+    import yaml
+
+    from dualtwin.recorded import mapping
+
+    table, bag = re.findall(r"::\n\n((?:    .*\n?)+)", mapping.__doc__ or "")
+    assert mapping.TableMapping.model_validate(yaml.safe_load(dedent(table))).time.unit == "ms"
+    assert mapping.BagMapping.model_validate(yaml.safe_load(dedent(bag))).channels[1].angle == "yaw"

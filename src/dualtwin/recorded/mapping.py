@@ -8,6 +8,26 @@ recorded and a scale):
   either as time ranges in one bag or as one bag per scenario.
 
 The paper's TestOrchestrator format is a fixed :class:`TableMapping` (see :mod:`dualtwin.recorded.paper`).
+
+A CSV per scenario, in milliseconds, degrees counted the other way and millimetres::
+
+    files: logs/run_*.csv              # a glob (natural order: run_2 before run_10) or a list
+    time: {column: stamp_ms, unit: ms} # origin auto: wall-clock stamps are re-based
+    channels:
+      - {name: pole_angle_rad, column: theta_deg, unit: deg, scale: -1}
+      - {name: cart_pos_m, column: x_mm, unit: mm}
+      - {name: pole_angle_rad, source: onboard, column: encoder_rad, unit: rad}
+
+One ROS 2 bag cut into the suite's scenarios by time ranges (seconds from the bag's first mapped message)::
+
+    files: drive.mcap
+    stamp: header                      # or log_time (default)
+    scenarios: [{start_s: 0, end_s: 3}, {start_s: 4, end_s: 7}]
+    channels:
+      - {name: forward_m, topic: /odom, field: pose.pose.position.x, unit: m}
+      - {name: heading_rad, topic: /odom, field: pose.pose.orientation, angle: yaw, unit: rad}
+      - {name: left_wheel_rad, source: onboard, topic: /joint_states, field: position,
+         element: front_left_wheel, unit: rad}
 Paths in a mapping are relative to a data folder (by default the mapping file's own folder) and may not
 leave it: a mapping is a file, and every path read from a file is confined to its folder.
 """
