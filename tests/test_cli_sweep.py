@@ -21,7 +21,10 @@ Valid value per kind (what a new command's required option gets):
     wbt           the bundled cartpole.wbt                       missing, directory, binary
     file          (optional inputs only)                         missing, directory, binary
     run           a finished suite run of the small suite        missing, file-for-folder, not-a-run, bad-manifest
-    folder        placeholder (trained policy, model, dataset)   missing, file-for-folder, not-a-model,
+    folder        a tiny dataset (data), perception model        missing, file-for-folder, not-a-model,
+                  (model, perception), the reference exported
+                  policy (serve/lockstep --policy); a training
+                  run is a placeholder
                                                                   corrupt-model (every record file holds bad
                                                                   JSON, every model file garbage bytes)
     out           a new folder name                              non-empty-foreign, file-for-folder
@@ -179,6 +182,27 @@ def closed_port() -> int:
         return int(sock.getsockname()[1])
 
 
+# Valid folders made once per module (kind ``folder``), by parameter name or "command path:name".
+FOLDERS = {"data": "dataset", "model": "model", "perception": "model", "serve:policy": "exported",
+           "lockstep:policy": "exported"}
+
+
+@pytest.fixture(scope="module")
+def folders(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """A two-episode dataset, a one-epoch perception model on it and the reference exported policy."""
+    from dualtwin.perception.dataset import collect
+    from dualtwin.perception.model import train_perception
+    from dualtwin.perception.reference_policy import export_reference_policy
+
+    root = tmp_path_factory.mktemp("folders")
+    env = "dualtwin/CartPole-MuJoCo-Continuous-v0"
+    data = collect(env, 2, root / "data", controller="random", max_steps=8, width=16, height=16, seed=1)
+    model = train_perception(data, root / "model", epochs=1, seed=0, threads=1, holdout=0.5, batch_size=8)
+    exported = Path(export_reference_policy(root / "exported"))
+    return {"dataset": Path(data), "model": Path(model),
+            "exported": exported.parent if exported.is_file() else exported}
+
+
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """Two finished runs of the small suite (the valid value of kind ``run``)."""
@@ -194,8 +218,12 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     return made
 
 
-def valid_value(kind: str, name: str, here: Path, runs: dict[str, Path], url: str) -> tuple[str, bool]:
+def valid_value(kind: str, name: str, here: Path, runs: dict[str, Path], url: str,
+                command: str = "") -> tuple[str, bool]:
     """The valid argv value for a required parameter of ``kind`` and whether it is only a placeholder."""
+    made = FOLDERS.get(f"{command}:{name}", FOLDERS.get(name)) if kind == "folder" else None
+    if made is not None:
+        return str(runs[made]), False
     if kind == "suite":
         path = here / "valid_suite.json"
         path.write_text(SMALL_SUITE)
@@ -322,7 +350,7 @@ def argv_for(case: Case, command: Any, here: Path, runs: dict[str, Path],
             if value.startswith("@"):
                 value, _ = valid_value(value[1:], param.name, here, runs, url)
         elif param.required:
-            value, placeholder = valid_value(kind, param.name, here, runs, url)
+            value, placeholder = valid_value(kind, param.name, here, runs, url, " ".join(case.path))
             if placeholder:
                 placeholders.append(value)
         else:
@@ -357,14 +385,14 @@ COMMANDS = dict(commands())
 
 
 @pytest.mark.parametrize("case", ALL_CASES, ids=[c.id for c in ALL_CASES])
-def test_bad_input(case: Case, tmp_path: Path, runs: dict[str, Path], monkeypatch: pytest.MonkeyPatch,
-                   capsys: pytest.CaptureFixture[str], alarm: None) -> None:
+def test_bad_input(case: Case, tmp_path: Path, runs: dict[str, Path], folders: dict[str, Path],
+                   monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], alarm: None) -> None:
     here = tmp_path / "case"
     here.mkdir()
     monkeypatch.chdir(here)
     url = f"http://127.0.0.1:{closed_port()}"
     command = COMMANDS[case.path]
-    argv, bad, placeholders = argv_for(case, command, here, runs, url)
+    argv, bad, placeholders = argv_for(case, command, here, {**runs, **folders}, url)
     before = snapshot(here)
     capsys.readouterr()
     try:
