@@ -292,7 +292,8 @@ def read_bag(path: Path, mapping: BagMapping, where: str,
         except DualtwinError:
             raise
         except (McapError, ValueError, KeyError, EOFError, OSError, AssertionError, struct.error) as exc:
-            raise DualtwinError(f"{path}: cannot read the bag: {exc or type(exc).__name__}") from None
+            raise DualtwinError(f"{path}: cannot read the bag (truncated or corrupt? the MCAP CLI's 'mcap recover' "
+                                f"rebuilds a cut bag): {exc or type(exc).__name__}") from None
     for topic, topic_reader in readers.items():
         if not topic_reader.times:
             raise DualtwinError(f"{path}: topic {topic!r} has no messages; {where}")
