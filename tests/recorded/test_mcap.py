@@ -172,3 +172,15 @@ def test_nan_in_a_bag_makes_the_scenario_unstable(tmp_path: Path, cartpole_suite
     assert record["status"] == "unstable" and record["steps"] == 46  # grid points before 1.5 s
     assert "topic /joint_states, message 150" in record["failure"]["message"]
     assert load_run(run).series(record["id"])["pole_angle_rad"].t[-1] < 1.5
+
+
+def test_messages_stored_out_of_log_time_order_are_sorted(tmp_path: Path, cartpole_suite: Path,
+                                                          cartpole_bags: Path, write_bag: Callable[..., Path]) -> None:
+    _cartpole_bags(tmp_path / "bags", cartpole_bags)
+    t = np.arange(0.0, 1.0 + 1e-9, 0.01)
+    order = np.r_[np.arange(50, 101), np.arange(0, 50)]  # the second half written first
+    write_bag(tmp_path / "bags" / "scenario_3.mcap", t[order], {"pole_hinge": np.sin(t[order])},
+              odom=(t[order], 0 * t))
+    run = load_run(import_mcap(_mapping(tmp_path, CARTPOLE_MAPPING), cartpole_suite, "cartpole", tmp_path / "run"))
+    series = run.series("03_Step_Response_3")["pole_angle_rad"]
+    np.testing.assert_allclose(series.y[series.t <= 1.0], np.sin(series.t[series.t <= 1.0]), atol=1e-4)
