@@ -42,6 +42,7 @@ from typing import Any
 
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots.api_args import as_float, as_int, finite, warn
+from dualtwin.webots.device_base import Device, SampledDevice, SolidSensor
 from dualtwin.webots.keyboard import Keyboard, KeyScript
 from dualtwin.webots.nodes import Node as SceneNode
 from dualtwin.webots.physics import (
@@ -52,6 +53,7 @@ from dualtwin.webots.physics import (
     Simulation,
     SimulationUnstable,
 )
+from dualtwin.webots.ranging import DistanceSensor, Lidar, LidarPoint, RangeFinder
 from dualtwin.webots.scene_api import ContactPoint, Field, Node, descendants, find_def
 
 __all__ = [
@@ -65,9 +67,12 @@ __all__ = [
     "GPS",
     "Gyro",
     "InertialUnit",
+    "Lidar",
+    "LidarPoint",
     "Motor",
     "Node",
     "PositionSensor",
+    "RangeFinder",
     "Robot",
     "Runtime",
     "Supervisor",
@@ -318,67 +323,8 @@ def current_runtime() -> Runtime | None:
 
 # ------------------------------------------------------------------------------------------ devices
 
-
-class Device:
-    """A named robot device."""
-
-    def __init__(self, robot: Robot, name: str, record: Any) -> None:
-        self._robot = robot
-        self._name = name
-        self._record = record
-
-    def getName(self) -> str:
-        return self._name
-
-    def getModel(self) -> str:
-        node = getattr(self._record, "node", None)
-        return str(node.fields.get("model", "")) if node is not None else ""
-
-    def getNodeType(self) -> str:
-        node = getattr(self._record, "node", None)
-        return node.type_name if node is not None else ""
-
-
-class _Sampled(Device):
-    """A sensor with Webots' enable/sampling-period protocol (§5.4)."""
-
-    def __init__(self, robot: Robot, name: str, record: Any) -> None:
-        super().__init__(robot, name, record)
-        self._period = 0
-        self._last_sample: float | None = None
-        self._enabled_at = 0.0
-
-    def enable(self, samplingPeriod: Any) -> None:
-        period = as_int(samplingPeriod, f"{type(self).__name__}.enable")
-        if period <= 0:
-            self.disable()
-            return
-        self._period = period
-        self._enabled_at = self._robot.getTime()
-        self._last_sample = None
-        self._invalidate()
-        self._robot._sensors[id(self)] = self
-
-    def disable(self) -> None:
-        self._period = 0
-        self._robot._sensors.pop(id(self), None)
-
-    def getSamplingPeriod(self) -> int:
-        return self._period
-
-    def _due(self, now: float) -> bool:
-        since = self._enabled_at if self._last_sample is None else self._last_sample
-        return (now - since) * 1000.0 >= self._period - 1e-6
-
-    def _sample(self, now: float) -> None:
-        self._last_sample = now
-        self._read()
-
-    def _invalidate(self) -> None:
-        raise NotImplementedError
-
-    def _read(self) -> None:
-        raise NotImplementedError
+_Sampled = SampledDevice
+_SolidSensor = SolidSensor
 
 
 class PositionSensor(_Sampled):
@@ -529,16 +475,6 @@ class Motor(Device):
         return self._robot._device_for(sensor) if sensor is not None else None  # type: ignore[return-value]
 
 
-class _SolidSensor(_Sampled):
-    _record: DeviceRec
-
-    def _invalidate(self) -> None:
-        self._values: list[float] = [math.nan] * 3
-
-    def _pose(self) -> m3.Pose:
-        return self._robot._sim.solid_world_pose(self._record.solid)
-
-
 class GPS(_SolidSensor):
     """World position of the device (ENU, metres)."""
 
@@ -597,24 +533,6 @@ class InertialUnit(_SolidSensor):
         return [x, y, z, w]
 
 
-class DistanceSensor(_SolidSensor):
-    """Not simulated (no rays): always reads the lookup-table output of its farthest entry ("nothing")."""
-
-    def _read(self) -> None:
-        table = [row for row in self._record.node.fields.get("lookupTable", []) or [] if len(row) >= 2]
-        self._value = float(table[-1][1]) if table else 0.0
-
-    def _invalidate(self) -> None:
-        self._value = math.nan
-
-    def getValue(self) -> float:
-        return self._value
-
-    def getMaxValue(self) -> float:
-        table = [row for row in self._record.node.fields.get("lookupTable", []) or [] if len(row) >= 2]
-        return max((float(r[1]) for r in table), default=0.0)
-
-
 class _UnsupportedSensor(_SolidSensor):
     """A sensor the twin does not simulate: enable/disable work, readings are NaN."""
 
@@ -630,6 +548,8 @@ class _UnsupportedSensor(_SolidSensor):
 
 _SOLID_DEVICE_CLASSES: dict[str, type[Device]] = {
     "DistanceSensor": DistanceSensor,
+    "Lidar": Lidar,
+    "RangeFinder": RangeFinder,
     "GPS": GPS,
     "Gyro": Gyro,
     "Accelerometer": Accelerometer,

@@ -112,12 +112,20 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Accelerometer", "device", "supported", "proper acceleration in the device frame"),
     Coverage("InertialUnit", "device", "supported", "roll/pitch/yaw and quaternion"),
     Coverage("DistanceSensor", "device", "partial",
-             "not yet simulated by rays: always reads its lookup table's value for 'nothing in range'"),
+             "generic, sonar and laser as Webots: rays against bounding objects (own robot excluded unless "
+             "selfCollision), ray layout and Gaussian weights, sonar echo angle, lookup table with noise, "
+             "resolution; infra-red is cast like generic (no visual shapes or colours headless) and "
+             "transparency is not known"),
     Coverage("Compass", "device", "not", _NOT_YET_DEVICE),
     Coverage("Altimeter", "device", "not", _NOT_YET_DEVICE),
     Coverage("TouchSensor", "device", "not", _NOT_YET_DEVICE),
-    Coverage("Lidar", "device", "not", _NOT_YET_DEVICE),
-    Coverage("RangeFinder", "device", "not", _NOT_YET_DEVICE),
+    Coverage("Lidar", "device", "partial",
+             "fixed lidar as one ray per pixel against bounding objects (Webots renders visual shapes): layers, "
+             "fov, tilt, cylindrical (Euclidean) or planar (depth) ranges, +inf outside [minRange, maxRange), "
+             "noise, resolution, point cloud; a rotating lidar is cast as a fixed one"),
+    Coverage("RangeFinder", "device", "partial",
+             "planar depth image as one ray per pixel against bounding objects (Webots renders visual shapes); "
+             "+inf outside [minRange, maxRange), noise, resolution; no lens, motion blur or saveImage"),
     Coverage("Camera", "device", "not", _NOT_YET_DEVICE + " (the MuJoCo twin renders cameras)"),
     Coverage("Recognition", "device", "not", "not yet (Camera)"),
     Coverage("Lens", "device", "not", "not yet (Camera)"),

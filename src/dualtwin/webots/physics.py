@@ -431,6 +431,11 @@ class Simulation:
         self._seed_override = seed
         self._accel_prev: dict[int, tuple[float, float, float]] = {}
         self._accel_cur: dict[int, tuple[float, float, float]] = {}
+        # device modules (rays, touch, radio, ...) keep their per-simulation state here, under their own key,
+        # and register callables run after each step's collision pass (post-step state, contacts of the step)
+        self.extensions: dict[str, Any] = {}
+        self.step_hooks: list[Callable[[], None]] = []
+        self.pre_step_hooks: list[Callable[[float], None]] = []
         self._read_world_info()
         self._snapshot = self._snapshot_fields()
         self._build()
@@ -1572,11 +1577,15 @@ class Simulation:
             if self._pending:
                 self._apply_pending()
             self._pre_physics()
+            for pre_hook in self.pre_step_hooks:
+                pre_hook(self.dt)
             self._step_fn(self._world, self.dt)
             self._check_state()
             self._swap_and_collide()
             self._post_physics()
             self.step_count += 1
+            for hook in self.step_hooks:
+                hook()
 
     def _pre_physics(self) -> None:
         dt = self.dt
@@ -2155,6 +2164,11 @@ class Simulation:
             a = m3.scale(m3.sub(cur, prev), 1.0 / self.dt)
         R = self.solid_world_pose(solid).R
         return m3.mat_t_vec(R, m3.sub(a, self.gravity))
+
+    @property
+    def rng(self) -> random.Random:
+        """The sensor-noise generator (seeded from ``WorldInfo.randomSeed`` or the ``seed`` argument)."""
+        return self._rng
 
     def sensor_noise(self, value: float, noise: float, resolution: float) -> float:
         if noise > 0:

@@ -686,7 +686,7 @@ _TABLE: dict[str, tuple[str | None, list[_Row]]] = {
             ("minRange", "SFFloat", 0.01),
             ("maxRange", "SFFloat", 1.0),
             ("type", "SFString", "fixed"),
-            ("projection", "SFString", "planar"),
+            ("projection", "SFString", "cylindrical"),  # Webots' Lidar.wrl default
             ("noise", "SFFloat", 0.0),
             ("resolution", "SFFloat", -1.0),
             ("defaultFrequency", "SFFloat", 10.0),

@@ -1,0 +1,568 @@
+"""DistanceSensor, Lidar and RangeFinder: Webots' ranging devices, cast as rays against bounding objects.
+
+DistanceSensor (Webots ``WbDistanceSensor``)
+    ``type`` generic / infra-red (also "infrared") / sonar / laser, case-insensitive; any other string is a
+    sonar, as in Webots. ``numberOfRays`` rays (laser: always one) laid out in the sensor frame (axis +x) by
+    Webots' predefined patterns for 2–10 rays and concentric cones beyond, spread over ``aperture``, with
+    Gaussian weights ``exp(-(θ/(aperture·gaussianWidth))²)`` for generic and infra-red. Ray length is the last
+    lookup-table input. Value: generic — weighted mean of the hit distances (a miss counts as the full length);
+    sonar — the nearest hit whose surface faces the ray within π/8, else the full length; laser — the hit
+    distance or the full length. Then the lookup table (interpolation, multiplicative noise) and the
+    resolution. No hit therefore reads the table's *last output*. An empty table reads 0.
+    Infra-red differs from Webots: Webots intersects the rays with the *visual* shapes of the whole scene and
+    weights the distance by the red colour of what it hits; headless there are no visual shapes, so infra-red
+    rays are cast against bounding objects like the others, with a reflection factor of 1 (which makes them
+    read as generic). Transparency is not known either, so nothing is skipped as transparent.
+
+Lidar (fixed) and RangeFinder
+    Webots renders depth on the GPU from the visual scene. Here one ray per pixel is cast against bounding
+    objects: Lidar column ``j`` at azimuth ``fov/2 - (j+½)·fov/W``, layer ``i`` at elevation
+    ``vfov/2 - i·vfov/(L-1) + tilt`` (``tilt`` for one layer); cylindrical projection reads the Euclidean
+    distance, planar projection the depth along the device's x axis over a flat image plane. RangeFinder is a
+    planar ``width × height`` depth image, vertical field of view ``2·atan(tan(fov/2)·height/width)``, row-major
+    from the top-left pixel. Outside ``[minRange, maxRange)`` and where nothing is hit, the value is +inf. Noise is
+    additive, ``σ = noise·maxRange``, then the resolution ``floor(r/res + ½)·res`` (Webots' order of the two is
+    unknown; this one is a guess). A rotating lidar is cast as a fixed one (with a build warning).
+    Before the first sample the images read 0.0 (Webots zero-fills its shared buffer; UNVERIFIED).
+    ``getLayerRangeImage(layer)`` returns that layer (Webots' Python wrapper returns layer 0 for every layer,
+    a bug that is not reproduced).
+
+Rays are cast only when a sample is due (the controller's sampling protocol), in one vectorised batch per device
+(:mod:`.rays`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from dualtwin.webots.api_args import as_float, as_int, warn
+from dualtwin.webots.device_base import SolidSensor
+from dualtwin.webots.lut import Table, discretize, lookup, table_from_field
+from dualtwin.webots.physics import GeomRec, RobotRec, Simulation
+from dualtwin.webots.rays import RayCaster, RayHits, candidate_geoms
+
+__all__ = [
+    "DistanceSensor",
+    "Lidar",
+    "LidarPoint",
+    "RangeFinder",
+    "distance_ray_layout",
+    "distance_ray_weights",
+    "caster_for",
+]
+
+SONAR_MAX_INCIDENCE = math.pi / 8  # 0.392699082 rad: a sonar echo returns only from a surface facing the ray
+
+_H, _T, _Q, _F, _S, _E = math.pi, 2 * math.pi / 3, math.pi / 2, 2 * math.pi / 5, math.pi / 3, 2 * math.pi / 7
+_PATTERNS: dict[int, list[tuple[float, float]]] = {
+    2: [(_Q, 1), (-_Q, 1)],
+    3: [(0, 1), (_T, 1), (-_T, 1)],
+    4: [(0, 0), (0, 1), (_T, 1), (-_T, 1)],
+    5: [(0, 0), (0, 1), (_Q, 1), (_H, 1), (-_Q, 1)],
+    6: [(0, 0), (0, 1)] + [(i * _F, 1) for i in range(1, 5)],
+    7: [(0, 0), (0, 1)] + [(i * _S, 1) for i in range(1, 6)],
+    8: [(0, 0), (0, 1)] + [(i * _E, 1) for i in range(1, 7)],
+    9: [(0, 0.3), (_T, 0.3), (-_T, 0.3), (0, 1)] + [(i * _S, 1) for i in range(1, 6)],
+    10: [(0, 0), (0, 0.5), (_T, 0.5), (-_T, 0.5), (0, 1)] + [(i * _S, 1) for i in range(1, 6)],
+}
+
+
+def caster_for(sim: Simulation) -> RayCaster:
+    """The simulation's shared ray caster."""
+    caster = sim.extensions.get("rays")
+    if caster is None:
+        caster = sim.extensions["rays"] = RayCaster(sim)
+    return caster
+
+
+def _targets(sim: Simulation, robot: RobotRec | None) -> list[GeomRec]:
+    cache = sim.extensions.setdefault("ray_targets", {})
+    key = (id(robot), len(sim.geoms))
+    geoms = cache.get(key)
+    if geoms is None:
+        geoms = cache[key] = candidate_geoms(sim, robot)
+    return geoms
+
+
+def distance_ray_layout(n: int) -> list[tuple[float, float]]:
+    """Webots' polar ray layout ``(α, k)`` for ``n`` rays: k is the fraction of the half aperture."""
+    if n <= 1:
+        return [(0.0, 0.0)]
+    if n in _PATTERNS:
+        return [(float(a), float(k)) for a, k in _PATTERNS[n]]
+    sizes: list[int] = []
+    left, c = n, 0
+    while left > 0:
+        take = min(3 * c + 1, left)
+        sizes.append(take)
+        left -= take
+        c += 1
+    out: list[tuple[float, float]] = []
+    s = 0
+    for cone, m in enumerate(sizes):
+        k = cone / (len(sizes) - 1)
+        for _ in range(m):
+            out.append((s * 2 * math.pi / m, k))  # Webots uses the global ray index here (a quirk kept)
+            s += 1
+    return out
+
+
+def distance_ray_directions(n: int, aperture: float) -> np.ndarray:
+    """Unit ray directions in the sensor frame (axis +x), shape (n, 3)."""
+    dirs = []
+    for alpha, k in distance_ray_layout(n):
+        a = alpha + math.pi / 2
+        theta = k * aperture / 2
+        dirs.append((math.cos(theta), -math.sin(theta) * math.cos(a), math.sin(theta) * math.sin(a)))
+    return np.array(dirs, dtype=float)
+
+
+def distance_ray_weights(directions: np.ndarray, aperture: float, gaussian_width: float) -> np.ndarray:
+    """Gaussian weights of generic/infra-red rays, normalised to sum 1."""
+    if len(directions) == 1:
+        return np.ones(1)
+    t = np.arccos(np.clip(directions[:, 0] / np.linalg.norm(directions, axis=1), -1.0, 1.0))
+    w = np.exp(-((t / (aperture * gaussian_width)) ** 2))
+    return w / w.sum()
+
+
+def _world(sim: Simulation, record: Any) -> tuple[np.ndarray, np.ndarray]:
+    pose = sim.solid_world_pose(record.solid)
+    return np.array(pose.t, dtype=float), np.array(pose.R, dtype=float).reshape(3, 3)
+
+
+# ------------------------------------------------------------------------------------------ distance sensor
+
+
+@dataclass
+class DistanceModel:
+    """A DistanceSensor's fields, normalised as Webots does at load."""
+
+    kind: int
+    table: Table
+    directions: np.ndarray
+    weights: np.ndarray
+    aperture: float
+    resolution: float
+
+    @classmethod
+    def from_node(cls, fields: dict[str, Any]) -> DistanceModel:
+        raw = str(fields.get("type", "generic")).lower()
+        kind = {"generic": 0, "infra-red": 1, "infrared": 1, "sonar": 2, "laser": 3}.get(raw, 2)
+        n = int(fields.get("numberOfRays", 1))
+        n = n if n >= 1 else 1
+        if kind == DistanceSensor.LASER and n != 1:
+            warn("DistanceSensor: a laser casts one ray; numberOfRays set to 1")
+            n = 1
+        aperture = abs(float(fields.get("aperture", 1.5708)))
+        width = float(fields.get("gaussianWidth", 1.0))
+        width = width if width > 0 else 1.0
+        if aperture == 0.0:
+            n = 1
+        dirs = distance_ray_directions(n, aperture)
+        return cls(
+            kind=kind,
+            table=table_from_field(fields.get("lookupTable", [])),
+            directions=dirs,
+            weights=distance_ray_weights(dirs, aperture, width),
+            aperture=aperture,
+            resolution=float(fields.get("resolution", -1.0)),
+        )
+
+    @property
+    def length(self) -> float:
+        return self.table[-1][0] if self.table else 0.0
+
+    def distance(self, hits: RayHits, world_dirs: np.ndarray) -> float:
+        """The distance Webots feeds to the lookup table (§ value computation in the module docstring)."""
+        full = self.length
+        d = np.where(np.isfinite(hits.distance), hits.distance, full)
+        if self.kind in (DistanceSensor.GENERIC, DistanceSensor.INFRA_RED):
+            return float(np.dot(self.weights, d))
+        if self.kind == DistanceSensor.LASER:
+            return float(d[0])
+        best = full  # sonar: the nearest echo from a surface facing the ray
+        for i in np.argsort(hits.distance).tolist():
+            if not hits.distance[i] < best:
+                break
+            cos_incidence = -float(np.dot(world_dirs[i], hits.normal[i]))
+            if math.acos(max(-1.0, min(1.0, cos_incidence))) < SONAR_MAX_INCIDENCE:
+                best = float(hits.distance[i])
+                break
+        return best
+
+    def value(self, sim: Simulation, record: Any, robot: RobotRec | None) -> float:
+        if not self.table:
+            return 0.0
+        origin, R = _world(sim, record)
+        dirs = self.directions @ R.T
+        origins = np.broadcast_to(origin, dirs.shape)
+        hits = caster_for(sim).cast(origins, dirs, self.length, _targets(sim, robot))
+        v = lookup(self.table, self.distance(hits, dirs), sim.rng)
+        return discretize(v, self.resolution)
+
+
+class DistanceSensor(SolidSensor):
+    """Webots ``DistanceSensor`` (see the module docstring)."""
+
+    GENERIC = 0
+    INFRA_RED = 1
+    SONAR = 2
+    LASER = 3
+
+    def _model(self) -> DistanceModel:
+        model = getattr(self, "_model_cache", None)
+        if model is None:
+            model = self._model_cache = DistanceModel.from_node(self._record.node.fields)
+        return model
+
+    def _invalidate(self) -> None:
+        self._value = math.nan
+
+    def _read(self) -> None:
+        self._value = self._model().value(self._robot._sim, self._record, self._record.solid.robot)
+
+    def getValue(self) -> float:
+        return getattr(self, "_value", math.nan)
+
+    def getMaxValue(self) -> float:
+        table = self._model().table
+        return max((r[1] for r in table), default=0.0)
+
+    def getMinValue(self) -> float:
+        table = self._model().table
+        return min((r[1] for r in table), default=0.0)
+
+    def getAperture(self) -> float:
+        return self._model().aperture
+
+    def getType(self) -> int:
+        return self._model().kind
+
+    def getLookupTable(self) -> list[float]:
+        return [v for row in self._model().table for v in row]
+
+    value = property(getValue)
+    max_value = property(getMaxValue)
+    min_value = property(getMinValue)
+    aperture = property(getAperture)
+    type = property(getType)
+    lookup_table = property(getLookupTable)
+
+
+# ------------------------------------------------------------------------------------------ lidar / range finder
+
+
+@dataclass
+class _Grid:
+    """Per-pixel rays of a depth device in its own frame, and how a hit distance becomes a range value."""
+
+    directions: np.ndarray  # (N, 3) unit
+    to_range: np.ndarray  # (N,) factor: 1 (Euclidean) or the cosine to the image-plane normal (planar depth)
+    min_range: float
+    max_range: float
+    noise: float
+    resolution: float
+
+    def ranges(self, sim: Simulation, record: Any, robot: RobotRec | None) -> np.ndarray:
+        origin, R = _world(sim, record)
+        dirs = self.directions @ R.T
+        length = self.max_range / float(self.to_range.min())
+        hits = caster_for(sim).cast(np.broadcast_to(origin, dirs.shape), dirs, length, _targets(sim, robot))
+        r = hits.distance * self.to_range
+        r = np.where((r >= self.min_range) & (r < self.max_range), r, np.inf)
+        if self.noise > 0:
+            finite = np.isfinite(r)
+            draws = np.array([sim.rng.gauss(0.0, 1.0) for _ in range(int(finite.sum()))])
+            r[finite] += self.noise * self.max_range * draws
+        if self.resolution > 0:
+            r = np.floor(r / self.resolution + 0.5) * self.resolution
+        return r
+
+
+def _range_limits(fields: dict[str, Any]) -> tuple[float, float]:
+    near = float(fields.get("near", 0.01))
+    lo = max(float(fields.get("minRange", 0.01)), near)
+    hi = float(fields.get("maxRange", 1.0))
+    if hi <= lo:
+        hi = lo + 1.0
+    return lo, hi
+
+
+def _pitch(dirs: np.ndarray, angle: float) -> np.ndarray:
+    """Rotate directions about the device's y axis so that +x tilts up by ``angle``."""
+    c, s = math.cos(angle), math.sin(angle)
+    x, y, z = dirs[:, 0], dirs[:, 1], dirs[:, 2]
+    return np.stack([c * x - s * z, y, s * x + c * z], axis=1)
+
+
+@dataclass
+class LidarModel:
+    width: int
+    layers: int
+    fov: float
+    vfov: float
+    tilt: float
+    planar: bool
+    grid: _Grid
+    azimuths: np.ndarray
+    elevations: np.ndarray
+    min_frequency: float
+    max_frequency: float
+    frequency: float
+
+    @classmethod
+    def from_node(cls, fields: dict[str, Any]) -> LidarModel:
+        width = max(1, int(fields.get("horizontalResolution", 512)))
+        layers = max(1, int(fields.get("numberOfLayers", 4)))
+        fov = float(fields.get("fieldOfView", 1.5708))
+        vfov = float(fields.get("verticalFieldOfView", 0.2))
+        tilt = float(fields.get("tiltAngle", 0.0))
+        planar = str(fields.get("projection", "cylindrical")) == "planar"
+        if str(fields.get("type", "fixed")) == "rotating":
+            warn("Lidar: a rotating lidar is cast as a fixed one (its head does not turn)")
+        lo, hi = _range_limits(fields)
+        az = fov / 2 - (np.arange(width) + 0.5) * fov / width
+        el = vfov / 2 - np.arange(layers) * vfov / (layers - 1) if layers > 1 else np.zeros(1)
+        if planar:
+            # a flat image plane at x = 1: columns evenly spaced on it, layers at their elevation angles
+            y = math.tan(fov / 2) * (1 - (2 * np.arange(width) + 1) / width)
+            Y, Z = np.meshgrid(y, np.tan(el))
+            raw = np.stack([np.ones(Y.size), Y.ravel(), Z.ravel()], axis=1)
+            unitd = raw / np.linalg.norm(raw, axis=1)[:, None]
+            factor = unitd[:, 0].copy()
+        else:
+            grid_a, grid_e = np.meshgrid(az, el)
+            A, E = grid_a.ravel(), grid_e.ravel()
+            unitd = np.stack([np.cos(A) * np.cos(E), np.sin(A) * np.cos(E), np.sin(E)], axis=1)
+            factor = np.ones(len(unitd))
+        dirs = _pitch(unitd, tilt)
+        grid = _Grid(
+            dirs, factor, lo, hi, float(fields.get("noise", 0.0)), float(fields.get("resolution", -1.0))
+        )
+        fmin, fmax = float(fields.get("minFrequency", 1.0)), float(fields.get("maxFrequency", 25.0))
+        return cls(width, layers, fov, vfov, tilt, planar, grid, az, el + tilt, fmin, fmax,
+                   float(fields.get("defaultFrequency", 10.0)))  # fmt: skip
+
+
+@dataclass(frozen=True)
+class LidarPoint:
+    """One point of a lidar point cloud (lidar frame: x forward, y left, z up)."""
+
+    x: float
+    y: float
+    z: float
+    layer: int
+    time: float
+
+    # Webots' Python attribute names are these; ``layer_id`` is the C field name
+    @property
+    def layer_id(self) -> int:
+        return self.layer
+
+
+class _DepthDevice(SolidSensor):
+    def _invalidate(self) -> None:
+        self._image: np.ndarray | None = None
+
+    def _ranges(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def _size(self) -> int:
+        raise NotImplementedError
+
+    def _read(self) -> None:
+        self._image = self._ranges()
+
+    def _flat(self) -> np.ndarray:
+        image = getattr(self, "_image", None)
+        return image if image is not None else np.zeros(self._size())
+
+
+class Lidar(_DepthDevice):
+    """Webots ``Lidar`` (fixed); see the module docstring."""
+
+    def _model(self) -> LidarModel:
+        model = getattr(self, "_model_cache", None)
+        if model is None:
+            model = self._model_cache = LidarModel.from_node(self._record.node.fields)
+            self._cloud = False
+            self._sampled_at = 0.0
+        return model
+
+    def _size(self) -> int:
+        m = self._model()
+        return m.width * m.layers
+
+    def _ranges(self) -> np.ndarray:
+        self._sampled_at = self._robot.getTime()
+        return self._model().grid.ranges(self._robot._sim, self._record, self._record.solid.robot)
+
+    def getRangeImage(self, data_type: str = "list") -> Any:
+        flat = self._flat()
+        return flat.copy() if data_type == "array" else flat.tolist()
+
+    def getRangeImageArray(self) -> list[list[float]]:
+        m = self._model()
+        return self._flat().reshape(m.layers, m.width).tolist()
+
+    def getLayerRangeImage(self, layer: Any) -> list[float] | None:
+        m = self._model()
+        i = as_int(layer, "Lidar.getLayerRangeImage")
+        if not 0 <= i < m.layers:
+            warn(f"Lidar.getLayerRangeImage(): layer {i} out of range [0, {m.layers - 1}]")
+            return None
+        return self._flat()[i * m.width : (i + 1) * m.width].tolist()
+
+    # point cloud
+
+    def enablePointCloud(self) -> None:
+        self._model()
+        self._cloud = True
+
+    def disablePointCloud(self) -> None:
+        self._model()
+        self._cloud = False
+
+    def isPointCloudEnabled(self) -> bool:
+        self._model()
+        return self._cloud
+
+    def _points(self, layers: range) -> list[LidarPoint]:
+        m = self._model()
+        if not self._cloud or self._period == 0:
+            warn("Lidar: the point cloud is not enabled")
+            return []
+        r = self._flat().reshape(m.layers, m.width)
+        dt = (self._period / 1000.0) / m.width
+        out = []
+        for i in layers:
+            phi = float(m.elevations[i])
+            for j in range(m.width):
+                rr, theta = float(r[i, j]), float(m.azimuths[j])
+                x = rr * math.cos(theta) * math.cos(phi) if rr else 0.0
+                y = rr * math.sin(theta) * math.cos(phi) if rr else 0.0
+                z = rr * math.sin(phi) if rr else 0.0
+                out.append(LidarPoint(x, y, z, i, self._sampled_at - j * dt))
+        return out
+
+    def getPointCloud(self, data_type: str = "list") -> list[LidarPoint]:
+        return self._points(range(self._model().layers))
+
+    def getLayerPointCloud(self, layer: Any, data_type: str = "list") -> list[LidarPoint]:
+        i = as_int(layer, "Lidar.getLayerPointCloud")
+        if not 0 <= i < self._model().layers:
+            return []
+        return self._points(range(i, i + 1))
+
+    def getNumberOfPoints(self) -> int:
+        m = self._model()
+        if not self._cloud or self._period == 0:
+            warn("Lidar.getNumberOfPoints(): the point cloud (or the lidar) is not enabled")
+            return 0
+        return m.width * m.layers
+
+    # parameters
+
+    def getFrequency(self) -> float:
+        return self._model().frequency
+
+    def setFrequency(self, frequency: Any) -> None:
+        m = self._model()
+        f = as_float(frequency, "Lidar.setFrequency")
+        if not m.min_frequency <= f <= m.max_frequency:
+            warn(f"Lidar.setFrequency(): {f} is outside [{m.min_frequency}, {m.max_frequency}]")
+            return
+        m.frequency = f
+
+    def getMinFrequency(self) -> float:
+        return self._model().min_frequency
+
+    def getMaxFrequency(self) -> float:
+        return self._model().max_frequency
+
+    def getHorizontalResolution(self) -> int:
+        return self._model().width
+
+    def getNumberOfLayers(self) -> int:
+        return self._model().layers
+
+    def getFov(self) -> float:
+        return self._model().fov
+
+    def getVerticalFov(self) -> float:
+        return self._model().vfov
+
+    def getMinRange(self) -> float:
+        return self._model().grid.min_range
+
+    def getMaxRange(self) -> float:
+        return self._model().grid.max_range
+
+
+class RangeFinder(_DepthDevice):
+    """Webots ``RangeFinder`` (planar depth image); see the module docstring."""
+
+    def _model(self) -> tuple[int, int, float, _Grid]:
+        model = getattr(self, "_model_cache", None)
+        if model is None:
+            f = self._record.node.fields
+            w, h = max(1, int(f.get("width", 64))), max(1, int(f.get("height", 64)))
+            fov = float(f.get("fieldOfView", 0.7854))
+            if str(f.get("projection", "planar")) != "planar":
+                warn("RangeFinder: only the planar projection is cast; spherical/cylindrical read as planar")
+            vfov = 2 * math.atan(math.tan(fov / 2) * h / w)
+            ys = math.tan(fov / 2) * (1 - (2 * np.arange(w) + 1) / w)
+            zs = math.tan(vfov / 2) * (1 - (2 * np.arange(h) + 1) / h)
+            Y, Z = np.meshgrid(ys, zs)  # row-major from the top-left pixel
+            raw = np.stack([np.ones(Y.size), Y.ravel(), Z.ravel()], axis=1)
+            unitd = raw / np.linalg.norm(raw, axis=1)[:, None]
+            lo, hi = _range_limits(f)
+            grid = _Grid(
+                unitd,
+                unitd[:, 0].copy(),
+                lo,
+                hi,
+                float(f.get("noise", 0.0)),
+                float(f.get("resolution", -1.0)),
+            )
+            model = self._model_cache = (w, h, fov, grid)
+        return model
+
+    def _size(self) -> int:
+        w, h, _, _ = self._model()
+        return w * h
+
+    def _ranges(self) -> np.ndarray:
+        return self._model()[3].ranges(self._robot._sim, self._record, self._record.solid.robot)
+
+    def getRangeImage(self, data_type: str = "list") -> Any:
+        flat = self._flat()
+        return flat.copy() if data_type == "array" else flat.tolist()
+
+    def getRangeImageArray(self) -> list[list[float]]:
+        w, h, _, _ = self._model()
+        return self._flat().reshape(h, w).tolist()
+
+    @staticmethod
+    def rangeImageGetDepth(image: Any, width: int, x: int, y: int) -> float:
+        return float(image[y * width + x])
+
+    def getWidth(self) -> int:
+        return self._model()[0]
+
+    def getHeight(self) -> int:
+        return self._model()[1]
+
+    def getFov(self) -> float:
+        return self._model()[2]
+
+    def getMinRange(self) -> float:
+        return self._model()[3].min_range
+
+    def getMaxRange(self) -> float:
+        return self._model()[3].max_range
