@@ -35,7 +35,8 @@ Stops
 Devices
     RotationalMotor/LinearMotor -> ``general`` actuator named by the device, on its joint, ``forcerange`` and
     ``ctrlrange`` ±maxTorque/maxForce, plus ``<numeric name="webots_motor.NAME" data="maxVelocity Kp Ki Kd
-    acceleration"/>`` (what :mod:`dualtwin.twins.mujoco` reads). PositionSensor -> jointpos; InertialUnit ->
+    acceleration [minPosition maxPosition]"/>`` (what :mod:`dualtwin.twins.mujoco` reads; the position limits
+    only when they differ, as Webots then clamps position targets into them). PositionSensor -> jointpos; InertialUnit ->
     framequat, Gyro -> gyro, Accelerometer -> accelerometer, GPS -> framepos, Compass -> magnetometer,
     DistanceSensor -> rangefinder, TouchSensor -> touch, each at a site at the device pose named by the device.
 
@@ -815,14 +816,15 @@ class _Converter:
                 act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
                 act.ctrlrange = [-limit, limit]
                 kp, ki, kd = (float(v) for v in d.get("controlPID", (10.0, 0.0, 0.0)))
-                self.spec.add_numeric(name=f"webots_motor.{act_name}",
-                                      data=[float(d.get("maxVelocity", 10.0)), kp, ki, kd,
-                                            float(d.get("acceleration", -1.0))])
+                data = [float(d.get("maxVelocity", 10.0)), kp, ki, kd, float(d.get("acceleration", -1.0))]
+                lo, hi = float(d.get("minPosition", 0.0)), float(d.get("maxPosition", 0.0))
+                if lo != hi:
+                    # Webots clamps every position target into [minPosition, maxPosition] (they are not joint
+                    # stops: velocity and torque commands pass), so the twin that emulates the motor needs them.
+                    data += [lo, hi]
+                self.spec.add_numeric(name=f"webots_motor.{act_name}", data=data)
                 if float(d.get("multiplier", 1.0)) != 1.0:
                     self.warn(f"motor {name!r}: multiplier {d.get('multiplier')} is not converted", d)
-                if float(d.get("minPosition", 0.0)) != float(d.get("maxPosition", 0.0)):
-                    self.warn(f"motor {name!r}: soft limits minPosition/maxPosition are enforced by the controller "
-                              "side only (not written to MJCF)", d)
                 info.motors.append(act_name)
                 self.motors.append(MotorInfo(act_name, info.name, kind == "LinearMotor", limit,
                                              float(d.get("maxVelocity", 10.0))))

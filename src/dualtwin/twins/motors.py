@@ -23,6 +23,9 @@ class MotorParams:
     ki: float = 0.0
     kd: float = 0.0
     acceleration: float = -1.0
+    #: Webots' minPosition/maxPosition: position targets are clamped into them when they differ.
+    min_position: float = 0.0
+    max_position: float = 0.0
 
 
 @dataclass
@@ -60,7 +63,11 @@ class MotorState:
         self.torque_mode = False
 
     def set_position(self, position: float) -> None:
-        self.target_position = position * self.gain
+        p = self.params
+        target = position * self.gain
+        if p.min_position != p.max_position and math.isfinite(target):
+            target = min(max(target, p.min_position), p.max_position)
+        self.target_position = target
         self.target_velocity = self.params.max_velocity
         self.torque_mode = False
 

@@ -15,8 +15,8 @@ the contacts. Instead the servo torque is applied explicitly from the velocity a
 ``dt·kv`` is added to the joint's ``armature`` while the servo is active: for the joint alone that is the
 same backward-Euler update, and the constraint solver sees the motor's stiffness. MuJoCo's own
 ``forcerange`` clamp is not used: a clamped stiff servo chatters. Webots motor fields are read from
-``<custom><numeric name="webots_motor.NAME" data="maxVelocity Kp Ki Kd acceleration"/>``, and the maximum
-torque from the actuator's ``forcerange``.
+``<custom><numeric name="webots_motor.NAME" data="maxVelocity Kp Ki Kd acceleration [minPosition
+maxPosition]"/>``, and the maximum torque from the actuator's ``forcerange``.
 
 A model with ``<custom><text name="webots_contact" data="approx1"/></custom>`` gets ODE's square friction
 limit (Webots' ``dContactApprox1``) from a turned MuJoCo pyramid (:mod:`dualtwin.twins.ode_friction`); others
@@ -203,8 +203,9 @@ class MuJoCoTwin(Twin):
         numeric = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_NUMERIC, f"webots_motor.{name}")
         if numeric >= 0:
             adr, size = self.model.numeric_adr[numeric], self.model.numeric_size[numeric]
-            values = list(self.model.numeric_data[adr:adr + size]) + [math.nan] * 5
-            for attr, value in zip(("max_velocity", "kp", "ki", "kd", "acceleration"), values[:5], strict=True):
+            fields = ("max_velocity", "kp", "ki", "kd", "acceleration", "min_position", "max_position")
+            values = list(self.model.numeric_data[adr:adr + size]) + [math.nan] * len(fields)
+            for attr, value in zip(fields, values[:len(fields)], strict=True):
                 if not math.isnan(value):
                     setattr(params, attr, float(value))
         if self.model.actuator_forcelimited[actuator]:
