@@ -68,7 +68,10 @@ class Channel(_Strict):
     joint: str | None = None
     body: str | None = None
     quantity: Quantity = "position"
-    axis: Literal["x", "y", "z", "yaw"] | None = None
+    axis: Literal["x", "y", "z", "roll", "pitch", "yaw"] | None = Field(
+        default=None, description="body channels: a world coordinate of the body frame's origin (x, y, z), or "
+        "an angle of its orientation as Z-Y-X Euler angles (R = Rz(yaw) Ry(pitch) Rx(roll)); velocity channels "
+        "take x, y or z")
     scale: float = 1.0
     unit: str = ""
     resolution: float | None = Field(
@@ -82,7 +85,9 @@ class Channel(_Strict):
         if sum(sources) != 1:
             raise ValueError("give exactly one of 'sensors', 'joint' or 'body'")
         if self.body is not None and self.axis is None:
-            raise ValueError("a body channel needs an 'axis' (x, y, z or yaw)")
+            raise ValueError("a body channel needs an 'axis' (x, y, z, roll, pitch or yaw)")
+        if self.axis in ("roll", "pitch", "yaw") and self.quantity != "position":
+            raise ValueError(f"axis {self.axis!r} is an orientation angle: it has no 'velocity' quantity")
         return self
 
 

@@ -31,6 +31,17 @@ def _reader(twin: Twin, channel: Channel) -> Callable[[], float]:
             r = twin.body_orientation(body)
             return math.atan2(float(r[1, 0]), float(r[0, 0])) * scale
         return yaw
+    if channel.axis == "pitch":
+        # Z-Y-X Euler angles (R = Rz(yaw) Ry(pitch) Rx(roll)), the convention yaw above already follows.
+        def pitch() -> float:
+            r = twin.body_orientation(body)
+            return math.atan2(-float(r[2, 0]), math.hypot(float(r[2, 1]), float(r[2, 2]))) * scale
+        return pitch
+    if channel.axis == "roll":
+        def roll() -> float:
+            r = twin.body_orientation(body)
+            return math.atan2(float(r[2, 1]), float(r[2, 2])) * scale
+        return roll
     axis = AXES[channel.axis or "x"]
     if channel.quantity == "position":
         return lambda: float(twin.body_position(body)[axis]) * scale

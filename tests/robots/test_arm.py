@@ -1,0 +1,170 @@
+"""The bundled six-joint arm (``arm`` and ``arm_payload``): both twins load it with the same mass properties,
+the converter carries its motors faithfully, and a position step on every joint settles alike in both twins."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from dualtwin.convert import convert_world
+from dualtwin.errors import DualtwinError
+from dualtwin.robots.binding import RobotBinding, bundled_robots, load_binding, resolve_robot
+from dualtwin.robots.io import RobotIO
+from dualtwin.twins import Twin, make_twin
+from dualtwin.webots import load_world
+from dualtwin.webots.physics import Simulation
+
+JOINTS = ["shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3"]
+LINKS = ["shoulder_link", "upper_arm_link", "forearm_link", "wrist_1_link", "wrist_2_link", "wrist_3_link"]
+# UR's published link masses (kg), and the payload variant's 5 kg cube merged into the flange link.
+UR_MASSES = [3.761, 8.058, 2.846, 1.37, 1.3, 0.365]
+MAX_TORQUE = [150.0, 150.0, 150.0, 28.0, 28.0, 28.0]
+
+
+@pytest.fixture(scope="module", params=["arm", "arm_payload"])
+def robot(request: pytest.FixtureRequest) -> RobotBinding:
+    return resolve_robot(request.param)
+
+
+def test_bundled() -> None:
+    assert {"arm", "arm_payload"} <= set(bundled_robots())
+
+
+def test_mass_properties_agree(robot: RobotBinding) -> None:
+    """Mass, world CoM and inertia tensor of every link: Webots' ODE bodies against the converted MJCF."""
+    sim = Simulation(load_world(robot.model_path("webots")))
+    model = mujoco.MjModel.from_xml_path(str(robot.model_path("mujoco")))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    ode_bodies = {b.root.node.def_name: b for b in sim.bodies}
+    assert set(ode_bodies) == set(LINKS)
+    payload = 5.0 if robot.name == "arm_payload" else 0.0
+    for link, ur_mass in zip(LINKS, UR_MASSES, strict=True):
+        body = ode_bodies[link]
+        b = model.body(link).id
+        expected = ur_mass + (payload if link == "wrist_3_link" else 0.0)
+        assert body.mass == pytest.approx(expected, rel=1e-9)
+        assert model.body_mass[b] == pytest.approx(expected, rel=1e-6)
+        # World CoM at the file's pose; the ODE body's origin is its CoM.
+        assert np.allclose(np.array(body.pos[:3]), data.xipos[b], atol=1e-5), link
+        # Inertia about the CoM in world axes (both frames are world-aligned at q = 0).
+        ode_inertia = np.array(body.inertia).reshape(3, 3)
+        rot = data.ximat[b].reshape(3, 3)
+        mj_inertia = rot @ np.diag(model.body_inertia[b]) @ rot.T
+        assert np.allclose(ode_inertia, mj_inertia, atol=1e-6 * max(1.0, np.abs(ode_inertia).max())), link
+    assert sum(b.mass for b in sim.bodies) == pytest.approx(sum(UR_MASSES) + payload)
+
+
+def test_bundled_mjcf_is_the_conversion(robot: RobotBinding) -> None:
+    """The bundled MJCF is exactly what ``dualtwin convert`` writes for the bundled world (no hand edits)."""
+    conversion = convert_world(robot.model_path("webots"))
+    assert conversion.xml == robot.model_path("mujoco").read_text()
+    assert not [f for f in conversion.lint if f.level == "error"]
+
+
+def test_motor_semantics_carried() -> None:
+    """Webots' motor fields reach the MuJoCo twin: max velocity, PID gains, torque limit, position limits."""
+    robot = resolve_robot("arm")
+    model = mujoco.MjModel.from_xml_path(str(robot.model_path("mujoco")))
+    for joint, torque in zip(JOINTS, MAX_TORQUE, strict=True):
+        numeric = model.numeric(f"webots_motor.{joint}")
+        max_velocity, kp, ki, kd, acceleration, lo, hi = numeric.data
+        assert max_velocity == pytest.approx(math.pi, rel=1e-6)
+        assert (kp, ki, kd, acceleration) == (10.0, 0.0, 0.0, -1.0)
+        limit = math.pi if joint == "elbow" else 2 * math.pi
+        assert (lo, hi) == (pytest.approx(-limit, rel=1e-6), pytest.approx(limit, rel=1e-6))
+        assert tuple(model.actuator(joint).forcerange) == (-torque, torque)
+        # Webots has no rotor inertia, joint damping or friction here: the conversion adds none.
+        dof = model.jnt_dofadr[model.joint(joint).id]
+        assert (model.dof_armature[dof], model.dof_damping[dof], model.dof_frictionloss[dof]) == (0, 0, 0)
+
+
+def _settle(twin: Twin, targets: list[float], seconds: float) -> tuple[np.ndarray, np.ndarray]:
+    twin.reset(0)
+    trace = []
+    for _ in range(round(seconds / twin.control_period)):
+        for joint, target in zip(JOINTS, targets, strict=True):
+            twin.command(joint, "position", target)
+        twin.step()
+        trace.append([twin.joint_position(j) for j in JOINTS])
+    return np.array(trace), np.asarray(twin.body_position("wrist_3_link"), dtype=float)
+
+
+def test_position_step_settles_alike(robot: RobotBinding) -> None:
+    """A step on every joint at once (shoulder and elbow against gravity) settles to the target in both twins:
+    Webots' P = 10 velocity servo capped at pi rad/s, reproduced by the MuJoCo twin's motor emulation."""
+    targets = [0.6, -0.5, 0.9, -0.7, 0.5, 1.2]
+    results = {name: _settle(make_twin(name, robot), targets, 1.6) for name in ("webots", "mujoco")}
+    for trace, _ in results.values():
+        assert np.allclose(trace[-1], targets, atol=2e-3)
+        # The first period moves about the speed cap (pi rad/s): Webots' maxVelocity binds, not P = 10.
+        assert np.all(np.abs(trace[0]) <= 1.1 * math.pi * 0.016)
+    (webots, ee_webots), (mujoco_trace, ee_mujoco) = results["webots"], results["mujoco"]
+    assert np.abs(webots - mujoco_trace).max() < 0.01
+    assert np.linalg.norm(ee_webots - ee_mujoco) < 2e-3
+
+
+def test_target_beyond_motor_limit_is_clamped_in_both_twins() -> None:
+    """The elbow's motor limits (+-pi) clamp a position target in both twins, as Webots' setPosition does."""
+    robot = resolve_robot("arm")
+    ends = []
+    for name in ("webots", "mujoco"):
+        twin = make_twin(name, robot)
+        twin.reset(0)
+        twin.set_joint_state("elbow", position=3.0)
+        for _ in range(40):
+            twin.command("elbow", "position", 4.0)
+            twin.step()
+        ends.append(twin.joint_position("elbow"))
+    assert ends[0] == pytest.approx(math.pi, abs=2e-3)
+    assert ends[1] == pytest.approx(ends[0], abs=2e-3)
+
+
+def test_flange_orientation_channels() -> None:
+    """roll/pitch/yaw body channels are Z-Y-X Euler angles of the flange frame."""
+    robot = resolve_robot("arm")
+    twin = make_twin("mujoco", robot)
+    io = RobotIO(robot, twin)
+    names = io.ground_truth_names
+
+    def pose(**q: float) -> dict[str, float]:
+        twin.reset(0)
+        for joint, value in q.items():
+            twin.set_joint_state(joint, position=value)
+        return dict(zip(names, io.sample_ground_truth(), strict=True))
+
+    p = pose(shoulder_pan=0.4)
+    assert (p["ee_roll_rad"], p["ee_pitch_rad"], p["ee_yaw_rad"]) == pytest.approx((0, 0, 0.4), abs=1e-9)
+    p = pose(wrist_3=0.3)  # flange axis +y at q = 0: a pitch
+    assert (p["ee_roll_rad"], p["ee_pitch_rad"], p["ee_yaw_rad"]) == pytest.approx((0, 0.3, 0), abs=1e-9)
+    p = pose(shoulder_pan=math.pi / 2, wrist_3=0.25)  # intrinsic: yaw first, then the flange's pitch
+    assert (p["ee_roll_rad"], p["ee_pitch_rad"], p["ee_yaw_rad"]) == pytest.approx((0, 0.25, math.pi / 2),
+                                                                                   abs=1e-9)
+    assert (p["ee_x_m"], p["ee_y_m"]) == pytest.approx((-0.2329, 0.8172), abs=1e-4)
+    # A general pose: the three angles rebuild the flange's rotation matrix.
+    p = pose(shoulder_pan=0.3, shoulder_lift=-0.8, elbow=1.1, wrist_1=0.7, wrist_2=-1.2, wrist_3=0.4)
+    assert abs(p["ee_roll_rad"]) > 0.1
+    rebuilt = (_rotation(2, p["ee_yaw_rad"]) @ _rotation(1, p["ee_pitch_rad"]) @ _rotation(0, p["ee_roll_rad"]))
+    assert np.allclose(rebuilt, np.asarray(twin.body_orientation("wrist_3_link")).reshape(3, 3), atol=1e-9)
+
+
+def _rotation(axis: int, angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    r = np.eye(3)
+    r[i, i], r[i, j], r[j, i], r[j, j] = c, -s, s, c
+    return r
+
+
+def test_orientation_channel_has_no_velocity(tmp_path: Path) -> None:
+    text = resolve_robot("arm").path.read_text().replace(
+        "ee_roll_rad: {body: wrist_3_link, axis: roll, unit: rad}",
+        "ee_roll_rad: {body: wrist_3_link, axis: roll, quantity: velocity, unit: rad}")
+    path = tmp_path / "binding.yaml"
+    path.write_text(text)
+    with pytest.raises(DualtwinError, match="orientation angle"):
+        load_binding(path)
