@@ -412,17 +412,30 @@ def export(
     out: Annotated[Path, typer.Option(help="export folder (policy.onnx, policy_contract.json)")],
     which: Annotated[str, typer.Option(help="best or final model")] = "final",
     trust_pickles: TrustPickles = False,
+    camera_only: Annotated[bool, typer.Option(
+        help="write a camera-only contract: wheel odometry on board, the rest from --perception")] = False,
+    perception: Annotated[Path | None, typer.Option(help="perception model folder, for --camera-only")] = None,
 ) -> None:
     """Export a policy to ONNX with observation normalisation and action scaling inside the graph."""
     from dualtwin.rl.export import export_policy
 
     if which not in ("best", "final"):
         raise DualtwinError(f"--which must be best or final, not {which!r}")
+    if camera_only != (perception is not None):
+        raise DualtwinError("--camera-only and --perception go together")
+    if perception is not None:
+        from dualtwin.perception.estimator import StateEstimator
+
+        StateEstimator.load(perception)  # a bad model folder fails before anything is written
     check_output_dir(out, "export")
     from dualtwin.rl.runfiles import trusting_pickles
 
     with trusting_pickles(trust_pickles):
         path = export_policy(policy, out, which=which)  # type: ignore[arg-type]
+    if perception is not None:
+        from dualtwin.perception.camera_only import export_camera_only
+
+        export_camera_only(out, perception, out)
     console.print(f"wrote {path}")
 
 
@@ -499,6 +512,8 @@ def serve(
     host: Annotated[str, typer.Option(help="address to listen on")] = "127.0.0.1",
     port: Annotated[int, typer.Option(help="port")] = 8000,
     api_key_env: Annotated[str | None, typer.Option(help="environment variable holding the API key")] = None,
+    camera_only: Annotated[bool, typer.Option(
+        help="camera-only: requests carry wheel odometry only; pole angle and rate come from the camera")] = False,
 ) -> None:
     """Serve the policy plus perception over HTTP (Pattern 3): POST /v1/act, GET /v1/info, GET /healthz."""
     import os
@@ -510,7 +525,7 @@ def serve(
         api_key = os.environ.get(api_key_env)
         if not api_key:
             raise DualtwinError(f"--api-key-env: environment variable {api_key_env} is not set")
-    run_serve(policy, perception, host=host, port=port, api_key=api_key)
+    run_serve(policy, perception, host=host, port=port, api_key=api_key, camera_only=camera_only)
 
 
 @app.command("deploy")

@@ -3,7 +3,9 @@
 A policy trained on privileged state cannot run on a robot that has no supervisor. The server closes that gap:
 the robot sends its on-board sensor readings (named as the policy contract's ``onboard`` observations) and a
 camera frame; the perception model estimates the privileged quantities from the recent frames; the policy
-turns the assembled observation into an action.
+turns the assembled observation into an action. Camera-only mode (``camera_only=True``, or a policy folder
+written by :func:`dualtwin.perception.camera_only.export_camera_only`) keeps only the wheel odometry on board:
+the pole angle and rate come from the camera, and ``/v1/info`` says ``observation_mode: camera_only``.
 
 Endpoints:
 
@@ -47,7 +49,7 @@ import time
 from collections import OrderedDict
 from collections.abc import AsyncIterator, Awaitable, Callable, MutableMapping, Sequence
 from contextlib import asynccontextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -60,6 +62,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from starlette.concurrency import run_in_threadpool
 
 from dualtwin.errors import DualtwinError
+from dualtwin.perception.camera_only import camera_only_contract, is_camera_only
 from dualtwin.perception.estimator import DEFAULT_VELOCITY, VELOCITY_MODES, EstimatorSession, StateEstimator
 from dualtwin.perception.onnx_policy import POLICY_FILE, OnnxPolicy
 
@@ -224,9 +227,14 @@ class ServerModels:
     perception: StateEstimator
 
     @staticmethod
-    def load(policy_dir: Path | str, perception_dir: Path | str) -> ServerModels:
+    def load(policy_dir: Path | str, perception_dir: Path | str, *, camera_only: bool = False) -> ServerModels:
+        """Load and check both models; ``camera_only`` rewrites the policy's contract so that only wheel odometry
+        is read from the robot and every other observation comes from the perception model
+        (:func:`dualtwin.perception.camera_only.camera_only_contract`)."""
         policy = OnnxPolicy.load_exported(policy_dir)
         perception = StateEstimator.load(perception_dir)
+        if camera_only or is_camera_only(policy.contract):
+            policy = replace(policy, contract=camera_only_contract(policy.contract, perception.names))
         missing = [n for n in policy.privileged if n not in perception.names]
         if missing:
             raise DualtwinError(f"{perception_dir}: the perception model estimates {perception.names}, but the policy "
@@ -351,7 +359,7 @@ def create_app(policy_dir: Path | str, perception_dir: Path | str, *, api_key: s
                max_body_bytes: int = DEFAULT_MAX_BODY_BYTES, max_frame_pixels: int = DEFAULT_MAX_FRAME_PIXELS,
                max_sessions: int = DEFAULT_MAX_SESSIONS, max_total_sessions: int = DEFAULT_MAX_TOTAL_SESSIONS,
                session_idle_s: float = DEFAULT_SESSION_IDLE_S, max_requests_per_s: float | None = None,
-               velocity: str = DEFAULT_VELOCITY) -> FastAPI:
+               velocity: str = DEFAULT_VELOCITY, camera_only: bool = False) -> FastAPI:
     """The RobotServer app for an exported policy folder and a perception model folder.
 
     Args:
@@ -362,6 +370,10 @@ def create_app(policy_dir: Path | str, perception_dir: Path | str, *, api_key: s
         session_idle_s: a session unused this long is dropped.
         max_requests_per_s: optional sustained request rate per key or client address (bursts of one
             second's worth); 429 beyond it.
+        camera_only: serve the policy camera-only: requests carry the wheel odometry only (no pole encoder, no
+            other sensor: the request schema has no field for it) and the perception model estimates the rest.
+            A policy folder written by :func:`dualtwin.perception.camera_only.export_camera_only` is served
+            camera-only without the flag.
 
     Raises:
         DualtwinError: a model is missing, is not ONNX, or the two do not fit together (before serving).
@@ -375,7 +387,7 @@ def create_app(policy_dir: Path | str, perception_dir: Path | str, *, api_key: s
         raise DualtwinError(f"unknown velocity mode {velocity!r} (available: {', '.join(VELOCITY_MODES)})")
     keys = _keys(api_key)
     # Loaded once, here, so a bad file fails before anything listens; the lifespan owns them afterwards.
-    models = ServerModels.load(policy_dir, perception_dir)
+    models = ServerModels.load(policy_dir, perception_dir, camera_only=camera_only)
     policy, perception = models.policy, models.perception
     perception.session(velocity)  # a model the velocity mode cannot use fails here, not at the first request
     onboard = policy.onboard
@@ -419,6 +431,8 @@ def create_app(policy_dir: Path | str, perception_dir: Path | str, *, api_key: s
 
     info = {
         "api_version": API_VERSION,
+        "observation_mode": policy.contract.get("observation_mode", "onboard_sensors_and_camera"),
+        "odometry": policy.contract.get("odometry"),
         "policy": {"env_id": policy.contract.get("env_id"), "env_kwargs": policy.contract.get("env_kwargs") or {},
                    "source_twin": policy.contract.get("source_twin"),
                    "observation": policy.terms, "action": policy.contract.get("action"),
@@ -569,14 +583,15 @@ def serve(policy_dir: Path | str, perception_dir: Path | str, host: str = "127.0
           api_key: str | Sequence[str] | None = None, *, max_body_bytes: int = DEFAULT_MAX_BODY_BYTES,
           max_frame_pixels: int = DEFAULT_MAX_FRAME_PIXELS, max_sessions: int = DEFAULT_MAX_SESSIONS,
           max_total_sessions: int = DEFAULT_MAX_TOTAL_SESSIONS, session_idle_s: float = DEFAULT_SESSION_IDLE_S,
-          max_requests_per_s: float | None = None, velocity: str = DEFAULT_VELOCITY, log_level: str = "info") -> None:
+          max_requests_per_s: float | None = None, velocity: str = DEFAULT_VELOCITY, log_level: str = "info",
+          camera_only: bool = False) -> None:
     """Run the RobotServer with uvicorn until interrupted (models are checked before it listens)."""
     import uvicorn
 
     app = create_app(policy_dir, perception_dir, api_key=api_key, max_body_bytes=max_body_bytes,
                      max_frame_pixels=max_frame_pixels, max_sessions=max_sessions,
                      max_total_sessions=max_total_sessions, session_idle_s=session_idle_s,
-                     max_requests_per_s=max_requests_per_s, velocity=velocity)
+                     max_requests_per_s=max_requests_per_s, velocity=velocity, camera_only=camera_only)
     if not api_key and not is_loopback(host):
         print(f"warning: serving on {host} without an API key: anyone who can reach port {port} can drive the "
               "policy and read its contract; set one with --api-key-env", file=sys.stderr)

@@ -268,11 +268,16 @@ def _deploy(server_url: str, env_id: str, episodes: int, *, seed: int = 0, api_k
         if max_steps:
             kwargs["max_episode_steps"] = max_steps
         env = make_env(env_id, **kwargs)
+        cap = getattr(env.spec, "max_episode_steps", None)
         twin_env: Any = env.unwrapped  # a dualtwin TwinEnv
         try:
             env_terms = [(t.name, t.source) for t in twin_env.task.observation_terms]
             wanted = [(t["name"], t.get("source")) for t in terms]
-            if env_terms != wanted or not np.isclose(twin_env.control_period, info["policy"]["control_period_s"]):
+            # The server may take more from the camera than the env has on board (camera-only serving estimates
+            # the pole angle the env reads from its encoder), never ask for a sensor the env does not have.
+            fits = [n for n, _ in env_terms] == [n for n, _ in wanted] and all(
+                ws != "onboard" or es == "onboard" for (_, es), (_, ws) in zip(env_terms, wanted, strict=True))
+            if not fits or not np.isclose(twin_env.control_period, info["policy"]["control_period_s"]):
                 raise DualtwinError(f"{env_id} observes {env_terms} every {twin_env.control_period} s; the "
                                     f"served policy expects {wanted} every {info['policy']['control_period_s']} s")
             camera_renderer = TwinCamera(twin_env.twin, spec, width, height)
@@ -333,12 +338,18 @@ def _deploy(server_url: str, env_id: str, episodes: int, *, seed: int = 0, api_k
         # What the served loop actually estimates: only the policy's privileged inputs come from the camera; the
         # rest are the robot's own sensors (for the CartPole PPO policy: the pole rate only, not camera-only).
         "loop": ("camera_only" if not onboard else
+                 "camera_only_with_wheel_odometry" if info.get("observation_mode") == "camera_only" else
                  "perception_" + "+".join(str(terms[i]["name"]) for i in privileged) + "_only"),
+        "observation_mode": info.get("observation_mode"),
         "inputs_from_perception": [terms[i]["name"] for i in privileged],
         "inputs_from_onboard_sensors": [terms[i]["name"] for i in onboard],
         "perception_rewards": served, "privileged_rewards": baseline,
         "mean_perception_reward": mean_served, "mean_privileged_reward": mean_base,
         "ratio": mean_served / mean_base if mean_base else None,
+        # Success: the pole kept within the task's band for every step of a full-length episode (reward = cap).
+        "episode_cap": cap,
+        "perception_success": (sum(r >= cap for r in served) / len(served)) if cap else None,
+        "privileged_success": (sum(r >= cap for r in baseline) / len(baseline)) if cap and baseline else None,
         "estimate_mae": {terms[i]["name"]: float(v) for i, v in
                          zip(privileged, np.mean(errors, axis=0) if errors else [], strict=False)},
         "latency_ms": {"p50": float(np.percentile(lat, 50)), "p99": float(np.percentile(lat, 99)),
