@@ -91,6 +91,9 @@ def test_one_policy_for_every_writer(tmp_path: Path) -> None:
     with pytest.raises(DualtwinError, match="not suite-run output"):
         remove_output_dir(foreign, "suite-run")
     assert (foreign / "notes.txt").read_text() == "mine\n"
+    (tmp_path / "empty").mkdir()
+    remove_output_dir(tmp_path / "empty", "suite-run")
+    assert not (tmp_path / "empty").exists()
     file = tmp_path / "file"
     file.write_text("x")
     with pytest.raises(DualtwinError, match="exists and is not a folder"):

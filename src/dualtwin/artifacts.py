@@ -271,6 +271,9 @@ def remove_output_dir(path: Path, kind: str) -> None:
     path = Path(path)
     if not path.exists():
         return
+    if path.is_dir() and not path.is_symlink() and not any(path.iterdir()):
+        path.rmdir()  # an empty folder (a run that died before writing anything)
+        return
     if path.is_symlink() or not path.is_dir() or output_kind(path) != kind:
         raise DualtwinError(f"{path}: not {kind} output written by dualtwin; refusing to replace it")
     shutil.rmtree(path)
