@@ -119,3 +119,16 @@ def test_progress_off_a_terminal_is_one_line_per_event() -> None:
         progress(ProgressEvent("perception train", 1, 3, "loss 0.5"))
         progress(ProgressEvent("perception train", 2, 3, "loss 0.4"))
     assert out.getvalue().splitlines() == ["perception train: 1/3 loss 0.5", "perception train: 2/3 loss 0.4"]
+
+
+@pytest.mark.parametrize("command", ["compare", "analyze", "align", "transfer", "lockstep", "predict-error",
+                                     "suite run", "perception eval"])
+def test_every_command_that_prints_results_has_json(command: str) -> None:
+    import typer
+
+    from dualtwin.cli import app
+
+    group = typer.main.get_command(app)
+    for part in command.split():
+        group = group.commands[part]  # type: ignore[attr-defined]
+    assert any("--json" in p.opts for p in group.params), command
