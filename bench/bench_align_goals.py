@@ -1,0 +1,253 @@
+"""Alignment goals of issue 15 (recordings, nuisance knobs, ensembles), each measured once, with controls.
+
+Run: ``python bench/bench_align_goals.py`` (all parts) or ``--parts floor,paper,recording``.
+Set ``DUALTWIN_BENCH_ALIGN_GOALS_OUT=DIR`` to keep the runs.
+
+* ``floor``: the bundled MuJoCo CartPole aligned to the Webots twin (the setup of ``bench_align.py``: least
+  squares on the pole angle, ``05_Sine_Drive`` held out), once on the single Webots trajectory and once on
+  the ensemble mean (``ensemble="mean"``, 3 members at ±10 µrad). Goal: every fitted scenario's pole DTW
+  after the fit within 1.5× its reproducibility floor (the larger of the two twins' floors, from
+  ``dualtwin.divergence.floor.simulate_floor`` with the initial angle moved by ±1 µrad and by ±10 µrad).
+* ``paper``: the paper-like mismatch (pole damping 0.08, floor friction ×0.8 in the MuJoCo twin) fitted on the
+  ensemble mean. Goal: pole-fall DTW (single trajectories, as before) cut by >= 90 %.
+* ``recording``: the Webots twin with known physics (pole damping 0.03, pole mass ×1.25) records the suite
+  with an unknown kick of the pole (a random initial rate) in every scenario where the pole starts free. The
+  logs are written in the paper's format with values rounded to 3 decimals, wall-clock stamps with 2 ms
+  jitter, logging one control period late, and imported with ``dualtwin.recorded.import_paper``. The
+  Webots twin (nominal) is aligned to it by least squares with nuisance knobs (those scenarios' initial pole
+  rate, one shared time offset) and, as the control, without them. Goals: pole-fall crossing-time error
+  <= 0.05 s, the driven scenarios' cart speed within 5 % and of the same sign, every fitted physics knob
+  within its 95 % interval of the true value.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from _common import output_folder
+from bench_align import SUITE, paper_like_robot
+from dualtwin.align import align
+from dualtwin.align.nuisance import SHARED_TIME_OFFSET
+from dualtwin.align.simulate import load_traces, simulate_twin
+from dualtwin.demo import CHANNELS, HOLDOUT, KNOBS
+from dualtwin.divergence import compare_runs
+from dualtwin.divergence.floor import simulate_floor
+from dualtwin.divergence.metrics import Threshold, crossing_time
+from dualtwin.robots.binding import BUNDLED, RobotBinding, load_binding
+from dualtwin.suite.ensemble import EnsembleRun, make_spec
+from dualtwin.suite.loader import load_suite
+from dualtwin.suite.runner import SuiteRun
+from dualtwin.twins import make_twin
+
+BINDING = BUNDLED / "cartpole" / "binding.yaml"
+FALL = "00_Step_Response"
+POLE = "pole_angle_rad"
+EPS = (1e-6, 1e-5)
+ENSEMBLE = {"members": 3, "perturb": {"initial_angle": 1e-5}}
+
+
+def pole_dtw(reference: Path, run: Path) -> dict[str, float]:
+    return {s.id: s.channels[POLE].dtw for s in compare_runs(reference, run).scenarios}
+
+
+def floors(robot: RobotBinding) -> dict[float, dict[str, float]]:
+    """Per eps and scenario: the larger of the two twins' pole-angle DTW floors (mean of the ± members)."""
+    out: dict[float, dict[str, float]] = {}
+    for eps in EPS:
+        per_twin = {twin: simulate_floor(robot, twin, SUITE, {"initial_angle": eps}, members=3, channels=[POLE])
+                    for twin in ("webots", "mujoco")}
+        out[eps] = {sid: max(per_twin[t][sid][POLE].dtw for t in per_twin) for sid in per_twin["webots"]}
+        for twin, floor in per_twin.items():
+            print(f"   {twin:<7} floor ±{eps * 1e6:.0f} µrad: "
+                  + ", ".join(f"{sid} {f[POLE].dtw:.4g}" for sid, f in floor.items()))
+    return out
+
+
+def ensemble_reference(robot: RobotBinding, out: Path) -> Path:
+    spec = make_spec(ENSEMBLE["members"], ENSEMBLE["perturb"], robot)  # type: ignore[arg-type]
+    EnsembleRun(SUITE, "webots", robot, out, spec).run()
+    return out
+
+
+def fit(reference: Path, binding: Path, out: Path, ensemble: str) -> tuple[dict[str, float], dict[str, float], float]:
+    """Before and after pole DTW per scenario (single trajectories against the reference's member 0)."""
+    start = time.perf_counter()
+    result = align(reference, "mujoco", load_binding(binding), SUITE, KNOBS, out, optimizer="lsq", budget=300,
+                   holdout=HOLDOUT, channels=CHANNELS, ensemble=ensemble)  # type: ignore[arg-type]
+    wall = time.perf_counter() - start
+    print(f"   {ensemble:<4} fit: {result.evaluations} candidates, {wall:.0f} s; "
+          + ", ".join(f"{k} {v.fitted:.4g}" for k, v in result.knobs.items()))
+    return pole_dtw(reference, out / "runs" / "before"), pole_dtw(reference, out / "runs" / "after"), wall
+
+
+def part_floor(root: Path, reference: Path) -> dict[str, object]:
+    robot = load_binding(BINDING)
+    print("-- bundled pair: pole DTW after alignment against the reproducibility floor (goal <= 1.5x)")
+    floor = floors(robot)
+    train = [s for s in load_suite(SUITE).scenario_ids() if s not in HOLDOUT]
+    verdict: dict[str, object] = {}
+    for ensemble in ("off", "mean"):
+        before, after, _ = fit(reference, BINDING, root / f"bundled_{ensemble}", ensemble)
+        print(f"   {'scenario':<20}{'before':>9}{'after':>9}{'floor 1µ':>10}{'ratio':>8}{'floor 10µ':>11}{'ratio':>8}")
+        ok = {eps: True for eps in EPS}
+        for sid in train:
+            r1, r10 = (after[sid] / max(floor[eps][sid], 1e-12) for eps in EPS)
+            ok[EPS[0]] &= r1 <= 1.5
+            ok[EPS[1]] &= r10 <= 1.5
+            print(f"   {sid:<20}{before[sid]:9.4f}{after[sid]:9.4f}{floor[EPS[0]][sid]:10.4g}{r1:8.2f}"
+                  f"{floor[EPS[1]][sid]:11.4g}{r10:8.2f}")
+        print(f"   every fitted scenario within 1.5x its floor: ±1 µrad {ok[EPS[0]]}, ±10 µrad {ok[EPS[1]]}")
+        verdict[ensemble] = ok
+    return verdict
+
+
+def part_paper(root: Path, reference: Path) -> dict[str, float]:
+    print("-- paper-like mismatch: pole-fall DTW cut (goal >= 90 %)")
+    folder = root / "paper_like"
+    folder.mkdir(exist_ok=True)
+    binding = paper_like_robot(folder)
+    out: dict[str, float] = {}
+    for ensemble in ("off", "mean"):
+        before, after, _ = fit(reference, binding, root / f"paper_{ensemble}", ensemble)
+        cut = 1 - after[FALL] / before[FALL]
+        print(f"   {ensemble:<4} pole-fall DTW {before[FALL]:.4f} -> {after[FALL]:.4f}: cut {cut:.1%}")
+        out[ensemble] = cut
+    return out
+
+
+# ------------------------------------------------------------------ recording
+KICK_KEY = "initial_angular_velocity"
+
+
+def write_paper_logs(run: Path, folder: Path, period: float, rng: np.random.Generator) -> None:
+    """The run's ground truth in the paper's format, degraded like a real orchestrator's log."""
+    folder.mkdir(parents=True, exist_ok=True)
+    for i, sid in enumerate(load_suite(SUITE).scenario_ids()):
+        table = np.genfromtxt(run / "scenarios" / sid / "ground_truth.tsv", names=True, delimiter="\t")
+        t, pole, cart = (np.atleast_1d(table[c]) for c in ("time_s", POLE, "cart_pos_m"))
+        # Logging starts one control period late; stamps are wall clock with 2 ms jitter; 3 decimals.
+        t, pole, cart = t[1:], pole[1:], cart[1:]
+        wall = 1_700_000_000.0 + 100.0 * i + t + rng.uniform(-0.002, 0.002, size=t.size)
+        rows = [f"{w:.4f}\t{p:.3f}\t{c:.3f}" for w, p, c in zip(wall, pole, cart, strict=True)]
+        (folder / f"simulation_log_SUP_{i}.tsv").write_text("time_s\tpole_angle_rad\tcart_pos_m\n"
+                                                            + "\n".join(rows) + "\n")
+
+
+def kicked_suite(folder: Path, kicks: dict[str, float]) -> Path:
+    doc = json.loads(SUITE.read_text())
+    ids = load_suite(SUITE).scenario_ids()
+    for sid, kick in kicks.items():
+        doc["scenarios"][ids.index(sid)][KICK_KEY] = kick
+    path = folder / "suite_kicked.json"
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def cart_speed(t: np.ndarray, x: np.ndarray) -> float:
+    return float(np.polyfit(t, x, 1)[0])
+
+
+def part_recording(root: Path) -> dict[str, object]:
+    print("-- recording of the Webots twin, imported from the paper's format, aligned with nuisance knobs")
+    from dualtwin.recorded import import_paper
+
+    robot = load_binding(BINDING)
+    suite = load_suite(SUITE)
+    ids = suite.scenario_ids()
+    # The supervisor kicks the pole where it starts free (not resting on its stop at 1 rad).
+    fresh = [sid for sid, s in zip(ids, suite.scenarios, strict=True)
+             if s.reset == "fresh" and abs(float(s.inputs.get("initial_angle", 0.0))) < 0.99]
+    twin = make_twin("webots", robot, suite.global_settings.control_period_s)
+    true = {"joint.pole_hinge.damping": 0.03, "body.pole.mass": 1.25 * twin.knobs()["body.pole.mass"].nominal}
+    rng = np.random.default_rng(15)
+    kicks = {sid: float(rng.uniform(-0.3, 0.3)) for sid in fresh}
+    folder = root / "recording"
+    folder.mkdir(exist_ok=True)
+    truth_run = folder / "truth"
+    twin.set_knobs(true)
+    SuiteRun(kicked_suite(folder, kicks), "webots", robot, truth_run, twin=twin).run()
+    twin.close()
+    write_paper_logs(truth_run, folder / "paper_logs", suite.global_settings.control_period_s, rng)
+    imported = import_paper(folder / "paper_logs", SUITE, robot, folder / "imported")
+    print(f"   true physics {true}; kicks (rad/s) " + ", ".join(f"{k} {v:+.3f}" for k, v in kicks.items()))
+    reference = load_traces(imported)
+    physics = list(true)
+    nuisance = [f"scenario.{sid}.{KICK_KEY}" for sid in fresh] + [SHARED_TIME_OFFSET]
+    threshold = Threshold(0.99)
+    ref_fall = reference[FALL].series[POLE]
+    ref_cross = crossing_time(ref_fall.t, ref_fall.y, threshold)
+    driven = [sid for sid, s in zip(ids, suite.scenarios, strict=True)
+              if isinstance(s.inputs.get("wheel_velocity"), float) and s.inputs["wheel_velocity"] != 0.0]
+    results: dict[str, object] = {}
+    for label, patterns in (("with nuisance knobs", physics + nuisance), ("control: physics only", physics)):
+        start = time.perf_counter()
+        result = align(imported, "webots", robot, SUITE, patterns, folder / f"fit_{len(patterns)}", optimizer="lsq",
+                       budget=400, bounds={"body.pole.mass": (0.5 * true["body.pole.mass"], 2 * true["body.pole.mass"])})
+        wall = time.perf_counter() - start
+        values = {**result.fitted, **{k: v.fitted for k, v in result.nuisance.items()}}
+        sim_twin = make_twin("webots", robot, suite.global_settings.control_period_s)
+        sim = simulate_twin(robot, sim_twin, SUITE, values)
+        sim_twin.close()
+        fall = sim[FALL].series[POLE]
+        cross = crossing_time(fall.t, fall.y, threshold)
+        cross_err = abs(cross - ref_cross) if cross is not None and ref_cross is not None else float("inf")
+        print(f"   {label}: {result.evaluations} candidates, {wall:.0f} s, stop: {result.stop_reason}")
+        print(f"     pole-fall crossing {ref_cross} (recording) vs {cross} (fit): error {cross_err:.4f} s "
+              "(goal <= 0.05 s)")
+        speeds_ok = True
+        for sid in driven:
+            ref_c, fit_c = reference[sid].series["cart_pos_m"], sim[sid].series["cart_pos_m"]
+            v_ref, v_fit = cart_speed(ref_c.t, ref_c.y), cart_speed(fit_c.t, fit_c.y)
+            rel = abs(v_fit - v_ref) / abs(v_ref)
+            speeds_ok &= rel <= 0.05 and np.sign(v_fit) == np.sign(v_ref)
+            print(f"     {sid:<18} cart speed {v_ref:+.4f} (recording) vs {v_fit:+.4f} m/s (fit): {rel:.2%} "
+                  "(goal <= 5 %, same sign)")
+        inside = True
+        for name, knob in result.knobs.items():
+            hw = knob.half_width_95
+            ok = hw is not None and abs(knob.fitted - true[name]) <= hw
+            inside &= ok
+            print(f"     {name:<26} true {true[name]:.5g}, fitted {knob.fitted:.5g} ± "
+                  f"{hw if hw is None else f'{hw:.2g}'}: {'inside' if ok else 'OUTSIDE'} its 95 % interval")
+        for name, knob in result.nuisance.items():
+            sid = name.split(".")[1]
+            truth = kicks.get(sid) if name.endswith(KICK_KEY) else None
+            print(f"     {name:<46} fitted {knob.fitted:+.4f}{'' if truth is None else f' (true {truth:+.4f})'}")
+        results[label] = {"crossing_error_s": cross_err, "speeds_ok": speeds_ok, "knobs_inside": inside}
+        print(f"     goals: crossing {cross_err <= 0.05}, cart speed {speeds_ok}, knobs inside 95 % {inside}")
+    return results
+
+
+def main(parts: list[str] | None = None) -> dict[str, object]:
+    parts = parts or ["floor", "paper", "recording"]
+    results: dict[str, object] = {}
+    with output_folder("DUALTWIN_BENCH_ALIGN_GOALS_OUT", "align-goals") as (root, _):
+        print("== alignment goals (issue 15): reproducibility floor, ensembles, a recording ==")
+        reference = root / "webots_ensemble"
+        if {"floor", "paper"} & set(parts) and not (reference / "manifest.json").is_file():
+            ensemble_reference(load_binding(BINDING), reference)
+        if "floor" in parts:
+            results["floor"] = part_floor(root, reference)
+        if "paper" in parts:
+            results["paper"] = part_paper(root, reference)
+        if "recording" in parts:
+            results["recording"] = part_recording(root)
+    return results
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--parts", default="floor,paper,recording")
+    args = parser.parse_args()
+    chosen = [p.strip() for p in args.parts.split(",") if p.strip()]
+    unknown = sorted(set(chosen) - {"floor", "paper", "recording"})
+    if unknown:
+        print(f"error: unknown parts {unknown}", file=sys.stderr)
+        sys.exit(2)
+    main(chosen)
