@@ -254,6 +254,8 @@ def align(
     objective: Annotated[str, typer.Option(help="trajectory (suite runs) or prediction (short horizons)")]
     = "trajectory",
     horizons: Annotated[str, typer.Option(help="prediction horizons in control periods, e.g. 1,5")] = "1,5",
+    ensemble: Annotated[str, typer.Option(help="off, or mean: fit the mean of the reference run's ensemble members "
+                                               "(suite run --ensemble) against the target's, same shifts")] = "off",
     llm: Annotated[bool, typer.Option(help="ask the configured LLM to explain the findings and propose starting "
                                            "knob values; proposals are kept only if they lower the objective")]
     = False,
@@ -269,6 +271,8 @@ def align(
         raise DualtwinError(f"--executor must be process or ray, not {executor!r}")
     if objective not in ("trajectory", "prediction"):
         raise DualtwinError(f"--objective must be trajectory or prediction, not {objective!r}")
+    if ensemble not in ("off", "mean"):
+        raise DualtwinError(f"--ensemble must be off or mean, not {ensemble!r}")
     horizon_list = _int_list(horizons, "--horizons")  # checked even when unused, so a typo never passes
     check_output_dir(out, "align", resume=resume, resumable=True)
     # Explicit, so a folder that happens to be named like a twin never changes what --reference means.
@@ -287,6 +291,8 @@ def align(
     ref: str | Path = reference if reference is not None else reference_run  # type: ignore[assignment]
     extra: dict[str, object] = (
         {"objective": objective, "horizons": horizon_list} if objective == "prediction" else {})
+    if ensemble != "off":
+        extra["ensemble"] = ensemble
     if llm:
         extra["propose_fn"] = _llm_proposer(str(ref), target)
     with report_progress() as progress:
