@@ -175,6 +175,8 @@ class MuJoCoTwin(Twin):
         self._renderer: mujoco.Renderer | None = None
         # Motors commanded since the last reset; the others hold their position (see set_state).
         self._commanded: set[str] = set()
+        # False after a step until refresh() brings poses and sensors up to the stepped state.
+        self._poses_current = True
         self.max_penetration = MAX_PENETRATION
         #: set_state scales the written state's contact depths by this (see :meth:`set_state`); 1 = as written.
         self.reseat_depth_ratio = 1.0
@@ -323,6 +325,7 @@ class MuJoCoTwin(Twin):
             for _, motor, mode, value in due:
                 self._apply_command(motor, mode, value)
         if self._sensor_delay.any():
+            self.refresh()
             self._history.append(self.data.sensordata.copy())
             del self._history[:-MAX_DELAY_PERIODS - 1]
 
@@ -359,6 +362,9 @@ class MuJoCoTwin(Twin):
         m, d = self.model, self.data
         if self._pending or self._sensor_delay.any():
             self._before_step()
+        # mj_step computes poses and sensors before it integrates: afterwards they describe the state one
+        # physics step ago (see refresh).
+        self._poses_current = False
         servos = [mo for mo in self._motors if not mo.state.torque_mode]
         if not servos:
             if self._friction_box is None:
@@ -460,13 +466,37 @@ class MuJoCoTwin(Twin):
         j = self._id(mujoco.mjtObj.mjOBJ_JOINT, joint, "joint")
         return float(self.data.qvel[self.model.jnt_dofadr[j]])
 
+    def refresh(self) -> None:
+        """Poses, com-frame velocities and position/velocity sensors of the current qpos/qvel.
+
+        ``mj_step`` evaluates them at the start of its last physics step and then integrates, so after a
+        control period they lag qpos by one physics step, while Webots samples sensors and supervisor poses
+        after its physics step: an arm's flange moving at 2.6 m/s was read 5 mm behind its joint angles.
+        Recomputed once, lazily, on the first read after a step (stepping alone pays nothing); acceleration-
+        stage sensors (accelerometer, touch, force) keep the last step's values. Code that reads ``data``
+        directly (rendering from outside the twin) calls this first.
+        """
+        if self._poses_current:
+            return
+        m, d = self.model, self.data
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        mujoco.mj_comVel(m, d)
+        if m.nsensor:
+            mujoco.mj_sensorPos(m, d)
+            mujoco.mj_sensorVel(m, d)
+        self._poses_current = True
+
     def body_position(self, body: str) -> np.ndarray:
+        self.refresh()
         return self.data.xpos[self._id(mujoco.mjtObj.mjOBJ_BODY, body, "body")].copy()
 
     def body_orientation(self, body: str) -> np.ndarray:
+        self.refresh()
         return self.data.xmat[self._id(mujoco.mjtObj.mjOBJ_BODY, body, "body")].reshape(3, 3).copy()
 
     def body_velocity(self, body: str) -> np.ndarray:
+        self.refresh()
         b = self._id(mujoco.mjtObj.mjOBJ_BODY, body, "body")
         out = np.zeros(6)
         mujoco.mj_objectVelocity(self.model, self.data, mujoco.mjtObj.mjOBJ_XBODY, b, out, 0)
@@ -480,6 +510,7 @@ class MuJoCoTwin(Twin):
             # history[-k] is the reading k periods ago; before that much time has passed, the first one.
             value = float(self._history[max(0, len(self._history) - delay)][adr])
         else:
+            self.refresh()
             value = float(self.data.sensordata[adr])
         value += float(self._sensor_bias[s])
         if self._noise[s] > 0:
@@ -895,6 +926,7 @@ class MuJoCoTwin(Twin):
             if self._renderer is not None:
                 self._renderer.close()
             self._renderer = mujoco.Renderer(self.model, height, width)
+        self.refresh()
         self._renderer.update_scene(self.data, camera=cam)
         return self._renderer.render()
 
