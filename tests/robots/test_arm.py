@@ -168,3 +168,65 @@ def test_orientation_channel_has_no_velocity(tmp_path: Path) -> None:
     path.write_text(text)
     with pytest.raises(DualtwinError, match="orientation angle"):
         load_binding(path)
+
+
+# ---------------------------------------------------------------- the suite
+
+
+def _suite_path(robot: RobotBinding) -> Path:
+    return robot.root / "suite.json"
+
+
+def test_suites_resolve_against_their_bindings(robot: RobotBinding) -> None:
+    from dualtwin.suite.loader import load_suite
+    from dualtwin.suite.runner import check_against_binding
+
+    suite = load_suite(_suite_path(robot))
+    check_against_binding(suite, _suite_path(robot), robot)
+    kinds = {s.type for s in suite.scenarios}
+    assert {"step_response", "sine_sweep", "trajectory", "gravity_hold", "torque_saturation"} <= kinds
+
+
+def _run(robot: RobotBinding, twin_name: str, scenario: str) -> tuple[list[str], np.ndarray]:
+    from dualtwin.suite.loader import load_suite
+    from dualtwin.suite.runner import run_scenario
+
+    suite = load_suite(_suite_path(robot))
+    chosen = next(s for s in suite.scenarios if s.name == scenario)
+    io = RobotIO(robot, make_twin(twin_name, robot, suite.global_settings.control_period_s))
+    result, _, truth = run_scenario(io, chosen, 0, {}, fresh=True)
+    assert result.status == "completed"
+    return io.ground_truth_names, np.array(truth)
+
+
+def _ee_rmse(a: np.ndarray, b: np.ndarray, names: list[str]) -> float:
+    cols = [names.index(c) + 1 for c in ("ee_x_m", "ee_y_m", "ee_z_m")]
+    return float(np.sqrt(((a[:, cols] - b[:, cols]) ** 2).sum(axis=1).mean()))
+
+
+def test_fast_move_saturates_the_motor_in_both_twins() -> None:
+    """fast_pan: pi rad/s in one 2 ms step would take thousands of N*m; at 150 N*m the stretched arm (about
+    3.5 kg*m^2 about the base axis) needs tens of ms to reach the speed cap, in both twins alike."""
+    robot = resolve_robot("arm")
+    runs = {name: _run(robot, name, "fast_pan") for name in ("webots", "mujoco")}
+    names = runs["webots"][0]
+    dq1 = names.index("dq1_rad_s") + 1
+    for _, truth in runs.values():
+        first = truth[7]  # the first period after the 0.1 s step
+        assert 0.3 < first[dq1] < 0.9 * math.pi, "the torque limit, not the speed cap, sets the first period"
+        assert truth[:, dq1].max() == pytest.approx(math.pi, abs=0.02)
+        assert truth[-1][names.index("q1_rad") + 1] == pytest.approx(2.0, abs=2e-3)
+    assert np.abs(runs["webots"][1][:, dq1] - runs["mujoco"][1][:, dq1]).max() < 0.05
+    assert _ee_rmse(runs["webots"][1], runs["mujoco"][1], names) < 1e-3
+
+
+def test_gravity_hold_with_payload() -> None:
+    """The stretched arm holds its pose with and without the 5 kg payload (about 95 N*m on the shoulder with
+    it), and both twins agree on the flange position to well under a millimetre."""
+    for name in ("arm", "arm_payload"):
+        robot = resolve_robot(name)
+        runs = {twin: _run(robot, twin, "gravity_hold_stretched") for twin in ("webots", "mujoco")}
+        names = runs["webots"][0]
+        for _, truth in runs.values():
+            assert np.abs(truth[:, [names.index(f"q{k}_rad") + 1 for k in range(1, 7)]]).max() < 1e-3
+        assert _ee_rmse(runs["webots"][1], runs["mujoco"][1], names) < 5e-4
