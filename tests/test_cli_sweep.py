@@ -91,7 +91,7 @@ PARAMS: dict[str, str] = {
     "json_dialect": "choice",
     "host": "text", "api_key_env": "text", "address": "text", "holdout": "text",
     "resume": "flag", "llm": "flag", "randomize": "flag", "trust_pickles": "flag", "json_out": "flag",
-    "as_json": "flag", "policy_control": "folder", "keys": "file",
+    "as_json": "flag", "policy_control": "folder", "keys": "file", "camera_only": "flag",
 }
 
 FAMILIES: dict[str, tuple[str, ...]] = {
