@@ -1,4 +1,4 @@
-"""Masses and inertias follow Webots' rules (webots-on-ode.md §3.2), checked against hand-computed values."""
+"""Masses and inertias follow Webots' rules (docs/reference/webots-on-ode.md §3.2), checked against hand-computed values."""
 
 from __future__ import annotations
 

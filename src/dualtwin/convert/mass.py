@@ -1,4 +1,4 @@
-"""Webots' mass rules (webots-on-ode.md §3.2), reproduced so a converted body weighs what ODE's body weighs.
+"""Webots' mass rules (docs/reference/webots-on-ode.md §3.2), reproduced so a converted body weighs what ODE's body weighs.
 
 MuJoCo would derive inertia from geoms with its own conventions (every geom, visual ones included, at its
 own density). Webots instead sums the ODE masses of the *boundingObject* primitives at a reference density of

@@ -1,7 +1,7 @@
 """Convert a Webots world's robot (and its static environment) into a MuJoCo model with Webots' semantics.
 
 Built on our parser (:func:`dualtwin.webots.load_world`, PROTOs expanded) and ``mujoco.MjSpec``. Mapping
-decisions (see ``shared/reference/anchors-model-generation.md`` §2-3 and ``webots-on-ode.md`` §3-5):
+decisions (see ``docs/reference/webots-on-ode.md`` §3-5; the mapping itself is restated below):
 
 Bodies and masses
     A Solid that is a joint endPoint (or the robot root) is a MuJoCo body whose frame is the Solid frame *at
@@ -24,9 +24,10 @@ Joints
 
 Stops
     Webots stops are hard ODE limits with the WorldInfo ERP/CFM (ODE's defaults at joint creation; Webots
-    passes ``stopERP``/``stopCFM`` only when they change at run time, webots-on-ode.md §4.2). In one ODE step of
-    length H a violated stop loses its approach velocity and is pushed out at ERP r / H; CFM leaves a blend
-    d = 1/(1 + CFM m / h) of the unconstrained motion (m the joint's effective inertia, 1/``dof_invweight0``).
+    passes ``stopERP``/``stopCFM`` only when they change at run time, docs/reference/webots-on-ode.md §4.2).
+    In one ODE step of length H a violated stop loses its approach velocity and is pushed out at ERP r / H;
+    CFM leaves a blend d = 1/(1 + CFM m / h) of the unconstrained motion (m the joint's effective inertia,
+    1/``dof_invweight0``).
     A MuJoCo limit with impedance d and reference acceleration -b v - k r does the same in one MuJoCo step h
     when b = 1/h and h k = ERP / H: ``solreflimit`` = (2h, sqrt(H / (4 h ERP))), ``solimplimit`` d (<= 0.9999),
     so the joint rests on its stop with ODE's static offset CFM m a H / ERP instead of MuJoCo's default soft
@@ -765,12 +766,13 @@ class _Converter:
                 self.findings.append(Finding("error", "stop-in-degrees",
                                              f"hinge stops [{lo:g}, {hi:g}] exceed 2*pi: degrees written as radians?",
                                              _where(where)))
-            # ODE clamps hinge stops into [-pi, pi] (webots-on-ode.md §4.2).
+            # ODE clamps hinge stops into [-pi, pi] (docs/reference/webots-on-ode.md §4.2).
             lo, hi = max(lo, -math.pi), min(hi, math.pi)
         j.range = sorted([lo, hi])
         j.limited = mujoco.mjtLimited.mjLIMITED_TRUE
         if float(params.get("stopERP", -1.0)) >= 0 or float(params.get("stopCFM", -1.0)) >= 0:
-            self.warn("stopERP/stopCFM reach ODE only when changed at run time (webots-on-ode.md §4.2, unverified); "
+            self.warn("stopERP/stopCFM reach ODE only when changed at run time "
+                      "(docs/reference/webots-on-ode.md §4.2, unverified); "
                       "the stops are converted with WorldInfo ERP/CFM, which ODE gives them at creation", where)
         self.stops.append((j, float(self.info.get("ERP", 0.2)), float(self.info.get("CFM", 1e-5))))
         return True

@@ -1,4 +1,4 @@
-"""Webots motor semantics, shared by every twin that has to emulate them (spec §5 of webots-on-ode.md).
+"""Webots motor semantics, shared by every twin that has to emulate them (spec §5 of docs/reference/webots-on-ode.md).
 
 Webots turns every controller command into a target velocity ``u`` for the ODE joint motor once per physics
 step: velocity control uses the target velocity, position control runs Webots' PID on the position error

@@ -1,4 +1,4 @@
-"""Webots' motor law (webots-on-ode.md §5.3), as one pure function for every twin that follows it.
+"""Webots' motor law (docs/reference/webots-on-ode.md §5.3), as one pure function for every twin that follows it.
 
 Per physics step, a motor turns its controller targets into the velocity ``u`` its joint motor tracks:
 available torque 0 means no control; velocity control (infinite target position) uses the target velocity;

@@ -1,6 +1,6 @@
 """Build an ODE scene from a parsed Webots world and step it as Webots R2023b does.
 
-Specification: ``shared/reference/webots-on-ode.md`` (cited as §N below). Public entry point:
+Specification: ``docs/reference/webots-on-ode.md`` (cited as §N below). Public entry point:
 :class:`Simulation` (``Simulation(world)``, ``step()``, ``reset()``, ``reset_physics()``).
 
 What follows Webots

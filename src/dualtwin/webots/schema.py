@@ -2,7 +2,7 @@
 
 Written from the Webots reference manual (``docs/reference/*.md``) and the field lists of
 ``resources/nodes/*.wrl``; the defaults for physics-relevant nodes follow
-``shared/reference/webots-on-ode.md``. Types decide how a value is parsed (``SFVec3f`` vs ``SFColor``,
+``docs/reference/webots-on-ode.md``. Types decide how a value is parsed (``SFVec3f`` vs ``SFColor``,
 ``SFInt32`` vs ``SFFloat``) and every parsed base node gets all of its fields, defaults filled in.
 
 Values use the plain Python types documented in :mod:`dualtwin.webots.nodes`.
