@@ -1,6 +1,6 @@
 """The subset of Webots' Python controller API used by RL and test controllers, over a :class:`Simulation`.
 
-Timing follows spec §6: commands issued before ``step(ms)`` act on the physics of that call, the
+Timing follows docs/reference/webots-on-ode.md §6: commands issued before ``step(ms)`` act on the physics of that call, the
 simulation advances in basic time steps until ``ms`` elapsed, then sensors due for sampling are read
 (values reflect the state after the physics step). ``step`` returns -1 once the run's duration is
 reached.
