@@ -53,7 +53,7 @@ from dualtwin.webots.physics import (
     Simulation,
     SimulationUnstable,
 )
-from dualtwin.webots.ranging import DistanceSensor, Lidar, LidarPoint, RangeFinder
+from dualtwin.webots.ranging import DistanceSensor, Lidar, LidarPoint, RangeFinder, sample_ray_sensors
 from dualtwin.webots.scene_api import ContactPoint, Field, Node, descendants, find_def
 
 __all__ = [
@@ -622,8 +622,15 @@ class Robot:
         self._mode = self._runtime.mode  # simulationGetMode() reports the mode at the last step
         if result != -1 or self._sensors:
             now = self._sim.time
-            for sensor in list(self._sensors.values()):
-                if sensor._due(now):
+            due = [sensor for sensor in self._sensors.values() if sensor._due(now)]
+            rays = [sensor for sensor in due if hasattr(sensor, "_ray_spec")]
+            if rays:
+                # ray devices are cast together, one batch per step (ranging.sample_ray_sensors)
+                for sensor in rays:
+                    sensor._last_sample = now
+                sample_ray_sensors(self._sim, rays)
+            for sensor in due:
+                if not hasattr(sensor, "_ray_spec"):
                     sensor._sample(now)
         if self._keyboard is not None:
             self._keyboard._after_step(self._sim.time, self._runtime.clock)

@@ -34,6 +34,7 @@ Rays are cast only when a sample is due (the controller's sampling protocol), in
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -53,6 +54,7 @@ __all__ = [
     "distance_ray_layout",
     "distance_ray_weights",
     "caster_for",
+    "sample_ray_sensors",
 ]
 
 SONAR_MAX_INCIDENCE = math.pi / 8  # 0.392699082 rad: a sonar echo returns only from a surface facing the ray
@@ -86,6 +88,103 @@ def _targets(sim: Simulation, robot: RobotRec | None) -> list[GeomRec]:
     if geoms is None:
         geoms = cache[key] = candidate_geoms(sim, robot)
     return geoms
+
+
+def _anchor(solid: Any) -> tuple[Any, Any]:
+    """(solid whose world pose is looked up, the device's fixed pose in it or None)."""
+    if solid.parent is None or solid.body is not None or solid.joint is not None:
+        return solid, None
+    return solid.parent, solid.rel
+
+
+@dataclass
+class _Batch:
+    """Concatenated rays of one robot's due devices, in their anchors' frames (reused while unchanged)."""
+
+    devices: list[Any]
+    stamps: list[Any]
+    segments: list[tuple[Any, int, int]]  # (anchor solid, first ray, end)
+    origins: np.ndarray
+    directions: np.ndarray
+    lengths: np.ndarray
+    slices: list[tuple[int, int]]
+
+
+def _build_batch(devices: list[Any], specs: list[tuple[np.ndarray, np.ndarray]]) -> _Batch:
+    origins: list[np.ndarray] = []
+    dirs: list[np.ndarray] = []
+    lengths: list[np.ndarray] = []
+    segments: list[tuple[Any, int, int]] = []
+    slices: list[tuple[int, int]] = []
+    stamps: list[Any] = []
+    start = 0
+    for dev, (local_dirs, local_lengths) in zip(devices, specs, strict=True):
+        anchor, rel = _anchor(dev._record.solid)
+        stamps.append(rel)
+        k = len(local_dirs)
+        if rel is None:
+            origins.append(np.zeros((k, 3)))
+            dirs.append(local_dirs)
+        else:
+            t, R = _np_pose(rel)
+            origins.append(np.broadcast_to(t, (k, 3)))
+            dirs.append(local_dirs @ R.T)
+        lengths.append(local_lengths)
+        if segments and segments[-1][0] is anchor:
+            segments[-1] = (anchor, segments[-1][1], start + k)
+        else:
+            segments.append((anchor, start, start + k))
+        slices.append((start, start + k))
+        start += k
+    return _Batch(
+        devices,
+        stamps,
+        segments,
+        np.concatenate(origins),
+        np.concatenate(dirs),
+        np.concatenate(lengths),
+        slices,
+    )
+
+
+def sample_ray_sensors(sim: Simulation, sensors: Sequence[Any]) -> None:
+    """Sample ray devices together: one ray batch per robot (their rays see the same geoms).
+
+    Each device gives ``_ray_spec()`` (unit directions and lengths in its own frame, or None when it needs no
+    ray) and takes its slice of the hits in ``_ray_result(hits, world_directions)``. A device fixed to its
+    parent Solid is carried in the parent's frame, so the whole batch needs one world pose per parent. Devices
+    finish in the order given, so noise draws happen in the same order as sampling them one by one.
+    """
+    groups: dict[int, tuple[RobotRec | None, list[Any], list[tuple[np.ndarray, np.ndarray]]]] = {}
+    for dev in sensors:
+        spec = dev._ray_spec()
+        if spec is None:
+            continue
+        robot = dev._record.solid.robot
+        groups.setdefault(id(robot), (robot, [], []))
+        groups[id(robot)][1].append(dev)
+        groups[id(robot)][2].append(spec)
+    caster = caster_for(sim)
+    cache = sim.extensions.setdefault("ray_batches", {})
+    for robot, devices, specs in groups.values():
+        key = tuple(id(d) for d in devices)
+        batch = cache.get(key)
+        if batch is None or any(
+            _anchor(d._record.solid)[1] is not stamp
+            for d, stamp in zip(batch.devices, batch.stamps, strict=True)
+        ):
+            batch = cache[key] = _build_batch(devices, specs)
+        origins = np.empty_like(batch.origins)
+        dirs = np.empty_like(batch.directions)
+        for anchor, a, b in batch.segments:
+            t, R = _np_pose(sim.solid_world_pose(anchor))
+            origins[a:b] = batch.origins[a:b] @ R.T + t
+            dirs[a:b] = batch.directions[a:b] @ R.T
+        normals = any(getattr(d, "_needs_normals", False) for d in devices)  # sonars only
+        hits = caster.cast(origins, dirs, batch.lengths, _targets(sim, robot), normals=normals)
+        for dev, (a, b) in zip(devices, batch.slices, strict=True):
+            part = RayHits(hits.distance[a:b], hits.normal[a:b], hits.index[a:b], hits.geoms)
+            dev._ray_result(part, dirs[a:b])
 
 
 def distance_ray_layout(n: int) -> list[tuple[float, float]]:
@@ -130,8 +229,7 @@ def distance_ray_weights(directions: np.ndarray, aperture: float, gaussian_width
     return w / w.sum()
 
 
-def _world(sim: Simulation, record: Any) -> tuple[np.ndarray, np.ndarray]:
-    pose = sim.solid_world_pose(record.solid)
+def _np_pose(pose: Any) -> tuple[np.ndarray, np.ndarray]:
     return np.array(pose.t, dtype=float), np.array(pose.R, dtype=float).reshape(3, 3)
 
 
@@ -195,13 +293,14 @@ class DistanceModel:
                 break
         return best
 
-    def value(self, sim: Simulation, record: Any, robot: RobotRec | None) -> float:
-        if not self.table:
-            return 0.0
-        origin, R = _world(sim, record)
-        dirs = self.directions @ R.T
-        origins = np.broadcast_to(origin, dirs.shape)
-        hits = caster_for(sim).cast(origins, dirs, self.length, _targets(sim, robot))
+    def spec(self) -> tuple[np.ndarray, np.ndarray]:
+        """Unit directions (sensor frame) and lengths of the sensor's rays."""
+        return self.directions, self.lengths
+
+    def __post_init__(self) -> None:
+        self.lengths = np.full(len(self.directions), self.length)
+
+    def finish(self, sim: Simulation, hits: RayHits, dirs: np.ndarray) -> float:
         v = lookup(self.table, self.distance(hits, dirs), sim.rng)
         return discretize(v, self.resolution)
 
@@ -224,7 +323,21 @@ class DistanceSensor(SolidSensor):
         self._value = math.nan
 
     def _read(self) -> None:
-        self._value = self._model().value(self._robot._sim, self._record, self._record.solid.robot)
+        sample_ray_sensors(self._robot._sim, [self])
+
+    def _ray_spec(self) -> tuple[np.ndarray, np.ndarray] | None:
+        model = self._model()
+        if not model.table:
+            self._value = 0.0  # an empty lookup table reads 0 without casting
+            return None
+        return model.spec()
+
+    def _ray_result(self, hits: RayHits, dirs: np.ndarray) -> None:
+        self._value = self._model().finish(self._robot._sim, hits, dirs)
+
+    @property
+    def _needs_normals(self) -> bool:
+        return self._model().kind == self.SONAR
 
     def getValue(self) -> float:
         return getattr(self, "_value", math.nan)
@@ -268,11 +381,13 @@ class _Grid:
     noise: float
     resolution: float
 
-    def ranges(self, sim: Simulation, record: Any, robot: RobotRec | None) -> np.ndarray:
-        origin, R = _world(sim, record)
-        dirs = self.directions @ R.T
-        length = self.max_range / float(self.to_range.min())
-        hits = caster_for(sim).cast(np.broadcast_to(origin, dirs.shape), dirs, length, _targets(sim, robot))
+    def spec(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.directions, self.lengths
+
+    def __post_init__(self) -> None:
+        self.lengths = self.max_range / self.to_range
+
+    def finish(self, sim: Simulation, hits: RayHits) -> np.ndarray:
         r = hits.distance * self.to_range
         r = np.where((r >= self.min_range) & (r < self.max_range), r, np.inf)
         if self.noise > 0:
@@ -369,14 +484,21 @@ class _DepthDevice(SolidSensor):
     def _invalidate(self) -> None:
         self._image: np.ndarray | None = None
 
-    def _ranges(self) -> np.ndarray:
+    def _grid(self) -> _Grid:
         raise NotImplementedError
 
     def _size(self) -> int:
         raise NotImplementedError
 
     def _read(self) -> None:
-        self._image = self._ranges()
+        sample_ray_sensors(self._robot._sim, [self])
+
+    def _ray_spec(self) -> tuple[np.ndarray, np.ndarray] | None:
+        return self._grid().spec()
+
+    def _ray_result(self, hits: RayHits, dirs: np.ndarray) -> None:
+        self._sampled_at = self._robot.getTime()
+        self._image = self._grid().finish(self._robot._sim, hits)
 
     def _flat(self) -> np.ndarray:
         image = getattr(self, "_image", None)
@@ -398,9 +520,8 @@ class Lidar(_DepthDevice):
         m = self._model()
         return m.width * m.layers
 
-    def _ranges(self) -> np.ndarray:
-        self._sampled_at = self._robot.getTime()
-        return self._model().grid.ranges(self._robot._sim, self._record, self._record.solid.robot)
+    def _grid(self) -> _Grid:
+        return self._model().grid
 
     def getRangeImage(self, data_type: str = "list") -> Any:
         flat = self._flat()
@@ -537,8 +658,8 @@ class RangeFinder(_DepthDevice):
         w, h, _, _ = self._model()
         return w * h
 
-    def _ranges(self) -> np.ndarray:
-        return self._model()[3].ranges(self._robot._sim, self._record, self._record.solid.robot)
+    def _grid(self) -> _Grid:
+        return self._model()[3]
 
     def getRangeImage(self, data_type: str = "list") -> Any:
         flat = self._flat()
