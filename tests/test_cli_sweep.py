@@ -23,8 +23,8 @@ Valid value per kind (what a new command's required option gets):
     run           a finished suite run of the small suite        missing, file-for-folder, not-a-run, bad-manifest
     folder        a tiny dataset (data), perception model        missing, file-for-folder, not-a-model,
                   (model, perception), the reference exported
-                  policy (serve/lockstep --policy); a training
-                  run is a placeholder
+                  policy (serve/lockstep --policy), a 512-step
+                  training run (export/transfer --policy)
                                                                   corrupt-model (every record file holds bad
                                                                   JSON, every model file garbage bytes)
     out           a new folder name                              non-empty-foreign, file-for-folder
@@ -184,23 +184,30 @@ def closed_port() -> int:
 
 # Valid folders made once per module (kind ``folder``), by parameter name or "command path:name".
 FOLDERS = {"data": "dataset", "model": "model", "perception": "model", "serve:policy": "exported",
-           "lockstep:policy": "exported"}
+           "lockstep:policy": "exported", "export:policy": "training", "transfer:policy": "training"}
 
 
 @pytest.fixture(scope="module")
 def folders(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """A two-episode dataset, a one-epoch perception model on it and the reference exported policy."""
+    """A two-episode dataset, a one-epoch perception model on it, the reference exported policy and a
+    512-step training run."""
+    import torch
+
     from dualtwin.perception.dataset import collect
     from dualtwin.perception.model import train_perception
     from dualtwin.perception.reference_policy import export_reference_policy
+    from dualtwin.rl.train import train
 
     root = tmp_path_factory.mktemp("folders")
     env = "dualtwin/CartPole-MuJoCo-Continuous-v0"
     data = collect(env, 2, root / "data", controller="random", max_steps=8, width=16, height=16, seed=1)
     model = train_perception(data, root / "model", epochs=1, seed=0, threads=1, holdout=0.5, batch_size=8)
     exported = Path(export_reference_policy(root / "exported"))
+    torch.set_num_threads(1)
+    training = train(env, {"n_envs": 2, "n_steps": 256, "batch_size": 256, "n_epochs": 1, "eval_freq": 0,
+                           "vec_env": "dummy"}, root / "training", seed=0, total_timesteps=512, progress_bar=False)
     return {"dataset": Path(data), "model": Path(model),
-            "exported": exported.parent if exported.is_file() else exported}
+            "exported": exported.parent if exported.is_file() else exported, "training": Path(training)}
 
 
 @pytest.fixture(scope="module")
