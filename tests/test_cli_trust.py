@@ -253,7 +253,7 @@ def test_bundled_suite_names_work_from_any_folder(tmp_path: Path, monkeypatch: p
     assert resolve_suite("cartpole") == BUNDLED / "cartpole" / "suite.json"
     assert resolve_suite("./cartpole") == Path("./cartpole")
     code, err = run_cli(["suite", "validate", "no_such_suite"], capsys)
-    assert code == 2 and "not a bundled suite (cartpole, pioneer3at)" in err and "./no_such_suite" in err
+    assert code == 2 and "not a bundled suite (" in err and "cartpole" in err and "./no_such_suite" in err
     code, err = run_cli(["suite", "run", "--twin", "mujoco", "--robot", "cartpole", "--scenarios", "cartpol",
                          "--out", "o"], capsys)
     assert code == 2 and err.startswith("error: --scenarios: unknown suite 'cartpol'")
