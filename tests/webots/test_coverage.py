@@ -89,6 +89,8 @@ def test_device_readings_follow_the_registry() -> None:
     for name, dev in devices.items():
         if name == "InertialUnit":
             values = dev.getRollPitchYaw()
+        elif name == "TouchSensor":
+            values = [dev.getValue()]  # a bumper by default: getValues is for force-3d only
         elif hasattr(dev, "getRangeImage"):
             # nothing in range reads +inf: a reading is any non-NaN image
             values = [0.0 if math.isinf(v) else v for v in dev.getRangeImage()] or [math.nan]

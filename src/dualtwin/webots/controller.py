@@ -55,6 +55,7 @@ from dualtwin.webots.physics import (
 )
 from dualtwin.webots.ranging import DistanceSensor, Lidar, LidarPoint, RangeFinder, sample_ray_sensors
 from dualtwin.webots.scene_api import ContactPoint, Field, Node, descendants, find_def
+from dualtwin.webots.touch import TouchSensor
 
 __all__ = [
     "Accelerometer",
@@ -77,6 +78,7 @@ __all__ = [
     "Runtime",
     "Supervisor",
     "SimulationUnstable",
+    "TouchSensor",
     "current_runtime",
     "device_class",
     "set_current_runtime",
@@ -550,6 +552,7 @@ _SOLID_DEVICE_CLASSES: dict[str, type[Device]] = {
     "DistanceSensor": DistanceSensor,
     "Lidar": Lidar,
     "RangeFinder": RangeFinder,
+    "TouchSensor": TouchSensor,
     "GPS": GPS,
     "Gyro": Gyro,
     "Accelerometer": Accelerometer,

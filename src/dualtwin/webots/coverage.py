@@ -118,7 +118,9 @@ REGISTRY: tuple[Coverage, ...] = (
              "transparency is not known"),
     Coverage("Compass", "device", "not", _NOT_YET_DEVICE),
     Coverage("Altimeter", "device", "not", _NOT_YET_DEVICE),
-    Coverage("TouchSensor", "device", "not", _NOT_YET_DEVICE),
+    Coverage("TouchSensor", "device", "supported",
+             "bumper from contacts of its bounding object in any step since the last sample; force and "
+             "force-3d from the feedback of the fixed joint to its own body, with lookup table and resolution"),
     Coverage("Lidar", "device", "partial",
              "fixed lidar as one ray per pixel against bounding objects (Webots renders visual shapes): layers, "
              "fov, tilt, cylindrical (Euclidean) or planar (depth) ranges, +inf outside [minRange, maxRange), "

@@ -711,7 +711,9 @@ class Simulation:
                 continue
             parent = solid.parent
             wheel = solid.name.lower() in ("left wheel", "right wheel")
-            if solid.joint is None and parent is not None and parent.body is not None and not wheel:
+            # a TouchSensor keeps its own body, fixed to its parent, so its joint can measure the force on it
+            own = wheel or solid.node.type_name == "TouchSensor"
+            if solid.joint is None and parent is not None and parent.body is not None and not own:
                 body = parent.body
                 body.members.append(solid)
                 solid.body = body

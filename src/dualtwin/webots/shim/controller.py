@@ -25,6 +25,7 @@ from dualtwin.webots.controller import (
     RangeFinder,
     Robot,
     Supervisor,
+    TouchSensor,
 )
 
 __all__ = [
@@ -45,4 +46,5 @@ __all__ = [
     "RangeFinder",
     "Robot",
     "Supervisor",
+    "TouchSensor",
 ]

@@ -1,0 +1,194 @@
+"""TouchSensor: Webots' bumper, force and force-3d, from contacts and from the sensor's fixed joint.
+
+Bumper
+    Webots sets a flag in its near callback whenever one of the sensor's geoms touches another Solid's geom
+    (``dCollide`` finds at least one point), in any physics step; the flag is read and cleared at each sample,
+    so the reading is 1.0 if anything touched since the previous sample, else 0.0 (the lookup table is ignored).
+    The same pair rules apply as for contacts, except that static-static pairs are tested too: another robot's
+    parts and the environment count; the sensor's own robot counts only with ``selfCollision``. Here a step hook
+    runs ``dCollide`` for the enabled bumpers' geoms after each step's collision pass (the state that pass saw).
+    It works without Physics.
+
+Force and force-3d
+    With Physics, the sensor is *not* merged into its parent: it has its own body, attached to the parent's
+    (or to the static environment) by a fixed joint whose ``dJointFeedback`` gives the force the joint applies
+    to the parent, ``f1`` (world frame). force: the push along the sensor's −x axis (onto the robot),
+    ``input = max(0, −x̂·f1)``; force-3d: ``R_sensorᵀ·f1``, each component through the table separately (with the
+    default table, negative components read 0, as in Webots). Then the lookup table (empty: raw newtons) and
+    the resolution. The joint also carries the sensor's own weight, as in Webots. Without Physics the force
+    types read ``lookup(0)`` (Webots warns likewise).
+
+Values are NaN until the first sample (controller side); ``getValue`` of a force-3d sensor and ``getValues`` of
+the others print an error and return NaN.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+from typing import Any
+
+from dualtwin.webots import _math3 as m3
+from dualtwin.webots import ode
+from dualtwin.webots.api_args import warn
+from dualtwin.webots.device_base import SolidSensor
+from dualtwin.webots.lut import discretize, lookup, table_from_field
+from dualtwin.webots.physics import GeomRec, Simulation, SolidRec
+
+__all__ = ["TouchSensor", "bumper_touches"]
+
+_TYPES = {"bumper": 0, "force": 1, "force-3d": 2}
+
+
+def _sensor_solids(solid: SolidRec) -> list[SolidRec]:
+    out, stack = [], [solid]
+    while stack:
+        s = stack.pop()
+        out.append(s)
+        stack.extend(s.children)
+    return out
+
+
+def bumper_touches(sim: Simulation, solid: SolidRec) -> bool:
+    """Whether the TouchSensor Solid's geoms touch another Solid's geoms now (Webots' bumper pair rules)."""
+    mine = [g for s in _sensor_solids(solid) for g in s.geoms]
+    if not mine:
+        return False
+    own = {id(s) for s in _sensor_solids(solid)}
+    robot = solid.robot
+    others: list[GeomRec] = [
+        g
+        for g in sim.geoms.values()
+        if id(g.solid) not in own and (robot is None or robot.self_collision or g.solid.robot is not robot)
+    ]
+    lib = ode.load()
+    buf = (ode.dContactGeom * 1)()
+    size = ctypes.sizeof(ode.dContactGeom)
+    base = ctypes.addressof(buf)
+    for g in mine:
+        for h in others:
+            if lib.dCollide(g.ptr, h.ptr, 1, base, size) > 0:
+                return True
+    return False
+
+
+class _Bumpers:
+    """Per-simulation step hook setting the flag of every enabled bumper touched during the step."""
+
+    def __init__(self, sim: Simulation) -> None:
+        self.sim = sim
+        self.active: dict[int, TouchSensor] = {}
+        sim.step_hooks.append(self.after_step)
+
+    def after_step(self) -> None:
+        for sensor in self.active.values():
+            if not sensor._touched and bumper_touches(self.sim, sensor._record.solid):
+                sensor._touched = True
+
+
+def _bumpers(sim: Simulation) -> _Bumpers:
+    hook = sim.extensions.get("bumpers")
+    if hook is None:
+        hook = sim.extensions["bumpers"] = _Bumpers(sim)
+    return hook
+
+
+class TouchSensor(SolidSensor):
+    """Webots ``TouchSensor`` (see the module docstring)."""
+
+    BUMPER = 0
+    FORCE = 1
+    FORCE3D = 2
+
+    def _kind(self) -> int:
+        kind = getattr(self, "_kind_cache", None)
+        if kind is None:
+            raw = str(self._record.node.fields.get("type", "bumper"))
+            kind = _TYPES.get(raw)
+            if kind is None:
+                warn(f"TouchSensor '{self._name}': unknown type '{raw}', using 'bumper'")
+                kind = self.BUMPER
+            self._kind_cache = kind
+            self._table = table_from_field(self._record.node.fields.get("lookupTable", []))
+            self._resolution = float(self._record.node.fields.get("resolution", -1.0))
+            self._feedback: ode.dJointFeedback | None = None
+            self._touched = False
+            body = self._record.solid.body
+            if kind != self.BUMPER:
+                if body is None or body.root is not self._record.solid or not body.fixed_joint:
+                    warn(f"TouchSensor '{self._name}': a force sensor needs Physics; it reads lookup(0)")
+                else:
+                    self._feedback = ode.dJointFeedback()
+                    ode.load().dJointSetFeedback(body.fixed_joint, ctypes.byref(self._feedback))
+        return kind
+
+    def enable(self, samplingPeriod: Any) -> None:
+        kind = self._kind()
+        super().enable(samplingPeriod)
+        if kind == self.BUMPER:
+            hooks = _bumpers(self._robot._sim)
+            if self._period > 0:
+                self._touched = False
+                hooks.active[id(self)] = self
+            else:
+                hooks.active.pop(id(self), None)
+
+    def disable(self) -> None:
+        super().disable()
+        hooks = self._robot._sim.extensions.get("bumpers")
+        if hooks is not None:
+            hooks.active.pop(id(self), None)
+
+    def _invalidate(self) -> None:
+        self._values = [math.nan] * 3
+        self._value = math.nan
+
+    def _force_on_parent(self) -> m3.Vec3:
+        fb = self._feedback
+        if fb is None:
+            return (0.0, 0.0, 0.0)
+        f = (fb.f1[0], fb.f1[1], fb.f1[2])
+        body = self._record.solid.body
+        # fixed to the static environment, ODE makes the sensor body the joint's first body: f1 is then the force
+        # on the sensor, and the force on the "parent" (the environment) is its opposite
+        return m3.scale(f, -1.0) if body is not None and body.fixed_to is None else f
+
+    def _read(self) -> None:
+        kind = self._kind()
+        sim = self._robot._sim
+        if kind == self.BUMPER:
+            self._value = 1.0 if self._touched else 0.0
+            self._touched = False
+            return
+        R = self._pose().R
+        f1 = self._force_on_parent()
+        if kind == self.FORCE:
+            p = m3.dot(m3.mat_vec(R, (1.0, 0.0, 0.0)), f1)
+            self._value = discretize(lookup(self._table, -p if p < 0 else 0.0, sim.rng), self._resolution)
+        else:
+            local = m3.mat_t_vec(R, f1)
+            self._values = [discretize(lookup(self._table, v, sim.rng), self._resolution) for v in local]
+
+    def getValue(self) -> float:
+        if self._kind() == self.FORCE3D:
+            warn("TouchSensor.getValue() cannot be used with a 'force-3d' sensor: use getValues()")
+            return math.nan
+        return self._value
+
+    def getValues(self) -> list[float]:
+        if self._kind() != self.FORCE3D:
+            warn("TouchSensor.getValues() can only be used with a 'force-3d' sensor: use getValue()")
+            return [math.nan] * 3
+        return list(self._values)
+
+    def getLookupTable(self) -> list[float]:
+        self._kind()
+        return [v for row in self._table for v in row]
+
+    def getType(self) -> int:
+        return self._kind()
+
+    value = property(getValue)
+    values = property(getValues)
+    lookup_table = property(getLookupTable)
+    type = property(getType)
