@@ -104,8 +104,9 @@ class CartPoleBalance(Task):
     Actions are cart speeds, sent to every wheel as angular velocity = speed / wheel radius.
 
     ``cart_velocity="ground_truth"`` uses the supervisor's cart velocity instead. It is not the default: it
-    carries the tyres' creep under load, which a memoryless policy cannot separate from the command (PPO does
-    not learn with it within 10 minutes, and neither does a hand-tuned linear controller).
+    carries the tyres' creep under load, which a memoryless policy cannot separate from the command. (With
+    episodes that ran on after a fall PPO did not learn with it within 10 minutes; with ``terminate_on_fall``
+    it reached 950 of 1000 after 61 k steps on seed 0, bench/bench_rl.py.)
     """
 
     GROUND_TRUTH_TERMS = (
