@@ -15,6 +15,8 @@ from dualtwin.webots.physics import JOINT_TYPES, SOLID_TYPES, Simulation
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "webots-coverage.md"
 WORKS = ("supported", "partial")
+# devices that are used without reading a value (their behaviour has its own tests)
+NO_READING = {"Emitter", "Receiver", "Display"}
 
 GEOMETRY_SAMPLES = {
     "Box": "Box { size 0.1 0.1 0.1 }",
@@ -87,6 +89,8 @@ def test_device_readings_follow_the_registry() -> None:
             dev.enable(8)
     sup.step(16)
     for name, dev in devices.items():
+        if name in NO_READING:
+            continue
         if name == "InertialUnit":
             values = dev.getRollPitchYaw()
         elif name == "TouchSensor":

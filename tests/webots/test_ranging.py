@@ -74,7 +74,9 @@ def test_nothing_in_range_reads_the_last_output_and_empty_table_zero() -> None:
 @pytest.mark.parametrize("aperture", [0.4, 1.0])
 def test_generic_three_rays_on_the_aperture_cone(aperture: float) -> None:
     # Webots' 3-ray layout puts all three rays at half the aperture off axis, with equal weights
-    sup = _world(f'DistanceSensor {{ name "ds" numberOfRays 3 aperture {aperture} lookupTable [ 0 0 0, 2 2 0 ] }}')
+    sup = _world(
+        f'DistanceSensor {{ name "ds" numberOfRays 3 aperture {aperture} lookupTable [ 0 0 0, 2 2 0 ] }}'
+    )
     assert _read(sup, "ds") == pytest.approx(0.5 / math.cos(aperture / 2), rel=1e-9)
 
 
@@ -155,7 +157,7 @@ def test_cylindrical_lidar_euclidean_and_point_cloud() -> None:
     fov, vfov, width, layers = 1.0, 0.2, 9, 3
     sup = _world(
         f'Lidar {{ name "lidar" horizontalResolution {width} fieldOfView {fov} verticalFieldOfView {vfov} '
-        f"numberOfLayers {layers} maxRange 0.54 projection \"cylindrical\" }}"
+        f'numberOfLayers {layers} maxRange 0.54 projection "cylindrical" }}'
     )
     lidar = sup.getDevice("lidar")
     lidar.enable(8)

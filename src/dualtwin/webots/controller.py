@@ -53,6 +53,7 @@ from dualtwin.webots.physics import (
     Simulation,
     SimulationUnstable,
 )
+from dualtwin.webots.radio import Emitter, Receiver
 from dualtwin.webots.ranging import DistanceSensor, Lidar, LidarPoint, RangeFinder, sample_ray_sensors
 from dualtwin.webots.scene_api import ContactPoint, Field, Node, descendants, find_def
 from dualtwin.webots.touch import TouchSensor
@@ -64,6 +65,7 @@ __all__ = [
     "Keyboard",
     "Device",
     "DistanceSensor",
+    "Emitter",
     "Field",
     "GPS",
     "Gyro",
@@ -74,6 +76,7 @@ __all__ = [
     "Node",
     "PositionSensor",
     "RangeFinder",
+    "Receiver",
     "Robot",
     "Runtime",
     "Supervisor",
@@ -553,6 +556,8 @@ _SOLID_DEVICE_CLASSES: dict[str, type[Device]] = {
     "Lidar": Lidar,
     "RangeFinder": RangeFinder,
     "TouchSensor": TouchSensor,
+    "Emitter": Emitter,
+    "Receiver": Receiver,
     "GPS": GPS,
     "Gyro": Gyro,
     "Accelerometer": Accelerometer,

@@ -136,8 +136,12 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Zoom", "device", "not", "not yet (Camera)"),
     Coverage("Radar", "device", "not", _NOT_YET_DEVICE),
     Coverage("LightSensor", "device", "not", _NOT_YET_DEVICE),
-    Coverage("Emitter", "device", "not", "not yet: nothing is sent"),
-    Coverage("Receiver", "device", "not", _NOT_YET_DEVICE),
+    Coverage("Emitter", "device", "partial",
+             "in-process channels: channel filters, range and maxRange, medium type, buffer size, baud rate, "
+             "infra-red line of sight and aperture; queues are not cleared by simulationReset"),
+    Coverage("Receiver", "device", "partial",
+             "queue, channel filter, buffer size, signal strength 1/d² with noise, emitter direction with noise; "
+             "no physics-plugin copy of channel 0"),
     Coverage("Display", "device", "not", "not yet: no image buffer"),
     Coverage("Speaker", "device", "not", "not yet: no sound"),
     Coverage("LED", "device", "not", "not yet: set/get are not available"),
