@@ -246,8 +246,8 @@ def _assemble(index: int, sid: str, rec: ScenarioRecording, recording: Recording
     if any(held.values()):
         timing["held_before_first_sample"] = held
         k = max(held.values())
-        first = min(float(t[0]) for t, _ in cut.values() if t.size)
-        notes.append(f"{k} grid point(s) before the first sample (at {first:.4g} s) hold its value")
+        first_s = min(float(t[0]) for t, _ in cut.values() if t.size)
+        notes.append(f"{k} grid point(s) before the first sample (at {first_s:.4g} s) hold its value")
     beyond = {name: int(np.count_nonzero(t > grid[-1] + period / 2)) for name, (t, _) in cut.items()}
     if any(beyond.values()):
         timing["samples_after_duration"] = beyond
