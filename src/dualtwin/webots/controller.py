@@ -43,6 +43,7 @@ from typing import Any
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots.api_args import as_float, as_int, finite, warn
 from dualtwin.webots.device_base import Device, SampledDevice, SolidSensor
+from dualtwin.webots.display import Display, ImageRef
 from dualtwin.webots.keyboard import Keyboard, KeyScript
 from dualtwin.webots.nodes import Node as SceneNode
 from dualtwin.webots.physics import (
@@ -64,11 +65,13 @@ __all__ = [
     "ControllerStopped",
     "Keyboard",
     "Device",
+    "Display",
     "DistanceSensor",
     "Emitter",
     "Field",
     "GPS",
     "Gyro",
+    "ImageRef",
     "InertialUnit",
     "Lidar",
     "LidarPoint",
@@ -558,6 +561,7 @@ _SOLID_DEVICE_CLASSES: dict[str, type[Device]] = {
     "TouchSensor": TouchSensor,
     "Emitter": Emitter,
     "Receiver": Receiver,
+    "Display": Display,
     "GPS": GPS,
     "Gyro": Gyro,
     "Accelerometer": Accelerometer,

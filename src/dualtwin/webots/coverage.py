@@ -142,7 +142,9 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Receiver", "device", "partial",
              "queue, channel filter, buffer size, signal strength 1/d² with noise, emitter direction with noise; "
              "no physics-plugin copy of channel 0"),
-    Coverage("Display", "device", "not", "not yet: no image buffer"),
+    Coverage("Display", "device", "partial",
+             "RGBA frame buffer: colour, alpha, opacity, pixels, lines, rectangles, ovals, polygons, image "
+             "new/copy/paste/save (PNG)/load/delete; text is not rasterised and attachCamera shows nothing"),
     Coverage("Speaker", "device", "not", "not yet: no sound"),
     Coverage("LED", "device", "not", "not yet: set/get are not available"),
     Coverage("Pen", "device", "not", "not yet: no ink"),

@@ -1,0 +1,123 @@
+"""Display: the drawing API on a headless RGBA buffer, and imageSave writing a real PNG."""
+
+from __future__ import annotations
+
+import struct
+import warnings
+import zlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dualtwin.webots import load_world_text
+from dualtwin.webots.controller import Display, Supervisor
+from dualtwin.webots.physics import Simulation
+
+
+@pytest.fixture()
+def display() -> Display:
+    text = """#VRML_SIM R2023b utf8
+WorldInfo { basicTimeStep 8 }
+Robot { supervisor TRUE children [ Display { name "screen" width 16 height 8 } ] }
+"""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sim = Simulation(load_world_text(text))
+    sup = Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    dev = sup.getDevice("screen")
+    assert isinstance(dev, Display)
+    return dev
+
+
+def _read_png(path: Path) -> np.ndarray:
+    """Decode an 8-bit RGBA, non-interlaced PNG with filter 0 rows (an independent reader)."""
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    pos, idat, size = 8, b"", (0, 0)
+    while pos < len(data):
+        (length,) = struct.unpack(">I", data[pos : pos + 4])
+        kind, body = data[pos + 4 : pos + 8], data[pos + 8 : pos + 8 + length]
+        (crc,) = struct.unpack(">I", data[pos + 8 + length : pos + 12 + length])
+        assert crc == zlib.crc32(kind + body) & 0xFFFFFFFF
+        if kind == b"IHDR":
+            w, h, depth, colour = struct.unpack(">IIBB", body[:10])
+            assert (depth, colour) == (8, 6)
+            size = (h, w)
+        elif kind == b"IDAT":
+            idat += body
+        pos += 12 + length
+    raw = zlib.decompress(idat)
+    h, w = size
+    rows = [raw[y * (4 * w + 1) : (y + 1) * (4 * w + 1)] for y in range(h)]
+    assert all(r[0] == 0 for r in rows)
+    return np.frombuffer(b"".join(r[1:] for r in rows), dtype=np.uint8).reshape(h, w, 4)
+
+
+def test_drawing_primitives(display: Display) -> None:
+    assert (display.getWidth(), display.getHeight()) == (16, 8)
+    display.setColor(0xFF0000)
+    display.drawPixel(0, 0)
+    display.setColor(0x00FF00)
+    display.drawLine(0, 7, 7, 0)  # a diagonal
+    display.setColor(0x0000FF)
+    display.fillRectangle(10, 2, 3, 2)
+    px = display.pixels
+    assert px[0, 0].tolist() == [255, 0, 0, 255]
+    assert all(px[7 - i, i].tolist() == [0, 255, 0, 255] for i in range(8))
+    assert (px[2:4, 10:13] == [0, 0, 255, 255]).all() and px[4, 10, 3] == 0 and px[2, 13, 3] == 0
+    display.setColor(0xFFFFFF)
+    display.drawRectangle(0, 0, 16, 8)
+    assert (px[0, :, :3] == 255).all() and (px[:, 15, :3] == 255).all()
+    assert px[3, 5, 3] == 0  # the inside is left alone
+
+
+def test_alpha_opacity_and_fills(display: Display) -> None:
+    display.setColor(0x000000)
+    display.fillRectangle(0, 0, 16, 8)
+    display.setColor(0xFFFFFF)
+    display.setOpacity(0.5)
+    display.setAlpha(0.2)
+    display.drawPixel(1, 1)
+    assert display.pixels[1, 1].tolist() == [
+        128,
+        128,
+        128,
+        153,
+    ]  # half of white over black; alpha 0.2·255 blended
+    display.setOpacity(1.0)
+    display.setAlpha(1.0)
+    display.setColor(0x00FF00)
+    display.fillPolygon([2, 6, 2], [0, 0, 4])  # right triangle: pixel centres x+y < 6 from (2, 0)
+    px = display.pixels
+    assert px[0, 2, 1] == 255 and px[2, 2, 1] == 255 and px[3, 2, 1] == 0 and px[3, 5, 1] == 0
+    display.setColor(0xFF00FF)
+    display.fillOval(12, 4, 2, 2)
+    assert px[4, 12].tolist() == [255, 0, 255, 255] and px[4, 14, 0] == 255 and px[4, 15, 0] == 0
+    display.setColor(0x123456)
+    display.setColor(0x1000000)  # out of range: ignored with an error line
+    display.drawPixel(15, 7)
+    assert px[7, 15, :3].tolist() == [0x12, 0x34, 0x56]
+
+
+def test_images_copy_paste_and_save_png(display: Display, tmp_path: Path) -> None:
+    display.setColor(0xFF8000)
+    display.fillRectangle(0, 0, 4, 4)
+    copy = display.imageCopy(0, 0, 4, 4)
+    display.imagePaste(copy, 8, 4, False)
+    assert (display.pixels[4:8, 8:12] == [255, 128, 0, 255]).all()
+    raw = bytes([0, 0, 255, 128] * 4)  # BGRA: red at half alpha
+    img = display.imageNew(raw, Display.BGRA, 2, 2)
+    display.imagePaste(img, 0, 6, True)  # blended over transparent black
+    assert display.pixels[6, 0].tolist() == [128, 0, 0, 128]
+    path = tmp_path / "screen.png"
+    display.imageSave(None, str(path))
+    assert (_read_png(path) == display.pixels).all()
+    display.imageSave(copy, str(tmp_path / "copy.png"))
+    assert _read_png(tmp_path / "copy.png").shape == (4, 4, 4)
+    pil = pytest.importorskip("PIL.Image")
+    with pil.open(path) as decoded:  # and a well-kept reader agrees
+        assert (np.array(decoded.convert("RGBA")) == display.pixels).all()
+    loaded = display.imageLoad(str(path))
+    assert (loaded.pixels == display.pixels).all()
+    display.imageDelete(loaded)
