@@ -374,12 +374,34 @@ class Motor(Device):
     def _changed(self) -> None:
         self._robot._sim.wake(self._record.joint)
 
+    def _coupled(self) -> list[Motor]:
+        """This motor and its coupled siblings: motors of the same robot named ``prefix::suffix`` (exactly two
+        parts) with the same prefix. Webots relays setPosition, setVelocity and setForce/setTorque to them, each
+        applying the raw value times its own multiplier within its own limits (§9)."""
+        group: list[Motor] | None = getattr(self, "_group", None)
+        if group is None:
+            group = [self]
+            parts = self._name.split("::")
+            if len(parts) == 2:
+                for rec in self._robot._rec.devices.values():
+                    other = rec.name.split("::") if isinstance(rec, MotorRec) and rec is not self._record else []
+                    if len(other) == 2 and other[0] == parts[0]:
+                        group.append(self._robot._device_for(rec))  # type: ignore[arg-type]
+                if len(group) == 1:
+                    _warn(f"'{self._name}': no other motor is named '{parts[0]}::...'; nothing is coupled")
+            self._group = group
+        return group
+
     def setPosition(self, position: Any) -> None:
-        rec = self._record
         position = as_float(position, "Motor.setPosition")
         if not _finite(position):
             _warn(f"Motor.setPosition() called with an invalid value (NaN) on '{self._name}'")
             return
+        for motor in self._coupled():
+            motor._set_position(position)
+
+    def _set_position(self, position: float) -> None:
+        rec = self._record
         p = position * rec.multiplier
         if rec.min_position != rec.max_position and math.isfinite(p):
             clamped = min(max(p, rec.min_position), rec.max_position)
@@ -391,11 +413,15 @@ class Motor(Device):
         self._changed()
 
     def setVelocity(self, velocity: Any) -> None:
-        rec = self._record
         velocity = as_float(velocity, "Motor.setVelocity")
         if not _finite(velocity):
             _warn(f"Motor.setVelocity() called with an invalid value (NaN) on '{self._name}'")
             return
+        for motor in self._coupled():
+            motor._set_velocity(velocity)
+
+    def _set_velocity(self, velocity: float) -> None:
+        rec = self._record
         v = velocity * rec.multiplier
         if abs(v) > rec.max_velocity:
             _warn(f"'{self._name}': requested velocity {v} exceeds maxVelocity {rec.max_velocity}")
@@ -420,11 +446,15 @@ class Motor(Device):
     setAvailableTorque = setAvailableForce
 
     def setForce(self, force: Any) -> None:
-        rec = self._record
         force = as_float(force, "Motor.setForce")
         if not _finite(force):
             _warn(f"Motor.setForce()/setTorque() called with an invalid value (NaN) on '{self._name}'")
             return
+        for motor in self._coupled():
+            motor._set_force(force)
+
+    def _set_force(self, force: float) -> None:
+        rec = self._record
         f = force * rec.multiplier
         rec.raw_torque = max(-rec.available, min(rec.available, f))
         if not rec.torque_mode:

@@ -103,7 +103,8 @@ REGISTRY: tuple[Coverage, ...] = (
     # -- devices
     Coverage("RotationalMotor", "device", "partial",
              "velocity, position (Webots' PID) and torque control with limits, acceleration and the initial "
-             "hold; coupled motors ('name::suffix') do not move together"),
+             "hold; coupled motors ('name::suffix') relay setPosition/setVelocity/setForce with their "
+             "multipliers, but their limits are not harmonised at load"),
     Coverage("LinearMotor", "device", "partial", "as RotationalMotor"),
     Coverage("PositionSensor", "device", "supported", "sampled joint position with noise and resolution"),
     Coverage("Brake", "device", "not", "not yet: braking torque is not applied"),

@@ -18,11 +18,11 @@ What differs (and why)
       ``∓ERP·x/h`` with CFM ``1/(hK+B)`` and unbounded force, which is algebraically the same implicit
       LCP row as a stop row with that ERP/CFM (Appendix A).
     * Asymmetric friction (2–4 ``coulombFriction`` values) and ``frictionRotation`` use the first value
-      only (symmetric pyramid); Track surface velocities, fluids, rays and DistanceSensors are not
-      simulated.
+      only (symmetric pyramid); fluids are not simulated. Ray devices, touch sensors and radios live in their
+      own modules (``ranging``, ``touch``, ``radio``) and use the ``extensions``/``step_hooks`` slots.
     * Hinge suspension (fork-only ODE API, Appendix A.2) and BallJoint motors/springs are not modelled;
-      upstream ODE never limits the second Hinge2 axis, so its stops are ignored. Brake devices and
-      coupled motors ("name::suffix") are not modelled.
+      upstream ODE never limits the second Hinge2 axis, so its stops are ignored. Brake devices are not
+      modelled; coupled motors ("name::suffix") are relayed by the controller API.
     * ODE 0.16's ``dJointAddHingeTorque`` negates the torque of reversed hinges (static parent); the
       torque is pre-negated so a positive ``setTorque`` increases the position for every hinge, as
       Webots documents (whether its 0.13.1 fork negates too is UNVERIFIED).
