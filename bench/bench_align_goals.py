@@ -34,6 +34,7 @@ from _common import output_folder
 from bench_align import SUITE, paper_like_robot
 from dualtwin.align import align
 from dualtwin.align.nuisance import SHARED_TIME_OFFSET
+from dualtwin.align.objective import build_spec, residuals
 from dualtwin.align.simulate import load_traces, simulate_twin
 from dualtwin.demo import CHANNELS, HOLDOUT, KNOBS
 from dualtwin.divergence import compare_runs
@@ -50,6 +51,8 @@ FALL = "00_Step_Response"
 POLE = "pole_angle_rad"
 EPS = (1e-6, 1e-5)
 ENSEMBLE = {"members": 3, "perturb": {"initial_angle": 1e-5}}
+#: The pole angle's resolution (the binding's default for rad channels): differences below it never rank.
+RESOLUTION_RAD = 1e-3
 
 
 def pole_dtw(reference: Path, run: Path) -> dict[str, float]:
@@ -86,6 +89,29 @@ def fit(reference: Path, binding: Path, out: Path, ensemble: str) -> tuple[dict[
     return pole_dtw(reference, out / "runs" / "before"), pole_dtw(reference, out / "runs" / "after"), wall
 
 
+def floor_table(reference: Path, out: Path, floor: dict[float, dict[str, float]], train: list[str]) -> dict[float, bool]:
+    """Print before/after pole DTW against the floors; True per eps when every fitted scenario is within 1.5x.
+
+    The last column says whether the after-fit pole difference (DTW per sample) is below the pole channel's
+    1 mrad resolution: a floor far below the resolution (a pole resting on its stop) asks for agreement that
+    no log can show, so those rows are marked rather than hidden.
+    """
+    before, after = (pole_dtw(reference, out / "runs" / phase) for phase in ("before", "after"))
+    rms = {s.id: s.channels[POLE].dtw_rms for s in compare_runs(reference, out / "runs" / "after").scenarios}
+    print(f"   {'scenario':<20}{'before':>9}{'after':>9}{'floor 1µ':>10}{'ratio':>9}{'floor 10µ':>11}{'ratio':>8}"
+          f"{'after, per sample':>19}")
+    ok = dict.fromkeys(EPS, True)
+    for sid in train:
+        ratios = {eps: after[sid] / max(floor[eps][sid], 1e-12) for eps in EPS}
+        for eps in EPS:
+            ok[eps] &= ratios[eps] <= 1.5
+        below = "below 1 mrad" if rms[sid] < RESOLUTION_RAD else ""
+        print(f"   {sid:<20}{before[sid]:9.4f}{after[sid]:9.4f}{floor[EPS[0]][sid]:10.3g}{ratios[EPS[0]]:9.2f}"
+              f"{floor[EPS[1]][sid]:11.3g}{ratios[EPS[1]]:8.2f}{1000 * rms[sid]:10.3f} mrad {below}")
+    print(f"   every fitted scenario within 1.5x its floor: ±1 µrad {ok[EPS[0]]}, ±10 µrad {ok[EPS[1]]}")
+    return ok
+
+
 def part_floor(root: Path, reference: Path) -> dict[str, object]:
     robot = load_binding(BINDING)
     print("-- bundled pair: pole DTW after alignment against the reproducibility floor (goal <= 1.5x)")
@@ -93,17 +119,9 @@ def part_floor(root: Path, reference: Path) -> dict[str, object]:
     train = [s for s in load_suite(SUITE).scenario_ids() if s not in HOLDOUT]
     verdict: dict[str, object] = {}
     for ensemble in ("off", "mean"):
-        before, after, _ = fit(reference, BINDING, root / f"bundled_{ensemble}", ensemble)
-        print(f"   {'scenario':<20}{'before':>9}{'after':>9}{'floor 1µ':>10}{'ratio':>8}{'floor 10µ':>11}{'ratio':>8}")
-        ok = {eps: True for eps in EPS}
-        for sid in train:
-            r1, r10 = (after[sid] / max(floor[eps][sid], 1e-12) for eps in EPS)
-            ok[EPS[0]] &= r1 <= 1.5
-            ok[EPS[1]] &= r10 <= 1.5
-            print(f"   {sid:<20}{before[sid]:9.4f}{after[sid]:9.4f}{floor[EPS[0]][sid]:10.4g}{r1:8.2f}"
-                  f"{floor[EPS[1]][sid]:11.4g}{r10:8.2f}")
-        print(f"   every fitted scenario within 1.5x its floor: ±1 µrad {ok[EPS[0]]}, ±10 µrad {ok[EPS[1]]}")
-        verdict[ensemble] = ok
+        out = root / f"bundled_{ensemble}"
+        fit(reference, BINDING, out, ensemble)
+        verdict[ensemble] = floor_table(reference, out, floor, train)
     return verdict
 
 
@@ -188,7 +206,8 @@ def part_recording(root: Path) -> dict[str, object]:
     for label, patterns in (("with nuisance knobs", physics + nuisance), ("control: physics only", physics)):
         start = time.perf_counter()
         result = align(imported, "webots", robot, SUITE, patterns, folder / f"fit_{len(patterns)}", optimizer="lsq",
-                       budget=400, bounds={"body.pole.mass": (0.5 * true["body.pole.mass"], 2 * true["body.pole.mass"])})
+                       budget=400, bounds={"body.pole.mass": (0.5 * true["body.pole.mass"], 2 * true["body.pole.mass"]),
+                                           "joint.pole_hinge.damping": (0.0, 0.1)})
         wall = time.perf_counter() - start
         values = {**result.fitted, **{k: v.fitted for k, v in result.nuisance.items()}}
         sim_twin = make_twin("webots", robot, suite.global_settings.control_period_s)
@@ -219,6 +238,16 @@ def part_recording(root: Path) -> dict[str, object]:
             sid = name.split(".")[1]
             truth = kicks.get(sid) if name.endswith(KICK_KEY) else None
             print(f"     {name:<46} fitted {knob.fitted:+.4f}{'' if truth is None else f' (true {truth:+.4f})'}")
+        # Is a miss the optimiser's (a local minimum) or the data's? The criterion at the true values tells.
+        spec = build_spec(reference, [s for s in ids if s in reference], ["pole_angle_rad", "cart_pos_m"])
+        at_truth = {**true, **{f"scenario.{sid}.{KICK_KEY}": k for sid, k in kicks.items()},
+                    SHARED_TIME_OFFSET: suite.global_settings.control_period_s}
+        sim_twin = make_twin("webots", robot, suite.global_settings.control_period_s)
+        r_truth = residuals(spec, simulate_twin(robot, sim_twin, SUITE, at_truth))
+        sim_twin.close()
+        r_fit = residuals(spec, sim)
+        print(f"     least-squares criterion |r|²: fitted {float(r_fit @ r_fit):.3g}, at the true values "
+              f"{float(r_truth @ r_truth):.3g}")
         results[label] = {"crossing_error_s": cross_err, "speeds_ok": speeds_ok, "knobs_inside": inside}
         print(f"     goals: crossing {cross_err <= 0.05}, cart speed {speeds_ok}, knobs inside 95 % {inside}")
     return results
