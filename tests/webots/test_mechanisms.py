@@ -74,3 +74,50 @@ def test_coupled_motors_relay_velocity_and_torque() -> None:
     sup.getDevice("gripper::left").setTorque(0.0)
     assert all(sup.getDevice(n)._record.torque_mode for n in ("gripper::left", "gripper::right"))
     assert not sup.getDevice("other")._record.torque_mode
+
+
+# ------------------------------------------------------------------------------------------ propeller
+
+
+def _drone(thrust: str, torque: str) -> Supervisor:
+    return _sup(
+        "DEF DRONE Robot { supervisor TRUE boundingObject Box { size 0.1 0.1 0.1 } physics Physics { mass 1 } "
+        f"children [ Propeller {{ shaftAxis 0 0 1 thrustConstants {thrust} torqueConstants {torque} "
+        'device RotationalMotor { name "prop" maxVelocity 200 maxTorque 1000 } } ] }'
+    )
+
+
+def test_propeller_thrust_and_torque_at_a_given_speed() -> None:
+    sup = _drone("1e-4 0", "1e-6 0")
+    prop = sup.getDevice("prop")
+    prop.setPosition(math.inf)
+    prop.setVelocity(100.0)
+    for _ in range(50):  # spin-up at maxTorque = 1000 rad/s²: full speed after 0.1 s
+        sup.step(4)
+    drone = sup.getFromDef("DRONE")
+    v0 = drone.getVelocity()
+    for _ in range(125):
+        sup.step(4)
+    v1 = drone.getVelocity()
+    # T = t1·ω² = 1 N on 1 kg along +z; Q = q1·ω² = 0.01 N·m applied as -Q about the shaft
+    assert (v1[2] - v0[2]) / 0.5 == pytest.approx(1.0, rel=0.01)
+    izz = 1.0 * (0.1**2 + 0.1**2) / 12
+    assert (v1[5] - v0[5]) / 0.5 == pytest.approx(-0.01 / izz, rel=0.01)
+    assert abs(v1[0]) < 1e-9 and abs(v1[1]) < 1e-9
+
+
+def test_propeller_thrust_falls_with_inflow_speed() -> None:
+    # m·dv/dt = t1·ω² − t2·ω·v: the drone reaches v∞ = t1·ω/t2 = 0.5 m/s with τ = m/(t2·ω) = 0.5 s
+    sup = _drone("1e-4 0.02", "0 0")
+    prop = sup.getDevice("prop")
+    prop.setPosition(math.inf)
+    prop.setVelocity(100.0)
+    for _ in range(1500):
+        sup.step(4)
+    assert sup.getFromDef("DRONE").getVelocity()[2] == pytest.approx(0.5, rel=0.01)
+    prop.setVelocity(0.0)  # spinning down, then no thrust at all
+    for _ in range(50):
+        sup.step(4)
+    v = sup.getFromDef("DRONE").getVelocity()[2]
+    sup.step(4)
+    assert sup.getFromDef("DRONE").getVelocity()[2] == v

@@ -54,6 +54,7 @@ from dualtwin.webots.physics import (
     Simulation,
     SimulationUnstable,
 )
+from dualtwin.webots.propeller import install as install_propellers
 from dualtwin.webots.radio import Emitter, Receiver
 from dualtwin.webots.ranging import DistanceSensor, Lidar, LidarPoint, RangeFinder, sample_ray_sensors
 from dualtwin.webots.scene_api import ContactPoint, Field, Node, descendants, find_def
@@ -647,6 +648,7 @@ class Robot:
         if rec is None:
             raise ValueError("robot_node is not a Robot of this simulation")
         self._rec: RobotRec = rec
+        install_propellers(self._sim)  # propeller motors become devices of their robot
         self._devices: dict[int, Device] = {}
         self._sensors: dict[int, _Sampled] = {}
         self._keyboard: Keyboard | None = None
@@ -758,6 +760,8 @@ class Robot:
                 dev = cls(self, rec.name, rec)
                 if isinstance(dev, _Sampled):
                     dev._invalidate()
+            elif hasattr(rec, "api_class"):  # devices simulated by their own module (propeller motors)
+                dev = rec.api_class(self, rec.name, rec)
             else:
                 dev = Device(self, str(getattr(rec, "name", "")), rec)
             self._devices[id(rec)] = dev

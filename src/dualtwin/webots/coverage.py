@@ -98,7 +98,10 @@ REGISTRY: tuple[Coverage, ...] = (
              "not yet: closed kinematic loops are ignored with a warning (the joint is dropped)"),
     Coverage("Track", "joint", "not", "not yet: behaves as a Solid; no belt motion, its motors are not exposed"),
     Coverage("TrackWheel", "joint", "not", "not yet (Track)"),
-    Coverage("Propeller", "joint", "not", "not yet: no thrust or torque, its motor is not exposed"),
+    Coverage("Propeller", "joint", "partial",
+             "thrust and torque from its constants and the motor's kinematic speed, applied to the parent body "
+             "at the centre of thrust; its motor is a device; the helices are not simulated and a "
+             "PositionSensor on it is not exposed"),
     Coverage("Muscle", "joint", "visual", "a visual muscle shape"),
     # -- devices
     Coverage("RotationalMotor", "device", "partial",

@@ -85,6 +85,7 @@ __all__ = [
     "PositionSensorRec",
     "DeviceRec",
     "RobotRec",
+    "AttachmentRec",
 ]
 
 MAX_ANGULAR_SPEED = 10000.0  # §1.4: dBodySetMaxAngularSpeed for every body
@@ -104,6 +105,8 @@ SOLID_TYPES = frozenset(
 )  # fmt: skip
 JOINT_TYPES = frozenset({"HingeJoint", "SliderJoint", "Hinge2Joint", "BallJoint"})
 MOTOR_TYPES = frozenset({"RotationalMotor", "LinearMotor"})
+# nodes that act on their parent Solid's body and are simulated by a device module (``propeller``)
+ATTACHMENT_TYPES = frozenset({"Propeller"})
 
 
 
@@ -337,6 +340,16 @@ class DeviceRec(_ShortRepr):
 
 
 @dataclass(eq=False, repr=False)
+class AttachmentRec(_ShortRepr):
+    """A node of ``ATTACHMENT_TYPES`` found under a Solid: where it sits, for the module that simulates it."""
+
+    node: Node
+    frame_rel: Pose  # the closest upper Pose frame, in the parent Solid's frame
+    solid: SolidRec | None
+    robot: RobotRec | None
+
+
+@dataclass(eq=False, repr=False)
 class JointRec(_ShortRepr):
     """A Webots joint and its ODE counterpart (§4)."""
 
@@ -421,6 +434,7 @@ class Simulation:
         self.geoms: dict[int, GeomRec] = {}
         self.motors: list[MotorRec] = []
         self.devices: list[Any] = []
+        self.attachments: list[AttachmentRec] = []
         self._solid_by_node: dict[int, SolidRec] = {}
         self._joint_by_node: dict[int, JointRec] = {}
         self._pending: list[_PendingOp] = []
@@ -558,6 +572,8 @@ class Simulation:
                 self._add_solid(child, frame_rel, parent, robot, None)
             elif child.type_name in JOINT_TYPES:
                 self._add_joint(child, frame_rel, parent, robot)
+            elif child.type_name in ATTACHMENT_TYPES:
+                self.attachments.append(AttachmentRec(child, frame_rel, parent, robot))
             elif "translation" in child.fields and "rotation" in child.fields and "children" in child.fields:
                 local = Pose.from_fields(_f(child, "translation", None), _f(child, "rotation", None))
                 scale = _f(child, "scale", (1.0, 1.0, 1.0))

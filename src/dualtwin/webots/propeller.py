@@ -1,0 +1,211 @@
+"""Propeller: thrust and torque on the closest upper Solid's body, from the propeller motor's speed.
+
+Webots (``WbPropeller``) does not simulate the propeller as a body: its RotationalMotor runs a kinematic
+controller every step. In velocity mode (``setPosition(inf)``) the speed ω ramps toward the target with the
+motor's ``acceleration``, or with ``maxTorque`` (read as rad/s²) when the acceleration is -1 or larger than
+``maxTorque``; in position mode the angle moves toward the target at ``|velocity|`` (ω ≥ 0 there) and ω is 0 once
+it is reached. Each step with ω ≠ 0, with ``V`` the velocity of the centre of thrust along the shaft axis,
+
+    T = t1·ω·|ω| − t2·|ω|·V        Q = q1·ω·|ω| − q2·|ω|·V   (Q clamped to ±maxTorque)
+
+the force ``T·a`` is applied at the centre of thrust and the torque ``−Q·a`` to the body (``a`` = the shaft axis
+in the world), which is woken up. Webots projects V on the shaft axis expressed in the propeller's *parent
+frame* (not rotated to the world), a quirk reproduced here. The helix Solids are visual and not simulated.
+Without a body upstream there is no effect.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from dualtwin.webots import _math3 as m3
+from dualtwin.webots.api_args import as_float, finite, warn
+from dualtwin.webots.device_base import Device
+from dualtwin.webots.nodes import Node
+from dualtwin.webots.physics import AttachmentRec, Simulation
+
+__all__ = ["PropellerMotor", "PropellerRec", "install"]
+
+
+def _vec(value: Any, default: tuple[float, ...]) -> tuple[float, ...]:
+    return tuple(float(v) for v in value) if value is not None else default
+
+
+@dataclass(eq=False)
+class PropellerRec:
+    """A Propeller and the state of its motor's kinematic controller."""
+
+    site: AttachmentRec
+    motor: Node | None
+    name: str
+    axis: m3.Vec3  # unit shaft axis in the parent frame (the closest upper Pose)
+    center: m3.Vec3  # centre of thrust in the parent frame
+    t1: float
+    t2: float
+    q1: float
+    q2: float
+    max_velocity: float
+    max_torque: float
+    acceleration: float
+    multiplier: float
+    target_position: float = 0.0
+    target_velocity: float = 0.0
+    omega: float = 0.0  # current speed (rad/s)
+    angle: float = 0.0
+    thrust: float = 0.0  # last applied values, for inspection
+    torque: float = 0.0
+
+    @property
+    def api_class(self) -> type[PropellerMotor]:
+        return PropellerMotor
+
+    def control(self, dt: float) -> None:
+        """One step of Webots' kinematic motor controller: updates ω and the angle."""
+        if math.isinf(self.target_position):
+            accel = (
+                self.max_torque
+                if self.acceleration == -1 or self.acceleration > self.max_torque
+                else self.acceleration
+            )
+            step = accel * dt
+            self.omega += max(-step, min(step, self.target_velocity - self.omega))
+            self.angle += self.omega * dt
+            return
+        err = self.target_position - self.angle
+        speed = abs(self.target_velocity)
+        if err == 0.0 or speed == 0.0:
+            self.omega = 0.0
+            return
+        move = min(abs(err), speed * dt)
+        self.angle += math.copysign(move, err)
+        self.omega = move / dt  # a speed magnitude in position mode
+
+
+def _make(site: AttachmentRec) -> PropellerRec:
+    f = site.node.fields
+    axis = _vec(f.get("shaftAxis"), (1.0, 0.0, 0.0))
+    if m3.norm(axis) == 0.0:
+        warn("Propeller: a zero shaftAxis is replaced by (0, 1, 0)")
+        axis = (0.0, 1.0, 0.0)
+    motor = f.get("device")
+    motor = motor if isinstance(motor, Node) and motor.type_name == "RotationalMotor" else None
+    mf = motor.fields if motor is not None else {}
+    t1, t2 = _vec(f.get("thrustConstants"), (1.0, 0.0))
+    q1, q2 = _vec(f.get("torqueConstants"), (1.0, 0.0))
+    multiplier = float(mf.get("multiplier", 1.0)) or 1.0
+    return PropellerRec(
+        site=site, motor=motor, name=str(mf.get("name", "rotational motor")),
+        axis=m3.normalized(axis), center=_vec(f.get("centerOfThrust"), (0.0, 0.0, 0.0)),  # type: ignore[arg-type]
+        t1=t1, t2=t2, q1=q1, q2=q2,
+        max_velocity=float(mf.get("maxVelocity", 10.0)), max_torque=float(mf.get("maxTorque", 10.0)),
+        acceleration=float(mf.get("acceleration", -1.0)), multiplier=multiplier,
+    )  # fmt: skip
+
+
+class _Propellers:
+    """Per-simulation pre-physics hook applying every propeller's thrust and torque."""
+
+    def __init__(self, sim: Simulation) -> None:
+        self.sim = sim
+        self.recs = [_make(site) for site in sim.attachments if site.node.type_name == "Propeller"]
+        for rec in self.recs:
+            robot = rec.site.robot
+            if rec.motor is not None and robot is not None:
+                robot.devices.setdefault(rec.name, rec)
+        sim.pre_step_hooks.append(self.apply)
+
+    def apply(self, dt: float) -> None:
+        sim = self.sim
+        lib = sim._lib
+        for rec in self.recs:
+            rec.control(dt)
+            rec.thrust = rec.torque = 0.0
+            solid = rec.site.solid
+            body = solid.body if solid is not None else None
+            if rec.omega == 0.0 or body is None or solid is None:
+                continue
+            frame = sim.solid_world_pose(solid) * rec.site.frame_rel
+            a_world = frame.rotate(rec.axis)
+            p_world = frame.apply(rec.center)
+            # velocity of the centre of thrust: v + w × (p − CoM)
+            w = (body.avel[0], body.avel[1], body.avel[2])
+            r = m3.sub(p_world, (body.pos[0], body.pos[1], body.pos[2]))
+            v = m3.add((body.lvel[0], body.lvel[1], body.lvel[2]), m3.cross(w, r))
+            speed = m3.dot(v, rec.axis)  # Webots' quirk: the local axis, not rotated to the world
+            om = rec.omega
+            thrust = rec.t1 * om * abs(om) - rec.t2 * abs(om) * speed
+            torque = rec.q1 * om * abs(om) - rec.q2 * abs(om) * speed
+            torque = max(-rec.max_torque, min(rec.max_torque, torque))
+            rec.thrust, rec.torque = thrust, torque
+            f = m3.scale(a_world, thrust)
+            lib.dBodyAddForceAtPos(body.ptr, f[0], f[1], f[2], p_world[0], p_world[1], p_world[2])
+            q = m3.scale(a_world, -torque)
+            lib.dBodyAddTorque(body.ptr, q[0], q[1], q[2])
+            lib.dBodyEnable(body.ptr)
+
+
+def install(sim: Simulation) -> list[PropellerRec]:
+    """Make the simulation's propellers act (idempotent); their motors become robot devices."""
+    hook = sim.extensions.get("propellers")
+    if hook is None:
+        hook = sim.extensions["propellers"] = _Propellers(sim)
+    return hook.recs
+
+
+class PropellerMotor(Device):
+    """The RotationalMotor of a Propeller: Webots' Motor API over the kinematic controller."""
+
+    ROTATIONAL = 0
+    _record: PropellerRec
+
+    def setPosition(self, position: Any) -> None:
+        p = as_float(position, "Motor.setPosition")
+        if finite(p):
+            self._record.target_position = p * self._record.multiplier
+
+    def setVelocity(self, velocity: Any) -> None:
+        rec = self._record
+        v = as_float(velocity, "Motor.setVelocity")
+        if not finite(v):
+            return
+        v *= rec.multiplier
+        if abs(v) > rec.max_velocity:
+            warn(f"'{self._name}': requested velocity {v} exceeds maxVelocity {rec.max_velocity}")
+            v = math.copysign(rec.max_velocity, v)
+        rec.target_velocity = v
+
+    def setAcceleration(self, acceleration: Any) -> None:
+        a = as_float(acceleration, "Motor.setAcceleration")
+        if finite(a):
+            self._record.acceleration = a
+
+    def setAvailableTorque(self, torque: Any) -> None:
+        t = as_float(torque, "Motor.setAvailableTorque")
+        if finite(t) and t >= 0:
+            self._record.max_torque = t
+
+    def setTorque(self, torque: Any) -> None:
+        warn(f"'{self._name}': a propeller motor is speed-controlled; setTorque is ignored")
+
+    def getTargetPosition(self) -> float:
+        return self._record.target_position
+
+    def getVelocity(self) -> float:
+        return self._record.target_velocity
+
+    def getMaxVelocity(self) -> float:
+        return self._record.max_velocity
+
+    def getMaxTorque(self) -> float:
+        return self._record.max_torque
+
+    def getAcceleration(self) -> float:
+        return self._record.acceleration
+
+    def getMultiplier(self) -> float:
+        return self._record.multiplier
+
+    def getType(self) -> int:
+        return self.ROTATIONAL
