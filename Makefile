@@ -19,7 +19,7 @@ $(VENV)/.installed: pyproject.toml
 venv: system-deps $(VENV)/.installed
 
 lint: venv
-	$(VENV)/bin/ruff check src tests bench
+	$(VENV)/bin/ruff check src tests bench examples
 
 typecheck: venv
 	$(VENV)/bin/mypy
