@@ -34,7 +34,8 @@ Writing a state takes effect *now* from the caller's point of view: the next :me
 it and :meth:`Twin.get_state` returns it until then. After a write, a motor that has not been commanded since
 the last reset holds the state's ``holds`` entry for its joint, or else the *written* position, instead of
 pulling the joint back to where it held before; commanded motors keep their command (the controller's
-intent), and every motor's internal current velocity is zeroed (Webots' joint teleport does that, spec §4.1).
+intent), and every motor's internal current velocity is zeroed (Webots' joint teleport does that,
+docs/reference/webots-on-ode.md §4.1).
 """
 
 from __future__ import annotations

@@ -244,7 +244,8 @@ class WebotsTwin(Twin):
         j = self._joint(joint)
         self._written = None
         if position is not None:
-            # Webots teleports the endPoint at the next step and resets its physics (spec §4.1).
+            # Webots teleports the endPoint at the next step and resets its physics
+            # (docs/reference/webots-on-ode.md §4.1).
             j.position.setSFFloat(float(position))
         if velocity is not None:
             axis = self._world_axis(j)

@@ -18,9 +18,10 @@ ZERO: Vec3 = (0.0, 0.0, 0.0)
 
 
 def rot_axis_angle(rotation: Sequence[float]) -> Mat3:
-    """Matrix of a VRML axis-angle rotation ``(x, y, z, angle)``; the axis is normalised (spec §3.1).
+    """Matrix of a VRML axis-angle rotation ``(x, y, z, angle)``; the axis is normalised.
 
-    A zero axis yields the identity (Webots rejects such rotations; UNVERIFIED which value it keeps).
+    As Webots does (docs/reference/webots-on-ode.md §3.1). A zero axis yields the identity (Webots rejects
+    such rotations; UNVERIFIED which value it keeps).
     """
     x, y, z, a = (float(v) for v in rotation)
     n = math.sqrt(x * x + y * y + z * z)

@@ -40,7 +40,7 @@ class Device:
 
 
 class SampledDevice(Device):
-    """A sensor with Webots' enable/sampling-period protocol (§5.4)."""
+    """A sensor with Webots' enable/sampling-period protocol (docs/reference/webots-on-ode.md §5.4)."""
 
     def __init__(self, robot: Robot, name: str, record: Any) -> None:
         super().__init__(robot, name, record)

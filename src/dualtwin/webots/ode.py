@@ -2,8 +2,8 @@
 
 Only the calls the Webots twin needs are declared. Every pointer argument is declared ``c_void_p`` so
 callers can pass plain integer handles (fast) or ctypes arrays/structures; ``dReal`` is ``double``
-because Webots uses a double-precision ODE (spec §1.5, Appendix A.1) and :func:`load` refuses a
-single-precision build.
+because Webots uses a double-precision ODE (docs/reference/webots-on-ode.md §1.5, Appendix A.1) and
+:func:`load` refuses a single-precision build.
 
 Struct layouts (``dMass``, ``dContactGeom``, ``dSurfaceParameters``, ``dContact``) and enum values
 follow the ODE 0.16 headers for ``dDOUBLE``.

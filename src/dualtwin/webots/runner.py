@@ -17,7 +17,7 @@ Several robots with Python controllers are supported: each controller runs in it
 simulation advances only when all of them have called ``step`` (Webots' synchronisation). The process has
 a single working directory, so it is the first controller's folder. Robots whose controller is not a
 Python script found on disk (C controllers, ``<generic>``, ``<extern>``, ``<none>``) run without a
-controller: their motors keep the initial hold (§5.1).
+controller: their motors keep the initial hold (docs/reference/webots-on-ode.md §5.1).
 """
 
 from __future__ import annotations
