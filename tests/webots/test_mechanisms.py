@@ -121,3 +121,55 @@ def test_propeller_thrust_falls_with_inflow_speed() -> None:
     v = sup.getFromDef("DRONE").getVelocity()[2]
     sup.step(4)
     assert sup.getFromDef("DRONE").getVelocity()[2] == v
+
+
+# ------------------------------------------------------------------------------------------ track
+
+
+def _floor_world(body: str) -> Supervisor:
+    text = (
+        "#VRML_SIM R2023b utf8\nWorldInfo { basicTimeStep 4 }\n"
+        f'Solid {{ name "floor" boundingObject Plane {{ size 10 10 }} }}\n{body}\n'
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sim = Simulation(load_world_text(text))
+    return Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+
+
+def test_conveyor_track_carries_a_box_at_belt_speed() -> None:
+    sup = _floor_world(
+        'Robot { supervisor TRUE children [ Track { translation 0 0 0.2 name "belt" '
+        "boundingObject Box { size 2 0.4 0.1 } physics Physics { mass 5 } "
+        'device [ LinearMotor { name "belt motor" maxVelocity 1 } PositionSensor { name "belt sensor" } ] } ] }\n'
+        "DEF BOX Solid { translation 0 0 0.3 boundingObject Box { size 0.1 0.1 0.1 } physics Physics { mass 1 } }"
+    )
+    motor, sensor = sup.getDevice("belt motor"), sup.getDevice("belt sensor")
+    sensor.enable(4)
+    motor.setPosition(math.inf)
+    motor.setVelocity(0.3)
+    for _ in range(500):
+        sup.step(4)
+    vx, vy, vz = sup.getFromDef("BOX").getVelocity()[:3]
+    assert vx == pytest.approx(0.3, rel=0.01) and abs(vy) < 1e-6 and abs(vz) < 1e-3
+    assert sensor.getValue() == pytest.approx(0.3 * 2.0, rel=0.01)  # belt travel over 2 s
+    motor.setPosition(0.0)  # position control brings the belt back, and the box with it
+    for _ in range(1000):
+        sup.step(4)
+    assert sensor.getValue() == pytest.approx(0.0, abs=1e-3)
+
+
+def test_tracked_vehicle_drives_at_belt_speed() -> None:
+    sup = _floor_world(
+        'DEF V Robot { translation 0 0 0.06 supervisor TRUE children [ Track { name "t" '
+        "boundingObject Box { size 0.4 0.3 0.1 } physics Physics { mass 2 } "
+        'device [ LinearMotor { name "m" maxVelocity 1 } ] } ] physics Physics { mass 1 } '
+        "boundingObject Pose { translation 0 0 0.1 children [ Box { size 0.1 0.1 0.05 } ] } }"
+    )
+    motor = sup.getDevice("m")
+    motor.setPosition(math.inf)
+    motor.setVelocity(-0.2)
+    for _ in range(500):
+        sup.step(4)
+    vx, vy, _ = sup.getFromDef("V").getVelocity()[:3]
+    assert vx == pytest.approx(-0.2, rel=0.01) and abs(vy) < 1e-6

@@ -59,6 +59,7 @@ from dualtwin.webots.radio import Emitter, Receiver
 from dualtwin.webots.ranging import DistanceSensor, Lidar, LidarPoint, RangeFinder, sample_ray_sensors
 from dualtwin.webots.scene_api import ContactPoint, Field, Node, descendants, find_def
 from dualtwin.webots.touch import TouchSensor
+from dualtwin.webots.track import install as install_tracks
 
 __all__ = [
     "Accelerometer",
@@ -648,7 +649,8 @@ class Robot:
         if rec is None:
             raise ValueError("robot_node is not a Robot of this simulation")
         self._rec: RobotRec = rec
-        install_propellers(self._sim)  # propeller motors become devices of their robot
+        install_propellers(self._sim)  # propeller and track motors become devices of their robot
+        install_tracks(self._sim)
         self._devices: dict[int, Device] = {}
         self._sensors: dict[int, _Sampled] = {}
         self._keyboard: Keyboard | None = None

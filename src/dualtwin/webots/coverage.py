@@ -96,8 +96,11 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("BallJointParameters", "joint", "supported", "anchor"),
     Coverage("SolidReference", "joint", "not",
              "not yet: closed kinematic loops are ignored with a warning (the joint is dropped)"),
-    Coverage("Track", "joint", "not", "not yet: behaves as a Solid; no belt motion, its motors are not exposed"),
-    Coverage("TrackWheel", "joint", "not", "not yet (Track)"),
+    Coverage("Track", "joint", "partial",
+             "belt motion through ODE contact surface velocity (Webots' per-contact sign rule), its LinearMotor "
+             "(position/velocity/force control) and PositionSensor are devices; no Brake, no texture or "
+             "geometry animation"),
+    Coverage("TrackWheel", "joint", "visual", "wheels of a Track are turned only visually in Webots"),
     Coverage("Propeller", "joint", "partial",
              "thrust and torque from its constants and the motor's kinematic speed, applied to the parent body "
              "at the centre of thrust; its motor is a device; the helices are not simulated and a "

@@ -1366,6 +1366,7 @@ class Simulation:
         self._surfaces: dict[int, _Surface] = {}
         self._default_surface = self._make_surface(None)
         self._plans: dict[tuple[int, int], Any] = {}
+        self._contact_modifiers: dict[int, Callable[[Any, list[int], int], None]] = {}
         self._buffer = 0
         self._used: list[list[BodyRec]] = [[], []]
         self._callback_error: BaseException | None = None
@@ -1480,6 +1481,7 @@ class Simulation:
                 return False  # rule 6: a body jointed to the static environment ignores static geoms
         surface = self._surface_for(g1.solid.material, g2.solid.material)
         owner = b1 if b1 is not None else b2
+        modifier = self._contact_modifiers.get(id(g1.solid)) or self._contact_modifiers.get(id(g2.solid))
         return (
             surface,
             owner,
@@ -1487,7 +1489,15 @@ class Simulation:
             b2.ptr if b2 is not None else None,
             b1.index if b1 is not None else -1,
             b2.index if b2 is not None else -1,
+            modifier,
         )
+
+    def set_contact_modifier(self, solid: SolidRec, modifier: Callable[[Any, list[int], int], None]) -> None:
+        """Let ``modifier(contacts, indices, o1)`` edit the ``dContact`` entries of every pair involving the
+        Solid's geoms before their contact joints are created (Track belts set a surface velocity this way);
+        the entries are restored afterwards. ``o1`` is the pair's first geom."""
+        self._contact_modifiers[id(solid)] = modifier
+        self._plans.clear()
 
     def _make_near_callback(self) -> Callable[[Any, Any, Any], None]:
         plans = self._plans
@@ -1510,7 +1520,7 @@ class Simulation:
                     plan = plans[key] = plan_pair(o1, o2)
                 if plan is False:
                     return
-                surface, owner, p1, p2, i1, i2 = plan
+                surface, owner, p1, p2, i1, i2, modifier = plan
                 if self._auto_disable:
                     e1 = enabled[i1] if i1 >= 0 else None
                     e2 = enabled[i2] if i2 >= 0 else None
@@ -1534,8 +1544,15 @@ class Simulation:
                     indices: Iterable[int] = sorted(order)
                 else:
                     indices = range(n)
+                if modifier is not None:
+                    indices = list(indices)
+                    modifier(arr, indices, o1)
                 for i in indices:
-                    attach(create(world, group, base + i * sizeof), p1, p2)
+                    attach(create(world, group, base + i * sizeof), p1, p2)  # ODE copies the dContact
+                if modifier is not None:
+                    for i in indices:
+                        arr[i].surface = surface.template
+                        arr[i].fdir1[0] = arr[i].fdir1[1] = arr[i].fdir1[2] = 0.0
                 self._used[self._buffer].append(owner)
             except BaseException as exc:  # a ctypes callback cannot raise: re-raised after dSpaceCollide
                 self._callback_error = exc

@@ -1,0 +1,266 @@
+"""Track: a belt that moves through ODE contact surface velocity, with its LinearMotor and PositionSensor.
+
+Webots (``WbTrack``) keeps the belt geometry fixed to the Track Solid and makes it *act* as moving: every contact
+involving a Track geom gets a surface velocity (``dContactMotion1``). Per step, before physics:
+
+* position or velocity control: the belt speed ``v`` comes from the motor's usual law (PID on the belt position,
+  velocity and acceleration limits, the same as for joint motors), so ``v`` follows the commanded speed;
+* force control (``setForce``): ``v = F·dt / m`` with ``m`` the mass of the Track's body (Webots' formula, which
+  does not integrate; a Brake's damping is not modelled here);
+* the belt position (what the PositionSensor reads) integrates ``v``.
+
+In the collision pass, for each contact point (normal ``n`` negated when the Track is the pair's second geom):
+``c = n·ẑ_track``; the surface speed is ``v·s·|acos(c) − π/2|/(π/2)`` with the sign ``s`` chosen from the raw
+normal's vertical component and the sign of ``c`` as Webots does (gravity along −z), so contacts on the belt's
+top and bottom faces move in opposite directions and side contacts not at all. When the Track geom has a body,
+the friction direction is the Track's x axis (negated under the belt). Without a motor the belt does not move.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from dualtwin.webots import _math3 as m3
+from dualtwin.webots import ode
+from dualtwin.webots.api_args import as_float, finite, warn
+from dualtwin.webots.device_base import Device, SampledDevice
+from dualtwin.webots.motor_law import motor_velocity
+from dualtwin.webots.nodes import Node
+from dualtwin.webots.physics import Simulation, SolidRec
+
+__all__ = ["TrackMotor", "TrackPositionSensor", "TrackRec", "install"]
+
+
+@dataclass(eq=False)
+class TrackRec:
+    """A Track Solid, its belt state and its motor's controller state."""
+
+    solid: SolidRec
+    motor: Node | None
+    sensor: Node | None
+    max_velocity: float = 10.0
+    max_force: float = 10.0
+    acceleration: float = -1.0
+    kp: float = 10.0
+    ki: float = 0.0
+    kd: float = 0.0
+    multiplier: float = 1.0
+    min_position: float = 0.0
+    max_position: float = 0.0
+    target_position: float = 0.0
+    target_velocity: float = 0.0
+    available: float = 0.0
+    force_mode: bool = False
+    force: float = 0.0
+    integral: float = 0.0
+    prev_error: float = 0.0
+    current_velocity: float = 0.0
+    position: float = 0.0  # belt travel (m)
+    velocity: float = 0.0  # belt speed (m/s)
+    devices: dict[str, Any] = field(default_factory=dict)
+
+    def control(self, dt: float) -> None:
+        if self.motor is None:
+            self.velocity = 0.0
+            return
+        if self.force_mode:
+            body = self.solid.body
+            self.velocity = self.force * dt / body.mass if body is not None and body.mass > 0 else 0.0
+        else:
+            u, self.integral, self.prev_error = motor_velocity(
+                target_position=self.target_position, target_velocity=self.target_velocity,
+                available=self.available, position=self.position, integral=self.integral,
+                previous_error=self.prev_error, current_velocity=self.current_velocity, kp=self.kp, ki=self.ki,
+                kd=self.kd, acceleration=self.acceleration, dt=dt,
+            )  # fmt: skip
+            self.current_velocity = u
+            self.velocity = u
+        self.position += self.velocity * dt
+
+
+def _make(solid: SolidRec) -> TrackRec:
+    motor = sensor = None
+    for dev in solid.node.fields.get("device", []) or []:
+        if isinstance(dev, Node):
+            if dev.type_name == "LinearMotor" and motor is None:
+                motor = dev
+            elif dev.type_name == "PositionSensor" and sensor is None:
+                sensor = dev
+    rec = TrackRec(solid=solid, motor=motor, sensor=sensor)
+    if motor is not None:
+        f = motor.fields
+        pid = tuple(f.get("controlPID", (10.0, 0.0, 0.0)))
+        rec.max_velocity = float(f.get("maxVelocity", 10.0))
+        rec.max_force = rec.available = float(f.get("maxForce", 10.0))
+        rec.acceleration = float(f.get("acceleration", -1.0))
+        rec.kp, rec.ki, rec.kd = (float(v) for v in pid)
+        rec.multiplier = float(f.get("multiplier", 1.0)) or 1.0
+        rec.min_position = float(f.get("minPosition", 0.0))
+        rec.max_position = float(f.get("maxPosition", 0.0))
+        rec.target_velocity = rec.max_velocity  # Webots' initial hold: the current position at full speed
+    return rec
+
+
+class _Tracks:
+    def __init__(self, sim: Simulation) -> None:
+        self.sim = sim
+        self.recs = [_make(s) for s in sim.solids if s.node.type_name == "Track"]
+        for rec in self.recs:
+            robot = rec.solid.robot
+            if robot is not None:
+                if rec.motor is not None:
+                    name = str(rec.motor.fields.get("name", "linear motor"))
+                    robot.devices.setdefault(name, _Handle(rec, name, TrackMotor))
+                if rec.sensor is not None:
+                    name = str(rec.sensor.fields.get("name", "position sensor"))
+                    robot.devices.setdefault(name, _Handle(rec, name, TrackPositionSensor))
+            sim.set_contact_modifier(rec.solid, self._modifier(rec))
+        sim.pre_step_hooks.append(self.control)
+
+    def control(self, dt: float) -> None:
+        for rec in self.recs:
+            rec.control(dt)
+
+    def _modifier(self, rec: TrackRec) -> Any:
+        sim = self.sim
+        own = {g.ptr for g in rec.solid.geoms}
+        g = sim.gravity
+        g_norm = m3.norm(g)
+        # Webots picks the dominant gravity axis; ENU worlds use z
+        g_z = g[2] / g_norm if g_norm > 0 else -1.0
+
+        def modify(contacts: Any, indices: list[int], o1: int) -> None:
+            v = rec.velocity
+            if v == 0.0:
+                return
+            track_first = o1 in own
+            pose = sim.solid_world_pose(rec.solid)
+            z_axis = pose.rotate((0.0, 0.0, 1.0))
+            x_axis = pose.rotate((1.0, 0.0, 0.0))
+            has_body = rec.solid.body is not None
+            for i in indices:
+                c = contacts[i]
+                raw = (c.geom.normal[0], c.geom.normal[1], c.geom.normal[2])
+                n = raw if track_first else m3.scale(raw, -1.0)
+                cos = max(-1.0, min(1.0, m3.dot(n, z_axis)))
+                inv = cos < 0
+                sign = -g_z if (raw[2] < 0) == inv else g_z
+                sign *= abs(math.acos(cos) - math.pi / 2) / (math.pi / 2)
+                c.surface.mode |= ode.dContactMotion1
+                c.surface.motion1 = v * sign
+                if has_body:
+                    c.surface.mode |= ode.dContactFDir1
+                    d = m3.scale(x_axis, -1.0) if inv else x_axis
+                    c.fdir1[0], c.fdir1[1], c.fdir1[2] = d
+
+        return modify
+
+
+class _Handle:
+    """A Track device as listed among its robot's devices."""
+
+    def __init__(self, track: TrackRec, name: str, api: type[Device]) -> None:
+        self.track = track
+        self.name = name
+        self.api_class = api
+        self.node = track.motor if api is TrackMotor else track.sensor
+
+
+def install(sim: Simulation) -> list[TrackRec]:
+    """Make the simulation's Tracks move their belts (idempotent); their motor and sensor become devices."""
+    hook = sim.extensions.get("tracks")
+    if hook is None:
+        hook = sim.extensions["tracks"] = _Tracks(sim)
+    return hook.recs
+
+
+class TrackMotor(Device):
+    """The LinearMotor of a Track: Webots' Motor API driving the belt."""
+
+    LINEAR = 1
+    _record: _Handle
+
+    @property
+    def _track(self) -> TrackRec:
+        return self._record.track
+
+    def setPosition(self, position: Any) -> None:
+        p = as_float(position, "Motor.setPosition")
+        if not finite(p):
+            return
+        t = self._track
+        p *= t.multiplier
+        if t.min_position != t.max_position and math.isfinite(p):
+            p = min(max(p, t.min_position), t.max_position)
+        t.target_position = p
+        t.force_mode = False
+
+    def setVelocity(self, velocity: Any) -> None:
+        t = self._track
+        v = as_float(velocity, "Motor.setVelocity")
+        if not finite(v):
+            return
+        v *= t.multiplier
+        if abs(v) > t.max_velocity:
+            warn(f"'{self._name}': requested velocity {v} exceeds maxVelocity {t.max_velocity}")
+            v = math.copysign(t.max_velocity, v)
+        t.target_velocity = v
+
+    def setAcceleration(self, acceleration: Any) -> None:
+        a = as_float(acceleration, "Motor.setAcceleration")
+        if finite(a):
+            self._track.acceleration = a
+
+    def setAvailableForce(self, force: Any) -> None:
+        f = as_float(force, "Motor.setAvailableForce")
+        if finite(f) and f >= 0:
+            self._track.available = min(f, self._track.max_force)
+
+    def setForce(self, force: Any) -> None:
+        f = as_float(force, "Motor.setForce")
+        if finite(f):
+            t = self._track
+            t.force = max(-t.available, min(t.available, f * t.multiplier))
+            t.force_mode = True
+
+    def getTargetPosition(self) -> float:
+        return self._track.target_position
+
+    def getVelocity(self) -> float:
+        return self._track.target_velocity
+
+    def getMaxVelocity(self) -> float:
+        return self._track.max_velocity
+
+    def getMaxForce(self) -> float:
+        return self._track.max_force
+
+    def getAvailableForce(self) -> float:
+        return self._track.available
+
+    def getType(self) -> int:
+        return self.LINEAR
+
+
+class TrackPositionSensor(SampledDevice):
+    """The PositionSensor of a Track: the belt travel (m), with its noise and resolution."""
+
+    LINEAR = 1
+    _record: _Handle
+
+    def _invalidate(self) -> None:
+        self._value = math.nan
+
+    def _read(self) -> None:
+        node = self._record.node
+        noise = float(node.fields.get("noise", 0.0)) if node is not None else 0.0
+        resolution = float(node.fields.get("resolution", -1.0)) if node is not None else -1.0
+        self._value = self._robot._sim.sensor_noise(self._record.track.position, noise, resolution)
+
+    def getValue(self) -> float:
+        return getattr(self, "_value", math.nan)
+
+    def getType(self) -> int:
+        return self.LINEAR
