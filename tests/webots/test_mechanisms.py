@@ -173,3 +173,71 @@ def test_tracked_vehicle_drives_at_belt_speed() -> None:
         sup.step(4)
     vx, vy, _ = sup.getFromDef("V").getVelocity()[:3]
     assert vx == pytest.approx(-0.2, rel=0.01) and abs(vy) < 1e-6
+
+
+# ------------------------------------------------------------------------------------------ closed loops
+
+
+def _bar(length_x: float, length_z: float) -> str:
+    """A thin bar from the Solid origin to (length_x, 0, length_z)."""
+    size = (max(abs(length_x), 0.02), 0.02, max(abs(length_z), 0.02))
+    return (
+        f"boundingObject Pose {{ translation {length_x / 2} 0 {length_z / 2} children [ "
+        f"Box {{ size {size[0]} {size[1]} {size[2]} }} ] }} physics Physics {{ density 500 }}"
+    )
+
+
+def _parallelogram(close: str) -> str:
+    # base pivots at (0,0,0) and (0.4,0,0); two 0.3 m cranks hang down, a coupler joins their ends
+    return f"""Robot {{ translation 0 0 1 supervisor TRUE children [
+  HingeJoint {{
+    jointParameters HingeJointParameters {{ axis 0 1 0 }}
+    device [ RotationalMotor {{ name "crank" maxTorque 100 }} ]
+    endPoint Solid {{ name "crank1" {_bar(0, -0.3)} children [
+      HingeJoint {{
+        jointParameters HingeJointParameters {{ axis 0 1 0 anchor 0 0 -0.3 }}
+        endPoint DEF COUPLER Solid {{ name "coupler" translation 0 0 -0.3 {_bar(0.4, 0)} children [
+          HingeJoint {{
+            jointParameters HingeJointParameters {{ axis 0 1 0 anchor 0.4 0 0 }}
+            device [ PositionSensor {{ name "crank2 angle" }} ]
+            endPoint Solid {{ name "crank2" translation 0.4 0 0 {_bar(0, 0.3)} children [
+              HingeJoint {{
+                jointParameters HingeJointParameters {{ axis 0 1 0 anchor 0 0 0.3 }}
+                endPoint SolidReference {{ solidName "{close}" }}
+              }}
+            ] }}
+          }}
+        ] }}
+      }}
+    ] }}
+  }}
+] }}"""
+
+
+def test_parallelogram_loop_keeps_the_coupler_level() -> None:
+    sup = _floor_world(_parallelogram("<static environment>"))
+    sensor = sup.getDevice("crank2 angle")
+    sensor.enable(4)
+    theta = 0.5
+    sup.getDevice("crank").setPosition(theta)
+    for _ in range(750):
+        sup.step(4)
+    coupler = sup.getFromDef("COUPLER")
+    R = coupler.getOrientation()
+    # the coupler translates without turning: its x axis stays horizontal
+    assert abs(R[6]) < 2e-3 and abs(R[0] - 1.0) < 2e-3
+    x, _, z = coupler.getPosition()  # the crank end: (0, 0, -0.3) turned by theta about +y, 1 m up
+    assert x == pytest.approx(-0.3 * math.sin(theta), abs=2e-3)
+    assert z == pytest.approx(1.0 - 0.3 * math.cos(theta), abs=2e-3)
+    # the second crank turned with the first (relative to the level coupler)
+    assert sensor.getValue() == pytest.approx(theta, abs=3e-3)
+
+
+def test_without_the_loop_the_chain_swings_freely() -> None:
+    # control: the same mechanism with an unknown reference (warned, not closed) does not keep the coupler level
+    sup = _floor_world(_parallelogram("no such solid"))
+    assert any("SolidReference 'no such solid'" in w for w in sup.simulation.build_warnings)
+    sup.getDevice("crank").setPosition(0.5)
+    for _ in range(750):
+        sup.step(4)
+    assert abs(sup.getFromDef("COUPLER").getOrientation()[6]) > 0.05

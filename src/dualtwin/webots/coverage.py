@@ -94,8 +94,10 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("JointParameters", "joint", "supported", "slider axis, position, stops, spring, damping, friction"),
     Coverage("HingeJointParameters", "joint", "supported", "axis, anchor and the JointParameters fields"),
     Coverage("BallJointParameters", "joint", "supported", "anchor"),
-    Coverage("SolidReference", "joint", "not",
-             "not yet: closed kinematic loops are ignored with a warning (the joint is dropped)"),
+    Coverage("SolidReference", "joint", "partial",
+             "closed loops: an ODE joint from the upper body to the named Solid (searched in the joint's "
+             "robot, as Webots does) or to the static environment, built after the other joints; not for "
+             "Hinge2Joint, and a referenced Solid without Physics is ignored"),
     Coverage("Track", "joint", "partial",
              "belt motion through ODE contact surface velocity (Webots' per-contact sign rule), its LinearMotor "
              "(position/velocity/force control) and PositionSensor are devices; no Brake, no texture or "

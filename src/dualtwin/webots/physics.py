@@ -435,6 +435,7 @@ class Simulation:
         self.motors: list[MotorRec] = []
         self.devices: list[Any] = []
         self.attachments: list[AttachmentRec] = []
+        self._loops: list[tuple[JointRec, str]] = []  # joints whose endPoint is a SolidReference
         self._solid_by_node: dict[int, SolidRec] = {}
         self._joint_by_node: dict[int, JointRec] = {}
         self._pending: list[_PendingOp] = []
@@ -544,6 +545,8 @@ class Simulation:
             self._create_geoms(solid)
         for joint in self.joints:
             self._create_joint(joint)
+        for joint, name in self._loops:
+            self._close_loop(joint, name)
         self._create_fixed_joints()
         self._collect_devices()
         self._init_contacts()
@@ -687,6 +690,8 @@ class Simulation:
         end = _f(node, "endPoint", None)
         if isinstance(end, Node) and _is_solid(end):
             joint.child = self._add_solid(end, frame_rel, parent, robot, joint)
+        elif isinstance(end, Node) and end.type_name == "SolidReference":
+            self._loops.append((joint, str(_f(end, "solidName", ""))))  # closed once every body exists
         elif isinstance(end, Node):
             self.warn(f"{node.type_name} endPoint {end.type_name} is not supported; joint ignored")
         if robot is not None:
@@ -1218,6 +1223,61 @@ class Simulation:
             joint.parent_body.joints.append(joint)
         else:
             joint.child_body.attached_to_world = True
+        self._anchor_joint(joint)
+        for i in range(len(joint.params)):
+            self._set_stops(joint, i)
+            self._set_static_friction(joint, i)
+        self._create_spring(joint)
+
+    def _referenced_solid(self, joint: JointRec, name: str) -> SolidRec | None:
+        """§10: depth-first search by name from the joint's topmost Solid ancestor, skipping its upper Solid."""
+        top = joint.parent
+        while top is not None and top.parent is not None:
+            top = top.parent
+        stack = [top] if top is not None else []
+        while stack:
+            solid = stack.pop()
+            if solid is not joint.parent and solid.name == name:
+                return solid
+            stack.extend(reversed(solid.children))
+        return None
+
+    def _close_loop(self, joint: JointRec, name: str) -> None:
+        """A joint whose endPoint is a SolidReference: an ODE joint from its upper body to the referenced Solid's
+        body (or to the static environment), made after every body and ordinary joint, closing the loop (§10).
+        The referenced Solid is not moved: ODE's zero is the configuration at load."""
+        lib = self._lib
+        target = None
+        if name != "<static environment>":
+            target = self._referenced_solid(joint, name)
+            if target is None:
+                self.warn(f"SolidReference '{name}' not found among the Solids of the joint's robot; joint ignored")
+                return
+        pb = self._nearest_body(joint.parent)
+        cb = self._nearest_body(target) if target is not None else None
+        if cb is None and target is not None:
+            self.warn(f"SolidReference '{name}' has no Physics; closed loop ignored")
+            return
+        if pb is None and cb is None or pb is cb or joint.kind == "hinge2":
+            self.warn(f"SolidReference '{name}': no closed loop can be built (static, same body or Hinge2)")
+            return
+        create = {
+            "hinge": lib.dJointCreateHinge,
+            "slider": lib.dJointCreateSlider,
+            "ball": lib.dJointCreateBall,
+        }[joint.kind]
+        joint.ptr = create(self._world, None)
+        joint.parent_body, joint.child_body = pb, cb
+        if pb is None:
+            lib.dJointAttach(joint.ptr, None, cb.ptr)  # type: ignore[union-attr]
+            joint.reverse = True
+        else:
+            lib.dJointAttach(joint.ptr, pb.ptr, cb.ptr if cb is not None else None)
+        for b in (pb, cb):
+            if b is not None:
+                b.joints.append(joint)
+        if cb is None and pb is not None:
+            pb.attached_to_world = True  # §2.3 rule 6, as for any body jointed to the static environment
         self._anchor_joint(joint)
         for i in range(len(joint.params)):
             self._set_stops(joint, i)
