@@ -241,3 +241,22 @@ def test_without_the_loop_the_chain_swings_freely() -> None:
     for _ in range(750):
         sup.step(4)
     assert abs(sup.getFromDef("COUPLER").getOrientation()[6]) > 0.05
+
+
+def test_simulation_reset_restores_belt_and_propeller_state() -> None:
+    sup = _floor_world(
+        'Robot { supervisor TRUE children [ Track { translation 0 0 0.2 name "belt" '
+        "boundingObject Box { size 2 0.4 0.1 } physics Physics { mass 5 } "
+        'device [ LinearMotor { name "belt motor" maxVelocity 1 } PositionSensor { name "belt sensor" } ] } ] }'
+    )
+    motor, sensor = sup.getDevice("belt motor"), sup.getDevice("belt sensor")
+    sensor.enable(4)
+    motor.setPosition(math.inf)
+    motor.setVelocity(0.5)
+    for _ in range(100):
+        sup.step(4)
+    assert sensor.getValue() == pytest.approx(0.2, rel=0.01)
+    sup.simulationReset()
+    sup.step(4)
+    sup.step(4)
+    assert sensor.getValue() == pytest.approx(0.0, abs=1e-9)  # back at 0 and held there

@@ -151,3 +151,17 @@ def test_strength_noise_is_multiplicative() -> None:
     mean = sum(values) / len(values)
     sd = math.sqrt(sum((v - mean) ** 2 for v in values) / len(values))
     assert mean == pytest.approx(0.25, rel=0.05) and sd == pytest.approx(0.05, rel=0.2)
+
+
+def test_simulation_reset_clears_the_queues() -> None:
+    a, b = _robots()
+    tx, rx = a.getDevice("tx"), b.getDevice("rx")
+    rx.enable(8)
+    tx.send(b"one")
+    b.step(8)
+    tx.send(b"queued")
+    assert rx.getQueueLength() == 1
+    b.simulation.reset()
+    assert rx.getQueueLength() == 0
+    b.step(8)
+    assert rx.getQueueLength() == 0  # the emitter's queue was cleared too

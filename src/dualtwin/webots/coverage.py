@@ -147,7 +147,7 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("LightSensor", "device", "not", _NOT_YET_DEVICE),
     Coverage("Emitter", "device", "partial",
              "in-process channels: channel filters, range and maxRange, medium type, buffer size, baud rate, "
-             "infra-red line of sight and aperture; queues are not cleared by simulationReset"),
+             "infra-red line of sight and aperture; simulationReset clears the queues"),
     Coverage("Receiver", "device", "partial",
              "queue, channel filter, buffer size, signal strength 1/d² with noise, emitter direction with noise; "
              "no physics-plugin copy of channel 0"),

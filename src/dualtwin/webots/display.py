@@ -82,6 +82,11 @@ class Display(Device):
         self._alpha = 1.0
         self._opacity = 1.0
         self._images: dict[int, ImageRef] = {}
+        robot._sim.reset_hooks.append(self._clear)
+
+    def _clear(self) -> None:
+        """simulationReset clears the display (Webots' reset matrix); images and context are controller-side."""
+        self.pixels[:] = 0
 
     # -- context
 

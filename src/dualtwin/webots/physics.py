@@ -451,6 +451,7 @@ class Simulation:
         self.extensions: dict[str, Any] = {}
         self.step_hooks: list[Callable[[], None]] = []
         self.pre_step_hooks: list[Callable[[float], None]] = []
+        self.reset_hooks: list[Callable[[], None]] = []  # device state that simulationReset restores
         self._read_world_info()
         self._snapshot = self._snapshot_fields()
         self._build()
@@ -1892,6 +1893,8 @@ class Simulation:
         self._rng = random.Random(self._rng_seed())
         self._unstable = False
         self.step_count = 0
+        for hook in self.reset_hooks:
+            hook()
         self._collide()
 
     def reset_physics(self, solid: SolidRec | None = None) -> None:

@@ -115,6 +115,11 @@ class _Propellers:
             if rec.motor is not None and robot is not None:
                 robot.devices.setdefault(rec.name, rec)
         sim.pre_step_hooks.append(self.apply)
+        sim.reset_hooks.append(self.reset)
+
+    def reset(self) -> None:
+        for rec in self.recs:
+            rec.omega = rec.angle = rec.target_position = rec.target_velocity = 0.0
 
     def apply(self, dt: float) -> None:
         sim = self.sim

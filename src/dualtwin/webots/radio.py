@@ -19,7 +19,7 @@ Pipeline (Webots' ``WbEmitter``/``WbReceiver``):
 So a packet sent before ``step()`` *k* is readable when the receiver's ``step()`` *k* returns, if its sampling
 period has elapsed. ``send`` with a ``str`` sends its UTF-8 bytes cut to ``len(str)`` (Webots' Python wrapper
 does that); a list or tuple is packed as doubles, or as 32-bit ints when every item is an int or a bool. Not
-modelled: the physics-plugin copy of channel 0, and clearing queues on ``simulationReset``.
+modelled: the physics-plugin copy of channel 0. ``simulationReset`` clears every queue.
 """
 
 from __future__ import annotations
@@ -75,6 +75,17 @@ class _Medium:
         self.in_flight: list[tuple[_Packet, Receiver]] = []
         sim.pre_step_hooks.append(self.before_physics)
         sim.step_hooks.append(self.after_physics)
+        sim.reset_hooks.append(self.reset)
+
+    def reset(self) -> None:
+        """simulationReset clears emitter and receiver queues (Webots' reset matrix)."""
+        self.in_flight.clear()
+        for emitter in self.emitters.values():
+            emitter._queue.clear()
+            emitter._budget = 0.0
+        for receiver in self.receivers.values():
+            receiver._arrived.clear()
+            receiver._queue.clear()
 
     def before_physics(self, dt: float) -> None:
         for emitter in list(self.emitters.values()):

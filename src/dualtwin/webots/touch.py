@@ -79,6 +79,11 @@ class _Bumpers:
         self.sim = sim
         self.active: dict[int, TouchSensor] = {}
         sim.step_hooks.append(self.after_step)
+        sim.reset_hooks.append(self.reset)
+
+    def reset(self) -> None:
+        for sensor in self.active.values():
+            sensor._touched = False
 
     def after_step(self) -> None:
         for sensor in self.active.values():

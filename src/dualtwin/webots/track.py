@@ -118,6 +118,16 @@ class _Tracks:
                     robot.devices.setdefault(name, _Handle(rec, name, TrackPositionSensor))
             sim.set_contact_modifier(rec.solid, self._modifier(rec))
         sim.pre_step_hooks.append(self.control)
+        sim.reset_hooks.append(self.reset)
+
+    def reset(self) -> None:
+        """simulationReset: the belt back at 0, the motor holding it there (Webots resets Track positions)."""
+        for rec in self.recs:
+            rec.position = rec.velocity = rec.current_velocity = rec.integral = rec.prev_error = 0.0
+            rec.target_position = 0.0
+            rec.target_velocity = rec.max_velocity
+            rec.available = rec.max_force
+            rec.force_mode = False
 
     def control(self, dt: float) -> None:
         for rec in self.recs:
