@@ -247,3 +247,42 @@ Solid { translation 0.6 0.6 0.4 boundingObject Sphere { radius 0.1 } }
     assert fast.geom == ref.geom and hit.sum() > 300
     np.testing.assert_allclose(fast.normal[hit], ref.normal[hit], atol=1e-7)
     sim.close()
+
+
+def test_sensors_on_a_moving_spinning_robot_follow_its_body() -> None:
+    # zero gravity; the robot translates toward the wall and spins about z; the sensor sits 0.1 m ahead
+    text = """#VRML_SIM R2023b utf8
+WorldInfo { basicTimeStep 8 gravity 0 }
+Solid { translation 0.55 0 0 boundingObject Box { size 0.1 40 4 } }
+DEF R Robot { supervisor TRUE boundingObject Sphere { radius 0.05 } physics Physics { mass 1 }
+  children [
+    DistanceSensor { name "ds" translation 0.1 0 0 lookupTable [ 0 0 0, 2 2 0 ] }
+    Lidar { name "lidar" translation 0.1 0 0 horizontalResolution 3 fieldOfView 0.6 numberOfLayers 1 maxRange 2 }
+  ]
+}
+"""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sim = Simulation(load_world_text(text))
+    sup = Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    robot = sup.getFromDef("R")
+    robot.setVelocity([0.2, 0.0, 0.0, 0.0, 0.0, 0.4])
+    ds, lidar = sup.getDevice("ds"), sup.getDevice("lidar")
+    ds.enable(8)
+    lidar.enable(8)
+    checked = 0
+    for k in range(100):
+        sup.step(8)
+        if k % 20 != 19:
+            continue
+        x, y, _ = robot.getPosition()
+        R = robot.getOrientation()
+        yaw = math.atan2(R[3], R[0])
+        sx = x + 0.1 * math.cos(yaw)  # the sensor's x in the world
+        assert ds.getValue() == pytest.approx((0.5 - sx) / math.cos(yaw), rel=1e-6)
+        # lidar columns at +0.2, 0, -0.2 rad from the sensor axis (fov/2 - (j+1/2)·fov/W)
+        for j, offset in enumerate((0.2, 0.0, -0.2)):
+            assert lidar.getRangeImage()[j] == pytest.approx((0.5 - sx) / math.cos(yaw + offset), rel=1e-6)
+        checked += 1
+    assert checked == 5
+    sim.close()
