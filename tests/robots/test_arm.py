@@ -230,3 +230,44 @@ def test_gravity_hold_with_payload() -> None:
         for _, truth in runs.values():
             assert np.abs(truth[:, [names.index(f"q{k}_rad") + 1 for k in range(1, 7)]]).max() < 1e-3
         assert _ee_rmse(runs["webots"][1], runs["mujoco"][1], names) < 5e-4
+
+
+# ---------------------------------------------------------------- arm knobs (MuJoCo twin)
+
+
+def test_armature_and_pid_gain_knobs_and_their_patched_mjcf() -> None:
+    """joint.<j>.armature (rotor inertia, which Webots does not model) and motor.<m>.kp (the emulated Webots
+    P gain) change the response; the patched MJCF reproduces the knob values exactly; {} restores nominal."""
+    from dualtwin.align.patch import patch_mjcf
+    from dualtwin.twins.mujoco import MuJoCoTwin
+
+    path = resolve_robot("arm").model_path("mujoco")
+
+    def response(twin: MuJoCoTwin) -> np.ndarray:
+        twin.reset(0)
+        rows = []
+        for _ in range(20):
+            twin.command("wrist_3", "position", 1.0)
+            twin.command("elbow", "position", 0.5)
+            twin.step()
+            rows.append([twin.joint_velocity("wrist_3"), twin.joint_position("elbow")])
+        return np.array(rows)
+
+    twin = MuJoCoTwin(path, 0.016)
+    registry = twin.knobs()
+    assert {f"joint.{j}.armature" for j in JOINTS} | {f"motor.{j}.kp" for j in JOINTS} <= set(registry)
+    assert registry["motor.elbow.kp"].nominal == 10.0
+    nominal = response(twin)
+    knobs = {"joint.wrist_3.armature": 0.2, "motor.elbow.kp": 5.0}
+    twin.set_knobs(knobs)
+    changed = response(twin)
+    # 28 N*m against 0.2 kg*m^2 of rotor: 0.016 s reach 2.24 rad/s, not the pi rad/s cap.
+    assert changed[0, 0] == pytest.approx(28.0 / 0.2 * 0.016, rel=0.01)
+    assert nominal[0, 0] == pytest.approx(math.pi, rel=1e-3)
+    # Half the gain: the elbow's 0.5 rad error asks 2.5 rad/s instead of the pi rad/s cap.
+    assert changed[0, 1] < 0.8 * nominal[0, 1]
+    patched = patch_mjcf(path, knobs)
+    assert patched.text is not None and not patched.not_applied
+    assert np.array_equal(response(MuJoCoTwin(mujoco.MjSpec.from_string(patched.text), 0.016)), changed)
+    twin.set_knobs({})
+    assert np.array_equal(response(twin), nominal)

@@ -12,6 +12,7 @@ knob                               unit       MuJoCo twin                       
 =================================  =========  =====================================  ==========================================
 ``joint.<j>.damping``              N·m·s/rad  ``dof_damping``                        JointParameters ``dampingConstant``
 ``joint.<j>.friction``             N·m        ``dof_frictionloss``                   JointParameters ``staticFriction``
+``joint.<j>.armature``             kg·m²      ``dof_armature`` (rotor inertia)       –  (Webots models no rotor inertia)
 ``joint.<j>.limit_timeconst``      s          ``jnt_solref[0]`` (limit softness)     –  (stops use world ERP/CFM)
 ``joint.<j>.limit_impedance``      –          ``jnt_solimp`` dmax (limit hardness)   –  (stops use world ERP/CFM)
 ``body.<b>.mass``                  kg         ``body_mass``, inertia scaled with it  Physics ``mass``
@@ -20,6 +21,7 @@ knob                               unit       MuJoCo twin                       
 ``motor.<m>.max_torque``           N·m        Webots-motor emulation limit           RotationalMotor ``maxTorque``
 ``motor.<m>.max_velocity``         rad/s      Webots-motor emulation limit           RotationalMotor ``maxVelocity``
 ``motor.<m>.gain``                 –          command × gain (sign included)         command × gain (controller side)
+``motor.<m>.kp``                   1/s        P of the emulated Webots position PID  –  (``controlPID``, fixed at load)
 ``control.delay_periods``          periods    commands act k control periods late    –
 ``physics.substeps``               steps      timestep = control period / k          –  (``basicTimeStep``, fixed at load)
 ``sensor.<s>.noise``               unit of s  Gaussian σ added in ``sensor()``       –  (sensor ``noise``)

@@ -95,6 +95,8 @@ def patch_mjcf(model_path: Path, knobs: Mapping[str, float], aliases: Mapping[st
             joint = _find(spec.joint, name, "joint", origin)
             if prop == "damping":
                 joint.damping[0] = value  # type: ignore[attr-defined]  # an array since MuJoCo 3.7
+            elif prop == "armature":
+                joint.armature = value  # type: ignore[attr-defined]
             elif prop == "limit_timeconst":
                 j = mujoco.mj_name2id(nominal, mujoco.mjtObj.mjOBJ_JOINT, name)
                 joint.solref_limit = [value, float(nominal.jnt_solref[j, 1])]  # type: ignore[attr-defined]
@@ -127,13 +129,16 @@ def patch_mjcf(model_path: Path, knobs: Mapping[str, float], aliases: Mapping[st
             if prop == "max_torque":
                 actuator.forcerange = [-value, value]  # type: ignore[attr-defined]
                 actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE  # type: ignore[attr-defined]
-            elif prop == "max_velocity":
+            elif prop in ("max_velocity", "kp"):
+                # webots_motor data: maxVelocity Kp Ki Kd acceleration [minPosition maxPosition]
+                index = 0 if prop == "max_velocity" else 1
                 numeric = spec.numeric(f"webots_motor.{name}")
+                data = list(numeric.data) if numeric is not None else [10.0, 10.0, 0.0, 0.0, -1.0]
+                data[index] = value
                 if numeric is None:
-                    spec.add_numeric(name=f"webots_motor.{name}", data=[value])
+                    spec.add_numeric(name=f"webots_motor.{name}", data=data[:index + 1])
                 else:
-                    data = list(numeric.data)
-                    numeric.data = [value, *data[1:]]
+                    numeric.data = data
         elif kind == "sensor" and prop == "noise":
             _find(spec.sensor, name, "sensor", origin).noise = value  # type: ignore[attr-defined]
         else:

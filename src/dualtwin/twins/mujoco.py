@@ -157,11 +157,16 @@ class MuJoCoTwin(Twin):
         self._rng = np.random.default_rng(0)
         self._noise = np.array(self.model.sensor_noise, dtype=float)
         self._nominal = self._snapshot_nominal()
+        # Rotor inertia per dof as the knobs set it; the servo adds its own implicit term on top (_set_servo).
+        self._armature = self._nominal["dof_armature"].copy()
         self._knob_values: dict[str, float] = {}
         self._motors = self._build_motors()
         self._motor_by_name = {m.name: m for m in self._motors}
         self._nominal_kv = {m.name: m.kv for m in self._motors}
         self._nominal_motor = {m.name: (m.state.params.max_torque, m.state.params.max_velocity) for m in self._motors}
+        self._nominal_kp = {m.name: m.state.params.kp for m in self._motors}
+        # The inertia each servo's stiffness was sized for (see _build_motors): kv follows armature knobs.
+        self._servo_inertia = {m.name: m.kv * self.model.opt.timestep / SERVO_STIFFNESS for m in self._motors}
         # Knob state outside the model arrays: the control delay queues commands until they are due, and
         # the sensor models (bias, resolution, delay) apply in sensor().
         self._delay = 0
@@ -228,7 +233,7 @@ class MuJoCoTwin(Twin):
             params = self._motor_params(name, i)
             m.actuator_forcelimited[i] = 0
             m.actuator_ctrllimited[i] = 0
-            inertia = float(m.dof_M0[dof]) + float(m.dof_armature[dof])
+            inertia = float(m.dof_M0[dof])  # the joint's inertia, armature included
             kv = SERVO_STIFFNESS * inertia / m.opt.timestep
             motors.append(_Motor(name, i, int(m.jnt_qposadr[joint]), dof, kv, MotorState(params)))
         return motors
@@ -348,14 +353,14 @@ class MuJoCoTwin(Twin):
         m.actuator_gainprm[motor.index, 0] = 1.0
         m.actuator_biastype[motor.index] = mujoco.mjtBias.mjBIAS_NONE
         m.actuator_biasprm[motor.index, :3] = 0.0
-        m.dof_armature[motor.dof] = self._nominal["dof_armature"][motor.dof] + motor.kv * m.opt.timestep
+        m.dof_armature[motor.dof] = self._armature[motor.dof] + motor.kv * m.opt.timestep
 
     def _set_torque(self, motor: _Motor, torque: float) -> None:
         m = self.model
         m.actuator_gainprm[motor.index, 0] = 1.0
         m.actuator_biastype[motor.index] = mujoco.mjtBias.mjBIAS_NONE
         m.actuator_biasprm[motor.index, :3] = 0.0
-        m.dof_armature[motor.dof] = self._nominal["dof_armature"][motor.dof]
+        m.dof_armature[motor.dof] = self._armature[motor.dof]
         self.data.ctrl[motor.index] = torque
 
     def step(self) -> None:
@@ -709,6 +714,11 @@ class MuJoCoTwin(Twin):
                 "N*m*s/rad", "joint viscous damping (Webots dampingConstant)")
             add(f"joint.{name}.friction", friction, 0.0, max(10 * friction, 0.5),
                 "N*m", "joint dry friction (MuJoCo frictionloss, Webots staticFriction)")
+            if int(m.jnt_type[j]) in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
+                armature = float(nominal["dof_armature"][dof])
+                slide = int(m.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_SLIDE)
+                add(f"joint.{name}.armature", armature, 0.0, max(10 * armature, 0.2), "kg" if slide else "kg*m^2",
+                    "rotor inertia reflected to the joint (MuJoCo armature; Webots models none)")
             limit_timeconst = float(nominal["jnt_solref"][j, 0])
             if m.jnt_limited[j] and limit_timeconst > 0:
                 # ODE's joint stops are stiff (world ERP/CFM); MuJoCo's limits are soft by default.
@@ -762,6 +772,9 @@ class MuJoCoTwin(Twin):
             add(f"motor.{mo.name}.max_velocity", max_velocity, 0.1 * max_velocity, 10 * max_velocity, "rad/s",
                 "maximum motor velocity")
             add(f"motor.{mo.name}.gain", 1.0, -2.0, 2.0, "", "command gain (sign included)")
+            kp = self._nominal_kp[mo.name]
+            add(f"motor.{mo.name}.kp", kp, 0.1 * kp, 10 * kp, "1/s",
+                "proportional gain of Webots' position PID (velocity command per unit position error)")
         add("control.delay_periods", 0.0, 0.0, MAX_DELAY_PERIODS, "periods",
             "commands take effect this many control periods late (integer)")
         # The integration step is part of a twin's behaviour: ODE's symplectic Euler at Webots' basicTimeStep
@@ -804,8 +817,10 @@ class MuJoCoTwin(Twin):
         m.body_mass[:] = nominal["body_mass"]
         m.body_inertia[:] = nominal["body_inertia"]
         m.body_ipos[:] = nominal["body_ipos"]
+        self._armature[:] = nominal["dof_armature"]
         for mo in self._motors:
             mo.state.params.max_torque, mo.state.params.max_velocity = self._nominal_motor[mo.name]
+            mo.state.params.kp = self._nominal_kp[mo.name]
             mo.state.gain = 1.0
         self._delay = 0
         self._set_substeps(self._nominal_substeps)
@@ -835,6 +850,9 @@ class MuJoCoTwin(Twin):
                     m.jnt_solref[j, 0] = value
                 elif prop == "limit_impedance":
                     m.jnt_solimp[j, :2] = impedance_pair(nominal["jnt_solimp"][j], value)
+                elif prop == "armature":
+                    self._armature[m.jnt_dofadr[j]] = value
+                    changed_inertia = True
                 else:
                     (m.dof_damping if prop == "damping" else m.dof_frictionloss)[m.jnt_dofadr[j]] = value
             elif kind == "geom":
@@ -868,6 +886,8 @@ class MuJoCoTwin(Twin):
                     mo.state.params.max_torque = value
                 elif prop == "max_velocity":
                     mo.state.params.max_velocity = value
+                elif prop == "kp":
+                    mo.state.params.kp = value
                 else:
                     mo.state.gain = value
             elif kind == "sensor":
@@ -889,8 +909,7 @@ class MuJoCoTwin(Twin):
             # Constraint regularisation and derived masses depend on the mass distribution; recompute them as
             # a compiled model with these values would (so a patched MJCF reproduces the knobs exactly). A
             # compiled model has no servo armature (_set_servo), so that is left out while they are computed.
-            servo_armature = m.dof_armature.copy()
-            m.dof_armature[:] = nominal["dof_armature"]
+            m.dof_armature[:] = self._armature
             mujoco.mj_setConst(m, self._scratch)
             # The compiler's statistics (they scale solver tolerances), which mj_setConst leaves alone.
             scratch = self._scratch
@@ -900,8 +919,11 @@ class MuJoCoTwin(Twin):
             mujoco.mj_fullM(m, scratch, full)
             m.stat.meaninertia = float(np.trace(full)) / max(m.nv, 1)
             m.stat.meanmass = float(np.mean(m.body_mass[1:])) if m.nbody > 1 else 0.0
-            m.dof_armature[:] = servo_armature
             self._inertia_changed = changed_inertia
+        # Rotor inertia everywhere, then each servo's stiffness (sized for the joint's inertia, armature
+        # included) and its implicit term on top while it is active.
+        m.dof_armature[:] = self._armature
+        self._update_servos()
         for mo in self._motors:
             mo.state.available_torque = mo.state.params.max_torque
         self._knob_values = dict(values)
@@ -914,9 +936,17 @@ class MuJoCoTwin(Twin):
         nominal = substeps == self._nominal_substeps
         self.model.opt.timestep = self._nominal_timestep if nominal else self._control_period / substeps
         self._substeps = substeps
-        ratio = substeps / self._nominal_substeps
+        self._update_servos()
+
+    def _update_servos(self) -> None:
+        """Servo stiffness kv for the current step and armature (kv ∝ inertia / dt), applied to active servos."""
+        ratio = self._substeps / self._nominal_substeps
+        nominal_armature = self._nominal["dof_armature"]
         for mo in self._motors:
-            mo.kv = self._nominal_kv[mo.name] * ratio
+            inertia = self._servo_inertia[mo.name]
+            added = float(self._armature[mo.dof] - nominal_armature[mo.dof])
+            # The factor first: at nominal armature it is exactly 1, so kv is exactly the nominal kv.
+            mo.kv = self._nominal_kv[mo.name] * ratio * ((inertia + added) / inertia)
             if not mo.state.torque_mode and not mo.saturated:
                 self._set_servo(mo)
 
