@@ -286,3 +286,26 @@ DEF R Robot { supervisor TRUE boundingObject Sphere { radius 0.05 } physics Phys
         checked += 1
     assert checked == 5
     sim.close()
+
+
+def test_meshes_and_height_fields_are_hit_through_ode_rays() -> None:
+    # a triangle-mesh wall (its face at x = 0.5) in front, a box wall farther: the nearer mesh wins
+    mesh = (
+        "Solid { translation 0.5 0 0.1 boundingObject IndexedFaceSet { coord Coordinate { point "
+        "[ 0 -1 -1, 0 1 -1, 0 1 1, 0 -1 1, 0.2 -1 -1, 0.2 1 -1, 0.2 1 1, 0.2 -1 1 ] } "
+        "coordIndex [ 0 3 2 1 -1 4 5 6 7 -1 0 1 5 4 -1 2 3 7 6 -1 0 4 7 3 -1 1 2 6 5 -1 ] } }\n"
+        "Solid { translation 0.95 0 0.1 boundingObject Box { size 0.1 4 4 } }"
+    )
+    sup = _world('DistanceSensor { name "ds" lookupTable [ 0 0 0, 2 2 0 ] }', wall=mesh)
+    assert _read(sup, "ds") == pytest.approx(0.5, rel=1e-9)
+    # a height field (x-y grid, heights along z) 0.1 m below a downward-looking sensor
+    grid = (
+        "Solid { translation -1 -1 0 boundingObject ElevationGrid { xDimension 3 yDimension 3 "
+        "xSpacing 1 ySpacing 1 height [ 0 0 0 0 0 0 0 0 0 ] } }"
+    )
+    down = _world(
+        'DistanceSensor { name "ds" rotation 0 1 0 1.5708 lookupTable [ 0 0 0, 2 2 0 ] }', wall=grid
+    )
+    geoms = [g.kind for g in down.simulation.geoms.values()]
+    assert "ElevationGrid" in geoms
+    assert _read(down, "ds") == pytest.approx(0.1, rel=1e-6)
