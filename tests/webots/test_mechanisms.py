@@ -260,3 +260,18 @@ def test_simulation_reset_restores_belt_and_propeller_state() -> None:
     sup.step(4)
     sup.step(4)
     assert sensor.getValue() == pytest.approx(0.0, abs=1e-9)  # back at 0 and held there
+
+
+def test_track_force_control_uses_webots_formula() -> None:
+    # Webots: v = F·dt / m (not integrated): 10 N on a 5 kg track body at dt = 4 ms gives 8 mm/s
+    sup = _floor_world(
+        'Robot { supervisor TRUE children [ Track { translation 0 0 0.2 name "belt" '
+        "boundingObject Box { size 2 0.4 0.1 } physics Physics { mass 5 } "
+        'device [ LinearMotor { name "belt motor" maxForce 10 } PositionSensor { name "belt sensor" } ] } ] }'
+    )
+    motor, sensor = sup.getDevice("belt motor"), sup.getDevice("belt sensor")
+    sensor.enable(4)
+    motor.setForce(25.0)  # clipped to the available force, 10 N
+    for _ in range(250):
+        sup.step(4)
+    assert sensor.getValue() == pytest.approx(10 * 0.004 / 5 * 1.0, rel=1e-6)
