@@ -67,6 +67,7 @@ def cast_ode(
 ) -> RayHits:
     """Nearest hit of each ray by ODE's own ray collider (``dCollide`` of a ray geom with each geom)."""
     lib = ode.load()
+    ode.ensure_thread()  # controllers sample from their own threads; ODE's collider needs per-thread data
     ray = lib.dCreateRay(None, 1.0)
     buf = (ode.dContactGeom * 32)()
     size = ctypes.sizeof(ode.dContactGeom)
