@@ -11,7 +11,9 @@ Typical use::
 Modules: `knobs` (selection, bounds, the knob table), `simulate` (in-memory suite runs, process/Ray
 pools), `objective` (pure objective and residuals), `analyze` (findings, sensitivities), `fit` (CMA-ES /
 least squares, checkpoints), `dr` (calibrated randomisation ranges), `patch` (model files), `propose`
-(the proposal hook) and `report` (before/after HTML).
+(the proposal hook), `report` (before/after HTML), `nuisance` (per-scenario initial conditions and time
+offsets fitted next to the physics, never written into the model) and `reference` (what a reference shares
+with the suite, its ensemble members).
 """
 
 from __future__ import annotations

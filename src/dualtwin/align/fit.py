@@ -72,13 +72,13 @@ from dualtwin.align.objective import (
 )
 from dualtwin.align.patch import PatchResult, patch_mjcf, patch_webots
 from dualtwin.align.propose import ProposalOutcome, ProposeFn, try_proposals
+from dualtwin.align.reference import ensemble_members_of, shared_with_reference
 from dualtwin.align.simulate import (
     Evaluator,
     ExecutorKind,
     SimJob,
     Traces,
     check_executor,
-    ensemble_offsets,
     load_member_traces,
     load_traces,
 )
@@ -769,71 +769,6 @@ def _reference_kind(reference: str | Path) -> Literal["run", "twin"]:
                         f"twin ({', '.join(sorted(TWINS))})")
 
 
-@dataclass(frozen=True)
-class SharedWithReference:
-    """The scenarios and channels that both the suite/robot and the reference have, and what was left out."""
-
-    scenarios: list[str]
-    channels: list[str]
-    left_out: dict[str, dict[str, str]]
-
-
-def shared_with_reference(reference: Traces, ids: Sequence[str], channels: Sequence[str],
-                          where: Path) -> SharedWithReference:
-    """Scenarios (suite order) and channels (binding order) both sides have; what one side lacks, with why.
-
-    A recording usually logs fewer channels than the twin, and may cover only some scenarios: alignment fits
-    what is shared and says what it left out.
-
-    Raises:
-        DualtwinError: One line naming both sides when no scenario or no channel is shared.
-    """
-    scenarios = [s for s in ids if s in reference]
-    if not scenarios:
-        raise DualtwinError(f"{where}: the reference shares no scenario with the suite: the suite has {list(ids)}, "
-                            f"the reference has {sorted(reference)}")
-    logged = [c for c in dict.fromkeys(c for sid in scenarios for c in reference[sid].series)]
-    shared = [c for c in channels if c in logged]
-    if not shared and not all(reference[s].status == "unstable" for s in scenarios):
-        raise DualtwinError(f"{where}: the reference shares no channel with the robot binding: the binding logs "
-                            f"{list(channels)}, the reference {logged}")
-    left: dict[str, dict[str, str]] = {"scenarios": {}, "channels": {}}
-    for sid in ids:
-        if sid not in reference:
-            left["scenarios"][sid] = "not in the reference: simulated, not fitted"
-    for sid in reference:
-        if sid not in ids:
-            left["scenarios"][sid] = "not in the suite: nothing to simulate"
-    for c in channels:
-        if c not in logged:
-            left["channels"][c] = "not logged by the reference"
-    for c in logged:
-        if c not in channels:
-            left["channels"][c] = "not a channel of the robot binding"
-    return SharedWithReference(scenarios, shared, {k: v for k, v in left.items() if v})
-
-
-def _check_ensemble_reference(reference: str | Path, kind: str, scenarios: Sequence[str],
-                              binding: RobotBinding) -> list[dict[str, float]]:
-    """The member shifts of an ensemble reference run, checked before anything is written."""
-    if kind != "run":
-        raise DualtwinError("ensemble 'mean' needs a reference run with ensemble members (suite run --ensemble N "
-                            "--perturb KEY=EPS), not a twin")
-    offsets = ensemble_offsets(Path(reference))
-    if len(offsets) < 2:
-        raise DualtwinError(f"{reference}: ensemble 'mean' needs a run with ensemble members; this one has none "
-                            "(make it with suite run --ensemble N --perturb KEY=EPS)")
-    unknown = sorted({k for o in offsets for k in o} - set(binding.spec.initial_conditions))
-    if unknown:
-        raise DualtwinError(f"{reference}: ensemble shifts name {unknown}, which are not initial conditions of "
-                            f"robot {binding.name!r}")
-    members = load_member_traces(Path(reference), list(scenarios))
-    lacking = [s for s in scenarios if len(members.get(s, [])) != len(offsets)]
-    if lacking:
-        raise DualtwinError(f"{reference}: scenarios {lacking} do not hold all {len(offsets)} ensemble members")
-    return offsets
-
-
 def _record_run_knobs(run_dir: Path, knobs: Mapping[str, float]) -> None:
     """Add the knob values a run was made with to its manifest (provenance)."""
     manifest = read_json(run_dir / "manifest.json")
@@ -1021,7 +956,7 @@ def align(
             left = shared.left_out
         members: list[dict[str, float]] = []
         if ensemble == "mean":
-            members = _check_ensemble_reference(reference_run_or_twin, kind, fitted_ids + held, binding)
+            members = ensemble_members_of(reference_run_or_twin, kind, fitted_ids + held, binding)
         # Physics knobs of the target twin, and nuisance knobs (initial conditions, time offsets) of the
         # fitted scenarios; `nuisance` explains why the two are kept apart.
         registry = {**target.knobs(), **nuisance.registry(suite, binding, fitted_ids)}
