@@ -200,3 +200,23 @@ def test_cli_camera_only_export_needs_a_perception_model(reference_policy: Path,
     code = main(["export", "--policy", str(reference_policy), "--out", str(tmp_path / "x"), "--camera-only"])
     err = capsys.readouterr().err
     assert code == 2 and "--perception" in err and "Traceback" not in err and not (tmp_path / "x").exists()
+
+
+def test_training_continues_from_a_model_without_leaking_its_episodes(webots_model: tuple[Path, Path],
+                                                                     tmp_path: Path) -> None:
+    from dualtwin.perception.model import split_episodes, train_perception
+
+    data, model = webots_model
+    first = json.loads((model / "perception_contract.json").read_text())["trained_on"]["episode_ids"]
+    out = train_perception(data, tmp_path / "more", epochs=1, seed=0, threads=1, holdout=0.34, init_from=model)
+    contract = json.loads((out / "perception_contract.json").read_text())
+    assert set(first) <= set(contract["trained_on"]["episode_ids"])
+    training = json.loads((out / "training.json").read_text())
+    assert training["init_from"]["weights_sha256"] and training["heldout_episodes"] == \
+        json.loads((model / "training.json").read_text())["heldout_episodes"]
+    # Another split that holds out an episode the first model trained on: refused, nothing scored on training data.
+    trained = json.loads((model / "training.json").read_text())["train_episodes"]
+    seed = next(s for s in range(1, 50) if set(split_episodes(np.arange(3), 0.34, s)[1]) & set(trained))
+    with pytest.raises(DualtwinError, match="holds out"):
+        train_perception(data, tmp_path / "leak", epochs=1, seed=seed, threads=1, holdout=0.34, init_from=model)
+    assert not (tmp_path / "leak").exists()

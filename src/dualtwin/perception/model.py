@@ -144,12 +144,15 @@ def _build(k: int, height: int, width: int, mean: np.ndarray, std: np.ndarray) -
     return PerceptionNet()
 
 
-def _augment(x: torch.Tensor, gen: torch.Generator) -> torch.Tensor:
-    """Photometric jitter per frame: gain, offset, pixel noise (the masks do not change)."""
+def _augment(x: torch.Tensor, gen: torch.Generator, colour: float = 0.0) -> torch.Tensor:
+    """Photometric jitter per frame: gain, offset, pixel noise (the masks do not change); with ``colour`` > 0
+    also a gain per colour channel, exp(U(-colour, colour)), which shifts hues (another renderer's materials)."""
     import torch
 
     n = x.shape[0]
     gain = 0.8 + 0.4 * torch.rand(n, 1, 1, 1, generator=gen)
+    if colour > 0:
+        gain = gain * torch.exp((torch.rand(n, 1, 1, 3, generator=gen) * 2.0 - 1.0) * colour)
     offset = (torch.rand(n, 1, 1, 1, generator=gen) - 0.5) * 30.0
     noise = torch.randn(x.shape, generator=gen) * 3.0
     return (x * gain + offset + noise).clamp(0.0, 255.0)
@@ -170,7 +173,8 @@ def _windows(rows: np.ndarray, episode: np.ndarray, length: int, rng: np.random.
 def train_perception(dataset_dir: Path | str, out_dir: Path | str, *, epochs: int = 15, seed: int = 0,
                      stack: int = DEFAULT_STACK, batch_size: int = 64, learning_rate: float = 2e-3,
                      holdout: float = 0.2, threads: int = 2, max_seconds: float | None = None,
-                     progress: ProgressCallback | None = None) -> Path:
+                     progress: ProgressCallback | None = None, init_from: Path | str | None = None,
+                     colour_jitter: float = 0.0) -> Path:
     """Train the CNN on a dataset folder, export ``perception.onnx`` + contract into ``out_dir``; returns out_dir.
 
     Args:
@@ -183,6 +187,11 @@ def train_perception(dataset_dir: Path | str, out_dir: Path | str, *, epochs: in
         holdout: fraction of episodes held out for validation and :func:`evaluate_perception`.
         threads: ``torch.set_num_threads`` (keep small on shared machines).
         max_seconds: stop early after this much training time (the best epoch so far is exported).
+        init_from: a model folder to continue training from (its ``weights.npz`` and label normalisation; same
+            stack and resolution). The episodes it trained on count as trained on by the new model too, and
+            none of them may be in this split's held-out episodes (that would score training data).
+        colour_jitter: per-channel gain augmentation exp(U(-c, c)); 0 = off. Measured: a model trained on
+            Webots-twin frames without it read MuJoCo-twin frames (a brighter orange pole) 5x worse.
         progress: Called after every epoch (stage ``perception train``) with the losses and held-out MAE.
 
     The model's contract records the identities of the episodes it trained on
@@ -207,7 +216,19 @@ def train_perception(dataset_dir: Path | str, out_dir: Path | str, *, epochs: in
     mean = labels[train_rows].mean(axis=0)
     std = np.maximum(labels[train_rows].std(axis=0), 1e-3)
     _, height, width, _ = data.frames.shape
+    inherited: set[str] = set()
+    initial: dict[str, Any] | None = None
+    if init_from is not None:
+        initial, inherited = _initial_weights(Path(init_from), stack, height, width)
+        leaked = sorted(int(e) for e in test_eps if identities[int(e)] in inherited)
+        if leaked:
+            raise DualtwinError(f"{init_from}: the initial model trained on episodes {leaked[:5]} that this split "
+                                "holds out; use the same dataset and seed, or another split")
+        # The head's outputs are in the initial model's normalised units: keep them.
+        mean, std = initial["mean"].numpy(), initial["std"].numpy()
     net = _build(stack, height, width, mean, std)
+    if initial is not None:
+        net.load_state_dict(initial)
     frames = torch.from_numpy(data.frames)
     masks = torch.from_numpy(data.masks)
     target = torch.from_numpy((labels - mean) / std)
@@ -238,7 +259,7 @@ def train_perception(dataset_dir: Path | str, out_dir: Path | str, *, epochs: in
             stacks = stack_indices(data, rows, stack)
             unique, inverse = np.unique(stacks, return_inverse=True)
             index = torch.from_numpy(unique)
-            logits = net.masks(_augment(frames[index].float(), gen))
+            logits = net.masks(_augment(frames[index].float(), gen, colour_jitter))
             features = net.features(logits)[torch.from_numpy(inverse.reshape(-1))]
             predicted = net.head_from(features.reshape(len(rows), stack, N_FEATURES))
             state_loss = (torch.nn.functional.smooth_l1_loss(predicted, target[rows], reduction="none", beta=0.5)
@@ -283,15 +304,37 @@ def train_perception(dataset_dir: Path | str, out_dir: Path | str, *, epochs: in
         "heldout_episode_ids": [identities[int(e)] for e in test_eps],
         "train_frames": int(len(train_rows)), "heldout_frames": int(len(test_rows)), "history": history,
         "seconds": round(time.perf_counter() - start, 1),
+        "colour_jitter": colour_jitter,
+        "init_from": None if init_from is None else {"path": str(Path(init_from).resolve()),
+                                                     "weights_sha256": sha256_file(Path(init_from) / WEIGHTS_FILE)},
     }
     write_json(out / "training.json", training)
     contract = _contract(path, data, stack, height, width, mean, std, history[-1])
     # What the model has seen, by episode identity: evaluation excludes these from any dataset.
     contract["trained_on"]["episodes"] = len(train_eps)
-    contract["trained_on"]["episode_ids"] = sorted(identities[int(e)] for e in train_eps)
+    contract["trained_on"]["episode_ids"] = sorted({identities[int(e)] for e in train_eps} | inherited)
     contract["onnx"]["parts"] = parts
     write_json(out / CONTRACT_FILE, contract)
     return out
+
+
+def _initial_weights(folder: Path, stack: int, height: int, width: int) -> tuple[dict[str, Any], set[str]]:
+    """A model folder's weights (as tensors, no pickle) and the episode identities it trained on."""
+    import torch
+
+    from dualtwin.artifacts import read_json_object
+
+    contract = read_json_object(folder / CONTRACT_FILE, ("onnx",), what="perception contract")
+    shape = contract["onnx"]["inputs"][0]["shape"]
+    if list(shape[1:4]) != [stack, height, width]:
+        raise DualtwinError(f"{folder}: the initial model takes {shape[1]} frames of {shape[3]}x{shape[2]}, "
+                            f"this training {stack} of {width}x{height}")
+    path = folder / WEIGHTS_FILE
+    if not path.is_file():
+        raise DualtwinError(f"{path}: not found (the initial model needs its weights)")
+    with np.load(path, allow_pickle=False) as arrays:
+        weights = {k: torch.from_numpy(np.array(arrays[k])) for k in arrays.files}
+    return weights, trained_episode_ids(folder, contract)
 
 
 def load_weights(model_dir: Path | str) -> Any:
