@@ -26,11 +26,16 @@ ENV_IDS: dict[str, dict[str, Any]] = {
                                                "continuous": True},
     "dualtwin/Pioneer-DriveToGoal-Webots-v0": {"twin": "webots", "robot": "pioneer3at", "task": "drive_to_goal",
                                                "continuous": True},
+    # The six-joint arm's reach task (issue 19): joint-position-delta actions, 32 ms control periods.
+    "dualtwin/Arm-Reach-MuJoCo-v0": {"twin": "mujoco", "robot": "arm", "task": "reach", "continuous": True},
+    "dualtwin/Arm-Reach-Webots-v0": {"twin": "webots", "robot": "arm", "task": "reach", "continuous": True},
 }
 # Episode caps (control periods) of ids that do not use DEFAULT_MAX_EPISODE_STEPS. 250 x 32 ms = 8 s: the
 # farthest goal (2.5 m) behind the robot takes about 5 s at full wheel speed (half a turn in place, then 2.5 m).
 MAX_EPISODE_STEPS: dict[str, int] = {"dualtwin/Pioneer-DriveToGoal-MuJoCo-v0": 250,
-                                     "dualtwin/Pioneer-DriveToGoal-Webots-v0": 250}
+                                     "dualtwin/Pioneer-DriveToGoal-Webots-v0": 250,
+                                     # 100 x 32 ms = 3.2 s: the longest joint move in the box takes ~0.6 s.
+                                     "dualtwin/Arm-Reach-MuJoCo-v0": 100, "dualtwin/Arm-Reach-Webots-v0": 100}
 
 
 def gymnasium_installed() -> bool:

@@ -17,6 +17,7 @@ from dualtwin.registration import ENV_IDS, MAX_EPISODE_STEPS, NAMESPACE, registe
 from dualtwin.rl.drive_to_goal import DriveToGoal
 from dualtwin.rl.env import CartPoleBalance, ObservationTerm, Task, TwinEnv
 from dualtwin.rl.randomize import DomainRandomization, FixedKnobs, apply_knobs, load_knob_values, load_ranges
+from dualtwin.rl.reach import ArmReach
 
 if TYPE_CHECKING:
     from dualtwin.rl.export import export_policy
@@ -57,7 +58,7 @@ def __getattr__(name: str) -> Any:
 
 
 __all__ = [
-    "ENV_IDS", "MAX_EPISODE_STEPS", "CartPoleBalance", "DomainRandomization", "DriveToGoal", "FixedKnobs",
+    "ENV_IDS", "MAX_EPISODE_STEPS", "ArmReach", "CartPoleBalance", "DomainRandomization", "DriveToGoal", "FixedKnobs",
     "LoadedPolicy", "ObservationTerm", "Task", "TransferReport", "TwinEnv", "apply_knobs", "check_env_id",
     "export_policy", "load_knob_values", "load_policy", "load_ranges", "make_env", "registered_ids",
 ]
