@@ -98,6 +98,8 @@ def test_device_readings_follow_the_registry() -> None:
         elif hasattr(dev, "getRangeImage"):
             # nothing in range reads +inf: a reading is any non-NaN image
             values = [0.0 if math.isinf(v) else v for v in dev.getRangeImage()] or [math.nan]
+        elif hasattr(dev, "getImage"):
+            values = [float(v) for v in dev.getImage()] or [math.nan]  # an empty world: a black frame
         elif hasattr(dev, "getValues"):
             values = dev.getValues()
         else:

@@ -17,6 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from dualtwin.webots.nodes import Node
+from dualtwin.webots.shapes import indexed_face_set_mesh  # noqa: F401 - re-exported for the converter
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -186,27 +187,6 @@ def bounding_primitives(node: Node | None, rotation: FloatArray | None = None,
             yield from bounding_primitives(child, R, t, scale)
     else:
         yield Primitive(node, R, t, scale)
-
-
-def indexed_face_set_mesh(node: Node, scale: float = 1.0) -> tuple[FloatArray, npt.NDArray[np.int64]]:
-    """Vertices and fan-triangulated faces of an IndexedFaceSet (``-1`` ends a polygon; ``ccw FALSE`` flips)."""
-    coord = node.get("coord")
-    points = np.asarray(coord.get("point", []) if coord is not None else [], dtype=float).reshape(-1, 3) * scale
-    faces: list[tuple[int, int, int]] = []
-    polygon: list[int] = []
-    for index in [*node.get("coordIndex", []), -1]:
-        if index >= 0:
-            polygon.append(int(index))
-            continue
-        for k in range(1, len(polygon) - 1):
-            faces.append((polygon[0], polygon[k], polygon[k + 1]))
-        polygon = []
-    tri = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
-    if not node.get("ccw", True):
-        tri = tri[:, ::-1].copy()
-    if len(tri) and (tri.max() >= len(points)):
-        raise ValueError(f"coordIndex refers to point {int(tri.max())} but coord has {len(points)} points")
-    return points, tri
 
 
 def primitive_mass(prim: Primitive) -> tuple[MassProps | None, str | None]:

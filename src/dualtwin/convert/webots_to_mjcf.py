@@ -97,6 +97,7 @@ from dualtwin.errors import DualtwinError
 from dualtwin.webots import schema
 from dualtwin.webots.nodes import Node, World
 from dualtwin.webots.protos import load_world, load_world_text
+from dualtwin.webots.shapes import appearance_rgba
 
 VISUAL_GROUP = 2
 COLLISION_GROUP = 3
@@ -176,21 +177,6 @@ def timestep_for(basic_time_step_ms: float) -> float:
             return h / 1000.0
     k = max(1, math.ceil(basic_time_step_ms / MAX_TIMESTEP_MS))
     return basic_time_step_ms / k / 1000.0
-
-
-def appearance_rgba(shape: Any) -> list[float] | None:
-    """A Shape's colour and opacity (PBR ``baseColor`` or Material ``diffuseColor``), None without either."""
-    appearance = shape.get("appearance")
-    if appearance is None:
-        return None
-    if appearance.type_name == "PBRAppearance":
-        r, g, b = appearance.get("baseColor", (1.0, 1.0, 1.0))
-        return [float(r), float(g), float(b), 1.0 - float(appearance.get("transparency", 0.0))]
-    material = appearance.get("material")
-    if material is not None:
-        r, g, b = material.get("diffuseColor", (0.8, 0.8, 0.8))
-        return [float(r), float(g), float(b), 1.0 - float(material.get("transparency", 0.0))]
-    return None
 
 
 def camera_fovy_degrees(field_of_view: float, width: int, height: int) -> float:

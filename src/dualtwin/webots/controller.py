@@ -42,6 +42,7 @@ from typing import Any
 
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots.api_args import as_float, as_int, finite, warn
+from dualtwin.webots.camera import Camera
 from dualtwin.webots.device_base import Device, SampledDevice, SolidSensor
 from dualtwin.webots.display import Display, ImageRef
 from dualtwin.webots.keyboard import Keyboard, KeyScript
@@ -63,6 +64,7 @@ from dualtwin.webots.track import install as install_tracks
 
 __all__ = [
     "Accelerometer",
+    "Camera",
     "ContactPoint",
     "ControllerStopped",
     "Keyboard",
@@ -594,6 +596,7 @@ _SOLID_DEVICE_CLASSES: dict[str, type[Device]] = {
     "Emitter": Emitter,
     "Receiver": Receiver,
     "Display": Display,
+    "Camera": Camera,
     "GPS": GPS,
     "Gyro": Gyro,
     "Accelerometer": Accelerometer,

@@ -7,7 +7,8 @@ every joint type builds an ODE joint) and checks that ``docs/webots-coverage.md`
 Regenerate the page with ``python -m dualtwin.webots.coverage``.
 
 Statuses: ``supported`` (Webots' semantics, tested), ``partial`` (works, with the limits given),
-``visual`` (parsed and kept in the scene tree for supervisors; nothing to simulate headless, not rendered),
+``visual`` (parsed and kept in the scene tree for supervisors; nothing to simulate headless; the Camera draws
+at most its flat colour),
 ``not`` (parsed and kept, but without effect: the reason says what is missing).
 """
 
@@ -137,7 +138,12 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("RangeFinder", "device", "partial",
              "planar depth image as one ray per pixel against bounding objects (Webots renders visual shapes); "
              "+inf outside [minRange, maxRange), noise, resolution; no lens, motion blur or saveImage"),
-    Coverage("Camera", "device", "not", _NOT_YET_DEVICE + " (the MuJoCo twin renders cameras)"),
+    Coverage("Camera", "device", "partial",
+             "planar BGRA image of the world's Shapes in their flat colours, drawn headless by the MuJoCo "
+             "renderer from the camera's frame: width, height, fieldOfView, near, far, noise, antiAliasing, "
+             "sampling, getImageArray, imageGet*, saveImage (PNG/JPEG); no textures, Background colour, "
+             "exposure, lens, motion blur or spherical/cylindrical projection (drawn planar); nodes a "
+             "supervisor adds after the first frame are not drawn"),
     Coverage("Recognition", "device", "not", "not yet (Camera)"),
     Coverage("Lens", "device", "not", "not yet (Camera)"),
     Coverage("LensFlare", "device", "not", "not yet (Camera)"),
@@ -164,17 +170,19 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Mouse", "device", "not", "not yet: no pointer headless", node=False),
     Coverage("Joystick", "device", "not", "not yet", node=False),
     # -- appearance, lights and view
-    Coverage("Shape", "visual", "supported", "its geometry is a collision shape inside boundingObjects"),
-    Coverage("Appearance", "visual", "visual", "not rendered"),
-    Coverage("PBRAppearance", "visual", "visual", "not rendered"),
-    Coverage("Material", "visual", "visual", "not rendered"),
+    Coverage("Shape", "visual", "supported",
+             "its geometry is a collision shape inside boundingObjects; Camera images draw Box, Sphere, "
+             "Cylinder, Capsule, Plane and IndexedFaceSet shapes"),
+    Coverage("Appearance", "visual", "visual", "only its colour and transparency reach Camera images"),
+    Coverage("PBRAppearance", "visual", "visual", "only its colour and transparency reach Camera images"),
+    Coverage("Material", "visual", "visual", "only its colour and transparency reach Camera images"),
     Coverage("ImageTexture", "visual", "visual", "not rendered; never downloaded"),
     Coverage("TextureTransform", "visual", "visual", "not rendered"),
     Coverage("Color", "visual", "visual", "not rendered"),
     Coverage("Background", "visual", "visual", "not rendered"),
-    Coverage("DirectionalLight", "visual", "visual", "not rendered"),
-    Coverage("PointLight", "visual", "visual", "not rendered"),
-    Coverage("SpotLight", "visual", "visual", "not rendered"),
+    Coverage("DirectionalLight", "visual", "visual", "lights Camera images (no shadows)"),
+    Coverage("PointLight", "visual", "visual", "lights Camera images (no shadows)"),
+    Coverage("SpotLight", "visual", "visual", "lights Camera images (no shadows)"),
     Coverage("Fog", "visual", "visual", "not rendered"),
     Coverage("Viewpoint", "visual", "visual", "no viewer headless"),
 )
@@ -193,7 +201,8 @@ def render_markdown() -> str:
         "",
         "- **supported**: Webots' semantics, tested;",
         "- **partial**: works, within the limits given;",
-        "- **visual**: kept in the scene tree (supervisors can read it), nothing to simulate headless, not rendered;",
+        "- **visual**: kept in the scene tree (supervisors can read it), nothing to simulate headless; Camera",
+        "  images draw at most its flat colour;",
         "- **not**: parsed and kept, without effect yet.",
         "",
         "Totals: " + ", ".join(f"{counts[s]} {s}" for s in STATUSES) + f" ({len(REGISTRY)} entries).",

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dualtwin.webots.controller import (
     GPS,
     Accelerometer,
+    Camera,
     ContactPoint,
     Device,
     Display,
@@ -35,6 +36,7 @@ from dualtwin.webots.controller import (
 __all__ = [
     "GPS",
     "Accelerometer",
+    "Camera",
     "ContactPoint",
     "Device",
     "Display",

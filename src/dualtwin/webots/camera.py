@@ -1,0 +1,257 @@
+"""Webots ``Camera`` headless: the world's Shapes drawn by the same offscreen renderer as perception.
+
+Our runtime has no renderer of its own, so a Camera device draws the world's visual scene
+(:class:`~dualtwin.webots.visual_scene.WebotsVisualScene`: one mocap body per Solid with visible Shapes, posed
+from the simulation) with :class:`~dualtwin.webots.render.FrameRenderer`, from the Camera Solid's own frame.
+Webots' cameras look along their +x axis with +z up, and ``fieldOfView`` is horizontal.
+
+What follows Webots (``camera.c`` and ``camera.py`` of its controller library, and the Camera reference page):
+
+* the image is **BGRA**, 8 bits per channel, ``4·width·height`` bytes, row-major from the top-left pixel;
+  alpha is 255;
+* ``noise`` adds, per channel, Gaussian noise of standard deviation ``noise × 255`` (clipped to 0..255), drawn
+  from the simulation's sensor-noise generator (seeded from ``WorldInfo.randomSeed``), so a seeded run is
+  reproducible;
+* sampling follows the sensor protocol (``enable(T)`` then ``step(T)`` yields an image); reading a disabled
+  camera prints Webots' error on stderr and raises ``ValueError``, which is what Webots' Python wrapper raises
+  when the C library returns a NULL image (our reading of its code, not observed); an enabled camera before
+  its first sample returns a black image (Webots' buffer before the first frame is not documented);
+* ``getImageArray()`` is indexed ``[x][y]`` and holds ``[r, g, b]`` lists, as Webots' Python documents it;
+  ``imageGetRed/Green/Blue`` read bytes +2/+1/+0 at ``4·(y·width + x)``; ``imageGetGray`` is their integer
+  mean;
+* ``saveImage(filename, quality)`` writes a real PNG (or a JPEG through Pillow when the name ends in
+  ``.jpg``/``.jpeg``) and returns 0, or -1 on failure;
+* ``near`` sets the near clipping plane, ``far`` (when > 0) the far one; ``antiAliasing TRUE`` renders at twice
+  the size and averages 2×2 blocks.
+
+Decisions: an image is rendered lazily, at the first ``getImage`` after a sample became due (a camera that is
+enabled but never read costs nothing); the scene is built once per simulation, so nodes a supervisor adds
+later are not drawn. Not simulated: spherical and cylindrical projections (drawn planar, with a warning),
+exposure, lens distortion, motion blur, bloom, ambient occlusion, textures (a Shape is drawn in its flat
+``baseColor``/``diffuseColor``), the Background colour (MuJoCo's clear colour) and Recognition.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dualtwin.artifacts import write_bytes
+from dualtwin.webots.api_args import as_float, warn
+from dualtwin.webots.device_base import SolidSensor
+from dualtwin.webots.display import png_bytes
+
+__all__ = ["Camera", "CameraModel", "bgra_from_rgb"]
+
+
+def bgra_from_rgb(rgb: np.ndarray) -> np.ndarray:
+    """An (h, w, 3) RGB uint8 frame as Webots' (h, w, 4) BGRA buffer with opaque alpha."""
+    h, w, _ = rgb.shape
+    out = np.empty((h, w, 4), dtype=np.uint8)
+    out[..., 0] = rgb[..., 2]
+    out[..., 1] = rgb[..., 1]
+    out[..., 2] = rgb[..., 0]
+    out[..., 3] = 255
+    return out
+
+
+class CameraModel:
+    """A Camera node's fields, read once (Webots' defaults where a field is absent)."""
+
+    def __init__(self, fields: dict[str, Any]) -> None:
+        self.width = max(1, int(fields.get("width", 64)))
+        self.height = max(1, int(fields.get("height", 64)))
+        self.fov = float(fields.get("fieldOfView", 0.7854))
+        self.near = float(fields.get("near", 0.01))
+        self.far = float(fields.get("far", 0.0))
+        self.noise = float(fields.get("noise", 0.0))
+        self.exposure = float(fields.get("exposure", 1.0))
+        self.anti_aliasing = bool(fields.get("antiAliasing", False))
+        self.projection = str(fields.get("projection", "planar"))
+        if self.projection != "planar":
+            warn(f"Camera: the {self.projection} projection is drawn as planar")
+
+    def fovy_degrees(self) -> float:
+        """The vertical field of view (degrees) of a horizontal ``fov`` at this aspect ratio."""
+        return math.degrees(2.0 * math.atan(math.tan(self.fov / 2.0) * self.height / self.width))
+
+
+class _RootView:
+    """What :class:`WebotsVisualScene` needs from a supervisor (``getRoot``), for a camera on any robot."""
+
+    def __init__(self, robot: Any) -> None:
+        self._robot = robot
+
+    def getRoot(self) -> Any:
+        from dualtwin.webots.nodes import Node as SceneNode
+        from dualtwin.webots.scene_api import Node
+
+        root = Node(self._robot, SceneNode("Group", {"children": list(self._robot._sim.world.nodes)}))
+        root._is_root = True
+        return root
+
+
+def _visual_scene(robot: Any) -> Any:
+    """The simulation's visual scene, built at the first camera frame and shared by every camera."""
+    sim = robot._sim
+    scene = sim.extensions.get("visual_scene")
+    if scene is None:
+        from dualtwin.webots.visual_scene import WebotsVisualScene
+
+        scene = sim.extensions["visual_scene"] = WebotsVisualScene(_RootView(robot), allow_empty=True)
+    return scene
+
+
+class Camera(SolidSensor):
+    """Webots ``Camera``; see the module docstring."""
+
+    def _model(self) -> CameraModel:
+        model = getattr(self, "_model_cache", None)
+        if model is None:
+            model = self._model_cache = CameraModel(self._record.node.fields)
+        return model
+
+    def _invalidate(self) -> None:
+        super()._invalidate()
+        self._image: np.ndarray | None = None
+        self._pending = False
+
+    def _read(self) -> None:
+        self._pending = True  # rendered at the next getImage (see the module docstring)
+
+    # -- rendering
+
+    def _render(self) -> np.ndarray:
+        from dualtwin.webots.render import FrameRenderer, ResolvedCamera
+
+        m = self._model()
+        scene = _visual_scene(self._robot)
+        renderer = getattr(self, "_renderer", None)
+        if renderer is None:
+            renderer = self._renderer = FrameRenderer(scene.model, m.width, m.height,
+                                                      supersample=2 if m.anti_aliasing else 1)
+        scene.sync()
+        pose = self._pose()
+        R = np.asarray(pose.R, dtype=float).reshape(3, 3)
+        pos = np.asarray(pose.t, dtype=float)
+        camera = ResolvedCamera.look(pos, pos + R[:, 0], R[:, 2], m.fovy_degrees())
+        rgb = renderer.render(scene.data, camera, near=m.near, far=m.far if m.far > 0 else None)
+        image = bgra_from_rgb(rgb)
+        if m.noise > 0.0:
+            rng = np.random.default_rng(self._robot._sim.rng.getrandbits(64))
+            noisy = image[..., :3] + rng.normal(0.0, m.noise * 255.0, size=image[..., :3].shape)
+            image[..., :3] = np.clip(np.rint(noisy), 0, 255).astype(np.uint8)
+        return image
+
+    def _current(self, method: str) -> np.ndarray:
+        if self._period <= 0:
+            print(f"Error: {method}() called for a disabled device! Please use: wb_camera_enable().",
+                  file=sys.stderr)
+            raise ValueError("NULL pointer access")
+        if self._pending:
+            self._pending = False
+            self._image = self._render()
+        if self._image is None:
+            m = self._model()
+            return np.zeros((m.height, m.width, 4), dtype=np.uint8)
+        return self._image
+
+    # -- image API
+
+    def getImage(self) -> bytes:
+        """BGRA bytes, ``4·width·height``, row-major from the top-left pixel."""
+        return self._current("wb_camera_get_image").tobytes()
+
+    def getImageArray(self) -> list[list[list[int]]]:
+        """``[x][y] -> [r, g, b]``."""
+        image = self._current("wb_camera_get_image")
+        return image[..., 2::-1].transpose(1, 0, 2).tolist()
+
+    @staticmethod
+    def imageGetRed(image: bytes, width: int, x: int, y: int) -> int:
+        return int(image[4 * (y * width + x) + 2])
+
+    @staticmethod
+    def imageGetGreen(image: bytes, width: int, x: int, y: int) -> int:
+        return int(image[4 * (y * width + x) + 1])
+
+    @staticmethod
+    def imageGetBlue(image: bytes, width: int, x: int, y: int) -> int:
+        return int(image[4 * (y * width + x)])
+
+    @staticmethod
+    def imageGetGray(image: bytes, width: int, x: int, y: int) -> int:
+        i = 4 * (y * width + x)
+        return (int(image[i]) + int(image[i + 1]) + int(image[i + 2])) // 3
+
+    imageGetGrey = imageGetGray
+
+    def saveImage(self, filename: str, quality: Any) -> int:
+        """Write the last image as PNG (or JPEG through Pillow); 0 on success, -1 on failure (as Webots)."""
+        image = self._current("wb_camera_save_image")
+        rgba = np.concatenate([image[..., 2::-1], image[..., 3:]], axis=2)
+        path = Path(filename)
+        suffix = path.suffix.lower()
+        try:
+            if suffix == ".png":
+                write_bytes(path, png_bytes(np.ascontiguousarray(rgba)))
+                return 0
+            if suffix in (".jpg", ".jpeg"):
+                import io
+
+                from PIL import Image
+
+                buffer = io.BytesIO()
+                Image.fromarray(np.ascontiguousarray(rgba[..., :3])).save(
+                    buffer, format="JPEG", quality=int(as_float(quality, "Camera.saveImage")))
+                write_bytes(path, buffer.getvalue())
+                return 0
+        except (OSError, ImportError) as exc:
+            warn(f"Camera.saveImage(): cannot write {filename}: {exc}")
+            return -1
+        warn(f"Camera.saveImage(): {filename}: only .png, .jpg and .jpeg are supported")
+        return -1
+
+    # -- parameters
+
+    def getWidth(self) -> int:
+        return self._model().width
+
+    def getHeight(self) -> int:
+        return self._model().height
+
+    def getFov(self) -> float:
+        return self._model().fov
+
+    def setFov(self, fov: Any) -> None:
+        value = as_float(fov, "Camera.setFov")
+        if not 0.0 < value <= math.pi:
+            warn(f"Camera.setFov(): {value} is outside (0, pi]")
+            return
+        self._model().fov = value
+
+    def getNear(self) -> float:
+        return self._model().near
+
+    def getFar(self) -> float:
+        return self._model().far
+
+    def getExposure(self) -> float:
+        return self._model().exposure
+
+    def setExposure(self, exposure: Any) -> None:
+        value = as_float(exposure, "Camera.setExposure")
+        if value < 0.0:
+            warn(f"Camera.setExposure(): {value} is negative")
+            return
+        self._model().exposure = value  # kept for the getter; the headless image does not change with it
+
+    def hasRecognition(self) -> bool:
+        return False
+
+    def getProjection(self) -> str:
+        return self._model().projection

@@ -1,0 +1,254 @@
+"""A visual-only MuJoCo scene of a Webots world, posed from the supervisor: how the Webots twin renders.
+
+Moved here from ``dualtwin.perception.scene`` (which re-exports it): the runtime's ``Camera`` device draws
+this scene too, so it lives at the lowest layer.
+
+Our headless Webots runtime has no renderer of its own, so the world's Shapes are drawn by the same MuJoCo
+renderer as the MuJoCo twin (:class:`dualtwin.perception.camera.FrameRenderer`):
+
+* every Solid (robot parts, static objects, Solid-derived devices) with visible Shapes becomes one **mocap
+  body**; its Shapes (through Pose/Transform/Group, not through nested Solids) become geoms in the Solid's
+  frame with the appearance's colour (PBR ``baseColor`` / Material ``diffuseColor``);
+* DirectionalLight/PointLight/SpotLight become MuJoCo lights; Background is not drawn (MuJoCo's clear
+  colour, as in the MJCF twin); MuJoCo's default headlight is kept, as in every MuJoCo model;
+* each frame, :meth:`WebotsVisualScene.sync` copies every Solid's pose read through the supervisor API
+  (``Node.getPosition``/``getOrientation``) into ``mocap_pos``/``mocap_quat`` and runs ``mj_forward``.
+
+``supervisor`` is anything with ``getRoot()`` returning a scene handle: a Supervisor, or the root view a
+``Camera`` device of a plain Robot builds (a camera sees the world whether or not its robot is a supervisor).
+
+The structure is walked through the supervisor API (``getField``/``getMFNode``); only the geometry itself
+is read from our runtime's scene tree (``Node.scene_node``). In a real Webots installation the world is
+rendered by Webots itself: add a ``Camera`` device and read ``Camera.getImage()`` instead of this scene.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from dualtwin.errors import DualtwinError
+from dualtwin.webots import _math3 as m3
+from dualtwin.webots import schema
+from dualtwin.webots.render import ResolvedCamera
+from dualtwin.webots.shapes import appearance_rgba, indexed_face_set_mesh
+
+__all__ = ["VISUAL_GEOMETRY", "WebotsVisualScene"]
+
+VISUAL_GEOMETRY = ("Box", "Sphere", "Cylinder", "Capsule", "Plane", "IndexedFaceSet")
+
+
+def rotation_matrix(rotation: Any) -> np.ndarray:
+    """Webots SFRotation (axis, angle; axis normalised) as a 3x3 array."""
+    return np.asarray(m3.rot_axis_angle(rotation), dtype=float).reshape(3, 3)
+
+
+def _pose(fields: dict[str, Any], scale: float) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = rotation_matrix(fields.get("rotation", (0.0, 0.0, 1.0, 0.0)))
+    T[:3, 3] = np.asarray(fields.get("translation", (0.0, 0.0, 0.0)), dtype=float) * scale
+    return T
+
+
+def _quat(R: np.ndarray) -> np.ndarray:
+    q = np.zeros(4)
+    mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, dtype=float).reshape(9))
+    return q
+
+
+def _rgba(shape: Any) -> list[float]:
+    # Webots draws a Shape without appearance in white.
+    return appearance_rgba(shape) or [1.0, 1.0, 1.0, 1.0]
+
+
+def _children(handle: Any, field: str) -> list[Any]:
+    f = handle.getField(field)
+    if f is None:
+        return []
+    if f.getCount() < 0:  # an SF field
+        node = f.getSFNode()
+        return [node] if node is not None else []
+    return [n for n in (f.getMFNode(i) for i in range(f.getCount())) if n is not None]
+
+
+class WebotsVisualScene:
+    """The visual scene of the world a Webots supervisor runs, as a MuJoCo model with one mocap body per Solid.
+
+    ``allow_empty``: a world without any visible Shape gives an empty scene (a Camera then sees only the
+    background) instead of an error (perception has nothing to learn from such a world).
+    """
+
+    def __init__(self, supervisor: Any, *, allow_empty: bool = False) -> None:
+        self.sup = supervisor
+        self.spec = mujoco.MjSpec()
+        self.spec.compiler.degree = False
+        self.warnings: list[str] = []
+        self._solids: list[tuple[Any, str]] = []
+        self._cameras: dict[str, Any] = {}
+        self._viewpoint: Any = None
+        self._mesh_count = 0
+        self._world_geoms: list[dict[str, Any]] = []
+        self._names: set[str] = set()
+        root = supervisor.getRoot()
+        if not hasattr(root, "scene_node"):
+            raise DualtwinError("the Webots visual scene needs dualtwin's headless runtime; in real Webots add a "
+                                "Camera device and use Camera.getImage()")
+        for top in _children(root, "children"):
+            self._top(top)
+        for geom in self._world_geoms:
+            self.spec.worldbody.add_geom(**geom)
+        if not self._solids and not self._world_geoms and not allow_empty:
+            raise DualtwinError("the Webots world has no visible Shape in any Solid: nothing to render")
+        try:
+            self.model = self.spec.compile()
+        except ValueError as exc:
+            raise DualtwinError(f"the Webots visual scene does not compile: {' '.join(str(exc).split())}") from None
+        self.data = mujoco.MjData(self.model)
+        self._mocap = [int(self.model.body_mocapid[mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, name)])
+                       for _, name in self._solids]
+        self.sync()
+
+    # ------------------------------------------------------------------ building
+    def _top(self, handle: Any) -> None:
+        kind = handle.getBaseTypeName()
+        node = handle.scene_node
+        if kind == "DirectionalLight" and node.get("on", True):
+            color = np.asarray(node.get("color", (1.0, 1.0, 1.0)), dtype=float)
+            direction = np.asarray(node.get("direction", (0.0, 0.0, -1.0)), dtype=float)
+            self._light(mujoco.mjtLightType.mjLIGHT_DIRECTIONAL, [0.0, 0.0, 10.0], direction,
+                        color * float(node.get("intensity", 1.0)), color * float(node.get("ambientIntensity", 0.0)))
+        elif kind in ("PointLight", "SpotLight") and node.get("on", True):
+            color = np.asarray(node.get("color", (1.0, 1.0, 1.0)), dtype=float)
+            light = self._light(mujoco.mjtLightType.mjLIGHT_POINT if kind == "PointLight"
+                                else mujoco.mjtLightType.mjLIGHT_SPOT,
+                                node.get("location", (0.0, 0.0, 0.0)), node.get("direction", (0.0, 0.0, -1.0)),
+                                color * float(node.get("intensity", 1.0)),
+                                color * float(node.get("ambientIntensity", 0.0)))
+            light.attenuation = [float(v) for v in node.get("attenuation", (1.0, 0.0, 0.0))]
+            if kind == "SpotLight":
+                light.cutoff = math.degrees(float(node.get("cutOffAngle", math.pi / 2)))
+        elif kind == "Viewpoint":
+            self._viewpoint = handle
+        else:
+            # Shapes outside any Solid are static scenery, drawn in the world frame.
+            self._walk(handle, np.eye(4), 1.0, self._world_geoms)
+
+    def _light(self, kind: Any, pos: Any, direction: Any, diffuse: np.ndarray, ambient: np.ndarray) -> Any:
+        d = np.asarray(direction, dtype=float)
+        d = d / max(float(np.linalg.norm(d)), 1e-9)
+        return self.spec.worldbody.add_light(type=kind, pos=[float(v) for v in pos], dir=[float(v) for v in d],
+                                             diffuse=[float(v) for v in diffuse], ambient=[float(v) for v in ambient],
+                                             specular=[0.3, 0.3, 0.3], castshadow=False)
+
+    def _walk(self, handle: Any, T: np.ndarray, scale: float, geoms: list[dict[str, Any]] | None) -> None:
+        """Visit ``handle``: Solids get their own body; Shapes add to ``geoms`` (the enclosing Solid's)."""
+        kind = handle.getBaseTypeName()
+        node = handle.scene_node
+        if schema.is_solid_type(kind):
+            self._solid(handle, kind, scale)
+        elif kind == "Shape":
+            if geoms is not None:
+                geom = self._shape(node, T, scale)
+                if geom is not None:
+                    geoms.append(geom)
+        elif kind in ("Pose", "Transform"):
+            sx = float(node.get("scale", (1.0, 1.0, 1.0))[0]) if kind == "Transform" else 1.0
+            inner = T @ _pose(node.fields, scale)
+            for child in _children(handle, "children"):
+                self._walk(child, inner, scale * sx, geoms)
+        elif kind == "Group":
+            for child in _children(handle, "children"):
+                self._walk(child, T, scale, geoms)
+        elif kind in schema.JOINT_TYPES or kind == "Slot":
+            # The endPoint Solid moves on its own: it is a body of its own, posed by the supervisor.
+            for child in _children(handle, "endPoint"):
+                self._walk(child, np.eye(4), scale, None)
+
+    def _solid(self, handle: Any, kind: str, scale: float) -> None:
+        node = handle.scene_node
+        if kind == "Camera":
+            self._cameras[str(node.get("name", "camera"))] = handle
+        geoms: list[dict[str, Any]] = []
+        for child in _children(handle, "children"):
+            self._walk(child, np.eye(4), scale, geoms)
+        if not geoms:  # nothing visible: no body to pose each frame
+            return
+        # Bodies are named after the Solid's DEF (else its name field), as the binding names bodies.
+        base = node.def_name or str(node.get("name") or kind.lower())
+        name, n = base, 1
+        while name in self._names:
+            name, n = f"{base}({n})", n + 1
+        self._names.add(name)
+        body = self.spec.worldbody.add_body(name=name, mocap=True)
+        for geom in geoms:
+            body.add_geom(**geom)
+        self._solids.append((handle, name))
+
+    def _shape(self, shape: Any, T: np.ndarray, scale: float) -> dict[str, Any] | None:
+        """The MuJoCo geom (keyword arguments) of a Shape at frame T of its Solid, or None if not drawable."""
+        geometry = shape.get("geometry")
+        if geometry is None:
+            return None
+        kind = geometry.type_name
+        if kind not in VISUAL_GEOMETRY:
+            self.warnings.append(f"{geometry.location}: visual {kind} not drawn")
+            return None
+        kwargs: dict[str, Any] = {"pos": [float(v) for v in T[:3, 3]], "quat": [float(v) for v in _quat(T[:3, :3])],
+                                  "rgba": _rgba(shape), "contype": 0, "conaffinity": 0}
+        if kind == "Box":
+            kwargs.update(type=mujoco.mjtGeom.mjGEOM_BOX, size=[float(v) * scale / 2 for v in geometry["size"]])
+        elif kind == "Sphere":
+            kwargs.update(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[float(geometry["radius"]) * scale, 0, 0])
+        elif kind in ("Cylinder", "Capsule"):
+            gtype = mujoco.mjtGeom.mjGEOM_CYLINDER if kind == "Cylinder" else mujoco.mjtGeom.mjGEOM_CAPSULE
+            kwargs.update(type=gtype, size=[float(geometry["radius"]) * scale, float(geometry["height"]) * scale / 2, 0])
+        elif kind == "Plane":
+            sx, sy = (float(v) * scale for v in geometry["size"])
+            kwargs.update(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[sx / 2, sy / 2, 1.0])
+        else:
+            points, faces = indexed_face_set_mesh(geometry, scale)
+            if len(faces) == 0 or len(points) < 4:
+                return None
+            self._mesh_count += 1
+            mesh = self.spec.add_mesh(name=f"mesh{self._mesh_count}")
+            mesh.uservert = points.reshape(-1).tolist()
+            mesh.userface = faces.reshape(-1).tolist()
+            mesh.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
+            kwargs.update(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh.name)
+        return kwargs
+
+    # ------------------------------------------------------------------ per frame
+    def sync(self) -> None:
+        """Copy every Solid's current supervisor pose into its mocap body."""
+        d = self.data
+        for (handle, _), mocap in zip(self._solids, self._mocap, strict=True):
+            d.mocap_pos[mocap] = handle.getPosition()
+            R = np.asarray(handle.getOrientation(), dtype=float).reshape(3, 3)
+            mujoco.mju_mat2Quat(d.mocap_quat[mocap], R.reshape(9))
+        mujoco.mj_forward(self.model, d)
+
+    def named_camera(self, name: str, width: int, height: int) -> ResolvedCamera:
+        """A Camera device of the world by name, or ``viewpoint`` (Webots FLU: looks along +x, +z up)."""
+        if name in self._cameras:
+            handle = self._cameras[name]
+            fov = float(handle.scene_node.get("fieldOfView", 0.785398))
+        elif name == "viewpoint" and self._viewpoint is not None:
+            handle = self._viewpoint
+            fov = float(handle.scene_node.get("fieldOfView", 0.785398))
+        else:
+            known = ", ".join(sorted(self._cameras) + (["viewpoint"] if self._viewpoint is not None else []))
+            raise DualtwinError(f"the Webots world has no camera {name!r} (Camera devices and the Viewpoint: "
+                                f"{known or 'none'}); pass a CameraSpec instead")
+        if handle is self._viewpoint:
+            node = handle.scene_node
+            R = rotation_matrix(node.get("orientation", (0.0, 0.0, 1.0, 0.0)))
+            pos = np.asarray(node.get("position", (0.0, 0.0, 0.0)), dtype=float)
+        else:
+            R = np.asarray(handle.getOrientation(), dtype=float).reshape(3, 3)
+            pos = np.asarray(handle.getPosition(), dtype=float)
+        # Webots' fieldOfView is horizontal; the renderer wants the vertical one for this aspect ratio.
+        fovy = math.degrees(2.0 * math.atan(math.tan(fov / 2.0) * height / width))
+        return ResolvedCamera.look(pos, pos + R[:, 0], R[:, 2], fovy)

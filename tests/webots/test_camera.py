@@ -1,0 +1,152 @@
+"""The Camera device: a red box at a known place appears where the pinhole projection puts it, the image
+follows the scene, and a disabled camera, noise, the image helpers and saveImage behave as in Webots."""
+
+from __future__ import annotations
+
+import io
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dualtwin.webots.camera import Camera
+from dualtwin.webots.controller import Supervisor
+from dualtwin.webots.physics import Simulation
+from dualtwin.webots.protos import load_world_text
+
+W, H, FOV = 64, 48, 1.0
+WORLD = """#VRML_SIM R2023b utf8
+WorldInfo { basicTimeStep 8 randomSeed 7 }
+DirectionalLight { direction 0 0 -1 }
+DEF BOX Solid {
+  translation 2 0.5 0
+  children [ Shape { appearance PBRAppearance { baseColor 1 0 0 } geometry Box { size 0.4 0.4 0.4 } } ]
+}
+Robot {
+  children [ Camera { name "cam" width %d height %d fieldOfView %g NOISE } ]
+  controller "<extern>"
+  supervisor TRUE
+}
+"""
+
+
+def _camera(noise: float = 0.0) -> tuple[Supervisor, Camera]:
+    text = WORLD % (W, H, FOV)
+    sim = Simulation(load_world_text(text.replace("NOISE", f"noise {noise}" if noise else "")))
+    sup = Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    cam = sup.getDevice("cam")
+    assert isinstance(cam, Camera)
+    return sup, cam
+
+
+def _bgra(cam: Camera) -> np.ndarray:
+    return np.frombuffer(cam.getImage(), dtype=np.uint8).reshape(cam.getHeight(), cam.getWidth(), 4)
+
+
+def _red(image: np.ndarray) -> np.ndarray:
+    return (image[..., 2] > 100) & (image[..., 1] < 80) & (image[..., 0] < 80)
+
+
+def _columns(y_near: float, y_far: float, x: float) -> tuple[float, float]:
+    """Image columns (pixel-edge coordinates) of two points at depth x: +y is left, the centre is W/2."""
+    f = (W / 2) / math.tan(FOV / 2)
+    return W / 2 - f * y_far / x, W / 2 - f * y_near / x
+
+
+def test_red_box_appears_where_the_projection_puts_it_and_follows_the_box() -> None:
+    sup, cam = _camera()
+    cam.enable(8)
+    sup.step(8)
+    image = _bgra(cam)
+    assert image.shape == (H, W, 4) and len(cam.getImage()) == 4 * W * H
+    assert (image[..., 3] == 255).all()
+    red = _red(image)
+    # The box's near face (x = 1.8 m, y 0.3..0.7 m, z -0.2..0.2 m) spans these pixel edges; the side face at
+    # y = 0.3 m reaches to its far edge (x = 2.2 m). Inside the near face is red, outside the box is not.
+    left, right = _columns(0.3, 0.7, 1.8)
+    far_right = _columns(0.3, 0.7, 2.2)[1]
+    f = (W / 2) / math.tan(FOV / 2)
+    top, bottom = H / 2 - f * 0.2 / 1.8, H / 2 + f * 0.2 / 1.8
+    inside = red[math.ceil(top) + 1:math.floor(bottom) - 1, math.ceil(left) + 1:math.floor(right) - 1]
+    assert inside.all(), f"near face not all red: {inside.mean():.2f}"
+    cols = np.flatnonzero(red.any(axis=0))
+    rows = np.flatnonzero(red.any(axis=1))
+    assert cols.min() >= math.floor(left) and cols.max() <= math.ceil(far_right), (cols.min(), cols.max())
+    assert rows.min() >= math.floor(top) and rows.max() <= math.ceil(bottom), (rows.min(), rows.max())
+    assert not red[:, W // 2:].any(), "a box on the camera's left (+y) must be in the left half"
+
+    # Control: the same box moved to y = -0.5 m appears mirrored, in the right half.
+    box = sup.getFromDef("BOX")
+    field = box.getField("translation") if box is not None else None
+    assert field is not None
+    field.setSFVec3f([2.0, -0.5, 0.0])
+    sup.step(8)
+    moved = _red(_bgra(cam))
+    assert moved.any() and not moved[:, : W // 2].any()
+    assert abs(int(moved.sum()) - int(red.sum())) <= 0.1 * red.sum()
+    # mirror geometry about the image centre: the columns it covers are the original ones mirrored
+    assert int((np.asarray(moved.any(axis=0))[::-1] != np.asarray(red.any(axis=0))).sum()) <= 2
+
+
+def test_disabled_camera_raises_as_webots_python_does(capsys: pytest.CaptureFixture[str]) -> None:
+    sup, cam = _camera()
+    assert cam.getSamplingPeriod() == 0
+    assert (cam.getWidth(), cam.getHeight(), cam.getFov(), cam.getNear()) == (W, H, FOV, 0.01)
+    with pytest.raises(ValueError):
+        cam.getImage()
+    assert "wb_camera_get_image() called for a disabled device" in capsys.readouterr().err
+    cam.enable(16)
+    assert cam.getSamplingPeriod() == 16
+    assert cam.getImage() == bytes(4 * W * H)  # enabled, not sampled yet: a black frame
+    sup.step(8)
+    assert cam.getImage() == bytes(4 * W * H)  # the first sample is due after one period
+    sup.step(8)
+    assert _red(_bgra(cam)).any()
+    cam.disable()
+    assert cam.getSamplingPeriod() == 0
+    with pytest.raises(ValueError):
+        cam.getImageArray()
+    cam.enable(0)  # enable(0) is disable()
+    assert cam.getSamplingPeriod() == 0
+
+
+def test_noise_is_gaussian_with_sigma_noise_times_255_and_seeded() -> None:
+    images = []
+    for noise in (0.0, 0.1, 0.1):
+        sup, cam = _camera(noise)
+        cam.enable(8)
+        sup.step(8)
+        images.append(_bgra(cam).astype(int))
+    clean, noisy, again = images
+    assert np.array_equal(noisy, again), "same randomSeed, same noise"
+    # Only where the clean value is far from 0 and 255 is the noise unclipped.
+    mid = (clean[..., :3] > 80) & (clean[..., :3] < 175)
+    diff = (noisy[..., :3] - clean[..., :3])[mid]
+    assert diff.size > 50
+    assert abs(diff.std() - 25.5) < 0.15 * 25.5, diff.std()
+    assert abs(diff.mean()) < 3 * 25.5 / math.sqrt(diff.size)
+    assert (noisy[..., 3] == 255).all()
+
+
+def test_image_helpers_array_and_png(tmp_path: Path) -> None:
+    sup, cam = _camera()
+    cam.enable(8)
+    sup.step(8)
+    raw = cam.getImage()
+    image = _bgra(cam)
+    array = cam.getImageArray()
+    assert len(array) == W and len(array[0]) == H  # [x][y]
+    for x, y in ((0, 0), (15, 24), (W - 1, H - 1), (20, 30)):
+        r, g, b = Camera.imageGetRed(raw, W, x, y), Camera.imageGetGreen(raw, W, x, y), Camera.imageGetBlue(raw, W, x, y)
+        assert [r, g, b] == array[x][y] == image[y, x, 2::-1].tolist()
+        assert Camera.imageGetGray(raw, W, x, y) == (r + g + b) // 3
+    png = tmp_path / "frame.png"
+    assert cam.saveImage(str(png), 100) == 0
+    from PIL import Image
+
+    with Image.open(io.BytesIO(png.read_bytes()), formats=["PNG"]) as img:
+        back = np.asarray(img.convert("RGBA"))
+    assert np.array_equal(back[..., :3], image[..., 2::-1]) and (back[..., 3] == 255).all()
+    assert cam.saveImage(str(tmp_path / "frame.bmp"), 100) == -1
+    assert not (tmp_path / "frame.bmp").exists()
