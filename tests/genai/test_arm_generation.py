@@ -14,7 +14,6 @@ caught each one and that its message went back to the model:
 
 from __future__ import annotations
 
-import copy
 import json
 import math
 from pathlib import Path
