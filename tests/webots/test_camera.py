@@ -150,3 +150,50 @@ def test_image_helpers_array_and_png(tmp_path: Path) -> None:
     assert np.array_equal(back[..., :3], image[..., 2::-1]) and (back[..., 3] == 255).all()
     assert cam.saveImage(str(tmp_path / "frame.bmp"), 100) == -1
     assert not (tmp_path / "frame.bmp").exists()
+
+
+RUNNER_WORLD = """#VRML_SIM R2023b utf8
+WorldInfo { basicTimeStep 16 }
+Solid {
+  translation 1.5 0 0.3
+  children [ Shape { appearance PBRAppearance { baseColor 1 0 0 } geometry Box { size 0.3 0.3 0.3 } } ]
+}
+Robot {
+  translation 0 0 0.3
+  children [ Camera { name "camera" width 32 height 24 } ]
+  controller "looker"
+}
+"""
+
+LOOKER = """
+from controller import Camera, Robot
+robot = Robot()
+camera = robot.getDevice("camera")
+camera.enable(32)
+while robot.step(16) != -1:
+    image = camera.getImage()
+    w, h = camera.getWidth(), camera.getHeight()
+    red = sum(1 for y in range(h) for x in range(w)
+              if Camera.imageGetRed(image, w, x, y) > 100 and Camera.imageGetGreen(image, w, x, y) < 80)
+    print(f"t={robot.getTime():.3f} red={red} centre={Camera.imageGetRed(image, w, w // 2, h // 2)}")
+camera.saveImage(PNG_PATH, 100)
+"""
+
+
+def test_unchanged_controller_reads_the_camera_through_the_runner(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from dualtwin.webots.runner import run_world
+
+    (tmp_path / "worlds").mkdir()
+    (tmp_path / "worlds" / "look.wbt").write_text(RUNNER_WORLD)
+    (tmp_path / "controllers" / "looker").mkdir(parents=True)
+    png = tmp_path / "seen.png"
+    (tmp_path / "controllers" / "looker" / "looker.py").write_text(LOOKER.replace("PNG_PATH", repr(str(png))))
+    assert run_world(tmp_path / "worlds" / "look.wbt", duration_s=0.096) == 0
+    lines = [line for line in capsys.readouterr().out.splitlines() if line.startswith("t=")]
+    reds = [int(line.split("red=")[1].split()[0]) for line in lines]
+    # enable(32) with 16 ms steps: the first image arrives at 32 ms (black before), then the box ahead.
+    assert reds[0] == 0 and all(r > 20 for r in reds[1:]), lines
+    assert all(int(line.split("centre=")[1]) > 100 for line in lines[1:]), lines
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
