@@ -479,13 +479,18 @@ def perception_train(
     out: Annotated[Path, typer.Option(help="model folder (perception.onnx + contract)")],
     epochs: Annotated[int, typer.Option(help="training epochs")] = 15,
     seed: Annotated[int, typer.Option(help="seed")] = 0,
+    init_from: Annotated[Path | None, typer.Option(help="model folder to continue training from")] = None,
+    colour_jitter: Annotated[float, typer.Option(help="per-channel colour gain augmentation exp(U(-c, c))")] = 0.0,
 ) -> None:
     """Train the small CNN that recovers pole angle and cart position from stacked frames."""
     from dualtwin.perception.model import train_perception
 
+    if not 0.0 <= colour_jitter <= 2.0:
+        raise DualtwinError(f"--colour-jitter must be in [0, 2], not {colour_jitter}")
     check_output_dir(out, "perception-train")
     with report_progress() as progress:
-        path = train_perception(data, out, epochs=epochs, seed=seed, progress=progress)
+        path = train_perception(data, out, epochs=epochs, seed=seed, progress=progress, init_from=init_from,
+                                colour_jitter=colour_jitter)
     console.print(f"wrote {path}")
 
 

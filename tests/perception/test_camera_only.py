@@ -220,3 +220,13 @@ def test_training_continues_from_a_model_without_leaking_its_episodes(webots_mod
     with pytest.raises(DualtwinError, match="holds out"):
         train_perception(data, tmp_path / "leak", epochs=1, seed=seed, threads=1, holdout=0.34, init_from=model)
     assert not (tmp_path / "leak").exists()
+
+
+def test_cli_refuses_a_negative_colour_jitter(webots_model: tuple[Path, Path], tmp_path: Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    from dualtwin.cli import main
+
+    code = main(["perception", "train", "--data", str(webots_model[0]), "--out", str(tmp_path / "m"),
+                 "--colour-jitter", "-1"])
+    err = capsys.readouterr().err
+    assert code == 2 and "--colour-jitter" in err and "Traceback" not in err and not (tmp_path / "m").exists()

@@ -201,6 +201,8 @@ def train_perception(dataset_dir: Path | str, out_dir: Path | str, *, epochs: in
 
     if epochs < 1 or stack < 1 or batch_size < 1:
         raise DualtwinError("epochs, stack and batch_size must be >= 1")
+    if not 0.0 <= colour_jitter <= 2.0:
+        raise DualtwinError(f"colour_jitter must be in [0, 2], got {colour_jitter}")
     torch.set_num_threads(max(1, int(threads)))
     torch.manual_seed(seed)
     data = load_dataset(dataset_dir)
