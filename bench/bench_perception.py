@@ -11,7 +11,9 @@ Run: ``python bench/bench_perception.py`` (or ``make bench``); ``MUJOCO_GL`` def
     seeds. Goal: >= 90 % of the privileged reward in both twins. This is *not* camera-only control: the
     CartPole policy reads cart position, cart velocity and pole angle from on-board sensors (wheel encoders,
     odometry, pole hinge encoder); perception supplies only the pole rate. The output names the loop
-    (``perception_pole_angular_velocity_only``) and which inputs came from where.
+    (``perception_pole_angular_velocity_only``) and which inputs came from where. Camera-only control (wheel
+    odometry on board, pole angle and rate from the camera, perception trained in the Webots twin) is measured by
+    ``bench/bench_camera_only.py``.
 
 Environment variables:
 
