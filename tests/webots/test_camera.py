@@ -197,3 +197,21 @@ def test_unchanged_controller_reads_the_camera_through_the_runner(
     assert reds[0] == 0 and all(r > 20 for r in reds[1:]), lines
     assert all(int(line.split("centre=")[1]) > 100 for line in lines[1:]), lines
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize(("clip", "visible"), [("near 0.01", True), ("near 0.5", False), ("far 3.0", True),
+                                               ("far 1.0", False)])
+def test_near_and_far_clip_the_box(clip: str, visible: bool) -> None:
+    # the box's near face is 1.8 m ahead: hidden by far 1.0 m, not by 3.0 m; a 0.2 m box 0.4 m ahead (its faces
+    # 0.3-0.5 m) is hidden by near 0.5 m, not by 0.01 m
+    text = (WORLD % (W, H, FOV)).replace("NOISE", clip)
+    if clip.startswith("near"):
+        text = text.replace("translation 2 0.5 0", "translation 0.4 0 0").replace("size 0.4 0.4 0.4",
+                                                                                  "size 0.2 0.2 0.2")
+    sim = Simulation(load_world_text(text))
+    sup = Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    cam = sup.getDevice("cam")
+    assert isinstance(cam, Camera)
+    cam.enable(8)
+    sup.step(8)
+    assert bool(_red(_bgra(cam)).any()) == visible
