@@ -20,6 +20,7 @@ venv: system-deps $(VENV)/.installed
 
 lint: venv
 	$(VENV)/bin/ruff check src tests bench examples
+	$(VENV)/bin/lint-imports
 
 typecheck: venv
 	$(VENV)/bin/mypy
