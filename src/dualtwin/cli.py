@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
+from enum import StrEnum
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -724,6 +725,14 @@ def convert(
     console.print(f"wrote {output}" + (f" and {binding}" if binding else ""))
 
 
+class JsonDialect(StrEnum):
+    """Schemas a primitive robot description may be written in."""
+
+    auto = "auto"
+    dualtwin = "dualtwin"
+    paper = "paper"
+
+
 @app.command("generate")
 def generate(
     output: Annotated[Path, typer.Option("-o", "--output", help="output folder for both twins")],
@@ -731,6 +740,9 @@ def generate(
     from_json: Annotated[Path | None, typer.Option(help="primitive robot description (JSON)")] = None,
     from_wbt: Annotated[Path | None, typer.Option(help="Webots world to convert")] = None,
     max_iterations: Annotated[int, typer.Option(help="LLM generate-compile-repair rounds")] = 5,
+    json_dialect: Annotated[JsonDialect, typer.Option(
+        help="schema of the description (--from-json and LLM replies): ours, the paper's, or auto-detected")]
+    = JsonDialect.auto,
 ) -> None:
     """Make both twins (MJCF + .wbt + binding) from text, a primitive JSON or a Webots world."""
     from dualtwin.genai.generate import Source
@@ -749,9 +761,12 @@ def generate(
 
         read_json(from_json, "robot description")
     check_output_dir(output, "generate", option="--output")
-    result = run_generate(make(path), output, max_iterations=max_iterations)
+    result = run_generate(make(path), output, max_iterations=max_iterations, dialect=json_dialect.value)
     console.print(f"converged after {result.iterations} LLM iteration(s)" if result.iterations
                   else "built deterministically")
+    if result.assumptions:
+        console.print(f"read in the {result.dialect} schema with {len(result.assumptions)} assumption(s) "
+                      "(listed in generation.json and transcript.json)")
     for name, file in result.files.items():
         console.print(f"  {name:<10} {file}")
 

@@ -262,8 +262,6 @@ def train(env_id: str, config_path: Path | str | Mapping[str, Any] | PPOConfig |
                             "envs; the bundled configs use subproc)")
     if config.stop_reward is not None and config.eval_freq == 0:  # before the run folder exists (issue 14)
         raise DualtwinError("stop_reward needs evaluation (eval_freq > 0)")
-    if config.stop_reward is not None and config.eval_freq == 0:  # before the run folder exists (issue 14)
-        raise DualtwinError("stop_reward needs evaluation (eval_freq > 0)")
     total = int(total_timesteps if total_timesteps is not None else config.n_timesteps)
     if total <= 0:
         raise DualtwinError(f"total_timesteps must be positive, got {total}")
