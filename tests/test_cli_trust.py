@@ -333,3 +333,26 @@ def test_train_with_an_inconsistent_config_leaves_nothing(tmp_path: Path,
     code, err = run_cli(["train", "--env", "dualtwin/CartPole-MuJoCo-Continuous-v0", "--out", str(out),
                          "--config", str(path)], capsys)
     assert code == 2 and "stop_reward needs evaluation" in err and not out.exists()
+
+
+def test_train_that_fails_building_its_envs_leaves_a_folder_resume_accepts(tmp_path: Path,
+                                                                           capsys: pytest.CaptureFixture[str]) -> None:
+    import yaml
+
+    from dualtwin.rl.train import DEFAULT_CONFIG
+
+    config = yaml.safe_load(DEFAULT_CONFIG.read_text())
+    config.update(vec_env="dummy", n_envs=1, n_steps=64, batch_size=64, eval_freq=0)
+    bad = dict(config, env_kwargs={"task_kwargs": {"no_such_option": 1}})  # valid YAML, fails building the env
+    (tmp_path / "bad.yaml").write_text(yaml.safe_dump(bad))
+    (tmp_path / "good.yaml").write_text(yaml.safe_dump(config))
+    out = tmp_path / "train"
+    argv = ["train", "--env", "dualtwin/CartPole-MuJoCo-Continuous-v0", "--out", str(out), "--steps", "64"]
+    code, err = run_cli([*argv, "--config", str(tmp_path / "bad.yaml")], capsys)
+    assert code == 2 and "no_such_option" in err
+    assert json.loads((out / "run.json").read_text())["status"] == "starting"  # failed after starting
+    code, err = run_cli([*argv, "--config", str(tmp_path / "good.yaml")], capsys)
+    assert code == 2 and "--resume" in err  # a plain re-run still refuses a folder it did not finish
+    code, err = run_cli([*argv, "--config", str(tmp_path / "good.yaml"), "--resume"], capsys)
+    assert code == 0, err
+    assert (out / "run.json").is_file() and (out / "model.zip").is_file()

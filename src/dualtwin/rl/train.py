@@ -271,8 +271,13 @@ def train(env_id: str, config_path: Path | str | Mapping[str, Any] | PPOConfig |
     run_path = out / "run.json"
 
     previous: dict[str, Any] | None = None
+    restarting = False
     if resume and run_path.is_file():
         previous = _read_json(run_path)
+        if previous.get("status") == STARTING:
+            # it failed before training (say, building its envs): nothing to resume, so it starts afresh
+            previous, restarting = None, True
+    if previous is not None:
         differ = [name for name, old, new in (("env id", previous.get("env_id"), env_id),
                                                ("seed", previous.get("seed"), seed),
                                                ("config", _without_steps(previous.get("config")),
@@ -287,13 +292,17 @@ def train(env_id: str, config_path: Path | str | Mapping[str, Any] | PPOConfig |
             raise DualtwinError(f"{run_path}: cannot resume: {', '.join(differ)} differ from the interrupted run")
         if previous.get("status") == "complete" and previous.get("num_timesteps", 0) >= total:
             return out
-    elif out.exists() and any(out.iterdir()):
+    elif not restarting and out.exists() and any(out.iterdir()):
         raise DualtwinError(f"{out}: output folder is not empty; use resume to continue a run, "
                             "or choose another folder")
     final_steps = previous.get("num_timesteps") if previous and previous.get("status") == "complete" else None
     start_from = _latest_checkpoint(out, final_steps) if previous else None
     config_record["n_timesteps"] = total
     out.mkdir(parents=True, exist_ok=True)
+    if previous is None:
+        # the run's record comes first, so a run that fails before training still leaves a folder that is
+        # recognisably this command's and that --resume accepts (issue 14: a failed run never locks its folder)
+        write_json(run_path, {"env_id": env_id, "seed": seed, "status": STARTING})
     write_text(out / "config.yaml", yaml.safe_dump(config_record, sort_keys=False))
     if dr:
         write_json(out / "dr_ranges.json", {"knobs": dr})
@@ -309,6 +318,10 @@ def train(env_id: str, config_path: Path | str | Mapping[str, Any] | PPOConfig |
         kwargs = dict(config.env_kwargs)
         trainer.env_kwargs = {**kwargs, "knobs": {**dict(kwargs.get("knobs") or {}), **aligned_record["values"]}}
     return trainer.run()
+
+
+#: ``run.json``'s status from the moment a run's folder is made until its trainer first records it.
+STARTING = "starting"
 
 
 def _init_record(env_id: str, run: Path | str) -> dict[str, Any]:
