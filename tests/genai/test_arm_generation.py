@@ -16,6 +16,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -165,3 +168,22 @@ def test_generated_arm_runs_its_suite_in_both_twins(generated: tuple[Any, Any, P
         assert all(s["status"] == "completed" for s in manifest["scenarios"]), (twin, manifest["scenarios"])
         finals[twin] = manifest
     assert len(finals["mujoco"]["scenarios"]) == len(finals["webots"]["scenarios"]) == len(suite["scenarios"])
+
+
+def test_cli_generate_from_text_runs_the_same_loop(tmp_path: Path) -> None:
+    """``dualtwin generate --from-text``, configured through the environment, against the same script."""
+    with replay_server([Reply(text) for text in script()]) as (base, log):
+        env = {**os.environ, "DUALTWIN_LLM_BASE_URL": base, "DUALTWIN_LLM_MODEL": "replay",
+               "DUALTWIN_LLM_API_KEY": "sk-loop", "DUALTWIN_LLM_PROVIDER": "openai"}
+        env.pop("DUALTWIN_LLM_CONFIG", None)
+        done = subprocess.run([sys.executable, "-m", "dualtwin.cli", "generate", "--from-text", str(DATASHEET),
+                               "-o", str(tmp_path / "model"), "--max-iterations", "6"],
+                              capture_output=True, text=True, env=env, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert "converged after 5 LLM iteration(s)" in done.stdout and len(log.requests) == 5
+    record = json.loads((tmp_path / "model" / "generation.json").read_text())
+    assert record["converged"] and record["iterations"] == 5
+    # generation.json keeps what each failed round was refused for, in order.
+    caught = ["masses do not add up", "degrees?", "unknown parent 'wrist1'", "overlap"]
+    assert len(record["errors"]) == 4
+    assert all(word in error for word, error in zip(caught, record["errors"], strict=True))
