@@ -27,12 +27,19 @@ from dualtwin.artifacts import package_versions, sha256_file, write_json
 from dualtwin.errors import DualtwinError
 
 GAINS = (0.5, 1.0, 25.0, 4.0)  # x, x', θ, θ' (acceleration per unit)
+#: A stiffer position loop for camera-only control: with a fixed camera the pole estimate's bias grows with the
+#: cart's distance from the image centre, and a bias b holds the cart at 25 b / k_x from it (see the README).
+CAMERA_GAINS = (2.0, 2.0, 25.0, 4.0)
 ENV_KWARGS: dict[str, Any] = {"task_kwargs": {"cart_velocity": "odometry"}}
 OPSET = 17
 
 
-def export_reference_policy(out_dir: Path | str, env_id: str = "dualtwin/CartPole-MuJoCo-Continuous-v0") -> Path:
-    """Write the reference policy (``policy.onnx`` + ``policy_contract.json``) into ``out_dir``."""
+def export_reference_policy(out_dir: Path | str, env_id: str = "dualtwin/CartPole-MuJoCo-Continuous-v0",
+                            gains: tuple[float, float, float, float] = GAINS) -> Path:
+    """Write the reference policy (``policy.onnx`` + ``policy_contract.json``) into ``out_dir``.
+
+    ``gains`` (x, x', θ, θ'): :data:`GAINS` by default; :data:`CAMERA_GAINS` hold the cart nearer the centre.
+    """
     import torch
     from torch import nn
 
@@ -51,7 +58,7 @@ def export_reference_policy(out_dir: Path | str, env_id: str = "dualtwin/CartPol
         raise DualtwinError(f"{env_id}: the reference policy is for the continuous CartPole only")
     scale = float(action["scale"])
     # cart velocity = x' + dt (g · state): one linear layer, then the env's clip and scaling.
-    weight = np.asarray(GAINS, dtype=np.float64) * dt
+    weight = np.asarray(gains, dtype=np.float64) * dt
     weight[1] += 1.0
 
     class Reference(nn.Module):
@@ -87,7 +94,7 @@ def export_reference_policy(out_dir: Path | str, env_id: str = "dualtwin/CartPol
                              {"name": "cart_velocity", "dtype": "float32", "shape": ["batch"], "unit": "m/s",
                               "meaning": action["scaling"]}]},
         "observation": io["observation"]["terms"], "normalization": None, "action": action,
-        "policy_run": "reference", "reference": {"gains": dict(zip(["x", "x_dot", "theta", "theta_dot"], GAINS,
+        "policy_run": "reference", "reference": {"gains": dict(zip(["x", "x_dot", "theta", "theta_dot"], gains,
                                                                    strict=True)),
                                                  "law": "cart velocity = x' + dt * (gains . state)"},
         "versions": package_versions(),
