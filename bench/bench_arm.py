@@ -190,11 +190,12 @@ def mujoco_overhead() -> dict[str, float]:
     return out
 
 
-# The "real arm" stand-in for alignment: the Webots arm_payload twin with joint losses the converted model
-# lacks (viscous damping and Coulomb friction, larger on the big joints) and a 4 kg payload instead of 5 kg.
+# The "real arm" stand-in for alignment: the Webots arm_payload twin with viscous joint damping the converted
+# model lacks (larger on the big joints) and a 4 kg payload instead of 5 kg. No static friction: Webots gives a
+# motorized joint's ODE motor row max(staticFriction, available torque), so below the torque limit it has no
+# effect in position control (the MuJoCo twin's frictionloss does act: its friction knobs should stay near 0).
 HIDDEN = {
     **{f"joint.{j}.damping": v for j, v in zip(JOINTS, (6.0, 8.0, 4.0, 0.6, 0.6, 0.3), strict=True)},
-    **{f"joint.{j}.friction": v for j, v in zip(JOINTS, (3.0, 4.0, 2.0, 0.5, 0.5, 0.2), strict=True)},
     "body.payload.mass": 4.0,
 }
 # 25 MuJoCo knobs: per joint damping, dry friction, rotor inertia (armature) and the emulated Webots P gain,
@@ -227,9 +228,10 @@ def alignment_suite(path: Path) -> list[str]:
 
 
 def moving_channels(run: Path, scenario_ids: list[str]) -> list[str]:
-    """Ground-truth channels that move (peak-to-peak >= 1e-3 of their unit) in the fitted scenarios: the
-    objective scales each channel by its reference range, so a flat channel (the flange roll when no wrist
-    rolls) would weigh its numerical noise by 1e12."""
+    """Position channels (flange pose, joint angles) that move (peak-to-peak >= 1e-3 of their unit) in the
+    fitted scenarios: the objective scales each channel by its reference range, so a flat channel (the flange
+    roll when no wrist rolls) would weigh its numerical noise by 1e12. Joint rates are left out: the goals are
+    on positions, and the rates' saturation transients dominated the objective without moving them."""
     ranges: dict[str, float] = {}
     for sid in scenario_ids:
         path = run / "scenarios" / sid / "ground_truth.tsv"
@@ -237,10 +239,10 @@ def moving_channels(run: Path, scenario_ids: list[str]) -> list[str]:
         data = np.loadtxt(path, skiprows=1, ndmin=2)[:, 1:]
         for name, ptp in zip(names, np.ptp(data, axis=0), strict=True):
             ranges[name] = max(ranges.get(name, 0.0), float(ptp))
-    return [name for name, ptp in ranges.items() if ptp >= 1e-3]
+    return [name for name, ptp in ranges.items() if ptp >= 1e-3 and not name.startswith("dq")]
 
 
-def alignment(root: Path, budget: int, executor: str) -> dict[str, Any]:
+def alignment(root: Path, budget: int, executor: str, optimizer: str = "cma") -> dict[str, Any]:
     """CMA-ES over 25 knobs of the MuJoCo arm_payload against the Webots stand-in; RMSE before/after per
     scenario, and which knob families and joints carry the divergence (ablation from the fitted values)."""
     from fnmatch import fnmatch
@@ -260,7 +262,7 @@ def alignment(root: Path, budget: int, executor: str) -> dict[str, Any]:
     channels = moving_channels(root / "reference", fit_ids)
     weights = ObjectiveWeights(rmse=1.0, endpoint=0.5, dtw=0.0, event=0.0)
     start = time.perf_counter()
-    result = align(root / "reference", "mujoco", robot, suite, KNOBS, root / "align", optimizer="cma",
+    result = align(root / "reference", "mujoco", robot, suite, KNOBS, root / "align", optimizer=optimizer,  # type: ignore[arg-type]
                    budget=budget, holdout=holdout, bounds=BOUNDS, channels=channels, weights=weights,
                    executor=executor)  # type: ignore[arg-type]
     wall = time.perf_counter() - start
@@ -274,7 +276,7 @@ def alignment(root: Path, budget: int, executor: str) -> dict[str, Any]:
         return {s["id"]: scenario_rmse(root / "reference", root / name, s) for s in manifest["scenarios"]}
 
     before, after = run({}, "before"), run(fitted, "after")
-    print(f"== alignment: {len(fitted)} MuJoCo knobs, CMA-ES, budget {budget}, executor {executor}: "
+    print(f"== alignment: {len(fitted)} MuJoCo knobs, {optimizer}, budget {budget}, executor {executor}: "
           f"{wall:.0f} s wall, {result.evaluations} evaluations, stop: {result.stop_reason} ==")
     print(f"  fitted channels: {', '.join(channels)}; objective weights: {WEIGHTS_DOC}")
     print(f"  objective {result.objective_before:.4g} -> {result.objective_after:.4g}; held out "
@@ -289,25 +291,33 @@ def alignment(root: Path, budget: int, executor: str) -> dict[str, Any]:
     truth = {**{k: v for k, v in HIDDEN.items() if k.startswith("joint.")},
              "body.wrist_3_link.mass": 0.365 + HIDDEN["body.payload.mass"]}
     for name, fit in result.knobs.items():
-        expected = truth.get(name, 0.0 if name.endswith(".armature") else 10.0 if name.endswith(".kp") else
-                             fit.nominal)
+        expected = truth.get(name, 10.0 if name.endswith(".kp") else 0.0)
         print(f"    {name:32s} {fit.fitted:9.4g} [{expected:g}] {fit.unit}{' at ' + fit.at_bound if fit.at_bound else ''}")
-    # What dominates: put one knob family (or one joint's knobs) back to nominal and see the fit scenarios' RMSE.
-
+    # What dominates: put one knob family (or one joint's knobs) back to nominal, from the fitted values (what a
+    # user has) and from the hidden truth (the control this bench knows), and see the fitted scenarios' RMSE.
     def mean_ee(table: dict[str, dict[str, float]]) -> float:
         return float(np.mean([table[sid]["ee_m"] for sid in fit_ids]))
 
-    ablation: dict[str, float] = {}
-    for label, pattern in FAMILIES.items():
-        values = {k: v for k, v in fitted.items() if not fnmatch(k, pattern)}
-        ablation[label] = mean_ee(run(values, f"ablate_{label.replace(' ', '_')}"))
-    for joint in JOINTS:
-        values = {k: v for k, v in fitted.items() if f".{joint}." not in k}
-        ablation[joint] = mean_ee(run(values, f"ablate_{joint}"))
-    print(f"  mean flange RMSE over the fitted scenarios: before {mean_ee(before) * 1000:.3f} mm, after "
-          f"{mean_ee(after) * 1000:.3f} mm; with one family or joint back at nominal:")
-    for label, value in sorted(ablation.items(), key=lambda kv: -kv[1]):
-        print(f"    {label:16s} {value * 1000:8.3f} mm")
+    truth_values = {k: v for k, v in truth.items()}
+    ablation: dict[str, dict[str, float]] = {"fitted": {}, "truth": {}}
+    for source, values in (("fitted", fitted), ("truth", truth_values)):
+        ablation[source]["all"] = mean_ee(after if source == "fitted" else run(values, "truth"))
+        groups = [(label, lambda k, p=pattern: fnmatch(k, p)) for label, pattern in FAMILIES.items()]
+        groups += [(joint, lambda k, j=joint: f".{j}." in k) for joint in JOINTS]
+        for label, drop in groups:
+            kept = {k: v for k, v in values.items() if not drop(k)}
+            if kept != values:
+                ablation[source][label] = mean_ee(run(kept, f"ablate_{source}_{label.replace(' ', '_')}"))
+    print(f"  mean flange RMSE over the fitted scenarios: nominal {mean_ee(before) * 1000:.3f} mm, fitted "
+          f"{ablation['fitted']['all'] * 1000:.3f} mm, hidden truth {ablation['truth']['all'] * 1000:.3f} mm; "
+          "with one knob family or one joint's knobs back at nominal:")
+    labels = sorted({k for table in ablation.values() for k in table} - {"all"},
+                    key=lambda k: -ablation["truth"].get(k, 0.0))
+    print(f"    {'':16s} {'from fitted':>12s} {'from truth':>12s}")
+    for label in labels:
+        cells = [f"{ablation[src][label] * 1000:9.3f} mm" if label in ablation[src] else f"{'-':>12s}"
+                 for src in ("fitted", "truth")]
+        print(f"    {label:16s} {cells[0]} {cells[1]}")
     return {"align_wall_s": wall, "align_evaluations": result.evaluations, "rmse_before": before,
             "rmse_after": after, "ablation": ablation, "fitted": fitted}
 
@@ -316,15 +326,16 @@ def main() -> dict[str, Any]:
     import argparse
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    parser.add_argument("--budget", type=int, default=300, help="alignment evaluations (0 skips alignment)")
+    parser.add_argument("--budget", type=int, default=500, help="alignment evaluations (0 skips alignment)")
     parser.add_argument("--executor", default="process", help="alignment executor: process or ray")
+    parser.add_argument("--optimizer", default="cma", help="alignment optimizer: cma (the goal's) or lsq")
     args = parser.parse_args()
     with output_folder("DUALTWIN_BENCH_ARM_OUT", "arm") as (root, kept):
         results: dict[str, Any] = {"rmse": divergence(root)}
         results.update(webots_stepping())
         results.update(mujoco_overhead())
         if args.budget > 0:
-            results.update(alignment(root / "alignment", args.budget, args.executor))
+            results.update(alignment(root / "alignment", args.budget, args.executor, args.optimizer))
         if kept:
             print(f"runs kept in {root}")
     return results
