@@ -220,3 +220,23 @@ def test_llm_loop_repairs_a_paper_schema_answer(tmp_path: Path) -> None:
 def test_explicit_dialect_overrides_detection(tmp_path: Path) -> None:
     with pytest.raises(DualtwinError, match="invalid robot description"):
         read_description(paper_cartpole(), "x.json", dialect="dualtwin")
+
+
+def test_a_part_may_overlap_its_parent_even_on_a_fixed_base(tmp_path: Path) -> None:
+    # a post fixed to the world with an arm whose hinge sits inside the post: parent and child share the axle
+    post = {"name": "post", "type": "box", "dimensions": {"size": [0.1, 0.1, 1.0]}, "mass": 2.0,
+            "position": [0, 0, 0.5], "orientation": [0, 0, 0], "parent": None, "joint": {"type": "fixed"}}
+    arm = {"name": "arm", "type": "box", "dimensions": {"size": [0.4, 0.04, 0.04]}, "mass": 0.3,
+           "position": [0.15, 0, 0.45], "orientation": [0, 0, 0], "parent": "post",
+           "joint": {"type": "hinge", "axis": [0, 1, 0], "anchor": [0, 0, 0.45]}}
+    data = {"robot_name": "post_arm", "parts": [post, arm]}
+    path = tmp_path / "post_arm.json"
+    path.write_text(json.dumps(data))
+    assert generate(Source.from_json(path), tmp_path / "ok").converged
+    # control: a second, unrelated arm in the same place is an overlap
+    data["parts"].append({**arm, "name": "arm2", "parent": "arm", "position": [0, 0, 0], "joint": {
+        "type": "hinge", "axis": [0, 1, 0]}})
+    data["parts"].append({**arm, "name": "arm3"})
+    path.write_text(json.dumps(data))
+    with pytest.raises(DualtwinError, match="parts 'arm2' and 'arm3' overlap|parts 'arm' and 'arm3' overlap"):
+        generate(Source.from_json(path), tmp_path / "bad")

@@ -212,7 +212,9 @@ def overlapping_parts(model: mujoco.MjModel) -> list[str]:
     A robot's parts do not collide with each other in either twin (Webots' ``selfCollision`` is off by default,
     and the converter mirrors that), so an overlap is not a physics failure but a description that cannot be
     what its author meant: it is checked on a copy in which every collision geom collides with every other.
-    MuJoCo still leaves a body and its parent out (parts on a joint may interpenetrate around their axle).
+    A body and its parent are left out (parts on a joint may interpenetrate around their axle, and a fixed base
+    may stand in the floor). MuJoCo's own parent filter does not do this for a parent welded to the world, so
+    the kinematic tree decides here.
     """
     model = copy.copy(model)
     solid = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
@@ -228,6 +230,8 @@ def overlapping_parts(model: mujoco.MjModel) -> list[str]:
         if depth <= OVERLAP_TOLERANCE_M:
             continue
         b1, b2 = (int(model.geom_bodyid[g]) for g in (contact.geom1, contact.geom2))
+        if b1 != b2 and (int(model.body_parentid[b1]) == b2 or int(model.body_parentid[b2]) == b1):
+            continue
         names = tuple(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or "floor" if b else "floor"
                       for b in (b1, b2))
         key = (names[0], names[1])
