@@ -51,14 +51,14 @@ from collections.abc import AsyncIterator, Awaitable, Callable, MutableMapping, 
 from contextlib import asynccontextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from fastapi import Depends, FastAPI, HTTPException, Request, Security
 from fastapi.openapi.utils import get_openapi
 from fastapi.responses import JSONResponse, Response
 from fastapi.security import APIKeyHeader
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError
 from starlette.concurrency import run_in_threadpool
 
 from dualtwin.errors import DualtwinError
@@ -99,7 +99,9 @@ class ActRequest(_Strict):
     session: str = Field(min_length=1, max_length=128, pattern=r"^[A-Za-z0-9_.:\-]+$",
                          description="client-chosen id; frame history and filter are kept per session, in the "
                                      "namespace of the caller's API key (or address, without keys)")
-    sensors: dict[str, float] = Field(description="on-board readings named as the policy's onboard observations")
+    # Strict numbers: true/false or "1.0" is a malformed reading (the schema says number), not 1.0.
+    sensors: dict[str, Annotated[float, Strict()]] = Field(
+        description="on-board readings named as the policy's onboard observations")
     frame: FramePayload
     reset: bool = Field(default=False, description="start a new episode: drop this session's history first")
     time_s: float | None = Field(default=None, description="robot time of the readings (echoed back)")
