@@ -146,6 +146,20 @@ def read_text_file(path: Path, what: str = "file") -> str:
         raise DualtwinError(f"{path}: cannot read {what}: {exc.strerror}") from None
 
 
+def read_yaml(path: Path, what: str = "YAML file") -> Any:
+    """YAML (safe loader) from a user file; errors name the file, line and column."""
+    import yaml
+
+    path = Path(path)
+    text = read_text_file(path, what)
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f":{mark.line + 1}:{mark.column + 1}" if mark else ""
+        raise DualtwinError(f"{path}{where}: invalid YAML: {getattr(exc, 'problem', exc)}") from None
+
+
 def _reject_constant(token: str) -> float:
     raise ValueError(f"{token} is not a valid JSON number (NaN and infinities are not allowed)")
 

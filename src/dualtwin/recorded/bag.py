@@ -23,10 +23,9 @@ from typing import Any
 
 import numpy as np
 
-from dualtwin.artifacts import check_input_file, check_output_dir
+from dualtwin.artifacts import check_input_file
 from dualtwin.errors import DualtwinError
 from dualtwin.recorded.build import (
-    KIND,
     FloatArray,
     RawLog,
     Recording,
@@ -37,8 +36,8 @@ from dualtwin.recorded.build import (
     write_recording,
 )
 from dualtwin.recorded.cdr import MessageReader, compile_schema
-from dualtwin.recorded.mapping import BagChannel, BagMapping, load_mapping, resolve_files
-from dualtwin.recorded.table import resolve_inputs
+from dualtwin.recorded.mapping import BagChannel, BagMapping
+from dualtwin.recorded.table import mapped_inputs
 from dualtwin.reporting.progress import ProgressCallback
 from dualtwin.robots.binding import RobotBinding
 
@@ -354,16 +353,10 @@ def import_mcap(mapping: Path, suite: Path, robot: str | Path | RobotBinding, ou
         data_dir: Where the mapping's bag names are resolved and confined; default the mapping's folder.
         progress: Receives progress events (`dualtwin.reporting.progress`) while files are read and written.
     """
-    check_output_dir(Path(out), KIND, resume=True, resumable=True)
-    mapping_path = Path(mapping)
-    spec = load_mapping(mapping_path, BagMapping)
+    inputs = mapped_inputs(mapping, BagMapping, suite, robot, out, data_dir)
+    spec, suite_model, binding, mapping_path, files, names = (
+        inputs.spec, inputs.suite, inputs.binding, inputs.mapping_path, inputs.files, inputs.names)
     assert isinstance(spec, BagMapping)
-    suite_model, binding = resolve_inputs(Path(suite), robot)
-    root = Path(data_dir) if data_dir is not None else mapping_path.parent
-    if not root.is_dir():
-        raise DualtwinError(f"--data-dir {root}: not a folder")
-    files = resolve_files(spec.files, root, str(mapping_path))
-    names = [str(f.relative_to(root.resolve())) for f in files]
     where = str(mapping_path)
     factors = {ch.run_name: channel_factor(binding, ch, where) for ch in spec.channels}
     count = len(suite_model.scenarios)

@@ -39,7 +39,6 @@ import re
 from pathlib import Path
 from typing import Literal
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from dualtwin.errors import DualtwinError
@@ -165,17 +164,11 @@ class BagMapping(_Strict):
 
 def load_mapping(path: Path, model: type[TableMapping] | type[BagMapping]) -> TableMapping | BagMapping:
     """Read and validate a YAML mapping; errors name the file and the field (``$.channels[1].unit``)."""
-    from dualtwin.artifacts import read_text_file
+    from dualtwin.artifacts import read_yaml
     from dualtwin.suite.loader import validation_message
 
     path = Path(path)
-    text = read_text_file(path, "mapping file")
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f":{mark.line + 1}:{mark.column + 1}" if mark else ""
-        raise DualtwinError(f"{path}{where}: invalid YAML: {getattr(exc, 'problem', exc)}") from None
+    data = read_yaml(path, "mapping file")
     if not isinstance(data, dict):
         raise DualtwinError(f"{path}: a mapping file must hold a YAML mapping (keys such as files, channels)")
     try:

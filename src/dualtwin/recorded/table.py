@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +25,7 @@ from dualtwin.recorded.build import (
     write_recording,
 )
 from dualtwin.recorded.delimited import Table, read_table
-from dualtwin.recorded.mapping import TableMapping, load_mapping, resolve_files
+from dualtwin.recorded.mapping import BagMapping, TableMapping, load_mapping, resolve_files
 from dualtwin.reporting.progress import ProgressCallback
 from dualtwin.robots.binding import RobotBinding, resolve_robot
 from dualtwin.suite.loader import load_suite
@@ -50,6 +51,34 @@ def resolve_inputs(suite_path: Path, robot: str | Path | RobotBinding) -> tuple[
     suite = load_suite(Path(suite_path))
     check_suite(suite, Path(suite_path), binding)
     return suite, binding
+
+
+@dataclass
+class MappedInputs:
+    """What a mapping-driven import reads before its first sample: the mapping, suite, binding and files."""
+
+    spec: TableMapping | BagMapping
+    suite: Suite
+    binding: RobotBinding
+    mapping_path: Path
+    files: list[Path]
+    names: list[str]  # each file relative to the data folder, as the manifest records it
+
+
+def mapped_inputs(mapping: Path, model: type[TableMapping] | type[BagMapping], suite: Path,
+                  robot: str | Path | RobotBinding, out: Path, data_dir: Path | None) -> MappedInputs:
+    """Check the output folder, load and validate the mapping, the suite and the binding, and resolve the
+    mapping's files inside the data folder (default: the mapping's folder); nothing is created."""
+    check_output_dir(Path(out), KIND, resume=True, resumable=True)
+    mapping_path = Path(mapping)
+    spec = load_mapping(mapping_path, model)
+    suite_model, binding = resolve_inputs(Path(suite), robot)
+    root = Path(data_dir) if data_dir is not None else mapping_path.parent
+    if not root.is_dir():
+        raise DualtwinError(f"--data-dir {root}: not a folder")
+    files = resolve_files(spec.files, root, str(mapping_path))
+    names = [str(f.relative_to(root.resolve())) for f in files]
+    return MappedInputs(spec, suite_model, binding, mapping_path, files, names)
 
 
 def _time_axis(table: Table, mapping: TableMapping, period: float) -> tuple[FloatArray, dict[str, Any]]:
@@ -132,16 +161,10 @@ def import_table(mapping: Path, suite: Path, robot: str | Path | RobotBinding, o
         data_dir: Where the mapping's file names are resolved and confined; default the mapping's folder.
         progress: Receives progress events (`dualtwin.reporting.progress`) while files are read and written.
     """
-    check_output_dir(Path(out), KIND, resume=True, resumable=True)
-    mapping_path = Path(mapping)
-    spec = load_mapping(mapping_path, TableMapping)
+    inputs = mapped_inputs(mapping, TableMapping, suite, robot, out, data_dir)
+    spec, suite_model, binding, mapping_path, files, names = (
+        inputs.spec, inputs.suite, inputs.binding, inputs.mapping_path, inputs.files, inputs.names)
     assert isinstance(spec, TableMapping)
-    suite_model, binding = resolve_inputs(Path(suite), robot)
-    root = Path(data_dir) if data_dir is not None else mapping_path.parent
-    if not root.is_dir():
-        raise DualtwinError(f"--data-dir {root}: not a folder")
-    files = resolve_files(spec.files, root, str(mapping_path))
-    names = [str(f.relative_to(root.resolve())) for f in files]
     time_doc = {"column": spec.time.column, "unit": spec.time.unit, "origin": spec.time.origin,
                 "rule": f"origin auto re-bases a file whose first stamp is later than {AUTO_REBASE_PERIODS} "
                         "control periods", **TIME_DOC}

@@ -150,12 +150,9 @@ def load_config(source: Path | str | Mapping[str, Any] | PPOConfig | None = None
         if not path.is_file():
             raise DualtwinError(f"{path}: config file not found")
         origin = str(path)
-        from dualtwin.artifacts import read_text_file
+        from dualtwin.artifacts import read_yaml
 
-        try:
-            data = yaml.safe_load(read_text_file(path, "PPO config"))
-        except yaml.YAMLError as exc:
-            raise DualtwinError(f"{path}: invalid YAML: {exc}") from None
+        data = read_yaml(path, "PPO config")
     else:
         data = dict(source)
     try:

@@ -17,7 +17,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from dualtwin.errors import DualtwinError
@@ -166,16 +165,10 @@ class RobotBinding:
 
 
 def load_binding(path: Path) -> RobotBinding:
-    from dualtwin.artifacts import read_text_file
+    from dualtwin.artifacts import read_yaml
 
     path = Path(path)
-    text = read_text_file(path, "binding file")
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f":{mark.line + 1}:{mark.column + 1}" if mark else ""
-        raise DualtwinError(f"{path}{where}: invalid YAML: {getattr(exc, 'problem', exc)}") from None
+    data = read_yaml(path, "binding file")
     try:
         binding = Binding.model_validate(data)
     except ValidationError as exc:
