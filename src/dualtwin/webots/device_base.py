@@ -89,3 +89,47 @@ class SolidSensor(SampledDevice):
 
     def _pose(self) -> m3.Pose:
         return self._robot._sim.solid_world_pose(self._record.solid)
+
+
+class KinematicMotor(Device):
+    """Webots' Motor API for a motor that drives a kinematic state (a propeller's spin, a track's belt) instead
+    of an ODE joint row. The state (``_state()``) holds ``multiplier``, ``max_velocity``, ``target_position``,
+    ``target_velocity`` and ``acceleration``; velocities are multiplied and clipped as Webots clips them."""
+
+    def _state(self) -> Any:
+        return self._record
+
+    def setVelocity(self, velocity: Any) -> None:
+        from dualtwin.webots.api_args import as_float, finite, warn
+
+        state = self._state()
+        v = as_float(velocity, "Motor.setVelocity")
+        if not finite(v):
+            return
+        v *= state.multiplier
+        if abs(v) > state.max_velocity:
+            warn(f"'{self._name}': requested velocity {v} exceeds maxVelocity {state.max_velocity}")
+            v = math.copysign(state.max_velocity, v)
+        state.target_velocity = v
+
+    def setAcceleration(self, acceleration: Any) -> None:
+        from dualtwin.webots.api_args import as_float, finite
+
+        a = as_float(acceleration, "Motor.setAcceleration")
+        if finite(a):
+            self._state().acceleration = a
+
+    def getTargetPosition(self) -> float:
+        return float(self._state().target_position)
+
+    def getVelocity(self) -> float:
+        return float(self._state().target_velocity)
+
+    def getMaxVelocity(self) -> float:
+        return float(self._state().max_velocity)
+
+    def getAcceleration(self) -> float:
+        return float(self._state().acceleration)
+
+    def getMultiplier(self) -> float:
+        return float(self._state().multiplier)

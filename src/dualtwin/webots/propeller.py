@@ -22,7 +22,7 @@ from typing import Any
 
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots.api_args import as_float, finite, warn
-from dualtwin.webots.device_base import Device
+from dualtwin.webots.device_base import KinematicMotor
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import AttachmentRec, Simulation
 
@@ -159,7 +159,7 @@ def install(sim: Simulation) -> list[PropellerRec]:
     return hook.recs
 
 
-class PropellerMotor(Device):
+class PropellerMotor(KinematicMotor):
     """The RotationalMotor of a Propeller: Webots' Motor API over the kinematic controller."""
 
     ROTATIONAL = 0
@@ -170,22 +170,6 @@ class PropellerMotor(Device):
         if finite(p):
             self._record.target_position = p * self._record.multiplier
 
-    def setVelocity(self, velocity: Any) -> None:
-        rec = self._record
-        v = as_float(velocity, "Motor.setVelocity")
-        if not finite(v):
-            return
-        v *= rec.multiplier
-        if abs(v) > rec.max_velocity:
-            warn(f"'{self._name}': requested velocity {v} exceeds maxVelocity {rec.max_velocity}")
-            v = math.copysign(rec.max_velocity, v)
-        rec.target_velocity = v
-
-    def setAcceleration(self, acceleration: Any) -> None:
-        a = as_float(acceleration, "Motor.setAcceleration")
-        if finite(a):
-            self._record.acceleration = a
-
     def setAvailableTorque(self, torque: Any) -> None:
         t = as_float(torque, "Motor.setAvailableTorque")
         if finite(t) and t >= 0:
@@ -194,23 +178,8 @@ class PropellerMotor(Device):
     def setTorque(self, torque: Any) -> None:
         warn(f"'{self._name}': a propeller motor is speed-controlled; setTorque is ignored")
 
-    def getTargetPosition(self) -> float:
-        return self._record.target_position
-
-    def getVelocity(self) -> float:
-        return self._record.target_velocity
-
-    def getMaxVelocity(self) -> float:
-        return self._record.max_velocity
-
     def getMaxTorque(self) -> float:
         return self._record.max_torque
-
-    def getAcceleration(self) -> float:
-        return self._record.acceleration
-
-    def getMultiplier(self) -> float:
-        return self._record.multiplier
 
     def getType(self) -> int:
         return self.ROTATIONAL

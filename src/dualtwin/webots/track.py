@@ -24,8 +24,8 @@ from typing import Any
 
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots import ode
-from dualtwin.webots.api_args import as_float, finite, warn
-from dualtwin.webots.device_base import Device, SampledDevice
+from dualtwin.webots.api_args import as_float, finite
+from dualtwin.webots.device_base import Device, KinematicMotor, SampledDevice
 from dualtwin.webots.motor_law import motor_velocity
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import Simulation, SolidRec
@@ -186,7 +186,7 @@ def install(sim: Simulation) -> list[TrackRec]:
     return hook.recs
 
 
-class TrackMotor(Device):
+class TrackMotor(KinematicMotor):
     """The LinearMotor of a Track: Webots' Motor API driving the belt."""
 
     LINEAR = 1
@@ -194,6 +194,9 @@ class TrackMotor(Device):
 
     @property
     def _track(self) -> TrackRec:
+        return self._record.track
+
+    def _state(self) -> TrackRec:
         return self._record.track
 
     def setPosition(self, position: Any) -> None:
@@ -207,22 +210,6 @@ class TrackMotor(Device):
         t.target_position = p
         t.force_mode = False
 
-    def setVelocity(self, velocity: Any) -> None:
-        t = self._track
-        v = as_float(velocity, "Motor.setVelocity")
-        if not finite(v):
-            return
-        v *= t.multiplier
-        if abs(v) > t.max_velocity:
-            warn(f"'{self._name}': requested velocity {v} exceeds maxVelocity {t.max_velocity}")
-            v = math.copysign(t.max_velocity, v)
-        t.target_velocity = v
-
-    def setAcceleration(self, acceleration: Any) -> None:
-        a = as_float(acceleration, "Motor.setAcceleration")
-        if finite(a):
-            self._track.acceleration = a
-
     def setAvailableForce(self, force: Any) -> None:
         f = as_float(force, "Motor.setAvailableForce")
         if finite(f) and f >= 0:
@@ -234,15 +221,6 @@ class TrackMotor(Device):
             t = self._track
             t.force = max(-t.available, min(t.available, f * t.multiplier))
             t.force_mode = True
-
-    def getTargetPosition(self) -> float:
-        return self._track.target_position
-
-    def getVelocity(self) -> float:
-        return self._track.target_velocity
-
-    def getMaxVelocity(self) -> float:
-        return self._track.max_velocity
 
     def getMaxForce(self) -> float:
         return self._track.max_force
