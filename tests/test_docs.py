@@ -1,9 +1,12 @@
-"""The documentation site: the CLI reference is generated from the typer app and current, and the site builds
-with ``mkdocs build --strict`` (broken links and unlisted pages fail)."""
+"""The documentation site: the CLI reference is generated from the typer app and current, the site builds
+with ``mkdocs build --strict`` (broken links and unlisted pages fail), and the README stays a short entry point
+(at most 10 KB, links that resolve, commands that exist)."""
 
 from __future__ import annotations
 
 import importlib.util
+import re
+import shlex
 import subprocess
 import sys
 from pathlib import Path
@@ -30,3 +33,55 @@ def test_site_builds_strictly(tmp_path: Path) -> None:
                             cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr[-3000:]
     assert (tmp_path / "reference" / "cli" / "index.html").is_file()
+
+
+README = ROOT / "README.md"
+MAX_README_BYTES = 10 * 1024
+
+
+def test_readme_is_at_most_10_kb() -> None:
+    size = README.stat().st_size
+    assert size <= MAX_README_BYTES, f"README.md is {size} bytes; move detail into docs/ (limit {MAX_README_BYTES})"
+
+
+def test_every_relative_link_in_the_readme_exists() -> None:
+    """Links must work on the forge too, so they are relative paths to files that exist (anchors aside)."""
+    text = README.read_text(encoding="utf-8")
+    targets = re.findall(r"\]\(([^)\s]+)\)", text)
+    relative = [t for t in targets if not re.match(r"[a-z][a-z0-9+.-]*:", t) and not t.startswith("#")]
+    assert relative, "the README links to no docs page"
+    missing = [t for t in relative if not (ROOT / t.split("#", 1)[0]).exists()]
+    assert not missing, f"README.md links to missing files: {missing}"
+    # Every page of the site is reachable from the README or from a page it links to (docs/index.md).
+    assert "docs/index.md" in relative and "docs/results.md" in relative
+
+
+def _readme_command_lines() -> list[str]:
+    """The ``dualtwin ...`` lines of the README's shell blocks, continuation lines joined, comments dropped."""
+    lines = []
+    for block in re.findall(r"```sh\n(.*?)```", README.read_text(encoding="utf-8"), re.DOTALL):
+        for line in re.sub(r"\\\n\s*", " ", block).splitlines():
+            line = re.split(r"\s#\s", line, maxsplit=1)[0].strip()
+            if line.startswith("dualtwin "):
+                lines.append(line)
+    return lines
+
+
+def test_readme_commands_and_options_exist() -> None:
+    """The README's pipeline names real commands and options, so a CLI change that breaks it fails here."""
+    import typer.main
+
+    from dualtwin.cli import app
+
+    root = typer.main.get_command(app)
+    lines = _readme_command_lines()
+    assert len(lines) >= 8, lines
+    for line in lines:
+        words = shlex.split(line)[1:]
+        command = root  # typer may bundle its own click, so groups are recognised by their 'commands'
+        while hasattr(command, "commands") and words and words[0] in command.commands:
+            command = command.commands[words.pop(0)]
+        assert not hasattr(command, "commands"), f"README: {line!r} names no command"
+        options = {o for p in command.params for o in [*p.opts, *p.secondary_opts]}
+        unknown = [w for w in words if w.startswith("-") and w.split("=", 1)[0] not in options]
+        assert not unknown, f"README: {line!r}: unknown options {unknown}"
