@@ -192,10 +192,6 @@ class TrackMotor(KinematicMotor):
     LINEAR = 1
     _record: _Handle
 
-    @property
-    def _track(self) -> TrackRec:
-        return self._record.track
-
     def _state(self) -> TrackRec:
         return self._record.track
 
@@ -203,7 +199,7 @@ class TrackMotor(KinematicMotor):
         p = as_float(position, "Motor.setPosition")
         if not finite(p):
             return
-        t = self._track
+        t = self._state()
         p *= t.multiplier
         if t.min_position != t.max_position and math.isfinite(p):
             p = min(max(p, t.min_position), t.max_position)
@@ -213,20 +209,20 @@ class TrackMotor(KinematicMotor):
     def setAvailableForce(self, force: Any) -> None:
         f = as_float(force, "Motor.setAvailableForce")
         if finite(f) and f >= 0:
-            self._track.available = min(f, self._track.max_force)
+            self._state().available = min(f, self._state().max_force)
 
     def setForce(self, force: Any) -> None:
         f = as_float(force, "Motor.setForce")
         if finite(f):
-            t = self._track
+            t = self._state()
             t.force = max(-t.available, min(t.available, f * t.multiplier))
             t.force_mode = True
 
     def getMaxForce(self) -> float:
-        return self._track.max_force
+        return self._state().max_force
 
     def getAvailableForce(self) -> float:
-        return self._track.available
+        return self._state().available
 
     def getType(self) -> int:
         return self.LINEAR
