@@ -55,7 +55,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import ConfigDict, Field
 from rich.console import Console
 from rich.markup import escape
 from scipy import stats
@@ -69,6 +69,7 @@ from dualtwin.artifacts import write_json, write_text
 from dualtwin.divergence.metrics import ChannelDivergence
 from dualtwin.divergence.runs import Contribution, RunComparison, ScenarioComparison, compare_runs, load_run
 from dualtwin.errors import DualtwinError
+from dualtwin.models import FrozenModel, StrictModel
 from dualtwin.robots.binding import RobotBinding, resolve_robot
 from dualtwin.suite.loader import load_suite
 from dualtwin.suite.schema import Suite
@@ -109,10 +110,9 @@ _TERM_FOR: dict[str, str | None] = {"event_time": "event", "endpoint": "endpoint
                                     "scale_mismatch": "dtw"}
 
 
-class AnalysisConfig(BaseModel):
+class AnalysisConfig(FrozenModel):
     """Inputs and settings of one analysis (saved in ``analysis.json``)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
     run_a: str
     run_b: str
     robot: str | None = None
@@ -124,10 +124,11 @@ class AnalysisConfig(BaseModel):
     thresholds: dict[str, float] | None = None
 
 
-class Finding(BaseModel):
+class Finding(StrictModel):
     """One explanation of the divergence, in plain words, with its evidence."""
 
-    model_config = ConfigDict(extra="forbid")
+    # Measured, not configured: a share can be non-finite when a run is unstable.
+    model_config = ConfigDict(allow_inf_nan=True)
     kind: FindingKind
     message: str
     channel: str | None = None
@@ -138,10 +139,11 @@ class Finding(BaseModel):
     evidence: dict[str, Any] = Field(default_factory=dict)
 
 
-class KnobSensitivity(BaseModel):
+class KnobSensitivity(StrictModel):
     """How the divergence objective changes when one knob moves away from nominal."""
 
-    model_config = ConfigDict(extra="forbid")
+    # Measured, not configured: a perturbed run that goes unstable gives a non-finite change.
+    model_config = ConfigDict(allow_inf_nan=True)
     knob: str
     unit: str = ""
     nominal: float

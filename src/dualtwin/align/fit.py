@@ -53,7 +53,7 @@ from typing import Any, Literal
 
 import cma
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 from rich.console import Console
 from rich.markup import escape
 from scipy import stats
@@ -91,6 +91,7 @@ from dualtwin.artifacts import (
 )
 from dualtwin.divergence.runs import load_run
 from dualtwin.errors import DualtwinError
+from dualtwin.models import FrozenModel
 from dualtwin.robots.binding import RobotBinding, resolve_robot
 from dualtwin.robots.io import RobotIO
 from dualtwin.suite.loader import load_suite, read_json
@@ -109,10 +110,9 @@ OVERFIT_RATIO = 1.05
 OVERFIT_FROM_BEST = 1.25
 
 
-class AlignConfig(BaseModel):
+class AlignConfig(FrozenModel):
     """Every input and setting of an alignment (saved as ``align_config.json``; resume requires it unchanged)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
     reference: str
     reference_kind: Literal["run", "twin"]
     reference_knobs: dict[str, float] = Field(default_factory=dict)

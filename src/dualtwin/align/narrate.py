@@ -23,6 +23,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
 
 from dualtwin.align.knobs import KnobSpec
 from dualtwin.errors import DualtwinError
+from dualtwin.models import StrictModel
 
 if TYPE_CHECKING:
     from dualtwin.align.analyze import Analysis
@@ -39,14 +40,18 @@ MAX_SENSITIVITIES = 15
 MAX_KNOBS = 60
 
 
-class _Proposal(BaseModel):
-    model_config = ConfigDict(extra="forbid", strict=True)
+class _StrictReply(StrictModel):
+    """An LLM reply is refused, not coerced: ``"0.3"`` for a number is a mistake to report."""
+
+    model_config = ConfigDict(strict=True)
+
+
+class _Proposal(_StrictReply):
     knobs: dict[str, Any]
     rationale: str = Field(default="", max_length=2000)
 
 
-class _Reply(BaseModel):
-    model_config = ConfigDict(extra="forbid", strict=True)
+class _Reply(_StrictReply):
     explanation: str = Field(min_length=1, max_length=10_000)
     proposals: list[_Proposal] = Field(default_factory=list, max_length=MAX_PROPOSALS)
 
@@ -58,8 +63,7 @@ def knob_model(specs: Sequence[KnobSpec]) -> type[BaseModel]:
                                       description=f"{s.description} [{s.unit or '-'}], nominal {s.nominal:g}"))
         for i, s in enumerate(specs)
     }
-    config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
-    model: type[BaseModel] = create_model("KnobProposal", __config__=config, **fields)
+    model: type[BaseModel] = create_model("KnobProposal", __base__=_StrictReply, **fields)
     return model
 
 

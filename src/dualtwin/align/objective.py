@@ -28,7 +28,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from dualtwin.align.simulate import ScenarioTrace
 from dualtwin.divergence.metrics import (
@@ -42,16 +42,16 @@ from dualtwin.divergence.metrics import (
 from dualtwin.divergence.metrics import rmse as rmse_of
 from dualtwin.divergence.runs import Series, resolve_thresholds
 from dualtwin.errors import DualtwinError
+from dualtwin.models import FrozenModel
 
 TERMS = ("dtw", "event", "endpoint", "rmse")
 #: Objective value when the numbers themselves are not finite.
 NONFINITE_VALUE = 1e3
 
 
-class ObjectiveWeights(BaseModel):
+class ObjectiveWeights(FrozenModel):
     """Weights and robustness settings of the objective (see the module docstring)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
     dtw: float = Field(default=1.0, ge=0)
     event: float = Field(default=1.0, ge=0)
     endpoint: float = Field(default=0.5, ge=0)
