@@ -8,7 +8,9 @@ and clamps it to the target velocity, and an acceleration limit slews the result
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any, Protocol
 
 from dualtwin.webots.motor_law import motor_velocity
 
@@ -91,3 +93,98 @@ class MotorState:
             acceleration=p.acceleration, dt=dt)
         self.current_velocity = u
         return u
+
+
+class ServoMotor(Protocol):
+    """What :func:`servo_steps` needs of a twin's motor: its state, where its joint is, and its servo."""
+
+    state: MotorState
+    index: int  # actuator (ctrl) index
+    qpos: int
+    dof: int
+    kv: float  # servo stiffness: torque = kv (u - qdot)
+    saturated: float  # 0 = servo; ±1 = applying ±available torque
+
+
+def servo_steps(servos: Sequence[ServoMotor], steps: int, dt: float, qpos: memoryview[float],
+                qvel: memoryview[float], ctrl: memoryview[float], physics_step: Callable[[], None],
+                saturate: Callable[[Any, float], None], release: Callable[[Any], None],
+                predict_bound: float) -> None:
+    """``steps`` physics steps of Webots' motor law (:func:`~dualtwin.webots.motor_law.motor_velocity`) for
+    every servo, with the saturation state machine of a velocity servo clamped at the available torque.
+
+    Per physics step and motor, in motor order: ``u`` from the law at the current position; a saturated motor
+    leaves saturation (``release``) once full torque would carry it past ``u`` this step, else applies it; a
+    servo whose torque ``kv (u - qdot)`` exceeds ``predict_bound`` times the limit saturates before the step
+    (``saturate``). After ``physics_step``, a servo whose backward-Euler torque exceeded the limit saturates.
+
+    Decision: this is the law inlined, not a call to ``motor_velocity`` per motor and step. On the arm that
+    call (keyword arguments, a tuple back, MotorState attributes) cost more than MuJoCo's physics step itself.
+    The arithmetic is the law's, operation for operation in the same order (so results are bit-identical);
+    what a period cannot change (which branch of the law, targets, gains, limits) is read once per call, and
+    the law's state (integral, previous error, last ``u``) lives in locals and is written back at the end.
+    """
+    # Per motor: what the period cannot change (a tuple), and the state that steps change (a list: the law's
+    # integral, previous error and last u, and the saturation sign). kind: 0 no control (no available
+    # torque), 1 velocity control (infinite target position), 2 position control (the PID).
+    rows = []
+    for mo in servos:
+        st = mo.state
+        p = st.params
+        kind = 0 if st.available_torque == 0.0 else 1 if math.isinf(st.target_position) else 2
+        const = (mo, kind, st.target_position, st.target_velocity, abs(st.target_velocity), p.kp, p.ki, p.kd,
+                 p.acceleration >= 0, p.acceleration * dt, mo.qpos, mo.dof, mo.index, mo.kv, st.available_torque,
+                 predict_bound * st.available_torque)
+        rows.append((const, [st.integral, st.previous_error, st.current_velocity, mo.saturated]))
+    try:
+        for k in range(steps):
+            for const, state in rows:
+                mo, kind, target, target_velocity, vlimit, kp, ki, kd, slew, slew_step, iq, iv, ic, kv, limit, bound = const
+                saturated = state[3]
+                if k and not saturated:
+                    # The previous step's check, here rather than in a loop of its own: it touches this motor only.
+                    torque = kv * (state[2] - qvel[iv])
+                    if abs(torque) > limit:
+                        saturate(mo, torque)
+                        saturated = state[3] = mo.saturated
+                # Webots' law (motor_law.motor_velocity), inlined.
+                if kind == 2:
+                    error = target - qpos[iq]
+                    integral = state[0] + error * dt
+                    out = kp * error + ki * integral + kd * (error - state[1]) / dt
+                    state[0] = integral
+                    state[1] = error
+                    u = out if abs(out) < vlimit else math.copysign(vlimit, out)
+                elif kind == 1:
+                    u = target_velocity
+                else:
+                    u = 0.0
+                if slew:
+                    current = state[2]
+                    u = max(current - slew_step, min(current + slew_step, u))
+                state[2] = u
+                if saturated:
+                    if (u - qvel[iv]) * saturated <= 0.0 or limit <= 0.0:
+                        release(mo)
+                        state[3] = 0.0
+                        ctrl[ic] = kv * (u - qvel[iv])
+                    else:
+                        ctrl[ic] = saturated * limit
+                else:
+                    torque = kv * (u - qvel[iv])
+                    if abs(torque) > bound:
+                        saturate(mo, torque)
+                        state[3] = mo.saturated
+                    else:
+                        ctrl[ic] = torque
+            physics_step()
+        for const, state in rows:
+            if steps and not state[3]:
+                # The backward-Euler servo torque actually applied in the last step.
+                torque = const[13] * (state[2] - qvel[const[11]])
+                if abs(torque) > const[14]:
+                    saturate(const[0], torque)
+    finally:
+        for const, state in rows:
+            st = const[0].state
+            st.integral, st.previous_error, st.current_velocity = state[0], state[1], state[2]

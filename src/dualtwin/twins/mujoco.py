@@ -47,7 +47,7 @@ from dualtwin.twins.base import (
     matrix_from_quat,
     unknown_name,
 )
-from dualtwin.twins.motors import MotorParams, MotorState
+from dualtwin.twins.motors import MotorParams, MotorState, servo_steps
 from dualtwin.twins.ode_friction import FrictionBox, contact_semantics
 
 if TYPE_CHECKING:
@@ -378,8 +378,7 @@ class MuJoCoTwin(Twin):
                 for _ in range(self._substeps):
                     self._mj_step(m, d)
         elif any(mo.saturated or mo.state.needs_feedback for mo in servos):
-            for _ in range(self._substeps):
-                self._servo_substep(servos)
+            self._servo_steps(servos, self._substeps)
         else:
             # Plain velocity control: u is constant over the period, so only saturation needs watching.
             # Memoryviews read and write plain floats: cheaper than NumPy scalars in this per-sub-step loop.
@@ -394,8 +393,7 @@ class MuJoCoTwin(Twin):
                 torque = ctrl[index] = kv * (u - qvel[dof])
                 if torque > PREDICT_SATURATION * limit or -torque > PREDICT_SATURATION * limit:
                     self._saturate(mo, torque)
-                    for _ in range(self._substeps):
-                        self._servo_substep(servos)
+                    self._servo_steps(servos, self._substeps)
                     self._check_stable()
                     return
             mj_step = self._mj_step
@@ -408,8 +406,7 @@ class MuJoCoTwin(Twin):
                     torque = ctrl[index] = kv * (u - qvel[dof])
                     if torque > limit or -torque > limit:
                         self._saturate(mo, torque)
-                        for _ in range(self._substeps - k - 1):
-                            self._servo_substep(servos)
+                        self._servo_steps(servos, self._substeps - k - 1)
                         self._check_stable()
                         return
         self._check_stable()
@@ -418,36 +415,15 @@ class MuJoCoTwin(Twin):
         mo.saturated = math.copysign(1.0, torque)
         self._set_torque(mo, mo.saturated * mo.state.available_torque)
 
-    def _servo_substep(self, servos: list[_Motor]) -> None:
-        """One physics step with the Webots PID and the saturation state machine for every servo motor."""
+    def _release(self, mo: _Motor) -> None:
+        mo.saturated = 0.0
+        self._set_servo(mo)
+
+    def _servo_steps(self, servos: list[_Motor], steps: int) -> None:
+        """Physics steps with the Webots PID and the saturation state machine for every servo motor."""
         m, d = self.model, self.data
-        dt = m.opt.timestep
-        qpos, qvel, ctrl = d.qpos, d.qvel, d.ctrl
-        targets = {}
-        for mo in servos:
-            u = targets[mo.index] = mo.state.velocity_command(float(qpos[mo.qpos]), dt)
-            limit = mo.state.available_torque
-            if mo.saturated:
-                # Leave saturation once full torque would carry the joint past u this step.
-                if (u - float(qvel[mo.dof])) * mo.saturated <= 0.0 or limit <= 0.0:
-                    mo.saturated = 0.0
-                    self._set_servo(mo)
-                    ctrl[mo.index] = mo.kv * (u - float(qvel[mo.dof]))
-                else:
-                    ctrl[mo.index] = mo.saturated * limit
-            else:
-                torque = mo.kv * (u - float(qvel[mo.dof]))
-                if abs(torque) > PREDICT_SATURATION * limit:
-                    self._saturate(mo, torque)
-                else:
-                    ctrl[mo.index] = torque
-        self._mj_step(m, d)
-        for mo in servos:
-            if not mo.saturated:
-                # The backward-Euler servo torque actually applied this step.
-                torque = mo.kv * (targets[mo.index] - float(qvel[mo.dof]))
-                if abs(torque) > mo.state.available_torque:
-                    self._saturate(mo, torque)
+        servo_steps(servos, steps, m.opt.timestep, memoryview(d.qpos), memoryview(d.qvel), memoryview(d.ctrl),
+                    lambda: self._mj_step(m, d), self._saturate, self._release, PREDICT_SATURATION)
 
     def _bad_state_warnings(self) -> int:
         """MuJoCo resets mjData itself after bad qpos/qvel/qacc; its warning counters are the trace left."""
