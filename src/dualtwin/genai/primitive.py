@@ -28,9 +28,10 @@ from typing import Annotated, Any, Literal
 
 import mujoco
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import Field, ValidationError, model_validator
 
 from dualtwin.errors import DualtwinError
+from dualtwin.models import StrictModel
 from dualtwin.webots import schema
 from dualtwin.webots.nodes import Node, World
 from dualtwin.webots.writer import write_world
@@ -51,11 +52,7 @@ Vec3 = tuple[Coordinate, Coordinate, Coordinate]
 DIMENSION_COUNT = {"box": 3, "cylinder": 2, "capsule": 2, "sphere": 1}
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
-
-
-class Joint(_Strict):
+class Joint(StrictModel):
     """How a part is attached to its parent."""
 
     type: Literal["hinge", "slider", "fixed"] = Field(description="hinge (rotation), slider (translation) or fixed")
@@ -82,7 +79,7 @@ class Joint(_Strict):
         return self
 
 
-class Motor(_Strict):
+class Motor(StrictModel):
     """A Webots RotationalMotor (hinge) or LinearMotor (slider) on the part's joint."""
 
     name: str = Field(pattern=DEVICE_PATTERN, description="device name (also the MuJoCo actuator name)")
@@ -91,7 +88,7 @@ class Motor(_Strict):
     sensor: str | None = Field(default=None, pattern=DEVICE_PATTERN, description="name of a PositionSensor on the joint")
 
 
-class Part(_Strict):
+class Part(StrictModel):
     """One rigid primitive."""
 
     name: str = Field(pattern=NAME_PATTERN, description="unique part name (also the body name)")
@@ -123,7 +120,7 @@ class Part(_Strict):
         return self
 
 
-class PhysicsSettings(_Strict):
+class PhysicsSettings(StrictModel):
     """World settings (Webots WorldInfo)."""
 
     timestep_ms: float = Field(default=16.0, ge=1.0, le=100.0, description="Webots basicTimeStep, ms")
@@ -132,7 +129,7 @@ class PhysicsSettings(_Strict):
     friction: float = Field(default=1.0, ge=0.0, le=10.0, description="Coulomb friction robot/floor")
 
 
-class RobotDescription(_Strict):
+class RobotDescription(StrictModel):
     """A robot made of primitives."""
 
     robot_name: str = Field(pattern=NAME_PATTERN)

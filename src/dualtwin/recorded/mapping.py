@@ -39,19 +39,16 @@ import re
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import Field, ValidationError, model_validator
 
 from dualtwin.errors import DualtwinError
+from dualtwin.models import FrozenModel
 
 Source = Literal["ground_truth", "onboard"]
 TimeUnit = Literal["s", "ms", "us", "ns"]  # the time units of dualtwin.recorded.units
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
-
-
-class ChannelBase(_Strict):
+class ChannelBase(FrozenModel):
     """One run channel read from a recording.
 
     The value written is ``recorded * scale``, converted from ``unit`` to the unit the binding declares for
@@ -77,7 +74,7 @@ def _unique_channels(channels: list[ChannelBase]) -> None:
         raise ValueError(f"channels mapped twice: {dupes}")
 
 
-class TimeColumn(_Strict):
+class TimeColumn(FrozenModel):
     """Where a table's time stamps are and what they count."""
 
     column: str = Field(min_length=1)
@@ -96,7 +93,7 @@ class TableChannel(ChannelBase):
     column: str = Field(min_length=1, description="header name of the column holding the channel")
 
 
-class TableMapping(_Strict):
+class TableMapping(FrozenModel):
     """CSV/TSV logs, one file per scenario (in the suite's scenario order)."""
 
     format: Literal["table"] = "table"
@@ -113,7 +110,7 @@ class TableMapping(_Strict):
         return self
 
 
-class TimeRange(_Strict):
+class TimeRange(FrozenModel):
     """A scenario's span in a bag, seconds from the bag's first mapped message."""
 
     start_s: float = Field(ge=0)
@@ -145,7 +142,7 @@ class BagChannel(ChannelBase):
         return self
 
 
-class BagMapping(_Strict):
+class BagMapping(FrozenModel):
     """ROS 2 bags in MCAP: one bag per scenario, or one bag cut into scenarios by time ranges."""
 
     format: Literal["mcap"] = "mcap"

@@ -32,10 +32,11 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import Field, ValidationError, model_validator
 
 from dualtwin.artifacts import package_versions, write_json, write_text
 from dualtwin.errors import DualtwinError
+from dualtwin.models import FrozenModel
 from dualtwin.rl.curves import evaluation_line
 from dualtwin.rl.runfiles import load_model, load_normalization, save_normalization, stats_path
 
@@ -51,11 +52,7 @@ RUN_VERSION = 1
 _CHECKPOINT = re.compile(r"^rl_model_(\d+)_steps\.zip$")
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
-
-
-class NormalizeConfig(_Strict):
+class NormalizeConfig(FrozenModel):
     """VecNormalize settings (its statistics are saved with the model)."""
 
     norm_obs: bool = True
@@ -68,14 +65,14 @@ def _paper_net_arch() -> dict[Literal["pi", "vf"], list[int]]:
     return {"pi": [64, 64], "vf": [64, 64]}
 
 
-class PolicyKwargs(_Strict):
+class PolicyKwargs(FrozenModel):
     net_arch: dict[Literal["pi", "vf"], list[int]] = Field(default_factory=_paper_net_arch)
     activation_fn: Literal["relu", "tanh", "elu", "leaky_relu"] = "relu"
     ortho_init: bool = True
     log_std_init: float = 0.0
 
 
-class PPOConfig(_Strict):
+class PPOConfig(FrozenModel):
     """PPO hyperparameters plus the run's evaluation and checkpoint cadence. Step counts are env steps."""
 
     algo: Literal["ppo"] = "ppo"

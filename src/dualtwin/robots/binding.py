@@ -17,19 +17,16 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import Field, ValidationError, model_validator
 
 from dualtwin.errors import DualtwinError
+from dualtwin.models import FrozenModel
 
 ControlMode = Literal["velocity", "position", "torque"]
 Quantity = Literal["position", "velocity"]
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
-
-
-class TwinModel(_Strict):
+class TwinModel(FrozenModel):
     """Where one twin's model lives, relative to the binding file."""
 
     model: str = Field(description="MJCF file (mujoco) or .wbt world (webots)")
@@ -37,7 +34,7 @@ class TwinModel(_Strict):
     aliases: dict[str, str] = Field(default_factory=dict)
 
 
-class InitialCondition(_Strict):
+class InitialCondition(FrozenModel):
     joint: str | None = None
     body: str | None = None
     quantity: Quantity = "position"
@@ -53,14 +50,14 @@ class InitialCondition(_Strict):
         return self
 
 
-class Action(_Strict):
+class Action(FrozenModel):
     actuators: list[str] = Field(min_length=1)
     mode: ControlMode = "velocity"
     scale: float = 1.0
     unit: str = ""
 
 
-class Channel(_Strict):
+class Channel(FrozenModel):
     """One logged column. Exactly one source: sensors, a joint or a body."""
 
     sensors: list[str] = Field(default_factory=list)
@@ -90,7 +87,7 @@ class Channel(_Strict):
         return self
 
 
-class Camera(_Strict):
+class Camera(FrozenModel):
     """A pinhole camera for perception and rendering; ``pos``/``lookat`` are in ``body``'s frame when set."""
 
     pos: tuple[float, float, float]
@@ -102,13 +99,13 @@ class Camera(_Strict):
     body: str | None = None
 
 
-class Failure(_Strict):
+class Failure(FrozenModel):
     """A failure key in ``global_settings`` becomes a threshold on |channel| in the ground-truth log."""
 
     channel: str
 
 
-class Binding(_Strict):
+class Binding(FrozenModel):
     name: str
     description: str = ""
     control_period_ms: float = Field(default=32.0, gt=0)

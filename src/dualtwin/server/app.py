@@ -58,10 +58,11 @@ from fastapi import Depends, FastAPI, HTTPException, Request, Security
 from fastapi.openapi.utils import get_openapi
 from fastapi.responses import JSONResponse, Response
 from fastapi.security import APIKeyHeader
-from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError
+from pydantic import BaseModel, Field, Strict, ValidationError
 from starlette.concurrency import run_in_threadpool
 
 from dualtwin.errors import DualtwinError
+from dualtwin.models import StrictModel
 from dualtwin.perception.camera_only import camera_only_contract, is_camera_only
 from dualtwin.perception.estimator import DEFAULT_VELOCITY, VELOCITY_MODES, EstimatorSession, StateEstimator
 from dualtwin.perception.onnx_policy import POLICY_FILE, OnnxPolicy
@@ -82,11 +83,7 @@ Send = Callable[[Message], Awaitable[None]]
 ASGIApp = Callable[[Scope, Receive, Send], Awaitable[None]]
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
-
-
-class FramePayload(_Strict):
+class FramePayload(StrictModel):
     """A camera frame: a base64 PNG, or base64 raw bytes with their shape and dtype."""
 
     png_base64: str | None = None
@@ -95,7 +92,7 @@ class FramePayload(_Strict):
     dtype: Literal["uint8"] | None = None
 
 
-class ActRequest(_Strict):
+class ActRequest(StrictModel):
     session: str = Field(min_length=1, max_length=128, pattern=r"^[A-Za-z0-9_.:\-]+$",
                          description="client-chosen id; frame history and filter are kept per session, in the "
                                      "namespace of the caller's API key (or address, without keys)")

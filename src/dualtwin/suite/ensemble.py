@@ -37,10 +37,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import Field, field_validator
 
 from dualtwin.artifacts import log_record, verify_logs, write_json, write_text
 from dualtwin.errors import DualtwinError
+from dualtwin.models import FrozenModel
 from dualtwin.parallel import DEFAULT_WORKERS, ExecutorKind, ParallelMap, check_executor
 from dualtwin.robots.binding import RobotBinding, load_binding
 from dualtwin.robots.io import RobotIO
@@ -52,10 +53,9 @@ from dualtwin.twins import make_twin
 ENSEMBLE_SCHEMA = "dualtwin.ensemble/1"
 
 
-class EnsembleSpec(BaseModel):
+class EnsembleSpec(FrozenModel):
     """How many members and which initial conditions move by how much (saved in the manifest)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
     members: int = Field(ge=2, le=1000, description="members per scenario, the unperturbed one included")
     perturb: dict[str, float] = Field(min_length=1, description="initial-condition key -> largest shift eps")
     seed: int = Field(default=0, ge=0, description="seed of the shifts drawn for members 3 and up")

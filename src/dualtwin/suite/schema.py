@@ -14,8 +14,9 @@ import math
 import re
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, field_validator, model_validator
+from pydantic import ConfigDict, Field, TypeAdapter, field_validator, model_validator
 
+from dualtwin.models import FrozenModel
 from dualtwin.suite.signals import Signal
 
 SCENARIO_KEYS = {"name", "duration_s", "type", "description", "seed", "reset", "tolerances"}
@@ -29,10 +30,9 @@ MIN_TIME_STEP_MS, MAX_TIME_STEP_MS = 0.01, 60_000.0
 MAX_SEED = 2**32 - 1
 
 
-class Tolerance(BaseModel):
+class Tolerance(FrozenModel):
     """Per-channel budget: a scenario 'agrees' when every given metric is within its bound."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
     mse: float | None = Field(default=None, ge=0)
     rmse: float | None = Field(default=None, ge=0)
     dtw: float | None = Field(default=None, ge=0)
@@ -44,8 +44,8 @@ class Tolerance(BaseModel):
     score: float | None = Field(default=None, ge=0)
 
 
-class GlobalSettings(BaseModel):
-    model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
+class GlobalSettings(FrozenModel):
+    model_config = ConfigDict(extra="allow")
     TIME_STEP: float = Field(default=32.0, ge=MIN_TIME_STEP_MS, le=MAX_TIME_STEP_MS, description="control period, ms")
 
     @model_validator(mode="after")
@@ -68,8 +68,8 @@ class GlobalSettings(BaseModel):
 _signal_adapter: TypeAdapter[Any] = TypeAdapter(Signal)
 
 
-class Scenario(BaseModel):
-    model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
+class Scenario(FrozenModel):
+    model_config = ConfigDict(extra="allow")
     name: str = Field(min_length=1)
     duration_s: float = Field(gt=0, le=MAX_DURATION_S)
     type: str | None = None
@@ -101,8 +101,7 @@ class Scenario(BaseModel):
         return out
 
 
-class Suite(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+class Suite(FrozenModel):
     suite_name: str = Field(min_length=1)
     global_settings: GlobalSettings = Field(default_factory=GlobalSettings)
     scenarios: list[Scenario] = Field(min_length=1)

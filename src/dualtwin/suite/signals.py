@@ -10,11 +10,13 @@ from __future__ import annotations
 import math
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
+
+from dualtwin.models import FrozenModel
 
 
-class _Signal(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+class _Signal(FrozenModel):
+    """A suite input signal: a strict, frozen document."""
 
 
 class Constant(_Signal):
