@@ -14,7 +14,7 @@ from dualtwin.align.analyze import analyze_runs, write_analysis
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding
 from tests.align.conftest import record, write_suite
-from tests.divergence._rundirs import fabricate_ensemble, fabricate_run
+from tests.support.rundirs import fabricate_ensemble, fabricate_run
 
 DT = 0.032
 T = np.arange(1, 63) * DT  # ~2 s, logged after each control period like the runner

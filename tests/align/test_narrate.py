@@ -20,7 +20,7 @@ from dualtwin.align.narrate import LABEL, LLMProposer
 from dualtwin.genai.llm import LLMConfig, make_llm
 from dualtwin.robots.binding import RobotBinding
 from tests.align.conftest import TRUE_DAMPING
-from tests.genai.replay import Reply, replay_server
+from tests.support.llm_replay import Reply, replay_server
 
 pytest.importorskip("openai")
 pytest.importorskip("anthropic")

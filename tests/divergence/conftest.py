@@ -8,7 +8,7 @@ from typing import Any
 
 import pytest
 
-from tests.divergence._rundirs import ScenarioData, fabricate_run
+from tests.support.rundirs import ScenarioData, fabricate_run
 
 
 @pytest.fixture

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tests.divergence._rundirs import CHANNELS, cartpole_like
+from tests.support.rundirs import CHANNELS, cartpole_like
 
 T = np.arange(1, 63) * 0.032
 

@@ -17,7 +17,7 @@ from dualtwin.robots.binding import resolve_robot
 from dualtwin.suite.ensemble import EnsembleRun, make_spec
 from dualtwin.suite.runner import SuiteRun
 from dualtwin.twins import make_twin
-from tests.divergence._rundirs import fabricate_ensemble
+from tests.support.rundirs import fabricate_ensemble
 
 DT = 0.032
 T = np.arange(1, 95) * DT  # 3 s logged after each control period

@@ -26,7 +26,7 @@ from dualtwin.divergence import (
     resample_common,
     rmse,
 )
-from tests.divergence._rundirs import cartpole_like
+from tests.support.rundirs import cartpole_like
 
 DT = 0.032
 T = np.arange(0, 125) * DT  # 0 .. 3.968 s, one control period apart

@@ -22,7 +22,7 @@ from dualtwin.divergence import (
     print_summary,
     write_report,
 )
-from tests.divergence._rundirs import cartpole_like
+from tests.support.rundirs import cartpole_like
 
 T = np.arange(0, 100) * 0.032
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"

@@ -29,7 +29,7 @@ from dualtwin.genai.generate import Source, generate
 from dualtwin.genai.llm import LLMConfig, OpenAIChatClient
 from dualtwin.robots.binding import load_binding
 from dualtwin.suite.runner import SuiteRun
-from tests.genai.replay import Reply, replay_server
+from tests.support.llm_replay import Reply, replay_server
 
 DATASHEET = Path(__file__).parent / "arm" / "ur5e_class_datasheet.md"
 PI = math.pi

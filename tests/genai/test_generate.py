@@ -23,7 +23,7 @@ from dualtwin.genai.primitive import (
 )
 from dualtwin.robots.binding import BUNDLED, load_binding
 from dualtwin.suite.runner import SuiteRun
-from tests.genai.replay import Reply, replay_server
+from tests.support.llm_replay import Reply, replay_server
 
 KEY = "sk-loop-secret-9876"
 CARTPOLE_JSON = Path(__file__).resolve().parents[2] / "src/dualtwin/genai/cases/cartpole.json"

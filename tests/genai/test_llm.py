@@ -10,7 +10,7 @@ import pytest
 
 from dualtwin.errors import DualtwinError
 from dualtwin.genai.llm import AnthropicClient, LLMConfig, OpenAIChatClient, load_llm_config, make_llm
-from tests.genai.replay import Reply, replay_server
+from tests.support.llm_replay import Reply, replay_server
 
 KEY = "sk-test-secret-1234"
 

@@ -27,7 +27,7 @@ from dualtwin.genai.paper_dialect import (
 )
 from dualtwin.robots.binding import BUNDLED, load_binding
 from dualtwin.suite.runner import SuiteRun
-from tests.genai.replay import Reply, replay_server
+from tests.support.llm_replay import Reply, replay_server
 
 HERE = Path(__file__).parent / "paper"
 CARTPOLE = json.loads((HERE / "cartpole_paper.json").read_text())

@@ -18,6 +18,7 @@ import pytest
 from dualtwin.errors import DualtwinError
 from dualtwin.server.app import create_app
 from dualtwin.server.client import frame_payload
+from tests.support.images import random_frame
 
 from .conftest import SIZE
 
@@ -25,7 +26,7 @@ KEY = "s3cret-key"
 
 
 def frame(seed: int = 0, size: int = SIZE) -> np.ndarray:
-    return np.random.default_rng(seed).integers(0, 255, (size, size, 3), dtype=np.uint8)
+    return random_frame(size, seed)
 
 
 # The policy's on-board observations (the sensors a request carries) and the rest (estimated by perception):

@@ -12,8 +12,9 @@ import pytest
 
 from dualtwin.server.app import create_app, is_loopback, serve
 from dualtwin.server.client import frame_payload
+from tests.support.images import random_frame
 
-from .test_app import frame
+from .conftest import SIZE
 
 KEYS = ["key-robot-a", "key-robot-b", "key-robot-c"]
 
@@ -21,7 +22,7 @@ KEYS = ["key-robot-a", "key-robot-b", "key-robot-c"]
 def body(policy_dir: Path, session: str, **extra: Any) -> dict[str, Any]:
     terms = json.loads((policy_dir / "policy_contract.json").read_text())["observation"]
     return {"session": session, "sensors": {t["name"]: 0.0 for t in terms if t["source"] == "onboard"},
-            "frame": frame_payload(frame()), **extra}
+            "frame": frame_payload(random_frame(SIZE)), **extra}
 
 
 def client(url: str, key: str | None = None, source: str | None = None) -> httpx.Client:

@@ -11,7 +11,7 @@ import pytest
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import resolve_robot
 from dualtwin.suite.runner import SuiteRun
-from tests.suite.test_schema import PAPER_SUITE
+from tests.support.suites import PAPER_SUITE
 
 
 @pytest.fixture

@@ -7,8 +7,7 @@ import math
 import pytest
 
 from dualtwin.webots.physics import Simulation
-
-from .scene import node, world
+from tests.support.webots_scene import node, world
 
 G = 9.81
 

@@ -11,8 +11,7 @@ from dualtwin.webots import ode
 from dualtwin.webots.controller import Robot, Supervisor
 from dualtwin.webots.nodes import Node, World
 from dualtwin.webots.physics import Simulation, SimulationUnstable
-
-from .scene import cart_pole, floor, node, world
+from tests.support.webots_scene import cart_pole, floor, node, world
 
 G = 9.81
 
