@@ -1,0 +1,5 @@
+"""``python -m dualtwin.cli``."""
+
+from dualtwin.cli import main
+
+main()

@@ -1,0 +1,106 @@
+"""What every command module shares: the typer app and its groups, the console, common options and the
+input checks run before any work starts."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich.console import Console
+
+from dualtwin.errors import DualtwinError
+from dualtwin.reporting import configure_console
+from dualtwin.reporting import (
+    report_progress as _report_progress,
+)
+
+
+@contextmanager
+def report_progress() -> Iterator[Any]:
+    """:func:`dualtwin.reporting.report_progress`, holding back each stage's opening (0-done) event until its
+    first advance: a command refused while it validates its inputs prints only its one error line."""
+    with _report_progress() as show:
+        held: dict[str, Any] = {}
+
+        def progress(event: Any) -> None:
+            if event.done == 0 and event.stage not in held:
+                held[event.stage] = event
+                return
+            opening = held.get(event.stage)
+            if opening is not None:
+                held[event.stage] = None
+                show(opening)
+            show(event)
+
+        yield progress
+
+# Loading a training run written before its statistics were JSON (or by another tool) means unpickling files
+# from it, which can run code: only on the user's explicit word.
+TrustPickles = Annotated[bool, typer.Option(
+    "--trust-pickles", help="allow unpickling a run's legacy vecnormalize.pkl or foreign model entries "
+    "(pickles can run code: only for files you trust)")]
+
+app = typer.Typer(help="Dual digital twins (Webots on ODE + MuJoCo) for robotics RL.", no_args_is_help=True,
+                  pretty_exceptions_enable=False, add_completion=False)
+suite_app = typer.Typer(help="Scenario suites: validate and run.", no_args_is_help=True)
+webots_app = typer.Typer(help="The headless Webots runtime.", no_args_is_help=True)
+app.add_typer(suite_app, name="suite")
+perception_app = typer.Typer(help="Learned perception: train and evaluate.", no_args_is_help=True)
+app.add_typer(webots_app, name="webots")
+app.add_typer(perception_app, name="perception")
+console = configure_console(Console(stderr=False))
+#: ``--json``: the results as one JSON document on stdout; progress and messages go to stderr.
+JsonOutput = Annotated[bool, typer.Option("--json", help="print the results as JSON on stdout (progress and "
+                                                          "messages go to stderr)")]
+
+
+@app.callback()
+def _global_options(
+    verbose: Annotated[bool, typer.Option("--verbose", "-v", help="print setup details (e.g. the OpenGL backend) "
+                                                                   "on stderr")] = False,
+) -> None:
+    if verbose:
+        from dualtwin import gl_backend
+
+        print(gl_backend().describe(), file=sys.stderr)
+
+
+def check_runs(*folders: Path) -> None:
+    """Every folder must be a run whose logs verify, before any progress is shown or anything is written."""
+    from dualtwin.divergence.runs import load_run
+
+    for folder in folders:
+        load_run(folder)
+
+
+def check_training_run(folder: Path | None, option: str) -> None:
+    """A training run folder (``run.json``) given to ``option``: checked before any work starts."""
+    if folder is None:
+        return
+    from dualtwin.artifacts import read_json_object
+
+    if not folder.is_dir() or not (folder / "run.json").exists():
+        raise DualtwinError(f"{option} {folder}: not a training run folder (no run.json)")
+    read_json_object(folder / "run.json", ("env_id",), what="training run record")
+
+
+def int_list(text: str, option: str) -> list[int]:
+    try:
+        values = [int(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise DualtwinError(f"{option} must be comma-separated whole numbers, not {text!r}") from None
+    if not values or min(values) < 1:
+        raise DualtwinError(f"{option} must list positive whole numbers, not {text!r}")
+    return values
+
+
+def llm_proposer(label_a: str, label_b: str):  # type: ignore[no-untyped-def]
+    """The LLM proposer for --llm (the provider is configured by DUALTWIN_LLM_* or DUALTWIN_LLM_CONFIG)."""
+    from dualtwin.align.narrate import LLMProposer
+    from dualtwin.genai.llm import make_llm
+
+    return LLMProposer(make_llm(), label_a=label_a, label_b=label_b)

@@ -1,0 +1,77 @@
+"""``dualtwin lockstep`` and ``dualtwin predict-error``: two twins side by side."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from dualtwin.artifacts import check_output_dir
+from dualtwin.cli.common import JsonOutput, TrustPickles, app, console, int_list
+from dualtwin.errors import DualtwinError
+from dualtwin.reporting import Column, emit_json, print_table
+
+
+@app.command("lockstep")
+def lockstep(
+    robot: Annotated[str, typer.Option(help="bundled robot name or binding file")],
+    out: Annotated[Path, typer.Option(help="output directory")],
+    primary: Annotated[str, typer.Option(help="twin whose state is the reference")] = "webots",
+    secondary: Annotated[str, typer.Option(help="twin re-seated in the primary's state")] = "mujoco",
+    scenarios: Annotated[Path | None, typer.Option(help="suite JSON file (commands)")] = None,
+    policy: Annotated[Path | None, typer.Option(help="exported policy folder or training run (commands)")] = None,
+    resync: Annotated[str, typer.Option(help="never | every:N | threshold:X")] = "never",
+    episodes: Annotated[int | None, typer.Option(help="episodes to run with --policy")] = None,
+    seed: Annotated[int, typer.Option(help="seed")] = 0,
+    trust_pickles: TrustPickles = False,
+    json_out: JsonOutput = False,
+) -> None:
+    """Run two twins side by side with the same commands; log the per-period state difference."""
+    from dualtwin.sync import run_lockstep, write_sync_report
+
+    if (scenarios is None) == (policy is None):
+        raise DualtwinError("give exactly one of --scenarios or --policy")
+    check_output_dir(out, "lockstep")
+    from dualtwin.rl.runfiles import trusting_pickles
+
+    with trusting_pickles(trust_pickles):
+        result = run_lockstep(primary, secondary, robot, out_dir=out, suite=scenarios, policy=policy, resync=resync,
+                              seed=seed, episodes=episodes)
+    report = write_sync_report(out / "report", lockstep=result)
+    if json_out:
+        emit_json({"report": str(report), "manifest": result.manifest})
+        return
+    print_table(console, [Column("episode", False), Column("status", False), Column("periods"), Column("re-syncs"),
+                          Column("mean normalised error"), Column("max normalised error")],
+                [[e.id, e.status, str(e.steps), str(e.resyncs), f"{e.mean_error:.4g}", f"{e.max_error:.4g}"]
+                 for e in result.episodes])
+    console.print(f"report: {report}")
+
+
+@app.command("predict-error")
+def predict_error(
+    robot: Annotated[str, typer.Option(help="bundled robot name or binding file")],
+    scenarios: Annotated[Path, typer.Option(help="suite JSON file")],
+    out: Annotated[Path, typer.Option(help="output directory")],
+    primary: Annotated[str, typer.Option(help="reference twin")] = "webots",
+    secondary: Annotated[str, typer.Option(help="predicting twin")] = "mujoco",
+    horizons: Annotated[str, typer.Option(help="horizons in control periods")] = "1,5,25",
+    stride: Annotated[int, typer.Option(help="periods between synchronised start states")] = 5,
+    json_out: JsonOutput = False,
+) -> None:
+    """Short-horizon prediction error from synchronised states: the chaos-insensitive model mismatch."""
+    from dualtwin.sync import prediction_error, write_sync_report
+
+    horizon_list = int_list(horizons, "--horizons")
+    check_output_dir(out, "predict-error")
+    result = prediction_error(primary, secondary, robot, suite=scenarios, out_dir=out,
+                              horizons=horizon_list, stride=stride)
+    report = write_sync_report(out / "report", prediction=result)
+    if json_out:
+        emit_json({"report": str(report), "prediction": result.table})
+        return
+    by_h = result.table.get("by_horizon", {})
+    print_table(console, [Column("horizon [periods]"), Column("normalised RMS error")],
+                [[str(h), f"{row.get('normalized_rms', float('nan')):.4g}"] for h, row in by_h.items()])
+    console.print(f"report: {report}")

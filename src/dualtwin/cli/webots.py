@@ -1,0 +1,44 @@
+"""``dualtwin webots``: the headless Webots runtime."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from dualtwin.cli.common import webots_app
+
+
+@webots_app.command("run")
+def webots_run(
+    world: Annotated[Path, typer.Argument(help=".wbt world file")],
+    controller: Annotated[Path | None, typer.Option(help="controller script (default: the one the world names)")] = None,
+    duration: Annotated[float | None, typer.Option(help="simulated seconds before step() returns -1")] = None,
+    keys: Annotated[Path | None, typer.Option(help="key script replayed by Keyboard: lines 'TIME KEY [HOLD]'")] = None,
+) -> None:
+    """Run a Webots world headless with its (unchanged) Python controller."""
+    from dualtwin.webots.runner import run_world
+
+    if controller is not None:
+        from dualtwin.artifacts import read_text_file
+
+        read_text_file(controller, "controller script")  # missing, a folder, a pipe or binary: one line
+    code = run_world(world, controller, duration, keys=keys)
+    raise typer.Exit(code)
+
+
+@webots_app.command("fetch")
+def webots_fetch(
+    worlds: Annotated[list[Path], typer.Argument(help=".wbt world files")],
+    out: Annotated[Path | None, typer.Option(help="fill this folder (for DUALTWIN_PROTO_MIRROR on an offline "
+                                                  "machine) instead of your PROTO cache")] = None,
+) -> None:
+    """Download every PROTO (and bounding-object mesh) the worlds need, verified, for offline runs."""
+    from dualtwin.webots.fetch import fetch_command
+
+    report, root = fetch_command(worlds, out, say=lambda line: print(line, file=sys.stderr))
+    for warning in report.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+    print(f"{len(report.protos)} PROTO files and {len(report.assets)} meshes ready in {root}")
