@@ -15,16 +15,53 @@ from __future__ import annotations
 
 import re
 from collections import defaultdict
+from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from pydantic import ValidationError
 
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import Binding
 
-if TYPE_CHECKING:
-    from dualtwin.convert.webots_to_mjcf import Conversion
+
+class _Joint(Protocol):
+    name: str
+    kind: str
+    motors: list[str]
+    sensors: list[str]
+
+
+class _Motor(Protocol):
+    name: str
+    joint: str
+    linear: bool
+
+
+class ConvertedRobot(Protocol):
+    """What the binding needs from a conversion (:class:`dualtwin.convert.conversion.Conversion` has it).
+
+    A protocol rather than an import, so the conversion result can use this module without a cycle.
+    """
+
+    @property
+    def joints(self) -> Sequence[_Joint]: ...
+    @property
+    def motors(self) -> Sequence[_Motor]: ...
+    @property
+    def sensors(self) -> dict[str, str]: ...
+    @property
+    def free_base(self) -> bool: ...
+    @property
+    def root_body(self) -> str: ...
+    @property
+    def model_name(self) -> str: ...
+    @property
+    def description(self) -> str: ...
+    @property
+    def control_period_ms(self) -> float: ...
+    @property
+    def robot(self) -> str: ...
 
 
 def key(text: str) -> str:
@@ -45,7 +82,7 @@ def motor_groups(names: list[str]) -> dict[str, list[str]]:
     return {g: members for g, members in sorted(groups.items()) if len(members) >= 2}
 
 
-def make_binding(conv: Conversion, xml_name: str, webots_model: str) -> dict[str, Any]:
+def make_binding(conv: ConvertedRobot, xml_name: str, webots_model: str) -> dict[str, Any]:
     """The binding dict for a conversion (see the module docstring)."""
     onboard: dict[str, Any] = {}
     ground_truth: dict[str, Any] = {}

@@ -23,50 +23,34 @@ Joints
     ``springConstant`` -> ``stiffness``, ``staticFriction`` -> ``frictionloss``.
 
 Stops
-    Webots stops are hard ODE limits with the WorldInfo ERP/CFM (ODE's defaults at joint creation; Webots
-    passes ``stopERP``/``stopCFM`` only when they change at run time, docs/reference/webots-on-ode.md §4.2).
-    In one ODE step of length H a violated stop loses its approach velocity and is pushed out at ERP r / H;
-    CFM leaves a blend d = 1/(1 + CFM m / h) of the unconstrained motion (m the joint's effective inertia,
-    1/``dof_invweight0``).
-    A MuJoCo limit with impedance d and reference acceleration -b v - k r does the same in one MuJoCo step h
-    when b = 1/h and h k = ERP / H: ``solreflimit`` = (2h, sqrt(H / (4 h ERP))), ``solimplimit`` d (<= 0.9999),
-    so the joint rests on its stop with ODE's static offset CFM m a H / ERP instead of MuJoCo's default soft
-    limit (0.02 s, d 0.9-0.95), which sinks a loaded CartPole pole 2.3 mrad past its stop.
+    Webots stops are hard ODE limits; they become stiff MuJoCo limits whose ``solreflimit``/``solimplimit``
+    reproduce ODE's one-step stop response (:func:`dualtwin.convert.equivalences.stop_solref`).
 
 Devices
     RotationalMotor/LinearMotor -> ``general`` actuator named by the device, on its joint, ``forcerange`` and
     ``ctrlrange`` ±maxTorque/maxForce, plus ``<numeric name="webots_motor.NAME" data="maxVelocity Kp Ki Kd
     acceleration [minPosition maxPosition]"/>`` (what :mod:`dualtwin.twins.mujoco` reads; the position limits
-    only when they differ, as Webots then clamps position targets into them). PositionSensor -> jointpos; InertialUnit ->
+    only when they differ, :func:`dualtwin.convert.equivalences.motor_numeric`). PositionSensor -> jointpos; InertialUnit ->
     framequat, Gyro -> gyro, Accelerometer -> accelerometer, GPS -> framepos, Compass -> magnetometer,
     DistanceSensor -> rangefinder, TouchSensor -> touch, each at a site at the device pose named by the device.
 
 Cameras
-    R2022a+ Webots devices use the FLU convention: a Camera looks along its +x axis with +z up (R2021b and
-    older worlds, NUE: along -z with +y up). MuJoCo cameras look along -z with +y up, so the MuJoCo camera is
-    the device frame rotated so that (-z, +y) -> (+x, +z). ``fieldOfView`` is horizontal in radians; MuJoCo's
-    ``fovy`` is vertical in degrees: ``fovy = degrees(2 atan(tan(fov/2) h/w))``.
+    FLU device frames and horizontal fields of view become MuJoCo camera frames and ``fovy``
+    (:func:`~dualtwin.convert.equivalences.camera_rotation`, :func:`~dualtwin.convert.equivalences.camera_fovy_degrees`).
 
 Contacts
     The ContactProperties matching the robot's and the environment's ``contactMaterial`` (default values if
-    none matches) give ``friction`` = coulombFriction, and ``solref``/``solimp`` from softERP/softCFM: ODE's
-    constraint is a spring-damper with k = ERP/(h CFM), b = (1-ERP)/CFM (h = basicTimeStep). For an
-    effective mass m this is ω = sqrt(k/m), ζ = b / (2 sqrt(k m)); MuJoCo's (timeconst, dampratio) spring has
-    ω = 1/(timeconst ζ), hence timeconst = 2 m / b and dampratio = ζ. m is the robot mass divided by the
-    number of robot bodies with collision geoms; timeconst is clamped to 2 MuJoCo steps (MuJoCo's own
-    minimum). solimp d = 1/(1 + CFM m / h) plays the role of ODE's regularisation. This matches the response
-    shape, not ODE's per-point stiffness or static sink: a MuJoCo row gives f = (a_ref - a)/R, a_ref = -B v -
-    K d r, R = (1-d)/d Â, with Â = 2 mu^2 (1 + mu^2) (w1 + w2)/impratio on the pyramid (w = ``body_invweight0``),
-    and the 4 edge rows of a condim-3 point sum to a spring 4Kd/R, a damper 4B/R and an added mass 4/R: 195 kN/m
-    for the Pioneer's wheels against ODE's 25 kN/m (sink 0.076 vs 0.60 mm). The exact per-point map (B = 1/h,
-    R = 4/(h(b + k h)), Kd = k R/4, MuJoCo step h) gives ODE's sink but shares the larger R with the friction
-    rows, which then creep; it missed the Pioneer's held-out goals by more, so it is not used (README, Pioneer
-    section). ``bounce`` has no MuJoCo equivalent (noted in the warnings). Robot parts never collide with each other unless ``selfCollision``.
+    none matches) give ``friction`` = coulombFriction and ``solref``/``solimp`` from softERP/softCFM
+    (:func:`~dualtwin.convert.equivalences.contact_solref`, which records why the mapping matches ODE's response
+    shape rather than its per-point stiffness). ``bounce`` has no MuJoCo equivalent (noted in the warnings).
+    Robot parts never collide with each other unless ``selfCollision``.
 
 World
-    ``timestep`` = the largest of 2, 1, 0.5, 0.25 ms dividing ``basicTimeStep`` (else basicTimeStep/k <= 2 ms),
-    gravity (0, 0, -g), ``integrator="implicitfast"``, ``cone="pyramidal"`` (ODE's friction pyramid),
+    ``timestep`` from :func:`~dualtwin.convert.equivalences.timestep_for`, gravity (0, 0, -g), ``integrator="implicitfast"``, ``cone="pyramidal"`` (ODE's friction pyramid),
     ``compiler angle="radian"``.
+
+Every ODE -> MuJoCo equivalence (with its reasoning) lives in :mod:`dualtwin.convert.equivalences`; this module
+walks the world and writes the MjSpec; the result types are in :mod:`dualtwin.convert.conversion`.
 """
 
 from __future__ import annotations
@@ -75,25 +59,40 @@ import math
 import os
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import mujoco
 import numpy as np
-import yaml
 
-from dualtwin.convert.checks import Finding, SmokeResult, lint_spec, smoke_test
+from dualtwin.convert.checks import Finding, lint_spec
+from dualtwin.convert.conversion import Conversion, ConversionError, JointInfo, MotorInfo
+from dualtwin.convert.equivalences import (
+    CONTACT_FRICTION_TAIL,
+    KINEMATIC_MASS,
+    apply_joint_dynamics,
+    camera_fovy_degrees,
+    camera_rotation,
+    contact_effective_mass,
+    contact_pair,
+    hinge2_second_axis,
+    hinge_stop_range,
+    limit_solimp,
+    motor_numeric,
+    rangefinder_rotation,
+    stop_solref,
+    timestep_for,
+)
 from dualtwin.convert.mass import (
     FloatArray,
     MassProps,
     bounding_primitives,
     combine,
     indexed_face_set_mesh,
-    rotation_matrix,
     solid_mass,
 )
-from dualtwin.errors import DualtwinError
+from dualtwin.geometry import axis_angle_matrix, mujoco_quat
 from dualtwin.webots import schema
 from dualtwin.webots.nodes import Node, World
 from dualtwin.webots.protos import load_world, load_world_text
@@ -104,9 +103,6 @@ COLLISION_GROUP = 3
 # Collision bits: robot geoms never touch each other (Webots selfCollision FALSE), everything else does.
 ROBOT_CONTYPE, ROBOT_CONAFFINITY = 2, 1
 ENV_CONTYPE, ENV_CONAFFINITY = 1, 3
-MAX_TIMESTEP_MS = 2.0
-# Mass given to a moving body that has none (a Webots endPoint without Physics is kinematic, not dynamic).
-KINEMATIC_MASS = 1e-3
 
 #: Solid-derived devices that become a site (and a sensor where MuJoCo has one).
 SITE_SENSORS = {
@@ -126,10 +122,6 @@ IGNORED = frozenset({"PointLight", "SpotLight", "DirectionalLight", "Fog", "Back
                      "WorldInfo", "Billboard", "IndexedLineSet", "PointSet"})
 
 
-class ConversionError(DualtwinError):
-    """The world cannot be converted; the message names the node and its ``file:line:col``."""
-
-
 # ------------------------------------------------------------------------------------------------
 # small helpers
 
@@ -146,14 +138,12 @@ def _describe(node: Node) -> str:
 
 
 def _quat(R: FloatArray) -> list[float]:
-    q = np.zeros(4)
-    mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, dtype=float).reshape(9))
-    return [float(v) for v in q]
+    return [float(v) for v in mujoco_quat(R)]
 
 
 def _pose(node: Node, scale: float = 1.0) -> FloatArray:
     T = np.eye(4)
-    T[:3, :3] = rotation_matrix(node.get("rotation", (0.0, 0.0, 1.0, 0.0)))
+    T[:3, :3] = axis_angle_matrix(node.get("rotation", (0.0, 0.0, 1.0, 0.0)))
     T[:3, 3] = np.asarray(node.get("translation", (0.0, 0.0, 0.0)), dtype=float) * scale
     return T
 
@@ -165,145 +155,8 @@ def _inv(T: FloatArray) -> FloatArray:
     return out
 
 
-def _axis_rotation(axis: Sequence[float] | FloatArray, angle: float) -> FloatArray:
-    return rotation_matrix((*(float(v) for v in axis), angle))
-
-
-def timestep_for(basic_time_step_ms: float) -> float:
-    """A MuJoCo timestep (s) <= 2 ms that divides Webots' basicTimeStep exactly."""
-    for h in (2.0, 1.0, 0.5, 0.25):
-        ratio = basic_time_step_ms / h
-        if h <= basic_time_step_ms and abs(ratio - round(ratio)) < 1e-9:
-            return h / 1000.0
-    k = max(1, math.ceil(basic_time_step_ms / MAX_TIMESTEP_MS))
-    return basic_time_step_ms / k / 1000.0
-
-
-def camera_fovy_degrees(field_of_view: float, width: int, height: int) -> float:
-    """Webots horizontal field of view (rad) -> MuJoCo vertical ``fovy`` (degrees)."""
-    return math.degrees(2.0 * math.atan(math.tan(field_of_view / 2.0) * height / width))
-
-
-def contact_solref(soft_erp: float, soft_cfm: float, step_s: float, mass: float,
-                   mujoco_step_s: float) -> tuple[float, float, float]:
-    """ODE softERP/softCFM at Webots' step -> MuJoCo (timeconst, dampratio) and solimp ``d`` (module docstring)."""
-    erp = min(max(soft_erp, 1e-6), 1.0)
-    cfm = max(soft_cfm, 1e-12)
-    k = erp / (step_s * cfm)
-    b = max((1.0 - erp) / cfm, 1e-9)
-    m = max(mass, 1e-6)
-    dampratio = b / (2.0 * math.sqrt(k * m))
-    timeconst = max(2.0 * m / b, 2.0 * mujoco_step_s)
-    d = 1.0 / (1.0 + cfm * m / step_s)
-    return timeconst, min(dampratio, 1e3), min(max(d, 0.5), 0.9999)
-
-
-def stop_solref(stop_erp: float, stop_cfm: float, step_s: float, inertia: float,
-                mujoco_step_s: float) -> tuple[float, float, float]:
-    """ODE stop ERP/CFM at Webots' step -> MuJoCo ``solreflimit`` (timeconst, dampratio) and solimp ``d``.
-
-    See "Stops" in the module docstring: b = 1/h and h k = ERP/H reproduce ODE's one-step stop response.
-    """
-    erp = min(max(stop_erp, 1e-6), 1.0)
-    timeconst = 2.0 * mujoco_step_s
-    dampratio = math.sqrt(step_s / (4.0 * mujoco_step_s * erp))
-    d = 1.0 / (1.0 + max(stop_cfm, 0.0) * max(inertia, 1e-9) / mujoco_step_s)
-    return timeconst, dampratio, min(max(d, 0.5), 0.9999)
-
-
 def _slug(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9]+", "_", text).strip("_").lower() or "x"
-
-
-# ------------------------------------------------------------------------------------------------
-# results
-
-
-@dataclass
-class JointInfo:
-    """What the binding generator needs to know about a converted joint."""
-
-    name: str
-    kind: str  # hinge | slide | ball
-    body: str
-    motors: list[str] = field(default_factory=list)
-    sensors: list[str] = field(default_factory=list)
-    limited: bool = False
-
-
-@dataclass
-class MotorInfo:
-    name: str
-    joint: str
-    linear: bool
-    max_torque: float
-    max_velocity: float
-
-
-@dataclass
-class Conversion:
-    """A converted robot: the spec, its binding, warnings and lint findings."""
-
-    spec: mujoco.MjSpec
-    world_path: str
-    robot: str  # DEF (or name) of the robot node in the world
-    model_name: str
-    root_body: str
-    free_base: bool
-    control_period_ms: float
-    joints: list[JointInfo]
-    motors: list[MotorInfo]
-    sensors: dict[str, str]  # sensor name -> Webots device type
-    warnings: list[str]
-    lint: list[Finding]
-    description: str = ""
-
-    @property
-    def xml(self) -> str:
-        return str(self.spec.to_xml())
-
-    def compile(self) -> mujoco.MjModel:
-        try:
-            return self.spec.compile()
-        except ValueError as exc:
-            raise ConversionError(f"{self.world_path}: converted model does not compile: "
-                                  f"{' '.join(str(exc).split())}") from None
-
-    def smoke(self, duration_s: float = 0.5, seed: int = 0) -> SmokeResult:
-        return smoke_test(self.compile(), duration_s, seed)
-
-    def binding_dict(self, xml_name: str | None = None, webots_model: str | None = None) -> dict[str, Any]:
-        """The binding (our YAML format); model paths are relative to the binding file."""
-        from dualtwin.convert.bindings import make_binding
-
-        return make_binding(self, xml_name or f"{self.model_name}.xml",
-                            webots_model if webots_model is not None else os.path.basename(self.world_path))
-
-    @property
-    def binding(self) -> dict[str, Any]:
-        return self.binding_dict()
-
-    def binding_yaml(self, xml_name: str | None = None, webots_model: str | None = None) -> str:
-        header = f"# Generated by dualtwin convert from {os.path.basename(self.world_path)} (robot {self.robot}).\n"
-        return header + yaml.safe_dump(self.binding_dict(xml_name, webots_model), sort_keys=False, width=110)
-
-    def write(self, xml_path: str | os.PathLike[str], binding_path: str | os.PathLike[str] | None = None) -> None:
-        """Write the MJCF and, if asked, the binding (paths inside it relative to the binding's folder)."""
-        from dualtwin.artifacts import write_text
-        from dualtwin.convert.bindings import validate_binding
-
-        xml_path = Path(xml_path)
-        if binding_path is not None:
-            binding_path = Path(binding_path)
-            base = binding_path.resolve().parent
-            xml_rel = os.path.relpath(xml_path.resolve(), base)
-            wbt_rel = os.path.relpath(Path(self.world_path).resolve(), base)
-            data = self.binding_dict(xml_rel, wbt_rel)
-            validate_binding(data, binding_path)
-            write_text(xml_path, self.xml)
-            write_text(binding_path, self.binding_yaml(xml_rel, wbt_rel))
-        else:
-            write_text(xml_path, self.xml)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -524,11 +377,7 @@ class _Converter:
         device_name = str(solid.get("name") or kind.lower())
         if kind == "Camera":
             w, h = int(solid["width"]), int(solid["height"])
-            if self.old_cameras:
-                R = T[:3, :3]  # NUE-era cameras already look along -z with +y up
-            else:
-                # FLU: look along +x, +z up. MuJoCo camera axes (x right, y up, z back) in the device frame.
-                R = T[:3, :3] @ np.array([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+            R = camera_rotation(T[:3, :3], old_cameras=self.old_cameras)
             cam = body.add_camera(name=self.unique("camera", device_name), pos=[float(v) for v in T[:3, 3]],
                                   quat=_quat(R))
             cam.fovy = camera_fovy_degrees(float(solid["fieldOfView"]), w, h)
@@ -539,8 +388,7 @@ class _Converter:
             return
         site_R = T[:3, :3]
         if kind == "DistanceSensor":
-            # Webots rays leave along the device's +x; MuJoCo's rangefinder looks along the site's +z.
-            site_R = site_R @ _axis_rotation((0.0, 1.0, 0.0), math.pi / 2)
+            site_R = rangefinder_rotation(site_R)
             self.warn(f"distance sensor {device_name!r}: MuJoCo rangefinder returns metres along one ray "
                       "(Webots' lookupTable and aperture are not converted)", solid)
         site_name = self.unique("site", device_name)
@@ -752,8 +600,7 @@ class _Converter:
                 self.findings.append(Finding("error", "stop-in-degrees",
                                              f"hinge stops [{lo:g}, {hi:g}] exceed 2*pi: degrees written as radians?",
                                              _where(where)))
-            # ODE clamps hinge stops into [-pi, pi] (docs/reference/webots-on-ode.md §4.2).
-            lo, hi = max(lo, -math.pi), min(hi, math.pi)
+            lo, hi = hinge_stop_range(lo, hi)
         j.range = sorted([lo, hi])
         j.limited = mujoco.mjtLimited.mjLIMITED_TRUE
         if float(params.get("stopERP", -1.0)) >= 0 or float(params.get("stopCFM", -1.0)) >= 0:
@@ -773,20 +620,10 @@ class _Converter:
             inertia = 1.0 / max(float(model.dof_invweight0[dof]), 1e-12)
             timeconst, dampratio, d = stop_solref(erp, cfm, self.basic_ms / 1000.0, inertia, self.dt)
             j.solref_limit = [timeconst, dampratio]
-            j.solimp_limit = [d, d, 0.001, 0.5, 2.0]
+            j.solimp_limit = limit_solimp(d)
 
     def set_dynamics(self, j: Any, params: dict[str, Any], position: float, where: Node) -> None:
-        damping = float(params.get("dampingConstant", 0.0))
-        spring = float(params.get("springConstant", 0.0))
-        friction = float(params.get("staticFriction", 0.0))
-        _set_scalar(j, "damping", damping)
-        if spring:
-            _set_scalar(j, "stiffness", spring)
-            # Webots' spring rests at the initial position, MuJoCo's at springref (default 0).
-            j.springref = position
-        if friction:
-            j.frictionloss = friction
-        if float(params.get("suspensionSpringConstant", 0.0)) or float(params.get("suspensionDampingConstant", 0.0)):
+        if apply_joint_dynamics(j, params, position):
             self.warn("hinge suspension (Webots' ODE fork) is not converted", where)
 
     def joint_devices(self, devices: list[Node], info: JointInfo, *, linear: bool) -> None:
@@ -803,14 +640,7 @@ class _Converter:
                 act.forcerange = [-limit, limit]
                 act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
                 act.ctrlrange = [-limit, limit]
-                kp, ki, kd = (float(v) for v in d.get("controlPID", (10.0, 0.0, 0.0)))
-                data = [float(d.get("maxVelocity", 10.0)), kp, ki, kd, float(d.get("acceleration", -1.0))]
-                lo, hi = float(d.get("minPosition", 0.0)), float(d.get("maxPosition", 0.0))
-                if lo != hi:
-                    # Webots clamps every position target into [minPosition, maxPosition] (they are not joint
-                    # stops: velocity and torque commands pass), so the twin that emulates the motor needs them.
-                    data += [lo, hi]
-                self.spec.add_numeric(name=f"webots_motor.{act_name}", data=data)
+                self.spec.add_numeric(name=f"webots_motor.{act_name}", data=motor_numeric(d))
                 if float(d.get("multiplier", 1.0)) != 1.0:
                     self.warn(f"motor {name!r}: multiplier {d.get('multiplier')} is not converted", d)
                 info.motors.append(act_name)
@@ -838,14 +668,11 @@ class _Converter:
         pos1 = float(p1.get("position", 0.0)) if p1_node is not None else float(jnode.get("position", 0.0))
         pos2 = float(p2.get("position", 0.0)) if p2_node is not None else float(jnode.get("position2", 0.0))
         axis1 = np.asarray(p1.get("axis", (1.0, 0.0, 0.0)), dtype=float)
-        # axis2 is written for the first hinge at zero; at the file's pose it is turned by position1.
-        axis2 = _axis_rotation(axis1, pos1) @ np.asarray(p2.get("axis", (0.0, 0.0, 1.0)), dtype=float)
+        axis2 = hinge2_second_axis(axis1, pos1, p2.get("axis", (0.0, 0.0, 1.0)))
         anchor = point_in_child(p1.get("anchor", (0.0, 0.0, 0.0)))
         devices1 = [d for d in jnode.get("device", []) if d is not None]
         devices2 = [d for d in jnode.get("device2", []) if d is not None]
-        # Both hinges live in the child body: MuJoCo applies a body's joints in order, each about its axis in
-        # the frame left by the previous ones, so axis 2 turns with hinge 1 exactly as ODE's hinge-2 axis 2.
-        # (A separate intermediate body would need a fake mass: MuJoCo rejects massless moving bodies.)
+        # Both hinges live in the child body (equivalences.hinge2_second_axis says why).
         def add(body: Any, body_name: str) -> None:
             name1 = self.joint_name(jnode, devices1)
             j1 = body.add_joint(name=name1, type=mujoco.mjtJoint.mjJNT_HINGE, axis=in_child(axis1), pos=anchor)
@@ -885,7 +712,7 @@ class _Converter:
         env_materials = list(dict.fromkeys(g.material for g in env_geoms)) or ["default"]
         robot_mass = sum(self.body_mass.get(b, 0.0) for b in self.robot_bodies)
         contact_bodies = max(1, len({g.body for g in robot_geoms}))
-        m_eff = robot_mass / contact_bodies if robot_mass > 0 else 1.0
+        m_eff = contact_effective_mass(robot_mass, contact_bodies)
         step = self.basic_ms / 1000.0
         env_params: dict[str, tuple[float, list[float], list[float]]] = {}
         noted: set[tuple[str, str]] = set()
@@ -893,7 +720,7 @@ class _Converter:
             props = self.contact_properties(g.material, env_materials[0])
             friction, solref, solimp = self.pair_params(props, m_eff, step)
             geom = self.spec.geom(g.name)
-            geom.friction = [friction, 0.005, 0.0001]
+            geom.friction = [friction, *CONTACT_FRICTION_TAIL]
             geom.solref = solref
             geom.solimp = solimp
             for env_material in env_materials:
@@ -918,17 +745,12 @@ class _Converter:
             if env is None:
                 continue
             geom = self.spec.geom(g.name)
-            geom.friction = [env[0], 0.005, 0.0001]
+            geom.friction = [env[0], *CONTACT_FRICTION_TAIL]
             geom.solref = env[1]
             geom.solimp = env[2]
 
     def pair_params(self, props: dict[str, Any], m_eff: float, step: float) -> tuple[float, list[float], list[float]]:
-        mu = float((props.get("coulombFriction") or [1.0])[0])
-        if mu < 0:  # -1 = infinite friction in Webots
-            mu = 100.0
-        timeconst, dampratio, d = contact_solref(float(props.get("softERP", 0.2)), float(props.get("softCFM", 0.001)),
-                                                 step, m_eff, self.dt)
-        return mu, [timeconst, dampratio], [d, d, 0.001, 0.5, 2.0]
+        return contact_pair(props, m_eff, step, self.dt)
 
     # -- top level
     def convert(self, robot_node: Node, robot_label: str) -> Conversion:
@@ -1017,16 +839,6 @@ class _Converter:
         if kind in UNSUPPORTED:
             raise self.unsupported(node)
         self.warn(f"top-level {kind} ignored", node)
-
-
-def _set_scalar(element: Any, attr: str, value: float) -> None:
-    """MuJoCo 4 made joint damping/stiffness arrays (polynomial terms); 3.x has scalars."""
-    current = getattr(element, attr)
-    if isinstance(current, np.ndarray) and current.ndim:
-        current[0] = value
-        setattr(element, attr, current)
-    else:
-        setattr(element, attr, value)
 
 
 # ------------------------------------------------------------------------------------------------

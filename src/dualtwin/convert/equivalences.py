@@ -1,0 +1,276 @@
+"""The converter's ODE -> MuJoCo equivalences: what each Webots physics setting becomes in MuJoCo, and why.
+
+Pure functions and constants, no MjSpec walking (that is :mod:`dualtwin.convert.webots_to_mjcf`). Each entry's
+docstring records the reasoning behind the mapping, so a change to one equivalence is a change to one function.
+Section numbers (§) refer to the Webots-on-ODE specification in ``docs/reference/webots-on-ode.md``.
+
+Overview (one line each; details in the functions):
+
+* world step: :func:`timestep_for` (a MuJoCo step that divides ``basicTimeStep``), gravity ``(0, 0, -g)``,
+  ``implicitfast`` integrator, ``pyramidal`` cone (ODE's friction pyramid);
+* contact softness ``softERP``/``softCFM`` -> ``solref``/``solimp``: :func:`contact_solref`, per material pair
+  :func:`contact_pair`;
+* friction ``coulombFriction`` -> ``friction``: :func:`coulomb_friction`;
+* joint stops (ODE hard limits with the world ERP/CFM) -> ``solreflimit``/``solimplimit``: :func:`stop_solref`,
+  ranges :func:`hinge_stop_range`;
+* joint damping, springs and static friction -> ``damping``, ``stiffness``/``springref``, ``frictionloss``:
+  :func:`apply_joint_dynamics`;
+* motors (velocity/position control through Webots' PID, torque limits) -> ``general`` actuator limits plus a
+  ``webots_motor.*`` numeric the MuJoCo twin reads: :func:`motor_numeric`;
+* cameras (FLU device frame, horizontal field of view) -> MuJoCo camera frame and ``fovy``:
+  :func:`camera_rotation`, :func:`camera_fovy_degrees`; distance sensors: :func:`rangefinder_rotation`;
+* a moving body without Physics (kinematic in Webots) -> :data:`KINEMATIC_MASS`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from dualtwin.geometry import axis_angle_matrix
+
+FloatArray = npt.NDArray[np.float64]
+
+__all__ = [
+    "CONTACT_FRICTION_TAIL",
+    "KINEMATIC_MASS",
+    "MAX_TIMESTEP_MS",
+    "apply_joint_dynamics",
+    "camera_fovy_degrees",
+    "camera_rotation",
+    "contact_effective_mass",
+    "contact_pair",
+    "contact_solref",
+    "coulomb_friction",
+    "hinge2_second_axis",
+    "hinge_stop_range",
+    "limit_solimp",
+    "motor_numeric",
+    "rangefinder_rotation",
+    "set_scalar",
+    "stop_solref",
+    "timestep_for",
+]
+
+MAX_TIMESTEP_MS = 2.0
+#: Mass (kg) given to a moving body that has none. A Webots endPoint without Physics is moved kinematically;
+#: MuJoCo rejects massless moving bodies, so it gets a token mass (and a warning).
+KINEMATIC_MASS = 1e-3
+#: MuJoCo's torsional and rolling friction of converted geoms (ODE has neither; Webots' rollingFriction is
+#: reported, not converted): MuJoCo's defaults.
+CONTACT_FRICTION_TAIL = (0.005, 0.0001)
+#: Webots' coulombFriction -1 means infinite friction; MuJoCo needs a number.
+INFINITE_FRICTION = 100.0
+
+
+def timestep_for(basic_time_step_ms: float) -> float:
+    """A MuJoCo timestep (s) <= 2 ms that divides Webots' basicTimeStep exactly.
+
+    The largest of 2, 1, 0.5, 0.25 ms that divides ``basicTimeStep``, else ``basicTimeStep / k`` <= 2 ms: a
+    control period is then a whole number of MuJoCo steps, and 2 ms keeps MuJoCo's contacts stable where
+    Webots' ODE steps at 16 or 32 ms.
+    """
+    for h in (2.0, 1.0, 0.5, 0.25):
+        ratio = basic_time_step_ms / h
+        if h <= basic_time_step_ms and abs(ratio - round(ratio)) < 1e-9:
+            return h / 1000.0
+    k = max(1, math.ceil(basic_time_step_ms / MAX_TIMESTEP_MS))
+    return basic_time_step_ms / k / 1000.0
+
+
+def camera_fovy_degrees(field_of_view: float, width: int, height: int) -> float:
+    """Webots horizontal field of view (rad) -> MuJoCo vertical ``fovy`` (degrees).
+
+    ``fovy = degrees(2 atan(tan(fov/2) h/w))``: the same pinhole, measured on the other image side.
+    """
+    return math.degrees(2.0 * math.atan(math.tan(field_of_view / 2.0) * height / width))
+
+
+#: MuJoCo camera axes (x right, y up, z back) in a FLU Webots camera's device frame (looks along +x, +z up).
+FLU_TO_MUJOCO_CAMERA = np.array([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+
+
+def camera_rotation(device_R: FloatArray, *, old_cameras: bool) -> FloatArray:
+    """The MuJoCo camera frame of a Webots Camera whose device frame is ``device_R``.
+
+    R2022a+ Webots devices use the FLU convention: a Camera looks along its +x axis with +z up. R2021b and
+    older worlds (NUE) look along -z with +y up, which is MuJoCo's camera convention already. So FLU cameras
+    are turned so that MuJoCo's (-z, +y) land on the device's (+x, +z); old cameras are taken as they are.
+    """
+    if old_cameras:
+        return device_R
+    result: FloatArray = device_R @ FLU_TO_MUJOCO_CAMERA
+    return result
+
+
+def rangefinder_rotation(device_R: FloatArray) -> FloatArray:
+    """Site frame of a DistanceSensor: Webots rays leave along the device's +x, MuJoCo's rangefinder along +z.
+
+    Only the ray direction is mapped: MuJoCo returns metres along one ray (Webots' lookupTable and aperture are
+    reported as not converted).
+    """
+    result: FloatArray = device_R @ axis_angle_matrix((0.0, 1.0, 0.0, math.pi / 2))
+    return result
+
+
+def contact_solref(soft_erp: float, soft_cfm: float, step_s: float, mass: float,
+                   mujoco_step_s: float) -> tuple[float, float, float]:
+    """ODE softERP/softCFM at Webots' step -> MuJoCo (timeconst, dampratio) and solimp ``d``.
+
+    ODE's contact constraint is a spring-damper with k = ERP/(h CFM), b = (1-ERP)/CFM (h = basicTimeStep).
+    For an effective mass m this is ω = sqrt(k/m), ζ = b / (2 sqrt(k m)); MuJoCo's (timeconst, dampratio)
+    spring has ω = 1/(timeconst ζ), hence timeconst = 2 m / b and dampratio = ζ. m is chosen by
+    :func:`contact_effective_mass`; timeconst is clamped to 2 MuJoCo steps (MuJoCo's own minimum). solimp
+    d = 1/(1 + CFM m / h) plays the role of ODE's regularisation.
+
+    This matches the response shape, not ODE's per-point stiffness or static sink: a MuJoCo row gives
+    f = (a_ref - a)/R, a_ref = -B v - K d r, R = (1-d)/d Â, with Â = 2 mu^2 (1 + mu^2) (w1 + w2)/impratio on
+    the pyramid (w = ``body_invweight0``), and the 4 edge rows of a condim-3 point sum to a spring 4Kd/R, a
+    damper 4B/R and an added mass 4/R: 195 kN/m for the Pioneer's wheels against ODE's 25 kN/m (sink 0.076 vs
+    0.60 mm). The exact per-point map (B = 1/h, R = 4/(h(b + k h)), Kd = k R/4, MuJoCo step h) gives ODE's
+    sink but shares the larger R with the friction rows, which then creep; it missed the Pioneer's held-out
+    goals by more, so it is not used (docs, Pioneer results).
+    """
+    erp = min(max(soft_erp, 1e-6), 1.0)
+    cfm = max(soft_cfm, 1e-12)
+    k = erp / (step_s * cfm)
+    b = max((1.0 - erp) / cfm, 1e-9)
+    m = max(mass, 1e-6)
+    dampratio = b / (2.0 * math.sqrt(k * m))
+    timeconst = max(2.0 * m / b, 2.0 * mujoco_step_s)
+    d = 1.0 / (1.0 + cfm * m / step_s)
+    return timeconst, min(dampratio, 1e3), min(max(d, 0.5), 0.9999)
+
+
+def contact_effective_mass(robot_mass: float, contact_bodies: int) -> float:
+    """The mass m of :func:`contact_solref`: the robot's mass shared by its bodies with collision geoms.
+
+    ODE's softness acts per contact point on whatever mass is behind it; one number per robot keeps every
+    robot geom on one spring. A robot without mass uses 1 kg.
+    """
+    return robot_mass / contact_bodies if robot_mass > 0 else 1.0
+
+
+def limit_solimp(d: float) -> list[float]:
+    """A constant impedance ``d`` as MuJoCo's 5-number solimp (width 1 mm, midpoint 0.5, power 2)."""
+    return [d, d, 0.001, 0.5, 2.0]
+
+
+def coulomb_friction(props: Mapping[str, Any]) -> float:
+    """ContactProperties ``coulombFriction`` -> MuJoCo sliding ``friction``.
+
+    The first value (an asymmetric pair is reported and uses its first value); -1, Webots' infinite friction,
+    becomes :data:`INFINITE_FRICTION`.
+    """
+    mu = float((props.get("coulombFriction") or [1.0])[0])
+    if mu < 0:  # -1 = infinite friction in Webots
+        mu = INFINITE_FRICTION
+    return mu
+
+
+def contact_pair(props: Mapping[str, Any], m_eff: float, step_s: float,
+                 mujoco_step_s: float) -> tuple[float, list[float], list[float]]:
+    """One material pair's ContactProperties -> (friction, solref, solimp) for the geoms that meet on it.
+
+    ``bounce`` has no MuJoCo equivalent (MuJoCo contacts have no restitution model), so only softERP/softCFM
+    shape the contact; the converter warns when a pair has bounce.
+    """
+    mu = coulomb_friction(props)
+    timeconst, dampratio, d = contact_solref(float(props.get("softERP", 0.2)), float(props.get("softCFM", 0.001)),
+                                             step_s, m_eff, mujoco_step_s)
+    return mu, [timeconst, dampratio], limit_solimp(d)
+
+
+def stop_solref(stop_erp: float, stop_cfm: float, step_s: float, inertia: float,
+                mujoco_step_s: float) -> tuple[float, float, float]:
+    """ODE stop ERP/CFM at Webots' step -> MuJoCo ``solreflimit`` (timeconst, dampratio) and solimp ``d``.
+
+    Webots stops are hard ODE limits with the WorldInfo ERP/CFM (ODE's defaults at joint creation; Webots
+    passes ``stopERP``/``stopCFM`` only when they change at run time, §4.2). In one ODE step of length H a
+    violated stop loses its approach velocity and is pushed out at ERP r / H; CFM leaves a blend
+    d = 1/(1 + CFM m / h) of the unconstrained motion (m the joint's effective inertia, 1/``dof_invweight0``).
+    A MuJoCo limit with impedance d and reference acceleration -b v - k r does the same in one MuJoCo step h
+    when b = 1/h and h k = ERP / H: ``solreflimit`` = (2h, sqrt(H / (4 h ERP))), ``solimplimit`` d
+    (<= 0.9999), so the joint rests on its stop with ODE's static offset CFM m a H / ERP instead of MuJoCo's
+    default soft limit (0.02 s, d 0.9-0.95), which sinks a loaded CartPole pole 2.3 mrad past its stop.
+    """
+    erp = min(max(stop_erp, 1e-6), 1.0)
+    timeconst = 2.0 * mujoco_step_s
+    dampratio = math.sqrt(step_s / (4.0 * mujoco_step_s * erp))
+    d = 1.0 / (1.0 + max(stop_cfm, 0.0) * max(inertia, 1e-9) / mujoco_step_s)
+    return timeconst, dampratio, min(max(d, 0.5), 0.9999)
+
+
+def hinge_stop_range(lo: float, hi: float) -> tuple[float, float]:
+    """Hinge ``minStop``/``maxStop`` as ODE applies them: clamped into [-pi, pi] (§4.2).
+
+    (The caller limits a joint only when the stops differ; equal stops mean "no stop" in Webots.)
+    """
+    return max(lo, -math.pi), min(hi, math.pi)
+
+
+def set_scalar(element: Any, attr: str, value: float) -> None:
+    """Set a joint's damping/stiffness: MuJoCo 4 made them arrays (polynomial terms), 3.x has scalars."""
+    current = getattr(element, attr)
+    if isinstance(current, np.ndarray) and current.ndim:
+        current[0] = value
+        setattr(element, attr, current)
+    else:
+        setattr(element, attr, value)
+
+
+def apply_joint_dynamics(joint: Any, params: Mapping[str, Any], position: float) -> bool:
+    """Joint parameters -> MuJoCo joint dynamics; returns True when a suspension could not be converted.
+
+    * ``dampingConstant`` -> ``damping`` (both a viscous torque -c q', per joint);
+    * ``springConstant`` -> ``stiffness`` with ``springref`` = the initial position: Webots' spring rests at
+      the position the joint had when the world loaded, MuJoCo's at ``springref`` (default 0);
+    * ``staticFriction`` -> ``frictionloss`` (a dry friction torque opposing motion in both);
+    * the hinge suspension of Webots' ODE fork has no MuJoCo counterpart.
+    """
+    damping = float(params.get("dampingConstant", 0.0))
+    spring = float(params.get("springConstant", 0.0))
+    friction = float(params.get("staticFriction", 0.0))
+    set_scalar(joint, "damping", damping)
+    if spring:
+        set_scalar(joint, "stiffness", spring)
+        joint.springref = position
+    if friction:
+        joint.frictionloss = friction
+    return bool(float(params.get("suspensionSpringConstant", 0.0))
+                or float(params.get("suspensionDampingConstant", 0.0)))
+
+
+def motor_numeric(motor: Any) -> list[float]:
+    """A RotationalMotor/LinearMotor's control semantics as ``webots_motor.<actuator>`` numeric data.
+
+    ``[maxVelocity, Kp, Ki, Kd, acceleration]`` plus ``[minPosition, maxPosition]`` when they differ. MuJoCo has
+    no actuator that behaves like a Webots motor (position control through Webots' PID giving a velocity,
+    clamped to maxVelocity and tracked within maxTorque), so the converter writes a ``general`` actuator whose
+    force and control ranges are ±maxTorque (±maxForce) and stores the rest here for the MuJoCo twin
+    (:mod:`dualtwin.twins.mujoco`) to emulate. minPosition/maxPosition are not joint stops: Webots clamps every
+    position target into them while velocity and torque commands pass, so the twin needs them too.
+    """
+    kp, ki, kd = (float(v) for v in motor.get("controlPID", (10.0, 0.0, 0.0)))
+    data = [float(motor.get("maxVelocity", 10.0)), kp, ki, kd, float(motor.get("acceleration", -1.0))]
+    lo, hi = float(motor.get("minPosition", 0.0)), float(motor.get("maxPosition", 0.0))
+    if lo != hi:
+        data += [lo, hi]
+    return data
+
+
+def hinge2_second_axis(axis1: Sequence[float] | FloatArray, position1: float,
+                       axis2: Sequence[float] | FloatArray) -> FloatArray:
+    """A Hinge2Joint's axis 2 at the file's pose: written for hinge 1 at zero, so turned by ``position1``.
+
+    Both hinges then live in the child body: MuJoCo applies a body's joints in order, each about its axis in
+    the frame left by the previous ones, so axis 2 turns with hinge 1 exactly as ODE's hinge-2 axis 2. (A
+    separate intermediate body would need a fake mass: MuJoCo rejects massless moving bodies.)
+    """
+    R = axis_angle_matrix((*(float(v) for v in axis1), position1))
+    result: FloatArray = R @ np.asarray(axis2, dtype=float)
+    return result
