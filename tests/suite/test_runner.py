@@ -11,6 +11,8 @@ import pytest
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import resolve_robot
 from dualtwin.suite.runner import SuiteRun
+from tests.support.fake_twin import SUITE as FAKE_SUITE
+from tests.support.fake_twin import fake_robot, registered
 from tests.support.suites import PAPER_SUITE
 
 
@@ -60,34 +62,38 @@ def test_runs_are_byte_identical(paper_suite: Path, tmp_path: Path) -> None:
             assert a == (tmp_path / "b" / "scenarios" / sid / log).read_bytes()
 
 
-def test_resume_runs_only_what_is_missing(paper_suite: Path, tmp_path: Path) -> None:
-    robot = resolve_robot("cartpole")
-    out = tmp_path / "run"
-    SuiteRun(paper_suite, "mujoco", robot, out).run()
-    reference = (out / "scenarios" / "02_Step_Response_3" / "ground_truth.tsv").read_bytes()
-    # Simulate a crash after two scenarios: the last two logs never got written.
-    manifest = json.loads((out / "manifest.json").read_text())
-    manifest["scenarios"] = manifest["scenarios"][:2]
-    (out / "manifest.json").write_text(json.dumps(manifest))
-    shutil.rmtree(out / "scenarios" / "02_Step_Response_3")
-    shutil.rmtree(out / "scenarios" / "03_Step_Response_3")
-    first_mtime = (out / "scenarios" / "00_Step_Response" / "ground_truth.tsv").stat().st_mtime_ns
-    seen: list[tuple[str, str]] = []
-    SuiteRun(paper_suite, "mujoco", robot, out).run(resume=True, on_scenario=lambda s, st: seen.append((s, st)))
-    assert seen[0] == ("00_Step_Response", "skipped (done)")
-    assert (out / "scenarios" / "00_Step_Response" / "ground_truth.tsv").stat().st_mtime_ns == first_mtime
-    assert (out / "scenarios" / "02_Step_Response_3" / "ground_truth.tsv").read_bytes() == reference
-    assert len(json.loads((out / "manifest.json").read_text())["scenarios"]) == 4
+def test_resume_runs_only_what_is_missing(tmp_path: Path) -> None:
+    # Runner logic only, so the fake twin serves (tests/support/fake_twin.py): no physics needed.
+    with registered() as fake:
+        robot = fake_robot()
+        out = tmp_path / "run"
+        SuiteRun(FAKE_SUITE, fake, robot, out).run()
+        reference = (out / "scenarios" / "02_push" / "ground_truth.tsv").read_bytes()
+        # Simulate a crash after two scenarios: the last three logs never got written.
+        manifest = json.loads((out / "manifest.json").read_text())
+        manifest["scenarios"] = manifest["scenarios"][:2]
+        (out / "manifest.json").write_text(json.dumps(manifest))
+        for sid in ("02_push", "03_drive", "04_kick"):
+            shutil.rmtree(out / "scenarios" / sid)
+        first_mtime = (out / "scenarios" / "00_release_1" / "ground_truth.tsv").stat().st_mtime_ns
+        seen: list[tuple[str, str]] = []
+        SuiteRun(FAKE_SUITE, fake, robot, out).run(resume=True, on_scenario=lambda s, st: seen.append((s, st)))
+    assert seen[0] == ("00_release_1", "skipped (done)")
+    assert [st for _, st in seen[2:]] == ["completed"] * 3
+    assert (out / "scenarios" / "00_release_1" / "ground_truth.tsv").stat().st_mtime_ns == first_mtime
+    assert (out / "scenarios" / "02_push" / "ground_truth.tsv").read_bytes() == reference
+    assert len(json.loads((out / "manifest.json").read_text())["scenarios"]) == 5
 
 
-def test_refuses_to_overwrite_and_resume_checks_inputs(paper_suite: Path, tmp_path: Path) -> None:
-    robot = resolve_robot("cartpole")
-    out = tmp_path / "run"
-    SuiteRun(paper_suite, "mujoco", robot, out).run()
-    with pytest.raises(DualtwinError, match="earlier suite-run output; use --resume"):
-        SuiteRun(paper_suite, "mujoco", robot, out).run()
-    with pytest.raises(DualtwinError, match="cannot resume"):
-        SuiteRun(paper_suite, "mujoco", robot, out, seed=3).run(resume=True)
+def test_refuses_to_overwrite_and_resume_checks_inputs(tmp_path: Path) -> None:
+    with registered() as fake:
+        robot = fake_robot()
+        out = tmp_path / "run"
+        SuiteRun(FAKE_SUITE, fake, robot, out).run()
+        with pytest.raises(DualtwinError, match="earlier suite-run output; use --resume"):
+            SuiteRun(FAKE_SUITE, fake, robot, out).run()
+        with pytest.raises(DualtwinError, match="cannot resume"):
+            SuiteRun(FAKE_SUITE, fake, robot, out, seed=3).run(resume=True)
 
 
 def test_failure_threshold_stops_the_scenario(tmp_path: Path) -> None:
