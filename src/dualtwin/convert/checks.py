@@ -15,6 +15,8 @@ from typing import Any, Literal
 import mujoco
 import numpy as np
 
+from dualtwin.webots.nodes import Node
+
 Level = Literal["error", "warning"]
 
 #: Hinge ranges wider than this in radians are almost certainly degrees.
@@ -36,6 +38,19 @@ class Finding:
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+
+def lint_world_rotations(root: Node) -> list[Finding]:
+    """Webots ``rotation`` angles beyond 2*pi under ``root``: almost certainly degrees written as radians."""
+    findings = []
+    for node in root.walk():
+        rotation = node.fields.get("rotation")
+        if isinstance(rotation, tuple) and len(rotation) == 4 and abs(float(rotation[3])) > TWO_PI:
+            findings.append(Finding(
+                "warning", "rotation-in-degrees",
+                f"{node.type_name} rotation angle {rotation[3]:g} exceeds 2*pi: degrees written as radians?",
+                str(node.location) if node.location is not None else "<unknown location>"))
+    return findings
 
 
 def _visual(geom: Any) -> bool:

@@ -24,7 +24,8 @@ from typing import Any
 import yaml
 
 from dualtwin.artifacts import write_text
-from dualtwin.convert.webots_to_mjcf import Conversion, convert_loaded, select_robot
+from dualtwin.convert.conversion import Conversion
+from dualtwin.convert.webots_to_mjcf import convert_loaded, select_robot
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding, load_binding
 from dualtwin.webots import schema

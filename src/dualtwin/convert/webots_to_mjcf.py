@@ -14,43 +14,31 @@ Bodies and masses
 
 Joints
     HingeJoint -> hinge, SliderJoint -> slide, BallJoint -> ball, Hinge2Joint -> two hinges in the child
-    body (MuJoCo composes a body's joints in order, so axis 2 turns with hinge 1 as in ODE). ``axis``/``anchor`` are in the frame of the joint's parent Pose and are
-    re-expressed in the child body frame. Webots stores the endPoint *at* ``position``, so ``position``
+    body (MuJoCo composes a body's joints in order, so axis 2 turns with hinge 1 as in ODE). ``axis`` and
+    ``anchor`` are in the frame of the joint's parent Pose and are re-expressed in the child body frame. Webots stores the endPoint *at* ``position``, so ``position``
     becomes ``ref`` (and ``springref``): ``qpos0 = position`` and the XML pose is the pose at ``qpos0``.
     Signs: a Webots hinge/slider position grows with a right-handed rotation about / a translation along
     ``axis``, which is MuJoCo's convention too (ODE's internal slider axis reversal, §4.3, is undone by Webots).
     ``minStop``/``maxStop`` -> ``range`` (limited only if they differ), ``dampingConstant`` -> ``damping``,
     ``springConstant`` -> ``stiffness``, ``staticFriction`` -> ``frictionloss``.
 
-Stops
-    Webots stops are hard ODE limits; they become stiff MuJoCo limits whose ``solreflimit``/``solimplimit``
-    reproduce ODE's one-step stop response (:func:`dualtwin.convert.equivalences.stop_solref`).
-
 Devices
     RotationalMotor/LinearMotor -> ``general`` actuator named by the device, on its joint, ``forcerange`` and
     ``ctrlrange`` ±maxTorque/maxForce, plus ``<numeric name="webots_motor.NAME" data="maxVelocity Kp Ki Kd
-    acceleration [minPosition maxPosition]"/>`` (what :mod:`dualtwin.twins.mujoco` reads; the position limits
-    only when they differ, :func:`dualtwin.convert.equivalences.motor_numeric`). PositionSensor -> jointpos; InertialUnit ->
-    framequat, Gyro -> gyro, Accelerometer -> accelerometer, GPS -> framepos, Compass -> magnetometer,
+    acceleration [minPosition maxPosition]"/>`` (what :mod:`dualtwin.twins.mujoco` reads).
+    PositionSensor -> jointpos; InertialUnit -> framequat, Gyro -> gyro, Accelerometer -> accelerometer, GPS -> framepos, Compass -> magnetometer,
     DistanceSensor -> rangefinder, TouchSensor -> touch, each at a site at the device pose named by the device.
 
-Cameras
-    FLU device frames and horizontal fields of view become MuJoCo camera frames and ``fovy``
-    (:func:`~dualtwin.convert.equivalences.camera_rotation`, :func:`~dualtwin.convert.equivalences.camera_fovy_degrees`).
+Stops, contacts, cameras, world
+    Stops become stiff MuJoCo limits and ContactProperties each collision geom's ``friction``, ``solref`` and
+    ``solimp`` (a second pass once the model is whole, :mod:`dualtwin.convert.contacts`); FLU cameras turn into
+    MuJoCo's camera frame with a vertical ``fovy``; the world gets a ``timestep`` dividing ``basicTimeStep``,
+    gravity (0, 0, -g), ``integrator="implicitfast"``, ``cone="pyramidal"`` (ODE's friction pyramid) and
+    ``compiler angle="radian"``. Robot parts never collide with each other unless ``selfCollision``; ``bounce``
+    has no MuJoCo equivalent (noted in the warnings).
 
-Contacts
-    The ContactProperties matching the robot's and the environment's ``contactMaterial`` (default values if
-    none matches) give ``friction`` = coulombFriction and ``solref``/``solimp`` from softERP/softCFM
-    (:func:`~dualtwin.convert.equivalences.contact_solref`, which records why the mapping matches ODE's response
-    shape rather than its per-point stiffness). ``bounce`` has no MuJoCo equivalent (noted in the warnings).
-    Robot parts never collide with each other unless ``selfCollision``.
-
-World
-    ``timestep`` from :func:`~dualtwin.convert.equivalences.timestep_for`, gravity (0, 0, -g), ``integrator="implicitfast"``, ``cone="pyramidal"`` (ODE's friction pyramid),
-    ``compiler angle="radian"``.
-
-Every ODE -> MuJoCo equivalence (with its reasoning) lives in :mod:`dualtwin.convert.equivalences`; this module
-walks the world and writes the MjSpec; the result types are in :mod:`dualtwin.convert.conversion`.
+Every ODE -> MuJoCo equivalence, with its reasoning, is a function in :mod:`dualtwin.convert.equivalences`;
+this module walks the world and writes the MjSpec; the result types are in :mod:`dualtwin.convert.conversion`.
 """
 
 from __future__ import annotations
@@ -59,29 +47,24 @@ import math
 import os
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import mujoco
 import numpy as np
 
-from dualtwin.convert.checks import Finding, lint_spec
+from dualtwin.convert.checks import Finding, lint_spec, lint_world_rotations
+from dualtwin.convert.contacts import ContactGeom, Stop, apply_contacts, apply_stops
 from dualtwin.convert.conversion import Conversion, ConversionError, JointInfo, MotorInfo
 from dualtwin.convert.equivalences import (
-    CONTACT_FRICTION_TAIL,
     KINEMATIC_MASS,
     apply_joint_dynamics,
     camera_fovy_degrees,
     camera_rotation,
-    contact_effective_mass,
-    contact_pair,
     hinge2_second_axis,
     hinge_stop_range,
-    limit_solimp,
     motor_numeric,
     rangefinder_rotation,
-    stop_solref,
     timestep_for,
 )
 from dualtwin.convert.mass import (
@@ -130,13 +113,6 @@ def _where(node: Node) -> str:
     return str(node.location) if node.location is not None else "<unknown location>"
 
 
-def _describe(node: Node) -> str:
-    label = node.type_name
-    if node.def_name:
-        label = f"DEF {node.def_name} {label}"
-    return f"{label} at {_where(node)}"
-
-
 def _quat(R: FloatArray) -> list[float]:
     return [float(v) for v in mujoco_quat(R)]
 
@@ -163,14 +139,6 @@ def _slug(text: str) -> str:
 # the converter
 
 
-@dataclass
-class _Geom:
-    name: str
-    body: str
-    material: str
-    robot: bool
-
-
 class _Converter:
     def __init__(self, world: World, world_path: str) -> None:
         self.world = world
@@ -186,7 +154,7 @@ class _Converter:
         self.nue = str(self.info.get("coordinateSystem", "ENU")).upper() == "NUE"
         version = re.search(r"R(\d{4})([ab])", world.header or "")
         self.old_cameras = version is not None and (int(version.group(1)), version.group(2)) < (2022, "a")
-        self.geoms: list[_Geom] = []
+        self.geoms: list[ContactGeom] = []
         self.joints: list[JointInfo] = []
         self.motors: list[MotorInfo] = []
         self.sensors: dict[str, str] = {}
@@ -196,7 +164,7 @@ class _Converter:
         self.self_collision = False
         self.mesh_count = 0
         self.missing_defs: list[str] = []
-        self.stops: list[tuple[Any, float, float]] = []  # (MjSpec joint, ERP, CFM)
+        self.stops: list[Stop] = []
 
     # -- names
     def unique(self, kind: str, base: str) -> str:
@@ -234,15 +202,6 @@ class _Converter:
             self.warn("WorldInfo coordinateSystem is NUE: converted as written (no NUE -> ENU rotation)")
         self.spec.worldbody.add_light(name=self.unique("light", "sun"), pos=[0, 0, 10], dir=[0, 0, -1],
                                       type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL)
-
-    def lint_rotations(self, root: Node) -> None:
-        for node in root.walk():
-            rotation = node.fields.get("rotation")
-            if isinstance(rotation, tuple) and len(rotation) == 4 and abs(float(rotation[3])) > 2 * math.pi + 1e-6:
-                self.findings.append(Finding(
-                    "warning", "rotation-in-degrees",
-                    f"{node.type_name} rotation angle {rotation[3]:g} exceeds 2*pi: degrees written as radians?",
-                    _where(node)))
 
     # -- geometry
     def add_geom(self, body: Any, geometry: Node, T: FloatArray, scale: float, name: str, *, collision: bool,
@@ -307,7 +266,7 @@ class _Converter:
             geom.mass = 0.0
             geom.density = 0.0
             geom.rgba = [0.5, 0.5, 0.5, 0.3]
-            self.geoms.append(_Geom(name, str(body.name), material, robot))
+            self.geoms.append(ContactGeom(name, str(body.name), material, robot))
         else:
             geom.contype = 0
             geom.conaffinity = 0
@@ -610,18 +569,6 @@ class _Converter:
         self.stops.append((j, float(self.info.get("ERP", 0.2)), float(self.info.get("CFM", 1e-5))))
         return True
 
-    def apply_stops(self) -> None:
-        """Hard Webots stops as stiff MuJoCo limits (module docstring, Stops); d needs the compiled inertia."""
-        if not self.stops:
-            return
-        model = self.spec.compile()
-        for j, erp, cfm in self.stops:
-            dof = int(model.jnt_dofadr[model.joint(j.name).id])
-            inertia = 1.0 / max(float(model.dof_invweight0[dof]), 1e-12)
-            timeconst, dampratio, d = stop_solref(erp, cfm, self.basic_ms / 1000.0, inertia, self.dt)
-            j.solref_limit = [timeconst, dampratio]
-            j.solimp_limit = limit_solimp(d)
-
     def set_dynamics(self, j: Any, params: dict[str, Any], position: float, where: Node) -> None:
         if apply_joint_dynamics(j, params, position):
             self.warn("hinge suspension (Webots' ODE fork) is not converted", where)
@@ -694,69 +641,11 @@ class _Converter:
 
         self.build_body(parent, end, child_T, scale, static=False, add_joint=add)
 
-    # -- contacts
-    def contact_properties(self, a: str, b: str) -> dict[str, Any]:
-        for cp in self.info.get("contactProperties", []) or []:
-            if cp is None:
-                continue
-            m1, m2 = str(cp.get("material1")), str(cp.get("material2"))
-            if {m1, m2} == {a, b}:
-                return cp.fields
-        return schema.default_fields("ContactProperties")
-
-    def apply_contacts(self) -> None:
-        robot_geoms = [g for g in self.geoms if g.robot]
-        env_geoms = [g for g in self.geoms if not g.robot]
-        if not robot_geoms:
-            return
-        env_materials = list(dict.fromkeys(g.material for g in env_geoms)) or ["default"]
-        robot_mass = sum(self.body_mass.get(b, 0.0) for b in self.robot_bodies)
-        contact_bodies = max(1, len({g.body for g in robot_geoms}))
-        m_eff = contact_effective_mass(robot_mass, contact_bodies)
-        step = self.basic_ms / 1000.0
-        env_params: dict[str, tuple[float, list[float], list[float]]] = {}
-        noted: set[tuple[str, str]] = set()
-        for g in robot_geoms:
-            props = self.contact_properties(g.material, env_materials[0])
-            friction, solref, solimp = self.pair_params(props, m_eff, step)
-            geom = self.spec.geom(g.name)
-            geom.friction = [friction, *CONTACT_FRICTION_TAIL]
-            geom.solref = solref
-            geom.solimp = solimp
-            for env_material in env_materials:
-                params = self.pair_params(self.contact_properties(g.material, env_material), m_eff, step)
-                current = env_params.get(env_material)
-                # MuJoCo takes the larger friction of the two geoms: the environment keeps the smallest.
-                if current is None or params[0] < current[0]:
-                    env_params[env_material] = params
-                key = (g.material, env_material)
-                if key not in noted:
-                    noted.add(key)
-                    cp = self.contact_properties(*key)
-                    if float(cp.get("bounce", 0.0)) > 0:
-                        self.warn(f"contact {key[0]!r}/{key[1]!r}: bounce {float(cp['bounce']):g} is not reproduced "
-                                  "(MuJoCo contacts have no restitution model; solref from softERP/softCFM)")
-                    if any(float(v) for v in cp.get("rollingFriction", (0.0, 0.0, 0.0))):
-                        self.warn(f"contact {key[0]!r}/{key[1]!r}: rollingFriction not converted")
-                    if len(cp.get("coulombFriction", [1.0])) > 1:
-                        self.warn(f"contact {key[0]!r}/{key[1]!r}: asymmetric coulombFriction uses the first value")
-        for g in env_geoms:
-            env = env_params.get(g.material)
-            if env is None:
-                continue
-            geom = self.spec.geom(g.name)
-            geom.friction = [env[0], *CONTACT_FRICTION_TAIL]
-            geom.solref = env[1]
-            geom.solimp = env[2]
-
-    def pair_params(self, props: dict[str, Any], m_eff: float, step: float) -> tuple[float, list[float], list[float]]:
-        return contact_pair(props, m_eff, step, self.dt)
-
     # -- top level
     def convert(self, robot_node: Node, robot_label: str) -> Conversion:
         self.setup()
         for top in self.world.nodes:
-            self.lint_rotations(top)
+            self.findings += lint_world_rotations(top)
         # Static environment first, so the floor comes first in the file.
         for top in self.world.nodes:
             if top is robot_node:
@@ -784,12 +673,14 @@ class _Converter:
             self.warn(f"{len(self.missing_defs)} joint(s)/endPoint(s) have no DEF (first: {self.missing_defs[0]}); "
                       "the Webots twin finds joints and bodies by DEF, so give them DEFs "
                       "(dualtwin.convert.faithfulness.prepare_world_for_twins writes such a copy)")
-        self.apply_contacts()
+        robot_mass = sum(self.body_mass.get(b, 0.0) for b in self.robot_bodies)
+        apply_contacts(self.spec, self.geoms, self.info, robot_mass, basic_ms=self.basic_ms, mujoco_step_s=self.dt,
+                       warn=self.warn)
         model_name = _slug(str(robot_node.get("name") or robot_label))
         self.spec.modelname = model_name
         model = None
         try:
-            self.apply_stops()
+            apply_stops(self.spec, self.stops, basic_ms=self.basic_ms, mujoco_step_s=self.dt)
             model = self.spec.compile()
         except ValueError as exc:
             raise ConversionError(f"{self.world_path}: converted model does not compile: "

@@ -1,0 +1,121 @@
+"""The converter's second pass: contact and joint-stop softness, written once every geom and joint exists.
+
+Both need the whole model first: a contact's spring uses the robot's mass shared by its touching bodies
+(:func:`dualtwin.convert.equivalences.contact_effective_mass`), and a stop's impedance uses the joint's
+effective inertia from the compiled model. The mappings themselves are in :mod:`dualtwin.convert.equivalences`.
+
+Contacts: the ContactProperties matching a robot geom's and the environment's ``contactMaterial`` (default
+values if none matches) give that geom's ``friction``, ``solref`` and ``solimp``. MuJoCo mixes a contact's
+parameters from its two geoms and takes the larger friction, so each environment material keeps the pair with
+the smallest friction among the robot materials that meet it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import mujoco
+
+from dualtwin.convert.equivalences import (
+    CONTACT_FRICTION_TAIL,
+    contact_effective_mass,
+    contact_pair,
+    limit_solimp,
+    stop_solref,
+)
+from dualtwin.webots import schema
+
+__all__ = ["ContactGeom", "Stop", "apply_contacts", "apply_stops", "contact_properties"]
+
+
+@dataclass
+class ContactGeom:
+    """A collision geom as written: its MuJoCo name and body, its Webots contactMaterial, robot or environment."""
+
+    name: str
+    body: str
+    material: str
+    robot: bool
+
+
+#: A limited joint waiting for its stop softness: (MjSpec joint, ERP, CFM).
+Stop = tuple[Any, float, float]
+
+
+def contact_properties(world_info: Mapping[str, Any], a: str, b: str) -> dict[str, Any]:
+    """The WorldInfo ContactProperties fields for materials ``a`` and ``b`` (either order), else the defaults."""
+    for cp in world_info.get("contactProperties", []) or []:
+        if cp is None:
+            continue
+        m1, m2 = str(cp.get("material1")), str(cp.get("material2"))
+        if {m1, m2} == {a, b}:
+            fields: dict[str, Any] = cp.fields
+            return fields
+    return schema.default_fields("ContactProperties")
+
+
+def apply_contacts(spec: mujoco.MjSpec, geoms: Sequence[ContactGeom], world_info: Mapping[str, Any],
+                   robot_mass: float, *, basic_ms: float, mujoco_step_s: float,
+                   warn: Callable[[str], None]) -> None:
+    """Write friction, solref and solimp on every collision geom (module docstring)."""
+    robot_geoms = [g for g in geoms if g.robot]
+    env_geoms = [g for g in geoms if not g.robot]
+    if not robot_geoms:
+        return
+    env_materials = list(dict.fromkeys(g.material for g in env_geoms)) or ["default"]
+    contact_bodies = max(1, len({g.body for g in robot_geoms}))
+    m_eff = contact_effective_mass(robot_mass, contact_bodies)
+    step = basic_ms / 1000.0
+    env_params: dict[str, tuple[float, list[float], list[float]]] = {}
+    noted: set[tuple[str, str]] = set()
+    for g in robot_geoms:
+        props = contact_properties(world_info, g.material, env_materials[0])
+        friction, solref, solimp = contact_pair(props, m_eff, step, mujoco_step_s)
+        geom = spec.geom(g.name)
+        geom.friction = [friction, *CONTACT_FRICTION_TAIL]
+        geom.solref = solref
+        geom.solimp = solimp
+        for env_material in env_materials:
+            params = contact_pair(contact_properties(world_info, g.material, env_material), m_eff, step,
+                                  mujoco_step_s)
+            current = env_params.get(env_material)
+            # MuJoCo takes the larger friction of the two geoms: the environment keeps the smallest.
+            if current is None or params[0] < current[0]:
+                env_params[env_material] = params
+            key = (g.material, env_material)
+            if key not in noted:
+                noted.add(key)
+                cp = contact_properties(world_info, *key)
+                if float(cp.get("bounce", 0.0)) > 0:
+                    warn(f"contact {key[0]!r}/{key[1]!r}: bounce {float(cp['bounce']):g} is not reproduced "
+                         "(MuJoCo contacts have no restitution model; solref from softERP/softCFM)")
+                if any(float(v) for v in cp.get("rollingFriction", (0.0, 0.0, 0.0))):
+                    warn(f"contact {key[0]!r}/{key[1]!r}: rollingFriction not converted")
+                if len(cp.get("coulombFriction", [1.0])) > 1:
+                    warn(f"contact {key[0]!r}/{key[1]!r}: asymmetric coulombFriction uses the first value")
+    for g in env_geoms:
+        env = env_params.get(g.material)
+        if env is None:
+            continue
+        geom = spec.geom(g.name)
+        geom.friction = [env[0], *CONTACT_FRICTION_TAIL]
+        geom.solref = env[1]
+        geom.solimp = env[2]
+
+
+def apply_stops(spec: mujoco.MjSpec, stops: Sequence[Stop], *, basic_ms: float, mujoco_step_s: float) -> None:
+    """Hard Webots stops as stiff MuJoCo limits (:func:`~dualtwin.convert.equivalences.stop_solref`).
+
+    The impedance needs each joint's effective inertia (1/``dof_invweight0``), so the spec is compiled first.
+    """
+    if not stops:
+        return
+    model = spec.compile()
+    for j, erp, cfm in stops:
+        dof = int(model.jnt_dofadr[model.joint(j.name).id])
+        inertia = 1.0 / max(float(model.dof_invweight0[dof]), 1e-12)
+        timeconst, dampratio, d = stop_solref(erp, cfm, basic_ms / 1000.0, inertia, mujoco_step_s)
+        j.solref_limit = [timeconst, dampratio]
+        j.solimp_limit = limit_solimp(d)
