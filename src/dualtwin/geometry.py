@@ -32,6 +32,7 @@ import numpy.typing as npt
 
 __all__ = [
     "axis_angle_from_matrix",
+    "axis_angle_from_quat",
     "axis_angle_from_rotvec",
     "axis_angle_matrix",
     "canonical_quat",
@@ -152,6 +153,21 @@ def axis_angle_from_matrix(rotation: Any) -> list[float]:
     if s < 1e-300:
         return [0.0, 0.0, 1.0, 0.0]
     return [*(q[1:] / s), 2.0 * math.atan2(s, float(q[0]))]
+
+
+def axis_angle_from_quat(q: Any) -> tuple[float, float, float, float]:
+    """Webots axis-angle ``(x, y, z, angle)`` of a unit quaternion ``(w, x, y, z)`` with ``angle = 2 acos(w)``.
+
+    The identity (within 1e-9 of it) is ``(0, 0, 1, 0)``. The angle lies in [0, 2 pi] and keeps the
+    quaternion's sign; :func:`axis_angle_from_matrix` gives the [0, pi] form. (``acos`` loses digits near the
+    identity where ``atan2`` does not; kept as it is because generated worlds written from it must not change.)
+    """
+    w = max(-1.0, min(1.0, float(q[0])))
+    angle = 2.0 * math.acos(w)
+    s = math.sqrt(max(1.0 - w * w, 0.0))
+    if s < 1e-9:
+        return (0.0, 0.0, 1.0, 0.0)
+    return (float(q[1] / s), float(q[2] / s), float(q[3] / s), angle)
 
 
 def axis_angle_from_rotvec(vector: Any) -> list[float]:

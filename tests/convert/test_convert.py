@@ -20,8 +20,8 @@ from dualtwin.convert import (
     stop_solref,
     timestep_for,
 )
-from dualtwin.convert.mass import rotation_matrix
 from dualtwin.errors import DualtwinError
+from dualtwin.geometry import axis_angle_matrix
 
 HEADER = "#VRML_SIM R2023b utf8\n"
 WHEEL = "boundingObject Sphere { radius 0.05 } physics Physics { density -1 mass 0.5 }"
@@ -91,12 +91,12 @@ def test_hinge_ref_axis_anchor_and_dynamics() -> None:
     d = forward(m)
     arm = m.body("ARM").id
     assert d.xpos[arm] == pytest.approx([0.4, 0, 0.5])
-    assert d.xmat[arm].reshape(3, 3) == pytest.approx(rotation_matrix((0, 1, 0, 0.3)))
+    assert d.xmat[arm].reshape(3, 3) == pytest.approx(axis_angle_matrix((0, 1, 0, 0.3)))
     assert d.xanchor[j.id] == pytest.approx([0.1, 0, 0.2])
     assert d.xaxis[j.id] == pytest.approx([0, 1, 0])
     # At qpos = 0 the child is in its zero pose: rotated back by -position about the anchor.
     d0 = forward(m, {"J": 0.0})
-    R = rotation_matrix((0, 1, 0, -0.3))
+    R = axis_angle_matrix((0, 1, 0, -0.3))
     expected = R @ (np.array([0.4, 0, 0.5]) - [0.1, 0, 0.2]) + [0.1, 0, 0.2]
     assert d0.xpos[arm] == pytest.approx(expected)
     assert d0.xmat[arm].reshape(3, 3) == pytest.approx(np.eye(3), abs=1e-12)

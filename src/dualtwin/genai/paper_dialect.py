@@ -59,6 +59,7 @@ from scipy.spatial.transform import Rotation
 
 from dualtwin.errors import DualtwinError
 from dualtwin.genai.primitive import RobotDescription, parse_description
+from dualtwin.geometry import axis_angle_from_rotvec
 
 Dialect = Literal["auto", "dualtwin", "paper"]
 
@@ -577,11 +578,7 @@ def _frames(t: _Translator, data: Mapping[str, Any], parts: list[dict[str, Any]]
 
 
 def _axis_angle(rotation: Rotation) -> list[float]:
-    vector = rotation.as_rotvec()
-    angle = float(np.linalg.norm(vector))
-    if angle < 1e-12:
-        return [0.0, 0.0, 1.0, 0.0]
-    return [*(float(v) for v in vector / angle), angle]
+    return axis_angle_from_rotvec(rotation.as_rotvec())
 
 
 def _looks_like_wheel(part: dict[str, Any], kind: str) -> bool:

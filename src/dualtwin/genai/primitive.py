@@ -31,6 +31,7 @@ import numpy as np
 from pydantic import Field, ValidationError, model_validator
 
 from dualtwin.errors import DualtwinError
+from dualtwin.geometry import axis_angle_from_quat, mujoco_quat
 from dualtwin.models import StrictModel
 from dualtwin.webots import schema
 from dualtwin.webots.nodes import Node, World
@@ -392,17 +393,6 @@ _PRIMITIVES = {
 }
 
 
-def _axis_angle(R: np.ndarray) -> tuple[float, float, float, float]:
-    q = np.zeros(4)
-    mujoco.mju_mat2Quat(q, np.ascontiguousarray(R).reshape(9))
-    w = max(-1.0, min(1.0, float(q[0])))
-    angle = 2.0 * math.acos(w)
-    s = math.sqrt(max(1.0 - w * w, 0.0))
-    if s < 1e-9:
-        return (0.0, 0.0, 1.0, 0.0)
-    return (float(q[1] / s), float(q[2] / s), float(q[3] / s), angle)
-
-
 def _clean(name: str, fallback: str) -> str:
     text = re.sub(r"[^A-Za-z0-9_]+", "_", name).strip("_")
     if not text or not re.match(r"[A-Za-z_]", text[0]):
@@ -505,7 +495,7 @@ def mjcf_to_description(source: Path | str | mujoco.MjSpec, robot_name: str | No
             part: dict[str, Any] = {
                 "name": pname, "type": gtype, "dimensions": _dims(gtype, model.geom_size[g]),
                 "mass": max(float(model.body_mass[b]) * volumes[k] / total_volume, MIN_MASS_KG),
-                "position": [float(v) for v in rel_p], "orientation": list(_axis_angle(rel_R)),
+                "position": [float(v) for v in rel_p], "orientation": list(axis_angle_from_quat(mujoco_quat(rel_R))),
                 "parent": parent_name,
             }
             rgba = model.geom_rgba[g]

@@ -13,7 +13,6 @@ before they become seconds, so nothing is lost to float rounding of epoch values
 
 from __future__ import annotations
 
-import math
 import operator
 import re
 import struct
@@ -25,6 +24,7 @@ import numpy as np
 
 from dualtwin.artifacts import check_input_file
 from dualtwin.errors import DualtwinError
+from dualtwin.geometry import rpy_from_quat
 from dualtwin.recorded.build import (
     FloatArray,
     RawLog,
@@ -59,11 +59,7 @@ def _get(value: Any, part: str) -> Any:
 def quaternion_angle(q: Any, angle: str) -> float:
     """Roll, pitch or yaw (radians, ZYX convention as ROS' tf2 ``getRPY``) of a quaternion message."""
     x, y, z, w = (float(_get(q, k)) for k in ("x", "y", "z", "w"))
-    if angle == "yaw":
-        return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-    if angle == "pitch":
-        return math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
-    return math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    return rpy_from_quat(x=x, y=y, z=z, w=w, angle=angle)
 
 
 class _TopicReader:

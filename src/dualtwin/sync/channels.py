@@ -30,6 +30,7 @@ from collections.abc import Iterable, Mapping
 
 import numpy as np
 
+from dualtwin.geometry import relative_rotation_vectors
 from dualtwin.twins.base import MechanicalState, check_same_entities
 
 DEFAULT_UNIT_SCALES: dict[str, float] = {
@@ -119,7 +120,7 @@ class DiffLayout:
         for i in range(len(self.bodies)):
             s = 13 * i
             out[:, col:col + 3] = b[:, s:s + 3] - a[:, s:s + 3]
-            out[:, col + 3:col + 6] = _relative_rotation(a[:, s + 3:s + 7], b[:, s + 3:s + 7])
+            out[:, col + 3:col + 6] = relative_rotation_vectors(a[:, s + 3:s + 7], b[:, s + 3:s + 7])
             out[:, col + 6:col + 12] = b[:, s + 7:s + 13] - a[:, s + 7:s + 13]
             col += 12
         s, nj = 13 * len(self.bodies), len(self.joints)
@@ -137,17 +138,3 @@ class DiffLayout:
         return np.sqrt(np.mean(scaled ** 2, axis=1))
 
 
-def _relative_rotation(qa: np.ndarray, qb: np.ndarray) -> np.ndarray:
-    """Rotation vectors of ``R_b R_aᵀ`` for quaternion rows ``(w, x, y, z)`` (angle in [0, π])."""
-    qa = qa / np.linalg.norm(qa, axis=1, keepdims=True)
-    qb = qb / np.linalg.norm(qb, axis=1, keepdims=True)
-    w1, v1 = qb[:, :1], qb[:, 1:]
-    w2, v2 = qa[:, :1], -qa[:, 1:]  # conjugate of a
-    w = w1 * w2 - np.sum(v1 * v2, axis=1, keepdims=True)
-    v = w1 * v2 + w2 * v1 + np.cross(v1, v2)
-    sign = np.where(w < 0, -1.0, 1.0)
-    w, v = w * sign, v * sign
-    s = np.linalg.norm(v, axis=1, keepdims=True)
-    small = s < 1e-15
-    factor = np.where(small, 2.0, 2.0 * np.arctan2(s, w) / np.where(small, 1.0, s))
-    return v * factor

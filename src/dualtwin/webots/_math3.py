@@ -3,6 +3,14 @@
 Rotations are row-major 3×3 matrices stored as 9-tuples; vectors are 3-tuples. Plain floats keep these
 helpers cheap for the handful of transforms a world needs and avoid numpy scalar overhead in
 supervisor queries.
+
+Why this is not :mod:`dualtwin.geometry` (the numpy home of rotations, same conventions): on 3-vectors numpy's
+per-call overhead costs more than the arithmetic. Measured on this machine (loaded, ``timeit``, best of 3):
+axis-angle -> matrix 1.3 µs here against 3.6 µs for ``geometry.axis_angle_matrix``, matrix x vector 0.36 µs
+against 1.3 µs for ``R @ v``, matrix -> quaternion 0.41 µs against 2.7 µs for ``geometry.quat_from_matrix``.
+The physics engine, the controller's devices and the supervisor API call these per body per step. The results
+also differ from geometry's in the last bits (other operation order, no sign canonicalisation in
+:func:`quat_from_mat`), and the Webots twin's logs are kept byte-identical, so the two stay separate.
 """
 
 from __future__ import annotations

@@ -31,6 +31,7 @@ import mujoco
 import numpy as np
 
 from dualtwin.errors import DualtwinError
+from dualtwin.geometry import mujoco_quat
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots import schema
 from dualtwin.webots.render import ResolvedCamera
@@ -42,7 +43,11 @@ VISUAL_GEOMETRY = ("Box", "Sphere", "Cylinder", "Capsule", "Plane", "IndexedFace
 
 
 def rotation_matrix(rotation: Any) -> np.ndarray:
-    """Webots SFRotation (axis, angle; axis normalised) as a 3x3 array."""
+    """Webots SFRotation (axis, angle; axis normalised) as a 3x3 array.
+
+    Through the physics engine's own tuple math rather than :func:`dualtwin.geometry.axis_angle_matrix`: the two
+    agree to rounding, and this keeps the scene's fixed poses bit for bit those of the ODE world it draws.
+    """
     return np.asarray(m3.rot_axis_angle(rotation), dtype=float).reshape(3, 3)
 
 
@@ -51,12 +56,6 @@ def _pose(fields: dict[str, Any], scale: float) -> np.ndarray:
     T[:3, :3] = rotation_matrix(fields.get("rotation", (0.0, 0.0, 1.0, 0.0)))
     T[:3, 3] = np.asarray(fields.get("translation", (0.0, 0.0, 0.0)), dtype=float) * scale
     return T
-
-
-def _quat(R: np.ndarray) -> np.ndarray:
-    q = np.zeros(4)
-    mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, dtype=float).reshape(9))
-    return q
 
 
 def _rgba(shape: Any) -> list[float]:
@@ -196,7 +195,7 @@ class WebotsVisualScene:
         if kind not in VISUAL_GEOMETRY:
             self.warnings.append(f"{geometry.location}: visual {kind} not drawn")
             return None
-        kwargs: dict[str, Any] = {"pos": [float(v) for v in T[:3, 3]], "quat": [float(v) for v in _quat(T[:3, :3])],
+        kwargs: dict[str, Any] = {"pos": [float(v) for v in T[:3, 3]], "quat": [float(v) for v in mujoco_quat(T[:3, :3])],
                                   "rgba": _rgba(shape), "contype": 0, "conaffinity": 0}
         if kind == "Box":
             kwargs.update(type=mujoco.mjtGeom.mjGEOM_BOX, size=[float(v) * scale / 2 for v in geometry["size"]])
