@@ -1,0 +1,514 @@
+"""Scene build: walk the world's node tree into records, merge Solids into ODE bodies with Webots' mass rules
+(§3.2–3.3), create the collision geoms of every boundingObject (§3.4) and collect the robots' devices."""
+
+from __future__ import annotations
+
+import ctypes
+import math
+from collections.abc import Iterable, Sequence
+from ctypes import byref
+from typing import Any
+
+from dualtwin.webots import _math3 as m3
+from dualtwin.webots import ode
+from dualtwin.webots._math3 import Pose
+from dualtwin.webots.mass_rules import mass_zero, rot_matrix, solid_mass, trimesh_data
+from dualtwin.webots.nodes import Node
+from dualtwin.webots.physics.core import SimulationCore
+from dualtwin.webots.physics.records import (
+    ATTACHMENT_TYPES,
+    JOINT_TYPES,
+    MAX_ANGULAR_SPEED,
+    MOTOR_TYPES,
+    SOLID_TYPES,
+    AttachmentRec,
+    BodyRec,
+    DeviceRec,
+    GeomRec,
+    JointRec,
+    MotorRec,
+    PositionSensorRec,
+    RobotRec,
+    SolidRec,
+    damping_per_step,
+    is_robot,
+    is_solid,
+)
+from dualtwin.webots.physics.records import (
+    field_or as _f,
+)
+
+
+class SceneBuilder(SimulationCore):
+    """Records, bodies, masses and geoms (see the module docstring)."""
+
+    # -- scene traversal
+
+    def _walk_top(self, node: Node) -> None:
+        self._walk_children([node], Pose(), None, None)
+
+    def _walk_children(
+        self,
+        children: Iterable[Node | None],
+        frame_rel: Pose,
+        parent: SolidRec | None,
+        robot: RobotRec | None,
+    ) -> None:
+        for child in children:
+            if child is None:
+                continue
+            if is_solid(child):
+                self._add_solid(child, frame_rel, parent, robot, None)
+            elif child.type_name in JOINT_TYPES:
+                self._add_joint(child, frame_rel, parent, robot)
+            elif child.type_name in ATTACHMENT_TYPES:
+                self.attachments.append(AttachmentRec(child, frame_rel, parent, robot))
+            elif "translation" in child.fields and "rotation" in child.fields and "children" in child.fields:
+                local = Pose.from_fields(_f(child, "translation", None), _f(child, "rotation", None))
+                scale = _f(child, "scale", (1.0, 1.0, 1.0))
+                if tuple(scale) != (1.0, 1.0, 1.0):
+                    self.warn(f"Transform scale {tuple(scale)} ignored outside boundingObjects")
+                self._walk_children(child.children(), frame_rel * local, parent, robot)
+            elif "children" in child.fields:
+                self._walk_children(child.children(), frame_rel, parent, robot)
+            elif child.type_name == "Slot" and isinstance(_f(child, "endPoint", None), Node):
+                self._walk_children([child.fields["endPoint"]], frame_rel, parent, robot)
+
+    def _add_solid(
+        self,
+        node: Node,
+        frame_rel: Pose,
+        parent: SolidRec | None,
+        robot: RobotRec | None,
+        joint: JointRec | None,
+    ) -> SolidRec:
+        local = Pose.from_fields(_f(node, "translation", None), _f(node, "rotation", None))
+        rel = frame_rel * local
+        solid = SolidRec(
+            node=node, parent=parent, robot=robot, rel=rel, pre=frame_rel, load_rel=rel, joint=joint
+        )
+        solid.index = len(self.solids)
+        self.solids.append(solid)
+        self._solid_by_node[id(node)] = solid
+        if parent is not None:
+            parent.children.append(solid)
+        if is_robot(node):
+            robot = RobotRec(
+                node=node,
+                solid=solid,
+                name=str(_f(node, "name", "robot")),
+                controller=str(_f(node, "controller", "")),
+                supervisor=bool(_f(node, "supervisor", False)),
+                self_collision=bool(_f(node, "selfCollision", False)),
+            )
+            solid.robot = robot
+            self.robots.append(robot)
+        self._walk_children(node.children(), Pose(), solid, robot)
+        return solid
+
+    def _add_joint(
+        self, node: Node, frame_rel: Pose, parent: SolidRec | None, robot: RobotRec | None
+    ) -> None:
+        kind = {"HingeJoint": "hinge", "SliderJoint": "slider", "Hinge2Joint": "hinge2", "BallJoint": "ball"}[
+            node.type_name
+        ]
+        p1 = _f(node, "jointParameters", None)
+        params: list[Node | None] = [p1 if isinstance(p1, Node) else None]
+        if kind == "hinge2":
+            p2 = _f(node, "jointParameters2", None)
+            params.append(p2 if isinstance(p2, Node) else None)
+        default_axis = (0.0, 0.0, 1.0) if kind == "slider" else (1.0, 0.0, 0.0)
+        axes = [tuple(float(v) for v in _f(params[0], "axis", default_axis))]
+        if kind == "hinge2":
+            axes.append(tuple(float(v) for v in _f(params[1], "axis", (0.0, 0.0, 1.0))))
+        if kind == "slider":
+            axes[0] = m3.normalized(axes[0])  # §4.3: Webots normalises the slider axis
+        anchor = tuple(float(v) for v in _f(params[0], "anchor", (0.0, 0.0, 0.0)))
+        positions = []
+        for i, p in enumerate(params):
+            hidden = "position" if i == 0 else "position2"
+            positions.append(float(_f(p, "position", _f(node, hidden, 0.0))))
+        n = len(params)
+        joint = JointRec(
+            node=node,
+            kind=kind,
+            parent=parent,
+            child=None,
+            frame_rel=frame_rel,
+            params=params,
+            axis_local=axes,  # type: ignore[arg-type]
+            anchor_local=anchor,  # type: ignore[arg-type]
+            initial_positions=list(positions),
+            positions=list(positions),
+            offsets=list(positions),
+            motors=[None] * n,
+            sensors=[None] * n,
+            static_friction=[float(_f(p, "staticFriction", 0.0)) for p in params],
+            raw_angles=[0.0] * n,
+        )
+        self.joints.append(joint)
+        self._joint_by_node[id(node)] = joint
+        for p in params:
+            if p is not None:
+                self._joint_by_node[id(p)] = joint
+        if parent is not None:
+            parent.child_joints.append(joint)
+        device_fields = ["device", "device2", "device3"][:n]
+        for axis_index, fname in enumerate(device_fields):
+            for dev in _f(node, fname, []) or []:
+                if not isinstance(dev, Node):
+                    continue
+                if dev.type_name in MOTOR_TYPES:
+                    joint.motors[axis_index] = self._make_motor(dev, joint, axis_index)
+                elif dev.type_name == "PositionSensor":
+                    joint.sensors[axis_index] = PositionSensorRec(
+                        node=dev,
+                        joint=joint,
+                        axis_index=axis_index,
+                        name=str(_f(dev, "name", "position sensor")),
+                        noise=float(_f(dev, "noise", 0.0)),
+                        resolution=float(_f(dev, "resolution", -1.0)),
+                    )
+        for axis_index in range(n):
+            motor, sensor = joint.motors[axis_index], joint.sensors[axis_index]
+            if motor is not None and sensor is not None:
+                motor.sensor = sensor
+        end = _f(node, "endPoint", None)
+        if isinstance(end, Node) and is_solid(end):
+            joint.child = self._add_solid(end, frame_rel, parent, robot, joint)
+        elif isinstance(end, Node) and end.type_name == "SolidReference":
+            self._loops.append((joint, str(_f(end, "solidName", ""))))  # closed once every body exists
+        elif isinstance(end, Node):
+            self.warn(f"{node.type_name} endPoint {end.type_name} is not supported; joint ignored")
+        if robot is not None:
+            for motor in joint.motors:
+                if motor is not None:
+                    robot.devices.setdefault(motor.name, motor)
+            for sensor in joint.sensors:
+                if sensor is not None:
+                    robot.devices.setdefault(sensor.name, sensor)
+
+    def _make_motor(self, dev: Node, joint: JointRec, axis_index: int) -> MotorRec:
+        rotational = dev.type_name == "RotationalMotor"
+        pid = tuple(_f(dev, "controlPID", (10.0, 0.0, 0.0)))
+        motor = MotorRec(
+            node=dev,
+            joint=joint,
+            axis_index=axis_index,
+            rotational=rotational,
+            name=str(_f(dev, "name", "rotational motor" if rotational else "linear motor")),
+            max_velocity=float(_f(dev, "maxVelocity", 10.0)),
+            max_force=float(_f(dev, "maxTorque" if rotational else "maxForce", 10.0)),
+            acceleration=float(_f(dev, "acceleration", -1.0)),
+            kp=float(pid[0]),
+            ki=float(pid[1]),
+            kd=float(pid[2]),
+            min_position=float(_f(dev, "minPosition", 0.0)),
+            max_position=float(_f(dev, "maxPosition", 0.0)),
+            multiplier=float(_f(dev, "multiplier", 1.0)),
+        )
+        self.motors.append(motor)
+        return motor
+
+    # -- bodies (§3.3)
+
+    def _assign_bodies(self) -> None:
+        for solid in self.solids:
+            if solid.node.fields.get("physics") is None:
+                continue
+            parent = solid.parent
+            wheel = solid.name.lower() in ("left wheel", "right wheel")
+            # a TouchSensor keeps its own body, fixed to its parent, so its joint can measure the force on it
+            own = wheel or solid.node.type_name == "TouchSensor"
+            if solid.joint is None and parent is not None and parent.body is not None and not own:
+                body = parent.body
+                body.members.append(solid)
+                solid.body = body
+                solid.in_body = parent.in_body * solid.rel
+                continue
+            body = BodyRec(index=len(self.bodies), root=solid, members=[solid])
+            self.bodies.append(body)
+            solid.body = body
+            solid.in_body = Pose()
+            if solid.joint is None and parent is not None:
+                # static basis (§3.3) or unmerged wheel / undefined mid-chain: fixed to the nearest body
+                body.fixed_to = self._nearest_body(parent)
+                body.attached_to_world = body.fixed_to is None
+
+
+    def _solid_mass(self, solid: SolidRec) -> tuple[ode.dMass, float]:
+        """§3.2: mass of one Solid in its own frame and its boundingObject volume (:mod:`..mass_rules`)."""
+        return solid_mass(solid.node, solid.name, self.warn)
+
+    def _create_body(self, body: BodyRec) -> None:
+        lib = self._lib
+        total = mass_zero()
+        weights: list[tuple[float, Node | None]] = []
+        for member in body.members:
+            m, volume = self._solid_mass(member)
+            member.volume = volume
+            if member is not body.root:
+                lib.dMassRotate(byref(m), rot_matrix(member.in_body.R))
+                lib.dMassTranslate(byref(m), *member.in_body.t)
+            lib.dMassAdd(byref(total), byref(m))
+            weights.append((volume, _f(member.node.fields["physics"], "damping", None)))
+        com = (total.c[0], total.c[1], total.c[2])
+        lib.dMassTranslate(byref(total), -com[0], -com[1], -com[2])
+        total.c[0] = total.c[1] = total.c[2] = 0.0
+        inertia = (
+            total.I[0], total.I[1], total.I[2], total.I[4], total.I[5], total.I[6],
+            total.I[8], total.I[9], total.I[10],
+        )  # fmt: skip
+        if not (total.mass > 0 and math.isfinite(total.mass) and m3.is_positive_definite3(inertia)):
+            # ODE asserts on an invalid mass (Debian build): fall back to a unit mass
+            self.warn(f"Solid '{body.root.name}': invalid mass/inertia, using 1 kg and identity inertia")
+            lib.dMassSetParameters(byref(total), 1.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0)
+            inertia = m3.IDENTITY
+        body.mass = total.mass
+        body.com = com
+        body.inertia = inertia
+        world = self.world_pose_at_load(body.root)
+        body.load_R = world.R
+        body.load_pos = world.apply(com)
+        node = body.root.node
+        body.load_lvel = tuple(float(v) for v in _f(node, "linearVelocity", (0.0, 0.0, 0.0)))  # type: ignore[assignment]
+        body.load_avel = tuple(float(v) for v in _f(node, "angularVelocity", (0.0, 0.0, 0.0)))  # type: ignore[assignment]
+        b = lib.dBodyCreate(self._world)
+        body.ptr = b
+        lib.dBodySetMass(b, byref(total))
+        self._place_body_at_load(body)
+        body.pos = ode.vec3(lib.dBodyGetPosition(b))
+        body.R = ode.mat3(lib.dBodyGetRotation(b))
+        body.lvel = ode.vec3(lib.dBodyGetLinearVel(b))
+        body.avel = ode.vec3(lib.dBodyGetAngularVel(b))
+        # §1.4 damping: volume-weighted average of the merged solids' Damping nodes
+        wsum = sum(w for w, _ in weights)
+        lin = ang = 0.0
+        for w, damping in weights:
+            weight = (w / wsum) if wsum > 0 else 1.0 / len(weights)
+            if isinstance(damping, Node):
+                lin += weight * float(_f(damping, "linear", 0.2))
+                ang += weight * float(_f(damping, "angular", 0.2))
+        if lin > 0 or ang > 0:
+            lib.dBodySetDamping(b, damping_per_step(lin, self.dt), damping_per_step(ang, self.dt))
+        else:
+            lib.dBodySetDampingDefaults(b)
+        lib.dBodySetMaxAngularSpeed(b, MAX_ANGULAR_SPEED)
+        self._set_auto_disable(body)
+        body.groups = [lib.dJointGroupCreate(0), lib.dJointGroupCreate(0)]
+
+    def _set_auto_disable(self, body: BodyRec) -> None:
+        lib = self._lib
+        b = body.ptr
+        if self.disable_time > 0:
+            lib.dBodySetAutoDisableFlag(b, 1)
+            lib.dBodySetAutoDisableLinearThreshold(b, self.disable_lin)
+            lib.dBodySetAutoDisableAngularThreshold(b, self.disable_ang)
+            lib.dBodySetAutoDisableTime(b, self.disable_time)
+            lib.dBodySetAutoDisableSteps(b, 0)
+        else:
+            lib.dBodySetAutoDisableFlag(b, 0)
+
+    def _place_body_at_load(self, body: BodyRec) -> None:
+        """Replays the exact ODE calls used at load so a reset reproduces the state bit for bit."""
+        lib = self._lib
+        b = body.ptr
+        lib.dBodySetPosition(b, *body.load_pos)
+        lib.dBodySetRotation(b, rot_matrix(body.load_R))
+        lib.dBodySetLinearVel(b, *body.load_lvel)
+        lib.dBodySetAngularVel(b, *body.load_avel)
+        lib.dBodySetForce(b, 0.0, 0.0, 0.0)
+        lib.dBodySetTorque(b, 0.0, 0.0, 0.0)
+        lib.dBodyEnable(b)
+
+    # -- collision categories (pre-filter for §2.3 rules 4 and 5)
+
+    def _categories(self) -> None:
+        # bit 0: body-less geoms outside robots; per robot without selfCollision: one bit for its bodies
+        # and one for its body-less geoms; bit 63: everything else (filtered in Python if needed).
+        next_bit = 1
+        for robot in self.robots:
+            if not robot.self_collision and next_bit + 1 < 63:
+                robot.category = next_bit
+                next_bit += 2
+        self._all_bits = (1 << 64) - 1
+
+    def _geom_bits(self, solid: SolidRec, has_body: bool) -> tuple[int, int]:
+        robot = solid.robot
+        all_bits = self._all_bits
+        if robot is None or robot.category == 0:
+            if has_body:
+                return 1 << 63, all_bits
+            # static environment: no static/static and no kinematic-in-robot pairs
+            mask = 1
+            for r in self.robots:
+                if r.category:
+                    mask |= 1 << (r.category + 1)
+            return 1, all_bits & ~mask
+        dyn, kin = 1 << robot.category, 1 << (robot.category + 1)
+        if has_body:
+            return dyn, all_bits & ~(dyn | kin)
+        mask = 1 | dyn | kin
+        for r in self.robots:
+            if r.category:
+                mask |= 1 << (r.category + 1)
+        return kin, all_bits & ~mask
+
+    # -- geoms (§3.4)
+
+
+    def _create_geoms(self, solid: SolidRec) -> None:
+        bo = solid.node.fields.get("boundingObject")
+        if not isinstance(bo, Node):
+            return
+        world = self.world_pose_at_load(solid)
+        self._bo_geoms(bo, Pose(), solid, world, (1.0, 1.0, 1.0))
+
+    def _bo_geoms(
+        self, node: Node, local: Pose, solid: SolidRec, solid_world: Pose, scale: Sequence[float]
+    ) -> None:
+        t = node.type_name
+        if t in ("Pose", "Transform"):
+            sub = local * Pose.from_fields(_f(node, "translation", None), _f(node, "rotation", None))
+            sc = scale
+            if t == "Transform":
+                s = _f(node, "scale", (1.0, 1.0, 1.0))
+                sc = (scale[0] * s[0], scale[1] * s[1], scale[2] * s[2])
+            for c in node.children():
+                self._bo_geoms(c, sub, solid, solid_world, sc)
+            return
+        if t == "Group":
+            for c in node.children():
+                self._bo_geoms(c, local, solid, solid_world, scale)
+            return
+        if t == "Shape":
+            geom = _f(node, "geometry", None)
+            if isinstance(geom, Node):
+                self._bo_geoms(geom, local, solid, solid_world, scale)
+            return
+        self._make_geom(node, local, solid, solid_world, scale)
+
+    def _make_geom(
+        self, node: Node, local: Pose, solid: SolidRec, solid_world: Pose, scale: Sequence[float]
+    ) -> None:
+        lib = self._lib
+        t = node.type_name
+        keep: tuple[Any, ...] = ()
+        ptr = 0
+        uniform = max(scale)
+        if t == "Box":
+            sx, sy, sz = (float(v) * s for v, s in zip(_f(node, "size", (2.0, 2.0, 2.0)), scale, strict=True))
+            if sx > 0 and sy > 0 and sz > 0:
+                ptr = lib.dCreateBox(self._space, sx, sy, sz)
+        elif t == "Sphere":
+            r = float(_f(node, "radius", 1.0)) * uniform
+            if r > 0:
+                ptr = lib.dCreateSphere(self._space, r)
+        elif t in ("Cylinder", "Capsule"):
+            r, h = float(_f(node, "radius", 1.0)) * uniform, float(_f(node, "height", 2.0)) * uniform
+            if r > 0 and h > 0:
+                fn = lib.dCreateCylinder if t == "Cylinder" else lib.dCreateCapsule
+                ptr = fn(self._space, r, h)
+        elif t == "Plane":
+            world = solid_world * local
+            n = world.rotate((0.0, 0.0, 1.0))
+            ptr = lib.dCreatePlane(self._space, n[0], n[1], n[2], m3.dot(n, world.t))
+            if solid.body is not None:
+                self.warn(f"Solid '{solid.name}': a Plane cannot be attached to a body; it stays static")
+            gr = GeomRec(ptr=ptr, solid=solid, kind=t, local=local, body=None, is_plane=True)
+            self._register_geom(gr)
+            return
+        elif t == "IndexedFaceSet":
+            built = trimesh_data(node, scale)
+            if built is not None:
+                ptr = lib.dCreateTriMesh(self._space, built[0], None, None, None)
+                keep = built
+        elif t == "ElevationGrid":
+            built_hf = self._heightfield(node)
+            if built_hf is not None:
+                ptr, keep, extra = built_hf
+                local = local * extra
+                if solid.body is not None:
+                    self.warn(f"Solid '{solid.name}': ElevationGrid on a dynamic body stays static")
+                gr = GeomRec(ptr=ptr, solid=solid, kind=t, local=local, body=None, keepalive=keep)
+                self._register_geom(gr)
+                self._place_static_geom(gr, solid_world)
+                return
+        elif t == "Mesh":
+            self.warn("Mesh boundingObject is not supported; no collision geometry created")
+            return
+        else:
+            self.warn(f"{t} is not a valid bounding geometry; ignored")
+            return
+        if not ptr:
+            self.warn(f"Solid '{solid.name}': invalid {t} dimensions; no geom created")
+            return
+        gr = GeomRec(ptr=ptr, solid=solid, kind=t, local=local, body=solid.body, keepalive=keep)
+        self._register_geom(gr)
+        if solid.body is not None:
+            # §3.2: geoms attached, then placed at their world pose (offset relative to the CoM)
+            lib.dGeomSetBody(ptr, solid.body.ptr)
+            world = solid_world * local
+            lib.dGeomSetOffsetWorldPosition(ptr, *world.t)
+            lib.dGeomSetOffsetWorldRotation(ptr, rot_matrix(world.R))
+        else:
+            self._place_static_geom(gr, solid_world)
+
+    def _register_geom(self, gr: GeomRec) -> None:
+        cat, col = self._geom_bits(gr.solid, gr.body is not None)
+        self._lib.dGeomSetCategoryBits(gr.ptr, cat)
+        self._lib.dGeomSetCollideBits(gr.ptr, col)
+        self.geoms[gr.ptr] = gr
+        gr.solid.geoms.append(gr)
+
+    def _place_static_geom(self, gr: GeomRec, solid_world: Pose) -> None:
+        lib = self._lib
+        world = solid_world * gr.local
+        if gr.is_plane:
+            n = world.rotate((0.0, 0.0, 1.0))
+            lib.dGeomPlaneSetParams(gr.ptr, n[0], n[1], n[2], m3.dot(n, world.t))
+            return
+        lib.dGeomSetPosition(gr.ptr, *world.t)
+        lib.dGeomSetRotation(gr.ptr, rot_matrix(world.R))
+
+    def _heightfield(self, node: Node) -> tuple[int, tuple[Any, ...], Pose] | None:
+        nx, ny = int(_f(node, "xDimension", 0)), int(_f(node, "yDimension", 0))
+        sx, sy = float(_f(node, "xSpacing", 1.0)), float(_f(node, "ySpacing", 1.0))
+        heights = [float(h) for h in (_f(node, "height", []) or [])]
+        if nx < 2 or ny < 2 or len(heights) < nx * ny:
+            self.warn("ElevationGrid with fewer than 2×2 heights: ignored")
+            return None
+        lib = self._lib
+        width, depth = (nx - 1) * sx, (ny - 1) * sy
+        # ODE heightfield: centred, height along local +y, samples indexed [z * nx + x]. Webots grid:
+        # x = i·xSpacing, y = j·ySpacing, height along +z. Local frame: Rx(+90°) maps ODE (x, y, z) to
+        # Webots (x, -z, y)... so ODE z = -(y - depth/2): row k of ODE data is Webots row ny-1-k.
+        data_vals = []
+        for k in range(ny):
+            j = ny - 1 - k
+            data_vals.extend(heights[j * nx : (j + 1) * nx])
+        arr = (ctypes.c_double * len(data_vals))(*data_vals)
+        thickness = float(_f(node, "thickness", 1.0))
+        data = lib.dGeomHeightfieldDataCreate()
+        lib.dGeomHeightfieldDataBuildDouble(
+            data, arr, 1, width, depth, nx, ny, 1.0, 0.0, max(thickness, 1e-6), 0
+        )
+        lib.dGeomHeightfieldDataSetBounds(data, min(data_vals), max(data_vals))
+        ptr = lib.dCreateHeightfield(self._space, data, 1)
+        extra = Pose(m3.rot_axis_angle((1.0, 0.0, 0.0, math.pi / 2)), (width / 2, depth / 2, 0.0))
+        return ptr, (data, arr), extra
+
+    # -- devices
+
+    def _collect_devices(self) -> None:
+        for solid in self.solids:
+            robot = solid.robot
+            node = solid.node
+            if robot is None or node is robot.node:
+                continue
+            if node.type_name in SOLID_TYPES and node.type_name not in ("Solid", "Robot"):
+                dev = DeviceRec(
+                    node=node, solid=solid, type_name=node.type_name, name=str(_f(node, "name", ""))
+                )
+                robot.devices.setdefault(dev.name, dev)
+                self.devices.append(dev)

@@ -1,0 +1,234 @@
+"""The collision pass (§2): ContactProperties turned into pre-filled ``dContact`` arrays, the pair filters of
+§2.3 (cached per geom pair), the near callback creating contact joints into per-body double-buffered groups.
+
+Not to be confused with :mod:`dualtwin.webots.contacts`, which reads the contact points of a finished step
+for the Supervisor API."""
+
+from __future__ import annotations
+
+import ctypes
+from collections.abc import Callable, Iterable
+from typing import Any
+
+from dualtwin.webots import _math3 as m3
+from dualtwin.webots import ode
+from dualtwin.webots.nodes import Node
+from dualtwin.webots.physics.joints import JointBuilder
+from dualtwin.webots.physics.records import (
+    DEFAULT_CONTACT_CAPACITY,
+    GEOM_OFFSET,
+    SIZEOF_CONTACT,
+    BodyRec,
+    SolidRec,
+    Surface,
+)
+from dualtwin.webots.physics.records import (
+    field_or as _f,
+)
+
+
+class CollisionPass(JointBuilder):
+    """Contact surfaces, pair filters and the near callback (see the module docstring)."""
+
+    def _init_contacts(self) -> None:
+        self._surfaces = {}
+        self._default_surface = self._make_surface(None)
+        self._plans = {}
+        self._contact_modifiers = {}
+        self._buffer = 0
+        self._used = [[], []]
+        self._callback_error = None
+        self._auto_disable = self.disable_time > 0
+        self._enabled = [True] * len(self.bodies)
+        self._near_cb = ode.NearCallback(self._make_near_callback())
+
+    def _make_surface(self, cp: Node | None) -> Surface:
+        coulomb = list(_f(cp, "coulombFriction", [1.0]) or [1.0])
+        slip = list(_f(cp, "forceDependentSlip", [0.0]) or [0.0])
+        rolling = tuple(_f(cp, "rollingFriction", (0.0, 0.0, 0.0)))
+        bounce = float(_f(cp, "bounce", 0.5))
+        s = ode.dSurfaceParameters()
+        mode = ode.dContactApprox1 | ode.dContactSoftCFM | ode.dContactSoftERP
+        if bounce != 0.0:
+            mode |= ode.dContactBounce
+        mu = float(coulomb[0])
+        s.mu = ode.dInfinity if mu == -1 else mu
+        s.mu2 = s.mu
+        if float(slip[0]) != 0.0:
+            mode |= ode.dContactSlip1 | ode.dContactSlip2
+            s.slip1 = s.slip2 = float(slip[0])
+        rho, rho2, rho_n = (float(v) for v in rolling)
+        if rho > 0 or rho2 > 0 or rho_n > 0:
+            mode |= ode.dContactRolling
+            if rho2 > 0 or rho_n > 0:
+                mode |= ode.dContactAxisDep
+        s.rho, s.rho2, s.rhoN = (ode.dInfinity if v == -1 else v for v in (rho, rho2, rho_n))
+        s.bounce = bounce
+        s.bounce_vel = float(_f(cp, "bounceVelocity", 0.01))
+        s.soft_erp = float(_f(cp, "softERP", 0.2))
+        s.soft_cfm = float(_f(cp, "softCFM", 0.001))
+        s.mode = mode
+        if cp is not None and len(coulomb) > 1:
+            self.warn("asymmetric coulombFriction is approximated by its first value")
+        capacity = DEFAULT_CONTACT_CAPACITY
+        arr = self._contact_array(s, capacity)
+        return Surface(arr, capacity, int(_f(cp, "maxContactJoints", 10)), s)
+
+    @staticmethod
+    def _contact_array(s: ode.dSurfaceParameters, capacity: int) -> Any:
+        arr = (ode.dContact * capacity)()
+        for i in range(capacity):
+            arr[i].surface = s
+        return arr
+
+    def contact_properties_for(self, material1: str, material2: str) -> Node | None:
+        """§2.1: the first ContactProperties matching the two materials in either order."""
+        for cp in self.contact_properties:
+            m1, m2 = str(_f(cp, "material1", "default")), str(_f(cp, "material2", "default"))
+            if (m1 == material1 and m2 == material2) or (m1 == material2 and m2 == material1):
+                return cp
+        return None
+
+    def _surface_for(self, material1: str, material2: str) -> Surface:
+        cp = self.contact_properties_for(material1, material2)
+        if cp is None:
+            return self._default_surface
+        surface = self._surfaces.get(id(cp))
+        if surface is None:
+            surface = self._surfaces[id(cp)] = self._make_surface(cp)
+        return surface
+
+    def _bodies_connected(self, b1: BodyRec, b2: BodyRec) -> bool:
+        for j in b1.joints:
+            if (j.parent_body is b1 and j.child_body is b2) or (j.parent_body is b2 and j.child_body is b1):
+                return True
+        return (b1.fixed_to is b2 and b1.fixed_joint != 0) or (b2.fixed_to is b1 and b2.fixed_joint != 0)
+
+    def _same_anchor_chain(self, b1: BodyRec, b2: BodyRec) -> bool:
+        """§2.3 rule 7: b1 and b2 linked by hinge-like joints that all share one anchor."""
+        for first in b1.joints:
+            if first.kind not in ("hinge", "hinge2", "ball") or first.parent_body is None:
+                continue
+            anchor = self._joint_world_frame(first).apply(first.anchor_local)
+            seen = {b1.index}
+            frontier = [b1]
+            while frontier:
+                b = frontier.pop()
+                for j in b.joints:
+                    if j.kind not in ("hinge", "hinge2", "ball") or j.parent_body is None:
+                        continue
+                    a = self._joint_world_frame(j).apply(j.anchor_local)
+                    if m3.norm(m3.sub(a, anchor)) > 1e-9:
+                        continue
+                    other = j.child_body if j.parent_body is b else j.parent_body
+                    if other is None or other.index in seen:
+                        continue
+                    if other is b2:
+                        return True
+                    seen.add(other.index)
+                    frontier.append(other)
+        return False
+
+    def _plan_pair(self, o1: int, o2: int) -> Any:
+        g1, g2 = self.geoms.get(o1), self.geoms.get(o2)
+        if g1 is None or g2 is None:
+            return False
+        b1, b2 = g1.body, g2.body
+        if b1 is None and b2 is None:
+            return False  # rule 5
+        r1, r2 = g1.solid.robot, g2.solid.robot
+        if r1 is not None and r1 is r2 and not r1.self_collision:
+            return False  # rule 4
+        if b1 is not None and b2 is not None:
+            if b1 is b2 or self._bodies_connected(b1, b2) or self._same_anchor_chain(b1, b2):
+                return False  # rules 6 and 7
+        else:
+            b = b1 if b1 is not None else b2
+            assert b is not None
+            if b.attached_to_world:
+                return False  # rule 6: a body jointed to the static environment ignores static geoms
+        surface = self._surface_for(g1.solid.material, g2.solid.material)
+        owner = b1 if b1 is not None else b2
+        modifier = self._contact_modifiers.get(id(g1.solid)) or self._contact_modifiers.get(id(g2.solid))
+        return (
+            surface,
+            owner,
+            b1.ptr if b1 is not None else None,
+            b2.ptr if b2 is not None else None,
+            b1.index if b1 is not None else -1,
+            b2.index if b2 is not None else -1,
+            modifier,
+        )
+
+    def set_contact_modifier(self, solid: SolidRec, modifier: Callable[[Any, list[int], int], None]) -> None:
+        """Let ``modifier(contacts, indices, o1)`` edit the ``dContact`` entries of every pair involving the
+        Solid's geoms before their contact joints are created (Track belts set a surface velocity this way);
+        the entries are restored afterwards. ``o1`` is the pair's first geom."""
+        self._contact_modifiers[id(solid)] = modifier
+        self._plans.clear()
+
+    def _make_near_callback(self) -> Callable[[Any, Any, Any], None]:
+        plans = self._plans
+        plans_get = plans.get
+        collide = self._lib.dCollide
+        create = self._lib.dJointCreateContact
+        attach = self._lib.dJointAttach
+        world = self._world
+        plan_pair = self._plan_pair
+        enabled = self._enabled
+        sizeof = SIZEOF_CONTACT
+        geom_offset = GEOM_OFFSET
+        addressof = ctypes.addressof
+
+        def near(_data: Any, o1: int, o2: int) -> None:
+            try:
+                key = (o1, o2)
+                plan = plans_get(key)
+                if plan is None:
+                    plan = plans[key] = plan_pair(o1, o2)
+                if plan is False:
+                    return
+                surface, owner, p1, p2, i1, i2, modifier = plan
+                if self._auto_disable:
+                    e1 = enabled[i1] if i1 >= 0 else None
+                    e2 = enabled[i2] if i2 >= 0 else None
+                    if (e1 is None or not e1) and (e2 is None or not e2):
+                        return  # rule 9 (both disabled, or body-less vs disabled)
+                arr = surface.contacts
+                base = addressof(arr)
+                cap = surface.capacity
+                n = collide(o1, o2, cap, base + geom_offset, sizeof)
+                if n == 0:
+                    return
+                while n >= cap and cap < 0xFFFF:
+                    cap = min(cap * 10, 0xFFFF)
+                    surface.contacts = arr = self._contact_array(surface.template, cap)
+                    surface.capacity = cap
+                    base = addressof(arr)
+                    n = collide(o1, o2, cap, base + geom_offset, sizeof)
+                group = owner.groups[self._buffer]
+                if n > surface.max_joints:
+                    order = sorted(range(n), key=lambda i: -arr[i].geom.depth)[: surface.max_joints]
+                    indices: Iterable[int] = sorted(order)
+                else:
+                    indices = range(n)
+                if modifier is not None:
+                    indices = list(indices)
+                    modifier(arr, indices, o1)
+                for i in indices:
+                    attach(create(world, group, base + i * sizeof), p1, p2)  # ODE copies the dContact
+                if modifier is not None:
+                    for i in indices:
+                        arr[i].surface = surface.template
+                        arr[i].fdir1[0] = arr[i].fdir1[1] = arr[i].fdir1[2] = 0.0
+                self._used[self._buffer].append(owner)
+            except BaseException as exc:  # a ctypes callback cannot raise: re-raised after dSpaceCollide
+                self._callback_error = exc
+
+        return near
+
+    def _collide(self) -> None:
+        self._lib.dSpaceCollide(self._space, None, self._near_cb)
+        if self._callback_error is not None:
+            exc, self._callback_error = self._callback_error, None
+            raise exc

@@ -1,0 +1,183 @@
+"""The state every layer of :class:`~dualtwin.webots.physics.Simulation` shares, and the scene-graph queries
+they all need (world poses of Solids, the nearest body, the divergence check).
+
+:class:`Simulation` is one object built from a stack of layers, each in its own module and each calling only
+methods of the layers below it: ``core`` < ``build`` (traversal, bodies, mass, geoms) < ``joints`` <
+``collision`` (contact pass, §2) < ``edits`` (supervisor requests, field edits, sensors) < ``stepping`` (§1.6)
+< ``Simulation`` (construction, reset, close). The attributes are declared here once; they are created by
+``Simulation.__init__`` and the build steps.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+import warnings
+from collections.abc import Callable
+from typing import Any
+
+from dualtwin.errors import SimulationUnstable
+from dualtwin.webots import _math3 as m3
+from dualtwin.webots._math3 import Pose
+from dualtwin.webots.nodes import Node, World
+from dualtwin.webots.physics.records import (
+    DIVERGED_POSITION,
+    DIVERGED_VELOCITY,
+    AttachmentRec,
+    BodyRec,
+    GeomRec,
+    JointRec,
+    MotorRec,
+    PendingOp,
+    RobotRec,
+    SolidRec,
+    Surface,
+)
+
+
+class SimulationCore:
+    """Shared state and scene-graph queries (see the module docstring)."""
+
+    # created by Simulation.__init__ and _read_world_info
+    world: World
+    _lib: Any
+    _thread: int
+    _step_fn: Any  # cached ctypes function objects for the per-step paths
+    _is_enabled: Any
+    _empty_group: Any
+    _hinge_angle: Any
+    _hinge_rate: Any
+    _slider_pos: Any
+    _warnings: list[str]
+    robots: list[RobotRec]
+    solids: list[SolidRec]
+    bodies: list[BodyRec]
+    joints: list[JointRec]
+    geoms: dict[int, GeomRec]
+    motors: list[MotorRec]
+    devices: list[Any]
+    attachments: list[AttachmentRec]
+    _loops: list[tuple[JointRec, str]]  # joints whose endPoint is a SolidReference
+    _solid_by_node: dict[int, SolidRec]
+    _joint_by_node: dict[int, JointRec]
+    _pending: list[PendingOp]
+    _edited: dict[tuple[int, str], Node]
+    _unstable: bool
+    _closed: bool
+    step_count: int
+    _seed_override: int | None
+    _accel_prev: dict[int, tuple[float, float, float]]
+    _accel_cur: dict[int, tuple[float, float, float]]
+    extensions: dict[str, Any]
+    step_hooks: list[Callable[[], None]]
+    pre_step_hooks: list[Callable[[float], None]]
+    reset_hooks: list[Callable[[], None]]
+    basic_time_step: float
+    dt: float
+    gravity: m3.Vec3
+    erp: float
+    cfm: float
+    disable_time: float
+    disable_lin: float
+    disable_ang: float
+    world_damping: tuple[float, float]
+    random_seed: int
+    contact_properties: list[Node]
+    _snapshot: list[tuple[Node, dict[str, Any]]]
+    # created by the build (_build, _categories, _init_contacts, _prepare_step_lists)
+    _world: Any
+    _space: Any
+    _rng: random.Random
+    _all_bits: int
+    _surfaces: dict[int, Surface]
+    _default_surface: Surface
+    _plans: dict[tuple[int, int], Any]
+    _contact_modifiers: dict[int, Callable[[Any, list[int], int], None]]
+    _buffer: int
+    _used: list[list[BodyRec]]
+    _callback_error: BaseException | None
+    _auto_disable: bool
+    _enabled: list[bool]
+    _near_cb: Any
+    _dyn_motors: list[MotorRec]
+    _kin_motors: list[MotorRec]
+    _springs: list[JointRec]
+    _tracked: list[JointRec]
+    _moving_static: list[GeomRec]
+    _views: list[tuple[Any, Any, Any]]
+
+    @property
+    def time(self) -> float:
+        """Simulated time in seconds."""
+        return self.step_count * self.basic_time_step / 1000.0
+
+    @property
+    def unstable(self) -> bool:
+        return self._unstable
+
+    def warn(self, message: str) -> None:
+        self._warnings.append(message)
+        warnings.warn(message, stacklevel=3)
+
+    @property
+    def build_warnings(self) -> list[str]:
+        return list(self._warnings)
+
+    @staticmethod
+    def _nearest_body(solid: SolidRec | None) -> BodyRec | None:
+        while solid is not None:
+            if solid.body is not None:
+                return solid.body
+            solid = solid.parent
+        return None
+
+    def world_pose_at_load(self, solid: SolidRec) -> Pose:
+        pose = solid.load_rel
+        s = solid.parent
+        while s is not None:
+            pose = s.load_rel * pose
+            s = s.parent
+        return pose
+
+    def solid_world_pose(self, solid: SolidRec) -> Pose:
+        """Current world pose of a Solid frame (from its body, or from the scene graph)."""
+        if solid.body is not None:
+            return solid.body.pose() * solid.in_body
+        if solid.parent is None:
+            return solid.rel
+        return self.solid_world_pose(solid.parent) * self._kinematic_rel(solid)
+
+    def _kinematic_rel(self, solid: SolidRec) -> Pose:
+        joint = solid.joint
+        if joint is None or not joint.kinematic:
+            return solid.rel
+        delta = joint.positions[0] - joint.initial_positions[0]
+        if delta == 0.0:
+            return solid.rel
+        return self._joint_motion(joint, delta) * solid.rel
+
+    @staticmethod
+    def _joint_motion(joint: JointRec, delta: float) -> Pose:
+        """Transform (in the parent Solid frame) moving an endPoint by ``delta`` along/about the axis."""
+        axis = joint.frame_rel.rotate(joint.axis_local[0])
+        if joint.kind == "slider":
+            return Pose(m3.IDENTITY, m3.scale(m3.normalized(axis), delta))
+        R = m3.rot_axis_angle((*axis, delta))
+        anchor = joint.frame_rel.apply(joint.anchor_local)
+        return Pose(R, m3.sub(anchor, m3.mat_vec(R, anchor)))
+
+    def _check_state(self) -> None:
+        isfinite = math.isfinite
+        for pos, lvel, avel in self._views:
+            p0, p1, p2 = pos[0], pos[1], pos[2]
+            v0, v1, v2 = lvel[0], lvel[1], lvel[2]
+            s = p0 * p0 + p1 * p1 + p2 * p2 + v0 * v0 + v1 * v1 + v2 * v2 + avel[0] + avel[1] + avel[2]
+            if (
+                not isfinite(s)
+                or abs(p0) + abs(p1) + abs(p2) > DIVERGED_POSITION
+                or (abs(v0) + abs(v1) + abs(v2) > DIVERGED_VELOCITY)
+            ):
+                self._unstable = True
+                raise SimulationUnstable(
+                    f"non-finite or diverging body state at t={self.time + self.dt:.3f}s; reset() to recover"
+                )

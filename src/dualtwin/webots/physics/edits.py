@@ -1,0 +1,405 @@
+"""Supervisor-side operations (§6): physics resets of a subtree, queued teleports of Solids and joints, live
+field edits, body velocities, and the readings sensors and the Supervisor API take from the scene."""
+
+from __future__ import annotations
+
+import random
+import threading
+from collections.abc import Sequence
+from ctypes import byref
+from typing import Any
+
+from dualtwin.webots import _math3 as m3
+from dualtwin.webots import ode
+from dualtwin.webots._math3 import Pose
+from dualtwin.webots.mass_rules import rot_matrix
+from dualtwin.webots.nodes import Node
+from dualtwin.webots.physics.collision import CollisionPass
+from dualtwin.webots.physics.records import (
+    BodyRec,
+    JointRec,
+    PendingOp,
+    SolidRec,
+)
+
+
+class SupervisorEdits(CollisionPass):
+    """Teleports, field edits, velocities and sensor readings (see the module docstring)."""
+
+    def reset_physics(self, solid: SolidRec | None = None) -> None:
+        """``simulationResetPhysics`` (or ``Node.resetPhysics`` for a subtree): zero velocities and forces,
+        wake bodies, zero motors' current velocity (§6). Poses and time are kept."""
+        lib = self._lib
+        bodies = self.bodies if solid is None else self._bodies_in_subtree(solid)
+        for body in bodies:
+            lib.dBodySetLinearVel(body.ptr, 0.0, 0.0, 0.0)
+            lib.dBodySetAngularVel(body.ptr, 0.0, 0.0, 0.0)
+            lib.dBodySetForce(body.ptr, 0.0, 0.0, 0.0)
+            lib.dBodySetTorque(body.ptr, 0.0, 0.0, 0.0)
+            lib.dBodyEnable(body.ptr)
+        ids = {b.index for b in bodies}
+        for motor in self.motors:
+            if solid is None or (motor.joint.child_body is not None and motor.joint.child_body.index in ids):
+                motor.current_velocity = 0.0
+
+    def _bodies_in_subtree(self, solid: SolidRec) -> list[BodyRec]:
+        out: list[BodyRec] = []
+        stack = [solid]
+        while stack:
+            s = stack.pop()
+            if s.body is not None and s.body.root is s:
+                out.append(s.body)
+            stack.extend(s.children)
+        if solid.body is not None and solid.body not in out:
+            out.append(solid.body)
+        return out
+
+    # ------------------------------------------------------------------ supervisor-side operations (§6)
+
+    def solid_for(self, node: Node) -> SolidRec | None:
+        return self._solid_by_node.get(id(node))
+
+    def joint_for(self, node: Node) -> JointRec | None:
+        """The joint of a joint node or of one of its (Hinge)JointParameters nodes."""
+        return self._joint_by_node.get(id(node))
+
+    def has_pending(self, target: Any) -> bool:
+        """Whether a queued teleport (pose or joint position) targets ``target`` (a SolidRec or JointRec)."""
+        return any(op.target is target and op.kind != "velocity" for op in self._pending)
+
+    def _teleport_pending_for(self, body: BodyRec) -> bool:
+        """Whether a queued teleport will move (and maybe reset) ``body``."""
+        for op in self._pending:
+            if op.kind == "pose":
+                root = op.target
+            elif op.kind == "joint" and op.target.child is not None:
+                root = op.target.child
+            else:
+                continue
+            if any(b is body for b in self._bodies_in_subtree(root)):
+                return True
+        return False
+
+    def queue_set_pose(
+        self, solid: SolidRec, translation: Sequence[float] | None, rotation: Sequence[float] | None
+    ) -> None:
+        """Queue a teleport (translation/rotation field set), applied before the next physics step."""
+        self._pending.append(PendingOp("pose", solid, (translation, rotation)))
+
+    def queue_set_joint_position(self, joint: JointRec, axis_index: int, position: float) -> None:
+        """Queue a joint ``position`` field set (§4.1), applied before the next physics step."""
+        self._pending.append(PendingOp("joint", joint, (axis_index, position)))
+
+    def apply_pending(self) -> None:
+        """Execute the queued supervisor requests now, without a physics step (dualtwin extension, no Webots
+        equivalent: Webots runs them only as part of the next step). Tests use it to inspect a write."""
+        if threading.get_ident() != self._thread:
+            ode.ensure_thread()
+        self._apply_pending()
+
+    def _apply_pending(self) -> None:
+        ops, self._pending = self._pending, []
+        for op in ops:
+            if op.kind == "pose":
+                translation, rotation = op.value
+                self._teleport_solid(op.target, translation, rotation)
+            elif op.kind == "joint":
+                axis_index, position = op.value
+                self._teleport_joint(op.target, axis_index, position)
+            elif op.kind == "velocity":
+                self._set_body_velocity_now(op.target, op.value)
+        self._check_state()
+
+    def _teleport_solid(
+        self, solid: SolidRec, translation: Sequence[float] | None, rotation: Sequence[float] | None
+    ) -> None:
+        if solid.body is not None and solid.body.root is not solid:
+            self.warn(f"moving merged Solid '{solid.name}' is not supported; ignored")
+            return
+        node = solid.node
+        current = self.solid_local_pose(solid)  # fields of moving solids are only refreshed lazily
+        t = tuple(float(v) for v in translation) if translation is not None else current.t
+        R = m3.rot_axis_angle(rotation) if rotation is not None else current.R
+        node.fields["translation"] = t
+        node.fields["rotation"] = tuple(rotation) if rotation is not None else m3.axis_angle_from_mat(R)
+        local = Pose(R, t)
+        old_world = self.solid_world_pose(solid)
+        if solid.parent is None:
+            new_world = solid.pre * local
+        else:
+            parent_world = self.solid_world_pose(solid.parent)
+            if solid.joint is not None and not solid.joint.kinematic:
+                new_world = parent_world * solid.pre * local
+            else:
+                new_world = parent_world * self._kinematic_extra(solid) * solid.pre * local
+        solid.rel = solid.pre * local
+        self._move_subtree(solid, new_world * old_world.inverse(), reset_velocity=False)
+        self._reanchor_boundary(solid)
+
+    def _kinematic_extra(self, solid: SolidRec) -> Pose:
+        joint = solid.joint
+        if joint is None or not joint.kinematic:
+            return Pose()
+        delta = joint.positions[0] - joint.initial_positions[0]
+        return self._joint_motion(joint, delta) if delta else Pose()
+
+    def _move_subtree(self, solid: SolidRec, T: Pose, reset_velocity: bool) -> None:
+        """Apply a rigid world transform ``T`` to every body and static geom in a Solid subtree."""
+        lib = self._lib
+        for body in self._bodies_in_subtree(solid):
+            pose = body.pose()
+            new_root = T * pose
+            lib.dBodySetPosition(body.ptr, *new_root.apply(body.com))
+            lib.dBodySetRotation(body.ptr, rot_matrix(new_root.R))
+            if reset_velocity:
+                lib.dBodySetLinearVel(body.ptr, 0.0, 0.0, 0.0)
+                lib.dBodySetAngularVel(body.ptr, 0.0, 0.0, 0.0)
+                lib.dBodySetForce(body.ptr, 0.0, 0.0, 0.0)
+                lib.dBodySetTorque(body.ptr, 0.0, 0.0, 0.0)
+            lib.dBodyEnable(body.ptr)
+        stack = [solid]
+        while stack:
+            s = stack.pop()
+            for gr in s.geoms:
+                if gr.body is None:
+                    self._place_static_geom(gr, self.solid_world_pose(s))
+            stack.extend(s.children)
+
+    def _reanchor_boundary(self, solid: SolidRec) -> None:
+        """Re-set joints crossing the moved subtree's boundary (ODE zero re-based, §6)."""
+        inside = {id(s) for s in self._subtree(solid)}
+        for joint in self.joints:
+            if not joint.ptr:
+                continue
+            child_in = joint.child is not None and id(joint.child) in inside
+            parent_in = joint.parent is not None and id(joint.parent) in inside
+            if child_in != parent_in or (child_in and joint.reverse):
+                self._anchor_joint(joint)
+                for i in range(len(joint.params)):
+                    self._set_stops(joint, i)
+                self._respring(joint)
+
+    def _respring(self, joint: JointRec) -> None:
+        if joint.spring and joint.kind == "hinge":
+            lib = self._lib
+            stop = m3.normalize_angle(joint.offsets[0])
+            lib.dJointSetAMotorParam(joint.spring, ode.dParamLoStop, stop)
+            lib.dJointSetAMotorParam(joint.spring, ode.dParamHiStop, stop)
+
+    def _subtree(self, solid: SolidRec) -> list[SolidRec]:
+        out = []
+        stack = [solid]
+        while stack:
+            s = stack.pop()
+            out.append(s)
+            stack.extend(s.children)
+        return out
+
+    def _teleport_joint(self, joint: JointRec, axis_index: int, position: float) -> None:
+        """§4.1: move the endPoint to zero-pose ⊕ position, reset its subtree's physics."""
+        p = joint.params[axis_index]
+        if p is not None:
+            p.fields["position"] = float(position)
+        child = joint.child
+        if child is None or joint.kind in ("ball",) or (joint.kind == "hinge2" and axis_index == 1):
+            joint.positions[axis_index] = float(position)
+            return
+        if joint.kinematic:
+            joint.positions[axis_index] = float(position)
+            return
+        old_world = self.solid_world_pose(child)
+        parent_world = self.solid_world_pose(joint.parent) if joint.parent is not None else Pose()
+        delta = float(position) - joint.initial_positions[axis_index]
+        new_rel = self._joint_motion(joint, delta) * child.load_rel if delta else child.load_rel
+        new_world = parent_world * new_rel
+        self._move_subtree(child, new_world * old_world.inverse(), reset_velocity=True)
+        moved = {id(s) for s in self._subtree(child)}
+        for motor in self.motors:
+            if motor.joint.child is not None and id(motor.joint.child) in moved:
+                motor.current_velocity = 0.0
+        joint.positions[axis_index] = float(position)
+        self._read_joint(joint, predict=False)
+
+    # ------------------------------------------------------------------ live field edits
+
+    def field_changed(self, node: Node, name: str) -> bool:
+        """Apply a supervisor's edit of ``node.fields[name]`` to the running ODE scene, as Webots does.
+
+        Webots reacts to field edits at run time (WbJoint/WbMotor/WbPhysics/WbContactProperties update
+        their ODE objects). Supported: joint ``dampingConstant``/``springConstant``/``staticFriction``,
+        motor ``maxVelocity``/``maxTorque``/``maxForce``, ``Physics.mass`` (inertia scaled with it, CoM
+        unchanged), ``ContactProperties`` friction/bounce/soft ERP/CFM, and ``WorldInfo`` ERP/CFM.
+        Returns False for fields whose edit has no physics effect here.
+        """
+        applied = self._apply_field(node, name)
+        if applied:
+            # simulationReset restores the field; reset() then re-applies it so ODE follows.
+            self._edited[(id(node), name)] = node
+        return applied
+
+    def _apply_field(self, node: Node, name: str) -> bool:
+        lib = self._lib
+        value: Any = node.fields.get(name)
+        joint = next((j for j in self.joints if node in j.params), None)
+        if joint is not None:
+            i = joint.params.index(node)
+            if name == "staticFriction":
+                joint.static_friction[i] = float(value)
+                self._set_static_friction(joint, i)
+                return True
+            if name in ("dampingConstant", "springConstant") and i == 0:
+                if joint.spring:
+                    lib.dJointDestroy(joint.spring)
+                    joint.spring = 0
+                self._create_spring(joint)
+                if joint.spring and joint.kind == "hinge":
+                    self._apply_spring(joint)
+                return True
+            return False
+        motor = next((m for m in self.motors if m.node is node), None)
+        if motor is not None:
+            if name == "maxVelocity":
+                motor.max_velocity = float(value)
+                motor.target_velocity = max(-motor.max_velocity, min(motor.max_velocity, motor.target_velocity))
+                return True
+            if name in ("maxTorque", "maxForce"):
+                motor.max_force = float(value)
+                motor.available = motor.max_force
+                return True
+            return False
+        if node.type_name == "Physics" and name == "mass":
+            body = next((b for b in self.bodies if any(m.node.fields.get("physics") is node for m in b.members)), None)
+            if body is None or float(value) <= 0:
+                return False
+            # The merged members' masses, re-read from their (edited) Physics nodes; the inertia scales
+            # with the total and the CoM stays put (exact for single-solid bodies).
+            total = sum(self._solid_mass(member)[0].mass for member in body.members)
+            mass = ode.dMass()
+            lib.dBodyGetMass(body.ptr, byref(mass))
+            lib.dMassAdjust(byref(mass), total)
+            lib.dBodySetMass(body.ptr, byref(mass))
+            body.mass = mass.mass
+            return True
+        if node.type_name == "ContactProperties":
+            self._surfaces.pop(id(node), None)
+            return True
+        if node.type_name == "WorldInfo" and name in ("ERP", "CFM"):
+            if name == "ERP":
+                lib.dWorldSetERP(self._world, float(value))
+            else:
+                lib.dWorldSetCFM(self._world, float(value))
+            return True
+        return False
+
+    def joint_velocity(self, joint: JointRec, axis_index: int = 0) -> float:
+        """Current joint rate in the Webots sign convention (rad/s or m/s)."""
+        lib = self._lib
+        if joint.kinematic or joint.kind == "ball":
+            motor = joint.motors[axis_index] if axis_index < len(joint.motors) else None
+            return motor.current_velocity if motor is not None else 0.0
+        if joint.kind == "hinge":
+            rate = lib.dJointGetHingeAngleRate(joint.ptr)
+            return float(rate if joint.reverse else -rate)
+        if joint.kind == "slider":
+            return float(lib.dJointGetSliderPositionRate(joint.ptr))
+        if axis_index == 0:
+            return float(-lib.dJointGetHinge2Angle1Rate(joint.ptr))
+        return float(lib.dJointGetHinge2Angle2Rate(joint.ptr))
+
+    def set_body_velocity(self, solid: SolidRec, velocity: Sequence[float]) -> None:
+        """``Node.setVelocity``: set the ODE body's linear (CoM) and angular velocity (world frame).
+
+        Webots executes a supervisor's requests in the order they were made, just before the next physics
+        step. A velocity set after a teleport of the same body (a ``translation``/``rotation`` or joint
+        ``position`` write, which may reset the subtree's velocities, spec §4.1) must therefore survive it:
+        while such a teleport is queued, the velocity is queued behind it. Otherwise it applies at once, as
+        before (the two orders cannot be told apart then).
+        """
+        body = solid.body
+        if body is None:
+            return
+        if self._pending and self._teleport_pending_for(body):
+            self._pending.append(PendingOp("velocity", solid, tuple(float(v) for v in velocity)))
+            return
+        self._set_body_velocity_now(solid, velocity)
+
+    def _set_body_velocity_now(self, solid: SolidRec, velocity: Sequence[float]) -> None:
+        body = solid.body
+        if body is None:
+            return
+        lib = self._lib
+        lib.dBodySetLinearVel(body.ptr, *velocity[:3])
+        lib.dBodySetAngularVel(body.ptr, *velocity[3:6])
+        lib.dBodyEnable(body.ptr)
+
+    def solid_velocity(self, solid: SolidRec) -> tuple[float, ...]:
+        """``Node.getVelocity``: 6 values, body CoM linear velocity and angular velocity (world)."""
+        if solid.body is not None:
+            b = solid.body
+            return (b.lvel[0], b.lvel[1], b.lvel[2], b.avel[0], b.avel[1], b.avel[2])
+        anc = solid.parent
+        while anc is not None and anc.body is None:
+            anc = anc.parent
+        if anc is None or anc.body is None:
+            return (0.0,) * 6
+        b = anc.body
+        w = (b.avel[0], b.avel[1], b.avel[2])
+        r = m3.sub(self.solid_world_pose(solid).t, (b.pos[0], b.pos[1], b.pos[2]))
+        v = m3.add((b.lvel[0], b.lvel[1], b.lvel[2]), m3.cross(w, r))
+        return (*v, *w)
+
+    def center_of_mass(self, solid: SolidRec) -> m3.Vec3:
+        """World position of the body CoM holding ``solid`` (its own origin if it has no body)."""
+        if solid.body is not None:
+            b = solid.body
+            return (b.pos[0], b.pos[1], b.pos[2])
+        return self.solid_world_pose(solid).t
+
+    def solid_local_pose(self, solid: SolidRec) -> Pose:
+        """The Solid's current pose in the frame its ``translation``/``rotation`` fields refer to."""
+        if solid.body is None and (solid.joint is None or not solid.joint.kinematic):
+            return solid.pre.inverse() * solid.rel
+        world = self.solid_world_pose(solid)
+        parent = self.solid_world_pose(solid.parent) if solid.parent is not None else Pose()
+        return solid.pre.inverse() * parent.inverse() * world
+
+    def wake(self, joint: JointRec) -> None:
+        """Re-enable a joint's sleeping bodies (a motor command changed, UNVERIFIED)."""
+        if not self._auto_disable:
+            return
+        enabled = self._enabled
+        for b in (joint.parent_body, joint.child_body):
+            if b is not None and not enabled[b.index]:
+                self._lib.dBodyEnable(b.ptr)
+                enabled[b.index] = True
+
+    # ------------------------------------------------------------------ sensors
+
+    def track_acceleration(self, solid: SolidRec) -> None:
+        body = solid.body or (self._nearest_body(solid.parent) if solid.parent is not None else None)
+        if body is not None and body.index not in self._accel_cur:
+            v = (body.lvel[0], body.lvel[1], body.lvel[2])
+            self._accel_cur[body.index] = v
+            self._accel_prev[body.index] = v
+
+    def acceleration(self, solid: SolidRec) -> m3.Vec3:
+        """Accelerometer reading in the device frame: R^T·(a − g)."""
+        body = solid.body or (self._nearest_body(solid.parent) if solid.parent is not None else None)
+        a = (0.0, 0.0, 0.0)
+        if body is not None and body.index in self._accel_cur:
+            cur, prev = self._accel_cur[body.index], self._accel_prev[body.index]
+            a = m3.scale(m3.sub(cur, prev), 1.0 / self.dt)
+        R = self.solid_world_pose(solid).R
+        return m3.mat_t_vec(R, m3.sub(a, self.gravity))
+
+    @property
+    def rng(self) -> random.Random:
+        """The sensor-noise generator (seeded from ``WorldInfo.randomSeed`` or the ``seed`` argument)."""
+        return self._rng
+
+    def sensor_noise(self, value: float, noise: float, resolution: float) -> float:
+        if noise > 0:
+            value += self._rng.gauss(0.0, noise)
+        if resolution > 0:
+            value = round(value / resolution) * resolution
+        return value

@@ -1,0 +1,287 @@
+"""ODE joints for Webots joints (§4): creation with Webots' sign conventions, closed loops through a
+SolidReference, stops, static friction, implicit springs, fixed joints, and reading joint positions back."""
+
+from __future__ import annotations
+
+import ctypes
+import math
+from collections.abc import Callable
+
+from dualtwin.webots import _math3 as m3
+from dualtwin.webots import ode
+from dualtwin.webots._math3 import Pose
+from dualtwin.webots.physics.build import SceneBuilder
+from dualtwin.webots.physics.records import (
+    JointRec,
+    SolidRec,
+)
+from dualtwin.webots.physics.records import (
+    field_or as _f,
+)
+
+
+class JointBuilder(SceneBuilder):
+    """Joints, stops, springs and joint read-back (see the module docstring)."""
+
+    def _joint_world_frame(self, joint: JointRec) -> Pose:
+        if joint.parent is None:
+            return joint.frame_rel
+        return self.world_pose_at_load(joint.parent) * joint.frame_rel
+
+    def _create_joint(self, joint: JointRec) -> None:
+        lib = self._lib
+        child = joint.child
+        joint.parent_body = self._nearest_body(joint.parent)
+        joint.child_body = child.body if child is not None and child.joint is joint else None
+        if joint.child_body is None or joint.child_body.root is not child:
+            joint.child_body = None
+            return  # §4.1: kinematic joint (endPoint without Physics)
+        if joint.kind == "hinge2" and joint.parent_body is None:
+            self.warn("Hinge2Joint needs a dynamic parent and endPoint; joint handled kinematically")
+            joint.child_body = None
+            return
+        w = self._world
+        create = {
+            "hinge": lib.dJointCreateHinge,
+            "slider": lib.dJointCreateSlider,
+            "hinge2": lib.dJointCreateHinge2,
+            "ball": lib.dJointCreateBall,
+        }[joint.kind]
+        joint.ptr = create(w, None)
+        pb = joint.parent_body.ptr if joint.parent_body is not None else None
+        lib.dJointAttach(joint.ptr, pb, joint.child_body.ptr)
+        joint.reverse = pb is None
+        joint.child_body.joints.append(joint)
+        if joint.parent_body is not None:
+            joint.parent_body.joints.append(joint)
+        else:
+            joint.child_body.attached_to_world = True
+        self._anchor_joint(joint)
+        for i in range(len(joint.params)):
+            self._set_stops(joint, i)
+            self._set_static_friction(joint, i)
+        self._create_spring(joint)
+
+    def _referenced_solid(self, joint: JointRec, name: str) -> SolidRec | None:
+        """§10: depth-first search by name from the joint's topmost Solid ancestor, skipping its upper Solid."""
+        top = joint.parent
+        while top is not None and top.parent is not None:
+            top = top.parent
+        stack = [top] if top is not None else []
+        while stack:
+            solid = stack.pop()
+            if solid is not joint.parent and solid.name == name:
+                return solid
+            stack.extend(reversed(solid.children))
+        return None
+
+    def _close_loop(self, joint: JointRec, name: str) -> None:
+        """A joint whose endPoint is a SolidReference: an ODE joint from its upper body to the referenced Solid's
+        body (or to the static environment), made after every body and ordinary joint, closing the loop (§10).
+        The referenced Solid is not moved: ODE's zero is the configuration at load."""
+        lib = self._lib
+        target = None
+        if name != "<static environment>":
+            target = self._referenced_solid(joint, name)
+            if target is None:
+                self.warn(f"SolidReference '{name}' not found among the Solids of the joint's robot; joint ignored")
+                return
+        pb = self._nearest_body(joint.parent)
+        cb = self._nearest_body(target) if target is not None else None
+        if cb is None and target is not None:
+            self.warn(f"SolidReference '{name}' has no Physics; closed loop ignored")
+            return
+        if pb is None and cb is None or pb is cb or joint.kind == "hinge2":
+            self.warn(f"SolidReference '{name}': no closed loop can be built (static, same body or Hinge2)")
+            return
+        create = {
+            "hinge": lib.dJointCreateHinge,
+            "slider": lib.dJointCreateSlider,
+            "ball": lib.dJointCreateBall,
+        }[joint.kind]
+        joint.ptr = create(self._world, None)
+        joint.parent_body, joint.child_body = pb, cb
+        if pb is None:
+            lib.dJointAttach(joint.ptr, None, cb.ptr)  # type: ignore[union-attr]
+            joint.reverse = True
+        else:
+            lib.dJointAttach(joint.ptr, pb.ptr, cb.ptr if cb is not None else None)
+        for b in (pb, cb):
+            if b is not None:
+                b.joints.append(joint)
+        if cb is None and pb is not None:
+            pb.attached_to_world = True  # §2.3 rule 6, as for any body jointed to the static environment
+        self._anchor_joint(joint)
+        for i in range(len(joint.params)):
+            self._set_stops(joint, i)
+            self._set_static_friction(joint, i)
+        self._create_spring(joint)
+
+    def _anchor_joint(self, joint: JointRec) -> None:
+        """Set anchor/axis from the current poses; ODE's zero is this configuration (§4.1)."""
+        lib = self._lib
+        frame = (
+            self.solid_world_pose(joint.parent) * joint.frame_rel
+            if joint.parent is not None
+            else joint.frame_rel
+        )
+        axis = frame.rotate(joint.axis_local[0])
+        anchor = frame.apply(joint.anchor_local)
+        j = joint.ptr
+        if joint.kind == "hinge":
+            ax = m3.scale(axis, -1.0) if joint.reverse else axis
+            lib.dJointSetHingeAnchor(j, *anchor)
+            lib.dJointSetHingeAxis(j, *ax)
+        elif joint.kind == "slider":
+            lib.dJointSetSliderAxis(j, *m3.scale(m3.normalized(axis), -1.0))  # §4.3
+        elif joint.kind == "hinge2":
+            axis2 = frame.rotate(joint.axis_local[1])
+            p1 = joint.positions[0]
+            if p1 != 0.0:
+                axis2 = m3.mat_vec(m3.rot_axis_angle((*axis, p1)), axis2)
+            if m3.norm(m3.cross(m3.normalized(axis), m3.normalized(axis2))) < 1e-6:
+                self.warn("Hinge2Joint axes are aligned; falling back to x and z")
+                axis, axis2 = (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)
+            lib.dJointSetHinge2Anchor(j, *anchor)
+            lib.dJointSetHinge2Axes(j, (ctypes.c_double * 4)(*axis, 0.0), (ctypes.c_double * 4)(*axis2, 0.0))
+        elif joint.kind == "ball":
+            lib.dJointSetBallAnchor(j, *anchor)
+        joint.offsets = list(joint.positions)
+        self._read_joint(joint, predict=False)
+
+    def _set_stops(self, joint: JointRec, i: int) -> None:
+        p = joint.params[i]
+        if p is None or joint.kind == "ball" or (joint.kind == "hinge2" and i == 1):
+            return  # upstream ODE never limits the second Hinge2 axis (module docstring)
+        lo_w, hi_w = float(_f(p, "minStop", 0.0)), float(_f(p, "maxStop", 0.0))
+        if lo_w == hi_w:
+            return
+        off = joint.offsets[i]
+        if joint.kind == "slider":
+            lo, hi = lo_w - off, hi_w - off  # §4.3
+        else:
+            lo = max(-math.pi, min(math.pi, -hi_w + off))  # §4.2
+            hi = max(-math.pi, min(math.pi, -lo_w + off))
+        if lo > hi:
+            lo, hi = hi, lo
+        setp = self._param_setter(joint)
+        group = ode.dParamGroup2 if i == 1 else 0
+        setp(joint.ptr, group + ode.dParamLoStop, lo)
+        setp(joint.ptr, group + ode.dParamHiStop, hi)
+
+    def _param_setter(self, joint: JointRec) -> Callable[..., None]:
+        lib = self._lib
+        return {  # type: ignore[no-any-return]
+            "hinge": lib.dJointSetHingeParam,
+            "slider": lib.dJointSetSliderParam,
+            "hinge2": lib.dJointSetHinge2Param,
+        }.get(joint.kind, lambda *a: None)
+
+    def _set_static_friction(self, joint: JointRec, i: int) -> None:
+        """§4.5: without a motor, static friction is a velocity-0 motor limited to staticFriction."""
+        sf = joint.static_friction[i]
+        if joint.motors[i] is None and sf > 0 and joint.kind != "ball":
+            setp = self._param_setter(joint)
+            group = ode.dParamGroup2 if i == 1 else 0
+            setp(joint.ptr, group + ode.dParamVel, 0.0)
+            setp(joint.ptr, group + ode.dParamFMax, sf)
+
+    def _create_spring(self, joint: JointRec) -> None:
+        """§4.5: implicit spring/damper through an AMotor (hinge) or an LMotor row (slider)."""
+        p = joint.params[0]
+        if p is None or joint.kind not in ("hinge", "slider"):
+            return
+        k = float(_f(p, "springConstant", 0.0))
+        b = float(_f(p, "dampingConstant", 0.0))
+        if k == 0.0 and b == 0.0:
+            return
+        lib = self._lib
+        h = self.dt
+        joint.spring_cfm = 1.0 / (h * k + b)
+        joint.spring_erp = min(h * k / (h * k + b), 1.0)
+        pb = joint.parent_body.ptr if joint.parent_body is not None else None
+        assert joint.child_body is not None
+        frame = self._joint_world_frame(joint) if joint.parent is not None else joint.frame_rel
+        axis = frame.rotate(joint.axis_local[0])
+        rel = 0 if joint.reverse else 1
+        if joint.kind == "hinge":
+            am = lib.dJointCreateAMotor(self._world, None)
+            lib.dJointAttach(am, pb, joint.child_body.ptr)
+            lib.dJointSetAMotorMode(am, ode.dAMotorUser)
+            lib.dJointSetAMotorNumAxes(am, 1)
+            ax = m3.scale(axis, -1.0) if joint.reverse else axis
+            lib.dJointSetAMotorAxis(am, 0, rel, *ax)
+            stop = m3.normalize_angle(joint.offsets[0])
+            lib.dJointSetAMotorParam(am, ode.dParamLoStop, stop)
+            lib.dJointSetAMotorParam(am, ode.dParamHiStop, stop)
+            lib.dJointSetAMotorParam(am, ode.dParamStopCFM, joint.spring_cfm)
+            lib.dJointSetAMotorParam(am, ode.dParamStopERP, joint.spring_erp)
+            lib.dJointSetAMotorAngle(am, 0, 0.0)
+        else:
+            am = lib.dJointCreateLMotor(self._world, None)
+            lib.dJointAttach(am, pb, joint.child_body.ptr)
+            lib.dJointSetLMotorNumAxes(am, 1)
+            lib.dJointSetLMotorAxis(am, 0, rel, *m3.scale(m3.normalized(axis), -1.0))
+            lib.dJointSetLMotorParam(am, ode.dParamCFM, joint.spring_cfm)
+            lib.dJointSetLMotorParam(am, ode.dParamFMax, ode.dInfinity)
+            lib.dJointSetLMotorParam(am, ode.dParamVel, 0.0)
+        joint.spring = am
+
+    def _create_fixed_joints(self) -> None:
+        lib = self._lib
+        for body in self.bodies:
+            if body.root.joint is not None or body.root.parent is None:
+                continue
+            fj = lib.dJointCreateFixed(self._world, None)
+            other = body.fixed_to.ptr if body.fixed_to is not None else None
+            lib.dJointAttach(fj, other, body.ptr)
+            lib.dJointSetFixed(fj)
+            body.fixed_joint = fj
+
+    # -- motor rows and springs during stepping
+
+    def _set_motor_row(self, joint: JointRec, i: int, vel: float, fmax: float) -> None:
+        setp = self._param_setter(joint)
+        g = ode.dParamGroup2 if i == 1 else 0
+        setp(joint.ptr, g + ode.dParamVel, vel)
+        setp(joint.ptr, g + ode.dParamFMax, fmax)
+
+    def _apply_spring(self, joint: JointRec) -> None:
+        lib = self._lib
+        if joint.kind == "hinge":
+            a = lib.dJointGetHingeAngle(joint.ptr)
+            lib.dJointSetAMotorAngle(joint.spring, 0, -a if joint.reverse else a)
+        else:
+            # LMotor motor row == stop row with ERP/CFM (module docstring); the row Jacobian sign flips
+            # with the ODE body order, hence the reverse-dependent sign.
+            x = joint.positions[0]
+            v = joint.spring_erp * x / self.dt
+            lib.dJointSetLMotorParam(joint.spring, ode.dParamVel, v if joint.reverse else -v)
+
+    def _read_joint(self, joint: JointRec, predict: bool) -> None:
+        """§4.2–4.4: Webots joint position from ODE (continuous, unwrapped for hinges)."""
+        lib = self._lib
+        j = joint.ptr
+        kind = joint.kind
+        if kind == "hinge":
+            a = self._hinge_angle(j)
+            joint.raw_angles[0] = a
+            if predict:
+                rate = self._hinge_rate(j)
+                pred = joint.positions[0] + (rate if joint.reverse else -rate) * self.dt
+            else:
+                pred = joint.positions[0]
+            pos = (a if joint.reverse else -a) + joint.offsets[0]
+            joint.positions[0] = m3.normalize_angle(pos, pred)
+        elif kind == "slider":
+            joint.positions[0] = self._slider_pos(j) + joint.offsets[0]
+        elif kind == "hinge2":
+            a1 = lib.dJointGetHinge2Angle1(j)
+            a2 = lib.dJointGetHinge2Angle2(j)
+            if predict:
+                pred1 = joint.positions[0] - lib.dJointGetHinge2Angle1Rate(j) * self.dt
+                pred2 = joint.positions[1] + lib.dJointGetHinge2Angle2Rate(j) * self.dt
+            else:
+                pred1, pred2 = joint.positions[0], joint.positions[1]
+            joint.positions[0] = m3.normalize_angle(-a1 + joint.offsets[0], pred1)
+            joint.positions[1] = m3.normalize_angle(a2 + joint.offsets[1], pred2)

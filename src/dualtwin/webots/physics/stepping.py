@@ -1,0 +1,165 @@
+"""Stepping (§1.6, §5): one ``dWorldStep`` per basic time step with motor control before it, the state check,
+the buffer swap and the collision pass for the next step after it, and joint positions read back."""
+
+from __future__ import annotations
+
+import math
+import threading
+
+from dualtwin.errors import SimulationUnstable
+from dualtwin.webots import ode
+from dualtwin.webots.physics.edits import SupervisorEdits
+from dualtwin.webots.physics.records import (
+    MotorRec,
+    SolidRec,
+)
+
+
+class Stepper(SupervisorEdits):
+    """The per-step loop (see the module docstring)."""
+
+    def _prepare_step_lists(self) -> None:
+        self._dyn_motors = [m for m in self.motors if not m.joint.kinematic and m.joint.kind != "ball"]
+        self._kin_motors = [m for m in self.motors if m.joint.kinematic]
+        self._springs = [j for j in self.joints if j.spring]
+        self._tracked = [j for j in self.joints if not j.kinematic and j.kind != "ball"]
+        # kinematic geoms inside robots are re-placed from the scene graph every step (§2.4)
+        self._moving_static = []
+        for gr in self.geoms.values():
+            if gr.body is None and gr.solid.robot is not None and self._moves(gr.solid):
+                self._moving_static.append(gr)
+        self._views = [(b.pos, b.lvel, b.avel) for b in self.bodies]
+
+    def _moves(self, solid: SolidRec) -> bool:
+        s: SolidRec | None = solid
+        while s is not None:
+            if s.body is not None:
+                return True
+            if s.joint is not None and s.joint.kinematic and s.joint.motors[0] is not None:
+                return True
+            s = s.parent
+        return False
+
+    def step(self, n: int = 1) -> None:
+        """Advance ``n`` basic time steps (§1.6 order).
+
+        Raises:
+            SimulationUnstable: the state became non-finite; stepping is refused until :meth:`reset`.
+        """
+        if threading.get_ident() != self._thread:
+            ode.ensure_thread()  # ODE needs per-thread data in every stepping thread
+        for _ in range(n):
+            if self._unstable:
+                raise SimulationUnstable("simulation is unstable; call reset()")
+            if self._pending:
+                self._apply_pending()
+            self._pre_physics()
+            for pre_hook in self.pre_step_hooks:
+                pre_hook(self.dt)
+            self._step_fn(self._world, self.dt)
+            self._check_state()
+            self._swap_and_collide()
+            self._post_physics()
+            self.step_count += 1
+            for hook in self.step_hooks:
+                hook()
+
+    def _pre_physics(self) -> None:
+        dt = self.dt
+        for motor in self._dyn_motors:
+            self._apply_motor(motor, dt)
+        for joint in self._springs:
+            self._apply_spring(joint)
+        if self._kin_motors:
+            for motor in self._kin_motors:
+                self._kinematic_motor(motor, dt)
+        for gr in self._moving_static:
+            self._place_static_geom(gr, self.solid_world_pose(gr.solid))
+
+    def _apply_motor(self, motor: MotorRec, dt: float) -> None:
+        """§5.3: torque mode adds a torque; otherwise set the ODE motor row (Vel, FMax)."""
+        joint = motor.joint
+        lib = self._lib
+        kind = joint.kind
+        i = motor.axis_index
+        if motor.torque_mode:
+            if not motor.torque_params_set:
+                # §5.2: entering torque mode leaves a velocity-0 motor limited to staticFriction
+                self._set_motor_row(joint, i, 0.0, joint.static_friction[i])
+                motor.torque_params_set = True
+            tau = motor.raw_torque
+            if kind == "hinge":
+                # ODE 0.16 negates the torque of reversed hinges itself; undo it so that a positive
+                # torque increases the position for static-base joints too (UNVERIFIED for the fork)
+                lib.dJointAddHingeTorque(joint.ptr, tau if joint.reverse else -tau)
+            elif kind == "slider":
+                lib.dJointAddSliderForce(joint.ptr, tau)
+            elif i == 0:
+                lib.dJointAddHinge2Torques(joint.ptr, -tau, 0.0)
+            else:
+                lib.dJointAddHinge2Torques(joint.ptr, 0.0, -tau)
+            return
+        u = motor.command_velocity(dt)
+        fmax = max(joint.static_friction[i], motor.available)
+        if kind == "hinge":
+            setp = lib.dJointSetHingeParam
+            setp(joint.ptr, ode.dParamFMax, fmax)
+            setp(joint.ptr, ode.dParamVel, -u)
+        elif kind == "slider":
+            setp = lib.dJointSetSliderParam
+            setp(joint.ptr, ode.dParamFMax, fmax)
+            setp(joint.ptr, ode.dParamVel, u)
+        else:
+            setp = lib.dJointSetHinge2Param
+            g = ode.dParamGroup2 if i == 1 else 0
+            setp(joint.ptr, g + ode.dParamFMax, fmax)
+            setp(joint.ptr, g + ode.dParamVel, -u)
+
+    def _kinematic_motor(self, motor: MotorRec, dt: float) -> None:
+        """§5.3 (kinematic joints): move toward the target at the commanded velocity."""
+        joint = motor.joint
+        i = motor.axis_index
+        pos = joint.positions[i]
+        if motor.torque_mode or motor.available == 0.0:
+            return
+        if math.isinf(motor.target_position):
+            pos += motor.target_velocity * dt
+        else:
+            step = abs(motor.target_velocity) * dt
+            err = motor.target_position - pos
+            pos = motor.target_position if abs(err) <= max(step, 1e-6) else pos + math.copysign(step, err)
+        joint.positions[i] = pos
+
+    def _swap_and_collide(self) -> None:
+        if self._auto_disable:
+            is_enabled = self._is_enabled
+            enabled = self._enabled
+            for b in self.bodies:
+                enabled[b.index] = bool(is_enabled(b.ptr))
+        consumed = self._buffer
+        self._buffer ^= 1
+        self._collide()  # §1.6 step 4: contacts for the next step, into the other buffer
+        used = self._used[consumed]
+        if used:
+            keep = []
+            empty = self._empty_group
+            enabled = self._enabled
+            done: set[int] = set()
+            for body in used:
+                if body.index in done:
+                    continue
+                done.add(body.index)
+                if enabled[body.index] or not self._auto_disable:
+                    empty(body.groups[consumed])
+                else:
+                    keep.append(body)  # §1.3: contacts of disabled bodies persist
+            self._used[consumed] = keep
+
+    def _post_physics(self) -> None:
+        for joint in self._tracked:
+            self._read_joint(joint, predict=True)
+        if self._accel_cur:
+            for index in self._accel_cur:
+                b = self.bodies[index]
+                self._accel_prev[index] = self._accel_cur[index]
+                self._accel_cur[index] = (b.lvel[0], b.lvel[1], b.lvel[2])
