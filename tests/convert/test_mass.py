@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from dualtwin.convert import convert_world_text
-from dualtwin.convert.mass import box_mass, capsule_mass, cylinder_mass, sphere_mass, trimesh_mass
 
 HEADER = "#VRML_SIM R2023b utf8\n"
 
@@ -117,18 +116,18 @@ def test_merged_child_solid_adds_its_mass_in_the_parent_frame() -> None:
 
 
 def test_capsule_and_mesh_formulas() -> None:
-    cap = capsule_mass(0.1, 0.2)
+    m, _, inertia = body(robot_world(bounding="Capsule { radius 0.1 height 0.2 }"))
     m1, m2 = 1000 * math.pi * 0.01 * 0.2, 1000 * 4 / 3 * math.pi * 0.001
-    assert cap.mass == pytest.approx(m1 + m2)
-    assert cap.inertia[2, 2] == pytest.approx((0.5 * m1 + 0.4 * m2) * 0.01)
-    # A closed cube mesh integrates like the Box formula.
-    v = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)], dtype=float) + [2, 0, 0]
-    faces = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
-                      [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
-    mesh = trimesh_mass(v, faces)
-    assert mesh is not None
-    assert mesh.mass == pytest.approx(box_mass((1, 1, 1)).mass)
-    assert mesh.com == pytest.approx([2, 0, 0])
-    assert mesh.inertia == pytest.approx(box_mass((1, 1, 1)).inertia)
-    assert cylinder_mass(0.1, 0.2).mass == pytest.approx(m1)
-    assert sphere_mass(0.1).mass == pytest.approx(m2)
+    assert m == pytest.approx(m1 + m2)
+    assert inertia[2, 2] == pytest.approx((0.5 * m1 + 0.4 * m2) * 0.01)
+    # A closed unit-cube mesh integrates like the Box formula (1000 kg, I = 1000/6). Centred on the Solid's
+    # origin: off-centre meshes get ODE's dMassSetTrimesh inertia, see tests/convert/test_mass_agreement.py.
+    points = ", ".join(f"{x} {y} {z}" for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5))
+    faces = [[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+             [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]]
+    index = " ".join(f"{a} {b} {c} -1" for a, b, c in faces)
+    mesh = f"IndexedFaceSet {{ coord Coordinate {{ point [ {points} ] }} coordIndex [ {index} ] }}"
+    m, com, inertia = body(robot_world(bounding=mesh))
+    assert m == pytest.approx(1000.0)
+    assert com == pytest.approx([0, 0, 0], abs=1e-12)
+    assert inertia == pytest.approx(np.eye(3) * 1000 / 6)

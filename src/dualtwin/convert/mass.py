@@ -1,10 +1,10 @@
-"""Webots' mass rules (docs/reference/webots-on-ode.md §3.2), reproduced so a converted body weighs what ODE's body weighs.
+"""Masses for the MJCF converter: each Solid's mass from Webots' rules, combined into MuJoCo bodies.
 
 MuJoCo would derive inertia from geoms with its own conventions (every geom, visual ones included, at its
-own density). Webots instead sums the ODE masses of the *boundingObject* primitives at a reference density of
-1000 kg/m³ (Pose rotations and translations applied, overlaps counted twice), then rescales to ``mass`` or
-``density``, moves the centre of mass to ``centerOfMass`` and falls back to an identity inertia when there
-is no boundingObject. The converter writes the result as an explicit ``inertial`` (mass, pos, fullinertia).
+own density). The converter instead takes each Solid's mass, centre of mass and inertia from
+:mod:`dualtwin.webots.mass_rules`, the one implementation of Webots' rules, which the Webots twin builds its
+ODE bodies with too; Solids merged into one MuJoCo body are combined here (parallel-axis theorem) and the
+result is written as an explicit ``inertial`` (mass, pos, fullinertia).
 """
 
 from __future__ import annotations
@@ -16,13 +16,14 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from dualtwin.webots.mass_rules import REFERENCE_DENSITY, solid_inertial
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.shapes import indexed_face_set_mesh  # noqa: F401 - re-exported for the converter
 
 FloatArray = npt.NDArray[np.float64]
 
-#: ODE's reference density for boundingObject primitives (Webots WbSolidUtilities::addMass).
-REFERENCE_DENSITY = 1000.0
+__all__ = ["REFERENCE_DENSITY", "MassProps", "Primitive", "bounding_primitives", "combine", "rotation_matrix",
+           "solid_mass"]
 
 
 @dataclass
@@ -43,14 +44,6 @@ class MassProps:
         return MassProps(self.mass, rotation @ self.com + np.asarray(translation, dtype=float),
                          rotation @ self.inertia @ rotation.T)
 
-    def scaled(self, factor: float) -> MassProps:
-        """Same shape, denser material (ODE dMassAdjust): mass and inertia scale together."""
-        return MassProps(self.mass * factor, self.com.copy(), self.inertia * factor)
-
-    def moved_to(self, com: Sequence[float]) -> MassProps:
-        """Rigidly translate the distribution so its CoM sits at ``com`` (inertia about the CoM unchanged)."""
-        return MassProps(self.mass, np.asarray(com, dtype=float).copy(), self.inertia.copy())
-
     def full_inertia(self) -> list[float]:
         """MuJoCo ``fullinertia`` order: Ixx Iyy Izz Ixy Ixz Iyz."""
         i = self.inertia
@@ -68,69 +61,6 @@ def combine(parts: Sequence[MassProps]) -> MassProps | None:
         d = p.com - com
         inertia += p.inertia + p.mass * (float(d @ d) * np.eye(3) - np.outer(d, d))
     return MassProps(total, com, inertia)
-
-
-# ------------------------------------------------------------------------------------------------
-# primitives (ODE dMassSet* formulas)
-
-
-def box_mass(size: Sequence[float], density: float = REFERENCE_DENSITY) -> MassProps:
-    """``size`` = full extents (Webots and ODE both use full lengths)."""
-    sx, sy, sz = (float(v) for v in size)
-    m = density * sx * sy * sz
-    return MassProps.point(m, (0, 0, 0), np.diag([m * (sy * sy + sz * sz) / 12, m * (sx * sx + sz * sz) / 12,
-                                                  m * (sx * sx + sy * sy) / 12]))
-
-
-def sphere_mass(radius: float, density: float = REFERENCE_DENSITY) -> MassProps:
-    m = density * 4.0 / 3.0 * math.pi * radius ** 3
-    return MassProps.point(m, (0, 0, 0), np.eye(3) * 0.4 * m * radius * radius)
-
-
-def cylinder_mass(radius: float, height: float, density: float = REFERENCE_DENSITY) -> MassProps:
-    """Axis z (ODE direction 3, as Webots R2022a+ Cylinder)."""
-    m = density * math.pi * radius * radius * height
-    side = m * (0.25 * radius * radius + height * height / 12.0)
-    return MassProps.point(m, (0, 0, 0), np.diag([side, side, 0.5 * m * radius * radius]))
-
-
-def capsule_mass(radius: float, height: float, density: float = REFERENCE_DENSITY) -> MassProps:
-    """``height`` = length of the cylindrical part (ODE dMassSetCapsule, axis z)."""
-    m1 = math.pi * radius * radius * height * density
-    m2 = 4.0 / 3.0 * math.pi * radius ** 3 * density
-    ia = m1 * (0.25 * radius * radius + height * height / 12.0) + m2 * (
-        0.4 * radius * radius + 0.375 * radius * height + 0.25 * height * height)
-    ib = (0.5 * m1 + 0.4 * m2) * radius * radius
-    return MassProps.point(m1 + m2, (0, 0, 0), np.diag([ia, ia, ib]))
-
-
-def trimesh_mass(vertices: FloatArray, faces: npt.NDArray[np.int64],
-                 density: float = REFERENCE_DENSITY) -> MassProps | None:
-    """Closed triangle mesh by signed tetrahedra from the origin (what dMassSetTrimesh integrates).
-
-    Returns None when the enclosed volume is not positive (open or inverted mesh): Webots then uses 1 kg.
-    """
-    if len(faces) == 0:
-        return None
-    a, b, c = vertices[faces[:, 0]], vertices[faces[:, 1]], vertices[faces[:, 2]]
-    vol6 = np.einsum("ij,ij->i", a, np.cross(b, c))
-    volume = float(vol6.sum()) / 6.0
-    if volume <= 1e-12:
-        return None
-    com = ((a + b + c) * vol6[:, None]).sum(axis=0) / (4.0 * vol6.sum())
-    # Second moments of each tetrahedron (origin, a, b, c): ∫ x_i x_j dV = V/20 (Σ p_i p_j + s_i s_j).
-    s = a + b + c
-    cov = np.zeros((3, 3))
-    for i in range(3):
-        for j in range(3):
-            cov[i, j] = float(((vol6 / 6.0) / 20.0 * (a[:, i] * a[:, j] + b[:, i] * b[:, j] + c[:, i] * c[:, j]
-                                                      + s[:, i] * s[:, j])).sum())
-    mass = density * volume
-    cov *= density
-    inertia_origin = np.trace(cov) * np.eye(3) - cov
-    d = com
-    inertia = inertia_origin - mass * (float(d @ d) * np.eye(3) - np.outer(d, d))
-    return MassProps(mass, com, inertia)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -189,96 +119,16 @@ def bounding_primitives(node: Node | None, rotation: FloatArray | None = None,
         yield Primitive(node, R, t, scale)
 
 
-def primitive_mass(prim: Primitive) -> tuple[MassProps | None, str | None]:
-    """ODE mass of one primitive at the reference density in the Solid frame, and a warning if any.
-
-    Invalid or zero-size primitives count as 1 kg with identity inertia, as in Webots; Plane and
-    ElevationGrid contribute nothing.
-    """
-    g = prim.geometry
-    s = prim.scale
-    kind = g.type_name
-    warning = None
-    local: MassProps | None
-    if kind == "Box":
-        size = [float(v) * s for v in g.get("size")]
-        local = box_mass(size) if min(size) > 0 else None
-    elif kind == "Sphere":
-        r = float(g.get("radius")) * s
-        local = sphere_mass(r) if r > 0 else None
-    elif kind == "Cylinder":
-        r, h = float(g.get("radius")) * s, float(g.get("height")) * s
-        local = cylinder_mass(r, h) if r > 0 and h > 0 else None
-    elif kind == "Capsule":
-        r, h = float(g.get("radius")) * s, float(g.get("height")) * s
-        local = capsule_mass(r, h) if r > 0 and h >= 0 else None
-    elif kind == "IndexedFaceSet":
-        points, faces = indexed_face_set_mesh(g, s)
-        local = trimesh_mass(points, faces)
-        if local is None:
-            warning = "IndexedFaceSet encloses no positive volume: Webots counts it as 1 kg"
-    elif kind in ("Plane", "ElevationGrid"):
-        return None, f"{kind} in a boundingObject adds no mass"
-    else:
-        return None, None
-    if local is None:
-        warning = warning or f"{kind} has a zero or negative size: Webots counts it as 1 kg"
-        local = MassProps.point(1.0, (0, 0, 0))
-    return local.transformed(prim.rotation, prim.translation), warning
-
-
-def _valid_inertia(values: Sequence[Sequence[float]]) -> FloatArray | None:
-    if len(values) != 2:
-        return None
-    (i11, i22, i33), (i12, i13, i23) = values
-    inertia = np.array([[i11, i12, i13], [i12, i22, i23], [i13, i23, i33]], dtype=float)
-    if min(i11, i22, i33) <= 0:
-        return None
-    if np.linalg.eigvalsh(inertia).min() <= 0:
-        return None
-    return inertia
-
-
 def solid_mass(solid: Node, *, scale: float = 1.0) -> tuple[MassProps | None, list[str]]:
-    """The ODE mass of one Solid in its own frame (None without Physics) and the warnings Webots prints."""
-    physics = solid.get("physics")
-    if physics is None:
-        return None, []
+    """The ODE mass of one Solid in its own frame (None without Physics) and the warnings Webots prints.
+
+    ``scale`` is the uniform scale of the Transforms above the Solid (the converter applies it; see
+    :mod:`dualtwin.webots.mass_rules`).
+    """
     warnings: list[str] = []
-    mass = float(physics.get("mass", -1.0))
-    density = float(physics.get("density", 1000.0))
-    com = physics.get("centerOfMass") or []
-    inertia_fields = physics.get("inertiaMatrix") or []
-    custom = _valid_inertia(inertia_fields)
-    if inertia_fields and custom is None:
-        warnings.append("inertiaMatrix is not positive definite: ignored (Webots falls back to the boundingObject)")
-    if mass > 0 and len(com) == 1 and custom is not None:
-        return MassProps.point(mass, com[0], custom), warnings
-    if mass > 0 and density > 0 and density != 1000.0:
-        warnings.append("both mass and density are given: density is ignored")
-    parts: list[MassProps] = []
-    for prim in bounding_primitives(solid.get("boundingObject"), scale=scale):
-        props, warning = primitive_mass(prim)
-        if warning:
-            warnings.append(warning)
-        if props is not None:
-            parts.append(props)
-    total = combine(parts)
-    if total is not None:
-        if mass > 0:
-            total = total.scaled(mass / total.mass)
-        elif density > 0:
-            total = total.scaled(density / REFERENCE_DENSITY)
-        else:
-            warnings.append("Physics has neither a positive mass nor a positive density: mass left at density 1000")
-        if len(com) == 1:
-            total = total.moved_to(com[0])
-        return total, warnings
-    # No usable boundingObject: Webots prints a warning and uses an identity inertia.
-    if mass > 0:
-        m, inertia = mass, np.eye(3)
-    else:
-        m = density / REFERENCE_DENSITY if density > 0 else 1.0
-        inertia = np.eye(3) * m
-    warnings.append("Physics without a boundingObject: Webots uses an identity inertia matrix")
-    return MassProps.point(m, com[0] if len(com) == 1 else (0, 0, 0), inertia), warnings
+    name = str(solid.get("name") or solid.type_name)
+    inertial = solid_inertial(solid, name, warnings.append, scale)
+    if inertial is None:
+        return None, warnings
+    inertia = np.array(inertial.inertia, dtype=float).reshape(3, 3)
+    return MassProps(inertial.mass, np.array(inertial.com, dtype=float), inertia), warnings
