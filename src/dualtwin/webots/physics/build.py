@@ -369,7 +369,11 @@ class SceneBuilder(SimulationCore):
     ) -> None:
         t = node.type_name
         if t in ("Pose", "Transform"):
-            sub = local * Pose.from_fields(_f(node, "translation", None), _f(node, "rotation", None))
+            translation = _f(node, "translation", None)
+            if translation is not None and tuple(scale) != (1.0, 1.0, 1.0):
+                # a scaled frame above scales this frame's translation too (as mass_rules does for the mass)
+                translation = tuple(float(v) * k for v, k in zip(translation, scale, strict=True))
+            sub = local * Pose.from_fields(translation, _f(node, "rotation", None))
             sc = scale
             if t == "Transform":
                 s = _f(node, "scale", (1.0, 1.0, 1.0))
