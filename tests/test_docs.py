@@ -85,3 +85,45 @@ def test_readme_commands_and_options_exist() -> None:
         options = {o for p in command.params for o in [*p.opts, *p.secondary_opts]}
         unknown = [w for w in words if w.startswith("-") and w.split("=", 1)[0] not in options]
         assert not unknown, f"README: {line!r}: unknown options {unknown}"
+
+
+LAYOUT = ROOT / "docs" / "concepts" / "layout.md"
+
+
+def _layout_tree() -> list[str]:
+    """The package names of the layout page's tree, top to bottom (``cli/`` -> ``cli``, ``errors.py`` -> ``errors``)."""
+    block = re.search(r"```\nsrc/dualtwin/\n(.*?)```", LAYOUT.read_text(encoding="utf-8"), re.DOTALL)
+    assert block, "docs/concepts/layout.md has no src/dualtwin/ tree"
+    return [m.group(1) for m in re.finditer(r"[├└]── (\w+)(?:/|\.py)", block.group(1))]
+
+
+def _packages() -> set[str]:
+    src = ROOT / "src" / "dualtwin"
+    dirs = {p.parent.name for p in src.glob("*/__init__.py")}
+    modules = {p.stem for p in src.glob("*.py") if p.stem not in ("__init__", "__main__")}
+    return dirs | modules
+
+
+def test_the_layout_page_lists_every_package_once() -> None:
+    tree = _layout_tree()
+    assert len(tree) == len(set(tree)), f"listed twice: {sorted({n for n in tree if tree.count(n) > 1})}"
+    missing, gone = sorted(_packages() - set(tree)), sorted(set(tree) - _packages())
+    assert not missing, f"docs/concepts/layout.md does not list: {missing}"
+    assert not gone, f"docs/concepts/layout.md lists packages that no longer exist: {gone}"
+
+
+def test_the_layout_page_follows_the_declared_layer_order() -> None:
+    """The tree runs from the lowest layer up, as .importlinter declares it (top line = highest layer)."""
+    text = (ROOT / ".importlinter").read_text(encoding="utf-8")
+    layers = re.search(r"^layers =\n((?:[ \t]+\S.*\n)+)", text, re.MULTILINE)
+    assert layers, ".importlinter declares no layers"
+    rank = {}
+    for i, line in enumerate(reversed(layers.group(1).strip().splitlines())):
+        for name in line.split("|"):
+            rank[name.strip().removeprefix("dualtwin.")] = i
+    unlayered = sorted(_packages() - set(rank))
+    assert not unlayered, f".importlinter puts these packages in no layer, so nothing checks their imports: {unlayered}"
+    order = [(rank[n], n) for n in _layout_tree()]
+    out_of_order = [f"{b} (layer {rb}) after {a} (layer {ra})"
+                    for (ra, a), (rb, b) in zip(order, order[1:], strict=False) if rb < ra]
+    assert not out_of_order, "docs/concepts/layout.md is out of the .importlinter order: " + "; ".join(out_of_order)
