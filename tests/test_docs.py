@@ -11,6 +11,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -127,3 +129,64 @@ def test_the_layout_page_follows_the_declared_layer_order() -> None:
     out_of_order = [f"{b} (layer {rb}) after {a} (layer {ra})"
                     for (ra, a), (rb, b) in zip(order, order[1:], strict=False) if rb < ra]
     assert not out_of_order, "docs/concepts/layout.md is out of the .importlinter order: " + "; ".join(out_of_order)
+
+
+RESULTS = ROOT / "docs" / "results.md"
+HASH = re.compile(r"`([0-9a-f]{7,40})`")
+BENCH = re.compile(r"\b(bench_\w+)\.py")
+
+
+def _git(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True, timeout=60)
+
+
+def _scripts(text: str) -> set[str]:
+    return set(BENCH.findall(text))
+
+
+def result_problems(text: str) -> list[str]:
+    """What a results page lacks: per section with a table, a bench command and a commit that changed it."""
+    sections = re.split(r"^(?=#{2,3} )", text, flags=re.MULTILINE)[1:]
+    problems = []
+    for section in sections:
+        title = section.splitlines()[0]
+        if not any(line.startswith("|") for line in section.splitlines()):
+            continue
+        scripts, hashes = _scripts(section), set(HASH.findall(section))
+        if not scripts or not hashes:
+            problems.append(f"{title}: names no bench command or no commit")
+        for digest in sorted(hashes):
+            changed = _git("show", "--name-only", "--format=", digest)
+            if changed.returncode != 0:
+                problems.append(f"{title}: commit {digest} does not exist")
+            elif not {Path(f).stem for f in changed.stdout.split()} & scripts:
+                problems.append(f"{title}: commit {digest} changed none of {sorted(scripts)}")
+        if title.startswith("## Summary"):
+            for row in [line for line in section.splitlines() if line.startswith("|")][2:]:
+                if not (_scripts(row) and HASH.search(row)):
+                    problems.append(f"Summary row without command or commit: {row[:80]}")
+    return problems
+
+
+@pytest.fixture
+def git_checkout() -> None:
+    if not (ROOT / ".git").exists() or _git("rev-parse", "HEAD").returncode != 0:
+        pytest.skip("not a git checkout")
+
+
+def test_every_result_names_its_command_and_commit(git_checkout: None) -> None:
+    """Each results section with numbers names the bench command and the commit of the script that printed them;
+    each Summary row names both; each cited commit exists and changed one of the bench scripts it is cited for."""
+    text = RESULTS.read_text(encoding="utf-8")
+    assert len(re.findall(r"^#{2,3} ", text, re.MULTILINE)) >= 10
+    problems = result_problems(text)
+    assert not problems, "docs/results.md:\n" + "\n".join(problems)
+
+
+def test_the_results_check_catches_each_gap(git_checkout: None) -> None:
+    """The control: a section without a command, a commit that never touched the script, one that does not exist."""
+    good = "## A\n\n`python bench/bench_convert.py` (bench commit `ca859c1`)\n\n| x |\n|---|\n| 1 |\n"
+    assert result_problems(good) == []
+    assert "names no bench command" in result_problems("## A\n\n| x |\n|---|\n| 1 |\n")[0]
+    assert "changed none of" in result_problems(good.replace("ca859c1", "f1c94e4"))[0]
+    assert "does not exist" in result_problems(good.replace("ca859c1", "0000000"))[0]
