@@ -190,3 +190,51 @@ def test_the_results_check_catches_each_gap(git_checkout: None) -> None:
     assert "names no bench command" in result_problems("## A\n\n| x |\n|---|\n| 1 |\n")[0]
     assert "changed none of" in result_problems(good.replace("ca859c1", "f1c94e4"))[0]
     assert "does not exist" in result_problems(good.replace("ca859c1", "0000000"))[0]
+
+
+DOCS = ROOT / "docs"
+#: Paths the docs use as examples of a user's files, not files of this repository.
+ILLUSTRATIVE_PATHS = {"project/controllers/inverted_pendulum/inverted_pendulum.py"}
+
+
+def _doc_pages() -> list[Path]:
+    return [p for p in sorted(DOCS.rglob("*.md")) if p != DOCS / "reference" / "cli.md"]  # cli.md is generated
+
+
+def _resolves(dotted: str) -> bool:
+    """``dualtwin.a.b.Name`` names an importable module, or an attribute of the longest importable prefix."""
+    import importlib
+
+    parts = dotted.split(".")
+    for i in range(len(parts), 0, -1):
+        try:
+            obj: object = importlib.import_module(".".join(parts[:i]))
+        except ImportError:
+            continue
+        for attr in parts[i:]:
+            if not hasattr(obj, attr):
+                return False
+            obj = getattr(obj, attr)
+        return True
+    return False
+
+
+def test_every_module_and_source_file_the_docs_name_exists() -> None:
+    """A module moved or a function renamed must not leave a docs page naming the old one."""
+    missing = []
+    for page in _doc_pages():
+        text = page.read_text(encoding="utf-8")
+        where = page.relative_to(ROOT)
+        for dotted in sorted(set(re.findall(r"\bdualtwin(?:\.[A-Za-z_]\w*)+", text))):
+            if not _resolves(dotted.rstrip(".")):
+                missing.append(f"{where}: {dotted}")
+        for path in sorted(set(re.findall(r"(?<![\w./-])((?:[\w-]+/)*\w+\.py)\b", text)) - ILLUSTRATIVE_PATHS):
+            candidates = [ROOT / path, ROOT / "src" / path, ROOT / "src" / "dualtwin" / path, ROOT / "bench" / path]
+            if not any(c.is_file() for c in candidates):
+                missing.append(f"{where}: {path}")
+    assert not missing, "docs name modules or files that do not exist:\n" + "\n".join(missing)
+
+
+def test_the_name_check_resolves_modules_and_attributes() -> None:
+    assert _resolves("dualtwin.twins.base.Twin") and _resolves("dualtwin.suite.runner")
+    assert not _resolves("dualtwin.twins.base.NoSuchName") and not _resolves("dualtwin.no_such_package")
