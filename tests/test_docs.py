@@ -225,7 +225,9 @@ def test_every_module_and_source_file_the_docs_name_exists() -> None:
     for page in _doc_pages():
         text = page.read_text(encoding="utf-8")
         where = page.relative_to(ROOT)
-        for dotted in sorted(set(re.findall(r"\bdualtwin(?:\.[A-Za-z_]\w*)+", text))):
+        imported = {f"{module}.{name.strip()}" for module, names in
+                    re.findall(r"from (dualtwin(?:\.\w+)*) import ([\w, ]+)", text) for name in names.split(",")}
+        for dotted in sorted(set(re.findall(r"\bdualtwin(?:\.[A-Za-z_]\w*)+", text)) | imported):
             if not _resolves(dotted.rstrip(".")):
                 missing.append(f"{where}: {dotted}")
         for path in sorted(set(re.findall(r"(?<![\w./-])((?:[\w-]+/)*\w+\.py)\b", text)) - ILLUSTRATIVE_PATHS):
