@@ -188,8 +188,6 @@ CONFTEST_IMPORTS: dict[str, str] = {
         "test_transfer", "test_variants")},
     **{f"tests/server/{m}.py": "tests.server.conftest" for m in ("test_app", "test_fuzz", "test_sessions",
                                                                  "test_soak")},
-    **{f"tests/sync/{m}.py": "tests.sync.conftest" for m in (
-        "test_joints", "test_lockstep", "test_monitor", "test_predict", "test_state")},
 }
 
 

@@ -12,7 +12,7 @@ from dualtwin.robots.binding import RobotBinding
 from dualtwin.twins import make_twin
 from dualtwin.twins.base import MechanicalState, Twin
 from dualtwin.webots import load_world
-from tests.sync.conftest import applied_state
+from tests.support.sync_helpers import applied_state
 
 # A free base carrying a ball-jointed bob and a Hinge2 link (steer about z, then spin about the turned y axis),
 # falling freely (no floor): no contacts, and uniform gravity exerts no torque on the joints.

@@ -14,7 +14,7 @@ from dualtwin.robots.binding import RobotBinding
 from dualtwin.suite.runner import SuiteRun
 from dualtwin.sync import ResyncPolicy, load_trajectories, run_lockstep
 from dualtwin.twins import make_twin
-from tests.sync.conftest import sign_policy
+from tests.support.sync_helpers import sign_policy
 
 DAMPING = "joint.pole_hinge.damping"
 

@@ -10,7 +10,7 @@ import pytest
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding
 from dualtwin.sync import Monitor, MonitorConfig, RealignSettings, read_events, run_lockstep
-from tests.sync.conftest import SINE, write_json
+from tests.support.sync_helpers import SINE, write_json
 
 DAMPING = "joint.pole_hinge.damping"
 

@@ -21,7 +21,7 @@ from dualtwin.sync import (
 )
 from dualtwin.sync.record import save_trajectories
 from dualtwin.twins import make_twin
-from tests.sync.conftest import NOMINAL_DAMPING
+from tests.support.sync_helpers import NOMINAL_DAMPING
 
 DAMPING = "joint.pole_hinge.damping"
 

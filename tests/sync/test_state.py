@@ -11,7 +11,7 @@ from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding
 from dualtwin.twins import make_twin
 from dualtwin.twins.base import MechanicalState, SyncError
-from tests.sync.conftest import PIONEER_WHEELS, WHEELS, applied_state, drive, max_abs
+from tests.support.sync_helpers import PIONEER_WHEELS, WHEELS, applied_state, drive, max_abs
 
 # Generalised coordinates round-trip to floating-point precision on both twins (the Webots side through the
 # supervisor API: translation/rotation, joint position fields, Node.setVelocity).
