@@ -186,8 +186,6 @@ CONFTEST_IMPORTS: dict[str, str] = {
     **{f"tests/rl/{m}.py": "tests.rl.conftest" for m in (
         "test_env", "test_export", "test_pioneer_task", "test_reach", "test_runfiles", "test_train",
         "test_transfer", "test_variants")},
-    **{f"tests/server/{m}.py": "tests.server.conftest" for m in ("test_app", "test_fuzz", "test_sessions",
-                                                                 "test_soak")},
 }
 
 

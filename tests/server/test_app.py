@@ -19,8 +19,7 @@ from dualtwin.errors import DualtwinError
 from dualtwin.server.app import create_app
 from dualtwin.server.client import frame_payload
 from tests.support.images import random_frame
-
-from .conftest import SIZE
+from tests.support.servers import SIZE
 
 KEY = "s3cret-key"
 
@@ -52,7 +51,7 @@ def _names(policy_dir: Path) -> None:
 
 @pytest.fixture(scope="module")
 def server(policy_dir: Path, perception_dir: Path) -> Any:
-    from .conftest import RunningServer
+    from tests.support.servers import RunningServer
 
     app = create_app(policy_dir, perception_dir, api_key=KEY, max_body_bytes=64 * 1024, max_frame_pixels=4096,
                      max_sessions=16)

@@ -20,8 +20,7 @@ from hypothesis import HealthCheck, given, settings  # noqa: E402
 from schemathesis import GenerationMode  # noqa: E402
 
 from dualtwin.server.app import create_app  # noqa: E402
-
-from .conftest import RunningServer  # noqa: E402
+from tests.support.servers import RunningServer  # noqa: E402
 
 KEY = "fuzz-key"
 EXAMPLES = {GenerationMode.POSITIVE: 40, GenerationMode.NEGATIVE: 40}
@@ -112,7 +111,7 @@ def test_frame_decoder_fuzz_mutated_pngs_and_other_formats(server: Any, policy_d
 
     from hypothesis import strategies as st
 
-    from .conftest import SIZE
+    from tests.support.servers import SIZE
 
     terms = json.loads((policy_dir / "policy_contract.json").read_text())["observation"]
     sensors = {t["name"]: 0.0 for t in terms if t["source"] == "onboard"}

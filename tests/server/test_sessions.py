@@ -13,8 +13,7 @@ import pytest
 from dualtwin.server.app import create_app, is_loopback, serve
 from dualtwin.server.client import frame_payload
 from tests.support.images import random_frame
-
-from .conftest import SIZE
+from tests.support.servers import SIZE
 
 KEYS = ["key-robot-a", "key-robot-b", "key-robot-c"]
 

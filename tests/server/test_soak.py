@@ -12,8 +12,7 @@ import httpx
 import pytest
 
 from dualtwin.server.soak import soak
-
-from .conftest import SIZE
+from tests.support.servers import SIZE
 
 KEYS = ["soak-a", "soak-b"]
 SECONDS = 12.0
