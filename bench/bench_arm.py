@@ -165,6 +165,24 @@ def mujoco_overhead() -> dict[str, float]:
             base_data.ctrl[:] = targets(k)
             mujoco.mj_step(baseline, base_data, nstep=substeps)
 
+    def python_per_step(io: bool) -> None:
+        # The floor of any Python-side motor law: one mj_step call per physics step (Webots' PID needs the
+        # position after every step) and, with ``io``, the least a law can do per motor and step (read q and
+        # qdot, one multiply-add, write ctrl), against the same native servo.
+        mujoco.mj_resetData(baseline, base_data)
+        step, m, d = mujoco.mj_step, baseline, base_data
+        qpos: memoryview[float] = memoryview(d.qpos)
+        qvel: memoryview[float] = memoryview(d.qvel)
+        ctrl: memoryview[float] = memoryview(d.ctrl)
+        motors = range(baseline.nu)
+        for k in range(CONTROL_PERIODS):
+            d.ctrl[:] = targets(k)
+            for _ in range(substeps):
+                if io:
+                    for i in motors:
+                        ctrl[i] = ctrl[i] + 0.0 * (qpos[i] - qvel[i])
+                step(m, d)
+
     def twin_loop(mode: ControlMode) -> None:
         twin.reset(0)
         for k in range(CONTROL_PERIODS):
@@ -173,15 +191,21 @@ def mujoco_overhead() -> dict[str, float]:
                 twin.command(joint, mode, value)
             twin.step()
 
-    best = {"raw": math.inf, "position": math.inf, "velocity": math.inf}
+    best = {"raw": math.inf, "position": math.inf, "velocity": math.inf, "loop": math.inf, "io": math.inf}
     for _ in range(5):
         best["raw"] = min(best["raw"], best_of(raw, 1))
+        best["loop"] = min(best["loop"], best_of(lambda: python_per_step(False), 1))
+        best["io"] = min(best["io"], best_of(lambda: python_per_step(True), 1))
         for mode in ("position", "velocity"):
             best[mode] = min(best[mode], best_of(lambda mode=mode: twin_loop(mode), 1))  # type: ignore[misc,arg-type]
     twin.close()
     print("== MuJoCo twin stepping the arm (2 ms physics steps) ==")
     print(f"  raw mj_step, native servo            {steps / best['raw']:9,.0f} steps/s (baseline)")
     out = {"mujoco_raw_steps_per_s": steps / best["raw"]}
+    for key, label in (("loop", "floor: one mj_step call per step"), ("io", "floor: + 6 motors' read/write")):
+        overhead = best[key] / best["raw"] - 1
+        print(f"  {label:36s} {steps / best[key]:9,.0f} steps/s  overhead {overhead:+.1%}")
+        out[f"mujoco_{key}_floor_overhead"] = overhead
     for mode in ("position", "velocity"):
         overhead = best[mode] / best["raw"] - 1
         goal = f"  (goal <= +{OVERHEAD_GOAL:.0%})" if mode == "position" else ""
@@ -211,6 +235,9 @@ HELD_OUT = ["pick_and_place", "sine_elbow_1hz", "fast_wrist"]
 # Pointwise errors, not DTW: damping and gains mostly change *when* a joint gets there, which warping forgives
 # (with the default weights the nominal arm already scored 4e-4 and no candidate beat it).
 WEIGHTS_DOC = "rmse 1, endpoint 0.5, dtw 0, event 0"
+# CMA-ES's first step (normalised units, align's default) and how much each restart shrinks it.
+SIGMA0 = 0.25
+SIGMA_SHRINK = 0.3
 FAMILIES = {"damping": "joint.*.damping", "friction": "joint.*.friction", "armature": "joint.*.armature",
             "kp": "motor.*.kp", "payload mass": "body.*.mass"}
 
@@ -242,13 +269,23 @@ def moving_channels(run: Path, scenario_ids: list[str]) -> list[str]:
     return [name for name, ptp in ranges.items() if ptp >= 1e-3 and not name.startswith("dq")]
 
 
-def alignment(root: Path, budget: int, executor: str, optimizer: str = "cma") -> dict[str, Any]:
+def fit_arm(root: Path, out: str, suite: Path, holdout: list[str], channels: list[str], **settings: Any) -> Any:
+    """One alignment of KNOBS on ``arm_payload`` against the recorded stand-in in ``root/reference``."""
+    from dualtwin.align import AlignConfig, ObjectiveWeights, run_align
+
+    propose = settings.pop("start", None)
+    config = AlignConfig(reference=str(root / "reference"), target="mujoco", robot="arm_payload", suite=str(suite),
+                         knobs=KNOBS, bounds=BOUNDS, channels=channels, holdout=holdout,
+                         weights=ObjectiveWeights(rmse=1.0, endpoint=0.5, dtw=0.0, event=0.0), **settings)
+    # A start point reaches the fit as a proposal: it seeds the search if it beats nominal.
+    return run_align(config, root / out, propose_fn=(lambda _analysis: [propose]) if propose else None)
+
+
+def alignment(root: Path, budget: int, executor: str, optimizer: str = "cma", restarts: int = 0,
+              polish: int = 0) -> dict[str, Any]:
     """CMA-ES over 25 knobs of the MuJoCo arm_payload against the Webots stand-in; RMSE before/after per
     scenario, and which knob families and joints carry the divergence (ablation from the fitted values)."""
     from fnmatch import fnmatch
-
-    from dualtwin.align import align
-    from dualtwin.align.objective import ObjectiveWeights
 
     robot = resolve_robot("arm_payload")
     root.mkdir(parents=True, exist_ok=True)
@@ -260,13 +297,36 @@ def alignment(root: Path, budget: int, executor: str, optimizer: str = "cma") ->
     reference.close()
     fit_ids = [s["id"] for s in manifest["scenarios"] if s["id"] not in holdout]
     channels = moving_channels(root / "reference", fit_ids)
-    weights = ObjectiveWeights(rmse=1.0, endpoint=0.5, dtw=0.0, event=0.0)
     start = time.perf_counter()
-    result = align(root / "reference", "mujoco", robot, suite, KNOBS, root / "align", optimizer=optimizer,  # type: ignore[arg-type]
-                   budget=budget, holdout=holdout, bounds=BOUNDS, channels=channels, weights=weights,
-                   executor=executor)  # type: ignore[arg-type]
+    # CMA-ES in stages (restarts = stages - 1): each stage starts at the previous stage's best with a step
+    # SIGMA_SHRINK times smaller. One stage of sigma 0.25 spent most of its budget shrinking its step from the
+    # whole box down to the basin (the last session: 514 evaluations, sigma 0.25 -> 0.033, 7.8 mm worst).
+    stages = restarts + 1 if optimizer == "cma" else 1
+    sigma = SIGMA0
+    fitted: dict[str, float] = {}
+    evaluations = 0
+    for stage in range(stages):
+        result = fit_arm(root, f"align{stage}", suite, holdout, channels, optimizer=optimizer, budget=budget // stages,
+                     executor=executor, sigma0=sigma, seed=stage, start=dict(fitted))
+        evaluations += result.evaluations
+        fitted = result.fitted
+        print(f"  stage {stage + 1}/{stages}: sigma0 {sigma:.3g}, {result.evaluations} evaluations, objective "
+              f"{result.objective_before:.4g} -> {result.objective_after:.4g}, held out {result.holdout_after}, "
+              f"{time.perf_counter() - start:.0f} s so far, stop: {result.stop_reason}", flush=True)
+        sigma *= SIGMA_SHRINK
+    cma_only: dict[str, Any] = {}
+    if polish > 0 and optimizer == "cma":
+        # What CMA-ES alone reached, before the least-squares polish starts from it.
+        cma_only = {"wall_s": time.perf_counter() - start, "evaluations": evaluations,
+                    "objective": result.objective_after, "fitted": dict(fitted)}
+        result = fit_arm(root, "align_polish", suite, holdout, channels, optimizer="lsq", budget=polish,
+                     executor=executor, start=dict(fitted))
+        evaluations += result.evaluations
+        fitted = result.fitted
+        print(f"  least-squares polish from the CMA-ES result: {result.evaluations} evaluations, objective -> "
+              f"{result.objective_after:.4g}, held out {result.holdout_after}, "
+              f"{time.perf_counter() - start:.0f} s so far, stop: {result.stop_reason}", flush=True)
     wall = time.perf_counter() - start
-    fitted = result.fitted
 
     def run(values: dict[str, float], name: str) -> dict[str, dict[str, float]]:
         twin = make_twin("mujoco", robot)
@@ -276,8 +336,16 @@ def alignment(root: Path, budget: int, executor: str, optimizer: str = "cma") ->
         return {s["id"]: scenario_rmse(root / "reference", root / name, s) for s in manifest["scenarios"]}
 
     before, after = run({}, "before"), run(fitted, "after")
-    print(f"== alignment: {len(fitted)} MuJoCo knobs, {optimizer}, budget {budget}, executor {executor}: "
-          f"{wall:.0f} s wall, {result.evaluations} evaluations, stop: {result.stop_reason} ==")
+    if cma_only:
+        cma_after = run(cma_only["fitted"], "after_cma")
+        worst = max(cma_after[sid]["ee_m"] for sid in fit_ids)
+        held = max(cma_after[sid]["ee_m"] for sid in holdout)
+        joint = max(v["joint_rad"] for v in cma_after.values())
+        print(f"== CMA-ES alone ({cma_only['evaluations']} evaluations, {cma_only['wall_s']:.0f} s): objective "
+              f"{cma_only['objective']:.4g}; worst flange RMSE {worst * 1000:.3f} mm fitted, {held * 1000:.3f} mm held "
+              f"out; worst joint angle {joint * 1000:.3f} mrad ==")
+    print(f"== alignment: {len(fitted)} MuJoCo knobs, {optimizer} in {stages} stage(s), budget {budget}, executor "
+          f"{executor}: {wall:.0f} s wall, {evaluations} evaluations, stop: {result.stop_reason} ==")
     print(f"  fitted channels: {', '.join(channels)}; objective weights: {WEIGHTS_DOC}")
     print(f"  objective {result.objective_before:.4g} -> {result.objective_after:.4g}; held out "
           f"{result.holdout_before} -> {result.holdout_after}")
@@ -318,24 +386,123 @@ def alignment(root: Path, budget: int, executor: str, optimizer: str = "cma") ->
         cells = [f"{ablation[src][label] * 1000:9.3f} mm" if label in ablation[src] else f"{'-':>12s}"
                  for src in ("fitted", "truth")]
         print(f"    {label:16s} {cells[0]} {cells[1]}")
-    return {"align_wall_s": wall, "align_evaluations": result.evaluations, "rmse_before": before,
+    return {"align_wall_s": wall, "align_evaluations": evaluations, "rmse_before": before,
             "rmse_after": after, "ablation": ablation, "fitted": fitted}
+
+
+def executors(root: Path, budget: int, batch: int = 26) -> dict[str, Any]:
+    """The executors on the arm fit's workload: one batch of ``batch`` candidates (two CMA-ES generations of 25
+    knobs, seeded) simulated in one process, in the process pool and on a local two-worker Ray cluster, with
+    each one's speed-up over one process and the traces compared bit for bit; then the whole CMA-ES alignment
+    (seed 0, ``budget``) through the process pool and through Ray, fitted values compared bit for bit."""
+    import ray
+
+    from dualtwin.align.simulate import Evaluator, SimJob
+
+    robot = resolve_robot("arm_payload")
+    root.mkdir(parents=True, exist_ok=True)
+    suite = root / "suite.json"
+    holdout = alignment_suite(suite)
+    reference = make_twin("webots", robot)
+    reference.set_knobs(HIDDEN)
+    manifest = SuiteRun(suite, "webots", robot, root / "reference", twin=reference).run()
+    reference.close()
+    fit_ids = [s["id"] for s in manifest["scenarios"] if s["id"] not in holdout]
+    channels = moving_channels(root / "reference", fit_ids)
+    rng = np.random.default_rng(0)
+    candidates = [{**{f"joint.{j}.damping": float(rng.uniform(0, 10)) for j in JOINTS},
+                   **{f"joint.{j}.friction": float(rng.uniform(0, 1)) for j in JOINTS},
+                   **{f"joint.{j}.armature": float(rng.uniform(0, 0.05)) for j in JOINTS},
+                   **{f"motor.{j}.kp": float(rng.uniform(8, 12)) for j in JOINTS},
+                   "body.wrist_3_link.mass": float(rng.uniform(3, 6))} for _ in range(batch)]
+    job = SimJob(str(robot.path), "mujoco", str(suite.resolve()))
+    jobs = [job.with_knobs(c) for c in candidates]
+    # A local cluster of two worker slots, started by this process and shut down by it; align's Ray
+    # executor joins the running instance.
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    out: dict[str, Any] = {}
+    try:
+        maps: dict[str, tuple[float, str]] = {}
+        for kind in ("serial", "process", "ray"):
+            with Evaluator(kind) as evaluator:  # type: ignore[arg-type]
+                evaluator.map(jobs[:2])  # workers start and build their twin: not timed
+                wall = time.perf_counter()
+                traces = evaluator.map(jobs)
+                maps[kind] = (time.perf_counter() - wall, _digest(traces))
+        print(f"== executors: one batch of {batch} candidates (25 knobs) of the arm_payload alignment suite, "
+              f"{len(fit_ids) + len(holdout)} scenarios each ==")
+        serial = maps["serial"][0]
+        for kind, (wall, digest) in maps.items():
+            same = digest == maps["serial"][1]
+            print(f"  {kind:8s} {wall:6.1f} s wall  speed-up over one process {serial / wall:4.2f}x  traces "
+                  f"{'identical to' if same else 'DIFFER from'} one process")
+            out[f"executor_{kind}_wall_s"] = wall
+            out[f"executor_{kind}_same"] = same
+        fits = {}
+        for kind in ("process", "ray"):
+            wall = time.perf_counter()
+            result = fit_arm(root, f"align_{kind}", suite, holdout, channels, budget=budget, executor=kind)
+            fits[kind] = result.fitted
+            print(f"  whole CMA-ES alignment, {kind:7s}: {time.perf_counter() - wall:6.1f} s wall, "
+                  f"{result.evaluations} evaluations, objective {result.objective_after:.6g}", flush=True)
+        same = fits["ray"] == fits["process"]
+        print(f"  fitted values through Ray {'identical to' if same else 'DIFFER from'} the process pool's "
+              "(same seed)")
+        out["executor_fit_same"] = same
+    finally:
+        ray.shutdown()
+    return out
+
+
+def _digest(traces: list[Any]) -> str:
+    """A hash of every sample of every channel of a batch's traces (bit-for-bit comparison)."""
+    import hashlib
+
+    digest = hashlib.sha256()
+    for trace in traces:
+        for sid in sorted(trace):
+            for name in sorted(trace[sid].series):
+                series = trace[sid].series[name]
+                digest.update(f"{sid}/{name}".encode())
+                digest.update(np.ascontiguousarray(series.t).tobytes())
+                digest.update(np.ascontiguousarray(series.y).tobytes())
+    return digest.hexdigest()
+
+
+PARTS = ("divergence", "stepping", "align", "executors")
 
 
 def main() -> dict[str, Any]:
     import argparse
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    parser.add_argument("--budget", type=int, default=500, help="alignment evaluations (0 skips alignment)")
-    parser.add_argument("--executor", default="process", help="alignment executor: process or ray")
+    parser.add_argument("--budget", type=int, default=1200, help="alignment evaluations (0 skips alignment)")
+    parser.add_argument("--executor", default="process", help="alignment executor: serial, process or ray")
     parser.add_argument("--optimizer", default="cma", help="alignment optimizer: cma (the goal's) or lsq")
+    parser.add_argument("--restarts", type=int, default=2,
+                        help="CMA-ES restarts, each from the previous best with a smaller step")
+    parser.add_argument("--polish", type=int, default=0,
+                        help="least-squares evaluations that polish the CMA-ES result (0: none)")
+    parser.add_argument("--executor-budget", type=int, default=30,
+                        help="evaluations of the executor comparison (serial, process, Ray)")
+    parser.add_argument("--parts", default="divergence,stepping,align",
+                        help=f"comma-separated parts to run, of: {', '.join(PARTS)}")
     args = parser.parse_args()
+    parts = set(args.parts.split(","))
+    if parts - set(PARTS):
+        parser.error(f"unknown part(s) {', '.join(sorted(parts - set(PARTS)))}; use {', '.join(PARTS)}")
     with output_folder("DUALTWIN_BENCH_ARM_OUT", "arm") as (root, kept):
-        results: dict[str, Any] = {"rmse": divergence(root)}
-        results.update(webots_stepping())
-        results.update(mujoco_overhead())
-        if args.budget > 0:
-            results.update(alignment(root / "alignment", args.budget, args.executor, args.optimizer))
+        results: dict[str, Any] = {}
+        if "divergence" in parts:
+            results["rmse"] = divergence(root)
+        if "stepping" in parts:
+            results.update(webots_stepping())
+            results.update(mujoco_overhead())
+        if "align" in parts and args.budget > 0:
+            results.update(alignment(root / "alignment", args.budget, args.executor, args.optimizer, args.restarts,
+                                     args.polish))
+        if "executors" in parts:
+            results.update(executors(root / "executors", args.executor_budget))
         if kept:
             print(f"runs kept in {root}")
     return results

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -15,6 +16,7 @@ from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding, bundled_robots, load_binding, resolve_robot
 from dualtwin.robots.io import RobotIO
 from dualtwin.twins import Twin, make_twin
+from dualtwin.twins.mujoco import PREDICT_SATURATION, MuJoCoTwin
 from dualtwin.webots import load_world
 from dualtwin.webots.physics import Simulation
 
@@ -271,3 +273,67 @@ def test_armature_and_pid_gain_knobs_and_their_patched_mjcf() -> None:
     assert np.array_equal(response(MuJoCoTwin(mujoco.MjSpec.from_string(patched.text), 0.016)), changed)
     twin.set_knobs({})
     assert np.array_equal(response(twin), nominal)
+
+
+def _per_motor_law_steps(twin: MuJoCoTwin, servos: list[Any], steps: int) -> None:
+    """The control: the MuJoCo twin's servo loop as it was before it was inlined, one call of Webots' motor law
+    (MotorState.velocity_command -> motor_law.motor_velocity) per motor and physics step."""
+    m, d = twin.model, twin.data
+    dt = m.opt.timestep
+    for _ in range(steps):
+        targets = {}
+        for mo in servos:
+            u = targets[mo.index] = mo.state.velocity_command(float(d.qpos[mo.qpos]), dt)
+            limit = mo.state.available_torque
+            if mo.saturated:
+                if (u - float(d.qvel[mo.dof])) * mo.saturated <= 0.0 or limit <= 0.0:
+                    twin._release(mo)
+                    d.ctrl[mo.index] = mo.kv * (u - float(d.qvel[mo.dof]))
+                else:
+                    d.ctrl[mo.index] = mo.saturated * limit
+            else:
+                torque = mo.kv * (u - float(d.qvel[mo.dof]))
+                if abs(torque) > PREDICT_SATURATION * limit:
+                    twin._saturate(mo, torque)
+                else:
+                    d.ctrl[mo.index] = torque
+        twin._mj_step(m, d)
+        for mo in servos:
+            if not mo.saturated:
+                torque = mo.kv * (targets[mo.index] - float(d.qvel[mo.dof]))
+                if abs(torque) > mo.state.available_torque:
+                    twin._saturate(mo, torque)
+
+
+def test_inlined_motor_law_is_bit_identical_to_the_per_motor_law() -> None:
+    """The MuJoCo twin's inlined servo loop (twins.motors.servo_steps) against the law called per motor and
+    step, bit for bit: saturating position steps, a PID with I and D terms, an acceleration limit in velocity
+    control and a motor without available torque, with a control that a changed gain does show."""
+    robot = resolve_robot("arm_payload")
+
+    def trajectory(per_motor: bool, kd: float = 0.02) -> np.ndarray:
+        twin = MuJoCoTwin(robot.model_path("mujoco"), 0.016)
+        if per_motor:
+            twin._servo_steps = lambda servos, steps: _per_motor_law_steps(twin, servos, steps)  # type: ignore[method-assign]
+        motors = twin._motor_by_name
+        motors["elbow"].state.params.ki, motors["elbow"].state.params.kd = 0.5, kd
+        motors["wrist_2"].state.params.acceleration = 4.0
+        twin.reset(0)
+        motors["wrist_3"].state.available_torque = 0.0
+        rows = []
+        for k in range(60):
+            twin.command("shoulder_pan", "position", 2.5 if k < 30 else -1.0)
+            twin.command("shoulder_lift", "position", -1.2)
+            twin.command("elbow", "position", 0.8 * math.sin(0.2 * k))
+            twin.command("wrist_1", "position", 1.5)
+            twin.command("wrist_2", "velocity", 3.0 if k < 40 else -3.0)
+            twin.step()
+            rows.append(np.concatenate([twin.data.qpos, twin.data.qvel, twin.data.ctrl,
+                                        [mo.saturated for mo in twin._motors]]))
+        twin.close()
+        return np.array(rows)
+
+    inlined, per_motor = trajectory(False), trajectory(True)
+    assert np.abs(inlined[:, -6:]).sum() > 0, "no motor saturated: the test would not cover saturation"
+    assert inlined.tobytes() == per_motor.tobytes()
+    assert trajectory(False, kd=0.03).tobytes() != inlined.tobytes()  # control: the comparison can see a change
