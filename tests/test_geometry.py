@@ -70,3 +70,14 @@ def test_rpy_from_quat_matches_scipy_zyx() -> None:
         yaw, pitch, roll = rot.as_euler("ZYX")
         got = [g.rpy_from_quat(x=x, y=y, z=z, w=w, angle=a) for a in ("roll", "pitch", "yaw")]
         np.testing.assert_allclose(got, [roll, pitch, yaw], atol=1e-9)
+
+
+def test_rpy_from_matrix_matches_scipy_zyx_and_the_quaternion_form() -> None:
+    for rot in Rotation.random(20, random_state=4):
+        yaw, pitch, roll = rot.as_euler("ZYX")
+        R = rot.as_matrix()
+        got = [g.rpy_from_matrix(R, a) for a in ("roll", "pitch", "yaw")]
+        np.testing.assert_allclose(got, [roll, pitch, yaw], atol=1e-9)
+        x, y, z, w = rot.as_quat()
+        np.testing.assert_allclose(got, [g.rpy_from_quat(x=x, y=y, z=z, w=w, angle=a)
+                                         for a in ("roll", "pitch", "yaw")], atol=1e-9)

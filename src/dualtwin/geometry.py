@@ -43,6 +43,7 @@ __all__ = [
     "relative_rotation_vectors",
     "rotation_about",
     "rotation_vector",
+    "rpy_from_matrix",
     "rpy_from_quat",
 ]
 
@@ -194,6 +195,18 @@ def relative_rotation_vectors(qa: FloatArray, qb: FloatArray) -> FloatArray:
     factor = np.where(small, 2.0, 2.0 * np.arctan2(s, w) / np.where(small, 1.0, s))
     result: FloatArray = v * factor
     return result
+
+
+def rpy_from_matrix(R: Any, angle: str) -> float:
+    """Roll, pitch or yaw (rad) of a 3x3 matrix, Z-Y-X Euler angles: ``R = Rz(yaw) Ry(pitch) Rx(roll)``.
+
+    Pitch from ``atan2`` (not ``asin``), which keeps its digits near +-pi/2.
+    """
+    if angle == "yaw":
+        return math.atan2(float(R[1, 0]), float(R[0, 0]))
+    if angle == "pitch":
+        return math.atan2(-float(R[2, 0]), math.hypot(float(R[2, 1]), float(R[2, 2])))
+    return math.atan2(float(R[2, 1]), float(R[2, 2]))
 
 
 def rpy_from_quat(*, x: float, y: float, z: float, w: float, angle: str) -> float:

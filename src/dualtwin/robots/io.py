@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from typing import Any
 
+from dualtwin.geometry import rpy_from_matrix
 from dualtwin.robots.binding import Channel, RobotBinding
 from dualtwin.twins.base import Twin
 
@@ -28,19 +28,16 @@ def _reader(twin: Twin, channel: Channel) -> Callable[[], float]:
     body = channel.body or ""
     if channel.axis == "yaw":
         def yaw() -> float:
-            r = twin.body_orientation(body)
-            return math.atan2(float(r[1, 0]), float(r[0, 0])) * scale
+            return rpy_from_matrix(twin.body_orientation(body), "yaw") * scale
         return yaw
     if channel.axis == "pitch":
         # Z-Y-X Euler angles (R = Rz(yaw) Ry(pitch) Rx(roll)), the convention yaw above already follows.
         def pitch() -> float:
-            r = twin.body_orientation(body)
-            return math.atan2(-float(r[2, 0]), math.hypot(float(r[2, 1]), float(r[2, 2]))) * scale
+            return rpy_from_matrix(twin.body_orientation(body), "pitch") * scale
         return pitch
     if channel.axis == "roll":
         def roll() -> float:
-            r = twin.body_orientation(body)
-            return math.atan2(float(r[2, 1]), float(r[2, 2])) * scale
+            return rpy_from_matrix(twin.body_orientation(body), "roll") * scale
         return roll
     axis = AXES[channel.axis or "x"]
     if channel.quantity == "position":
