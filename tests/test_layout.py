@@ -183,9 +183,6 @@ def imports_of_test_modules() -> list[tuple[str, str]]:
 CONFTEST_IMPORTS: dict[str, str] = {
     **{f"tests/align/{m}.py": "tests.align.conftest" for m in (
         "test_analyze", "test_checkpoint", "test_ensemble", "test_fit", "test_narrate", "test_recorded")},
-    **{f"tests/rl/{m}.py": "tests.rl.conftest" for m in (
-        "test_env", "test_export", "test_pioneer_task", "test_reach", "test_runfiles", "test_train",
-        "test_transfer", "test_variants")},
 }
 
 

@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
-from tests.rl.conftest import ALL_IDS, can_render
+from tests.support.rl_runs import ALL_IDS, can_render
 
 import dualtwin.rl as rl
 from dualtwin.errors import DualtwinError

@@ -70,9 +70,9 @@ def test_continuous_parity(continuous_run: Path, tmp_path: Path) -> None:
 
 
 def test_pioneer_export_gives_both_wheel_commands(tmp_path: Path) -> None:
-    from tests.rl.conftest import _train
+    from tests.support.rl_runs import train_tiny
 
-    run = _train(tmp_path / "run", "dualtwin/Pioneer-DriveToGoal-MuJoCo-v0", 512, {"eval_freq": 0})
+    run = train_tiny(tmp_path / "run", "dualtwin/Pioneer-DriveToGoal-MuJoCo-v0", 512, {"eval_freq": 0})
     path = export_policy(run, tmp_path / "export")
     policy = load_policy(run)
     contract = json.loads((tmp_path / "export" / "policy_contract.json").read_text())

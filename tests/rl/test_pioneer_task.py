@@ -10,7 +10,7 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
-from tests.rl.conftest import env_param
+from tests.support.rl_runs import env_param
 
 from dualtwin.errors import DualtwinError
 from dualtwin.rl import DriveToGoal, TwinEnv

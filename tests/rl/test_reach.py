@@ -8,7 +8,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import pytest
-from tests.rl.conftest import WEBOTS_TWIN
+from tests.support.rl_runs import WEBOTS_TWIN
 
 import dualtwin.rl  # noqa: F401 - registers the env ids
 from dualtwin.errors import DualtwinError

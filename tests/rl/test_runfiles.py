@@ -176,9 +176,9 @@ def test_cli_refuses_a_legacy_run_in_one_line_and_trusts_it_on_request(discrete_
 
 def test_statistics_without_observation_normalisation(tmp_path: Path) -> None:
     """The published-controller config scales observations itself (norm_obs false): only reward statistics."""
-    from tests.rl.conftest import _train
+    from tests.support.rl_runs import train_tiny
 
-    run = _train(tmp_path / "run", "dualtwin/CartPole-MuJoCo-v0", 512,
+    run = train_tiny(tmp_path / "run", "dualtwin/CartPole-MuJoCo-v0", 512,
                  {"normalize": {"norm_obs": False, "norm_reward": True}, "checkpoint_freq": 256})
     stats = json.loads((run / "vecnormalize.json").read_text())
     assert stats["obs_rms"] is None and stats["ret_rms"]["count"] > 0

@@ -14,7 +14,7 @@ import mujoco
 import numpy as np
 import pytest
 import yaml
-from tests.rl.conftest import TINY
+from tests.support.rl_runs import TINY
 
 from dualtwin.errors import DualtwinError
 from dualtwin.rl.policy import load_policy

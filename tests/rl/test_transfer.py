@@ -115,12 +115,12 @@ def test_cli_table_1_and_foreign_knobs(discrete_run: Path, aligned_run: Path, dr
 
 
 def test_the_control_row_repeats_the_fine_tuning_in_the_nominal_twin(discrete_run: Path, tmp_path: Path) -> None:
-    from tests.rl.conftest import ALIGNED_KNOBS, _train
+    from tests.support.rl_runs import ALIGNED_KNOBS, train_tiny
 
     knobs = tmp_path / "knobs.json"
     knobs.write_text(json.dumps(ALIGNED_KNOBS))
-    tuned = _train(tmp_path / "aligned", "dualtwin/CartPole-MuJoCo-v0", 512, init_from=discrete_run, aligned=knobs)
-    control = _train(tmp_path / "control", "dualtwin/CartPole-MuJoCo-v0", 512, init_from=discrete_run)
+    tuned = train_tiny(tmp_path / "aligned", "dualtwin/CartPole-MuJoCo-v0", 512, init_from=discrete_run, aligned=knobs)
+    control = train_tiny(tmp_path / "control", "dualtwin/CartPole-MuJoCo-v0", 512, init_from=discrete_run)
     out = tmp_path / "transfer"
     report = transfer(discrete_run, "dualtwin/CartPole-MuJoCo-v0", policy_aligned=tuned, policy_control=control,
                       episodes=2, seed=3, out_dir=out, target_kwargs=OTHER, max_episode_steps=60)
@@ -145,6 +145,6 @@ def test_the_control_row_repeats_the_fine_tuning_in_the_nominal_twin(discrete_ru
         transfer(discrete_run, "dualtwin/CartPole-MuJoCo-v0", policy_control=discrete_run, episodes=1)
     with pytest.raises(DualtwinError, match="control must be fine-tuned in the nominal twin"):
         transfer(discrete_run, "dualtwin/CartPole-MuJoCo-v0", policy_control=tuned, episodes=1)
-    longer = _train(tmp_path / "longer", "dualtwin/CartPole-MuJoCo-v0", 1024, init_from=discrete_run)
+    longer = train_tiny(tmp_path / "longer", "dualtwin/CartPole-MuJoCo-v0", 1024, init_from=discrete_run)
     with pytest.raises(DualtwinError, match="not the same fine-tuning.*steps"):
         transfer(discrete_run, "dualtwin/CartPole-MuJoCo-v0", policy_aligned=tuned, policy_control=longer, episodes=1)

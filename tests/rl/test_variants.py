@@ -10,7 +10,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
-from tests.rl.conftest import TINY
+from tests.support.rl_runs import TINY
 
 from dualtwin.errors import DualtwinError
 from dualtwin.rl.curves import read_learning_curve
