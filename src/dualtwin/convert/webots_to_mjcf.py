@@ -15,8 +15,9 @@ Bodies and masses
 Joints
     HingeJoint -> hinge, SliderJoint -> slide, BallJoint -> ball, Hinge2Joint -> two hinges in the child
     body (MuJoCo composes a body's joints in order, so axis 2 turns with hinge 1 as in ODE). ``axis`` and
-    ``anchor`` are in the frame of the joint's parent Pose and are re-expressed in the child body frame. Webots stores the endPoint *at* ``position``, so ``position``
-    becomes ``ref`` (and ``springref``): ``qpos0 = position`` and the XML pose is the pose at ``qpos0``.
+    ``anchor`` are in the frame of the joint's parent Pose and are re-expressed in the child body frame.
+    Webots stores the endPoint *at* ``position``, so ``position`` becomes ``ref`` (and ``springref``):
+    ``qpos0 = position`` and the XML pose is the pose at ``qpos0``.
     Signs: a Webots hinge/slider position grows with a right-handed rotation about / a translation along
     ``axis``, which is MuJoCo's convention too (ODE's internal slider axis reversal, §4.3, is undone by Webots).
     ``minStop``/``maxStop`` -> ``range`` (limited only if they differ), ``dampingConstant`` -> ``damping``,
@@ -26,8 +27,9 @@ Devices
     RotationalMotor/LinearMotor -> ``general`` actuator named by the device, on its joint, ``forcerange`` and
     ``ctrlrange`` ±maxTorque/maxForce, plus ``<numeric name="webots_motor.NAME" data="maxVelocity Kp Ki Kd
     acceleration [minPosition maxPosition]"/>`` (what :mod:`dualtwin.twins.mujoco` reads).
-    PositionSensor -> jointpos; InertialUnit -> framequat, Gyro -> gyro, Accelerometer -> accelerometer, GPS -> framepos, Compass -> magnetometer,
-    DistanceSensor -> rangefinder, TouchSensor -> touch, each at a site at the device pose named by the device.
+    PositionSensor -> jointpos; InertialUnit -> framequat, Gyro -> gyro, Accelerometer -> accelerometer,
+    GPS -> framepos, Compass -> magnetometer, DistanceSensor -> rangefinder, TouchSensor -> touch, each at a
+    site at the device pose named by the device.
 
 Stops, contacts, cameras, world
     Stops become stiff MuJoCo limits and ContactProperties each collision geom's ``friction``, ``solref`` and
@@ -53,6 +55,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from dualtwin.convert.bindings import key
 from dualtwin.convert.checks import Finding, lint_spec, lint_world_rotations
 from dualtwin.convert.contacts import ContactGeom, Stop, apply_contacts, apply_stops
 from dualtwin.convert.conversion import Conversion, ConversionError, JointInfo, MotorInfo
@@ -129,10 +132,6 @@ def _inv(T: FloatArray) -> FloatArray:
     out[:3, :3] = T[:3, :3].T
     out[:3, 3] = -T[:3, :3].T @ T[:3, 3]
     return out
-
-
-def _slug(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9]+", "_", text).strip("_").lower() or "x"
 
 
 # ------------------------------------------------------------------------------------------------
@@ -676,7 +675,7 @@ class _Converter:
         robot_mass = sum(self.body_mass.get(b, 0.0) for b in self.robot_bodies)
         apply_contacts(self.spec, self.geoms, self.info, robot_mass, basic_ms=self.basic_ms, mujoco_step_s=self.dt,
                        warn=self.warn)
-        model_name = _slug(str(robot_node.get("name") or robot_label))
+        model_name = key(str(robot_node.get("name") or robot_label))
         self.spec.modelname = model_name
         model = None
         try:
