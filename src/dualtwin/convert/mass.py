@@ -9,21 +9,20 @@ result is written as an explicit ``inertial`` (mass, pos, fullinertia).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
+from dualtwin.geometry import axis_angle_matrix
 from dualtwin.webots.mass_rules import REFERENCE_DENSITY, solid_inertial
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.shapes import indexed_face_set_mesh  # noqa: F401 - re-exported for the converter
 
 FloatArray = npt.NDArray[np.float64]
 
-__all__ = ["REFERENCE_DENSITY", "MassProps", "Primitive", "bounding_primitives", "combine", "rotation_matrix",
-           "solid_mass"]
+__all__ = ["REFERENCE_DENSITY", "MassProps", "Primitive", "bounding_primitives", "combine", "solid_mass"]
 
 
 @dataclass
@@ -77,22 +76,6 @@ class Primitive:
     scale: float = 1.0
 
 
-def rotation_matrix(rotation: Sequence[float]) -> FloatArray:
-    """Webots SFRotation (axis x y z, angle rad; axis normalised as ODE does) -> 3x3 matrix."""
-    x, y, z, angle = (float(v) for v in rotation)
-    n = math.sqrt(x * x + y * y + z * z)
-    if n < 1e-12 or angle == 0.0:
-        return np.eye(3)
-    x, y, z = x / n, y / n, z / n
-    c, s = math.cos(angle), math.sin(angle)
-    C = 1.0 - c
-    return np.array([
-        [x * x * C + c, x * y * C - z * s, x * z * C + y * s],
-        [y * x * C + z * s, y * y * C + c, y * z * C - x * s],
-        [z * x * C - y * s, z * y * C + x * s, z * z * C + c],
-    ])
-
-
 def bounding_primitives(node: Node | None, rotation: FloatArray | None = None,
                         translation: FloatArray | None = None, scale: float = 1.0) -> Iterator[Primitive]:
     """Geometries of a boundingObject: a geometry, a Shape, a Pose/Transform (one child) or a Group."""
@@ -108,7 +91,7 @@ def bounding_primitives(node: Node | None, rotation: FloatArray | None = None,
         if kind == "Transform":
             sx, sy, sz = node.get("scale", (1.0, 1.0, 1.0))
             local_scale = scale * float(sx)  # non-uniform scales are rejected by the converter
-        R2 = R @ rotation_matrix(node.get("rotation", (0, 0, 1, 0)))
+        R2 = R @ axis_angle_matrix(node.get("rotation", (0, 0, 1, 0)))
         t2 = t + R @ (np.asarray(node.get("translation", (0, 0, 0)), dtype=float) * scale)
         for child in node.children():
             yield from bounding_primitives(child, R2, t2, local_scale)
