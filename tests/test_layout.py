@@ -4,7 +4,7 @@
 * no module imports another package's private (``_name``) names, by ``from`` import, by a private module
   path, or by an attribute of an imported module;
 * no source file is longer than ``MAX_LINES`` unless :data:`LONG_FILES` names it with a reason;
-* no test module imports another test module: shared helpers live in ``tests/support``;
+* no test module (conftest.py included) imports another: shared helpers live in ``tests/support``;
 * no docstring or comment in ``src`` cites ``shared/reference`` (a folder outside the repository): the
   specification the code cites is ``docs/reference/webots-on-ode.md``.
 
@@ -178,21 +178,11 @@ def imports_of_test_modules() -> list[tuple[str, str]]:
     return sorted(set(found))
 
 
-#: Test modules that still import their directory's conftest.py (constants and helpers that belong in
-#: tests/support; pytest advises against importing conftest files). importer -> imported module.
-CONFTEST_IMPORTS: dict[str, str] = {
-    **{f"tests/align/{m}.py": "tests.align.conftest" for m in (
-        "test_analyze", "test_checkpoint", "test_ensemble", "test_fit", "test_narrate", "test_recorded")},
-}
-
-
 def test_no_test_module_imports_another() -> None:
-    found = imports_of_test_modules()
-    unlisted = [f"{a} imports {b}" for a, b in found if CONFTEST_IMPORTS.get(a) != b]
-    assert not unlisted, "test modules import other test modules (move the shared code to tests/support):\n" \
-        + "\n".join(unlisted)
-    stale = sorted(set(CONFTEST_IMPORTS.items()) - set(found))
-    assert not stale, f"CONFTEST_IMPORTS lists imports that are gone (remove them): {stale}"
+    """conftest.py files included: pytest advises against importing them; their shared code is in tests/support."""
+    found = [f"{a} imports {b}" for a, b in imports_of_test_modules()]
+    assert not found, "test modules import other test modules (move the shared code to tests/support):\n" \
+        + "\n".join(found)
 
 
 def test_the_test_import_check_sees_relative_imports() -> None:

@@ -13,7 +13,7 @@ import pytest
 from dualtwin.align.analyze import analyze_runs, write_analysis
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding
-from tests.align.conftest import record, write_suite
+from tests.support.align_runs import record, write_suite
 from tests.support.rundirs import fabricate_ensemble, fabricate_run
 
 DT = 0.032

@@ -12,7 +12,7 @@ import pytest
 from dualtwin.align import GenerationInfo, align
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding
-from tests.align.conftest import SUITE3, TRUE_DAMPING, record, write_suite
+from tests.support.align_runs import SUITE3, TRUE_DAMPING, record, write_suite
 
 DAMPING = "joint.pole_hinge.damping"
 KWARGS: dict[str, Any] = {"optimizer": "cma", "seed": 5, "budget": 24, "executor": "serial", "popsize": 4}

@@ -17,8 +17,7 @@ from dualtwin.divergence.runs import Series
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import BUNDLED, RobotBinding, load_binding
 from dualtwin.suite.ensemble import EnsembleRun, make_spec
-
-from .conftest import TRUE_DAMPING
+from tests.support.align_runs import TRUE_DAMPING
 
 DAMPING = "joint.pole_hinge.damping"
 MEMBERS = 3

@@ -18,7 +18,7 @@ from dualtwin.align.simulate import load_traces, simulate_twin
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding
 from dualtwin.twins.mujoco import MuJoCoTwin
-from tests.align.conftest import SUITE3, SUITE3_IDS, TRUE_DAMPING, record, write_suite
+from tests.support.align_runs import SUITE3, SUITE3_IDS, TRUE_DAMPING, record, write_suite
 
 DAMPING = "joint.pole_hinge.damping"
 

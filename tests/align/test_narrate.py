@@ -19,7 +19,7 @@ from dualtwin.align import align, analyze_runs, write_analysis
 from dualtwin.align.narrate import LABEL, LLMProposer
 from dualtwin.genai.llm import LLMConfig, make_llm
 from dualtwin.robots.binding import RobotBinding
-from tests.align.conftest import TRUE_DAMPING
+from tests.support.align_runs import TRUE_DAMPING
 from tests.support.llm_replay import Reply, replay_server
 
 pytest.importorskip("openai")

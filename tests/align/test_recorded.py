@@ -23,8 +23,7 @@ from dualtwin.divergence.runs import Series
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding
 from dualtwin.suite.loader import load_suite
-
-from .conftest import SUITE3, TRUE_DAMPING, record, write_suite
+from tests.support.align_runs import SUITE3, TRUE_DAMPING, record, write_suite
 
 DAMPING = "joint.pole_hinge.damping"
 KICK = "scenario.00_fall.initial_angular_velocity"
