@@ -22,7 +22,9 @@ twin's. A joint's body reports position ``(q, 0, 0)``, the identity orientation 
 Mechanical state: joints and holds, no free bodies. Deterministic: sensor noise comes from the reset seed.
 
 Registered through the public registry (:data:`dualtwin.twins.TWINS`) by :func:`registered`, so suites,
-alignment and lockstep reach it by name exactly as they reach MuJoCo and Webots.
+alignment and lockstep reach it by name exactly as they reach MuJoCo and Webots. The registration lives in
+this process only: the process pool's fork server and Ray workers do not see it, so tests that use the fake
+twin simulate with ``executor="serial"``.
 """
 
 from __future__ import annotations
