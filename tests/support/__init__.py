@@ -1,3 +1,11 @@
-"""Helpers shared by the tests: fabricated run folders, a loopback LLM replay server, the paper's suite text
-and :class:`~tests.support.fake_twin.FakeTwin`. Test modules import from here, never from each other (guarded
-by ``tests/test_layout.py``); nothing in this package is collected as a test."""
+"""Helpers shared by the tests; test modules (conftest.py included) import from here, never from each other
+(guarded by ``tests/test_layout.py``). Nothing here is collected as a test.
+
+* ``fake_twin``: :class:`~tests.support.fake_twin.FakeTwin`, a pure-numpy twin of damped springs, and its robot;
+* ``rundirs``: fabricated suite-run folders (manifest + TSV logs), ensembles included;
+* ``llm_replay``: loopback servers speaking the OpenAI and Anthropic APIs with scripted replies;
+* ``suites``: the paper's published suite, byte for byte;
+* ``webots_scene``: hand-built Webots scene trees for physics tests;
+* ``images``: seeded camera frames;
+* ``align_runs``, ``rl_runs``, ``servers``, ``sync_helpers``: what one test directory's modules share.
+"""
