@@ -41,7 +41,7 @@ def main() -> int:
             print(f"  {c.scenario_id:<20} {c.channel:<24} {c.share:6.1%} of the score")
 
         # Deterministic analysis; with robot=..., twin_b=... and knobs=[...] it also re-simulates knob
-        # sensitivities (slower), as `dualtwin analyze --robot --twin --knobs` does.
+        # sensitivities (slower), as `dualtwin analyze --robot --target --knobs` does.
         analysis = analyze_runs(out / "webots", out / "mujoco")
         print(f"{len(analysis.findings)} findings")
         for finding in analysis.findings[:5]:

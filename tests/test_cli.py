@@ -66,12 +66,13 @@ def test_bad_input(tmp_path: Path, suite_text: str, model: str | None, message: 
 
 def test_run_validate_and_compare(tmp_path: Path) -> None:
     path = suite(tmp_path, GOOD)
-    assert dualtwin("suite", "validate", str(path), "--robot", "cartpole").returncode == 0
+    assert dualtwin("suite", "validate", "--scenarios", str(path), "--robot", "cartpole").returncode == 0
     for name in ("a", "b"):
         result = dualtwin("suite", "run", "--twin", "mujoco", "--robot", "cartpole", "--scenarios", str(path),
                           "--out", str(tmp_path / name))
         assert result.returncode == 0, result.stderr
-    result = dualtwin("compare", str(tmp_path / "a"), str(tmp_path / "b"), "--out", str(tmp_path / "report"))
+    result = dualtwin("compare", "--reference-run", str(tmp_path / "a"),
+                      "--target-run", str(tmp_path / "b"), "--out", str(tmp_path / "report"))
     assert result.returncode == 0, result.stderr
     metrics = json.loads((tmp_path / "report" / "metrics.json").read_text())
     assert metrics["comparison"]["summary_score"] == 0.0
@@ -79,7 +80,7 @@ def test_run_validate_and_compare(tmp_path: Path) -> None:
 
 
 def test_convert_writes_a_model_the_suite_runs_on(tmp_path: Path) -> None:
-    result = dualtwin("convert", str(CARTPOLE / "cartpole.wbt"), "-o", str(tmp_path / "cp.xml"),
+    result = dualtwin("convert", str(CARTPOLE / "cartpole.wbt"), "--out", str(tmp_path / "cp.xml"),
                       "--binding", str(tmp_path / "binding.yaml"))
     assert result.returncode == 0, result.stderr
     path = suite(tmp_path, '{"suite_name": "s", "scenarios": [{"name": "a", "duration_s": 0.2, "wheel_velocity": 2}]}')
@@ -91,10 +92,10 @@ def test_convert_writes_a_model_the_suite_runs_on(tmp_path: Path) -> None:
 def test_convert_and_generate_bad_input(tmp_path: Path) -> None:
     world = tmp_path / "empty.wbt"
     world.write_text("#VRML_SIM R2023b utf8\nWorldInfo {\n}\n")
-    result = dualtwin("convert", str(world), "-o", str(tmp_path / "x.xml"))
+    result = dualtwin("convert", str(world), "--out", str(tmp_path / "x.xml"))
     assert result.returncode == 2 and "no robot" in result.stderr and "Traceback" not in result.stderr
     assert not (tmp_path / "x.xml").exists()
-    result = dualtwin("generate", "-o", str(tmp_path / "out"))
+    result = dualtwin("generate", "--out", str(tmp_path / "out"))
     assert result.returncode == 2 and "exactly one of" in result.stderr
 
 
@@ -104,7 +105,7 @@ def test_lockstep_and_predict_error(tmp_path: Path) -> None:
                       "--out", str(tmp_path / "ls"))
     assert result.returncode == 0, result.stderr
     assert (tmp_path / "ls" / "report" / "report.html").is_file()
-    result = dualtwin("predict-error", "--robot", "cartpole", "--scenarios", str(path), "--horizons", "1,5",
+    result = dualtwin("predict-error", "--robot", "cartpole", "--scenarios", str(path), "--horizons", "1", "--horizons", "5",
                       "--out", str(tmp_path / "pe"))
     assert result.returncode == 0, result.stderr
     result = dualtwin("lockstep", "--robot", "cartpole", "--scenarios", str(path), "--resync", "sometimes",

@@ -35,7 +35,7 @@ Valid value per kind (what a new command's required option gets):
     knob          physics.substeps                               unknown-knob
     url           placeholder (nothing listens there)            unreachable
     number        the option's default                          nan, negative
-    numlist       "1,5"                                          nan, negative
+    numlist       "1" (a list is a repeatable option)            nan, negative
     perturb       initial_angle=0.01                             nan, negative
     choice        the option's default                           unknown-choice
     text, flag    -- (not swept)
@@ -72,16 +72,16 @@ CORRUPT_MODELS = ("policy.onnx", "perception.onnx", "model.zip", "best_model.zip
 # ------------------------------------------------------------------ classification of every parameter
 # "name" applies to every command; "command path:name" overrides it for one command.
 PARAMS: dict[str, str] = {
-    "run_a": "run", "run_b": "run", "reference_run": "run",
-    "out": "out", "output": "out", "convert:output": "outfile", "convert:binding": "outfile",
+    "reference_run": "run", "target_run": "run",
+    "out": "out", "convert:out": "outfile", "convert:binding": "outfile",
     "webots fetch:out": "text",  # a PROTO cache to fill (adds to what is there, by design)
-    "scenarios": "suite", "suite": "suite", "suite validate:file": "suite",
+    "scenarios": "suite",
     "config": "yaml", "dr": "json", "aligned": "json", "from_json": "json", "from_text": "file", "mapping": "file",
     "world": "wbt", "worlds": "wbt", "from_wbt": "wbt", "controller": "choice", "webots run:controller": "file",
     "policy": "folder", "policy_aligned": "folder", "policy_dr": "folder", "init_from": "folder",
     "perception": "folder", "model": "folder", "data": "folder", "log_dir": "folder", "data_dir": "folder",
     "robot": "robot", "convert:robot": "text",
-    "twin": "twin", "target": "twin", "reference": "twin", "primary": "twin", "secondary": "twin",
+    "twin": "twin", "target": "twin", "reference": "twin",
     "env": "env", "target_env": "env", "knobs": "knob", "server": "url",
     "seed": "number", "budget": "number", "steps": "number", "episodes": "number", "width": "number",
     "height": "number", "epochs": "number", "port": "number", "stride": "number", "max_iterations": "number",
@@ -237,13 +237,13 @@ def valid_value(kind: str, name: str, here: Path, runs: dict[str, Path], url: st
         path.write_text(SMALL_SUITE)
         return str(path), False
     if kind == "run":
-        return str(runs["b" if name == "run_b" else "a"]), False
+        return str(runs["b" if name == "target_run" else "a"]), False
     if kind == "wbt":
         return str(CARTPOLE_WBT), False
     if kind in ("out", "outfile"):
         return str(here / f"new_{name}"), False
     values = {"robot": "cartpole", "twin": "mujoco", "env": "dualtwin/CartPole-MuJoCo-Continuous-v0",
-              "knob": "physics.substeps", "number": "1", "numlist": "1,5", "perturb": "initial_angle=0.01"}
+              "knob": "physics.substeps", "number": "1", "numlist": "1", "perturb": "initial_angle=0.01"}
     if name == "target_env":
         return "dualtwin/CartPole-Webots-Continuous-v0", False
     if kind in values:
@@ -321,8 +321,6 @@ def bad_value(case: Case, here: Path, url: str) -> str:
         return "no_such_choice"
     if family in ("nan", "negative"):
         number = "nan" if family == "nan" else "-1"
-        if case.kind == "numlist":
-            return f"1,{number}"
         if case.kind == "perturb":
             return f"initial_angle={number}"
         return number
@@ -447,7 +445,7 @@ def test_a_fifo_is_refused_without_blocking(tmp_path: Path, capsys: pytest.Captu
                                            alarm: None) -> None:
     fifo = tmp_path / "suite.json"
     os.mkfifo(fifo)
-    code = main(["suite", "validate", str(fifo)])
+    code = main(["suite", "validate", "--scenarios", str(fifo)])
     err = capsys.readouterr().err
     assert code == 2 and "not a regular file" in err and len(err.strip().splitlines()) == 1
 
@@ -476,3 +474,73 @@ def test_json_reader_names_file_line_and_column(tmp_path: Path) -> None:
     with pytest.raises(DualtwinError, match=r"x\.json:3:8: invalid JSON"):
         read_json(path)
 
+
+
+# ------------------------------------------------------------------ one CLI shape (issue 18)
+def test_one_cli_shape() -> None:
+    """Every output is --out (short -o), a suite is --scenarios, runs and twins are options named by role, and
+    every closed choice is an Enum (so --help lists it)."""
+    import typing
+    from enum import Enum
+
+    def is_enum(param: Any) -> bool:  # an Enum or a Literal: both become a click Choice that --help lists
+        annotation = param.type_descriptor.annotation
+        return typing.get_origin(annotation) is typing.Literal or any(
+            (isinstance(a, type) and issubclass(a, Enum)) or typing.get_origin(a) is typing.Literal
+            for a in (annotation, *typing.get_args(annotation)))
+
+    problems = []
+    for path, command in commands():
+        where = " ".join(path)
+        for param in command.params:
+            kind = kind_of(path, param.name)
+            if param.name in ("output", "suite", "file", "run_a", "run_b", "primary", "secondary"):
+                problems.append(f"{where}: old parameter name {param.name}")
+            if param.name == "out" and list(param.opts) + list(param.secondary_opts) != ["--out", "-o"]:
+                problems.append(f"{where}: {param.opts} instead of --out/-o")
+            if kind in ("run", "suite", "twin") and param.param_type_name == "argument":
+                problems.append(f"{where}: {param.name} is positional")
+            if kind == "suite" and param.opts != ["--scenarios"]:
+                problems.append(f"{where}: a suite named {param.opts}")
+            if kind == "twin" and param.name != "twin" and param.name not in ("reference", "target"):
+                problems.append(f"{where}: a twin named {param.name}")
+            if kind == "run" and param.name not in ("reference_run", "target_run"):
+                problems.append(f"{where}: a run named {param.name}")
+            if kind == "twin" and not is_enum(param):
+                problems.append(f"{where}: --{param.name} is not an Enum")
+            if kind == "choice" and param.name not in ("resync", "controller") and not is_enum(param):
+                problems.append(f"{where}: --{param.name} is not an Enum")
+            if param.name == "controller" and where == "perception collect" and not is_enum(param):
+                problems.append(f"{where}: --controller is not an Enum")
+    assert not problems, problems
+
+
+def test_choice_enums_follow_the_registries() -> None:
+    from dualtwin.cli.common import Executor, Twin
+    from dualtwin.parallel import EXECUTORS
+    from dualtwin.twins import TWINS
+
+    assert sorted(t.value for t in Twin) == sorted(TWINS)
+    assert sorted(e.value for e in Executor) == sorted(EXECUTORS)
+
+
+@pytest.mark.parametrize("argv", [
+    ["collect", "--env", "dualtwin/CartPole-MuJoCo-v0", "--episodes", "1", "--out", "x"],  # now perception collect
+    ["suite", "run", "--twin", "bullet", "--robot", "cartpole", "--scenarios", "cartpole", "--out", "x"],
+    ["lockstep", "--robot", "cartpole", "--scenarios", "cartpole", "--reference", "gazebo", "--out", "x"],
+    ["predict-error", "--robot", "cartpole", "--scenarios", "cartpole", "--horizons", "1,5", "--out", "x"],
+    ["compare", "a", "b", "--out", "x"],  # runs are --reference-run / --target-run
+])
+def test_old_shapes_and_bad_choices_are_one_line(argv: list[str], capsys: pytest.CaptureFixture[str],
+                                                  tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and err.startswith("error: ") and "Traceback" not in err
+    assert not any(tmp_path.iterdir())
+
+
+def test_help_lists_the_choices(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["suite", "run", "--help"]) == 0
+    shown = capsys.readouterr().out
+    assert "mujoco" in shown and "webots" in shown and "serial" in shown and "ray" in shown

@@ -179,7 +179,7 @@ def test_impossible_suite_values_fail_validate(scenario: dict[str, object], mess
                                                capsys: pytest.CaptureFixture[str]) -> None:
     path = tmp_path / "suite.json"
     path.write_text(json.dumps({"suite_name": "s", "scenarios": [scenario]}))
-    code, err = run_cli(["suite", "validate", str(path)], capsys)
+    code, err = run_cli(["suite", "validate", "--scenarios", str(path)], capsys)
     assert code == 2 and message in err
 
 
@@ -187,7 +187,7 @@ def test_total_samples_are_bounded(tmp_path: Path, capsys: pytest.CaptureFixture
     path = tmp_path / "suite.json"
     scenarios = [{"name": f"s{i}", "duration_s": 80_000} for i in range(2)]
     path.write_text(json.dumps({"suite_name": "s", "scenarios": scenarios}))
-    code, err = run_cli(["suite", "validate", str(path)], capsys)
+    code, err = run_cli(["suite", "validate", "--scenarios", str(path)], capsys)
     assert code == 2 and "control periods in all" in err and "at most 1000000" in err
 
 
@@ -198,23 +198,27 @@ def test_a_truncated_or_edited_log_is_an_error_naming_the_file(two_runs: tuple[P
     manifest = json.loads((a / "manifest.json").read_text())
     truth = "scenarios/00_a/ground_truth.tsv"
     assert manifest["logs"][truth] == log_record(a / truth) and manifest["logs"][truth]["rows"] == 7
-    assert run_cli(["compare", str(a), str(b), "--out", str(tmp_path / "ok")], capsys)[0] == 0
+    assert run_cli(["compare", "--reference-run", str(a), "--target-run", str(b),
+                    "--out", str(tmp_path / "ok")], capsys)[0] == 0
     original = (a / truth).read_text()
     (a / truth).write_text("".join(original.splitlines(keepends=True)[:4]))  # cut short
-    code, err = run_cli(["compare", str(a), str(b), "--out", str(tmp_path / "r1")], capsys)
+    code, err = run_cli(["compare", "--reference-run", str(a), "--target-run", str(b),
+                         "--out", str(tmp_path / "r1")], capsys)
     assert code == 2 and "ground_truth.tsv: has 3 data rows, the manifest records 7" in err
     assert not (tmp_path / "r1").exists()
     lines = original.splitlines(keepends=True)
     cells = lines[3].split("\t")
     lines[3] = "\t".join([cells[0], "nan", *cells[2:]])  # same rows, one value replaced by nan
     (a / truth).write_text("".join(lines))
-    code, err = run_cli(["compare", str(a), str(b), "--out", str(tmp_path / "r2")], capsys)
+    code, err = run_cli(["compare", "--reference-run", str(a), "--target-run", str(b),
+                         "--out", str(tmp_path / "r2")], capsys)
     assert code == 2 and "ground_truth.tsv: content differs from the manifest's SHA-256" in err
     # Runs written before manifests recorded their logs still load (unverified, as documented).
     (a / truth).write_text(original)
     del manifest["logs"]
     (a / "manifest.json").write_text(json.dumps(manifest))
-    assert run_cli(["compare", str(a), str(b), "--out", str(tmp_path / "r3")], capsys)[0] == 0
+    assert run_cli(["compare", "--reference-run", str(a), "--target-run", str(b),
+                    "--out", str(tmp_path / "r3")], capsys)[0] == 0
 
 
 def test_log_paths_are_confined_to_the_run(tmp_path: Path) -> None:
@@ -246,13 +250,13 @@ def test_bundled_suite_names_work_from_any_folder(tmp_path: Path, monkeypatch: p
                                                   capsys: pytest.CaptureFixture[str]) -> None:
     monkeypatch.chdir(tmp_path)
     assert resolve_suite("cartpole") == BUNDLED / "cartpole" / "suite.json"
-    code, _ = run_cli(["suite", "validate", "cartpole", "--robot", "cartpole"], capsys)
+    code, _ = run_cli(["suite", "validate", "--scenarios", "cartpole", "--robot", "cartpole"], capsys)
     assert code == 0
     # A bare word is always the bundled name; a path (./cartpole) is always the file.
     (tmp_path / "cartpole").write_text(json.dumps(SMALL))
     assert resolve_suite("cartpole") == BUNDLED / "cartpole" / "suite.json"
     assert resolve_suite("./cartpole") == Path("./cartpole")
-    code, err = run_cli(["suite", "validate", "no_such_suite"], capsys)
+    code, err = run_cli(["suite", "validate", "--scenarios", "no_such_suite"], capsys)
     assert code == 2 and "not a bundled suite (" in err and "cartpole" in err and "./no_such_suite" in err
     code, err = run_cli(["suite", "run", "--twin", "mujoco", "--robot", "cartpole", "--scenarios", "cartpol",
                          "--out", "o"], capsys)
@@ -314,7 +318,8 @@ def test_compare_of_runs_that_differ_is_one_line(two_runs: tuple[Path, Path], tm
     manifest = json.loads((b / "manifest.json").read_text())
     manifest["robot"] = "pioneer3at"
     (b / "manifest.json").write_text(json.dumps(manifest))
-    code, err = run_cli(["compare", str(a), str(b), "--out", str(tmp_path / "report")], capsys)
+    code, err = run_cli(["compare", "--reference-run", str(a), "--target-run", str(b),
+                         "--out", str(tmp_path / "report")], capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1 and "not comparable" in err and "pioneer3at" in err
     assert not (tmp_path / "report").exists()
 

@@ -102,7 +102,8 @@ def test_import_dualtwin_does_not_import_mujoco_and_verbose_reports_the_backend(
     out = json.loads(done.stdout)
     assert not out["mujoco_loaded"]  # the choice is made before MuJoCo reads MUJOCO_GL
     cli = subprocess.run([sys.executable, "-c", "from dualtwin.cli import main; main()", "--verbose", "suite",
-                          "validate", str(ROOT / "src/dualtwin/robots/cartpole/suite.json")], env=HEADLESS_ENV,
+                          "validate", "--scenarios", str(ROOT / "src/dualtwin/robots/cartpole/suite.json")],
+                         env=HEADLESS_ENV,
                          cwd=ROOT, capture_output=True, text=True, timeout=120, check=False)
     assert cli.returncode == 0, cli.stderr
     assert out["describe"] in cli.stderr and "OpenGL backend:" in cli.stderr

@@ -293,7 +293,7 @@ def remove_output_dir(path: Path, kind: str) -> None:
     shutil.rmtree(path)
 
 
-def check_output_file(path: Path, option: str = "--output", marker: str | None = None) -> None:
+def check_output_file(path: Path, option: str = "--out", marker: str | None = None) -> None:
     """A file a command will write: its folder must not be a file, and an existing file is replaced only if
     it holds ``marker`` (text this command writes into every file it makes), so no foreign file is lost."""
     path = Path(path)

@@ -98,17 +98,19 @@ def test_cli_analyze_llm(tmp_path: Path, damped_ref: Path, nominal_run: Path) ->
     env = {k: v for k, v in os.environ.items() if not k.startswith("DUALTWIN_LLM")}
     with replay_server([Reply(SCRIPTED)]) as (base, _):
         env.update(DUALTWIN_LLM_PROVIDER="openai", DUALTWIN_LLM_BASE_URL=base, DUALTWIN_LLM_MODEL="scripted")
-        done = subprocess.run([sys.executable, "-m", "dualtwin.cli", "analyze", str(damped_ref), str(nominal_run),
+        done = subprocess.run([sys.executable, "-m", "dualtwin.cli", "analyze",
+                               "--reference-run", str(damped_ref), "--target-run", str(nominal_run),
                                "--out", str(tmp_path / "out"), "--llm"], env=env, capture_output=True, text=True,
                               timeout=120)
     assert done.returncode == 0, done.stderr
     assert "LLM narrative" in done.stdout
     saved = json.loads((tmp_path / "out" / "analysis.json").read_text())
-    # Without --robot/--twin nothing can be re-simulated: every proposal is refused, none kept.
+    # Without --robot/--target nothing can be re-simulated: every proposal is refused, none kept.
     assert saved["llm_narrative"]["explanation"]
     assert all(p["status"] == "invalid" for p in saved["llm_narrative"]["proposals"])
     unconfigured = {k: v for k, v in env.items() if not k.startswith("DUALTWIN_LLM")}
-    failed = subprocess.run([sys.executable, "-m", "dualtwin.cli", "analyze", str(damped_ref), str(nominal_run),
+    failed = subprocess.run([sys.executable, "-m", "dualtwin.cli", "analyze",
+                             "--reference-run", str(damped_ref), "--target-run", str(nominal_run),
                              "--out", str(tmp_path / "out2"), "--llm"], env=unconfigured, capture_output=True,
                             text=True, timeout=120)
     assert failed.returncode == 2 and "no LLM model configured" in failed.stderr + failed.stdout

@@ -24,7 +24,8 @@ def test_compare_fewer_channels_json_and_nothing_shared(tmp_path: Path, make_run
     a = make_run("a", {"00_Step": cartpole_like(T), "01_Push": cartpole_like(T)})
     pole = {"pole_angle_rad": CHANNELS["pole_angle_rad"]}
     b = make_run("b", {"00_Step": {"pole_angle_rad": cartpole_like(T, delay=0.1)["pole_angle_rad"]}}, channels=pole)
-    proc = dualtwin("compare", str(a), str(b), "--out", str(tmp_path / "out"), "--json")
+    proc = dualtwin("compare", "--reference-run", str(a), "--target-run", str(b),
+                    "--out", str(tmp_path / "out"), "--json")
     assert proc.returncode == 0, proc.stderr
     result = json.loads(proc.stdout)
     assert [s["id"] for s in result["scenarios"]] == ["00_Step"]
@@ -34,12 +35,14 @@ def test_compare_fewer_channels_json_and_nothing_shared(tmp_path: Path, make_run
     assert saved["comparison"]["left_out"] == result["left_out"]
     page = (tmp_path / "out" / "report.html").read_text()
     assert "Left out" in page and "only in A" in page
-    table = dualtwin("compare", str(a), str(b), "--out", str(tmp_path / "out2"))
+    table = dualtwin("compare", "--reference-run", str(a), "--target-run", str(b),
+                     "--out", str(tmp_path / "out2"))
     assert "left out channel cart_pos_m: only in A" in table.stdout
 
     cart = make_run("c", {"00_Step": {"cart_pos_m": cartpole_like(T)["cart_pos_m"]}},
                     channels={"cart_pos_m": CHANNELS["cart_pos_m"]})
-    bad = dualtwin("compare", str(b), str(cart), "--out", str(tmp_path / "never"))
+    bad = dualtwin("compare", "--reference-run", str(b), "--target-run", str(cart),
+                   "--out", str(tmp_path / "never"))
     assert bad.returncode == 2 and "Traceback" not in bad.stderr
     errors = [line for line in bad.stderr.splitlines() if line.startswith("error:")]
     assert len(errors) == 1 and errors[0].startswith("error: runs are not comparable: no channel in common")
@@ -48,7 +51,8 @@ def test_compare_fewer_channels_json_and_nothing_shared(tmp_path: Path, make_run
     manifest = json.loads((cart / "manifest.json").read_text())
     manifest["suite_name"] = "another"
     (cart / "manifest.json").write_text(json.dumps(manifest))
-    other = dualtwin("compare", str(a), str(cart), "--out", str(tmp_path / "never"))
+    other = dualtwin("compare", "--reference-run", str(a), "--target-run", str(cart),
+                     "--out", str(tmp_path / "never"))
     errors = [line for line in other.stderr.splitlines() if line.startswith("error:")]
     assert other.returncode == 2 and len(errors) == 1 and "suites differ" in errors[0]
     assert "Traceback" not in other.stderr

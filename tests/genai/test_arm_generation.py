@@ -177,7 +177,7 @@ def test_cli_generate_from_text_runs_the_same_loop(tmp_path: Path) -> None:
                "DUALTWIN_LLM_API_KEY": "sk-loop", "DUALTWIN_LLM_PROVIDER": "openai"}
         env.pop("DUALTWIN_LLM_CONFIG", None)
         done = subprocess.run([sys.executable, "-m", "dualtwin.cli", "generate", "--from-text", str(DATASHEET),
-                               "-o", str(tmp_path / "model"), "--max-iterations", "6"],
+                               "--out", str(tmp_path / "model"), "--max-iterations", "6"],
                               capture_output=True, text=True, env=env, timeout=120)
     assert done.returncode == 0, done.stderr
     assert "converged after 5 LLM iteration(s)" in done.stdout and len(log.requests) == 5

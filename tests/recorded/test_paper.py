@@ -220,10 +220,12 @@ def test_cli_journey_import_compare_analyze(tmp_path: Path, webots_run: Path, mu
 
     logs = write_paper_logs(webots_run, tmp_path / "logs")
     real = tmp_path / "real"
-    assert main(["import", "paper", str(logs), "--suite", str(cartpole_suite), "--robot", "cartpole",
+    assert main(["import", "paper", str(logs), "--scenarios", str(cartpole_suite), "--robot", "cartpole",
                  "--out", str(real)]) == 0
-    assert main(["compare", str(real), str(mujoco_run), "--out", str(tmp_path / "cmp")]) == 0
-    assert main(["analyze", str(real), str(mujoco_run), "--out", str(tmp_path / "an")]) == 0
+    assert main(["compare", "--reference-run", str(real), "--target-run", str(mujoco_run),
+                 "--out", str(tmp_path / "cmp")]) == 0
+    assert main(["analyze", "--reference-run", str(real), "--target-run", str(mujoco_run),
+                 "--out", str(tmp_path / "an")]) == 0
     out = capsys.readouterr().out
     assert "left out channel pole_velocity_rad_s" in out
     assert (tmp_path / "cmp" / "report.html").is_file() and (tmp_path / "an" / "analysis.json").is_file()
@@ -235,7 +237,7 @@ def test_cli_journey_import_compare_analyze(tmp_path: Path, webots_run: Path, mu
     log.write_text(log.read_text().replace("\n0.", "\n1.", 1))
     with pytest.raises(DualtwinError, match="ground_truth.tsv"):
         load_run(real)
-    assert main(["import", "paper", str(tmp_path / "nowhere"), "--suite", str(cartpole_suite), "--robot",
+    assert main(["import", "paper", str(tmp_path / "nowhere"), "--scenarios", str(cartpole_suite), "--robot",
                  "cartpole", "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith("error: ") and "nowhere: does not exist" in err[-1]

@@ -132,12 +132,12 @@ def test_wrong_unit_through_the_cli_is_one_line_and_exit_2(tmp_path: Path, cartp
                                                           run_cli: Callable[..., tuple[int, str, str]]) -> None:
     _write_csvs(tmp_path / "logs", cartpole_suite)
     mapping = _mapping(tmp_path, channels=[{"name": "pole_angle_rad", "column": "x_mm", "unit": "mm"}])
-    code, out, err = run_cli("import", "table", str(mapping), "--suite", str(cartpole_suite), "--robot",
+    code, out, err = run_cli("import", "table", str(mapping), "--scenarios", str(cartpole_suite), "--robot",
                              "cartpole", "--out", str(tmp_path / "run"))
     assert code == 2
     assert err.count("\n") == 1 and err.startswith("error: ") and "unit 'mm' cannot be converted" in err
     assert "Traceback" not in err and not (tmp_path / "run").exists()
-    code, out, err = run_cli("import", "table", str(_mapping(tmp_path)), "--suite", str(cartpole_suite),
+    code, out, err = run_cli("import", "table", str(_mapping(tmp_path)), "--scenarios", str(cartpole_suite),
                              "--robot", "cartpole", "--out", str(tmp_path / "run"))
     assert code == 0, err
     assert "wrote" in out and (tmp_path / "run" / "manifest.json").is_file()

@@ -24,7 +24,8 @@ def dualtwin(*args: str) -> subprocess.CompletedProcess[str]:
 
 def test_piped_compare_prints_every_number_and_name_whole(twin_runs: tuple[Path, Path], tmp_path: Path) -> None:
     webots, mujoco = twin_runs
-    done = dualtwin("compare", str(webots), str(mujoco), "--out", str(tmp_path / "cmp"))
+    done = dualtwin("compare", "--reference-run", str(webots), "--target-run", str(mujoco),
+                    "--out", str(tmp_path / "cmp"))
     assert done.returncode == 0, done.stderr
     assert "…" not in done.stdout and "Traceback" not in done.stderr
     metrics = json.loads((tmp_path / "cmp" / "metrics.json").read_text())["comparison"]
@@ -56,7 +57,8 @@ def cli(*args: str) -> tuple[int, str, str]:
 
 def test_json_output_is_the_only_thing_on_stdout(twin_runs: tuple[Path, Path], tmp_path: Path) -> None:
     webots, mujoco = twin_runs
-    code, out, err = cli("compare", str(webots), str(mujoco), "--out", str(tmp_path / "cmp"), "--json")
+    code, out, err = cli("compare", "--reference-run", str(webots), "--target-run", str(mujoco),
+                         "--out", str(tmp_path / "cmp"), "--json")
     assert code == 0, err
     data = json.loads(out)
     assert data["twin_a"] == "webots" and len(data["scenarios"]) == 2

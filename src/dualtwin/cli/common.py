@@ -1,11 +1,26 @@
 """What every command module shares: the typer app and its groups, the console, common options and the
-input checks run before any work starts."""
+input checks run before any work starts.
+
+One CLI shape (issue 18), decided here so every command module follows it:
+
+- every output folder or file is ``--out`` (short ``-o``): :func:`OutOption`;
+- a suite is ``--scenarios FILE`` (a bundled robot's name means its suite);
+- a twin pair is ``--reference TWIN`` (the ground truth) and ``--target TWIN`` (the twin that is explained,
+  fitted or re-seated), a pair of runs ``--reference-run DIR`` and ``--target-run DIR``; a single twin is
+  ``--twin``; twins are typed by :class:`Twin` so ``--help`` lists them;
+- a list is a repeatable option with typed items (``--horizons 1 --horizons 5``); comma strings are not split
+  (one way to write a list, and no item can be mistaken for two);
+- a closed set of choices is a ``StrEnum`` here, or a ``Literal`` in a config model the options derive from
+  (``--help`` lists it, a bad value is click's one-line usage error); commands pass ``.value`` on, so the
+  libraries keep their plain-string APIs.
+"""
 
 from __future__ import annotations
 
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
+from enum import StrEnum
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -49,13 +64,41 @@ app = typer.Typer(help="Dual digital twins (Webots on ODE + MuJoCo) for robotics
 suite_app = typer.Typer(help="Scenario suites: validate and run.", no_args_is_help=True)
 webots_app = typer.Typer(help="The headless Webots runtime.", no_args_is_help=True)
 app.add_typer(suite_app, name="suite")
-perception_app = typer.Typer(help="Learned perception: train and evaluate.", no_args_is_help=True)
+perception_app = typer.Typer(help="Learned perception: collect frames, train and evaluate.", no_args_is_help=True)
 app.add_typer(webots_app, name="webots")
 app.add_typer(perception_app, name="perception")
 console = configure_console(Console(stderr=False))
 #: ``--json``: the results as one JSON document on stdout; progress and messages go to stderr.
 JsonOutput = Annotated[bool, typer.Option("--json", help="print the results as JSON on stdout (progress and "
                                                           "messages go to stderr)")]
+
+
+
+def OutOption(help: str) -> Any:  # noqa: N802 -- used like typer.Option, inside Annotated[...]
+    """The output option of every command: ``--out`` with ``-o`` as its short form."""
+    return typer.Option("--out", "-o", help=help)
+
+
+class Twin(StrEnum):
+    """The twins (``dualtwin.twins.TWINS``; a test keeps the two in step)."""
+
+    mujoco = "mujoco"
+    webots = "webots"
+
+
+class Executor(StrEnum):
+    """Where independent simulations run (``dualtwin.parallel.EXECUTORS``)."""
+
+    process = "process"
+    serial = "serial"
+    ray = "ray"
+
+
+class Which(StrEnum):
+    """Which checkpoint of a training run: the best evaluated or the final model."""
+
+    best = "best"
+    final = "final"
 
 
 @app.callback()

@@ -8,16 +8,16 @@ from typing import Annotated
 import typer
 
 from dualtwin.artifacts import check_output_dir
-from dualtwin.cli.common import app, check_runs, console, llm_proposer, report_progress
+from dualtwin.cli.common import OutOption, Twin, app, check_runs, console, llm_proposer, report_progress
 from dualtwin.errors import DualtwinError
 from dualtwin.reporting import ProgressEvent, emit_json
 
 
 @app.command("compare")
 def compare(
-    run_a: Annotated[Path, typer.Argument(help="first run directory")],
-    run_b: Annotated[Path, typer.Argument(help="second run directory")],
-    out: Annotated[Path, typer.Option(help="report directory")],
+    reference_run: Annotated[Path, typer.Option(help="run directory of the reference (its twin or recording)")],
+    target_run: Annotated[Path, typer.Option(help="run directory of the twin compared with it")],
+    out: Annotated[Path, OutOption("report directory")],
     as_json: Annotated[bool, typer.Option("--json", help="print metrics.json's comparison to stdout "
                                                          "instead of the table")] = False,
 ) -> None:
@@ -29,10 +29,10 @@ def compare(
     from dualtwin.divergence import compare_runs, print_summary, write_report
 
     check_output_dir(out, "compare")
-    check_runs(run_a, run_b)
+    check_runs(reference_run, target_run)
     with report_progress() as progress:
-        progress(ProgressEvent("compare", 0, 1, f"{run_a} vs {run_b}"))
-        comparison = compare_runs(run_a, run_b)
+        progress(ProgressEvent("compare", 0, 1, f"{reference_run} vs {target_run}"))
+        comparison = compare_runs(reference_run, target_run)
         progress(ProgressEvent("compare", 1, 1, "runs compared"))
         # Labels are the twins named in the run manifests (folder names repeat).
         write_report(comparison, out, progress=progress)
@@ -47,11 +47,11 @@ def compare(
 
 @app.command("analyze")
 def analyze(
-    run_a: Annotated[Path, typer.Argument(help="reference run directory")],
-    run_b: Annotated[Path, typer.Argument(help="run directory of the twin to explain")],
-    out: Annotated[Path, typer.Option(help="analysis directory (analysis.json, analysis.html)")],
+    reference_run: Annotated[Path, typer.Option(help="run directory of the reference")],
+    target_run: Annotated[Path, typer.Option(help="run directory of the twin to explain")],
+    out: Annotated[Path, OutOption("analysis directory (analysis.json, analysis.html)")],
     robot: Annotated[str | None, typer.Option(help="robot, to compute knob sensitivities by re-simulation")] = None,
-    twin: Annotated[str | None, typer.Option(help="the twin of RUN_B, for sensitivities")] = None,
+    target: Annotated[Twin | None, typer.Option(help="the twin of --target-run, for sensitivities")] = None,
     knobs: Annotated[list[str] | None, typer.Option(help="knob names or globs for sensitivities")] = None,
     llm: Annotated[bool, typer.Option(help="also ask the configured LLM (DUALTWIN_LLM_*) to explain the findings "
                                            "and propose knob changes, each re-simulated")] = False,
@@ -62,18 +62,18 @@ def analyze(
     from dualtwin.align import analyze_runs, print_analysis, write_analysis
 
     check_output_dir(out, "analyze")
-    if (knobs or twin) and robot is None:
-        raise DualtwinError("--knobs and --twin compute sensitivities by re-simulation: give --robot too")
-    check_runs(run_a, run_b)
+    if (knobs or target) and robot is None:
+        raise DualtwinError("--knobs and --target compute sensitivities by re-simulation: give --robot too")
+    check_runs(reference_run, target_run)
     if robot is not None:
         from dualtwin.robots.binding import resolve_robot
 
         resolve_robot(robot)
-    proposer = llm_proposer(run_a.name, run_b.name) if llm else None
+    proposer = llm_proposer(reference_run.name, target_run.name) if llm else None
     with report_progress() as progress:
         stage = "analyze" + (" (re-simulating knob sensitivities)" if robot and knobs else "")
-        progress(ProgressEvent(stage, 0, 2, f"{run_a} vs {run_b}"))
-        analysis = analyze_runs(run_a, run_b, robot=robot, twin_b=twin, knobs=knobs, propose_fn=proposer)
+        progress(ProgressEvent(stage, 0, 2, f"{reference_run} vs {target_run}"))
+        analysis = analyze_runs(reference_run, target_run, robot=robot, twin_b=target.value if target else None, knobs=knobs, propose_fn=proposer)
         progress(ProgressEvent(stage, 1, 2, "analysed; writing the reports"))
         write_analysis(analysis, out)
         progress(ProgressEvent(stage, 2, 2, "done"))

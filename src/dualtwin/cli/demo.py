@@ -7,11 +7,11 @@ from typing import Annotated
 
 import typer
 
-from dualtwin.cli.common import app, console
+from dualtwin.cli.common import OutOption, app, console
 
 
 @app.command("demo")
-def demo(out: Annotated[Path, typer.Option(help="demo output folder (new or empty)")] = Path("runs/demo"),
+def demo(out: Annotated[Path, OutOption("demo output folder (new or empty)")] = Path("runs/demo"),
          resume: Annotated[bool, typer.Option(help="continue an earlier demo in OUT")] = False) -> None:
     """Run the bundled CartPole suite on both twins and write the comparison report."""
     from dualtwin.demo import run_demo

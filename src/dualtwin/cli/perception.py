@@ -2,23 +2,32 @@
 
 from __future__ import annotations
 
+from enum import StrEnum
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
 from dualtwin.artifacts import check_output_dir
-from dualtwin.cli.common import JsonOutput, TrustPickles, app, console, perception_app, report_progress
+from dualtwin.cli.common import JsonOutput, OutOption, TrustPickles, console, perception_app, report_progress
 from dualtwin.errors import DualtwinError
 from dualtwin.reporting import Column, emit_json, print_table
 
 
-@app.command("collect")
+class Controller(StrEnum):
+    """What drives the robot while frames are recorded."""
+
+    scripted = "scripted"
+    random = "random"
+    noisy_policy = "noisy-policy"
+
+
+@perception_app.command("collect")
 def collect(
     env: Annotated[str, typer.Option(help="registered env id whose twin renders the frames")],
     episodes: Annotated[int, typer.Option(help="episodes in the finished dataset")],
-    out: Annotated[Path, typer.Option(help="dataset folder (shards + manifest.json)")],
-    controller: Annotated[str, typer.Option(help="scripted, random or noisy-policy")] = "scripted",
+    out: Annotated[Path, OutOption("dataset folder (shards + manifest.json)")],
+    controller: Annotated[Controller, typer.Option(help="what drives the robot")] = Controller.scripted,
     policy: Annotated[Path | None, typer.Option(help="training run, for --controller noisy-policy")] = None,
     resume: Annotated[bool, typer.Option(help="continue an interrupted collection")] = False,
     seed: Annotated[int, typer.Option(help="seed")] = 0,
@@ -31,20 +40,20 @@ def collect(
     from dualtwin.perception.dataset import collect as run_collect
 
     check_output_dir(out, "collect", resume=resume, resumable=True)
-    if policy is not None and controller != "noisy-policy":
+    if policy is not None and controller != Controller.noisy_policy:
         raise DualtwinError("--policy is used only with --controller noisy-policy")
     from dualtwin.rl.runfiles import trusting_pickles
 
     with trusting_pickles(trust_pickles), report_progress() as progress:
-        path = run_collect(env, episodes, out, controller=controller, policy_run=policy, resume=resume, seed=seed,
+        path = run_collect(env, episodes, out, controller=controller.value, policy_run=policy, resume=resume, seed=seed,
                            width=width, height=height, randomize=randomize, progress=progress)
     console.print(f"wrote {path}")
 
 
 @perception_app.command("train")
 def perception_train(
-    data: Annotated[Path, typer.Option(help="dataset folder from dualtwin collect")],
-    out: Annotated[Path, typer.Option(help="model folder (perception.onnx + contract)")],
+    data: Annotated[Path, typer.Option(help="dataset folder from dualtwin perception collect")],
+    out: Annotated[Path, OutOption("model folder (perception.onnx + contract)")],
     epochs: Annotated[int, typer.Option(help="training epochs")] = 15,
     seed: Annotated[int, typer.Option(help="seed")] = 0,
     init_from: Annotated[Path | None, typer.Option(help="model folder to continue training from")] = None,

@@ -15,7 +15,7 @@ OPTION_RANGES: dict[str, tuple[float | None, float | None]] = {
     "seed": (0, MAX_SEED), "port": (1, 65535), "episodes": (1, 1_000_000), "budget": (1, 10_000_000),
     "epochs": (1, 100_000), "steps": (1, 10**10), "stride": (1, 1_000_000), "width": (8, 4096),
     "height": (8, 4096), "max_iterations": (1, 100), "workers": (1, 1024), "shadow_fraction": (0, 1),
-    "duration": (0, 86_400), "ensemble": (0, 10_000),
+    "duration": (0, 86_400), "ensemble": (0, 10_000), "horizons": (1, 1_000_000),
 }
 
 

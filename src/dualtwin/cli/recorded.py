@@ -7,16 +7,15 @@ from typing import Annotated, Any
 
 import typer
 
-from dualtwin.cli.common import JsonOutput, app, console
+from dualtwin.cli.common import JsonOutput, OutOption, app, console
 from dualtwin.reporting import Column, emit_json, print_table
 
-# ------------------------------------------------------------------ import (recorded runs)
 import_app = typer.Typer(help="Import recordings (the paper's logs, CSV/TSV, ROS 2 bags) as run folders.",
                          no_args_is_help=True)
 app.add_typer(import_app, name="import")
-ImportSuite = Annotated[Path, typer.Option("--suite", help="the suite the recording was made from (JSON)")]
+ImportSuite = Annotated[Path, typer.Option(help="the suite the recording was made from (JSON)")]
 ImportRobot = Annotated[str, typer.Option(help="bundled robot name or path to a binding file")]
-ImportOut = Annotated[Path, typer.Option(help="run folder to write (empty, new, or an earlier import)")]
+ImportOut = Annotated[Path, OutOption("run folder to write (empty, new, or an earlier import)")]
 ImportDataDir = Annotated[Path | None, typer.Option(help="folder the mapping's file names are relative to "
                                                          "(default: the mapping's folder)")]
 
@@ -41,35 +40,35 @@ def _import_with_progress(run: Any, json_out: bool) -> None:
 @import_app.command("paper")
 def import_paper_cmd(
     log_dir: Annotated[Path, typer.Argument(help="folder of simulation_log_SUP_<i>.tsv files")],
-    suite: ImportSuite, robot: ImportRobot, out: ImportOut, json_out: JsonOutput = False,
+    scenarios: ImportSuite, robot: ImportRobot, out: ImportOut, json_out: JsonOutput = False,
 ) -> None:
     """The paper's TestOrchestrator logs (one TSV per scenario, paired with the suite by index)."""
     from dualtwin.recorded import import_paper
 
-    _import_with_progress(lambda p: import_paper(log_dir, suite, robot, out, progress=p), json_out)
+    _import_with_progress(lambda p: import_paper(log_dir, scenarios, robot, out, progress=p), json_out)
 
 
 @import_app.command("table")
 def import_table_cmd(
     mapping: Annotated[Path, typer.Argument(help="YAML mapping: files, time column, channels")],
-    suite: ImportSuite, robot: ImportRobot, out: ImportOut, data_dir: ImportDataDir = None,
+    scenarios: ImportSuite, robot: ImportRobot, out: ImportOut, data_dir: ImportDataDir = None,
     json_out: JsonOutput = False,
 ) -> None:
     """CSV/TSV logs, one file per scenario, described by a YAML mapping."""
     from dualtwin.recorded import import_table
 
-    _import_with_progress(lambda p: import_table(mapping, suite, robot, out, data_dir=data_dir, progress=p),
+    _import_with_progress(lambda p: import_table(mapping, scenarios, robot, out, data_dir=data_dir, progress=p),
                           json_out)
 
 
 @import_app.command("mcap")
 def import_mcap_cmd(
     mapping: Annotated[Path, typer.Argument(help="YAML mapping: bags, topics and fields, scenario ranges")],
-    suite: ImportSuite, robot: ImportRobot, out: ImportOut, data_dir: ImportDataDir = None,
+    scenarios: ImportSuite, robot: ImportRobot, out: ImportOut, data_dir: ImportDataDir = None,
     json_out: JsonOutput = False,
 ) -> None:
     """ROS 2 bags in MCAP, described by a YAML mapping."""
     from dualtwin.recorded import import_mcap
 
-    _import_with_progress(lambda p: import_mcap(mapping, suite, robot, out, data_dir=data_dir, progress=p),
+    _import_with_progress(lambda p: import_mcap(mapping, scenarios, robot, out, data_dir=data_dir, progress=p),
                           json_out)

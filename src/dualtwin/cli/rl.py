@@ -8,7 +8,16 @@ from typing import Annotated
 import typer
 
 from dualtwin.artifacts import check_output_dir
-from dualtwin.cli.common import JsonOutput, TrustPickles, app, check_training_run, console, report_progress
+from dualtwin.cli.common import (
+    JsonOutput,
+    OutOption,
+    TrustPickles,
+    Which,
+    app,
+    check_training_run,
+    console,
+    report_progress,
+)
 from dualtwin.errors import DualtwinError
 from dualtwin.reporting import Column, ProgressEvent, emit_json, print_table
 
@@ -16,7 +25,7 @@ from dualtwin.reporting import Column, ProgressEvent, emit_json, print_table
 @app.command("train")
 def train(
     env: Annotated[str, typer.Option(help="registered env id, e.g. dualtwin/CartPole-MuJoCo-Continuous-v0")],
-    out: Annotated[Path, typer.Option(help="run folder")],
+    out: Annotated[Path, OutOption("run folder")],
     config: Annotated[Path | None, typer.Option(
         help="PPO config YAML, or a bundled config's name (ppo_cartpole, ppo_cartpole_text, ppo_cartpole_code, "
         "ppo_cartpole_continuous; default ppo_cartpole)")] = None,
@@ -45,7 +54,7 @@ def train(
 def transfer(
     policy: Annotated[Path, typer.Option(help="run folder of the policy trained in the nominal source twin")],
     target_env: Annotated[str, typer.Option(help="env id of the other twin")],
-    out: Annotated[Path, typer.Option(help="report folder")],
+    out: Annotated[Path, OutOption("report folder")],
     policy_aligned: Annotated[Path | None, typer.Option(
         help="run folder of a policy trained in the aligned source twin (train --aligned knobs.json)")] = None,
     policy_dr: Annotated[Path | None, typer.Option(
@@ -55,15 +64,13 @@ def transfer(
         "(train --init-from POLICY without --aligned)")] = None,
     episodes: Annotated[int, typer.Option(help="episodes per row")] = 10,
     seed: Annotated[int, typer.Option(help="seed")] = 0,
-    which: Annotated[str, typer.Option(help="best or final model")] = "final",
+    which: Annotated[Which, typer.Option(help="which model of each run")] = Which.final,
     trust_pickles: TrustPickles = False,
     json_out: JsonOutput = False,
 ) -> None:
     """Evaluate policies in their source twin and in the target twin: before and after alignment, with DR (Table 1)."""
     from dualtwin.rl.transfer import transfer as run_transfer
 
-    if which not in ("best", "final"):
-        raise DualtwinError(f"--which must be best or final, not {which!r}")
     check_output_dir(out, "transfer")
     from dualtwin.rl import check_env_id
 
@@ -76,7 +83,8 @@ def transfer(
     with trusting_pickles(trust_pickles), report_progress() as progress:
         progress(ProgressEvent("transfer", 0, None, f"{episodes} episodes per row, in the source and target twins"))
         report = run_transfer(policy, target_env, policy_aligned=policy_aligned, policy_dr=policy_dr,
-                              policy_control=policy_control, episodes=episodes, seed=seed, out_dir=out, which=which)
+                              policy_control=policy_control, episodes=episodes, seed=seed, out_dir=out,
+                              which=which.value)
         progress(ProgressEvent("transfer", len(report.rows), len(report.rows), "rows evaluated"))
     if json_out:
         emit_json({"out": str(out), **report.to_dict()})
@@ -89,8 +97,8 @@ def transfer(
 @app.command("export")
 def export(
     policy: Annotated[Path, typer.Option(help="training run folder")],
-    out: Annotated[Path, typer.Option(help="export folder (policy.onnx, policy_contract.json)")],
-    which: Annotated[str, typer.Option(help="best or final model")] = "final",
+    out: Annotated[Path, OutOption("export folder (policy.onnx, policy_contract.json)")],
+    which: Annotated[Which, typer.Option(help="which model of the run")] = Which.final,
     trust_pickles: TrustPickles = False,
     camera_only: Annotated[bool, typer.Option(
         help="write a camera-only contract: wheel odometry on board, the rest from --perception")] = False,
@@ -99,8 +107,6 @@ def export(
     """Export a policy to ONNX with observation normalisation and action scaling inside the graph."""
     from dualtwin.rl.export import export_policy
 
-    if which not in ("best", "final"):
-        raise DualtwinError(f"--which must be best or final, not {which!r}")
     if camera_only != (perception is not None):
         raise DualtwinError("--camera-only and --perception go together")
     if perception is not None:
@@ -111,7 +117,7 @@ def export(
     from dualtwin.rl.runfiles import trusting_pickles
 
     with trusting_pickles(trust_pickles):
-        path = export_policy(policy, out, which=which)  # type: ignore[arg-type]
+        path = export_policy(policy, out, which=which.value)  # type: ignore[arg-type]
     if perception is not None:
         from dualtwin.perception.camera_only import export_camera_only
 

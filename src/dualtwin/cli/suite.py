@@ -7,20 +7,20 @@ from typing import Annotated
 
 import typer
 
-from dualtwin.cli.common import JsonOutput, console, report_progress, suite_app
+from dualtwin.cli.common import Executor, JsonOutput, OutOption, Twin, console, report_progress, suite_app
 from dualtwin.errors import DualtwinError
 from dualtwin.reporting import Column, ProgressEvent, emit_json, print_table
 
 
 @suite_app.command("validate")
 def suite_validate(
-    file: Annotated[Path, typer.Argument(help="suite JSON file, or a bundled robot's name for its suite")],
+    scenarios: Annotated[Path, typer.Option(help="suite JSON file, or a bundled robot's name for its suite")],
     robot: Annotated[str | None, typer.Option(help="also resolve robot-specific keys through this robot")] = None,
 ) -> None:
     """Check a suite file (and, with --robot, that the binding resolves every key)."""
     from dualtwin.suite.loader import load_suite, resolve_suite
 
-    file = resolve_suite(file)
+    file = resolve_suite(scenarios)
     suite = load_suite(file)
     if robot is not None:
         from dualtwin.robots.binding import resolve_robot
@@ -33,17 +33,17 @@ def suite_validate(
 
 @suite_app.command("run")
 def suite_run(
-    twin: Annotated[str, typer.Option(help="twin to run on: mujoco or webots")],
+    twin: Annotated[Twin, typer.Option(help="twin to run on")],
     robot: Annotated[str, typer.Option(help="bundled robot name (cartpole) or path to a binding file")],
     scenarios: Annotated[Path, typer.Option(help="suite JSON file")],
-    out: Annotated[Path, typer.Option(help="run directory to write")],
+    out: Annotated[Path, OutOption("run directory to write")],
     resume: Annotated[bool, typer.Option(help="continue an interrupted run in OUT")] = False,
     seed: Annotated[int, typer.Option(help="seed for scenarios that give none")] = 0,
     ensemble: Annotated[int, typer.Option(help="run each scenario N times (N >= 2, the unperturbed member "
                                                "included) with initial conditions moved by --perturb")] = 0,
     perturb: Annotated[list[str] | None, typer.Option(help="KEY=EPS: move initial condition KEY by up to "
                                                            "±EPS in the ensemble members (repeatable)")] = None,
-    executor: Annotated[str, typer.Option(help="where ensemble members run: process, serial or ray")] = "process",
+    executor: Annotated[Executor, typer.Option(help="where ensemble members run")] = Executor.process,
     workers: Annotated[int, typer.Option(help="process-pool size for ensemble members")] = 2,
     json_out: JsonOutput = False,
 ) -> None:
@@ -52,18 +52,20 @@ def suite_run(
     from dualtwin.robots.binding import resolve_robot
     from dualtwin.suite.runner import SuiteRun
 
-    try:  # even without --ensemble, so a typo never passes silently
-        check_executor(executor)
+    try:  # even without --ensemble: ray may be missing
+        check_executor(executor.value)
     except DualtwinError as exc:
         raise DualtwinError(f"--executor: {exc}") from None
+    twin_name = twin.value
     binding = resolve_robot(robot)
     if ensemble or perturb:
         from dualtwin.suite.ensemble import EnsembleRun, make_spec, parse_perturb
 
         spec = make_spec(ensemble, parse_perturb(perturb or []), binding, seed=seed)
-        members = EnsembleRun(scenarios, twin, binding, out, spec, seed=seed, executor=executor,  # type: ignore[arg-type]
+        members = EnsembleRun(scenarios, twin_name, binding, out, spec, seed=seed,
+                              executor=executor.value,  # type: ignore[arg-type]
                               workers=workers)
-        label, total, done = f"{twin}: {members.suite.suite_name}", len(members.suite.scenarios), [0, 0]
+        label, total, done = f"{twin_name}: {members.suite.suite_name}", len(members.suite.scenarios), [0, 0]
         with report_progress() as progress:
             def on_scenario(sid: str, status: str) -> None:
                 done[0] += 1
@@ -78,8 +80,8 @@ def suite_run(
             console.print(f"ensemble: {spec.members} members per scenario, perturbed "
                           + ", ".join(f"{k} by ±{v:g}" for k, v in spec.perturb.items()))
     else:
-        run = SuiteRun(scenarios, twin, binding, out, seed=seed)
-        manifest = _run_with_progress(run, resume, f"{twin}: {run.suite.suite_name}")
+        run = SuiteRun(scenarios, twin_name, binding, out, seed=seed)
+        manifest = _run_with_progress(run, resume, f"{twin_name}: {run.suite.suite_name}")
     if json_out:
         emit_json({"out": str(out), "manifest": manifest})
         return

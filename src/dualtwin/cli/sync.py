@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from dualtwin.artifacts import check_output_dir
-from dualtwin.cli.common import JsonOutput, TrustPickles, app, console, int_list
+from dualtwin.cli.common import JsonOutput, OutOption, TrustPickles, Twin, app, console
 from dualtwin.errors import DualtwinError
 from dualtwin.reporting import Column, emit_json, print_table
 
@@ -16,9 +16,9 @@ from dualtwin.reporting import Column, emit_json, print_table
 @app.command("lockstep")
 def lockstep(
     robot: Annotated[str, typer.Option(help="bundled robot name or binding file")],
-    out: Annotated[Path, typer.Option(help="output directory")],
-    primary: Annotated[str, typer.Option(help="twin whose state is the reference")] = "webots",
-    secondary: Annotated[str, typer.Option(help="twin re-seated in the primary's state")] = "mujoco",
+    out: Annotated[Path, OutOption("output directory")],
+    reference: Annotated[Twin, typer.Option(help="twin whose state is the reference")] = Twin.webots,
+    target: Annotated[Twin, typer.Option(help="twin re-seated in the reference's state")] = Twin.mujoco,
     scenarios: Annotated[Path | None, typer.Option(help="suite JSON file (commands)")] = None,
     policy: Annotated[Path | None, typer.Option(help="exported policy folder or training run (commands)")] = None,
     resync: Annotated[str, typer.Option(help="never | every:N | threshold:X")] = "never",
@@ -36,7 +36,7 @@ def lockstep(
     from dualtwin.rl.runfiles import trusting_pickles
 
     with trusting_pickles(trust_pickles):
-        result = run_lockstep(primary, secondary, robot, out_dir=out, suite=scenarios, policy=policy, resync=resync,
+        result = run_lockstep(reference.value, target.value, robot, out_dir=out, suite=scenarios, policy=policy, resync=resync,
                               seed=seed, episodes=episodes)
     report = write_sync_report(out / "report", lockstep=result)
     if json_out:
@@ -53,19 +53,19 @@ def lockstep(
 def predict_error(
     robot: Annotated[str, typer.Option(help="bundled robot name or binding file")],
     scenarios: Annotated[Path, typer.Option(help="suite JSON file")],
-    out: Annotated[Path, typer.Option(help="output directory")],
-    primary: Annotated[str, typer.Option(help="reference twin")] = "webots",
-    secondary: Annotated[str, typer.Option(help="predicting twin")] = "mujoco",
-    horizons: Annotated[str, typer.Option(help="horizons in control periods")] = "1,5,25",
+    out: Annotated[Path, OutOption("output directory")],
+    reference: Annotated[Twin, typer.Option(help="reference twin")] = Twin.webots,
+    target: Annotated[Twin, typer.Option(help="predicting twin")] = Twin.mujoco,
+    horizons: Annotated[list[int], typer.Option(help="horizon in control periods (repeatable)")] = [1, 5, 25],  # noqa: B006
     stride: Annotated[int, typer.Option(help="periods between synchronised start states")] = 5,
     json_out: JsonOutput = False,
 ) -> None:
     """Short-horizon prediction error from synchronised states: the chaos-insensitive model mismatch."""
     from dualtwin.sync import prediction_error, write_sync_report
 
-    horizon_list = int_list(horizons, "--horizons")
+    horizon_list = list(horizons)  # each >= 1 (cli.policy.OPTION_RANGES)
     check_output_dir(out, "predict-error")
-    result = prediction_error(primary, secondary, robot, suite=scenarios, out_dir=out,
+    result = prediction_error(reference.value, target.value, robot, suite=scenarios, out_dir=out,
                               horizons=horizon_list, stride=stride)
     report = write_sync_report(out / "report", prediction=result)
     if json_out:

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from dualtwin.cli.common import webots_app
+from dualtwin.cli.common import OutOption, webots_app
 
 
 @webots_app.command("run")
@@ -32,7 +32,7 @@ def webots_run(
 @webots_app.command("fetch")
 def webots_fetch(
     worlds: Annotated[list[Path], typer.Argument(help=".wbt world files")],
-    out: Annotated[Path | None, typer.Option(help="fill this folder (for DUALTWIN_PROTO_MIRROR on an offline "
+    out: Annotated[Path | None, OutOption("fill this folder (for DUALTWIN_PROTO_MIRROR on an offline "
                                                   "machine) instead of your PROTO cache")] = None,
 ) -> None:
     """Download every PROTO (and bounding-object mesh) the worlds need, verified, for offline runs."""
