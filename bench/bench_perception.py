@@ -47,10 +47,10 @@ GOAL_FPS, GOAL_POLE_MAE, GOAL_RATIO = 30.0, 0.02, 0.9
 
 
 def rendering_speed() -> dict[str, Any]:
-    from dualtwin.perception.camera import camera_for
-    from dualtwin.perception.render import TwinCamera
     from dualtwin.robots.binding import resolve_robot
     from dualtwin.twins import make_twin
+    from dualtwin.twins.camera import camera_for
+    from dualtwin.twins.render import TwinCamera
 
     robot = resolve_robot("cartpole")
     spec = camera_for(robot)

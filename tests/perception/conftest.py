@@ -21,7 +21,7 @@ def _can_render() -> str | None:
     try:
         import mujoco
 
-        from dualtwin.perception.camera import FrameRenderer
+        from dualtwin.twins.camera import FrameRenderer
 
         model = mujoco.MjModel.from_xml_string("<mujoco><worldbody><geom size='1'/></worldbody></mujoco>")
         FrameRenderer(model, 8, 8).close()

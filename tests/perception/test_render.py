@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from dualtwin.errors import DualtwinError
-from dualtwin.perception.camera import CameraSpec, camera_for
-from dualtwin.perception.render import TwinCamera
 from dualtwin.robots.binding import resolve_robot
 from dualtwin.twins import make_twin
+from dualtwin.twins.camera import CameraSpec, camera_for
+from dualtwin.twins.render import TwinCamera
 
 pytestmark = pytest.mark.usefixtures("headless")
 ROBOT = resolve_robot("cartpole")
@@ -88,7 +88,7 @@ def test_rendering_leaves_the_physics_model_alone() -> None:
     twin = make_twin("mujoco", ROBOT)
     model = twin.model
     saved = (model.vis.quality.offsamples, model.geom_size.copy(), model.geom_rgba.copy(), model.light_diffuse.copy())
-    from dualtwin.perception.camera import Appearance
+    from dualtwin.twins.camera import Appearance
 
     TwinCamera(twin, SPEC, 32, 32).render(Appearance.sample(np.random.default_rng(0)))
     assert model.vis.quality.offsamples == saved[0]

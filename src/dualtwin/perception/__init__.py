@@ -12,23 +12,26 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from dualtwin.perception.camera import Appearance, CameraSpec, FrameRenderer, camera_for, robot_cameras
     from dualtwin.perception.dataset import collect, load_dataset
     from dualtwin.perception.estimator import StateEstimator
     from dualtwin.perception.model import evaluate_perception, train_perception
-    from dualtwin.perception.render import TwinCamera
+    from dualtwin.twins.camera import Appearance, CameraSpec, FrameRenderer, camera_for, robot_cameras
+    from dualtwin.twins.render import TwinCamera
 
+# Cameras and rendering live under the twins (twins.camera, twins.render); re-exported here for convenience.
 _LAZY = {
-    "Appearance": "camera", "CameraSpec": "camera", "FrameRenderer": "camera", "camera_for": "camera",
-    "robot_cameras": "camera", "collect": "dataset", "load_dataset": "dataset", "StateEstimator": "estimator",
-    "evaluate_perception": "model", "train_perception": "model", "TwinCamera": "render",
+    "Appearance": "twins.camera", "CameraSpec": "twins.camera", "FrameRenderer": "twins.camera",
+    "camera_for": "twins.camera", "robot_cameras": "twins.camera", "collect": "perception.dataset",
+    "load_dataset": "perception.dataset", "StateEstimator": "perception.estimator",
+    "evaluate_perception": "perception.model", "train_perception": "perception.model",
+    "TwinCamera": "twins.render",
 }
 
 
 def __getattr__(name: str) -> Any:
     # Lazy: rendering needs MUJOCO_GL settled and training needs torch; importing the package needs neither.
     if name in _LAZY:
-        return getattr(importlib.import_module(f"dualtwin.perception.{_LAZY[name]}"), name)
+        return getattr(importlib.import_module(f"dualtwin.{_LAZY[name]}"), name)
     raise AttributeError(f"module 'dualtwin.perception' has no attribute {name!r}")
 
 

@@ -150,10 +150,10 @@ def collect(env_id: str, episodes: int, out_dir: Path | str, *, controller: str 
     Returns:
         The dataset folder.
     """
-    from dualtwin.perception.camera import Appearance, camera_for
     from dualtwin.perception.controllers import CONTROLLERS, make_controller
-    from dualtwin.perception.render import TwinCamera
     from dualtwin.rl import make_env
+    from dualtwin.twins.camera import Appearance, camera_for
+    from dualtwin.twins.render import TwinCamera
 
     if episodes < 1 or max_steps < 1 or episodes_per_shard < 1:
         raise DualtwinError("episodes, max_steps and episodes_per_shard must be >= 1")

@@ -403,7 +403,7 @@ class TwinEnv(gym.Env[np.ndarray, Any]):
             return None
         if self._frames is None:
             # The perception renderer: no shadows, reflections or MSAA, 5-30x faster on a CPU than mujoco.Renderer.
-            from dualtwin.perception.render import TwinCamera
+            from dualtwin.twins.render import TwinCamera
 
             height, width = self.render_size
             self._frames = TwinCamera(self.twin, self.camera, width, height)

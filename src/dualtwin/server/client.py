@@ -243,9 +243,9 @@ def _deploy(server_url: str, env_id: str, episodes: int, *, seed: int = 0, api_k
         Rewards per episode for both, their means and ratio, the estimate's error on the privileged
         observations, and request latency percentiles.
     """
-    from dualtwin.perception.camera import CameraSpec
-    from dualtwin.perception.render import TwinCamera
     from dualtwin.rl import make_env
+    from dualtwin.twins.camera import CameraSpec
+    from dualtwin.twins.render import TwinCamera
 
     if episodes < 1:
         raise DualtwinError("episodes must be >= 1")

@@ -34,8 +34,8 @@ from dualtwin.twins.base import (
 )
 
 if TYPE_CHECKING:
-    from dualtwin.perception.camera import CameraSpec
     from dualtwin.robots.binding import RobotBinding
+    from dualtwin.twins.camera import CameraSpec
 
 JOINT_TYPES = ("HingeJoint", "SliderJoint", "Hinge2Joint", "BallJoint")
 MOTOR_TYPES = ("RotationalMotor", "LinearMotor")
@@ -338,11 +338,11 @@ class WebotsTwin(Twin):
         """An RGB frame (H, W, 3) uint8 of the current scene, rendered headless (``MUJOCO_GL=egl|osmesa``).
 
         Our runtime has no renderer: the world's Shapes become a visual-only MuJoCo scene whose mocap bodies
-        follow the Solids' supervisor poses (:mod:`dualtwin.perception.scene`). ``camera`` is a
-        :class:`~dualtwin.perception.camera.CameraSpec`, the name of a Camera device, or ``"viewpoint"``.
+        follow the Solids' supervisor poses (:mod:`dualtwin.webots.visual_scene`). ``camera`` is a
+        :class:`~dualtwin.twins.camera.CameraSpec`, the name of a Camera device, or ``"viewpoint"``.
         In real Webots use a Camera device and ``Camera.getImage()`` instead.
         """
-        from dualtwin.perception.render import render_webots
+        from dualtwin.twins.render import render_webots
 
         return render_webots(self, camera, width, height)
 

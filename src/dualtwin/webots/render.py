@@ -1,6 +1,6 @@
 """Headless offscreen frames of a MuJoCo model from any camera pose: the renderer both twins share.
 
-Moved here from ``dualtwin.perception.camera`` (which re-exports every name) so the Webots runtime's
+Moved here from ``dualtwin.twins.camera`` (which re-exports every name) so the Webots runtime's
 ``Camera`` device, at the lowest layer, draws with the same renderer as perception: one rendering path for
 the Webots twin's perception frames and for a controller's ``Camera.getImage()``.
 

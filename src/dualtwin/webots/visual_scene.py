@@ -4,7 +4,7 @@ Moved here from ``dualtwin.perception.scene`` (which re-exports it): the runtime
 this scene too, so it lives at the lowest layer.
 
 Our headless Webots runtime has no renderer of its own, so the world's Shapes are drawn by the same MuJoCo
-renderer as the MuJoCo twin (:class:`dualtwin.perception.camera.FrameRenderer`):
+renderer as the MuJoCo twin (:class:`dualtwin.twins.camera.FrameRenderer`):
 
 * every Solid (robot parts, static objects, Solid-derived devices) with visible Shapes becomes one **mocap
   body**; its Shapes (through Pose/Transform/Group, not through nested Solids) become geoms in the Solid's

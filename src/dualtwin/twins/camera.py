@@ -6,7 +6,7 @@ the tests default it to ``egl``). No GPU and no display are needed.
 
 A :class:`CameraSpec` describes a camera independently of any simulator (world pose, or a pose in a body
 frame, and a vertical field of view), so the same camera renders the MuJoCo twin's model and the Webots
-twin's visual scene (:mod:`dualtwin.perception.scene`). :class:`FrameRenderer` draws one ``MjModel``/``MjData``
+twin's visual scene (:mod:`dualtwin.webots.visual_scene`). :class:`FrameRenderer` draws one ``MjModel``/``MjData``
 pair from such a camera with the costly effects (shadows, reflections, skybox, MSAA) off: on Mesa's
 software rasteriser 4x MSAA and the 4096² shadow map cost 10-70 ms a frame, so anti-aliasing is done by
 rendering at ``supersample`` times the size and averaging pixel blocks instead (a few ms). Visual

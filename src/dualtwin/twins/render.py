@@ -1,7 +1,7 @@
-"""Render any twin from a :class:`~dualtwin.perception.camera.CameraSpec` (the twins' camera capability).
+"""Render any twin from a :class:`~dualtwin.twins.camera.CameraSpec` (the twins' camera capability).
 
-* MuJoCo twin: the twin's own model and data, drawn by :class:`~dualtwin.perception.camera.FrameRenderer`.
-* Webots twin: its visual scene (:class:`~dualtwin.perception.scene.WebotsVisualScene`), posed from the
+* MuJoCo twin: the twin's own model and data, drawn by :class:`~dualtwin.twins.camera.FrameRenderer`.
+* Webots twin: its visual scene (:class:`~dualtwin.webots.visual_scene.WebotsVisualScene`), posed from the
   supervisor each frame, drawn by the same renderer, so the two twins' frames are comparable pixel for pixel.
 
 Both need ``MUJOCO_GL=egl`` or ``osmesa`` on a headless machine (read from the environment).
@@ -14,7 +14,8 @@ from typing import Any
 import numpy as np
 
 from dualtwin.errors import DualtwinError
-from dualtwin.perception.camera import (
+from dualtwin.twins.base import Twin
+from dualtwin.twins.camera import (
     Appearance,
     CameraSpec,
     FrameRenderer,
@@ -22,7 +23,6 @@ from dualtwin.perception.camera import (
     bundled_camera_for_model,
     resolve_camera,
 )
-from dualtwin.twins.base import Twin
 
 #: Render at this multiple of the output size and average blocks: anti-aliasing for the thin pole.
 SUPERSAMPLE = 2
@@ -32,7 +32,7 @@ def _visual_scene(twin: Any) -> Any:
     """The Webots twin's visual scene, built once per twin and kept on it."""
     scene = getattr(twin, "_dualtwin_visual_scene", None)
     if scene is None:
-        from dualtwin.perception.scene import WebotsVisualScene
+        from dualtwin.webots.visual_scene import WebotsVisualScene
 
         scene = WebotsVisualScene(twin.sup)
         twin._dualtwin_visual_scene = scene
