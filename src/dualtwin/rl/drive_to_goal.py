@@ -16,9 +16,9 @@ import numpy as np
 from gymnasium import spaces
 
 from dualtwin.errors import DualtwinError
+from dualtwin.geometry import quat_from_matrix
 from dualtwin.rl.env import TASKS, ObservationTerm, Task
 from dualtwin.robots.io import RobotIO
-from dualtwin.twins.base import quat_from_matrix
 
 
 def _wrap(angle: float) -> float:

@@ -49,6 +49,7 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 
 from dualtwin.errors import DualtwinError
+from dualtwin.geometry import matrix_from_quat, rotation_vector
 
 ControlMode = Literal["velocity", "position", "torque"]
 
@@ -68,62 +69,6 @@ class SyncError(DualtwinError):
     def __init__(self, message: str, reason: str = "invalid") -> None:
         super().__init__(message)
         self.reason = reason
-
-
-def quat_from_matrix(rotation: Any) -> np.ndarray:
-    """Unit quaternion ``(w, x, y, z)`` with ``w >= 0`` of a 3x3 rotation matrix (Shepperd's method).
-
-    Takes a 3x3 array or 9 row-major values (Webots' ``getOrientation``); plain floats keep it cheap.
-    """
-    values = rotation if isinstance(rotation, tuple | list) else np.asarray(rotation, dtype=float).ravel().tolist()
-    return np.array(quat_tuple(tuple(float(v) for v in values)))
-
-
-def quat_tuple(m: Sequence[float]) -> tuple[float, float, float, float]:
-    """:func:`quat_from_matrix` of 9 row-major Python floats, as a tuple (state reads call it every period)."""
-    m00, m01, m02, m10, m11, m12, m20, m21, m22 = m
-    trace = m00 + m11 + m22
-    if trace > 0:
-        s = 2.0 * math.sqrt(trace + 1.0)
-        q = (0.25 * s, (m21 - m12) / s, (m02 - m20) / s, (m10 - m01) / s)
-    elif m00 > m11 and m00 > m22:
-        s = 2.0 * math.sqrt(1.0 + m00 - m11 - m22)
-        q = ((m21 - m12) / s, 0.25 * s, (m01 + m10) / s, (m02 + m20) / s)
-    elif m11 > m22:
-        s = 2.0 * math.sqrt(1.0 + m11 - m00 - m22)
-        q = ((m02 - m20) / s, (m01 + m10) / s, 0.25 * s, (m12 + m21) / s)
-    else:
-        s = 2.0 * math.sqrt(1.0 + m22 - m00 - m11)
-        q = ((m10 - m01) / s, (m02 + m20) / s, (m12 + m21) / s, 0.25 * s)
-    n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    sign = -1.0 / n if q[0] < 0 else 1.0 / n
-    return q[0] * sign, q[1] * sign, q[2] * sign, q[3] * sign
-
-
-def canonical_quat(q: np.ndarray) -> np.ndarray:
-    """Normalised, with ``w >= 0`` (q and -q are the same rotation; one sign makes states comparable)."""
-    q = np.asarray(q, dtype=float)
-    q = q / np.linalg.norm(q)
-    return -q if q[0] < 0 else q
-
-
-def matrix_from_quat(q: np.ndarray) -> np.ndarray:
-    """3x3 rotation matrix of a quaternion ``(w, x, y, z)`` (normalised first)."""
-    w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
-
-
-def rotation_vector(rotation: np.ndarray) -> np.ndarray:
-    """Axis x angle (rad) of a rotation matrix, angle in [0, pi]."""
-    q = quat_from_matrix(rotation)
-    s = float(np.linalg.norm(q[1:]))
-    if s < 1e-15:
-        return 2.0 * q[1:]
-    return q[1:] / s * 2.0 * math.atan2(s, float(q[0]))
 
 
 def state_names(bodies: Iterable[str], joints: Iterable[str], holds: Iterable[str]) -> list[str]:

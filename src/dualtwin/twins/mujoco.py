@@ -35,6 +35,7 @@ import mujoco
 import numpy as np
 
 from dualtwin.errors import DualtwinError, SimulationUnstable
+from dualtwin.geometry import canonical_quat, matrix_from_quat
 from dualtwin.twins.base import (
     ControlMode,
     Knob,
@@ -42,9 +43,7 @@ from dualtwin.twins.base import (
     StateLayout,
     SyncError,
     Twin,
-    canonical_quat,
     check_state_names,
-    matrix_from_quat,
     unknown_name,
 )
 from dualtwin.twins.motors import MotorParams, MotorState, servo_steps
