@@ -36,17 +36,17 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from dualtwin.align.fit import _Problem
 
 from dualtwin.align import GenerationInfo, align
-from dualtwin.align.fit import _Problem
 from dualtwin.align.knobs import select_knobs, unit_from_values, values_from_unit
 from dualtwin.align.objective import build_spec, evaluate
 from dualtwin.align.prediction import PredictionEvaluator, PredictionJob, PredictionProblem
 from dualtwin.align.simulate import Evaluator, SimJob, load_traces
+from dualtwin.divergence.trajectories import record_trajectories, save_trajectories
 from dualtwin.robots.binding import BUNDLED, RobotBinding, load_binding, resolve_robot
 from dualtwin.suite.runner import SuiteRun
 from dualtwin.sync import run_lockstep
-from dualtwin.sync.record import record_trajectories, save_trajectories
 from dualtwin.twins import make_twin
 
 DAMPING = "joint.pole_hinge.damping"

@@ -14,8 +14,8 @@ import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from dualtwin.divergence.channels import channel_unit
 from dualtwin.reporting import plot_unit_groups
-from dualtwin.sync.channels import channel_unit
 
 
 class Page(HTMLParser):

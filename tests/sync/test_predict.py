@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from dualtwin.align import align
+from dualtwin.divergence.trajectories import save_trajectories
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding
 from dualtwin.suite.loader import load_suite
@@ -19,7 +20,6 @@ from dualtwin.sync import (
     prediction_error,
     record_trajectories,
 )
-from dualtwin.sync.record import save_trajectories
 from dualtwin.twins import make_twin
 from tests.support.sync_helpers import NOMINAL_DAMPING
 

@@ -191,7 +191,7 @@ def test_after_a_transfer_the_twins_agree(robot_name: str, source: str, target: 
     """One period after a transfer the two simulators are about as close as their models allow (measured:
     normalised error 0.002-0.004 on the cart-pole, 0.06-0.08 on the skid-steered Pioneer), far closer than
     the same twin left where it was."""
-    from dualtwin.sync.channels import channel_scales, normalized_error
+    from dualtwin.divergence.channels import channel_scales, normalized_error
 
     robot: RobotBinding = request.getfixturevalue("cartpole" if robot_name == "cartpole" else "pioneer")
     actuators, speeds, pole = ROBOTS[robot.name]

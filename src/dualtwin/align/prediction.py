@@ -3,8 +3,8 @@
 Multiple shooting instead of one long open-loop run: the target twin is put into the reference's recorded
 state at many start points (every ``stride`` periods) and driven with the recorded commands for each
 horizon ``h`` (default 1 and 5 control periods); the residuals are its state minus the reference's,
-scaled per channel (:mod:`dualtwin.sync.channels`) and weighted so that ``‖r‖²`` is the mean squared
-normalised prediction error (:mod:`dualtwin.sync.predict`). Short horizons keep the residual nearly linear in
+scaled per channel (:mod:`dualtwin.divergence.channels`) and weighted so that ``‖r‖²`` is the mean squared
+normalised prediction error (:mod:`dualtwin.divergence.prediction`). Short horizons keep the residual nearly linear in
 the knobs and insensitive to chaos, so least squares sees a well-conditioned problem where an open-loop
 trajectory objective sees a rough one.
 
@@ -50,13 +50,18 @@ from dualtwin.align.fit import (
 from dualtwin.align.knobs import KnobSpec, check_values, select_knobs, unit_from_values, values_from_unit
 from dualtwin.align.simulate import DEFAULT_WORKERS, ExecutorKind
 from dualtwin.artifacts import json_safe, package_versions, sha256_file, write_json, write_text
+from dualtwin.divergence.channels import channel_scales
+from dualtwin.divergence.prediction import PredictionSettings, plot_prediction, predict
+from dualtwin.divergence.trajectories import (
+    Trajectory,
+    load_trajectories,
+    record_trajectories,
+    save_trajectories,
+)
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding, load_binding, resolve_robot
 from dualtwin.suite.loader import load_suite, read_json
 from dualtwin.suite.runner import check_against_binding
-from dualtwin.sync.channels import channel_scales
-from dualtwin.sync.predict import PredictionSettings, plot_prediction, predict
-from dualtwin.sync.record import Trajectory, load_trajectories, record_trajectories, save_trajectories
 from dualtwin.twins import TWINS, make_twin
 from dualtwin.twins.base import Twin
 

@@ -1,5 +1,10 @@
 """Divergence between twins: pure metrics, run loading and comparison, and reports.
 
+State-level divergence lives here too: state-difference channels and their scales (:mod:`.channels`),
+recorded trajectories with full states and commands (:mod:`.trajectories`) and the short-horizon
+prediction error (:mod:`.prediction`). The lockstep runner, the drift monitor (:mod:`dualtwin.sync`) and the
+prediction objective of :mod:`dualtwin.align` all build on them.
+
 Typical use::
 
     from dualtwin.divergence import compare_runs, write_report

@@ -15,23 +15,27 @@ drift apart it re-synchronises them or adjusts parameters. Pieces:
 * :class:`~dualtwin.sync.shadow.ShadowCallback`: a Webots shadow of MuJoCo RL training episodes
   (imported lazily: it needs Stable-Baselines3);
 * :func:`write_sync_report`: HTML + JSON of prediction curves, drift, alarms and re-alignments.
+
+The measuring primitives (state-difference channels, recorded trajectories, the prediction error) live in
+:mod:`dualtwin.divergence` so that :mod:`dualtwin.align` can use them without importing upwards; they are
+re-exported here.
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from dualtwin.sync.channels import DEFAULT_UNIT_SCALES, channel_scales, normalized_error
-from dualtwin.sync.lockstep import EpisodeSummary, LockstepResult, ResyncPolicy, run_lockstep
-from dualtwin.sync.monitor import Monitor, MonitorConfig, RealignSettings, read_events
-from dualtwin.sync.predict import PredictionResult, PredictionSettings, predict, prediction_error
-from dualtwin.sync.record import (
+from dualtwin.divergence.channels import DEFAULT_UNIT_SCALES, channel_scales, normalized_error
+from dualtwin.divergence.prediction import PredictionResult, PredictionSettings, predict, prediction_error
+from dualtwin.divergence.trajectories import (
     CommandTap,
     Trajectory,
     load_trajectories,
     record_trajectories,
     save_trajectories,
 )
+from dualtwin.sync.lockstep import EpisodeSummary, LockstepResult, ResyncPolicy, run_lockstep
+from dualtwin.sync.monitor import Monitor, MonitorConfig, RealignSettings, read_events
 from dualtwin.twins.base import BodyState, MechanicalState, SyncError
 
 if TYPE_CHECKING:

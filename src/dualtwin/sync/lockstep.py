@@ -4,7 +4,7 @@ A *primary* twin (usually Webots, the stand-in for the real robot) and a *second
 the model) run the same episodes side by side, period by period: suite scenarios (the paper's inputs), or
 episodes of a policy that acts on the *primary's* observations and sends the same action to both. After
 every period the runner reads both mechanical states, logs the per-channel difference (secondary minus
-primary) and the normalised state error (:mod:`dualtwin.sync.channels`), and applies a re-sync policy:
+primary) and the normalised state error (:mod:`dualtwin.divergence.channels`), and applies a re-sync policy:
 
 * ``never``: open loop; the error grows with the chaos of the task and the model mismatch;
 * ``every:N``: every N periods the secondary is put into the primary's state (``set_state``), so errors are
@@ -40,14 +40,8 @@ from typing import Any, Literal
 import numpy as np
 
 from dualtwin.artifacts import package_versions, sha256_file, write_json, write_text
-from dualtwin.errors import DualtwinError, SimulationUnstable
-from dualtwin.robots.binding import RobotBinding, resolve_robot
-from dualtwin.robots.io import RobotIO
-from dualtwin.suite.loader import load_suite
-from dualtwin.suite.runner import check_against_binding, format_rows
-from dualtwin.sync.channels import DiffLayout, channel_scales
-from dualtwin.sync.monitor import Monitor
-from dualtwin.sync.record import (
+from dualtwin.divergence.channels import DiffLayout, channel_scales
+from dualtwin.divergence.trajectories import (
     Command,
     CommandTap,
     Trajectory,
@@ -57,6 +51,12 @@ from dualtwin.sync.record import (
     save_trajectories,
     start_scenario,
 )
+from dualtwin.errors import DualtwinError, SimulationUnstable
+from dualtwin.robots.binding import RobotBinding, resolve_robot
+from dualtwin.robots.io import RobotIO
+from dualtwin.suite.loader import load_suite
+from dualtwin.suite.runner import check_against_binding, format_rows
+from dualtwin.sync.monitor import Monitor
 from dualtwin.twins import make_twin
 from dualtwin.twins.base import MechanicalState, StateLayout, SyncError, Twin
 

@@ -36,8 +36,8 @@ from typing import IO, Any, Literal
 import numpy as np
 
 from dualtwin.artifacts import json_safe
+from dualtwin.divergence.trajectories import Command, build_trajectory, save_trajectories
 from dualtwin.errors import DualtwinError
-from dualtwin.sync.record import Command, build_trajectory, save_trajectories
 from dualtwin.twins.base import MechanicalState
 
 Statistic = Literal["mean", "rms", "max", "p95"]

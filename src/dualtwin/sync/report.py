@@ -18,14 +18,14 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from dualtwin.artifacts import json_safe, write_json, write_text
+from dualtwin.divergence.channels import channel_unit
+from dualtwin.divergence.prediction import PredictionResult, plot_prediction
 from dualtwin.divergence.runs import load_tsv
 from dualtwin.errors import DualtwinError
 from dualtwin.reporting import esc, evidence_html, html_table, img_html, page_head, plot_overlay, png_bytes
 from dualtwin.suite.loader import read_json
-from dualtwin.sync.channels import channel_unit
 from dualtwin.sync.lockstep import LockstepResult
 from dualtwin.sync.monitor import read_events
-from dualtwin.sync.predict import PredictionResult, plot_prediction
 
 REPORT_SCHEMA = "dualtwin.sync-report/1"
 #: Monitor events listed in the alarms table.

@@ -34,11 +34,11 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
 
+from dualtwin.divergence.channels import channel_scales, normalized, normalized_error
+from dualtwin.divergence.trajectories import CommandTap
 from dualtwin.errors import DualtwinError, SimulationUnstable
 from dualtwin.robots.io import RobotIO
-from dualtwin.sync.channels import channel_scales, normalized, normalized_error
 from dualtwin.sync.monitor import Monitor
-from dualtwin.sync.record import CommandTap
 from dualtwin.twins.base import SyncError
 
 
@@ -49,7 +49,7 @@ class ShadowCallback(BaseCallback):
         fraction: Probability that an episode starting while the shadow is free is shadowed (0 to 1).
         twin: The shadow twin's name.
         seed: Seed of the sampling generator and of the shadow twin's resets.
-        scales: Channel scale overrides for the normalised error (:mod:`dualtwin.sync.channels`).
+        scales: Channel scale overrides for the normalised error (:mod:`dualtwin.divergence.channels`).
         knobs: Knob values of the shadow twin.
         monitor: Optional drift monitor fed with the shadow's errors.
     """

@@ -7,7 +7,7 @@ recorded commands for ``h`` control periods, and compared with where the referen
 ``h = 1, 5, 25`` periods show how fast the models drift apart, and for identical models they are zero.
 
 The same rollouts give the residual vector of the ``prediction`` alignment objective
-(:mod:`dualtwin.align.prediction`): scaled per channel (:mod:`dualtwin.sync.channels`), one block per
+(:mod:`dualtwin.align.prediction`): scaled per channel (:mod:`dualtwin.divergence.channels`), one block per
 (trajectory, start, horizon), ``√(1/count)``-weighted so that its squared norm is the mean squared
 normalised prediction error.
 """
@@ -23,12 +23,18 @@ from typing import Any
 import numpy as np
 
 from dualtwin.artifacts import json_safe, package_versions, sha256_file, write_json, write_text
+from dualtwin.divergence.channels import channel_scales
+from dualtwin.divergence.trajectories import (
+    Command,
+    Trajectory,
+    record_trajectories,
+    replay,
+    save_trajectories,
+)
 from dualtwin.errors import DualtwinError, SimulationUnstable
 from dualtwin.robots.binding import RobotBinding, resolve_robot
 from dualtwin.suite.loader import load_suite
 from dualtwin.suite.runner import check_against_binding
-from dualtwin.sync.channels import channel_scales
-from dualtwin.sync.record import Command, Trajectory, record_trajectories, replay, save_trajectories
 from dualtwin.twins import make_twin
 from dualtwin.twins.base import SyncError, Twin
 
@@ -195,9 +201,9 @@ def plot_prediction(series: Sequence[tuple[str, Mapping[str, Any]]], path: Path,
     from matplotlib.figure import Figure
 
     from dualtwin.artifacts import write_bytes
+    from dualtwin.divergence.channels import channel_unit
     from dualtwin.reporting import plot_unit_groups
     from dualtwin.reporting import png_bytes as _png_bytes
-    from dualtwin.sync.channels import channel_unit
 
     if not series:
         raise ValueError("nothing to plot")
