@@ -13,6 +13,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.support.names import dotted_names, resolves
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -201,34 +203,14 @@ def _doc_pages() -> list[Path]:
     return [p for p in sorted(DOCS.rglob("*.md")) if p != DOCS / "reference" / "cli.md"]  # cli.md is generated
 
 
-def _resolves(dotted: str) -> bool:
-    """``dualtwin.a.b.Name`` names an importable module, or an attribute of the longest importable prefix."""
-    import importlib
-
-    parts = dotted.split(".")
-    for i in range(len(parts), 0, -1):
-        try:
-            obj: object = importlib.import_module(".".join(parts[:i]))
-        except ImportError:
-            continue
-        for attr in parts[i:]:
-            if not hasattr(obj, attr):
-                return False
-            obj = getattr(obj, attr)
-        return True
-    return False
-
-
 def test_every_module_and_source_file_the_docs_name_exists() -> None:
     """A module moved or a function renamed must not leave a docs page naming the old one."""
     missing = []
     for page in _doc_pages():
         text = page.read_text(encoding="utf-8")
         where = page.relative_to(ROOT)
-        imported = {f"{module}.{name.strip()}" for module, names in
-                    re.findall(r"from (dualtwin(?:\.\w+)*) import ([\w, ]+)", text) for name in names.split(",")}
-        for dotted in sorted(set(re.findall(r"\bdualtwin(?:\.[A-Za-z_]\w*)+", text)) | imported):
-            if not _resolves(dotted.rstrip(".")):
+        for dotted in sorted(dotted_names(text)):
+            if not resolves(dotted):
                 missing.append(f"{where}: {dotted}")
         for path in sorted(set(re.findall(r"(?<![\w./-])((?:[\w-]+/)*\w+\.py)\b", text)) - ILLUSTRATIVE_PATHS):
             candidates = [ROOT / path, ROOT / "src" / path, ROOT / "src" / "dualtwin" / path, ROOT / "bench" / path]
@@ -238,5 +220,8 @@ def test_every_module_and_source_file_the_docs_name_exists() -> None:
 
 
 def test_the_name_check_resolves_modules_and_attributes() -> None:
-    assert _resolves("dualtwin.twins.base.Twin") and _resolves("dualtwin.suite.runner")
-    assert not _resolves("dualtwin.twins.base.NoSuchName") and not _resolves("dualtwin.no_such_package")
+    assert resolves("dualtwin.twins.base.Twin") and resolves("dualtwin.suite.runner")
+    assert not resolves("dualtwin.twins.base.NoSuchName") and not resolves("dualtwin.no_such_package")
+    assert dotted_names("see dualtwin.knobs/1, \"dualtwin.x\" and `dualtwin.twins.make_twin`; "
+                        "from dualtwin.twins import Twin, TWINS as T") \
+        == {"dualtwin.twins", "dualtwin.twins.make_twin", "dualtwin.twins.Twin", "dualtwin.twins.TWINS"}

@@ -20,6 +20,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.support.names import dotted_names, resolves
+
 ROOT = Path(__file__).resolve().parents[1]
 SRC = ROOT / "src" / "dualtwin"
 TESTS = ROOT / "tests"
@@ -205,3 +207,12 @@ def test_no_source_cites_the_reference_folder_outside_the_repository() -> None:
 @pytest.mark.parametrize("text", ["see ../shared/reference/webots-on-ode.md", "shared/reference/arm-ur5e-facts.md"])
 def test_the_citation_check_matches(text: str) -> None:
     assert SHARED_REFERENCE.search(text)
+
+
+def test_every_dualtwin_name_in_a_docstring_or_comment_exists() -> None:
+    """A module moved or a function renamed must not leave a docstring pointing at the old name (docs pages
+    are checked the same way in test_docs.py); schema ids such as ``dualtwin.knobs/1`` are not names."""
+    stale = [f"{p.relative_to(SRC)}:{i}: {name}" for p in _python_files(SRC)
+             for i, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1)
+             for name in sorted(dotted_names(line)) if not resolves(name)]
+    assert not stale, "src names modules or attributes that do not exist:\n" + "\n".join(stale)
