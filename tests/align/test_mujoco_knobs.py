@@ -11,7 +11,8 @@ import pytest
 from dualtwin.align.patch import patch_mjcf
 from dualtwin.align.simulate import simulate_twin
 from dualtwin.robots.binding import RobotBinding
-from dualtwin.twins.mujoco import MuJoCoTwin, dampratio_to_restitution, restitution_to_dampratio
+from dualtwin.twins.mujoco import MuJoCoTwin
+from dualtwin.twins.mujoco_knobs import dampratio_to_restitution, restitution_to_dampratio
 
 
 @pytest.fixture

@@ -23,7 +23,7 @@ import mujoco
 import numpy as np
 
 from dualtwin.errors import DualtwinError
-from dualtwin.twins.mujoco import impedance_pair, restitution_to_dampratio
+from dualtwin.twins.mujoco_knobs import impedance_pair, restitution_to_dampratio
 
 #: Knob properties that have no MJCF field.
 NOT_IN_MJCF: dict[str, str] = {

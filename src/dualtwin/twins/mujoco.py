@@ -27,7 +27,7 @@ Webots twin and costs 40-60 % more time per step (README, Pioneer section).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -47,6 +47,7 @@ from dualtwin.twins.base import (
     unknown_name,
 )
 from dualtwin.twins.motors import MotorParams, MotorState, servo_steps
+from dualtwin.twins.mujoco_knobs import MAX_DELAY_PERIODS, MUJOCO_KNOBS, KnobPass
 from dualtwin.twins.ode_friction import FrictionBox, contact_semantics
 
 if TYPE_CHECKING:
@@ -61,43 +62,9 @@ SERVO_STIFFNESS = 100.0
 # armature takes the rest): a torque above the limit times this factor saturates before the step, as ODE's
 # bounded motor row would, instead of overshooting for one step.
 PREDICT_SATURATION = 1.0 + SERVO_STIFFNESS
-# Geoms whose size[0] is a radius (the geom.<g>.radius knob).
-ROUND_GEOMS = frozenset({int(mujoco.mjtGeom.mjGEOM_CYLINDER), int(mujoco.mjtGeom.mjGEOM_SPHERE),
-                         int(mujoco.mjtGeom.mjGEOM_CAPSULE)})
-# Largest delay, in control periods, that the delay knobs accept.
-MAX_DELAY_PERIODS = 10
 #: set_state refuses states whose contacts overlap deeper than this (m): that is a geometry mismatch or a
 #: bad state, not the millimetres of a resting soft contact.
 MAX_PENETRATION = 0.02
-
-
-def restitution_to_dampratio(restitution: float, nominal: float) -> float:
-    """Damping ratio of MuJoCo's contact spring-damper that rebounds with coefficient ``restitution``.
-
-    A linear spring-damper with damping ratio ζ < 1 rebounds with ``e = exp(-ζπ/√(1-ζ²))``. ``e = 0`` keeps a
-    nominal ratio that already does not bounce (ζ >= 1), else uses critical damping.
-    """
-    if restitution <= 0.0:
-        return max(nominal, 1.0)
-    log_e = math.log(min(restitution, 0.999))
-    return -log_e / math.sqrt(math.pi ** 2 + log_e ** 2)
-
-
-#: Bounds of the impedance knobs (MuJoCo solimp dmax): from very soft (or the nominal, if softer) to MuJoCo's
-#: hardest.
-IMPEDANCE_BOUNDS = (0.5, 0.9999)
-
-
-def impedance_pair(nominal_solimp: Sequence[float], dmax: float) -> tuple[float, float]:
-    """(dmin, dmax) for a new dmax, dmin keeping its nominal ratio to dmax (the impedance curve's shape)."""
-    return float(nominal_solimp[0]) * dmax / float(nominal_solimp[1]), dmax
-
-
-def dampratio_to_restitution(dampratio: float) -> float:
-    """Inverse of `restitution_to_dampratio` (0 for ζ >= 1)."""
-    if dampratio >= 1.0:
-        return 0.0
-    return math.exp(-dampratio * math.pi / math.sqrt(1.0 - dampratio ** 2))
 
 
 class _Motor:
@@ -140,7 +107,7 @@ class MuJoCoTwin(Twin):
                  aliases: dict[str, str] | None = None) -> None:
         origin = str(model) if isinstance(model, Path | str) else "<MjSpec>"
         self.spec = load_spec(Path(model)) if isinstance(model, Path | str) else model
-        self.model = compile_spec(self.spec, origin)
+        self.model: mujoco.MjModel = compile_spec(self.spec, origin)
         self.data = mujoco.MjData(self.model)
         self._origin = origin
         self._aliases = aliases or {}
@@ -150,20 +117,21 @@ class MuJoCoTwin(Twin):
             raise DualtwinError(f"{origin}: control period {control_period} s is not a whole number of "
                                 f"physics steps of {dt} s")
         self._substeps = int(round(substeps))
-        self._nominal_substeps = self._substeps
-        self._nominal_timestep = float(dt)
+        self._nominal_substeps: int = self._substeps
+        self._nominal_timestep: float = float(dt)
         self._control_period = control_period
         self._rng = np.random.default_rng(0)
         self._noise = np.array(self.model.sensor_noise, dtype=float)
-        self._nominal = self._snapshot_nominal()
+        self._nominal: dict[str, np.ndarray] = self._snapshot_nominal()
         # Rotor inertia per dof as the knobs set it; the servo adds its own implicit term on top (_set_servo).
         self._armature = self._nominal["dof_armature"].copy()
         self._knob_values: dict[str, float] = {}
+        self._knob_pass = KnobPass()  # what the last set_knobs collected (see mujoco_knobs)
         self._motors = self._build_motors()
         self._motor_by_name = {m.name: m for m in self._motors}
         self._nominal_kv = {m.name: m.kv for m in self._motors}
-        self._nominal_motor = {m.name: (m.state.params.max_torque, m.state.params.max_velocity) for m in self._motors}
-        self._nominal_kp = {m.name: m.state.params.kp for m in self._motors}
+        self._nominal_motor: dict[str, tuple[float, float]] = {m.name: (m.state.params.max_torque, m.state.params.max_velocity) for m in self._motors}
+        self._nominal_kp: dict[str, float] = {m.name: m.state.params.kp for m in self._motors}
         # The inertia each servo's stiffness was sized for (see _build_motors): kv follows armature knobs.
         self._servo_inertia = {m.name: m.kv * self.model.opt.timestep / SERVO_STIFFNESS for m in self._motors}
         # Knob state outside the model arrays: the control delay queues commands until they are due, and
@@ -669,111 +637,12 @@ class MuJoCoTwin(Twin):
                 self._set_servo(motor)
 
     # ---------------------------------------------------------------- knobs
-    # The knob table (names shared with the Webots twin) is documented in dualtwin.align.knobs.
+    # One entry per knob kind in twins.mujoco_knobs.MUJOCO_KNOBS; knobs() and set_knobs() both come from it.
     def knobs(self) -> dict[str, Knob]:
-        m = self.model
-        nominal = self._nominal
-        out: dict[str, Knob] = {}
-
-        def add(name: str, value: float, lower: float, upper: float, unit: str, description: str) -> None:
-            out[name] = Knob(name, float(value), float(lower), float(upper), unit, description)
-
-        for j in range(m.njnt):
-            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j)
-            if not name or m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
-                continue
-            dof = m.jnt_dofadr[j]
-            damping = float(nominal["dof_damping"][dof])
-            friction = float(nominal["dof_frictionloss"][dof])
-            add(f"joint.{name}.damping", damping, 0.0, max(10 * damping, 1.0),
-                "N*m*s/rad", "joint viscous damping (Webots dampingConstant)")
-            add(f"joint.{name}.friction", friction, 0.0, max(10 * friction, 0.5),
-                "N*m", "joint dry friction (MuJoCo frictionloss, Webots staticFriction)")
-            if int(m.jnt_type[j]) in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
-                armature = float(nominal["dof_armature"][dof])
-                slide = int(m.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_SLIDE)
-                add(f"joint.{name}.armature", armature, 0.0, max(10 * armature, 0.2), "kg" if slide else "kg*m^2",
-                    "rotor inertia reflected to the joint (MuJoCo armature; Webots models none)")
-            limit_timeconst = float(nominal["jnt_solref"][j, 0])
-            if m.jnt_limited[j] and limit_timeconst > 0:
-                # ODE's joint stops are stiff (world ERP/CFM); MuJoCo's limits are soft by default.
-                add(f"joint.{name}.limit_timeconst", limit_timeconst, 2 * self._nominal_timestep,
-                    max(10 * limit_timeconst, 4 * self._nominal_timestep), "s",
-                    "joint-limit softness: time constant of the limit's spring-damper (MuJoCo solreflimit[0])")
-                dmax = float(nominal["jnt_solimp"][j, 1])
-                add(f"joint.{name}.limit_impedance", dmax, min(IMPEDANCE_BOUNDS[0], dmax), IMPEDANCE_BOUNDS[1], "",
-                    "joint-limit hardness: MuJoCo solimplimit dmax (dmin keeps its ratio to it)")
-        for g in range(m.ngeom):
-            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g)
-            if name and m.geom_contype[g] | m.geom_conaffinity[g]:
-                mu = float(nominal["geom_friction"][g, 0])
-                add(f"geom.{name}.friction", mu, 0.0, 5.0 * max(mu, 0.1), "", "sliding friction coefficient")
-                timeconst, dampratio = (float(v) for v in nominal["geom_solref"][g])
-                if timeconst > 0:  # the standard (time constant, damping ratio) form of solref
-                    # MuJoCo clamps time constants below two physics steps (refsafe).
-                    add(f"geom.{name}.solref_timeconst", timeconst, 2 * self._nominal_timestep,
-                        max(10 * timeconst, 4 * self._nominal_timestep), "s",
-                        "contact softness: time constant of the contact spring-damper (MuJoCo solref[0])")
-                    add(f"geom.{name}.restitution", dampratio_to_restitution(dampratio), 0.0, 0.95, "",
-                        "contact restitution (MuJoCo: solref damping ratio below 1)")
-                dmax = float(nominal["geom_solimp"][g, 1])
-                add(f"geom.{name}.impedance", dmax, min(IMPEDANCE_BOUNDS[0], dmax), IMPEDANCE_BOUNDS[1], "",
-                    "contact hardness: MuJoCo solimp dmax (dmin keeps its ratio to it; Webots softCFM)")
-                if m.geom_type[g] in ROUND_GEOMS:
-                    # A wheel's effective rolling radius: ODE's soft contacts let it sink (0.6 mm on the Pioneer).
-                    radius = float(nominal["geom_size"][g, 0])
-                    add(f"geom.{name}.radius", radius, 0.9 * radius, 1.1 * radius, "m",
-                        "radius of a cylinder, sphere or capsule geom (a wheel's rolling radius)")
-        # How hard friction is against the normal force: the slip of MuJoCo's soft friction (Webots: the
-        # contact's forceDependentSlip has a similar role, with no common scale).
-        add("option.impratio", float(nominal["impratio"]), 0.1, 100.0, "",
-            "ratio of frictional to normal constraint impedance (MuJoCo option impratio)")
-        for b in range(1, m.nbody):
-            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b)
-            mass = float(nominal["body_mass"][b])
-            if not name or mass <= 0:
-                continue
-            add(f"body.{name}.mass", mass, 0.1 * mass, 10 * mass, "kg", "body mass (inertia scaled with it)")
-            add(f"body.{name}.inertia_scale", 1.0, 0.1, 10.0, "", "factor on the body's rotational inertia")
-            geoms = [g for g in range(m.ngeom) if m.geom_bodyid[g] == b]
-            reach = max([float(m.geom_rbound[g]) for g in geoms] + [0.0])
-            span = max(0.05, 0.25 * reach)
-            for axis in "xyz":
-                add(f"body.{name}.com_offset_{axis}", 0.0, -span, span, "m",
-                    f"shift of the centre of mass along the body's {axis} axis")
-        for mo in self._motors:
-            max_torque, max_velocity = self._nominal_motor[mo.name]
-            add(f"motor.{mo.name}.max_torque", max_torque, 0.0, 10 * max_torque, "N*m", "maximum motor torque")
-            add(f"motor.{mo.name}.max_velocity", max_velocity, 0.1 * max_velocity, 10 * max_velocity, "rad/s",
-                "maximum motor velocity")
-            add(f"motor.{mo.name}.gain", 1.0, -2.0, 2.0, "", "command gain (sign included)")
-            kp = self._nominal_kp[mo.name]
-            add(f"motor.{mo.name}.kp", kp, 0.1 * kp, 10 * kp, "1/s",
-                "proportional gain of Webots' position PID (velocity command per unit position error)")
-        add("control.delay_periods", 0.0, 0.0, MAX_DELAY_PERIODS, "periods",
-            "commands take effect this many control periods late (integer)")
-        # The integration step is part of a twin's behaviour: ODE's symplectic Euler at Webots' basicTimeStep
-        # leads a 2 ms MuJoCo model on unstable motion and resolves stop and contact impacts within one
-        # coarse step. Down to a quarter of the nominal steps (8 ms for 2 ms models), up to twice as many.
-        nominal_steps = self._nominal_substeps
-        add("physics.substeps", nominal_steps, max(1, nominal_steps // 4), 2 * nominal_steps, "steps",
-            "physics steps per control period (MuJoCo timestep = control period / steps; integer)")
-        for s in range(m.nsensor):
-            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_SENSOR, s)
-            if not name:
-                continue
-            noise = float(nominal["sensor_noise"][s])
-            add(f"sensor.{name}.noise", noise, 0.0, max(10 * noise, 0.05), "",
-                "standard deviation of Gaussian reading noise (Webots noise)")
-            add(f"sensor.{name}.bias", 0.0, -0.1, 0.1, "", "constant offset added to readings")
-            add(f"sensor.{name}.delay", 0.0, 0.0, MAX_DELAY_PERIODS, "periods",
-                "readings are this many control periods old (integer)")
-            add(f"sensor.{name}.quantization", 0.0, 0.0, 0.1, "",
-                "readings are rounded to a multiple of this (Webots resolution; 0 = off)")
-        return out
+        return {name: bound.knob for name, bound in MUJOCO_KNOBS.build(self).items()}
 
     def set_knobs(self, values: dict[str, float]) -> None:
-        registry = self.knobs()
+        registry = MUJOCO_KNOBS.build(self)
         unknown = sorted(set(values) - set(registry))
         if unknown:
             raise DualtwinError(f"{self._origin}: unknown knobs: {', '.join(unknown)}")
@@ -803,78 +672,12 @@ class MuJoCoTwin(Twin):
         self._sensor_bias[:] = 0.0
         self._sensor_quant[:] = 0.0
         self._sensor_delay[:] = 0
-        inertia_scale: dict[int, float] = {}
-        changed_inertia = False
+        # Then each value given, through its table entry (mass-distribution entries mark the pass).
+        self._knob_pass = knob_pass = KnobPass()
         for key, value in values.items():
-            value = float(value)
-            if key == "control.delay_periods":
-                self._delay = int(round(value))
-                continue
-            if key == "option.impratio":
-                m.opt.impratio = value
-                continue
-            if key == "physics.substeps":
-                self._set_substeps(int(round(value)))
-                continue
-            # Names may contain dots or spaces ("pole sensor"): the kind is first, the property last.
-            kind, rest = key.split(".", 1)
-            name, prop = rest.rsplit(".", 1)
-            if kind == "joint":
-                j = self._id(mujoco.mjtObj.mjOBJ_JOINT, name, "joint")
-                if prop == "limit_timeconst":
-                    m.jnt_solref[j, 0] = value
-                elif prop == "limit_impedance":
-                    m.jnt_solimp[j, :2] = impedance_pair(nominal["jnt_solimp"][j], value)
-                elif prop == "armature":
-                    self._armature[m.jnt_dofadr[j]] = value
-                    changed_inertia = True
-                else:
-                    (m.dof_damping if prop == "damping" else m.dof_frictionloss)[m.jnt_dofadr[j]] = value
-            elif kind == "geom":
-                g = self._id(mujoco.mjtObj.mjOBJ_GEOM, name, "geom")
-                if prop == "friction":
-                    m.geom_friction[g, 0] = value
-                elif prop == "radius":
-                    m.geom_size[g, 0] = value
-                    # Broad-phase bounds only need to enclose the geom.
-                    grow = max(0.0, value - float(nominal["geom_size"][g, 0]))
-                    m.geom_rbound[g] = nominal["geom_rbound"][g] + grow
-                    m.geom_aabb[g, 3:] = nominal["geom_aabb"][g, 3:] + grow
-                elif prop == "solref_timeconst":
-                    m.geom_solref[g, 0] = value
-                elif prop == "impedance":
-                    m.geom_solimp[g, :2] = impedance_pair(nominal["geom_solimp"][g], value)
-                else:
-                    m.geom_solref[g, 1] = restitution_to_dampratio(value, float(nominal["geom_solref"][g, 1]))
-            elif kind == "body":
-                b = self._id(mujoco.mjtObj.mjOBJ_BODY, name, "body")
-                changed_inertia = True
-                if prop == "mass":
-                    m.body_mass[b] = value
-                elif prop == "inertia_scale":
-                    inertia_scale[b] = value
-                else:
-                    m.body_ipos[b, "xyz".index(prop[-1])] += value
-            elif kind == "motor":
-                mo = self._motor_by_name[name]
-                if prop == "max_torque":
-                    mo.state.params.max_torque = value
-                elif prop == "max_velocity":
-                    mo.state.params.max_velocity = value
-                elif prop == "kp":
-                    mo.state.params.kp = value
-                else:
-                    mo.state.gain = value
-            elif kind == "sensor":
-                s = self._id(mujoco.mjtObj.mjOBJ_SENSOR, name, "sensor")
-                if prop == "noise":
-                    self._noise[s] = value
-                elif prop == "bias":
-                    self._sensor_bias[s] = value
-                elif prop == "delay":
-                    self._sensor_delay[s] = int(round(value))
-                else:
-                    self._sensor_quant[s] = value
+            bound = registry[key]
+            bound.kind.apply(self, bound.handle, float(value))
+        inertia_scale, changed_inertia = knob_pass.inertia_scale, knob_pass.changed_inertia
         # Inertia follows the mass (same shape, denser material), times an optional extra factor.
         for b in range(m.nbody):
             if nominal["body_mass"][b] > 0:
