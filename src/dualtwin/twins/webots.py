@@ -28,6 +28,7 @@ from dualtwin.twins.base import (
     check_state_names,
     unknown_name,
 )
+from dualtwin.twins.webots_knobs import WEBOTS_KNOBS
 from dualtwin.twins.webots_state import (
     JOINT_TYPES,
     MAX_JUMP_ANGULAR,
@@ -78,9 +79,8 @@ class WebotsTwin(Twin):
         # Enable every sensor now: a Webots sensor reads NaN until its first sample after enable().
         for name in self._device_names(None):
             self._sensor(name)
-        self._fields = self._scan_knob_fields()
-        self._nominal = {name: self._read_knob(name) for name in self._fields}
-        self._knobs = self._build_knobs()
+        # The knobs and their nominal values, read once from the world as loaded (see twins.webots_knobs).
+        self._knobs = WEBOTS_KNOBS.build(self)
 
     # ---------------------------------------------------------------- name resolution
     def _resolve(self, name: str) -> str:
@@ -375,93 +375,18 @@ class WebotsTwin(Twin):
         st.write(state)
         self._written = expected
 
-    # ---------------------------------------------------------------- knobs, through Field edits
-    def _scan_knob_fields(self) -> dict[str, tuple[Any, str, int | None]]:
-        """Knob name -> (node, field, MF index). Only fields Webots applies live are offered."""
-        fields: dict[str, tuple[Any, str, int | None]] = {}
-        for node in self._walk():
-            kind = node.getTypeName()
-            if kind in JOINT_TYPES and node.getDef():
-                params = node.getField("jointParameters").getSFNode()
-                if params is not None:
-                    fields[f"joint.{node.getDef()}.damping"] = (params, "dampingConstant", None)
-                    fields[f"joint.{node.getDef()}.friction"] = (params, "staticFriction", None)
-            elif kind in MOTOR_TYPES:
-                name = node.getField("name").getSFString()
-                torque = "maxTorque" if kind == "RotationalMotor" else "maxForce"
-                fields[f"motor.{name}.max_torque"] = (node, torque, None)
-                fields[f"motor.{name}.max_velocity"] = (node, "maxVelocity", None)
-            elif kind == "Physics":
-                continue
-            physics = node.getField("physics")
-            physics_node = physics.getSFNode() if physics is not None else None
-            if node.getDef() and physics_node is not None and physics_node.getField("mass").getSFFloat() > 0:
-                fields[f"body.{node.getDef()}.mass"] = (physics_node, "mass", None)
-        root = self.sup.getRoot().getField("children")
-        info = next((n for n in (root.getMFNode(i) for i in range(root.getCount())) if n
-                     and n.getTypeName() == "WorldInfo"), None)
-        if info is not None:
-            fields["world.erp"] = (info, "ERP", None)
-            fields["world.cfm"] = (info, "CFM", None)
-            contacts = info.getField("contactProperties")
-            for i in range(contacts.getCount()):
-                cp = contacts.getMFNode(i)
-                pair = f"{cp.getField('material1').getSFString()}:{cp.getField('material2').getSFString()}"
-                fields[f"contact.{pair}.friction"] = (cp, "coulombFriction", 0)
-                fields[f"contact.{pair}.bounce"] = (cp, "bounce", None)
-                fields[f"contact.{pair}.soft_erp"] = (cp, "softERP", None)
-                fields[f"contact.{pair}.soft_cfm"] = (cp, "softCFM", None)
-        return fields
-
-    def _read_knob(self, name: str) -> float:
-        node, field, index = self._fields[name]
-        handle = node.getField(field)
-        return float(handle.getMFFloat(index) if index is not None else handle.getSFFloat())
-
-    def _write_knob(self, name: str, value: float) -> None:
-        node, field, index = self._fields[name]
-        handle = node.getField(field)
-        if index is not None:
-            handle.setMFFloat(index, float(value))
-        else:
-            handle.setSFFloat(float(value))
-
-    def _build_knobs(self) -> dict[str, Knob]:
-        knobs: dict[str, Knob] = {}
-        units = {"damping": "N*m*s/rad", "friction": "N*m", "max_torque": "N*m", "max_velocity": "rad/s",
-                 "mass": "kg"}
-        for name, nominal in self._nominal.items():
-            prop = name.rsplit(".", 1)[-1]
-            if prop in ("soft_erp", "erp"):
-                lower, upper = 0.01, 1.0
-            elif prop in ("soft_cfm", "cfm"):
-                lower, upper = 1e-9, max(nominal * 100, 1e-2)
-            elif prop == "bounce":
-                lower, upper = 0.0, 1.0
-            elif prop == "mass":
-                lower, upper = 0.1 * nominal, 10 * nominal
-            elif prop == "friction" and name.startswith("contact."):
-                lower, upper = 0.0, 5 * max(nominal, 0.1)
-            else:
-                lower, upper = 0.0, max(10 * nominal, 1.0 if prop == "damping" else 0.5)
-            knobs[name] = Knob(name, nominal, min(lower, nominal), max(upper, nominal), units.get(prop, ""))
-        for motor in self._device_names(MOTOR_TYPES):
-            knobs[f"motor.{motor}.gain"] = Knob(f"motor.{motor}.gain", 1.0, -2.0, 2.0, "",
-                                                 "command gain (sign included)")
-        return knobs
-
+    # ---------------------------------------------------------------- knobs (one table: twins.webots_knobs)
     def knobs(self) -> dict[str, Knob]:
-        return dict(self._knobs)
+        return {name: bound.knob for name, bound in self._knobs.items()}
 
     def set_knobs(self, values: dict[str, float]) -> None:
         unknown = sorted(set(values) - set(self._knobs))
         if unknown:
             raise DualtwinError(f"{self._origin}: unknown knobs: {', '.join(unknown)}")
-        for name, nominal in self._nominal.items():
-            target = values.get(name, nominal)
-            if self._read_knob(name) != target:
-                self._write_knob(name, target)
-        self._gains = {k.split(".")[1]: v for k, v in values.items() if k.endswith(".gain")}
+        # Every knob through its table entry: the value given, else the nominal (fields unchanged are not
+        # written, so Webots does not re-apply them).
+        for name, bound in self._knobs.items():
+            bound.kind.apply(self, bound.handle, values.get(name, bound.knob.nominal))
         self._knob_values = dict(values)
 
 
