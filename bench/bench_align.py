@@ -32,7 +32,7 @@ import mujoco
 import numpy as np
 import yaml
 
-from dualtwin.align import align
+from dualtwin.align import AlignConfig, run_align
 from dualtwin.demo import CHANNELS, HOLDOUT, KNOBS
 from dualtwin.divergence import compare_runs
 from dualtwin.divergence.metrics import dtw_distance
@@ -114,8 +114,9 @@ def reproducibility_floor(twin: str, folder: Path) -> dict[float, float]:
 def run_case(name: str, binding_path: Path, reference: Path, out: Path, floor: float) -> dict[str, float]:
     robot = load_binding(binding_path)
     start = time.perf_counter()
-    result = align(reference, "mujoco", robot, SUITE, KNOBS, out, optimizer="lsq", budget=300, holdout=HOLDOUT,
-                   channels=CHANNELS)
+    result = run_align(AlignConfig(reference=str(reference), target="mujoco", robot=str(robot.path),
+                                   suite=str(SUITE), knobs=list(KNOBS), optimizer="lsq", budget=300,
+                                   holdout=HOLDOUT, channels=CHANNELS), out)
     wall = time.perf_counter() - start
     before = fall_metrics(reference, out / "runs" / "before")
     after = fall_metrics(reference, out / "runs" / "after")

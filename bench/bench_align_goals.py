@@ -32,7 +32,7 @@ import numpy as np
 
 from _common import output_folder
 from bench_align import SUITE, paper_like_robot
-from dualtwin.align import align
+from dualtwin.align import AlignConfig, run_align
 from dualtwin.align.nuisance import SHARED_TIME_OFFSET
 from dualtwin.align.objective import build_spec, residuals
 from dualtwin.align.simulate import load_traces, simulate_twin
@@ -81,8 +81,10 @@ def ensemble_reference(robot: RobotBinding, out: Path) -> Path:
 def fit(reference: Path, binding: Path, out: Path, ensemble: str) -> tuple[dict[str, float], dict[str, float], float]:
     """Before and after pole DTW per scenario (single trajectories against the reference's member 0)."""
     start = time.perf_counter()
-    result = align(reference, "mujoco", load_binding(binding), SUITE, KNOBS, out, optimizer="lsq", budget=300,
-                   holdout=HOLDOUT, channels=CHANNELS, ensemble=ensemble)  # type: ignore[arg-type]
+    config = AlignConfig(reference=str(reference), target="mujoco", robot=str(load_binding(binding).path),
+                         suite=str(SUITE), knobs=list(KNOBS), optimizer="lsq", budget=300, holdout=HOLDOUT,
+                         channels=CHANNELS, ensemble=ensemble)  # type: ignore[arg-type]
+    result = run_align(config, out)
     wall = time.perf_counter() - start
     print(f"   {ensemble:<4} fit: {result.evaluations} candidates, {wall:.0f} s; "
           + ", ".join(f"{k} {v.fitted:.4g}" for k, v in result.knobs.items()))
@@ -205,9 +207,11 @@ def part_recording(root: Path) -> dict[str, object]:
     results: dict[str, object] = {}
     for label, patterns in (("with nuisance knobs", physics + nuisance), ("control: physics only", physics)):
         start = time.perf_counter()
-        result = align(imported, "webots", robot, SUITE, patterns, folder / f"fit_{len(patterns)}", optimizer="lsq",
-                       budget=400, bounds={"body.pole.mass": (0.5 * true["body.pole.mass"], 2 * true["body.pole.mass"]),
-                                           "joint.pole_hinge.damping": (0.0, 0.1)})
+        bounds = {"body.pole.mass": (0.5 * true["body.pole.mass"], 2 * true["body.pole.mass"]),
+                  "joint.pole_hinge.damping": (0.0, 0.1)}
+        config = AlignConfig(reference=str(imported), target="webots", robot=str(robot.path), suite=str(SUITE),
+                             knobs=list(patterns), optimizer="lsq", budget=400, bounds=bounds)
+        result = run_align(config, folder / f"fit_{len(patterns)}")
         wall = time.perf_counter() - start
         values = {**result.fitted, **{k: v.fitted for k, v in result.nuisance.items()}}
         sim_twin = make_twin("webots", robot, suite.global_settings.control_period_s)

@@ -129,7 +129,7 @@ def verdict(value: float, goal: float) -> str:
 
 def align_to_stand_in(root: Path) -> tuple[Path, dict[str, Any]]:
     """CMA-ES over the per-joint speed limits of the MuJoCo arm, against the Webots stand-in's six joint steps."""
-    from dualtwin.align import align
+    from dualtwin.align import AlignConfig, run_align
     from dualtwin.align.objective import ObjectiveWeights
     from dualtwin.robots.binding import resolve_robot
     from dualtwin.suite.runner import SuiteRun
@@ -149,9 +149,11 @@ def align_to_stand_in(root: Path) -> tuple[Path, dict[str, Any]]:
     # Joint angles only: the flange pose follows from them, and the objective scales each channel by its range.
     channels = [f"q{i}_rad" for i in range(1, 7)]
     start = time.perf_counter()
-    result = align(root / "reference", "mujoco", robot, suite, KNOBS, root / "align", optimizer="cma",
-                   budget=ALIGN_BUDGET, bounds=BOUNDS, channels=channels, workers=1, executor="process",
-                   weights=ObjectiveWeights(rmse=1.0, endpoint=0.5, dtw=0.0, event=0.0))
+    result = run_align(AlignConfig(reference=str(root / "reference"), target="mujoco", robot=str(robot.path),
+                                   suite=str(suite), knobs=list(KNOBS), optimizer="cma", budget=ALIGN_BUDGET,
+                                   bounds=BOUNDS, channels=channels, workers=1, executor="process",
+                                   weights=ObjectiveWeights(rmse=1.0, endpoint=0.5, dtw=0.0, event=0.0)),
+                       root / "align")
     wall = time.perf_counter() - start
     print(f"  {len(result.knobs)} knobs, {result.evaluations} evaluations, {wall:.0f} s, objective "
           f"{result.objective_before:.4g} -> {result.objective_after:.4g} ({result.stop_reason})")

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dualtwin.align import align
+from dualtwin.align import AlignConfig, run_align
 from dualtwin.robots.binding import BUNDLED, load_binding
 from dualtwin.suite.runner import SuiteRun
 
@@ -46,8 +46,9 @@ def main() -> dict[str, float]:
         robot = load_binding(ROBOT)
         reference = tmp / "webots"
         SuiteRun(SUITE, "webots", robot, reference).run()
-        result = align(reference, "mujoco", robot, SUITE, KNOBS, tmp / "align", optimizer="lsq", budget=150,
-                       holdout=HOLDOUT)
+        result = run_align(AlignConfig(reference=str(reference), target="mujoco", robot=str(robot.path),
+                                       suite=str(SUITE), knobs=list(KNOBS), optimizer="lsq", budget=150,
+                                       holdout=HOLDOUT), tmp / "align")
         print("== Pioneer 3-AT-like: MuJoCo twin aligned to the Webots twin (least squares) ==")
         print(f"   {result.evaluations} simulations, {result.wall_time_s:.1f} s; held out: {', '.join(HOLDOUT)}")
         print(f"   objective {result.objective_before:.4g} -> {result.objective_after:.4g}, held out "

@@ -150,7 +150,8 @@ def reused_or_fresh(name: str, root: Path) -> tuple[Path, bool]:
 
 def train_to_threshold(name: str, env_id: str, root: Path, budget: float, env_kwargs: dict[str, Any] | None = None,
                        label: str | None = None, threshold: float = THRESHOLD, **train_kwargs: Any) -> dict[str, Any]:
-    from dualtwin.rl.train import load_config, train
+    from dualtwin.rl.ppo_config import load_config
+    from dualtwin.rl.train import train
 
     label = label or env_id.split("/")[-1]
     out, reused = reused_or_fresh(name, root)
@@ -170,7 +171,8 @@ def train_to_threshold(name: str, env_id: str, root: Path, budget: float, env_kw
 
 def fine_tune(name: str, root: Path, start: Path, label: str, **train_kwargs: Any) -> dict[str, Any]:
     """FINE_TUNE_STEPS of PPO from ``start``'s best policy in the aligned twin or with DR (not to a threshold)."""
-    from dualtwin.rl.train import load_config, train
+    from dualtwin.rl.ppo_config import load_config
+    from dualtwin.rl.train import train
 
     out, reused = reused_or_fresh(name, root)
     if reused:
@@ -190,15 +192,16 @@ def alignment(root: Path) -> Path:
     if given or (os.environ.get("DUALTWIN_BENCH_RL_REUSE") == "1" and (out / "knobs.json").is_file()):
         print(f"  reusing {out}")
     else:
-        from dualtwin.align import align
+        from dualtwin.align import AlignConfig, run_align
         from dualtwin.demo import CHANNELS, HOLDOUT, KNOBS
         from dualtwin.robots.binding import BUNDLED
 
         if out.exists():
             shutil.rmtree(out)
         start = time.perf_counter()
-        align("webots", "mujoco", "cartpole", BUNDLED / "cartpole" / "suite.json", KNOBS, out, optimizer="lsq",
-              budget=300, holdout=HOLDOUT, channels=CHANNELS)
+        run_align(AlignConfig(reference="webots", target="mujoco", robot="cartpole",
+                              suite=str(BUNDLED / "cartpole" / "suite.json"), knobs=list(KNOBS),
+                              optimizer="lsq", budget=300, holdout=HOLDOUT, channels=CHANNELS), out)
         print(f"  least squares, {len(KNOBS)} knobs, {time.perf_counter() - start:.0f} s")
     fitted = json.loads((out / "knobs.json").read_text())["knobs"]
     ranges = json.loads((out / "dr_ranges.json").read_text())["knobs"]

@@ -36,13 +36,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from dualtwin.align.fit import _Problem
 
-from dualtwin.align import GenerationInfo, align
+from dualtwin.align import AlignConfig, GenerationInfo, run_align
 from dualtwin.align.knobs import select_knobs, unit_from_values, values_from_unit
 from dualtwin.align.objective import build_spec, evaluate
 from dualtwin.align.prediction import PredictionEvaluator, PredictionJob, PredictionProblem
 from dualtwin.align.simulate import Evaluator, SimJob, load_traces
+from dualtwin.align.trajectory import TrajectoryProblem
 from dualtwin.divergence.trajectories import record_trajectories, save_trajectories
 from dualtwin.robots.binding import BUNDLED, RobotBinding, load_binding, resolve_robot
 from dualtwin.suite.runner import SuiteRun
@@ -141,9 +141,10 @@ def targeted_fit(root: Path, robot: RobotBinding, suite: Path) -> list[dict[str,
             if optimizer == "cma":
                 extra["popsize"] = 6
             start = time.perf_counter()
-            result = align("mujoco", "mujoco", robot, suite, [DAMPING], root / f"{objective}_{optimizer}",
-                           optimizer=optimizer, reference_knobs={DAMPING: TRUTH}, executor="serial", budget=200,
-                           seed=1, callback=watch, **extra)
+            config = AlignConfig(reference="mujoco", target="mujoco", robot=str(robot.path), suite=str(suite),
+                                 knobs=[DAMPING], optimizer=optimizer, reference_knobs={DAMPING: TRUTH},
+                                 executor="serial", budget=200, seed=1, **extra)
+            result = run_align(config, root / f"{objective}_{optimizer}", callback=watch)
             seconds = time.perf_counter() - start
             record = json.loads((result.out_dir / "align_record.json").read_text())
             periods = record.get("simulated_periods")
@@ -228,7 +229,7 @@ class _Objectives:
         self.pred_eval = PredictionEvaluator("serial")
         self.sim_eval = Evaluator("serial")
         self.prediction = PredictionProblem(self.specs, self.job, self.pred_eval, 10**6)
-        self.open_loop = _Problem(self.specs, self.sim, build_spec(reference, ids), None, self.sim_eval, 10**6)
+        self.open_loop = TrajectoryProblem(self.specs, self.sim, build_spec(reference, ids), None, self.sim_eval, 10**6)
 
     def close(self) -> None:
         self.pred_eval.close()

@@ -32,7 +32,14 @@ def run_demo(out: Path, console: Console, resume: bool = False) -> None:
     The folder is never deleted: a folder holding anything but an earlier demo is refused (``--out .`` cannot
     wipe a working directory), and an earlier demo is continued only when asked, its finished runs kept.
     """
-    from dualtwin.align import align, analyze_runs, print_analysis, print_result, write_analysis
+    from dualtwin.align import (
+        AlignConfig,
+        analyze_runs,
+        print_analysis,
+        print_result,
+        run_align,
+        write_analysis,
+    )
     from dualtwin.divergence import compare_runs, print_summary, write_report
 
     robot = resolve_robot("cartpole")
@@ -59,8 +66,9 @@ def run_demo(out: Path, console: Console, resume: bool = False) -> None:
     print_analysis(analysis, console)
     console.print(f"[bold]4. aligning[/bold] the MuJoCo twin to the Webots twin ({', '.join(KNOBS)}; fitted on "
                   f"{', '.join(CHANNELS)}; {', '.join(HOLDOUT)} held out)")
-    result = align(runs["webots"], "mujoco", robot, suite, KNOBS, out / "align", optimizer="lsq", budget=300,
-                   holdout=HOLDOUT, channels=CHANNELS, resume=resume)
+    config = AlignConfig(reference=str(runs["webots"]), target="mujoco", robot=str(robot.path), suite=str(suite),
+                         knobs=list(KNOBS), optimizer="lsq", budget=300, holdout=list(HOLDOUT), channels=list(CHANNELS))
+    result = run_align(config, out / "align", resume=resume)
     print_result(result, console)
     console.print(f"comparison report: {out / 'report' / 'report.html'}")
     console.print(f"analysis:          {out / 'analysis' / 'analysis.html'}")

@@ -10,7 +10,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from dualtwin.align.analyze import analyze_runs, write_analysis
+from dualtwin.align.analysis_report import write_analysis
+from dualtwin.align.analyze import analyze_runs
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding
 from tests.support.align_runs import record, write_suite

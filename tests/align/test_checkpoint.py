@@ -9,7 +9,7 @@ from typing import Any
 
 import pytest
 
-from dualtwin.align import GenerationInfo, align
+from dualtwin.align import AlignConfig, GenerationInfo, run_align
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding
 from tests.support.align_runs import SUITE3, TRUE_DAMPING, record, write_suite
@@ -45,19 +45,23 @@ def crashed_run(robot: RobotBinding, setup: tuple[Path, Path], out: Path, at: in
             raise RuntimeError("simulated crash")
 
     with pytest.raises(RuntimeError, match="simulated crash"):
-        align(ref, "mujoco", robot, suite, [DAMPING], out, callback=crash, **KWARGS)
+        run_align(AlignConfig(reference=str(ref), target="mujoco", robot=str(robot.path), suite=str(suite),
+                              knobs=[DAMPING], **KWARGS), out, callback=crash)
     return out / "checkpoint.json"
 
 
 def test_resume_replays_to_the_uninterrupted_run_bit_for_bit(tmp_path: Path, robot: RobotBinding,
                                                              setup: tuple[Path, Path]) -> None:
     suite, ref = setup
-    whole = align(ref, "mujoco", robot, suite, [DAMPING], tmp_path / "whole", **KWARGS)
+    whole = run_align(AlignConfig(reference=str(ref), target="mujoco", robot=str(robot.path),
+                                  suite=str(suite), knobs=[DAMPING], **KWARGS), tmp_path / "whole")
     checkpoint = crashed_run(robot, setup, tmp_path / "crashed")
     state = json.loads(checkpoint.read_text())
     assert state["schema"] == "dualtwin.align.checkpoint/2" and len(state["generations"]) == state["iteration"] == 2
     assert not [p for p in (tmp_path / "crashed").rglob("*") if p.suffix in (".pkl", ".pickle")]
-    resumed = align(ref, "mujoco", robot, suite, [DAMPING], tmp_path / "crashed", resume=True, **KWARGS)
+    resumed = run_align(AlignConfig(reference=str(ref), target="mujoco", robot=str(robot.path),
+                                    suite=str(suite), knobs=[DAMPING], **KWARGS), tmp_path / "crashed",
+                        resume=True)
     assert resumed.fitted == whole.fitted and resumed.evaluations == whole.evaluations
     # Every generation's solutions, objective values, sigma and mean: equal as floats, not merely close.
     final = [json.loads((tmp_path / d / "checkpoint.json").read_text()) for d in ("whole", "crashed")]
@@ -76,7 +80,8 @@ def test_checkpoint_paths_outside_the_folder_are_refused(tmp_path: Path, robot: 
     for value in ("../evil.pkl", str(outside), "sub/../../evil.pkl"):
         checkpoint.write_text(json.dumps({**state, "state_file": value}))
         with pytest.raises(DualtwinError, match="points outside the output folder") as info:
-            align(ref, "mujoco", robot, suite, [DAMPING], tmp_path / "run", resume=True, **KWARGS)
+            run_align(AlignConfig(reference=str(ref), target="mujoco", robot=str(robot.path),
+                                  suite=str(suite), knobs=[DAMPING], **KWARGS), tmp_path / "run", resume=True)
         assert "\n" not in str(info.value) and "state_file" in str(info.value)
     assert not marker.exists()
 
@@ -93,7 +98,8 @@ def test_an_old_pickle_checkpoint_is_never_unpickled(tmp_path: Path, robot: Robo
     checkpoint.write_text(json.dumps({**old, "schema": "dualtwin.align.checkpoint/1",
                                       "state_file": "cma_state_0002.pkl"}))
     with pytest.raises(DualtwinError, match="never loaded"):
-        align(ref, "mujoco", robot, suite, [DAMPING], tmp_path / "run", resume=True, **KWARGS)
+        run_align(AlignConfig(reference=str(ref), target="mujoco", robot=str(robot.path), suite=str(suite),
+                              knobs=[DAMPING], **KWARGS), tmp_path / "run", resume=True)
     assert not marker.exists()
 
 
@@ -116,5 +122,6 @@ def test_damaged_checkpoints_are_one_line_errors(tmp_path: Path, robot: RobotBin
         checkpoint.write_text("[1, 2]")
         match = "cannot resume"
     with pytest.raises(DualtwinError, match=match) as info:
-        align(ref, "mujoco", robot, suite, [DAMPING], tmp_path / "run", resume=True, **KWARGS)
+        run_align(AlignConfig(reference=str(ref), target="mujoco", robot=str(robot.path), suite=str(suite),
+                              knobs=[DAMPING], **KWARGS), tmp_path / "run", resume=True)
     assert "\n" not in str(info.value)

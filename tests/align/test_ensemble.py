@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
-from dualtwin.align import align
+from dualtwin.align import AlignConfig, run_align
 from dualtwin.align.objective import mean_trace
 from dualtwin.align.simulate import ScenarioTrace, ensemble_offsets, load_member_traces
 from dualtwin.divergence.runs import Series
@@ -69,8 +69,9 @@ def test_align_fits_the_ensemble_mean(tmp_path: Path, robot: RobotBinding, suite
     # The members differ, so their mean is not member 0's trajectory.
     gap = np.abs(mean_trace(fall).series["pole_angle_rad"].y - fall[0].series["pole_angle_rad"].y).max()
     assert gap > 0.01
-    result = align(ensemble_ref, "mujoco", robot, suite3, [DAMPING], tmp_path / "out", optimizer="lsq", budget=30,
-                   executor="serial", ensemble="mean")
+    result = run_align(AlignConfig(reference=str(ensemble_ref), target="mujoco", robot=str(robot.path),
+                                   suite=str(suite3), knobs=[DAMPING], optimizer="lsq", budget=30,
+                                   executor="serial", ensemble="mean"), tmp_path / "out")
     assert result.fitted[DAMPING] == pytest.approx(TRUE_DAMPING, rel=2e-2)
     assert result.objective_after < 0.05 * result.objective_before
     record = json.loads((tmp_path / "out" / "align_record.json").read_text())
@@ -79,7 +80,11 @@ def test_align_fits_the_ensemble_mean(tmp_path: Path, robot: RobotBinding, suite
 
 def test_ensemble_mean_needs_members(tmp_path: Path, robot: RobotBinding, suite3: Path, damped_ref: Path) -> None:
     with pytest.raises(DualtwinError, match="needs a run with ensemble members; this one has none"):
-        align(damped_ref, "mujoco", robot, suite3, [DAMPING], tmp_path / "a", executor="serial", ensemble="mean")
+        run_align(AlignConfig(reference=str(damped_ref), target="mujoco", robot=str(robot.path),
+                              suite=str(suite3), knobs=[DAMPING], executor="serial", ensemble="mean"),
+                  tmp_path / "a")
     with pytest.raises(DualtwinError, match="not a twin"):
-        align("webots", "mujoco", robot, suite3, [DAMPING], tmp_path / "b", executor="serial", ensemble="mean")
+        run_align(AlignConfig(reference="webots", target="mujoco", robot=str(robot.path),
+                              suite=str(suite3), knobs=[DAMPING], executor="serial", ensemble="mean"),
+                  tmp_path / "b")
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()

@@ -11,10 +11,11 @@ import mujoco
 import numpy as np
 import pytest
 
-from dualtwin.align import AlignResult, GenerationInfo, align
-from dualtwin.align.fit import interval_estimate, overfit_warning
+from dualtwin.align import AlignConfig, AlignResult, GenerationInfo, run_align
+from dualtwin.align.core import interval_estimate
 from dualtwin.align.knobs import KnobSpec
 from dualtwin.align.simulate import load_traces, simulate_twin
+from dualtwin.align.writers import overfit_warning
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding
 from dualtwin.twins.mujoco import MuJoCoTwin
@@ -29,14 +30,16 @@ def rel_error(result: AlignResult) -> float:
 
 @pytest.fixture(scope="module")
 def cma_fit(tmp_path_factory: pytest.TempPathFactory, robot: RobotBinding, suite3: Path, damped_ref: Path) -> AlignResult:
-    return align(damped_ref, "mujoco", robot, suite3, [DAMPING], tmp_path_factory.mktemp("cma") / "out",
-                 optimizer="cma", seed=1, executor="process")
+    return run_align(AlignConfig(reference=str(damped_ref), target="mujoco", robot=str(robot.path),
+                                 suite=str(suite3), knobs=[DAMPING], optimizer="cma", seed=1,
+                                 executor="process"), tmp_path_factory.mktemp("cma") / "out")
 
 
 @pytest.fixture(scope="module")
 def lsq_fit(tmp_path_factory: pytest.TempPathFactory, robot: RobotBinding, suite3: Path, damped_ref: Path) -> AlignResult:
-    return align(damped_ref, "mujoco", robot, suite3, [DAMPING], tmp_path_factory.mktemp("lsq") / "out",
-                 optimizer="lsq", executor="process")
+    return run_align(AlignConfig(reference=str(damped_ref), target="mujoco", robot=str(robot.path),
+                                 suite=str(suite3), knobs=[DAMPING], optimizer="lsq", executor="process"),
+                     tmp_path_factory.mktemp("lsq") / "out")
 
 
 def test_cma_recovers_the_damping(cma_fit: AlignResult) -> None:
@@ -88,27 +91,32 @@ def test_resume_after_a_crash_continues_from_the_checkpoint(tmp_path: Path, robo
         {"name": "drive", "duration_s": 1.0, "initial_angle": 0.05, "wheel_velocity": 4.0}]})
     ref = record(robot, suite, tmp_path / "ref", {DAMPING: TRUE_DAMPING})
     kwargs: dict[str, Any] = {"optimizer": "cma", "seed": 3, "budget": 30, "executor": "serial", "popsize": 4}
-    whole = align(ref, "mujoco", robot, suite, [DAMPING], tmp_path / "whole", **kwargs)
+    whole = run_align(AlignConfig(reference=str(ref), target="mujoco", robot=str(robot.path),
+                                  suite=str(suite), knobs=[DAMPING], **kwargs), tmp_path / "whole")
 
     def crash(info: GenerationInfo) -> None:
         if info.iteration == 2:
             raise RuntimeError("simulated crash")
 
     with pytest.raises(RuntimeError, match="simulated crash"):
-        align(ref, "mujoco", robot, suite, [DAMPING], tmp_path / "crashed", callback=crash, **kwargs)
+        run_align(AlignConfig(reference=str(ref), target="mujoco", robot=str(robot.path), suite=str(suite),
+                              knobs=[DAMPING], **kwargs), tmp_path / "crashed", callback=crash)
     checkpoint = json.loads((tmp_path / "crashed" / "checkpoint.json").read_text())
     assert checkpoint["iteration"] == 2 and not list((tmp_path / "crashed").glob("*.pkl"))
     with pytest.raises(DualtwinError, match="not empty"):
-        align(ref, "mujoco", robot, suite, [DAMPING], tmp_path / "crashed", **kwargs)
+        run_align(AlignConfig(reference=str(ref), target="mujoco", robot=str(robot.path), suite=str(suite),
+                              knobs=[DAMPING], **kwargs), tmp_path / "crashed")
     seen: list[int] = []
-    resumed = align(ref, "mujoco", robot, suite, [DAMPING], tmp_path / "crashed", resume=True,
-                    callback=lambda info: seen.append(info.iteration), **kwargs)
+    resumed = run_align(AlignConfig(reference=str(ref), target="mujoco", robot=str(robot.path),
+                                    suite=str(suite), knobs=[DAMPING], **kwargs), tmp_path / "crashed",
+                        resume=True, callback=lambda info: seen.append(info.iteration))
     assert seen[0] == 3  # nothing after the checkpoint was lost or repeated
     assert resumed.fitted == whole.fitted and resumed.evaluations == whole.evaluations
     traces = [json.loads((tmp_path / d / "align_record.json").read_text())["trace"] for d in ("whole", "crashed")]
     assert traces[0] == traces[1]
     with pytest.raises(DualtwinError, match="configuration differs"):
-        align(ref, "mujoco", robot, suite, [DAMPING], tmp_path / "crashed", resume=True, **{**kwargs, "seed": 4})
+        run_align(AlignConfig(reference=str(ref), target="mujoco", robot=str(robot.path), suite=str(suite),
+                              knobs=[DAMPING], **{**kwargs, "seed": 4}), tmp_path / "crashed", resume=True)
 
 
 def test_bound_warning_holdout_and_proposals(tmp_path: Path, robot: RobotBinding, suite3: Path,
@@ -118,9 +126,10 @@ def test_bound_warning_holdout_and_proposals(tmp_path: Path, robot: RobotBinding
     # residuals ripple by a few per cent, enough to stall least squares short of a bound; near it they fall
     # steeply, so the fit reaches the bound from the accepted proposal. (At 0.04 it stalled at 0.038 once the
     # MuJoCo twin read body poses at the stepped state instead of one physics step earlier.)
-    result = align(damped_ref, "mujoco", robot, suite3, [DAMPING], tmp_path / "out", optimizer="lsq",
-                   executor="serial", bounds={DAMPING: (0.0, 0.045)}, holdout=["02_drive"],
-                   propose_fn=lambda analysis: proposals if analysis.findings else [])
+    result = run_align(AlignConfig(reference=str(damped_ref), target="mujoco", robot=str(robot.path),
+                                   suite=str(suite3), knobs=[DAMPING], optimizer="lsq", executor="serial",
+                                   bounds={DAMPING: (0.0, 0.045)}, holdout=["02_drive"]), tmp_path / "out",
+                       propose_fn=lambda analysis: proposals if analysis.findings else [])
     assert [p.accepted for p in result.proposals] == [True, False, False]
     assert result.fitted[DAMPING] == pytest.approx(0.045) and result.knobs[DAMPING].at_bound == "upper"
     assert any("ended at its upper bound" in w for w in result.warnings)
@@ -136,7 +145,9 @@ def test_bound_warning_holdout_and_proposals(tmp_path: Path, robot: RobotBinding
     ({"bounds": {DAMPING: (0.1, 0.5)}}, "exclude its nominal value 0"),
     ({"holdout": ["99_nope"]}, r"holdout names unknown scenarios \['99_nope'\]"),
     ({"holdout": SUITE3_IDS}, "nothing is left to fit"),
-    ({"executor": "threads"}, "unknown executor"),
+    ({"executor": "threads"}, "executor\n  Input should be 'serial', 'process' or 'ray'"),
+    ({"objective": "prediction", "holdout": ["02_drive"]}, "the prediction objective does not take holdout"),
+    ({"stride": 2}, "stride apply only to the prediction objective"),
     ({"reference": "bullet"}, "neither a run directory"),
 ])
 def test_bad_input(tmp_path: Path, robot: RobotBinding, suite3: Path, damped_ref: Path, kwargs: dict[str, Any],
@@ -144,9 +155,13 @@ def test_bad_input(tmp_path: Path, robot: RobotBinding, suite3: Path, damped_ref
     args: dict[str, Any] = {"reference": damped_ref, "knob_patterns": [DAMPING]}
     args.update(kwargs)
     reference, patterns = args.pop("reference"), args.pop("knob_patterns")
-    with pytest.raises(DualtwinError, match=message):
-        align(reference, "mujoco", robot, suite3, patterns, tmp_path / "out", executor=args.pop("executor", "serial"),
-              **args)
+    # A value the config's own types refuse is a pydantic validation error (a ValueError); the rest are ours.
+    error = ValueError if "Input should" in message else DualtwinError
+    with pytest.raises(error, match=message):
+        run_align(AlignConfig(reference=str(reference), target="mujoco", robot=str(robot.path),
+                              suite=str(suite3), knobs=list(patterns),
+                              executor=args.pop("executor", "serial"), **args), tmp_path / "out")
+    assert not (tmp_path / "out").exists()
 
 
 def test_reference_must_match_the_suite(tmp_path: Path, robot: RobotBinding, suite3: Path, damped_ref: Path) -> None:
@@ -155,19 +170,23 @@ def test_reference_must_match_the_suite(tmp_path: Path, robot: RobotBinding, sui
     other = write_suite(tmp_path / "other.json", {**SUITE3, "scenarios": renamed})
     ref = record(robot, other, tmp_path / "ref")
     with pytest.raises(DualtwinError, match=r"shares no scenario with the suite: the suite has \['00_fall'"):
-        align(ref, "mujoco", robot, suite3, [DAMPING], tmp_path / "out", executor="serial")
+        run_align(AlignConfig(reference=str(ref), target="mujoco", robot=str(robot.path), suite=str(suite3),
+                              knobs=[DAMPING], executor="serial"), tmp_path / "out")
     (tmp_path / "busy").mkdir()
     (tmp_path / "busy" / "x").write_text("x")
     assert not (tmp_path / "out").exists()
     with pytest.raises(DualtwinError, match="not empty"):
-        align(damped_ref, "mujoco", robot, suite3, [DAMPING], tmp_path / "busy", executor="serial")
+        run_align(AlignConfig(reference=str(damped_ref), target="mujoco", robot=str(robot.path),
+                              suite=str(suite3), knobs=[DAMPING], executor="serial"), tmp_path / "busy")
 
 
 def test_ray_is_optional(tmp_path: Path, robot: RobotBinding, suite3: Path, damped_ref: Path) -> None:
     if importlib.util.find_spec("ray") is not None:
         pytest.skip("Ray is installed")
     with pytest.raises(DualtwinError, match=r"pip install 'dualtwin\[ray\]'"):
-        align(damped_ref, "mujoco", robot, suite3, [DAMPING], tmp_path / "out", executor="ray", ray_address="auto")
+        run_align(AlignConfig(reference=str(damped_ref), target="mujoco", robot=str(robot.path),
+                              suite=str(suite3), knobs=[DAMPING], executor="ray", ray_address="auto"),
+                  tmp_path / "out")
     assert not (tmp_path / "out").exists()
 
 
@@ -195,8 +214,9 @@ def test_overfit_warning() -> None:
 
 
 def test_webots_can_be_the_target(tmp_path: Path, robot: RobotBinding, suite3: Path, damped_ref: Path) -> None:
-    result = align(damped_ref, "webots", robot, suite3, [DAMPING], tmp_path / "out", optimizer="cma", budget=9,
-                   popsize=4, executor="serial")
+    result = run_align(AlignConfig(reference=str(damped_ref), target="webots", robot=str(robot.path),
+                                   suite=str(suite3), knobs=[DAMPING], optimizer="cma", budget=9, popsize=4,
+                                   executor="serial"), tmp_path / "out")
     assert result.objective_after <= result.objective_before and result.evaluations <= 12
     patch = json.loads((tmp_path / "out" / "align_record.json").read_text())["model_patch"]
     # The Webots writer's patch hook may not exist yet; then the record says so and knobs.json holds the values.
@@ -206,7 +226,9 @@ def test_webots_can_be_the_target(tmp_path: Path, robot: RobotBinding, suite3: P
 def test_a_typo_leaves_the_output_folder_untouched(tmp_path: Path, robot: RobotBinding, suite3: Path,
                                                    damped_ref: Path) -> None:
     with pytest.raises(DualtwinError, match="did you mean"):
-        align(damped_ref, "mujoco", robot, suite3, ["joint.pole_hing.damping"], tmp_path / "out", executor="serial")
+        run_align(AlignConfig(reference=str(damped_ref), target="mujoco", robot=str(robot.path),
+                              suite=str(suite3), knobs=["joint.pole_hing.damping"], executor="serial"),
+                  tmp_path / "out")
     assert not (tmp_path / "out").exists()
 
 
@@ -214,8 +236,9 @@ def test_lsq_screens_integer_knobs_then_fits_the_continuous_ones(tmp_path: Path,
                                                                    suite3: Path) -> None:
     truth = {"control.delay_periods": 2, DAMPING: TRUE_DAMPING}
     ref = record(robot, suite3, tmp_path / "ref", truth)
-    result = align(ref, "mujoco", robot, suite3, ["control.delay_periods", DAMPING], tmp_path / "out",
-                   optimizer="lsq", executor="serial")
+    result = run_align(AlignConfig(reference=str(ref), target="mujoco", robot=str(robot.path),
+                                   suite=str(suite3), knobs=["control.delay_periods", DAMPING],
+                                   optimizer="lsq", executor="serial"), tmp_path / "out")
     assert result.fitted["control.delay_periods"] == 2
     assert rel_error(result) < 0.05
     trace = json.loads((tmp_path / "out" / "align_record.json").read_text())["trace"]
@@ -230,7 +253,8 @@ def test_cma_starts_from_the_best_integer_setting(tmp_path: Path, robot: RobotBi
     # A coarse step far from the nominal 16 sub-steps: every integer is simulated before CMA-ES starts, so the
     # search begins there instead of wandering across a rough landscape in rounded steps.
     ref = record(robot, suite3, tmp_path / "ref", {"physics.substeps": 4})
-    result = align(ref, "mujoco", robot, suite3, ["physics.substeps", DAMPING], tmp_path / "out", optimizer="cma",
-                   executor="serial", budget=40, popsize=4, seed=2)
+    result = run_align(AlignConfig(reference=str(ref), target="mujoco", robot=str(robot.path),
+                                   suite=str(suite3), knobs=["physics.substeps", DAMPING], optimizer="cma",
+                                   executor="serial", budget=40, popsize=4, seed=2), tmp_path / "out")
     assert result.fitted["physics.substeps"] == 4 and result.fitted[DAMPING] < 1e-3
     assert result.objective_after < 1e-3 * result.objective_before

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from dualtwin.align import align, analyze_runs, write_analysis
+from dualtwin.align import AlignConfig, analyze_runs, run_align, write_analysis
 from dualtwin.align.narrate import LABEL, LLMProposer
 from dualtwin.genai.llm import LLMConfig, make_llm
 from dualtwin.robots.binding import RobotBinding
@@ -83,8 +83,10 @@ def test_malformed_reply_leaves_the_analysis_alone(robot: RobotBinding, damped_r
 def test_align_starts_from_the_kept_proposal(tmp_path: Path, robot: RobotBinding, suite3: Path,
                                              damped_ref: Path) -> None:
     with replay_server([Reply(SCRIPTED)]) as (base, _):
-        result = align(damped_ref, "mujoco", robot, suite3, [DAMPING], tmp_path / "out", optimizer="cma", budget=8,
-                       popsize=4, executor="serial", propose_fn=proposer(base))
+        result = run_align(AlignConfig(reference=str(damped_ref), target="mujoco", robot=str(robot.path),
+                                       suite=str(suite3), knobs=[DAMPING], optimizer="cma", budget=8,
+                                       popsize=4, executor="serial"), tmp_path / "out",
+                           propose_fn=proposer(base))
     assert [p.accepted for p in result.proposals] == [True, False]
     assert result.narrative is not None and result.narrative["proposals"][0]["status"] == "kept"
     # The search started from the kept proposal, so even this tiny budget ends near the true damping.

@@ -9,7 +9,7 @@ from typing import Any
 
 import pytest
 
-from dualtwin.align import align
+from dualtwin.align import AlignConfig, run_align
 from dualtwin.robots.binding import RobotBinding
 
 pytestmark = pytest.mark.skipif(importlib.util.find_spec("ray") is None,
@@ -33,10 +33,12 @@ def local_ray() -> Iterator[Any]:
 def test_ray_executor_matches_the_process_pool(local_ray: Any, tmp_path: Path, robot: RobotBinding,
                                                 suite3: Path, damped_ref: Path) -> None:
     kwargs: dict[str, Any] = {"optimizer": "cma", "seed": 5, "budget": 8, "popsize": 4}
-    on_ray = align(damped_ref, "mujoco", robot, suite3, [DAMPING], tmp_path / "ray", executor="ray",
-                   ray_address=None, **kwargs)
-    in_pool = align(damped_ref, "mujoco", robot, suite3, [DAMPING], tmp_path / "pool", executor="process",
-                    **kwargs)
+    on_ray = run_align(AlignConfig(reference=str(damped_ref), target="mujoco", robot=str(robot.path),
+                                   suite=str(suite3), knobs=[DAMPING], executor="ray", ray_address=None,
+                                   **kwargs), tmp_path / "ray")
+    in_pool = run_align(AlignConfig(reference=str(damped_ref), target="mujoco", robot=str(robot.path),
+                                    suite=str(suite3), knobs=[DAMPING], executor="process", **kwargs),
+                        tmp_path / "pool")
     assert local_ray.is_initialized()
     assert on_ray.evaluations == in_pool.evaluations >= 8
     assert on_ray.fitted == in_pool.fitted

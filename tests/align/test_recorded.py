@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dualtwin.align import AlignResult, align
+from dualtwin.align import AlignConfig, AlignResult, run_align
 from dualtwin.align.nuisance import SHARED_TIME_OFFSET, apply_to_suite, registry, time_offsets
 from dualtwin.align.objective import event_difference
 from dualtwin.align.patch import patch_mjcf
@@ -62,8 +62,10 @@ def recording(tmp_path_factory: pytest.TempPathFactory, robot: RobotBinding) -> 
 @pytest.fixture(scope="module")
 def with_nuisance(tmp_path_factory: pytest.TempPathFactory, robot: RobotBinding, suite3: Path,
                   recording: Path) -> AlignResult:
-    return align(recording, "mujoco", robot, suite3, [DAMPING, KICK, SHARED_TIME_OFFSET],
-                 tmp_path_factory.mktemp("nuisance") / "out", optimizer="lsq", budget=120, executor="serial")
+    return run_align(AlignConfig(reference=str(recording), target="mujoco", robot=str(robot.path),
+                                 suite=str(suite3), knobs=[DAMPING, KICK, SHARED_TIME_OFFSET],
+                                 optimizer="lsq", budget=120, executor="serial"),
+                     tmp_path_factory.mktemp("nuisance") / "out")
 
 
 def test_align_fits_the_shared_channels_and_scenarios_and_says_what_it_left_out(with_nuisance: AlignResult) -> None:
@@ -92,8 +94,9 @@ def test_nuisance_knobs_are_recovered_with_the_physics(with_nuisance: AlignResul
 def test_without_nuisance_knobs_the_physics_absorbs_the_kick(tmp_path: Path, robot: RobotBinding, suite3: Path,
                                                              recording: Path, with_nuisance: AlignResult) -> None:
     """The control: the same fit without nuisance knobs ends farther from the true damping and the data."""
-    physics_only = align(recording, "mujoco", robot, suite3, [DAMPING], tmp_path / "out", optimizer="lsq",
-                         budget=60, executor="serial")
+    physics_only = run_align(AlignConfig(reference=str(recording), target="mujoco", robot=str(robot.path),
+                                         suite=str(suite3), knobs=[DAMPING], optimizer="lsq", budget=60,
+                                         executor="serial"), tmp_path / "out")
     assert abs(physics_only.fitted[DAMPING] - TRUE_DAMPING) > 20 * abs(with_nuisance.fitted[DAMPING] - TRUE_DAMPING)
     assert physics_only.objective_after > 100 * with_nuisance.objective_after
     assert not physics_only.nuisance
@@ -127,7 +130,9 @@ def test_nothing_shared_is_one_clear_line(tmp_path: Path, robot: RobotBinding, s
         bad.mkdir()
         (bad / "manifest.json").write_text(json.dumps({**manifest, **change}))
         with pytest.raises(DualtwinError) as err:
-            align(bad, "mujoco", robot, suite3, [DAMPING], tmp_path / f"out_{case}", executor="serial")
+            run_align(AlignConfig(reference=str(bad), target="mujoco", robot=str(robot.path),
+                                  suite=str(suite3), knobs=[DAMPING], executor="serial"),
+                      tmp_path / f"out_{case}")
         assert f"shares no {case}" in str(err.value) and "\n" not in str(err.value)
         assert not (tmp_path / f"out_{case}").exists()
 

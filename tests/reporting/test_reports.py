@@ -100,10 +100,11 @@ def test_analysis_report_says_no_effect_instead_of_nan(twin_runs: tuple[Path, Pa
 
 
 def test_alignment_report(suite_file: Path, tmp_path: Path) -> None:
-    from dualtwin.align import align
+    from dualtwin.align import AlignConfig, run_align
 
-    result = align("webots", "mujoco", "cartpole", suite_file, ["joint.pole_hinge.damping"], tmp_path / "al",
-                   optimizer="lsq", budget=6, workers=1)
+    result = run_align(AlignConfig(reference="webots", target="mujoco", robot="cartpole",
+                                   suite=str(suite_file), knobs=["joint.pole_hinge.damping"], optimizer="lsq",
+                                   budget=6, workers=1), tmp_path / "al")
     page = check_page(result.out_dir / "report.html")
     assert "joint.pole_hinge.damping" in page.cells
     assert "Alignment: mujoco to the reference (webots)" in (result.out_dir / "report.html").read_text()

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dualtwin.align import align
+from dualtwin.align import AlignConfig, run_align
 from dualtwin.divergence.trajectories import save_trajectories
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding
@@ -71,8 +71,10 @@ def test_prediction_objective_recovers_doubled_damping(tmp_path: Path, damped_ca
     """Nominal damping 0.05, the reference has 0.1 (x2): the fit finds it within 5 %."""
     truth = 2 * NOMINAL_DAMPING
     kwargs = {"budget": 40, "popsize": 6} if optimizer == "cma" else {}
-    result = align("mujoco", "mujoco", damped_cartpole, suite, [DAMPING], tmp_path / "fit", optimizer=optimizer,
-                   reference_knobs={DAMPING: truth}, objective="prediction", executor="serial", stride=4, **kwargs)
+    result = run_align(AlignConfig(reference="mujoco", target="mujoco", robot=str(damped_cartpole.path),
+                                   suite=str(suite), knobs=[DAMPING], optimizer=optimizer,
+                                   reference_knobs={DAMPING: truth}, objective="prediction",
+                                   executor="serial", stride=4, **kwargs), tmp_path / "fit")
     assert abs(result.fitted[DAMPING] - truth) / truth < 0.05
     assert result.objective_after < 0.01 * result.objective_before
     assert result.condition_number == pytest.approx(1.0)
@@ -90,9 +92,11 @@ def test_prediction_objective_from_a_lockstep_recording(tmp_path: Path, cartpole
     from dualtwin.sync import run_lockstep
 
     run_lockstep("mujoco", "mujoco", cartpole, suite=suite, out_dir=tmp_path / "ls", primary_knobs={DAMPING: 0.08})
-    result = align(tmp_path / "ls", "mujoco", cartpole, suite, [DAMPING], tmp_path / "fit", optimizer="lsq",
-                   objective="prediction", executor="serial", budget=40)
+    result = run_align(AlignConfig(reference=str(tmp_path / "ls"), target="mujoco", robot=str(cartpole.path),
+                                   suite=str(suite), knobs=[DAMPING], optimizer="lsq", objective="prediction",
+                                   executor="serial", budget=40), tmp_path / "fit")
     assert result.fitted[DAMPING] == pytest.approx(0.08, rel=0.05)
     with pytest.raises(DualtwinError, match="does not take holdout"):
-        align(tmp_path / "ls", "mujoco", cartpole, suite, [DAMPING], tmp_path / "x", objective="prediction",
-              holdout=["00_fall"])
+        run_align(AlignConfig(reference=str(tmp_path / "ls"), target="mujoco", robot=str(cartpole.path),
+                              suite=str(suite), knobs=[DAMPING], objective="prediction", holdout=["00_fall"]),
+                  tmp_path / "x")

@@ -2,61 +2,88 @@
 
 Typical use::
 
-    from dualtwin.align import align, analyze_runs, write_analysis
+    from dualtwin.align import AlignConfig, analyze_runs, run_align, write_analysis
 
     analysis = analyze_runs(Path("runs/webots"), Path("runs/mujoco"), robot="cartpole", twin_b="mujoco")
     write_analysis(analysis, Path("runs/analysis"))
-    result = align(Path("runs/webots"), "mujoco", "cartpole", suite, ["joint.*.damping"], Path("runs/align"))
+    config = AlignConfig(reference="runs/webots", target="mujoco", robot="cartpole", suite="suite.json",
+                         knobs=["joint.*.damping"], optimizer="lsq")
+    result = run_align(config, Path("runs/align"))
 
-Modules: `knobs` (selection, bounds, the knob table), `simulate` (in-memory suite runs, process/Ray
-pools), `objective` (pure objective and residuals), `analyze` (findings, sensitivities), `fit` (CMA-ES /
-least squares, checkpoints), `dr` (calibrated randomisation ranges), `patch` (model files), `propose`
-(the proposal hook), `report` (before/after HTML), `nuisance` (per-scenario initial conditions and time
-offsets fitted next to the physics, never written into the model) and `reference` (what a reference shares
-with the suite, its ensemble members).
+A small library in the spirit of ``mujoco.sysid``, in layers:
+
+* the field list and the entry point: `config` (:class:`AlignConfig`, the only list of an alignment's
+  inputs and settings; the CLI derives its options from it) and `run` (:func:`run_align`);
+* the optimiser core: `core` (the :class:`Problem` protocol and :class:`CachedProblem` base, evaluated
+  points, uncertainty and intervals) and `optimize` (CMA-ES, least squares, checkpoints and resume);
+* objectives as peers, each a problem: `trajectory` (suite runs against the reference), `ensemble` (the
+  mean of an ensemble reference's members) and `prediction` (short-horizon prediction errors);
+* writers: `writers` (knobs.json, dr_ranges.json, the patched model, align_record.json, the terminal
+  summary) and `report` (the HTML reports);
+* the pieces they use: `knobs` (selection, bounds, the knob table), `simulate` (in-memory suite runs,
+  process/Ray pools), `objective` (pure objective terms and residuals), `analyze` (findings,
+  sensitivities; `analysis_report` writes them), `dr` (calibrated randomisation ranges), `patch` (model files), `propose` and `narrate`
+  (the proposal hook, the LLM narrative), `nuisance` (per-scenario initial conditions and time offsets
+  fitted next to the physics, never written into the model) and `reference` (what a reference shares with
+  the suite, its ensemble members).
 """
 
 from __future__ import annotations
 
+from dualtwin.align.analysis_report import print_analysis, write_analysis
 from dualtwin.align.analyze import (
     Analysis,
     AnalysisConfig,
     Finding,
     KnobSensitivity,
     analyze_runs,
-    print_analysis,
-    write_analysis,
 )
-from dualtwin.align.fit import (
-    AlignConfig,
-    AlignResult,
+from dualtwin.align.config import AlignConfig
+from dualtwin.align.core import (
+    CachedProblem,
+    Evaluation,
     GenerationInfo,
-    KnobFit,
-    align,
-    print_result,
-    sysid_status,
+    Outcome,
+    Point,
+    Problem,
+    Uncertainty,
+    estimate_uncertainty,
+    interval_estimate,
 )
 from dualtwin.align.knobs import KnobSpec, select_knobs
 from dualtwin.align.objective import ObjectiveWeights
+from dualtwin.align.optimize import fit_cma, fit_lsq, sysid_status
 from dualtwin.align.propose import ProposalOutcome, ProposeFn
+from dualtwin.align.run import run_align
+from dualtwin.align.writers import AlignResult, KnobFit, print_result
 
 __all__ = [
     "AlignConfig",
     "AlignResult",
     "Analysis",
     "AnalysisConfig",
+    "CachedProblem",
+    "Evaluation",
     "Finding",
     "GenerationInfo",
     "KnobFit",
     "KnobSensitivity",
     "KnobSpec",
     "ObjectiveWeights",
+    "Outcome",
+    "Point",
+    "Problem",
     "ProposalOutcome",
     "ProposeFn",
-    "align",
+    "Uncertainty",
     "analyze_runs",
+    "estimate_uncertainty",
+    "fit_cma",
+    "fit_lsq",
+    "interval_estimate",
     "print_analysis",
     "print_result",
+    "run_align",
     "select_knobs",
     "sysid_status",
     "write_analysis",

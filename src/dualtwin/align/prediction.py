@@ -10,16 +10,15 @@ trajectory objective sees a rough one.
 
 The reference is a twin (run once over a suite, with ``reference_knobs``, recording full states), or a
 trajectory file (``trajectories.npz`` written by :func:`dualtwin.sync.run_lockstep`,
-:func:`dualtwin.sync.prediction_error` or the online monitor). Optimisers, checkpoints and resume,
-uncertainty and outputs are those of :func:`dualtwin.align.align`: ``knobs.json``, ``dr_ranges.json``, the
-patched model, ``align_record.json`` and a report (``report.html``: prediction error before and after).
-Use it through ``align(..., objective="prediction")`` or :func:`align_prediction`.
+:func:`dualtwin.sync.prediction_error` or the online monitor). It is a peer of the trajectory objective:
+:class:`PredictionProblem` implements the same problem protocol, so optimisers, checkpoints and resume,
+uncertainty and outputs are the same (``knobs.json``, ``dr_ranges.json``, the patched model,
+``align_record.json``) and its report (``report.html``) shows the prediction error before and after.
+Use it through :func:`dualtwin.align.run_align` with ``AlignConfig(objective="prediction", ...)``.
 """
 
 from __future__ import annotations
 
-import html
-import json
 import math
 import multiprocessing
 import time
@@ -27,29 +26,26 @@ from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
-from pydantic import Field
 
-from dualtwin.align.dr import dr_document, ranges_from_intervals, ranges_from_population
-from dualtwin.align.fit import (
-    AlignConfig,
-    AlignResult,
-    GenerationInfo,
-    Optimizer,
-    _fit_cma,
-    _fit_lsq,
-    _patch_model,
-    _Point,
-    _Problem,
-    _uncertainty,
-    fit_records,
-    sysid_status,
-)
+from dualtwin.align.config import AlignConfig
+from dualtwin.align.core import CachedProblem, Evaluation, GenerationInfo, estimate_uncertainty
+from dualtwin.align.dr import ranges_from_intervals, ranges_from_population
 from dualtwin.align.knobs import KnobSpec, check_values, select_knobs, unit_from_values, values_from_unit
+from dualtwin.align.optimize import fit_cma, fit_lsq
+from dualtwin.align.report import prediction_report_html
 from dualtwin.align.simulate import DEFAULT_WORKERS, ExecutorKind
-from dualtwin.artifacts import json_safe, package_versions, sha256_file, write_json, write_text
+from dualtwin.align.writers import (
+    AlignResult,
+    fit_records,
+    prediction_record,
+    write_dr_ranges,
+    write_knobs,
+    write_patched_model,
+)
+from dualtwin.artifacts import sha256_file, write_json, write_text
 from dualtwin.divergence.channels import channel_scales
 from dualtwin.divergence.prediction import PredictionSettings, plot_prediction, predict
 from dualtwin.divergence.trajectories import (
@@ -66,19 +62,6 @@ from dualtwin.twins import TWINS, make_twin
 from dualtwin.twins.base import Twin
 
 REFERENCE_FILE = "reference_trajectories.npz"
-#: Horizons of the objective: 1 and 5 periods stay smooth in the knobs; 25 periods already cross impacts (a
-#: pole landing on its stop) and make the residual as rough as an open-loop one.
-OBJECTIVE_HORIZONS = (1, 5)
-
-
-class PredictionAlignConfig(AlignConfig):
-    """:class:`AlignConfig` plus the prediction objective's settings (resume requires them unchanged)."""
-
-    objective: Literal["prediction"] = "prediction"
-    horizons: list[int] = Field(default_factory=lambda: list(OBJECTIVE_HORIZONS))
-    stride: int = Field(default=5, ge=1)
-    scales: dict[str, float] = Field(default_factory=dict)
-    reference_sha256: str = ""
 
 
 @dataclass(frozen=True)
@@ -169,47 +152,21 @@ class PredictionEvaluator:
         self.close()
 
 
-class PredictionProblem(_Problem):
-    """Unit-cube points -> prediction residuals; the training value is ``‖r‖²`` (what both optimisers minimise)."""
+class PredictionProblem(CachedProblem):
+    """Unit-cube points -> prediction residuals; the training value is ``‖r‖²`` (what both optimisers minimise).
+
+    Each point keeps its prediction error table (``details``) for the report and the record.
+    """
 
     def __init__(self, specs: Sequence[KnobSpec], job: PredictionJob, evaluator: PredictionEvaluator, budget: int,
                  regularization: float = 0.0) -> None:
-        # The base class's simulation job, objective spec and evaluator are suite-run specific; only the parts
-        # the optimisers use (specs, counting, the point cache, regularisation) are set up here.
-        self.specs = list(specs)
-        self.regularization = regularization
-        self.u0 = np.array(unit_from_values(specs, {}))
-        self.objective_scale = 0.0
-        self.residual_scale = 0.0
-        self.budget = budget
-        self.evaluations = 0
-        self._cache: dict[tuple[float, ...], _Point] = {}
-        self.prediction_job = job
-        self.prediction_evaluator = evaluator
-        self.tables: dict[tuple[float, ...], dict[str, Any]] = {}
+        super().__init__(specs, budget, regularization)
+        self.job = job
+        self.evaluator = evaluator
 
-    def run(self, points: Sequence[Sequence[float]]) -> list[_Point]:
-        points = [[min(1.0, max(0.0, float(x))) for x in p] for p in points]
-        fresh = [p for i, p in enumerate(points) if tuple(p) not in self._cache and p not in points[:i]]
-        results = self.prediction_evaluator.map([self.prediction_job.with_knobs(self.values(p)) for p in fresh])
-        self.evaluations += len(fresh)
-        for p, outcome in zip(fresh, results, strict=True):
-            self._cache[tuple(p)] = self._score_residuals(list(p), outcome.residuals)
-            self.tables[tuple(p)] = outcome.table
-        return [self._cache[tuple(p)] for p in points]
-
-    def run_values(self, values: Sequence[Mapping[str, float]]) -> list[float]:
-        results = self.prediction_evaluator.map([self.prediction_job.with_knobs(v) for v in values])
-        self.evaluations += len(values)
-        return [float(r.residuals @ r.residuals) for r in results]
-
-    def _score_residuals(self, u: list[float], r: np.ndarray) -> _Point:
-        train = float(r @ r)
-        if self.regularization:
-            shift = np.asarray(u) - self.u0
-            train += self.regularization * self.objective_scale * float(np.mean(shift ** 2))
-            r = np.concatenate([r, math.sqrt(self.regularization * self.residual_scale / shift.size) * shift])
-        return _Point(u, train, None, r)
+    def evaluate_knobs(self, values: Sequence[Mapping[str, float]]) -> list[Evaluation]:
+        results = self.evaluator.map([self.job.with_knobs(v) for v in values])
+        return [Evaluation(float(r.residuals @ r.residuals), None, r.residuals, r.table) for r in results]
 
 
 def _reference_trajectories(reference: str | Path, binding: RobotBinding, suite: Path | None,
@@ -245,78 +202,40 @@ def _reference_trajectories(reference: str | Path, binding: RobotBinding, suite:
     return target, trajectories, "file"
 
 
-def align_prediction(
-    reference: str | Path,
-    target_twin_name: str,
-    robot: str | RobotBinding,
-    suite_path: Path | None,
-    knob_patterns: Sequence[str],
-    out_dir: Path,
-    *,
-    optimizer: Optimizer = "cma",
-    seed: int = 0,
-    budget: int = 600,
-    resume: bool = False,
-    executor: ExecutorKind = "process",
-    workers: int = 2,
-    bounds: Mapping[str, tuple[float, float]] | None = None,
-    reference_knobs: Mapping[str, float] | None = None,
-    horizons: Sequence[int] = OBJECTIVE_HORIZONS,
-    stride: int = 5,
-    scales: Mapping[str, float] | None = None,
-    popsize: int | None = None,
-    sigma0: float = 0.25,
-    patience: int | None = None,
-    fd_step: float = 0.03,
-    regularization: float = 0.0,
-    callback: Callable[[GenerationInfo], None] | None = None,
-) -> AlignResult:
-    """Fit the target twin's knobs with the prediction objective; same outputs as :func:`dualtwin.align.align`.
+def run_prediction(config: AlignConfig, out_dir: Path, *, resume: bool = False,
+                   callback: Callable[[GenerationInfo], None] | None = None) -> AlignResult:
+    """Fit the target twin's knobs with the prediction objective; see :func:`dualtwin.align.run_align`.
 
-    Args:
-        reference: A twin name (recorded over ``suite_path`` with ``reference_knobs``), a trajectory file, or
-            a folder holding ``trajectories.npz`` (a lockstep or prediction-error run).
-        target_twin_name: Twin whose knobs are fitted.
-        robot: Robot name or binding.
-        suite_path: Suite to record a twin reference on (may be None for a trajectory file).
-        knob_patterns: Knob names or globs of the target twin.
-        out_dir: Output folder (empty unless ``resume``).
-        horizons: Prediction horizons in control periods.
-        stride: A start state every ``stride`` periods of every reference trajectory.
-        scales: Channel scale overrides (fnmatch patterns; ``inf`` ignores a channel).
-
-    The other arguments mean what they mean for :func:`dualtwin.align.align`.
+    ``config.reference`` is a twin name (recorded over ``config.suite`` with ``reference_knobs``), a
+    trajectory file, or a folder holding ``trajectories.npz`` (a lockstep or prediction-error run);
+    ``config.suite`` may be empty for a trajectory file.
     """
     t_start = time.perf_counter()
     out = Path(out_dir)
-    binding = resolve_robot(robot) if isinstance(robot, str) else robot
-    if optimizer not in ("cma", "lsq"):
-        raise DualtwinError(f"unknown optimizer {optimizer!r}; use 'cma' or 'lsq'")
-    settings = PredictionSettings(tuple(int(h) for h in horizons), int(stride), dict(scales or {}))
-    suite = Path(suite_path) if suite_path is not None else None
+    binding = resolve_robot(config.robot)
+    optimizer, seed = config.optimizer, config.seed
+    settings = PredictionSettings(tuple(int(h) for h in config.horizons), int(config.stride), dict(config.scales))
+    suite = Path(config.suite) if config.suite else None
     config_path = out / "align_config.json"
     if not resume and out.exists() and any(out.iterdir()):
         raise DualtwinError(f"{out}: output folder is not empty; use resume to continue an alignment, "
                             "or choose another folder")
     out.mkdir(parents=True, exist_ok=True)
-    ref_path, trajectories, kind = _reference_trajectories(reference, binding, suite, dict(reference_knobs or {}),
-                                                           seed, out, resume)
+    ref_path, trajectories, kind = _reference_trajectories(config.reference, binding, suite,
+                                                           dict(config.reference_knobs), seed, out, resume)
     period = trajectories[0].period
-    config = PredictionAlignConfig(
-        reference=str(reference), reference_kind="twin" if kind == "twin" else "run",
-        reference_knobs=dict(reference_knobs or {}), target=target_twin_name, robot=str(binding.path),
-        suite=str(suite.resolve()) if suite is not None else "", knobs=list(knob_patterns),
-        bounds={k: (float(v[0]), float(v[1])) for k, v in (bounds or {}).items()}, optimizer=optimizer, seed=seed,
-        budget=budget, popsize=popsize, sigma0=sigma0, patience=patience, fd_step=fd_step,
-        regularization=regularization, executor=executor, workers=workers, horizons=list(settings.horizons),
-        stride=settings.stride, scales=dict(settings.scales), reference_sha256=sha256_file(ref_path))
-    if resume and config_path.is_file() and read_json(config_path) != json.loads(config.model_dump_json()):
+    config = config.model_copy(update={
+        "reference_kind": "twin" if kind == "twin" else "run", "robot": str(binding.path),
+        "suite": str(suite.resolve()) if suite is not None else "", "horizons": list(settings.horizons),
+        "stride": settings.stride, "scales": dict(settings.scales), "reference_sha256": sha256_file(ref_path)})
+    if resume and config_path.is_file() and read_json(config_path) != config.saved():
         raise DualtwinError(f"{config_path}: cannot resume: the configuration differs from the interrupted run")
-    write_json(config_path, json.loads(config.model_dump_json()))
+    write_json(config_path, config.saved())
 
+    target_twin_name = config.target
     target: Twin = make_twin(target_twin_name, binding, period)
     try:
-        specs = select_knobs(target.knobs(), list(knob_patterns), config.bounds, where=f"twin {target_twin_name!r}")
+        specs = select_knobs(target.knobs(), list(config.knobs), config.bounds, where=f"twin {target_twin_name!r}")
     finally:
         target.close()
     if optimizer == "lsq":
@@ -327,97 +246,46 @@ def align_prediction(
     job = PredictionJob(str(binding.path), target_twin_name, period, str(ref_path.resolve()), settings.horizons,
                         settings.stride, tuple(sorted(settings.scales.items())), seed)
     warnings: list[str] = []
-    with PredictionEvaluator(executor, workers) as evaluator:
-        problem = PredictionProblem(specs, job, evaluator, budget, regularization)
+    with PredictionEvaluator(config.executor, config.workers) as evaluator:
+        problem = PredictionProblem(specs, job, evaluator, config.budget, config.regularization)
         nominal_u = unit_from_values(specs, {})
         before = problem.run([nominal_u])[0]
         problem.calibrate(before)
-        fit = _fit_cma if optimizer == "cma" else _fit_lsq
+        fit = fit_cma if optimizer == "cma" else fit_lsq
         outcome = fit(problem, config, out, nominal_u, before.train, resume, callback)
         after = problem.run([outcome.u])[0]
         if after.train > before.train:
             outcome.u, after = nominal_u, before
             warnings.append("no knob setting beat the nominal twin; the fitted values are the nominal ones")
-        uncertainty = _uncertainty(problem, outcome.u, fd_step)
+        uncertainty = estimate_uncertainty(problem, outcome.u, config.fd_step)
         periods = evaluator.periods
     fitted = values_from_unit(specs, outcome.u)
     warnings += uncertainty.warnings
     knob_fits, bound_warnings = fit_records(specs, fitted, uncertainty.half_widths)
     warnings += bound_warnings
     files: dict[str, str] = {"config": "align_config.json", "reference": REFERENCE_FILE}
-    write_json(out / "knobs.json", {"schema": "dualtwin.knobs/1", "twin": target_twin_name, "robot": binding.name,
-                                    "optimizer": optimizer, "objective": "prediction", "values": fitted,
-                                    "knobs": {n: k.to_dict() for n, k in knob_fits.items()}})
-    files["knobs"] = "knobs.json"
+    write_knobs(out, files, target_twin_name, binding.name, optimizer, fitted, knob_fits, objective="prediction")
     if optimizer == "cma" and outcome.population:
         ranges, source = ranges_from_population(specs, outcome.population, config.dr_top_fraction), "cma-population"
     else:
         ranges, source = ranges_from_intervals(specs, fitted, uncertainty.half_widths), "lsq-interval"
-    write_json(out / "dr_ranges.json", dr_document(specs, fitted, ranges, source, config.dr_min_rel_width))
-    files["dr_ranges"] = "dr_ranges.json"
-    patch = _patch_model(binding, target_twin_name, fitted)
-    if patch.text is not None:
-        name = f"{binding.name}_aligned{'.xml' if target_twin_name == 'mujoco' else '.wbt'}"
-        write_text(out / name, patch.text)
-        files["model"] = name
+    write_dr_ranges(out, files, specs, fitted, ranges, source, config.dr_min_rel_width)
+    patch = write_patched_model(out, files, binding, target_twin_name, fitted)
     result = AlignResult(
         out_dir=out, optimizer=optimizer, knobs=knob_fits, objective_before=before.train,
         objective_after=after.train, holdout_before=None, holdout_after=None,
         residual_before=float(before.residual @ before.residual), residual_after=float(after.residual @ after.residual),
         evaluations=problem.evaluations, iterations=outcome.iterations, wall_time_s=0.0,
         stop_reason=outcome.stop_reason, warnings=warnings, condition_number=uncertainty.condition, files=files)
-    table_before = problem.tables.get(tuple(nominal_u), {})
-    table_after = problem.tables.get(tuple(outcome.u), table_before)
+    table_before = problem.details.get(tuple(nominal_u), {})
+    table_after = problem.details.get(tuple(outcome.u), table_before)
     if table_before and table_after:
         plot_prediction([("before", table_before), ("after", table_after)], out / "prediction.png")
         files["plot"] = "prediction.png"
     files["report"] = "report.html"
-    write_text(out / "report.html", _report_html(result, table_before, table_after, config))
+    write_text(out / "report.html", prediction_report_html(result, table_before, table_after, config))
     result.wall_time_s = time.perf_counter() - t_start
     files["record"] = "align_record.json"
-    write_json(out / "align_record.json", {
-        "schema": "dualtwin.align/1", "objective": "prediction", "config": json.loads(config.model_dump_json()),
-        "seed": seed, "versions": package_versions(),
-        "inputs": {"reference": {"path": str(ref_path), "sha256": config.reference_sha256, "kind": kind},
-                   "binding": {"path": str(binding.path), "sha256": sha256_file(binding.path)},
-                   "model": {"path": str(binding.model_path(target_twin_name)),
-                             "sha256": sha256_file(binding.model_path(target_twin_name))}},
-        "knob_specs": [s.to_dict() for s in specs],
-        "result": {"knobs": {n: k.to_dict() for n, k in knob_fits.items()},
-                   "objective_before": result.objective_before, "objective_after": result.objective_after,
-                   "condition_number": None if result.condition_number is None
-                   or not math.isfinite(result.condition_number) else result.condition_number,
-                   "stop_reason": result.stop_reason, "warnings": warnings},
-        "prediction": {"before": json_safe(table_before), "after": json_safe(table_after)},
-        "evaluations": result.evaluations, "simulated_periods": periods, "iterations": result.iterations,
-        "wall_time_s": result.wall_time_s, "trace": outcome.trace,
-        "model_patch": {"applied": patch.applied, "not_applied": patch.not_applied, "note": patch.note},
-        "sysid": sysid_status(), "files": files})
+    write_json(out / "align_record.json", prediction_record(config, result, outcome, patch, binding, ref_path, kind,
+                                                            specs, table_before, table_after, periods))
     return result
-
-
-
-def _report_html(result: AlignResult, before: Mapping[str, Any], after: Mapping[str, Any],
-                 config: PredictionAlignConfig) -> str:
-    from dualtwin.reporting import html_table, img_html, page_head
-
-    knobs = html_table(["knob", "nominal", "fitted", "± 95 %", "unit"],
-                       [[n, f"{k.nominal:.5g}", f"{k.fitted:.5g}",
-                         "–" if k.half_width_95 is None else f"{k.half_width_95:.2g}", k.unit]
-                        for n, k in result.knobs.items()])
-    horizons = [str(h) for h in config.horizons]
-    pred = html_table(["horizon [periods]", "before", "after"],
-                      [[h, before.get("by_horizon", {}).get(h, {}).get("normalized_rms"),
-                        after.get("by_horizon", {}).get(h, {}).get("normalized_rms")] for h in horizons], left=())
-    warnings = "".join(f"<li>{html.escape(w)}</li>" for w in result.warnings)
-    image = ""
-    if "plot" in result.files:
-        image = img_html((result.out_dir / result.files["plot"]).read_bytes(), "prediction error")
-    cond = "–" if result.condition_number is None else f"{result.condition_number:.4g}"
-    return (f"{page_head('Prediction alignment')}<h1>Alignment with the prediction objective</h1>"
-            f"<p>target <b>{html.escape(config.target)}</b>, reference <code>{html.escape(config.reference)}</code>, "
-            f"optimizer {html.escape(result.optimizer)}: {html.escape(result.stop_reason)}; "
-            f"{result.evaluations} evaluations; cond(JᵀJ) {cond}</p>"
-            f"<p>objective (mean squared normalised prediction error): {result.objective_before:.4g} → "
-            f"<b>{result.objective_after:.4g}</b></p>{knobs}"
-            f"<h2>Normalised RMS prediction error</h2>{pred}{image}<ul>{warnings}</ul></body></html>")

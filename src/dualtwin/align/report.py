@@ -12,13 +12,14 @@ import html
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from dualtwin.align.analyze import Analysis, findings_html
+from dualtwin.align.analysis_report import findings_html
+from dualtwin.align.analyze import Analysis
 from dualtwin.align.narrate import narrative_html
 from dualtwin.artifacts import write_bytes, write_text
 from dualtwin.divergence.metrics import ChannelDivergence
@@ -26,7 +27,8 @@ from dualtwin.divergence.runs import RunComparison, ScenarioComparison, compare_
 from dualtwin.reporting import evidence_html, html_table, img_html, page_head, plot_overlay, png_bytes, slug
 
 if TYPE_CHECKING:
-    from dualtwin.align.fit import AlignResult
+    from dualtwin.align.config import AlignConfig
+    from dualtwin.align.writers import AlignResult
 
 
 def _f(value: float | None, spec: str = ".4g") -> str:
@@ -180,3 +182,28 @@ def write_align_report(out_dir: Path, result: AlignResult, reference: Path, befo
     path = out_dir / "report.html"
     write_text(path, "\n".join(parts))
     return path
+
+
+def prediction_report_html(result: AlignResult, before: Mapping[str, Any], after: Mapping[str, Any],
+                           config: AlignConfig) -> str:
+    """``report.html`` of the prediction objective: the fitted knobs and the prediction error before and after."""
+    knobs = html_table(["knob", "nominal", "fitted", "± 95 %", "unit"],
+                       [[n, f"{k.nominal:.5g}", f"{k.fitted:.5g}",
+                         "–" if k.half_width_95 is None else f"{k.half_width_95:.2g}", k.unit]
+                        for n, k in result.knobs.items()])
+    horizons = [str(h) for h in config.horizons]
+    pred = html_table(["horizon [periods]", "before", "after"],
+                      [[h, before.get("by_horizon", {}).get(h, {}).get("normalized_rms"),
+                        after.get("by_horizon", {}).get(h, {}).get("normalized_rms")] for h in horizons], left=())
+    warnings = "".join(f"<li>{html.escape(w)}</li>" for w in result.warnings)
+    image = ""
+    if "plot" in result.files:
+        image = img_html((result.out_dir / result.files["plot"]).read_bytes(), "prediction error")
+    cond = "–" if result.condition_number is None else f"{result.condition_number:.4g}"
+    return (f"{page_head('Prediction alignment')}<h1>Alignment with the prediction objective</h1>"
+            f"<p>target <b>{html.escape(config.target)}</b>, reference <code>{html.escape(config.reference)}</code>, "
+            f"optimizer {html.escape(result.optimizer)}: {html.escape(result.stop_reason)}; "
+            f"{result.evaluations} evaluations; cond(JᵀJ) {cond}</p>"
+            f"<p>objective (mean squared normalised prediction error): {result.objective_before:.4g} → "
+            f"<b>{result.objective_after:.4g}</b></p>{knobs}"
+            f"<h2>Normalised RMS prediction error</h2>{pred}{image}<ul>{warnings}</ul></body></html>")

@@ -92,11 +92,13 @@ def window_stats(errors: Sequence[float]) -> dict[str, float]:
 
 def _run_realign(settings: dict[str, Any], reference: str, out_dir: str) -> dict[str, Any]:
     """Worker process entry: the prediction-objective fit on the window's trajectories."""
-    from dualtwin.align.prediction import align_prediction
+    from dualtwin.align import AlignConfig, run_align
 
-    result = align_prediction(Path(reference), settings["target"], settings["robot"], None, list(settings["knobs"]),
-                              Path(out_dir), optimizer=settings["optimizer"], budget=settings["budget"],
-                              executor="serial", horizons=tuple(settings["horizons"]), stride=settings["stride"])
+    config = AlignConfig(reference=str(Path(reference)), target=settings["target"], robot=str(settings["robot"]),
+                         knobs=list(settings["knobs"]), optimizer=settings["optimizer"], budget=settings["budget"],
+                         executor="serial", objective="prediction", horizons=list(settings["horizons"]),
+                         stride=settings["stride"])
+    result = run_align(config, Path(out_dir))
     return {"fitted": result.fitted, "objective_before": result.objective_before,
             "objective_after": result.objective_after, "evaluations": result.evaluations,
             "out_dir": str(result.out_dir)}

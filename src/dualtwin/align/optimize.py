@@ -1,0 +1,364 @@
+"""The optimisers: CMA-ES and least squares over a :class:`~dualtwin.align.core.Problem`, with checkpoints.
+
+Both see an objective only through the problem protocol, so every objective is fitted the same way.
+
+* ``optimizer="cma"`` (:func:`fit_cma`): CMA-ES (`cma`) in the unit cube of the knobs' normalised ranges
+  (log-scaled for wide positive ranges), seeded through a private random generator, with each population evaluated in
+  parallel, with the best point so far injected into every population (elitist: a start that is
+  already good is kept, not lost). After every generation ``checkpoint.json`` (the commit point) is written
+  atomically with every generation's injected point, asked solutions and their objective values (JSON, no
+  pickle). ``resume=True`` rebuilds a freshly seeded strategy and replays ``ask``/``tell`` on those records:
+  the strategy's sampler is seeded, so the replay reproduces its state bit for bit (each replayed generation is
+  checked against the recorded solutions), loses at most one generation, and continues exactly as an
+  uninterrupted run would. Nothing in an output folder is ever unpickled, and no path is read from it.
+  It stops on the evaluation budget, CMA's own tolerances (``tolfun``, ``tolx``), ``patience``
+  generations without improvement, or an exact match.
+* ``optimizer="lsq"`` (:func:`fit_lsq`): ``mujoco.minimize.least_squares`` (bounded Levenberg-Marquardt with
+  a finite-difference Jacobian whose perturbed points are simulated in parallel) on the residual vector.
+  When it stops, the points four finite-difference steps away along each knob are tried, and the fit
+  restarts from a better one (``lsq_restarts`` times at most). Integer knobs (delays, physics sub-steps)
+  have no derivative: each is first set to its best value by simulating every integer in its bounds, then
+  held while least squares fits the continuous knobs.
+  ``mujoco.sysid`` is not used, even when it is installed: it computes residuals with ``mujoco.rollout``
+  on the MJCF's own actuators, while our MuJoCo twin emulates Webots motors (a velocity servo with torque
+  saturation, switched per physics step in Python), control delays and sensor models outside MuJoCo.
+  sysid would fit a different system. We call sysid's own optimiser on residuals from the twin instead,
+  and that works for any target twin.
+
+The twin's dynamics hold discrete events (motor torque saturation switching at physics steps, joint
+stops, contacts), so objective and residuals are rough below about 1e-3 of a knob's range. The
+finite-difference step is therefore 3 % of the range, which steps over them. With it, least squares
+recovers a pole damping exactly where a 1e-3 step stalls at 5 % error. CMA-ES only ranks candidates,
+so the roughness merely sets the floor it stops at.
+"""
+
+from __future__ import annotations
+
+import importlib
+import io
+import math
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import cma
+import numpy as np
+
+from dualtwin.align.config import AlignConfig
+from dualtwin.align.core import GenerationInfo, Outcome, Point, Problem, residual_norm, screen_integers
+from dualtwin.artifacts import write_json
+from dualtwin.errors import DualtwinError
+from dualtwin.suite.loader import read_json
+
+
+class BudgetExhausted(Exception):
+    """Raised inside the least-squares residual when the evaluation budget is spent."""
+
+
+
+class _Randn:
+    """CMA's normal sampler on a private generator: a fresh strategy with the same seed replays exactly."""
+
+    def __init__(self, seed: int) -> None:
+        self.rng = np.random.default_rng(seed)
+
+    def __call__(self, *shape: int) -> np.ndarray:
+        return self.rng.standard_normal(shape)
+
+
+# ------------------------------------------------------------------ CMA-ES
+def _cma_stop(es: Any, problem: Problem, config: AlignConfig, stale: int, best: float) -> str | None:
+    if problem.evaluations + es.popsize > config.budget:
+        return f"budget ({problem.evaluations} of {config.budget} evaluations used)"
+    if best <= 1e-12:
+        return "exact match"
+    # More knobs need more generations before a stall means anything.
+    patience = config.patience or max(15, 3 * len(problem.specs))
+    if stale >= patience:
+        return f"no improvement in {stale} generations"
+    # tolfunhist watches the best value per generation, which the injected incumbent keeps flat while the
+    # population still searches; `patience` is the stall rule instead.
+    stop = {k: v for k, v in es.stop().items() if k not in ("maxfevals", "tolfunhist")}
+    if stop:
+        return "cma: " + ", ".join(f"{k}={v}" for k, v in stop.items())
+    return None
+
+
+def fit_cma(problem: Problem, config: AlignConfig, out_dir: Path, x0: Sequence[float], f0: float, resume: bool,
+             callback: Callable[[GenerationInfo], None] | None) -> Outcome:
+    checkpoint = out_dir / "checkpoint.json"
+    if resume and checkpoint.is_file():
+        state = read_json(checkpoint)
+        if not isinstance(state, dict) or state.get("config") != config.digest():
+            raise DualtwinError(f"{checkpoint}: cannot resume: written by a different configuration")
+        es, x0, generations = _replay_cma(checkpoint, state, config)
+        try:
+            problem.evaluations = int(state["evaluations"])
+            trace: list[dict[str, Any]] = list(state["trace"])
+            archive: list[list[tuple[list[float], float]]] = [[(list(u), float(f)) for u, f in gen]
+                                                              for gen in state["archive"]]
+            best_u, best_f, stale = list(state["best_u"]), float(state["best_value"]), int(state["stale"])
+            if state.get("incumbent"):
+                problem.restore_point(state["incumbent"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise DualtwinError(f"{checkpoint}: damaged CMA checkpoint ({type(exc).__name__}: {exc})") from None
+    else:
+        integer = [i for i, spec in enumerate(problem.specs) if spec.integer]
+        if integer:
+            screened = problem.run([screen_integers(problem, x0, integer, config.budget, lambda p: p.train)])[0]
+            if screened.train < f0:
+                x0, f0 = screened.u, screened.train
+        es = _new_cma(list(x0), config)
+        generations = []
+        trace, archive = [], []
+        # The start point (nominal, the best kept proposal, or the best integer setting) is the one to beat.
+        best_u, best_f, stale = list(x0), f0, 0
+    while True:
+        reason = _cma_stop(es, problem, config, stale, best_f)
+        if reason:
+            break
+        # Elitist injection: the incumbent (at first the start point) joins every population, so when the
+        # start is already good the search contracts around it instead of drifting off with a worse mean.
+        injected = list(best_u)
+        _cma_inject(es, injected)
+        candidates = es.ask()
+        points = problem.run([list(map(float, x)) for x in candidates])
+        es.tell(candidates, [p.train for p in points])
+        generations.append({"inject": injected, "asked": [[float(v) for v in x] for x in candidates],
+                            "fitness": [p.train for p in points]})
+        gen_best = min(points, key=lambda p: p.train)
+        if not math.isfinite(best_f) or gen_best.train < best_f - 1e-12 * max(1.0, abs(best_f)):
+            best_u, best_f, stale = gen_best.u, gen_best.train, 0
+        else:
+            stale += 1
+        archive = [*archive, [(p.u, p.train) for p in points]][-config.dr_generations:]
+        holdout = next((p.holdout for p in points if p.u == best_u), None)
+        if holdout is None and trace:
+            holdout = trace[-1].get("holdout_of_best")
+        trace.append({"iteration": int(es.countiter), "evaluations": problem.evaluations,
+                      "best_in_generation": gen_best.train, "best": best_f, "holdout_of_best": holdout,
+                      "sigma": float(es.sigma), "mean": problem.values(list(es.mean))})
+        _write_cma_checkpoint(out_dir, config, es, problem, trace, archive, best_u, best_f, stale, x0, generations)
+        if callback is not None:
+            callback(GenerationInfo(int(es.countiter), problem.evaluations, best_f, problem.values(best_u),
+                                    holdout, float(es.sigma)))
+    # The distribution mean is often better than any sample once the search has converged.
+    if problem.evaluations < config.budget:
+        mean = problem.run([list(map(float, es.mean))])[0]
+        if mean.train < best_f:
+            best_u, best_f = mean.u, mean.train
+    population = [p for gen in archive for p in gen]
+    return Outcome(best_u, int(es.countiter), reason, trace, population)
+
+
+#: CMA-ES checkpoints record the ask/tell history (JSON); version 1 named a pickled strategy, never loaded now.
+CMA_CHECKPOINT_SCHEMA = "dualtwin.align.checkpoint/2"
+
+
+def _new_cma(x0: list[float], config: AlignConfig) -> Any:
+    opts: dict[str, Any] = {"bounds": [0.0, 1.0], "randn": _Randn(config.seed), "tolfun": config.tolfun,
+                            "tolx": config.tolx, "verbose": -9, "verb_log": 0, "verb_disp": 0}
+    if config.popsize:
+        opts["popsize"] = config.popsize
+    return cma.CMAEvolutionStrategy(x0, config.sigma0, opts)
+
+
+def _cma_inject(es: Any, u: list[float]) -> None:
+    es.inject([es.boundary_handler.inverse(np.asarray(u))] if es.boundary_handler is not None
+              else [np.asarray(u)], force=True)
+
+
+def confined_path(folder: Path, value: Any, where: str) -> Path:
+    """``folder / value`` if that stays inside ``folder``; else a :class:`DualtwinError` naming ``where``."""
+    if not isinstance(value, str) or not value:
+        raise DualtwinError(f"{where}: expected a file name inside {folder}, got {value!r}")
+    root = folder.resolve()
+    path = (root / value).resolve()
+    if not path.is_relative_to(root):
+        raise DualtwinError(f"{where}: {value!r} points outside the output folder {folder}; refused")
+    return path
+
+
+def _replay_cma(checkpoint: Path, state: dict[str, Any], config: AlignConfig
+                ) -> tuple[Any, list[float], list[dict[str, Any]]]:
+    """A fresh strategy brought to the checkpoint's generation by replaying its recorded ask/tell history.
+
+    Returns the strategy, the start point and the history (to be extended by the resumed run).
+    """
+    # Any path named in a checkpoint is confined to its folder, whatever it is used for.
+    for key, value in state.items():
+        if key.endswith("_file"):
+            confined_path(checkpoint.parent, value, f"{checkpoint}: {key}")
+    if state.get("schema") != CMA_CHECKPOINT_SCHEMA:
+        raise DualtwinError(f"{checkpoint}: checkpoint format {state.get('schema')!r} (a pickled CMA state) is not "
+                            "resumable: pickles from a run folder are never loaded; start the alignment again in a new "
+                            "folder")
+    try:
+        x0 = [float(v) for v in state["x0"]]
+        history = [([float(v) for v in g["inject"]], [[float(v) for v in x] for x in g["asked"]],
+                    [float(f) for f in g["fitness"]]) for g in state["generations"]]
+        iteration = int(state["iteration"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise DualtwinError(f"{checkpoint}: damaged CMA checkpoint ({type(exc).__name__}: {exc})") from None
+    es = _new_cma(x0, config)
+    for n, (injected, asked, fitness) in enumerate(history, start=1):
+        es.stop()  # as in the original loop (the stop test runs before every generation)
+        _cma_inject(es, injected)
+        candidates = es.ask()
+        if len(candidates) != len(asked) or not np.array_equal(np.asarray(candidates, float), np.asarray(asked)):
+            raise DualtwinError(f"{checkpoint}: generation {n} does not replay to the recorded solutions (a "
+                                "different cma version?); start the alignment again in a new folder")
+        es.tell(candidates, fitness)
+    if es.countiter != iteration:
+        raise DualtwinError(f"{checkpoint}: the CMA history ({es.countiter} generations) does not match the "
+                            f"checkpoint's iteration {iteration}")
+    return es, x0, [{"inject": i, "asked": a, "fitness": f} for i, a, f in history]
+
+
+def _write_cma_checkpoint(out_dir: Path, config: AlignConfig, es: Any, problem: Problem,
+                          trace: list[dict[str, Any]], archive: list[list[tuple[list[float], float]]],
+                          best_u: list[float], best_f: float, stale: int, x0: Sequence[float],
+                          generations: list[dict[str, Any]]) -> None:
+    write_json(out_dir / "checkpoint.json", {
+        "schema": CMA_CHECKPOINT_SCHEMA, "config": config.digest(), "optimizer": "cma",
+        "iteration": int(es.countiter), "x0": list(x0), "generations": generations,
+        "evaluations": problem.evaluations, "best_u": best_u, "best_value": best_f, "stale": stale,
+        "incumbent": problem.point_state(best_u), "trace": trace, "archive": [[[u, f] for u, f in gen] for gen in archive],
+    })
+
+
+# ------------------------------------------------------------------ least squares
+#: Rounds of re-screening integer knobs at the fitted continuous values (least squares only).
+LSQ_INTEGER_ROUNDS = 2
+
+
+def fit_lsq(problem: Problem, config: AlignConfig, out_dir: Path, x0: Sequence[float], f0: float, resume: bool,
+             callback: Callable[[GenerationInfo], None] | None) -> Outcome:
+    minimize = mujoco_module("minimize")
+    checkpoint = out_dir / "checkpoint.json"
+    trace: list[dict[str, Any]] = []
+    start = list(x0)
+    if resume and checkpoint.is_file():
+        state = read_json(checkpoint)
+        if state.get("config") != config.digest():
+            raise DualtwinError(f"{checkpoint}: cannot resume: written by a different configuration")
+        # Levenberg-Marquardt keeps little state: restarting from the last iterate loses only its damping.
+        start, trace = list(state["u"]), list(state["trace"])
+        problem.evaluations = int(state["evaluations"])
+    seen: dict[tuple[float, ...], Point] = {}
+    offset = len(trace)
+    integer = [i for i, s in enumerate(problem.specs) if s.integer]
+    free = [i for i in range(len(problem.specs)) if i not in integer]
+    if integer and not trace:
+        start = screen_integers(problem, start, integer, config.budget, residual_norm)
+    held = list(start)
+
+    def expand(x: Sequence[float] | np.ndarray) -> list[float]:
+        """The full unit vector: least squares moves the continuous knobs, integer ones stay as screened."""
+        full = list(held)
+        for j, i in enumerate(free):
+            full[i] = min(1.0, max(0.0, float(x[j])))
+        return full
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        columns = [expand(x[:, j]) for j in range(x.shape[1])]
+        if problem.evaluations + len(columns) > config.budget:
+            raise BudgetExhausted
+        points = problem.run(columns)
+        for p in points:
+            seen[tuple(p.u)] = p
+        return np.stack([p.residual for p in points], axis=1).astype(np.float64)
+
+    def on_iteration(logs: list[Any]) -> None:
+        u = expand(np.asarray(logs[-1].candidate).ravel())
+        point = seen.get(tuple(u))
+        entry: dict[str, Any] = {"iteration": offset + len(logs), "evaluations": problem.evaluations,
+                 "best": point.train if point else None, "lsq_objective": float(logs[-1].objective),
+                 "holdout_of_best": point.holdout if point else None, "knobs": problem.values(u)}
+        trace.append(entry)
+        write_json(checkpoint, {"schema": "dualtwin.align.checkpoint/1", "config": config.digest(),
+                                "optimizer": "lsq", "iteration": entry["iteration"], "u": u,
+                                "evaluations": problem.evaluations, "trace": trace})
+        if callback is not None:
+            callback(GenerationInfo(entry["iteration"], problem.evaluations, float(point.train if point else math.nan),
+                                    problem.values(u), point.holdout if point else None))
+
+    def fit_continuous(u: list[float]) -> tuple[list[float], str, int, bool]:
+        """Least squares with restarts from a better neighbour; (u, reason, restarts, budget exhausted)."""
+        nonlocal offset
+        held[:] = u
+        reason, restarts = "done", 0
+        for attempt in range(config.lsq_restarts + 1):
+            offset = len(trace)
+            output = io.StringIO()
+            try:
+                x, _ = minimize.least_squares(np.asarray([u[i] for i in free], dtype=np.float64), residual,
+                                              bounds=[np.zeros(len(free)), np.ones(len(free))], eps=config.fd_step,
+                                              # Every rejected step costs a suite simulation: raise the damping
+                                              # 3x per rejection (not 1.26x) and give up at 1e6 (not 1e8).
+                                              mu_factor=10 ** 0.5, mu_max=1e6,
+                                              max_iter=config.lsq_max_iter, verbose=1, output=output,
+                                              iter_callback=on_iteration)
+                u = expand(np.asarray(x).ravel())
+                final = [line for line in output.getvalue().splitlines() if line.startswith("Terminated after")]
+                reason = final[-1].split(": ", 1)[-1].split(" y:")[0] if final else "done"
+            except BudgetExhausted:
+                best = min(seen.values(), key=residual_norm, default=None)
+                u = best.u if best is not None else u
+                return u, f"budget ({problem.evaluations} of {config.budget} evaluations used)", restarts, True
+            # Rough residuals (impacts sampled once per control period) can trap a Gauss-Newton step in a dent:
+            # probe a few finite-difference steps away and restart from a better point if there is one.
+            kick = 4 * config.fd_step
+            probes = [p for i in free for p in (
+                [*u[:i], min(1.0, u[i] + kick), *u[i + 1:]], [*u[:i], max(0.0, u[i] - kick), *u[i + 1:]]) if p != u]
+            if attempt == config.lsq_restarts or not probes or problem.evaluations + len(probes) + 1 > config.budget:
+                break
+            here = seen.get(tuple(u)) or problem.run([u])[0]
+            scored = problem.run(probes)
+            for p in scored:
+                seen[tuple(p.u)] = p
+            better = min(scored, key=residual_norm)
+            if residual_norm(better) >= residual_norm(here) * (1 - 1e-9):
+                break
+            u = better.u
+            restarts += 1
+        return u, reason, restarts, False
+
+    u = list(start)
+    if not free:
+        return Outcome(u, 0, "integer knobs screened; no continuous knob to fit", trace)
+    u, reason, restarts, spent = fit_continuous(u)
+    # Integer and continuous knobs can stand in for each other (a coarser step for less damping): screen the
+    # integers again at the fitted values and refit until they settle.
+    for _ in range(LSQ_INTEGER_ROUNDS):
+        if not integer or spent:
+            break
+        again = screen_integers(problem, u, integer, config.budget, residual_norm)
+        if again == u:
+            break
+        u, reason, more, spent = fit_continuous(again)
+        restarts += more
+    if restarts:
+        reason += f" (after {restarts} restart{'s' if restarts > 1 else ''} from a better neighbour)"
+    iterations = len(trace)
+    return Outcome(u, iterations, reason, trace)
+
+
+
+def mujoco_module(name: str) -> Any:
+    # Imported by name: mujoco.sysid ships a py.typed marker, and a static import makes mypy analyse the
+    # untyped mujoco package itself (every attribute then fails to resolve, project-wide).
+    return importlib.import_module(f"mujoco.{name}")
+
+
+def sysid_status() -> str:
+    """Whether ``mujoco.sysid`` is usable here, and why alignment uses ``mujoco.minimize`` either way."""
+    try:
+        usable = hasattr(mujoco_module("sysid"), "optimize")
+    except ImportError:
+        usable = False
+    where = "installed" if usable else "not installed (extra mujoco-core[sysid])"
+    return (f"mujoco.sysid is {where}; not used because it simulates the MJCF's own actuators with "
+            "mujoco.rollout, while the twin emulates Webots motors, delays and sensor models outside MuJoCo. "
+            "The lsq optimiser is mujoco.minimize.least_squares (sysid's own) on residuals from the twin.")
+
