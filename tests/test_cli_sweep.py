@@ -93,6 +93,12 @@ PARAMS: dict[str, str] = {
     "host": "text", "api_key_env": "text", "address": "text", "holdout": "text",
     "resume": "flag", "llm": "flag", "randomize": "flag", "trust_pickles": "flag", "json_out": "flag",
     "as_json": "flag", "policy_control": "folder", "keys": "file", "camera_only": "flag",
+    # align's options derived from AlignConfig (KEY=VALUE mappings are checked by the model, not swept here)
+    "popsize": "number", "sigma0": "number", "tolfun": "number", "tolx": "number", "patience": "number",
+    "fd_step": "number", "lsq_max_iter": "number", "lsq_restarts": "number", "regularization": "number",
+    "dr_top_fraction": "number", "dr_generations": "number", "dr_min_rel_width": "number",
+    "reference_knobs": "text", "bounds": "text", "thresholds": "text", "weights": "text", "scales": "text",
+    "channels": "text", "ray_address": "text",
 }
 
 FAMILIES: dict[str, tuple[str, ...]] = {
