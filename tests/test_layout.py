@@ -31,8 +31,6 @@ MAX_LINES = 800
 LONG_FILES: dict[str, str] = {
     "align/analyze.py": "being split this session",
     "divergence/runs.py": "being split this session",
-    "twins/mujoco.py": "being split this session",
-    "twins/webots.py": "being split this session",
     "webots/controller.py": "being split this session",
     "webots/parser.py": "being split this session",
     "webots/protos.py": "being split this session",
