@@ -119,7 +119,7 @@ FAMILIES: dict[str, tuple[str, ...]] = {
 # Optional parameters a command needs to do anything (exactly-one-of groups): given unless the target is in
 # the same group.
 NEEDS: dict[str, dict[str, str]] = {
-    "align": {"reference": "webots"},
+    "align": {"reference": "webots", "scenarios": "@suite"},
     "lockstep": {"scenarios": "@suite"},
     "generate": {"from_wbt": "@wbt"},
 }
