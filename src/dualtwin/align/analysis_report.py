@@ -67,8 +67,7 @@ def sensitivity_html(sensitivity: Sequence[KnobSensitivity], top: int = 15) -> s
 def write_analysis(analysis: Analysis, out_dir: Path) -> Path:
     """Write ``analysis.json``, the divergence report (``report.html``) and ``analysis.html``; returns the latter."""
     from dualtwin.divergence.report import plot_channel, twin_labels, write_report
-    from dualtwin.reporting import CSS as _CSS
-    from dualtwin.reporting import png_bytes as _png_bytes
+    from dualtwin.reporting import CSS, png_bytes
 
     out_dir = Path(out_dir)
     label_a, label_b = twin_labels(analysis.comparison)  # twin names from the manifests, not folder names
@@ -81,13 +80,13 @@ def write_analysis(analysis: Analysis, out_dir: Path) -> Path:
             continue
         shown.add((c.scenario_id, c.channel))
         sc = next(s for s in analysis.comparison.scenarios if s.id == c.scenario_id)
-        png = _png_bytes(plot_channel(sc, c.channel, label_a, label_b, analysis.comparison.units.get(c.channel, "")))
+        png = png_bytes(plot_channel(sc, c.channel, label_a, label_b, analysis.comparison.units.get(c.channel, "")))
         images.append(f'<img alt="{html.escape(c.scenario_id)}" src="data:image/png;base64,'
                       f'{base64.b64encode(png).decode("ascii")}">')
     score = analysis.comparison.summary_score
     parts = [
         "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
-        f"<title>Why {html.escape(label_b)} diverges from {html.escape(label_a)}</title><style>{_CSS}</style></head><body>",
+        f"<title>Why {html.escape(label_b)} diverges from {html.escape(label_a)}</title><style>{CSS}</style></head><body>",
         f"<h1>Why {html.escape(label_b)} diverges from {html.escape(label_a)}</h1>",
         f"<p>Summary divergence score {'–' if score is None else f'{score:.4g}'} (0 = identical). "
         "Full metrics: <a href='report.html'>report.html</a>.</p>",

@@ -45,9 +45,9 @@ DERIVED: dict[str, Any] = {"derived": True}
 class AlignConfig(FrozenModel):
     """Every input and setting of an alignment (saved as ``align_config.json``; resume requires it unchanged)."""
 
-    reference: str = Field(description="the reference: a twin name (run once, with --reference-knobs), a run "
-                           "folder (manifest.json), or for the prediction objective a trajectories.npz file or "
-                           "its folder")
+    reference: str = Field(description="the reference twin, run once (with the reference knobs); the library "
+                           "also takes a run folder (the CLI's --reference-run) and, for the prediction objective, "
+                           "a trajectories.npz file or its folder")
     reference_kind: Literal["run", "twin"] | None = Field(
         default=None, description="whether the reference is a recorded run or a twin (set from reference)",
         json_schema_extra=DERIVED)

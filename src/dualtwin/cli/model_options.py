@@ -100,7 +100,8 @@ def _option(name: str, field: FieldInfo, optional: bool) -> tuple[inspect.Parame
         kind = kind | None
     if shape == "list":
         help_text += " (repeat the option)"
-    option = typer.Option(flag, help=help_text, show_default=default not in (None, ...))
+    metavar = {"mapping": "KEY=VALUE", "pairs": "KEY=LOW,HIGH", "model": "KEY=VALUE"}.get(shape)
+    option = typer.Option(flag, help=help_text, show_default=default not in (None, ...), metavar=metavar)
     param_name = option_name(name, field).replace("-", "_")
     return inspect.Parameter(param_name, inspect.Parameter.KEYWORD_ONLY, default=default,
                              annotation=Annotated[kind, option]), shape
