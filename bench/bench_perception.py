@@ -127,7 +127,8 @@ def policies(root: Path) -> list[tuple[str, Path]]:
         return out
     budget = float(os.environ.get("DUALTWIN_BENCH_PPO_SECONDS", "900"))
     if budget > 0:
-        from dualtwin.rl.train import load_config, train
+        from dualtwin.rl.ppo_config import load_config
+        from dualtwin.rl.train import train
 
         config = load_config(None).model_copy(update={"stop_reward": 950.0, "n_timesteps": 5_000_000,
                                                       "max_wall_seconds": budget})

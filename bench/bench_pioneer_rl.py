@@ -63,7 +63,8 @@ def training_run(root: Path) -> tuple[Path, bool]:
     given = os.environ.get("DUALTWIN_BENCH_PIONEER_RUN")
     if given:
         return Path(given), True
-    from dualtwin.rl.train import DEFAULT_CONFIG, train
+    from dualtwin.rl.ppo_config import DEFAULT_CONFIG
+    from dualtwin.rl.train import train
 
     out = root / "ppo_pioneer"
     if out.exists():

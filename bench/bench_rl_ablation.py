@@ -38,7 +38,8 @@ VARIANTS: dict[str, tuple[dict[str, Any], dict[str, Any]]] = {
 def main(variant: str, seed: int, steps: int) -> dict[str, Any]:
     import torch
 
-    from dualtwin.rl.train import load_config, train
+    from dualtwin.rl.ppo_config import load_config
+    from dualtwin.rl.train import train
 
     torch.set_num_threads(1)
     fields, policy = VARIANTS[variant]

@@ -45,7 +45,8 @@ def train_run(env_id: str, config_name: str, out: Path, seed: int, steps: int, s
               stop: float | None = None) -> dict[str, Any]:
     """Train (or reuse a finished run, or one whose curve already reached ``stop``) and read its curve."""
     from dualtwin.rl.curves import read_learning_curve
-    from dualtwin.rl.train import load_config, train
+    from dualtwin.rl.ppo_config import load_config
+    from dualtwin.rl.train import train
 
     done = (out / "run.json").is_file() and json.loads((out / "run.json").read_text()).get("status") == "complete"
     if done or (stop is not None and (out / "monitor").is_dir() and read_learning_curve(out).steps_to(stop)):

@@ -32,7 +32,8 @@ THRESHOLD = 950.0
 
 
 def train_seed(config_name: str, seed: int, out: Path, budget: float, baseline: bool = False) -> dict[str, Any]:
-    from dualtwin.rl.train import load_config, train
+    from dualtwin.rl.ppo_config import load_config
+    from dualtwin.rl.train import train
 
     config = load_config(config_name)
     update: dict[str, Any] = {"stop_reward": THRESHOLD, "n_timesteps": 5_000_000, "max_wall_seconds": budget}

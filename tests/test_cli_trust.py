@@ -328,7 +328,7 @@ def test_train_with_an_inconsistent_config_leaves_nothing(tmp_path: Path,
                                                           capsys: pytest.CaptureFixture[str]) -> None:
     import yaml
 
-    from dualtwin.rl.train import DEFAULT_CONFIG
+    from dualtwin.rl.ppo_config import DEFAULT_CONFIG
 
     config = yaml.safe_load(DEFAULT_CONFIG.read_text())
     config.update(stop_reward=100.0, eval_freq=0)
@@ -344,7 +344,7 @@ def test_train_that_fails_building_its_envs_leaves_a_folder_resume_accepts(tmp_p
                                                                            capsys: pytest.CaptureFixture[str]) -> None:
     import yaml
 
-    from dualtwin.rl.train import DEFAULT_CONFIG
+    from dualtwin.rl.ppo_config import DEFAULT_CONFIG
 
     config = yaml.safe_load(DEFAULT_CONFIG.read_text())
     config.update(vec_env="dummy", n_envs=1, n_steps=64, batch_size=64, eval_freq=0)

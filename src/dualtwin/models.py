@@ -13,11 +13,17 @@ Decisions:
   ``"0.3"`` for a number is a mistake to report) add ``strict=True`` themselves.
 * :class:`FrozenModel` for configs saved next to artifacts: a config is hashed (resume checks it), so it
   must not change after validation.
+* :func:`validation_message` turns a :class:`pydantic.ValidationError` into the one line a user sees (file,
+  JSON path, what was expected); bindings, suites and mappings all report through it, so it sits here,
+  below every package that validates documents.
 """
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, ValidationError
 
 
 class StrictModel(BaseModel):
@@ -32,4 +38,25 @@ class FrozenModel(StrictModel):
     model_config = ConfigDict(frozen=True)
 
 
-__all__ = ["FrozenModel", "StrictModel"]
+def json_path(loc: tuple[Any, ...]) -> str:
+    """``('scenarios', 2, 'duration_s')`` → ``$.scenarios[2].duration_s``."""
+    out = "$"
+    for part in loc:
+        out += f"[{part}]" if isinstance(part, int) else f".{part}"
+    return out
+
+
+#: Location parts pydantic adds for a model's own validators; they name no field of the document.
+_VALIDATOR_LOCS = ("function-after[_inputs_are_values_or_signals(), Scenario]",)
+
+
+def validation_message(path: Path, exc: ValidationError) -> str:
+    """``<path>: <JSON path>: <message>`` of the first error, plus how many more there are."""
+    first = exc.errors()[0]
+    loc = tuple(p for p in first["loc"] if p not in _VALIDATOR_LOCS)
+    msg = first["msg"].removeprefix("Value error, ")
+    extra = f" ({exc.error_count() - 1} more)" if exc.error_count() > 1 else ""
+    return f"{path}: {json_path(loc)}: {msg}{extra}"
+
+
+__all__ = ["FrozenModel", "StrictModel", "json_path", "validation_message"]

@@ -18,7 +18,8 @@ from tests.support.rl_runs import TINY
 
 from dualtwin.errors import DualtwinError
 from dualtwin.rl.policy import load_policy
-from dualtwin.rl.train import DEFAULT_CONFIG, load_config, train
+from dualtwin.rl.ppo_config import DEFAULT_CONFIG, load_config
+from dualtwin.rl.train import train
 
 
 def test_bundled_config_is_the_papers() -> None:

@@ -14,7 +14,8 @@ from tests.support.rl_runs import TINY
 
 from dualtwin.errors import DualtwinError
 from dualtwin.rl.curves import read_learning_curve
-from dualtwin.rl.train import bundled_configs, load_config, train
+from dualtwin.rl.ppo_config import bundled_configs, load_config
+from dualtwin.rl.train import train
 
 PAPER_VARIANTS = ("ppo_cartpole_text", "ppo_cartpole_code", "ppo_cartpole_continuous")
 

@@ -14,8 +14,8 @@ import pytest
 from dualtwin.convert import convert_world
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding, bundled_robots, load_binding, resolve_robot
-from dualtwin.robots.io import RobotIO
 from dualtwin.twins import Twin, make_twin
+from dualtwin.twins.io import RobotIO
 from dualtwin.twins.mujoco import PREDICT_SATURATION, MuJoCoTwin
 from dualtwin.webots import load_world
 from dualtwin.webots.physics import Simulation

@@ -21,12 +21,12 @@ from dualtwin.divergence.runs import Series, load_run
 from dualtwin.errors import DualtwinError
 from dualtwin.parallel import DEFAULT_WORKERS, EXECUTORS, ExecutorKind, ParallelMap, check_executor
 from dualtwin.robots.binding import RobotBinding, load_binding
-from dualtwin.robots.io import RobotIO
 from dualtwin.suite.loader import load_suite, read_json
 from dualtwin.suite.runner import check_against_binding, run_scenario
 from dualtwin.suite.schema import Suite
 from dualtwin.twins import make_twin
 from dualtwin.twins.base import Twin
+from dualtwin.twins.io import RobotIO
 
 # Re-exported for callers that import them from here (fit, analyze, prediction).
 __all__ = ["DEFAULT_WORKERS", "EXECUTORS", "Evaluator", "ExecutorKind", "ScenarioTrace", "SimJob", "Traces",

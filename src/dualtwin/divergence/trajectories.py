@@ -27,9 +27,9 @@ import numpy as np
 from dualtwin.artifacts import atomic_open
 from dualtwin.errors import DualtwinError, SimulationUnstable
 from dualtwin.robots.binding import RobotBinding
-from dualtwin.robots.io import RobotIO
 from dualtwin.suite.schema import Suite
 from dualtwin.twins.base import ControlMode, Knob, MechanicalState, StateLayout, Twin
+from dualtwin.twins.io import RobotIO
 
 TRAJECTORIES_SCHEMA = "dualtwin.trajectories/1"
 MODES: tuple[ControlMode, ...] = ("velocity", "position", "torque")

@@ -162,7 +162,7 @@ class BagMapping(FrozenModel):
 def load_mapping(path: Path, model: type[TableMapping] | type[BagMapping]) -> TableMapping | BagMapping:
     """Read and validate a YAML mapping; errors name the file and the field (``$.channels[1].unit``)."""
     from dualtwin.artifacts import read_yaml
-    from dualtwin.suite.loader import validation_message
+    from dualtwin.models import validation_message
 
     path = Path(path)
     data = read_yaml(path, "mapping file")

@@ -3,7 +3,8 @@
 Importing this package registers the env ids (``gym.make("dualtwin/CartPole-MuJoCo-v0")``). It imports only
 Gymnasium; PyTorch and Stable-Baselines3 load with the modules that need them:
 ``from dualtwin.rl.train import train``, ``from dualtwin.rl.transfer import transfer``,
-``from dualtwin.rl.export import export_policy``, ``from dualtwin.rl.policy import load_policy``.
+``from dualtwin.rl.export import export_policy``, ``from dualtwin.rl.policy import load_policy``,
+``from dualtwin.rl.shadow import ShadowCallback`` (a Webots shadow of training episodes).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from dualtwin.rl.reach import ArmReach
 if TYPE_CHECKING:
     from dualtwin.rl.export import export_policy
     from dualtwin.rl.policy import LoadedPolicy, load_policy
+    from dualtwin.rl.shadow import ShadowCallback
     from dualtwin.rl.transfer import TransferReport
 
 # The ids live in dualtwin.registration (light), so that `import dualtwin` registers them without this package.
@@ -49,7 +51,7 @@ def __getattr__(name: str) -> Any:
     # Lazy: keep `import dualtwin.rl` free of torch and SB3 (seconds of import time). `train` and `transfer`
     # are not offered here: they share their names with their submodules, which would shadow them.
     lazy = {"load_policy": "policy", "LoadedPolicy": "policy", "TransferReport": "transfer",
-            "export_policy": "export"}
+            "export_policy": "export", "ShadowCallback": "shadow"}
     if name in lazy:
         import importlib
 
@@ -59,6 +61,6 @@ def __getattr__(name: str) -> Any:
 
 __all__ = [
     "ENV_IDS", "MAX_EPISODE_STEPS", "ArmReach", "CartPoleBalance", "DomainRandomization", "DriveToGoal", "FixedKnobs",
-    "LoadedPolicy", "ObservationTerm", "Task", "TransferReport", "TwinEnv", "apply_knobs", "check_env_id",
+    "LoadedPolicy", "ObservationTerm", "ShadowCallback", "Task", "TransferReport", "TwinEnv", "apply_knobs", "check_env_id",
     "export_policy", "load_knob_values", "load_policy", "load_ranges", "make_env", "registered_ids",
 ]

@@ -18,7 +18,7 @@ from gymnasium import spaces
 from dualtwin.errors import DualtwinError
 from dualtwin.geometry import quat_from_matrix
 from dualtwin.rl.env import TASKS, ObservationTerm, Task
-from dualtwin.robots.io import RobotIO
+from dualtwin.twins.io import RobotIO
 
 
 def _wrap(angle: float) -> float:

@@ -1,7 +1,7 @@
 """A Gymnasium env over any twin, with the task kept apart from the twin (dm_control's Physics/Task split).
 
 The twin is physics only. A :class:`Task` reads the robot through its binding's channel names (on-board sensors
-and the supervisor's ground truth, :class:`dualtwin.robots.io.RobotIO`) and turns that into observations,
+and the supervisor's ground truth, :class:`dualtwin.twins.io.RobotIO`) and turns that into observations,
 rewards and terminations; :class:`TwinEnv` only orchestrates reset, action and step. So one task runs
 unchanged on every twin, and the env's I/O contract (:meth:`TwinEnv.io_contract`) is the same on all of them.
 
@@ -24,9 +24,9 @@ from gymnasium import spaces
 from dualtwin.errors import DualtwinError, SimulationUnstable
 from dualtwin.rl.randomize import check_knob_names
 from dualtwin.robots.binding import RobotBinding, resolve_robot
-from dualtwin.robots.io import RobotIO
 from dualtwin.twins import make_twin
 from dualtwin.twins.base import Twin
+from dualtwin.twins.io import RobotIO
 
 Source = Literal["onboard", "privileged"]
 

@@ -33,7 +33,7 @@ from gymnasium import spaces
 
 from dualtwin.errors import DualtwinError
 from dualtwin.rl.env import TASKS, ObservationTerm, Task
-from dualtwin.robots.io import RobotIO
+from dualtwin.twins.io import RobotIO
 
 # Joint-space box (rad) that targets and starts are drawn from: the arm above its base plane, elbow bent one
 # way (the UR convention: lift negative raises the upper arm, elbow positive folds the forearm up).

@@ -226,7 +226,7 @@ def safe_objects(path: Path, record: dict[str, Any]) -> tuple[dict[str, Any], li
     from stable_baselines3.common.buffers import RolloutBuffer
     from stable_baselines3.common.policies import ActorCriticPolicy
 
-    from dualtwin.rl.train import PPOConfig, activation, learning_rate_schedule
+    from dualtwin.rl.ppo_config import PPOConfig, activation, learning_rate_schedule
 
     data = _zip_data(path)
     pickled = {k: v for k, v in data.items() if isinstance(v, dict) and ":serialized:" in v}

@@ -28,16 +28,15 @@ import re
 import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import yaml
-from pydantic import Field, ValidationError, model_validator
 
 from dualtwin.artifacts import package_versions, write_json, write_text
 from dualtwin.errors import DualtwinError
-from dualtwin.models import FrozenModel
 from dualtwin.rl.curves import evaluation_line
+from dualtwin.rl.ppo_config import PPOConfig, activation, learning_rate_schedule, load_config
 from dualtwin.rl.runfiles import load_model, load_normalization, save_normalization, stats_path
 
 if TYPE_CHECKING:
@@ -46,128 +45,8 @@ if TYPE_CHECKING:
     from stable_baselines3.common.callbacks import EvalCallback
     from stable_baselines3.common.vec_env import VecNormalize
 
-CONFIGS = Path(__file__).parent / "configs"
-DEFAULT_CONFIG = CONFIGS / "ppo_cartpole.yaml"
 RUN_VERSION = 1
 _CHECKPOINT = re.compile(r"^rl_model_(\d+)_steps\.zip$")
-
-
-class NormalizeConfig(FrozenModel):
-    """VecNormalize settings (its statistics are saved with the model)."""
-
-    norm_obs: bool = True
-    norm_reward: bool = True
-    clip_obs: float = Field(default=10.0, gt=0)
-    clip_reward: float = Field(default=10.0, gt=0)
-
-
-def _paper_net_arch() -> dict[Literal["pi", "vf"], list[int]]:
-    return {"pi": [64, 64], "vf": [64, 64]}
-
-
-class PolicyKwargs(FrozenModel):
-    net_arch: dict[Literal["pi", "vf"], list[int]] = Field(default_factory=_paper_net_arch)
-    activation_fn: Literal["relu", "tanh", "elu", "leaky_relu"] = "relu"
-    ortho_init: bool = True
-    log_std_init: float = 0.0
-
-
-class PPOConfig(FrozenModel):
-    """PPO hyperparameters plus the run's evaluation and checkpoint cadence. Step counts are env steps."""
-
-    algo: Literal["ppo"] = "ppo"
-    policy: Literal["MlpPolicy"] = "MlpPolicy"
-    n_timesteps: int = Field(default=400_000, gt=0)
-    n_envs: int = Field(default=8, ge=1)
-    n_steps: int = Field(default=512, ge=2)
-    batch_size: int = Field(default=512, ge=2)
-    n_epochs: int = Field(default=10, ge=1)
-    learning_rate: float | str = Field(default=3e-4, description="a number, or zoo's 'lin_<number>' (linear decay)")
-    gamma: float = Field(default=0.99, gt=0, le=1)
-    gae_lambda: float = Field(default=0.95, gt=0, le=1)
-    clip_range: float = Field(default=0.2, gt=0)
-    ent_coef: float = 0.0
-    vf_coef: float = 0.5
-    max_grad_norm: float = 0.5
-    use_sde: bool = Field(default=False, description="generalised state-dependent exploration (Box actions only)")
-    sde_sample_freq: int = -1
-    normalize: NormalizeConfig | bool = Field(default_factory=NormalizeConfig)
-    policy_kwargs: PolicyKwargs = Field(default_factory=PolicyKwargs)
-    env_kwargs: dict[str, Any] = Field(default_factory=dict, description="extra gym.make arguments")
-    eval_freq: int = Field(default=20_480, ge=0, description="0 disables evaluation")
-    eval_episodes: int = Field(default=5, ge=1)
-    checkpoint_freq: int = Field(default=40_960, ge=0, description="0 disables checkpoints (and resume)")
-    stop_reward: float | None = None
-    stop_episode_length: float | None = Field(
-        default=None, gt=0, description="stop once the mean length of the last 100 training episodes reaches this "
-        "(the rolling mean the paper's Figure 10 plots)")
-    max_wall_seconds: float | None = Field(default=None, gt=0, description="stop after this much training time")
-    vec_env: Literal["dummy", "subproc"] = "dummy"
-    torch_threads: int = Field(default=1, ge=1)
-
-    @model_validator(mode="after")
-    def _consistent(self) -> PPOConfig:
-        rollout = self.n_steps * self.n_envs
-        if rollout % self.batch_size:
-            raise ValueError(f"n_steps x n_envs ({rollout}) must be a multiple of batch_size ({self.batch_size})")
-        if isinstance(self.learning_rate, str):
-            learning_rate_schedule(self.learning_rate)
-        return self
-
-    @property
-    def normalize_config(self) -> NormalizeConfig | None:
-        if isinstance(self.normalize, bool):
-            return NormalizeConfig() if self.normalize else None
-        return self.normalize
-
-
-def learning_rate_schedule(value: float | str) -> float | Callable[[float], float]:
-    if isinstance(value, int | float):
-        return float(value)
-    match = re.fullmatch(r"lin_([0-9.eE+-]+)", value.strip())
-    if not match:
-        raise ValueError(f"learning_rate {value!r}: use a number or 'lin_<number>'")
-    start = float(match.group(1))
-    return lambda progress_remaining: progress_remaining * start
-
-
-def load_config(source: Path | str | Mapping[str, Any] | PPOConfig | None = None) -> PPOConfig:
-    """Read a PPO config YAML (the bundled :data:`DEFAULT_CONFIG` if ``None``)."""
-    if isinstance(source, PPOConfig):
-        return source
-    origin = "<config dict>"
-    if source is None or not isinstance(source, Mapping):
-        path = Path(source) if source is not None else DEFAULT_CONFIG
-        if not path.is_file() and re.fullmatch(r"[A-Za-z0-9_]+", str(source)):
-            # A bundled config by name (``--config ppo_cartpole``), as ``--robot cartpole`` names a bundled robot.
-            path = CONFIGS / f"{source}.yaml"
-            if not path.is_file():
-                raise DualtwinError(f"--config {source}: no such file and no bundled config of that name "
-                                    f"(bundled: {', '.join(bundled_configs())})")
-        if not path.is_file():
-            raise DualtwinError(f"{path}: config file not found")
-        origin = str(path)
-        from dualtwin.artifacts import read_yaml
-
-        data = read_yaml(path, "PPO config")
-    else:
-        data = dict(source)
-    try:
-        return PPOConfig.model_validate(data or {})
-    except ValidationError as exc:
-        problems = "; ".join(f"{'.'.join(str(p) for p in e['loc']) or 'config'}: {e['msg']}" for e in exc.errors())
-        raise DualtwinError(f"{origin}: invalid PPO config: {problems}") from None
-
-
-def bundled_configs() -> list[str]:
-    """Names of the bundled PPO configs (``--config NAME``)."""
-    return sorted(p.stem for p in CONFIGS.glob("*.yaml"))
-
-
-def activation(name: str) -> type[Any]:
-    import torch.nn as nn
-
-    return {"relu": nn.ReLU, "tanh": nn.Tanh, "elu": nn.ELU, "leaky_relu": nn.LeakyReLU}[name]
 
 
 def _read_json(path: Path) -> dict[str, Any]:
@@ -227,7 +106,7 @@ def train(env_id: str, config_path: Path | str | Mapping[str, Any] | PPOConfig |
         progress_bar: show SB3's progress bar.
         verbose: SB3 verbosity.
         shadow_fraction: share of training episodes mirrored into a shadow Webots twin, whose divergence goes
-            to TensorBoard under ``shadow/`` (:class:`dualtwin.sync.shadow.ShadowCallback`; needs
+            to TensorBoard under ``shadow/`` (:class:`dualtwin.rl.shadow.ShadowCallback`; needs
             ``vec_env: dummy``).
         aligned: aligned knob values (``knobs.json`` from ``dualtwin align --target <this env's twin>``, or a
             ``{name: value}`` dict) applied to every training and evaluation env; domain randomisation, if
@@ -591,7 +470,7 @@ class _Trainer:
         if cfg.stop_episode_length is not None:
             callbacks.append(_RollingLengthStop(cfg.stop_episode_length))
         if self.shadow_fraction > 0:
-            from dualtwin.sync.shadow import ShadowCallback
+            from dualtwin.rl.shadow import ShadowCallback
 
             callbacks.append(ShadowCallback(self.shadow_fraction, seed=self.seed))
         if cfg.stop_reward is not None and cfg.eval_freq == 0:

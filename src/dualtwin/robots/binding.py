@@ -169,7 +169,7 @@ def load_binding(path: Path) -> RobotBinding:
     try:
         binding = Binding.model_validate(data)
     except ValidationError as exc:
-        from dualtwin.suite.loader import validation_message
+        from dualtwin.models import validation_message
 
         raise DualtwinError(validation_message(path, exc)) from None
     return RobotBinding(binding, path)

@@ -44,11 +44,11 @@ from dualtwin.errors import DualtwinError
 from dualtwin.models import FrozenModel
 from dualtwin.parallel import DEFAULT_WORKERS, ExecutorKind, ParallelMap, check_executor
 from dualtwin.robots.binding import RobotBinding, load_binding
-from dualtwin.robots.io import RobotIO
 from dualtwin.suite.loader import load_suite, read_json
 from dualtwin.suite.runner import SuiteRun, check_against_binding, format_rows, run_scenario
 from dualtwin.suite.schema import Suite
 from dualtwin.twins import make_twin
+from dualtwin.twins.io import RobotIO
 
 ENSEMBLE_SCHEMA = "dualtwin.ensemble/1"
 

@@ -9,18 +9,11 @@ from pydantic import ValidationError
 
 from dualtwin.artifacts import read_json as _read_json_file
 from dualtwin.errors import DualtwinError
+from dualtwin.models import validation_message
 from dualtwin.suite.schema import Suite
 
 #: Bundled robots live next to their suites: ``<robot>/suite.json``.
 BUNDLED_SUITES = Path(__file__).resolve().parent.parent / "robots"
-
-
-def json_path(loc: tuple[Any, ...]) -> str:
-    """``('scenarios', 2, 'duration_s')`` → ``$.scenarios[2].duration_s``."""
-    out = "$"
-    for part in loc:
-        out += f"[{part}]" if isinstance(part, int) else f".{part}"
-    return out
 
 
 def read_json(path: Path, what: str = "file") -> Any:
@@ -47,14 +40,6 @@ def resolve_suite(name_or_path: str | Path) -> Path:
         return candidate
     raise DualtwinError(f"unknown suite {text!r}: not a bundled suite ({', '.join(bundled_suites())}); "
                         f"to use a file of that name, write ./{text}")
-
-
-def validation_message(path: Path, exc: ValidationError) -> str:
-    first = exc.errors()[0]
-    loc = tuple(p for p in first["loc"] if p not in ("function-after[_inputs_are_values_or_signals(), Scenario]",))
-    msg = first["msg"].removeprefix("Value error, ")
-    extra = f" ({exc.error_count() - 1} more)" if exc.error_count() > 1 else ""
-    return f"{path}: {json_path(loc)}: {msg}{extra}"
 
 
 def load_suite(path: Path) -> Suite:

@@ -30,12 +30,13 @@ from dualtwin.artifacts import (
     write_text,
 )
 from dualtwin.errors import DualtwinError, SimulationUnstable
+from dualtwin.models import json_path
 from dualtwin.robots.binding import RobotBinding
-from dualtwin.robots.io import RobotIO
-from dualtwin.suite.loader import json_path, load_suite, read_json
+from dualtwin.suite.loader import load_suite, read_json
 from dualtwin.suite.schema import Scenario, Suite
 from dualtwin.twins import make_twin
 from dualtwin.twins.base import Twin
+from dualtwin.twins.io import RobotIO
 
 # Version 2 adds ``kind`` ("suite-run") and ``logs``: per log file (relative path) its data rows, bytes and
 # SHA-256 (see dualtwin.artifacts.log_record), so every reader can verify the logs it compares.

@@ -9,16 +9,15 @@ drift apart it re-synchronises them or adjusts parameters. Pieces:
 * :func:`run_lockstep`: both twins get the same commands every control period, with a re-sync policy
   (``never``, ``every:N``, ``threshold:X``), per-channel state differences logged;
 * :func:`prediction_error`: k-step prediction error from synchronised start states (multiple shooting),
-  also an alignment objective (``dualtwin.align.align(..., objective="prediction")``);
+  also an alignment objective (``dualtwin.align.run_align`` with ``AlignConfig(objective="prediction", ...)``);
 * :class:`Monitor`: sliding-window statistics, a drift alarm with hysteresis, an event log and background
   re-alignment applied at episode boundaries;
-* :class:`~dualtwin.sync.shadow.ShadowCallback`: a Webots shadow of MuJoCo RL training episodes
-  (imported lazily: it needs Stable-Baselines3);
 * :func:`write_sync_report`: HTML + JSON of prediction curves, drift, alarms and re-alignments.
 
 The measuring primitives (state-difference channels, recorded trajectories, the prediction error) live in
 :mod:`dualtwin.divergence` so that :mod:`dualtwin.align` can use them without importing upwards; they are
-re-exported here.
+re-exported here. The Webots shadow of RL training (:class:`dualtwin.rl.shadow.ShadowCallback`) is a piece
+of training and lives in :mod:`dualtwin.rl`; it feeds a :class:`Monitor` through a protocol.
 """
 
 from __future__ import annotations
@@ -40,26 +39,21 @@ from dualtwin.twins.base import BodyState, MechanicalState, SyncError
 
 if TYPE_CHECKING:
     from dualtwin.sync.report import write_sync_report
-    from dualtwin.sync.shadow import ShadowCallback
 
 
 def __getattr__(name: str) -> Any:
-    # Lazy: the report pulls in matplotlib, the shadow callback Stable-Baselines3 and Gymnasium.
+    # Lazy: the report pulls in matplotlib.
     if name == "write_sync_report":
         from dualtwin.sync.report import write_sync_report
 
         return write_sync_report
-    if name == "ShadowCallback":
-        from dualtwin.sync.shadow import ShadowCallback
-
-        return ShadowCallback
     raise AttributeError(f"module 'dualtwin.sync' has no attribute {name!r}")
 
 
 __all__ = [
     "DEFAULT_UNIT_SCALES", "BodyState", "CommandTap", "EpisodeSummary", "LockstepResult", "MechanicalState",
     "Monitor", "MonitorConfig", "PredictionResult", "PredictionSettings", "RealignSettings", "ResyncPolicy",
-    "ShadowCallback", "SyncError", "Trajectory", "channel_scales", "load_trajectories", "normalized_error",
+    "SyncError", "Trajectory", "channel_scales", "load_trajectories", "normalized_error",
     "predict", "prediction_error", "read_events", "record_trajectories", "run_lockstep", "save_trajectories",
     "write_sync_report",
 ]

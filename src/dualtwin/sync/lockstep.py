@@ -53,12 +53,12 @@ from dualtwin.divergence.trajectories import (
 )
 from dualtwin.errors import DualtwinError, SimulationUnstable
 from dualtwin.robots.binding import RobotBinding, resolve_robot
-from dualtwin.robots.io import RobotIO
 from dualtwin.suite.loader import load_suite
 from dualtwin.suite.runner import check_against_binding, format_rows
 from dualtwin.sync.monitor import Monitor
 from dualtwin.twins import make_twin
 from dualtwin.twins.base import MechanicalState, StateLayout, SyncError, Twin
+from dualtwin.twins.io import RobotIO
 
 LOCKSTEP_SCHEMA = "dualtwin.lockstep/1"
 DEFAULT_POLICY_EPISODES = 5

@@ -14,7 +14,7 @@ Feed it the normalised state error of every control period (the lockstep runner 
   threshold cannot make the alarm flicker.
 * When the alarm is raised and ``realign`` is set, the primary's recent states and commands (the last
   ``periods`` control periods) are written as a trajectory file and a separate process runs
-  :func:`dualtwin.align.align` with the ``prediction`` objective on them. Its knob values are handed out by
+  :func:`dualtwin.align.run_align` with the ``prediction`` objective on them. Its knob values are handed out by
   :meth:`Monitor.episode_end`, never in the middle of an episode, and only if they lower the objective.
 * Every event is a JSON line carrying simulation time (``t``, seconds summed over episodes) and the episode;
   no wall-clock time, so two identical runs write identical logs (with ``wait=True`` for re-alignments).

@@ -20,26 +20,46 @@ logs there) under ``shadow/``:
 
 One shadow twin serves all training envs: an episode is shadowed only if no other one is, and then with
 probability ``fraction`` (a private generator seeded with ``seed``). The training envs must live in this
-process (``vec_env: dummy``); a :class:`~dualtwin.sync.monitor.Monitor` may watch the shadow, and its knob
-updates are applied to the training envs' knobs, which take effect at their next reset (an episode boundary).
-The callback only observes: training itself is unchanged.
+process (``vec_env: dummy``); a drift monitor (:class:`dualtwin.sync.Monitor`) may watch the shadow, and its
+knob updates are applied to the training envs' knobs, which take effect at their next reset (an episode
+boundary). The callback only observes: training itself is unchanged.
+
+The callback lives in :mod:`dualtwin.rl` because it is a piece of training; :mod:`dualtwin.sync` sits above
+:mod:`dualtwin.rl` (lockstep runs drive twins with trained policies), so the monitor is typed here by the
+:class:`DriftMonitor` protocol it satisfies rather than imported.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import Any
+from pathlib import Path
+from typing import Any, Protocol
 
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
 
 from dualtwin.divergence.channels import channel_scales, normalized, normalized_error
-from dualtwin.divergence.trajectories import CommandTap
+from dualtwin.divergence.trajectories import Command, CommandTap
 from dualtwin.errors import DualtwinError, SimulationUnstable
-from dualtwin.robots.io import RobotIO
-from dualtwin.sync.monitor import Monitor
-from dualtwin.twins.base import SyncError
+from dualtwin.twins.base import MechanicalState, SyncError
+from dualtwin.twins.io import RobotIO
+
+
+class DriftMonitor(Protocol):
+    """What the shadow feeds a drift monitor (:class:`dualtwin.sync.Monitor` is one)."""
+
+    def attach(self, log_path: Path, scales: Mapping[str, float] | None = None) -> None: ...
+
+    def episode_start(self, episode: str, t: float) -> None: ...
+
+    def observe(self, t: float, error: float, channels: Mapping[str, float] | None = None, *,
+                state: MechanicalState | None = None, commands: Mapping[str, Command] | None = None,
+                period: float | None = None) -> list[dict[str, Any]]: ...
+
+    def episode_end(self, episode: str, t: float) -> dict[str, Any] | None: ...
+
+    def close(self) -> None: ...
 
 
 class ShadowCallback(BaseCallback):
@@ -56,7 +76,7 @@ class ShadowCallback(BaseCallback):
 
     def __init__(self, fraction: float = 0.1, *, twin: str = "webots", seed: int = 0,
                  scales: Mapping[str, float] | None = None, knobs: Mapping[str, float] | None = None,
-                 monitor: Monitor | None = None, verbose: int = 0) -> None:
+                 monitor: DriftMonitor | None = None, verbose: int = 0) -> None:
         super().__init__(verbose)
         if not 0.0 <= fraction <= 1.0:
             raise DualtwinError(f"shadow fraction must be within [0, 1], got {fraction}")
@@ -107,8 +127,6 @@ class ShadowCallback(BaseCallback):
         channels = first.twin.get_state().diff_channels()
         self._scales = channel_scales(channels, self.scale_overrides)
         if self.monitor is not None:
-            from pathlib import Path
-
             log_dir = Path(getattr(self.logger, "dir", None) or ".")
             self.monitor.attach(log_dir / "shadow_monitor_events.jsonl", self._scales)
         for i in range(len(self._envs)):

@@ -12,7 +12,7 @@ def test_shadow_callback_logs_divergence_scalars(tmp_path: Path) -> None:
     from stable_baselines3.common.logger import configure
 
     from dualtwin.rl import make_env
-    from dualtwin.sync.shadow import ShadowCallback
+    from dualtwin.rl.shadow import ShadowCallback
 
     venv = make_vec_env(lambda: make_env("dualtwin/CartPole-MuJoCo-v0", max_episode_steps=30), n_envs=2, seed=0)
     model = PPO("MlpPolicy", venv, n_steps=48, batch_size=48, n_epochs=1, seed=0, device="cpu",

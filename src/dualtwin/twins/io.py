@@ -1,4 +1,8 @@
-"""Binding-driven robot I/O: the suite's words applied to, and read from, any twin."""
+"""Binding-driven robot I/O: the suite's words applied to, and read from, any twin.
+
+It lives with the twins because it wraps a :class:`~dualtwin.twins.base.Twin`: everything above the twins
+(suites, alignment, RL, lockstep) talks to a robot through it.
+"""
 
 from __future__ import annotations
 
