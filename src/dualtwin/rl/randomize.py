@@ -24,13 +24,15 @@ import yaml
 from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
 
 from dualtwin.errors import DualtwinError
+from dualtwin.models import FrozenModel
 from dualtwin.twins.base import Knob
 
 
-class KnobRange(BaseModel):
+class KnobRange(FrozenModel):
     """How one knob is drawn at each reset."""
 
-    model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
+    # dr_ranges.json records more per knob (its unit) than sampling needs: kept, not refused.
+    model_config = ConfigDict(extra="allow")
 
     low: float
     high: float
