@@ -15,16 +15,11 @@ if TYPE_CHECKING:
     from dualtwin.perception.dataset import collect, load_dataset
     from dualtwin.perception.estimator import StateEstimator
     from dualtwin.perception.model import evaluate_perception, train_perception
-    from dualtwin.twins.camera import Appearance, CameraSpec, FrameRenderer, camera_for, robot_cameras
-    from dualtwin.twins.render import TwinCamera
 
-# Cameras and rendering live under the twins (twins.camera, twins.render); re-exported here for convenience.
+# Cameras and rendering live under the twins (dualtwin.twins.camera, dualtwin.twins.render).
 _LAZY = {
-    "Appearance": "twins.camera", "CameraSpec": "twins.camera", "FrameRenderer": "twins.camera",
-    "camera_for": "twins.camera", "robot_cameras": "twins.camera", "collect": "perception.dataset",
-    "load_dataset": "perception.dataset", "StateEstimator": "perception.estimator",
+    "collect": "perception.dataset", "load_dataset": "perception.dataset", "StateEstimator": "perception.estimator",
     "evaluate_perception": "perception.model", "train_perception": "perception.model",
-    "TwinCamera": "twins.render",
 }
 
 
@@ -35,7 +30,4 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module 'dualtwin.perception' has no attribute {name!r}")
 
 
-__all__ = [
-    "Appearance", "CameraSpec", "FrameRenderer", "StateEstimator", "TwinCamera", "camera_for", "collect",
-    "evaluate_perception", "load_dataset", "robot_cameras", "train_perception",
-]
+__all__ = ["StateEstimator", "collect", "evaluate_perception", "load_dataset", "train_perception"]

@@ -1,7 +1,6 @@
 """A visual-only MuJoCo scene of a Webots world, posed from the supervisor: how the Webots twin renders.
 
-Moved here from ``dualtwin.perception.scene`` (which re-exports it): the runtime's ``Camera`` device draws
-this scene too, so it lives at the lowest layer.
+The runtime's ``Camera`` device draws this scene too, so it lives at the lowest layer.
 
 Our headless Webots runtime has no renderer of its own, so the world's Shapes are drawn by the same MuJoCo
 renderer as the MuJoCo twin (:class:`dualtwin.twins.camera.FrameRenderer`):
