@@ -498,15 +498,16 @@ def main() -> dict[str, Any]:
     import argparse
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    parser.add_argument("--budget", type=int, default=1200, help="alignment evaluations (0 skips alignment)")
+    parser.add_argument("--budget", type=int, default=400,
+                        help="CMA-ES evaluations, split over the restarts (0 skips alignment)")
     parser.add_argument("--executor", default="process", help="alignment executor: serial, process or ray")
     parser.add_argument("--optimizer", default="cma", help="alignment optimizer: cma (the goal's) or lsq")
-    parser.add_argument("--restarts", type=int, default=2,
+    parser.add_argument("--restarts", type=int, default=0,
                         help="CMA-ES restarts, each from the previous best with a smaller step")
-    parser.add_argument("--polish", type=int, default=0,
+    parser.add_argument("--polish", type=int, default=300,
                         help="least-squares evaluations that polish the CMA-ES result (0: none)")
     parser.add_argument("--executor-budget", type=int, default=40,
-                        help="evaluations of the executor comparison (serial, process, Ray)")
+                        help="CMA-ES evaluations of the whole fit run through the pool and through Ray")
     parser.add_argument("--parts", default="divergence,stepping,align",
                         help=f"comma-separated parts to run, of: {', '.join(PARTS)}")
     args = parser.parse_args()
