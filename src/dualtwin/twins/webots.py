@@ -31,8 +31,6 @@ from dualtwin.twins.base import (
 from dualtwin.twins.webots_knobs import WEBOTS_KNOBS
 from dualtwin.twins.webots_state import (
     JOINT_TYPES,
-    MAX_JUMP_ANGULAR,
-    MAX_JUMP_LINEAR,
     MOTOR_TYPES,
     Joint,
     StateStructure,
@@ -42,9 +40,6 @@ from dualtwin.twins.webots_state import (
 if TYPE_CHECKING:
     from dualtwin.robots.binding import RobotBinding
     from dualtwin.twins.camera import CameraSpec
-
-# The state transfer lives in webots_state; these names are part of this module's interface too.
-__all__ = ["JOINT_TYPES", "MAX_JUMP_ANGULAR", "MAX_JUMP_LINEAR", "MOTOR_TYPES", "WebotsTwin", "from_binding"]
 
 
 class WebotsTwin(Twin):
@@ -346,7 +341,7 @@ class WebotsTwin(Twin):
         Raises:
             DualtwinError: A body or joint cannot be mapped, or a root is not a top-level Solid.
             SyncError: Non-finite values; the physics became unstable; a free body's velocity jumped by more
-                than ``MAX_JUMP_LINEAR`` m/s or ``MAX_JUMP_ANGULAR`` rad/s within a basic step (penetration
+                than ``webots_state.MAX_JUMP_LINEAR`` m/s or ``MAX_JUMP_ANGULAR`` rad/s within a basic step (penetration
                 or a violated joint). The twin then needs a :meth:`reset`.
         """
         st = self._state_structure()
