@@ -54,9 +54,16 @@ class KnobKind(Generic[T]):
     #: The unit when it depends on the object (a slide joint's armature is a mass); else ``unit``.
     unit_of: Callable[[T, Any], str] | None = None
 
+    def __post_init__(self) -> None:
+        # The pattern split once around its placeholder: name() runs for every knob on every build.
+        match = _PLACEHOLDER.search(self.pattern)
+        parts = (self.pattern[:match.start()], self.pattern[match.end():]) if match else (self.pattern, None)
+        object.__setattr__(self, "_parts", parts)
+
     def name(self, obj_name: str) -> str:
         """The knob's name for an object (the pattern itself when it has no placeholder)."""
-        return _PLACEHOLDER.sub(lambda _: obj_name, self.pattern, count=1)
+        head, tail = self._parts  # type: ignore[attr-defined]
+        return head if tail is None else head + obj_name + tail  # type: ignore[no-any-return]
 
 
 @dataclass(frozen=True)

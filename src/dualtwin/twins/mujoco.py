@@ -46,6 +46,7 @@ from dualtwin.twins.base import (
     check_state_names,
     unknown_name,
 )
+from dualtwin.twins.knob_table import BoundKnob
 from dualtwin.twins.motors import MotorParams, MotorState, servo_steps
 from dualtwin.twins.mujoco_knobs import MAX_DELAY_PERIODS, MUJOCO_KNOBS, KnobPass
 from dualtwin.twins.ode_friction import FrictionBox, contact_semantics
@@ -127,6 +128,7 @@ class MuJoCoTwin(Twin):
         self._armature = self._nominal["dof_armature"].copy()
         self._knob_values: dict[str, float] = {}
         self._knob_pass = KnobPass()  # what the last set_knobs collected (see mujoco_knobs)
+        self._knob_index: dict[str, BoundKnob[MuJoCoTwin]] | None = None
         self._motors = self._build_motors()
         self._motor_by_name = {m.name: m for m in self._motors}
         self._nominal_kv = {m.name: m.kv for m in self._motors}
@@ -642,7 +644,10 @@ class MuJoCoTwin(Twin):
         return {name: bound.knob for name, bound in MUJOCO_KNOBS.build(self).items()}
 
     def set_knobs(self, values: dict[str, float]) -> None:
-        registry = MUJOCO_KNOBS.build(self)
+        # Names and handles are fixed by the model's structure: look them up once (bounds are not needed here).
+        if self._knob_index is None:
+            self._knob_index = MUJOCO_KNOBS.build(self)
+        registry = self._knob_index
         unknown = sorted(set(values) - set(registry))
         if unknown:
             raise DualtwinError(f"{self._origin}: unknown knobs: {', '.join(unknown)}")
