@@ -55,6 +55,8 @@ ControlMode = Literal["velocity", "position", "torque"]
 
 #: Per-body values of a state vector, in order (see :meth:`MechanicalState.layout`).
 BODY_FIELDS = ("x", "y", "z", "qw", "qx", "qy", "qz", "vx", "vy", "vz", "wx", "wy", "wz")
+#: Names of a ball joint ``B``'s three state entries: ``B/rx``, ``B/ry``, ``B/rz`` (see the module docstring).
+BALL_COMPONENTS = ("rx", "ry", "rz")
 #: Per-body channels of a state difference: position, rotation vector of the relative rotation, velocities.
 BODY_DIFF_FIELDS = ("x", "y", "z", "rx", "ry", "rz", "vx", "vy", "vz", "wx", "wy", "wz")
 

@@ -49,6 +49,7 @@ from dualtwin.twins.base import (
 from dualtwin.twins.knob_table import BoundKnob
 from dualtwin.twins.motors import MotorParams, MotorState, servo_steps
 from dualtwin.twins.mujoco_knobs import MAX_DELAY_PERIODS, MUJOCO_KNOBS, KnobPass
+from dualtwin.twins.mujoco_state import StatePlan
 from dualtwin.twins.ode_friction import FrictionBox, contact_semantics
 
 if TYPE_CHECKING:
@@ -471,14 +472,14 @@ class MuJoCoTwin(Twin):
         return value
 
     # ---------------------------------------------------------------- state transfer
-    def _state_plan(self) -> _StatePlan:
+    def _state_plan(self) -> StatePlan:
         # The compiled model never changes its joints: resolve them once (the state is read every period).
-        plan: _StatePlan | None = getattr(self, "_plan", None)
+        plan: StatePlan | None = getattr(self, "_plan", None)
         if plan is None:
-            plan = self._plan = _StatePlan(self.model, {v: k for k, v in self._aliases.items()})
+            plan = self._plan = StatePlan(self.model, {v: k for k, v in self._aliases.items()})
         return plan
 
-    def _held(self, plan: _StatePlan) -> list[tuple[str, float]]:
+    def _held(self, plan: StatePlan) -> list[tuple[str, float]]:
         """(joint, hold target) of the motors that have not been commanded since reset (the state's holds)."""
         out = []
         for motor in self._motors:
@@ -495,30 +496,7 @@ class MuJoCoTwin(Twin):
         plan = self._state_plan()
         held = self._held(plan)
         layout = plan.layout(tuple(name for name, _ in held))
-        # Plain floats: a few dozen numbers, read every control period in lockstep.
-        qpos, qvel = self.data.qpos.tolist(), self.data.qvel.tolist()
-        out: list[float] = []
-        for qa, da in plan.bodies:
-            w, x, y, z = qpos[qa + 3:qa + 7]
-            norm = (-1.0 if w < 0 else 1.0) / math.sqrt(w * w + x * x + y * y + z * z)
-            w, x, y, z = w * norm, x * norm, y * norm, z * norm
-            a, b, c = qvel[da + 3:da + 6]
-            # v + 2w(q×v) + 2q×(q×v): the body-frame angular velocity in world coordinates.
-            tx, ty, tz = 2 * (y * c - z * b), 2 * (z * a - x * c), 2 * (x * b - y * a)
-            out += [*qpos[qa:qa + 3], w, x, y, z, *qvel[da:da + 3],
-                    a + w * tx + y * tz - z * ty, b + w * ty + z * tx - x * tz, c + w * tz + x * ty - y * tx]
-        positions = [qpos[qa] for qa in plan.scalar_qpos]
-        velocities = [qvel[da] for da in plan.scalar_dof]
-        for qa, da in zip(plan.ball_qpos, plan.ball_dof, strict=True):
-            rotvec = np.zeros(3)
-            quat = np.array(qpos[qa:qa + 4])
-            mujoco.mju_quat2Vel(rotvec, quat / np.linalg.norm(quat), 1.0)
-            positions += rotvec.tolist()
-            velocities += qvel[da:da + 3]
-        out += positions
-        out += velocities
-        out += [target for _, target in held]
-        return layout, out
+        return layout, plan.read(self.data.qpos.tolist(), self.data.qvel.tolist(), held)
 
     def state_vector(self) -> tuple[StateLayout, np.ndarray]:
         layout, values = self._read_state()
@@ -747,47 +725,6 @@ class MuJoCoTwin(Twin):
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
-
-
-#: Names of a ball joint's three state entries: ``<joint>/rx`` ... (see :mod:`dualtwin.twins.base`).
-BALL_COMPONENTS = ("rx", "ry", "rz")
-
-
-class _StatePlan:
-    """Where each state entry lives in qpos/qvel: free bodies, hinge/slide joints, then ball joints."""
-
-    def __init__(self, m: mujoco.MjModel, inverse: dict[str, str]) -> None:
-        self.body_names: list[str] = []
-        self.bodies: list[tuple[int, int]] = []
-        scalars: list[tuple[str, int, int]] = []
-        balls: list[tuple[str, int, int]] = []
-        kinds = mujoco.mjtJoint
-        for j in range(m.njnt):
-            kind = int(m.jnt_type[j])
-            qa, da = int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j])
-            if kind == kinds.mjJNT_FREE:
-                name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, int(m.jnt_bodyid[j]))
-                if name:  # unnamed bodies and joints are scenery, not robot state
-                    self.body_names.append(inverse.get(name, name))
-                    self.bodies.append((qa, da))
-                continue
-            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j)
-            if name:
-                (balls if kind == kinds.mjJNT_BALL else scalars).append((inverse.get(name, name), qa, da))
-        self.scalar = len(scalars)
-        self.joint_names = [n for n, _, _ in scalars] + [f"{n}/{c}" for n, _, _ in balls for c in BALL_COMPONENTS]
-        self.scalar_qpos = [qa for _, qa, _ in scalars]
-        self.scalar_dof = [da for _, _, da in scalars]
-        self.ball_qpos = [qa for _, qa, _ in balls]
-        self.ball_dof = [da for _, _, da in balls]
-        self.by_qpos = {qa: n for n, qa, _ in scalars}
-        self._layouts: dict[tuple[str, ...], StateLayout] = {}
-
-    def layout(self, holds: tuple[str, ...]) -> StateLayout:
-        layout = self._layouts.get(holds)
-        if layout is None:
-            layout = self._layouts[holds] = StateLayout(self.body_names, self.joint_names, holds)
-        return layout
 
 
 def from_binding(robot: RobotBinding, control_period: float) -> MuJoCoTwin:

@@ -27,7 +27,7 @@ from dualtwin.geometry import (
     rotation_about,
     rotation_vector,
 )
-from dualtwin.twins.base import MechanicalState, StateLayout, SyncError
+from dualtwin.twins.base import BALL_COMPONENTS, MechanicalState, StateLayout, SyncError
 
 JOINT_TYPES = ("HingeJoint", "SliderJoint", "Hinge2Joint", "BallJoint")
 MOTOR_TYPES = ("RotationalMotor", "LinearMotor")
@@ -88,10 +88,6 @@ class Hinge2:
         """World axes now: axis 2 is given for axis 1 at zero and turns with it (as ODE's hinge-2 axis 2)."""
         rotation = np.array(self.parent.getOrientation(), dtype=float).reshape(3, 3)
         return rotation @ self.axis, rotation @ (rotation_about(self.axis, q1) @ self.axis2)
-
-
-#: State joints of a BallJoint ``B``: ``B/rx``, ``B/ry``, ``B/rz`` (see :mod:`dualtwin.twins.base`).
-BALL_COMPONENTS = ("rx", "ry", "rz")
 
 
 class StateStructure:
