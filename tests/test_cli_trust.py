@@ -273,7 +273,8 @@ def test_align_reference_is_explicit(tmp_path: Path, monkeypatch: pytest.MonkeyP
     code, err = run_cli([*base, "--reference-run", "webots"], capsys)
     assert code == 2 and "webots: not a run directory (no manifest.json)" in err
     code, err = run_cli([*base, "--reference", "runs/webots"], capsys)
-    assert code == 2 and "--reference must name a twin" in err and "--reference-run" in err
+    # --reference takes a twin name only (a closed choice, listed by --help); a folder goes to --reference-run
+    assert code == 2 and "'--reference'" in err and "'runs/webots' is not one of 'mujoco', 'webots'" in err
     code, err = run_cli(base, capsys)
     assert code == 2 and "exactly one of --reference TWIN or --reference-run RUN_DIR" in err
 

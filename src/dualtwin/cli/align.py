@@ -14,18 +14,19 @@ import typer
 
 from dualtwin.align.config import AlignConfig
 from dualtwin.artifacts import check_output_dir
-from dualtwin.cli.common import JsonOutput, app, console, llm_proposer, report_progress
+from dualtwin.cli.common import JsonOutput, OutOption, Twin, app, console, llm_proposer, report_progress
 from dualtwin.cli.model_options import model_options, validate_model
 from dualtwin.errors import DualtwinError
 from dualtwin.reporting import ProgressEvent, emit_json
 
 
 @app.command("align")
-@model_options(AlignConfig, optional={"reference"})
+@model_options(AlignConfig, optional={"reference"},
+               choices={"reference": [t.value for t in Twin], "target": [t.value for t in Twin]})
 def align(
     *,
     fields: dict[str, Any],
-    out: Annotated[Path, typer.Option(help="output directory")],
+    out: Annotated[Path, OutOption("output directory")],
     reference_run: Annotated[Path | None, typer.Option(help="reference: a recorded or earlier run folder "
                                                             "(manifest.json), instead of --reference")] = None,
     resume: Annotated[bool, typer.Option(help="continue from the last checkpoint in OUT")] = False,

@@ -74,9 +74,12 @@ def _choices(name: str, values: tuple[Any, ...]) -> type[enum.Enum]:
     return enum.Enum(name.title().replace("_", ""), members, type=str)  # type: ignore[return-value]
 
 
-def _option(name: str, field: FieldInfo, optional: bool) -> tuple[inspect.Parameter, Shape]:
+def _option(name: str, field: FieldInfo, optional: bool,
+            choices: Collection[str] | None = None) -> tuple[inspect.Parameter, Shape]:
     annotation, _ = _strip_optional(field.annotation)
     shape, item = _shape(annotation)
+    if choices is not None:
+        shape, item = "choice", tuple(choices)
     extra = _extra(field)
     flag = "--" + option_name(name, field)
     help_text = field.description or ""
@@ -123,16 +126,19 @@ def _key_values(values: list[str], flag: str, pairs: bool) -> dict[str, Any]:
     return out
 
 
-def model_options(model: type[BaseModel], *, optional: Collection[str] = ()) -> Callable[[Any], Any]:
+def model_options(model: type[BaseModel], *, optional: Collection[str] = (),
+                  choices: dict[str, Collection[str]] | None = None) -> Callable[[Any], Any]:
     """Decorate a command ``fn(*, fields: dict, ...own options)`` with one option per field of ``model``.
 
-    ``optional`` names required fields the command may fill itself (their options become optional).
+    ``optional`` names required fields the command may fill itself (their options become optional);
+    ``choices`` narrows ``str`` fields to a closed set on the command line (e.g. twin names, where the library
+    also takes a path), so ``--help`` lists it.
     """
     fields = cli_fields(model)
     params: list[inspect.Parameter] = []
     shapes: dict[str, tuple[str, Shape, str]] = {}
     for name, field in fields.items():
-        param, shape = _option(name, field, name in optional)
+        param, shape = _option(name, field, name in optional, (choices or {}).get(name))
         params.append(param)
         shapes[param.name] = (name, shape, "--" + option_name(name, field))
 
