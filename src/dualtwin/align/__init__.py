@@ -36,6 +36,7 @@ from dualtwin.align.analyze import (
     AnalysisConfig,
     Finding,
     KnobSensitivity,
+    ProposeFn,
     analyze_runs,
 )
 from dualtwin.align.config import AlignConfig
@@ -53,7 +54,7 @@ from dualtwin.align.core import (
 from dualtwin.align.knobs import KnobSpec, select_knobs
 from dualtwin.align.objective import ObjectiveWeights
 from dualtwin.align.optimize import fit_cma, fit_lsq, sysid_status
-from dualtwin.align.propose import ProposalOutcome, ProposeFn
+from dualtwin.align.propose import ProposalOutcome
 from dualtwin.align.run import run_align
 from dualtwin.align.writers import AlignResult, KnobFit, print_result
 

@@ -58,7 +58,7 @@ from scipy import stats
 
 from dualtwin.align.knobs import KnobSpec, select_knobs
 from dualtwin.align.objective import ObjectiveValue, build_spec, evaluate
-from dualtwin.align.propose import ProposalOutcome, ProposeFn, try_proposals
+from dualtwin.align.propose import ProposalOutcome, try_proposals
 from dualtwin.align.simulate import Evaluator, ExecutorKind, SimJob, check_executor, load_traces
 from dualtwin.divergence.metrics import ChannelDivergence
 from dualtwin.divergence.runs import Contribution, RunComparison, ScenarioComparison, compare_runs, load_run
@@ -187,6 +187,10 @@ class Analysis:
             **({"llm_narrative": self.narrative} if self.narrative is not None else {}),
             "comparison": self.comparison.to_dict(),
         }
+
+
+#: A proposer: reads the analysis, suggests knob settings (see `dualtwin.align.propose`).
+ProposeFn = Callable[[Analysis], Sequence[Mapping[str, float]]]
 
 
 def floor_table(comparison: RunComparison) -> list[dict[str, Any]]:

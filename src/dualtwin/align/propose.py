@@ -15,14 +15,14 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any, TypeVar
 
 from dualtwin.align.knobs import KnobSpec, close_matches
 
-if TYPE_CHECKING:
-    from dualtwin.align.analyze import Analysis
-
-ProposeFn = Callable[["Analysis"], Sequence[Mapping[str, float]]]
+#: What the proposer reads. This module only passes it through, so it is generic here and the analysis module
+#: (which calls `try_proposals`) names the concrete type in ``dualtwin.align.analyze.ProposeFn``: propose
+#: does not import analyze, and the align package has no import cycle (type-only imports included).
+A = TypeVar("A")
 
 
 @dataclass
@@ -58,8 +58,8 @@ def _invalid(proposal: Mapping[str, Any], specs: Mapping[str, KnobSpec]) -> str 
 
 
 def try_proposals(
-    propose_fn: ProposeFn,
-    analysis: Analysis,
+    propose_fn: Callable[[A], Sequence[Mapping[str, float]]],
+    analysis: A,
     specs: Sequence[KnobSpec],
     baseline: float,
     evaluate: Callable[[Sequence[Mapping[str, float]]], list[float]],

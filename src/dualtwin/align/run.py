@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Literal
 
 from dualtwin.align import nuisance
-from dualtwin.align.analyze import analyze_runs
+from dualtwin.align.analyze import ProposeFn, analyze_runs
 from dualtwin.align.config import PREDICTION_FIELDS, AlignConfig
 from dualtwin.align.core import GenerationInfo, Point, estimate_uncertainty, residual_norm
 from dualtwin.align.dr import ranges_from_intervals, ranges_from_population
@@ -29,7 +29,7 @@ from dualtwin.align.ensemble import EnsembleProblem
 from dualtwin.align.knobs import check_values, select_knobs, unit_from_values, values_from_unit
 from dualtwin.align.objective import ObjectiveWeights, build_spec, mean_trace
 from dualtwin.align.optimize import fit_cma, fit_lsq
-from dualtwin.align.propose import ProposalOutcome, ProposeFn, try_proposals
+from dualtwin.align.propose import ProposalOutcome, try_proposals
 from dualtwin.align.reference import ensemble_members_of, shared_with_reference
 from dualtwin.align.report import write_align_report
 from dualtwin.align.simulate import Evaluator, SimJob, check_executor, load_member_traces, load_traces

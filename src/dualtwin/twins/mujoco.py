@@ -48,7 +48,7 @@ from dualtwin.twins.base import (
 )
 from dualtwin.twins.knob_table import BoundKnob
 from dualtwin.twins.motors import MotorParams, MotorState, servo_steps
-from dualtwin.twins.mujoco_knobs import MAX_DELAY_PERIODS, MUJOCO_KNOBS, KnobPass
+from dualtwin.twins.mujoco_knobs import MAX_DELAY_PERIODS, MUJOCO_KNOBS, KnobPass, KnobTarget
 from dualtwin.twins.mujoco_state import StatePlan
 from dualtwin.twins.ode_friction import FrictionBox, contact_semantics
 
@@ -129,7 +129,7 @@ class MuJoCoTwin(Twin):
         self._armature = self._nominal["dof_armature"].copy()
         self._knob_values: dict[str, float] = {}
         self._knob_pass = KnobPass()  # what the last set_knobs collected (see mujoco_knobs)
-        self._knob_index: dict[str, BoundKnob[MuJoCoTwin]] | None = None
+        self._knob_index: dict[str, BoundKnob[KnobTarget]] | None = None
         self._motors = self._build_motors()
         self._motor_by_name = {m.name: m for m in self._motors}
         self._nominal_kv = {m.name: m.kv for m in self._motors}

@@ -12,14 +12,12 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import mujoco
+import numpy as np
 
 from dualtwin.twins.knob_table import KnobGroup, KnobKind, KnobTable
-
-if TYPE_CHECKING:
-    from dualtwin.twins.mujoco import MuJoCoTwin
 
 # Geoms whose size[0] is a radius (the geom.<g>.radius knob).
 ROUND_GEOMS = frozenset({int(mujoco.mjtGeom.mjGEOM_CYLINDER), int(mujoco.mjtGeom.mjGEOM_SPHERE),
@@ -65,94 +63,127 @@ class KnobPass:
     changed_inertia: bool = False
 
 
+class KnobTarget(Protocol):
+    """What the table's entries read and write on the twin: :class:`~dualtwin.twins.mujoco.MuJoCoTwin` has it.
+
+    A Protocol rather than the twin's class, so this module does not import the twin that imports it (the
+    package stays free of import cycles, type-only imports included). The members are the twin's own
+    bookkeeping, private to the twins package; read-only members are properties so the twin's concrete types
+    fit.
+    """
+
+    #: Written by the sensor-delay entry.
+    _delay: int
+
+    @property
+    def model(self) -> mujoco.MjModel: ...
+    @property
+    def _nominal(self) -> dict[str, np.ndarray]: ...
+    @property
+    def _armature(self) -> np.ndarray: ...
+    @property
+    def _knob_pass(self) -> KnobPass: ...
+    @property
+    def _motors(self) -> Sequence[Any]: ...
+    @property
+    def _nominal_motor(self) -> dict[str, tuple[float, float]]: ...
+    @property
+    def _nominal_kp(self) -> dict[str, float]: ...
+    @property
+    def _nominal_substeps(self) -> int: ...
+    @property
+    def _nominal_timestep(self) -> float: ...
+    def _set_substeps(self, substeps: int) -> None: ...
+
+
 # ---------------------------------------------------------------- objects, in knob order
-def _named(tw: MuJoCoTwin, kind: mujoco.mjtObj, count: int) -> Iterator[tuple[str, int]]:
+def _named(tw: KnobTarget, kind: mujoco.mjtObj, count: int) -> Iterator[tuple[str, int]]:
     for i in range(count):
         name = mujoco.mj_id2name(tw.model, kind, i)
         if name:
             yield name, i
 
 
-def _joints(tw: MuJoCoTwin) -> Iterator[tuple[str, int]]:
+def _joints(tw: KnobTarget) -> Iterator[tuple[str, int]]:
     m = tw.model
     return ((n, j) for n, j in _named(tw, mujoco.mjtObj.mjOBJ_JOINT, m.njnt)
             if m.jnt_type[j] != mujoco.mjtJoint.mjJNT_FREE)
 
 
-def _contact_geoms(tw: MuJoCoTwin) -> Iterator[tuple[str, int]]:
+def _contact_geoms(tw: KnobTarget) -> Iterator[tuple[str, int]]:
     m = tw.model
     return ((n, g) for n, g in _named(tw, mujoco.mjtObj.mjOBJ_GEOM, m.ngeom)
             if m.geom_contype[g] | m.geom_conaffinity[g])
 
 
-def _bodies(tw: MuJoCoTwin) -> Iterator[tuple[str, int]]:
+def _bodies(tw: KnobTarget) -> Iterator[tuple[str, int]]:
     # Body 0 is the world; massless bodies have no mass to scale.
     return ((n, b) for n, b in _named(tw, mujoco.mjtObj.mjOBJ_BODY, tw.model.nbody)
             if b >= 1 and float(tw._nominal["body_mass"][b]) > 0)
 
 
-def _motors(tw: MuJoCoTwin) -> Iterator[tuple[str, Any]]:
+def _motors(tw: KnobTarget) -> Iterator[tuple[str, Any]]:
     return ((mo.name, mo) for mo in tw._motors)
 
 
-def _sensors(tw: MuJoCoTwin) -> Iterator[tuple[str, int]]:
+def _sensors(tw: KnobTarget) -> Iterator[tuple[str, int]]:
     return _named(tw, mujoco.mjtObj.mjOBJ_SENSOR, tw.model.nsensor)
 
 
-def _model(tw: MuJoCoTwin) -> Iterator[tuple[str, None]]:
+def _model(tw: KnobTarget) -> Iterator[tuple[str, None]]:
     yield "", None
 
 
 def _when(test: Any) -> Any:
     """A ``find`` for the objects of a group that pass ``test(twin, handle)``."""
-    def find(tw: MuJoCoTwin, obj: tuple[str, Any]) -> tuple[str, Any] | None:
+    def find(tw: KnobTarget, obj: tuple[str, Any]) -> tuple[str, Any] | None:
         return obj if test(tw, obj[1]) else None
     return find
 
 
 # ---------------------------------------------------------------- joints
-def _dof(tw: MuJoCoTwin, j: int) -> int:
+def _dof(tw: KnobTarget, j: int) -> int:
     return int(tw.model.jnt_dofadr[j])
 
 
 def _set_dof(array: str) -> Any:
-    def apply(tw: MuJoCoTwin, j: int, value: float) -> None:
+    def apply(tw: KnobTarget, j: int, value: float) -> None:
         getattr(tw.model, array)[tw.model.jnt_dofadr[j]] = value
     return apply
 
 
-def _set_armature(tw: MuJoCoTwin, j: int, value: float) -> None:
+def _set_armature(tw: KnobTarget, j: int, value: float) -> None:
     tw._armature[tw.model.jnt_dofadr[j]] = value
     tw._knob_pass.changed_inertia = True
 
 
-def _hinge_or_slide(tw: MuJoCoTwin, j: int) -> bool:
+def _hinge_or_slide(tw: KnobTarget, j: int) -> bool:
     return int(tw.model.jnt_type[j]) in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 
 
-def _soft_limit(tw: MuJoCoTwin, j: int) -> bool:
+def _soft_limit(tw: KnobTarget, j: int) -> bool:
     return bool(tw.model.jnt_limited[j]) and float(tw._nominal["jnt_solref"][j, 0]) > 0
 
 
-def _set_limit_timeconst(tw: MuJoCoTwin, j: int, value: float) -> None:
+def _set_limit_timeconst(tw: KnobTarget, j: int, value: float) -> None:
     tw.model.jnt_solref[j, 0] = value
 
 
-def _set_limit_impedance(tw: MuJoCoTwin, j: int, value: float) -> None:
+def _set_limit_impedance(tw: KnobTarget, j: int, value: float) -> None:
     tw.model.jnt_solimp[j, :2] = impedance_pair(tw._nominal["jnt_solimp"][j], value)
 
 
-def _timeconst_limits(tw: MuJoCoTwin, handle: Any, nominal: float) -> tuple[float, float]:
+def _timeconst_limits(tw: KnobTarget, handle: Any, nominal: float) -> tuple[float, float]:
     # MuJoCo clamps time constants below two physics steps (refsafe).
     step = tw._nominal_timestep
     return 2 * step, max(10 * nominal, 4 * step)
 
 
-def _impedance_limits(tw: MuJoCoTwin, handle: Any, nominal: float) -> tuple[float, float]:
+def _impedance_limits(tw: KnobTarget, handle: Any, nominal: float) -> tuple[float, float]:
     return min(IMPEDANCE_BOUNDS[0], nominal), IMPEDANCE_BOUNDS[1]
 
 
-JOINT_KINDS: tuple[KnobKind[MuJoCoTwin], ...] = (
+JOINT_KINDS: tuple[KnobKind[KnobTarget], ...] = (
     KnobKind("joint.<j>.damping", "N*m*s/rad", "0 .. max(10 × nominal, 1)", "`dof_damping`",
              lambda tw, j: float(tw._nominal["dof_damping"][_dof(tw, j)]), lambda tw, j, n: (0.0, max(10 * n, 1.0)),
              _set_dof("dof_damping"), "joint viscous damping (Webots dampingConstant)"),
@@ -180,28 +211,28 @@ JOINT_KINDS: tuple[KnobKind[MuJoCoTwin], ...] = (
 
 
 # ---------------------------------------------------------------- geoms
-def _set_geom_friction(tw: MuJoCoTwin, g: int, value: float) -> None:
+def _set_geom_friction(tw: KnobTarget, g: int, value: float) -> None:
     tw.model.geom_friction[g, 0] = value
 
 
-def _solref_standard(tw: MuJoCoTwin, g: int) -> bool:
+def _solref_standard(tw: KnobTarget, g: int) -> bool:
     # The standard (time constant, damping ratio) form of solref.
     return float(tw._nominal["geom_solref"][g, 0]) > 0
 
 
-def _set_solref_timeconst(tw: MuJoCoTwin, g: int, value: float) -> None:
+def _set_solref_timeconst(tw: KnobTarget, g: int, value: float) -> None:
     tw.model.geom_solref[g, 0] = value
 
 
-def _set_restitution(tw: MuJoCoTwin, g: int, value: float) -> None:
+def _set_restitution(tw: KnobTarget, g: int, value: float) -> None:
     tw.model.geom_solref[g, 1] = restitution_to_dampratio(value, float(tw._nominal["geom_solref"][g, 1]))
 
 
-def _set_geom_impedance(tw: MuJoCoTwin, g: int, value: float) -> None:
+def _set_geom_impedance(tw: KnobTarget, g: int, value: float) -> None:
     tw.model.geom_solimp[g, :2] = impedance_pair(tw._nominal["geom_solimp"][g], value)
 
 
-def _set_radius(tw: MuJoCoTwin, g: int, value: float) -> None:
+def _set_radius(tw: KnobTarget, g: int, value: float) -> None:
     m, nominal = tw.model, tw._nominal
     m.geom_size[g, 0] = value
     # Broad-phase bounds only need to enclose the geom.
@@ -210,7 +241,7 @@ def _set_radius(tw: MuJoCoTwin, g: int, value: float) -> None:
     m.geom_aabb[g, 3:] = nominal["geom_aabb"][g, 3:] + grow
 
 
-GEOM_KINDS: tuple[KnobKind[MuJoCoTwin], ...] = (
+GEOM_KINDS: tuple[KnobKind[KnobTarget], ...] = (
     KnobKind("geom.<g>.friction", "", "0 .. 5 × max(nominal, 0.1)", "`geom_friction[0]` of a colliding geom",
              lambda tw, g: float(tw._nominal["geom_friction"][g, 0]), lambda tw, g, n: (0.0, 5.0 * max(n, 0.1)),
              _set_geom_friction, "sliding friction coefficient"),
@@ -236,27 +267,27 @@ GEOM_KINDS: tuple[KnobKind[MuJoCoTwin], ...] = (
 
 
 # ---------------------------------------------------------------- bodies
-def _set_mass(tw: MuJoCoTwin, b: int, value: float) -> None:
+def _set_mass(tw: KnobTarget, b: int, value: float) -> None:
     tw.model.body_mass[b] = value
     tw._knob_pass.changed_inertia = True
 
 
-def _set_inertia_scale(tw: MuJoCoTwin, b: int, value: float) -> None:
+def _set_inertia_scale(tw: KnobTarget, b: int, value: float) -> None:
     tw._knob_pass.inertia_scale[b] = value
     tw._knob_pass.changed_inertia = True
 
 
-def _com_span(tw: MuJoCoTwin, b: int, nominal: float) -> tuple[float, float]:
+def _com_span(tw: KnobTarget, b: int, nominal: float) -> tuple[float, float]:
     m = tw.model
     reach = max([float(m.geom_rbound[g]) for g in range(m.ngeom) if m.geom_bodyid[g] == b] + [0.0])
     span = max(0.05, 0.25 * reach)
     return -span, span
 
 
-def _com_offset(axis: str) -> KnobKind[MuJoCoTwin]:
+def _com_offset(axis: str) -> KnobKind[KnobTarget]:
     index = "xyz".index(axis)
 
-    def apply(tw: MuJoCoTwin, b: int, value: float) -> None:
+    def apply(tw: KnobTarget, b: int, value: float) -> None:
         tw.model.body_ipos[b, index] += value
         tw._knob_pass.changed_inertia = True
 
@@ -265,7 +296,7 @@ def _com_offset(axis: str) -> KnobKind[MuJoCoTwin]:
                     f"shift of the centre of mass along the body's {axis} axis")
 
 
-BODY_KINDS: tuple[KnobKind[MuJoCoTwin], ...] = (
+BODY_KINDS: tuple[KnobKind[KnobTarget], ...] = (
     KnobKind("body.<b>.mass", "kg", "0.1 × nominal .. 10 × nominal", "`body_mass`, `body_inertia` scaled with it",
              lambda tw, b: float(tw._nominal["body_mass"][b]), lambda tw, b, n: (0.1 * n, 10 * n), _set_mass,
              "body mass (inertia scaled with it)"),
@@ -277,16 +308,16 @@ BODY_KINDS: tuple[KnobKind[MuJoCoTwin], ...] = (
 
 # ---------------------------------------------------------------- motors (the Webots-motor emulation)
 def _set_param(attr: str) -> Any:
-    def apply(tw: MuJoCoTwin, mo: Any, value: float) -> None:
+    def apply(tw: KnobTarget, mo: Any, value: float) -> None:
         setattr(mo.state.params, attr, value)
     return apply
 
 
-def _set_gain(tw: MuJoCoTwin, mo: Any, value: float) -> None:
+def _set_gain(tw: KnobTarget, mo: Any, value: float) -> None:
     mo.state.gain = value
 
 
-MOTOR_KINDS: tuple[KnobKind[MuJoCoTwin], ...] = (
+MOTOR_KINDS: tuple[KnobKind[KnobTarget], ...] = (
     KnobKind("motor.<m>.max_torque", "N*m", "0 .. 10 × nominal", "the emulated Webots motor's torque limit",
              lambda tw, mo: tw._nominal_motor[mo.name][0], lambda tw, mo, n: (0.0, 10 * n), _set_param("max_torque"),
              "maximum motor torque"),
@@ -303,12 +334,12 @@ MOTOR_KINDS: tuple[KnobKind[MuJoCoTwin], ...] = (
 
 # ---------------------------------------------------------------- sensors
 def _set_sensor(array: str, integer: bool = False) -> Any:
-    def apply(tw: MuJoCoTwin, s: int, value: float) -> None:
+    def apply(tw: KnobTarget, s: int, value: float) -> None:
         getattr(tw, array)[s] = int(round(value)) if integer else value
     return apply
 
 
-SENSOR_KINDS: tuple[KnobKind[MuJoCoTwin], ...] = (
+SENSOR_KINDS: tuple[KnobKind[KnobTarget], ...] = (
     KnobKind("sensor.<s>.noise", "", "0 .. max(10 × nominal, 0.05)", "Gaussian σ added in `sensor()`",
              lambda tw, s: float(tw._nominal["sensor_noise"][s]), lambda tw, s, n: (0.0, max(10 * n, 0.05)),
              _set_sensor("_noise"), "standard deviation of Gaussian reading noise (Webots noise)"),
@@ -324,15 +355,15 @@ SENSOR_KINDS: tuple[KnobKind[MuJoCoTwin], ...] = (
 
 
 # ---------------------------------------------------------------- the model as a whole
-def _set_impratio(tw: MuJoCoTwin, handle: None, value: float) -> None:
+def _set_impratio(tw: KnobTarget, handle: None, value: float) -> None:
     tw.model.opt.impratio = value
 
 
-def _set_delay(tw: MuJoCoTwin, handle: None, value: float) -> None:
+def _set_delay(tw: KnobTarget, handle: None, value: float) -> None:
     tw._delay = int(round(value))
 
 
-def _set_substeps(tw: MuJoCoTwin, handle: None, value: float) -> None:
+def _set_substeps(tw: KnobTarget, handle: None, value: float) -> None:
     tw._set_substeps(int(round(value)))
 
 
@@ -354,7 +385,7 @@ SUBSTEPS = KnobKind("physics.substeps", "steps", "max(1, nominal // 4) .. 2 × n
                     "physics steps per control period (MuJoCo timestep = control period / steps; integer)")
 
 #: The MuJoCo twin's knobs, in ``knobs()`` order.
-MUJOCO_KNOBS: KnobTable[MuJoCoTwin] = KnobTable((
+MUJOCO_KNOBS: KnobTable[KnobTarget] = KnobTable((
     KnobGroup(_joints, JOINT_KINDS),
     KnobGroup(_contact_geoms, GEOM_KINDS),
     KnobGroup(_model, (IMPRATIO,)),

@@ -10,24 +10,37 @@ built). Bounds always include the nominal value.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from dualtwin.twins.knob_table import KnobGroup, KnobKind, KnobTable
 from dualtwin.twins.webots_state import JOINT_TYPES, MOTOR_TYPES
 
-if TYPE_CHECKING:
-    from dualtwin.twins.webots import WebotsTwin
+
+class KnobTarget(Protocol):
+    """What the table's entries use on the twin: :class:`~dualtwin.twins.webots.WebotsTwin` has it.
+
+    A Protocol rather than the twin's class, so this module does not import the twin that imports it (the
+    package stays free of import cycles, type-only imports included).
+    """
+
+    #: The controller-side gain factors, by motor name (written by the gain entry).
+    _gains: dict[str, float]
+
+    @property
+    def sup(self) -> Any: ...
+    def _walk(self) -> Iterator[Any]: ...
+    def _device_names(self, types: tuple[str, ...] | None) -> list[str]: ...
 
 FieldHandle = tuple[Any, str, "int | None"]
 
 
-def read_field(tw: WebotsTwin, handle: FieldHandle) -> float:
+def read_field(tw: KnobTarget, handle: FieldHandle) -> float:
     node, field, index = handle
     value = node.getField(field)
     return float(value.getMFFloat(index) if index is not None else value.getSFFloat())
 
 
-def write_field(tw: WebotsTwin, handle: FieldHandle, value: float) -> None:
+def write_field(tw: KnobTarget, handle: FieldHandle, value: float) -> None:
     """Write the field if it differs (an unchanged field is not touched)."""
     if read_field(tw, handle) == value:
         return
@@ -41,24 +54,24 @@ def write_field(tw: WebotsTwin, handle: FieldHandle, value: float) -> None:
 
 def _including(lower: Callable[[float], float], upper: Callable[[float], float]) -> Any:
     """Bounds from the nominal, widened to include it."""
-    def limits(tw: WebotsTwin, handle: Any, nominal: float) -> tuple[float, float]:
+    def limits(tw: KnobTarget, handle: Any, nominal: float) -> tuple[float, float]:
         return min(lower(nominal), nominal), max(upper(nominal), nominal)
     return limits
 
 
 def _field(pattern: str, unit: str, bounds: str, sets: str, lower: Callable[[float], float],
-           upper: Callable[[float], float], find: Callable[[WebotsTwin, Any], tuple[str, Any] | None]
-           ) -> KnobKind[WebotsTwin]:
+           upper: Callable[[float], float], find: Callable[[KnobTarget, Any], tuple[str, Any] | None]
+           ) -> KnobKind[KnobTarget]:
     return KnobKind(pattern, unit, bounds, sets, read_field, _including(lower, upper), write_field, find=find)
 
 
 # ---------------------------------------------------------------- the robot's nodes, in walk order
-def _nodes(tw: WebotsTwin) -> Iterator[Any]:
+def _nodes(tw: KnobTarget) -> Iterator[Any]:
     return tw._walk()
 
 
-def _joint_field(field: str) -> Callable[[WebotsTwin, Any], tuple[str, Any] | None]:
-    def find(tw: WebotsTwin, node: Any) -> tuple[str, Any] | None:
+def _joint_field(field: str) -> Callable[[KnobTarget, Any], tuple[str, Any] | None]:
+    def find(tw: KnobTarget, node: Any) -> tuple[str, Any] | None:
         if node.getTypeName() not in JOINT_TYPES or not node.getDef():
             return None
         params = node.getField("jointParameters").getSFNode()
@@ -66,8 +79,8 @@ def _joint_field(field: str) -> Callable[[WebotsTwin, Any], tuple[str, Any] | No
     return find
 
 
-def _motor_field(rotational: str, linear: str) -> Callable[[WebotsTwin, Any], tuple[str, Any] | None]:
-    def find(tw: WebotsTwin, node: Any) -> tuple[str, Any] | None:
+def _motor_field(rotational: str, linear: str) -> Callable[[KnobTarget, Any], tuple[str, Any] | None]:
+    def find(tw: KnobTarget, node: Any) -> tuple[str, Any] | None:
         kind = node.getTypeName()
         if kind not in MOTOR_TYPES:
             return None
@@ -75,7 +88,7 @@ def _motor_field(rotational: str, linear: str) -> Callable[[WebotsTwin, Any], tu
     return find
 
 
-def _body_mass(tw: WebotsTwin, node: Any) -> tuple[str, Any] | None:
+def _body_mass(tw: KnobTarget, node: Any) -> tuple[str, Any] | None:
     # Solids with a DEF and a Physics node of positive mass (a mass of -1 means "from density").
     if node.getTypeName() == "Physics":
         return None
@@ -86,7 +99,7 @@ def _body_mass(tw: WebotsTwin, node: Any) -> tuple[str, Any] | None:
     return None
 
 
-NODE_KINDS: tuple[KnobKind[WebotsTwin], ...] = (
+NODE_KINDS: tuple[KnobKind[KnobTarget], ...] = (
     _field("joint.<j>.damping", "N*m*s/rad", "0 .. max(10 × nominal, 1)", "JointParameters `dampingConstant`",
            lambda n: 0.0, lambda n: max(10 * n, 1.0), _joint_field("dampingConstant")),
     _field("joint.<j>.friction", "N*m", "0 .. max(10 × nominal, 0.5)", "JointParameters `staticFriction`",
@@ -102,7 +115,7 @@ NODE_KINDS: tuple[KnobKind[WebotsTwin], ...] = (
 
 
 # ---------------------------------------------------------------- WorldInfo and its contact properties
-def _world_info(tw: WebotsTwin) -> Iterator[Any]:
+def _world_info(tw: KnobTarget) -> Iterator[Any]:
     root = tw.sup.getRoot().getField("children")
     info = next((n for n in (root.getMFNode(i) for i in range(root.getCount())) if n
                  and n.getTypeName() == "WorldInfo"), None)
@@ -110,7 +123,7 @@ def _world_info(tw: WebotsTwin) -> Iterator[Any]:
         yield info
 
 
-def _contacts(tw: WebotsTwin) -> Iterator[tuple[str, Any]]:
+def _contacts(tw: KnobTarget) -> Iterator[tuple[str, Any]]:
     for info in _world_info(tw):
         contacts = info.getField("contactProperties")
         for i in range(contacts.getCount()):
@@ -118,13 +131,13 @@ def _contacts(tw: WebotsTwin) -> Iterator[tuple[str, Any]]:
             yield f"{cp.getField('material1').getSFString()}:{cp.getField('material2').getSFString()}", cp
 
 
-def _world(tw: WebotsTwin) -> Iterator[tuple[str, Any]]:
+def _world(tw: KnobTarget) -> Iterator[tuple[str, Any]]:
     return (("", info) for info in _world_info(tw))
 
 
-def _on(field: str, index: int | None = None) -> Callable[[WebotsTwin, tuple[str, Any]], tuple[str, Any]]:
+def _on(field: str, index: int | None = None) -> Callable[[KnobTarget, tuple[str, Any]], tuple[str, Any]]:
     """A ``find`` for a group of ``(name, node)``: the knob is the node's ``field`` (MF entry ``index``)."""
-    def find(tw: WebotsTwin, obj: tuple[str, Any]) -> tuple[str, Any]:
+    def find(tw: KnobTarget, obj: tuple[str, Any]) -> tuple[str, Any]:
         return obj[0], (obj[1], field, index)
     return find
 
@@ -133,7 +146,7 @@ def _cfm_upper(nominal: float) -> float:
     return max(nominal * 100, 1e-2)
 
 
-WORLD_KINDS: tuple[KnobKind[WebotsTwin], ...] = (
+WORLD_KINDS: tuple[KnobKind[KnobTarget], ...] = (
     _field("world.erp", "", "0.01 .. 1", "WorldInfo `ERP`", lambda n: 0.01, lambda n: 1.0, _on("ERP")),
     _field("world.cfm", "", "1e-9 .. max(100 × nominal, 0.01)", "WorldInfo `CFM`", lambda n: 1e-9, _cfm_upper,
            _on("CFM")),
@@ -141,7 +154,7 @@ WORLD_KINDS: tuple[KnobKind[WebotsTwin], ...] = (
 
 # The contact friction's unit reads "N*m" (the unit table was keyed by the last name part, shared with the
 # joint friction); kept so that knob listings stay as they were.
-CONTACT_KINDS: tuple[KnobKind[WebotsTwin], ...] = (
+CONTACT_KINDS: tuple[KnobKind[KnobTarget], ...] = (
     _field("contact.<p>.friction", "N*m", "0 .. 5 × max(nominal, 0.1)", "ContactProperties `coulombFriction[0]`",
            lambda n: 0.0, lambda n: 5 * max(n, 0.1), _on("coulombFriction", 0)),
     _field("contact.<p>.bounce", "", "0 .. 1", "ContactProperties `bounce`", lambda n: 0.0, lambda n: 1.0,
@@ -154,11 +167,11 @@ CONTACT_KINDS: tuple[KnobKind[WebotsTwin], ...] = (
 
 
 # ---------------------------------------------------------------- controller side
-def _motor_names(tw: WebotsTwin) -> Iterator[tuple[str, str]]:
+def _motor_names(tw: KnobTarget) -> Iterator[tuple[str, str]]:
     return ((name, name) for name in tw._device_names(MOTOR_TYPES))
 
 
-def _set_gain(tw: WebotsTwin, motor: str, value: float) -> None:
+def _set_gain(tw: KnobTarget, motor: str, value: float) -> None:
     tw._gains[motor] = value
 
 
@@ -166,7 +179,7 @@ GAIN = KnobKind("motor.<m>.gain", "", "-2 .. 2", "command × gain (controller si
                 lambda tw, motor, n: (-2.0, 2.0), _set_gain, "command gain (sign included)")
 
 #: The Webots twin's knobs, in ``knobs()`` order.
-WEBOTS_KNOBS: KnobTable[WebotsTwin] = KnobTable((
+WEBOTS_KNOBS: KnobTable[KnobTarget] = KnobTable((
     KnobGroup(_nodes, NODE_KINDS),
     KnobGroup(_world, WORLD_KINDS),
     KnobGroup(_contacts, CONTACT_KINDS),
