@@ -11,19 +11,19 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from dualtwin.webots import schema
+from dualtwin.webots.lexer import WebotsSyntaxError, tokenize
 from dualtwin.webots.nodes import Node, tree_equal
 from dualtwin.webots.parser import (
     MAX_DEPTH,
     ListValue,
     RawNode,
     RawUse,
-    WebotsSyntaxError,
     convert_value,
     parse_proto,
     parse_world,
-    tokenize,
 )
-from dualtwin.webots.protos import ProtoError, load_world, load_world_text
+from dualtwin.webots.proto_resolver import ProtoError
+from dualtwin.webots.protos import load_world, load_world_text
 from dualtwin.webots.writer import format_float, set_field, write_node, write_world
 
 HEADER = "#VRML_SIM R2023b utf8\n"

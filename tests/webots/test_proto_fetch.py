@@ -32,7 +32,7 @@ from dualtwin.webots.proto_cache import (
     cache_key,
     remote_url,
 )
-from dualtwin.webots.protos import ProtoNotFoundError
+from dualtwin.webots.proto_resolver import ProtoNotFoundError
 from dualtwin.webots.standins import STANDIN_PROTOS
 
 OFFICIAL = OFFICIAL_PREFIX + "R2023b/"

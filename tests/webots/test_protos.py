@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from dualtwin.webots import ProtoNotFoundError, WebotsSyntaxError, load_world, load_world_text
 from dualtwin.webots.nodes import Node, tree_equal
-from dualtwin.webots.protos import ProtoError
+from dualtwin.webots.proto_resolver import ProtoError
 from dualtwin.webots.writer import write_world
 
 HEADER = "#VRML_SIM R2023b utf8\n"

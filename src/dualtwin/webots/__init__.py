@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+from dualtwin.webots.lexer import WebotsSyntaxError
 from dualtwin.webots.nodes import Node, SourceLocation, World
-from dualtwin.webots.parser import WebotsSyntaxError
-from dualtwin.webots.protos import ProtoError, ProtoNotFoundError, load_world, load_world_text
+from dualtwin.webots.proto_resolver import ProtoError, ProtoNotFoundError
+from dualtwin.webots.protos import load_world, load_world_text
 
 __all__ = [
     "Node",

@@ -67,7 +67,8 @@ def fetch_worlds(
         DualtwinError: a world or local PROTO cannot be read or parsed.
         FetchError: a url could not be fetched (the message names it and where it is declared).
     """
-    from dualtwin.webots.protos import ProtoResolver, expand_world
+    from dualtwin.webots.proto_resolver import ProtoResolver
+    from dualtwin.webots.protos import expand_world
 
     report = FetchReport()
     seen: set[str] = set()

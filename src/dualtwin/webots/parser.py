@@ -1,25 +1,25 @@
-"""Tokenizer and recursive-descent parser for Webots R2023b ``.wbt`` worlds and ``.proto`` files.
+"""Recursive-descent parser for Webots R2023b ``.wbt`` worlds and ``.proto`` files.
 
 The parser produces a *raw* tree (:class:`RawNode`, :class:`RawUse`, untyped field values) that
 keeps source offsets; :mod:`dualtwin.webots.protos` turns it into :class:`~dualtwin.webots.nodes.Node`
 objects and expands PROTOs. Values of PROTO instances stay untyped here because their types are
 only known once the PROTO file is found; values of base nodes and PROTO interface defaults are
-converted (and so checked) right away, so type errors carry their exact location.
+converted (and so checked) right away, so type errors carry their exact location. The tokenizer is
+:mod:`dualtwin.webots.lexer`.
 
-Every error is a :class:`WebotsSyntaxError` whose message reads ``file:line:col: expected X,
+Every error is a :class:`~dualtwin.webots.lexer.WebotsSyntaxError` whose message reads ``file:line:col: expected X,
 found Y``; no other exception escapes :func:`parse_world`, :func:`parse_proto` or
 :func:`parse_proto_body`, whatever the input.
 """
 
 from __future__ import annotations
 
-import bisect
 import re
 from dataclasses import dataclass, field
 from typing import Any
 
-from dualtwin.errors import DualtwinError
 from dualtwin.webots import schema
+from dualtwin.webots.lexer import Lexer, SourceText, Token, WebotsSyntaxError, clip, describe_token
 from dualtwin.webots.nodes import SourceLocation
 
 __all__ = [
@@ -35,23 +35,16 @@ __all__ = [
     "RawNode",
     "RawUse",
     "Scalars",
-    "Token",
-    "WebotsSyntaxError",
     "convert_value",
     "decode_source",
     "describe_value",
     "parse_proto",
     "parse_proto_body",
     "parse_world",
-    "tokenize",
 ]
 
 #: Deepest node nesting accepted; real worlds stay far below, and it keeps recursion bounded.
 MAX_DEPTH = 100
-
-_NONFINITE = {"inf": float("inf"), "+inf": float("inf"), "-inf": float("-inf"), "nan": float("nan")}
-_NONFINITE.update({"Infinity": float("inf"), "+Infinity": float("inf"), "-Infinity": float("-inf")})
-_NONFINITE["NaN"] = float("nan")
 
 _KEYWORDS = frozenset(
     {"DEF", "USE", "IS", "NULL", "TRUE", "FALSE", "PROTO", "EXTERNPROTO", "IMPORTABLE", "hidden"}
@@ -60,163 +53,9 @@ _FIELD_KEYWORDS = frozenset(
     {"field", "unconnectedField", "hiddenField", "vrmlField", "deprecatedField", "exposedField"}
 )
 
-_WS = re.compile(r"(?:[ \t\r\n,]+|#[^\n]*)+")
-_WORD = re.compile(r'[^ \t\r\n,\[\]{}"#]+')
-_STRING = re.compile(r'"(?:[^"\\]|\\.)*"', re.S)
-_NUMBER = re.compile(r"[+-]?(?:0[xX][0-9a-fA-F]+|(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)")
-_INT = re.compile(r"[+-]?(?:0[xX][0-9a-fA-F]+|\d+)")
-_IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_\-]*")
-_ESCAPE = re.compile(r'\\(["\\])')
 _WBT_HEADER = re.compile(r"#VRML_SIM \S+ utf8[ \t]*")
 _PROTO_HEADER = re.compile(r"(?:#VRML_(?:SIM|OBJ) \S+ utf8|#VRML V2\.0 utf8)[ \t]*")
 _META = re.compile(r"#\s*([A-Za-z][A-Za-z ]*?)\s*:\s*(.*?)\s*$")
-
-
-class WebotsSyntaxError(DualtwinError):
-    """A malformed world or PROTO file; the message is ``file:line:col: expected X, found Y``."""
-
-    def __init__(self, location: SourceLocation, expected: str, found: str) -> None:
-        self.location = location
-        self.expected = expected
-        self.found = found
-        super().__init__(f"{location}: expected {expected}, found {found}")
-
-
-# --------------------------------------------------------------------------------------------
-# tokens
-
-
-@dataclass(frozen=True, slots=True)
-class Token:
-    """``kind`` is one of ``ident number string { } [ ] eof``; ``value`` holds the decoded value."""
-
-    kind: str
-    text: str
-    start: int
-    end: int
-    value: Any = None
-
-
-class _Source:
-    """Text plus line index: turns offsets into ``SourceLocation``."""
-
-    def __init__(self, text: str, path: str) -> None:
-        self.text = text
-        self.path = path
-        self._line_starts = [0] + [m.end() for m in re.finditer("\n", text)]
-
-    def loc(self, offset: int) -> SourceLocation:
-        line = bisect.bisect_right(self._line_starts, offset)
-        return SourceLocation(self.path, line, offset - self._line_starts[line - 1] + 1)
-
-    def error(self, offset: int, expected: str, found: str) -> WebotsSyntaxError:
-        return WebotsSyntaxError(self.loc(offset), expected, found)
-
-
-def _clip(text: str, limit: int = 40) -> str:
-    return text if len(text) <= limit else text[: limit - 3] + "..."
-
-
-def describe_token(tok: Token) -> str:
-    """Human description of a token for the ``found`` part of an error."""
-    if tok.kind == "eof":
-        return "end of file"
-    if tok.kind == "string":
-        return f"string {_clip(tok.text)}"
-    if tok.kind == "number":
-        return f"number {_clip(tok.text)}"
-    if tok.kind == "ident":
-        return f"'{_clip(tok.text)}'"
-    return f"'{tok.text}'"
-
-
-def _number_value(text: str) -> int | float:
-    if text in _NONFINITE:
-        return _NONFINITE[text]
-    if _INT.fullmatch(text):
-        sign = -1 if text.startswith("-") else 1
-        digits = text.lstrip("+-")
-        try:
-            if digits[:2] in ("0x", "0X"):
-                return sign * int(digits[2:], 16)
-            return sign * int(digits)
-        except ValueError:  # beyond Python's int-from-str digit limit: only a float can hold it
-            return float(text)
-    return float(text)
-
-
-class _Lexer:
-    """Lazy tokenizer: the PROTO parser stops before a template body it must not tokenize."""
-
-    def __init__(self, src: _Source, start: int = 0, end: int | None = None) -> None:
-        self.src = src
-        self.text = src.text
-        self.pos = start
-        self.limit = len(self.text) if end is None else end
-        self._buf: list[Token] = []
-
-    def _scan(self) -> Token:
-        text, pos = self.text, self.pos
-        m = _WS.match(text, pos, self.limit)
-        if m:
-            pos = m.end()
-        if pos >= self.limit:
-            self.pos = pos
-            return Token("eof", "", pos, pos)
-        ch = text[pos]
-        if ch in "{}[]":
-            self.pos = pos + 1
-            return Token(ch, ch, pos, pos + 1)
-        if ch == '"':
-            m = _STRING.match(text, pos, self.limit)
-            if not m:
-                raise self.src.error(pos, "a closing '\"' for this string", "end of file")
-            self.pos = m.end()
-            raw = m.group()
-            return Token("string", raw, pos, m.end(), _ESCAPE.sub(r"\1", raw[1:-1]))
-        m = _WORD.match(text, pos, self.limit)
-        assert m is not None  # every other character starts a word
-        word = m.group()
-        self.pos = m.end()
-        if _NUMBER.fullmatch(word):
-            return Token("number", word, pos, m.end(), _number_value(word))
-        if word in _NONFINITE:
-            return Token("number", word, pos, m.end(), _NONFINITE[word])
-        if _IDENT.fullmatch(word):
-            return Token("ident", word, pos, m.end())
-        if word.startswith(("%<", "%{")):
-            found = f"template code '{_clip(word, 10)}' outside a procedural PROTO body"
-        else:
-            found = f"'{_clip(word)}'"
-        raise self.src.error(pos, "a name, number, string or one of { } [ ]", found)
-
-    def peek(self, k: int = 0) -> Token:
-        while len(self._buf) <= k:
-            if self._buf and self._buf[-1].kind == "eof":
-                return self._buf[-1]
-            self._buf.append(self._scan())
-        return self._buf[k]
-
-    def next(self) -> Token:
-        tok = self.peek()
-        if tok.kind != "eof":
-            self._buf.pop(0)
-        return tok
-
-    def resume_offset(self) -> int:
-        """Offset of the next unread character (start of the next buffered token, if any)."""
-        return self._buf[0].start if self._buf else self.pos
-
-
-def tokenize(text: str, path: str = "<string>") -> list[Token]:
-    """All tokens of ``text`` (comments, whitespace and commas dropped), ending with ``eof``."""
-    lexer = _Lexer(_Source(text, path))
-    tokens = []
-    while True:
-        tok = lexer.next()
-        tokens.append(tok)
-        if tok.kind == "eof":
-            return tokens
 
 
 # --------------------------------------------------------------------------------------------
@@ -341,7 +180,7 @@ class ParsedProto:
 
     def location_of(self, template_offset: int) -> SourceLocation:
         """Location in the PROTO file of an offset inside ``template``."""
-        return _Source(self.text, self.path).loc(self.template_offset + template_offset)
+        return SourceText(self.text, self.path).loc(self.template_offset + template_offset)
 
 
 # --------------------------------------------------------------------------------------------
@@ -384,7 +223,7 @@ def _to_float(tok: Token, loc: SourceLocation, what: str) -> float:
     try:
         return float(tok.value)
     except OverflowError:
-        raise WebotsSyntaxError(loc, what, f"out-of-range number {_clip(tok.text)}") from None
+        raise WebotsSyntaxError(loc, what, f"out-of-range number {clip(tok.text)}") from None
 
 
 def _count_desc(items: list[Any]) -> str:
@@ -412,7 +251,7 @@ def _convert_items(items: list[Any], sf_type: str, loc: SourceLocation, what: st
             if not _is_number(item) or not isinstance(item.value, int):
                 raise WebotsSyntaxError(loc, what, _desc_item(item))
             if not -(2**31) <= item.value < 2**31:
-                raise WebotsSyntaxError(loc, what, f"out-of-range integer {_clip(item.text)}")
+                raise WebotsSyntaxError(loc, what, f"out-of-range integer {clip(item.text)}")
             out.append(item.value)
         return out
     size = schema.VECTOR_SIZES.get(sf_type, 1)
@@ -494,8 +333,8 @@ def check_node_value(raw: Any, vrml_type: str) -> None:
 
 class _Parser:
     def __init__(self, text: str, path: str, *, in_proto: bool = False) -> None:
-        self.src = _Source(text, path)
-        self.lex = _Lexer(self.src)
+        self.src = SourceText(text, path)
+        self.lex = Lexer(self.src)
         self.defs: dict[str, RawNode] = {}
         self.in_proto = in_proto  # IS links are legal only inside a PROTO body
         self.warnings: list[str] = []
@@ -521,7 +360,7 @@ class _Parser:
         text = self.src.text
         line = text.split("\n", 1)[0].rstrip("\r")
         if not pattern.fullmatch(line):
-            raise self.src.error(0, expected, f"'{_clip(line)}'" if line else "an empty first line")
+            raise self.src.error(0, expected, f"'{clip(line)}'" if line else "an empty first line")
         return line.strip()
 
     # -- world -------------------------------------------------------------------------------
@@ -565,7 +404,7 @@ class _Parser:
             target = self.defs.get(name.text)
             if target is None:
                 raise self.src.error(
-                    name.start, "the name of a preceding DEF", f"USE of undefined '{_clip(name.text)}'"
+                    name.start, "the name of a preceding DEF", f"USE of undefined '{clip(name.text)}'"
                 )
             if target.type_name in schema.USE_FORBIDDEN_TYPES:
                 raise self.src.error(
@@ -602,7 +441,7 @@ class _Parser:
             if spec is not None and ftok.text not in spec.fields:
                 valid = ", ".join(spec.fields)
                 raise self.src.error(
-                    ftok.start, f"a field of {node.type_name} ({valid})", f"unknown field '{_clip(ftok.text)}'"
+                    ftok.start, f"a field of {node.type_name} ({valid})", f"unknown field '{clip(ftok.text)}'"
                 )
             value = self.value(depth)
             raw = RawField(ftok.text, value, self.src.loc(ftok.start), ftok.start, self._value_end())
@@ -796,7 +635,7 @@ def decode_source(data: bytes, path: str) -> str:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
         good = data[: exc.start].decode("utf-8", errors="replace")
-        raise _Source(good, path).error(
+        raise SourceText(good, path).error(
             len(good), "UTF-8 text", f"byte 0x{data[exc.start]:02x}"
         ) from None
     return text[1:] if text.startswith("\ufeff") else text
