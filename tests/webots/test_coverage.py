@@ -9,8 +9,9 @@ from pathlib import Path
 import pytest
 
 from dualtwin.webots import load_world_text, schema
-from dualtwin.webots.controller import Supervisor, device_class
+from dualtwin.webots.controller import Supervisor
 from dualtwin.webots.coverage import CATEGORIES, REGISTRY, STATUSES, render_markdown
+from dualtwin.webots.devices import device_class
 from dualtwin.webots.physics import JOINT_TYPES, SOLID_TYPES, Simulation
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "webots-coverage.md"
