@@ -111,7 +111,8 @@ def test_alignment_report(suite_file: Path, tmp_path: Path) -> None:
 
 
 def test_sync_report(suite_file: Path, tmp_path: Path) -> None:
-    from dualtwin.sync import prediction_error, run_lockstep, write_sync_report
+    from dualtwin.divergence.prediction import prediction_error
+    from dualtwin.sync import run_lockstep, write_sync_report
 
     lockstep = run_lockstep("webots", "mujoco", "cartpole", suite=suite_file, out_dir=tmp_path / "ls",
                             resync="every:5")

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from dualtwin.sync import prediction_error, run_lockstep
+from dualtwin.divergence.prediction import prediction_error
+from dualtwin.sync import run_lockstep
 from tests.support.fake_twin import NAME, SUITE, fake_robot, registered
 
 DAMPED = {"joint.j1.damping": 1.2}

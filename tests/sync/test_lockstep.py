@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 
 from dualtwin.divergence.runs import compare_runs, load_run, load_tsv
+from dualtwin.divergence.trajectories import load_trajectories
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding
 from dualtwin.suite.runner import SuiteRun
-from dualtwin.sync import ResyncPolicy, load_trajectories, run_lockstep
+from dualtwin.sync import ResyncPolicy, run_lockstep
 from dualtwin.twins import make_twin
 from tests.support.sync_helpers import sign_policy
 

@@ -9,17 +9,11 @@ import numpy as np
 import pytest
 
 from dualtwin.align import AlignConfig, run_align
-from dualtwin.divergence.trajectories import save_trajectories
+from dualtwin.divergence.prediction import PredictionSettings, predict, prediction_error
+from dualtwin.divergence.trajectories import load_trajectories, record_trajectories, save_trajectories
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding
 from dualtwin.suite.loader import load_suite
-from dualtwin.sync import (
-    PredictionSettings,
-    load_trajectories,
-    predict,
-    prediction_error,
-    record_trajectories,
-)
 from dualtwin.twins import make_twin
 from tests.support.sync_helpers import NOMINAL_DAMPING
 

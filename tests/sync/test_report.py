@@ -7,9 +7,10 @@ from pathlib import Path
 
 import pytest
 
+from dualtwin.divergence.prediction import prediction_error
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding
-from dualtwin.sync import Monitor, MonitorConfig, prediction_error, run_lockstep, write_sync_report
+from dualtwin.sync import Monitor, MonitorConfig, run_lockstep, write_sync_report
 
 DAMPING = "joint.pole_hinge.damping"
 

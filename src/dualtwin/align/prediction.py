@@ -10,7 +10,7 @@ trajectory objective sees a rough one.
 
 The reference is a twin (run once over a suite, with ``reference_knobs``, recording full states), or a
 trajectory file (``trajectories.npz`` written by :func:`dualtwin.sync.run_lockstep`,
-:func:`dualtwin.sync.prediction_error` or the online monitor). It is a peer of the trajectory objective:
+:func:`dualtwin.divergence.prediction.prediction_error` or the online monitor). It is a peer of the trajectory objective:
 :class:`PredictionProblem` implements the same problem protocol, so optimisers, checkpoints and resume,
 uncertainty and outputs are the same (``knobs.json``, ``dr_ranges.json``, the patched model,
 ``align_record.json``) and its report (``report.html``) shows the prediction error before and after.

@@ -61,7 +61,8 @@ def predict_error(
     json_out: JsonOutput = False,
 ) -> None:
     """Short-horizon prediction error from synchronised states: the chaos-insensitive model mismatch."""
-    from dualtwin.sync import prediction_error, write_sync_report
+    from dualtwin.divergence.prediction import prediction_error
+    from dualtwin.sync import write_sync_report
 
     horizon_list = list(horizons)  # each >= 1 (cli.policy.OPTION_RANGES)
     check_output_dir(out, "predict-error")

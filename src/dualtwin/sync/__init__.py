@@ -8,34 +8,27 @@ drift apart it re-synchronises them or adjusts parameters. Pieces:
   supervisor API;
 * :func:`run_lockstep`: both twins get the same commands every control period, with a re-sync policy
   (``never``, ``every:N``, ``threshold:X``), per-channel state differences logged;
-* :func:`prediction_error`: k-step prediction error from synchronised start states (multiple shooting),
-  also an alignment objective (``dualtwin.align.run_align`` with ``AlignConfig(objective="prediction", ...)``);
+* :func:`dualtwin.divergence.prediction.prediction_error`: k-step prediction error from synchronised start
+  states (multiple shooting), also an alignment objective (``dualtwin.align.run_align`` with
+  ``AlignConfig(objective="prediction", ...)``);
 * :class:`Monitor`: sliding-window statistics, a drift alarm with hysteresis, an event log and background
   re-alignment applied at episode boundaries;
 * :func:`write_sync_report`: HTML + JSON of prediction curves, drift, alarms and re-alignments.
 
 The measuring primitives (state-difference channels, recorded trajectories, the prediction error) live in
-:mod:`dualtwin.divergence` so that :mod:`dualtwin.align` can use them without importing upwards; they are
-re-exported here. The Webots shadow of RL training (:class:`dualtwin.rl.shadow.ShadowCallback`) is a piece
-of training and lives in :mod:`dualtwin.rl`; it feeds a :class:`Monitor` through a protocol.
+:mod:`dualtwin.divergence` so that :mod:`dualtwin.align` can use them without importing upwards; import
+them from there (this package does not re-export them, so each name has one home). The state types
+(:class:`MechanicalState`, :class:`BodyState`, :class:`SyncError`) are imported from
+:mod:`dualtwin.twins.base`. The Webots shadow of RL training (:class:`dualtwin.rl.shadow.ShadowCallback`) is
+a piece of training and lives in :mod:`dualtwin.rl`; it feeds a :class:`Monitor` through a protocol.
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from dualtwin.divergence.channels import DEFAULT_UNIT_SCALES, channel_scales, normalized_error
-from dualtwin.divergence.prediction import PredictionResult, PredictionSettings, predict, prediction_error
-from dualtwin.divergence.trajectories import (
-    CommandTap,
-    Trajectory,
-    load_trajectories,
-    record_trajectories,
-    save_trajectories,
-)
 from dualtwin.sync.lockstep import EpisodeSummary, LockstepResult, ResyncPolicy, run_lockstep
 from dualtwin.sync.monitor import Monitor, MonitorConfig, RealignSettings, read_events
-from dualtwin.twins.base import BodyState, MechanicalState, SyncError
 
 if TYPE_CHECKING:
     from dualtwin.sync.report import write_sync_report
@@ -51,9 +44,6 @@ def __getattr__(name: str) -> Any:
 
 
 __all__ = [
-    "DEFAULT_UNIT_SCALES", "BodyState", "CommandTap", "EpisodeSummary", "LockstepResult", "MechanicalState",
-    "Monitor", "MonitorConfig", "PredictionResult", "PredictionSettings", "RealignSettings", "ResyncPolicy",
-    "SyncError", "Trajectory", "channel_scales", "load_trajectories", "normalized_error",
-    "predict", "prediction_error", "read_events", "record_trajectories", "run_lockstep", "save_trajectories",
-    "write_sync_report",
+    "EpisodeSummary", "LockstepResult", "Monitor", "MonitorConfig", "RealignSettings", "ResyncPolicy",
+    "read_events", "run_lockstep", "write_sync_report",
 ]
