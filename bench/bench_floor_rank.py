@@ -27,8 +27,8 @@ from _common import output_folder
 from dualtwin.align.analyze import analyze_runs
 from dualtwin.artifacts import log_record
 from dualtwin.divergence import compare_runs
+from dualtwin.divergence.comparison import RunComparison
 from dualtwin.divergence.metrics import compare_channel
-from dualtwin.divergence.runs import RunComparison
 from dualtwin.robots.binding import BUNDLED, load_binding
 from dualtwin.suite.ensemble import EnsembleRun, make_spec
 from dualtwin.suite.runner import SuiteRun

@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dualtwin.divergence.runs import compare_runs, load_run, load_tsv
+from dualtwin.divergence.comparison import compare_runs
+from dualtwin.divergence.runs import load_run, load_tsv
 from dualtwin.divergence.trajectories import load_trajectories
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding

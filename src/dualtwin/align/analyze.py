@@ -60,8 +60,9 @@ from dualtwin.align.knobs import KnobSpec, select_knobs
 from dualtwin.align.objective import ObjectiveValue, build_spec, evaluate
 from dualtwin.align.propose import ProposalOutcome, try_proposals
 from dualtwin.align.simulate import Evaluator, ExecutorKind, SimJob, check_executor, load_traces
+from dualtwin.divergence.comparison import Contribution, RunComparison, ScenarioComparison, compare_runs
 from dualtwin.divergence.metrics import ChannelDivergence
-from dualtwin.divergence.runs import Contribution, RunComparison, ScenarioComparison, compare_runs, load_run
+from dualtwin.divergence.runs import load_run
 from dualtwin.errors import DualtwinError
 from dualtwin.models import FrozenModel, StrictModel
 from dualtwin.robots.binding import RobotBinding, resolve_robot

@@ -31,6 +31,7 @@ import numpy as np
 from pydantic import Field
 
 from dualtwin.align.simulate import ScenarioTrace
+from dualtwin.divergence.comparison import resolve_thresholds
 from dualtwin.divergence.metrics import (
     FloatArray,
     Threshold,
@@ -40,7 +41,7 @@ from dualtwin.divergence.metrics import (
     resample_common,
 )
 from dualtwin.divergence.metrics import rmse as rmse_of
-from dualtwin.divergence.runs import Series, resolve_thresholds
+from dualtwin.divergence.runs import Series
 from dualtwin.errors import DualtwinError
 from dualtwin.models import FrozenModel
 

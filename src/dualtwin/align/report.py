@@ -22,8 +22,8 @@ from dualtwin.align.analysis_report import findings_html
 from dualtwin.align.analyze import Analysis
 from dualtwin.align.narrate import narrative_html
 from dualtwin.artifacts import write_bytes, write_text
+from dualtwin.divergence.comparison import RunComparison, ScenarioComparison, compare_runs
 from dualtwin.divergence.metrics import ChannelDivergence
-from dualtwin.divergence.runs import RunComparison, ScenarioComparison, compare_runs
 from dualtwin.reporting import evidence_html, html_table, img_html, page_head, plot_overlay, png_bytes, slug
 
 if TYPE_CHECKING:

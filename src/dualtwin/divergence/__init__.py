@@ -19,6 +19,15 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
+from dualtwin.divergence.comparison import (
+    DEFAULT_ANGLE_THRESHOLD_RAD,
+    Contribution,
+    RunComparison,
+    ScenarioComparison,
+    ToleranceViolation,
+    compare_runs,
+    resolve_thresholds,
+)
 from dualtwin.divergence.floor import (
     ChannelFloor,
     FloorJudgement,
@@ -55,21 +64,7 @@ from dualtwin.divergence.metrics import (
     significance,
     weighted_score,
 )
-from dualtwin.divergence.runs import (
-    DEFAULT_ANGLE_THRESHOLD_RAD,
-    ChannelInfo,
-    Contribution,
-    Run,
-    RunComparison,
-    ScenarioComparison,
-    ScenarioEntry,
-    Series,
-    ToleranceViolation,
-    compare_runs,
-    load_run,
-    load_tsv,
-    resolve_thresholds,
-)
+from dualtwin.divergence.runs import ChannelInfo, Run, ScenarioEntry, Series, load_run, load_tsv
 
 if TYPE_CHECKING:
     from dualtwin.divergence.report import plot_channel, plot_overlay, print_summary, write_report

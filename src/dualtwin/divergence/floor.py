@@ -9,7 +9,7 @@ ensemble members, `dualtwin.suite.ensemble`, against its unperturbed member 0), 
 
 The functions on arrays are pure (no I/O). `simulate_floor` runs an ensemble in memory through the shared
 executor: it is the public entry point for other packages (alignment judges each fitted scenario's DTW
-against it). `dualtwin.divergence.runs` reads stored members and attaches floors to comparisons.
+against it). `dualtwin.divergence.comparison` reads stored members and attaches floors to comparisons.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ from dualtwin.errors import DualtwinError
 from dualtwin.parallel import DEFAULT_WORKERS, ExecutorKind, ParallelMap
 from dualtwin.robots.binding import RobotBinding
 
-#: The pole-fall threshold runs use on ``*_angle_rad`` channels (see `dualtwin.divergence.runs`).
+#: The pole-fall threshold runs use on ``*_angle_rad`` channels (see `dualtwin.divergence.comparison`).
 DEFAULT_ANGLE_THRESHOLD_RAD = 0.99
 
 

@@ -20,8 +20,8 @@ from rich.markup import escape
 from rich.text import Text
 
 from dualtwin.artifacts import write_bytes, write_text
+from dualtwin.divergence.comparison import RunComparison, ScenarioComparison
 from dualtwin.divergence.metrics import ChannelDivergence
-from dualtwin.divergence.runs import RunComparison, ScenarioComparison
 from dualtwin.reporting import (
     Column,
     Progress,
