@@ -284,8 +284,8 @@ def run_prediction(config: AlignConfig, out_dir: Path, *, resume: bool = False,
         files["plot"] = "prediction.png"
     files["report"] = "report.html"
     write_text(out / "report.html", prediction_report_html(result, table_before, table_after, config))
-    result.wall_time_s = time.perf_counter() - t_start
     files["record"] = "align_record.json"
     write_json(out / "align_record.json", prediction_record(config, result, outcome, patch, binding, ref_path, kind,
                                                             specs, table_before, table_after, periods))
+    result.wall_time_s = time.perf_counter() - t_start  # printed only: no file of the run folder holds it
     return result

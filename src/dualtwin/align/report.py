@@ -136,7 +136,6 @@ def write_align_report(out_dir: Path, result: AlignResult, reference: Path, befo
     summary = [
         ("optimizer", result.optimizer), ("stop", result.stop_reason),
         ("evaluations", str(result.evaluations)), ("iterations", str(result.iterations)),
-        ("wall time", f"{result.wall_time_s:.1f} s"),
         ("objective (train)", _pair(result.objective_before, result.objective_after)),
         ("objective (held out)", _pair(result.holdout_before, result.holdout_after) if held else "no held-out scenarios"),
         ("|residual|² (train, least-squares criterion)", _pair(result.residual_before, result.residual_after)),

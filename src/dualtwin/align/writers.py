@@ -69,6 +69,9 @@ class AlignResult:
     residual_after: float
     evaluations: int
     iterations: int
+    #: Wall-clock seconds of the whole run. Printed (the terminal summary, ``align --json``) but written into
+    #: no file of the run folder: the same seed and inputs give byte-identical folders, and wall time depends
+    #: on the machine's load.
     wall_time_s: float
     stop_reason: str
     warnings: list[str] = field(default_factory=list)
@@ -172,7 +175,7 @@ def prediction_record(config: AlignConfig, result: AlignResult, outcome: Outcome
                    "stop_reason": result.stop_reason, "warnings": result.warnings},
         "prediction": {"before": json_safe(table_before), "after": json_safe(table_after)},
         "evaluations": result.evaluations, "simulated_periods": periods, "iterations": result.iterations,
-        "wall_time_s": result.wall_time_s, "trace": outcome.trace,
+        "trace": outcome.trace,
         "model_patch": {"applied": patch.applied, "not_applied": patch.not_applied, "note": patch.note},
         "sysid": sysid_status(), "files": result.files}
 
@@ -220,7 +223,6 @@ def trajectory_record(config: AlignConfig, result: AlignResult, outcome: Outcome
         },
         "evaluations": result.evaluations,
         "iterations": result.iterations,
-        "wall_time_s": result.wall_time_s,
         "trace": outcome.trace,
         "findings_before": [f.model_dump(mode="json") for f in analysis.findings],
         "proposals": [p.to_dict() for p in result.proposals],
