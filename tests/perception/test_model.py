@@ -27,6 +27,10 @@ def test_model_folder_and_contract(tiny_model: Path) -> None:
     assert contract["frame_period_s"] == pytest.approx(0.032) and contract["camera"]["name"] == "perception"
     training = json.loads((tiny_model / "training.json").read_text())
     assert set(training["heldout_episodes"]).isdisjoint(training["train_episodes"])
+    # Wall-clock time only in timing.json: training.json is the same for the same seed and inputs.
+    assert "seconds" not in training and all("seconds" not in epoch for epoch in training["history"])
+    timing = json.loads((tiny_model / "timing.json").read_text())
+    assert len(timing["epoch_seconds"]) == training["epochs_run"] and timing["seconds"] >= 0
 
 
 def test_beats_a_constant_predictor_on_heldout_episodes(tiny_model: Path, tiny_dataset: Path) -> None:

@@ -23,6 +23,8 @@ Folder written by :func:`train_perception`::
     perception_contract.json   input shape/dtype/normalisation, outputs and units, camera, frame period, metrics
     training.json              config, split (held-out episodes), per-epoch losses, dataset fingerprint
     weights.npz                the trained weights as plain arrays (fine-tuning, parity checks)
+    timing.json                wall-clock seconds (total, per epoch): the one file that differs between two
+                               runs with the same seed and inputs, so training.json holds no time
 """
 
 from __future__ import annotations
@@ -245,6 +247,7 @@ def train_perception(dataset_dir: Path | str, out_dir: Path | str, *, epochs: in
     gen = torch.Generator().manual_seed(seed)
     rng = np.random.default_rng(seed)
     history: list[dict[str, float]] = []
+    epoch_seconds: list[float] = []  # wall clock at the end of each epoch: timing.json, not training.json
     best: tuple[float, dict[str, Any]] | None = None
     start = time.perf_counter()
     window = max(stack + 5, 8)
@@ -280,8 +283,8 @@ def train_perception(dataset_dir: Path | str, out_dir: Path | str, *, epochs: in
         val_loss = float(np.mean(np.abs((val - labels[test_rows]) / std) * np.asarray(LOSS_WEIGHTS)))
         mae = np.abs(val - labels[test_rows]).mean(axis=0)
         history.append({"epoch": epoch + 1, "train_loss": total / max(seen, 1), "val_loss": val_loss,
-                        **{f"val_mae_{n}": float(v) for n, v in zip(STATE_NAMES, mae, strict=True)},
-                        "seconds": round(time.perf_counter() - start, 1)})
+                        **{f"val_mae_{n}": float(v) for n, v in zip(STATE_NAMES, mae, strict=True)}})
+        epoch_seconds.append(round(time.perf_counter() - start, 1))
         counter.advance(message=f"loss {total / max(seen, 1):.4f}, held-out loss {val_loss:.4f}; held-out MAE pole "
                                 f"{mae[2]:.4f} rad, {mae[3]:.3f} rad/s; cart {mae[0]:.4f} m, {mae[1]:.3f} m/s")
         if best is None or val_loss < best[0]:
@@ -305,12 +308,12 @@ def train_perception(dataset_dir: Path | str, out_dir: Path | str, *, epochs: in
         "train_episode_ids": [identities[int(e)] for e in train_eps],
         "heldout_episode_ids": [identities[int(e)] for e in test_eps],
         "train_frames": int(len(train_rows)), "heldout_frames": int(len(test_rows)), "history": history,
-        "seconds": round(time.perf_counter() - start, 1),
         "colour_jitter": colour_jitter,
         "init_from": None if init_from is None else {"path": str(Path(init_from).resolve()),
                                                      "weights_sha256": sha256_file(Path(init_from) / WEIGHTS_FILE)},
     }
     write_json(out / "training.json", training)
+    write_json(out / "timing.json", {"seconds": round(time.perf_counter() - start, 1), "epoch_seconds": epoch_seconds})
     contract = _contract(path, data, stack, height, width, mean, std, history[-1])
     # What the model has seen, by episode identity: evaluation excludes these from any dataset.
     contract["trained_on"]["episodes"] = len(train_eps)
