@@ -131,3 +131,15 @@ def test_unknown_knobs_are_refused_before_anything_is_written(twin_name: str) ->
         twin.set_knobs({"joint.pole_hinge.damping": 0.3, "zzz": 1.0, "joint.nope.damping": 1.0})
     assert twin._knob_values == {}
     twin.close()
+
+
+def test_friction_coefficients_are_dimensionless() -> None:
+    """Coulomb friction (contact.<p>.friction, geom.<g>.friction) is a ratio of forces; a joint's dry friction is a
+    torque (the control: the unit check can tell them apart)."""
+    robot = resolve_robot("pioneer3at")
+    units = {**make_twin("webots", robot).knobs(), **make_twin("mujoco", robot).knobs()}
+    coefficients = {n: k.unit for n, k in units.items() if re.match(r"^(contact|geom)\..+\.friction$", n)}
+    assert any(n.startswith("contact.") for n in coefficients) and any(n.startswith("geom.") for n in coefficients)
+    assert set(coefficients.values()) == {""}, coefficients
+    torques = {k.unit for n, k in units.items() if re.match(r"^joint\..+\.friction$", n)}
+    assert torques == {"N*m"}

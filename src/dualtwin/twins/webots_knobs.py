@@ -152,10 +152,10 @@ WORLD_KINDS: tuple[KnobKind[KnobTarget], ...] = (
            _on("CFM")),
 )
 
-# The contact friction's unit reads "N*m" (the unit table was keyed by the last name part, shared with the
-# joint friction); kept so that knob listings stay as they were.
+# Coulomb friction is a coefficient (tangential over normal force): dimensionless, like MuJoCo's
+# geom.<g>.friction. (It read "N*m" until the knob tables, from a unit table keyed by the name's last part.)
 CONTACT_KINDS: tuple[KnobKind[KnobTarget], ...] = (
-    _field("contact.<p>.friction", "N*m", "0 .. 5 × max(nominal, 0.1)", "ContactProperties `coulombFriction[0]`",
+    _field("contact.<p>.friction", "", "0 .. 5 × max(nominal, 0.1)", "ContactProperties `coulombFriction[0]`",
            lambda n: 0.0, lambda n: 5 * max(n, 0.1), _on("coulombFriction", 0)),
     _field("contact.<p>.bounce", "", "0 .. 1", "ContactProperties `bounce`", lambda n: 0.0, lambda n: 1.0,
            _on("bounce")),
