@@ -147,6 +147,10 @@ def test_llm_that_never_converges_stops_and_keeps_the_best_attempt(tmp_path: Pat
     assert result.files["json"].is_file()  # the best attempt (the schema-valid one)
     transcript = json.loads(result.transcript_path.read_text()) if result.transcript_path else []
     assert sum(1 for t in transcript if t["role"] == "assistant") == 3
+    # Wall-clock time only in timing.json: the transcript is the same for the same replies.
+    assert not any("seconds" in t for t in transcript)
+    timing = json.loads((tmp_path / "out" / "timing.json").read_text())
+    assert [t["iteration"] for t in timing["llm_calls"]] == [1, 2, 3]
 
 
 def test_llm_provider_failure_inside_the_loop(tmp_path: Path) -> None:

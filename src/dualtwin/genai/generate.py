@@ -391,6 +391,9 @@ def _from_text(path: Path, out_dir: Path, llm: LLMClient | None, max_iterations:
     result = GenerationResult(out_dir, False, 0)
     best: Attempt | None = None
     wbt_path = str(out_dir / "robot.wbt")
+    # Wall-clock seconds of each LLM call: timing.json, the one file that differs between two runs with the
+    # same replies (the transcript holds no time).
+    timing: list[dict[str, Any]] = []
     for iteration in range(1, max_iterations + 1):
         started = time.monotonic()
         try:
@@ -399,12 +402,12 @@ def _from_text(path: Path, out_dir: Path, llm: LLMClient | None, max_iterations:
             transcript.append({"role": "error", "iteration": iteration, "content": str(exc)})
             result.iterations = iteration
             result.errors.append(str(exc))
-            _save_outputs(result, best, transcript, client, out_dir)
+            _save_outputs(result, best, transcript, client, out_dir, timing)
             raise GenerationFailed(f"LLM call failed at iteration {iteration}: {exc}", result) from None
         result.iterations = iteration
+        timing.append({"iteration": iteration, "llm_seconds": round(time.monotonic() - started, 3)})
         attempt = check_reply(reply, wbt_path, iteration, dialect)
-        transcript.append({"role": "assistant", "iteration": iteration, "content": reply,
-                           "seconds": round(time.monotonic() - started, 3), "stage": STAGES[attempt.stage],
+        transcript.append({"role": "assistant", "iteration": iteration, "content": reply, "stage": STAGES[attempt.stage],
                            "error": attempt.error, "dialect": attempt.dialect, "assumptions": attempt.assumptions})
         if best is None or attempt.stage >= best.stage:
             best = attempt
@@ -415,7 +418,7 @@ def _from_text(path: Path, out_dir: Path, llm: LLMClient | None, max_iterations:
             iteration=iteration, max_iterations=max_iterations, stage=STAGES[attempt.stage], error=attempt.error)
         messages = [*messages, {"role": "assistant", "content": reply}, {"role": "user", "content": repair}]
         transcript.append({"role": "user", "iteration": iteration, "content": repair})
-    _save_outputs(result, best, transcript, client, out_dir)
+    _save_outputs(result, best, transcript, client, out_dir, timing)
     if not result.converged:
         raise GenerationFailed(
             f"the LLM did not produce a working model in {max_iterations} iteration(s); best attempt reached "
@@ -425,7 +428,7 @@ def _from_text(path: Path, out_dir: Path, llm: LLMClient | None, max_iterations:
 
 
 def _save_outputs(result: GenerationResult, best: Attempt | None, transcript: list[dict[str, Any]],
-                  client: LLMClient, out_dir: Path) -> None:
+                  client: LLMClient, out_dir: Path, timing: list[dict[str, Any]]) -> None:
     if best is not None:
         result.best_stage = STAGES[best.stage]
         result.converged = best.stage == 5
@@ -442,6 +445,7 @@ def _save_outputs(result: GenerationResult, best: Attempt | None, transcript: li
     result.transcript_path = confined(out_dir, "transcript.json")
     write_json(result.transcript_path, redacted)
     result.files["transcript"] = result.transcript_path
+    write_json(confined(out_dir, "timing.json"), {"llm_calls": timing})
     _finish(result, out_dir)
 
 
@@ -449,7 +453,9 @@ def generate(source: Source, out_dir: Path | str, *, llm: LLMClient | None = Non
              max_iterations: int = DEFAULT_MAX_ITERATIONS, cases: CaseLibrary | None = None,
              dialect: Dialect = "auto") -> GenerationResult:
     """Generate both twins (``<name>.wbt``, ``<name>.xml``), ``binding.yaml``, ``suite.json`` and
-    ``generation.json`` (plus ``robot.json`` and, for text or the paper's schema, ``transcript.json``) in ``out_dir``.
+    ``generation.json`` (plus ``robot.json`` and, for text or the paper's schema, ``transcript.json``) in ``out_dir``;
+    the LLM loop also writes ``timing.json`` (each call's wall-clock seconds), the one file two runs with the
+    same replies do not share.
     ``dialect`` names the JSON schema of a description (ours, the paper's, or ``auto`` to detect it).
 
     Raises:
