@@ -7,22 +7,38 @@ without importing the runtime; :mod:`.controller` re-exports them.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots.api_args import as_int
-from dualtwin.webots.physics import DeviceRec
+from dualtwin.webots.physics import DeviceRec, RobotRec, Simulation
 
-if TYPE_CHECKING:
-    from dualtwin.webots.controller import Robot
 
-__all__ = ["Device", "SampledDevice", "SolidSensor"]
+class DeviceHost(Protocol):
+    """What a device needs of the ``Robot`` that owns it: its clock, its simulation, its record and its
+    device tables. A Protocol, so the device modules never import :mod:`.controller` (which imports them)."""
+
+    @property
+    def _sim(self) -> Simulation: ...
+
+    @property
+    def _sensors(self) -> dict[int, SampledDevice]: ...
+
+    @property
+    def _rec(self) -> RobotRec: ...
+
+    def _device_for(self, rec: Any) -> Device: ...
+
+    def getTime(self) -> float: ...  # noqa: N802 - Webots' method name
+
+
+__all__ = ["Device", "DeviceHost", "SampledDevice", "SolidSensor"]
 
 
 class Device:
     """A named robot device."""
 
-    def __init__(self, robot: Robot, name: str, record: Any) -> None:
+    def __init__(self, robot: DeviceHost, name: str, record: Any) -> None:
         self._robot = robot
         self._name = name
         self._record = record
@@ -42,7 +58,7 @@ class Device:
 class SampledDevice(Device):
     """A sensor with Webots' enable/sampling-period protocol (docs/reference/webots-on-ode.md §5.4)."""
 
-    def __init__(self, robot: Robot, name: str, record: Any) -> None:
+    def __init__(self, robot: DeviceHost, name: str, record: Any) -> None:
         super().__init__(robot, name, record)
         self._period = 0
         self._last_sample: float | None = None

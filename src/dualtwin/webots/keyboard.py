@@ -21,14 +21,12 @@ import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from dualtwin.artifacts import check_input_file
 from dualtwin.errors import DualtwinError
 from dualtwin.webots.api_args import as_int
-
-if TYPE_CHECKING:
-    from dualtwin.webots.controller import Robot
+from dualtwin.webots.device_base import DeviceHost
 
 __all__ = ["KEY_NAMES", "KeyEvent", "KeyScript", "Keyboard", "key_code", "load_key_script"]
 
@@ -154,7 +152,7 @@ class Keyboard:
     NUMPAD_HOME, NUMPAD_LEFT, NUMPAD_UP, NUMPAD_RIGHT, NUMPAD_DOWN, NUMPAD_END = 375, 376, 377, 378, 379, 382
     KEY, SHIFT, CONTROL, ALT = 0xFFFF, 0x10000, 0x20000, 0x40000
 
-    def __init__(self, robot: Robot, script: KeyScript | None) -> None:
+    def __init__(self, robot: DeviceHost, script: KeyScript | None) -> None:
         self._robot = robot
         self._script = script
         self._period = 0

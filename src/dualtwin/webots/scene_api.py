@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots.api_args import as_float, as_floats, as_int, finite, warn
@@ -17,10 +17,26 @@ from dualtwin.webots.contacts import contact_points, solids_of, static_balance
 from dualtwin.webots.nodes import Node as SceneNode
 from dualtwin.webots.physics import JointRec, Simulation, SolidRec
 
-if TYPE_CHECKING:
-    from dualtwin.webots.controller import Supervisor
 
-__all__ = ["ContactPoint", "Field", "Node", "descendants", "find_def", "path_to"]
+class NodeIndex(Protocol):
+    """The runtime's numbering of scene nodes (Webots' unique node ids)."""
+
+    def node_ids(self) -> tuple[dict[int, int], dict[int, SceneNode]]: ...
+
+
+class SceneHost(Protocol):
+    """What a node or field handle needs of the ``Supervisor`` that made it. A Protocol, so this module never
+    imports :mod:`.controller` (which imports it)."""
+
+    @property
+    def _sim(self) -> Simulation: ...
+
+    @property
+    def _runtime(self) -> NodeIndex: ...
+
+    def getFromId(self, id: Any) -> Node | None: ...  # noqa: A002, N802 - Webots' names
+
+__all__ = ["ContactPoint", "Field", "Node", "NodeIndex", "SceneHost", "descendants", "find_def", "path_to"]
 
 _warn = warn
 _finite = finite
@@ -50,7 +66,7 @@ def find_def(node: SceneNode, name: str) -> SceneNode | None:
 class Node:
     """Supervisor handle on a scene node."""
 
-    def __init__(self, supervisor: Supervisor, node: SceneNode) -> None:
+    def __init__(self, supervisor: SceneHost, node: SceneNode) -> None:
         self._sup = supervisor
         self._sim: Simulation = supervisor._sim
         self._node = node
