@@ -85,3 +85,15 @@ def test_prediction_fields_are_refused_for_the_trajectory_objective(tmp_path: Pa
         run_align(config, tmp_path / "out")
     assert not (tmp_path / "out").exists()
     assert json.loads(config.saved_json()) == config.saved()
+
+
+def test_a_missing_suite_names_the_option_not_the_working_directory(tmp_path: Path) -> None:
+    """An empty path default is "not given": without --scenarios the error names the option (it once said
+    ".: is a directory", the empty default read as a path)."""
+    out = tmp_path / "out"
+    done = subprocess.run([sys.executable, "-m", "dualtwin.cli", "align", "--reference", "webots", "--target",
+                           "mujoco", "--robot", "cartpole", "--knobs", "joint.pole_hinge.damping", "--out", str(out)],
+                          capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.strip() == "error: the trajectory objective needs a suite (--scenarios)"
+    assert not out.exists()

@@ -90,7 +90,9 @@ def _option(name: str, field: FieldInfo, optional: bool,
         default = ... if required else (None if field.default is None or optional else kind(str(field.default)))
     elif shape == "scalar":
         kind = Path if extra.get("path") else item
-        default = ... if required else (None if optional or field.default is None
+        # An empty path default means "not given": left out (None), so the model keeps it empty, rather than
+        # becoming Path("") == "." and failing the path checks as a directory.
+        default = ... if required else (None if optional or field.default is None or field.default == ""
                                         or field.default_factory is not None else field.default)
     elif shape == "list":
         kind = types.GenericAlias(list, (Path if extra.get("path") else item,))
