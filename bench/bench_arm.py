@@ -284,6 +284,21 @@ def moving_channels(run: Path, scenario_ids: list[str]) -> list[str]:
     return [name for name, ptp in ranges.items() if ptp >= 1e-3 and not name.startswith("dq")]
 
 
+def reference_setup(root: Path) -> tuple[Any, Path, list[str], list[str], list[str]]:
+    """The alignment suite and the Webots stand-in's reference run (hidden knobs) under ``root``: the robot,
+    the suite file, the held-out and fitted scenario ids, and the channels that move."""
+    robot = resolve_robot("arm_payload")
+    root.mkdir(parents=True, exist_ok=True)
+    suite = root / "suite.json"
+    holdout = alignment_suite(suite)
+    reference = make_twin("webots", robot)
+    reference.set_knobs(HIDDEN)
+    manifest = SuiteRun(suite, "webots", robot, root / "reference", twin=reference).run()
+    reference.close()
+    fit_ids = [s["id"] for s in manifest["scenarios"] if s["id"] not in holdout]
+    return robot, suite, holdout, fit_ids, moving_channels(root / "reference", fit_ids)
+
+
 def fit_arm(root: Path, out: str, suite: Path, holdout: list[str], channels: list[str], **settings: Any) -> Any:
     """One alignment of KNOBS on ``arm_payload`` against the recorded stand-in in ``root/reference``."""
     from dualtwin.align import AlignConfig, ObjectiveWeights, run_align
@@ -302,16 +317,7 @@ def alignment(root: Path, budget: int, executor: str, optimizer: str = "cma", re
     scenario, and which knob families and joints carry the divergence (ablation from the fitted values)."""
     from fnmatch import fnmatch
 
-    robot = resolve_robot("arm_payload")
-    root.mkdir(parents=True, exist_ok=True)
-    suite = root / "suite.json"
-    holdout = alignment_suite(suite)
-    reference = make_twin("webots", robot)
-    reference.set_knobs(HIDDEN)
-    manifest = SuiteRun(suite, "webots", robot, root / "reference", twin=reference).run()
-    reference.close()
-    fit_ids = [s["id"] for s in manifest["scenarios"] if s["id"] not in holdout]
-    channels = moving_channels(root / "reference", fit_ids)
+    robot, suite, holdout, fit_ids, channels = reference_setup(root)
     start = time.perf_counter()
     # CMA-ES in stages (restarts = stages - 1): each stage starts at the previous stage's best with a step
     # SIGMA_SHRINK times smaller. One stage of sigma 0.25 spent most of its budget shrinking its step from the
@@ -415,16 +421,7 @@ def executors(root: Path, budget: int, batch: int = 26) -> dict[str, Any]:
     from dualtwin.align.simulate import Evaluator, SimJob
     from dualtwin.artifacts import read_json
 
-    robot = resolve_robot("arm_payload")
-    root.mkdir(parents=True, exist_ok=True)
-    suite = root / "suite.json"
-    holdout = alignment_suite(suite)
-    reference = make_twin("webots", robot)
-    reference.set_knobs(HIDDEN)
-    manifest = SuiteRun(suite, "webots", robot, root / "reference", twin=reference).run()
-    reference.close()
-    fit_ids = [s["id"] for s in manifest["scenarios"] if s["id"] not in holdout]
-    channels = moving_channels(root / "reference", fit_ids)
+    robot, suite, holdout, fit_ids, channels = reference_setup(root)
     rng = np.random.default_rng(0)
     candidates = [{**{f"joint.{j}.damping": float(rng.uniform(0, 10)) for j in JOINTS},
                    **{f"joint.{j}.friction": float(rng.uniform(0, 1)) for j in JOINTS},
