@@ -23,7 +23,7 @@ run_tree() {  # run_tree REV NAME
            >>"$OUT/log.txt" 2>&1 || echo "FAIL: $*" >>"$OUT/fail.txt"; }
   local R=$SRC/src/dualtwin/robots SHAPE=old
   if "$PY" -c "import sys; from dualtwin.cli import main; sys.argv[0]='dualtwin'; sys.exit(main())" convert --help \
-       2>/dev/null | grep -q -- "--out"; then SHAPE=new; fi
+       2>/dev/null | grep -qE -- "--out([^p]|$)"; then SHAPE=new; fi
   local O=-o; [ $SHAPE = new ] && O=--out
   for robot in cartpole pioneer3at arm arm_payload; do
     echo "[$2] $robot" >&2
