@@ -75,3 +75,25 @@ def test_a_blow_up_in_one_run_scores_the_maximum(tmp_path: Path) -> None:
     release_1 = next(s for s in comparison.scenarios if s.id == "00_release_1")
     assert release_1.status_a == "completed" and release_1.status_b == "unstable"
     assert release_1.score == 1.0
+
+
+def test_a_scenario_that_fails_in_its_first_period_is_noted_and_the_rest_compared(tmp_path: Path) -> None:
+    """A failure threshold crossed in the first control period leaves one logged row: that scenario is "not
+    compared" (with the reason), the others are compared as usual. It used to refuse the whole comparison."""
+    import json
+
+    suite = json.loads(SUITE.read_text())
+    suite["global_settings"]["failure_q1"] = 0.45  # release_1 starts at q1 = 0.5: over it at once
+    path = tmp_path / "suite.json"
+    path.write_text(json.dumps(suite))
+    runs = []
+    for name in ("a", "b"):
+        robot = fake_robot()
+        SuiteRun(path, NAME, robot, tmp_path / name, seed=0, twin=make_twin(NAME, robot)).run()
+        runs.append(tmp_path / name)
+    by_id = {sc.id: sc for sc in compare_runs(*runs).scenarios}
+    first = by_id["00_release_1"]
+    assert first.status_a == first.status_b == "failed"
+    assert first.channels == {} and first.score is None
+    assert first.note is not None and "not compared: q1 (series A needs at least 2 samples, got 1)" in first.note
+    assert by_id["01_release_2"].channels and by_id["01_release_2"].score == 0.0  # the control: still compared

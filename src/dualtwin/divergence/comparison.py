@@ -479,8 +479,9 @@ def compare_runs(
                     resolution=resolution[name],
                 )
             except ValueError as exc:
-                # Only an unstable twin may leave too little to compare; otherwise the data is broken.
-                if entry_a.status != "unstable" and entry_b.status != "unstable":
+                # Only a scenario that ended early (an unstable twin, or a failure threshold crossed within the
+                # first periods) may leave too little to compare; otherwise the data is broken.
+                if not {entry_a.status, entry_b.status} & {"unstable", "failed"}:
                     raise DualtwinError(f"scenario {entry_a.id!r}, channel {name!r}: {exc}") from exc
                 skipped.append(f"{name} ({exc})")
 
