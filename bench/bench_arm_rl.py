@@ -36,11 +36,15 @@ from typing import Any
 import numpy as np
 
 import dualtwin.rl  # noqa: F401 - registers the env ids
-from _common import output_folder
-from dualtwin.artifacts import sha256_file
+import dualtwin.rl.reach
+import dualtwin.twins.mujoco
+import dualtwin.twins.webots
+from _common import eval_success_rates, output_folder, physics_files, training_run
 
 SOURCE = "dualtwin/Arm-Reach-MuJoCo-v0"
 TARGET = "dualtwin/Arm-Reach-Webots-v0"
+#: The modules a transfer number depends on besides the robot files (hashed into the results).
+ARM_MODULES = (dualtwin.twins.mujoco, dualtwin.twins.webots, dualtwin.rl.reach)
 MUJOCO_GOAL, BEFORE_GOAL, AFTER_GOAL = 0.95, 0.90, 0.95
 JOINTS = ["shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3"]
 # The stand-in for a real arm: bench/bench_arm.py's hidden viscous joint damping (N*m*s/rad, larger on the big
@@ -64,41 +68,9 @@ class Still:
         return np.zeros(3, dtype=np.float32)
 
 
-def physics_files() -> dict[str, str]:
-    """Short sha256 of the robot files and the twin modules: what a transfer number was measured with."""
-    import dualtwin.rl.reach
-    import dualtwin.twins.mujoco
-    import dualtwin.twins.webots
-    from dualtwin.robots.binding import resolve_robot
-
-    robot = resolve_robot("arm")
-    paths: list[Path] = [Path(robot.path), *(Path(robot.root) / str(section.model)
-                                             for section in robot.spec.twins.values()),
-                         *(Path(str(m.__file__)) for m in (dualtwin.twins.mujoco, dualtwin.twins.webots,
-                                                            dualtwin.rl.reach))]
-    return {p.name: sha256_file(p)[:16] for p in paths}
-
-
-def training_run(root: Path) -> tuple[Path, bool]:
-    given = os.environ.get("DUALTWIN_BENCH_ARM_RL_RUN")
-    if given:
-        return Path(given), True
-    from dualtwin.rl.train import train
-
-    out = root / "ppo_arm_reach"
-    if out.exists():
-        shutil.rmtree(out)
-    train(SOURCE, "ppo_arm_reach", out, seed=0, progress_bar=False)
-    return out, False
-
-
 def describe_run(run: Path, reused: bool) -> dict[str, Any]:
     record = json.loads((run / "run.json").read_text())
-    successes = None
-    if (run / "evaluations.npz").is_file():
-        with np.load(run / "evaluations.npz") as data:
-            if "successes" in data:
-                successes = data["successes"].mean(axis=1).tolist()
+    successes = eval_success_rates(run)
     timeline = record["evaluations"]
     first = next((e for e, s in zip(timeline, successes or [], strict=False) if s >= MUJOCO_GOAL), None)
     result = {"run": str(run), "reused": reused, "steps": record["num_timesteps"],
@@ -176,14 +148,14 @@ def main() -> dict[str, Any]:
     torch.set_num_threads(1)
     episodes = int(os.environ.get("DUALTWIN_BENCH_ARM_RL_EPISODES", "100"))
     finetune = int(os.environ.get("DUALTWIN_BENCH_ARM_RL_FINETUNE", "61440"))
-    results: dict[str, Any] = {"episodes": episodes, "files_sha256": physics_files()}
+    results: dict[str, Any] = {"episodes": episodes, "files_sha256": physics_files("arm", ARM_MODULES)}
     print("Arm reach benchmark (PPO, bundled ppo_arm_reach.yaml, seed 0, 1 torch thread; success = flange "
           "within 2 cm of the target)")
     print("  robot and twin files (sha256): " + ", ".join(f"{k} {v}" for k, v in results["files_sha256"].items()))
     with output_folder("DUALTWIN_BENCH_ARM_RL_OUT", "arm-rl") as (root, keep):
         print("(a) training in the MuJoCo twin")
         start = time.perf_counter()
-        run, reused = training_run(root)
+        run, reused = training_run(root, "DUALTWIN_BENCH_ARM_RL_RUN", SOURCE, "ppo_arm_reach", "ppo_arm_reach")
         results["training"] = describe_run(run, reused)
         if not reused:
             results["training"]["wall_seconds"] = round(time.perf_counter() - start, 1)

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import time
 from pathlib import Path
 from typing import Any
@@ -31,12 +30,15 @@ from typing import Any
 import numpy as np
 
 import dualtwin.rl  # noqa: F401 - registers the env ids
-from _common import output_folder
-from dualtwin.artifacts import sha256_file
+import dualtwin.twins.mujoco
+import dualtwin.twins.webots
+from _common import eval_success_rates, output_folder, physics_files, training_run
 from dualtwin.rl.drive_to_goal import proportional_action
+from dualtwin.rl.ppo_config import DEFAULT_CONFIG
 
 SOURCE = "dualtwin/Pioneer-DriveToGoal-MuJoCo-v0"
 TARGET = "dualtwin/Pioneer-DriveToGoal-Webots-v0"
+PPO_CONFIG = DEFAULT_CONFIG.parent / "ppo_pioneer.yaml"
 GOAL_RATIO = 0.90
 
 
@@ -47,40 +49,10 @@ class Proportional:
         return proportional_action(obs)
 
 
-def physics_files() -> dict[str, str]:
-    """Short sha256 of the robot files and the twin modules: what a transfer number was measured with."""
-    import dualtwin.twins.mujoco
-    import dualtwin.twins.webots
-    from dualtwin.robots.binding import resolve_robot
-
-    robot = resolve_robot("pioneer3at")
-    paths = [robot.path, *(robot.root / section.model for section in robot.spec.twins.values()),
-             dualtwin.twins.mujoco.__file__, dualtwin.twins.webots.__file__]
-    return {Path(p).name: sha256_file(Path(p))[:16] for p in paths}
-
-
-def training_run(root: Path) -> tuple[Path, bool]:
-    given = os.environ.get("DUALTWIN_BENCH_PIONEER_RUN")
-    if given:
-        return Path(given), True
-    from dualtwin.rl.ppo_config import DEFAULT_CONFIG
-    from dualtwin.rl.train import train
-
-    out = root / "ppo_pioneer"
-    if out.exists():
-        shutil.rmtree(out)
-    train(SOURCE, DEFAULT_CONFIG.parent / "ppo_pioneer.yaml", out, seed=0, progress_bar=False)
-    return out, False
-
-
 def describe_run(run: Path, reused: bool) -> dict[str, Any]:
     record = json.loads((run / "run.json").read_text())
     timeline = record["evaluations"]
-    successes = None
-    if (run / "evaluations.npz").is_file():
-        with np.load(run / "evaluations.npz") as data:
-            if "successes" in data:
-                successes = data["successes"].mean(axis=1).tolist()
+    successes = eval_success_rates(run)
     first_full = next((e["timesteps"] for e, s in zip(timeline, successes or [], strict=False) if s >= 1.0), None)
     result = {"run": str(run), "reused": reused, "steps": record["num_timesteps"],
               "train_seconds": record["timings"]["train_seconds"],
@@ -104,13 +76,13 @@ def main() -> dict[str, Any]:
 
     torch.set_num_threads(1)
     episodes = int(os.environ.get("DUALTWIN_BENCH_PIONEER_EPISODES", "50"))
-    results: dict[str, Any] = {"episodes": episodes, "files_sha256": physics_files()}
+    results: dict[str, Any] = {"episodes": episodes, "files_sha256": physics_files("pioneer3at", (dualtwin.twins.mujoco, dualtwin.twins.webots))}
     print("Pioneer learning benchmark (drive to a goal; PPO, bundled ppo_pioneer.yaml, seed 0, 1 torch thread)")
     print("  robot and twin files (sha256): " + ", ".join(f"{k} {v}" for k, v in results["files_sha256"].items()))
     with output_folder("DUALTWIN_BENCH_PIONEER_OUT", "pioneer-rl") as (root, keep):
         print("(a) training in the MuJoCo twin")
         start = time.perf_counter()
-        run, reused = training_run(root)
+        run, reused = training_run(root, "DUALTWIN_BENCH_PIONEER_RUN", SOURCE, PPO_CONFIG, "ppo_pioneer")
         results["training"] = describe_run(run, reused)
         if not reused:
             results["training"]["wall_seconds"] = round(time.perf_counter() - start, 1)
