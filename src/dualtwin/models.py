@@ -46,14 +46,15 @@ def json_path(loc: tuple[Any, ...]) -> str:
     return out
 
 
-#: Location parts pydantic adds for a model's own validators; they name no field of the document.
-_VALIDATOR_LOCS = ("function-after[_inputs_are_values_or_signals(), Scenario]",)
+#: How pydantic labels the location part a model's or field's own validator adds (e.g.
+#: ``function-after[_inputs_are_values_or_signals(), Scenario]``); it names no field of the document.
+_VALIDATOR_LOC_PREFIXES = ("function-after[", "function-before[", "function-wrap[", "function-plain[")
 
 
 def validation_message(path: Path, exc: ValidationError) -> str:
     """``<path>: <JSON path>: <message>`` of the first error, plus how many more there are."""
     first = exc.errors()[0]
-    loc = tuple(p for p in first["loc"] if p not in _VALIDATOR_LOCS)
+    loc = tuple(p for p in first["loc"] if not (isinstance(p, str) and p.startswith(_VALIDATOR_LOC_PREFIXES)))
     msg = first["msg"].removeprefix("Value error, ")
     extra = f" ({exc.error_count() - 1} more)" if exc.error_count() > 1 else ""
     return f"{path}: {json_path(loc)}: {msg}{extra}"
