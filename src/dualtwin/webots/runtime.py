@@ -1,0 +1,274 @@
+"""The stepping of one :class:`Simulation` for one or more controllers (Webots' synchronisation).
+
+Timing follows docs/reference/webots-on-ode.md §6: commands issued before ``step(ms)`` act on the physics of that
+call, the simulation advances in basic time steps until ``ms`` elapsed, then sensors due for sampling are read.
+Several controllers may share one :class:`Runtime`: the simulation then advances only once every registered
+controller has asked for the next step. Moved out of :mod:`dualtwin.webots.controller`, which keeps the
+``Robot``/``Supervisor`` classes and re-exports these names.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from typing import Protocol
+
+from dualtwin.webots.api_args import warn
+from dualtwin.webots.keyboard import KeyScript
+from dualtwin.webots.nodes import Node as SceneNode
+from dualtwin.webots.physics import Simulation
+from dualtwin.webots.scene_api import descendants
+
+__all__ = [
+    "SIMULATION_MODE_FAST",
+    "SIMULATION_MODE_PAUSE",
+    "SIMULATION_MODE_REAL_TIME",
+    "ControllerStopped",
+    "Runtime",
+    "RuntimeRobot",
+    "current_runtime",
+    "set_current_runtime",
+]
+
+_warn = warn
+
+
+class RuntimeRobot(Protocol):
+    """What the runtime needs of a controller's Robot (typed structurally so this module needs no Robot)."""
+
+    def _after_reset(self) -> None: ...
+
+
+# ------------------------------------------------------------------------------------------ runtime
+
+
+SIMULATION_MODE_PAUSE = 0
+SIMULATION_MODE_REAL_TIME = 1
+SIMULATION_MODE_FAST = 2
+
+
+class ControllerStopped(SystemExit):
+    """Raised in a controller that calls ``step`` again after it returned -1: Webots ends it there."""
+
+    def __init__(self) -> None:
+        super().__init__(0)
+
+
+class _Client:
+    __slots__ = ("robot", "target", "waiting", "active", "ended_at", "thread")
+
+    def __init__(self, robot: RuntimeRobot) -> None:
+        self.robot = robot
+        self.target = 0.0
+        self.waiting = False
+        self.active = True
+        self.ended_at: float | None = None  # monotonic wall time at which step() returned -1
+        self.thread = threading.get_ident()
+
+
+class Runtime:
+    """Owns the stepping of one :class:`Simulation` for one or more controllers.
+
+    Args:
+        simulation: the simulation to drive.
+        duration_s: simulated seconds after which ``step`` returns -1 (``None``: unlimited), counted
+            across ``simulationReset``.
+        robot_node: the robot a no-argument ``Robot()``/``Supervisor()`` binds to (default: first robot).
+        keys: scripted key presses for ``Keyboard`` (``None``: no key is ever pressed).
+        stop_after_end: a ``step`` call after -1 raises :class:`ControllerStopped` (the runner's choice).
+    """
+
+    def __init__(
+        self,
+        simulation: Simulation,
+        duration_s: float | None = None,
+        robot_node: SceneNode | None = None,
+        *,
+        keys: KeyScript | None = None,
+        stop_after_end: bool = False,
+    ) -> None:
+        self.simulation = simulation
+        self.duration_s = duration_s
+        self.keys = keys
+        self.stop_after_end = stop_after_end
+        self.elapsed_before_reset = 0.0
+        self.mode = SIMULATION_MODE_FAST  # headless: every mode runs as fast as the machine allows
+        self._node_ids: dict[int, int] | None = None
+        self._id_nodes: dict[int, SceneNode] = {}
+        self.default_robot_node = robot_node
+        self._cond = threading.Condition()
+        self._clients: list[_Client] = []
+        self._reset_requested = False
+        self.finished = False
+        self._thread_robot = threading.local()
+        self.error: BaseException | None = None
+        self.exit_status: int | None = None
+        # start-up barrier: stepping waits until every expected controller thread has registered a
+        # Robot or finished, so all controllers start at t = 0 like in Webots
+        self._expected = 0
+        self._arrived: set[int] = set()
+        self._thread_clients: dict[int, list[_Client]] = {}
+
+    def expect(self, n: int) -> None:
+        """Hold the first step until ``n`` controller threads registered a Robot or ended."""
+        self._expected = n
+
+    def thread_done(self) -> None:
+        """The calling thread's controller ended: release its Robots from the synchronisation."""
+        with self._cond:
+            tid = threading.get_ident()
+            self._arrived.add(tid)
+            for client in self._thread_clients.pop(tid, []):
+                client.active = False
+                client.waiting = False
+            self._maybe_advance()
+            self._cond.notify_all()
+
+    # -- robot binding for argument-less constructors
+
+    def bind_thread(self, robot_node: SceneNode) -> None:
+        """Make ``Robot()`` created in the calling thread refer to ``robot_node``."""
+        self._thread_robot.node = robot_node
+
+    def robot_node_for_thread(self) -> SceneNode:
+        node = getattr(self._thread_robot, "node", None) or self.default_robot_node
+        if node is None:
+            if not self.simulation.robots:
+                raise RuntimeError("the world has no Robot node")
+            node = self.simulation.robots[0].node
+        return node
+
+    def register(self, robot: RuntimeRobot) -> _Client:
+        with self._cond:
+            client = _Client(robot)
+            client.target = self.simulation.time
+            self._clients.append(client)
+            tid = threading.get_ident()
+            self._arrived.add(tid)
+            self._thread_clients.setdefault(tid, []).append(client)
+            return client
+
+    def unregister(self, client: _Client) -> None:
+        with self._cond:
+            client.active = False
+            client.waiting = False
+            self._maybe_advance()
+            self._cond.notify_all()
+
+    def request_reset(self) -> None:
+        self._reset_requested = True
+
+    @property
+    def clock(self) -> float:
+        """Simulated seconds since the run started, across resets (what ``duration_s`` bounds)."""
+        return self.elapsed_before_reset + self.simulation.time
+
+    def _limit_reached(self) -> bool:
+        return self.duration_s is not None and self.clock >= self.duration_s - 1e-9
+
+    def _end(self, client: _Client) -> int:
+        self.finished = True
+        if client.ended_at is None:
+            client.ended_at = time.monotonic()
+        return -1
+
+    def ended_clients(self) -> list[tuple[int, float]]:
+        """(thread id, wall time of the -1) of controllers that were told the run is over."""
+        with self._cond:
+            return [(c.thread, c.ended_at) for c in self._clients if c.ended_at is not None and c.active]
+
+    def node_ids(self) -> tuple[dict[int, int], dict[int, SceneNode]]:
+        """Webots-style unique ids: the root is 0, then every node of the scene tree in pre-order."""
+        if self._node_ids is None:
+            ids: dict[int, int] = {}
+            nodes: dict[int, SceneNode] = {}
+            stack = list(reversed(self.simulation.world.nodes))
+            while stack:
+                node = stack.pop()
+                if id(node) in ids:
+                    continue  # a USE'd node is one node, as in Webots
+                ids[id(node)] = len(ids) + 1
+                nodes[ids[id(node)]] = node
+                stack.extend(reversed(descendants(node)))
+            self._node_ids, self._id_nodes = ids, nodes
+        return self._node_ids, self._id_nodes
+
+    def advance(self, client: _Client, duration_ms: float) -> int:
+        """Advance the shared simulation by ``duration_ms`` for ``client`` (blocking until done)."""
+        sim = self.simulation
+        with self._cond:
+            if client.ended_at is not None:
+                if self.stop_after_end:
+                    raise ControllerStopped()
+                return -1
+            if self.finished or self._limit_reached():
+                return self._end(client)
+            if self.mode == SIMULATION_MODE_PAUSE and duration_ms == 0:
+                return 0  # step(0) exchanges commands without time passing, even paused
+            n = max(1, math.ceil(duration_ms / sim.basic_time_step - 1e-9))
+            if self._reset_requested:
+                self._reset_requested = False
+                # Webots simulates the step that carries the request, then resets: the run's clock counts it
+                self.elapsed_before_reset += sim.time + n * sim.basic_time_step / 1000.0
+                sim.reset()
+                for c in self._clients:
+                    c.target = 0.0
+                    c.robot._after_reset()
+                return self._end(client) if self._limit_reached() else 0
+            client.target = sim.time + n * sim.basic_time_step / 1000.0
+            client.waiting = True
+            self._maybe_advance()
+            while client.waiting and not self.finished and self.error is None:
+                self._cond.wait()
+            if self.error is not None:
+                err, self.error = self.error, None
+                raise err
+            client.waiting = False
+            return self._end(client) if self.finished or self._limit_reached() else 0
+
+    def _maybe_advance(self) -> None:
+        # caller holds the condition; steps when every active controller is waiting (synchronisation)
+        if len(self._arrived) < self._expected:
+            return
+        active = [c for c in self._clients if c.active]
+        if not active or not all(c.waiting for c in active):
+            return
+        if self.mode == SIMULATION_MODE_PAUSE:
+            # every controller waits for time to pass and headless nobody presses play: the run is over
+            _warn("a controller paused the simulation and, headless, nothing can resume it: the run ends")
+            self.finished = True
+            for c in active:
+                c.waiting = False
+            self._cond.notify_all()
+            return
+        sim = self.simulation
+        target = min(c.target for c in active)
+        try:
+            while sim.time < target - 1e-9:
+                if self._limit_reached():
+                    break
+                sim.step()
+        except BaseException as exc:
+            self.error = exc
+            for c in active:
+                c.waiting = False
+            self._cond.notify_all()
+            return
+        for c in active:
+            if c.target <= sim.time + 1e-9 or self._limit_reached():
+                c.waiting = False
+        self._cond.notify_all()
+
+
+_CURRENT: Runtime | None = None
+
+
+def set_current_runtime(runtime: Runtime | None) -> None:
+    """Install the runtime used by argument-less ``Robot()``/``Supervisor()`` (the runner does this)."""
+    global _CURRENT
+    _CURRENT = runtime
+
+
+def current_runtime() -> Runtime | None:
+    return _CURRENT
