@@ -352,3 +352,40 @@ def test_manifest_tolerances_are_checked(make_run: Callable[..., Path]) -> None:
     bad = make_run("c", {"00_Step": cartpole_like(T)}, tolerances={"00_Step": {"cart_pos_m": {"rmsd": 1}}})
     with pytest.raises(ValueError, match="unknown metrics"):
         compare_runs(bad, b)
+
+
+# --- the score judges against the channel's resolution (issue 28, item 2) ---------------------------
+
+
+def test_score_of_an_unresolvable_difference_is_near_zero_with_a_control() -> None:
+    """A difference of 1e-7 m on a channel resolved to 1 mm is no divergence, however unlike the shapes are."""
+    t = np.linspace(0.0, 2.0, 201)
+    a = 1e-7 * np.sin(3 * t)
+    b = 1e-7 * np.sin(3 * t + 2.5)
+    unresolved = compare_channel(t, a, t, b)
+    resolved = compare_channel(t, a, t, b, resolution=1e-3)
+    assert unresolved.score > 0.2  # the control: relative to its own tiny range the pair looks different
+    assert resolved.score < 0.01
+    assert resolved.rmse == unresolved.rmse  # the metrics themselves are unchanged
+
+
+def test_two_flat_lines_within_resolution_have_no_shape_to_disagree_on() -> None:
+    """Two flat velocity lines 60 µm/s apart (noise below 1 mm/s) show r < 0 but share their shape."""
+    rng = np.random.default_rng(0)
+    t = np.linspace(0.0, 2.0, 201)
+    a = 0.04 + 1e-5 * rng.standard_normal(t.size)
+    b = 0.03994 - 0.8 * (a - 0.04) + 2e-6 * rng.standard_normal(t.size)
+    plain = compare_channel(t, a, t, b)
+    judged = compare_channel(t, a, t, b, resolution=1e-3)
+    assert plain.correlation is not None and plain.correlation < -0.5  # the control: r is negative
+    assert plain.score > 0.2
+    assert judged.score_terms["correlation"] == 0.0
+    assert judged.score < 0.05
+
+
+def test_a_resolvable_divergence_scores_as_before() -> None:
+    """Where the range is far above the resolution, the resolution changes nothing."""
+    t = np.linspace(0.0, 2.0, 201)
+    a = 0.5 * np.sin(3 * t)
+    b = 0.5 * np.sin(3 * t + 0.4)
+    assert compare_channel(t, a, t, b, resolution=1e-3).score == pytest.approx(compare_channel(t, a, t, b).score)

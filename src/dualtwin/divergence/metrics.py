@@ -98,8 +98,9 @@ class Threshold:
 class ScoreWeights:
     """Weights of the summary score terms. Each term is dimensionless and lies in ``[0, 1]``.
 
-    Amplitude terms are divided by the pooled peak-to-peak range of both series on the common grid
-    (``scale``), so channels with different units can be averaged.
+    Amplitude terms are divided by the pooled peak-to-peak range of both series on the common grid, or by
+    the channel's resolution where that is larger (``scale``), so channels with different units can be
+    averaged and a difference nobody can resolve scores near 0.
 
     Attributes:
         rmse: Weight of ``rmse / scale``.
@@ -530,7 +531,10 @@ def compare_channel(
 
     Samples from the first non-finite value on are dropped (see `finite_prefix`). With a ``resolution``, a
     pair whose RMSE or either range is at or below it is never flagged as sign-inverted (a 13 µm cart
-    wobble has no meaningful direction), and ``significance`` is ``rmse / resolution``.
+    wobble has no meaningful direction), ``significance`` is ``rmse / resolution``, and the score judges
+    against it too: amplitude terms are divided by at least the resolution, and a series whose range is
+    within the resolution counts as flat for the correlation term (two flat series share their shape; a
+    flat one against a moving one shares none).
 
     Args:
         t_a: Time stamps of A in seconds.
@@ -575,6 +579,13 @@ def compare_channel(
     ptp = float(max(a.max(), b.max()) - min(a.min(), b.min()))
     # A flat pair has nothing to normalise by; its differences are ~0 anyway.
     scale = ptp if ptp > _REL_EPS * max(1.0, float(np.max(np.abs(np.concatenate([a, b]))))) else 1.0
+    if resolution is not None:
+        # Judge the score against what the channel can resolve, as the ranking does: a pair whose whole
+        # range is below the resolution has no amplitude or shape to disagree on (a 4.5e-8 m difference
+        # is not 84 % of "maximal divergence", and two flat lines 60 µm/s apart have no meaningful r).
+        scale = max(scale, resolution)
+    flat_a = _is_constant(a) or not resolves(resolution, float(np.ptp(a)))
+    flat_b = _is_constant(b) or not resolves(resolution, float(np.ptp(b)))
     terms = score_terms(
         scale=scale,
         duration_s=float(t[-1] - t[0]),
@@ -582,8 +593,8 @@ def compare_channel(
         dtw_rms=dtw_res.rms,
         max_abs_error=mae,
         final_diff=final,
-        correlation=corr,
-        both_constant=_is_constant(a) and _is_constant(b),
+        correlation=None if flat_a or flat_b else corr,
+        both_constant=flat_a and flat_b,
         crossing_a_s=cross_a,
         crossing_b_s=cross_b,
     )
