@@ -240,3 +240,113 @@ def test_a_part_may_overlap_its_parent_even_on_a_fixed_base(tmp_path: Path) -> N
     path.write_text(json.dumps(data))
     with pytest.raises(DualtwinError, match="parts 'arm2' and 'arm3' overlap|parts 'arm' and 'arm3' overlap"):
         generate(Source.from_json(path), tmp_path / "bad")
+
+
+# --- a mobile robot is never welded to the world (issue 28, item 1) ----------------------------------
+
+
+def welded_cart() -> dict[str, Any]:
+    """The paper CartPole with the root marked 'fixed', as the paper's Pioneer answer marks its chassis."""
+    data = paper_cartpole()
+    part(data, "cart")["joint"] = {"type": "fixed"}
+    return data
+
+
+def test_a_paper_root_marked_fixed_on_a_wheeled_robot_is_read_as_a_mobile_base(tmp_path: Path) -> None:
+    translation = translate(welded_cart())
+    root = next(p for p in translation.description["parts"] if p["parent"] is None)
+    assert "joint" not in root
+    note = next(n for n in translation.notes if "free mobile base" in n)
+    assert "wheel1" in note and "wheel4" in note
+    path = tmp_path / "welded.json"
+    path.write_text(json.dumps(welded_cart()))
+    result = generate(Source.from_json(path), tmp_path / "gen")
+    model = mujoco.MjModel.from_xml_path(str(result.files["xml"]))
+    assert model.jnt_type[model.body("cart").jntadr[0]] == mujoco.mjtJoint.mjJNT_FREE  # not welded
+    assert any("free mobile base" in a for a in result.assumptions)
+
+
+def test_a_paper_root_marked_fixed_without_wheels_stays_a_fixed_base() -> None:
+    """The control: a mounted robot (a post with an arm) keeps its fixed base."""
+    post = {"name": "post", "type": "box", "dimensions": {"size": [0.1, 0.1, 1.0]}, "mass": 2.0,
+            "position": [0, 0, 0.5], "orientation": [0, 0, 0], "parent": None, "joint": {"type": "fixed"}}
+    arm = {"name": "arm", "type": "box", "dimensions": {"size": [0.4, 0.04, 0.04]}, "mass": 0.3,
+           "position": [0.25, 0, 0.45], "orientation": [0, 0, 0], "parent": "post",
+           "joint": {"type": "hinge", "axis": [0, 1, 0]}}
+    translation = translate({"robot_name": "post_arm", "parts": [post, arm]})
+    root = next(p for p in translation.description["parts"] if p["parent"] is None)
+    assert root["joint"]["type"] == "fixed"
+    assert not any("mobile base" in n for n in translation.notes)
+
+
+def test_our_schema_refuses_a_welded_robot_that_drives_wheels_and_accepts_a_turntable(tmp_path: Path) -> None:
+    data = translate(paper_cartpole()).description
+    root = next(p for p in data["parts"] if p["parent"] is None)
+    root["joint"] = {"type": "fixed"}
+    path = tmp_path / "ours.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(DualtwinError, match=r"welds the robot to the world.*wheel1.*remove the root's \"joint\""):
+        generate(Source.from_json(path), tmp_path / "bad", dialect="dualtwin")
+    # control: a driven turntable (vertical axis) on a fixed base is a mounted robot, not a mobile one
+    table = {"robot_name": "turntable", "parts": [
+        {"name": "base", "type": "box", "dimensions": [0.4, 0.4, 0.1], "mass": 5.0, "position": [0, 0, 0.05],
+         "joint": {"type": "fixed"}},
+        {"name": "plate", "type": "cylinder", "dimensions": [0.15, 0.02], "mass": 0.5, "position": [0, 0, 0.07],
+         "parent": "base", "joint": {"type": "hinge", "axis": [0, 0, 1]},
+         "motor": {"name": "plate motor", "maxVelocity": 3.0, "maxTorque": 2.0}}]}
+    path.write_text(json.dumps(table))
+    assert generate(Source.from_json(path), tmp_path / "ok", dialect="dualtwin").converged
+
+
+def test_a_refused_description_leaves_no_folder(tmp_path: Path) -> None:
+    """Bad input is refused before anything is kept: the output folder generate made is gone again."""
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps({"robot_name": "r", "parts": []}))
+    with pytest.raises(DualtwinError):
+        generate(Source.from_json(path), tmp_path / "out", dialect="dualtwin")
+    assert not (tmp_path / "out").exists()
+    # control: a folder the user made beforehand stays, empty, as it was
+    (tmp_path / "mine").mkdir()
+    with pytest.raises(DualtwinError):
+        generate(Source.from_json(path), tmp_path / "mine", dialect="dualtwin")
+    assert (tmp_path / "mine").is_dir()
+
+
+def test_the_terminal_says_every_assumption_of_a_paper_answer(tmp_path: Path) -> None:
+    """The mobile-base reading (and every other) is printed, not only kept in generation.json."""
+    import subprocess
+    import sys
+
+    path = tmp_path / "welded.json"
+    path.write_text(json.dumps(welded_cart()))
+    done = subprocess.run([sys.executable, "-m", "dualtwin.cli", "generate", "--from-json", str(path),
+                           "--out", str(tmp_path / "gen")], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert "assumed: part 'cart': the root's joint 'fixed' read as a free mobile base" in done.stdout
+    assert done.stdout.count("assumed: ") == len(json.loads((tmp_path / "gen/generation.json").read_text())[
+        "assumptions"])
+
+
+def test_the_smoke_test_fails_when_the_twins_do_not_move_alike(tmp_path: Path) -> None:
+    """A welded wheeled robot (built past the mobile-base check, as a world file could be) passes MuJoCo's own
+    smoke test, but its wheels turn in Webots and not in MuJoCo: the twin check names them; the same robot
+    unwelded passes the whole smoke test (the control)."""
+    from dualtwin.convert.webots_to_mjcf import convert_world_text
+    from dualtwin.genai.agreement import motion_disagreements
+    from dualtwin.genai.generate import check_description, default_suite
+    from dualtwin.genai.primitive import CompiledRobot, RobotDescription, to_world_text
+
+    data = translate(paper_cartpole()).description
+    fine = check_description(RobotDescription.model_validate(data), str(tmp_path / "a.wbt"))
+    assert fine.stage == 5, fine.error
+    next(p for p in data["parts"] if p["parent"] is None)["joint"] = {"type": "fixed"}
+    welded = RobotDescription.model_validate(data)
+    text = to_world_text(welded)
+    compiled = CompiledRobot(welded, text, convert_world_text(text, "w.wbt", "cartpole"))
+    files = compiled.write(tmp_path / "welded")
+    suite = tmp_path / "suite.json"
+    suite.write_text(json.dumps(default_suite(compiled.conversion.binding_dict(files["xml"].name,
+                                                                               files["wbt"].name))))
+    found = motion_disagreements(files["binding"], suite)
+    assert {d.channel for d in found} >= {f"wheel{i}_joint_position_rad" for i in range(1, 5)}
+    assert all(d.webots_range > 0.5 and d.mujoco_range < 0.01 for d in found if "joint_position" in d.channel)

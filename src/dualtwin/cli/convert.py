@@ -83,7 +83,13 @@ def generate(
     console.print(f"converged after {result.iterations} LLM iteration(s)" if result.iterations
                   else "built deterministically")
     if result.assumptions:
+        # every reading is said here, not only in generation.json: one of them may decide how the robot
+        # moves (a root marked 'fixed' read as a mobile base, wheel hinges given motors)
         console.print(f"read in the {result.dialect} schema with {len(result.assumptions)} assumption(s) "
-                      "(listed in generation.json and transcript.json)")
+                      "(also in generation.json and transcript.json):", markup=False)
+        for assumption in result.assumptions:
+            console.print(f"  assumed: {assumption}", markup=False, soft_wrap=True)
+    for warning in result.warnings:
+        console.print(f"warning: {warning}", markup=False, soft_wrap=True)
     for name, file in result.files.items():
         console.print(f"  {name:<10} {file}")

@@ -21,6 +21,7 @@ from __future__ import annotations
 import copy
 import json
 import shutil
+import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,6 +34,7 @@ import numpy as np
 from dualtwin.artifacts import write_json, write_text
 from dualtwin.convert.checks import Finding, SmokeResult, smoke_test
 from dualtwin.errors import DualtwinError
+from dualtwin.genai.agreement import MotionDisagreement, motion_disagreements
 from dualtwin.genai.cases import CaseLibrary, examples_text
 from dualtwin.genai.llm import MAX_RESPONSE_CHARS, LLMClient, Message
 from dualtwin.genai.paper_dialect import Dialect, detect, load_any_description, read_description
@@ -198,8 +200,25 @@ def check_description(desc: RobotDescription, wbt_path: str, iteration: int = 0)
     if not smoke.ok:
         attempt.error = f"physics smoke test failed (0.5 s of random motor torques): {smoke.message}"
         return attempt
+    disagreements = _twin_disagreements(compiled)
+    if disagreements:
+        shown = "; ".join(str(d) for d in disagreements[:4])
+        more = f" (and {len(disagreements) - 4} more)" if len(disagreements) > 4 else ""
+        attempt.error = ("smoke test failed: the two twins do not move alike on the generated suite's first "
+                         f"second ({shown}{more}); a model both twins cannot share is not usable — look for a "
+                         "part welded to the world or to the floor")
+        return attempt
     attempt.stage = 5
     return attempt
+
+
+def _twin_disagreements(compiled: CompiledRobot) -> list[MotionDisagreement]:
+    """Both twins run the robot's generated suite briefly (:mod:`dualtwin.genai.agreement`); [] without one."""
+    with tempfile.TemporaryDirectory(prefix="dualtwin-generate-") as tmp:
+        files = _write_compiled(compiled, Path(tmp))
+        if "binding" not in files or "suite" not in files:
+            return []
+        return motion_disagreements(files["binding"], files["suite"])
 
 
 #: Penetration at the initial pose beyond which two parts (or a part and the floor) count as overlapping.
@@ -463,14 +482,22 @@ def generate(source: Source, out_dir: Path | str, *, llm: LLMClient | None = Non
         DualtwinError: bad input, unreachable/failing LLM provider.
     """
     out = Path(out_dir)
+    created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
-    if source.kind == "json":
-        return _from_json(source.path, out, dialect)
-    if source.kind == "wbt":
-        if not source.path.is_file():
-            raise DualtwinError(f"{source.path}: world file not found")
-        return _from_wbt(source.path, source.robot, out)
-    return _from_text(source.path, out, llm, max_iterations, cases, dialect)
+    try:
+        if source.kind == "json":
+            return _from_json(source.path, out, dialect)
+        if source.kind == "wbt":
+            if not source.path.is_file():
+                raise DualtwinError(f"{source.path}: world file not found")
+            return _from_wbt(source.path, source.robot, out)
+        return _from_text(source.path, out, llm, max_iterations, cases, dialect)
+    except DualtwinError as exc:
+        # a refusal (bad input, unreachable provider) leaves nothing behind; a loop that did not converge
+        # keeps its best attempt and transcript on purpose
+        if created and not isinstance(exc, GenerationFailed) and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()
+        raise
 
 
 def explain_divergence(metrics: dict[str, Any], llm: LLMClient, *, label_a: str = "Webots",

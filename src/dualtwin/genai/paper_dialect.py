@@ -55,10 +55,11 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
+from pydantic import ValidationError
 from scipy.spatial.transform import Rotation
 
 from dualtwin.errors import DualtwinError
-from dualtwin.genai.primitive import RobotDescription, parse_description
+from dualtwin.genai.primitive import RobotDescription, grounded_wheels, parse_description
 from dualtwin.geometry import axis_angle_from_rotvec
 
 Dialect = Literal["auto", "dualtwin", "paper"]
@@ -393,6 +394,7 @@ def translate(data: Any) -> Translation:
     }
     if scale is not None:
         t.note(f"approximate_scale {scale} used only to check the position frame")
+    _mobile_root(t, description)
     return Translation(description, t.notes, [])
 
 
@@ -584,6 +586,28 @@ def _axis_angle(rotation: Rotation) -> list[float]:
 def _looks_like_wheel(part: dict[str, Any], kind: str) -> bool:
     return kind == "cylinder" and ("wheel" in part["name"].lower()
                                    or part["dimensions"][0] > part["dimensions"][1])
+
+
+def _mobile_root(t: _Translator, description: dict[str, Any]) -> None:
+    """The paper's schema gives every part a joint, the root's being 'fixed': on a robot that drives wheels on
+    the floor that means "the base part", not "welded to the world" (our schema's fixed base), so the root's
+    joint is dropped and the reading is said."""
+    try:
+        desc = RobotDescription.model_validate(description)
+    except ValidationError:
+        return  # the description's own errors are reported where it is validated
+    root = desc.root
+    if root.joint is None or root.joint.type != "fixed":
+        return
+    wheels = grounded_wheels(desc)
+    if not wheels:
+        return
+    for part in description["parts"]:
+        if part["name"] == root.name:
+            part.pop("joint", None)
+    t.note(f"part {root.name!r}: the root's joint 'fixed' read as a free mobile base, since the robot drives "
+           f"wheels on the floor ({', '.join(wheels)}); a welded base would spin them in place. Give the root "
+           "no joint in our schema to say so, or mount the robot on a fixed part to weld it")
 
 
 def _wheel_axes(t: _Translator, parts: list[dict[str, Any]], kinds: list[str]) -> None:

@@ -31,7 +31,7 @@ import numpy as np
 from pydantic import Field, ValidationError, model_validator
 
 from dualtwin.errors import DualtwinError
-from dualtwin.geometry import axis_angle_from_quat, mujoco_quat
+from dualtwin.geometry import axis_angle_from_quat, axis_angle_matrix, mujoco_quat
 from dualtwin.models import StrictModel
 from dualtwin.webots import schema
 from dualtwin.webots.nodes import Node, World
@@ -184,6 +184,80 @@ def check_tree(desc: RobotDescription) -> None:
     dup = sorted({d for d in joint_names if joint_names.count(d) > 1})
     if dup:
         raise DualtwinError(f"joint names must be unique: {dup}")
+
+
+#: A driven hinge whose axis leans less than this from horizontal, on a wheel no higher than its radius plus
+#: this clearance above the floor, is a wheel that rolls on the floor.
+WHEEL_AXIS_HORIZONTAL_TOL = 0.3
+WHEEL_FLOOR_CLEARANCE_M = 0.02
+
+
+def _world_frames(desc: RobotDescription) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Every part's (position, rotation matrix) in the world, composing the parent-relative frames."""
+    by_name = {p.name: p for p in desc.parts}
+    frames: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+
+    def frame(name: str) -> tuple[np.ndarray, np.ndarray]:
+        if name not in frames:
+            part = by_name[name]
+            local_R = axis_angle_matrix(part.orientation)
+            local_t = np.asarray(part.position, float)
+            if part.parent is None:
+                frames[name] = (local_t, local_R)
+            else:
+                pt, pR = frame(part.parent)
+                frames[name] = (pt + pR @ local_t, pR @ local_R)
+        return frames[name]
+
+    for part in desc.parts:
+        frame(part.name)
+    return frames
+
+
+def grounded_wheels(desc: RobotDescription) -> list[str]:
+    """Parts that are wheels rolling on the floor: a motor-driven hinge about the part's own (horizontal) axis,
+    a cylinder or sphere whose centre is no higher than its radius (plus a small clearance) above z = 0.
+
+    A turntable (vertical axis) or a driven drum held in the air is not one; a wheel on a robot whose root is
+    welded to the world is the mistake :func:`check_mobile_base` names.
+    """
+    if not desc.physics.floor:
+        return []
+    frames = _world_frames(desc)
+    wheels = []
+    for part in desc.parts:
+        joint = part.joint
+        if part.motor is None or joint is None or joint.type != "hinge" or part.type not in ("cylinder", "sphere"):
+            continue
+        t, R = frames[part.name]
+        parent_R = frames[part.parent][1] if part.parent is not None else np.eye(3)
+        axis = parent_R @ (np.asarray(joint.axis, float) / max(float(np.linalg.norm(joint.axis)), 1e-12))
+        if abs(float(axis[2])) > WHEEL_AXIS_HORIZONTAL_TOL:
+            continue
+        radius = float(part.dimensions[0])
+        if part.type == "cylinder" and abs(float(axis @ (R @ np.array([0.0, 0.0, 1.0])))) < 0.9:
+            continue  # the hinge does not spin the cylinder about its own axis: not a rolling wheel
+        if float(t[2]) <= radius + WHEEL_FLOOR_CLEARANCE_M:
+            wheels.append(part.name)
+    return wheels
+
+
+def check_mobile_base(desc: RobotDescription) -> None:
+    """Refuse a robot welded to the world that drives wheels on the floor (a fixed root is for mounted robots).
+
+    Raises:
+        DualtwinError: naming the root, the wheels and the fix.
+    """
+    root = desc.root
+    if root.joint is None or root.joint.type != "fixed":
+        return
+    wheels = grounded_wheels(desc)
+    if wheels:
+        raise DualtwinError(
+            f"root part {root.name!r} has joint type 'fixed', which welds the robot to the world, but it drives "
+            f"wheels on the floor ({', '.join(wheels)}): the wheels would spin in place and the two twins disagree "
+            "on how they touch the floor; a mobile robot's root has no joint (remove the root's \"joint\"), a "
+            "fixed base is for arms and other mounted robots")
 
 
 def json_schema() -> dict[str, Any]:
@@ -377,6 +451,7 @@ def compile_description(desc: RobotDescription, wbt_path: str | None = None) -> 
     from dualtwin.convert.webots_to_mjcf import convert_world_text
 
     check_tree(desc)
+    check_mobile_base(desc)
     text = to_world_text(desc)
     conversion = convert_world_text(text, wbt_path or f"{desc.robot_name}.wbt", desc.robot_name)
     return CompiledRobot(desc, text, conversion)
