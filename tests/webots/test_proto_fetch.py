@@ -389,11 +389,25 @@ def test_interrupted_fetch_into_a_folder_resumes(tmp_path: Path, online: _Server
     assert "two.wbt:3:1" in str(info.value) and "Later.proto" in str(info.value) and "HTTP 404" in str(info.value)
     manifest = json.loads((out / "manifest.json").read_text())
     assert [f["url"] for f in manifest["files"]] == [OFFICIAL + "projects/appearances/protos/TireRubber.proto"]
+    assert manifest["complete"] is False and "Later.proto" in manifest["error"]  # not mistaken for a mirror
     later = online.root / "R2023b" / "projects" / "later" / "protos" / "Later.proto"
     later.parent.mkdir(parents=True)
     later.write_text(HEADER + "PROTO Later [ ] { Solid { } }\n")
     report, _ = fetch_command([world], out, say=None)  # the same folder: continued, not refused
-    assert len(json.loads((out / "manifest.json").read_text())["files"]) == 2 and report.warnings == []
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert len(manifest["files"]) == 2 and manifest["complete"] is True and report.warnings == []
+
+
+def test_a_fetch_that_fetched_nothing_leaves_nothing(tmp_path: Path, online: _Server) -> None:
+    """A failed fetch into a new folder removes it; into the user's empty folder, leaves it empty."""
+    world = tmp_path / "missing.wbt"
+    world.write_text(HEADER + 'EXTERNPROTO "webots://projects/nowhere/protos/Nowhere.proto"\nNowhere { }\n')
+    for out, existed in ((tmp_path / "new", False), (tmp_path / "empty", True)):
+        if existed:
+            out.mkdir()
+        with pytest.raises(FetchError, match="Nowhere.proto"):
+            fetch_command([world], out, say=None)
+        assert out.exists() == existed and (not existed or not any(out.iterdir()))
 
 
 def test_mirror_that_is_neither_folder_nor_url_is_named(

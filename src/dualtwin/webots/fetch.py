@@ -18,6 +18,7 @@ import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from dualtwin.artifacts import check_input_file, check_output_dir, write_json
 from dualtwin.errors import DualtwinError
@@ -157,28 +158,56 @@ def fetch_command(
     """
     for world in worlds:
         check_input_file(Path(world), "world")
+    fresh = existed = False
     if out is None:
         cache = ProtoCache(copy_sources=True, progress=say)
     else:
         root = Path(out)
-        check_output_dir(root, PROTO_FOLDER_KIND, resume=True, resumable=True)
+        existed = root.exists()
+        fresh = not check_output_dir(root, PROTO_FOLDER_KIND, resume=True, resumable=True)  # absent or empty
         # a folder for an offline machine must hold every file, wherever it was found here
         cache = ProtoCache(root, sources=[default_cache_root()], copy_sources=True, progress=say)
-        _write_manifest(cache)  # first, so an interrupted fetch leaves a folder the next one continues
+        # first, so an interrupted fetch leaves a folder the next one continues; "complete" says it is not done
+        _write_manifest(cache, complete=False)
     try:
         report = fetch_worlds(worlds, cache)
-    finally:
+    except BaseException as exc:
         cache.close()
         if out is not None:
-            _write_manifest(cache)
+            if fresh and not cache.entries():
+                # nothing was fetched: a refusal leaves the folder as it found it (absent, or empty)
+                _remove_empty_fetch(cache.root, keep_root=existed)
+            else:
+                _write_manifest(cache, complete=False, error=str(exc) or type(exc).__name__)
+        raise
+    cache.close()
+    if out is not None:
+        _write_manifest(cache, complete=True)
     return report, cache.root
 
 
-def _write_manifest(cache: ProtoCache) -> None:
-    write_json(cache.root / "manifest.json", {
+def _write_manifest(cache: ProtoCache, *, complete: bool, error: str | None = None) -> None:
+    record: dict[str, Any] = {
         "kind": PROTO_FOLDER_KIND,
         "layout": LAYOUT,
         "webots_version": WEBOTS_VERSION,
         "usage": "export DUALTWIN_PROTO_MIRROR=<this folder>",
+        # false until every url of every world was fetched: a folder whose fetch failed or was interrupted is
+        # not a complete mirror (run the same command again to finish it)
+        "complete": complete,
         "files": cache.entries(),
-    })
+    }
+    if error is not None:
+        record["error"] = error
+    write_json(cache.root / "manifest.json", record)
+
+
+def _remove_empty_fetch(root: Path, *, keep_root: bool) -> None:
+    """Delete what a fetch that fetched nothing wrote: its manifest and empty folders (``root`` too, unless it
+    was there before)."""
+    (root / "manifest.json").unlink(missing_ok=True)
+    for folder in sorted((p for p in root.rglob("*") if p.is_dir()), key=lambda p: len(p.parts), reverse=True):
+        if not any(folder.iterdir()):
+            folder.rmdir()
+    if not keep_root and root.is_dir() and not any(root.iterdir()):
+        root.rmdir()
