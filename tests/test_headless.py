@@ -141,3 +141,32 @@ def test_rl_and_registration_share_one_list_of_ids() -> None:
     assert rl.ENV_IDS is registration.ENV_IDS
     assert set(registration.ENV_IDS) <= set(rl.registered_ids())
     assert registration.register_envs() == []  # idempotent: already registered
+
+
+_UNSTABLE = """
+import sys
+if sys.argv[1] == "dualtwin":
+    import dualtwin  # noqa: F401
+import mujoco
+m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><body><freejoint/><geom size=".1"/></body></worldbody></mujoco>')
+d = mujoco.MjData(m)
+d.qpos[0] = float("nan")
+mujoco.mj_step(m, d)
+"""
+
+
+def test_mujoco_warnings_go_to_stderr_not_into_the_users_folder(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    import subprocess
+    import sys
+
+    for who in ("dualtwin", "plain"):
+        folder = tmp_path / who
+        folder.mkdir()
+        done = subprocess.run([sys.executable, "-c", _UNSTABLE, who], cwd=folder, capture_output=True, text=True,
+                              timeout=120)
+        assert done.returncode == 0, done.stderr
+        if who == "dualtwin":
+            assert not (folder / "MUJOCO_LOG.TXT").exists()
+            assert "MuJoCo warning: Nan, Inf or huge value in QPOS" in done.stderr
+        else:  # the control: MuJoCo on its own writes the file where it runs
+            assert (folder / "MUJOCO_LOG.TXT").exists()

@@ -4,16 +4,19 @@ Importing the package does two light things, before any dualtwin module imports 
 
 * picks a headless OpenGL backend for MuJoCo where there is no display (:mod:`dualtwin.headless`;
   :func:`gl_backend` says which and why);
+* sends MuJoCo's warnings to stderr rather than a ``MUJOCO_LOG.TXT`` in the user's current folder
+  (:func:`dualtwin.headless.route_mujoco_warnings`, applied when MuJoCo is imported);
 * registers the ``dualtwin/...`` Gymnasium env ids when Gymnasium is installed (:mod:`dualtwin.registration`,
   entry-point strings only), so ``gym.make("dualtwin/CartPole-MuJoCo-v0")`` works after ``import dualtwin``
   (the ecosystem's idiom: ``gym.register_envs(dualtwin)``).
 """
 
-from dualtwin.headless import GLChoice, gl_backend
+from dualtwin.headless import GLChoice, gl_backend, route_mujoco_warnings
 
 __version__ = "0.1.0"
 
 gl_backend()
+route_mujoco_warnings()
 
 from dualtwin.registration import register_envs  # noqa: E402 - after the backend choice, on purpose
 

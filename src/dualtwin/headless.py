@@ -22,10 +22,14 @@ chosen and why (``dualtwin --verbose`` prints it).
 
 from __future__ import annotations
 
+import importlib.abc
+import importlib.machinery
 import json
 import os
 import subprocess
 import sys
+import types
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 BACKENDS = ("egl", "osmesa")
@@ -164,3 +168,60 @@ def _probe_and_set(platform: str) -> GLChoice:
 def gl_backend() -> GLChoice:
     """The offscreen OpenGL backend chosen at ``import dualtwin``, and why."""
     return choose_gl_backend()
+
+
+# ------------------------------------------------------------------------------------------ MuJoCo's log file
+
+
+def _mujoco_warning(message: str) -> None:
+    # MuJoCo's default handler prints the warning and appends it to MUJOCO_LOG.TXT in the current folder, which
+    # is the user's folder, not ours to write into; the message goes to stderr alone.
+    sys.stderr.write(f"MuJoCo warning: {message}\n")
+
+
+def _install_mujoco_warning_handler(module: object) -> None:
+    set_handler = getattr(module, "set_mju_user_warning", None)
+    if set_handler is not None:
+        set_handler(_mujoco_warning)
+
+
+class _MujocoImportHook(importlib.abc.MetaPathFinder):
+    """A meta-path finder that installs the warning handler right after ``import mujoco`` finishes, wherever in
+    dualtwin (or a user's script) that import happens, without importing MuJoCo itself."""
+
+    def find_spec(self, fullname: str, path: Sequence[str] | None, target: types.ModuleType | None = None,
+                  ) -> importlib.machinery.ModuleSpec | None:
+        if fullname != "mujoco":
+            return None
+        spec = importlib.machinery.PathFinder.find_spec(fullname, path)
+        if spec is None or spec.loader is None:
+            return None
+        spec.loader = _HandlerInstallingLoader(spec.loader)
+        if self in sys.meta_path:
+            sys.meta_path.remove(self)  # once is enough
+        return spec
+
+
+class _HandlerInstallingLoader(importlib.abc.Loader):
+    def __init__(self, loader: importlib.abc.Loader) -> None:
+        self._loader = loader
+
+    def create_module(self, spec: importlib.machinery.ModuleSpec) -> types.ModuleType | None:
+        return self._loader.create_module(spec)
+
+    def exec_module(self, module: types.ModuleType) -> None:
+        self._loader.exec_module(module)
+        _install_mujoco_warning_handler(module)
+
+    def __getattr__(self, name: str) -> object:  # resource readers and the like: the real loader's
+        return getattr(self._loader, name)
+
+
+def route_mujoco_warnings() -> None:
+    """Send MuJoCo's warnings to stderr instead of a ``MUJOCO_LOG.TXT`` in the current folder (now, or as soon
+    as MuJoCo is imported). Called by ``import dualtwin``."""
+    module = sys.modules.get("mujoco")
+    if module is not None:
+        _install_mujoco_warning_handler(module)
+    elif not any(isinstance(f, _MujocoImportHook) for f in sys.meta_path):
+        sys.meta_path.insert(0, _MujocoImportHook())

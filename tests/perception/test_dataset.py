@@ -104,5 +104,9 @@ def test_bad_arguments(tmp_path: Path) -> None:
         collect(ENV, 1, tmp_path / "x", controller="clever")
     with pytest.raises(DualtwinError, match="needs policy_run"):
         collect(ENV, 1, tmp_path / "y", controller="noisy-policy")
+    assert not (tmp_path / "y").exists()  # a refused collection leaves no folder behind
+    with pytest.raises(DualtwinError):
+        collect(ENV, 1, tmp_path / "z", controller="noisy-policy", policy_run=tmp_path / "no-such-policy")
+    assert not (tmp_path / "z").exists()
     with pytest.raises(DualtwinError, match="not a perception dataset"):
         load_dataset(tmp_path)

@@ -150,16 +150,32 @@ def collect(env_id: str, episodes: int, out_dir: Path | str, *, controller: str 
     Returns:
         The dataset folder.
     """
-    from dualtwin.perception.controllers import CONTROLLERS, make_controller
-    from dualtwin.rl import make_env
-    from dualtwin.twins.camera import Appearance, camera_for
-    from dualtwin.twins.render import TwinCamera
+    from dualtwin.perception.controllers import CONTROLLERS
 
     if episodes < 1 or max_steps < 1 or episodes_per_shard < 1:
         raise DualtwinError("episodes, max_steps and episodes_per_shard must be >= 1")
     if controller not in CONTROLLERS:
         raise DualtwinError(f"unknown controller {controller!r} (available: {', '.join(CONTROLLERS)})")
     out = Path(out_dir)
+    created = not out.exists()
+    try:
+        return _collect(env_id, episodes, out, controller, policy_run, resume, seed, width, height, randomize,
+                        camera, max_steps, episodes_per_shard, progress)
+    except DualtwinError:
+        # a refusal (a bad policy, a camera the robot lacks) leaves no folder behind; recorded shards stay
+        if created and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()
+        raise
+
+
+def _collect(env_id: str, episodes: int, out: Path, controller: str, policy_run: Path | str | None, resume: bool,
+             seed: int, width: int, height: int, randomize: bool, camera: str | None, max_steps: int,
+             episodes_per_shard: int, progress: ProgressCallback | None) -> Path:
+    from dualtwin.perception.controllers import make_controller
+    from dualtwin.rl import make_env
+    from dualtwin.twins.camera import Appearance, camera_for
+    from dualtwin.twins.render import TwinCamera
+
     env = make_env(env_id, max_episode_steps=max_steps)
     try:
         twin_env: Any = env.unwrapped  # a dualtwin TwinEnv (twin, robot, task)
