@@ -190,6 +190,19 @@ def test_def_use_is_deep_copy_and_find_def() -> None:
     assert w.find_def("S") is s1
 
 
+@pytest.mark.parametrize("name", ["TEST`", "a-b", "_x", "caf\u00e9", "x@y:z", "A|B"])
+def test_def_names_follow_the_vrml97_identifier_rule(name: str) -> None:
+    # any printable character but " # ' , . [ \\ ] { } (and no leading digit, '+' or '-'), as Webots reads them
+    w = load_world_text(world(f"Solid {{ boundingObject DEF {name} Box {{ }} }}\nSolid {{ boundingObject USE {name} }}"))
+    assert w.find_def(name) is w.nodes[0]["boundingObject"]
+    assert w.nodes[1]["boundingObject"].use_name == name
+
+
+@pytest.mark.parametrize("name", ["1x", "-x", "+x", "a.b", "a'b", "a\\\\b"])
+def test_def_names_outside_the_vrml97_rule_are_rejected(name: str) -> None:
+    assert re.search(r"expected a name after DEF|expected a name, number", str(error_of(world(f"DEF {name} Solid {{ }}"))))
+
+
 def test_hidden_fields_kept_aside() -> None:
     w = load_world_text(
         world("Solid { hidden translation_1 0 0 1 hidden position_0_0 0.5 hidden customThing \"x\" }")
@@ -271,7 +284,8 @@ def test_mf_node_list_and_convert_value_errors() -> None:
         (HEADER + "Solid { name IS x }", 2, 14, "IS is only allowed inside a PROTO body"),
         (HEADER + "Solid { boundingObject USE NOPE }", 2, 28, "USE of undefined 'NOPE'"),
         (HEADER + "Solid { children [ Box { size 1 1 1 %<= 2 >% } ] }", 2, 37, "template code"),
-        (HEADER + "Solid { x@y 1 }", 2, 9, "found 'x@y'"),
+        (HEADER + "Solid { x.y 1 }", 2, 9, "found 'x.y'"),
+        (HEADER + "Solid { x@y 1 }", 2, 9, "unknown field 'x@y'"),  # VRML97: '@' may be in a name
         (HEADER + "PROTO A [] { Group {} }", 2, 1, "PROTO definitions belong"),
         (HEADER + "Solid { } ]", 2, 11, "expected a node type name, found ']'"),
         (HEADER + "Sphere { subdivision 99999999999 }", 2, 22, "out-of-range integer"),

@@ -26,7 +26,10 @@ _WORD = re.compile(r'[^ \t\r\n,\[\]{}"#]+')
 _STRING = re.compile(r'"(?:[^"\\]|\\.)*"', re.S)
 _NUMBER = re.compile(r"[+-]?(?:0[xX][0-9a-fA-F]+|(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)")
 _INT = re.compile(r"[+-]?(?:0[xX][0-9a-fA-F]+|\d+)")
-_IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_\-]*")
+# VRML97's identifier rule, which Webots' tokenizer follows: any character above 0x20 except
+# " # ' , . [ \ ] { } and DEL; the first one also not a digit, '+' or '-'. So a backtick or a non-ASCII
+# letter is a valid DEF name, a dot is not (getFromDef uses it to scope into nested DEFs).
+_IDENT = re.compile(r"[^\x00-\x20\"#',.\[\\\]{}\x7f0-9+\-][^\x00-\x20\"#',.\[\\\]{}\x7f]*")
 _ESCAPE = re.compile(r'\\(["\\])')
 
 
@@ -140,12 +143,12 @@ class Lexer:
             return Token("number", word, pos, m.end(), _number_value(word))
         if word in _NONFINITE:
             return Token("number", word, pos, m.end(), _NONFINITE[word])
+        if word.startswith(("%<", "%{")):  # would pass as an identifier: say what it is
+            found = f"template code '{clip(word, 10)}' outside a procedural PROTO body"
+            raise self.src.error(pos, "a name, number, string or one of { } [ ]", found)
         if _IDENT.fullmatch(word):
             return Token("ident", word, pos, m.end())
-        if word.startswith(("%<", "%{")):
-            found = f"template code '{clip(word, 10)}' outside a procedural PROTO body"
-        else:
-            found = f"'{clip(word)}'"
+        found = f"'{clip(word)}'"
         raise self.src.error(pos, "a name, number, string or one of { } [ ]", found)
 
     def peek(self, k: int = 0) -> Token:
