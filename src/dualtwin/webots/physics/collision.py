@@ -53,7 +53,9 @@ class CollisionPass(JointBuilder):
             mode |= ode.dContactBounce
         mu = float(coulomb[0])
         s.mu = ode.dInfinity if mu == -1 else mu
-        s.mu2 = s.mu
+        # Webots leaves mu2 at 0 unless friction is asymmetric. ODE's dContactAxisDep, set for rho2/rhoN, is the
+        # same bit as dContactMu2: with it ODE uses mu2 (= 0) along the second friction direction (§2.2).
+        s.mu2 = 0.0
         if float(slip[0]) != 0.0:
             mode |= ode.dContactSlip1 | ode.dContactSlip2
             s.slip1 = s.slip2 = float(slip[0])
