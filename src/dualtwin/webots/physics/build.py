@@ -174,6 +174,8 @@ class SceneBuilder(SimulationCore):
             if motor is not None and sensor is not None:
                 motor.sensor = sensor
         end = _f(node, "endPoint", None)
+        while isinstance(end, Node) and end.type_name == "Slot":
+            end = _f(end, "endPoint", None)  # a Slot pair is a pass-through: no frame of its own
         if isinstance(end, Node) and is_solid(end):
             joint.child = self._add_solid(end, frame_rel, parent, robot, joint)
         elif isinstance(end, Node) and end.type_name == "SolidReference":
@@ -516,3 +518,41 @@ class SceneBuilder(SimulationCore):
                 )
                 robot.devices.setdefault(dev.name, dev)
                 self.devices.append(dev)
+        for robot in self.robots:
+            self._order_devices(robot)
+            self._harmonise_coupled_motors(robot)
+
+    def _harmonise_coupled_motors(self, robot: RobotRec) -> None:
+        """Coupled motors (``prefix::suffix``, same robot) take their limits from the group's first motor in
+        device order, scaled by the multiplier ratio r = multiplier / first multiplier: maxVelocity = |r|·first's,
+        [minPosition, maxPosition] = r·first's (swapped when r < 0; unlimited stays unlimited), as Webots
+        adjusts them at load."""
+        groups: dict[str, list[MotorRec]] = {}
+        for rec in robot.devices.values():
+            if isinstance(rec, MotorRec):
+                parts = rec.name.split("::")
+                if len(parts) == 2:
+                    groups.setdefault(parts[0], []).append(rec)
+        for motors in groups.values():
+            first = motors[0]
+            for motor in motors[1:]:
+                if first.multiplier == 0.0:
+                    continue
+                r = motor.multiplier / first.multiplier
+                before = (motor.max_velocity, motor.min_position, motor.max_position)
+                motor.max_velocity = abs(r) * first.max_velocity
+                lo, hi = r * first.min_position, r * first.max_position
+                motor.min_position, motor.max_position = (lo, hi) if lo <= hi else (hi, lo)
+                if before != (motor.max_velocity, motor.min_position, motor.max_position):
+                    self.warn(f"coupled motor '{motor.name}': maxVelocity and position limits set from "
+                              f"'{first.name}' scaled by the multiplier ratio {r:g}")
+
+    @staticmethod
+    def _order_devices(robot: RobotRec) -> None:
+        """Device indices follow the scene tree (pre-order, each joint's device lists in the order written, then
+        its endPoint), as Webots numbers them for getDeviceByIndex."""
+        rank = {id(n): i for i, n in enumerate(robot.node.walk())}
+        last = len(rank)
+        items = sorted(robot.devices.items(), key=lambda kv: rank.get(id(getattr(kv[1], "node", None)), last))
+        robot.devices.clear()
+        robot.devices.update(items)

@@ -1,0 +1,86 @@
+"""Joint and motor mechanisms as Webots builds them: Slot pairs as joint endPoints, device order, coupled-motor
+limits at load. Own small worlds; expected values from Webots' documented rules, each with a control."""
+
+from __future__ import annotations
+
+import warnings
+
+import pytest
+
+from dualtwin.webots import load_world_text
+from dualtwin.webots.controller import Supervisor
+from dualtwin.webots.physics import Simulation
+
+
+def _sup(body: str, step: int = 8, info: str = "") -> Supervisor:
+    text = f"#VRML_SIM R2023b utf8\nWorldInfo {{ basicTimeStep {step} {info} }}\n{body}\n"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sim = Simulation(load_world_text(text))
+    return Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+
+
+def _pendulum(end_wrap: str) -> str:
+    solid = """Solid { translation 0.5 0 0 boundingObject Sphere { radius 0.05 }
+                      physics Physics { density -1 mass 1 } }"""
+    end = end_wrap.replace("@", solid)
+    return f"""Robot {{ supervisor TRUE children [ HingeJoint {{
+  jointParameters HingeJointParameters {{ axis 0 1 0 }}
+  device [ PositionSensor {{ name "s" }} ]
+  endPoint {end} }} ] }}"""
+
+
+def _swing(sup: Supervisor, steps: int = 25) -> float:
+    s = sup.getDevice("s")
+    s.enable(8)
+    for _ in range(steps):
+        sup.step(8)
+    return s.getValue()
+
+
+def test_a_slot_pair_as_endpoint_is_a_pass_through() -> None:
+    slotted = _swing(_sup(_pendulum("Slot { type \"a\" endPoint Slot { type \"a\" endPoint @ } }")))
+    plain = _swing(_sup(_pendulum("@")))  # control: the same arm without Slots
+    assert plain > 0.1  # gravity swings the arm down about +y (positive angle)
+    assert slotted == plain
+
+
+def test_devices_are_numbered_in_scene_tree_order() -> None:
+    sup = _sup("""Robot { supervisor TRUE children [
+  HingeJoint { device [ PositionSensor { name "s1" } RotationalMotor { name "m1" } ]
+               endPoint Solid { physics Physics { } boundingObject Box { size 0.1 0.1 0.1 } } }
+  DistanceSensor { name "ds" }
+  HingeJoint { jointParameters HingeJointParameters { anchor 0 1 0 }
+               device [ RotationalMotor { name "m2" } PositionSensor { name "s2" } ]
+               endPoint Solid { translation 0 1 0 name "b" children [ GPS { name "gps" } ]
+                                physics Physics { } boundingObject Box { size 0.1 0.1 0.1 } } }
+] }""")
+    names = [sup.getDeviceByIndex(i).getName() for i in range(sup.getNumberOfDevices())]
+    assert names == ["s1", "m1", "ds", "m2", "s2", "gps"]
+
+
+def _motor(name: str, multiplier: float, extra: str = "", y: float = 0.0) -> str:
+    return f"""HingeJoint {{ jointParameters HingeJointParameters {{ anchor 0 {y} 0 }}
+  device [ RotationalMotor {{ name "{name}" multiplier {multiplier} {extra} }} ]
+  endPoint Solid {{ translation 0 {y} 0 name "{name}" physics Physics {{ }} boundingObject Box {{ size 0.1 0.1 0.1 }} }} }}"""
+
+
+def test_coupled_motor_limits_are_harmonised_to_the_first_motor_at_load() -> None:
+    limits = "maxVelocity 8 minPosition -2 maxPosition 4"
+    sup = _sup(
+        "Robot { supervisor TRUE children [ "
+        + _motor("arm::a", 2.0, limits)
+        + _motor("arm::b", -1.0, "maxVelocity 3 minPosition -9 maxPosition 9", 1)
+        + _motor("arm::c", 4.0, "", 2)
+        + _motor("lone", 4.0, limits, 3)
+        + " ] }",
+        info="gravity 0",
+    )
+    a, b, c, lone = (sup.getDevice(n) for n in ("arm::a", "arm::b", "arm::c", "lone"))
+    assert (a.getMinPosition(), a.getMaxPosition(), a.getMaxVelocity()) == (-2, 4, 8)  # the first is the reference
+    # ratio -0.5: limits scaled and swapped, |ratio| on the velocity
+    assert (b.getMinPosition(), b.getMaxPosition(), b.getMaxVelocity()) == (-2, 1, 4)
+    assert (c.getMinPosition(), c.getMaxPosition(), c.getMaxVelocity()) == (-4, 8, 16)  # ratio 2
+    assert b.getVelocity() == pytest.approx(4)  # the initial target velocity is the (new) maxVelocity
+    # control: a motor outside any group keeps its own limits
+    assert (lone.getMinPosition(), lone.getMaxPosition(), lone.getMaxVelocity()) == (-2, 4, 8)
