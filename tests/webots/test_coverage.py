@@ -101,6 +101,12 @@ def test_device_readings_follow_the_registry() -> None:
             values = [0.0 if math.isinf(v) else v for v in dev.getRangeImage()] or [math.nan]
         elif hasattr(dev, "getImage"):
             values = [float(v) for v in dev.getImage()] or [math.nan]  # an empty world: a black frame
+        elif hasattr(dev, "getNumberOfTargets"):
+            values = [float(dev.getNumberOfTargets())]  # an empty world: no target is a reading
+        elif hasattr(dev, "getPresence"):
+            values = [float(dev.getPresence())]
+        elif name == "LED":
+            values = [float(dev.get())]
         elif hasattr(dev, "getValues"):
             values = dev.getValues()
         else:

@@ -43,6 +43,7 @@ from typing import Any
 
 from dualtwin.webots.api_args import as_float, as_int, finite, warn
 from dualtwin.webots.camera import Camera
+from dualtwin.webots.connector import install as install_connectors
 from dualtwin.webots.device_base import Device, SampledDevice
 from dualtwin.webots.devices import (
     GPS,
@@ -156,6 +157,7 @@ class Robot:
         self._rec: RobotRec = rec
         install_propellers(self._sim)  # propeller and track motors become devices of their robot
         install_tracks(self._sim)
+        install_connectors(self._sim)  # docking runs in the physics even if no controller asks for a connector
         self._devices: dict[int, Device] = {}
         self._sensors: dict[int, SampledDevice] = {}
         self._keyboard: Keyboard | None = None

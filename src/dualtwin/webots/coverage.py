@@ -126,8 +126,11 @@ REGISTRY: tuple[Coverage, ...] = (
              "selfCollision), ray layout and Gaussian weights, sonar echo angle, lookup table with noise, "
              "resolution; infra-red is cast like generic (no visual shapes or colours headless) and "
              "transparency is not known"),
-    Coverage("Compass", "device", "not", _NOT_YET_DEVICE),
-    Coverage("Altimeter", "device", "not", _NOT_YET_DEVICE),
+    Coverage("Compass", "device", "supported",
+             "north of WorldInfo.coordinateSystem (+y ENU, +x NUE, +z EUN) in the device frame, per-axis "
+             "lookupTable and resolution"),
+    Coverage("Altimeter", "device", "supported",
+             "coordinate along the world's up axis, Gaussian accuracy noise, resolution"),
     Coverage("TouchSensor", "device", "supported",
              "bumper from contacts of its bounding object in any step since the last sample; force and "
              "force-3d from the feedback of the fixed joint to its own body, with lookup table and resolution"),
@@ -149,8 +152,13 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("LensFlare", "device", "not", "not yet (Camera)"),
     Coverage("Focus", "device", "not", "not yet (Camera)"),
     Coverage("Zoom", "device", "not", "not yet (Camera)"),
-    Coverage("Radar", "device", "not", _NOT_YET_DEVICE),
-    Coverage("LightSensor", "device", "not", _NOT_YET_DEVICE),
+    Coverage("Radar", "device", "partial",
+             "targets: Solids with radarCrossSection whose bounding box overlaps the field of view, in range; "
+             "distance, radar-equation power, radial speed, azimuth, occlusion ray, noise; cellDistance and "
+             "cellSpeed are not modelled"),
+    Coverage("LightSensor", "device", "supported",
+             "irradiance of Directional/Point/SpotLights (attenuation, radius, linear spot fall-off, cos θ, "
+             "ambient), colorFilter averaged over RGB, occlusion rays, lookupTable and resolution"),
     Coverage("Emitter", "device", "partial",
              "in-process channels: channel filters, range and maxRange, medium type, buffer size, baud rate, "
              "infra-red line of sight and aperture; simulationReset clears the queues"),
@@ -161,9 +169,11 @@ REGISTRY: tuple[Coverage, ...] = (
              "RGBA frame buffer: colour, alpha, opacity, pixels, lines, rectangles, ovals, polygons, image "
              "new/copy/paste/save (PNG)/load/delete; text is not rasterised and attachCamera shows nothing"),
     Coverage("Speaker", "device", "not", "not yet: no sound"),
-    Coverage("LED", "device", "not", "not yet: set/get are not available"),
+    Coverage("LED", "device", "supported", "set/get with colour index or gradual RGB; no light emitted"),
     Coverage("Pen", "device", "not", "not yet: no ink"),
-    Coverage("Connector", "device", "not", "behaves as a Solid; locking is not simulated"),
+    Coverage("Connector", "device", "partial",
+             "presence with model/type and distance/axis/rotation tolerances, lock/unlock (unilateral), "
+             "autoLock, isLocked at load, ODE fixed joint, tensile/shear breaking; snap is not done"),
     Coverage("VacuumGripper", "device", "not", "behaves as a Solid; gripping is not simulated"),
     Coverage("Keyboard", "device", "supported",
              "headless getKey() is -1; 'webots run --keys FILE' replays scripted presses", node=False),

@@ -12,12 +12,18 @@ import math
 from typing import Any
 
 from dualtwin.webots import _math3 as m3
+from dualtwin.webots.altimeter import Altimeter
 from dualtwin.webots.api_args import finite, warn
 from dualtwin.webots.camera import Camera
+from dualtwin.webots.compass import Compass
+from dualtwin.webots.connector import Connector
 from dualtwin.webots.device_base import Device, SampledDevice, SolidSensor
 from dualtwin.webots.display import Display
 from dualtwin.webots.joint_devices import Motor, PositionSensor
 from dualtwin.webots.keyboard import Keyboard
+from dualtwin.webots.led import LED
+from dualtwin.webots.light_sensor import LightSensor
+from dualtwin.webots.radar import Radar
 from dualtwin.webots.radio import Emitter, Receiver
 from dualtwin.webots.ranging import DistanceSensor, Lidar, RangeFinder
 from dualtwin.webots.touch import TouchSensor
@@ -125,6 +131,12 @@ SOLID_DEVICE_CLASSES: dict[str, type[Device]] = {
     "Gyro": Gyro,
     "Accelerometer": Accelerometer,
     "InertialUnit": InertialUnit,
+    "LightSensor": LightSensor,
+    "Radar": Radar,
+    "Connector": Connector,
+    "Compass": Compass,
+    "Altimeter": Altimeter,
+    "LED": LED,
 }
 
 

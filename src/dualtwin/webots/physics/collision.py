@@ -34,6 +34,7 @@ class CollisionPass(JointBuilder):
         self._surfaces = {}
         self._default_surface = self._make_surface(None)
         self._plans = {}
+        self._run_time_links = set()
         self._contact_modifiers = {}
         self._buffer = 0
         self._used = [[], []]
@@ -100,7 +101,19 @@ class CollisionPass(JointBuilder):
             surface = self._surfaces[id(cp)] = self._make_surface(cp)
         return surface
 
+    def link_bodies(self, b1: BodyRec, b2: BodyRec, linked: bool) -> None:
+        """Declare (or undo) a joint created at run time between two bodies (a locked Connector, a vacuum
+        gripper's hold): like any jointed pair, their geoms then stop colliding."""
+        key = frozenset((b1.index, b2.index))
+        if linked:
+            self._run_time_links.add(key)
+        else:
+            self._run_time_links.discard(key)
+        self._plans.clear()
+
     def _bodies_connected(self, b1: BodyRec, b2: BodyRec) -> bool:
+        if self._run_time_links and frozenset((b1.index, b2.index)) in self._run_time_links:
+            return True
         for j in b1.joints:
             if (j.parent_body is b1 and j.child_body is b2) or (j.parent_body is b2 and j.child_body is b1):
                 return True

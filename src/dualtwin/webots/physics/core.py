@@ -92,6 +92,7 @@ class SimulationCore:
     _surfaces: dict[int, Surface]
     _default_surface: Surface
     _plans: dict[tuple[int, int], Any]
+    _run_time_links: set[frozenset[int]]
     _contact_modifiers: dict[int, Callable[[Any, list[int], int], None]]
     _buffer: int
     _used: list[list[BodyRec]]

@@ -1,0 +1,57 @@
+"""Compass: the direction of the world's north in the device frame.
+
+Webots R2022a+ has no ``northDirection``: the north is the axis that ``WorldInfo.coordinateSystem`` names ``N``
+(+y in ENU, +x in NUE, +z in EUN). ``getValues()`` is that unit vector expressed in the compass frame (a 3D
+vector, not projected on the horizontal plane); each enabled component goes through the ``lookupTable`` (an
+empty table is the identity) and ``resolution``; a component whose ``xAxis``/``yAxis``/``zAxis`` is FALSE reads
+NaN.
+"""
+
+from __future__ import annotations
+
+import math
+
+from dualtwin.webots import _math3 as m3
+from dualtwin.webots.device_base import SolidSensor
+from dualtwin.webots.lut import discretize, lookup, table_from_field
+from dualtwin.webots.physics import Simulation
+
+__all__ = ["Compass", "coordinate_system", "north"]
+
+_AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
+
+
+def coordinate_system(sim: Simulation) -> str:
+    """``WorldInfo.coordinateSystem`` (``ENU``, ``NUE`` or ``EUN``; ENU when absent or unknown)."""
+    info = sim.world.world_info()
+    system = str(info.fields.get("coordinateSystem", "ENU")).upper() if info is not None else "ENU"
+    return system if system in ("ENU", "NUE", "EUN") else "ENU"
+
+
+def north(sim: Simulation) -> m3.Vec3:
+    """The world's north direction for its ``coordinateSystem``."""
+    return _AXES["xyz"[coordinate_system(sim).index("N")]]
+
+
+class Compass(SolidSensor):
+    """Webots ``Compass`` (module docstring)."""
+
+    def _read(self) -> None:
+        sim = self._robot._sim
+        f = self._record.node.fields
+        local = m3.mat_t_vec(self._pose().R, north(sim))
+        table = table_from_field(f.get("lookupTable", []))
+        resolution = float(f.get("resolution", -1.0))
+        self._values = [
+            discretize(lookup(table, v, sim.rng), resolution) if f.get(axis + "Axis", True) else math.nan
+            for v, axis in zip(local, "xyz", strict=True)
+        ]
+
+    def getValues(self) -> list[float]:
+        return list(self._values)
+
+    def getLookupTable(self) -> list[float]:
+        return [v for row in table_from_field(self._record.node.fields.get("lookupTable", [])) for v in row]
+
+    value = property(getValues)
+    lookup_table = property(getLookupTable)

@@ -1,0 +1,291 @@
+"""Connector: docking connectors that lock two bodies together with a fixed joint, as Webots does.
+
+What Webots documents (Connector reference page) and this module does:
+
+* **Compatibility**: same ``model``; an ``active`` connector docks with a ``passive`` one, a ``symmetric`` one with
+  a ``symmetric`` one.
+* **In position** (the presence state): the origins are within ``distanceTolerance``; the x axes (the docking
+  axes, pointing out of each connector) are opposite within ``axisTolerance``; and, unless
+  ``numberOfRotations`` is 0, the z axes differ by a multiple of ``2π/numberOfRotations`` about the docking
+  axis within ``rotationTolerance``.
+* ``getPresence()`` reads 1 while the connector is docked to a peer or a compatible peer is in position, else
+  0; a ``passive`` connector has no presence sensor and reads -1 (Webots' "not applicable").
+* **Lock**: ``lock()`` sets ``isLocked``; at the next physics step, if a compatible peer is in position and
+  either ``unilateralLock`` is TRUE or the peer is locked too (a passive peer always agrees), an ODE fixed
+  joint is created between the two bodies at their current relative pose. With ``autoLock`` TRUE a locked
+  connector keeps trying at every step, so it docks as soon as a peer comes in position; ``isLocked TRUE`` in
+  the world file is a lock at load. The two docked bodies stop colliding with each other, as any jointed pair.
+* **Unlock**: ``unlock()`` clears ``isLocked``; the joint is destroyed when ``unilateralUnlock`` is TRUE or the
+  peer is not locked either.
+* **Strength**: after each physics step the joint's feedback force on the connector's body is split into the
+  tensile part (along the connector's x axis, pulling the two apart) and the shear part (perpendicular); when
+  either exceeds the ``tensileStrength``/``shearStrength`` of one of the two connectors (-1 = infinite), the
+  joint breaks and both connectors unlock, so an autoLock connector does not dock again at once.
+  Presence then reads 0: the broken pair is no longer counted as docked.
+
+What differs: ``snap`` (Webots moves the solids so the connectors align exactly when they dock) is not done;
+the joint keeps the relative pose the two bodies had, which is exact when they were already aligned.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from dualtwin.webots import _math3 as m3
+from dualtwin.webots import ode
+from dualtwin.webots.device_base import Device, DeviceHost, SampledDevice
+from dualtwin.webots.physics import BodyRec, Simulation, SolidRec
+
+__all__ = ["Connector", "ConnectorState", "install"]
+
+
+@dataclass(eq=False)
+class ConnectorState:
+    """One Connector node's docking state in a simulation."""
+
+    solid: SolidRec
+    locked: bool
+    peer: ConnectorState | None = None
+    joint: int = 0
+    feedback: Any = None
+    owner: bool = False  # this side created the joint (its body is the joint's first body)
+    pending: bool = False  # lock() was called: try to dock at the next step
+
+    def field(self, name: str, default: Any) -> Any:
+        return self.solid.node.fields.get(name, default)
+
+    @property
+    def kind(self) -> str:
+        return str(self.field("type", "symmetric"))
+
+    def compatible(self, other: ConnectorState) -> bool:
+        if other is self or str(self.field("model", "")) != str(other.field("model", "")):
+            return False
+        kinds = {self.kind, other.kind}
+        return kinds == {"active", "passive"} or kinds == {"symmetric"}
+
+
+def _body(solid: SolidRec | None) -> BodyRec | None:
+    while solid is not None:
+        if solid.body is not None:
+            return solid.body
+        solid = solid.parent
+    return None
+
+
+def in_position(sim: Simulation, a: ConnectorState, b: ConnectorState) -> bool:
+    """Webots' alignment test between two connectors (module docstring), with ``a``'s tolerances."""
+    pa, pb = sim.solid_world_pose(a.solid), sim.solid_world_pose(b.solid)
+    if m3.norm(m3.sub(pa.t, pb.t)) > float(a.field("distanceTolerance", 0.01)):
+        return False
+    xa, xb = pa.rotate((1.0, 0.0, 0.0)), pb.rotate((1.0, 0.0, 0.0))
+    if math.acos(max(-1.0, min(1.0, -m3.dot(xa, xb)))) > float(a.field("axisTolerance", 0.2)):
+        return False
+    n = int(a.field("numberOfRotations", 4))
+    if n <= 0:
+        return True
+    za, zb = pa.rotate((0.0, 0.0, 1.0)), pb.rotate((0.0, 0.0, 1.0))
+    # signed angle from za to zb about a's docking axis (both projected on the plane normal to it)
+    ya = m3.cross(xa, za)
+    angle = math.atan2(m3.dot(zb, ya), m3.dot(zb, za))
+    sector = 2.0 * math.pi / n
+    off = math.fmod(abs(angle), sector)
+    return min(off, sector - off) <= float(a.field("rotationTolerance", 0.2))
+
+
+class Connectors:
+    """Per-simulation hook: docking, autoLock and strength checks of every Connector (see module docstring)."""
+
+    def __init__(self, sim: Simulation) -> None:
+        self.sim = sim
+        self.states = [
+            ConnectorState(solid, bool(solid.node.fields.get("isLocked", False)))
+            for solid in sim.solids
+            if solid.node.type_name == "Connector"
+        ]
+        for state in self.states:
+            state.pending = state.locked
+        sim.pre_step_hooks.append(self.before_step)
+        sim.step_hooks.append(self.after_step)
+        sim.reset_hooks.append(self.reset)
+
+    def state_of(self, solid: SolidRec) -> ConnectorState | None:
+        return next((s for s in self.states if s.solid is solid), None)
+
+    def peer_in_position(self, state: ConnectorState) -> ConnectorState | None:
+        for other in self.states:
+            if other.peer is None and state.compatible(other) and in_position(self.sim, state, other):
+                return other
+        return None
+
+    def presence(self, state: ConnectorState) -> int:
+        if state.kind == "passive":
+            return -1
+        if state.peer is not None:
+            return 1
+        return 1 if self.peer_in_position(state) is not None else 0
+
+    # -- docking
+
+    def _agrees(self, state: ConnectorState, peer: ConnectorState) -> bool:
+        return bool(state.field("unilateralLock", True)) or peer.locked or peer.kind == "passive"
+
+    def attach(self, state: ConnectorState, peer: ConnectorState) -> None:
+        lib = self.sim._lib
+        b1, b2 = _body(state.solid), _body(peer.solid)
+        if b1 is None and b2 is None or b1 is b2:
+            return
+        if b1 is None:  # ODE wants the dynamic body first when the other side is the static world
+            state, peer, b1, b2 = peer, state, b2, b1
+        assert b1 is not None
+        joint = lib.dJointCreateFixed(self.sim._world, None)
+        lib.dJointAttach(joint, b1.ptr, b2.ptr if b2 is not None else None)
+        lib.dJointSetFixed(joint)
+        feedback = ode.dJointFeedback()
+        lib.dJointSetFeedback(joint, ctypes.byref(feedback))
+        state.peer, peer.peer = peer, state
+        state.joint = peer.joint = joint
+        state.feedback = peer.feedback = feedback
+        state.owner, peer.owner = True, False
+        if b2 is not None:
+            self.sim.link_bodies(b1, b2, True)
+
+    def detach(self, state: ConnectorState) -> None:
+        peer = state.peer
+        if peer is None:
+            return
+        lib = self.sim._lib
+        lib.dJointDestroy(state.joint)
+        b1, b2 = _body(state.solid), _body(peer.solid)
+        if b1 is not None and b2 is not None:
+            self.sim.link_bodies(b1, b2, False)
+        for s in (state, peer):
+            s.peer = None
+            s.joint = 0
+            s.feedback = None
+            s.owner = False
+        for b in (b1, b2):
+            if b is not None:
+                lib.dBodyEnable(b.ptr)
+
+    def lock(self, state: ConnectorState) -> None:
+        state.locked = True
+        state.pending = True
+        state.solid.node.fields["isLocked"] = True
+
+    def unlock(self, state: ConnectorState) -> None:
+        state.locked = False
+        state.pending = False
+        state.solid.node.fields["isLocked"] = False
+        peer = state.peer
+        if peer is not None and (bool(state.field("unilateralUnlock", True)) or not peer.locked):
+            self.detach(state)
+
+    # -- hooks
+
+    def before_step(self, _dt: float) -> None:
+        for state in self.states:
+            if not state.locked or state.peer is not None:
+                continue
+            if not (state.pending or bool(state.field("autoLock", False))):
+                continue
+            state.pending = False
+            peer = self.peer_in_position(state)
+            if peer is not None and self._agrees(state, peer):
+                self.attach(state, peer)
+
+    def after_step(self) -> None:
+        for state in self.states:
+            if not state.owner or state.peer is None:
+                continue
+            peer = state.peer
+            f = state.feedback.f1
+            axis = self.sim.solid_world_pose(state.solid).rotate((1.0, 0.0, 0.0))
+            force = (f[0], f[1], f[2])
+            tensile = m3.dot(force, axis)
+            shear = m3.norm(m3.sub(force, m3.scale(axis, tensile)))
+            if any(_exceeds(tensile, s.field("tensileStrength", -1.0)) for s in (state, peer)) or any(
+                _exceeds(shear, s.field("shearStrength", -1.0)) for s in (state, peer)
+            ):
+                self.detach(state)
+                for s in (state, peer):
+                    s.locked = False
+                    s.pending = False
+                    s.solid.node.fields["isLocked"] = False
+
+    def reset(self) -> None:
+        for state in self.states:
+            if state.peer is not None:
+                self.detach(state)
+        for state in self.states:
+            state.locked = bool(state.solid.node.fields.get("isLocked", False))
+            state.pending = state.locked
+
+
+def _exceeds(value: float, strength: Any) -> bool:
+    limit = float(strength)
+    return limit >= 0.0 and value > limit
+
+
+def install(sim: Simulation) -> Connectors:
+    """The simulation's connector hook (created once)."""
+    hook = sim.extensions.get("connectors")
+    if hook is None:
+        hook = sim.extensions["connectors"] = Connectors(sim)
+    return hook  # type: ignore[no-any-return]
+
+
+class _Presence(SampledDevice):
+    """The presence sensor of one connector, sampled like every Webots sensor."""
+
+    def __init__(self, robot: DeviceHost, name: str, record: Any, hook: Connectors, state: ConnectorState) -> None:
+        super().__init__(robot, name, record)
+        self._hook = hook
+        self._state = state
+        self.value = -1
+
+    def _invalidate(self) -> None:
+        self.value = -1
+
+    def _read(self) -> None:
+        self.value = self._hook.presence(self._state)
+
+
+class Connector(Device):
+    """Webots ``Connector`` (module docstring)."""
+
+    def __init__(self, robot: DeviceHost, name: str, record: Any) -> None:
+        super().__init__(robot, name, record)
+        self._hook = install(robot._sim)
+        state = self._hook.state_of(record.solid)
+        assert state is not None
+        self._state = state
+        self._presence = _Presence(robot, name, record, self._hook, state)
+
+    def enablePresence(self, sampling_period: Any) -> None:
+        self._presence.enable(sampling_period)
+
+    def disablePresence(self) -> None:
+        self._presence.disable()
+
+    def getPresence(self) -> int:
+        return int(self._presence.value)
+
+    def getPresenceSamplingPeriod(self) -> int:
+        return self._presence.getSamplingPeriod()
+
+    def isLocked(self) -> bool:
+        return self._state.locked
+
+    def lock(self) -> None:
+        self._hook.lock(self._state)
+
+    def unlock(self) -> None:
+        self._hook.unlock(self._state)
+
+    locked = property(isLocked)
+    presence = property(getPresence)
+    presence_sampling_period = property(getPresenceSamplingPeriod)

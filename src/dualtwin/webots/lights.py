@@ -1,0 +1,63 @@
+"""The world's light sources (DirectionalLight, PointLight, SpotLight) and where they are now.
+
+A light is a plain node: at the top level its ``location``/``direction`` are world coordinates; inside a Solid
+(possibly under ``Pose``/``Transform`` nodes) they are in that frame and the light moves with the Solid, as in
+Webots. :func:`light_sources` walks the scene once per simulation and keeps, for each light, the Solid it rides
+on and its fixed pose in that Solid's frame; :meth:`LightSource.world_pose` composes the Solid's current pose.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from dualtwin.webots import _math3 as m3
+from dualtwin.webots.nodes import Node
+from dualtwin.webots.physics import Simulation, SolidRec
+
+__all__ = ["LIGHT_TYPES", "LightSource", "light_sources"]
+
+LIGHT_TYPES = frozenset({"DirectionalLight", "PointLight", "SpotLight"})
+_GROUPING = ("children", "endPoint")
+
+
+@dataclass
+class LightSource:
+    """One light node, the Solid carrying it (None: the world) and its frame in that Solid's frame."""
+
+    node: Node
+    solid: SolidRec | None
+    frame: m3.Pose
+
+    def world_pose(self, sim: Simulation) -> m3.Pose:
+        if self.solid is None:
+            return self.frame
+        return sim.solid_world_pose(self.solid) * self.frame
+
+
+def _walk(sim: Simulation, node: Any, solid: SolidRec | None, frame: m3.Pose, out: list[LightSource]) -> None:
+    if not isinstance(node, Node):
+        return
+    if node.type_name in LIGHT_TYPES:
+        out.append(LightSource(node, solid, frame))
+        return
+    rec = sim.solid_for(node)
+    if rec is not None:
+        solid, frame = rec, m3.Pose()
+    elif "translation" in node.fields and "rotation" in node.fields:  # Pose / Transform
+        frame = frame * m3.Pose.from_fields(node.fields.get("translation"), node.fields.get("rotation"))
+    for name in _GROUPING:
+        value = node.fields.get(name)
+        for child in value if isinstance(value, list) else [value]:
+            _walk(sim, child, solid, frame, out)
+
+
+def light_sources(sim: Simulation) -> list[LightSource]:
+    """Every light of the world (computed once per simulation; lights cannot be added headless)."""
+    cached = sim.extensions.get("lights")
+    if cached is None:
+        cached = []
+        for top in sim.world.nodes:
+            _walk(sim, top, None, m3.Pose(), cached)
+        sim.extensions["lights"] = cached
+    return cached  # type: ignore[no-any-return]
