@@ -84,3 +84,58 @@ def test_coupled_motor_limits_are_harmonised_to_the_first_motor_at_load() -> Non
     assert b.getVelocity() == pytest.approx(4)  # the initial target velocity is the (new) maxVelocity
     # control: a motor outside any group keeps its own limits
     assert (lone.getMinPosition(), lone.getMaxPosition(), lone.getMaxVelocity()) == (-2, 4, 8)
+
+
+HINGE2_WHEEL = """Robot { supervisor TRUE children [ Solid { children [ Solid {
+  physics Physics { density -1 mass 50 } boundingObject Box { size 0.1 0.1 0.1 }
+  children [ Hinge2Joint {
+    jointParameters HingeJointParameters { axis 1 0 0 }
+    jointParameters2 DEF P2 JointParameters { axis 0 0 1 }
+    endPoint DEF WHEEL Solid { angularVelocity 0 0 10 boundingObject Sphere { radius 0.1 }
+                               physics Physics { density -1 mass 1 } }
+  } ] } ] } ] }"""
+
+
+def test_hinge2_second_axis_damping_edited_at_run_time_reaches_ode() -> None:
+    sup = _sup(HINGE2_WHEEL, info="gravity 0")
+    wheel = sup.getFromDef("WHEEL")
+    for _ in range(10):
+        sup.step(8)
+    assert wheel.getVelocity()[5] == pytest.approx(10.0, rel=1e-3)  # control: no damping yet, the spin is kept
+    sup.getFromDef("P2").getField("dampingConstant").setSFFloat(0.04)
+    sup.step(8)  # the edit is applied before this step's physics
+    w0 = wheel.getVelocity()[5]
+    for _ in range(10):
+        sup.step(8)
+    # implicit damper row: ω ← ω / (1 + h·B/I) per step, I = 2/5·m·r² = 0.004 kg·m², h = 0.008 s, B = 0.04
+    assert wheel.getVelocity()[5] / w0 == pytest.approx(1.08**-10, rel=5e-3)
+
+
+def _passive_arm_first_touch(rotation: float, damping: float) -> float | None:
+    """A damped passive arm (reverse hinge on a static robot) falling onto the robot's own bumper."""
+    world = f"""#VRML_SIM R2023b utf8
+WorldInfo {{ }}
+Robot {{ rotation 0 0 1 {rotation} selfCollision TRUE boundingObject Box {{ size 0.2 0.2 1 }} children [
+  TouchSensor {{ name "touch" translation 0 -0.106 -0.45 boundingObject Box {{ size 0.1 0.01 0.1 }} physics Physics {{ }} }}
+  HingeJoint {{ jointParameters HingeJointParameters {{ axis -1 0 0 anchor 0 -0.1 0.5 dampingConstant {damping} }}
+    endPoint Solid {{ translation 0 -0.6 0.55 boundingObject Box {{ size 0.2 1 0.1 }}
+                     physics Physics {{ density -1 mass 1 }} }} }} ] }}"""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sim = Simulation(load_world_text(world))
+    robot = Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    touch = robot.getDevice("touch")
+    touch.enable(32)
+    while robot.getTime() < 2.0:
+        robot.step(32)
+        if touch.getValue() == 1:
+            return round(robot.getTime(), 3)
+    return None
+
+
+@pytest.mark.parametrize("rotation", [0.7, 1.5708, 3.14159])
+def test_a_rotated_robot_touches_at_the_same_step(rotation: float) -> None:
+    # Turning the whole robot about the vertical changes nothing physical. The bumper must see the pair as the
+    # collision pass does (ODE's box-box collider can miss a deep overlap in one argument order only).
+    assert _passive_arm_first_touch(rotation, 2.0) == _passive_arm_first_touch(0.0, 2.0) == 1.024
+    assert _passive_arm_first_touch(rotation, 0.0) == 0.48  # control: without damping it falls faster

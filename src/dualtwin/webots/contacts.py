@@ -54,12 +54,14 @@ def contact_points(sim: Simulation, solids: list[SolidRec]) -> list[Contact]:
     collide = sim._lib.dCollide
     size = ctypes.sizeof(ode.dContactGeom)
     out: list[Contact] = []
+    order = sim.space_order()  # the collision pass's argument order (some colliders are order-dependent)
     for g in mine:
         for h in others:
-            plan = sim._plan_pair(g.ptr, h.ptr)  # the collision pass's own filter (Webots' rules)
+            first, second = (g, h) if order.get(g.ptr, 0) <= order.get(h.ptr, 0) else (h, g)
+            plan = sim._plan_pair(first.ptr, second.ptr)  # the collision pass's own filter (Webots' rules)
             if plan is False:
                 continue
-            n = collide(g.ptr, h.ptr, _CAPACITY, ctypes.addressof(array), size)
+            n = collide(first.ptr, second.ptr, _CAPACITY, ctypes.addressof(array), size)
             if n <= 0:
                 continue
             indices = list(range(n))

@@ -65,9 +65,11 @@ def bumper_touches(sim: Simulation, solid: SolidRec) -> bool:
     buf = (ode.dContactGeom * 1)()
     size = ctypes.sizeof(ode.dContactGeom)
     base = ctypes.addressof(buf)
+    order = sim.space_order()  # the collision pass's argument order (some colliders are order-dependent)
     for g in mine:
         for h in others:
-            if lib.dCollide(g.ptr, h.ptr, 1, base, size) > 0:
+            a, b = (g.ptr, h.ptr) if order.get(g.ptr, 0) <= order.get(h.ptr, 0) else (h.ptr, g.ptr)
+            if lib.dCollide(a, b, 1, base, size) > 0:
                 return True
     return False
 

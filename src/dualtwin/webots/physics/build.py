@@ -145,6 +145,7 @@ class SceneBuilder(SimulationCore):
             sensors=[None] * n,
             static_friction=[float(_f(p, "staticFriction", 0.0)) for p in params],
             raw_angles=[0.0] * n,
+            brakes=[None] * n,
         )
         self.joints.append(joint)
         self._joint_by_node[id(node)] = joint

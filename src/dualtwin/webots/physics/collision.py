@@ -242,6 +242,15 @@ class CollisionPass(JointBuilder):
 
         return near
 
+    def space_order(self) -> dict[int, int]:
+        """Each geom's index in the top space's list. ODE's simple space hands a pair to the near callback as
+        (earlier, later) in this list, which moving bodies reorder (a moved geom goes to the front); some ODE
+        colliders (box-box with deep penetration) find contacts in one argument order and not the other, so a
+        query that must agree with the collision pass (bumpers, contact points) calls ``dCollide`` in this order."""
+        lib = self._lib
+        space = self._space
+        return {lib.dSpaceGetGeom(space, i): i for i in range(lib.dSpaceGetNumGeoms(space))}
+
     def _collide(self) -> None:
         self._lib.dSpaceCollide(self._space, None, self._near_cb)
         if self._callback_error is not None:

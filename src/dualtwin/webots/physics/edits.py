@@ -247,13 +247,8 @@ class SupervisorEdits(CollisionPass):
                 joint.static_friction[i] = float(value)
                 self._set_static_friction(joint, i)
                 return True
-            if name in ("dampingConstant", "springConstant") and i == 0:
-                if joint.spring:
-                    lib.dJointDestroy(joint.spring)
-                    joint.spring = 0
-                self._create_spring(joint)
-                if joint.spring and joint.kind == "hinge":
-                    self._apply_spring(joint)
+            if name in ("dampingConstant", "springConstant"):
+                self.rebuild_springs(joint)  # physics/joints.py: every axis, stepping lists refreshed
                 return True
             return False
         motor = next((m for m in self.motors if m.node is node), None)

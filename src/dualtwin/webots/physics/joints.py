@@ -186,13 +186,24 @@ class JointBuilder(SceneBuilder):
             setp(joint.ptr, group + ode.dParamVel, 0.0)
             setp(joint.ptr, group + ode.dParamFMax, sf)
 
-    def _create_spring(self, joint: JointRec) -> None:
-        """§4.5: implicit spring/damper through an AMotor (hinge) or an LMotor row (slider)."""
-        p = joint.params[0]
-        if p is None or joint.kind not in ("hinge", "slider"):
-            return
+    def axis_spring_constants(self, joint: JointRec, i: int) -> tuple[float, float]:
+        """(springConstant, dampingConstant + the damping of the axis' Brake) of joint axis ``i`` (§4.5)."""
+        p = joint.params[i] if i < len(joint.params) else None
         k = float(_f(p, "springConstant", 0.0))
         b = float(_f(p, "dampingConstant", 0.0))
+        brake = joint.brakes[i] if i < len(joint.brakes) else None
+        if brake is not None:
+            b += brake.damping
+        return k, b
+
+    def _create_spring(self, joint: JointRec) -> None:
+        """§4.5: implicit spring/damper through an AMotor (hinge, each Hinge2 axis) or an LMotor row (slider)."""
+        if joint.kind == "hinge2":
+            self._create_hinge2_springs(joint)
+            return
+        if joint.kind not in ("hinge", "slider"):
+            return
+        k, b = self.axis_spring_constants(joint, 0)
         if k == 0.0 and b == 0.0:
             return
         lib = self._lib
@@ -205,18 +216,8 @@ class JointBuilder(SceneBuilder):
         axis = frame.rotate(joint.axis_local[0])
         rel = 0 if joint.reverse else 1
         if joint.kind == "hinge":
-            am = lib.dJointCreateAMotor(self._world, None)
-            lib.dJointAttach(am, pb, joint.child_body.ptr)
-            lib.dJointSetAMotorMode(am, ode.dAMotorUser)
-            lib.dJointSetAMotorNumAxes(am, 1)
             ax = m3.scale(axis, -1.0) if joint.reverse else axis
-            lib.dJointSetAMotorAxis(am, 0, rel, *ax)
-            stop = m3.normalize_angle(joint.offsets[0])
-            lib.dJointSetAMotorParam(am, ode.dParamLoStop, stop)
-            lib.dJointSetAMotorParam(am, ode.dParamHiStop, stop)
-            lib.dJointSetAMotorParam(am, ode.dParamStopCFM, joint.spring_cfm)
-            lib.dJointSetAMotorParam(am, ode.dParamStopERP, joint.spring_erp)
-            lib.dJointSetAMotorAngle(am, 0, 0.0)
+            am = self._stop_amotor(joint, ax, rel, m3.normalize_angle(joint.offsets[0]), k, b)
         else:
             am = lib.dJointCreateLMotor(self._world, None)
             lib.dJointAttach(am, pb, joint.child_body.ptr)
@@ -226,6 +227,58 @@ class JointBuilder(SceneBuilder):
             lib.dJointSetLMotorParam(am, ode.dParamFMax, ode.dInfinity)
             lib.dJointSetLMotorParam(am, ode.dParamVel, 0.0)
         joint.spring = am
+
+    def _stop_amotor(self, joint: JointRec, axis: m3.Vec3, rel: int, stop: float, k: float, b: float) -> int:
+        """A one-axis user AMotor whose stop (lo = hi, so bilateral) holds ``stop`` with ERP/CFM from K and B;
+        its angle is set from the joint before every step."""
+        lib = self._lib
+        h = self.dt
+        am = lib.dJointCreateAMotor(self._world, None)
+        pb = joint.parent_body.ptr if joint.parent_body is not None else None
+        assert joint.child_body is not None
+        lib.dJointAttach(am, pb, joint.child_body.ptr)
+        lib.dJointSetAMotorMode(am, ode.dAMotorUser)
+        lib.dJointSetAMotorNumAxes(am, 1)
+        lib.dJointSetAMotorAxis(am, 0, rel, *axis)
+        lib.dJointSetAMotorParam(am, ode.dParamLoStop, stop)
+        lib.dJointSetAMotorParam(am, ode.dParamHiStop, stop)
+        lib.dJointSetAMotorParam(am, ode.dParamStopCFM, 1.0 / (h * k + b))
+        lib.dJointSetAMotorParam(am, ode.dParamStopERP, min(h * k / (h * k + b), 1.0))
+        lib.dJointSetAMotorAngle(am, 0, 0.0)
+        return am  # type: ignore[no-any-return]
+
+    def _create_hinge2_springs(self, joint: JointRec) -> None:
+        """Hinge2: one stop AMotor per sprung/damped axis; axis 1 turns with body 1 and its ODE angle is
+        −(position − offset), axis 2 turns with body 2 and its ODE angle is +(position − offset) (§4.4)."""
+        lib = self._lib
+        for i in range(2):
+            k, b = self.axis_spring_constants(joint, i)
+            if k == 0.0 and b == 0.0:
+                continue
+            out = (ctypes.c_double * 4)()
+            (lib.dJointGetHinge2Axis1 if i == 0 else lib.dJointGetHinge2Axis2)(joint.ptr, out)
+            axis = (out[0], out[1], out[2])
+            stop = m3.normalize_angle(joint.offsets[0] if i == 0 else -joint.offsets[1])
+            am = self._stop_amotor(joint, axis, i + 1, stop, k, b)
+            if i == 0:
+                joint.spring = am
+            else:
+                joint.spring2 = am
+
+    def rebuild_springs(self, joint: JointRec) -> None:
+        """A run-time edit of springConstant/dampingConstant (or of a Brake's damping) reaches ODE at the next
+        step: the spring rows are made again from the current values (called by the supervisor edits)."""
+        lib = self._lib
+        for name in ("spring", "spring2"):
+            am = getattr(joint, name)
+            if am:
+                lib.dJointDestroy(am)
+                setattr(joint, name, 0)
+        if joint.ptr:
+            self._create_spring(joint)
+            if joint.spring or joint.spring2:
+                self._apply_spring(joint)
+        self._springs = [j for j in self.joints if j.spring or j.spring2]
 
     def _create_fixed_joints(self) -> None:
         lib = self._lib
@@ -248,7 +301,12 @@ class JointBuilder(SceneBuilder):
 
     def _apply_spring(self, joint: JointRec) -> None:
         lib = self._lib
-        if joint.kind == "hinge":
+        if joint.kind == "hinge2":
+            if joint.spring:
+                lib.dJointSetAMotorAngle(joint.spring, 0, lib.dJointGetHinge2Angle1(joint.ptr))
+            if joint.spring2:
+                lib.dJointSetAMotorAngle(joint.spring2, 0, lib.dJointGetHinge2Angle2(joint.ptr))
+        elif joint.kind == "hinge":
             a = lib.dJointGetHingeAngle(joint.ptr)
             lib.dJointSetAMotorAngle(joint.spring, 0, -a if joint.reverse else a)
         else:

@@ -281,12 +281,14 @@ class JointRec(_ShortRepr):
     child_body: BodyRec | None = None
     reverse: bool = False
     spring: int = 0  # AMotor/LMotor implementing spring and damper
+    spring2: int = 0  # Hinge2: the AMotor of the second axis
     spring_erp: float = 0.0
     spring_cfm: float = 0.0
     motors: list[MotorRec | None] = field(default_factory=lambda: [None])
     sensors: list[PositionSensorRec | None] = field(default_factory=lambda: [None])
     static_friction: list[float] = field(default_factory=lambda: [0.0])
     raw_angles: list[float] = field(default_factory=lambda: [0.0])
+    brakes: list[Any] = field(default_factory=lambda: [None])  # BrakeRec per axis (joint_devices' Brake)
 
     @property
     def kinematic(self) -> bool:
