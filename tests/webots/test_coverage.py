@@ -17,7 +17,7 @@ from dualtwin.webots.physics import JOINT_TYPES, SOLID_TYPES, Simulation
 DOC = Path(__file__).resolve().parents[2] / "docs" / "webots-coverage.md"
 WORKS = ("supported", "partial")
 # devices that are used without reading a value (their behaviour has its own tests)
-NO_READING = {"Emitter", "Receiver", "Display"}
+NO_READING = {"Emitter", "Receiver", "Display", "Pen"}
 
 GEOMETRY_SAMPLES = {
     "Box": "Box { size 0.1 0.1 0.1 }",

@@ -29,15 +29,14 @@ the joint keeps the relative pose the two bodies had, which is exact when they w
 
 from __future__ import annotations
 
-import ctypes
 import math
 from dataclasses import dataclass
 from typing import Any
 
 from dualtwin.webots import _math3 as m3
-from dualtwin.webots import ode
 from dualtwin.webots.device_base import Device, DeviceHost, SampledDevice
-from dualtwin.webots.physics import BodyRec, Simulation, SolidRec
+from dualtwin.webots.fixed_link import FixedLink, body_of
+from dualtwin.webots.physics import Simulation, SolidRec
 
 __all__ = ["Connector", "ConnectorState", "install"]
 
@@ -49,9 +48,8 @@ class ConnectorState:
     solid: SolidRec
     locked: bool
     peer: ConnectorState | None = None
-    joint: int = 0
-    feedback: Any = None
-    owner: bool = False  # this side created the joint (its body is the joint's first body)
+    link: FixedLink | None = None
+    owner: bool = False  # the joint's first body is this side's
     pending: bool = False  # lock() was called: try to dock at the next step
 
     def field(self, name: str, default: Any) -> Any:
@@ -66,14 +64,6 @@ class ConnectorState:
             return False
         kinds = {self.kind, other.kind}
         return kinds == {"active", "passive"} or kinds == {"symmetric"}
-
-
-def _body(solid: SolidRec | None) -> BodyRec | None:
-    while solid is not None:
-        if solid.body is not None:
-            return solid.body
-        solid = solid.parent
-    return None
 
 
 def in_position(sim: Simulation, a: ConnectorState, b: ConnectorState) -> bool:
@@ -134,42 +124,26 @@ class Connectors:
         return bool(state.field("unilateralLock", True)) or peer.locked or peer.kind == "passive"
 
     def attach(self, state: ConnectorState, peer: ConnectorState) -> None:
-        lib = self.sim._lib
-        b1, b2 = _body(state.solid), _body(peer.solid)
+        b1, b2 = body_of(state.solid), body_of(peer.solid)
         if b1 is None and b2 is None or b1 is b2:
             return
         if b1 is None:  # ODE wants the dynamic body first when the other side is the static world
             state, peer, b1, b2 = peer, state, b2, b1
         assert b1 is not None
-        joint = lib.dJointCreateFixed(self.sim._world, None)
-        lib.dJointAttach(joint, b1.ptr, b2.ptr if b2 is not None else None)
-        lib.dJointSetFixed(joint)
-        feedback = ode.dJointFeedback()
-        lib.dJointSetFeedback(joint, ctypes.byref(feedback))
+        link = FixedLink(self.sim, b1, b2)
         state.peer, peer.peer = peer, state
-        state.joint = peer.joint = joint
-        state.feedback = peer.feedback = feedback
+        state.link = peer.link = link
         state.owner, peer.owner = True, False
-        if b2 is not None:
-            self.sim.link_bodies(b1, b2, True)
 
     def detach(self, state: ConnectorState) -> None:
         peer = state.peer
-        if peer is None:
+        if peer is None or state.link is None:
             return
-        lib = self.sim._lib
-        lib.dJointDestroy(state.joint)
-        b1, b2 = _body(state.solid), _body(peer.solid)
-        if b1 is not None and b2 is not None:
-            self.sim.link_bodies(b1, b2, False)
+        state.link.destroy()
         for s in (state, peer):
             s.peer = None
-            s.joint = 0
-            s.feedback = None
+            s.link = None
             s.owner = False
-        for b in (b1, b2):
-            if b is not None:
-                lib.dBodyEnable(b.ptr)
 
     def lock(self, state: ConnectorState) -> None:
         state.locked = True
@@ -199,16 +173,13 @@ class Connectors:
 
     def after_step(self) -> None:
         for state in self.states:
-            if not state.owner or state.peer is None:
+            peer, link = state.peer, state.link
+            if not state.owner or peer is None or link is None:
                 continue
-            peer = state.peer
-            f = state.feedback.f1
             axis = self.sim.solid_world_pose(state.solid).rotate((1.0, 0.0, 0.0))
-            force = (f[0], f[1], f[2])
-            tensile = m3.dot(force, axis)
-            shear = m3.norm(m3.sub(force, m3.scale(axis, tensile)))
-            if any(_exceeds(tensile, s.field("tensileStrength", -1.0)) for s in (state, peer)) or any(
-                _exceeds(shear, s.field("shearStrength", -1.0)) for s in (state, peer)
+            if any(
+                link.breaks(axis, float(s.field("tensileStrength", -1.0)), float(s.field("shearStrength", -1.0)))
+                for s in (state, peer)
             ):
                 self.detach(state)
                 for s in (state, peer):
@@ -223,11 +194,6 @@ class Connectors:
         for state in self.states:
             state.locked = bool(state.solid.node.fields.get("isLocked", False))
             state.pending = state.locked
-
-
-def _exceeds(value: float, strength: Any) -> bool:
-    limit = float(strength)
-    return limit >= 0.0 and value > limit
 
 
 def install(sim: Simulation) -> Connectors:
@@ -257,34 +223,38 @@ class _Presence(SampledDevice):
 class Connector(Device):
     """Webots ``Connector`` (module docstring)."""
 
-    def __init__(self, robot: DeviceHost, name: str, record: Any) -> None:
-        super().__init__(robot, name, record)
-        self._hook = install(robot._sim)
-        state = self._hook.state_of(record.solid)
-        assert state is not None
-        self._state = state
-        self._presence = _Presence(robot, name, record, self._hook, state)
+    # built on first use, so the constructor stays the one every Device has
+    def _docking(self) -> tuple[Connectors, ConnectorState, _Presence]:
+        cached = self.__dict__.get("_docking_state")
+        if cached is None:
+            hook = install(self._robot._sim)
+            state = hook.state_of(self._record.solid)
+            assert state is not None
+            cached = self.__dict__["_docking_state"] = (hook, state, _Presence(self._robot, self._name, self._record, hook, state))
+        return cached  # type: ignore[no-any-return]
 
     def enablePresence(self, sampling_period: Any) -> None:
-        self._presence.enable(sampling_period)
+        self._docking()[2].enable(sampling_period)
 
     def disablePresence(self) -> None:
-        self._presence.disable()
+        self._docking()[2].disable()
 
     def getPresence(self) -> int:
-        return int(self._presence.value)
+        return int(self._docking()[2].value)
 
     def getPresenceSamplingPeriod(self) -> int:
-        return self._presence.getSamplingPeriod()
+        return self._docking()[2].getSamplingPeriod()
 
     def isLocked(self) -> bool:
-        return self._state.locked
+        return self._docking()[1].locked
 
     def lock(self) -> None:
-        self._hook.lock(self._state)
+        hook, state, _ = self._docking()
+        hook.lock(state)
 
     def unlock(self) -> None:
-        self._hook.unlock(self._state)
+        hook, state, _ = self._docking()
+        hook.unlock(state)
 
     locked = property(isLocked)
     presence = property(getPresence)

@@ -42,6 +42,7 @@ import math
 from typing import Any
 
 from dualtwin.webots.api_args import as_float, as_int, finite, warn
+from dualtwin.webots.battery import install as install_batteries
 from dualtwin.webots.camera import Camera
 from dualtwin.webots.connector import install as install_connectors
 from dualtwin.webots.device_base import Device, SampledDevice
@@ -81,6 +82,7 @@ from dualtwin.webots.runtime import (
 from dualtwin.webots.scene_api import ContactPoint, Field, Node, descendants, find_def
 from dualtwin.webots.touch import TouchSensor
 from dualtwin.webots.track import install as install_tracks
+from dualtwin.webots.vacuum_gripper import install as install_vacuum_grippers
 
 __all__ = [
     "Accelerometer",
@@ -157,7 +159,9 @@ class Robot:
         self._rec: RobotRec = rec
         install_propellers(self._sim)  # propeller and track motors become devices of their robot
         install_tracks(self._sim)
-        install_connectors(self._sim)  # docking runs in the physics even if no controller asks for a connector
+        install_connectors(self._sim)  # docking and suction run in the physics even if no controller asks
+        install_vacuum_grippers(self._sim)
+        install_batteries(self._sim)
         self._devices: dict[int, Device] = {}
         self._sensors: dict[int, SampledDevice] = {}
         self._keyboard: Keyboard | None = None

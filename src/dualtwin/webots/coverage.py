@@ -53,7 +53,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "supervisor pose/velocity edits"),
     Coverage("Robot", "scene", "supported",
              "Python controllers run unchanged (runner), supervisor API, selfCollision, controllerArgs; C "
-             "controllers do not run"),
+             "controllers do not run; battery drained by cpuConsumption and motor consumptionFactor × |torque| "
+             "(no Charger recharge; an empty battery stops nothing)"),
     Coverage("Group", "scene", "supported", "children expanded"),
     Coverage("Pose", "scene", "supported", "frames of children and bounding objects"),
     Coverage("Transform", "scene", "partial", "scale honoured inside boundingObjects only (warning elsewhere)"),
@@ -170,11 +171,14 @@ REGISTRY: tuple[Coverage, ...] = (
              "new/copy/paste/save (PNG)/load/delete; text is not rasterised and attachCamera shows nothing"),
     Coverage("Speaker", "device", "not", "not yet: no sound"),
     Coverage("LED", "device", "supported", "set/get with colour index or gradual RGB; no light emitted"),
-    Coverage("Pen", "device", "not", "not yet: no ink"),
+    Coverage("Pen", "device", "partial",
+             "write/setInkColor keep their state; ink is visual only in Webots and is not drawn headless"),
     Coverage("Connector", "device", "partial",
              "presence with model/type and distance/axis/rotation tolerances, lock/unlock (unilateral), "
              "autoLock, isLocked at load, ODE fixed joint, tensile/shear breaking; snap is not done"),
-    Coverage("VacuumGripper", "device", "not", "behaves as a Solid; gripping is not simulated"),
+    Coverage("VacuumGripper", "device", "supported",
+             "turnOn/turnOff, isOn at load, grasps a body touching its boundingObject with >= contactPoints "
+             "points (fixed joint), tensile/shear breaking, presence"),
     Coverage("Keyboard", "device", "supported",
              "headless getKey() is -1; 'webots run --keys FILE' replays scripted presses", node=False),
     Coverage("Mouse", "device", "not", "not yet: no pointer headless", node=False),

@@ -23,10 +23,12 @@ from dualtwin.webots.joint_devices import Motor, PositionSensor
 from dualtwin.webots.keyboard import Keyboard
 from dualtwin.webots.led import LED
 from dualtwin.webots.light_sensor import LightSensor
+from dualtwin.webots.pen import Pen
 from dualtwin.webots.radar import Radar
 from dualtwin.webots.radio import Emitter, Receiver
 from dualtwin.webots.ranging import DistanceSensor, Lidar, RangeFinder
 from dualtwin.webots.touch import TouchSensor
+from dualtwin.webots.vacuum_gripper import VacuumGripper
 
 __all__ = [
     "GPS",
@@ -137,6 +139,8 @@ SOLID_DEVICE_CLASSES: dict[str, type[Device]] = {
     "Compass": Compass,
     "Altimeter": Altimeter,
     "LED": LED,
+    "VacuumGripper": VacuumGripper,
+    "Pen": Pen,
 }
 
 

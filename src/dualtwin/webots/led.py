@@ -18,9 +18,7 @@ __all__ = ["LED"]
 class LED(Device):
     """Webots ``LED`` (module docstring)."""
 
-    def __init__(self, robot: Any, name: str, record: Any) -> None:
-        super().__init__(robot, name, record)
-        self._state = 0
+    _state = 0  # off until set (per instance once set)
 
     def set(self, v: Any) -> None:
         value = as_int(v, "LED.set")

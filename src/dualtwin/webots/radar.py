@@ -43,6 +43,11 @@ SPEED_OF_LIGHT = 299792458.0
 class RadarTarget:
     """One detected target (Webots' plain-attribute record)."""
 
+    distance: float  # m
+    receiver_power: float  # dBm
+    speed: float  # m/s, radial, positive moving away
+    azimuth: float  # rad, positive to the radar's left
+
     def __init__(self, distance: float, receiver_power: float, speed: float, azimuth: float) -> None:
         self.distance = distance
         self.receiver_power = receiver_power
