@@ -17,15 +17,22 @@ def webots_run(
     controller: Annotated[Path | None, typer.Option(help="controller script (default: the one the world names)")] = None,
     duration: Annotated[float | None, typer.Option(help="simulated seconds before step() returns -1")] = None,
     keys: Annotated[Path | None, typer.Option(help="key script replayed by Keyboard: lines 'TIME KEY [HOLD]'")] = None,
+    step_timeout: Annotated[float, typer.Option(
+        help="real seconds a controller may run without calling step() before the run is stopped (exit 2); "
+             "0 waits forever, like Webots")] = 5.0,
 ) -> None:
-    """Run a Webots world headless with its (unchanged) Python controller."""
-    from dualtwin.webots.runner import run_world
+    """Run a Webots world headless, each (unchanged) Python controller in its own process."""
+    try:
+        from dualtwin.webots.runner import run_world
 
-    if controller is not None:
-        from dualtwin.artifacts import read_text_file
+        if controller is not None:
+            from dualtwin.artifacts import read_text_file
 
-        read_text_file(controller, "controller script")  # missing, a folder, a pipe or binary: one line
-    code = run_world(world, controller, duration, keys=keys)
+            read_text_file(controller, "controller script")  # missing, a folder, a pipe or binary: one line
+        code = run_world(world, controller, duration, keys=keys, step_timeout_s=step_timeout)
+    except KeyboardInterrupt:  # Ctrl-C while loading: the run itself answers it (children stopped, 130)
+        print("interrupted", file=sys.stderr)
+        code = 130
     raise typer.Exit(code)
 
 

@@ -1,23 +1,28 @@
-"""Run an existing Webots Python controller unchanged and headless on the ODE twin.
+"""Run existing Webots Python controllers unchanged and headless on the ODE twin.
 
 ``run_world(world_path, controller, duration_s, proto_paths)`` loads the world, builds a
 :class:`~dualtwin.webots.physics.Simulation` and runs the robots' Python controllers with Webots' project
 layout (``worlds/X.wbt`` beside ``controllers/NAME/NAME.py``, NAME = the Robot's ``controller`` field).
 
-The shim directory is put first on ``sys.path`` so ``from controller import Robot`` resolves to
-:mod:`dualtwin.webots.controller`; each script runs through ``runpy.run_path`` with
-``__name__ == "__main__"``, ``sys.argv = [script, *controllerArgs]`` and the working directory set to its
-folder; its stdout passes through. ``robot.step`` returns -1 once ``duration_s`` of simulated time
-has elapsed, counted across ``simulationReset``. As in Webots, a controller that calls ``step`` again after
--1 is ended there (exit status 0), and one still running 1 s of real time after its -1 is terminated with a
-warning (Webots' "Forced termination"). A script that raises has its traceback printed on stderr and makes
-the exit code 1. ``keys`` names a key script replayed by ``Keyboard`` (:mod:`dualtwin.webots.keyboard`).
+As Webots does, every controller runs in its own process (:mod:`dualtwin.webots.controller_host`): its own
+``sys.argv = [script, *controllerArgs]``, working directory (its folder), modules and output, with
+``from controller import Robot`` answered by proxies of the API objects that live in this process. The
+simulation advances only when every controller has called ``step`` (Webots' synchronisation), and the
+controllers' output is printed in robot order at each step, so the same world prints the same bytes.
 
-Several robots with Python controllers are supported: each controller runs in its own thread and the
-simulation advances only when all of them have called ``step`` (Webots' synchronisation). The process has
-a single working directory, so it is the first controller's folder. Robots whose controller is not a
-Python script found on disk (C controllers, ``<generic>``, ``<extern>``, ``<none>``) run without a
-controller: their motors keep the initial hold (docs/reference/webots-on-ode.md §5.1).
+``robot.step`` returns -1 once ``duration_s`` of simulated time has elapsed, counted across
+``simulationReset``. As in Webots, a controller that calls ``step`` again after -1 is ended there (exit status
+0), and one still running 1 s of real time after its -1 is killed with a warning (Webots' "Forced
+termination"). Unlike Webots, a controller that does not call ``step`` for ``step_timeout_s`` seconds of real
+time is stopped (exit code 2), so a run always ends. A script that raises has its traceback printed on stderr
+and makes the exit code 1 (the other controllers keep running). ``keys`` names a key script replayed by
+``Keyboard`` (:mod:`dualtwin.webots.keyboard`). Ctrl-C or SIGTERM: the children are killed, ``interrupted``,
+exit code 130.
+
+``isolation="threads"`` keeps the former runtime (every controller a thread of this process, sharing argv,
+working directory and modules) as a baseline for the benchmark. Robots whose controller is not a Python script
+found on disk (C controllers, ``<generic>``, ``<extern>``, ``<none>``) run without a controller: their motors
+keep the initial hold (docs/reference/webots-on-ode.md §5.1).
 """
 
 from __future__ import annotations
@@ -35,6 +40,7 @@ from pathlib import Path
 
 from dualtwin.errors import DualtwinError
 from dualtwin.webots import controller as api
+from dualtwin.webots.controller_host import DEFAULT_STEP_TIMEOUT_S, run_in_processes
 from dualtwin.webots.keyboard import KeyScript, load_key_script
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import Simulation, SimulationUnstable
@@ -44,7 +50,16 @@ SHIM_DIR = Path(__file__).resolve().parent / "shim"
 TERMINATION_GRACE_S = 1.0
 NO_CONTROLLER = frozenset({"", "<none>", "<generic>", "<extern>", "void"})
 
-__all__ = ["ControllerSpec", "SHIM_DIR", "check_duration", "find_controllers", "run_controllers", "run_world"]
+__all__ = [
+    "DEFAULT_STEP_TIMEOUT_S",
+    "ControllerSpec",
+    "SHIM_DIR",
+    "check_duration",
+    "check_step_timeout",
+    "find_controllers",
+    "run_controllers",
+    "run_world",
+]
 
 
 @dataclass
@@ -188,12 +203,29 @@ def check_duration(duration_s: float | None) -> None:
         raise DualtwinError(f"--duration: must be a finite number of seconds > 0, got {duration_s:g}")
 
 
+def check_step_timeout(step_timeout_s: float) -> None:
+    """Refuse a step timeout that is not a finite number of seconds >= 0.
+
+    Raises:
+        DualtwinError: naming the ``--step-timeout`` option.
+    """
+    if isinstance(step_timeout_s, bool) or not isinstance(step_timeout_s, (int, float)):
+        raise DualtwinError(f"--step-timeout: expected a number of seconds, got {step_timeout_s!r}")
+    if not math.isfinite(step_timeout_s) or step_timeout_s < 0:
+        raise DualtwinError(
+            f"--step-timeout: must be a finite number of seconds >= 0 (0: no limit), got {step_timeout_s:g}"
+        )
+
+
 def run_world(
     world_path: str | os.PathLike[str],
     controller: str | os.PathLike[str] | None = None,
     duration_s: float | None = None,
     proto_paths: tuple[str | os.PathLike[str], ...] | list[str | os.PathLike[str]] = (),
     keys: str | os.PathLike[str] | None = None,
+    *,
+    step_timeout_s: float = DEFAULT_STEP_TIMEOUT_S,
+    isolation: str = "process",
 ) -> int:
     """Run a world's Python controllers headless; return the exit code (0 = success).
 
@@ -203,13 +235,18 @@ def run_world(
         duration_s: simulated seconds to run (across resets); ``None`` runs until every controller returns.
         proto_paths: extra PROTO search directories.
         keys: a key script for ``Keyboard`` (format in :mod:`dualtwin.webots.keyboard`).
+        step_timeout_s: real seconds a controller may run without calling ``step`` (0: no limit).
+        isolation: ``"process"`` (one process per controller, as Webots) or ``"threads"`` (the former
+            in-process runtime, kept as a benchmark baseline).
 
     Raises:
-        DualtwinError: a bad duration, key script, world or controller field (before anything runs).
+        DualtwinError: a bad duration, step timeout, key script, world or controller field (before anything
+            runs).
     """
     from dualtwin.webots import load_world
 
     check_duration(duration_s)
+    check_step_timeout(step_timeout_s)
     script = load_key_script(Path(keys)) if keys is not None else None
     path = Path(world_path)
     world = load_world(path, proto_paths)
@@ -221,7 +258,9 @@ def run_world(
         if not specs and duration_s is None:
             print("Error: no Python controller to run and no duration given", file=sys.stderr)
             return 2
-        return run_controllers(sim, specs, duration_s, keys=script)
+        return run_controllers(
+            sim, specs, duration_s, keys=script, step_timeout_s=step_timeout_s, isolation=isolation
+        )
     finally:
         sim.close()
 
@@ -243,13 +282,56 @@ def _watch(runtime: api.Runtime, results: list[_ScriptResult], stop: threading.E
 
 
 def run_controllers(
-    sim: Simulation, specs: list[ControllerSpec], duration_s: float | None, keys: KeyScript | None = None
+    sim: Simulation,
+    specs: list[ControllerSpec],
+    duration_s: float | None,
+    keys: KeyScript | None = None,
+    *,
+    step_timeout_s: float = DEFAULT_STEP_TIMEOUT_S,
+    isolation: str = "process",
 ) -> int:
     """Run controller scripts on an already built simulation (left open for inspection).
 
     Returns:
-        The exit code: 0, the first non-zero ``SystemExit`` code, or 1 if a script raised.
+        The exit code: 0, the first non-zero ``SystemExit`` code, 1 if a script raised, 2 if one was stopped
+        by the step timeout, 130 if the run was interrupted (Ctrl-C, SIGTERM).
     """
+    if isolation == "threads":
+        return _run_in_threads(sim, specs, duration_s, keys)
+    if isolation != "process":
+        raise ValueError(f"isolation must be 'process' or 'threads', got {isolation!r}")
+    runtime = api.Runtime(sim, duration_s, keys=keys, stop_after_end=True)
+    previous_runtime = api.current_runtime()
+    api.set_current_runtime(runtime)
+    try:
+        result = run_in_processes(runtime, [(s.robot, s.script, s.args) for s in specs], step_timeout_s)
+    finally:
+        api.set_current_runtime(previous_runtime)
+    if result.interrupted:
+        print("interrupted", file=sys.stderr)
+        return result.code
+    code = result.code
+    return _finish(sim, runtime, duration_s, code)
+
+
+def _finish(sim: Simulation, runtime: api.Runtime, duration_s: float | None, code: int) -> int:
+    if code == 0 and duration_s is not None and not runtime.finished:
+        # controllers returned early: Webots keeps simulating without them
+        try:
+            while runtime.clock < duration_s - 1e-9:
+                sim.step()
+        except SimulationUnstable as exc:
+            print(f"Error: {exc}", file=sys.stderr)
+            code = 1
+    if code == 0 and runtime.exit_status is not None:
+        code = runtime.exit_status
+    return code
+
+
+def _run_in_threads(
+    sim: Simulation, specs: list[ControllerSpec], duration_s: float | None, keys: KeyScript | None
+) -> int:
+    """The former runtime: every controller a thread of this process (shared argv, cwd and modules)."""
     runtime = api.Runtime(sim, duration_s, keys=keys, stop_after_end=True)
     runtime.expect(len(specs))
     results = [_ScriptResult() for _ in specs]
@@ -286,17 +368,7 @@ def run_controllers(
                     t.start()
                 for t in threads:
                     t.join()
-        code = next((r.code for r in results if r.code != 0), 0)
-        if code == 0 and duration_s is not None and not runtime.finished:
-            # controllers returned early: Webots keeps simulating without them
-            try:
-                while runtime.clock < duration_s - 1e-9:
-                    sim.step()
-            except SimulationUnstable as exc:
-                print(f"Error: {exc}", file=sys.stderr)
-                code = 1
-        if code == 0 and runtime.exit_status is not None:
-            code = runtime.exit_status
+        code = _finish(sim, runtime, duration_s, next((r.code for r in results if r.code != 0), 0))
     finally:
         stop_watch.set()
         watchdog.join()

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import threading
 import time
+from collections.abc import Callable
 from typing import Protocol
 
 from dualtwin.webots.api_args import warn
@@ -24,6 +25,7 @@ __all__ = [
     "SIMULATION_MODE_FAST",
     "SIMULATION_MODE_PAUSE",
     "SIMULATION_MODE_REAL_TIME",
+    "Controller",
     "ControllerStopped",
     "Runtime",
     "RuntimeRobot",
@@ -56,15 +58,29 @@ class ControllerStopped(SystemExit):
 
 
 class _Client:
-    __slots__ = ("robot", "target", "waiting", "active", "ended_at", "thread")
+    __slots__ = ("robot", "target", "waiting", "active", "ended_at", "thread", "controller")
 
-    def __init__(self, robot: RuntimeRobot) -> None:
+    def __init__(self, robot: RuntimeRobot, controller: Controller | None) -> None:
         self.robot = robot
         self.target = 0.0
         self.waiting = False
         self.active = True
         self.ended_at: float | None = None  # monotonic wall time at which step() returned -1
         self.thread = threading.get_ident()
+        self.controller = controller
+
+
+class Controller:
+    """One controller taking part in the synchronisation (a runner's thread, or a controller process's
+    serving thread). An object, not a thread id: ids of ended threads are reused by new ones, which made the
+    start-up barrier count two controllers as one and wait forever (issue 26.3)."""
+
+    __slots__ = ("robot_node", "arrived", "clients")
+
+    def __init__(self, robot_node: SceneNode | None) -> None:
+        self.robot_node = robot_node
+        self.arrived = False
+        self.clients: list[_Client] = []
 
 
 class Runtime:
@@ -93,7 +109,13 @@ class Runtime:
         self.keys = keys
         self.stop_after_end = stop_after_end
         self.elapsed_before_reset = 0.0
-        self.mode = SIMULATION_MODE_FAST  # headless: every mode runs as fast as the machine allows
+        self._mode = SIMULATION_MODE_FAST
+        self._pace: tuple[float, float] | None = None  # (wall, clock) at which REAL_TIME pacing started
+        self._said_real_time = False
+        #: called (under the lock) when every controller waits, just before the simulation advances
+        self.sync_hook: Callable[[], None] | None = None
+        #: True while the simulation advances (output then belongs to no controller)
+        self.advancing = False
         self._node_ids: dict[int, int] | None = None
         self._id_nodes: dict[int, SceneNode] = {}
         self.default_robot_node = robot_node
@@ -101,38 +123,69 @@ class Runtime:
         self._clients: list[_Client] = []
         self._reset_requested = False
         self.finished = False
-        self._thread_robot = threading.local()
+        self._thread_controller = threading.local()
         self.error: BaseException | None = None
         self.exit_status: int | None = None
-        # start-up barrier: stepping waits until every expected controller thread has registered a
-        # Robot or finished, so all controllers start at t = 0 like in Webots
+        # start-up barrier: stepping waits until every expected controller has registered a Robot or
+        # ended, so all controllers start at t = 0 like in Webots
         self._expected = 0
-        self._arrived: set[int] = set()
-        self._thread_clients: dict[int, list[_Client]] = {}
+        self._controllers: list[Controller] = []
+
+    @property
+    def mode(self) -> int:
+        return self._mode
+
+    @mode.setter
+    def mode(self, value: int) -> None:
+        with self._cond:
+            if value == SIMULATION_MODE_REAL_TIME and self._mode != SIMULATION_MODE_REAL_TIME:
+                self._pace = (time.monotonic(), self.clock)
+                if not self._said_real_time:
+                    self._said_real_time = True
+                    _warn("real-time mode: the run is paced to the wall clock (headless, nothing is drawn)")
+            elif value != SIMULATION_MODE_REAL_TIME:
+                self._pace = None
+            self._mode = value
 
     def expect(self, n: int) -> None:
-        """Hold the first step until ``n`` controller threads registered a Robot or ended."""
+        """Hold the first step until ``n`` controllers (see :meth:`bind_thread`) registered a Robot or ended."""
         self._expected = n
 
     def thread_done(self) -> None:
         """The calling thread's controller ended: release its Robots from the synchronisation."""
         with self._cond:
-            tid = threading.get_ident()
-            self._arrived.add(tid)
-            for client in self._thread_clients.pop(tid, []):
-                client.active = False
-                client.waiting = False
+            controller = getattr(self._thread_controller, "controller", None)
+            if controller is not None:
+                controller.arrived = True
+                for client in controller.clients:
+                    client.active = False
+                    client.waiting = False
+                controller.clients = []
+                self._thread_controller.controller = None
             self._maybe_advance()
+            self._cond.notify_all()
+
+    def finish(self) -> None:
+        """End the run: every controller's ``step`` returns -1 (now if it waits, else at its next call)."""
+        with self._cond:
+            self.finished = True
+            for c in self._clients:
+                c.waiting = False
             self._cond.notify_all()
 
     # -- robot binding for argument-less constructors
 
-    def bind_thread(self, robot_node: SceneNode) -> None:
-        """Make ``Robot()`` created in the calling thread refer to ``robot_node``."""
-        self._thread_robot.node = robot_node
+    def bind_thread(self, robot_node: SceneNode) -> Controller:
+        """Make the calling thread one controller, whose ``Robot()`` refers to ``robot_node``."""
+        controller = Controller(robot_node)
+        with self._cond:
+            self._controllers.append(controller)
+        self._thread_controller.controller = controller
+        return controller
 
     def robot_node_for_thread(self) -> SceneNode:
-        node = getattr(self._thread_robot, "node", None) or self.default_robot_node
+        controller = getattr(self._thread_controller, "controller", None)
+        node = (controller.robot_node if controller is not None else None) or self.default_robot_node
         if node is None:
             if not self.simulation.robots:
                 raise RuntimeError("the world has no Robot node")
@@ -141,12 +194,13 @@ class Runtime:
 
     def register(self, robot: RuntimeRobot) -> _Client:
         with self._cond:
-            client = _Client(robot)
+            controller = getattr(self._thread_controller, "controller", None)
+            client = _Client(robot, controller)
             client.target = self.simulation.time
             self._clients.append(client)
-            tid = threading.get_ident()
-            self._arrived.add(tid)
-            self._thread_clients.setdefault(tid, []).append(client)
+            if controller is not None:
+                controller.arrived = True
+                controller.clients.append(client)
             return client
 
     def unregister(self, client: _Client) -> None:
@@ -229,7 +283,7 @@ class Runtime:
 
     def _maybe_advance(self) -> None:
         # caller holds the condition; steps when every active controller is waiting (synchronisation)
-        if len(self._arrived) < self._expected:
+        if sum(c.arrived for c in self._controllers) < self._expected:
             return
         active = [c for c in self._clients if c.active]
         if not active or not all(c.waiting for c in active):
@@ -244,19 +298,29 @@ class Runtime:
             return
         sim = self.simulation
         target = min(c.target for c in active)
+        if self.sync_hook is not None:
+            self.sync_hook()
+        self.advancing = True
         try:
             while sim.time < target - 1e-9:
-                if self._limit_reached():
+                if self._limit_reached() or self.finished:
                     break
                 sim.step()
+                if self._pace is not None:
+                    wall, clock = self._pace
+                    delay = wall + (self.clock - clock) - time.monotonic()
+                    if delay > 0:
+                        time.sleep(delay)
         except BaseException as exc:
             self.error = exc
             for c in active:
                 c.waiting = False
             self._cond.notify_all()
             return
+        finally:
+            self.advancing = False
         for c in active:
-            if c.target <= sim.time + 1e-9 or self._limit_reached():
+            if c.target <= sim.time + 1e-9 or self._limit_reached() or self.finished:
                 c.waiting = False
         self._cond.notify_all()
 

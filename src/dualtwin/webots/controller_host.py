@@ -1,0 +1,404 @@
+"""One process per controller, as Webots runs them: the parent side.
+
+:func:`run_in_processes` starts every controller script in its own interpreter (:mod:`.controller_process`),
+so each has its own ``sys.argv``, working directory (its folder), modules and output, while the API objects
+stay here, over the one :class:`Simulation`. Each child is served by one thread of this process that makes
+its calls on the real objects, so the threaded :class:`~dualtwin.webots.runtime.Runtime` keeps Webots'
+synchronisation: the simulation advances once every controller has asked for the next step.
+
+Output is deterministic: a child's ``print`` travels with its next message, and warnings the API prints on
+its behalf are kept with it; everything is written in robot order each time the simulation advances (every
+controller is then waiting in ``step``, so all it printed before has arrived), and at the end.
+
+The main thread watches the children:
+
+* one still running :data:`TERMINATION_GRACE_S` after its ``step`` returned -1 is killed, with a warning
+  (Webots' forced termination; the exit code stays 0);
+* one that does not call ``step`` for ``step_timeout_s`` wall-clock seconds (0: never checked, like Webots)
+  is killed with one line on stderr; the run ends (the others' ``step`` returns -1) with exit code 2;
+* Ctrl-C or SIGTERM kills and reaps every child and returns 130 after one line, ``interrupted``.
+
+A child that crashes prints its traceback (through its stderr) and makes the exit code 1; the others keep
+running, as in Webots. Children die with this process (``PR_SET_PDEATHSIG``) and are always reaped.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, TextIO
+
+from dualtwin.webots import controller as api
+from dualtwin.webots.controller_process import CACHED_READS, recv_frame, send_frame
+from dualtwin.webots.controller_wire import HandleTable
+from dualtwin.webots.device_base import Device
+from dualtwin.webots.nodes import Node as SceneNode
+
+__all__ = ["CHILD_SCRIPT", "DEFAULT_STEP_TIMEOUT_S", "TERMINATION_GRACE_S", "ProcessResult", "run_in_processes"]
+
+CHILD_SCRIPT = Path(__file__).resolve().parent / "controller_process.py"
+#: Real seconds a controller may keep running after step() returned -1 (Webots waits 1 s, then kills it).
+TERMINATION_GRACE_S = 1.0
+#: Default wall-clock seconds a controller may run without calling step() (``--step-timeout``).
+DEFAULT_STEP_TIMEOUT_S = 5.0
+_POLL_S = 0.02
+
+
+def _exports() -> dict[str, type]:
+    return {name: getattr(api, name) for name in api.__all__ if isinstance(getattr(api, name), type)}
+
+
+class _Link:
+    """One controller process and the thread of this process that serves it."""
+
+    def __init__(self, index: int, robot: SceneNode, script: Path, args: list[str], table: HandleTable) -> None:
+        self.index = index
+        self.robot = robot
+        self.script = script
+        self.args = args
+        self.table = table
+        self.out: list[tuple[int, str]] = []
+        self.proc: subprocess.Popen[bytes] | None = None
+        self.sock: socket.socket | None = None
+        self.thread: threading.Thread | None = None
+        self.in_step = False
+        self.last_active = time.monotonic()
+        self.ended_at: float | None = None  # wall time at which step() returned -1
+        self.exit_code: int | None = None  # as the child reported it
+        self.stopped: str | None = None  # why the parent killed it: "forced" or "timeout"
+        self.deferred: BaseException | None = None  # raised by a queued command, reported at the next call
+        self.done = threading.Event()
+
+
+class _Output(threading.local):
+    link: _Link | None = None
+    capture: list[str] | None = None
+
+
+class _Router:
+    """``sys.stdout``/``sys.stderr`` during a run: what a serving thread prints belongs to its controller."""
+
+    def __init__(self, fd: int, real: TextIO, state: _Output, runtime: api.Runtime) -> None:
+        self._fd = fd
+        self._real = real
+        self._state = state
+        self._runtime = runtime
+
+    def write(self, text: str) -> int:
+        state = self._state
+        if state.capture is not None:
+            state.capture.append(text)
+        elif state.link is not None and not self._runtime.advancing:
+            state.link.out.append((self._fd, text))
+        else:
+            self._real.write(text)
+        return len(text)
+
+    def flush(self) -> None:
+        self._real.flush()
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._real, name)
+
+
+class ProcessResult:
+    """How a run of controller processes ended."""
+
+    def __init__(self, code: int, interrupted: bool) -> None:
+        self.code = code
+        self.interrupted = interrupted
+
+
+class _Host:
+    def __init__(self, runtime: api.Runtime, step_timeout_s: float) -> None:
+        self.runtime = runtime
+        self.step_timeout_s = step_timeout_s
+        self.exports = _exports()
+        self.roles: dict[type, str] = {api.Robot: "robot", Device: "device"}
+        self.links: list[_Link] = []
+        self.state = _Output()
+        self.real_out = sys.stdout
+        self.real_err = sys.stderr
+        self.changed = threading.Event()
+
+    # -- output
+
+    def emit(self) -> None:
+        """Write what every controller printed so far, in robot order."""
+        for link in self.links:
+            n = len(link.out)
+            if not n:
+                continue
+            chunk = link.out[:n]
+            del link.out[:n]
+            for fd, text in chunk:
+                (self.real_out if fd == 1 else self.real_err).write(text)
+        self.real_out.flush()
+        self.real_err.flush()
+
+    # -- start
+
+    def start(self, link: _Link) -> None:
+        parent, child = socket.socketpair()
+        try:
+            link.proc = subprocess.Popen(
+                [sys.executable, str(CHILD_SCRIPT), str(child.fileno()), str(os.getpid())],
+                pass_fds=(child.fileno(),), cwd=link.script.parent, stdin=subprocess.DEVNULL,
+            )
+        finally:
+            child.close()
+        link.sock = parent
+        exported = list(self.exports.values())
+        for cls in exported:
+            link.table.describe(cls)
+        start = {
+            "classes": link.table.take_descriptions(), "exports": list(self.exports), "doc": api.__doc__,
+            "script": str(link.script), "args": link.args,
+        }
+        send_frame(parent, pickle.dumps(start, protocol=pickle.HIGHEST_PROTOCOL))
+        link.last_active = time.monotonic()
+        link.thread = threading.Thread(target=self.serve, args=(link,), name=f"controller-{link.index}", daemon=True)
+        link.thread.start()
+
+    # -- serving one child
+
+    def serve(self, link: _Link) -> None:
+        runtime = self.runtime
+        runtime.bind_thread(link.robot)
+        self.state.link = link
+        sock = link.sock
+        assert sock is not None
+        try:
+            while True:
+                try:
+                    frame = recv_frame(sock)
+                except OSError:
+                    frame = None
+                if frame is None:
+                    break
+                message = link.table.loads(frame)
+                out, queued = message[-2], message[-1]
+                link.out.extend(out)
+                if queued:
+                    self._run_queued(link, queued)
+                op = message[0]
+                if op == "out":
+                    continue
+                if op == "exit":
+                    link.exit_code = message[1]
+                    break
+                reply = self._answer(link, op, message[1:-2])
+                try:
+                    send_frame(sock, reply)
+                except OSError:
+                    break
+        finally:
+            self.state.link = None
+            runtime.thread_done()
+            link.done.set()
+            self.changed.set()
+
+    def _run_queued(self, link: _Link, queued: list[tuple[int, str, tuple[Any, ...]]]) -> None:
+        objects = link.table.objects
+        for handle, name, args in queued:
+            try:
+                getattr(objects[handle], name)(*args)
+            except Exception as exc:
+                if link.deferred is None:
+                    link.deferred = exc
+
+    def _answer(self, link: _Link, op: str, body: tuple[Any, ...]) -> bytes:
+        table = link.table
+        try:
+            if link.deferred is not None:
+                error, link.deferred = link.deferred, None
+                raise error
+            if op == "call":
+                handle, name, args, kwargs, reads = body
+                target = table.objects[handle]
+                if name == "step" and isinstance(target, api.Robot):
+                    link.in_step = True
+                    try:
+                        result = target.step(*args, **kwargs)
+                    finally:
+                        link.in_step = False
+                        link.last_active = time.monotonic()
+                    if result == -1 and link.ended_at is None:
+                        link.ended_at = time.monotonic()
+                    value: Any = (result, self._prefetch(link, reads))
+                else:
+                    value = getattr(target, name)(*args, **kwargs)
+            elif op == "new":
+                key, args, kwargs = body
+                obj = self.exports[key](*args, **kwargs)
+                handle, _ = table.handle(obj)
+                value = (handle, table.public_attrs(obj))
+            elif op == "get":
+                handle, name = body
+                value = getattr(table.objects[handle], name)
+            elif op == "set":
+                handle, name, new = body
+                setattr(table.objects[handle], name, new)
+                value = None
+            elif op == "static":
+                key, name, args, kwargs = body
+                value = getattr(self.exports[key], name)(*args, **kwargs)
+            else:
+                raise RuntimeError(f"unknown request {op!r}")
+            return table.dumps("ok", value)
+        except SystemExit as exc:  # ControllerStopped: Webots' library ends the controller here
+            link.last_active = time.monotonic()
+            return table.dumps("err", ("exit", type(exc).__name__, "", exc.code))
+        except Exception as exc:
+            return table.dumps("err", ("error", type(exc).__name__, str(exc)))
+
+    def _prefetch(self, link: _Link, reads: tuple[tuple[int, str], ...]) -> list[tuple[tuple[int, str], Any]]:
+        """Values of last step's reads, read now: the child finds them in its cache (no round trip)."""
+        values: list[tuple[tuple[int, str], Any]] = []
+        objects = link.table.objects
+        state = self.state
+        for handle, name in reads:
+            if name not in CACHED_READS:
+                continue
+            captured: list[str] = []
+            state.capture = captured
+            try:
+                value = getattr(objects[handle], name)()
+            except Exception:
+                continue
+            finally:
+                state.capture = None
+            if not captured:  # a read that warns is left to the child, so the warning comes at its call
+                values.append(((handle, name), value))
+        return values
+
+    # -- watching
+
+    def watch(self) -> None:
+        """Until every controller ended: forced termination after -1 and the step timeout."""
+        while not all(link.done.is_set() for link in self.links):
+            self.changed.wait(_POLL_S)
+            self.changed.clear()
+            now = time.monotonic()
+            for link in self.links:
+                if link.done.is_set() or link.stopped is not None:
+                    continue
+                if link.ended_at is not None and now - link.ended_at >= TERMINATION_GRACE_S:
+                    link.stopped = "forced"
+                    link.out.append((2, f"Warning: controller {link.script.name} was still running "
+                                        f"{TERMINATION_GRACE_S:g} s after step() returned -1: forced termination\n"))
+                    self._kill(link)
+                elif (self.step_timeout_s > 0 and not link.in_step and link.ended_at is None
+                        and now - link.last_active >= self.step_timeout_s):
+                    link.stopped = "timeout"
+                    link.out.append((2, f"Error: controller {link.script.name} did not call step() for "
+                                        f"{self.step_timeout_s:g} s of real time (--step-timeout): stopped\n"))
+                    self._kill(link)
+                    self.runtime.finish()
+
+    def _kill(self, link: _Link) -> None:
+        if link.proc is not None and link.proc.poll() is None:
+            link.proc.kill()
+
+    def stop_all(self) -> None:
+        """Kill and reap every child, then let the serving threads go (idempotent)."""
+        for link in self.links:
+            self._kill(link)
+        for link in self.links:
+            if link.proc is not None:
+                link.proc.wait()
+        self.runtime.finish()
+        for link in self.links:
+            if link.thread is not None:
+                link.thread.join(timeout=10.0)
+            if link.sock is not None:
+                link.sock.close()
+
+    def code(self) -> int:
+        for link in self.links:
+            if link.stopped == "timeout":
+                return 2
+        for link in self.links:
+            if link.stopped == "forced":
+                continue
+            code = link.exit_code
+            if code is None:  # died without saying how: killed by a signal, or the interpreter failed
+                returned = link.proc.returncode if link.proc is not None else None
+                code = returned if returned not in (None, 0) and returned > 0 else 1
+            if code:
+                return code
+        return 0
+
+
+@contextmanager
+def _routed(host: _Host) -> Iterator[None]:
+    saved = sys.stdout, sys.stderr
+    host.real_out, host.real_err = saved
+    sys.stdout = _Router(1, saved[0], host.state, host.runtime)  # type: ignore[assignment]
+    sys.stderr = _Router(2, saved[1], host.state, host.runtime)  # type: ignore[assignment]
+    try:
+        yield
+    finally:
+        sys.stdout, sys.stderr = saved
+
+
+@contextmanager
+def _sigterm_interrupts() -> Iterator[None]:
+    """SIGTERM stops the run like Ctrl-C (main thread only: signals are delivered there)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def run_in_processes(
+    runtime: api.Runtime, specs: list[tuple[SceneNode, Path, list[str]]], step_timeout_s: float
+) -> ProcessResult:
+    """Run each (robot node, script, controllerArgs) as a controller process on ``runtime``'s simulation.
+
+    Returns:
+        The exit code (0; the first controller's non-zero exit status in robot order; 1 for a crash; 2 for a
+        step timeout) and whether the run was interrupted (then the code is 130).
+    """
+    host = _Host(runtime, step_timeout_s)
+    exported = host.exports
+    host.links = [
+        _Link(i, robot, script, args, HandleTable(exported, host.roles))
+        for i, (robot, script, args) in enumerate(specs)
+    ]
+    runtime.expect(len(host.links))
+    runtime.sync_hook = host.emit
+    interrupted = False
+    with _sigterm_interrupts(), _routed(host):
+        try:
+            try:
+                for link in host.links:
+                    host.start(link)
+                host.watch()
+            finally:
+                host.stop_all()
+        except KeyboardInterrupt:
+            interrupted = True
+        finally:
+            runtime.sync_hook = None
+            host.emit()
+    if interrupted:
+        return ProcessResult(130, True)
+    return ProcessResult(host.code(), False)

@@ -1,0 +1,209 @@
+"""What crosses between the parent and a controller process: class descriptions, handles and values.
+
+The parent describes the real API classes by reflection (:func:`describe_class`): for every public name of a
+class, its kind (method with its signature, read-only or settable property, static method, constant) so the
+child (:mod:`.controller_process`) can generate a proxy class of the same name and shape. Objects then cross a
+:class:`HandleTable` pickle as persistent ids:
+
+* API objects (robots, devices, nodes, fields, the keyboard, anything else of this package) are *handles*:
+  the object stays here and the child gets a proxy (with the object's public plain attributes copied once);
+* *value* classes (dataclasses, classes setting ``__webots_value__ = True``, and :data:`VALUE_CLASSES`) are
+  plain data: their public attributes and the results of their argument-less getters travel by value;
+* everything else (numbers, strings, bytes, lists, dicts, NumPy arrays) is pickled as is.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import io
+import pickle
+from typing import Any
+
+__all__ = ["VALUE_CLASSES", "HandleTable", "class_key", "describe_class", "is_value_class", "plain"]
+
+#: API classes whose instances are plain data (Webots builds them from C structs on the controller side).
+VALUE_CLASSES = frozenset({"ContactPoint", "LidarPoint"})
+_PLAIN_SCALARS = (type(None), bool, int, float, complex, str, bytes)
+
+
+def plain(value: Any, depth: int = 0) -> bool:
+    """Whether ``value`` is data the child can rebuild without this package (numbers, strings, containers)."""
+    if isinstance(value, _PLAIN_SCALARS):
+        return True
+    if depth > 8:
+        return False
+    if isinstance(value, (list, tuple, frozenset, set)):
+        return all(plain(v, depth + 1) for v in value)
+    if isinstance(value, dict):
+        return all(plain(k, depth + 1) and plain(v, depth + 1) for k, v in value.items())
+    return False
+
+
+def is_value_class(cls: type) -> bool:
+    return (
+        cls.__name__ in VALUE_CLASSES
+        or dataclasses.is_dataclass(cls)
+        or bool(getattr(cls, "__webots_value__", False))
+    )
+
+
+def class_key(cls: type, exported: dict[str, type]) -> str:
+    """The name the child knows a class by: its API name when exported, else module-qualified."""
+    name = cls.__name__
+    return name if exported.get(name) is cls else f"{cls.__module__}:{cls.__qualname__}"
+
+
+def _signature(function: Any) -> inspect.Signature | None:
+    try:
+        signature = inspect.signature(function)
+    except (TypeError, ValueError):
+        return None
+    parameters = [
+        p.replace(annotation=inspect.Parameter.empty,
+                  default=p.default if p.default is inspect.Parameter.empty or plain(p.default) else None)
+        for p in signature.parameters.values()
+    ]
+    return signature.replace(parameters=parameters, return_annotation=inspect.Signature.empty)
+
+
+def describe_class(cls: type, exported: dict[str, type], role: str) -> dict[str, Any]:
+    """The shape of ``cls`` for the child: its own public members (its bases are described apart)."""
+    members: dict[str, tuple[str, Any]] = {}
+    for name, member in vars(cls).items():
+        if name.startswith("_"):
+            continue
+        if isinstance(member, property):
+            members[name] = ("property", member.fset is not None)
+        elif isinstance(member, (staticmethod, classmethod)):
+            members[name] = ("static", _signature(getattr(cls, name)))
+        elif inspect.isfunction(member):
+            members[name] = ("method", _signature(member))
+        elif plain(member):
+            members[name] = ("constant", member)
+    if role == "value":  # dataclass fields and annotated attributes come with each instance
+        members = {k: v for k, v in members.items() if v[0] != "constant" or k not in _annotations(cls)}
+    init = vars(cls).get("__init__")
+    bases = [b for b in cls.__bases__ if b is not object and b.__module__.startswith("dualtwin.")]
+    return {
+        "name": cls.__name__,
+        "key": class_key(cls, exported),
+        "bases": [class_key(b, exported) for b in bases],
+        "role": role,
+        "doc": cls.__doc__,
+        "members": members,
+        "constructible": role != "value" and exported.get(cls.__name__) is cls,
+        "init": _signature(init) if inspect.isfunction(init) else None,
+    }
+
+
+def _annotations(cls: type) -> dict[str, Any]:
+    return dict(getattr(cls, "__annotations__", {}))
+
+
+def _value_state(obj: Any) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Public attributes and the results of the argument-less public getters of a value object."""
+    attrs = {k: v for k, v in vars(obj).items() if not k.startswith("_")} if hasattr(obj, "__dict__") else {}
+    results: dict[str, Any] = {}
+    for klass in type(obj).__mro__:
+        if klass is object:
+            continue
+        for name, member in vars(klass).items():
+            if name.startswith("_") or name in results:
+                continue
+            try:
+                if isinstance(member, property):
+                    results[name] = getattr(obj, name)
+                elif inspect.isfunction(member) and len(inspect.signature(member).parameters) == 1:
+                    results[name] = getattr(obj, name)()
+            except Exception:  # a getter that fails here fails in the child when called
+                continue
+    return attrs, results
+
+
+class HandleTable:
+    """The parent's side of one child: handles of the objects it was given and the classes it knows."""
+
+    def __init__(self, exported: dict[str, type], roles: dict[type, str]) -> None:
+        self.exported = exported
+        self.roles = roles  # base class -> role ("robot", "device"), most specific first
+        self.objects: dict[int, Any] = {}
+        self._handles: dict[int, int] = {}
+        self.described: set[type] = set()
+        self._new: list[dict[str, Any]] = []
+
+    def role(self, cls: type) -> str:
+        if is_value_class(cls):
+            return "value"
+        for base, role in self.roles.items():
+            if issubclass(cls, base):
+                return role
+        return "other"
+
+    def describe(self, cls: type) -> None:
+        """Queue the description of ``cls`` and its package bases for the next message (once per class)."""
+        if cls in self.described:
+            return
+        for base in cls.__bases__:
+            if base is not object and base.__module__.startswith("dualtwin."):
+                self.describe(base)
+        self.described.add(cls)
+        self._new.append(describe_class(cls, self.exported, self.role(cls)))
+
+    def take_descriptions(self) -> list[dict[str, Any]]:
+        new, self._new = self._new, []
+        return new
+
+    def handle(self, obj: Any) -> tuple[int, bool]:
+        """(handle, first time) of an API object, keeping it alive for the child."""
+        key = id(obj)
+        handle = self._handles.get(key)
+        if handle is not None:
+            return handle, False
+        handle = len(self.objects) + 1
+        self.objects[handle] = obj
+        self._handles[key] = handle
+        return handle, True
+
+    def public_attrs(self, obj: Any) -> dict[str, Any]:
+        """Plain instance attributes the child copies (data, or other API objects as handles)."""
+        if not hasattr(obj, "__dict__") or self.exported.get(type(obj).__name__) is None and not any(
+            isinstance(obj, c) for c in self.exported.values()
+        ):
+            return {}
+        return {
+            k: v for k, v in vars(obj).items()
+            if not k.startswith("_") and (plain(v) or type(v).__module__.startswith("dualtwin."))
+        }
+
+    def persistent_id(self, obj: Any) -> Any:
+        cls = type(obj)
+        if cls in _PLAIN_SCALARS or not cls.__module__.startswith("dualtwin.") or isinstance(obj, BaseException):
+            return None
+        if isinstance(obj, type):
+            return None
+        self.describe(cls)
+        key = class_key(cls, self.exported)
+        if is_value_class(cls):
+            attrs, results = _value_state(obj)
+            return ("v", key, attrs, results)
+        handle, first = self.handle(obj)
+        return ("h", handle, key, self.public_attrs(obj) if first else None)
+
+    def persistent_load(self, pid: Any) -> Any:
+        if pid[0] == "h":
+            return self.objects[pid[1]]
+        raise pickle.UnpicklingError(f"unknown object reference {pid!r}")
+
+    def dumps(self, status: str, value: Any) -> bytes:
+        """A reply frame: new class descriptions first (the child needs them to unpickle the value)."""
+        buf = io.BytesIO()
+        pickler = pickle.Pickler(buf, protocol=pickle.HIGHEST_PROTOCOL)
+        pickler.persistent_id = self.persistent_id  # type: ignore[method-assign]
+        pickler.dump(value)
+        return pickle.dumps((status, self.take_descriptions(), buf.getvalue()), protocol=pickle.HIGHEST_PROTOCOL)
+
+    def loads(self, frame: bytes) -> Any:
+        unpickler = pickle.Unpickler(io.BytesIO(frame))
+        unpickler.persistent_load = self.persistent_load  # type: ignore[assignment]
+        return unpickler.load()

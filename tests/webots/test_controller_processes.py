@@ -1,0 +1,314 @@
+"""One process per controller (as Webots runs them): isolation, synchronisation, output order, ends.
+
+Each test builds its own project (``worlds/w.wbt`` + ``controllers/<name>/<name>.py``) and runs it through
+:func:`dualtwin.webots.runner.run_world` or the ``dualtwin webots run`` command.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from dualtwin.webots import load_world_text
+from dualtwin.webots.physics import Simulation
+from dualtwin.webots.runner import run_world
+from dualtwin.webots.runtime import Runtime
+
+SRC = Path(__file__).resolve().parents[2] / "src"
+
+
+def _robot(i: int, controller: str, args: list[str]) -> str:
+    quoted = " ".join(f'"{a}"' for a in args)
+    return f"""
+DEF R{i} Robot {{
+  translation {i} 0 0.5
+  name "r{i}"
+  children [ Solid {{ boundingObject Sphere {{ radius 0.05 }} physics Physics {{ mass 1 }} }} ]
+  controller "{controller}"
+  controllerArgs [ {quoted} ]
+  supervisor TRUE
+}}"""
+
+
+def _project(tmp_path: Path, controllers: list[tuple[str, list[str], str]], step: int = 8) -> Path:
+    """A world with one robot per (controller name, controllerArgs, script); returns the world path."""
+    (tmp_path / "worlds").mkdir(parents=True, exist_ok=True)
+    robots = []
+    for i, (name, args, script) in enumerate(controllers):
+        folder = tmp_path / "controllers" / name
+        folder.mkdir(parents=True, exist_ok=True)
+        (folder / f"{name}.py").write_text(textwrap.dedent(script))
+        robots.append(_robot(i, name, args))
+    world = tmp_path / "worlds" / "w.wbt"
+    world.write_text(f"#VRML_SIM R2023b utf8\nWorldInfo {{ basicTimeStep {step} }}\n" + "".join(robots) + "\n")
+    return world
+
+
+def _cli(*args: str, timeout: float = 120.0) -> subprocess.CompletedProcess[str]:
+    env = {**os.environ, "PYTHONPATH": str(SRC)}
+    return subprocess.run([sys.executable, "-m", "dualtwin.cli", *args], capture_output=True, text=True,
+                          timeout=timeout, env=env)
+
+
+def _gone(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    return False
+
+
+# ------------------------------------------------------------------ isolation
+
+
+ISOLATED = """
+    import json, os, sys
+    from controller import Robot
+    robot = Robot()
+    json.owner = sys.argv[1]          # module state: another controller must not see it
+    robot.step(8)
+    robot.step(8)
+    print(f"{robot.getName()}: argv={sys.argv[1:]} cwd={os.path.basename(os.getcwd())} "
+          f"script={os.path.basename(sys.argv[0])} owner={json.owner}")
+"""
+
+
+def test_controllers_have_their_own_argv_cwd_and_modules(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    world = _project(tmp_path, [("alpha", ["a1", "a2"], ISOLATED), ("beta", ["b1"], ISOLATED)])
+    assert run_world(world, None, 0.1) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out == [
+        "r0: argv=['a1', 'a2'] cwd=alpha script=alpha.py owner=a1",
+        "r1: argv=['b1'] cwd=beta script=beta.py owner=b1",
+    ]
+    assert os.path.basename(os.getcwd()) != "alpha"  # the runner's own working directory is left alone
+    assert "controller" not in sys.modules or not hasattr(sys.modules["controller"], "_dualtwin_proxy")
+
+
+def test_coupled_motor_robots_receive_their_own_controller_args(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Webots' coupled_motor test (shared conformance half): check load.1, and its two siblings."""
+    shared = Path(__file__).resolve().parents[2] / ".." / "shared" / "conformance" / "webots-physics"
+    if not (shared / "worlds" / "coupled_motor.wbt").is_file():
+        pytest.skip("../shared/conformance/webots-physics is absent")
+    copy = tmp_path / "suite"
+    shutil.copytree(shared, copy, ignore=shutil.ignore_patterns("logs"))
+    monkeypatch.setenv("WEBOTS_HOME", str(copy / "webots_home"))
+    run_world(copy / "worlds" / "coupled_motor.wbt", None, 0.1)
+    out = capsys.readouterr().out
+    for check in ("coupling.1", "load.1", "physics.1"):
+        assert f"CHECK coupled_motor/{check} PASS" in out
+
+
+# ------------------------------------------------------------------ synchronisation
+
+
+class _Fake:
+    """What the runtime needs of a Robot."""
+
+    def _after_reset(self) -> None:
+        pass
+
+
+def test_controllers_ending_at_the_same_step_never_deadlock_1000_times() -> None:
+    """The runtime's synchronisation exercised directly: 1,000 runs of 5 controllers, two of which end before
+    stepping and three at the same step. Thread ids of ended threads are reused by the next threads; a
+    barrier that counted thread ids waited forever."""
+    world = load_world_text("#VRML_SIM R2023b utf8\nWorldInfo { basicTimeStep 8 }\n"
+                            + "".join(_robot(i, "<none>", []) for i in range(5)))
+    sim = Simulation(world)
+    try:
+        for repetition in range(1000):
+            runtime = Runtime(sim)
+            runtime.expect(5)
+            steps: list[int] = []
+
+            def controller(i: int, runtime: Runtime = runtime, steps: list[int] = steps) -> None:
+                runtime.bind_thread(sim.robots[i].node)
+                try:
+                    if i < 2:
+                        return  # ends without a Robot, as a script that only prints
+                    client = runtime.register(_Fake())
+                    for _ in range(3):
+                        runtime.advance(client, 8)
+                    steps.append(i)
+                finally:
+                    runtime.thread_done()
+
+            threads = [threading.Thread(target=controller, args=(i,), daemon=True) for i in range(5)]
+            for t in threads:
+                t.start()
+            for t in threads:
+                t.join(timeout=10.0)
+            assert not any(t.is_alive() for t in threads), f"deadlock in repetition {repetition}"
+            assert sorted(steps) == [2, 3, 4]
+    finally:
+        sim.close()
+
+
+ENDING = """
+    import sys
+    from controller import Robot
+    robot = Robot()
+    n = 0
+    while robot.step(8) != -1:
+        n += 1
+        print(f"{sys.argv[1]} {n}")
+    print(f"{sys.argv[1]} done after {n}")
+"""
+
+
+def test_many_controllers_ending_together_lose_nothing_and_print_in_robot_order(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    names = [f"c{i}" for i in range(4)]
+    world = _project(tmp_path, [(name, [name], ENDING) for name in names])
+    expected = [f"{name} {n}" for n in range(1, 6) for name in names] + [f"{name} done after 5" for name in names]
+    outputs = set()
+    for _ in range(12):
+        assert run_world(world, None, 0.048) == 0
+        out = capsys.readouterr().out
+        assert out.splitlines() == expected
+        outputs.add(out)
+    assert len(outputs) == 1
+
+
+# ------------------------------------------------------------------ ends: crash, timeout, forced, signals
+
+
+def test_a_crashing_controller_ends_alone(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    hard_exit = """
+        import os
+        from controller import Robot
+        robot = Robot()
+        robot.step(8)
+        print("leaving", flush=True)
+        os._exit(3)
+    """
+    world = _project(tmp_path, [("quitter", [], hard_exit), ("stayer", ["s"], ENDING)])
+    assert run_world(world, None, 0.1) == 3
+    out = capsys.readouterr().out
+    assert "leaving" in out and "s done after 12" in out
+
+
+def test_controller_not_calling_step_is_stopped_by_the_step_timeout(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    spinner = """
+        from controller import Robot
+        robot = Robot()
+        robot.step(8)
+        while True:
+            pass
+    """
+    world = _project(tmp_path, [("spin", [], spinner), ("other", ["o"], ENDING)])
+    start = time.monotonic()
+    assert run_world(world, None, 1.0) == 2  # the default step timeout (5 s) applies
+    assert time.monotonic() - start < 10.0
+    err = capsys.readouterr().err
+    errors = [line for line in err.splitlines() if line.strip()]
+    assert len(errors) == 1 and "did not call step()" in errors[0] and "--step-timeout" in errors[0]
+
+
+def test_step_timeout_option_is_checked(tmp_path: Path) -> None:
+    world = _project(tmp_path, [("c", ["c"], ENDING)])
+    bad = _cli("webots", "run", str(world), "--duration", "0.048", "--step-timeout", "-1")
+    assert bad.returncode == 2 and "--step-timeout" in bad.stderr and "Traceback" not in bad.stderr
+    ok = _cli("webots", "run", str(world), "--duration", "0.048", "--step-timeout", "0")
+    assert ok.returncode == 0 and "c done after 5" in ok.stdout
+
+
+def test_controller_blocked_after_minus_one_is_killed_and_reaped(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    sleeper = """
+        import os, time
+        from controller import Robot
+        robot = Robot()
+        while robot.step(8) != -1:
+            pass
+        print("pid", os.getpid(), flush=True)
+        time.sleep(100)   # blocked in C: only a process can be stopped here
+    """
+    world = _project(tmp_path, [("sleeper", [], sleeper)])
+    start = time.monotonic()
+    assert run_world(world, None, 0.05) == 0
+    assert time.monotonic() - start < 10.0
+    captured = capsys.readouterr()
+    assert "forced termination" in captured.err
+    pid = int(captured.out.split()[1])
+    assert _gone(pid)
+
+
+STEPPER = """
+    import os
+    from controller import Robot
+    robot = Robot()
+    print("pid", os.getpid(), flush=True)
+    while robot.step(8) != -1:
+        pass
+"""
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_interrupt_kills_and_reaps_the_controllers(tmp_path: Path, signum: int) -> None:
+    """Ctrl-C through ``dualtwin webots run``; SIGTERM through ``run_world`` (the CLI's import is slow)."""
+    world = _project(tmp_path, [("a", [], STEPPER), ("b", [], STEPPER)])
+    env = {**os.environ, "PYTHONPATH": str(SRC)}
+    if signum == signal.SIGINT:
+        command = [sys.executable, "-m", "dualtwin.cli", "webots", "run", str(world), "--duration", "1000"]
+    else:
+        command = [sys.executable, "-c", "import sys; from dualtwin.webots.runner import run_world; "
+                   f"sys.exit(run_world({str(world)!r}, None, 1000.0))"]
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        assert proc.stdout is not None and proc.stderr is not None
+        pids = []
+        while len(pids) < 2:
+            line = proc.stdout.readline()
+            assert line, proc.stderr.read()
+            pids.append(int(line.split()[1]))
+        time.sleep(0.3)  # well inside the run
+        proc.send_signal(signum)
+        _, err = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+        proc.wait()
+    assert proc.returncode == 130
+    assert err == "interrupted\n"
+    assert all(_gone(pid) for pid in pids)
+
+
+# ------------------------------------------------------------------ modes
+
+
+def test_real_time_mode_paces_the_run_to_the_wall_clock(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    paced = """
+        import sys, time
+        from controller import Supervisor
+        robot = Supervisor()
+        robot.simulationSetMode(int(sys.argv[1]))
+        start = time.monotonic()
+        while robot.step(8) != -1:
+            pass
+        print(f"wall={time.monotonic() - start:.2f}")
+    """
+    world = _project(tmp_path, [("paced", ["1"], paced)])
+    assert run_world(world, None, 0.6) == 0
+    captured = capsys.readouterr()
+    assert float(captured.out.split("=")[1]) >= 0.5
+    assert captured.err.count("real-time") == 1
+    fast = _project(tmp_path / "fast", [("paced", ["2"], paced)])
+    assert run_world(fast, None, 0.6) == 0
+    captured = capsys.readouterr()
+    assert float(captured.out.split("=")[1]) < 0.4 and "real-time" not in captured.err
