@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import math
 import warnings
+from pathlib import Path
 
 import pytest
 
 from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Robot
 from dualtwin.webots.physics import Simulation
+from dualtwin.webots.runner import run_world
 
 
 def _robot(targets: str, radar: str = "") -> Robot:
@@ -84,3 +86,23 @@ def test_api_values() -> None:
     assert (radar.getMinRange(), radar.getMaxRange()) == (0.5, 10.0)
     assert (radar.getHorizontalFov(), radar.getVerticalFov()) == (1.2, 0.3)
     assert (radar.min_range, radar.max_range, radar.horizontal_fov, radar.vertical_fov) == (0.5, 10.0, 1.2, 0.3)
+
+
+def test_targets_reach_a_controller_process_by_value(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``getTargets()`` in a real controller process returns RadarTarget records with their fields."""
+    world = tmp_path / "worlds" / "radar.wbt"
+    script = tmp_path / "controllers" / "probe" / "probe.py"
+    world.parent.mkdir(parents=True)
+    script.parent.mkdir(parents=True)
+    world.write_text(
+        "#VRML_SIM R2023b utf8\nWorldInfo { basicTimeStep 16 gravity 0 }\n"
+        + _box(2, 0)
+        + '\nRobot { children [ Radar { name "radar" minRange 0.5 maxRange 10 } ] controller "probe" }\n'
+    )
+    script.write_text(
+        "from controller import Robot\nr = Robot()\nradar = r.getDevice('radar')\nradar.enable(16)\nr.step(16)\n"
+        "t = radar.getTargets()[0]\nprint('TARGET', type(t).__name__, t.distance, t.azimuth)\n"
+    )
+    assert run_world(world, None, 0.048) == 0
+    out = capsys.readouterr()
+    assert "TARGET RadarTarget 2.0 0.0" in out.out, out.err[-2000:]

@@ -43,6 +43,8 @@ SPEED_OF_LIGHT = 299792458.0
 class RadarTarget:
     """One detected target (Webots' plain-attribute record)."""
 
+    __webots_value__ = True  # plain data: crosses to a controller process by value
+
     distance: float  # m
     receiver_power: float  # dBm
     speed: float  # m/s, radial, positive moving away
