@@ -83,6 +83,12 @@ def test_observation_mismatch_is_named(discrete_run: Path, tmp_path: Path) -> No
         transfer(run, "dualtwin/CartPole-MuJoCo-v0", episodes=1, max_episode_steps=10)
 
 
+def test_a_policy_for_another_robot_is_named_not_a_type_error(continuous_run: Path) -> None:
+    """A CartPole policy sent to the Pioneer env: one line naming both robots (it was an internal TypeError)."""
+    with pytest.raises(DualtwinError, match=r"trained for robot 'cartpole'.*runs robot 'pioneer3at'"):
+        transfer(continuous_run, "dualtwin/Pioneer-DriveToGoal-MuJoCo-v0", episodes=1, max_episode_steps=10)
+
+
 def test_unknown_target(discrete_run: Path) -> None:
     with pytest.raises(DualtwinError, match="registered dualtwin ids"):
         transfer(discrete_run, "dualtwin/CartPole-Gazebo-v0", episodes=1)

@@ -26,6 +26,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -216,6 +217,20 @@ def _companion(path: Path | str, which: str, main: LoadedPolicy, role: str) -> L
     return policy
 
 
+def robot_and_task(env_id: str, kwargs: Mapping[str, Any] | None = None) -> tuple[str, str]:
+    """The robot and task an env id runs (its registered arguments over the env's defaults, then ``kwargs``)."""
+    import inspect
+
+    import gymnasium as gym
+
+    from dualtwin.rl.env import TwinEnv
+
+    defaults = {name: p.default for name, p in inspect.signature(TwinEnv.__init__).parameters.items()
+                if name in ("robot", "task")}
+    merged = {**defaults, **dict(gym.spec(env_id).kwargs), **dict(kwargs or {})}
+    return str(merged["robot"]), str(merged["task"])
+
+
 def transfer(policy_run: Path | str, target_env_id: str, *, policy_aligned: Path | str | None = None,
              policy_dr: Path | str | None = None, policy_control: Path | str | None = None,
              episodes: int = 10, seed: int = 0,
@@ -251,6 +266,13 @@ def transfer(policy_run: Path | str, target_env_id: str, *, policy_aligned: Path
         raise DualtwinError(f"episodes must be >= 1, got {episodes}")
     check_env_id(target_env_id)
     policy = load_policy(policy_run, "best" if which == "best" else "final")
+    trained_for = robot_and_task(policy.env_id, policy.env_kwargs)
+    target_runs = robot_and_task(target_env_id, target_kwargs)
+    if trained_for != target_runs:
+        raise DualtwinError(
+            f"{policy_run}: this policy was trained for robot {trained_for[0]!r}, task {trained_for[1]!r} "
+            f"({policy.env_id}); {target_env_id} runs robot {target_runs[0]!r}, task {target_runs[1]!r}. Transfer "
+            "moves a policy between the twins of one robot and task: pick that robot's env id in the other twin")
     companions: list[tuple[str, str, LoadedPolicy]] = []
     if policy_aligned is not None:
         aligned_policy = _companion(policy_aligned, which, policy, "aligned")
