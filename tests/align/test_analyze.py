@@ -157,6 +157,13 @@ def test_simulated_inverted_actuators_are_flagged(tmp_path: Path, robot: RobotBi
     assert signs["cart_pos_m"].scenarios == ["01_sine", "02_drive"]  # the free fall drives no motor
 
 
+def test_sensitivities_of_another_twin_than_run_bs_are_refused(robot: RobotBinding, damped_ref: Path,
+                                                                nominal_run: Path) -> None:
+    """Run B was made by MuJoCo: asking the Webots twin's sensitivities is refused naming both (was a note)."""
+    with pytest.raises(DualtwinError, match="run on the mujoco twin.*--target webots.*--target mujoco"):
+        analyze_runs(damped_ref, nominal_run, robot=robot, twin_b="webots", knobs=["*"])
+
+
 def test_sensitivity_names_the_damping(tmp_path: Path, robot: RobotBinding, damped_ref: Path,
                                        nominal_run: Path) -> None:
     analysis = analyze_runs(damped_ref, nominal_run, robot=robot, twin_b="mujoco",

@@ -684,6 +684,12 @@ def analyze_runs(
     if binding is not None and twin_b is not None:
         if suite is None or suite_path is None:
             raise DualtwinError(f"{run_b}: no config/suite.json in either run; cannot re-simulate the suite")
+        produced_by = load_run(run_b)
+        if produced_by.kind != "recorded" and produced_by.twin != twin_b:
+            # sensitivities of another twin than the one that made run B explain nothing about run B
+            raise DualtwinError(f"{run_b} was run on the {produced_by.twin} twin, but sensitivities were asked of "
+                                f"the {twin_b} twin (--target {twin_b}); re-simulate the twin that produced it: "
+                                f"--target {produced_by.twin}")
         twin = make_twin(twin_b, binding, suite.global_settings.control_period_s)
         try:
             registry = twin.knobs()
