@@ -252,3 +252,44 @@ def test_deploy_closes_the_loop_through_the_server(policy_dir: Path, perception_
     webots = deploy(running.url, "dualtwin/CartPole-Webots-Continuous-v0", 1, api_key=KEY, max_steps=5,
                     frame_format="raw", compare=False)
     assert webots["latency_ms"]["requests"] == 5 and webots["privileged_rewards"] == []
+
+
+def test_serve_on_a_busy_port_or_a_foreign_address_is_one_line(policy_dir: Path, perception_dir: Path) -> None:
+    """`dualtwin serve` where it cannot listen: exit 2, one line naming the option (uvicorn printed several
+    lines and exited 3); the control serves on a free port until stopped."""
+    import signal
+    import socket
+    import subprocess
+    import sys
+    import time
+
+    busy = socket.socket()
+    busy.bind(("127.0.0.1", 0))
+    busy.listen(1)
+    port = busy.getsockname()[1]
+    base = [sys.executable, "-m", "dualtwin.cli", "serve", "--policy", str(policy_dir), "--perception",
+            str(perception_dir)]
+    try:
+        for args, option in ((["--port", str(port)], "--port"), (["--host", "192.0.2.7", "--port", "8765"], "--host"),
+                             (["--host", "no-such-host.invalid"], "--host"), (["--port", "70000"], "--port")):
+            done = subprocess.run([*base, *args], capture_output=True, text=True, timeout=120)
+            lines = done.stderr.strip().splitlines()
+            assert done.returncode == 2 and len(lines) == 1 and option in lines[0], (args, done.stderr)
+    finally:
+        busy.close()
+    server = subprocess.Popen([*base, "--port", str(port)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=0.5).close()
+                break
+            except OSError:
+                assert server.poll() is None, server.communicate()
+                time.sleep(0.2)
+        else:
+            raise AssertionError("the server never listened")
+    finally:
+        server.send_signal(signal.SIGINT)
+        server.communicate(timeout=30)

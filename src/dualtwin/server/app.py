@@ -37,12 +37,14 @@ from __future__ import annotations
 
 import base64
 import binascii
+import errno
 import hashlib
 import hmac
 import io
 import ipaddress
 import json
 import math
+import socket
 import sys
 import threading
 import time
@@ -591,8 +593,57 @@ def serve(policy_dir: Path | str, perception_dir: Path | str, host: str = "127.0
                      max_frame_pixels=max_frame_pixels, max_sessions=max_sessions,
                      max_total_sessions=max_total_sessions, session_idle_s=session_idle_s,
                      max_requests_per_s=max_requests_per_s, velocity=velocity, camera_only=camera_only)
-    if not api_key and not is_loopback(host):
-        print(f"warning: serving on {host} without an API key: anyone who can reach port {port} can drive the "
-              "policy and read its contract; set one with --api-key-env", file=sys.stderr)
+    # Bind here, before uvicorn starts: a port in use or an address this machine does not have is one line naming
+    # the option (uvicorn would log several lines and exit 3); uvicorn then serves on this very socket.
+    sock = listening_socket(host, port)
+    warning = exposure_warning(host, port, api_key)
+    if warning:
+        print(warning, file=sys.stderr)
     # No per-request access log: at hundreds of requests/s it costs more than inference.
-    uvicorn.run(app, host=host, port=port, log_level=log_level, access_log=False)
+    config = uvicorn.Config(app, host=host, port=port, log_level=log_level, access_log=False)
+    try:
+        uvicorn.Server(config).run(sockets=[sock])
+    finally:
+        sock.close()
+
+
+def exposure_warning(host: str, port: int, api_key: str | Sequence[str] | None) -> str | None:
+    """The warning for a server reachable beyond this machine without an API key (None when there is none)."""
+    if api_key or is_loopback(host):
+        return None
+    return (f"warning: serving on {host} without an API key: anyone who can reach port {port} can drive the "
+            "policy and read its contract; set one with --api-key-env")
+
+
+def listening_socket(host: str, port: int) -> socket.socket:
+    """A TCP socket bound to ``host:port`` (as uvicorn binds: SO_REUSEADDR), or one line naming the option.
+
+    Raises:
+        DualtwinError: a port outside 0-65535, a host that does not resolve, a port in use, or an address that is
+            not this machine's.
+    """
+    if not 0 <= port <= 65535:
+        raise DualtwinError(f"--port {port}: a TCP port is 0 to 65535")
+    try:
+        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
+    except (socket.gaierror, UnicodeError) as exc:
+        raise DualtwinError(f"--host {host!r}: not an address or a name this machine can resolve ({exc})") from None
+    family, kind, proto, _, address = infos[0]
+    sock = socket.socket(family, kind, proto)
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        sock.bind(address)
+        sock.listen(2048)
+    except OSError as exc:
+        sock.close()
+        if exc.errno == errno.EADDRINUSE:
+            raise DualtwinError(f"--port {port}: {host}:{port} is already in use by another program; choose another "
+                                "port") from None
+        if exc.errno == errno.EADDRNOTAVAIL:
+            raise DualtwinError(f"--host {host}: not an address of this machine ({exc.strerror})") from None
+        if exc.errno == errno.EACCES:
+            raise DualtwinError(f"--port {port}: not allowed to listen there ({exc.strerror}); ports below 1024 "
+                                "need privileges") from None
+        raise DualtwinError(f"--host {host} --port {port}: cannot listen ({exc.strerror or exc})") from None
+    sock.set_inheritable(True)
+    return sock
