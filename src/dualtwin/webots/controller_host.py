@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from dualtwin.webots import controller as api
-from dualtwin.webots.controller_process import CACHED_READS, recv_frame, send_frame
+from dualtwin.webots.controller_process import CACHED_READS, Wire
 from dualtwin.webots.controller_wire import HandleTable
 from dualtwin.webots.device_base import Device
 from dualtwin.webots.nodes import Node as SceneNode
@@ -68,7 +68,7 @@ class _Link:
         self.table = table
         self.out: list[tuple[int, str]] = []
         self.proc: subprocess.Popen[bytes] | None = None
-        self.sock: socket.socket | None = None
+        self.wire: Wire | None = None
         self.thread: threading.Thread | None = None
         self.in_step = False
         self.last_active = time.monotonic()
@@ -156,7 +156,7 @@ class _Host:
             )
         finally:
             child.close()
-        link.sock = parent
+        link.wire = Wire(parent.detach())
         exported = list(self.exports.values())
         for cls in exported:
             link.table.describe(cls)
@@ -164,7 +164,7 @@ class _Host:
             "classes": link.table.take_descriptions(), "exports": list(self.exports), "doc": api.__doc__,
             "script": str(link.script), "args": link.args,
         }
-        send_frame(parent, pickle.dumps(start, protocol=pickle.HIGHEST_PROTOCOL))
+        link.wire.send(pickle.dumps(start, protocol=pickle.HIGHEST_PROTOCOL))
         link.last_active = time.monotonic()
         link.thread = threading.Thread(target=self.serve, args=(link,), name=f"controller-{link.index}", daemon=True)
         link.thread.start()
@@ -175,12 +175,12 @@ class _Host:
         runtime = self.runtime
         runtime.bind_thread(link.robot)
         self.state.link = link
-        sock = link.sock
-        assert sock is not None
+        wire = link.wire
+        assert wire is not None
         try:
             while True:
                 try:
-                    frame = recv_frame(sock)
+                    frame = wire.receive()
                 except OSError:
                     frame = None
                 if frame is None:
@@ -198,7 +198,7 @@ class _Host:
                     break
                 reply = self._answer(link, op, message[1:-2])
                 try:
-                    send_frame(sock, reply)
+                    wire.send(reply)
                 except OSError:
                     break
         finally:
@@ -320,8 +320,8 @@ class _Host:
         for link in self.links:
             if link.thread is not None:
                 link.thread.join(timeout=10.0)
-            if link.sock is not None:
-                link.sock.close()
+            if link.wire is not None:
+                link.wire.close()
 
     def code(self) -> int:
         for link in self.links:

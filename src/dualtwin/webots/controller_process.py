@@ -28,13 +28,13 @@ from __future__ import annotations
 
 import atexit
 import builtins
+import contextlib
 import inspect
 import io
 import os
 import pickle
 import runpy
 import signal
-import socket
 import struct
 import sys
 import types
@@ -54,28 +54,36 @@ QUEUED_NAMES = frozenset({"enable", "disable"})
 _PLAIN_NUMBERS = (int, float)
 
 
-def send_frame(sock: socket.socket, data: bytes) -> None:
-    sock.sendall(_LENGTH.pack(len(data)) + data)
+class Wire:
+    """Frames over a connected stream file descriptor (a socketpair end), read in large chunks."""
 
+    def __init__(self, fd: int) -> None:
+        self.fd = fd
+        self._buffer = bytearray()
 
-def _recv_exact(sock: socket.socket, n: int) -> bytes | None:
-    buf = bytearray(n)
-    view = memoryview(buf)
-    got = 0
-    while got < n:
-        k = sock.recv_into(view[got:], n - got)
-        if k == 0:
-            return None
-        got += k
-    return bytes(buf)
+    def send(self, data: bytes) -> None:
+        view = memoryview(_LENGTH.pack(len(data)) + data)
+        while view:
+            view = view[os.write(self.fd, view):]
 
+    def receive(self) -> bytes | None:
+        """One frame's payload, or None when the other side closed the channel."""
+        buffer = self._buffer
+        while True:
+            if len(buffer) >= _LENGTH.size:
+                end = _LENGTH.size + _LENGTH.unpack_from(buffer)[0]
+                if len(buffer) >= end:
+                    frame = bytes(buffer[_LENGTH.size:end])
+                    del buffer[:end]
+                    return frame
+            chunk = os.read(self.fd, 1 << 18)
+            if not chunk:
+                return None
+            buffer += chunk
 
-def recv_frame(sock: socket.socket) -> bytes | None:
-    """One frame's payload, or None when the other side closed the channel."""
-    header = _recv_exact(sock, _LENGTH.size)
-    if header is None:
-        return None
-    return _recv_exact(sock, _LENGTH.unpack(header)[0])
+    def close(self) -> None:
+        with contextlib.suppress(OSError):
+            os.close(self.fd)
 
 
 # ------------------------------------------------------------------------------------------ child side
@@ -116,8 +124,8 @@ class _RemoteError(Exception):
 class _Channel:
     """The child's end: RPCs, queued commands, the per-step read cache and the output buffer."""
 
-    def __init__(self, sock: socket.socket) -> None:
-        self.sock = sock
+    def __init__(self, wire: Wire) -> None:
+        self.wire = wire
         self.proxies: dict[int, Any] = {}
         self.classes: dict[str, type] = {}
         self.descriptions: dict[str, dict[str, Any]] = {}
@@ -155,7 +163,7 @@ class _Channel:
         pickler = pickle.Pickler(buf, protocol=pickle.HIGHEST_PROTOCOL)
         pickler.persistent_id = self._persistent_id  # type: ignore[method-assign]
         pickler.dump((*message, out, queued))
-        send_frame(self.sock, buf.getvalue())
+        self.wire.send(buf.getvalue())
 
     def _persistent_id(self, obj: Any) -> Any:
         handle = getattr(obj, "_dualtwin_handle", None) if isinstance(obj, _Proxy) else None
@@ -166,7 +174,7 @@ class _Channel:
         if self.closed:
             raise SystemExit(0)
         self._send(message)
-        frame = recv_frame(self.sock)
+        frame = self.wire.receive()
         if frame is None:  # the parent is gone or stopped this controller
             self.closed = True
             os._exit(0)
@@ -364,12 +372,12 @@ def _main(argv: list[str]) -> None:
     fd, parent = int(argv[1]), int(argv[2])
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _die_with_parent(parent)
-    sock = socket.socket(fileno=fd)
-    frame = recv_frame(sock)
+    wire = Wire(fd)
+    frame = wire.receive()
     if frame is None:
         os._exit(1)
     start = pickle.loads(frame)
-    channel = _Channel(sock)
+    channel = _Channel(wire)
     for description in start["classes"]:
         channel.descriptions[description["key"]] = description
     module = types.ModuleType("controller", start.get("doc"))
