@@ -16,13 +16,13 @@ TS = 16
 
 
 def _world(active: str = "", passive: str = "", a_type: str = "active", b_type: str = "passive",
-           a_x: float = 0.0, velocity: float = 0.0) -> Supervisor:  # fmt: skip
+           a_x: float = 0.0, velocity: float = 0.0, robot: str = "") -> Supervisor:  # fmt: skip
     # the robot's connector faces +x at its origin; the static block's connector faces -x at x=0 (rotated π about z)
     text = f"""#VRML_SIM R2023b utf8
 WorldInfo {{ basicTimeStep {TS} gravity 0 }}
 DEF BLOCK Solid {{ translation 0.1 0 0 children [
   Connector {{ translation -0.1 0 0 rotation 0 0 1 3.14159265 name "b" type "{b_type}" {passive} }} ] }}
-DEF BOT Robot {{ translation {a_x} 0 0 supervisor TRUE
+DEF BOT Robot {{ translation {a_x} 0 0 supervisor TRUE {robot}
   children [ Connector {{ name "a" type "{a_type}" {active} }} ]
   boundingObject Sphere {{ radius 0.01 }} physics Physics {{ mass 1 }} linearVelocity {-velocity} 0 0 }}
 """
@@ -114,3 +114,35 @@ def test_tensile_strength_breaks_the_joint() -> None:
     assert x == pytest.approx(0.0, abs=1e-3) and locked and presence == 1
     x, locked, presence = pulled(1.0)  # 2 N > 1 N: breaks, both unlock, the robot accelerates away
     assert x < -0.005 and not locked and presence == 0
+
+
+def test_both_locked_sides_add_their_strengths() -> None:
+    # two symmetric connectors of 1.5 N each: one locked holds 1.5 N (a 2 N pull breaks it), both locked 3 N
+    def pulled(lock_both: bool) -> bool:
+        sup = _world(active="tensileStrength 1.5", passive=f"tensileStrength 1.5 isLocked {'TRUE' if lock_both else 'FALSE'}",
+                     a_type="symmetric", b_type="symmetric")  # fmt: skip
+        c = sup.getDevice("a")
+        c.lock()
+        sup.step(TS)
+        for _ in range(10):
+            sup.getSelf().addForce([-2.0, 0, 0], False)
+            sup.step(TS)
+        return c.isLocked()
+
+    assert pulled(lock_both=True)
+    assert not pulled(lock_both=False)
+
+
+@pytest.mark.parametrize("snap", [True, False])
+def test_snap_aligns_the_robot_on_docking(snap: bool) -> None:
+    # 8 mm off sideways and turned 0.1 rad about z: in position (tolerances 0.01 m, 0.2 rad) but not aligned
+    sup = _world(active=f"snap {'TRUE' if snap else 'FALSE'}", robot="translation 0 0.008 0 rotation 0 0 1 0.1")
+    sup.getDevice("a").lock()
+    sup.step(TS)
+    me = sup.getSelf()
+    y = me.getPosition()[1]
+    heading = me.getOrientation()[3]  # R[1][0] = sin(yaw)
+    if snap:  # moved onto the block's connector: origin at 0, x axis along +x
+        assert y == pytest.approx(0.0, abs=1e-6) and heading == pytest.approx(0.0, abs=1e-6)
+    else:  # control: docked where it stood
+        assert y == pytest.approx(0.008, abs=1e-6) and heading == pytest.approx(0.0998, abs=1e-3)

@@ -19,16 +19,23 @@ What Webots documents (Connector reference page) and this module does:
   peer is not locked either.
 * **Strength**: after each physics step the joint's feedback force on the connector's body is split into the
   tensile part (along the connector's x axis, pulling the two apart) and the shear part (perpendicular); when
-  either exceeds the ``tensileStrength``/``shearStrength`` of one of the two connectors (-1 = infinite), the
-  joint breaks and both connectors unlock, so an autoLock connector does not dock again at once.
+  either exceeds the effective ``tensileStrength``/``shearStrength`` (the sum over the locked connectors of the
+  pair, as Webots documents; -1 on a locked side = unbreakable), the joint breaks and both connectors unlock,
+  so an autoLock connector does not dock again at once.
   Presence then reads 0: the broken pair is no longer counted as docked.
 
-What differs: ``snap`` (Webots moves the solids so the connectors align exactly when they dock) is not done;
-the joint keeps the relative pose the two bodies had, which is exact when they were already aligned.
+* **Snap** (``snap TRUE``, the locking side's field): on docking, the body carrying the locking connector (the
+  peer's when that one is static) is moved so the connectors' x axes are exactly opposite, the z axes on the
+  nearest of the ``numberOfRotations`` docking positions (free when 0) and the origins superimposed; the joint
+  then holds that pose, and joints to the rest of the robot pull it along. With ``snap FALSE`` the joint keeps
+  the relative pose the bodies had. (Which Solid Webots moves is not documented: moving the whole robot instead
+  broke the pair at once in the conformance port of Webots' connector_detach test, so the carrying body alone
+  moves.)
 """
 
 from __future__ import annotations
 
+import ctypes
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -123,7 +130,35 @@ class Connectors:
     def _agrees(self, state: ConnectorState, peer: ConnectorState) -> bool:
         return bool(state.field("unilateralLock", True)) or peer.locked or peer.kind == "passive"
 
+    def _snap(self, state: ConnectorState, peer: ConnectorState) -> None:
+        """Move the body carrying ``state`` so its connector exactly faces ``peer``'s: x axes opposite, z axes
+        on the nearest of the ``numberOfRotations`` docking positions, origins superimposed. When that side is
+        static, the peer's body moves instead; joints to other bodies pull the rest along in the next steps."""
+        body = body_of(state.solid)
+        if body is None:
+            state, peer = peer, state
+            body = body_of(state.solid)
+            if body is None:
+                return
+        sim = self.sim
+        current, target = sim.solid_world_pose(state.solid), sim.solid_world_pose(peer.solid)
+        facing = target * m3.Pose(m3.rot_axis_angle((0.0, 0.0, 1.0, math.pi)))  # x opposite, z kept
+        n = int(state.field("numberOfRotations", 4))
+        if n > 0:
+            turns = [m3.Pose(m3.rot_axis_angle((1.0, 0.0, 0.0, 2.0 * math.pi * k / n))) for k in range(n)]
+            rotation = min(((facing * t).R for t in turns), key=lambda r: _angle_between(r, current.R))
+        else:  # free about the docking axis: the smallest rotation taking x onto -x_peer
+            x_now, x_want = current.rotate((1.0, 0.0, 0.0)), facing.rotate((1.0, 0.0, 0.0))
+            rotation = m3.mat_mul(_rotation_between(x_now, x_want), current.R)
+        moved = m3.Pose(rotation, target.t) * current.inverse() * body.pose()
+        lib = sim._lib
+        lib.dBodySetPosition(body.ptr, *moved.apply(body.com))
+        r = moved.R
+        lib.dBodySetRotation(body.ptr, (ctypes.c_double * 12)(r[0], r[1], r[2], 0.0, r[3], r[4], r[5], 0.0, r[6], r[7], r[8], 0.0))
+
     def attach(self, state: ConnectorState, peer: ConnectorState) -> None:
+        if bool(state.field("snap", True)):
+            self._snap(state, peer)
         b1, b2 = body_of(state.solid), body_of(peer.solid)
         if b1 is None and b2 is None or b1 is b2:
             return
@@ -177,10 +212,7 @@ class Connectors:
             if not state.owner or peer is None or link is None:
                 continue
             axis = self.sim.solid_world_pose(state.solid).rotate((1.0, 0.0, 0.0))
-            if any(
-                link.breaks(axis, float(s.field("tensileStrength", -1.0)), float(s.field("shearStrength", -1.0)))
-                for s in (state, peer)
-            ):
+            if link.breaks(axis, _strength(state, peer, "tensileStrength"), _strength(state, peer, "shearStrength")):
                 self.detach(state)
                 for s in (state, peer):
                     s.locked = False
@@ -194,6 +226,30 @@ class Connectors:
         for state in self.states:
             state.locked = bool(state.solid.node.fields.get("isLocked", False))
             state.pending = state.locked
+
+
+def _angle_between(a: m3.Mat3, b: m3.Mat3) -> float:
+    return m3.axis_angle_from_mat(m3.mat_mul(a, m3.mat_t(b)))[3]
+
+
+def _rotation_between(u: m3.Vec3, v: m3.Vec3) -> m3.Mat3:
+    """The smallest rotation taking unit vector ``u`` onto ``v``."""
+    axis = m3.cross(u, v)
+    sin_a, cos_a = m3.norm(axis), max(-1.0, min(1.0, m3.dot(u, v)))
+    if sin_a < 1e-12:
+        if cos_a > 0:
+            return m3.IDENTITY
+        other = (1.0, 0.0, 0.0) if abs(u[0]) < 0.9 else (0.0, 1.0, 0.0)
+        axis = m3.cross(u, other)
+    return m3.rot_axis_angle((*m3.normalized(axis), math.atan2(sin_a, cos_a)))
+
+
+def _strength(state: ConnectorState, peer: ConnectorState, name: str) -> float:
+    """Webots' effective strength of a docked pair: the sum over the locked sides (both locked: both fields
+    add up); -1 on a locked side makes the link unbreakable."""
+    sides = [s for s in (state, peer) if s.locked] or [state]
+    values = [float(s.field(name, -1.0)) for s in sides]
+    return -1.0 if any(v < 0.0 for v in values) else sum(values)
 
 
 def install(sim: Simulation) -> Connectors:

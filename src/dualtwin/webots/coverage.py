@@ -175,7 +175,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "write/setInkColor keep their state; ink is visual only in Webots and is not drawn headless"),
     Coverage("Connector", "device", "partial",
              "presence with model/type and distance/axis/rotation tolerances, lock/unlock (unilateral), "
-             "autoLock, isLocked at load, ODE fixed joint, tensile/shear breaking; snap is not done"),
+             "autoLock, isLocked at load, ODE fixed joint, snap (the carrying body moves), tensile/shear "
+             "breaking with the locked sides' strengths summed"),
     Coverage("VacuumGripper", "device", "supported",
              "turnOn/turnOff, isOn at load, grasps a body touching its boundingObject with >= contactPoints "
              "points (fixed joint), tensile/shear breaking, presence"),
