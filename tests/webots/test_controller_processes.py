@@ -312,3 +312,23 @@ def test_real_time_mode_paces_the_run_to_the_wall_clock(tmp_path: Path, capsys: 
     assert run_world(fast, None, 0.6) == 0
     captured = capsys.readouterr()
     assert float(captured.out.split("=")[1]) < 0.4 and "real-time" not in captured.err
+
+
+def test_a_second_robot_instance_is_the_first_one(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Webots allows one Robot per controller process; a second one must not stall the synchronisation."""
+    twice = """
+        from controller import Robot, Supervisor
+        first = Robot()
+        second = Supervisor()
+        n = 0
+        while first.step(8) != -1:
+            n += 1
+        print("steps", n, second.getName() == first.getName())
+    """
+    world = _project(tmp_path, [("twice", [], twice)])
+    start = time.monotonic()
+    assert run_world(world, None, 0.08, step_timeout_s=0) == 0
+    assert time.monotonic() - start < 10.0
+    captured = capsys.readouterr()
+    assert captured.out == "steps 9 True\n"
+    assert "only one Robot instance" in captured.err

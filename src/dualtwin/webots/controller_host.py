@@ -76,6 +76,7 @@ class _Link:
         self.exit_code: int | None = None  # as the child reported it
         self.stopped: str | None = None  # why the parent killed it: "forced" or "timeout"
         self.deferred: BaseException | None = None  # raised by a queued command, reported at the next call
+        self.robot_object: api.Robot | None = None
         self.done = threading.Event()
 
 
@@ -239,7 +240,15 @@ class _Host:
                     value = getattr(target, name)(*args, **kwargs)
             elif op == "new":
                 key, args, kwargs = body
-                obj = self.exports[key](*args, **kwargs)
+                cls = self.exports[key]
+                if issubclass(cls, api.Robot) and link.robot_object is not None:
+                    # Webots' library says so and keeps the first one: a second Robot would never step
+                    print("Error: only one Robot instance can be created per controller process.", file=sys.stderr)
+                    obj = link.robot_object
+                else:
+                    obj = cls(*args, **kwargs)
+                    if isinstance(obj, api.Robot):
+                        link.robot_object = obj
                 handle, _ = table.handle(obj)
                 value = (handle, table.public_attrs(obj))
             elif op == "get":

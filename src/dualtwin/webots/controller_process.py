@@ -159,11 +159,15 @@ class _Channel:
 
     def _send(self, message: tuple[Any, ...]) -> None:
         out, queued = self._take()
-        buf = io.BytesIO()
-        pickler = pickle.Pickler(buf, protocol=pickle.HIGHEST_PROTOCOL)
-        pickler.persistent_id = self._persistent_id  # type: ignore[method-assign]
-        pickler.dump((*message, out, queued))
-        self.wire.send(buf.getvalue())
+        try:  # plain data (the usual case) pickles in C; an API object in it needs its handle
+            data = pickle.dumps((*message, out, queued), protocol=pickle.HIGHEST_PROTOCOL)
+        except _HandleNeeded:
+            buf = io.BytesIO()
+            pickler = pickle.Pickler(buf, protocol=pickle.HIGHEST_PROTOCOL)
+            pickler.persistent_id = self._persistent_id  # type: ignore[method-assign]
+            pickler.dump((*message, out, queued))
+            data = buf.getvalue()
+        self.wire.send(data)
 
     def _persistent_id(self, obj: Any) -> Any:
         handle = getattr(obj, "_dualtwin_handle", None) if isinstance(obj, _Proxy) else None
@@ -265,11 +269,18 @@ class _Channel:
         return cls
 
 
+class _HandleNeeded(Exception):
+    """Raised when an API object is pickled without the channel's persistent ids (then they are used)."""
+
+
 class _Proxy:
     """Base of every generated class: an object that lives in the parent, named by a handle."""
 
     _dualtwin_role = "other"
     _dualtwin_real = ""
+
+    def __reduce_ex__(self, protocol: Any) -> Any:
+        raise _HandleNeeded
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} (controller proxy)>"

@@ -197,6 +197,9 @@ class HandleTable:
 
     def dumps(self, status: str, value: Any) -> bytes:
         """A reply frame: new class descriptions first (the child needs them to unpickle the value)."""
+        if not self._new and plain(value):  # numbers, strings, lists (most replies): no object to look at
+            return pickle.dumps((status, [], pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)),
+                                protocol=pickle.HIGHEST_PROTOCOL)
         buf = io.BytesIO()
         pickler = pickle.Pickler(buf, protocol=pickle.HIGHEST_PROTOCOL)
         pickler.persistent_id = self.persistent_id  # type: ignore[method-assign]
