@@ -146,3 +146,15 @@ def test_snap_aligns_the_robot_on_docking(snap: bool) -> None:
         assert y == pytest.approx(0.0, abs=1e-6) and heading == pytest.approx(0.0, abs=1e-6)
     else:  # control: docked where it stood
         assert y == pytest.approx(0.008, abs=1e-6) and heading == pytest.approx(0.0998, abs=1e-3)
+
+
+def test_simulation_reset_undocks() -> None:
+    sup = _world(velocity=0.5)
+    c = sup.getDevice("a")
+    c.lock()
+    _run(sup, 5)
+    assert c.isLocked()
+    sup.simulationReset()
+    sup.step(TS)  # the reset step: back to the load state, unlocked as in the world file
+    assert not c.isLocked()
+    assert _run(sup, 10) < -0.05  # nothing holds the robot any more: it drifts with its initial velocity
