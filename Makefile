@@ -2,7 +2,7 @@
 PYTHON ?= python3
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
-SYSTEM_PACKAGES := libode8 libosmesa6 libegl1 libegl-mesa0 libgl1-mesa-dri
+SYSTEM_PACKAGES := libode8 libosmesa6 libegl1 libegl-mesa0 libgl1-mesa-dri gcc libc6-dev
 EXTRAS ?= dev,rl,server,llm,ray,recorded
 
 .PHONY: demo test lint typecheck bench system-deps venv clean

@@ -12,9 +12,10 @@ Run: ``python bench/bench_arm.py`` (divergence, stepping and alignment; ``--part
   period, six encoders and the flange pose read) against the bare ``Simulation.step`` loop of the same world;
   and the MuJoCo twin's overhead against raw ``mj_step`` on the same model (goal <= 15 %). The baseline holds
   the same motors at the same targets with MuJoCo's native affine servo, so it is the physics alone; the twin
-  runs Webots' position PID per physics step in Python (velocity control at 0.3 rad/s for reference). Two
-  floor rows show what any Python-side law costs: one ``mj_step`` call per physics step, and that plus the
-  least a law can do per motor (read q and qdot, write ctrl);
+  runs Webots' position PID per physics step in the compiled plugin (``twins/native``, issue 25; velocity
+  control at 0.3 rad/s for reference), and the row "law in mj_step" steps the plugin model with no Python at
+  all. Two floor rows show what any Python-side law would cost: one ``mj_step`` call per physics step, and
+  that plus the least a law can do per motor (read q and qdot, write ctrl);
 * ``align``: 25 knobs of the MuJoCo ``arm_payload`` (per joint damping, dry friction, armature and P gain, and
   the flange mass) fitted with CMA-ES (``--restarts`` restarts from the best with a smaller step, then an
   optional least-squares polish, ``--polish N``) to a Webots stand-in for a real arm (hidden joint losses and a
@@ -198,6 +199,15 @@ def mujoco_overhead() -> dict[str, float]:
                         ctrl[i] = ctrl[i] + 0.0 * (qpos[i] - qvel[i])
                 step(m, d)
 
+    def native_only() -> None:
+        # The twin's model with the law compiled in (the plugin), stepped by mj_step alone: what a converted
+        # model costs in any MuJoCo program, without the twin's Python per control period.
+        twin.reset(0)
+        for joint in JOINTS:
+            twin.command(joint, "position", 0.3)
+        for _ in range(CONTROL_PERIODS):
+            mujoco.mj_step(twin.model, twin.data, nstep=substeps)
+
     def twin_loop(mode: ControlMode) -> None:
         twin.reset(0)
         for k in range(CONTROL_PERIODS):
@@ -206,9 +216,12 @@ def mujoco_overhead() -> dict[str, float]:
                 twin.command(joint, mode, value)
             twin.step()
 
-    best = {"raw": math.inf, "position": math.inf, "velocity": math.inf, "loop": math.inf, "io": math.inf}
+    best = {"raw": math.inf, "position": math.inf, "velocity": math.inf, "loop": math.inf, "io": math.inf,
+            "native": math.inf}
     for _ in range(5):
         best["raw"] = min(best["raw"], cpu_time(raw))
+        if twin.native_law:
+            best["native"] = min(best["native"], cpu_time(native_only))
         best["loop"] = min(best["loop"], cpu_time(lambda: python_per_step(False)))
         best["io"] = min(best["io"], cpu_time(lambda: python_per_step(True)))
         for mode in ("position", "velocity"):
@@ -221,6 +234,10 @@ def mujoco_overhead() -> dict[str, float]:
         overhead = best[key] / best["raw"] - 1
         print(f"  {label:36s} {steps / best[key]:9,.0f} steps/s  overhead {overhead:+.1%}")
         out[f"mujoco_{key}_floor_overhead"] = overhead
+    if twin.native_law:
+        overhead = best["native"] / best["raw"] - 1
+        print(f"  law in mj_step (plugin), no Python   {steps / best['native']:9,.0f} steps/s  overhead {overhead:+.1%}")
+        out["mujoco_native_law_overhead"] = overhead
     for mode in ("position", "velocity"):
         overhead = best[mode] / best["raw"] - 1
         goal = f"  (goal <= +{OVERHEAD_GOAL:.0%})" if mode == "position" else ""

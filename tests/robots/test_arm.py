@@ -312,7 +312,8 @@ def test_inlined_motor_law_is_bit_identical_to_the_per_motor_law() -> None:
     robot = resolve_robot("arm_payload")
 
     def trajectory(per_motor: bool, kd: float = 0.02) -> np.ndarray:
-        twin = MuJoCoTwin(robot.model_path("mujoco"), 0.016)
+        # The Python law (twins.motors), which the native law is checked against in test_native_motor_law.
+        twin = MuJoCoTwin(robot.model_path("mujoco"), 0.016, native_law=False)
         if per_motor:
             twin._servo_steps = lambda servos, steps: _per_motor_law_steps(twin, servos, steps)  # type: ignore[method-assign]
         motors = twin._motor_by_name

@@ -36,6 +36,7 @@ import numpy as np
 
 from dualtwin.errors import DualtwinError, SimulationUnstable
 from dualtwin.geometry import canonical_quat, matrix_from_quat
+from dualtwin.twins import motor_plugin
 from dualtwin.twins.base import (
     ControlMode,
     Knob,
@@ -67,12 +68,16 @@ PREDICT_SATURATION = 1.0 + SERVO_STIFFNESS
 #: set_state refuses states whose contacts overlap deeper than this (m): that is a geometry mismatch or a
 #: bad state, not the millimetres of a resting soft contact.
 MAX_PENETRATION = 0.02
+# plugin_state slots a command writes (the native law, see motor_plugin)
+_TORQUE_MODE, _TARGET_POSITION, _TARGET_VELOCITY, _TORQUE, _SATURATED = (
+    motor_plugin.SLOT[k] for k in ("torque_mode", "target_position", "target_velocity", "torque", "saturated"))
 
 
 class _Motor:
-    __slots__ = ("name", "index", "qpos", "dof", "kv", "state", "saturated")
+    __slots__ = ("name", "index", "qpos", "dof", "kv", "state", "saturated", "plugin")
 
-    def __init__(self, name: str, index: int, qpos: int, dof: int, kv: float, state: MotorState) -> None:
+    def __init__(self, name: str, index: int, qpos: int, dof: int, kv: float, state: MotorState,
+                 plugin: int = -1) -> None:
         self.name = name
         self.index = index
         self.qpos = qpos
@@ -80,6 +85,7 @@ class _Motor:
         self.kv = kv
         self.state = state
         self.saturated = 0.0  # 0 = servo; ±1 = applying ±max torque
+        self.plugin = plugin  # with the native law: the motor's first slot in plugin_state, else -1
 
 
 def compile_spec(spec: mujoco.MjSpec, origin: str) -> mujoco.MjModel:
@@ -106,11 +112,19 @@ class MuJoCoTwin(Twin):
     name = "mujoco"
 
     def __init__(self, model: Path | mujoco.MjSpec, control_period: float,
-                 aliases: dict[str, str] | None = None) -> None:
+                 aliases: dict[str, str] | None = None, native_law: bool | None = None) -> None:
+        """``native_law``: run Webots' motor law in the compiled plugin (None: when it can be loaded, see
+        :mod:`dualtwin.twins.motor_plugin`); False runs the Python reference law per physics step."""
         origin = str(model) if isinstance(model, Path | str) else "<MjSpec>"
         self.spec = load_spec(Path(model)) if isinstance(model, Path | str) else model
-        self.model: mujoco.MjModel = compile_spec(self.spec, origin)
+        native = motor_plugin.native_spec(self.spec) if native_law is not False else None
+        if native_law and native is None:
+            raise DualtwinError(f"{origin}: the native motor law is unavailable: {motor_plugin.available()}")
+        #: True when Webots' motor law runs inside mj_step (the plugin); the Python law otherwise.
+        self.native_law = native is not None
+        self.model: mujoco.MjModel = compile_spec(native or self.spec, origin)
         self.data = mujoco.MjData(self.model)
+        self._plugin_slots: memoryview[float] = memoryview(self.data.plugin_state)  # floats: cheaper than NumPy
         self._origin = origin
         self._aliases = aliases or {}
         dt = self.model.opt.timestep
@@ -144,6 +158,8 @@ class MuJoCoTwin(Twin):
         self._sensor_bias = np.zeros(self.model.nsensor)
         self._sensor_quant = np.zeros(self.model.nsensor)
         self._sensor_delay = np.zeros(self.model.nsensor, dtype=int)
+        self._period_start = 0.0  # time at the start of the last step() (see _check_stable)
+        self._delayed_sensors = False  # any delay above (set_knobs keeps it; step() reads it every period)
         self._history: list[np.ndarray] = []
         self._inertia_changed = False
         self._scratch = mujoco.MjData(self.model)
@@ -205,7 +221,9 @@ class MuJoCoTwin(Twin):
             m.actuator_ctrllimited[i] = 0
             inertia = float(m.dof_M0[dof])  # the joint's inertia, armature included
             kv = SERVO_STIFFNESS * inertia / m.opt.timestep
-            motors.append(_Motor(name, i, int(m.jnt_qposadr[joint]), dof, kv, MotorState(params)))
+            instance = int(m.actuator_plugin[i])
+            plugin = int(m.plugin_stateadr[instance]) if instance >= 0 else -1
+            motors.append(_Motor(name, i, int(m.jnt_qposadr[joint]), dof, kv, MotorState(params), plugin))
         return motors
 
     def _snapshot_nominal(self) -> dict[str, np.ndarray]:
@@ -242,6 +260,8 @@ class MuJoCoTwin(Twin):
             motor.state.reset(float(self.data.qpos[motor.qpos]))
             motor.saturated = 0.0
             self._set_servo(motor)
+            if motor.plugin >= 0:
+                self._write_plugin(motor, law=True)
         self._bad_state = self._bad_state_warnings()
 
     def set_joint_state(self, joint: str, position: float | None = None, velocity: float | None = None) -> None:
@@ -305,21 +325,46 @@ class MuJoCoTwin(Twin):
             del self._history[:-MAX_DELAY_PERIODS - 1]
 
     def _apply_command(self, motor: _Motor, mode: ControlMode, value: float) -> None:
+        st = motor.state
         if mode == "velocity":
-            motor.state.set_velocity(value)
+            st.set_velocity(value)
         elif mode == "position":
-            motor.state.set_position(value)
+            st.set_position(value)
         else:
-            motor.state.set_torque(value)
-        if motor.state.torque_mode:
-            self._set_torque(motor, motor.state.torque)
+            st.set_torque(value)
+        if motor.plugin >= 0:
+            # The native law: only what a command changes (targets, the mode, and for a servo leaving
+            # saturation) goes to plugin_state; the model is not touched.
+            ps, adr = self._plugin_slots, motor.plugin
+            ps[adr + _TORQUE_MODE] = 1.0 if st.torque_mode else 0.0
+            ps[adr + _TARGET_POSITION] = st.target_position
+            ps[adr + _TARGET_VELOCITY] = st.target_velocity
+            ps[adr + _TORQUE] = st.torque
+            if not st.torque_mode:
+                motor.saturated = ps[adr + _SATURATED] = 0.0
+        elif st.torque_mode:
+            self._set_torque(motor, st.torque)
         else:
             motor.saturated = 0.0
             self._set_servo(motor)
 
+    def _write_plugin(self, motor: _Motor, law: bool = False) -> None:
+        """The motor's targets, limits, gains and servo stiffness into its plugin_state slots, and with
+        ``law`` its law state (integral, previous error, last u, saturation) too."""
+        values = motor_plugin.slot_values(motor.state, motor.kv, float(self._armature[motor.dof]),
+                                          PREDICT_SATURATION, motor.saturated if law else None)
+        # The plugin adds the rotor inertia with the servo's (see native/webots_motor.c): not the model too.
+        self.model.dof_armature[motor.dof] = 0.0
+        state = self.data.plugin_state
+        for slot, value in values:
+            state[motor.plugin + slot] = value
+
     def _set_servo(self, motor: _Motor) -> None:
-        """Servo mode: ctrl is the explicit torque ``kv (u - qdot)``, and ``dt·kv`` of armature makes it implicit."""
+        """Servo mode: ctrl is the explicit torque ``kv (u - qdot)``, and ``dt·kv`` of armature makes it implicit
+        (the native law adds it inside the step: nothing to do)."""
         m = self.model
+        if motor.plugin >= 0:
+            return
         m.actuator_gainprm[motor.index, 0] = 1.0
         m.actuator_biastype[motor.index] = mujoco.mjtBias.mjBIAS_NONE
         m.actuator_biasprm[motor.index, :3] = 0.0
@@ -327,6 +372,8 @@ class MuJoCoTwin(Twin):
 
     def _set_torque(self, motor: _Motor, torque: float) -> None:
         m = self.model
+        if motor.plugin >= 0:
+            return
         m.actuator_gainprm[motor.index, 0] = 1.0
         m.actuator_biastype[motor.index] = mujoco.mjtBias.mjBIAS_NONE
         m.actuator_biasprm[motor.index, :3] = 0.0
@@ -335,12 +382,13 @@ class MuJoCoTwin(Twin):
 
     def step(self) -> None:
         m, d = self.model, self.data
-        if self._pending or self._sensor_delay.any():
+        self._period_start = d.time
+        if self._pending or self._delayed_sensors:
             self._before_step()
         # mj_step computes poses and sensors before it integrates: afterwards they describe the state one
         # physics step ago (see refresh).
         self._poses_current = False
-        servos = [mo for mo in self._motors if not mo.state.torque_mode]
+        servos = [] if self.native_law else [mo for mo in self._motors if not mo.state.torque_mode]
         if not servos:
             if self._friction_box is None:
                 mujoco.mj_step(m, d, nstep=self._substeps)
@@ -369,16 +417,20 @@ class MuJoCoTwin(Twin):
             mj_step = self._mj_step
             for k in range(self._substeps):
                 mj_step(m, d)
+                saturated = False
                 for mo, u, index, dof, kv, limit in checks:
                     # kv (u - qdot) is both the torque the implicit servo applied over this step (see the module
                     # docstring) and the explicit torque of the next one. Above the limit it saturates; the
-                    # looser PREDICT_SATURATION bound on the next step's torque then never binds.
+                    # looser PREDICT_SATURATION bound on the next step's torque then never binds. Every motor
+                    # is checked after every step, as servo_steps does (and the native law).
                     torque = ctrl[index] = kv * (u - qvel[dof])
                     if torque > limit or -torque > limit:
                         self._saturate(mo, torque)
-                        self._servo_steps(servos, self._substeps - k - 1)
-                        self._check_stable()
-                        return
+                        saturated = True
+                if saturated:
+                    self._servo_steps(servos, self._substeps - k - 1)
+                    self._check_stable()
+                    return
         self._check_stable()
 
     def _saturate(self, mo: _Motor, torque: float) -> None:
@@ -397,14 +449,23 @@ class MuJoCoTwin(Twin):
 
     def _bad_state_warnings(self) -> int:
         """MuJoCo resets mjData itself after bad qpos/qvel/qacc; its warning counters are the trace left."""
-        w = self.data.warning
-        return sum(w[k].number for k in (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
-                                         mujoco.mjtWarning.mjWARN_BADQACC))
+        counters = getattr(self, "_warning_counters", None)
+        if counters is None:  # live views of the three counters, looked up once (checked every period)
+            w = self.data.warning
+            counters = self._warning_counters = [w[int(k)] for k in (
+                mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)]
+        return counters[0].number + counters[1].number + counters[2].number
 
     def _check_stable(self) -> None:
         d = self.data
+        if d.time > self._period_start + (self._substeps - 0.5) * self.model.opt.timestep and not (
+                self.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_AUTORESET):
+            # MuJoCo resets mjData (time 0) when a step meets a bad qpos, qvel or qacc, and a step that met
+            # none leaves finite values: a period that ended on time was stable (the cheap test, every period).
+            return
         warnings = self._bad_state_warnings()
-        if warnings != self._bad_state or not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()):
+        # One finiteness test for both vectors (a NaN or infinity anywhere makes the sum of squares non-finite).
+        if warnings != self._bad_state or not math.isfinite(np.dot(d.qpos, d.qpos) + np.dot(d.qvel, d.qvel)):
             self._bad_state = warnings
             raise SimulationUnstable(f"MuJoCo twin became numerically unstable (MuJoCo warning: "
                                      f"bad qpos, qvel or qacc) within the period ending near t = {d.time:.3f} s")
@@ -615,6 +676,8 @@ class MuJoCoTwin(Twin):
             if not motor.state.torque_mode:
                 motor.saturated = 0.0
                 self._set_servo(motor)
+            if motor.plugin >= 0:
+                self._write_plugin(motor, law=True)
 
     # ---------------------------------------------------------------- knobs
     # One entry per knob kind in twins.mujoco_knobs.MUJOCO_KNOBS; knobs() and set_knobs() both come from it.
@@ -687,6 +750,9 @@ class MuJoCoTwin(Twin):
         self._update_servos()
         for mo in self._motors:
             mo.state.available_torque = mo.state.params.max_torque
+            if mo.plugin >= 0:
+                self._write_plugin(mo)
+        self._delayed_sensors = bool(self._sensor_delay.any())
         self._knob_values = dict(values)
 
     def _set_substeps(self, substeps: int) -> None:
@@ -710,6 +776,8 @@ class MuJoCoTwin(Twin):
             mo.kv = self._nominal_kv[mo.name] * ratio * ((inertia + added) / inertia)
             if not mo.state.torque_mode and not mo.saturated:
                 self._set_servo(mo)
+            if mo.plugin >= 0:
+                self._write_plugin(mo)
 
     def render(self, camera: str, width: int, height: int) -> np.ndarray:
         cam = self._id(mujoco.mjtObj.mjOBJ_CAMERA, camera, "camera")

@@ -1,0 +1,183 @@
+"""Webots' motor law as a MuJoCo engine plugin (``native/webots_motor.c``): built, loaded, and put on models.
+
+The plugin ``dualtwin-webots-motor`` runs the law of :func:`dualtwin.twins.motors.servo_steps` inside
+``mj_step``, so a model that uses it steps with Webots' motors in any MuJoCo program (``simulate``,
+``mujoco.rollout``, ``mujoco.batch``), and the twin pays no Python per physics step.
+
+Decision: built on first use, not when the package installs. The source ships with the package; the shared
+library is compiled once per source and MuJoCo version with the system C compiler (``cc``; Debian:
+``gcc`` and ``libc6-dev``) against the headers and library in the ``mujoco`` wheel, into
+``$DUALTWIN_CACHE`` (default ``~/.cache/dualtwin``), and loaded with ``mujoco.mj_loadPluginLibrary``. An
+editable install and a wheel behave the same, and a machine without a compiler still runs the Python law
+(:func:`available` says why not). ``DUALTWIN_NATIVE_LAW=0`` turns the plugin off in the twin.
+
+The plugin keeps everything in ``plugin_state`` (see the layout below, the C file's enum): targets, limits,
+gains, the servo stiffness and the law's state. A model compiled with the plugin starts from its config
+(the Webots motor fields); the twin writes its own values over it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import threading
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import mujoco
+
+from dualtwin.errors import DualtwinError
+
+if TYPE_CHECKING:
+    from dualtwin.twins.motors import MotorState
+
+PLUGIN = "dualtwin-webots-motor"
+SOURCE = Path(__file__).with_name("native") / "webots_motor.c"
+
+# plugin_state slots per instance (the enum in native/webots_motor.c, in its order).
+SLOTS = ("torque_mode", "target_position", "target_velocity", "torque", "available", "kp", "ki", "kd",
+         "acceleration", "kv", "predict", "integral", "previous_error", "u", "saturated", "next_integral",
+         "next_previous_error", "next_u", "next_saturated", "ctrl_mode", "last_ctrl", "max_velocity",
+         "max_torque", "min_position", "max_position", "gain", "actuator", "dof", "qpos", "last", "armature")
+SLOT = {name: index for index, name in enumerate(SLOTS)}
+NSTATE = len(SLOTS)
+
+_lock = threading.Lock()
+_loaded: Path | None = None
+_failure: str | None = None
+
+
+def _cache_dir() -> Path:
+    root = os.environ.get("DUALTWIN_CACHE") or Path.home() / ".cache" / "dualtwin"
+    return Path(root) / "native"
+
+
+def _library_path() -> Path:
+    digest = hashlib.sha256(SOURCE.read_bytes() + mujoco.__version__.encode()).hexdigest()[:16]
+    return _cache_dir() / f"webots_motor-{digest}.so"
+
+
+def _mujoco_library() -> Path:
+    folder = Path(mujoco.__file__).parent
+    candidates = sorted(folder.glob("libmujoco.so*")) + sorted(folder.glob("libmujoco*.dylib"))
+    if not candidates:
+        raise DualtwinError(f"no libmujoco shared library in {folder}")
+    return candidates[0]
+
+
+def build(target: Path | None = None) -> Path:
+    """Compile the plugin (``cc``) into ``target`` (default: the cache); returns the library's path."""
+    target = target or _library_path()
+    if target.exists():
+        return target
+    compiler = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
+    if compiler is None:
+        raise DualtwinError("no C compiler (cc) on PATH: install gcc (Debian: apt-get install gcc libc6-dev)")
+    library = _mujoco_library()
+    include = Path(mujoco.__file__).parent / "include"
+    target.parent.mkdir(parents=True, exist_ok=True)
+    # Compile to a private name and rename: concurrent first uses never load a half-written library.
+    with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
+        out = Path(tmp) / target.name
+        command = [compiler, "-O2", "-shared", "-fPIC", "-std=c11", "-o", str(out), str(SOURCE),
+                   f"-I{include}", f"-L{library.parent}", f"-l:{library.name}",
+                   f"-Wl,-rpath,{library.parent}", "-lm"]
+        result = subprocess.run(command, capture_output=True, text=True, check=False)
+        if result.returncode != 0:
+            raise DualtwinError(f"building the MuJoCo motor plugin failed: {result.stderr.strip()[:400]}")
+        os.replace(out, target)
+    return target
+
+
+def load() -> Path:
+    """Build (once) and load the plugin into this process; returns the library's path."""
+    global _loaded, _failure
+    with _lock:
+        if _loaded is not None:
+            return _loaded
+        if _failure is not None:
+            raise DualtwinError(_failure)
+        try:
+            path = build()
+            mujoco.mj_loadPluginLibrary(str(path))
+        except (DualtwinError, OSError, RuntimeError) as exc:
+            _failure = str(exc)
+            raise DualtwinError(_failure) from None
+        _loaded = path
+        return path
+
+
+def available() -> str | None:
+    """None when the plugin is loaded (building it if needed), else why it cannot be."""
+    if os.environ.get("DUALTWIN_NATIVE_LAW", "1") == "0":
+        return "turned off by DUALTWIN_NATIVE_LAW=0"
+    try:
+        load()
+    except DualtwinError as exc:
+        return str(exc)
+    return None
+
+
+def config(max_velocity: float, max_torque: float, kp: float, ki: float, kd: float, acceleration: float,
+           min_position: float, max_position: float, ctrl: str = "none") -> dict[str, str]:
+    """The plugin instance's config from a Webots motor's fields (``ctrl``: how it reads ``ctrl``)."""
+    values = {"maxVelocity": max_velocity, "maxTorque": max_torque, "Kp": kp, "Ki": ki, "Kd": kd,
+              "acceleration": acceleration, "minPosition": min_position, "maxPosition": max_position}
+    out = {key: repr(float(value)) for key, value in values.items()}
+    out["ctrl"] = ctrl
+    return out
+
+
+def attach(spec: mujoco.MjSpec, actuator: mujoco.MjsActuator, settings: dict[str, str]) -> None:
+    """Make ``actuator`` (a joint actuator of ``spec``) a plugin motor with ``settings`` (see :func:`config`):
+    one plugin instance per motor."""
+    if not any(p.plugin_name == PLUGIN for p in spec.plugins if not p.name):
+        spec.activate_plugin(PLUGIN)
+    instance = spec.add_plugin(name=f"webots_motor:{actuator.name or len(spec.plugins)}", plugin_name=PLUGIN,
+                               active=True)
+    instance.config = settings
+    actuator.plugin = instance
+    actuator.plugin.active = True
+
+
+def native_spec(spec: mujoco.MjSpec) -> mujoco.MjSpec | None:
+    """A copy of ``spec`` whose joint actuators run Webots' law in the plugin, or None when the plugin cannot
+    be loaded. Actuators that already use it keep their config; the MuJoCo twin writes its own values into
+    plugin_state anyway, so injected ones get an empty config (``ctrl`` unused)."""
+    if available() is not None:
+        return None
+    native = spec.copy()
+    for actuator in native.actuators:
+        if actuator.trntype == mujoco.mjtTrn.mjTRN_JOINT and not actuator.plugin.active:
+            attach(native, actuator, {"ctrl": "none"})
+    return native
+
+
+def slot_values(state: MotorState, kv: float, armature: float, predict: float,
+                saturated: float | None = None) -> list[tuple[int, float]]:
+    """(slot, value) for one motor's plugin_state from the twin's motor state: targets, limits, gains, servo
+    stiffness ``kv``, rotor ``armature`` and saturation bound ``predict``; with ``saturated`` (not None) its
+    law state too (integral, previous error, last u, saturation)."""
+    p = state.params
+    values = {"torque_mode": 1.0 if state.torque_mode else 0.0, "target_position": state.target_position,
+              "target_velocity": state.target_velocity, "torque": state.torque, "available": state.available_torque,
+              "kp": p.kp, "ki": p.ki, "kd": p.kd, "acceleration": p.acceleration, "kv": kv, "predict": predict,
+              "ctrl_mode": 0.0, "max_velocity": p.max_velocity, "max_torque": p.max_torque,
+              "min_position": p.min_position, "max_position": p.max_position, "gain": state.gain,
+              "armature": armature}
+    if saturated is not None:
+        values.update(integral=state.integral, previous_error=state.previous_error, u=state.current_velocity,
+                      saturated=saturated)
+    return [(SLOT[key], float(value)) for key, value in values.items()]
+
+
+if __name__ == "__main__":  # ``python -m dualtwin.twins.motor_plugin``: build now, print the library's path
+    try:
+        print(load())
+    except DualtwinError as exc:
+        print(exc, file=sys.stderr)
+        sys.exit(2)

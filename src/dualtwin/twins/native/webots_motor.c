@@ -1,0 +1,266 @@
+// Webots' motor law inside MuJoCo's step: the actuator plugin "dualtwin-webots-motor".
+//
+// One plugin instance per actuator (a joint transmission). Per physics step it does what the Python
+// reference (dualtwin.twins.motors.servo_steps with the MuJoCo twin's saturation state machine) does:
+//
+//   * u, the velocity the motor tracks: 0 without available torque; the target velocity under velocity
+//     control; Webots' PID on the position error, clamped to the target velocity, under position control;
+//     then the acceleration limit slews u from the previous step's value;
+//   * a stiff velocity servo, torque kv (u - qdot), made implicit by adding dt kv to the joint's diagonal of
+//     the inertia matrix (backward Euler that the constraint solver sees, like ODE's motor row), until the
+//     torque it needs exceeds the available torque: then a saturated torque of +-available, released once
+//     full torque would carry the joint past u;
+//   * torque control: the commanded torque.
+//
+// Why the inertia matrix and not the model's dof_armature (what the Python twin edits between steps): a
+// plugin gets a const model and runs on models shared between simulations (mujoco.batch), so it adds the
+// servo's dt kv to the diagonal itself and refactorises. For the sum to be the Python twin's crb + (a + dt kv)
+// bit for bit, the twin moves the joint's rotor inertia a from the model (dof_armature 0) into the slot
+// S_ARMATURE, which is added with the servo term; a model used elsewhere keeps a in dof_armature, and its
+// diagonal is (crb + a) + dt kv, one rounding apart.
+//
+// The law's state advances once per physics step: compute() (run by every mj_forward, including those
+// outside mj_step) writes the step's decisions into "pending" slots, and advance() (run by mj_step only,
+// after integration) commits them and applies the post-step saturation check at the new velocity.
+//
+// Everything lives in plugin_state (so mujoco.batch keeps it per simulation and bit-identical): targets,
+// limits, gains, kv and the law's state. reset() fills it from the instance's config; a program that is
+// not dualtwin's twin drives the motor through ctrl, interpreted by the config key "ctrl" (position,
+// velocity or torque) like Webots' setPosition/setVelocity/setTorque; "none" leaves ctrl unused (the
+// twin writes the targets into plugin_state directly).
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <mujoco/mujoco.h>
+
+// plugin_state layout, per instance (kept in sync with dualtwin/twins/motor_plugin.py)
+enum {
+  S_TORQUE_MODE = 0,  // 1: torque control
+  S_TARGET_POSITION,  // +inf: velocity control
+  S_TARGET_VELOCITY,
+  S_TORQUE,           // the commanded torque (torque control)
+  S_AVAILABLE,        // available torque: the servo's limit
+  S_KP,
+  S_KI,
+  S_KD,
+  S_ACCELERATION,     // < 0: unlimited
+  S_KV,               // servo stiffness (N m s / rad)
+  S_PREDICT,          // a servo torque above PREDICT x available saturates before the step
+  S_INTEGRAL,         // committed law state
+  S_PREVIOUS_ERROR,
+  S_U,
+  S_SATURATED,        // 0 servo, +-1 saturated
+  S_NEXT_INTEGRAL,    // this step's decisions, committed by advance()
+  S_NEXT_PREVIOUS_ERROR,
+  S_NEXT_U,
+  S_NEXT_SATURATED,
+  S_CTRL_MODE,        // 0 none, 1 position, 2 velocity, 3 torque
+  S_LAST_CTRL,        // the ctrl value last applied as a command (NaN: none yet)
+  S_MAX_VELOCITY,
+  S_MAX_TORQUE,
+  S_MIN_POSITION,
+  S_MAX_POSITION,
+  S_GAIN,
+  S_ACTUATOR,         // actuator id, joint dof and qpos address (set by reset)
+  S_DOF,
+  S_QPOS,
+  S_LAST,             // 1: the last instance of this plugin, which refactorises the inertia matrix
+  S_ARMATURE,         // rotor inertia added here rather than by the model (see below)
+  S_SIZE
+};
+
+static const char* kAttributes[] = {"maxVelocity", "maxTorque", "Kp", "Ki", "Kd", "acceleration",
+                                    "minPosition", "maxPosition", "stiffness", "predict", "ctrl"};
+static int kSlot = -1;
+
+static mjtNum config_number(const mjModel* m, int instance, const char* key, mjtNum fallback) {
+  const char* text = mj_getPluginConfig(m, instance, key);
+  if (!text || !text[0]) return fallback;
+  char* end = NULL;
+  mjtNum value = strtod(text, &end);
+  return end == text ? fallback : value;
+}
+
+static int actuator_of(const mjModel* m, int instance) {
+  for (int i = 0; i < m->nu; i++) {
+    if (m->actuator_plugin[i] == instance) return i;
+  }
+  return -1;
+}
+
+static int motor_nstate(const mjModel* m, int instance) { return S_SIZE; }
+
+static int motor_init(const mjModel* m, mjData* d, int instance) {
+  int actuator = actuator_of(m, instance);
+  if (actuator < 0 || m->actuator_trntype[actuator] != mjTRN_JOINT) {
+    mju_warning("dualtwin-webots-motor: instance %d drives no joint actuator", instance);
+    return -1;
+  }
+  return 0;
+}
+
+static void motor_reset(const mjModel* m, mjtNum* state, void* plugin_data, int instance) {
+  memset(state, 0, sizeof(mjtNum) * S_SIZE);
+  int actuator = actuator_of(m, instance);
+  int joint = actuator < 0 ? 0 : m->actuator_trnid[2 * actuator];
+  int dof = m->jnt_dofadr[joint];
+  int qpos = m->jnt_qposadr[joint];
+  mjtNum max_torque = config_number(m, instance, "maxTorque", 10.0);
+  mjtNum stiffness = config_number(m, instance, "stiffness", 100.0);
+  state[S_MAX_VELOCITY] = config_number(m, instance, "maxVelocity", 10.0);
+  state[S_MAX_TORQUE] = max_torque;
+  state[S_KP] = config_number(m, instance, "Kp", 10.0);
+  state[S_KI] = config_number(m, instance, "Ki", 0.0);
+  state[S_KD] = config_number(m, instance, "Kd", 0.0);
+  state[S_ACCELERATION] = config_number(m, instance, "acceleration", -1.0);
+  state[S_MIN_POSITION] = config_number(m, instance, "minPosition", 0.0);
+  state[S_MAX_POSITION] = config_number(m, instance, "maxPosition", 0.0);
+  state[S_PREDICT] = config_number(m, instance, "predict", 1.0 + stiffness);
+  // The servo stiffness is sized for the joint's inertia (armature included): dt kv = stiffness x M0.
+  state[S_KV] = stiffness * m->dof_M0[dof] / m->opt.timestep;
+  state[S_GAIN] = 1.0;
+  // Webots' initial state: hold the current (reference) position at up to max velocity.
+  state[S_TARGET_POSITION] = m->qpos0[qpos];
+  state[S_TARGET_VELOCITY] = state[S_MAX_VELOCITY];
+  state[S_AVAILABLE] = max_torque;
+  const char* mode = mj_getPluginConfig(m, instance, "ctrl");
+  mjtNum ctrl_mode = 0;
+  if (mode && !strcmp(mode, "position")) ctrl_mode = 1;
+  if (mode && !strcmp(mode, "velocity")) ctrl_mode = 2;
+  if (mode && !strcmp(mode, "torque")) ctrl_mode = 3;
+  state[S_CTRL_MODE] = ctrl_mode;
+  state[S_LAST_CTRL] = NAN;
+  state[S_ACTUATOR] = actuator;
+  state[S_DOF] = dof;
+  state[S_QPOS] = qpos;
+  int last = 1;
+  for (int i = instance + 1; i < m->nplugin; i++) {
+    if (m->plugin[i] == kSlot) last = 0;
+  }
+  state[S_LAST] = last;
+}
+
+static mjtNum clamp(mjtNum x, mjtNum lo, mjtNum hi) { return x < lo ? lo : (x > hi ? hi : x); }
+
+// Webots' setPosition/setVelocity/setTorque from ctrl, when the config asks for it (as MotorState does).
+static void apply_ctrl(mjtNum* s, mjtNum ctrl) {
+  if (s[S_CTRL_MODE] == 0 || ctrl == s[S_LAST_CTRL]) return;
+  s[S_LAST_CTRL] = ctrl;
+  mjtNum value = ctrl * s[S_GAIN];
+  if (s[S_CTRL_MODE] == 3) {
+    mjtNum limit = mju_min(s[S_AVAILABLE], s[S_MAX_TORQUE]);
+    s[S_TORQUE] = clamp(value, -limit, limit);
+    s[S_TORQUE_MODE] = 1;
+    return;
+  }
+  if (s[S_CTRL_MODE] == 1) {
+    if (s[S_MIN_POSITION] != s[S_MAX_POSITION] && isfinite(value)) {
+      value = mju_min(mju_max(value, s[S_MIN_POSITION]), s[S_MAX_POSITION]);
+    }
+    s[S_TARGET_POSITION] = value;
+    s[S_TARGET_VELOCITY] = s[S_MAX_VELOCITY];
+  } else {
+    s[S_TARGET_POSITION] = INFINITY;
+    s[S_TARGET_VELOCITY] = clamp(value, -s[S_MAX_VELOCITY], s[S_MAX_VELOCITY]);
+  }
+  s[S_TORQUE_MODE] = 0;
+  s[S_SATURATED] = 0;
+}
+
+static void motor_compute(const mjModel* m, mjData* d, int instance, int capability_bit) {
+  mjtNum* s = d->plugin_state + m->plugin_stateadr[instance];
+  int actuator = (int)s[S_ACTUATOR];
+  int dof = (int)s[S_DOF];
+  mjtNum dt = m->opt.timestep;
+  apply_ctrl(s, d->ctrl[actuator]);
+  mjtNum force;
+  mjtNum* diagonal = d->M + m->M_rowadr[dof] + m->M_rownnz[dof] - 1;  // the last entry of the row
+  mjtNum integral = s[S_INTEGRAL], previous_error = s[S_PREVIOUS_ERROR], saturated = s[S_SATURATED];
+  mjtNum u = s[S_U];
+  if (s[S_TORQUE_MODE] != 0) {
+    force = s[S_TORQUE];
+    saturated = 0;
+    *diagonal += s[S_ARMATURE];
+  } else {
+    // Webots' law (dualtwin.webots.motor_law.motor_velocity), operation for operation.
+    mjtNum available = s[S_AVAILABLE], target = s[S_TARGET_POSITION];
+    mjtNum qdot = d->qvel[dof];
+    mjtNum next;
+    if (available == 0.0) {
+      next = 0.0;
+    } else if (isinf(target)) {
+      next = s[S_TARGET_VELOCITY];
+    } else {
+      mjtNum error = target - d->qpos[(int)s[S_QPOS]];
+      integral = integral + error * dt;
+      mjtNum out = s[S_KP] * error + s[S_KI] * integral + s[S_KD] * (error - previous_error) / dt;
+      previous_error = error;
+      mjtNum limit = fabs(s[S_TARGET_VELOCITY]);
+      next = fabs(out) < limit ? out : copysign(limit, out);
+    }
+    if (s[S_ACCELERATION] >= 0) {
+      mjtNum step = s[S_ACCELERATION] * dt;
+      next = mju_max(u - step, mju_min(u + step, next));
+    }
+    u = next;
+    mjtNum kv = s[S_KV];
+    if (saturated != 0) {
+      if ((u - qdot) * saturated <= 0.0 || available <= 0.0) {
+        saturated = 0;
+        force = kv * (u - qdot);
+      } else {
+        force = saturated * available;
+      }
+    } else {
+      mjtNum torque = kv * (u - qdot);
+      if (fabs(torque) > s[S_PREDICT] * available) {
+        saturated = copysign(1.0, torque);
+        force = saturated * available;
+      } else {
+        force = torque;
+      }
+    }
+    // The implicit servo: dt kv on the joint's diagonal while it is active.
+    *diagonal += saturated == 0 ? s[S_ARMATURE] + kv * dt : s[S_ARMATURE];
+  }
+  s[S_NEXT_INTEGRAL] = integral;
+  s[S_NEXT_PREVIOUS_ERROR] = previous_error;
+  s[S_NEXT_U] = u;
+  s[S_NEXT_SATURATED] = saturated;
+  d->actuator_force[actuator] = force;
+  if (s[S_LAST] != 0) {
+    // The last instance: every servo's term is on the diagonal, factorise once.
+    mj_factorM(m, d);
+  }
+}
+
+static void motor_advance(const mjModel* m, mjData* d, int instance) {
+  mjtNum* s = d->plugin_state + m->plugin_stateadr[instance];
+  if (s[S_TORQUE_MODE] != 0) return;
+  s[S_INTEGRAL] = s[S_NEXT_INTEGRAL];
+  s[S_PREVIOUS_ERROR] = s[S_NEXT_PREVIOUS_ERROR];
+  s[S_U] = s[S_NEXT_U];
+  s[S_SATURATED] = s[S_NEXT_SATURATED];
+  if (s[S_SATURATED] == 0) {
+    // The backward-Euler servo torque this step applied; above the limit the motor saturates.
+    mjtNum torque = s[S_KV] * (s[S_U] - d->qvel[(int)s[S_DOF]]);
+    if (fabs(torque) > s[S_AVAILABLE]) s[S_SATURATED] = copysign(1.0, torque);
+  }
+}
+
+mjPLUGIN_LIB_INIT(dualtwin_webots_motor) {
+  mjpPlugin plugin;
+  mjp_defaultPlugin(&plugin);
+  plugin.name = "dualtwin-webots-motor";
+  plugin.capabilityflags |= mjPLUGIN_ACTUATOR;
+  plugin.nattribute = sizeof(kAttributes) / sizeof(kAttributes[0]);
+  plugin.attributes = kAttributes;
+  plugin.nstate = motor_nstate;
+  plugin.init = motor_init;
+  plugin.reset = motor_reset;
+  plugin.compute = motor_compute;
+  plugin.advance = motor_advance;
+  kSlot = mjp_registerPlugin(&plugin);
+}
