@@ -11,7 +11,7 @@ from dualtwin.webots.runner import run_world
 
 WORLD = """#VRML_SIM R2023b utf8
 WorldInfo { basicTimeStep 8 }
-Solid { translation 1.05 0 0.1 boundingObject Box { size 0.1 2 1 } }
+Solid { translation 1.05 0 0.1 children [ Shape { geometry DEF WALL Box { size 0.1 2 1 } } ] boundingObject USE WALL }
 Robot {
   name "sender"
   translation 0 0 0.1

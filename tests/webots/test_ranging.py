@@ -17,7 +17,8 @@ from dualtwin.webots.controller import Supervisor
 from dualtwin.webots.physics import Simulation
 from dualtwin.webots.rays import RayCaster, cast_ode
 
-WALL = "Solid { translation 0.55 0 0.1 boundingObject Box { size 0.1 4 4 } }"
+# a wall drawn and collided alike: ray sensors hit bounding objects, lidars and infra-red sensors visual Shapes
+WALL = "Solid { translation 0.55 0 0.1 children [ Shape { geometry DEF WALL_BOX Box { size 0.1 4 4 } } ] boundingObject USE WALL_BOX }"
 
 
 def _world(devices: str, wall: str = WALL, robot_extra: str = "") -> Supervisor:
@@ -93,7 +94,7 @@ def test_generic_four_rays_gaussian_weights() -> None:
     assert _read(sup, "ds") == pytest.approx(expected, rel=1e-9)
 
 
-def test_infra_red_falls_back_to_generic_and_laser_reads_one_ray() -> None:
+def test_infra_red_reads_like_generic_on_a_white_wall_and_laser_reads_one_ray() -> None:
     sup = _world(
         'DistanceSensor { name "ir" type "infra-red" numberOfRays 3 aperture 0.6 lookupTable [ 0 0 0, 2 2 0 ] } '
         'DistanceSensor { name "laser" type "laser" numberOfRays 5 lookupTable [ 0 0 0, 2 2 0 ] }'
@@ -197,7 +198,7 @@ def test_planar_lidar_and_range_finder_read_depth() -> None:
 
 def test_range_finder_min_range_and_wall_edge() -> None:
     # a narrow wall covering only the left half of the image: the right half sees nothing (+inf)
-    wall = "Solid { translation 0.55 1 0.1 boundingObject Box { size 0.1 2 4 } }"
+    wall = "Solid { translation 0.55 1 0.1 children [ Shape { geometry Box { size 0.1 2 4 } } ] }"
     sup = _world('RangeFinder { name "rf" width 4 height 2 fieldOfView 1.0 maxRange 3 }', wall=wall)
     rf = sup.getDevice("rf")
     rf.enable(8)
@@ -253,7 +254,7 @@ def test_sensors_on_a_moving_spinning_robot_follow_its_body() -> None:
     # zero gravity; the robot translates toward the wall and spins about z; the sensor sits 0.1 m ahead
     text = """#VRML_SIM R2023b utf8
 WorldInfo { basicTimeStep 8 gravity 0 }
-Solid { translation 0.55 0 0 boundingObject Box { size 0.1 40 4 } }
+Solid { translation 0.55 0 0 children [ Shape { geometry DEF W Box { size 0.1 40 4 } } ] boundingObject USE W }
 DEF R Robot { supervisor TRUE boundingObject Sphere { radius 0.05 } physics Physics { mass 1 }
   children [
     DistanceSensor { name "ds" translation 0.1 0 0 lookupTable [ 0 0 0, 2 2 0 ] }

@@ -69,7 +69,7 @@ from dualtwin.webots.physics import (
 )
 from dualtwin.webots.propeller import install as install_propellers
 from dualtwin.webots.radio import Emitter, Receiver
-from dualtwin.webots.ranging import DistanceSensor, Lidar, LidarPoint, RangeFinder, sample_ray_sensors
+from dualtwin.webots.ranging import DistanceSensor, Lidar, LidarPoint, RangeFinder
 from dualtwin.webots.runtime import (
     SIMULATION_MODE_FAST,
     SIMULATION_MODE_PAUSE,
@@ -177,18 +177,7 @@ class Robot:
             raise ValueError(f"Robot.step() expects a duration >= 0 ms, got {ms!r}")
         result = self._runtime.advance(self._client, ms)
         self._mode = self._runtime.mode  # simulationGetMode() reports the mode at the last step
-        if result != -1 or self._sensors:
-            now = self._sim.time
-            due = [sensor for sensor in self._sensors.values() if sensor._due(now)]
-            rays = [sensor for sensor in due if hasattr(sensor, "_ray_spec")]
-            if rays:
-                # ray devices are cast together, one batch per step (ranging.sample_ray_sensors)
-                for sensor in rays:
-                    sensor._last_sample = now
-                sample_ray_sensors(self._sim, rays)
-            for sensor in due:
-                if not hasattr(sensor, "_ray_spec"):
-                    sensor._sample(now)
+        # sensors were sampled during the step, at the basic steps where they fell due (device_base)
         if self._keyboard is not None:
             self._keyboard._after_step(self._sim.time, self._runtime.clock)
         return result

@@ -46,11 +46,14 @@ REGISTRY: tuple[Coverage, ...] = (
     # -- scene structure and world
     Coverage("WorldInfo", "scene", "partial",
              "basicTimeStep, gravity, ERP/CFM, damping, contactProperties, auto-disable, maxContactJoints "
-             "follow Webots; randomSeed does not seed sensor noise; a NUE world only gets its gravity "
-             "direction"),
+             "follow Webots; randomSeed does not seed sensor noise; coordinateSystem (ENU/NUE/EUN) sets the "
+             "gravity direction and the InertialUnit's and GPS's reference axes; gpsCoordinateSystem WGS84 and "
+             "gpsReference drive GPS latitude/longitude"),
     Coverage("Solid", "scene", "supported",
              "bodies with mass from Physics/boundingObject, merging and the static basis, kinematic solids, "
-             "supervisor pose/velocity edits"),
+             "supervisor pose/velocity edits; Box/Sphere/Cylinder/Capsule/IndexedFaceSet edits (also through "
+             "DEF/USE) resize the ODE geom at the next step, wake bodies around it and reach ray sensors; "
+             "edits of PROTO interface fields do not reach the expanded nodes yet"),
     Coverage("Robot", "scene", "supported",
              "Python controllers run unchanged (runner), supervisor API, selfCollision, controllerArgs; C "
              "controllers do not run; battery drained by cpuConsumption and motor consumptionFactor × |torque| "
@@ -118,15 +121,28 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("LinearMotor", "device", "partial", "as RotationalMotor"),
     Coverage("PositionSensor", "device", "supported", "sampled joint position with noise and resolution"),
     Coverage("Brake", "device", "not", "not yet: braking torque is not applied"),
-    Coverage("GPS", "device", "supported", "world position and speed (no noise model)"),
-    Coverage("Gyro", "device", "supported", "angular velocity in the device frame"),
-    Coverage("Accelerometer", "device", "supported", "proper acceleration in the device frame"),
-    Coverage("InertialUnit", "device", "supported", "roll/pitch/yaw and quaternion"),
+    Coverage("GPS", "device", "supported",
+             "position of the device origin (world axes, or WGS84 latitude/longitude/altitude around "
+             "gpsReference), accuracy noise, resolution; speed and speed vector from the displacement over the "
+             "last basic step (speedResolution); NaN until the first sample; noiseCorrelation and speedNoise "
+             "are not applied"),
+    Coverage("Gyro", "device", "supported",
+             "angular velocity of the carrying body in the device frame, per-axis lookup table (noise), "
+             "resolution, disabled axes read NaN"),
+    Coverage("Accelerometer", "device", "supported",
+             "proper acceleration of the device origin as a point of its body (lever-arm centripetal and "
+             "tangential terms), change of point velocity over the last basic step minus gravity, in the "
+             "device frame; per-axis lookup table (noise), resolution, disabled axes read NaN"),
+    Coverage("InertialUnit", "device", "supported",
+             "roll/pitch/yaw and quaternion of the device frame in the world's reference frame (ENU as is; "
+             "NUE/EUN read with their up axis as z, so a turn about the vertical is a yaw), resolution, "
+             "disabled axes read NaN; the noise field is reported, not applied"),
     Coverage("DistanceSensor", "device", "partial",
              "generic, sonar and laser as Webots: rays against bounding objects (own robot excluded unless "
              "selfCollision), ray layout and Gaussian weights, sonar echo angle, lookup table with noise, "
-             "resolution; infra-red is cast like generic (no visual shapes or colours headless) and "
-             "transparency is not known"),
+             "resolution, sampled at the basic step where the period elapses; infra-red rays hit the visual "
+             "Shapes (own robot included, transparent ones skipped) with a reflection factor of 1 (no "
+             "colours)"),
     Coverage("Compass", "device", "supported",
              "north of WorldInfo.coordinateSystem (+y ENU, +x NUE, +z EUN) in the device frame, per-axis "
              "lookupTable and resolution"),
@@ -136,11 +152,11 @@ REGISTRY: tuple[Coverage, ...] = (
              "bumper from contacts of its bounding object in any step since the last sample; force and "
              "force-3d from the feedback of the fixed joint to its own body, with lookup table and resolution"),
     Coverage("Lidar", "device", "partial",
-             "fixed lidar as one ray per pixel against bounding objects (Webots renders visual shapes): layers, "
+             "fixed lidar as one ray per pixel against the visual Shapes (as Webots renders them): layers, "
              "fov, tilt, cylindrical (Euclidean) or planar (depth) ranges, +inf outside [minRange, maxRange), "
              "noise, resolution, point cloud; a rotating lidar is cast as a fixed one"),
     Coverage("RangeFinder", "device", "partial",
-             "planar depth image as one ray per pixel against bounding objects (Webots renders visual shapes); "
+             "planar depth image as one ray per pixel against the visual Shapes (as Webots renders them); "
              "+inf outside [minRange, maxRange), noise, resolution; no lens, motion blur or saveImage"),
     Coverage("Camera", "device", "partial",
              "planar BGRA image of the world's Shapes in their flat colours, drawn headless by the MuJoCo "

@@ -32,7 +32,7 @@ class DeviceHost(Protocol):
     def getTime(self) -> float: ...  # noqa: N802 - Webots' method name
 
 
-__all__ = ["Device", "DeviceHost", "SampledDevice", "SolidSensor"]
+__all__ = ["Device", "DeviceHost", "SampledDevice", "SolidSensor", "install_sampler", "sample_due"]
 
 
 class Device:
@@ -56,7 +56,20 @@ class Device:
 
 
 class SampledDevice(Device):
-    """A sensor with Webots' enable/sampling-period protocol (docs/reference/webots-on-ode.md §5.4)."""
+    """A sensor with Webots' enable/sampling-period protocol (``WbSensor``, docs/reference/webots-devices.md §0.1).
+
+    ``enable(p)`` at time t₀ makes a sample due at every basic time step where at least ``p`` ms passed since the
+    last one (t₀ + p, t₀ + 2p, ... when ``p`` is a multiple of basicTimeStep; a period that is not drifts as in
+    Webots). Samples are taken *during* ``Robot.step``, at the end of the basic step where they fall due
+    (:func:`install_sampler` registers the simulation hook), so after ``step(k·basicTimeStep)`` a sensor reads
+    the state at the last multiple of its period, not the state after the step, and a supervisor edit made
+    at a sampling instant shows only in the next sample. Devices that need the state of every basic step
+    (a GPS speed, an accelerometer) set ``_tracks_steps`` and get :meth:`_each_step`. Devices sampled
+    together (rays) name a ``_batch_sampler(sim, devices)``.
+    """
+
+    _tracks_steps = False
+    _batch_sampler: Any = None
 
     def __init__(self, robot: DeviceHost, name: str, record: Any) -> None:
         super().__init__(robot, name, record)
@@ -73,7 +86,10 @@ class SampledDevice(Device):
         self._enabled_at = self._robot.getTime()
         self._last_sample = None
         self._invalidate()
+        install_sampler(self._robot)
         self._robot._sensors[id(self)] = self
+        if self._tracks_steps:
+            self._start_tracking()
 
     def disable(self) -> None:
         self._period = 0
@@ -95,6 +111,50 @@ class SampledDevice(Device):
 
     def _read(self) -> None:
         raise NotImplementedError
+
+    def _start_tracking(self) -> None:
+        """Record the state at enable time (the first step's 'previous' state)."""
+
+    def _each_step(self) -> None:
+        """Record the state of this basic step (called before any sample of the step)."""
+
+
+def sample_due(host: DeviceHost, now: float) -> None:
+    """Sample ``host``'s enabled sensors that are due at ``now`` (the end of a basic time step)."""
+    sensors = list(host._sensors.values())
+    for sensor in sensors:
+        if sensor._tracks_steps:
+            sensor._each_step()
+    batches: dict[Any, list[SampledDevice]] = {}
+    for sensor in sensors:
+        if not sensor._due(now):
+            continue
+        if sensor._batch_sampler is None:
+            sensor._sample(now)
+        else:
+            sensor._last_sample = now
+            batches.setdefault(sensor._batch_sampler, []).append(sensor)
+    for sampler, devices in batches.items():
+        sampler(host._sim, devices)
+
+
+def install_sampler(host: DeviceHost) -> None:
+    """Make the simulation sample ``host``'s sensors at the end of every basic step (once per host)."""
+    sim = host._sim
+    hosts: list[DeviceHost] | None = sim.extensions.get("sampled_hosts")
+    if hosts is None:
+        hosts = sim.extensions["sampled_hosts"] = []
+        registered = hosts
+
+        def sample_all() -> None:
+            now = sim.time
+            for h in registered:
+                if h._sensors:
+                    sample_due(h, now)
+
+        sim.sample_hooks.append(sample_all)
+    if not any(h is host for h in hosts):
+        hosts.append(host)
 
 
 class SolidSensor(SampledDevice):

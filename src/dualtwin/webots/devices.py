@@ -9,6 +9,7 @@ radio, display, keyboard, touch) already have their own modules.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 from dualtwin.webots import _math3 as m3
@@ -23,12 +24,14 @@ from dualtwin.webots.joint_devices import Motor, PositionSensor
 from dualtwin.webots.keyboard import Keyboard
 from dualtwin.webots.led import LED
 from dualtwin.webots.light_sensor import LightSensor
+from dualtwin.webots.lut import Table, discretize, lookup, table_from_field
 from dualtwin.webots.pen import Pen
 from dualtwin.webots.radar import Radar
 from dualtwin.webots.radio import Emitter, Receiver
 from dualtwin.webots.ranging import DistanceSensor, Lidar, RangeFinder
 from dualtwin.webots.touch import TouchSensor
 from dualtwin.webots.vacuum_gripper import VacuumGripper
+from dualtwin.webots.world_frame import in_reference_frame, to_wgs84
 
 __all__ = [
     "GPS",
@@ -49,62 +52,206 @@ _Sampled = SampledDevice
 _SolidSensor = SolidSensor
 
 
-class GPS(_SolidSensor):
-    """World position of the device (ENU, metres)."""
+def _lut_axes(device: _TableSensor, vector: Sequence[float]) -> list[float]:
+    """Webots' per-axis post-processing of a 3-vector sensor: a disabled axis (``xAxis``/``yAxis``/``zAxis``
+    FALSE) reads NaN, the others go through the ``lookupTable`` (interpolation, multiplicative noise) and the
+    ``resolution``."""
+    fields = device._record.node.fields
+    table = device._table()
+    resolution = float(fields.get("resolution", -1.0))
+    rng = device._robot._sim.rng
+    out = []
+    for flag, v in zip(("xAxis", "yAxis", "zAxis"), vector, strict=True):
+        if not fields.get(flag, True):
+            out.append(math.nan)
+            continue
+        out.append(discretize(lookup(table, float(v), rng), resolution))
+    return out
 
-    def _read(self) -> None:
-        self._values = list(self._pose().t)
+
+class _TableSensor(_SolidSensor):
+    """A sensor with a ``lookupTable`` field (empty: the identity, without noise)."""
+
+    def _table(self) -> Table:
+        table = getattr(self, "_table_cache", None)
+        if table is None:
+            table = self._table_cache = table_from_field(self._record.node.fields.get("lookupTable", []))
+        return table
+
+    def getLookupTable(self) -> list[float]:
+        return [v for row in self._table() for v in row]
+
+    @property
+    def lookup_table(self) -> list[float]:
+        return self.getLookupTable()
 
     def getValues(self) -> list[float]:
         return list(self._values)
+
+    @property
+    def value(self) -> list[float]:
+        return self.getValues()
+
+
+class GPS(_SolidSensor):
+    """Position of the device's origin in the world (``LOCAL``, metres, the world's own axes) or, when
+    ``WorldInfo.gpsCoordinateSystem`` is ``"WGS84"``, latitude/longitude (degrees) and altitude around
+    ``gpsReference`` (:mod:`.world_frame`); ``accuracy`` adds Gaussian noise (m) and ``resolution`` rounds.
+    Speed: the device origin's displacement over the last basic time step (``getSpeedVector``, world axes,
+    and its norm ``getSpeed``), rounded to ``speedResolution``. Everything reads NaN until the first sample."""
+
+    LOCAL = 0
+    WGS84 = 1
+    _tracks_steps = True
+
+    def _invalidate(self) -> None:
+        self._values = [math.nan] * 3
+        self._speed_vector = [math.nan] * 3
+        self._position_now = self._pose().t
+        self._position_before = self._position_now
+
+    def _each_step(self) -> None:
+        self._position_before = self._position_now
+        self._position_now = self._pose().t
+
+    def _world_info(self) -> dict[str, Any]:
+        info = self._robot._sim.world.world_info()
+        return info.fields if info is not None else {}
+
+    def getCoordinateSystem(self) -> int:
+        return self.WGS84 if str(self._world_info().get("gpsCoordinateSystem", "local")) == "WGS84" else self.LOCAL
+
+    @property
+    def coordinate_system(self) -> int:
+        return self.getCoordinateSystem()
+
+    def _read(self) -> None:
+        sim = self._robot._sim
+        fields = self._record.node.fields
+        position = list(self._position_now)
+        accuracy = float(fields.get("accuracy", 0.0))
+        if accuracy > 0:
+            position = [p + sim.rng.gauss(0.0, accuracy) for p in position]
+        if self.getCoordinateSystem() == self.WGS84:
+            reference = self._world_info().get("gpsReference", (0.0, 0.0, 0.0))
+            position = to_wgs84(position, reference, sim.coordinate_system)
+        resolution = float(fields.get("resolution", -1.0))
+        self._values = [discretize(p, resolution) for p in position]
+        speed_resolution = float(fields.get("speedResolution", -1.0))
+        velocity = m3.scale(m3.sub(self._position_now, self._position_before), 1.0 / sim.dt)
+        self._speed_vector = [discretize(v, speed_resolution) for v in velocity]
+
+    def getValues(self) -> list[float]:
+        return list(self._values)
+
+    @property
+    def value(self) -> list[float]:
+        return self.getValues()
 
     def getSpeed(self) -> float:
-        v = self._robot._sim.solid_velocity(self._record.solid)
-        return math.sqrt(v[0] ** 2 + v[1] ** 2 + v[2] ** 2)
+        return m3.norm(self._speed_vector) if all(math.isfinite(v) for v in self._speed_vector) else math.nan
+
+    @property
+    def speed(self) -> float:
+        return self.getSpeed()
+
+    def getSpeedVector(self) -> list[float]:
+        return list(self._speed_vector)
+
+    @property
+    def speed_vector(self) -> list[float]:
+        return self.getSpeedVector()
+
+    @staticmethod
+    def convertToDegreesMinutesSeconds(decimalDegrees: Any) -> str:
+        """Degrees, minutes and seconds of a decimal angle, written as Webots writes them (``46° 30′ 0″``)."""
+        value = float(decimalDegrees)
+        degrees = int(value)
+        minutes_f = abs(value - degrees) * 60.0
+        minutes = int(minutes_f)
+        seconds = (minutes_f - minutes) * 60.0
+        return f"{degrees}° {minutes}′ {seconds:g}″"
 
 
-class Gyro(_SolidSensor):
-    """Angular velocity in the device frame (rad/s)."""
+class Gyro(_TableSensor):
+    """Angular velocity of the body carrying the device, in the device's frame (rad/s), per axis through the
+    lookup table and resolution; NaN for a disabled axis."""
 
     def _read(self) -> None:
-        v = self._robot._sim.solid_velocity(self._record.solid)
-        self._values = list(m3.mat_t_vec(self._pose().R, v[3:6]))
-
-    def getValues(self) -> list[float]:
-        return list(self._values)
+        sim = self._robot._sim
+        w = sim.angular_velocity(self._record.solid)
+        self._values = _lut_axes(self, m3.mat_t_vec(self._pose().R, w))
 
 
-class Accelerometer(_SolidSensor):
-    """Proper acceleration in the device frame (m/s²); reads +g upward at rest."""
+class Accelerometer(_TableSensor):
+    """Proper acceleration of the device's origin in its own frame (m/s²; +g upward at rest).
 
-    def enable(self, samplingPeriod: Any) -> None:
-        self._robot._sim.track_acceleration(self._record.solid)
-        super().enable(samplingPeriod)
+    The device origin is a point of the body carrying it: its velocity is the body's CoM velocity plus
+    ω × lever arm (``dBodyGetPointVel``), followed basic step by basic step; the acceleration is its change over
+    the last step, minus gravity, rotated into the device frame. A device away from the centre of mass of a
+    rotating body therefore reads the centripetal (ω × (ω × r)) and tangential (α × r) terms of where it is
+    mounted. Then lookup table and resolution per axis; NaN for a disabled axis."""
+
+    _tracks_steps = True
+
+    def _invalidate(self) -> None:
+        self._values = [math.nan] * 3
+        self._velocity_now = self._robot._sim.point_velocity(self._record.solid)
+        self._velocity_before = self._velocity_now
+
+    def _each_step(self) -> None:
+        self._velocity_before = self._velocity_now
+        self._velocity_now = self._robot._sim.point_velocity(self._record.solid)
 
     def _read(self) -> None:
-        self._values = list(self._robot._sim.acceleration(self._record.solid))
-
-    def getValues(self) -> list[float]:
-        return list(self._values)
+        sim = self._robot._sim
+        a = m3.scale(m3.sub(self._velocity_now, self._velocity_before), 1.0 / sim.dt)
+        self._values = _lut_axes(self, m3.mat_t_vec(self._pose().R, m3.sub(a, sim.gravity)))
 
 
 class InertialUnit(_SolidSensor):
-    """Orientation of the device: roll/pitch/yaw (ENU) and quaternion (x, y, z, w)."""
+    """Orientation of the device in the world's reference frame (:mod:`.world_frame`: ENU as is, NUE/EUN with
+    their up axis as z): roll/pitch/yaw (``R = Rz(yaw)·Ry(pitch)·Rx(roll)``) and the quaternion (x, y, z, w).
+    A disabled axis (``xAxis`` → roll, ``yAxis`` → pitch, ``zAxis`` → yaw) reads NaN; ``resolution`` rounds
+    the angles. ``noise`` is reported by ``getNoise`` but not applied."""
 
     def _invalidate(self) -> None:
         self._R: m3.Mat3 | None = None
 
     def _read(self) -> None:
-        self._R = self._pose().R
+        self._R = in_reference_frame(self._pose().R, self._robot._sim.coordinate_system)
 
     def getRollPitchYaw(self) -> list[float]:
-        return list(m3.roll_pitch_yaw(self._R)) if self._R is not None else [math.nan] * 3
+        if self._R is None:
+            return [math.nan] * 3
+        fields = self._record.node.fields
+        resolution = float(fields.get("resolution", -1.0))
+        angles = m3.roll_pitch_yaw(self._R)
+        return [
+            discretize(a, resolution) if fields.get(flag, True) else math.nan
+            for flag, a in zip(("xAxis", "yAxis", "zAxis"), angles, strict=True)
+        ]
+
+    @property
+    def roll_pitch_yaw(self) -> list[float]:
+        return self.getRollPitchYaw()
 
     def getQuaternion(self) -> list[float]:
         if self._R is None:
             return [math.nan] * 4
         w, x, y, z = m3.quat_from_mat(self._R)
         return [x, y, z, w]
+
+    @property
+    def quaternion(self) -> list[float]:
+        return self.getQuaternion()
+
+    def getNoise(self) -> float:
+        return float(self._record.node.fields.get("noise", 0.0))
+
+    @property
+    def noise(self) -> float:
+        return self.getNoise()
 
 
 class UnsupportedSensor(_SolidSensor):

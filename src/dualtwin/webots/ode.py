@@ -271,6 +271,11 @@ _SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
     "dGeomSphereGetRadius": (D, [P]),
     "dGeomCylinderGetParams": (None, [P, P, P]),
     "dGeomCapsuleGetParams": (None, [P, P, P]),
+    "dGeomBoxSetLengths": (None, [P, D, D, D]),
+    "dGeomSphereSetRadius": (None, [P, D]),
+    "dGeomCylinderSetParams": (None, [P, D, D]),
+    "dGeomCapsuleSetParams": (None, [P, D, D]),
+    "dGeomTriMeshSetData": (None, [P, P]),
     # rays (distance sensors, lidars, range finders)
     "dCreateRay": (P, [P, D]),
     "dGeomRaySet": (None, [P, D, D, D, D, D, D]),

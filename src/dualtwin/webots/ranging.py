@@ -1,4 +1,4 @@
-"""DistanceSensor, Lidar and RangeFinder: Webots' ranging devices, cast as rays against bounding objects.
+"""DistanceSensor, Lidar and RangeFinder: Webots' ranging devices, cast as rays against the scene's geometry.
 
 DistanceSensor (Webots ``WbDistanceSensor``)
     ``type`` generic / infra-red (also "infrared") / sonar / laser, case-insensitive; any other string is a
@@ -9,14 +9,13 @@ DistanceSensor (Webots ``WbDistanceSensor``)
     sonar — the nearest hit whose surface faces the ray within π/8, else the full length; laser — the hit
     distance or the full length. Then the lookup table (interpolation, multiplicative noise) and the
     resolution. No hit therefore reads the table's *last output*. An empty table reads 0.
-    Infra-red differs from Webots: Webots intersects the rays with the *visual* shapes of the whole scene and
-    weights the distance by the red colour of what it hits; headless there are no visual shapes, so infra-red
-    rays are cast against bounding objects like the others, with a reflection factor of 1 (which makes them
-    read as generic). Transparency is not known either, so nothing is skipped as transparent.
+    Infra-red rays hit the *visual* Shapes of the scene (:mod:`.visual_rays`), as Webots intersects them with
+    the Shapes' geometry; Webots also weights the distance by the red colour of what it hits, which is not
+    modelled (a reflection factor of 1, so infra-red reads as generic on what it sees).
 
 Lidar (fixed) and RangeFinder
-    Webots renders depth on the GPU from the visual scene. Here one ray per pixel is cast against bounding
-    objects: Lidar column ``j`` at azimuth ``fov/2 - (j+½)·fov/W``, layer ``i`` at elevation
+    Webots renders depth on the GPU from the visual scene. Here one ray per pixel is cast against the visual
+    Shapes (:mod:`.visual_rays`): Lidar column ``j`` at azimuth ``fov/2 - (j+½)·fov/W``, layer ``i`` at elevation
     ``vfov/2 - i·vfov/(L-1) + tilt`` (``tilt`` for one layer); cylindrical projection reads the Euclidean
     distance, planar projection the depth along the device's x axis over a flat image plane. RangeFinder is a
     planar ``width × height`` depth image, vertical field of view ``2·atan(tan(fov/2)·height/width)``, row-major
@@ -27,8 +26,8 @@ Lidar (fixed) and RangeFinder
     ``getLayerRangeImage(layer)`` returns that layer (Webots' Python wrapper returns layer 0 for every layer,
     a bug that is not reproduced).
 
-Rays are cast only when a sample is due (the controller's sampling protocol), in one vectorised batch per device
-(:mod:`.rays`).
+Rays are cast only when a sample is due (the sampling protocol of :mod:`.device_base`: at the basic step where the
+period elapses), in one vectorised batch per robot (:mod:`.rays`).
 """
 
 from __future__ import annotations
@@ -45,6 +44,7 @@ from dualtwin.webots.device_base import SolidSensor
 from dualtwin.webots.lut import Table, discretize, lookup, table_from_field
 from dualtwin.webots.physics import GeomRec, RobotRec, Simulation
 from dualtwin.webots.rays import RayCaster, RayHits, candidate_geoms
+from dualtwin.webots.visual_rays import visual_targets
 
 __all__ = [
     "DistanceSensor",
@@ -155,15 +155,17 @@ def sample_ray_sensors(sim: Simulation, sensors: Sequence[Any]) -> None:
     parent Solid is carried in the parent's frame, so the whole batch needs one world pose per parent. Devices
     finish in the order given, so noise draws happen in the same order as sampling them one by one.
     """
-    groups: dict[int, tuple[RobotRec | None, list[Any], list[tuple[np.ndarray, np.ndarray]]]] = {}
+    groups: dict[tuple[int, int], tuple[RobotRec | None, list[Any], list[tuple[np.ndarray, np.ndarray]]]] = {}
     for dev in sensors:
         spec = dev._ray_spec()
         if spec is None:
             continue
         robot = dev._record.solid.robot
-        groups.setdefault(id(robot), (robot, [], []))
-        groups[id(robot)][1].append(dev)
-        groups[id(robot)][2].append(spec)
+        # devices whose rays hit visual Shapes (each blind to its own Shapes) go in a batch of their own
+        group_key = (id(robot), id(dev._record.solid) if dev._visual_rays else 0)
+        groups.setdefault(group_key, (robot, [], []))
+        groups[group_key][1].append(dev)
+        groups[group_key][2].append(spec)
     caster = caster_for(sim)
     cache = sim.extensions.setdefault("ray_batches", {})
     for robot, devices, specs in groups.values():
@@ -181,7 +183,11 @@ def sample_ray_sensors(sim: Simulation, sensors: Sequence[Any]) -> None:
             origins[a:b] = batch.origins[a:b] @ R.T + t
             dirs[a:b] = batch.directions[a:b] @ R.T
         normals = any(getattr(d, "_needs_normals", False) for d in devices)  # sonars only
-        hits = caster.cast(origins, dirs, batch.lengths, _targets(sim, robot), normals=normals)
+        if devices[0]._visual_rays:
+            targets = visual_targets(sim, devices[0]._record.solid)
+        else:
+            targets = _targets(sim, robot)
+        hits = caster.cast(origins, dirs, batch.lengths, targets, normals=normals)
         for dev, (a, b) in zip(devices, batch.slices, strict=True):
             part = RayHits(hits.distance[a:b], hits.normal[a:b], hits.index[a:b], hits.geoms)
             dev._ray_result(part, dirs[a:b])
@@ -312,6 +318,13 @@ class DistanceSensor(SolidSensor):
     INFRA_RED = 1
     SONAR = 2
     LASER = 3
+
+    _batch_sampler = staticmethod(sample_ray_sensors)  # rays of all due devices are cast together
+
+    @property
+    def _visual_rays(self) -> bool:
+        """Infra-red rays hit visual Shapes (:mod:`.visual_rays`); the other types hit bounding objects."""
+        return self._model().kind == self.INFRA_RED
 
     def _model(self) -> DistanceModel:
         model = getattr(self, "_model_cache", None)
@@ -481,6 +494,9 @@ class LidarPoint:
 
 
 class _DepthDevice(SolidSensor):
+    _batch_sampler = staticmethod(sample_ray_sensors)
+    _visual_rays = True  # Webots renders the visual scene (:mod:`.visual_rays`)
+
     def _invalidate(self) -> None:
         self._image: np.ndarray | None = None
 

@@ -149,8 +149,13 @@ class RayCaster:
         self.lib = ode.load()
         self._groups: dict[int, tuple[Sequence[GeomRec], list[_Group], list[GeomRec]]] = {}
         self._aabb = (ctypes.c_double * 6)()
+        self._version = sim.geometry_version
 
     def _grouped(self, geoms: Sequence[GeomRec]) -> tuple[list[_Group], list[GeomRec]]:
+        version = self.sim.geometry_version  # a supervisor resized a geom: cached dimensions are stale
+        if version != self._version:
+            self._groups.clear()
+            self._version = version
         cached = self._groups.get(id(geoms))
         if cached is not None and cached[0] is geoms:
             return cached[1], cached[2]

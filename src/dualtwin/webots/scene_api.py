@@ -388,7 +388,21 @@ class Field:
         solid = self._sim.solid_for(self._node)
         if solid is not None and self._name == "translation":
             self._sim.queue_set_pose(solid, vec, None)
+            self._node.fields[self._name] = vec
+            return
         self._node.fields[self._name] = vec
+        self._sim.field_changed(self._node, self._name)
+
+    def setMFVec3f(self, index: Any, values: Sequence[float]) -> None:
+        index = as_int(index, "Field.setMFVec3f")
+        values = as_floats(values, "Field.setMFVec3f")
+        items = list(self._raw() or [])
+        if len(values) != 3 or not _finite(*values) or not -len(items) <= index < len(items):
+            _warn(f"Field.setMFVec3f() needs 3 finite values and a valid index on '{self._name}'")
+            return
+        items[index] = tuple(float(v) for v in values)
+        self._node.fields[self._name] = items
+        self._sim.field_changed(self._node, self._name)
 
     def setSFRotation(self, values: Sequence[float]) -> None:
         values = as_floats(values, "Field.setSFRotation")

@@ -160,6 +160,7 @@ class Simulation(Stepper):
         # and register callables run after each step's collision pass (post-step state, contacts of the step)
         self.extensions = {}
         self.step_hooks = []
+        self.sample_hooks = []  # run after every step hook: controllers' sensors sampling (device_base)
         self.pre_step_hooks = []
         self.reset_hooks = []  # device state that simulationReset restores
         self._read_world_info()
@@ -177,6 +178,7 @@ class Simulation(Stepper):
         self.dt = step_ms * 0.001
         g = float(_f(info, "gravity", 9.81))
         cs = str(_f(info, "coordinateSystem", "ENU"))
+        self.coordinate_system = cs
         self.gravity = (0.0, 0.0, -g) if cs == "ENU" else (0.0, -g, 0.0)
         erp = float(_f(info, "ERP", 0.2))
         cfm = float(_f(info, "CFM", 0.00001))

@@ -450,7 +450,10 @@ class SceneBuilder(SimulationCore):
         if not ptr:
             self.warn(f"Solid '{solid.name}': invalid {t} dimensions; no geom created")
             return
-        gr = GeomRec(ptr=ptr, solid=solid, kind=t, local=local, body=solid.body, keepalive=keep)
+        gr = GeomRec(
+            ptr=ptr, solid=solid, kind=t, local=local, body=solid.body, keepalive=keep, source=node,
+            scale=tuple(float(v) for v in scale),
+        )
         self._register_geom(gr)
         if solid.body is not None:
             # §3.2: geoms attached, then placed at their world pose (offset relative to the CoM)

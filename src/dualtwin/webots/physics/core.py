@@ -70,11 +70,13 @@ class SimulationCore:
     _accel_cur: dict[int, tuple[float, float, float]]
     extensions: dict[str, Any]
     step_hooks: list[Callable[[], None]]
+    sample_hooks: list[Callable[[], None]]
     pre_step_hooks: list[Callable[[float], None]]
     reset_hooks: list[Callable[[], None]]
     basic_time_step: float
     dt: float
     gravity: m3.Vec3
+    coordinate_system: str
     erp: float
     cfm: float
     disable_time: float

@@ -14,7 +14,7 @@ from dualtwin.webots import ode
 from dualtwin.webots._math3 import Pose
 from dualtwin.webots.mass_rules import rot_matrix
 from dualtwin.webots.nodes import Node
-from dualtwin.webots.physics.collision import CollisionPass
+from dualtwin.webots.physics.geometry_edits import GEOMETRY_TYPES, GeometryEdits
 from dualtwin.webots.physics.records import (
     BodyRec,
     JointRec,
@@ -23,7 +23,7 @@ from dualtwin.webots.physics.records import (
 )
 
 
-class SupervisorEdits(CollisionPass):
+class SupervisorEdits(GeometryEdits):
     """Teleports, field edits, velocities and sensor readings (see the module docstring)."""
 
     def reset_physics(self, solid: SolidRec | None = None) -> None:
@@ -228,8 +228,8 @@ class SupervisorEdits(CollisionPass):
         Webots reacts to field edits at run time (WbJoint/WbMotor/WbPhysics/WbContactProperties update
         their ODE objects). Supported: joint ``dampingConstant``/``springConstant``/``staticFriction``,
         motor ``maxVelocity``/``maxTorque``/``maxForce``, ``Physics.mass`` (inertia scaled with it, CoM
-        unchanged), ``ContactProperties`` friction/bounce/soft ERP/CFM, and ``WorldInfo`` ERP/CFM.
-        Returns False for fields whose edit has no physics effect here.
+        unchanged), ``ContactProperties`` friction/bounce/soft ERP/CFM, ``WorldInfo`` ERP/CFM, and the
+        dimensions of bounding geometries (:mod:`.geometry_edits`). Returns False for fields whose edit has no physics effect here.
         """
         applied = self._apply_field(node, name)
         if applied:
@@ -238,6 +238,8 @@ class SupervisorEdits(CollisionPass):
         return applied
 
     def _apply_field(self, node: Node, name: str) -> bool:
+        if node.type_name in GEOMETRY_TYPES:
+            return self._apply_geometry(node, name)
         lib = self._lib
         value: Any = node.fields.get(name)
         joint = next((j for j in self.joints if node in j.params), None)
@@ -342,6 +344,21 @@ class SupervisorEdits(CollisionPass):
         r = m3.sub(self.solid_world_pose(solid).t, (b.pos[0], b.pos[1], b.pos[2]))
         v = m3.add((b.lvel[0], b.lvel[1], b.lvel[2]), m3.cross(w, r))
         return (*v, *w)
+
+    def point_velocity(self, solid: SolidRec) -> m3.Vec3:
+        """World velocity of the Solid's frame origin as a point of the body carrying it (``dBodyGetPointVel``:
+        the CoM velocity plus ω × lever arm); zero for a Solid that no body carries."""
+        body = self._nearest_body(solid)
+        if body is None:
+            return (0.0, 0.0, 0.0)
+        r = m3.sub(self.solid_world_pose(solid).t, (body.pos[0], body.pos[1], body.pos[2]))
+        w = (body.avel[0], body.avel[1], body.avel[2])
+        return m3.add((body.lvel[0], body.lvel[1], body.lvel[2]), m3.cross(w, r))
+
+    def angular_velocity(self, solid: SolidRec) -> m3.Vec3:
+        """World angular velocity of the body carrying the Solid (zero without one)."""
+        body = self._nearest_body(solid)
+        return (body.avel[0], body.avel[1], body.avel[2]) if body is not None else (0.0, 0.0, 0.0)
 
     def center_of_mass(self, solid: SolidRec) -> m3.Vec3:
         """World position of the body CoM holding ``solid`` (its own origin if it has no body)."""

@@ -105,6 +105,8 @@ class GeomRec(_ShortRepr):
     body: BodyRec | None
     is_plane: bool = False
     keepalive: tuple[Any, ...] = ()
+    source: Node | None = None  # the geometry node it was built from (supervisor edits resize it)
+    scale: tuple[float, ...] = (1.0, 1.0, 1.0)  # Transform scale above it in the boundingObject
 
 
 @dataclass(eq=False, repr=False)

@@ -63,6 +63,8 @@ class Stepper(SupervisorEdits):
             self.step_count += 1
             for hook in self.step_hooks:
                 hook()
+            for hook in self.sample_hooks:  # sensors read the step's final state (contacts, flags, poses)
+                hook()
 
     def _pre_physics(self) -> None:
         dt = self.dt

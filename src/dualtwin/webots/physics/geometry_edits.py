@@ -1,0 +1,136 @@
+"""Supervisor edits of bounding geometry (``Box.size``, ``Sphere.radius``, ``Cylinder``/``Capsule``
+``radius``/``height``, an ``IndexedFaceSet``'s ``Coordinate.point``) reaching the ODE scene.
+
+Webots re-applies a geometry field to its ODE geom as soon as the field changes (``WbBox::updateSize`` and
+friends call ``applyToOdeData``), so contacts and ray sensors see the new shape from the next step on, and a
+sleeping body touching or owning the geom is woken. A field written on a DEF node is written on every USE of
+it as well (Webots keeps DEF and USE nodes identical), which matters because a world's boundingObject is
+usually ``USE`` of a visual Shape's geometry: the supervisor edits the visual node, the geom is the copy.
+
+Ray sensors cache geom dimensions; :attr:`GeometryEdits.geometry_version` changes with every edit so they can
+tell (see :mod:`dualtwin.webots.rays`).
+"""
+
+from __future__ import annotations
+
+import ctypes
+from typing import Any
+
+from dualtwin.webots.mass_rules import trimesh_data
+from dualtwin.webots.nodes import Node, copy_value
+from dualtwin.webots.physics.collision import CollisionPass
+from dualtwin.webots.physics.records import GeomRec
+from dualtwin.webots.physics.records import field_or as _f
+
+__all__ = ["GEOMETRY_TYPES", "GeometryEdits"]
+
+#: Node types whose fields shape a geom (Coordinate: the points of an IndexedFaceSet).
+GEOMETRY_TYPES = frozenset(
+    {"Box", "Sphere", "Cylinder", "Capsule", "Plane", "IndexedFaceSet", "Coordinate", "ElevationGrid", "Cone"}
+)
+
+_WAKE_MARGIN = 1e-3  # m: bodies whose geoms come this close to a resized geom are woken
+
+
+class GeometryEdits(CollisionPass):
+    """Geometry field edits (see the module docstring)."""
+
+    geometry_version: int = 0
+
+    def linked_nodes(self, node: Node) -> list[Node]:
+        """``node`` and the nodes that are the same node in Webots: its DEF and every USE of that DEF."""
+        name = node.def_name or node.use_name
+        if not name:
+            return [node]
+        out = [node]
+        for top in self.world.nodes:
+            for other in top.walk():
+                if other is not node and other.type_name == node.type_name and name in (other.def_name, other.use_name):
+                    out.append(other)
+        return out
+
+    def _apply_geometry(self, node: Node, name: str) -> bool:
+        """Propagate the edited field to the node's DEF/USE copies and resize every geom built from them."""
+        linked = self.linked_nodes(node)
+        value = node.fields.get(name)
+        for other in linked[1:]:
+            other.fields[name] = copy_value(value)
+        ids = {id(n) for n in linked}
+        for gr in list(self.geoms.values()):
+            src = gr.source
+            if src is None:
+                continue
+            built_from = id(src) in ids or (node.type_name == "Coordinate" and id(src.fields.get("coord")) in ids)
+            if not built_from:
+                continue
+            before = self._aabb(gr)
+            if self._resize_geom(gr):
+                self._wake_around(gr, before)
+        self.geometry_version += 1
+        return True
+
+    def _resize_geom(self, gr: GeomRec) -> bool:
+        lib = self._lib
+        src = gr.source
+        assert src is not None
+        scale = gr.scale
+        uniform = max(scale)
+        if gr.kind == "Box":
+            sx, sy, sz = (float(v) * k for v, k in zip(_f(src, "size", (2.0, 2.0, 2.0)), scale, strict=True))
+            if min(sx, sy, sz) <= 0:
+                self.warn(f"Solid '{gr.solid.name}': invalid Box size; geom left unchanged")
+                return False
+            lib.dGeomBoxSetLengths(gr.ptr, sx, sy, sz)
+        elif gr.kind == "Sphere":
+            r = float(_f(src, "radius", 1.0)) * uniform
+            if r <= 0:
+                self.warn(f"Solid '{gr.solid.name}': invalid Sphere radius; geom left unchanged")
+                return False
+            lib.dGeomSphereSetRadius(gr.ptr, r)
+        elif gr.kind in ("Cylinder", "Capsule"):
+            r, h = float(_f(src, "radius", 1.0)) * uniform, float(_f(src, "height", 2.0)) * uniform
+            if r <= 0 or h <= 0:
+                self.warn(f"Solid '{gr.solid.name}': invalid {gr.kind} dimensions; geom left unchanged")
+                return False
+            (lib.dGeomCylinderSetParams if gr.kind == "Cylinder" else lib.dGeomCapsuleSetParams)(gr.ptr, r, h)
+        elif gr.kind == "IndexedFaceSet":
+            built = trimesh_data(src, scale)
+            if built is None:
+                self.warn(f"Solid '{gr.solid.name}': IndexedFaceSet without triangles; geom left unchanged")
+                return False
+            old = gr.keepalive
+            lib.dGeomTriMeshSetData(gr.ptr, built[0])
+            gr.keepalive = built
+            if old:
+                lib.dGeomTriMeshDataDestroy(old[0])
+        else:
+            return False
+        return True
+
+    def _aabb(self, gr: GeomRec) -> list[float]:
+        box = (ctypes.c_double * 6)()
+        self._lib.dGeomGetAABB(gr.ptr, box)
+        return list(box)
+
+    def _wake_around(self, gr: GeomRec, before: list[float]) -> None:
+        """Wake the geom's body and every body with a geom within reach of the geom's old or new bounding box
+        (a body resting on a support that shrank is no longer touching it, yet must fall)."""
+        after = self._aabb(gr)
+        lo = [min(before[2 * k], after[2 * k]) - _WAKE_MARGIN for k in range(3)]
+        hi = [max(before[2 * k + 1], after[2 * k + 1]) + _WAKE_MARGIN for k in range(3)]
+        woken = {gr.body.index} if gr.body is not None else set()
+        for g in self.geoms.values():
+            if g.body is None or g.body.index in woken or g.is_plane:
+                continue
+            other = self._aabb(g)
+            if all(other[2 * k] <= hi[k] and other[2 * k + 1] >= lo[k] for k in range(3)):
+                woken.add(g.body.index)
+        for index in woken:
+            self._wake_body(index)
+
+    def _wake_body(self, index: int) -> None:
+        body = self.bodies[index]
+        self._lib.dBodyEnable(body.ptr)
+        enabled: Any = getattr(self, "_enabled", None)
+        if enabled is not None and index < len(enabled):
+            enabled[index] = True

@@ -1,0 +1,157 @@
+"""What Lidar, RangeFinder and infra-red DistanceSensor rays hit: the *visual* Shapes of the scene.
+
+Webots computes a Lidar's or RangeFinder's ranges by rendering the visual scene (a depth camera) and casts an
+infra-red DistanceSensor's rays against the Shapes' geometry (``WbNodeUtilities::findIntersectingShape``), not
+against ODE bounding objects: these devices see an object that has a Shape but no ``boundingObject``, and do
+not see a boundingObject that nothing draws. Generic, sonar and laser DistanceSensors keep to ODE's ray
+collisions (bounding objects, :mod:`.rays`).
+
+Headless, every Shape of every Solid (reached through Pose/Transform/Group, not through nested Solids) gets an
+ODE geom of its own, outside the collision space (so it never makes contacts), placed at the Shape's current
+world pose before each cast and intersected by the same ray code as bounding objects. A Plane draws a finite
+``size`` rectangle, so it is a flat box here. A Shape whose appearance is fully transparent is skipped, as
+Webots' infra-red and depth rendering skip it. Shapes of the device's robot that enclose the device's origin
+(its own housing) are not seen, as a camera inside a Shape does not draw its back faces; the rest of the robot
+is seen.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from collections.abc import Sequence
+from typing import Any
+
+from dualtwin.webots import _math3 as m3
+from dualtwin.webots import ode
+from dualtwin.webots._math3 import Pose
+from dualtwin.webots.mass_rules import rot_matrix, trimesh_data
+from dualtwin.webots.nodes import Node
+from dualtwin.webots.physics import GeomRec, Simulation, SolidRec
+from dualtwin.webots.physics.records import is_solid
+from dualtwin.webots.shapes import appearance_rgba
+
+__all__ = ["VisualGeoms", "visual_targets"]
+
+_PLANE_THICKNESS = 1e-6  # m: a Plane is a rectangle; rays hit its flat box from either side
+
+
+class VisualGeoms:
+    """ODE geoms of the scene's Shapes (see the module docstring), rebuilt when a supervisor edits geometry."""
+
+    def __init__(self, sim: Simulation) -> None:
+        self.sim = sim
+        self.lib = ode.load()
+        self.version = sim.geometry_version
+        self.geoms: list[GeomRec] = []
+        self._targets: dict[tuple[int, tuple[int, ...]], list[GeomRec]] = {}
+        for solid in sim.solids:
+            for child in solid.node.children():
+                self._walk(child, Pose(), (1.0, 1.0, 1.0), solid)
+
+    def _walk(self, node: Node, local: Pose, scale: Sequence[float], solid: SolidRec) -> None:
+        if is_solid(node):
+            return  # a nested Solid draws its own Shapes in its own frame
+        t = node.type_name
+        if t in ("Pose", "Transform"):
+            translation = node.fields.get("translation")
+            if translation is not None:
+                translation = tuple(float(v) * k for v, k in zip(translation, scale, strict=True))
+            sub = local * Pose.from_fields(translation, node.fields.get("rotation"))
+            sc = tuple(scale)
+            if t == "Transform":
+                s = node.fields.get("scale", (1.0, 1.0, 1.0))
+                sc = (scale[0] * s[0], scale[1] * s[1], scale[2] * s[2])
+            for c in node.children():
+                self._walk(c, sub, sc, solid)
+        elif t in ("Group", "Billboard"):
+            for c in node.children():
+                self._walk(c, local, scale, solid)
+        elif t == "Shape":
+            rgba = appearance_rgba(node)
+            geometry = node.fields.get("geometry")
+            if isinstance(geometry, Node) and (rgba is None or rgba[3] > 0.0):
+                self._make(geometry, local, scale, solid)
+
+    def _make(self, node: Node, local: Pose, scale: Sequence[float], solid: SolidRec) -> None:
+        lib = self.lib
+        t = node.type_name
+        f = node.fields
+        uniform = max(scale)
+        ptr = 0
+        keep: tuple[Any, ...] = ()
+        if t == "Box":
+            sx, sy, sz = (float(v) * k for v, k in zip(f.get("size", (2.0, 2.0, 2.0)), scale, strict=True))
+            if min(sx, sy, sz) > 0:
+                ptr = lib.dCreateBox(None, sx, sy, sz)
+        elif t == "Plane":
+            sx, sy = (float(v) * k for v, k in zip(f.get("size", (1.0, 1.0)), scale[:2], strict=True))
+            if min(sx, sy) > 0:
+                ptr = lib.dCreateBox(None, sx, sy, _PLANE_THICKNESS)
+        elif t == "Sphere":
+            r = float(f.get("radius", 1.0)) * uniform
+            if r > 0:
+                ptr = lib.dCreateSphere(None, r)
+        elif t in ("Cylinder", "Capsule"):
+            r, h = float(f.get("radius", 1.0)) * uniform, float(f.get("height", 2.0)) * uniform
+            if r > 0 and h > 0:
+                ptr = (lib.dCreateCylinder if t == "Cylinder" else lib.dCreateCapsule)(None, r, h)
+        elif t == "IndexedFaceSet":
+            built = trimesh_data(node, scale)
+            if built is not None:
+                ptr = lib.dCreateTriMesh(None, built[0], None, None, None)
+                keep = built
+        if ptr:
+            self.geoms.append(
+                GeomRec(ptr=ptr, solid=solid, kind=t, local=local, body=None, keepalive=keep, source=node,
+                        scale=tuple(float(v) for v in scale))  # fmt: skip
+            )
+
+    def targets(self, own: SolidRec | None) -> list[GeomRec]:
+        """The geoms a device mounted as Solid ``own`` sees: all but the Shapes of its robot that enclose its
+        origin (a depth camera inside a Shape sees out of it: back faces are not drawn). A list that stays the
+        same object while the answer does not change, so the ray caster's per-list caches hold."""
+        if own is None:
+            return self.geoms
+        origin = self.sim.solid_world_pose(own).t
+        box = (ctypes.c_double * 6)()
+        inside = []
+        for i, g in enumerate(self.geoms):
+            if g.solid is own or (own.robot is not None and g.solid.robot is own.robot):
+                self.lib.dGeomGetAABB(g.ptr, box)
+                if all(box[2 * k] <= origin[k] <= box[2 * k + 1] for k in range(3)):
+                    inside.append(i)
+        key = (id(own), tuple(inside))
+        found = self._targets.get(key)
+        if found is None:
+            skip = set(inside)
+            found = self._targets[key] = [g for i, g in enumerate(self.geoms) if i not in skip]
+        return found
+
+    def place(self) -> None:
+        """Move every visual geom to its Shape's current world pose."""
+        lib = self.lib
+        poses: dict[int, m3.Pose] = {}
+        for g in self.geoms:
+            solid_world = poses.get(id(g.solid))
+            if solid_world is None:
+                solid_world = poses[id(g.solid)] = self.sim.solid_world_pose(g.solid)
+            world = solid_world * g.local
+            lib.dGeomSetPosition(g.ptr, *world.t)
+            lib.dGeomSetRotation(g.ptr, rot_matrix(world.R))
+
+    def close(self) -> None:
+        for g in self.geoms:
+            self.lib.dGeomDestroy(g.ptr)
+        self.geoms = []
+        self._targets.clear()
+
+
+def visual_targets(sim: Simulation, own: SolidRec | None) -> list[GeomRec]:
+    """The visual geoms (placed at their current poses) that a visual-ray device mounted as ``own`` sees."""
+    scene: VisualGeoms | None = sim.extensions.get("visual_geoms")
+    if scene is None or scene.version != sim.geometry_version:
+        if scene is not None:
+            scene.close()
+        scene = sim.extensions["visual_geoms"] = VisualGeoms(sim)
+    scene.place()
+    return scene.targets(own)

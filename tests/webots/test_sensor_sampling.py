@@ -1,0 +1,82 @@
+"""Sampling instants (issue 26 item 2): a sensor with period p is sampled at the end of the basic step where p
+elapsed since the last sample, during ``Robot.step``, not when the step returns.
+
+A free-falling body on ODE's semi-implicit Euler step is at ``z0 − g·dt²·n(n+1)/2`` after n steps, so the
+height a GPS reports names the step it was sampled at. Control: the old runtime sampled due sensors once, at
+the end of ``step``, i.e. at 96 ms, 192 ms, 288 ms for a 64 ms GPS under ``step(96)``.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import pytest
+
+from dualtwin.webots import load_world_text
+from dualtwin.webots.controller import Supervisor
+from dualtwin.webots.physics import Simulation
+
+G, DT, Z0 = 9.81, 0.032, 10.0
+
+
+def _supervisor(text: str) -> Supervisor:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sim = Simulation(load_world_text("#VRML_SIM R2023b utf8\nWorldInfo { basicTimeStep 32 }\n" + text))
+    return Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+
+
+def _height(n: int) -> float:
+    return Z0 - G * DT * DT * n * (n + 1) / 2
+
+
+def test_a_sensor_reads_the_last_multiple_of_its_period_not_the_end_of_the_step() -> None:
+    sup = _supervisor(
+        f"Robot {{ supervisor TRUE translation 0 0 {Z0} physics Physics {{ density -1 mass 1 }} "
+        'boundingObject Sphere { radius 0.1 } children [ GPS { name "gps" } Accelerometer { name "acc" } ] }'
+    )
+    gps = sup.getDevice("gps")
+    gps.enable(64)
+    readings = []
+    for _ in range(3):
+        sup.step(96)
+        readings.append(gps.getValues()[2])
+    # samples at 64 ms (step 2), 128 and 192 ms (steps 4, 6: the second step(96) ends at 192), 256 ms (step 8)
+    assert readings == pytest.approx([_height(2), _height(6), _height(8)], abs=1e-12)
+    assert readings[0] != pytest.approx(_height(3), abs=1e-6)  # control: not the state after the step
+    assert gps.getSpeedVector()[2] == pytest.approx(-G * DT * 8, abs=1e-9)  # the speed of the same instant
+
+
+def test_values_sampled_at_a_supervisor_move_refresh_only_at_the_next_sampling_instant() -> None:
+    sup = _supervisor('DEF R Robot { supervisor TRUE children [ GPS { name "gps" } DistanceSensor { name "ds" '
+                      "lookupTable [ 0 0 0, 5 5 0 ] } ] }\n"
+                      "DEF WALL Solid { translation 2 0 0 boundingObject Box { size 0.2 4 4 } }")
+    gps, ds = sup.getDevice("gps"), sup.getDevice("ds")
+    gps.enable(96)
+    ds.enable(96)
+    translation = sup.getFromDef("R").getField("translation")
+    wall = sup.getFromDef("WALL").getField("translation")
+    for _ in range(3):
+        sup.step(32)
+    assert sup.getTime() == pytest.approx(0.096)
+    assert gps.getValues() == [0.0, 0.0, 0.0] and ds.getValue() == pytest.approx(1.9)
+    translation.setSFVec3f([0.5, 0.0, 0.0])  # made at 96 ms: applied by the next step
+    wall.setSFVec3f([3.0, 0.0, 0.0])
+    for t in (0.128, 0.160):
+        sup.step(32)
+        assert sup.getTime() == pytest.approx(t)
+        assert gps.getValues() == [0.0, 0.0, 0.0] and ds.getValue() == pytest.approx(1.9)  # still the 96 ms sample
+    sup.step(32)
+    assert gps.getValues() == pytest.approx([0.5, 0.0, 0.0]) and ds.getValue() == pytest.approx(2.4)
+
+
+def test_gps_speed_is_nan_until_the_first_sample() -> None:
+    sup = _supervisor('Robot { supervisor TRUE children [ GPS { name "gps" } ] }')
+    gps = sup.getDevice("gps")
+    assert math.isnan(gps.getSpeed())
+    gps.enable(64)
+    sup.step(32)
+    assert math.isnan(gps.getSpeed()) and all(math.isnan(v) for v in gps.getSpeedVector())
+    sup.step(32)
+    assert gps.getSpeed() == 0.0
