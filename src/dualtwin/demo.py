@@ -6,6 +6,10 @@ Webots twin, re-run, and report before and after.
 
 from __future__ import annotations
 
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from rich.console import Console
@@ -21,6 +25,53 @@ KNOBS = ["physics.substeps", "joint.pole_hinge.damping", "joint.pole_hinge.frict
          "geom.floor.restitution"]
 CHANNELS = ["pole_angle_rad"]
 HOLDOUT = ["05_Sine_Drive"]
+#: Simulations the demo's least-squares fit may spend.
+BUDGET = 300
+#: Wall-clock seconds without a printed line after which a long step says it is still working.
+HEARTBEAT_S = 5.0
+
+
+class _Heartbeat:
+    """What a long step last said; a background thread repeats it, with the elapsed time, when nothing else
+    was printed for ``HEARTBEAT_S`` (terminal only: logs hold simulation time alone)."""
+
+    def __init__(self, console: Console, label: str) -> None:
+        self.console, self.label = console, label
+        self.status = "starting"
+        self.started = self.last = time.monotonic()
+        self.lock = threading.Lock()
+
+    def say(self, line: str, status: str | None = None) -> None:
+        with self.lock:
+            self.console.print(line, markup=False)
+            self.last = time.monotonic()
+            if status is not None:
+                self.status = status
+
+    def beat(self) -> None:
+        with self.lock:
+            now = time.monotonic()
+            if now - self.last >= HEARTBEAT_S:
+                self.console.print(f"  ... {self.label}: {self.status} ({now - self.started:.0f} s)", markup=False)
+                self.last = now
+
+
+@contextmanager
+def _heartbeat(console: Console, label: str) -> Iterator[_Heartbeat]:
+    beat = _Heartbeat(console, label)
+    stop = threading.Event()
+
+    def loop() -> None:
+        while not stop.wait(0.5):
+            beat.beat()
+
+    thread = threading.Thread(target=loop, name="demo-heartbeat", daemon=True)
+    thread.start()
+    try:
+        yield beat
+    finally:
+        stop.set()
+        thread.join()
 
 
 KIND = "demo"
@@ -34,6 +85,7 @@ def run_demo(out: Path, console: Console, resume: bool = False) -> None:
     """
     from dualtwin.align import (
         AlignConfig,
+        GenerationInfo,
         analyze_runs,
         print_analysis,
         print_result,
@@ -52,23 +104,34 @@ def run_demo(out: Path, console: Console, resume: bool = False) -> None:
     for twin in ("webots", "mujoco"):
         console.print(f"[bold]1. running[/bold] {suite.name} on the {twin} twin")
         run_dir = out / f"run_{twin}"
-        manifest = SuiteRun(suite, twin, robot, run_dir).run(resume=resume)
-        for record in manifest["scenarios"]:
-            console.print(f"  {record['id']:<28} {record['status']}")
+        with _heartbeat(console, f"running on the {twin} twin") as beat:
+            def on_scenario(sid: str, status: str, beat: _Heartbeat = beat) -> None:
+                beat.say(f"  {sid:<28} {status}", status=f"{sid} {status}")
+
+            SuiteRun(suite, twin, robot, run_dir).run(resume=resume, on_scenario=on_scenario)
         runs[twin] = run_dir
     console.print("[bold]2. comparing[/bold] the twins")
     comparison = compare_runs(runs["webots"], runs["mujoco"])
     write_report(comparison, out / "report", label_a="webots", label_b="mujoco")
     print_summary(comparison, console)
     console.print("[bold]3. analysing[/bold] the divergence (knob sensitivities by re-simulation)")
-    analysis = analyze_runs(runs["webots"], runs["mujoco"], robot=robot, twin_b="mujoco", knobs=KNOBS)
+    with _heartbeat(console, "analysing"):
+        analysis = analyze_runs(runs["webots"], runs["mujoco"], robot=robot, twin_b="mujoco", knobs=KNOBS)
     write_analysis(analysis, out / "analysis")
     print_analysis(analysis, console)
     console.print(f"[bold]4. aligning[/bold] the MuJoCo twin to the Webots twin ({', '.join(KNOBS)}; fitted on "
-                  f"{', '.join(CHANNELS)}; {', '.join(HOLDOUT)} held out)")
+                  f"{', '.join(CHANNELS)}; {', '.join(HOLDOUT)} held out; up to {BUDGET} simulations)")
     config = AlignConfig(reference=str(runs["webots"]), target="mujoco", robot=str(robot.path), suite=str(suite),
-                         knobs=list(KNOBS), optimizer="lsq", budget=300, holdout=list(HOLDOUT), channels=list(CHANNELS))
-    result = run_align(config, out / "align", resume=resume)
+                         knobs=list(KNOBS), optimizer="lsq", budget=BUDGET, holdout=list(HOLDOUT),
+                         channels=list(CHANNELS))
+    with _heartbeat(console, "aligning") as beat:
+        def on_iteration(info: GenerationInfo) -> None:
+            held = f", held out {info.holdout_value:.4g}" if info.holdout_value is not None else ""
+            line = (f"  iteration {info.iteration}: objective {info.best_value:.4g}{held} "
+                    f"({info.evaluations}/{BUDGET} simulations)")
+            beat.say(line, status=line.strip())
+
+        result = run_align(config, out / "align", resume=resume, callback=on_iteration)
     print_result(result, console)
     console.print(f"comparison report: {out / 'report' / 'report.html'}")
     console.print(f"analysis:          {out / 'analysis' / 'analysis.html'}")
