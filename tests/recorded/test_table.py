@@ -154,3 +154,33 @@ def test_coarse_rounding_raises_the_channel_resolution(tmp_path: Path, cartpole_
     assert channels["pole_angle_rad"]["resolution"] == pytest.approx(math.radians(0.1))
     assert load_run(run).channels["pole_angle_rad"].resolved_resolution == pytest.approx(math.radians(0.1))
     assert "resolution" not in channels["onboard/pole_angle_rad"]  # full precision there
+
+
+def _doc_block(marker: str) -> str:
+    text = (Path(__file__).resolve().parents[2] / "docs" / "guides" / "recorded-runs.md").read_text()
+    after = text.split(f"<!-- example: {marker} -->", 1)[1]
+    return after.split("```", 2)[1].split("\n", 1)[1]
+
+
+def test_the_documented_table_mapping_example_imports_as_documented(tmp_path: Path, cartpole_suite: Path) -> None:
+    """The guide's complete example (its mapping and CSV, read from the page itself) imports through the CLI."""
+    import subprocess
+    import sys
+
+    (tmp_path / "mapping.yaml").write_text(_doc_block("table-mapping"))
+    (tmp_path / "logs").mkdir()
+    for i in range(len(json.loads(cartpole_suite.read_text())["scenarios"])):
+        (tmp_path / "logs" / f"log_{i}.csv").write_text(_doc_block("table-csv"))
+    done = subprocess.run([sys.executable, "-m", "dualtwin.cli", "import", "table", str(tmp_path / "mapping.yaml"),
+                           "--scenarios", "cartpole", "--robot", "cartpole", "--out", str(tmp_path / "run")],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    run = load_run(tmp_path / "run")
+    assert set(run.channels) == {"pole_angle_rad", "cart_pos_m", "onboard/pole_angle_rad"}
+    manifest = json.loads((tmp_path / "run" / "manifest.json").read_text())
+    assert manifest["units"]["pole_angle_rad"]["scale"] == -1.0
+    assert manifest["scenarios"][0]["timing"]["origin"] == "simulation"
+    first = run.series(run.scenarios[0].id)
+    # -(-11.459 deg) is +0.2 rad, as the encoder says; mm became m
+    assert first["pole_angle_rad"].y[0] == pytest.approx(first["onboard/pole_angle_rad"].y[0], abs=1e-3)
+    assert 0 < first["cart_pos_m"].y[0] < 0.01
