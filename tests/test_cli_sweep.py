@@ -89,7 +89,7 @@ PARAMS: dict[str, str] = {
     "colour_jitter": "number",
     "horizons": "numlist", "perturb": "perturb",
     "optimizer": "choice", "executor": "choice", "objective": "choice", "which": "choice", "resync": "choice",
-    "json_dialect": "choice",
+    "json_dialect": "choice", "invalid": "choice",
     "host": "text", "api_key_env": "text", "address": "text", "holdout": "text",
     "resume": "flag", "llm": "flag", "randomize": "flag", "trust_pickles": "flag", "json_out": "flag",
     "as_json": "flag", "policy_control": "folder", "keys": "file", "camera_only": "flag",

@@ -8,18 +8,25 @@ Importing the package does two light things, before any dualtwin module imports 
   (:func:`dualtwin.headless.route_mujoco_warnings`, applied when MuJoCo is imported);
 * registers the ``dualtwin/...`` Gymnasium env ids when Gymnasium is installed (:mod:`dualtwin.registration`,
   entry-point strings only), so ``gym.make("dualtwin/CartPole-MuJoCo-v0")`` works after ``import dualtwin``
-  (the ecosystem's idiom: ``gym.register_envs(dualtwin)``).
+  (the ecosystem's idiom: ``gym.register_envs(dualtwin)``); without importing Gymnasium itself: the ids are
+  registered as soon as the program imports it (the ``dualtwin`` command starts without paying for it).
 """
 
-from dualtwin.headless import GLChoice, gl_backend, route_mujoco_warnings
+import sys
+
+from dualtwin.errors import quiet_interrupts_in_cli
+
+quiet_interrupts_in_cli(sys.argv[0] if sys.argv else "")
+
+from dualtwin.headless import GLChoice, gl_backend, route_mujoco_warnings  # noqa: E402 - after the interrupt hook
 
 __version__ = "0.1.0"
 
 gl_backend()
 route_mujoco_warnings()
 
-from dualtwin.registration import register_envs  # noqa: E402 - after the backend choice, on purpose
+from dualtwin.registration import register_envs, register_when_gymnasium_loads  # noqa: E402 - after the backend choice
 
-register_envs()
+register_when_gymnasium_loads()
 
 __all__ = ["GLChoice", "__version__", "gl_backend", "register_envs"]

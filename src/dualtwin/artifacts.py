@@ -30,12 +30,31 @@ TRACKED_PACKAGES = (
 )
 
 
+class WriteFailed(OSError):
+    """Writing a file failed in the operating system (a full disk, an I/O error, a read-only folder...).
+
+    Raised with the path of the file that was being written (``filename``) and the system's reason, so the CLI
+    says which file could not be written in one line; the file itself was left as it was (or absent).
+    """
+
+
+def write_failed(exc: OSError, path: Path) -> WriteFailed:
+    """``exc`` (errno and reason kept) as a :class:`WriteFailed` naming ``path``."""
+    return WriteFailed(exc.errno or 0, exc.strerror or str(exc), str(path))
+
+
 @contextmanager
 def atomic_open(path: Path, mode: str = "w") -> Iterator[IO[Any]]:
-    """Open a temporary sibling of ``path`` and rename it over ``path`` only if the block succeeds."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    """Open a temporary sibling of ``path`` and rename it over ``path`` only if the block succeeds.
+
+    An OS error on the way (ENOSPC, EIO...) removes the temporary file and becomes a :class:`WriteFailed`
+    naming ``path``: a write on a full disk leaves the previous file (or none), never half a file.
+    """
+    path = Path(path)
+    tmp: str | None = None
     try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
         # mkstemp creates 0600; the renamed file must have the mode any new file gets (0666 & ~umask), so a
         # teammate or a web server can read reports when the user's umask allows it.
         os.fchmod(fd, 0o666 & ~current_umask())
@@ -44,9 +63,19 @@ def atomic_open(path: Path, mode: str = "w") -> Iterator[IO[Any]]:
             handle.flush()
             os.fsync(handle.fileno())
         os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+    except BaseException as exc:
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
+        if isinstance(exc, OSError) and not isinstance(exc, WriteFailed | FileNotFoundError):
+            raise write_failed(exc, path) from None
         raise
+
+
+def copy_file(source: Path, target: Path) -> None:
+    """Copy ``source`` to ``target`` atomically (whole or not at all, like every other write)."""
+    with atomic_open(Path(target), "wb") as handle, open(source, "rb") as src:
+        for chunk in iter(lambda: src.read(1 << 20), b""):
+            handle.write(chunk)
 
 
 def current_umask() -> int:
@@ -116,6 +145,140 @@ def package_versions() -> dict[str, str]:
 
 
 # ------------------------------------------------------------------ reading user files
+#: Limits on structured input files (JSON, YAML): far beyond any real suite, config or manifest, and far below
+#: what would exhaust memory or the interpreter's stack. A file past either is refused with one line.
+MAX_INPUT_BYTES = 64 * 1024 * 1024
+MAX_JSON_DEPTH = 64
+#: Values a YAML document may hold once its aliases are expanded ("billion laughs" stays a one-line error).
+MAX_YAML_VALUES = 10_000_000
+
+
+def check_size(path: Path, what: str = "file", max_bytes: int = MAX_INPUT_BYTES) -> None:
+    """Refuse a regular file larger than ``max_bytes`` before reading it."""
+    try:
+        size = Path(path).stat().st_size
+    except OSError:
+        return  # the reader says what is wrong with it
+    if size > max_bytes:
+        raise DualtwinError(f"{path}: {what} is {size} bytes; at most {max_bytes} are read")
+
+
+class _DuplicateKey(ValueError):
+    def __init__(self, key: str) -> None:
+        super().__init__(key)
+        self.key = key
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in out:
+            raise _DuplicateKey(key)
+        out[key] = value
+    return out
+
+
+def _unique_key_loader() -> Any:
+    """PyYAML's safe loader, refusing a mapping with the same key twice (naming both lines)."""
+    import yaml
+
+    class UniqueKeyLoader(yaml.SafeLoader):
+        pass
+
+    def construct_mapping(loader: Any, node: Any, deep: bool = False) -> Any:
+        seen: dict[Any, int] = {}
+        for key_node, _ in node.value:
+            key = loader.construct_object(key_node, deep=deep)
+            line = key_node.start_mark.line + 1
+            try:
+                if key in seen:
+                    raise _DuplicateKey(f"duplicate key {key!r} at lines {seen[key]} and {line} (the same mapping)")
+                seen[key] = line
+            except TypeError:  # an unhashable key: the base constructor says what is wrong with it
+                break
+        return yaml.SafeLoader.construct_mapping(loader, node, deep=deep)
+
+    UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, construct_mapping)
+    return UniqueKeyLoader
+
+
+def nesting_depth(data: Any) -> int:
+    """How many containers deep ``data`` goes (a scalar is 0), without recursion.
+
+    Shared containers (YAML anchors) are measured once, so an "exponential" document costs linear time; a
+    container holding itself (a YAML alias cycle) counts as infinitely deep.
+    """
+    return _shape(data)[0]
+
+
+def expanded_size(data: Any) -> int:
+    """How many values ``data`` holds once every shared container (YAML alias) is expanded."""
+    return _shape(data)[1]
+
+
+def _shape(data: Any) -> tuple[int, int]:
+    def children(item: Any) -> list[Any]:
+        values = item.values() if isinstance(item, dict) else item
+        return [c for c in values if isinstance(c, dict | list)]
+
+    if not isinstance(data, dict | list):
+        return 0, 1
+    done: dict[int, tuple[int, int]] = {}
+    open_: set[int] = set()
+    stack: list[tuple[Any, bool]] = [(data, False)]
+    while stack:
+        item, closing = stack.pop()
+        key = id(item)
+        if closing:
+            open_.discard(key)
+            inner = [done[id(c)] for c in children(item)]
+            scalars = len(item) - len(inner)
+            done[key] = (1 + max((d for d, _ in inner), default=0), 1 + scalars + sum(n for _, n in inner))
+            continue
+        if key in done:
+            continue
+        if key in open_:
+            return 10**9, 10**18  # a cycle
+        open_.add(key)
+        stack.append((item, True))
+        stack.extend((c, False) for c in children(item) if id(c) not in done)
+    return done[id(data)]
+
+
+def duplicate_key_lines(text: str, key: str) -> str:
+    """Where ``key`` appears twice in one object of the JSON ``text``: 'duplicate key ... at lines A and B'.
+
+    Only called once the parser found the duplicate, so a plain scan suffices: strings, brackets and colons
+    are tracked and the keys of every open object remembered with their line.
+    """
+    import re
+
+    token = re.compile(r'"(?:[^"\\]|\\.)*"|[{}\[\]:,]|\n')
+    line = 1
+    stack: list[dict[str, int] | None] = []  # per open container: None for a list, else {key: line}
+    last_string: tuple[str, int] | None = None
+    for match in token.finditer(text):
+        tok = match.group()
+        if tok == "\n":
+            line += 1
+        elif tok in "{[":
+            stack.append({} if tok == "{" else None)
+        elif tok in "}]":
+            if stack:
+                stack.pop()
+        elif tok == ":" and last_string is not None and stack and stack[-1] is not None:
+            name, at = last_string
+            if name == key and name in stack[-1]:
+                return f"duplicate key {key!r} at lines {stack[-1][name]} and {at} (the same object)"
+            stack[-1][name] = at
+        if tok.startswith('"'):
+            try:
+                last_string = (json.loads(tok), line)
+            except ValueError:
+                last_string = None
+        elif tok != "\n":
+            last_string = None if tok != ":" else last_string
+    return f"duplicate key {key!r} in one object"
 def check_input_file(path: Path, what: str = "file") -> Path:
     """``path`` if it is a regular file; otherwise a :class:`DualtwinError` saying what it is instead.
 
@@ -151,29 +314,54 @@ def read_yaml(path: Path, what: str = "YAML file") -> Any:
     import yaml
 
     path = Path(path)
+    check_size(path, what)
     text = read_text_file(path, what)
     try:
-        return yaml.safe_load(text)
+        data = yaml.load(text, Loader=_unique_key_loader())  # noqa: S506 -- a SafeLoader subclass
+    except _DuplicateKey as exc:
+        raise DualtwinError(f"{path}: {exc.args[0]}") from None
+    except RecursionError:
+        raise DualtwinError(f"{path}: {what} is nested too deeply (at most {MAX_JSON_DEPTH} levels)") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f":{mark.line + 1}:{mark.column + 1}" if mark else ""
         raise DualtwinError(f"{path}{where}: invalid YAML: {getattr(exc, 'problem', exc)}") from None
+    depth, size = _shape(data)
+    if depth > MAX_JSON_DEPTH:
+        raise DualtwinError(f"{path}: {what} is nested too deeply (at most {MAX_JSON_DEPTH} levels)")
+    if size > MAX_YAML_VALUES:
+        raise DualtwinError(f"{path}: {what} expands to more than {MAX_YAML_VALUES} values (aliases of aliases)")
+    return data
 
 
 def _reject_constant(token: str) -> float:
     raise ValueError(f"{token} is not a valid JSON number (NaN and infinities are not allowed)")
 
 
-def read_json(path: Path, what: str = "JSON file") -> Any:
-    """Strict JSON (no NaN/Infinity tokens) from a user file; errors name the file, line and column."""
+def read_json(path: Path, what: str = "JSON file", max_bytes: int = MAX_INPUT_BYTES) -> Any:
+    """Strict JSON from a user file; errors name the file, line and column.
+
+    Refused: NaN/Infinity tokens (a number too large for a double reads as infinity, which the schema
+    validators refuse naming its JSON path), an object with the same key twice
+    (JSON parsers disagree on which one wins; the error names both lines), nesting deeper than
+    :data:`MAX_JSON_DEPTH` and files larger than ``max_bytes`` (no input of ours is near either limit).
+    """
     path = Path(path)
+    check_size(path, what, max_bytes)
     text = read_text_file(path, what)
     try:
-        return json.loads(text, parse_constant=_reject_constant)
+        data = json.loads(text, parse_constant=_reject_constant, object_pairs_hook=_unique_keys)
     except json.JSONDecodeError as exc:
         raise DualtwinError(f"{path}:{exc.lineno}:{exc.colno}: invalid JSON: {exc.msg}") from None
+    except _DuplicateKey as exc:
+        raise DualtwinError(f"{path}: {duplicate_key_lines(text, exc.key)}") from None
+    except RecursionError:
+        raise DualtwinError(f"{path}: {what} is nested too deeply (at most {MAX_JSON_DEPTH} levels)") from None
     except ValueError as exc:
         raise DualtwinError(f"{path}: invalid JSON: {exc}") from None
+    if nesting_depth(data) > MAX_JSON_DEPTH:
+        raise DualtwinError(f"{path}: {what} is nested too deeply (at most {MAX_JSON_DEPTH} levels)")
+    return data
 
 
 def require_keys(data: Any, keys: Iterable[str], path: Path, what: str = "file") -> Mapping[str, Any]:

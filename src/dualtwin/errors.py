@@ -9,3 +9,27 @@ class DualtwinError(ValueError):
 
 class SimulationUnstable(RuntimeError):
     """The physics produced non-finite values. The scenario is marked unstable; a reset recovers."""
+
+
+def quiet_interrupts_in_cli(argv0: str) -> None:
+    """In the ``dualtwin`` command (``argv0``), Ctrl-C while Python is still importing is one line and exit 130.
+
+    ``import dualtwin`` calls this first thing: the command line's own handler (``dualtwin.cli.main``) is not
+    in place until the package has loaded, and an uncaught KeyboardInterrupt would print an import traceback.
+    In any other program (a script, a notebook) nothing changes.
+    """
+    import os
+    import sys
+
+    if os.path.basename(argv0) != "dualtwin":
+        return
+    previous = sys.excepthook
+
+    def hook(kind: type[BaseException], value: BaseException, tb: object) -> None:
+        if issubclass(kind, KeyboardInterrupt):
+            sys.stderr.write("error: interrupted\n")
+            sys.stderr.flush()
+            os._exit(130)
+        previous(kind, value, tb)  # type: ignore[arg-type]
+
+    sys.excepthook = hook

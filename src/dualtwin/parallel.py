@@ -23,6 +23,7 @@ import importlib.util
 import math
 import multiprocessing
 import os
+import signal
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any, Literal, TypeVar
@@ -48,13 +49,61 @@ def check_executor(kind: str) -> None:
         raise DualtwinError(_NO_RAY)
 
 
-def ray_backend(address: str | None) -> Any:
-    """The ``ray`` module, initialised (joining ``address`` or a running instance, else starting one)."""
+def ignore_interrupts() -> None:
+    """A pool worker's initializer: Ctrl-C reaches every process of the terminal's group, and stopping is the
+    parent's job (it shuts the pool down, keeping what finished); a worker that raised KeyboardInterrupt
+    would print its own traceback."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+#: Seconds allowed to open a TCP connection to a Ray cluster's address before it counts as unreachable.
+RAY_CONNECT_TIMEOUT_S = 5.0
+
+
+def check_ray_address(address: str, option: str = "--ray-address") -> None:
+    """Refuse, within :data:`RAY_CONNECT_TIMEOUT_S`, a Ray address nothing answers at.
+
+    ``ray.init(address=...)`` retries an unreachable cluster for minutes (a cluster job that never ends and
+    never says why); one TCP connection tells the user at once, naming the address and the option that set it.
+    ``auto`` and ``local`` are Ray's own words, left to Ray.
+    """
+    import socket
+    from urllib.parse import urlsplit
+
+    text = address.strip()
+    if text in ("auto", "local", ""):
+        return
+    parts = urlsplit(text if "://" in text else f"ray://{text}")
+    try:
+        host, port = parts.hostname, parts.port
+    except ValueError:
+        host, port = None, None
+    if not host or port is None:
+        raise DualtwinError(f"{option} {address}: not a Ray address; expected HOST:PORT (e.g. 10.0.0.5:6379) "
+                            "or ray://HOST:PORT")
+    try:
+        socket.create_connection((host, port), timeout=RAY_CONNECT_TIMEOUT_S).close()
+    except OSError as exc:
+        reason = f"no answer within {RAY_CONNECT_TIMEOUT_S:g} s" if isinstance(exc, TimeoutError) else (
+            exc.strerror or str(exc))
+        raise DualtwinError(f"{option} {address}: cannot reach a Ray cluster there ({reason}); start one with "
+                            f"'ray start --head' or leave {option} out to use a local instance") from None
+
+
+def ray_backend(address: str | None, option: str = "--ray-address") -> Any:
+    """The ``ray`` module, initialised (joining ``address`` or a running instance, else starting one).
+
+    An address nothing answers at fails within seconds, naming it and ``option`` (:func:`check_ray_address`).
+    """
     try:
         import ray  # optional dependency, imported only when asked for
     except ImportError:
         raise DualtwinError(_NO_RAY) from None
     if not ray.is_initialized():
+        if address is not None:
+            check_ray_address(address, option)
+        elif os.environ.get("RAY_ADDRESS"):
+            check_ray_address(os.environ["RAY_ADDRESS"], "RAY_ADDRESS")
         if address is None and not os.environ.get("RAY_ADDRESS"):
             # A local instance of our own: its workers run at the driver's priority. Ray's default (+15
             # niceness) is for workers sharing a machine with other work; here they ARE the work, and on a
@@ -104,7 +153,8 @@ class ParallelMap:
             context = multiprocessing.get_context("forkserver")
             if self.preload:
                 context.set_forkserver_preload(self.preload)
-            self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=context)
+            self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=context,
+                                             initializer=ignore_interrupts)
         chunk = max(1, math.ceil(len(items) / self.workers))
         return list(self._pool.map(fn, items, chunksize=chunk))
 

@@ -9,7 +9,11 @@ it only marks the import as used (linters would drop a bare ``import dualtwin``)
 
 from __future__ import annotations
 
+import importlib.abc
+import importlib.machinery
 import importlib.util
+import sys
+from types import ModuleType
 from typing import Any
 
 NAMESPACE = "dualtwin"
@@ -56,3 +60,46 @@ def register_envs() -> list[str]:
                          kwargs=dict(kwargs))
             added.append(env_id)
     return added
+
+
+def register_when_gymnasium_loads() -> None:
+    """Register now if Gymnasium is already imported, else right after its first import.
+
+    ``import dualtwin`` calls this instead of importing Gymnasium itself: Gymnasium (and NumPy under it) cost
+    about 0.2 s, which every ``dualtwin`` command (``--help`` included) would pay although most never make an
+    env. A program that does use Gymnasium imports it, and the ids are in the registry before that import
+    returns, so ``gym.make("dualtwin/...")`` works in either import order.
+    """
+    if "gymnasium" in sys.modules:
+        register_envs()
+    elif not any(isinstance(finder, _RegisterAfterImport) for finder in sys.meta_path):
+        sys.meta_path.insert(0, _RegisterAfterImport())
+
+
+class _RegisterAfterImport(importlib.abc.MetaPathFinder):
+    """Finds ``gymnasium`` through the other finders and registers the ids once its module has run."""
+
+    def find_spec(self, fullname: str, path: Any = None, target: Any = None) -> importlib.machinery.ModuleSpec | None:
+        if fullname != "gymnasium":
+            return None
+        sys.meta_path.remove(self)  # once: the real finders do the work, now and on any later import
+        spec = importlib.util.find_spec(fullname)
+        if spec is None or spec.loader is None:
+            return spec
+        spec.loader = _ThenRegister(spec.loader)
+        return spec
+
+
+class _ThenRegister(importlib.abc.Loader):
+    def __init__(self, loader: Any) -> None:
+        self._loader = loader
+
+    def create_module(self, spec: importlib.machinery.ModuleSpec) -> ModuleType | None:
+        return self._loader.create_module(spec)  # type: ignore[no-any-return]
+
+    def exec_module(self, module: ModuleType) -> None:
+        self._loader.exec_module(module)
+        register_envs()
+
+    def __getattr__(self, name: str) -> Any:  # resource readers and the like: the real loader's
+        return getattr(self._loader, name)

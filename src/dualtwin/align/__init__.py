@@ -30,33 +30,79 @@ A small library in the spirit of ``mujoco.sysid``, in layers:
 
 from __future__ import annotations
 
-from dualtwin.align.analysis_report import print_analysis, write_analysis
-from dualtwin.align.analyze import (
-    Analysis,
-    AnalysisConfig,
-    Finding,
-    KnobSensitivity,
-    ProposeFn,
-    analyze_runs,
-)
-from dualtwin.align.config import AlignConfig
-from dualtwin.align.core import (
-    CachedProblem,
-    Evaluation,
-    GenerationInfo,
-    Outcome,
-    Point,
-    Problem,
-    Uncertainty,
-    estimate_uncertainty,
-    interval_estimate,
-)
-from dualtwin.align.knobs import KnobSpec, select_knobs
-from dualtwin.align.objective import ObjectiveWeights
-from dualtwin.align.optimize import fit_cma, fit_lsq, sysid_status
-from dualtwin.align.propose import ProposalOutcome
-from dualtwin.align.run import run_align
-from dualtwin.align.writers import AlignResult, KnobFit, print_result
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from dualtwin.align.analysis_report import print_analysis, write_analysis
+    from dualtwin.align.analyze import (
+        Analysis,
+        AnalysisConfig,
+        Finding,
+        KnobSensitivity,
+        ProposeFn,
+        analyze_runs,
+    )
+    from dualtwin.align.config import AlignConfig
+    from dualtwin.align.core import (
+        CachedProblem,
+        Evaluation,
+        GenerationInfo,
+        Outcome,
+        Point,
+        Problem,
+        Uncertainty,
+        estimate_uncertainty,
+        interval_estimate,
+    )
+    from dualtwin.align.knobs import KnobSpec, select_knobs
+    from dualtwin.align.optimize import fit_cma, fit_lsq, sysid_status
+    from dualtwin.align.propose import ProposalOutcome
+    from dualtwin.align.run import run_align
+    from dualtwin.align.weights import ObjectiveWeights
+    from dualtwin.align.writers import AlignResult, KnobFit, print_result
+
+# Where each public name lives. Imported on first use (PEP 562), so importing one light module of the package
+# (the CLI reads AlignConfig to derive its options) does not import the optimiser, SciPy and the plots.
+_HOME: dict[str, str] = {
+    "print_analysis": "dualtwin.align.analysis_report",
+    "write_analysis": "dualtwin.align.analysis_report",
+    "Analysis": "dualtwin.align.analyze",
+    "AnalysisConfig": "dualtwin.align.analyze",
+    "Finding": "dualtwin.align.analyze",
+    "KnobSensitivity": "dualtwin.align.analyze",
+    "ProposeFn": "dualtwin.align.analyze",
+    "analyze_runs": "dualtwin.align.analyze",
+    "AlignConfig": "dualtwin.align.config",
+    "CachedProblem": "dualtwin.align.core",
+    "Evaluation": "dualtwin.align.core",
+    "GenerationInfo": "dualtwin.align.core",
+    "Outcome": "dualtwin.align.core",
+    "Point": "dualtwin.align.core",
+    "Problem": "dualtwin.align.core",
+    "Uncertainty": "dualtwin.align.core",
+    "estimate_uncertainty": "dualtwin.align.core",
+    "interval_estimate": "dualtwin.align.core",
+    "KnobSpec": "dualtwin.align.knobs",
+    "select_knobs": "dualtwin.align.knobs",
+    "ObjectiveWeights": "dualtwin.align.weights",
+    "fit_cma": "dualtwin.align.optimize",
+    "fit_lsq": "dualtwin.align.optimize",
+    "sysid_status": "dualtwin.align.optimize",
+    "ProposalOutcome": "dualtwin.align.propose",
+    "run_align": "dualtwin.align.run",
+    "AlignResult": "dualtwin.align.writers",
+    "KnobFit": "dualtwin.align.writers",
+    "print_result": "dualtwin.align.writers",
+}
+
+
+def __getattr__(name: str) -> Any:
+    home = _HOME.get(name)
+    if home is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(home), name)
+
 
 __all__ = [
     "AlignConfig",

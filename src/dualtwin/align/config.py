@@ -25,7 +25,7 @@ from typing import Any, Literal
 
 from pydantic import Field
 
-from dualtwin.align.objective import ObjectiveWeights
+from dualtwin.align.weights import ObjectiveWeights
 from dualtwin.models import FrozenModel
 from dualtwin.parallel import ExecutorKind
 

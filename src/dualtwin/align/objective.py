@@ -28,9 +28,9 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from pydantic import Field
 
 from dualtwin.align.simulate import ScenarioTrace
+from dualtwin.align.weights import TERMS, ObjectiveWeights
 from dualtwin.divergence.comparison import resolve_thresholds
 from dualtwin.divergence.metrics import (
     FloatArray,
@@ -43,26 +43,9 @@ from dualtwin.divergence.metrics import (
 from dualtwin.divergence.metrics import rmse as rmse_of
 from dualtwin.divergence.runs import Series
 from dualtwin.errors import DualtwinError
-from dualtwin.models import FrozenModel
 
-TERMS = ("dtw", "event", "endpoint", "rmse")
 #: Objective value when the numbers themselves are not finite.
 NONFINITE_VALUE = 1e3
-
-
-class ObjectiveWeights(FrozenModel):
-    """Weights and robustness settings of the objective (see the module docstring)."""
-
-    dtw: float = Field(default=1.0, ge=0)
-    event: float = Field(default=1.0, ge=0)
-    endpoint: float = Field(default=0.5, ge=0)
-    rmse: float = Field(default=0.0, ge=0)
-    trajectory: float = Field(default=1.0, ge=0, description="least squares: weight of trajectory residuals")
-    robust_delta: float = Field(default=0.05, gt=0, description="pseudo-Huber transition, in term units")
-    unstable_penalty: float = Field(default=10.0, gt=0)
-
-    def term_weights(self) -> dict[str, float]:
-        return {name: float(getattr(self, name)) for name in TERMS}
 
 
 @dataclass(frozen=True, eq=False)

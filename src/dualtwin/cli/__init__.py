@@ -6,25 +6,64 @@ One module per command group; importing them registers their commands on :data:`
 
 from __future__ import annotations
 
+import errno
+import signal
 import sys
+import threading
 from collections.abc import Sequence
+from typing import Any
 
-import typer
+try:
+    import typer
 
-# Importing a command module registers its commands; this order is the order ``--help`` lists them in.
-# isort: off
-from dualtwin.cli import suite, compare, align, rl, perception, serve, sync, demo, webots, convert, recorded  # noqa: F401
-# isort: on
-from dualtwin.cli.common import app
-from dualtwin.cli.policy import harden
-from dualtwin.errors import DualtwinError
+    # Importing a command module registers its commands; this order is the order ``--help`` lists them in.
+    # Command modules import only typer and light dualtwin modules: each command imports what it needs when it
+    # runs (``dualtwin --help`` and a bad-input error cost no NumPy, SciPy, matplotlib, MuJoCo or torch;
+    # tests/test_cli_startup.py holds that).
+    # isort: off
+    from dualtwin.cli import suite, compare, align, rl, perception, serve, sync, demo, webots, convert, recorded  # noqa: F401
+    # isort: on
+    from dualtwin.cli.common import app, interrupted_note
+    from dualtwin.cli.policy import harden
+    from dualtwin.errors import DualtwinError
+except KeyboardInterrupt:  # Ctrl-C while the command line is still loading: a normal way to stop, too
+    print("error: interrupted", file=sys.stderr)
+    raise SystemExit(130) from None
 
 __all__ = ["app", "main", "one_line"]
+
+#: OS errors that are about the machine, not the program: a full disk or quota, an I/O error, a read-only
+#: file system, a file over the size limit. Always one line, never a traceback (and never exit 0).
+_MACHINE_ERRORS = {errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EROFS, errno.EFBIG}
 
 
 def one_line(message: str) -> str:
     """The error promise: one line, whatever the message's own line breaks."""
     return "; ".join(part.strip() for part in str(message).splitlines() if part.strip())
+
+
+class Interrupted(BaseException):
+    """Ctrl-C (SIGINT) while a command runs. Not a KeyboardInterrupt: typer would turn that into a silent exit
+    130, and library code that handles KeyboardInterrupt its own way must not swallow the user's stop."""
+
+
+def _raise_interrupted(signum: int, frame: Any) -> None:
+    raise Interrupted()
+
+
+def _stop_on_interrupt() -> Any:
+    """Route SIGINT to :class:`Interrupted` for the command's duration; the previous handler (None: unchanged).
+
+    Only where Python lets us (the main thread) and where SIGINT is not ignored (a job started in the
+    background by a shell ignores it on purpose).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    previous = signal.getsignal(signal.SIGINT)
+    if previous is signal.SIG_IGN or previous is None:
+        return None
+    signal.signal(signal.SIGINT, _raise_interrupted)
+    return previous
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -36,13 +75,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     from typer.exceptions import Abort, TyperException
 
     code = 0
+    interrupted_note(reset=True)
+    previous = _stop_on_interrupt()
     try:
         command = harden(typer.main.get_command(app))
         result = command.main(args=list(sys.argv[1:] if argv is None else argv), prog_name="dualtwin",
                               standalone_mode=False)
         code = result if isinstance(result, int) else 0
-    except Abort:
-        print("error: interrupted", file=sys.stderr)
+    except (Interrupted, Abort, KeyboardInterrupt):
+        # Ctrl-C is a normal way to stop: every file is written whole or not at all (dualtwin.artifacts), so
+        # what was finished is kept; the note says how much and how to continue, where a command can.
+        print(f"error: interrupted{interrupted_note()}", file=sys.stderr)
         code = 130
     except TyperException as exc:  # click's usage errors, as vendored by typer: bad value, missing option...
         ctx = getattr(exc, "ctx", None)
@@ -55,13 +98,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     except DualtwinError as exc:
         print(f"error: {one_line(str(exc))}", file=sys.stderr)
         code = 2
+    except RecursionError:
+        # A structure too deep for the interpreter (every reader of ours refuses deep files first; this is the
+        # net under readers of other formats).
+        print("error: an input is nested too deeply to read", file=sys.stderr)
+        code = 2
     except OSError as exc:
         # A file the user named cannot be read or written (permissions, a folder where a file belongs, a full
-        # disk): their input, not our bug. Errors without a file name are bugs and keep their traceback.
-        if exc.filename is None:
+        # disk): their input or their machine, not our bug. A full disk or an I/O error is one line even where
+        # the writer could not say which file it was; other errors without a file name keep their traceback.
+        if exc.filename is None and exc.errno not in _MACHINE_ERRORS:
             raise
-        print(f"error: {exc.filename}: {exc.strerror or exc}", file=sys.stderr)
+        where = f"{exc.filename}: " if exc.filename is not None else ""
+        print(f"error: {where}{exc.strerror or exc}", file=sys.stderr)
         code = 2
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
     sys.stdout.flush()
     if argv is None:
         sys.exit(code)

@@ -14,7 +14,16 @@ import typer
 
 from dualtwin.align.config import AlignConfig
 from dualtwin.artifacts import check_output_dir
-from dualtwin.cli.common import JsonOutput, OutOption, Twin, app, console, llm_proposer, report_progress
+from dualtwin.cli.common import (
+    JsonOutput,
+    OutOption,
+    Twin,
+    app,
+    console,
+    llm_proposer,
+    on_interrupt,
+    report_progress,
+)
 from dualtwin.cli.model_options import model_options, validate_model
 from dualtwin.errors import DualtwinError
 from dualtwin.reporting import ProgressEvent, emit_json
@@ -50,6 +59,11 @@ def align(
                                 "for a run folder use --reference-run")
     config = validate_model(AlignConfig, {**fields, "reference": reference or str(reference_run)})
     check_output_dir(out, "align", resume=resume, resumable=True)
+    if config.executor == "ray" and config.ray_address:
+        from dualtwin.parallel import check_ray_address
+
+        check_ray_address(config.ray_address, "--ray-address")  # seconds, not Ray's minutes of retries
+    on_interrupt(lambda: "resume with --resume" if any(out.glob("*checkpoint*")) else "")
     if reference_run is not None:
         from dualtwin.divergence.runs import load_run
 

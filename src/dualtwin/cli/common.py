@@ -112,6 +112,41 @@ def _global_options(
         print(gl_backend().describe(), file=sys.stderr)
 
 
+# What an interrupted command leaves behind, for the one line Ctrl-C prints (set by commands that can resume).
+_interrupt_notes: list[Any] = []
+
+
+def on_interrupt(describe: Any) -> None:
+    """Register ``describe() -> str`` ("3 scenarios kept, resume with --resume"), called if Ctrl-C stops the
+    command; it must only read files (the command's own writes are atomic, so what it reads is whole)."""
+    _interrupt_notes.append(describe)
+
+
+def interrupted_note(reset: bool = False) -> str:
+    """"; " and what the running command registered with :func:`on_interrupt` (empty if nothing)."""
+    if reset:
+        _interrupt_notes.clear()
+        return ""
+    notes = []
+    for describe in _interrupt_notes:
+        try:
+            notes.append(str(describe()))
+        except Exception:  # noqa: BLE001 -- a note must never turn Ctrl-C into a traceback
+            continue
+    return "".join(f"; {note}" for note in notes if note)
+
+
+def resume_note(manifest: Path, key: str, what: str) -> str:
+    """"N <what> kept, resume with --resume" from the list ``key`` of the run's manifest on disk."""
+    import json
+
+    try:
+        kept = len(json.loads(manifest.read_text(encoding="utf-8")).get(key) or [])
+    except (OSError, ValueError, AttributeError):
+        kept = 0
+    return f"{kept} {what} kept, resume with --resume"
+
+
 def check_runs(*folders: Path) -> None:
     """Every folder must be a run whose logs verify, before any progress is shown or anything is written."""
     from dualtwin.divergence.runs import load_run

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from enum import StrEnum
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -16,6 +17,20 @@ app.add_typer(import_app, name="import")
 ImportSuite = Annotated[Path, typer.Option(help="the suite the recording was made from (JSON)")]
 ImportRobot = Annotated[str, typer.Option(help="bundled robot name or path to a binding file")]
 ImportOut = Annotated[Path, OutOption("run folder to write (empty, new, or an earlier import)")]
+
+
+class Invalid(StrEnum):
+    """How an import treats values no sensor produces (``dualtwin.recorded.build.INVALID_TREATMENTS``)."""
+
+    error = "error"
+    mask = "mask"
+    unstable = "unstable"
+
+
+ImportInvalid = Annotated[Invalid, typer.Option(
+    "--invalid", help="values no sensor produces (infinite, or beyond ±1e9 in the binding's unit): error refuses "
+    "the log naming file, line and column; mask drops them; unstable ends the scenario there (the manifest "
+    "notes say what was done where)")]
 ImportDataDir = Annotated[Path | None, typer.Option(help="folder the mapping's file names are relative to "
                                                          "(default: the mapping's folder)")]
 
@@ -41,34 +56,36 @@ def _import_with_progress(run: Any, json_out: bool) -> None:
 def import_paper_cmd(
     log_dir: Annotated[Path, typer.Argument(help="folder of simulation_log_SUP_<i>.tsv files")],
     scenarios: ImportSuite, robot: ImportRobot, out: ImportOut, json_out: JsonOutput = False,
+    invalid: ImportInvalid = Invalid.error,
 ) -> None:
     """The paper's TestOrchestrator logs (one TSV per scenario, paired with the suite by index)."""
     from dualtwin.recorded import import_paper
 
-    _import_with_progress(lambda p: import_paper(log_dir, scenarios, robot, out, progress=p), json_out)
+    _import_with_progress(lambda p: import_paper(log_dir, scenarios, robot, out, progress=p,
+                                                 invalid=invalid.value), json_out)
 
 
 @import_app.command("table")
 def import_table_cmd(
     mapping: Annotated[Path, typer.Argument(help="YAML mapping: files, time column, channels")],
     scenarios: ImportSuite, robot: ImportRobot, out: ImportOut, data_dir: ImportDataDir = None,
-    json_out: JsonOutput = False,
+    json_out: JsonOutput = False, invalid: ImportInvalid = Invalid.error,
 ) -> None:
     """CSV/TSV logs, one file per scenario, described by a YAML mapping."""
     from dualtwin.recorded import import_table
 
-    _import_with_progress(lambda p: import_table(mapping, scenarios, robot, out, data_dir=data_dir, progress=p),
-                          json_out)
+    _import_with_progress(lambda p: import_table(mapping, scenarios, robot, out, data_dir=data_dir, progress=p,
+                                                 invalid=invalid.value), json_out)
 
 
 @import_app.command("mcap")
 def import_mcap_cmd(
     mapping: Annotated[Path, typer.Argument(help="YAML mapping: bags, topics and fields, scenario ranges")],
     scenarios: ImportSuite, robot: ImportRobot, out: ImportOut, data_dir: ImportDataDir = None,
-    json_out: JsonOutput = False,
+    json_out: JsonOutput = False, invalid: ImportInvalid = Invalid.error,
 ) -> None:
     """ROS 2 bags in MCAP, described by a YAML mapping."""
     from dualtwin.recorded import import_mcap
 
-    _import_with_progress(lambda p: import_mcap(mapping, scenarios, robot, out, data_dir=data_dir, progress=p),
-                          json_out)
+    _import_with_progress(lambda p: import_mcap(mapping, scenarios, robot, out, data_dir=data_dir, progress=p,
+                                                invalid=invalid.value), json_out)

@@ -7,7 +7,17 @@ from typing import Annotated
 
 import typer
 
-from dualtwin.cli.common import Executor, JsonOutput, OutOption, Twin, console, report_progress, suite_app
+from dualtwin.cli.common import (
+    Executor,
+    JsonOutput,
+    OutOption,
+    Twin,
+    console,
+    on_interrupt,
+    report_progress,
+    resume_note,
+    suite_app,
+)
 from dualtwin.errors import DualtwinError
 from dualtwin.reporting import Column, ProgressEvent, emit_json, print_table
 
@@ -58,6 +68,7 @@ def suite_run(
         raise DualtwinError(f"--executor: {exc}") from None
     twin_name = twin.value
     binding = resolve_robot(robot)
+    on_interrupt(lambda: resume_note(out / "manifest.json", "scenarios", "scenarios"))
     if ensemble or perturb:
         from dualtwin.suite.ensemble import EnsembleRun, make_spec, parse_perturb
 

@@ -22,8 +22,7 @@ from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any, Literal, TypedDict
 
-import yaml
-
+from dualtwin.artifacts import read_yaml
 from dualtwin.errors import DualtwinError
 
 Provider = Literal["openai", "anthropic"]
@@ -76,7 +75,11 @@ class LLMConfig:
 
     @property
     def where(self) -> str:
-        return f"{self.provider} provider at {self.base_url or 'its default URL'} (model {self.model!r})"
+        # The address and where it is set (the environment, else the config file's base_url), so a wrong one
+        # is found at once.
+        at = (f"{self.base_url} ({ENV_BASE_URL} or base_url in {ENV_CONFIG})" if self.base_url
+              else "its default URL")
+        return f"{self.provider} provider at {at} (model {self.model!r})"
 
 
 _FILE_KEYS = {"provider", "model", "base_url", "api_key", "api_key_env", "timeout_s", "max_retries", "temperature",
@@ -92,10 +95,8 @@ def load_llm_config(path: Path | str | None = None, env: Mapping[str, str] | Non
         p = Path(path)
         if not p.is_file():
             raise DualtwinError(f"{p}: LLM config file not found")
-        try:
-            loaded = yaml.safe_load(p.read_text(encoding="utf-8")) or {}
-        except yaml.YAMLError as exc:
-            raise DualtwinError(f"{p}: invalid YAML: {exc}") from None
+        # A binary file, a pipe, a deep or huge file: one line naming it (the shared careful reader).
+        loaded = read_yaml(p, "LLM config file") or {}
         if not isinstance(loaded, dict):
             raise DualtwinError(f"{p}: LLM config must be a mapping")
         unknown = sorted(set(loaded) - _FILE_KEYS)

@@ -338,7 +338,8 @@ def _scenario(path: Path, name: str, readers: dict[str, _TopicReader], factors: 
 
 
 def import_mcap(mapping: Path, suite: Path, robot: str | Path | RobotBinding, out: Path,
-                data_dir: Path | None = None, progress: ProgressCallback | None = None) -> Path:
+                data_dir: Path | None = None, progress: ProgressCallback | None = None,
+                invalid: str = "error") -> Path:
     """Import ROS 2 bags (MCAP) described by a YAML :class:`BagMapping`; returns the run folder.
 
     Args:
@@ -348,6 +349,7 @@ def import_mcap(mapping: Path, suite: Path, robot: str | Path | RobotBinding, ou
         out: The run folder to write (absent, empty, or an earlier import).
         data_dir: Where the mapping's bag names are resolved and confined; default the mapping's folder.
         progress: Receives progress events (`dualtwin.reporting.progress`) while files are read and written.
+        invalid: What infinite or absurd values do (`dualtwin.recorded.build.INVALID_TREATMENTS`).
     """
     inputs = mapped_inputs(mapping, BagMapping, suite, robot, out, data_dir)
     spec, suite_model, binding, mapping_path, files, names = (
@@ -380,5 +382,6 @@ def import_mcap(mapping: Path, suite: Path, robot: str | Path | RobotBinding, ou
             scenarios.append(_scenario(path, name, readers, factors, origin, 0, None, f"scenario {sid}"))
     recording = Recording(format="mcap", suite_path=Path(suite), suite=suite_model, robot=binding, mapping=spec,
                           mapping_path=mapping_path, channels=list(spec.channels), scenarios=scenarios,
-                          sources=dict(zip(names, files, strict=True)), time={"stamp": spec.stamp, **TIME_DOC})
+                          sources=dict(zip(names, files, strict=True)), time={"stamp": spec.stamp, **TIME_DOC},
+                          invalid=invalid)
     return write_recording(recording, Path(out), progress)

@@ -115,6 +115,8 @@ class Recording:
     scenarios: list[ScenarioRecording]
     sources: dict[str, Path]  # the name recorded in the manifest -> the file
     time: dict[str, Any]
+    #: What to do with values no sensor produces (see :func:`screen_trace`): error, mask or unstable.
+    invalid: str = "error"
 
 
 def check_suite(suite: Suite, suite_path: Path, robot: RobotBinding) -> None:
@@ -194,6 +196,43 @@ class _Assembled:
     files: dict[str, bytes]
 
 
+#: A recorded value beyond this magnitude (in the binding's unit: rad, m, m/s ...) is not a measurement: no
+#: sensor of a robot we model reads a billion of anything. Infinities are not measurements either. NaN keeps
+#: its meaning in a simulator's log, as in our own runs: the recorded simulation went unstable there.
+MAX_RECORDED_MAGNITUDE = 1e9
+#: ``--invalid``: how an import treats such values. ``error`` (the default) refuses the recording, naming file,
+#: line and column; ``mask`` drops those samples (interpolated over) and ``unstable`` ends the scenario there
+#: as a NaN would; both say in the scenario's manifest notes what they did and where.
+INVALID_TREATMENTS = ("error", "mask", "unstable")
+
+
+def screen_trace(tr: Trace, invalid: str, notes: list[str]) -> Trace:
+    """``tr`` with its infinite and absurd values treated as ``invalid`` says (see INVALID_TREATMENTS)."""
+    y = tr.y
+    with np.errstate(invalid="ignore"):
+        bad = np.flatnonzero(np.isinf(y) | (np.abs(y) > MAX_RECORDED_MAGNITUDE))
+    if not bad.size:
+        return tr
+    i = int(bad[0])
+    what = "infinite" if math.isinf(float(y[i])) else f"beyond ±{MAX_RECORDED_MAGNITUDE:g}"
+    if invalid == "mask":
+        keep = np.ones(y.size, dtype=bool)
+        keep[bad] = False
+        index = np.flatnonzero(keep)
+        notes.append(f"masked {bad.size} sample(s) of {tr.run_name} that no sensor produces (infinite or beyond "
+                     f"±{MAX_RECORDED_MAGNITUDE:g}), the first at {tr.where(i)}; interpolated over")
+        return Trace(tr.run_name, tr.t[keep], y[keep], lambda k: tr.where(int(index[k])))
+    if invalid == "unstable":
+        notes.append(f"{bad.size} sample(s) of {tr.run_name} that no sensor produces (infinite or beyond "
+                     f"±{MAX_RECORDED_MAGNITUDE:g}) treated as NaN (--invalid unstable), the first at {tr.where(i)}")
+        y = y.copy()
+        y[bad] = np.nan
+        return Trace(tr.run_name, tr.t, y, tr.where)
+    raise DualtwinError(f"{tr.where(i)}: {tr.run_name} = {float(y[i])!r} is {what}: no sensor reads that; "
+                        "fix the log, or import with --invalid mask (drop such samples) or --invalid unstable "
+                        "(end the scenario there)")
+
+
 def _assemble(index: int, sid: str, rec: ScenarioRecording, recording: Recording,
               period: float) -> _Assembled:
     suite, robot = recording.suite, recording.robot
@@ -202,7 +241,7 @@ def _assemble(index: int, sid: str, rec: ScenarioRecording, recording: Recording
     notes = list(rec.notes)
     unstable: tuple[float, str] | None = None
     cut: dict[str, tuple[FloatArray, FloatArray]] = {}
-    for tr in rec.traces:
+    for tr in (screen_trace(tr, recording.invalid, notes) for tr in rec.traces):
         bad = np.flatnonzero(~np.isfinite(tr.y))
         t, y = tr.t, tr.y
         if bad.size:
@@ -402,6 +441,7 @@ def build_files(recording: Recording, progress: ProgressCallback | None = None) 
         "mapping": recording.mapping.model_dump(mode="json"),
         "units": {c.run_name: unit_record(robot, c) for c in recording.channels},
         "time": recording.time,
+        "invalid_values": {"treatment": recording.invalid, "max_magnitude": MAX_RECORDED_MAGNITUDE},
         "resampling": RESAMPLING,
         "versions": package_versions(),
         "channels": channels,

@@ -85,7 +85,7 @@ def paper_files(log_dir: Path, count: int) -> list[Path]:
 
 
 def import_paper(log_dir: Path, suite: Path, robot: str | Path | RobotBinding, out: Path,
-                 progress: ProgressCallback | None = None) -> Path:
+                 progress: ProgressCallback | None = None, invalid: str = "error") -> Path:
     """Import a folder of the paper's TestOrchestrator logs as a recorded run; returns the run folder.
 
     Args:
@@ -95,6 +95,7 @@ def import_paper(log_dir: Path, suite: Path, robot: str | Path | RobotBinding, o
             ``pole_angle_rad`` and ``cart_pos_m``.
         out: The run folder to write (absent, empty, or an earlier import).
         progress: Receives progress events (`dualtwin.reporting.progress`) while files are read and written.
+        invalid: What infinite or absurd values do (`dualtwin.recorded.build.INVALID_TREATMENTS`).
     """
     check_output_dir(Path(out), KIND, resume=True, resumable=True)
     suite_model, binding = resolve_inputs(Path(suite), robot)
@@ -108,4 +109,5 @@ def import_paper(log_dir: Path, suite: Path, robot: str | Path | RobotBinding, o
                         "after each step)", **TIME_DOC}
     recording = recording_from_tables(files, names, mapping, suite_model, Path(suite), binding, "paper", None,
                                       str(log_dir), time_doc, progress)
+    recording.invalid = invalid
     return write_recording(recording, Path(out), progress)

@@ -84,17 +84,25 @@ def mapped_inputs(mapping: Path, model: type[TableMapping] | type[BagMapping], s
 def _time_axis(table: Table, mapping: TableMapping, period: float) -> tuple[FloatArray, dict[str, Any]]:
     spec = mapping.time
     stamps = table.column(spec.column, "the time column") * TIME_FACTORS[spec.unit]
+    col = table.header.index(spec.column) + 1
     bad = np.flatnonzero(~np.isfinite(stamps))
     if bad.size:
         i = int(bad[0])
-        raise DualtwinError(f"{table.path}:{table.line(i)}: time stamp {float(stamps[i])!r} is not a finite number")
+        raise DualtwinError(f"{table.path}:{table.line(i)}: time stamp {float(stamps[i])!r} is not a finite number "
+                            f"(column {col}, {spec.column!r})")
     steps = np.diff(stamps)
     back = np.flatnonzero(steps <= 0)
     if back.size:
         i = int(back[0]) + 1
         raise DualtwinError(f"{table.path}:{table.line(i)}: time stamps must increase: {float(stamps[i])!r} s after "
-                            f"{float(stamps[i - 1])!r} s")
+                            f"{float(stamps[i - 1])!r} s (column {col}, {spec.column!r})")
     rebase = spec.origin == "rebase" or (spec.origin == "auto" and stamps[0] > AUTO_REBASE_PERIODS * period)
+    if not rebase and stamps[0] < 0:
+        # Scenario time starts at 0: a negative stamp is a sample from before the scenario began (or a clock
+        # that is not scenario time, which origin: rebase states explicitly).
+        raise DualtwinError(f"{table.path}:{table.line(0)}: first time stamp {float(stamps[0])!r} s is negative "
+                            f"(column {col}, {spec.column!r}); scenario time starts at 0 (a log on another "
+                            "clock needs origin: rebase)")
     t = stamps - stamps[0] + spec.first_sample_s if rebase else stamps
     timing: dict[str, Any] = {"origin": "rebased" if rebase else "simulation",
                               "first_stamp_s": float(stamps[0]), "first_sample_s": float(t[0]),
@@ -121,10 +129,11 @@ def scenario_from_table(path: Path, name: str, mapping: TableMapping, factors: d
     if resolution:
         timing["rounded_to"] = resolution  # in the recorded unit: the log's own precision, kept as it is
 
-    def where(i: int) -> str:
-        return f"{path}:{table.line(i)}"
+    def located(column: str) -> Any:
+        col = table.header.index(column) + 1
+        return lambda i: f"{path}:{table.line(i)}:{col}"
 
-    traces = [Trace(run_name, t, y, where) for run_name, y in columns.items()]
+    traces = [Trace(ch.run_name, t, columns[ch.run_name], located(ch.column)) for ch in mapping.channels]
     return ScenarioRecording(traces=traces, raw=[RawLog("log", t, columns)], sources=[name], timing=timing,
                              notes=list(table.notes))
 
@@ -150,7 +159,8 @@ def recording_from_tables(files: Sequence[Path], names: Sequence[str], mapping: 
 
 
 def import_table(mapping: Path, suite: Path, robot: str | Path | RobotBinding, out: Path,
-                 data_dir: Path | None = None, progress: ProgressCallback | None = None) -> Path:
+                 data_dir: Path | None = None, progress: ProgressCallback | None = None,
+                 invalid: str = "error") -> Path:
     """Import CSV/TSV logs described by a YAML :class:`TableMapping`; returns the run folder.
 
     Args:
@@ -160,6 +170,7 @@ def import_table(mapping: Path, suite: Path, robot: str | Path | RobotBinding, o
         out: The run folder to write (absent, empty, or an earlier import).
         data_dir: Where the mapping's file names are resolved and confined; default the mapping's folder.
         progress: Receives progress events (`dualtwin.reporting.progress`) while files are read and written.
+        invalid: What infinite or absurd values do (`dualtwin.recorded.build.INVALID_TREATMENTS`).
     """
     inputs = mapped_inputs(mapping, TableMapping, suite, robot, out, data_dir)
     spec, suite_model, binding, mapping_path, files, names = (
@@ -170,4 +181,5 @@ def import_table(mapping: Path, suite: Path, robot: str | Path | RobotBinding, o
                         "control periods", **TIME_DOC}
     recording = recording_from_tables(files, names, spec, suite_model, Path(suite), binding, "table",
                                       mapping_path, str(mapping_path), time_doc, progress)
+    recording.invalid = invalid
     return write_recording(recording, Path(out), progress)

@@ -12,7 +12,6 @@ Ranges file (written by alignment; JSON or YAML)::
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping
 from pathlib import Path
@@ -20,7 +19,6 @@ from typing import Any, Literal
 
 import gymnasium as gym
 import numpy as np
-import yaml
 from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
 
 from dualtwin.errors import DualtwinError
@@ -62,14 +60,12 @@ class _RangesFile(BaseModel):
 def _read_mapping(source: Path | str | Mapping[str, Any], what: str) -> tuple[dict[str, Any], str]:
     if isinstance(source, Mapping):
         return dict(source), f"<{what} dict>"
-    from dualtwin.artifacts import read_text_file
+    from dualtwin.artifacts import read_json, read_yaml
 
     path = Path(source)
-    text = read_text_file(path, f"{what} file")  # a directory, a pipe or binary data is one clear error
-    try:
-        data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
-    except (json.JSONDecodeError, yaml.YAMLError) as exc:
-        raise DualtwinError(f"{path}: not valid {'JSON' if path.suffix == '.json' else 'YAML'}: {exc}") from None
+    # The shared careful readers: a directory, a pipe, binary data, duplicate keys, deep nesting or a huge
+    # file is one line naming the file (and the line and column where there is one).
+    data = read_json(path, f"{what} file") if path.suffix == ".json" else read_yaml(path, f"{what} file")
     if not isinstance(data, dict):
         raise DualtwinError(f"{path}: a {what} file must hold a mapping")
     return data, str(path)

@@ -14,7 +14,6 @@ what it finished, and ``resume=True`` runs only the rest.
 from __future__ import annotations
 
 import math
-import shutil
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,6 +21,7 @@ from typing import Any
 
 from dualtwin.artifacts import (
     check_output_dir,
+    copy_file,
     log_record,
     package_versions,
     sha256_file,
@@ -33,6 +33,7 @@ from dualtwin.errors import DualtwinError, SimulationUnstable
 from dualtwin.models import json_path
 from dualtwin.robots.binding import RobotBinding
 from dualtwin.suite.loader import load_suite, read_json
+from dualtwin.suite.physical import check_initial_value, impossible_reason, joint_stops
 from dualtwin.suite.schema import Scenario, Suite
 from dualtwin.twins import make_twin
 from dualtwin.twins.base import Twin
@@ -49,12 +50,14 @@ def check_against_binding(suite: Suite, suite_path: Path, robot: RobotBinding) -
     """Every robot-specific key must resolve through the binding, before anything is simulated or written."""
     spec = robot.spec
     known = sorted(set(spec.initial_conditions) | set(spec.actions))
+    stops = joint_stops(robot) if any(k in spec.initial_conditions for s in suite.scenarios for k in s.inputs) else {}
     for i, scenario in enumerate(suite.scenarios):
         for key, value in scenario.inputs.items():
             where = json_path(("scenarios", i, key))
             if key in spec.initial_conditions:
                 if not isinstance(value, float):
                     raise DualtwinError(f"{suite_path}: {where}: initial condition {key!r} must be a number")
+                check_initial_value(key, value, stops, f"{suite_path}: {where}", robot)
             elif key not in spec.actions:
                 raise DualtwinError(f"{suite_path}: {where}: unknown robot-specific key {key!r}; "
                                     f"robot {robot.name!r} knows: {', '.join(known)}")
@@ -105,6 +108,13 @@ def run_scenario(io: RobotIO, scenario: Scenario, seed: int, thresholds: dict[st
         values = {k: v for k, v in inputs.items() if k in conditions}
         for key, shift in (offsets or {}).items():
             values[key] = (values[key] if key in values else io.read_initial(key)) + shift
+        # A state no physics can start from (validation refuses it in suites; a library caller or a
+        # perturbation may still bring one) is an unstable scenario now, not a simulator left to spin on it.
+        for key, value in values.items():
+            reason = impossible_reason(value)
+            if reason is not None:
+                refused: dict[str, Any] = {"time_s": 0.0, "message": f"initial condition {key!r}: {reason}"}
+                return ScenarioResult("", "unstable", refused, 0), [], []
         for key in sorted(values, key=lambda k: conditions[k].quantity != "position"):
             io.apply_initial(key, values[key])
     for key, value in constant.items():
@@ -199,8 +209,8 @@ class SuiteRun:
         twin = self._twin or make_twin(self.twin_name, self.robot, self.control_period)
         io = RobotIO(self.robot, twin)
         (out / "config").mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(self.suite_path, out / "config" / "suite.json")
-        shutil.copyfile(self.robot.path, out / "config" / "binding.yaml")
+        copy_file(self.suite_path, out / "config" / "suite.json")
+        copy_file(self.robot.path, out / "config" / "binding.yaml")
         manifest: dict[str, Any] = {
             "manifest_version": MANIFEST_VERSION,
             "kind": KIND,

@@ -28,6 +28,10 @@ MAX_DURATION_S = 86_400.0
 MAX_SUITE_PERIODS = 1_000_000
 MIN_TIME_STEP_MS, MAX_TIME_STEP_MS = 0.01, 60_000.0
 MAX_SEED = 2**32 - 1
+# A robot-specific number (initial condition or constant action, SI units) beyond this is a typo or an attack,
+# refused without knowing the robot; with the robot, initial conditions get the tighter checks of
+# dualtwin.suite.physical (the joint's stops, ±1e4).
+MAX_INPUT_MAGNITUDE = 1e6
 
 
 class Tolerance(FrozenModel):
@@ -86,6 +90,9 @@ class Scenario(FrozenModel):
             if isinstance(value, int | float):
                 if not math.isfinite(value):
                     raise ValueError(f"{key!r} must be finite")
+                if abs(value) > MAX_INPUT_MAGNITUDE:
+                    raise ValueError(f"{key!r} = {value:g} is beyond ±{MAX_INPUT_MAGNITUDE:g}: no robot-specific "
+                                     "input (in SI units) is that large")
             elif isinstance(value, dict):
                 _signal_adapter.validate_python(value)
             else:

@@ -188,6 +188,10 @@ def roll_pitch_yaw(m: Sequence[float]) -> tuple[float, float, float]:
 def normalize_angle(angle: float, center: float = 0.0) -> float:
     """Shift ``angle`` by whole turns into ``(center - π, center + π]``."""
     two_pi = 2.0 * math.pi
+    if not math.isfinite(angle) or abs(angle - center) > 1e6:
+        # The loop below would never end (inf) or take ~1e299 turns (1e300): such an angle has lost every digit
+        # of its remainder; NaN lets the physics report the state as unstable instead of hanging.
+        return math.nan
     while angle > center + math.pi:
         angle -= two_pi
     while angle <= center - math.pi:
