@@ -122,8 +122,13 @@ def test_bad_inputs(tmp_path: Path) -> None:
 
 
 def test_stop_reward_ends_training_and_is_recorded(tmp_path: Path) -> None:
+    said: list[str] = []
     out = train("dualtwin/CartPole-MuJoCo-v0", {**TINY, "stop_reward": 0.0}, tmp_path / "run", total_timesteps=8192,
-                progress_bar=False)
+                progress_bar=False, report=said.append)
+    # the set-up is not silent: what it loads and builds is said before the first evaluation line
+    assert said[0] == "loading PyTorch and Stable-Baselines3"
+    assert said[1].startswith("building ") and "dualtwin/CartPole-MuJoCo-v0" in said[1]
+    assert said[2].startswith("training: steps 0 to 8192")
     record = json.loads((out / "run.json").read_text())
     # The first evaluation (after 1024 steps) crosses the threshold; it ends training and is in the timeline.
     assert record["status"] == "complete" and record["num_timesteps"] == 1024

@@ -312,7 +312,14 @@ class _Trainer:
         }
         write_json(self.out / "run.json", record)
 
+    def _say(self, line: str) -> None:
+        if self.report is not None:
+            self.report(line)
+
     def run(self) -> Path:
+        # The first seconds (importing PyTorch and SB3, building every environment) would otherwise be silent
+        # until SB3's progress bar appears.
+        self._say("loading PyTorch and Stable-Baselines3")
         import torch
         from stable_baselines3 import PPO
         from stable_baselines3.common.callbacks import (
@@ -329,6 +336,8 @@ class _Trainer:
         torch.set_num_threads(cfg.torch_threads)
         norm = cfg.normalize_config
         vec_cls = SubprocVecEnv if cfg.vec_env == "subproc" else DummyVecEnv
+        self._say(f"building {cfg.n_envs} training and {min(cfg.eval_episodes, 8)} evaluation environments of "
+                  f"{self.env_id}")
         venv: Any = make_vec_env(_make_env_fn(self.env_id, self.env_kwargs, self.dr), n_envs=cfg.n_envs,
                                  seed=self.seed, monitor_dir=str(out / "monitor"), vec_env_cls=vec_cls,
                                  monitor_kwargs={"override_existing": self.start_from is None})
@@ -478,6 +487,8 @@ class _Trainer:
 
         start_steps = self.start_steps = int(model.num_timesteps)
         self._record("running")
+        evaluations = f", evaluating every {cfg.eval_freq} steps" if cfg.eval_freq else ""
+        self._say(f"training: steps {start_steps} to {self.total}{evaluations}")
         try:
             model.learn(total_timesteps=max(self.total - start_steps, 0), callback=CallbackList(callbacks),
                         progress_bar=self.progress_bar, reset_num_timesteps=self.start_from is None,
