@@ -55,7 +55,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "DEF/USE) resize the ODE geom at the next step, wake bodies around it and reach ray sensors; "
              "edits of PROTO interface fields do not reach the expanded nodes yet"),
     Coverage("Robot", "scene", "supported",
-             "Python controllers run unchanged (runner), supervisor API, selfCollision, controllerArgs; C "
+             "Python controllers run unchanged, each in its own process (runner), supervisor API, selfCollision, "
+             "controllerArgs; C "
              "controllers do not run; battery drained by cpuConsumption and motor consumptionFactor × |torque| "
              "(no Charger recharge; an empty battery stops nothing)"),
     Coverage("Group", "scene", "supported", "children expanded"),

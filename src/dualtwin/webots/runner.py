@@ -305,13 +305,14 @@ def run_controllers(
     api.set_current_runtime(runtime)
     try:
         result = run_in_processes(runtime, [(s.robot, s.script, s.args) for s in specs], step_timeout_s)
+        if not result.interrupted:
+            return _finish(sim, runtime, duration_s, result.code)
+    except KeyboardInterrupt:  # while the world runs on without controllers
+        pass
     finally:
         api.set_current_runtime(previous_runtime)
-    if result.interrupted:
-        print("interrupted", file=sys.stderr)
-        return result.code
-    code = result.code
-    return _finish(sim, runtime, duration_s, code)
+    print("interrupted", file=sys.stderr)
+    return 130
 
 
 def _finish(sim: Simulation, runtime: api.Runtime, duration_s: float | None, code: int) -> int:
