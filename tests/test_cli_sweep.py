@@ -86,7 +86,7 @@ PARAMS: dict[str, str] = {
     "seed": "number", "budget": "number", "steps": "number", "episodes": "number", "width": "number",
     "height": "number", "epochs": "number", "port": "number", "stride": "number", "max_iterations": "number",
     "workers": "number", "ensemble": "number", "shadow_fraction": "number", "duration": "number",
-    "colour_jitter": "number",
+    "colour_jitter": "number", "step_timeout": "number",
     "horizons": "numlist", "perturb": "perturb",
     "optimizer": "choice", "executor": "choice", "objective": "choice", "which": "choice", "resync": "choice",
     "json_dialect": "choice", "invalid": "choice",
