@@ -139,3 +139,14 @@ def test_a_rotated_robot_touches_at_the_same_step(rotation: float) -> None:
     # collision pass does (ODE's box-box collider can miss a deep overlap in one argument order only).
     assert _passive_arm_first_touch(rotation, 2.0) == _passive_arm_first_touch(0.0, 2.0) == 1.024
     assert _passive_arm_first_touch(rotation, 0.0) == 0.48  # control: without damping it falls faster
+
+
+def test_a_physics_plugin_is_named_once_as_not_run() -> None:
+    def build(info: str) -> list[str]:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return Simulation(load_world_text(f"#VRML_SIM R2023b utf8\nWorldInfo {{ {info} }}\n")).build_warnings
+
+    said = [w for w in build('physics "my_plugin"') if "physics plugin" in w]
+    assert len(said) == 1 and "'my_plugin'" in said[0] and "not run" in said[0]
+    assert not [w for w in build("") if "physics plugin" in w]  # control: the default '<none>' says nothing

@@ -50,6 +50,7 @@ from dualtwin.webots.devices import (
     GPS,
     SOLID_DEVICE_CLASSES,
     Accelerometer,
+    Brake,
     Gyro,
     InertialUnit,
     Motor,
@@ -60,6 +61,7 @@ from dualtwin.webots.display import Display, ImageRef
 from dualtwin.webots.keyboard import Keyboard
 from dualtwin.webots.nodes import Node as SceneNode
 from dualtwin.webots.physics import (
+    BrakeRec,
     DeviceRec,
     MotorRec,
     PositionSensorRec,
@@ -86,6 +88,7 @@ from dualtwin.webots.vacuum_gripper import install as install_vacuum_grippers
 
 __all__ = [
     "Accelerometer",
+    "Brake",
     "Camera",
     "ContactPoint",
     "ControllerStopped",
@@ -257,6 +260,8 @@ class Robot:
                 dev = Motor(self, rec.name, rec)
             elif isinstance(rec, PositionSensorRec):
                 dev = PositionSensor(self, rec.name, rec)
+            elif isinstance(rec, BrakeRec):
+                dev = Brake(self, rec.name, rec)
             elif isinstance(rec, DeviceRec):
                 cls = SOLID_DEVICE_CLASSES.get(rec.type_name, UnsupportedSensor)
                 dev = cls(self, rec.name, rec)

@@ -62,7 +62,8 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Group", "scene", "supported", "children expanded"),
     Coverage("Pose", "scene", "supported", "frames of children and bounding objects"),
     Coverage("Transform", "scene", "partial", "scale honoured inside boundingObjects only (warning elsewhere)"),
-    Coverage("Slot", "scene", "supported", "its endPoint is placed as a child"),
+    Coverage("Slot", "scene", "supported",
+             "its endPoint is placed as a child; a Slot pair as a joint endPoint passes the joint through"),
     Coverage("Billboard", "scene", "visual", "a view-facing group; no physics"),
     Coverage("CadShape", "scene", "visual", "visual mesh; no physics"),
     Coverage("Charger", "scene", "not", "behaves as a Solid; battery charging is not simulated"),
@@ -74,7 +75,9 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Damping", "physics", "supported", "linear and angular, converted per step as Webots does"),
     Coverage("ContactProperties", "physics", "partial",
              "material pairs, Coulomb friction, bounce, soft ERP/CFM follow Webots; asymmetric friction and "
-             "frictionRotation use the first value only; rollingFriction and forceDependentSlip are ignored"),
+             "frictionRotation use the first value only; rollingFriction (rho, rho2, rhoN: ODE's rolling rows; "
+             "mu2 stays 0 as Webots leaves it, so rho2/rhoN make the second friction direction frictionless) and "
+             "forceDependentSlip as Webots fills ODE's contact"),
     # -- geometry
     Coverage("Box", "geometry", "supported", "ODE box"),
     Coverage("Sphere", "geometry", "supported", "ODE sphere"),
@@ -95,8 +98,13 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("HingeJoint", "joint", "partial",
              "position, stops, springs, dampers, static friction; no suspension (an ODE-fork-only API)"),
     Coverage("SliderJoint", "joint", "supported", "stops; springs emulated with an equivalent LMotor row"),
-    Coverage("Hinge2Joint", "joint", "partial", "upstream ODE never limits the second axis: its stops are ignored"),
-    Coverage("BallJoint", "joint", "partial", "free ball joint; its motors and springs are not modelled"),
+    Coverage("Hinge2Joint", "joint", "partial",
+             "both axes' motors, sensors, springs and dampers (a stop AMotor per axis; run-time edits reach ODE); "
+             "upstream ODE never limits the second axis: its stops are ignored"),
+    Coverage("BallJoint", "joint", "partial",
+             "three axes (the first from jointParameters2, the third from jointParameters3, the second their "
+             "cross product) with motors, position sensors, brakes, stops and friction on an Euler AMotor; "
+             "kinematic when the endPoint has no Physics; springs and dampers are not modelled"),
     Coverage("JointParameters", "joint", "supported", "slider axis, position, stops, spring, damping, friction"),
     Coverage("HingeJointParameters", "joint", "supported", "axis, anchor and the JointParameters fields"),
     Coverage("BallJointParameters", "joint", "supported", "anchor"),
@@ -118,10 +126,13 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("RotationalMotor", "device", "partial",
              "velocity, position (Webots' PID) and torque control with limits, acceleration and the initial "
              "hold; coupled motors ('name::suffix') relay setPosition/setVelocity/setForce with their "
-             "multipliers, but their limits are not harmonised at load"),
+             "multipliers and their limits are harmonised at load to the first motor's; torque/force feedback "
+             "from ODE's joint feedback (hinge, slider; the commanded value in torque control)"),
     Coverage("LinearMotor", "device", "partial", "as RotationalMotor"),
     Coverage("PositionSensor", "device", "supported", "sampled joint position with noise and resolution"),
-    Coverage("Brake", "device", "not", "not yet: braking torque is not applied"),
+    Coverage("Brake", "device", "supported",
+             "setDampingConstant adds to the axis' dampingConstant through the implicit damper row, from the "
+             "next step (not on BallJoint axes); linked from its Motor and PositionSensor"),
     Coverage("GPS", "device", "supported",
              "position of the device origin (world axes, or WGS84 latitude/longitude/altitude around "
              "gpsReference), accuracy noise, resolution; speed and speed vector from the displacement over the "

@@ -20,7 +20,7 @@ from dualtwin.webots.compass import Compass
 from dualtwin.webots.connector import Connector
 from dualtwin.webots.device_base import Device, SampledDevice, SolidSensor
 from dualtwin.webots.display import Display
-from dualtwin.webots.joint_devices import Motor, PositionSensor
+from dualtwin.webots.joint_devices import Brake, Motor, PositionSensor
 from dualtwin.webots.keyboard import Keyboard
 from dualtwin.webots.led import LED
 from dualtwin.webots.light_sensor import LightSensor
@@ -37,6 +37,7 @@ __all__ = [
     "GPS",
     "SOLID_DEVICE_CLASSES",
     "Accelerometer",
+    "Brake",
     "Gyro",
     "InertialUnit",
     "Motor",
@@ -297,6 +298,8 @@ def device_class(type_name: str) -> type[Any] | None:
         return Motor
     if type_name == "PositionSensor":
         return PositionSensor
+    if type_name == "Brake":
+        return Brake
     if type_name == "Keyboard":
         return Keyboard
     return SOLID_DEVICE_CLASSES.get(type_name)

@@ -7,14 +7,17 @@ names.
 
 from __future__ import annotations
 
+import ctypes
 import math
 from typing import Any
 
+from dualtwin.webots import _math3 as m3
+from dualtwin.webots import ode
 from dualtwin.webots.api_args import as_float, finite, warn
 from dualtwin.webots.device_base import Device, SampledDevice
-from dualtwin.webots.physics import MotorRec, PositionSensorRec
+from dualtwin.webots.physics import BrakeRec, MotorRec, PositionSensorRec
 
-__all__ = ["Motor", "PositionSensor"]
+__all__ = ["Brake", "Motor", "PositionSensor"]
 
 _warn = warn
 _finite = finite
@@ -48,6 +51,101 @@ class PositionSensor(_Sampled):
         rec = self._record
         motor = rec.joint.motors[rec.axis_index]
         return self._robot._device_for(motor) if motor is not None else None  # type: ignore[return-value]
+
+    def getBrake(self) -> Brake | None:
+        rec = self._record
+        brake = rec.joint.brakes[rec.axis_index]
+        return self._robot._device_for(brake) if brake is not None else None  # type: ignore[return-value]
+
+    brake = property(getBrake)
+    motor = property(getMotor)
+    value = property(getValue)
+    type = property(getType)
+
+
+class Brake(Device):
+    """A joint axis' Brake: ``setDampingConstant(c)`` adds ``c`` (N·m·s/rad or N·s/m) to the axis'
+    dampingConstant, acting through the same implicit damper row from the next step (§4.5)."""
+
+    ROTATIONAL = 0
+    LINEAR = 1
+
+    _record: BrakeRec
+
+    def setDampingConstant(self, c: Any) -> None:
+        value = as_float(c, "Brake.setDampingConstant")
+        if not _finite(value) or value < 0:
+            _warn(f"'{self._name}': invalid damping constant {value}")
+            return
+        rec = self._record
+        rec.damping = value
+        sim = self._robot._sim
+        sim.rebuild_springs(rec.joint)
+        sim.wake(rec.joint)
+
+    def getType(self) -> int:
+        return self.LINEAR if self._record.joint.kind == "slider" else self.ROTATIONAL
+
+    def getMotor(self) -> Motor | None:
+        rec = self._record
+        motor = rec.joint.motors[rec.axis_index]
+        return self._robot._device_for(motor) if motor is not None else None  # type: ignore[return-value]
+
+    def getPositionSensor(self) -> PositionSensor | None:
+        rec = self._record
+        sensor = rec.joint.sensors[rec.axis_index]
+        return self._robot._device_for(sensor) if sensor is not None else None  # type: ignore[return-value]
+
+    motor = property(getMotor)
+    position_sensor = property(getPositionSensor)
+    type = property(getType)
+    dampingConstant = property(fset=setDampingConstant)
+
+
+class _Feedback(_Sampled):
+    """The sampled torque/force feedback of a Motor: what its ODE joint row applied to the endPoint along the
+    axis over the last step (ODE's joint feedback: torque about the anchor projected on the axis, or force along
+    the slider axis); in torque/force control, the torque/force commanded. NaN until the first sample."""
+
+    def __init__(self, motor: Motor) -> None:
+        super().__init__(motor._robot, motor._name, motor._record)
+        self._motor = motor
+        self._value = math.nan
+        self._buffer: ode.dJointFeedback | None = None
+
+    def enable(self, samplingPeriod: Any) -> None:
+        rec: MotorRec = self._record
+        joint = rec.joint
+        if self._buffer is None and joint.ptr and joint.kind in ("hinge", "slider"):
+            self._buffer = ode.dJointFeedback()
+            self._robot._sim._lib.dJointSetFeedback(joint.ptr, ctypes.byref(self._buffer))
+        super().enable(samplingPeriod)
+
+    def _invalidate(self) -> None:
+        self._value = math.nan
+
+    def _read(self) -> None:
+        rec: MotorRec = self._record
+        if rec.torque_mode:
+            self._value = rec.raw_torque
+            return
+        fb, joint = self._buffer, rec.joint
+        if fb is None or joint.child_body is None:
+            self._value = 0.0
+            return
+        sim = self._robot._sim
+        frame = sim.solid_world_pose(joint.parent) * joint.frame_rel if joint.parent is not None else joint.frame_rel
+        axis = m3.normalized(frame.rotate(joint.axis_local[0]))
+        # the endPoint is ODE's second body, or its first one when the joint is reversed (static parent)
+        f, t = (fb.f1, fb.t1) if joint.reverse else (fb.f2, fb.t2)
+        force = (f[0], f[1], f[2])
+        if joint.kind == "slider":
+            self._value = m3.dot(force, axis)
+            return
+        anchor = frame.apply(joint.anchor_local)
+        com = tuple(joint.child_body.pos[i] for i in range(3))
+        torque = m3.add((t[0], t[1], t[2]), m3.cross(m3.sub(com, anchor), force))
+        self._value = m3.dot(torque, axis)
 
 
 class Motor(Device):
@@ -130,7 +228,8 @@ class Motor(Device):
         rec.available = min(float(force), rec.max_force)
         self._changed()
 
-    setAvailableTorque = setAvailableForce
+    def setAvailableTorque(self, torque: Any) -> None:
+        self.setAvailableForce(torque)
 
     def setForce(self, force: Any) -> None:
         force = as_float(force, "Motor.setForce")
@@ -149,7 +248,8 @@ class Motor(Device):
             rec.torque_params_set = False
         self._changed()
 
-    setTorque = setForce
+    def setTorque(self, torque: Any) -> None:
+        self.setForce(torque)
 
     def setControlPID(self, p: Any, i: Any, d: Any) -> None:
         rec = self._record
@@ -198,3 +298,62 @@ class Motor(Device):
     def getPositionSensor(self) -> PositionSensor | None:
         sensor = self._record.sensor
         return self._robot._device_for(sensor) if sensor is not None else None  # type: ignore[return-value]
+
+    def getBrake(self) -> Brake | None:
+        brake = self._record.brake
+        return self._robot._device_for(brake) if brake is not None else None  # type: ignore[return-value]
+
+    # -- torque / force feedback (a sampled value of its own)
+
+    def _feedback(self) -> _Feedback:
+        fb: _Feedback | None = getattr(self, "_fb", None)
+        if fb is None:
+            fb = self._fb = _Feedback(self)
+        return fb
+
+    def enableForceFeedback(self, sampling_period: Any) -> None:
+        self._feedback().enable(sampling_period)
+
+    def disableForceFeedback(self) -> None:
+        self._feedback().disable()
+
+    def getForceFeedbackSamplingPeriod(self) -> int:
+        return self._feedback().getSamplingPeriod()
+
+    def getForceFeedback(self) -> float:
+        return float(self._feedback()._value)
+
+    def enableTorqueFeedback(self, sampling_period: Any) -> None:
+        self._feedback().enable(sampling_period)
+
+    def disableTorqueFeedback(self) -> None:
+        self._feedback().disable()
+
+    def getTorqueFeedbackSamplingPeriod(self) -> int:
+        return self._feedback().getSamplingPeriod()
+
+    def getTorqueFeedback(self) -> float:
+        return float(self._feedback()._value)
+
+    # -- Webots' properties
+
+    brake = property(getBrake)
+    position_sensor = property(getPositionSensor)
+    max_position = property(getMaxPosition)
+    min_position = property(getMinPosition)
+    max_velocity = property(getMaxVelocity)
+    max_force = property(getMaxForce)
+    max_torque = property(getMaxTorque)
+    multiplier = property(getMultiplier)
+    force_feedback = property(getForceFeedback)
+    torque_feedback = property(getTorqueFeedback)
+    type = property(getType)
+    force_feedback_sampling_period = property(getForceFeedbackSamplingPeriod, enableForceFeedback)
+    torque_feedback_sampling_period = property(getTorqueFeedbackSamplingPeriod, enableTorqueFeedback)
+    target_position = property(getTargetPosition, setPosition)
+    target_velocity = property(getVelocity, setVelocity)
+    target_acceleration = property(getAcceleration, setAcceleration)
+    available_force = property(getAvailableForce, setAvailableForce)
+    available_torque = property(getAvailableTorque, setAvailableTorque)
+    force = property(fset=setForce)
+    torque = property(fset=setTorque)

@@ -26,9 +26,11 @@ What differs (and why)
     * Asymmetric friction (2–4 ``coulombFriction`` values) and ``frictionRotation`` use the first value
       only (symmetric pyramid); fluids are not simulated. Ray devices, touch sensors and radios live in their
       own modules (``ranging``, ``touch``, ``radio``) and use the ``extensions``/``step_hooks`` slots.
-    * Hinge suspension (fork-only ODE API, Appendix A.2) and BallJoint motors/springs are not modelled;
-      upstream ODE never limits the second Hinge2 axis, so its stops are ignored. Brake devices are not
-      modelled; coupled motors ("name::suffix") are relayed by the controller API.
+    * Hinge suspension (fork-only ODE API, Appendix A.2) and BallJoint springs are not modelled; BallJoint
+      positions are read from the bodies' rotations (ODE updates its Euler angles only inside a step); upstream
+      ODE never limits the second Hinge2 axis, so its stops are ignored. A Brake adds its damping constant to
+      the axis' implicit damper; coupled motors ("name::suffix") are relayed by the controller API and their
+      limits harmonised at load.
     * ODE 0.16's ``dJointAddHingeTorque`` negates the torque of reversed hinges (static parent); the
       torque is pre-negated so a positive ``setTorque`` increases the position for every hinge, as
       Webots documents (whether its 0.13.1 fork negates too is UNVERIFIED).
@@ -78,6 +80,7 @@ from dualtwin.webots.physics.records import (
     SOLID_TYPES,
     AttachmentRec,
     BodyRec,
+    BrakeRec,
     DeviceRec,
     GeomRec,
     JointRec,
@@ -97,6 +100,7 @@ __all__ = [
     "WorldBuildError",
     "SolidRec",
     "BodyRec",
+    "BrakeRec",
     "JointRec",
     "MotorRec",
     "PositionSensorRec",
@@ -196,6 +200,10 @@ class Simulation(Stepper):
             if isinstance(damping, Node)
             else (0.0, 0.0)
         )
+        plugin = str(_f(info, "physics", "<none>"))
+        if plugin not in ("", "<none>"):
+            self.warn(f"WorldInfo.physics names the physics plugin '{plugin}': physics plugins are not run here, "
+                      "the world is simulated without it")
         self.random_seed = int(_f(info, "randomSeed", 0))
         self.contact_properties = [
             cp for cp in (_f(info, "contactProperties", []) or []) if isinstance(cp, Node)

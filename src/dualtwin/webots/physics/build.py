@@ -23,6 +23,7 @@ from dualtwin.webots.physics.records import (
     SOLID_TYPES,
     AttachmentRec,
     BodyRec,
+    BrakeRec,
     DeviceRec,
     GeomRec,
     JointRec,
@@ -112,21 +113,28 @@ class SceneBuilder(SimulationCore):
         kind = {"HingeJoint": "hinge", "SliderJoint": "slider", "Hinge2Joint": "hinge2", "BallJoint": "ball"}[
             node.type_name
         ]
-        p1 = _f(node, "jointParameters", None)
-        params: list[Node | None] = [p1 if isinstance(p1, Node) else None]
-        if kind == "hinge2":
-            p2 = _f(node, "jointParameters2", None)
-            params.append(p2 if isinstance(p2, Node) else None)
+        n_axes = {"hinge2": 2, "ball": 3}.get(kind, 1)
+        param_fields = ["jointParameters", "jointParameters2", "jointParameters3"][:n_axes]
+        params: list[Node | None] = []
+        for fname in param_fields:
+            p = _f(node, fname, None)
+            params.append(p if isinstance(p, Node) else None)
         default_axis = (0.0, 0.0, 1.0) if kind == "slider" else (1.0, 0.0, 0.0)
         axes = [tuple(float(v) for v in _f(params[0], "axis", default_axis))]
         if kind == "hinge2":
             axes.append(tuple(float(v) for v in _f(params[1], "axis", (0.0, 0.0, 1.0))))
+        elif kind == "ball":
+            # §4.4: BallJointParameters has no axis; the first axis is jointParameters2's, the third
+            # jointParameters3's, the second their cross product (axis3 × axis1), as in a chain of three hinges
+            a1 = tuple(float(v) for v in _f(params[1], "axis", (1.0, 0.0, 0.0)))
+            a3 = tuple(float(v) for v in _f(params[2], "axis", (0.0, 0.0, 1.0)))
+            axes = [a1, m3.cross(a3, a1), a3]
         if kind == "slider":
             axes[0] = m3.normalized(axes[0])  # §4.3: Webots normalises the slider axis
         anchor = tuple(float(v) for v in _f(params[0], "anchor", (0.0, 0.0, 0.0)))
         positions = []
         for i, p in enumerate(params):
-            hidden = "position" if i == 0 else "position2"
+            hidden = ["position", "position2", "position3"][i]
             positions.append(float(_f(p, "position", _f(node, hidden, 0.0))))
         n = len(params)
         joint = JointRec(
@@ -159,7 +167,11 @@ class SceneBuilder(SimulationCore):
             for dev in _f(node, fname, []) or []:
                 if not isinstance(dev, Node):
                     continue
-                if dev.type_name in MOTOR_TYPES:
+                if dev.type_name == "Brake":
+                    joint.brakes[axis_index] = BrakeRec(
+                        node=dev, joint=joint, axis_index=axis_index, name=str(_f(dev, "name", "brake"))
+                    )
+                elif dev.type_name in MOTOR_TYPES:
                     joint.motors[axis_index] = self._make_motor(dev, joint, axis_index)
                 elif dev.type_name == "PositionSensor":
                     joint.sensors[axis_index] = PositionSensorRec(
@@ -172,8 +184,9 @@ class SceneBuilder(SimulationCore):
                     )
         for axis_index in range(n):
             motor, sensor = joint.motors[axis_index], joint.sensors[axis_index]
-            if motor is not None and sensor is not None:
+            if motor is not None:
                 motor.sensor = sensor
+                motor.brake = joint.brakes[axis_index]
         end = _f(node, "endPoint", None)
         while isinstance(end, Node) and end.type_name == "Slot":
             end = _f(end, "endPoint", None)  # a Slot pair is a pass-through: no frame of its own
@@ -184,12 +197,10 @@ class SceneBuilder(SimulationCore):
         elif isinstance(end, Node):
             self.warn(f"{node.type_name} endPoint {end.type_name} is not supported; joint ignored")
         if robot is not None:
-            for motor in joint.motors:
-                if motor is not None:
-                    robot.devices.setdefault(motor.name, motor)
-            for sensor in joint.sensors:
-                if sensor is not None:
-                    robot.devices.setdefault(sensor.name, sensor)
+            for group in (joint.motors, joint.sensors, joint.brakes):
+                for dev_rec in group:
+                    if dev_rec is not None:
+                        robot.devices.setdefault(dev_rec.name, dev_rec)
 
     def _make_motor(self, dev: Node, joint: JointRec, axis_index: int) -> MotorRec:
         rotational = dev.type_name == "RotationalMotor"

@@ -154,10 +154,29 @@ class SimulationCore:
         joint = solid.joint
         if joint is None or not joint.kinematic:
             return solid.rel
+        if joint.kind in ("ball", "hinge2"):
+            if joint.positions == joint.initial_positions:
+                return solid.rel
+            return self._chain_motion(joint) * solid.rel
         delta = joint.positions[0] - joint.initial_positions[0]
         if delta == 0.0:
             return solid.rel
         return self._joint_motion(joint, delta) * solid.rel
+
+    @staticmethod
+    def _chain_motion(joint: JointRec) -> Pose:
+        """Kinematic Hinge2/BallJoint: its axes turn in chain (axis 1 carries axis 2, which carries axis 3) about
+        the anchor; the motion from the initial positions to the current ones, in the parent Solid frame."""
+
+        def chain(positions: list[float]) -> m3.Mat3:
+            R = m3.IDENTITY
+            for axis, p in zip(joint.axis_local, positions, strict=False):
+                R = m3.mat_mul(R, m3.rot_axis_angle((*m3.normalized(joint.frame_rel.rotate(axis)), p)))
+            return R
+
+        R = m3.mat_mul(chain(joint.positions), m3.mat_t(chain(joint.initial_positions)))
+        anchor = joint.frame_rel.apply(joint.anchor_local)
+        return Pose(R, m3.sub(anchor, m3.mat_vec(R, anchor)))
 
     @staticmethod
     def _joint_motion(joint: JointRec, delta: float) -> Pose:

@@ -140,6 +140,8 @@ class SupervisorEdits(GeometryEdits):
         joint = solid.joint
         if joint is None or not joint.kinematic:
             return Pose()
+        if joint.kind in ("ball", "hinge2"):
+            return self._chain_motion(joint)
         delta = joint.positions[0] - joint.initial_positions[0]
         return self._joint_motion(joint, delta) if delta else Pose()
 

@@ -19,6 +19,8 @@ from dualtwin.webots.physics.records import (
     field_or as _f,
 )
 
+_GROUPS = (0, ode.dParamGroup2, ode.dParamGroup3)  # ODE parameter group of joint axis 0, 1, 2
+
 
 class JointBuilder(SceneBuilder):
     """Joints, stops, springs and joint read-back (see the module docstring)."""
@@ -51,6 +53,12 @@ class JointBuilder(SceneBuilder):
         pb = joint.parent_body.ptr if joint.parent_body is not None else None
         lib.dJointAttach(joint.ptr, pb, joint.child_body.ptr)
         joint.reverse = pb is None
+        if joint.kind == "ball":
+            # §4.4: the three axes' motors and stops live on an Euler AMotor (axis 1 turns with the parent,
+            # axis 3 with the endPoint); with no motor, stop or friction it adds no constraint row
+            joint.amotor = lib.dJointCreateAMotor(w, None)
+            lib.dJointAttach(joint.amotor, pb, joint.child_body.ptr)
+            lib.dJointSetAMotorMode(joint.amotor, ode.dAMotorEuler)
         joint.child_body.joints.append(joint)
         if joint.parent_body is not None:
             joint.parent_body.joints.append(joint)
@@ -146,12 +154,45 @@ class JointBuilder(SceneBuilder):
             lib.dJointSetHinge2Axes(j, (ctypes.c_double * 4)(*axis, 0.0), (ctypes.c_double * 4)(*axis2, 0.0))
         elif joint.kind == "ball":
             lib.dJointSetBallAnchor(j, *anchor)
+            self._set_euler_axes(joint, frame)
         joint.offsets = list(joint.positions)
         self._read_joint(joint, predict=False)
 
+    def _set_euler_axes(self, joint: JointRec, frame: Pose) -> None:
+        """The Euler AMotor's axes from the current poses, and the reference the positions are measured from:
+        ODE's Euler angles are minus Webots' positions (checked), read here from the bodies' rotations after
+        each step (ODE updates its own angles only inside the next step)."""
+        lib = self._lib
+        a1 = m3.normalized(frame.rotate(joint.axis_local[0]))
+        a3 = frame.rotate(joint.axis_local[2])
+        a3 = m3.normalized(m3.sub(a3, m3.scale(a1, m3.dot(a1, a3))))  # Euler mode needs a3 ⟂ a1
+        a2 = m3.cross(a3, a1)
+        sign = -1.0 if joint.reverse else 1.0  # ODE swaps the bodies of a reversed joint
+        lib.dJointSetAMotorAxis(joint.amotor, 0, 1, *m3.scale(a1, sign))
+        lib.dJointSetAMotorAxis(joint.amotor, 2, 2, *m3.scale(a3, sign))
+        parent_R = joint.parent_body.pose().R if joint.parent_body is not None else m3.IDENTITY
+        assert joint.child_body is not None
+        basis = (a1[0], a2[0], a3[0], a1[1], a2[1], a3[1], a1[2], a2[2], a3[2])  # columns a1, a2, a3
+        joint.euler_ref = (parent_R, joint.child_body.pose().R, basis)
+
+    def _ball_angles(self, joint: JointRec) -> tuple[float, float, float]:
+        """Webots' three BallJoint angles (before offsets): the endPoint's rotation relative to its parent since
+        the axes were set, decomposed as R(axis1, p1)·R(axis2, p2)·R(axis3, p3) (a chain of three hinges)."""
+        parent0, child0, basis = joint.euler_ref
+        parent = joint.parent_body.pose().R if joint.parent_body is not None else m3.IDENTITY
+        assert joint.child_body is not None
+        child = joint.child_body.pose().R
+        # relative rotation in the load-time world frame: Q = (P·P0ᵀ)ᵀ·(C·C0ᵀ)
+        q = m3.mat_mul(m3.mat_t(m3.mat_mul(parent, m3.mat_t(parent0))), m3.mat_mul(child, m3.mat_t(child0)))
+        m = m3.mat_mul(m3.mat_t(basis), m3.mat_mul(q, basis))  # = Rx(p1)·Ry(p2)·Rz(p3)
+        p2 = math.asin(max(-1.0, min(1.0, m[2])))
+        p1 = math.atan2(-m[5], m[8])
+        p3 = math.atan2(-m[1], m[0])
+        return p1, p2, p3
+
     def _set_stops(self, joint: JointRec, i: int) -> None:
         p = joint.params[i]
-        if p is None or joint.kind == "ball" or (joint.kind == "hinge2" and i == 1):
+        if p is None or (joint.kind == "hinge2" and i == 1):
             return  # upstream ODE never limits the second Hinge2 axis (module docstring)
         lo_w, hi_w = float(_f(p, "minStop", 0.0)), float(_f(p, "maxStop", 0.0))
         if lo_w == hi_w:
@@ -165,12 +206,15 @@ class JointBuilder(SceneBuilder):
         if lo > hi:
             lo, hi = hi, lo
         setp = self._param_setter(joint)
-        group = ode.dParamGroup2 if i == 1 else 0
+        group = _GROUPS[i]
         setp(joint.ptr, group + ode.dParamLoStop, lo)
         setp(joint.ptr, group + ode.dParamHiStop, hi)
 
     def _param_setter(self, joint: JointRec) -> Callable[..., None]:
         lib = self._lib
+        if joint.kind == "ball":
+            amotor = joint.amotor
+            return lambda _j, param, value: lib.dJointSetAMotorParam(amotor, param, value)  # type: ignore[no-any-return]
         return {  # type: ignore[no-any-return]
             "hinge": lib.dJointSetHingeParam,
             "slider": lib.dJointSetSliderParam,
@@ -180,9 +224,9 @@ class JointBuilder(SceneBuilder):
     def _set_static_friction(self, joint: JointRec, i: int) -> None:
         """§4.5: without a motor, static friction is a velocity-0 motor limited to staticFriction."""
         sf = joint.static_friction[i]
-        if joint.motors[i] is None and sf > 0 and joint.kind != "ball":
+        if joint.motors[i] is None and sf > 0:
             setp = self._param_setter(joint)
-            group = ode.dParamGroup2 if i == 1 else 0
+            group = _GROUPS[i]
             setp(joint.ptr, group + ode.dParamVel, 0.0)
             setp(joint.ptr, group + ode.dParamFMax, sf)
 
@@ -295,7 +339,7 @@ class JointBuilder(SceneBuilder):
 
     def _set_motor_row(self, joint: JointRec, i: int, vel: float, fmax: float) -> None:
         setp = self._param_setter(joint)
-        g = ode.dParamGroup2 if i == 1 else 0
+        g = _GROUPS[i]
         setp(joint.ptr, g + ode.dParamVel, vel)
         setp(joint.ptr, g + ode.dParamFMax, fmax)
 
@@ -333,6 +377,11 @@ class JointBuilder(SceneBuilder):
             joint.positions[0] = m3.normalize_angle(pos, pred)
         elif kind == "slider":
             joint.positions[0] = self._slider_pos(j) + joint.offsets[0]
+        elif kind == "ball":
+            angles = self._ball_angles(joint)
+            for i, a in enumerate(angles):
+                pos = a + joint.offsets[i]
+                joint.positions[i] = m3.normalize_angle(pos, joint.positions[i]) if predict else pos
         elif kind == "hinge2":
             a1 = lib.dJointGetHinge2Angle1(j)
             a2 = lib.dJointGetHinge2Angle2(j)

@@ -202,7 +202,7 @@ class MotorRec(_ShortRepr):
     current_velocity: float = 0.0  # Webots sign
     torque_params_set: bool = False
     sensor: PositionSensorRec | None = None
-    brake: Node | None = None
+    brake: BrakeRec | None = None
 
     def reset_state(self) -> None:
         """§5.1 initial state: hold the current position at max velocity with full torque."""
@@ -241,6 +241,17 @@ class PositionSensorRec(_ShortRepr):
     name: str
     noise: float
     resolution: float
+
+
+@dataclass(eq=False, repr=False)
+class BrakeRec(_ShortRepr):
+    """Brake of a joint axis: a damping constant added to the axis' dampingConstant (0 until set)."""
+
+    node: Node
+    joint: JointRec
+    axis_index: int
+    name: str
+    damping: float = 0.0
 
 
 @dataclass(eq=False, repr=False)
@@ -290,7 +301,9 @@ class JointRec(_ShortRepr):
     sensors: list[PositionSensorRec | None] = field(default_factory=lambda: [None])
     static_friction: list[float] = field(default_factory=lambda: [0.0])
     raw_angles: list[float] = field(default_factory=lambda: [0.0])
-    brakes: list[Any] = field(default_factory=lambda: [None])  # BrakeRec per axis (joint_devices' Brake)
+    brakes: list[BrakeRec | None] = field(default_factory=lambda: [None])
+    amotor: int = 0  # BallJoint: the Euler AMotor carrying the three axes' motors and stops
+    euler_ref: tuple[Any, ...] = ()  # BallJoint: (parent R, child R, axes basis) when the axes were set
 
     @property
     def kinematic(self) -> bool:

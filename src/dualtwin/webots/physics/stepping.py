@@ -19,10 +19,10 @@ class Stepper(SupervisorEdits):
     """The per-step loop (see the module docstring)."""
 
     def _prepare_step_lists(self) -> None:
-        self._dyn_motors = [m for m in self.motors if not m.joint.kinematic and m.joint.kind != "ball"]
+        self._dyn_motors = [m for m in self.motors if not m.joint.kinematic]
         self._kin_motors = [m for m in self.motors if m.joint.kinematic]
         self._springs = [j for j in self.joints if j.spring or j.spring2]
-        self._tracked = [j for j in self.joints if not j.kinematic and j.kind != "ball"]
+        self._tracked = [j for j in self.joints if not j.kinematic]
         # kinematic geoms inside robots are re-placed from the scene graph every step (§2.4)
         self._moving_static = []
         for gr in self.geoms.values():
@@ -35,7 +35,7 @@ class Stepper(SupervisorEdits):
         while s is not None:
             if s.body is not None:
                 return True
-            if s.joint is not None and s.joint.kinematic and s.joint.motors[0] is not None:
+            if s.joint is not None and s.joint.kinematic and any(m is not None for m in s.joint.motors):
                 return True
             s = s.parent
         return False
@@ -96,6 +96,10 @@ class Stepper(SupervisorEdits):
                 lib.dJointAddHingeTorque(joint.ptr, tau if joint.reverse else -tau)
             elif kind == "slider":
                 lib.dJointAddSliderForce(joint.ptr, tau)
+            elif kind == "ball":
+                torques = [0.0, 0.0, 0.0]
+                torques[i] = -tau
+                lib.dJointAddAMotorTorques(joint.amotor, *torques)
             elif i == 0:
                 lib.dJointAddHinge2Torques(joint.ptr, -tau, 0.0)
             else:
@@ -111,11 +115,8 @@ class Stepper(SupervisorEdits):
             setp = lib.dJointSetSliderParam
             setp(joint.ptr, ode.dParamFMax, fmax)
             setp(joint.ptr, ode.dParamVel, u)
-        else:
-            setp = lib.dJointSetHinge2Param
-            g = ode.dParamGroup2 if i == 1 else 0
-            setp(joint.ptr, g + ode.dParamFMax, fmax)
-            setp(joint.ptr, g + ode.dParamVel, -u)
+        else:  # Hinge2 and BallJoint axes (physics/joints.py picks the ODE joint and parameter group)
+            self._set_motor_row(joint, i, -u, fmax)
 
     def _kinematic_motor(self, motor: MotorRec, dt: float) -> None:
         """§5.3 (kinematic joints): move toward the target at the commanded velocity."""
