@@ -1,0 +1,58 @@
+"""Webots' own physics regression tests (the developers' half in ``../shared/conformance/webots-physics``), one
+pytest item per Webots test, through the suite's own ``run.sh`` and the installed ``dualtwin`` command.
+
+The suite's worlds, PROTOs and checks are data kept beside the project (never copied into it): each item runs
+``run.sh <test>`` exactly as a user would and requires every check of that test to pass. Skipped when
+``../shared`` is absent.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import SHARED
+
+SUITE = SHARED / "conformance" / "webots-physics"
+
+
+def _tests() -> list[str]:
+    table = SUITE / "tests.tsv"
+    if not table.is_file():
+        return []
+    names = []
+    for line in table.read_text().splitlines():
+        fields = line.split("\t")
+        if line.strip() and not line.startswith("#") and not (len(fields) > 4 and fields[4].startswith("SKIP")):
+            names.append(fields[0])
+    return names
+
+
+def _dualtwin() -> str:
+    beside = Path(sys.executable).parent / "dualtwin"  # the venv's console script, as `make test` installs it
+    found = str(beside) if beside.is_file() else shutil.which("dualtwin")
+    if found is None:
+        pytest.skip("no dualtwin command installed")
+    return found
+
+
+@pytest.mark.skipif(not SUITE.is_dir(), reason="../shared/conformance/webots-physics is not present")
+@pytest.mark.parametrize("test", _tests() or ["(none)"])
+def test_webots_physics_regression_test_passes(test: str, tmp_path: Path) -> None:
+    env = {**os.environ, "DUALTWIN": _dualtwin(), "LOGS": str(tmp_path), "TIMEOUT_S": "240",
+           "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[2] / "src"),
+                                          os.environ.get("PYTHONPATH", "")])}
+    done = subprocess.run(["bash", str(SUITE / "run.sh"), test], capture_output=True, text=True, env=env,
+                          timeout=600)
+    summary = re.search(r"(\d+)/(\d+) tests, (\d+)/(\d+) checks", done.stdout)
+    assert summary is not None, done.stdout + done.stderr
+    log = tmp_path / f"{test}.log"
+    detail = log.read_text()[-3000:] if log.is_file() else ""
+    passed, total = int(summary.group(3)), int(summary.group(4))
+    assert total > 0 and passed == total, f"{done.stdout}\n--- log tail ---\n{detail}"
