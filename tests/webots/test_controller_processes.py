@@ -285,7 +285,7 @@ def test_interrupt_kills_and_reaps_the_controllers(tmp_path: Path, signum: int) 
         proc.kill()
         proc.wait()
     assert proc.returncode == 130
-    assert err == "interrupted\n"
+    assert err == "error: interrupted\n"  # one line, no traceback
     assert all(_gone(pid) for pid in pids)
 
 

@@ -31,7 +31,7 @@ def webots_run(
             read_text_file(controller, "controller script")  # missing, a folder, a pipe or binary: one line
         code = run_world(world, controller, duration, keys=keys, step_timeout_s=step_timeout)
     except KeyboardInterrupt:  # Ctrl-C while loading: the run itself answers it (children stopped, 130)
-        print("interrupted", file=sys.stderr)
+        print("error: interrupted", file=sys.stderr)
         code = 130
     raise typer.Exit(code)
 

@@ -16,7 +16,7 @@ The main thread watches the children:
   (Webots' forced termination; the exit code stays 0);
 * one that does not call ``step`` for ``step_timeout_s`` wall-clock seconds (0: never checked, like Webots)
   is killed with one line on stderr; the run ends (the others' ``step`` returns -1) with exit code 2;
-* Ctrl-C or SIGTERM kills and reaps every child and returns 130 after one line, ``interrupted``.
+* Ctrl-C or SIGTERM kills and reaps every child and returns 130 (the caller says ``error: interrupted``; the command line catches its own SIGINT first).
 
 A child that crashes prints its traceback (through its stderr) and makes the exit code 1; the others keep
 running, as in Webots. Children die with this process (``PR_SET_PDEATHSIG``) and are always reaped.
@@ -130,6 +130,7 @@ class _Host:
         self.real_out = sys.stdout
         self.real_err = sys.stderr
         self.changed = threading.Event()
+        self._described: tuple[set[type], list[dict[str, Any]]] | None = None
 
     # -- output
 
@@ -158,11 +159,15 @@ class _Host:
         finally:
             child.close()
         link.wire = Wire(parent.detach())
-        exported = list(self.exports.values())
-        for cls in exported:
-            link.table.describe(cls)
+        if self._described is None:  # the API's shape, described once for every child
+            first = link.table
+            for cls in self.exports.values():
+                first.describe(cls)
+            self._described = (set(first.described), first.take_descriptions())
+        else:
+            link.table.described = set(self._described[0])
         start = {
-            "classes": link.table.take_descriptions(), "exports": list(self.exports), "doc": api.__doc__,
+            "classes": self._described[1], "exports": list(self.exports), "doc": api.__doc__,
             "script": str(link.script), "args": link.args,
         }
         link.wire.send(pickle.dumps(start, protocol=pickle.HIGHEST_PROTOCOL))

@@ -392,8 +392,16 @@ def _main(argv: list[str]) -> None:
     for description in start["classes"]:
         channel.descriptions[description["key"]] = description
     module = types.ModuleType("controller", start.get("doc"))
-    for name in start["exports"]:
-        setattr(module, name, channel.proxy_class(name))
+    exports = frozenset(start["exports"])
+
+    def exported(name: str) -> type[Any]:  # classes are built when first imported (PEP 562)
+        if name not in exports:
+            raise AttributeError(f"module 'controller' has no attribute {name!r}")
+        cls = channel.proxy_class(name)
+        setattr(module, name, cls)
+        return cls
+
+    module.__getattr__ = exported  # type: ignore[method-assign]
     module.__all__ = list(start["exports"])  # type: ignore[attr-defined]
     sys.modules["controller"] = module
     script = start["script"]

@@ -16,7 +16,7 @@ controllers' output is printed in robot order at each step, so the same world pr
 termination"). Unlike Webots, a controller that does not call ``step`` for ``step_timeout_s`` seconds of real
 time is stopped (exit code 2), so a run always ends. A script that raises has its traceback printed on stderr
 and makes the exit code 1 (the other controllers keep running). ``keys`` names a key script replayed by
-``Keyboard`` (:mod:`dualtwin.webots.keyboard`). Ctrl-C or SIGTERM: the children are killed, ``interrupted``,
+``Keyboard`` (:mod:`dualtwin.webots.keyboard`). Ctrl-C or SIGTERM: the children are killed, ``error: interrupted``,
 exit code 130.
 
 ``isolation="threads"`` keeps the former runtime (every controller a thread of this process, sharing argv,
@@ -311,7 +311,7 @@ def run_controllers(
         pass
     finally:
         api.set_current_runtime(previous_runtime)
-    print("interrupted", file=sys.stderr)
+    print("error: interrupted", file=sys.stderr)  # the command line's words for a stop
     return 130
 
 
