@@ -35,12 +35,15 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from dualtwin.artifacts import write_bytes
 from dualtwin.webots.api_args import as_float, as_int, warn
 from dualtwin.webots.device_base import SolidSensor
+from dualtwin.webots.display import png_bytes
 from dualtwin.webots.lut import Table, discretize, lookup, table_from_field
 from dualtwin.webots.physics import GeomRec, RobotRec, Simulation
 from dualtwin.webots.rays import RayCaster, RayHits, candidate_geoms
@@ -477,9 +480,10 @@ class LidarModel:
                    float(fields.get("defaultFrequency", 10.0)))  # fmt: skip
 
 
-@dataclass(frozen=True)
 class LidarPoint:
-    """One point of a lidar point cloud (lidar frame: x forward, y left, z up)."""
+    """One point of a lidar point cloud (lidar frame: x forward, y left, z up), with Webots' plain attributes
+    ``x``, ``y``, ``z``, ``layer`` and ``time``. Webots builds it from the C struct array and an offset
+    (``LidarPoint(data, offset)``); here ``data`` is a sequence of ``(x, y, z, layer, time)`` records."""
 
     x: float
     y: float
@@ -487,10 +491,25 @@ class LidarPoint:
     layer: int
     time: float
 
-    # Webots' Python attribute names are these; ``layer_id`` is the C field name
+    def __init__(self, data: Any, offset: Any) -> None:
+        x, y, z, layer, time = data[int(offset)]
+        self.x, self.y, self.z = float(x), float(y), float(z)
+        self.layer, self.time = int(layer), float(time)
+
+    # ``layer_id`` is the C field name
     @property
     def layer_id(self) -> int:
         return self.layer
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, LidarPoint) and (self.x, self.y, self.z, self.layer, self.time) == (
+            other.x, other.y, other.z, other.layer, other.time)  # fmt: skip
+
+    def __hash__(self) -> int:
+        return hash((self.x, self.y, self.z, self.layer, self.time))
+
+    def __repr__(self) -> str:
+        return f"LidarPoint(x={self.x}, y={self.y}, z={self.z}, layer={self.layer}, time={self.time})"
 
 
 class _DepthDevice(SolidSensor):
@@ -539,9 +558,8 @@ class Lidar(_DepthDevice):
     def _grid(self) -> _Grid:
         return self._model().grid
 
-    def getRangeImage(self, data_type: str = "list") -> Any:
-        flat = self._flat()
-        return flat.copy() if data_type == "array" else flat.tolist()
+    def getRangeImage(self) -> list[float]:
+        return [float(v) for v in self._flat()]
 
     def getRangeImageArray(self) -> list[list[float]]:
         m = self._model()
@@ -584,13 +602,13 @@ class Lidar(_DepthDevice):
                 x = rr * math.cos(theta) * math.cos(phi) if rr else 0.0
                 y = rr * math.sin(theta) * math.cos(phi) if rr else 0.0
                 z = rr * math.sin(phi) if rr else 0.0
-                out.append(LidarPoint(x, y, z, i, self._sampled_at - j * dt))
+                out.append(LidarPoint(((x, y, z, i, self._sampled_at - j * dt),), 0))
         return out
 
-    def getPointCloud(self, data_type: str = "list") -> list[LidarPoint]:
+    def getPointCloud(self) -> list[LidarPoint]:
         return self._points(range(self._model().layers))
 
-    def getLayerPointCloud(self, layer: Any, data_type: str = "list") -> list[LidarPoint]:
+    def getLayerPointCloud(self, layer: Any) -> list[LidarPoint]:
         i = as_int(layer, "Lidar.getLayerPointCloud")
         if not 0 <= i < self._model().layers:
             return []
@@ -639,6 +657,19 @@ class Lidar(_DepthDevice):
 
     def getMaxRange(self) -> float:
         return self._model().grid.max_range
+
+    # Webots' read-only properties (and ``frequency``, settable)
+    range_image = property(getRangeImage)
+    fov = property(getFov)
+    vertical_fov = property(getVerticalFov)
+    max_frequency = property(getMaxFrequency)
+    min_frequency = property(getMinFrequency)
+    max_range = property(getMaxRange)
+    min_range = property(getMinRange)
+    horizontal_resolution = property(getHorizontalResolution)
+    number_of_layers = property(getNumberOfLayers)
+    number_of_points = property(getNumberOfPoints)
+    frequency = property(getFrequency, setFrequency)
 
 
 class RangeFinder(_DepthDevice):
@@ -703,3 +734,28 @@ class RangeFinder(_DepthDevice):
 
     def getMaxRange(self) -> float:
         return self._model()[3].max_range
+
+    def saveImage(self, filename: str, quality: Any) -> int:
+        """Write the last range image as a grey PNG (0 = black at 0 m, white at maxRange or no hit); 0 on
+        success, -1 on failure, as Webots."""
+        as_int(quality, "RangeFinder.saveImage")
+        w, h, _, grid = self._model()
+        if not str(filename).lower().endswith(".png"):
+            warn(f"RangeFinder.saveImage(): {filename}: only .png is supported headless")
+            return -1
+        depth = np.nan_to_num(self._flat().reshape(h, w), posinf=grid.max_range) / grid.max_range
+        grey = (np.clip(depth, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+        rgba = np.dstack([grey, grey, grey, np.full_like(grey, 255)])
+        try:
+            write_bytes(Path(filename), png_bytes(np.ascontiguousarray(rgba)))
+        except OSError as exc:
+            warn(f"RangeFinder.saveImage(): cannot write {filename}: {exc}")
+            return -1
+        return 0
+
+    range_image = property(getRangeImage)
+    fov = property(getFov)
+    width = property(getWidth)
+    height = property(getHeight)
+    max_range = property(getMaxRange)
+    min_range = property(getMinRange)
