@@ -9,7 +9,6 @@ import warnings
 import pytest
 
 from dualtwin.webots import load_world_text
-from dualtwin.webots.battery import battery_sensor
 from dualtwin.webots.controller import Robot
 from dualtwin.webots.physics import Simulation
 
@@ -36,16 +35,15 @@ ARM = """HingeJoint { jointParameters HingeJointParameters { axis 0 1 0 }
 
 
 def _energy_after(robot: Robot, seconds: float) -> float:
-    sensor = battery_sensor(robot)
-    sensor.enable(TS)
+    robot.batterySensorEnable(TS)
     for _ in range(round(seconds * 1000 / TS)):  # callers pass whole multiples of 16 ms
         robot.step(TS)
-    return float(sensor.value)
+    return robot.batterySensorGetValue()
 
 
 def test_cpu_consumption_alone() -> None:
     robot = _robot("100 100 0")
-    assert math.isnan(battery_sensor(robot).value)  # nothing sampled yet
+    assert math.isnan(robot.batterySensorGetValue())  # nothing sampled yet
     assert _energy_after(robot, 1.024) == pytest.approx(100 - 10 * 1.024, abs=1e-9)
 
 

@@ -23,7 +23,7 @@ from typing import Any
 
 from dualtwin.webots import ode
 from dualtwin.webots.api_args import warn
-from dualtwin.webots.device_base import DeviceHost, SampledDevice
+from dualtwin.webots.device_base import DeviceBinding, DeviceHost, SampledDevice
 from dualtwin.webots.physics import MotorRec, RobotRec, Simulation
 
 __all__ = ["Battery", "BatterySensor", "battery_sensor", "install"]
@@ -153,6 +153,6 @@ def battery_sensor(robot: DeviceHost) -> BatterySensor:
     sensor = _SENSORS.get(robot)
     if sensor is None:
         install(robot._sim)
-        sensor = _SENSORS[robot] = BatterySensor(robot, "battery", robot._rec)
+        sensor = _SENSORS[robot] = BatterySensor(DeviceBinding(robot, "battery", robot._rec, 0))
         sensor._invalidate()
     return sensor

@@ -41,7 +41,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from dualtwin.webots import _math3 as m3
-from dualtwin.webots.device_base import Device, DeviceHost, SampledDevice
+from dualtwin.webots.device_base import Device, DeviceBinding, SampledDevice
 from dualtwin.webots.fixed_link import FixedLink, body_of
 from dualtwin.webots.physics import Simulation, SolidRec
 
@@ -263,10 +263,10 @@ def install(sim: Simulation) -> Connectors:
 class _Presence(SampledDevice):
     """The presence sensor of one connector, sampled like every Webots sensor."""
 
-    def __init__(self, robot: DeviceHost, name: str, record: Any, hook: Connectors, state: ConnectorState) -> None:
-        super().__init__(robot, name, record)
+    def __init__(self, binding: DeviceBinding, hook: Connectors, state: ConnectorState) -> None:
         self._hook = hook
         self._state = state
+        super().__init__(binding)
         self.value = -1
 
     def _invalidate(self) -> None:
@@ -286,7 +286,7 @@ class Connector(Device):
             hook = install(self._robot._sim)
             state = hook.state_of(self._record.solid)
             assert state is not None
-            cached = self.__dict__["_docking_state"] = (hook, state, _Presence(self._robot, self._name, self._record, hook, state))
+            cached = self.__dict__["_docking_state"] = (hook, state, _Presence(self._binding(), hook, state))
         return cached  # type: ignore[no-any-return]
 
     def enablePresence(self, sampling_period: Any) -> None:

@@ -7,41 +7,105 @@ without importing the runtime; :mod:`.controller` re-exports them.
 from __future__ import annotations
 
 import math
-from typing import Any, Protocol
+import threading
+import weakref
+from typing import Any, NamedTuple, Protocol
 
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots.api_args import as_int
+from dualtwin.webots.node_types import node_type_of
 from dualtwin.webots.physics import DeviceRec, RobotRec, Simulation
 
 
 class DeviceHost(Protocol):
-    """What a device needs of the ``Robot`` that owns it: its clock, its simulation, its record and its
-    device tables. A Protocol, so the device modules never import :mod:`.controller` (which imports them)."""
+    """What a device needs of the robot that owns it: its clock, its simulation, its record and its device
+    tables. A Protocol, so the device modules never import the robot modules (which import them). The host is
+    the runtime's per-controller state (:class:`dualtwin.webots.robot_link.RobotLink`), never the user's
+    ``Robot`` object, so a ``Robot`` subclass can use any attribute name."""
 
     @property
     def _sim(self) -> Simulation: ...
 
     @property
-    def _sensors(self) -> dict[int, SampledDevice]: ...
+    def _sensors(self) -> dict[int, Sensor]: ...
 
     @property
     def _rec(self) -> RobotRec: ...
 
     def _device_for(self, rec: Any) -> Device: ...
 
+    def _binding_for(self, key: str | int) -> DeviceBinding | None: ...
+
+    #: objects sampled at each step that are not devices (keyboards, mice, joysticks, motions)
+    inputs: list[Any]
+
     def getTime(self) -> float: ...  # noqa: N802 - Webots' method name
 
+    def getBasicTimeStep(self) -> float: ...  # noqa: N802 - Webots' method name
 
-__all__ = ["Device", "DeviceHost", "SampledDevice", "SolidSensor", "install_sampler", "sample_due"]
+
+__all__ = [
+    "Device", "DeviceBinding", "DeviceHost", "SampledDevice", "Sensor", "SolidSensor", "bind_host", "current_host",
+    "install_sampler", "sample_due",
+]
+
+
+class DeviceBinding(NamedTuple):
+    """What the runtime hands a device class instead of Webots' name or tag: the owning host, the device's
+    name, its record in the simulation and its tag (1-based index among the robot's devices)."""
+
+    host: DeviceHost
+    name: str
+    record: Any
+    tag: int
+
+
+_local = threading.local()
+_process_hosts: list[weakref.ref[Any]] = []  # the process's first robot (weakly: tests make many)
+
+
+def bind_host(host: DeviceHost) -> None:
+    """Make ``host`` the robot that ``Motor("name")``-style constructors in this thread refer to (Webots has one
+    robot per controller process; threads stand in for processes where several controllers share one)."""
+    _local.host = host
+    if not _process_hosts or _process_hosts[0]() is None:
+        _process_hosts[:] = [weakref.ref(host)]
+
+
+def current_host() -> DeviceHost:
+    host = getattr(_local, "host", None) or (_process_hosts[0]() if _process_hosts else None)
+    if host is None:
+        raise RuntimeError("no Robot in this controller: create the Robot (or Supervisor) first")
+    return host
 
 
 class Device:
-    """A named robot device."""
+    """Webots ``Device``: a named robot device. ``Cls(name)`` with a device name or tag builds a new handle on
+    that device of this controller's robot (as in Webots); the robot's own handles come from ``getDevice``."""
 
-    def __init__(self, robot: DeviceHost, name: str, record: Any) -> None:
-        self._robot = robot
-        self._name = name
-        self._record = record
+    def __init__(self, name: Any) -> None:
+        binding: DeviceBinding | None
+        if isinstance(name, DeviceBinding):
+            binding = name
+        else:
+            if isinstance(name, bool) or not isinstance(name, (str, int)):
+                raise TypeError(f"{type(self).__name__}() expects a device name (str) or tag (int), got {name!r}")
+            binding = current_host()._binding_for(name)
+        if binding is None:
+            raise ValueError(f"{type(self).__name__}(): no device {name!r} on this robot")
+        self._robot: DeviceHost = binding.host
+        self._name = binding.name
+        self._record = binding.record
+        self._tag = binding.tag
+        self._setup()
+
+    def _binding(self) -> DeviceBinding:
+        """This handle's binding, to build a companion device (a presence sensor) on the same device."""
+        return DeviceBinding(self._robot, self._name, self._record, self._tag)
+
+    def _setup(self) -> None:
+        """Per-class initialisation from ``self._record`` (device classes override this, not ``__init__``, so
+        every class keeps Webots' constructor signature)."""
 
     def getName(self) -> str:
         return self._name
@@ -50,13 +114,19 @@ class Device:
         node = getattr(self._record, "node", None)
         return str(node.fields.get("model", "")) if node is not None else ""
 
-    def getNodeType(self) -> str:
+    def getNodeType(self) -> int:
+        """Webots' node-type number (compare with ``Node.ROTATIONAL_MOTOR``, ``Node.DISTANCE_SENSOR``...)."""
         node = getattr(self._record, "node", None)
-        return node.type_name if node is not None else ""
+        return node_type_of(node.type_name) if node is not None else 0
+
+    name = property(lambda self: self.getName())
+    model = property(lambda self: self.getModel())
+    node_type = property(lambda self: self.getNodeType())
 
 
-class SampledDevice(Device):
-    """A sensor with Webots' enable/sampling-period protocol (``WbSensor``, docs/reference/webots-devices.md §0.1).
+class Sensor(Device):
+    """Webots ``Sensor``: a device with the enable/sampling-period protocol (``WbSensor``,
+    docs/reference/webots-devices.md §0.1).
 
     ``enable(p)`` at time t₀ makes a sample due at every basic time step where at least ``p`` ms passed since the
     last one (t₀ + p, t₀ + 2p, ... when ``p`` is a multiple of basicTimeStep; a period that is not drifts as in
@@ -66,19 +136,25 @@ class SampledDevice(Device):
     at a sampling instant shows only in the next sample. Devices that need the state of every basic step
     (a GPS speed, an accelerometer) set ``_tracks_steps`` and get :meth:`_each_step`. Devices sampled
     together (rays) name a ``_batch_sampler(sim, devices)``.
-    """
+
+    As in Webots, a sensor built by the user from a name string enables itself (``sampling_period``, or the
+    basic time step when None); handles from ``getDevice`` or built from a tag start disabled."""
 
     _tracks_steps = False
     _batch_sampler: Any = None
 
-    def __init__(self, robot: DeviceHost, name: str, record: Any) -> None:
-        super().__init__(robot, name, record)
+    def __init__(self, name: Any, sampling_period: Any = None) -> None:
+        super().__init__(name)
         self._period = 0
         self._last_sample: float | None = None
         self._enabled_at = 0.0
+        if isinstance(name, str):
+            self._invalidate()
+            period = self._robot.getBasicTimeStep() if sampling_period is None else sampling_period
+            self.enable(int(period) if sampling_period is None else period)
 
-    def enable(self, samplingPeriod: Any) -> None:
-        period = as_int(samplingPeriod, f"{type(self).__name__}.enable")
+    def enable(self, p: Any) -> None:
+        period = as_int(p, f"{type(self).__name__}.enable")
         if period <= 0:
             self.disable()
             return
@@ -97,6 +173,14 @@ class SampledDevice(Device):
 
     def getSamplingPeriod(self) -> int:
         return self._period
+
+    @property
+    def sampling_period(self) -> int:
+        return self.getSamplingPeriod()
+
+    @sampling_period.setter
+    def sampling_period(self, p: Any) -> None:
+        self.enable(0 if p is None else p)
 
     def _due(self, now: float) -> bool:
         since = self._enabled_at if self._last_sample is None else self._last_sample
@@ -119,13 +203,16 @@ class SampledDevice(Device):
         """Record the state of this basic step (called before any sample of the step)."""
 
 
+SampledDevice = Sensor  # the name the device modules used before Webots' ``Sensor``
+
+
 def sample_due(host: DeviceHost, now: float) -> None:
     """Sample ``host``'s enabled sensors that are due at ``now`` (the end of a basic time step)."""
     sensors = list(host._sensors.values())
     for sensor in sensors:
         if sensor._tracks_steps:
             sensor._each_step()
-    batches: dict[Any, list[SampledDevice]] = {}
+    batches: dict[Any, list[Sensor]] = {}
     for sensor in sensors:
         if not sensor._due(now):
             continue
@@ -157,7 +244,9 @@ def install_sampler(host: DeviceHost) -> None:
         hosts.append(host)
 
 
-class SolidSensor(SampledDevice):
+
+
+class SolidSensor(Sensor):
     _record: DeviceRec
 
     def _invalidate(self) -> None:

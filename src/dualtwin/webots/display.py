@@ -72,9 +72,9 @@ class Display(Device):
     BGRA = 6
     ABGR = 7
 
-    def __init__(self, robot: Any, name: str, record: Any) -> None:
-        super().__init__(robot, name, record)
-        f = record.node.fields
+    def _setup(self) -> None:
+        f = self._record.node.fields
+        robot = self._robot
         self._w = max(1, int(f.get("width", 64)))
         self._h = max(1, int(f.get("height", 64)))
         self.pixels = np.zeros((self._h, self._w, 4), dtype=np.uint8)

@@ -108,8 +108,8 @@ class _Feedback(_Sampled):
     the slider axis); in torque/force control, the torque/force commanded. NaN until the first sample."""
 
     def __init__(self, motor: Motor) -> None:
-        super().__init__(motor._robot, motor._name, motor._record)
         self._motor = motor
+        super().__init__(motor._binding())
         self._value = math.nan
         self._buffer: ode.dJointFeedback | None = None
 

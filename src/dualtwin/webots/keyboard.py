@@ -26,7 +26,7 @@ from typing import Any
 from dualtwin.artifacts import check_input_file
 from dualtwin.errors import DualtwinError
 from dualtwin.webots.api_args import as_int
-from dualtwin.webots.device_base import DeviceHost
+from dualtwin.webots.device_base import current_host
 
 __all__ = ["KEY_NAMES", "KeyEvent", "KeyScript", "Keyboard", "key_code", "load_key_script"]
 
@@ -145,23 +145,31 @@ def load_key_script(path: str | Path) -> KeyScript:
 
 
 class Keyboard:
-    """Webots ``Keyboard`` (``robot.getKeyboard()``): created disabled; ``getKey()`` is -1 headless."""
+    """Webots ``Keyboard`` (``robot.keyboard`` / ``robot.getKeyboard()``): the robot's own is created disabled
+    (``Keyboard(0)``); ``Keyboard()`` enables at the basic time step. Headless, ``getKey()`` is -1 unless the run
+    replays a key script."""
 
     END, HOME, LEFT, UP, RIGHT, DOWN = 312, 313, 314, 315, 316, 317
     PAGEUP, PAGEDOWN = 366, 367
     NUMPAD_HOME, NUMPAD_LEFT, NUMPAD_UP, NUMPAD_RIGHT, NUMPAD_DOWN, NUMPAD_END = 375, 376, 377, 378, 379, 382
     KEY, SHIFT, CONTROL, ALT = 0xFFFF, 0x10000, 0x20000, 0x40000
 
-    def __init__(self, robot: DeviceHost, script: KeyScript | None) -> None:
-        self._robot = robot
-        self._script = script
+    def __init__(self, sampling_period: Any = None) -> None:
+        host = current_host()
+        self._robot = host
+        self._script: KeyScript | None = getattr(getattr(host, "_runtime", None), "keys", None)
         self._period = 0
         self._since: float | None = None
         self._keys: list[int] = []
         self._warned = False
+        host.inputs.append(self)
+        if sampling_period is None:
+            self.enable(int(host.getBasicTimeStep()))
+        elif sampling_period:
+            self.enable(sampling_period)
 
-    def enable(self, samplingPeriod: Any) -> None:
-        period = as_int(samplingPeriod, "Keyboard.enable")
+    def enable(self, p: Any) -> None:
+        period = as_int(p, "Keyboard.enable")
         if period <= 0:
             self.disable()
             return
@@ -175,6 +183,14 @@ class Keyboard:
     def getSamplingPeriod(self) -> int:
         return self._period
 
+    @property
+    def sampling_period(self) -> int:
+        return self._period
+
+    @sampling_period.setter
+    def sampling_period(self, p: Any) -> None:
+        self.enable(0 if p is None else p)
+
     def getKey(self) -> int:
         if self._period == 0:
             if not self._warned:
@@ -184,7 +200,20 @@ class Keyboard:
             return -1
         return self._keys.pop(0) if self._keys else -1
 
-    getKeyCode = getKey
+    def getKeyCode(self) -> int:
+        return self.getKey()
+
+    def get_key(self) -> str:
+        """The next key as text, e.g. ``'shift-a'`` or ``'up'``; '' when none. Webots' helper writes the Alt
+        modifier as ``'atl-'`` (a typo in its code, kept so string comparisons behave the same)."""
+        code = self.getKey()
+        if code == -1:
+            return ""
+        text = "".join(prefix for bit, prefix in ((self.SHIFT, "shift-"), (self.CONTROL, "control-"),
+                                                  (self.ALT, "atl-")) if code & bit)
+        key = code & self.KEY
+        special = next((name.lower() for name, value in KEY_NAMES.items() if value == key and name != "SPACE"), None)
+        return text + (special if special is not None else chr(key).lower())
 
     # -- called by Robot.step
 

@@ -164,9 +164,9 @@ class Emitter(Device):
 
     CHANNEL_BROADCAST = CHANNEL_BROADCAST
 
-    def __init__(self, robot: Any, name: str, record: Any) -> None:
-        super().__init__(robot, name, record)
-        f = record.node.fields
+    def _setup(self) -> None:
+        f = self._record.node.fields
+        robot = self._robot
         self._kind = _kind(f)
         self._max_range = float(f.get("maxRange", -1.0))
         r = float(f.get("range", -1.0))
@@ -245,9 +245,9 @@ class Receiver(SolidSensor):
 
     CHANNEL_BROADCAST = CHANNEL_BROADCAST
 
-    def __init__(self, robot: Any, name: str, record: Any) -> None:
-        super().__init__(robot, name, record)
-        f = record.node.fields
+    def _setup(self) -> None:
+        f = self._record.node.fields
+        robot = self._robot
         self._kind = _kind(f)
         self._aperture = float(f.get("aperture", -1.0)) if self._kind == "infra-red" else -1.0
         self._channel = int(f.get("channel", 0))

@@ -13,6 +13,7 @@ import math
 import threading
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Protocol
 
 from dualtwin.webots.api_args import warn
@@ -126,6 +127,8 @@ class Runtime:
         self._thread_controller = threading.local()
         self.error: BaseException | None = None
         self.exit_status: int | None = None
+        #: a world a supervisor asked to load (worldLoad/worldReload); the runner runs it after this one ends
+        self.world_request: Path | None = None
         # start-up barrier: stepping waits until every expected controller has registered a Robot or
         # ended, so all controllers start at t = 0 like in Webots
         self._expected = 0

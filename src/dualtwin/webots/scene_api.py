@@ -1,4 +1,4 @@
-"""Supervisor handles on scene nodes and fields (``Node``, ``Field``, ``ContactPoint``).
+"""Supervisor handles on scene nodes (``Node``, ``ContactPoint``; ``Field`` is in :mod:`.field_api`).
 
 Split from :mod:`dualtwin.webots.controller` (which re-exports these names) to keep each module to one
 concept: the controller module owns stepping and devices, this one the scene tree a supervisor reads and
@@ -7,6 +7,7 @@ edits. Timing and edit semantics are described in :mod:`dualtwin.webots.controll
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from typing import Any, Protocol
@@ -14,8 +15,13 @@ from typing import Any, Protocol
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots.api_args import as_float, as_floats, as_int, finite, warn
 from dualtwin.webots.contacts import contact_points, solids_of, static_balance
+from dualtwin.webots.field_api import Field
+from dualtwin.webots.node_types import node_type_of
 from dualtwin.webots.nodes import Node as SceneNode
-from dualtwin.webots.physics import JointRec, Simulation, SolidRec
+from dualtwin.webots.nodes import copy_value
+from dualtwin.webots.physics import Simulation, SolidRec
+from dualtwin.webots.schema import SOLID_TYPES
+from dualtwin.webots.writer import write_node
 
 
 class NodeIndex(Protocol):
@@ -63,8 +69,45 @@ def find_def(node: SceneNode, name: str) -> SceneNode | None:
     return None
 
 
+def _registry(sim: Simulation, key: str, factory: Any) -> Any:
+    if key not in sim.extensions:
+        sim.extensions[key] = factory()
+    return sim.extensions[key]
+
+
+def _forget_imported(sim: Simulation) -> None:
+    """simulationReset removes the nodes a supervisor added (fields inside nodes are restored by the reset)."""
+    imported = sim.extensions.get("imported_nodes", [])
+    sim.world.nodes[:] = [n for n in sim.world.nodes if not any(n is i for i in imported)]
+    imported.clear()
+
+
 class Node:
-    """Supervisor handle on a scene node."""
+    """Webots ``Node``: a supervisor's handle on a scene node (from ``getFromDef``, ``getRoot``, fields...).
+
+    PROTO instances are expanded in the scene tree: ``getField`` answers the PROTO's interface fields (kept on the
+    expanded root) and ``getProtoField`` the fields of its base node, as Webots' R2023b does. Headless answers:
+    ``moveViewpoint`` and ``setVisibility`` have no 3D view to act on (no effect); pose and contact tracking are not
+    needed (every read is current). ``addTorque`` and ``addForceWithOffset`` do what Webots documents (a torque; a
+    force at the offset), not what its 2023-24 Python wrapper does (both call the C force function).
+    """
+
+    # Webots' node-type numbers (dualtwin.webots.node_types.NODE_TYPE_CONSTANTS; a test holds them equal)
+    NO_NODE, APPEARANCE, BACKGROUND, BILLBOARD, BOX, CAD_SHAPE = 0, 1, 2, 3, 4, 5
+    CAPSULE, COLOR, CONE, COORDINATE, CYLINDER, DIRECTIONAL_LIGHT = 6, 7, 8, 9, 10, 11
+    ELEVATION_GRID, FOG, GROUP, IMAGE_TEXTURE, INDEXED_FACE_SET, INDEXED_LINE_SET = 12, 13, 14, 15, 16, 17
+    MATERIAL, MESH, MUSCLE, NORMAL, PBR_APPEARANCE, PLANE = 18, 19, 20, 21, 22, 23
+    POINT_LIGHT, POINT_SET, SHAPE, SPHERE, SPOT_LIGHT, TEXTURE_COORDINATE = 24, 25, 27, 28, 29, 30
+    TEXTURE_TRANSFORM, TRANSFORM, VIEWPOINT, ROBOT, ACCELEROMETER, ALTIMETER = 31, 32, 33, 34, 35, 36
+    BRAKE, CAMERA, COMPASS, CONNECTOR, DISPLAY, DISTANCE_SENSOR = 37, 38, 39, 40, 41, 42
+    EMITTER, GPS, GYRO, INERTIAL_UNIT, LED, LIDAR = 43, 44, 45, 46, 47, 48
+    LIGHT_SENSOR, LINEAR_MOTOR, PEN, POSITION_SENSOR, RADAR, RANGE_FINDER = 49, 50, 51, 52, 54, 55
+    RECEIVER, ROTATIONAL_MOTOR, SKIN, SPEAKER, TOUCH_SENSOR, VACUUM_GRIPPER = 56, 57, 58, 59, 60, 61
+    BALL_JOINT, BALL_JOINT_PARAMETERS, CHARGER, CONTACT_PROPERTIES, DAMPING, FLUID = 62, 63, 64, 65, 66, 67
+    FOCUS, HINGE_JOINT, HINGE_JOINT_PARAMETERS, HINGE_2_JOINT, IMMERSION_PROPERTIES, JOINT_PARAMETERS = 68, 69, 70, 71, 72, 73
+    LENS, LENS_FLARE, PHYSICS, RECOGNITION, SLIDER_JOINT, SLOT = 74, 75, 76, 77, 78, 79
+    SOLID, SOLID_REFERENCE, TRACK, TRACK_WHEEL, WORLD_INFO, ZOOM = 80, 81, 82, 83, 84, 85
+    MICROPHONE, RADIO = 86, 87
 
     def __init__(self, supervisor: SceneHost, node: SceneNode) -> None:
         self._sup = supervisor
@@ -78,9 +121,15 @@ class Node:
     def __hash__(self) -> int:
         return id(self._node)
 
+    def __repr__(self) -> str:
+        return f"<Node {self.getTypeName()} {self.getDef()!r}>"
+
     @property
     def scene_node(self) -> SceneNode:
+        """The scene-tree node behind this handle (a dualtwin extension)."""
         return self._node
+
+    # -- identity
 
     def getDef(self) -> str:
         return self._node.def_name or ""
@@ -90,6 +139,128 @@ class Node:
 
     def getBaseTypeName(self) -> str:
         return self._node.type_name
+
+    def getType(self) -> int:
+        return node_type_of(self._node.type_name)
+
+    def isProto(self) -> bool:
+        return self._node.proto_name is not None
+
+    def getId(self) -> int:
+        """Unique id: 0 for the root, then the scene tree's nodes in pre-order, then imported nodes."""
+        if self._is_root:
+            return 0
+        return self._sup._runtime.node_ids()[0].get(id(self._node), -1)
+
+    def getParentNode(self) -> Node | None:
+        if self._is_root:
+            return None
+        chain = path_to(self._sim, self._node)
+        if chain is None:
+            return None
+        if len(chain) < 2:
+            return self._sup.getFromId(0)  # a top-level node's parent is the root
+        return Node(self._sup, chain[-2])
+
+    def getFromProtoDef(self, DEF: str) -> Node | None:  # noqa: N803 - Webots' parameter name
+        """The node DEF'd ``DEF`` inside this PROTO instance's own body."""
+        if not self.isProto():
+            return None
+        found = next((n for n in self._node.walk() if n.proto_def_name == DEF), None)
+        return Node(self._sup, found) if found is not None else None
+
+    def exportString(self) -> str:
+        return write_node(self._node)
+
+    DEF = property(lambda self: self.getDef())
+    id = property(lambda self: self.getId())
+    type = property(lambda self: self.getType())
+    type_name = property(lambda self: self.getTypeName())
+    base_type_name = property(lambda self: self.getBaseTypeName())
+    number_of_fields = property(lambda self: self.getNumberOfFields())
+
+    # -- fields
+
+    def _interface(self) -> dict[str, Any]:
+        """The visible fields: a PROTO instance's interface, else the base node's fields."""
+        return self._node.proto_fields if self._node.proto_fields is not None else self._node.fields
+
+    def getField(self, name: str) -> Field | None:
+        values = self._interface()
+        if name not in values:
+            return None
+        return Field(self, name, None if values is self._node.fields else values)
+
+    def getFieldByIndex(self, index: Any) -> Field | None:
+        names = list(self._interface())
+        i = as_int(index, "Node.getFieldByIndex")
+        return self.getField(names[i]) if 0 <= i < len(names) else None
+
+    def getNumberOfFields(self) -> int:
+        return len(self._interface())
+
+    def getProtoField(self, name: str) -> Field | None:
+        """A field of the base node a PROTO instance expands to (None for a non-PROTO node)."""
+        if not self.isProto() or name not in self._node.fields:
+            return None
+        return Field(self, name)
+
+    def getProtoFieldByIndex(self, index: Any) -> Field | None:
+        names = list(self._node.fields)
+        i = as_int(index, "Node.getProtoFieldByIndex")
+        return self.getProtoField(names[i]) if self.isProto() and 0 <= i < len(names) else None
+
+    # -- tree edits (called by Field)
+
+    def _handle(self, node: SceneNode) -> Node:
+        return Node(self._sup, node)
+
+    def _imported(self, nodes: list[SceneNode]) -> None:
+        ids, by_id = self._sup._runtime.node_ids()
+        for top in nodes:
+            for node in top.walk():
+                if id(node) not in ids:
+                    ids[id(node)] = max(by_id, default=0) + 1
+                    by_id[ids[id(node)]] = node
+        if "imported_nodes" not in self._sim.extensions:
+            self._sim.extensions["imported_nodes"] = []
+            self._sim.reset_hooks.append(functools.partial(_forget_imported, self._sim))
+        self._sim.extensions["imported_nodes"].extend(nodes)
+        if any(self._sim.solid_for(n) is None and n.type_name in SOLID_TYPES for top in nodes for n in top.walk()):
+            warn("a Solid imported at run time is in the scene tree (read, saved) but takes no part in the physics")
+
+    def _removed(self, node: SceneNode) -> None:
+        """Take the Solids of a removed subtree out of the physics (their bodies and geoms stop acting)."""
+        lib = self._sim._lib
+        for n in node.walk():
+            solid = self._sim.solid_for(n)
+            if solid is None:
+                continue
+            for geom in solid.geoms:
+                lib.dGeomDisable(geom.ptr)
+            if solid.body is not None and solid.body.root is solid:
+                lib.dBodyDisable(solid.body.ptr)
+
+    def remove(self) -> None:
+        """Delete this node from the scene tree (and its Solids from the physics)."""
+        if self._is_root:
+            warn("Node.remove(): the root node cannot be removed")
+            return
+        chain = path_to(self._sim, self._node)
+        if chain is None:
+            return
+        if len(chain) == 1:
+            self._sim.world.nodes[:] = [n for n in self._sim.world.nodes if n is not self._node]
+        else:
+            parent = chain[-2]
+            for key, value in parent.fields.items():
+                if value is self._node:
+                    parent.fields[key] = None
+                elif isinstance(value, list) and any(v is self._node for v in value):
+                    value[:] = [v for v in value if v is not self._node]
+        self._removed(self._node)
+
+    # -- pose and physics
 
     def _solid(self) -> SolidRec | None:
         return self._sim.solid_for(self._node)
@@ -123,6 +294,13 @@ class Node:
         R, t = pose.R, pose.t
         return [R[0], R[1], R[2], t[0], R[3], R[4], R[5], t[1], R[6], R[7], R[8], t[2], 0.0, 0.0, 0.0, 1.0]
 
+    def enablePoseTracking(self, samplingPeriod: Any, fromNode: Node | None = None) -> None:
+        """Webots streams the pose every period; here every ``getPose`` is current, so nothing is needed."""
+        as_int(samplingPeriod, "Node.enablePoseTracking")
+
+    def disablePoseTracking(self, fromNode: Node | None = None) -> None:
+        pass
+
     def getVelocity(self) -> list[float]:
         solid = self._solid()
         return list(self._sim.solid_velocity(solid)) if solid is not None else [0.0] * 6
@@ -145,7 +323,77 @@ class Node:
         if solid is not None:
             self._sim.reset_physics(solid)
 
-    def _push(self, method: str, vector: Any, relative: Any, torque: bool) -> None:
+    def setJointPosition(self, position: Any, index: Any = 1) -> None:
+        """Teleport a joint node (axis ``index`` 1..3) to ``position``, as writing its parameters' position does."""
+        joint = self._sim.joint_for(self._node)
+        value = as_float(position, "Node.setJointPosition")
+        axis = as_int(index, "Node.setJointPosition") - 1
+        if joint is None or not 0 <= axis < len(joint.params) or not _finite(value):
+            _warn("Node.setJointPosition() needs a joint node, a valid axis index and a finite position")
+            return
+        param = joint.params[axis]
+        if param is not None:
+            param.fields["position"] = value
+        self._sim.queue_set_joint_position(joint, axis, value)
+
+    def saveState(self, stateName: str) -> None:
+        """Remember this subtree's fields and its Solids' poses and velocities under ``stateName``."""
+        states = _registry(self._sim, "node_states", dict)
+        fields = [(n, {k: copy_value(v) for k, v in n.fields.items()}) for n in self._node.walk()]
+        motion = []
+        for n in self._node.walk():
+            solid = self._sim.solid_for(n)
+            if solid is not None:
+                local = self._sim.solid_local_pose(solid)
+                moving = solid.body is not None and solid.body.root is solid
+                motion.append((solid, local, self._sim.solid_velocity(solid) if moving else None))
+        joints = [(j, list(j.positions)) for n in self._node.walk() if (j := self._sim.joint_for(n)) is not None]
+        states[(id(self._node), str(stateName))] = (fields, motion, joints)
+
+    def loadState(self, stateName: str) -> None:
+        """Restore a ``saveState`` snapshot (``'__init__'``: the state at load), applied at the next step."""
+        states = _registry(self._sim, "node_states", dict)
+        saved = states.get((id(self._node), str(stateName)))
+        if saved is None and stateName == "__init__":
+            for n in self._node.walk():
+                solid = self._sim.solid_for(n)
+                if solid is not None and solid.joint is None:
+                    rot = m3.axis_angle_from_mat(solid.load_rel.R)
+                    self._sim.queue_set_pose(solid, tuple(solid.load_rel.t), rot)
+                joint = self._sim.joint_for(n)
+                if joint is not None:
+                    for axis, initial in enumerate(joint.initial_positions):
+                        self._sim.queue_set_joint_position(joint, axis, initial)
+            self.resetPhysics()
+            return
+        if saved is None:
+            warn(f"Node.loadState(): no state named {stateName!r} was saved for this node")
+            return
+        fields, motion, joints = saved
+        for n, values in fields:
+            n.fields.update({k: copy_value(v) for k, v in values.items()})
+        for solid, local, velocity in motion:
+            if solid.joint is None:
+                self._sim.queue_set_pose(solid, tuple(local.t), m3.axis_angle_from_mat(local.R))
+            if velocity is not None:
+                self._sim.set_body_velocity(solid, list(velocity))
+        for joint, positions in joints:
+            for axis, position in enumerate(positions):
+                self._sim.queue_set_joint_position(joint, axis, position)
+
+    def restartController(self) -> None:
+        """Webots restarts the robot's controller process; here controllers run as the runner started them."""
+        _warn("Node.restartController(): restarting a controller is not supported headless; it keeps running")
+
+    def moveViewpoint(self) -> None:
+        """There is no 3D view headless: nothing to move."""
+
+    def setVisibility(self, fromNode: Node, visible: bool) -> None:
+        """Only cameras and viewpoints see visibility; headless cameras draw no nodes, so nothing changes."""
+
+    # -- forces
+
+    def _push(self, method: str, vector: Any, relative: Any, torque: bool, offset: Any = None) -> None:
         """Add a force or torque to the Solid's body for the next basic step only (ODE clears it after)."""
         values = as_floats(vector, method)
         if len(values) != 3 or not _finite(*values):
@@ -155,36 +403,28 @@ class Node:
         if solid is None or solid.body is None:
             _warn(f"{method}() called on a node without physics: ignored")
             return
+        pose = self._sim.solid_world_pose(solid)
         if relative:
-            values = list(m3.mat_vec(self._sim.solid_world_pose(solid).R, values))
+            values = list(m3.mat_vec(pose.R, values))
         lib = self._sim._lib
-        (lib.dBodyAddTorque if torque else lib.dBodyAddForce)(solid.body.ptr, *values)
+        if offset is not None:
+            point = pose.apply(as_floats(offset, method))
+            lib.dBodyAddForceAtPos(solid.body.ptr, *values, *point)
+        else:
+            (lib.dBodyAddTorque if torque else lib.dBodyAddForce)(solid.body.ptr, *values)
         lib.dBodyEnable(solid.body.ptr)
 
     def addForce(self, force: Sequence[float], relative: bool) -> None:
         """A force at the centre of mass, in world axes (or the Solid's with ``relative``), for one step."""
         self._push("Node.addForce", force, relative, torque=False)
 
+    def addForceWithOffset(self, force: Sequence[float], offset: Sequence[float], relative: bool) -> None:
+        """A force applied at ``offset`` (in the Solid's frame), world or Solid axes, for one step."""
+        self._push("Node.addForceWithOffset", force, relative, torque=False, offset=offset)
+
     def addTorque(self, torque: Sequence[float], relative: bool) -> None:
         """A torque on the body, in world axes (or the Solid's with ``relative``), for one step."""
         self._push("Node.addTorque", torque, relative, torque=True)
-
-    def getField(self, fieldName: str) -> Field | None:
-        if fieldName not in self._node.fields:
-            return None
-        return Field(self, fieldName)
-
-    def getParentNode(self) -> Node | None:
-        chain = path_to(self._sim, self._node)
-        if not chain or len(chain) < 2:
-            return None
-        return Node(self._sup, chain[-2])
-
-    def getId(self) -> int:
-        """Unique id: 0 for the root, then the scene tree's nodes in pre-order (stable for a world)."""
-        if self._is_root:
-            return 0
-        return self._sup._runtime.node_ids()[0].get(id(self._node), -1)
 
     # -- contacts (computed on demand, see dualtwin.webots.contacts)
 
@@ -216,7 +456,7 @@ class Node:
     def enableContactPointsTracking(self, samplingPeriod: Any, includeDescendants: bool = False) -> None:
         as_int(samplingPeriod, "Node.enableContactPointsTracking")  # queries always read the last step
 
-    def disableContactPointsTracking(self) -> None:
+    def disableContactPointsTracking(self, includeDescendants: bool = False) -> None:
         pass
 
     def getStaticBalance(self) -> bool:
@@ -227,6 +467,9 @@ class Node:
 
 class ContactPoint:
     """One contact: ``point`` (world coordinates) and ``node_id`` (the touching Solid of the queried tree)."""
+
+    point: list[float]
+    node_id: int
 
     def __init__(self, point: list[float], node_id: int) -> None:
         self.point = point
@@ -261,156 +504,3 @@ def path_to(sim: Simulation, target: SceneNode) -> list[SceneNode] | None:
         if found is not None:
             return found
     return None
-
-
-class Field:
-    """Supervisor handle on one field of a scene node."""
-
-    def __init__(self, owner: Node, name: str) -> None:
-        self._owner = owner
-        self._sim = owner._sim
-        self._name = name
-
-    def getName(self) -> str:
-        return self._name
-
-    @property
-    def _node(self) -> SceneNode:
-        return self._owner._node
-
-    def _raw(self) -> Any:
-        return self._node.fields.get(self._name)
-
-    def _joint(self) -> JointRec | None:
-        return self._sim.joint_for(self._node) if self._name == "position" else None
-
-    def getCount(self) -> int:
-        value = self._raw()
-        return len(value) if isinstance(value, list) else -1
-
-    # -- SF getters
-
-    def getSFFloat(self) -> float:
-        joint = self._joint()
-        if joint is not None:
-            params = joint.params
-            index = params.index(self._node) if self._node in params else 0
-            return float(joint.positions[index])
-        return float(self._raw())
-
-    def getSFInt32(self) -> int:
-        return int(self._raw())
-
-    def getSFBool(self) -> bool:
-        return bool(self._raw())
-
-    def getSFString(self) -> str:
-        return str(self._raw())
-
-    def getSFVec2f(self) -> list[float]:
-        return [float(v) for v in self._raw()]
-
-    def getSFColor(self) -> list[float]:
-        return [float(v) for v in self._raw()]
-
-    def getSFVec3f(self) -> list[float]:
-        solid = self._sim.solid_for(self._node)
-        if solid is not None and self._name == "translation" and not self._sim.has_pending(solid):
-            return list(self._sim.solid_local_pose(solid).t)
-        return [float(v) for v in self._raw()]
-
-    def getSFRotation(self) -> list[float]:
-        solid = self._sim.solid_for(self._node)
-        if solid is not None and self._name == "rotation" and not self._sim.has_pending(solid):
-            return list(m3.axis_angle_from_mat(self._sim.solid_local_pose(solid).R))
-        return [float(v) for v in self._raw()]
-
-    def getSFNode(self) -> Node | None:
-        value = self._raw()
-        return Node(self._owner._sup, value) if isinstance(value, SceneNode) else None
-
-    def getMFNode(self, index: int) -> Node | None:
-        value = self._raw()
-        if not isinstance(value, list) or not -len(value) <= index < len(value):
-            return None
-        item = value[index]
-        return Node(self._owner._sup, item) if isinstance(item, SceneNode) else None
-
-    def getMFFloat(self, index: int) -> float:
-        return float(self._raw()[index])
-
-    def getMFString(self, index: int) -> str:
-        return str(self._raw()[index])
-
-    # -- SF setters
-
-    def setSFFloat(self, value: Any) -> None:
-        value = as_float(value, "Field.setSFFloat")
-        if not _finite(value):
-            _warn(f"Field.setSFFloat() called with NaN on '{self._name}'")
-            return
-        joint = self._joint()
-        if joint is not None:
-            params = joint.params
-            index = params.index(self._node) if self._node in params else 0
-            self._node.fields["position"] = float(value)
-            self._sim.queue_set_joint_position(joint, index, float(value))
-            return
-        self._node.fields[self._name] = float(value)
-        self._sim.field_changed(self._node, self._name)
-
-    def setSFInt32(self, value: Any) -> None:
-        self._node.fields[self._name] = as_int(value, "Field.setSFInt32")
-
-    def setSFBool(self, value: bool) -> None:
-        self._node.fields[self._name] = bool(value)
-
-    def setSFString(self, value: str) -> None:
-        self._node.fields[self._name] = str(value)
-
-    def setMFFloat(self, index: Any, value: Any) -> None:
-        index = as_int(index, "Field.setMFFloat")
-        value = as_float(value, "Field.setMFFloat")
-        if not _finite(value):
-            _warn(f"Field.setMFFloat() called with NaN on '{self._name}'")
-            return
-        values = list(self._raw() or [])
-        values[index] = float(value)
-        self._node.fields[self._name] = values
-        self._sim.field_changed(self._node, self._name)
-
-    def setSFVec3f(self, values: Sequence[float]) -> None:
-        values = as_floats(values, "Field.setSFVec3f")
-        if len(values) != 3 or not _finite(*values):
-            _warn(f"Field.setSFVec3f() needs 3 finite values on '{self._name}'")
-            return
-        vec = tuple(float(v) for v in values)
-        solid = self._sim.solid_for(self._node)
-        if solid is not None and self._name == "translation":
-            self._sim.queue_set_pose(solid, vec, None)
-            self._node.fields[self._name] = vec
-            return
-        self._node.fields[self._name] = vec
-        self._sim.field_changed(self._node, self._name)
-
-    def setMFVec3f(self, index: Any, values: Sequence[float]) -> None:
-        index = as_int(index, "Field.setMFVec3f")
-        values = as_floats(values, "Field.setMFVec3f")
-        items = list(self._raw() or [])
-        if len(values) != 3 or not _finite(*values) or not -len(items) <= index < len(items):
-            _warn(f"Field.setMFVec3f() needs 3 finite values and a valid index on '{self._name}'")
-            return
-        items[index] = tuple(float(v) for v in values)
-        self._node.fields[self._name] = items
-        self._sim.field_changed(self._node, self._name)
-
-    def setSFRotation(self, values: Sequence[float]) -> None:
-        values = as_floats(values, "Field.setSFRotation")
-        if len(values) != 4 or not _finite(*values) or m3.norm(values[:3]) == 0.0:
-            _warn(f"Field.setSFRotation() needs a non-zero axis and finite values on '{self._name}'")
-            return
-        rot = tuple(float(v) for v in values)
-        solid = self._sim.solid_for(self._node)
-        if solid is not None and self._name == "rotation":
-            self._sim.queue_set_pose(solid, None, rot)
-        self._node.fields[self._name] = rot

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from dualtwin.webots import _math3 as m3
-from dualtwin.webots.device_base import Device, DeviceHost, SampledDevice
+from dualtwin.webots.device_base import Device, DeviceBinding, SampledDevice
 from dualtwin.webots.fixed_link import FixedLink, body_of
 from dualtwin.webots.physics import BodyRec, Simulation, SolidRec
 
@@ -127,9 +127,9 @@ def install(sim: Simulation) -> VacuumGrippers:
 class _Presence(SampledDevice):
     """The gripper's presence sensor (something held), sampled like every Webots sensor."""
 
-    def __init__(self, robot: DeviceHost, name: str, record: Any, state: GripperState) -> None:
-        super().__init__(robot, name, record)
+    def __init__(self, binding: DeviceBinding, state: GripperState) -> None:
         self._state = state
+        super().__init__(binding)
         self.value = False
 
     def _invalidate(self) -> None:
@@ -147,7 +147,7 @@ class VacuumGripper(Device):
         if cached is None:
             state = install(self._robot._sim).state_of(self._record.solid)
             assert state is not None
-            cached = self.__dict__["_gripper_state"] = (state, _Presence(self._robot, self._name, self._record, state))
+            cached = self.__dict__["_gripper_state"] = (state, _Presence(self._binding(), state))
         return cached  # type: ignore[no-any-return]
 
     def enablePresence(self, sampling_period: Any) -> None:

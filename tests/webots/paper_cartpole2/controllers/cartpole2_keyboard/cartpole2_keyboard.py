@@ -3,7 +3,7 @@
 Written for dualtwin's tests the way the paper's 17-action CartPole2 controller is written (plain Webots
 Python API, no dualtwin import). The 17 actions are wheel speeds evenly spaced over [-6.4, 6.4] rad/s. In
 automatic mode the controller picks the action nearest to what a PID on the pole angle asks for; the
-keyboard (``robot.getKeyboard()``) switches modes and drives by hand:
+keyboard (``self.keyboard = self.getKeyboard()`` in a Supervisor subclass, as in the paper) switches modes and drives by hand:
 
     M       toggle manual / automatic
     LEFT    manual: one action slower      RIGHT   manual: one action faster
@@ -22,10 +22,23 @@ TIME_STEP = 16
 ACTIONS = np.linspace(-6.4, 6.4, 17)
 KP, KI, KD = 60.0, 240.0, 2.0
 
-robot = Supervisor()
+
+
+class CartPole2(Supervisor):
+    """As in the paper's controller: a Supervisor subclass that keeps its keyboard and state on itself."""
+
+    def __init__(self):
+        super().__init__()
+        self.keyboard = self.getKeyboard()  # Webots' Robot.keyboard is a plain attribute
+        self.keyboard.enable(TIME_STEP)
+        self._mode = "automatic"  # names Webots' Robot does not use, so a subclass may
+        self._sensors = {}
+        self._devices = []
+
+
+robot = CartPole2()
 robot.simulationSetMode(Supervisor.SIMULATION_MODE_FAST)
-keyboard = robot.getKeyboard()
-keyboard.enable(TIME_STEP)
+keyboard = robot.keyboard
 wheels = [robot.getDevice(name)
           for name in ["front left wheel", "front right wheel", "back left wheel", "back right wheel"]]
 pole_sensor = robot.getDevice("pole position sensor")

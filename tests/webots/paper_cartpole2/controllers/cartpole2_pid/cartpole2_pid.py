@@ -19,6 +19,7 @@ MAX_SPEED = 6.4
 FALLEN = 0.3  # rad
 
 robot = Supervisor()
+robot.keyboard = robot.getKeyboard()  # the paper's controllers keep the keyboard on the robot (a plain attribute)
 robot.simulationSetMode(Supervisor.SIMULATION_MODE_FAST)
 wheels = [robot.getDevice(name)
           for name in ["front left wheel", "front right wheel", "back left wheel", "back right wheel"]]

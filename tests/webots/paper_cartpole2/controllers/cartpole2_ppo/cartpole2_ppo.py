@@ -46,6 +46,7 @@ class LinearPolicy:
 model = LinearPolicy(os.path.join(os.path.dirname(os.path.abspath(__file__)), "linear_policy.json"))
 
 robot = Supervisor()
+robot.keyboard = robot.getKeyboard()  # the paper's controllers keep the keyboard on the robot (a plain attribute)
 robot.simulationSetMode(Supervisor.SIMULATION_MODE_FAST)
 wheels = [robot.getDevice(name)
           for name in ["front left wheel", "front right wheel", "back left wheel", "back right wheel"]]

@@ -1,0 +1,487 @@
+"""Webots' ``Field``: a supervisor's handle on one field of a scene node (every SF/MF getter and setter, MF
+insert/remove, node import from VRML text).
+
+Values are read from and written to the scene tree (:mod:`dualtwin.webots.nodes`); a write also tells the
+simulation (``Simulation.field_changed``), which applies what ODE must follow (joint damping, masses, geometry...).
+A Solid's ``translation``/``rotation`` and a joint's ``position`` are read from the running physics and written as
+queued teleports, applied at the next step as in Webots.
+
+Argument checks: Webots' setters accept a list of the right length (a tuple or NumPy array is refused there with an
+error line); ours also take tuples and arrays, so code written for Webots behaves the same and code that passes a
+tuple still works. A float where an int is expected (and the reverse) goes through :mod:`.api_args`. A value of the
+wrong kind or length, or an index out of range, prints an error on stderr and changes nothing, as in Webots.
+
+Node handles (``getSFNode``, ``getMFNode``) are built by the owner handle's own class, so this module does not
+import the Node class (which imports it).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Protocol
+
+from dualtwin.webots import _math3 as m3
+from dualtwin.webots import schema
+from dualtwin.webots.api_args import as_float, as_floats, as_int, warn
+from dualtwin.webots.nodes import Node as SceneNode
+from dualtwin.webots.physics import JointRec, Simulation
+
+__all__ = ["FIELD_TYPES", "Field", "FieldOwner", "field_type_name", "parse_nodes"]
+
+#: VRML type name -> Webots' field-type number (``Field.SF_BOOL``...)
+FIELD_TYPES = {
+    "SFBool": 1, "SFInt32": 2, "SFFloat": 3, "SFVec2f": 4, "SFVec3f": 5, "SFRotation": 6, "SFColor": 7,
+    "SFString": 8, "SFNode": 9, "MFBool": 17, "MFInt32": 18, "MFFloat": 19, "MFVec2f": 20, "MFVec3f": 21,
+    "MFRotation": 22, "MFColor": 23, "MFString": 24, "MFNode": 25,
+}
+
+
+class FieldOwner(Protocol):
+    """What a field needs of the Node handle it belongs to."""
+
+    _node: SceneNode
+    _sim: Simulation
+    _sup: Any
+
+    def _imported(self, nodes: list[SceneNode]) -> None: ...
+
+    def _handle(self, node: SceneNode) -> Any: ...
+
+    def _removed(self, node: SceneNode) -> None: ...
+
+
+def _guess_type(value: Any) -> str:
+    """The VRML type of a PROTO interface value (the scene tree keeps values, not declarations)."""
+    if isinstance(value, list):
+        return "MF" + (_guess_type(value[0])[2:] if value else "Node")
+    if isinstance(value, bool):
+        return "SFBool"
+    if isinstance(value, int):
+        return "SFInt32"
+    if isinstance(value, float):
+        return "SFFloat"
+    if isinstance(value, str):
+        return "SFString"
+    if isinstance(value, tuple):
+        return {2: "SFVec2f", 3: "SFVec3f", 4: "SFRotation"}.get(len(value), "SFVec3f")
+    return "SFNode"
+
+
+def field_type_name(node: SceneNode, name: str, values: dict[str, Any]) -> str:
+    """The VRML type of ``node``'s field ``name`` (``values`` holds it: the base fields or the PROTO's)."""
+    if values is node.fields and schema.is_base_node(node.type_name):
+        spec = schema.node_spec(node.type_name).fields.get(name)
+        if spec is not None:
+            return spec.type
+    if node.type_name == "Group" and name == "children":
+        return "MFNode"
+    return _guess_type(values.get(name))
+
+
+def parse_nodes(sim: Simulation, text: str) -> list[SceneNode]:
+    """Scene nodes from VRML text, expanded like the world's own (its EXTERNPROTOs and folder apply)."""
+    from dualtwin.webots.protos import load_world_text
+
+    world = sim.world
+    header = [f'EXTERNPROTO "{url}"' for url in world.externprotos]
+    header += [f'EXTERNPROTO "{url}"' for url in world.importable_externprotos]
+    source = "\n".join(["#VRML_SIM R2023b utf8", *header, text, ""])
+    return load_world_text(source, world.path if world.path else "<string>").nodes
+
+
+class Field:
+    """Webots ``Field`` (from ``Node.getField``/``getProtoField``): never built by controllers."""
+
+    SF_BOOL, SF_INT32, SF_FLOAT, SF_VEC2F, SF_VEC3F, SF_ROTATION, SF_COLOR, SF_STRING, SF_NODE = range(1, 10)
+    MF_BOOL, MF_INT32, MF_FLOAT, MF_VEC2F, MF_VEC3F, MF_ROTATION, MF_COLOR, MF_STRING, MF_NODE = range(17, 26)
+
+    #: Webots' field-type number (a plain attribute in Webots, set when the handle is made)
+    type: int | None
+
+    def __init__(self, owner: FieldOwner, name: str, values: dict[str, Any] | None = None) -> None:
+        self._owner = owner
+        self._sim = owner._sim
+        self._name = name
+        # a PROTO's interface fields live in proto_fields; its base node's fields in fields
+        self._values = owner._node.fields if values is None else values
+        self._vrml = field_type_name(owner._node, name, self._values)
+        self.type = FIELD_TYPES.get(self._vrml)
+
+    # -- identity
+
+    @property
+    def _node(self) -> SceneNode:
+        return self._owner._node
+
+    def _raw(self) -> Any:
+        return self._values.get(self._name)
+
+    def _is_base(self) -> bool:
+        return self._values is self._node.fields
+
+    def _joint(self) -> JointRec | None:
+        return self._sim.joint_for(self._node) if self._name == "position" and self._is_base() else None
+
+    def getName(self) -> str:
+        return self._name
+
+    def getType(self) -> int:
+        return int(self.type or 0)
+
+    def getTypeName(self) -> str:
+        return self._vrml
+
+    def getCount(self) -> int:
+        value = self._raw()
+        return len(value) if isinstance(value, list) else -1
+
+    name = property(lambda self: self.getName())
+    type_name = property(lambda self: self.getTypeName())
+    count = property(lambda self: self.getCount())
+
+    def enableSFTracking(self, samplingPeriod: Any) -> None:
+        """Webots streams the value every period; here every read is current, so nothing is needed."""
+        as_int(samplingPeriod, "Field.enableSFTracking")
+
+    def disableSFTracking(self) -> None:
+        pass
+
+    def _check(self, method: str, kind: str) -> bool:
+        if self._vrml != kind:
+            warn(f"Field.{method}() called on a {self._vrml} field ('{self._name}'): ignored")
+            return False
+        return True
+
+    # -- SF getters
+
+    def getSFBool(self) -> int:
+        return int(bool(self._raw())) if self._check("getSFBool", "SFBool") else 0
+
+    def getSFInt32(self) -> int:
+        return int(self._raw()) if self._check("getSFInt32", "SFInt32") else 0
+
+    def getSFFloat(self) -> float:
+        if not self._check("getSFFloat", "SFFloat"):
+            return math.nan
+        joint = self._joint()
+        if joint is not None:
+            params = joint.params
+            index = params.index(self._node) if self._node in params else 0
+            return float(joint.positions[index])
+        return float(self._raw())
+
+    def getSFVec2f(self) -> list[float]:
+        return [float(v) for v in self._raw()] if self._check("getSFVec2f", "SFVec2f") else [math.nan] * 2
+
+    def getSFVec3f(self) -> list[float]:
+        if not self._check("getSFVec3f", "SFVec3f"):
+            return [math.nan] * 3
+        solid = self._sim.solid_for(self._node)
+        if solid is not None and self._name == "translation" and not self._sim.has_pending(solid):
+            return list(self._sim.solid_local_pose(solid).t)
+        return [float(v) for v in self._raw()]
+
+    def getSFRotation(self) -> list[float]:
+        if not self._check("getSFRotation", "SFRotation"):
+            return [math.nan] * 4
+        solid = self._sim.solid_for(self._node)
+        if solid is not None and self._name == "rotation" and not self._sim.has_pending(solid):
+            return list(m3.axis_angle_from_mat(self._sim.solid_local_pose(solid).R))
+        return [float(v) for v in self._raw()]
+
+    def getSFColor(self) -> list[float]:
+        return [float(v) for v in self._raw()] if self._check("getSFColor", "SFColor") else [math.nan] * 3
+
+    def getSFString(self) -> str:
+        return str(self._raw()) if self._check("getSFString", "SFString") else ""
+
+    def getSFNode(self) -> Any:
+        value = self._raw()
+        return self._owner._handle(value) if isinstance(value, SceneNode) else None
+
+    @property
+    def value(self) -> Any:
+        """The SF value (None for an MF field); assigning sets it like the matching ``setSF*``."""
+        getter = {"SFBool": self.getSFBool, "SFInt32": self.getSFInt32, "SFFloat": self.getSFFloat,
+                  "SFVec2f": self.getSFVec2f, "SFVec3f": self.getSFVec3f, "SFRotation": self.getSFRotation,
+                  "SFColor": self.getSFColor, "SFString": self.getSFString, "SFNode": self.getSFNode}.get(self._vrml)
+        return getter() if getter is not None else None
+
+    @value.setter
+    def value(self, value: Any) -> None:
+        setter = {"SFBool": self.setSFBool, "SFInt32": self.setSFInt32, "SFFloat": self.setSFFloat,
+                  "SFVec2f": self.setSFVec2f, "SFVec3f": self.setSFVec3f, "SFRotation": self.setSFRotation,
+                  "SFColor": self.setSFColor, "SFString": self.setSFString}.get(self._vrml)
+        if setter is None:
+            warn(f"Field.value cannot be set on a {self._vrml} field ('{self._name}')")
+            return
+        setter(value)
+
+    # -- MF getters
+
+    def _item(self, method: str, kind: str, index: Any) -> tuple[bool, Any]:
+        if not self._check(method, kind):
+            return False, None
+        items = self._raw() or []
+        i = as_int(index, f"Field.{method}")
+        if not -len(items) <= i < len(items):
+            warn(f"Field.{method}(): index {i} out of range for '{self._name}' ({len(items)} items)")
+            return False, None
+        return True, items[i]
+
+    def getMFBool(self, index: Any) -> bool:
+        ok, item = self._item("getMFBool", "MFBool", index)
+        return bool(item) if ok else False
+
+    def getMFInt32(self, index: Any) -> int:
+        ok, item = self._item("getMFInt32", "MFInt32", index)
+        return int(item) if ok else 0
+
+    def getMFFloat(self, index: Any) -> float:
+        ok, item = self._item("getMFFloat", "MFFloat", index)
+        return float(item) if ok else math.nan
+
+    def _vector(self, method: str, kind: str, index: Any, size: int) -> list[float]:
+        ok, item = self._item(method, kind, index)
+        return [float(v) for v in item] if ok else [math.nan] * size
+
+    def getMFVec2f(self, index: Any) -> list[float]:
+        return self._vector("getMFVec2f", "MFVec2f", index, 2)
+
+    def getMFVec3f(self, index: Any) -> list[float]:
+        return self._vector("getMFVec3f", "MFVec3f", index, 3)
+
+    def getMFRotation(self, index: Any) -> list[float]:
+        return self._vector("getMFRotation", "MFRotation", index, 4)
+
+    def getMFColor(self, index: Any) -> list[float]:
+        return self._vector("getMFColor", "MFColor", index, 3)
+
+    def getMFString(self, index: Any) -> str:
+        ok, item = self._item("getMFString", "MFString", index)
+        return str(item) if ok else ""
+
+    def getMFNode(self, index: Any) -> Any:
+        ok, item = self._item("getMFNode", "MFNode", index)
+        return self._owner._handle(item) if ok and isinstance(item, SceneNode) else None
+
+    # -- SF setters
+
+    def _changed(self) -> None:
+        if self._is_base():
+            self._sim.field_changed(self._node, self._name)
+        elif self._name in self._node.fields:
+            # a PROTO interface field with a base field of the same name (translation, name...): keep both
+            Field(self._owner, self._name).value = self._raw()
+
+    def _convert(self, method: str, kind: str, value: Any) -> tuple[bool, Any]:
+        """``value`` as a stored SF value of ``kind`` (stderr error and False when it does not fit)."""
+        try:
+            if kind == "SFBool":
+                return True, bool(value)
+            if kind == "SFInt32":
+                return True, as_int(value, f"Field.{method}")
+            if kind == "SFFloat":
+                v = as_float(value, f"Field.{method}")
+                return (True, v) if v == v else (False, None)
+            if kind == "SFString":
+                return (True, value) if isinstance(value, str) else (False, None)
+            size = schema.VECTOR_SIZES[kind]
+            values = as_floats(value, f"Field.{method}")
+            if len(values) != size or any(v != v for v in values):
+                return False, None
+            if kind == "SFRotation" and m3.norm(values[:3]) == 0.0:
+                return False, None
+            return True, tuple(float(v) for v in values)
+        except TypeError:
+            return False, None
+
+    def _set(self, method: str, kind: str, value: Any) -> None:
+        if not self._check(method, kind):
+            return
+        ok, converted = self._convert(method, kind, value)
+        if not ok:
+            warn(f"Field.{method}(): new field value has wrong type or length ('{self._name}'): ignored")
+            return
+        if kind == "SFFloat":
+            joint = self._joint()
+            if joint is not None:
+                params = joint.params
+                index = params.index(self._node) if self._node in params else 0
+                self._values["position"] = converted
+                self._sim.queue_set_joint_position(joint, index, converted)
+                return
+        solid = self._sim.solid_for(self._node) if self._is_base() else None
+        if solid is not None and (self._name, kind) in (("translation", "SFVec3f"), ("rotation", "SFRotation")):
+            if self._name == "translation":
+                self._sim.queue_set_pose(solid, converted, None)
+            else:
+                self._sim.queue_set_pose(solid, None, converted)
+            self._values[self._name] = converted
+            return
+        self._values[self._name] = converted
+        self._changed()
+
+    def setSFBool(self, value: Any) -> None:
+        self._set("setSFBool", "SFBool", value)
+
+    def setSFInt32(self, value: Any) -> None:
+        self._set("setSFInt32", "SFInt32", value)
+
+    def setSFFloat(self, value: Any) -> None:
+        self._set("setSFFloat", "SFFloat", value)
+
+    def setSFVec2f(self, value: Any) -> None:
+        self._set("setSFVec2f", "SFVec2f", value)
+
+    def setSFVec3f(self, value: Any) -> None:
+        self._set("setSFVec3f", "SFVec3f", value)
+
+    def setSFRotation(self, value: Any) -> None:
+        self._set("setSFRotation", "SFRotation", value)
+
+    def setSFColor(self, value: Any) -> None:
+        self._set("setSFColor", "SFColor", value)
+
+    def setSFString(self, value: Any) -> None:
+        self._set("setSFString", "SFString", value)
+
+    # -- MF setters, insertion and removal (the list is edited in place: the root's list is the world's)
+
+    def _mf_write(self, method: str, kind: str, index: Any, value: Any, insert: bool) -> None:
+        if not self._check(method, kind):
+            return
+        ok, converted = self._convert(method, schema.mf_element_type(kind), value)
+        if not ok:
+            warn(f"Field.{method}(): new field value has wrong type or length ('{self._name}'): ignored")
+            return
+        items = self._raw()
+        if not isinstance(items, list):
+            items = []
+            self._values[self._name] = items
+        i = as_int(index, f"Field.{method}")
+        n = len(items)
+        if insert:
+            if not -(n + 1) <= i <= n:
+                warn(f"Field.{method}(): index {i} out of range for '{self._name}' ({n} items)")
+                return
+            items.insert(i if i >= 0 else n + 1 + i, converted)
+        else:
+            if not -n <= i < n:
+                warn(f"Field.{method}(): index {i} out of range for '{self._name}' ({n} items)")
+                return
+            items[i] = converted
+        self._changed()
+
+    def setMFBool(self, index: Any, value: Any) -> None:
+        self._mf_write("setMFBool", "MFBool", index, value, False)
+
+    def setMFInt32(self, index: Any, value: Any) -> None:
+        self._mf_write("setMFInt32", "MFInt32", index, value, False)
+
+    def setMFFloat(self, index: Any, value: Any) -> None:
+        self._mf_write("setMFFloat", "MFFloat", index, value, False)
+
+    def setMFVec2f(self, index: Any, value: Any) -> None:
+        self._mf_write("setMFVec2f", "MFVec2f", index, value, False)
+
+    def setMFVec3f(self, index: Any, value: Any) -> None:
+        self._mf_write("setMFVec3f", "MFVec3f", index, value, False)
+
+    def setMFRotation(self, index: Any, value: Any) -> None:
+        self._mf_write("setMFRotation", "MFRotation", index, value, False)
+
+    def setMFColor(self, index: Any, value: Any) -> None:
+        self._mf_write("setMFColor", "MFColor", index, value, False)
+
+    def setMFString(self, index: Any, value: Any) -> None:
+        self._mf_write("setMFString", "MFString", index, value, False)
+
+    def insertMFBool(self, index: Any, value: Any) -> None:
+        self._mf_write("insertMFBool", "MFBool", index, value, True)
+
+    def insertMFInt32(self, index: Any, value: Any) -> None:
+        self._mf_write("insertMFInt32", "MFInt32", index, value, True)
+
+    def insertMFFloat(self, index: Any, value: Any) -> None:
+        self._mf_write("insertMFFloat", "MFFloat", index, value, True)
+
+    def insertMFVec2f(self, index: Any, value: Any) -> None:
+        self._mf_write("insertMFVec2f", "MFVec2f", index, value, True)
+
+    def insertMFVec3f(self, index: Any, value: Any) -> None:
+        self._mf_write("insertMFVec3f", "MFVec3f", index, value, True)
+
+    def insertMFRotation(self, index: Any, value: Any) -> None:
+        self._mf_write("insertMFRotation", "MFRotation", index, value, True)
+
+    def insertMFColor(self, index: Any, value: Any) -> None:
+        self._mf_write("insertMFColor", "MFColor", index, value, True)
+
+    def insertMFString(self, index: Any, value: Any) -> None:
+        self._mf_write("insertMFString", "MFString", index, value, True)
+
+    def removeMF(self, index: Any) -> None:
+        items = self._raw()
+        if not self._vrml.startswith("MF") or not isinstance(items, list):
+            warn(f"Field.removeMF() called on a {self._vrml} field ('{self._name}'): ignored")
+            return
+        i = as_int(index, "Field.removeMF")
+        if not -len(items) <= i < len(items):
+            warn(f"Field.removeMF(): index {i} out of range for '{self._name}' ({len(items)} items)")
+            return
+        item = items.pop(i)
+        if isinstance(item, SceneNode):
+            self._owner._removed(item)
+        self._changed()
+
+    def removeSF(self) -> None:
+        """Empty an SFNode field."""
+        item = self._raw()
+        if self._vrml != "SFNode":
+            warn(f"Field.removeSF() called on a {self._vrml} field ('{self._name}'): ignored")
+            return
+        if isinstance(item, SceneNode):
+            self._values[self._name] = None
+            self._owner._removed(item)
+            self._changed()
+
+    def importMFNodeFromString(self, position: Any, nodeString: str) -> None:
+        """Parse VRML text into nodes inserted at ``position`` (-1 = append) of this MFNode field."""
+        if not self._check("importMFNodeFromString", "MFNode"):
+            return
+        items = self._raw()
+        if not isinstance(items, list):
+            items = []
+            self._values[self._name] = items
+        i = as_int(position, "Field.importMFNodeFromString")
+        n = len(items)
+        if not -(n + 1) <= i <= n:
+            warn(f"Field.importMFNodeFromString(): position {i} out of range for '{self._name}' ({n} items)")
+            return
+        try:
+            nodes = parse_nodes(self._sim, str(nodeString))
+        except Exception as exc:  # noqa: BLE001 - Webots reports a bad string on stderr and imports nothing
+            warn(f"Field.importMFNodeFromString(): {exc}")
+            return
+        at = i if i >= 0 else n + 1 + i
+        items[at:at] = nodes
+        self._owner._imported(nodes)
+        self._changed()
+
+    def importSFNodeFromString(self, nodeString: str) -> None:
+        """Parse VRML text into the node of this (empty) SFNode field."""
+        if not self._check("importSFNodeFromString", "SFNode"):
+            return
+        if self._raw() is not None:
+            warn(f"Field.importSFNodeFromString(): '{self._name}' is not empty; remove its node first")
+            return
+        try:
+            nodes = parse_nodes(self._sim, str(nodeString))
+        except Exception as exc:  # noqa: BLE001
+            warn(f"Field.importSFNodeFromString(): {exc}")
+            return
+        if nodes:
+            self._values[self._name] = nodes[0]
+            self._owner._imported(nodes[:1])
+            self._changed()

@@ -1,0 +1,83 @@
+"""Webots' ``Mouse`` and ``MouseState`` headless: there is no 3D view to click in, so the state never changes.
+
+What Webots answers when no mouse event ever reaches the controller: the state it starts with, ``u``/``v`` and
+the 3D point ``x``/``y``/``z`` NaN, no button pressed. ``enable``/``disable``/``enable3dPosition`` keep their
+settings, as they do in Webots; reading a disabled mouse prints Webots' error on stderr.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from dualtwin.webots.api_args import as_int, warn
+from dualtwin.webots.device_base import current_host
+
+__all__ = ["Mouse", "MouseState"]
+
+
+class MouseState:
+    """One reading of the mouse: position in the 3D view (``u``, ``v`` in 0..1), 3D point, buttons."""
+
+    u: float
+    v: float
+    x: float
+    y: float
+    z: float
+    left: bool
+    middle: bool
+    right: bool
+
+    def __init__(self, u: float, v: float, x: float, y: float, z: float, left: bool, middle: bool,
+                 right: bool) -> None:
+        self.u, self.v, self.x, self.y, self.z = u, v, x, y, z
+        self.left, self.middle, self.right = left, middle, right
+
+    def __repr__(self) -> str:
+        return (f"MouseState(u={self.u}, v={self.v}, x={self.x}, y={self.y}, z={self.z}, left={self.left}, "
+                f"middle={self.middle}, right={self.right})")
+
+
+class Mouse:
+    """Webots ``Mouse`` (``robot.mouse``): the robot's own is created disabled (``Mouse(0)``)."""
+
+    def __init__(self, sampling_period: Any = None) -> None:
+        host = current_host()
+        self._robot = host
+        self._period = 0
+        self._3d = False
+        if sampling_period is None:
+            self.enable(int(host.getBasicTimeStep()))
+        elif sampling_period:
+            self.enable(sampling_period)
+
+    def enable(self, p: Any) -> None:
+        self._period = max(0, as_int(p, "Mouse.enable"))
+
+    def disable(self) -> None:
+        self._period = 0
+
+    def getSamplingPeriod(self) -> int:
+        return self._period
+
+    @property
+    def sampling_period(self) -> int:
+        return self._period
+
+    @sampling_period.setter
+    def sampling_period(self, p: Any) -> None:
+        self.enable(0 if p is None else p)
+
+    def enable3dPosition(self) -> None:
+        self._3d = True
+
+    def disable3dPosition(self) -> None:
+        self._3d = False
+
+    def is3dPositionEnabled(self) -> bool:
+        return self._3d
+
+    def getState(self) -> MouseState:
+        if self._period == 0:
+            warn("wb_mouse_get_state() called for a disabled device! Please use: wb_mouse_enable().")
+        return MouseState(math.nan, math.nan, math.nan, math.nan, math.nan, False, False, False)

@@ -1,0 +1,158 @@
+"""The runtime's state of one controller's robot: what a ``Robot`` object is bound to, kept outside it.
+
+Webots' ``Robot`` class keeps almost nothing on the object (its plain attributes ``devices``, ``keyboard``,
+``mouse``, ``joystick``), so a controller subclass may use any attribute name (``self._mode``, ``self._sensors``,
+``self._devices``...). Here the runtime's state lives in a :class:`RobotLink`: the ``Robot`` holds one
+name-mangled reference to it, and devices, keyboards and scene handles are bound to the link, never to the
+user's object. The link advances the runtime on ``step`` and samples the enabled sensors and keyboards.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from dualtwin.webots.api_args import as_int
+from dualtwin.webots.battery import install as install_batteries
+from dualtwin.webots.connector import install as install_connectors
+from dualtwin.webots.device_base import Device, DeviceBinding, Sensor, bind_host
+from dualtwin.webots.devices import SOLID_DEVICE_CLASSES, Brake, Motor, PositionSensor, UnsupportedSensor
+from dualtwin.webots.nodes import Node as SceneNode
+from dualtwin.webots.physics import BrakeRec, DeviceRec, MotorRec, PositionSensorRec, RobotRec, Simulation
+from dualtwin.webots.propeller import install as install_propellers
+from dualtwin.webots.runtime import Runtime, current_runtime
+from dualtwin.webots.scene_api import Node
+from dualtwin.webots.track import install as install_tracks
+from dualtwin.webots.vacuum_gripper import install as install_vacuum_grippers
+
+__all__ = ["RobotLink"]
+
+
+class RobotLink:
+    """One controller's binding to the runtime: simulation, robot record, device objects, enabled sensors.
+
+    Args:
+        simulation: the simulation to control; default: the current runtime's.
+        robot_node: the Robot node this controller drives; default: the runtime's binding.
+        duration: simulated seconds after which ``step`` returns -1 (only with ``simulation``).
+        runtime: an explicit shared :class:`Runtime` (for several controllers on one simulation).
+    """
+
+    def __init__(
+        self,
+        simulation: Simulation | None = None,
+        robot_node: SceneNode | None = None,
+        duration: float | None = None,
+        runtime: Runtime | None = None,
+    ) -> None:
+        if runtime is None:
+            if simulation is not None:
+                runtime = Runtime(simulation, duration, robot_node)
+            else:
+                runtime = current_runtime()
+                if runtime is None:
+                    raise RuntimeError(
+                        "no Webots-twin runtime: pass simulation=... or run the script through "
+                        "dualtwin.webots.runner.run_world"
+                    )
+        self._runtime = runtime
+        self._sim = runtime.simulation
+        node = robot_node if robot_node is not None else runtime.robot_node_for_thread()
+        rec = next((r for r in self._sim.robots if r.node is node), None)
+        if rec is None:
+            raise ValueError("robot_node is not a Robot of this simulation")
+        self._rec: RobotRec = rec
+        install_propellers(self._sim)  # propeller and track motors become devices of their robot
+        install_tracks(self._sim)
+        install_connectors(self._sim)  # docking and suction run in the physics even if no controller asks
+        install_vacuum_grippers(self._sim)
+        install_batteries(self._sim)
+        self._devices: dict[int, Device] = {}
+        self._sensors: dict[int, Sensor] = {}
+        #: objects stepped with the robot that are not sensors (keyboards, mice, joysticks)
+        self.inputs: list[Any] = []
+        self.mode = runtime.mode
+        self.pending_step: float | None = None  # stepBegin's duration, run by stepEnd
+        self.movie_failed = False
+        bind_host(self)
+        self.client = runtime.register(self)
+
+    # -- what devices and scene handles need (DeviceHost, SceneHost)
+
+    def getTime(self) -> float:  # noqa: N802 - the DeviceHost protocol
+        return self._sim.time
+
+    def getBasicTimeStep(self) -> float:  # noqa: N802
+        return self._sim.basic_time_step
+
+    def getFromId(self, id: Any) -> Node | None:  # noqa: A002, N802 - the SceneHost protocol
+        wanted = as_int(id, "Supervisor.getFromId")
+        if wanted == 0:
+            return self.root()
+        node = self._runtime.node_ids()[1].get(wanted)
+        return Node(self, node) if node is not None else None
+
+    def root(self) -> Node:
+        root = Node(self, SceneNode("Group", {"children": self._sim.world.nodes}))
+        root._is_root = True
+        return root
+
+    # -- devices
+
+    def records(self) -> list[Any]:
+        return list(self._rec.devices.values())
+
+    def _binding_for(self, key: str | int) -> DeviceBinding | None:
+        recs = self.records()
+        if isinstance(key, int):
+            if not 1 <= key <= len(recs):
+                return None
+            rec = recs[key - 1]
+        else:
+            rec = self._rec.devices.get(key)
+            if rec is None:
+                return None
+        return DeviceBinding(self, str(getattr(rec, "name", key)), rec, recs.index(rec) + 1)
+
+    def _device_for(self, rec: Any) -> Device:
+        dev = self._devices.get(id(rec))
+        if dev is None:
+            recs = self.records()
+            binding = DeviceBinding(self, str(getattr(rec, "name", "")), rec, recs.index(rec) + 1 if rec in recs else 0)
+            if isinstance(rec, MotorRec):
+                dev = Motor(binding)
+            elif isinstance(rec, PositionSensorRec):
+                dev = PositionSensor(binding)
+            elif isinstance(rec, BrakeRec):
+                dev = Brake(binding)
+            elif isinstance(rec, DeviceRec):
+                dev = SOLID_DEVICE_CLASSES.get(rec.type_name, UnsupportedSensor)(binding)
+                if isinstance(dev, Sensor):
+                    dev._invalidate()
+            elif hasattr(rec, "api_class"):  # devices simulated by their own module (propeller motors)
+                dev = rec.api_class(binding)
+            else:
+                dev = Device(binding)
+            self._devices[id(rec)] = dev
+        return dev
+
+    # -- stepping
+
+    def step(self, ms: float) -> int:
+        result = self._runtime.advance(self.client, ms)
+        self.mode = self._runtime.mode  # simulationGetMode() reports the mode at the last step
+        # sensors were sampled during the step, at the basic steps where they fell due (device_base)
+        for item in self.inputs:
+            item._after_step(self._sim.time, self._runtime.clock)
+        return result
+
+    def _after_reset(self) -> None:
+        for sensor in self._sensors.values():
+            sensor._enabled_at = 0.0
+            sensor._last_sample = None
+            sensor._invalidate()
+        for item in self.inputs:
+            item._after_reset()
+
+    def close(self) -> None:
+        if self.client.active:
+            self._runtime.unregister(self.client)
