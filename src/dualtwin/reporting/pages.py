@@ -33,10 +33,29 @@ section{border-top:2px solid #ddd;margin-top:1.5em}
 """
 
 
-def png_bytes(fig: Figure) -> bytes:
-    """A figure as PNG bytes, without the "Software" stamp, so identical data gives identical files."""
+#: Colours of a report PNG's palette: a plot has a few line colours and their anti-aliased blends.
+PNG_COLOURS = 64
+
+
+def png_bytes(fig: Figure, *, palette: bool = True) -> bytes:
+    """A figure as PNG bytes, identical for identical data (no "Software" stamp, no timestamp).
+
+    With ``palette`` (the default) the image is stored with a palette of `PNG_COLOURS` colours (fast octree,
+    no dithering) instead of 24-bit RGB: a line plot looks the same and the file is about 3 times smaller,
+    which is what keeps a report with a dozen embedded figures near 1 MB. (PIL's ``optimize`` would save
+    another 10 % at 0.3 s per figure: not worth it.)
+    """
+    import numpy as np  # imported here: this module is on the CLI's start-up path
+    from PIL import Image
+
+    fig.canvas.draw()
+    rgba = np.asarray(fig.canvas.buffer_rgba())  # type: ignore[attr-defined]
+    image = Image.fromarray(np.ascontiguousarray(rgba[..., :3]))
+    if palette:
+        image = image.quantize(colors=PNG_COLOURS, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", metadata={"Software": None})
+    dpi = float(fig.dpi)
+    image.save(buf, format="png", dpi=(dpi, dpi))
     return buf.getvalue()
 
 

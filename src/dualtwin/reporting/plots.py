@@ -18,6 +18,35 @@ from matplotlib.lines import Line2D
 #: A trace for `plot_overlay`: ``(label, t, y)``.
 Trace = tuple[str, npt.ArrayLike, npt.ArrayLike]
 
+#: `plot_overlay` draws at most this many points per trace: an axes is a few hundred pixels wide.
+MAX_POINTS = 1200
+
+
+def envelope(t: npt.ArrayLike, y: npt.ArrayLike, points: int = MAX_POINTS) -> tuple[np.ndarray, np.ndarray]:
+    """``(t, y)`` reduced to about ``points`` samples that draw the same line at screen resolution.
+
+    Why: drawing (and the legend's "best" placement, which tests every vertex) cost most of a report's time,
+    for long recordings about 10,000 points per line. The samples are cut into ``points / 2`` equal runs and
+    each run keeps its minimum and maximum, in time order, so peaks, steps and oscillations keep their extent
+    (no averaging). Short traces, and traces with gaps (NaN), are returned as they are.
+    """
+    t = np.asarray(t, dtype=float)
+    y = np.asarray(y, dtype=float)
+    n = len(t)
+    runs = max(1, points // 2)
+    if n <= points or y.shape != t.shape or np.isnan(y).any():
+        return t, y
+    size = -(-n // runs)  # ceil: whole runs, and one shorter run at the end
+    full = n // size
+    block = y[:full * size].reshape(full, size)
+    start = np.arange(full) * size
+    keep = [start + block.argmin(axis=1), start + block.argmax(axis=1), [0, n - 1]]
+    if full * size < n:
+        tail = y[full * size:]
+        keep.append([full * size + int(tail.argmin()), full * size + int(tail.argmax())])
+    index = np.unique(np.concatenate(keep))
+    return t[index], y[index]
+
 
 def plot_overlay(
     ax: Axes,
@@ -33,7 +62,8 @@ def plot_overlay(
 
     Args:
         ax: Target axes.
-        traces: ``(label, t, y)`` per line, e.g. two twins, or before/after alignment.
+        traces: ``(label, t, y)`` per line, e.g. two twins, or before/after alignment; each is drawn through
+            its `envelope` (at most `MAX_POINTS` points, the same line on screen).
         crossings: Crossing time per trace (None: no marker), drawn as a dotted line in the trace's colour.
         threshold: An object with ``value`` and ``mode`` (``"abs"`` draws both signs), drawn dashed grey.
         ylabel: Y axis label, with its unit.
@@ -47,7 +77,7 @@ def plot_overlay(
         raise ValueError(f"{len(crossings)} crossing times for {len(traces)} traces")
     lines: list[Line2D] = []
     for label, t, y in traces:
-        (line,) = ax.plot(np.asarray(t, dtype=float), np.asarray(y, dtype=float), label=label, linewidth=1.4)
+        (line,) = ax.plot(*envelope(t, y), label=label, linewidth=1.4)
         lines.append(line)
     if threshold is not None:
         levels = [threshold.value, -threshold.value] if threshold.mode == "abs" else [threshold.value]
