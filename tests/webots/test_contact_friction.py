@@ -55,3 +55,46 @@ def test_without_rolling_friction_the_ball_rolls() -> None:
     speed, spin = _downhill_speed_and_spin(_ball_on_ramp("0 0 0"), 1.0)
     assert speed == pytest.approx(5 / 7 * G * math.sin(THETA) * 1.0, rel=0.02)
     assert spin == pytest.approx(speed / 0.1, rel=0.02)
+
+
+def _slide(coulomb: str, velocity: tuple[float, float], box_turn: float = 0.0) -> tuple[float, float]:
+    sup = _sup(f"""WorldInfo {{ basicTimeStep 8 contactProperties [
+  ContactProperties {{ material1 "floor" material2 "box" bounce 0 coulombFriction [ {coulomb} ] }} ] }}
+Solid {{ contactMaterial "floor" boundingObject Plane {{ size 100 100 }} }}
+DEF BOX Solid {{ translation 0 0 0.05 rotation 0 0 1 {box_turn} contactMaterial "box"
+  boundingObject Box {{ size 0.4 0.4 0.1 }} physics Physics {{ density -1 mass 1 }} }}""")
+    box = sup.getFromDef("BOX")
+    box.setVelocity([velocity[0], velocity[1], 0.0, 0.0, 0.0, 0.0])
+    for _ in range(300):
+        sup.step(8)
+    p = box.getPosition()
+    return p[0], p[1]
+
+
+def _stop(v: float, mu: float) -> float:
+    """Slide length at initial speed v under Coulomb friction mu: v²/(2·mu·g), less v·h/2 for ODE's semi-implicit
+    Euler steps (h = 8 ms: positions advance with the velocity after each step)."""
+    return v * v / (2 * mu * G) - v * 0.008 / 2
+
+
+def test_asymmetric_friction_uses_the_first_solid_friction_direction() -> None:
+    # (a flat box, so that friction up to mu = 4 cannot tip it)
+    # two values, box and plane both with friction directions along world x (α = 0): mu = m0 + m0 = 0.2 along
+    # fdir1 (the floor's x), mu2 = m1 + m1 = 2 along y
+    x, _ = _slide("0.1 1", (2.0, 0.0))
+    assert x == pytest.approx(_stop(2.0, 0.2), rel=0.02)
+    _, y = _slide("0.1 1", (0.0, 2.0))
+    assert y == pytest.approx(_stop(2.0, 2.0), rel=0.02)
+
+
+def test_asymmetric_friction_combines_with_the_angle_between_directions() -> None:
+    # the box turned 90° about z: its friction direction is across the floor's (α = 90°):
+    # mu = m0 + m1 = 1.1 along x, mu2 = m1 + m0 = 1.1 along y
+    x, _ = _slide("0.1 1", (2.0, 0.0), box_turn=math.pi / 2)
+    assert x == pytest.approx(_stop(2.0, 1.1), rel=0.02)
+
+
+def test_symmetric_friction_slides_alike_in_every_direction() -> None:
+    x, _ = _slide("0.1", (2.0, 0.0))  # control: one value is mu along both directions
+    _, y = _slide("0.1", (0.0, 2.0))
+    assert x == pytest.approx(_stop(2.0, 0.1), rel=0.02) and y == pytest.approx(x, rel=1e-6)

@@ -150,3 +150,22 @@ def test_a_physics_plugin_is_named_once_as_not_run() -> None:
     said = [w for w in build('physics "my_plugin"') if "physics plugin" in w]
     assert len(said) == 1 and "'my_plugin'" in said[0] and "not run" in said[0]
     assert not [w for w in build("") if "physics plugin" in w]  # control: the default '<none>' says nothing
+
+
+def test_motor_limits_widen_to_a_joint_that_starts_outside_them() -> None:
+    sup = _sup(
+        """Robot { supervisor TRUE children [ HingeJoint {
+  jointParameters HingeJointParameters { axis 0 0 1 position 1.0 }
+  device [ RotationalMotor { name "m" minPosition -0.5 maxPosition 0.5 } PositionSensor { name "s" } ]
+  endPoint Solid { rotation 0 0 1 1.0 physics Physics { } boundingObject Box { size 0.1 0.1 0.1 } } } ] }""",
+        info="gravity 0",
+    )
+    motor, sensor = sup.getDevice("m"), sup.getDevice("s")
+    assert (motor.getMinPosition(), motor.getMaxPosition()) == (-0.5, 1.0)
+    sensor.enable(8)
+    motor.setPosition(0.9)  # inside the widened range: not clamped to the file's 0.5
+    for _ in range(100):
+        sup.step(8)
+    assert sensor.getValue() == pytest.approx(0.9, abs=1e-3)
+    motor.setPosition(1.5)  # control: the widened limit still clamps
+    assert motor.getTargetPosition() == 1.0

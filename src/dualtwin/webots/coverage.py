@@ -74,8 +74,10 @@ REGISTRY: tuple[Coverage, ...] = (
              "density or mass, centerOfMass, inertiaMatrix, damping (volume-weighted over merged solids)"),
     Coverage("Damping", "physics", "supported", "linear and angular, converted per step as Webots does"),
     Coverage("ContactProperties", "physics", "partial",
-             "material pairs, Coulomb friction, bounce, soft ERP/CFM follow Webots; asymmetric friction and "
-             "frictionRotation use the first value only; rollingFriction (rho, rho2, rhoN: ODE's rolling rows; "
+             "material pairs, Coulomb friction, bounce, soft ERP/CFM follow Webots; asymmetric friction (2-4 "
+             "values: fdir1 from material1's Box/Plane/Cylinder turned by frictionRotation, mu/mu2 combined with "
+             "the angle between both solids' directions; the directions per face are our reading of Webots' "
+             "texture mapping); asymmetric slip uses its first value; rollingFriction (rho, rho2, rhoN: ODE's rolling rows; "
              "mu2 stays 0 as Webots leaves it, so rho2/rhoN make the second friction direction frictionless) and "
              "forceDependentSlip as Webots fills ODE's contact"),
     # -- geometry

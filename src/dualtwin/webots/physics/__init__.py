@@ -23,8 +23,9 @@ What differs (and why)
       feature), so the spring row is emulated with the LMotor *motor* row: velocity target
       ``∓ERP·x/h`` with CFM ``1/(hK+B)`` and unbounded force, which is algebraically the same implicit
       LCP row as a stop row with that ERP/CFM (Appendix A).
-    * Asymmetric friction (2–4 ``coulombFriction`` values) and ``frictionRotation`` use the first value
-      only (symmetric pyramid); fluids are not simulated. Ray devices, touch sensors and radios live in their
+    * Asymmetric friction (2–4 ``coulombFriction`` values) sets fdir1/mu2 per contact from both geometries'
+      friction directions (which face gives which direction is our reading of Webots' texture mapping);
+      asymmetric ``forceDependentSlip`` uses its first value; fluids are not simulated. Ray devices, touch sensors and radios live in their
       own modules (``ranging``, ``touch``, ``radio``) and use the ``extensions``/``step_hooks`` slots.
     * Hinge suspension (fork-only ODE API, Appendix A.2) and BallJoint springs are not modelled; BallJoint
       positions are read from the bodies' rotations (ODE updates its Euler angles only inside a step); upstream

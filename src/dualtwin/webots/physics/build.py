@@ -221,6 +221,20 @@ class SceneBuilder(SimulationCore):
             max_position=float(_f(dev, "maxPosition", 0.0)),
             multiplier=float(_f(dev, "multiplier", 1.0)),
         )
+        if motor.multiplier == 0.0:
+            self.warn(f"motor '{motor.name}': multiplier 0 is not allowed; using 1")
+            motor.multiplier = 1.0
+        # a joint that starts outside its motor's position limits widens them to its position, as Webots does
+        position = joint.positions[axis_index]
+        if motor.min_position != motor.max_position:
+            if position < motor.min_position:
+                self.warn(f"motor '{motor.name}': the joint starts at {position:g}, below minPosition; "
+                          "minPosition set to it")
+                motor.min_position = position
+            elif position > motor.max_position:
+                self.warn(f"motor '{motor.name}': the joint starts at {position:g}, above maxPosition; "
+                          "maxPosition set to it")
+                motor.max_position = position
         self.motors.append(motor)
         return motor
 

@@ -19,6 +19,7 @@ from dualtwin.webots.physics.records import (
     GEOM_OFFSET,
     SIZEOF_CONTACT,
     BodyRec,
+    GeomRec,
     SolidRec,
     Surface,
 )
@@ -71,11 +72,78 @@ class CollisionPass(JointBuilder):
         s.soft_erp = float(_f(cp, "softERP", 0.2))
         s.soft_cfm = float(_f(cp, "softCFM", 0.001))
         s.mode = mode
+        asymmetric = None
         if cp is not None and len(coulomb) > 1:
-            self.warn("asymmetric coulombFriction is approximated by its first value")
+            values = tuple(ode.dInfinity if float(v) == -1 else float(v) for v in coulomb[:4])
+            rotation = tuple(float(v) for v in _f(cp, "frictionRotation", (0.0, 0.0)))
+            asymmetric = (values, str(_f(cp, "material1", "default")), (rotation[0], rotation[1]))
+        if cp is not None and len(slip) > 1:
+            self.warn("asymmetric forceDependentSlip is approximated by its first value")
         capacity = DEFAULT_CONTACT_CAPACITY
         arr = self._contact_array(s, capacity)
-        return Surface(arr, capacity, int(_f(cp, "maxContactJoints", 10)), s)
+        return Surface(arr, capacity, int(_f(cp, "maxContactJoints", 10)), s, asymmetric)
+
+    # -- asymmetric friction (§2.2)
+
+    def _friction_direction(self, gr: GeomRec, normal: m3.Vec3) -> m3.Vec3 | None:
+        """The geometry's first friction direction (its texture's U direction) at a contact of this normal, in the
+        world frame; None for geometries without one (Sphere, Capsule, meshes)."""
+        if gr.kind not in ("Box", "Plane", "Cylinder"):
+            return None
+        if gr.is_plane:
+            R = (self.solid_world_pose(gr.solid) * gr.local).R
+        else:
+            r = ctypes.cast(self._lib.dGeomGetRotation(gr.ptr), ctypes.POINTER(ctypes.c_double))
+            R = (r[0], r[1], r[2], r[4], r[5], r[6], r[8], r[9], r[10])
+        local_normal = m3.mat_t_vec(R, normal)
+        ax, ay, az = (abs(v) for v in local_normal)
+        if gr.kind == "Box" and ax > ay and ax > az:
+            local = (0.0, 1.0, 0.0)  # a face across x: U runs along y
+        elif gr.kind == "Cylinder" and not (az > ax and az > ay):
+            local = (0.0, 0.0, 1.0)  # the side: along the axis
+        else:
+            local = (1.0, 0.0, 0.0)  # a face across z (or y), a cap, a plane: along x
+        d = m3.mat_vec(R, local)
+        d = m3.sub(d, m3.scale(normal, m3.dot(d, normal)))  # into the contact plane
+        n = m3.norm(d)
+        return m3.scale(d, 1.0 / n) if n > 1e-12 else None
+
+    def _asymmetric_modifier(self, g1: GeomRec, g2: GeomRec, surface: Surface) -> Callable[[Any, list[int], int], None]:
+        """Per contact: fdir1 from material1's geometry turned by −frictionRotation about the normal, and mu/mu2
+        combined from both solids' coefficients and the angle α between their friction directions (§2.2):
+        2 values (both solids): mu = m0 + m0|cos α| + m1|sin α|, mu2 = m1 + m0|sin α| + m1|cos α|; 3 values:
+        mu = m0 + m2, mu2 = m1 + m2; 4 values: mu = m0 + m2|cos α| + m3|sin α|, mu2 = m1 + m2|sin α| + m3|cos α|.
+        Falls back to the symmetric surface when a geometry has no friction direction."""
+        values, material1, rotation = surface.asymmetric  # type: ignore[misc]
+        first, second = (g1, g2) if g1.solid.material == material1 else (g2, g1)
+
+        def turned(d: m3.Vec3, normal: m3.Vec3, angle: float) -> m3.Vec3:
+            return m3.mat_vec(m3.rot_axis_angle((*normal, -angle)), d) if angle else d
+
+        def modify(arr: Any, indices: list[int], _o1: int) -> None:
+            for i in indices:
+                c = arr[i]
+                normal = (c.geom.normal[0], c.geom.normal[1], c.geom.normal[2])
+                d1 = self._friction_direction(first, normal)
+                d2 = self._friction_direction(second, normal)
+                if d1 is None or d2 is None:
+                    continue
+                d1, d2 = turned(d1, normal, rotation[0]), turned(d2, normal, rotation[1])
+                cos_a = abs(m3.dot(d1, d2))
+                sin_a = abs(m3.dot(m3.cross(d1, d2), normal))
+                if len(values) == 2:
+                    m0, m1 = values
+                    mu, mu2 = m0 + m0 * cos_a + m1 * sin_a, m1 + m0 * sin_a + m1 * cos_a
+                elif len(values) == 3:
+                    mu, mu2 = values[0] + values[2], values[1] + values[2]
+                else:
+                    m0, m1, m2, m3_ = values
+                    mu, mu2 = m0 + m2 * cos_a + m3_ * sin_a, m1 + m2 * sin_a + m3_ * cos_a
+                c.surface.mode |= ode.dContactFDir1 | ode.dContactMu2
+                c.surface.mu, c.surface.mu2 = mu, mu2
+                c.fdir1[0], c.fdir1[1], c.fdir1[2] = d1
+
+        return modify
 
     @staticmethod
     def _contact_array(s: ode.dSurfaceParameters, capacity: int) -> Any:
@@ -165,6 +233,16 @@ class CollisionPass(JointBuilder):
         surface = self._surface_for(g1.solid.material, g2.solid.material)
         owner = b1 if b1 is not None else b2
         modifier = self._contact_modifiers.get(id(g1.solid)) or self._contact_modifiers.get(id(g2.solid))
+        if surface.asymmetric is not None:
+            asymmetric = self._asymmetric_modifier(g1, g2, surface)
+            if modifier is None:
+                modifier = asymmetric
+            else:
+                track = modifier
+
+                def modifier(arr: Any, indices: list[int], o1: int) -> None:
+                    asymmetric(arr, indices, o1)
+                    track(arr, indices, o1)
         return (
             surface,
             owner,

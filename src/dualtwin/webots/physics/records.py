@@ -321,6 +321,8 @@ class Surface:
     capacity: int
     max_joints: int
     template: ode.dSurfaceParameters
+    # asymmetric Coulomb friction: (values 2–4, material1, frictionRotation) or None
+    asymmetric: tuple[tuple[float, ...], str, tuple[float, float]] | None = None
 
 
 @dataclass
