@@ -70,3 +70,37 @@ def test_an_edited_shape_is_what_the_rays_see_next() -> None:
     sup.step(8)
     assert lidar.getRangeImage()[1] == pytest.approx(0.8)
     assert ir_right.getValue() == pytest.approx(0.75)
+
+
+@pytest.mark.parametrize(
+    "appearance, sensitivity, expected",
+    [
+        ("Appearance { material Material { diffuseColor 1 0 0 } }", 1, 1.0),  # red reflects fully: f = 1
+        ("Appearance { material Material { diffuseColor 0 0 1 } }", 1, 5.0),  # no red: f = 0.2, d/f
+        ("PBRAppearance { baseColor 0.5 0 0 roughness 1 }", 1, 2.5),  # f = 0.2 + 0.8·0.5·0.5 = 0.4
+        ("PBRAppearance { baseColor 0.5 0 0 roughness 1 }", 0.5, 1.75),  # d + (d/f − d)·0.5
+        ("Appearance { material Material { diffuseColor 0 0 1 } }", 0, 1.0),  # colour-blind sensor
+    ],
+)
+def test_infra_red_distance_is_weighted_by_the_red_of_what_it_sees(
+    appearance: str, sensitivity: float, expected: float
+) -> None:
+    # control: a generic sensor reads 1.0 on every colour (and the infra-red one did too before)
+    text = (
+        "#VRML_SIM R2023b utf8\nWorldInfo { basicTimeStep 8 }\n"
+        f"Solid {{ translation 1.05 0 0 children [ Shape {{ appearance {appearance} geometry Box {{ size 0.1 1 1 }} }} ] "
+        "boundingObject Box { size 0.1 1 1 } }\n"
+        f'Robot {{ supervisor TRUE children [ DistanceSensor {{ name "ir" type "infra-red" '
+        f"redColorSensitivity {sensitivity} lookupTable [ 0 0 0, 10 10 0 ] }} "
+        'DistanceSensor { name "generic" lookupTable [ 0 0 0, 10 10 0 ] } ] }'
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sim = Simulation(load_world_text(text))
+    sup = Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    ir, generic = sup.getDevice("ir"), sup.getDevice("generic")
+    ir.enable(8)
+    generic.enable(8)
+    sup.step(8)
+    assert ir.getValue() == pytest.approx(expected)
+    assert generic.getValue() == pytest.approx(1.0)

@@ -155,8 +155,9 @@ REGISTRY: tuple[Coverage, ...] = (
              "generic, sonar and laser as Webots: rays against bounding objects (own robot excluded unless "
              "selfCollision), ray layout and Gaussian weights, sonar echo angle, lookup table with noise, "
              "resolution, sampled at the basic step where the period elapses; infra-red rays hit the visual "
-             "Shapes (own robot included, transparent ones skipped) with a reflection factor of 1 (no "
-             "colours)"),
+             "Shapes (own robot included, transparent ones skipped), weighted by the reflection factor of the "
+             "hit Shape's red (Material diffuseColor or PBR baseColor and roughness; no textures) and "
+             "redColorSensitivity"),
     Coverage("Compass", "device", "supported",
              "north of WorldInfo.coordinateSystem (+y ENU, +x NUE, +z EUN) in the device frame, per-axis "
              "lookupTable and resolution"),

@@ -10,8 +10,8 @@ DistanceSensor (Webots ``WbDistanceSensor``)
     distance or the full length. Then the lookup table (interpolation, multiplicative noise) and the
     resolution. No hit therefore reads the table's *last output*. An empty table reads 0.
     Infra-red rays hit the *visual* Shapes of the scene (:mod:`.visual_rays`), as Webots intersects them with
-    the Shapes' geometry; Webots also weights the distance by the red colour of what it hits, which is not
-    modelled (a reflection factor of 1, so infra-red reads as generic on what it sees).
+    the Shapes' geometry, and the distance is weighted by the reflection factor of what each ray hit (from
+    its colour's red, :func:`.visual_rays.infra_red_reflection`): ``d̄ + (d̄/f̄ − d̄)·redColorSensitivity``.
 
 Lidar (fixed) and RangeFinder
     Webots renders depth on the GPU from the visual scene. Here one ray per pixel is cast against the visual
@@ -47,7 +47,7 @@ from dualtwin.webots.display import png_bytes
 from dualtwin.webots.lut import Table, discretize, lookup, table_from_field
 from dualtwin.webots.physics import GeomRec, RobotRec, Simulation
 from dualtwin.webots.rays import RayCaster, RayHits, candidate_geoms
-from dualtwin.webots.visual_rays import visual_targets
+from dualtwin.webots.visual_rays import scene_of, visual_targets
 
 __all__ = [
     "DistanceSensor",
@@ -255,6 +255,7 @@ class DistanceModel:
     weights: np.ndarray
     aperture: float
     resolution: float
+    red_sensitivity: float = 1.0
 
     @classmethod
     def from_node(cls, fields: dict[str, Any]) -> DistanceModel:
@@ -278,18 +279,24 @@ class DistanceModel:
             weights=distance_ray_weights(dirs, aperture, width),
             aperture=aperture,
             resolution=float(fields.get("resolution", -1.0)),
+            red_sensitivity=abs(float(fields.get("redColorSensitivity", 1.0))),
         )
 
     @property
     def length(self) -> float:
         return self.table[-1][0] if self.table else 0.0
 
-    def distance(self, hits: RayHits, world_dirs: np.ndarray) -> float:
+    def distance(self, hits: RayHits, world_dirs: np.ndarray, reflections: np.ndarray | None = None) -> float:
         """The distance Webots feeds to the lookup table (§ value computation in the module docstring)."""
         full = self.length
         d = np.where(np.isfinite(hits.distance), hits.distance, full)
-        if self.kind in (DistanceSensor.GENERIC, DistanceSensor.INFRA_RED):
+        if self.kind == DistanceSensor.GENERIC:
             return float(np.dot(self.weights, d))
+        if self.kind == DistanceSensor.INFRA_RED:
+            # Webots: d̄ + (d̄/f̄ − d̄)·redColorSensitivity, f the reflection factor of what each ray hit
+            mean = float(np.dot(self.weights, d))
+            f = float(np.dot(self.weights, reflections)) if reflections is not None else 1.0
+            return mean + (mean / f - mean) * self.red_sensitivity
         if self.kind == DistanceSensor.LASER:
             return float(d[0])
         best = full  # sonar: the nearest echo from a surface facing the ray
@@ -310,7 +317,11 @@ class DistanceModel:
         self.lengths = np.full(len(self.directions), self.length)
 
     def finish(self, sim: Simulation, hits: RayHits, dirs: np.ndarray) -> float:
-        v = lookup(self.table, self.distance(hits, dirs), sim.rng)
+        reflections = None
+        scene = scene_of(sim) if self.kind == DistanceSensor.INFRA_RED else None
+        if scene is not None:
+            reflections = np.array([scene.reflection(g) for g in hits.geom])
+        v = lookup(self.table, self.distance(hits, dirs, reflections), sim.rng)
         return discretize(v, self.resolution)
 
 

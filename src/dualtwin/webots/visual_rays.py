@@ -30,7 +30,7 @@ from dualtwin.webots.physics import GeomRec, Simulation, SolidRec
 from dualtwin.webots.physics.records import is_solid
 from dualtwin.webots.shapes import appearance_rgba
 
-__all__ = ["VisualGeoms", "visual_targets"]
+__all__ = ["VisualGeoms", "infra_red_reflection", "scene_of", "visual_targets"]
 
 _PLANE_THICKNESS = 1e-6  # m: a Plane is a rectangle; rays hit its flat box from either side
 
@@ -44,6 +44,7 @@ class VisualGeoms:
         self.version = sim.geometry_version
         self.geoms: list[GeomRec] = []
         self._targets: dict[tuple[int, tuple[int, ...]], list[GeomRec]] = {}
+        self._reflection: dict[int, float] = {}  # geom pointer → infra-red reflection factor
         for solid in sim.solids:
             for child in solid.node.children():
                 self._walk(child, Pose(), (1.0, 1.0, 1.0), solid)
@@ -70,9 +71,11 @@ class VisualGeoms:
             rgba = appearance_rgba(node)
             geometry = node.fields.get("geometry")
             if isinstance(geometry, Node) and (rgba is None or rgba[3] > 0.0):
-                self._make(geometry, local, scale, solid)
+                made = self._make(geometry, local, scale, solid)
+                if made is not None:
+                    self._reflection[made.ptr] = infra_red_reflection(node)
 
-    def _make(self, node: Node, local: Pose, scale: Sequence[float], solid: SolidRec) -> None:
+    def _make(self, node: Node, local: Pose, scale: Sequence[float], solid: SolidRec) -> GeomRec | None:
         lib = self.lib
         t = node.type_name
         f = node.fields
@@ -100,11 +103,16 @@ class VisualGeoms:
             if built is not None:
                 ptr = lib.dCreateTriMesh(None, built[0], None, None, None)
                 keep = built
-        if ptr:
-            self.geoms.append(
-                GeomRec(ptr=ptr, solid=solid, kind=t, local=local, body=None, keepalive=keep, source=node,
-                        scale=tuple(float(v) for v in scale))  # fmt: skip
-            )
+        if not ptr:
+            return None
+        gr = GeomRec(ptr=ptr, solid=solid, kind=t, local=local, body=None, keepalive=keep, source=node,
+                     scale=tuple(float(v) for v in scale))  # fmt: skip
+        self.geoms.append(gr)
+        return gr
+
+    def reflection(self, geom: GeomRec | None) -> float:
+        """The infra-red reflection factor of what a ray hit (1 for a miss)."""
+        return 1.0 if geom is None else self._reflection.get(geom.ptr, 1.0)
 
     def targets(self, own: SolidRec | None) -> list[GeomRec]:
         """The geoms a device mounted as Solid ``own`` sees: all but the Shapes of its robot that enclose its
@@ -144,6 +152,29 @@ class VisualGeoms:
             self.lib.dGeomDestroy(g.ptr)
         self.geoms = []
         self._targets.clear()
+
+
+def infra_red_reflection(shape: Node) -> float:
+    """Webots' infra-red reflection factor of a Shape: ``0.2 + 0.8·red·(1 − 0.5·roughness)`` with the red of
+    its PBRAppearance ``baseColor`` (and its ``roughness``) or Material ``diffuseColor``; a Shape without
+    appearance counts as white. Textures and occlusion maps are not read (Webots samples them at the hit)."""
+    appearance = shape.fields.get("appearance")
+    red, roughness = 1.0, 0.0
+    if isinstance(appearance, Node):
+        if appearance.type_name == "PBRAppearance":
+            red = float(appearance.fields.get("baseColor", (1.0, 1.0, 1.0))[0])
+            roughness = float(appearance.fields.get("roughness", 0.0))
+        else:
+            material = appearance.fields.get("material")
+            if isinstance(material, Node):
+                red = float(material.fields.get("diffuseColor", (0.8, 0.8, 0.8))[0])
+    return 0.2 + 0.8 * red * (1.0 - 0.5 * roughness)
+
+
+def scene_of(sim: Simulation) -> VisualGeoms | None:
+    """The simulation's visual geoms, if a visual-ray device has sampled yet."""
+    scene: VisualGeoms | None = sim.extensions.get("visual_geoms")
+    return scene
 
 
 def visual_targets(sim: Simulation, own: SolidRec | None) -> list[GeomRec]:
