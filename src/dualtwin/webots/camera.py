@@ -41,9 +41,10 @@ from typing import Any
 import numpy as np
 
 from dualtwin.artifacts import write_bytes
-from dualtwin.webots.api_args import as_float, warn
+from dualtwin.webots.api_args import as_float, as_int, warn
 from dualtwin.webots.device_base import SolidSensor
 from dualtwin.webots.display import png_bytes
+from dualtwin.webots.recognition import CameraRecognitionObject
 
 __all__ = ["Camera", "CameraModel", "bgra_from_rgb"]
 
@@ -227,12 +228,52 @@ class Camera(SolidSensor):
     def getFov(self) -> float:
         return self._model().fov
 
-    def setFov(self, fov: Any) -> None:
-        value = as_float(fov, "Camera.setFov")
-        if not 0.0 < value <= math.pi:
-            warn(f"Camera.setFov(): {value} is outside (0, pi]")
+    def setFov(self, f: Any) -> None:
+        value = as_float(f, "Camera.setFov")
+        low, high = self.getMinFov(), self.getMaxFov()
+        if not 0.0 < value <= math.pi or not low <= value <= high:
+            warn(f"Camera.setFov(): {value} is outside [{low}, {high}] (the Zoom node's range, or (0, pi])")
             return
         self._model().fov = value
+
+    def _part(self, field: str) -> dict[str, Any] | None:
+        node = self._record.node.fields.get(field)
+        return node.fields if node is not None else None
+
+    def getMinFov(self) -> float:
+        zoom = self._part("zoom")
+        return float(zoom["minFieldOfView"]) if zoom is not None else self._model().fov
+
+    def getMaxFov(self) -> float:
+        zoom = self._part("zoom")
+        return float(zoom["maxFieldOfView"]) if zoom is not None else self._model().fov
+
+    def _focus(self, name: str) -> float:
+        focus = self._part("focus")
+        return float(focus[name]) if focus is not None else 0.0
+
+    def getFocalLength(self) -> float:
+        return self._focus("focalLength")
+
+    def getFocalDistance(self) -> float:
+        return self._focus("focalDistance")
+
+    def getMinFocalDistance(self) -> float:
+        return self._focus("minFocalDistance")
+
+    def getMaxFocalDistance(self) -> float:
+        return self._focus("maxFocalDistance")
+
+    def setFocalDistance(self, d: Any) -> None:
+        """Kept for the getter (the headless image is drawn in focus); needs a Focus node, as in Webots."""
+        value = as_float(d, "Camera.setFocalDistance")
+        focus = self._part("focus")
+        if focus is None:
+            warn("Camera.setFocalDistance(): the camera has no Focus node")
+        elif not self.getMinFocalDistance() <= value <= self.getMaxFocalDistance():
+            warn(f"Camera.setFocalDistance(): {value} is outside [minFocalDistance, maxFocalDistance]")
+        else:
+            focus["focalDistance"] = value
 
     def getNear(self) -> float:
         return self._model().near
@@ -250,8 +291,82 @@ class Camera(SolidSensor):
             return
         self._model().exposure = value  # kept for the getter; the headless image does not change with it
 
+    # -- recognition: the API works, but objects are not detected headless (docs/webots-coverage.md)
+
     def hasRecognition(self) -> bool:
-        return False
+        return self._part("recognition") is not None
+
+    def _recognition(self, method: str) -> bool:
+        if not self.hasRecognition():
+            warn(f"Camera.{method}(): this camera has no Recognition node")
+            return False
+        return True
+
+    def recognitionEnable(self, sampling_period: Any) -> None:
+        period = as_int(sampling_period, "Camera.recognitionEnable")
+        if self._recognition("recognitionEnable"):
+            self.__dict__["_recognition_period"] = max(0, period)
+
+    def recognitionDisable(self) -> None:
+        self.__dict__["_recognition_period"] = 0
+
+    def getRecognitionSamplingPeriod(self) -> int:
+        return int(self.__dict__.get("_recognition_period", 0))
+
+    def getRecognitionNumberOfObjects(self) -> int:
+        return len(self.getRecognitionObjects())
+
+    def getRecognitionObjects(self) -> list[CameraRecognitionObject]:
+        return []
+
+    def hasRecognitionSegmentation(self) -> bool:
+        recognition = self._part("recognition")
+        return bool(recognition.get("segmentation", False)) if recognition is not None else False
+
+    def enableRecognitionSegmentation(self) -> None:
+        if self.hasRecognitionSegmentation():
+            self.__dict__["_segmentation"] = True
+        else:
+            warn("Camera.enableRecognitionSegmentation(): the Recognition node's segmentation is FALSE")
+
+    def disableRecognitionSegmentation(self) -> None:
+        self.__dict__["_segmentation"] = False
+
+    def isRecognitionSegmentationEnabled(self) -> bool:
+        return bool(self.__dict__.get("_segmentation", False))
+
+    def getRecognitionSegmentationImage(self) -> bytes | None:
+        """BGRA, black where no recognised object is (none is, headless); None while disabled."""
+        if not self.isRecognitionSegmentationEnabled() or not self.getRecognitionSamplingPeriod():
+            return None
+        return bytes(4 * self.getWidth() * self.getHeight())
+
+    def getRecognitionSegmentationImageArray(self) -> list[list[list[int]]] | None:
+        if self.getRecognitionSegmentationImage() is None:
+            return None
+        return [[[0, 0, 0] for _ in range(self.getHeight())] for _ in range(self.getWidth())]
+
+    def saveRecognitionSegmentationImage(self, filename: str, quality: Any) -> int:
+        image = self.getRecognitionSegmentationImage()
+        if image is None:
+            return -1
+        as_int(quality, "Camera.saveRecognitionSegmentationImage")
+        write_bytes(Path(filename), png_bytes(np.zeros((self.getHeight(), self.getWidth(), 4), dtype=np.uint8)))
+        return 0
+
+    image = property(lambda self: self.getImage())
+    segmentation_image = property(lambda self: self.getRecognitionSegmentationImage())
+    focal_length = property(lambda self: self.getFocalLength())
+    max_focal_distance = property(lambda self: self.getMaxFocalDistance())
+    min_focal_distance = property(lambda self: self.getMinFocalDistance())
+    height = property(lambda self: self.getHeight())
+    width = property(lambda self: self.getWidth())
+    min_fov = property(lambda self: self.getMinFov())
+    max_fov = property(lambda self: self.getMaxFov())
+    near = property(lambda self: self.getNear())
+    exposure = property(lambda self: self.getExposure(), lambda self, exposure: self.setExposure(exposure))
+    focal_distance = property(lambda self: self.getFocalDistance(), lambda self, d: self.setFocalDistance(d))
+    fov = property(lambda self: self.getFov(), lambda self, f: self.setFov(f))
 
     def getProjection(self) -> str:
         return self._model().projection

@@ -117,7 +117,7 @@ class Display(Device):
             return
         self._opacity = o
 
-    def setFont(self, font: str, size: Any, antiAliasing: bool) -> None:
+    def setFont(self, font: str, size: Any, anti_aliasing: bool) -> None:
         if as_int(size, "Display.setFont") <= 0:
             warn("Display.setFont(): the size must be > 0")
 
@@ -240,10 +240,9 @@ class Display(Device):
         self._images[id(ref)] = ref
         return ref
 
-    def imageNew(self, data: Any, format: Any, width: Any = None, height: Any = None) -> ImageRef:  # noqa: A002
+    def imageNew(self, data: Any, format: Any, width: Any, height: Any) -> ImageRef:  # noqa: A002
         fmt = as_int(format, "Display.imageNew")
-        w = int(width) if width is not None else self._w
-        h = int(height) if height is not None else self._h
+        w, h = int(width), int(height)
         channels = 3 if fmt == self.RGB else 4
         if fmt not in (self.RGB, self.RGBA, self.ARGB, self.BGRA, self.ABGR):
             raise ValueError(f"Display.imageNew(): unknown format {fmt}")
@@ -281,9 +280,9 @@ class Display(Device):
             out[y0 - y : y1 - y, x0 - x : x1 - x] = self.pixels[y0:y1, x0:x1]
         return self._ref(out)
 
-    def imagePaste(self, ir: ImageRef, x: Any, y: Any, blend: bool = False) -> None:
+    def imagePaste(self, image: ImageRef, x: Any, y: Any, blend: bool) -> None:
         x, y = int(x), int(y)
-        src = ir.pixels
+        src = image.pixels
         h, w = src.shape[:2]
         x0, y0 = max(x, 0), max(y, 0)
         x1, y1 = min(x + w, self._w), min(y + h, self._h)
@@ -298,9 +297,15 @@ class Display(Device):
             part = np.concatenate([rgb, alpha], axis=2)
         self.pixels[y0:y1, x0:x1] = np.clip(np.rint(part), 0, 255).astype(np.uint8)
 
-    def imageSave(self, ir: ImageRef | None, filename: str) -> None:
-        pixels = self.pixels if ir is None else ir.pixels
+    def imageSave(self, image: ImageRef | None, filename: str) -> None:
+        pixels = self.pixels if image is None else image.pixels
         write_bytes(Path(filename), png_bytes(pixels))
 
-    def imageDelete(self, ir: ImageRef) -> None:
-        self._images.pop(id(ir), None)
+    def imageDelete(self, image: ImageRef) -> None:
+        self._images.pop(id(image), None)
+
+    width = property(lambda self: self.getWidth())
+    height = property(lambda self: self.getHeight())
+    alpha = property(fset=lambda self, alpha: self.setAlpha(alpha))
+    color = property(fset=lambda self, color: self.setColor(color))
+    opacity = property(fset=lambda self, opacity: self.setOpacity(opacity))

@@ -239,6 +239,10 @@ class Emitter(Device):
     def getBufferSize(self) -> int:
         return self._buffer_size
 
+    buffer_size = property(lambda self: self.getBufferSize())
+    channel = property(lambda self: self.getChannel(), lambda self, channel: self.setChannel(channel))
+    range = property(lambda self: self.getRange(), lambda self, range: self.setRange(range))  # noqa: A003
+
 
 class Receiver(SolidSensor):
     """Webots ``Receiver`` (see the module docstring)."""
@@ -337,3 +341,11 @@ class Receiver(SolidSensor):
             warn(f"Receiver.setChannel(): channel {c} is not allowed")
             return
         self._channel = c
+
+    queue_length = property(lambda self: self.getQueueLength())
+    data = property(lambda self: self.getData())
+    data_size = property(lambda self: self.getDataSize())
+    string = property(lambda self: self.getString())
+    signal_strength = property(lambda self: self.getSignalStrength())
+    emitter_direction = property(lambda self: self.getEmitterDirection())
+    channel = property(lambda self: self.getChannel(), lambda self, channel: self.setChannel(channel))
