@@ -169,3 +169,27 @@ def test_motor_limits_widen_to_a_joint_that_starts_outside_them() -> None:
     assert sensor.getValue() == pytest.approx(0.9, abs=1e-3)
     motor.setPosition(1.5)  # control: the widened limit still clamps
     assert motor.getTargetPosition() == 1.0
+
+
+def _hinge2_sag(suspension: str) -> float:
+    sup = _sup(
+        f"""Robot {{ supervisor TRUE children [ Solid {{ children [ DEF BASE Solid {{
+  physics Physics {{ density -1 mass 50 }} boundingObject Box {{ size 0.1 0.1 0.1 }}
+  children [ Hinge2Joint {{
+    jointParameters HingeJointParameters {{ axis 0 0 1 anchor 0 0 -0.3 {suspension} }}
+    jointParameters2 JointParameters {{ axis 0 1 0 }}
+    endPoint DEF WHEEL Solid {{ translation 0 0 -0.3 boundingObject Sphere {{ radius 0.1 }}
+                               physics Physics {{ density -1 mass 1 }} }} }} ] }} ] }} ] }}""",
+    )
+    wheel, base = sup.getFromDef("WHEEL"), sup.getFromDef("BASE")
+    for _ in range(400):
+        sup.step(8)
+    return base.getPosition()[2] - 0.3 - wheel.getPosition()[2]  # the wheel's drop relative to its parent
+
+
+def test_hinge2_suspension_is_a_spring_along_the_first_axis() -> None:
+    # K = 1000 N/m along the vertical first axis carries the 1 kg wheel: static sag m·g/K
+    assert _hinge2_sag("suspensionSpringConstant 1000 suspensionDampingConstant 50") == pytest.approx(
+        9.81 / 1000, rel=0.02
+    )
+    assert abs(_hinge2_sag("")) < 2e-4  # control: without suspension the anchor holds (world ERP/CFM)

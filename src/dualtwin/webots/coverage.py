@@ -101,7 +101,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "position, stops, springs, dampers, static friction; no suspension (an ODE-fork-only API)"),
     Coverage("SliderJoint", "joint", "supported", "stops; springs emulated with an equivalent LMotor row"),
     Coverage("Hinge2Joint", "joint", "partial",
-             "both axes' motors, sensors, springs and dampers (a stop AMotor per axis; run-time edits reach ODE); "
+             "both axes' motors, sensors, springs and dampers (a stop AMotor per axis; run-time edits reach ODE), "
+             "suspension along the first axis (ODE's hinge2 suspension ERP/CFM); "
              "upstream ODE never limits the second axis: its stops are ignored"),
     Coverage("BallJoint", "joint", "partial",
              "three axes (the first from jointParameters2, the third from jointParameters3, the second their "

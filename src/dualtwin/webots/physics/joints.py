@@ -69,6 +69,21 @@ class JointBuilder(SceneBuilder):
             self._set_stops(joint, i)
             self._set_static_friction(joint, i)
         self._create_spring(joint)
+        if joint.kind == "hinge2":
+            self._set_suspension(joint)
+
+    def _set_suspension(self, joint: JointRec) -> None:
+        """Hinge2 suspension along its first axis (ODE's own hinge2 suspension rows, §4.4): ERP = hK/(hK + B),
+        CFM = 1/(hK + B) from suspensionSpringConstant K and suspensionDampingConstant B; with both 0 ODE keeps
+        the world's ERP/CFM, as Webots does."""
+        p = joint.params[0]
+        k = float(_f(p, "suspensionSpringConstant", 0.0))
+        b = float(_f(p, "suspensionDampingConstant", 0.0))
+        if k == 0.0 and b == 0.0:
+            return
+        h = self.dt
+        self._lib.dJointSetHinge2Param(joint.ptr, ode.dParamSuspensionERP, min(h * k / (h * k + b), 1.0))
+        self._lib.dJointSetHinge2Param(joint.ptr, ode.dParamSuspensionCFM, 1.0 / (h * k + b))
 
     def _referenced_solid(self, joint: JointRec, name: str) -> SolidRec | None:
         """§10: depth-first search by name from the joint's topmost Solid ancestor, skipping its upper Solid."""
