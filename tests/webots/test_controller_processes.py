@@ -332,3 +332,25 @@ def test_a_second_robot_instance_is_the_first_one(tmp_path: Path, capsys: pytest
     captured = capsys.readouterr()
     assert captured.out == "steps 9 True\n"
     assert "only one Robot instance" in captured.err
+
+
+def test_a_controller_finishes_its_interpreter_shutdown(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """What a controller does while its interpreter shuts down (finalizers, files left open) still happens: the
+    child is not killed as soon as it said it exits."""
+    slow_finalizer = """
+        import time
+        from controller import Robot
+
+        class Journal:
+            def __del__(self):  # runs at interpreter shutdown, after the exit handlers
+                time.sleep(0.3)
+                log = open("log.txt", "w")
+                log.write("x" * 1000)  # left open: flushed at shutdown too
+
+        journal = Journal()
+        robot = Robot()
+        robot.step(8)
+    """
+    world = _project(tmp_path, [("writer", [], slow_finalizer)])
+    assert run_world(world, None, 0.05) == 0
+    assert (tmp_path / "controllers" / "writer" / "log.txt").read_text() == "x" * 1000

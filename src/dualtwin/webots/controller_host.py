@@ -24,6 +24,7 @@ running, as in Webots. Children die with this process (``PR_SET_PDEATHSIG``) and
 
 from __future__ import annotations
 
+import contextlib
 import os
 import pickle
 import signal
@@ -51,6 +52,8 @@ TERMINATION_GRACE_S = 1.0
 #: Default wall-clock seconds a controller may run without calling step() (``--step-timeout``).
 DEFAULT_STEP_TIMEOUT_S = 5.0
 _POLL_S = 0.02
+#: Real seconds a controller that reported its exit may take to shut its interpreter down before it is killed.
+EXIT_GRACE_S = 2.0
 
 
 def _exports() -> dict[str, type]:
@@ -323,9 +326,17 @@ class _Host:
         if link.proc is not None and link.proc.poll() is None:
             link.proc.kill()
 
-    def stop_all(self) -> None:
-        """Kill and reap every child, then let the serving threads go (idempotent)."""
+    def stop_all(self, finishing: bool = False) -> None:
+        """Kill and reap every child, then let the serving threads go (idempotent).
+
+        ``finishing``: the run ended normally, so a child that said it exits gets a moment to finish its own
+        interpreter shutdown (files it left open are flushed there) before it is killed.
+        """
+        deadline = time.monotonic() + EXIT_GRACE_S
         for link in self.links:
+            if finishing and link.proc is not None and link.exit_code is not None:
+                with contextlib.suppress(subprocess.TimeoutExpired):
+                    link.proc.wait(timeout=max(0.0, deadline - time.monotonic()))
             self._kill(link)
         for link in self.links:
             if link.proc is not None:
@@ -402,12 +413,14 @@ def run_in_processes(
     interrupted = False
     with _sigterm_interrupts(), _routed(host):
         try:
+            finished = False
             try:
                 for link in host.links:
                     host.start(link)
                 host.watch()
+                finished = True
             finally:
-                host.stop_all()
+                host.stop_all(finishing=finished)
         except KeyboardInterrupt:
             interrupted = True
         finally:
