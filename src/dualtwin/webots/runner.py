@@ -48,6 +48,10 @@ from dualtwin.webots.physics import Simulation, SimulationUnstable
 SHIM_DIR = Path(__file__).resolve().parent / "shim"
 #: Real seconds a controller may keep running after step() returned -1 (Webots waits 1 s, then terminates it).
 TERMINATION_GRACE_S = 1.0
+#: ``Simulation.extensions`` key of a supervisor's worldLoad/worldReload request: (world path, run clock in s).
+WORLD_REQUEST = "world_request"
+#: World loads one run may chain (a controller reloading at t = 0 forever would never end otherwise).
+MAX_WORLD_LOADS = 100
 NO_CONTROLLER = frozenset({"", "<none>", "<generic>", "<extern>", "void"})
 
 __all__ = [
@@ -250,19 +254,37 @@ def run_world(
     script = load_key_script(Path(keys)) if keys is not None else None
     path = Path(world_path)
     world = load_world(path, proto_paths)
-    for message in world.warnings:
-        print(f"Warning: {message}", file=sys.stderr)
-    sim = Simulation(world)
-    try:
-        specs = find_controllers(sim, path, Path(controller) if controller is not None else None)
-        if not specs and duration_s is None:
-            print("Error: no Python controller to run and no duration given", file=sys.stderr)
-            return 2
-        return run_controllers(
-            sim, specs, duration_s, keys=script, step_timeout_s=step_timeout_s, isolation=isolation
-        )
-    finally:
-        sim.close()
+    for _ in range(MAX_WORLD_LOADS + 1):
+        for message in world.warnings:
+            print(f"Warning: {message}", file=sys.stderr)
+        sim = Simulation(world)
+        try:
+            specs = find_controllers(sim, path, Path(controller) if controller is not None else None)
+            if not specs and duration_s is None:
+                print("Error: no Python controller to run and no duration given", file=sys.stderr)
+                return 2
+            code = run_controllers(
+                sim, specs, duration_s, keys=script, step_timeout_s=step_timeout_s, isolation=isolation
+            )
+            request = sim.extensions.get(WORLD_REQUEST)
+        finally:
+            sim.close()
+        if code != 0 or request is None:
+            return code
+        # Supervisor.worldLoad/worldReload: Webots loads that world and starts its controllers afresh; the run
+        # goes on for what is left of its duration (the override script, if any, still replaces its controller)
+        path, elapsed = request
+        if duration_s is not None:
+            duration_s -= elapsed
+            if duration_s <= 1e-9:
+                return 0
+        try:
+            world = load_world(path, proto_paths)
+        except DualtwinError as exc:
+            print(f"Error: worldLoad: {exc}", file=sys.stderr)
+            return 1
+    print(f"Error: worldLoad: {MAX_WORLD_LOADS} worlds loaded in one run; stopped", file=sys.stderr)
+    return 1
 
 
 def _watch(runtime: api.Runtime, results: list[_ScriptResult], stop: threading.Event) -> None:

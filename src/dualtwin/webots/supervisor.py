@@ -97,9 +97,10 @@ class Supervisor(Robot):
         self.__request(Path(link_of(self)._sim.world.path))
 
     def __request(self, world: Path) -> None:
-        runtime = link_of(self)._runtime
-        runtime.world_request = world.resolve()  # read by the runner once every controller has ended
-        runtime.finished = True
+        link = link_of(self)
+        # read by the runner (runner.WORLD_REQUEST) once every controller has ended
+        link._sim.extensions["world_request"] = (world.resolve(), link._runtime.clock)
+        link._runtime.finished = True
 
     # -- scene tree
 
