@@ -102,3 +102,31 @@ def test_the_plugin_runs_webots_position_control_in_plain_mujoco() -> None:
     qpos_adr = 1  # the full-physics state starts with time
     assert states[0, -1, qpos_adr] == data.qpos[0]
     assert not math.isnan(states[0, -1, qpos_adr])
+
+
+def test_a_converted_model_carries_the_law_into_plain_mujoco() -> None:
+    """Conversion.native_law_xml: plain MuJoCo holds Webots' position targets through ctrl, and the MuJoCo
+    twin steps that file bit for bit as it steps the plain conversion (the plugin's config is the motors')."""
+    from dualtwin.convert import convert_world
+    from dualtwin.errors import DualtwinError
+    from dualtwin.robots.binding import BUNDLED
+
+    conversion = convert_world(BUNDLED / "arm" / "arm.wbt")
+    xml = conversion.native_law_xml()
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    data.ctrl[:] = 0.8
+    mujoco.mj_step(model, data, nstep=400)
+    assert np.abs(data.qpos - 0.8).max() < 2e-3
+    runs = []
+    for text in (conversion.xml, xml):
+        twin = MuJoCoTwin(mujoco.MjSpec.from_string(text), PERIOD)
+        twin.reset(0)
+        for k in range(40):
+            for mo in twin._motors:
+                twin.command(mo.name, "position", 0.8 if k < 20 else -0.4)
+            twin.step()
+        runs.append(np.concatenate([twin.data.qpos, twin.data.qvel]))
+    assert runs[0].tobytes() == runs[1].tobytes()
+    with pytest.raises(DualtwinError, match="plugin actuators"):
+        MuJoCoTwin(mujoco.MjSpec.from_string(xml), PERIOD, native_law=False)

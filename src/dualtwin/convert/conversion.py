@@ -20,6 +20,7 @@ from dualtwin.artifacts import write_text
 from dualtwin.convert.bindings import make_binding, validate_binding
 from dualtwin.convert.checks import Finding, SmokeResult, smoke_test
 from dualtwin.errors import DualtwinError
+from dualtwin.twins import motor_plugin
 
 __all__ = ["Conversion", "ConversionError", "JointInfo", "MotorInfo"]
 
@@ -70,6 +71,13 @@ class Conversion:
     @property
     def xml(self) -> str:
         return str(self.spec.to_xml())
+
+    def native_law_xml(self, ctrl: str = "position") -> str:
+        """The MJCF with Webots' motor law in MuJoCo's step (the ``dualtwin-webots-motor`` engine plugin, see
+        :mod:`dualtwin.twins.motor_plugin`): any MuJoCo program that loads the plugin library steps it with
+        Webots' motors, ``ctrl`` being the position (velocity, torque) command. The MuJoCo twin reads it as it
+        reads :attr:`xml`."""
+        return str(motor_plugin.standalone_spec(self.spec, ctrl).to_xml())
 
     def compile(self) -> mujoco.MjModel:
         try:

@@ -19,6 +19,7 @@ gains, the servo stiffness and the law's state. A model compiled with the plugin
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 import shutil
 import subprocess
@@ -144,17 +145,77 @@ def attach(spec: mujoco.MjSpec, actuator: mujoco.MjsActuator, settings: dict[str
     actuator.plugin.active = True
 
 
-def native_spec(spec: mujoco.MjSpec) -> mujoco.MjSpec | None:
-    """A copy of ``spec`` whose joint actuators run Webots' law in the plugin, or None when the plugin cannot
-    be loaded. Actuators that already use it keep their config; the MuJoCo twin writes its own values into
-    plugin_state anyway, so injected ones get an empty config (``ctrl`` unused)."""
-    if available() is not None:
+def native_spec(spec: mujoco.MjSpec, wanted: bool | None = None, origin: str = "<MjSpec>") -> mujoco.MjSpec | None:
+    """A copy of ``spec`` whose joint actuators run Webots' law in the plugin, or None for the Python law:
+    when ``wanted`` is False, or None and the plugin cannot be loaded. Actuators that already use it keep
+    their config; the MuJoCo twin writes its own values into plugin_state anyway, so injected ones get an
+    empty config (``ctrl`` unused).
+
+    Raises:
+        DualtwinError: ``wanted`` is True and the plugin cannot be loaded, or False for a model whose
+            actuators are plugin motors already (:func:`standalone_spec`: the Python law needs plain ones).
+    """
+    if wanted is False:
+        if any(a.plugin.active for a in spec.actuators):
+            raise DualtwinError(f"{origin}: the model's motors are plugin actuators ({PLUGIN}); the Python "
+                                "motor law needs the plain model (Conversion.xml, not native_law_xml)")
+        return None
+    why = available()
+    if why is not None:
+        if wanted:
+            raise DualtwinError(f"{origin}: the native motor law is unavailable: {why}")
         return None
     native = spec.copy()
     for actuator in native.actuators:
         if actuator.trntype == mujoco.mjtTrn.mjTRN_JOINT and not actuator.plugin.active:
             attach(native, actuator, {"ctrl": "none"})
     return native
+
+
+def standalone_spec(spec: mujoco.MjSpec, ctrl: str = "position") -> mujoco.MjSpec:
+    """A copy of ``spec`` that carries Webots' motors for any MuJoCo program: every joint actuator becomes a
+    plugin motor configured from its ``webots_motor.<name>`` numeric (maxVelocity, Kp, Ki, Kd, acceleration
+    [, minPosition, maxPosition]) and its force range (maxTorque), and reads ``ctrl`` as ``ctrl`` says
+    (``position``, ``velocity`` or ``torque``: Webots' setPosition, setVelocity, setTorque).
+
+    Raises:
+        DualtwinError: The plugin cannot be loaded (no C compiler), or ``ctrl`` is not one of those.
+    """
+    if ctrl not in ("position", "velocity", "torque"):
+        raise DualtwinError(f"ctrl must be position, velocity or torque, not {ctrl!r}")
+    load()
+    out = spec.copy()
+    numerics = {n.name: list(n.data) for n in out.numerics}
+    for actuator in out.actuators:
+        if actuator.trntype != mujoco.mjtTrn.mjTRN_JOINT or actuator.plugin.active:
+            continue
+        fields = numerics.get(f"webots_motor.{actuator.name}", []) + [math.nan] * 7
+        defaults = (10.0, 10.0, 0.0, 0.0, -1.0, 0.0, 0.0)
+        v = [d if math.isnan(f) else f for f, d in zip(fields[:7], defaults, strict=True)]
+        torque = abs(float(actuator.forcerange[1])) if actuator.forcerange[1] else 10.0
+        attach(out, actuator, config(v[0], torque, v[1], v[2], v[3], v[4], v[5], v[6], ctrl))
+        # Webots clamps the torque and the command itself; MuJoCo's clamps would cut the servo.
+        actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+    return out
+
+
+ATTRIBUTES = ("maxVelocity", "maxTorque", "Kp", "Ki", "Kd", "acceleration", "minPosition", "maxPosition",
+              "stiffness", "predict", "ctrl")  # the plugin's config keys, in its order (kAttributes in the C file)
+
+
+def max_torque(model: mujoco.MjModel, actuator: int, default: float) -> float:
+    """A motor's torque limit: its force range when limited, else a plugin motor's ``maxTorque`` config."""
+    if model.actuator_forcelimited[actuator]:
+        return float(abs(model.actuator_forcerange[actuator, 1]))
+    instance = int(model.actuator_plugin[actuator])
+    if instance < 0:
+        return default
+    start = int(model.plugin_attradr[instance])
+    end = int(model.plugin_attradr[instance + 1]) if instance + 1 < model.nplugin else len(model.plugin_attr)
+    values = bytes(model.plugin_attr[start:end]).decode().split("\0")
+    text = dict(zip(ATTRIBUTES, values, strict=False)).get("maxTorque", "")
+    return float(text) if text else default
 
 
 def slot_values(state: MotorState, kv: float, armature: float, predict: float,

@@ -117,9 +117,7 @@ class MuJoCoTwin(Twin):
         :mod:`dualtwin.twins.motor_plugin`); False runs the Python reference law per physics step."""
         origin = str(model) if isinstance(model, Path | str) else "<MjSpec>"
         self.spec = load_spec(Path(model)) if isinstance(model, Path | str) else model
-        native = motor_plugin.native_spec(self.spec) if native_law is not False else None
-        if native_law and native is None:
-            raise DualtwinError(f"{origin}: the native motor law is unavailable: {motor_plugin.available()}")
+        native = motor_plugin.native_spec(self.spec, native_law, origin)
         #: True when Webots' motor law runs inside mj_step (the plugin); the Python law otherwise.
         self.native_law = native is not None
         self.model: mujoco.MjModel = compile_spec(native or self.spec, origin)
@@ -201,8 +199,7 @@ class MuJoCoTwin(Twin):
             for attr, value in zip(fields, values[:len(fields)], strict=True):
                 if not math.isnan(value):
                     setattr(params, attr, float(value))
-        if self.model.actuator_forcelimited[actuator]:
-            params.max_torque = float(abs(self.model.actuator_forcerange[actuator, 1]))
+        params.max_torque = motor_plugin.max_torque(self.model, actuator, params.max_torque)
         return params
 
     def _build_motors(self) -> list[_Motor]:
