@@ -159,7 +159,7 @@ def test_keyboard_get_key_spells_keys_as_webots() -> None:
     kb = sup.keyboard
     kb.enable(8)
     kb._keys = [Keyboard.SHIFT | ord("A"), Keyboard.UP, Keyboard.ALT | ord("X")]
-    assert [kb.get_key(), kb.get_key(), kb.get_key(), kb.get_key()] == ["shift-a", "up", "atl-x", ""]
+    assert [kb.get_key(), kb.get_key(), kb.get_key(), kb.get_key()] == ["shift-a", "up", "alt-x", ""]
 
 
 def test_node_constants_are_the_table_getnodetype_uses() -> None:

@@ -18,6 +18,8 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+from dualtwin.webots.api_coverage import api_section
+
 __all__ = ["CATEGORIES", "REGISTRY", "STATUSES", "Coverage", "main", "render_markdown"]
 
 STATUSES = ("supported", "partial", "visual", "not")
@@ -262,6 +264,7 @@ def render_markdown() -> str:
                 name = f"`{c.name}`" + ("" if c.node else " (controller only)")
                 lines.append(f"| {name} | {c.status} | {c.reason.replace('|', '/')} |")
         lines.append("")
+    lines += api_section()
     return "\n".join(lines)
 
 

@@ -204,13 +204,13 @@ class Keyboard:
         return self.getKey()
 
     def get_key(self) -> str:
-        """The next key as text, e.g. ``'shift-a'`` or ``'up'``; '' when none. Webots' helper writes the Alt
-        modifier as ``'atl-'`` (a typo in its code, kept so string comparisons behave the same)."""
+        """The next key as text, e.g. ``'shift-a'``, ``'alt-x'`` or ``'up'``; '' when none. (Webots' helper spells
+        the Alt modifier ``'atl-'``, a typo in its code; we write what it means, see docs/webots-coverage.md.)"""
         code = self.getKey()
         if code == -1:
             return ""
         text = "".join(prefix for bit, prefix in ((self.SHIFT, "shift-"), (self.CONTROL, "control-"),
-                                                  (self.ALT, "atl-")) if code & bit)
+                                                  (self.ALT, "alt-")) if code & bit)
         key = code & self.KEY
         special = next((name.lower() for name, value in KEY_NAMES.items() if value == key and name != "SPACE"), None)
         return text + (special if special is not None else chr(key).lower())
