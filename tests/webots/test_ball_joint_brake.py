@@ -143,3 +143,21 @@ def test_torque_feedback_is_the_torque_holding_the_arm() -> None:
     # would turn the arm about +y (positive), so the motor pushes about −y
     assert motor.getTorqueFeedback() == pytest.approx(-2 * 9.81 * 0.5, rel=2e-2)
     assert motor.torque_feedback == motor.getTorqueFeedback()
+
+
+def _ball_spin(damping3: float) -> float:
+    sup = _sup(f"""Robot {{ supervisor TRUE children [ BallJoint {{
+  jointParameters BallJointParameters {{ anchor 0 0 0.3 }}
+  jointParameters3 JointParameters {{ axis 0 0 1 dampingConstant {damping3} }}
+  endPoint DEF BALL Solid {{ translation 0 0 0.3 angularVelocity 0 0 10 boundingObject Sphere {{ radius 0.1 }}
+                             physics Physics {{ density -1 mass 1 }} }} }} ] }}""")
+    ball = sup.getFromDef("BALL")
+    for _ in range(10):
+        sup.step(8)
+    return ball.getVelocity()[5]
+
+
+def test_ball_joint_damping_acts_on_its_axis() -> None:
+    # implicit damper row on the third axis: ω ← ω / (1 + h·B/I) per step, I = 2/5·m·r² = 0.004 kg·m²
+    assert _ball_spin(0.04) == pytest.approx(10.0 * 1.08**-10, rel=2e-3)
+    assert _ball_spin(0.0) == pytest.approx(10.0, rel=1e-9)  # control: a free ball joint keeps the spin

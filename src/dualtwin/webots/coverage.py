@@ -109,7 +109,7 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("BallJoint", "joint", "partial",
              "three axes (the first from jointParameters2, the third from jointParameters3, the second their "
              "cross product) with motors, position sensors, brakes, stops and friction on an Euler AMotor; "
-             "kinematic when the endPoint has no Physics; springs and dampers are not modelled"),
+             "springs, dampers and brakes on a second Euler AMotor; kinematic when the endPoint has no Physics"),
     Coverage("JointParameters", "joint", "supported", "slider axis, position, stops, spring, damping, friction"),
     Coverage("HingeJointParameters", "joint", "supported", "axis, anchor and the JointParameters fields"),
     Coverage("BallJointParameters", "joint", "supported", "anchor"),
@@ -137,7 +137,7 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("PositionSensor", "device", "supported", "sampled joint position with noise and resolution"),
     Coverage("Brake", "device", "supported",
              "setDampingConstant adds to the axis' dampingConstant through the implicit damper row, from the "
-             "next step (not on BallJoint axes); linked from its Motor and PositionSensor"),
+             "next step; linked from its Motor and PositionSensor"),
     Coverage("GPS", "device", "supported",
              "position of the device origin (world axes, or WGS84 latitude/longitude/altitude around "
              "gpsReference), accuracy noise, resolution; speed and speed vector from the displacement over the "

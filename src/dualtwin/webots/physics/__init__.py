@@ -27,7 +27,8 @@ What differs (and why)
       friction directions (which face gives which direction is our reading of Webots' texture mapping);
       asymmetric ``forceDependentSlip`` uses its first value; fluids are not simulated. Ray devices, touch sensors and radios live in their
       own modules (``ranging``, ``touch``, ``radio``) and use the ``extensions``/``step_hooks`` slots.
-    * Hinge suspension (fork-only ODE API, Appendix A.2) and BallJoint springs are not modelled; BallJoint
+    * Hinge suspension (fork-only ODE API, Appendix A.2) is not modelled; BallJoint springs/dampers are the
+      stop rows of a second Euler AMotor; BallJoint
       positions are read from the bodies' rotations (ODE updates its Euler angles only inside a step); upstream
       ODE never limits the second Hinge2 axis, so its stops are ignored. A Brake adds its damping constant to
       the axis' implicit damper; coupled motors ("name::suffix") are relayed by the controller API and their

@@ -260,6 +260,9 @@ class JointBuilder(SceneBuilder):
         if joint.kind == "hinge2":
             self._create_hinge2_springs(joint)
             return
+        if joint.kind == "ball":
+            self._create_ball_springs(joint)
+            return
         if joint.kind not in ("hinge", "slider"):
             return
         k, b = self.axis_spring_constants(joint, 0)
@@ -324,6 +327,34 @@ class JointBuilder(SceneBuilder):
             else:
                 joint.spring2 = am
 
+    def _create_ball_springs(self, joint: JointRec) -> None:
+        """BallJoint: a second Euler AMotor on the same axes whose stop rows (lo = hi: bilateral) hold each sprung
+        or damped axis at its zero position with ERP/CFM from K and B (§4.5); ODE computes its Euler angles."""
+        constants = [self.axis_spring_constants(joint, i) for i in range(3)]
+        if all(k == 0.0 and b == 0.0 for k, b in constants):
+            return
+        lib = self._lib
+        h = self.dt
+        am = lib.dJointCreateAMotor(self._world, None)
+        pb = joint.parent_body.ptr if joint.parent_body is not None else None
+        assert joint.child_body is not None
+        lib.dJointAttach(am, pb, joint.child_body.ptr)
+        lib.dJointSetAMotorMode(am, ode.dAMotorEuler)
+        for index in (0, 2):
+            axis = ctypes.cast((ctypes.c_double * 4)(), ctypes.POINTER(ctypes.c_double))
+            lib.dJointGetAMotorAxis(joint.amotor, index, axis)
+            lib.dJointSetAMotorAxis(am, index, index // 2 + 1, axis[0], axis[1], axis[2])
+        for i, (k, b) in enumerate(constants):
+            if k == 0.0 and b == 0.0:
+                continue
+            stop = m3.normalize_angle(joint.offsets[i])
+            g = _GROUPS[i]
+            lib.dJointSetAMotorParam(am, g + ode.dParamLoStop, stop)
+            lib.dJointSetAMotorParam(am, g + ode.dParamHiStop, stop)
+            lib.dJointSetAMotorParam(am, g + ode.dParamStopCFM, 1.0 / (h * k + b))
+            lib.dJointSetAMotorParam(am, g + ode.dParamStopERP, min(h * k / (h * k + b), 1.0))
+        joint.spring = am
+
     def rebuild_springs(self, joint: JointRec) -> None:
         """A run-time edit of springConstant/dampingConstant (or of a Brake's damping) reaches ODE at the next
         step: the spring rows are made again from the current values (called by the supervisor edits)."""
@@ -360,6 +391,8 @@ class JointBuilder(SceneBuilder):
 
     def _apply_spring(self, joint: JointRec) -> None:
         lib = self._lib
+        if joint.kind == "ball":
+            return  # an Euler AMotor: ODE measures its angles itself
         if joint.kind == "hinge2":
             if joint.spring:
                 lib.dJointSetAMotorAngle(joint.spring, 0, lib.dJointGetHinge2Angle1(joint.ptr))
