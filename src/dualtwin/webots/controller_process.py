@@ -431,10 +431,14 @@ def _main(argv: list[str]) -> None:
         else:
             print(code, file=sys.stderr)
             status[0] = 1
-    except BaseException:
+    except BaseException as exc:
         import traceback
 
-        traceback.print_exc()
+        tb = exc.__traceback__  # from the script's first frame on: how it was started is no business of it
+        while tb is not None and (tb.tb_frame.f_code.co_filename == __file__
+                                  or tb.tb_frame.f_code.co_filename.startswith("<frozen ")):
+            tb = tb.tb_next
+        traceback.print_exception(type(exc), exc, tb)
         status[0] = 1
     sys.exit(status[0])
 
