@@ -5,6 +5,7 @@ Webots' integers, and devices built from a name or tag."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import pytest
 
@@ -12,6 +13,7 @@ from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import (
     DistanceSensor,
     Keyboard,
+    Motion,
     Motor,
     Node,
     PositionSensor,
@@ -104,6 +106,14 @@ def test_read_only_properties_refuse_assignment_and_settable_ones_set() -> None:
     sup.keyboard.sampling_period = 8
     assert sup.keyboard.getSamplingPeriod() == 8
     assert sup.basic_time_step == 8.0 and sup.number_of_devices == 3
+    motor, sensor = sup.getDevice("m"), sup.getDevice("s")
+    motor.target_position = 1.0  # a settable property really sets
+    sensor.enable(8)
+    for _ in range(200):
+        sup.step(8)
+    assert motor.getTargetPosition() == 1.0 and sensor.getValue() == pytest.approx(1.0, abs=1e-2)
+    with pytest.raises(AttributeError):
+        motor.max_velocity = 3.0  # type: ignore[misc]
 
 
 def test_deprecated_getters_return_the_device_and_say_so(capsys: pytest.CaptureFixture[str]) -> None:
@@ -165,3 +175,19 @@ def test_keyboard_get_key_spells_keys_as_webots() -> None:
 def test_node_constants_are_the_table_getnodetype_uses() -> None:
     assert {name: getattr(Node, name) for name in NODE_TYPE_CONSTANTS} == NODE_TYPE_CONSTANTS
     assert node_type_of("Pose") == 26 and node_type_of("Hinge2Joint") == Node.HINGE_2_JOINT
+
+
+def test_motion_file_drives_the_motors(tmp_path: Path) -> None:
+    path = tmp_path / "turn.motion"
+    path.write_text("#WEBOTS_MOTION,V1.0,m,unknown\n00:00:000,Pose1,0,0\n00:00:800,Pose2,0.8,*\n")
+    sup = Supervisor(simulation=_sim())
+    sensor = sup.getDevice("s")
+    sensor.enable(8)
+    motion = Motion(str(path))
+    assert motion.isValid() and motion.getDuration() == 800 and not motion.isOver()
+    motion.play()
+    for _ in range(150):
+        sup.step(8)
+    assert motion.isOver() and motion.getTime() == 800
+    assert sensor.getValue() == pytest.approx(0.8, abs=1e-2)  # the last pose, reached by interpolation
+    assert not Motion(str(tmp_path / "missing.motion")).isValid()
