@@ -126,5 +126,8 @@ def test_train_export_transfer(tmp_path: Path) -> None:
                       "--episodes", "1", "--out", str(tmp_path / "transfer"))
     assert result.returncode == 0, result.stderr
     assert "target (before alignment)" in result.stdout
+    # 4096 steps do not converge: the terminal says so, not only transfer.md; the start line has no stray "0".
+    assert "warning: the source is not converged" in result.stdout
+    assert "transfer: 1 episodes per row" in result.stderr and "transfer: 0 " not in result.stderr
     result = dualtwin("train", "--env", "dualtwin/Nope-v0", "--out", str(tmp_path / "bad"))
     assert result.returncode == 2 and "registered dualtwin ids" in result.stderr

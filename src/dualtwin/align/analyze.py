@@ -675,7 +675,7 @@ def analyze_runs(
         raise DualtwinError(str(exc)) from None
     suite, suite_path = _suite_of(run_a, run_b)
     findings = detect_findings(comparison, suite)
-    notes: list[str] = left_out_notes(comparison)
+    notes: list[str] = left_out_notes(comparison) + list(comparison.data_notes)
     sensitivity: list[KnobSensitivity] = []
     objective: ObjectiveValue | None = None
     available: list[str] | None = None

@@ -178,7 +178,7 @@ def patch_webots(world_path: Path, knobs: Mapping[str, float]) -> PatchResult:
         return PatchResult(None, note=f"the Webots writer cannot be imported ({exc}); knobs.json holds the values")
     hook = getattr(writer, "patch_webots_world", None)
     if hook is None:
-        return PatchResult(None, note="dualtwin.webots.writer.patch_webots_world(world_path, knobs) is not available "
-                                      "yet; apply knobs.json through the twin's set_knobs")
+        return PatchResult(None, note="this installation cannot patch Webots worlds; knobs.json holds the "
+                                      "fitted values")
     text = hook(Path(world_path), dict(knobs))
     return PatchResult(str(text), applied=sorted(knobs))

@@ -101,10 +101,20 @@ class Which(StrEnum):
     final = "final"
 
 
+def _print_version(value: bool) -> None:
+    if value:
+        from dualtwin import __version__
+
+        print(f"dualtwin {__version__}")
+        raise typer.Exit(0)
+
+
 @app.callback()
 def _global_options(
     verbose: Annotated[bool, typer.Option("--verbose", "-v", help="print setup details (e.g. the OpenGL backend) "
                                                                    "on stderr")] = False,
+    version: Annotated[bool, typer.Option("--version", help="print the version and exit", is_eager=True,
+                                          callback=_print_version)] = False,
 ) -> None:
     if verbose:
         from dualtwin import gl_backend

@@ -74,6 +74,7 @@ def analyze(
         stage = "analyze" + (" (re-simulating knob sensitivities)" if robot and knobs else "")
         progress(ProgressEvent(stage, 0, 2, f"{reference_run} vs {target_run}"))
         analysis = analyze_runs(reference_run, target_run, robot=robot, twin_b=target.value if target else None, knobs=knobs, propose_fn=proposer)
+        _refuse_unreachable_llm(proposer)
         progress(ProgressEvent(stage, 1, 2, "analysed; writing the reports"))
         write_analysis(analysis, out)
         progress(ProgressEvent(stage, 2, 2, "done"))
@@ -82,3 +83,11 @@ def analyze(
         return
     print_analysis(analysis, console)
     console.print(f"wrote {out}")
+
+
+def _refuse_unreachable_llm(proposer: object) -> None:
+    """--llm asked for the LLM's explanation: when it could not be reached, that is the user's setting to fix
+    (exit 2, nothing written), not an analysis without it."""
+    error = getattr(getattr(proposer, "narrative", None), "error", None)
+    if error and error.startswith("no narrative:"):
+        raise DualtwinError(f"--llm: {error.removeprefix('no narrative:').strip()}")

@@ -59,12 +59,40 @@ def _policy_callback(original: Any) -> Any:
     return callback
 
 
+#: Every ``--scenarios`` takes a bundled robot's name as well as a file (see _policy_callback); said in its help.
+SCENARIOS_HELP = "suite JSON file, or a bundled robot's name (cartpole ...) for its suite"
+
+
+def _help_text(param: Any) -> None:
+    """Help that says what the option takes: flags show no value type (typer prints ``<bool>``), and every
+    ``--scenarios`` says it takes a bundled name as well as a file."""
+    if getattr(param, "is_flag", False) and getattr(param, "metavar", None) is None:
+        param.metavar = ""
+    if param.name == "scenarios" and "bundled" not in (param.help or ""):
+        extra = (param.help or "").replace("suite JSON file", "").strip(" ,;")
+        param.help = SCENARIOS_HELP + (f"; {extra}" if extra else "")
+
+
+def _flag_help_option(original: Any) -> Any:
+    def get_help_option(ctx: Any) -> Any:
+        option = original(ctx)
+        if option is not None:
+            option.metavar = ""
+        return option
+
+    return get_help_option
+
+
 def harden(command: Any) -> Any:
     """Apply the option policies above to every parameter of every command, recursively (new commands too)."""
     for param in command.params:
         if not getattr(param, "_dualtwin_policy", False):
             param.callback = _policy_callback(param.callback)
             param._dualtwin_policy = True
+            _help_text(param)
+    if not getattr(command, "_dualtwin_help", False):
+        command.get_help_option = _flag_help_option(command.get_help_option)
+        command._dualtwin_help = True
     for sub in getattr(command, "commands", {}).values():
         harden(sub)
     return command

@@ -14,7 +14,8 @@ from dualtwin.reporting import Column, emit_json, print_table
 import_app = typer.Typer(help="Import recordings (the paper's logs, CSV/TSV, ROS 2 bags) as run folders.",
                          no_args_is_help=True)
 app.add_typer(import_app, name="import")
-ImportSuite = Annotated[Path, typer.Option(help="the suite the recording was made from (JSON)")]
+ImportSuite = Annotated[Path, typer.Option(help="the suite the recording was made from: a suite JSON file, "
+                                                 "or a bundled robot's name for its suite")]
 ImportRobot = Annotated[str, typer.Option(help="bundled robot name or path to a binding file")]
 ImportOut = Annotated[Path, OutOption("run folder to write (empty, new, or an earlier import)")]
 
@@ -49,7 +50,21 @@ def _import_with_progress(run: Any, json_out: bool) -> None:
     print_table(console, [Column("scenario", False), Column("status", False), Column("samples"),
                           Column("notes", False)],
                 [[r["id"], r["status"], r["steps"], "; ".join(r["notes"])] for r in manifest["scenarios"]])
+    _print_data_evidence(manifest)
     console.print(f"wrote {out}")
+
+
+def _print_data_evidence(manifest: dict[str, Any]) -> None:
+    """State carried over and wall-clock stamps, each on its own line (the table may be cut to the terminal)."""
+    for r in manifest["scenarios"]:
+        for part in r.get("state_continuity", {}).values():
+            console.print(part["note"], markup=False)
+    wall = [r for r in manifest["scenarios"] if r.get("timing", {}).get("clock", {}).get("clock") == "wall-clock"]
+    if wall:
+        from dualtwin.recorded.clock import clock_note
+
+        console.print(f"{len(wall)} of {len(manifest['scenarios'])} scenario(s): "
+                      + clock_note(wall[0]["timing"]["clock"]), markup=False)
 
 
 @import_app.command("paper")

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -91,7 +91,17 @@ def transfer(
         return
     print_table(console, [Column("row", False), Column("result", False)],
                 [[row.label, row.summary()] for row in report.rows])
+    if report.source_converged is False:  # the report says so too; a reader of the terminal must not miss it
+        console.print(unconverged_warning(report), markup=False)
     console.print(f"wrote {out}")
+
+
+def unconverged_warning(report: Any) -> str:
+    from dualtwin.rl.transfer import CONVERGED
+
+    return (f"warning: the source is not converged ({report.rows[0].mean:.1f} < {CONVERGED:.0%} of the "
+            f"{report.episode_cap}-step cap): ratios of rows trained for longer overstate what transfer, "
+            "alignment or DR did")
 
 
 @app.command("export")

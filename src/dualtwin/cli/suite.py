@@ -45,12 +45,13 @@ def suite_validate(
 def suite_run(
     twin: Annotated[Twin, typer.Option(help="twin to run on")],
     robot: Annotated[str, typer.Option(help="bundled robot name (cartpole) or path to a binding file")],
-    scenarios: Annotated[Path, typer.Option(help="suite JSON file")],
+    scenarios: Annotated[Path, typer.Option(help="suite JSON file, or a bundled robot's name for its suite")],
     out: Annotated[Path, OutOption("run directory to write")],
     resume: Annotated[bool, typer.Option(help="continue an interrupted run in OUT")] = False,
     seed: Annotated[int, typer.Option(help="seed for scenarios that give none")] = 0,
-    ensemble: Annotated[int, typer.Option(help="run each scenario N times (N >= 2, the unperturbed member "
-                                               "included) with initial conditions moved by --perturb")] = 0,
+    ensemble: Annotated[int | None, typer.Option(help="run each scenario N times (N >= 2, the unperturbed member "
+                                                      "included) with initial conditions moved by --perturb; "
+                                                      "without it, each scenario runs once")] = None,
     perturb: Annotated[list[str] | None, typer.Option(help="KEY=EPS: move initial condition KEY by up to "
                                                            "±EPS in the ensemble members (repeatable)")] = None,
     executor: Annotated[Executor, typer.Option(help="where ensemble members run")] = Executor.process,
@@ -69,10 +70,10 @@ def suite_run(
     twin_name = twin.value
     binding = resolve_robot(robot)
     on_interrupt(lambda: resume_note(out / "manifest.json", "scenarios", "scenarios"))
-    if ensemble or perturb:
+    if ensemble is not None or perturb:
         from dualtwin.suite.ensemble import EnsembleRun, make_spec, parse_perturb
 
-        spec = make_spec(ensemble, parse_perturb(perturb or []), binding, seed=seed)
+        spec = make_spec(ensemble or 0, parse_perturb(perturb or []), binding, seed=seed)
         members = EnsembleRun(scenarios, twin_name, binding, out, spec, seed=seed,
                               executor=executor.value,  # type: ignore[arg-type]
                               workers=workers)

@@ -671,7 +671,7 @@ class _Converter:
             # The Webots twin addresses joints and bodies by DEF; generated names exist in MuJoCo only.
             self.warn(f"{len(self.missing_defs)} joint(s)/endPoint(s) have no DEF (first: {self.missing_defs[0]}); "
                       "the Webots twin finds joints and bodies by DEF, so give them DEFs "
-                      "(dualtwin.convert.faithfulness.prepare_world_for_twins writes such a copy)")
+                      "in the world file (e.g. DEF wheel1_hinge HingeJoint { ... endPoint DEF wheel1 Solid { ... } })")
         robot_mass = sum(self.body_mass.get(b, 0.0) for b in self.robot_bodies)
         apply_contacts(self.spec, self.geoms, self.info, robot_mass, basic_ms=self.basic_ms, mujoco_step_s=self.dt,
                        warn=self.warn)

@@ -6,7 +6,7 @@ The runs come from :func:`dualtwin.divergence.runs.load_run`; the numbers from
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -184,6 +184,9 @@ class RunComparison:
     settings: Mapping[str, Any]
     summary_score: float | None
     left_out: Mapping[str, Mapping[str, str]] = field(default_factory=dict)
+    #: Notes on the runs' data that explain differences without physics (a recording whose scenario starts
+    #: where the previous one ended), each naming its run: see `state_notes`.
+    data_notes: tuple[str, ...] = ()
 
     @property
     def channel_names(self) -> list[str]:
@@ -197,6 +200,7 @@ class RunComparison:
         """Plain-word lines: what was left out and why, and each channel judged against its floor."""
         lines = [f"left out {what[:-1]} {name}: {why}" for what, names in self.left_out.items()
                  for name, why in names.items()]
+        lines.extend(self.data_notes)
         for sc in self.scenarios:
             lines.extend(f"{sc.id} / {name}: {judged.verdict}" for name, judged in sc.floors.items())
         return lines
@@ -250,6 +254,7 @@ class RunComparison:
             "settings": json_safe(self.settings),
             "scenarios": [s.to_dict() for s in self.scenarios],
             "left_out": {k: dict(v) for k, v in self.left_out.items()},
+            "data_notes": list(self.data_notes),
         }
 
     @classmethod
@@ -267,6 +272,7 @@ class RunComparison:
             settings=data["settings"],
             summary_score=data.get("summary_score"),
             left_out=data.get("left_out") or {},
+            data_notes=tuple(data.get("data_notes") or ()),
         )
 
 
@@ -372,6 +378,14 @@ def _check_tolerances(
             if abs(float(value)) > float(limit):
                 violations.append(ToleranceViolation(channel, metric, float(value), float(limit)))
     return tuple(violations)
+
+
+def state_notes(a: Run, b: Run, shared_ids: Collection[str]) -> tuple[str, ...]:
+    """The runs' notes on how their scenarios start (state carried over in a recording), naming the run: a
+    difference they explain is not the physics' (friction, damping) to answer for."""
+    return tuple(f"run {side} ({run.path.name}): {note}; an offset that follows from this start is not friction or damping"
+                 for side, run in (("A", a), ("B", b)) for entry in run.scenarios
+                 if entry.id in shared_ids for note in entry.state_notes)
 
 
 def compare_runs(
@@ -496,6 +510,8 @@ def compare_runs(
             notes.append("unstable in both twins")
         if skipped:
             notes.append("not compared: " + ", ".join(skipped))
+        notes.extend(f"{side}: {note}" for side, entry in (("A", entry_a), ("B", entry_b))
+                     for note in entry.state_notes)
 
         floors = _floors(a, b, entry_a.id, channels, resolution, resolved, dtw_window)
         channels = {name: replace(ch, significance=significance(ch.rmse, resolution[name],
@@ -559,4 +575,5 @@ def compare_runs(
         settings=settings,
         summary_score=float(np.mean(scores)) if scores else None,
         left_out={k: v for k, v in excluded.items() if v},
+        data_notes=state_notes(a, b, shared_ids),
     )

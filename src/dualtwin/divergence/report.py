@@ -46,9 +46,13 @@ __all__ = ["METRICS_SCHEMA", "Trace", "plot_channel", "plot_overlay", "print_sum
 
 
 def twin_labels(comparison: RunComparison) -> tuple[str, str]:
-    """Display names of the two sides from their manifests: the twin names, marked A/B when they are equal."""
+    """Display names of the two sides from their manifests: the twin names; when both sides are the same twin
+    (two recordings, two MuJoCo runs), the run folders' names, and A/B only when those are equal too."""
     a, b = comparison.twin_a or "A", comparison.twin_b or "B"
     if a == b:
+        folder_a, folder_b = Path(comparison.run_a).name, Path(comparison.run_b).name
+        if folder_a and folder_b and folder_a != folder_b:
+            return f"{folder_a} ({a})", f"{folder_b} ({b})"
         return f"{a} (A)", f"{b} (B)"
     return a, b
 

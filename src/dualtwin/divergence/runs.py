@@ -75,6 +75,9 @@ class ScenarioEntry:
     ground_truth: str | None = None
     #: Ensemble members 1..N-1 (`dualtwin.suite.ensemble`); member 0 is this entry's own logs.
     members: tuple[MemberEntry, ...] = ()
+    #: What an import read from a recording's data about its start (`dualtwin.recorded.carryover`): state
+    #: carried over from the previous scenario, or a start away from the twin's reset state.
+    state_notes: tuple[str, ...] = ()
 
     def log(self, source: str) -> str | None:
         return self.onboard if source == "onboard" else self.ground_truth
@@ -261,6 +264,8 @@ def load_run(path: Path) -> Run:
                 onboard=sc.get("onboard"),
                 ground_truth=sc.get("ground_truth"),
                 members=_members(sc, path, manifest_path),
+                state_notes=tuple(str(part.get("note", "")) for part in (sc.get("state_continuity") or {}).values()
+                                  if isinstance(part, dict)),
             )
         )
     ids = [s.id for s in scenarios]

@@ -46,6 +46,8 @@ from dualtwin.artifacts import (
 )
 from dualtwin.divergence.metrics import default_resolution
 from dualtwin.errors import DualtwinError
+from dualtwin.recorded.carryover import state_continuity
+from dualtwin.recorded.clock import clock_note, sampling_clock
 from dualtwin.recorded.mapping import ChannelBase
 from dualtwin.recorded.units import conversion_factor
 from dualtwin.reporting.progress import ProgressCallback, ProgressEvent
@@ -393,6 +395,7 @@ def build_files(recording: Recording, progress: ProgressCallback | None = None) 
         files.update(assembled.files)
         records.append(assembled.record)
         tick(index + 1, sid)
+    time_doc = {**recording.time, **evidence_from_data(recording, ids, records, period)}
     imported = {c.run_name for c in recording.channels}
     channels: dict[str, Any] = {}
     for name, ch in robot.spec.ground_truth.items():
@@ -440,7 +443,7 @@ def build_files(recording: Recording, progress: ProgressCallback | None = None) 
         "sources": sources,
         "mapping": recording.mapping.model_dump(mode="json"),
         "units": {c.run_name: unit_record(robot, c) for c in recording.channels},
-        "time": recording.time,
+        "time": time_doc,
         "invalid_values": {"treatment": recording.invalid, "max_magnitude": MAX_RECORDED_MAGNITUDE},
         "resampling": RESAMPLING,
         "versions": package_versions(),
@@ -452,6 +455,36 @@ def build_files(recording: Recording, progress: ProgressCallback | None = None) 
     files.update(config)
     files["manifest.json"] = (json.dumps(manifest, indent=2, allow_nan=False) + "\n").encode()
     return files
+
+
+def evidence_from_data(recording: Recording, ids: list[str], records: list[dict[str, Any]],
+                       period: float) -> dict[str, Any]:
+    """What the data says that the suite does not: state carried over between scenarios
+    (`dualtwin.recorded.carryover`) and wall-clock stamps (`dualtwin.recorded.clock`), written into each
+    scenario's record and notes; returns the run-level summary for the manifest's ``time``."""
+    inputs = [scenario.inputs for scenario in recording.suite.scenarios]
+    continuities = state_continuity(recording.robot, ids, inputs, [rec.traces for rec in recording.scenarios])
+    wall: list[str] = []
+    for record, rec, continuity in zip(records, recording.scenarios, continuities, strict=True):
+        stats = sampling_clock([raw.t for raw in rec.raw], period)
+        if stats is not None:
+            record["timing"]["clock"] = stats
+            if stats["clock"] == "wall-clock":
+                wall.append(record["id"])
+                if record["timing"].get("origin") == "simulation":
+                    record["timing"]["origin"] = "wall-clock"
+                record["notes"].append(clock_note(stats))
+        if continuity:
+            record["state_continuity"] = continuity
+            carried = set(continuity.get("carried_over", {}).get("channels", {}))
+            # The suite-key check above said "may have carried over" for a channel the data now settles.
+            record["notes"][:] = [n for n in record["notes"]
+                                  if not any(n.startswith(f"starts at {c} =") for c in carried)]
+            record["notes"].extend(part["note"] for part in continuity.values())
+    summary: dict[str, Any] = {"clock": "wall-clock" if wall else "simulation"}
+    if wall:
+        summary["wall_clock_scenarios"] = wall
+    return summary
 
 
 def _own_files(out: Path) -> set[str]:

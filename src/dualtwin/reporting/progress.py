@@ -27,6 +27,8 @@ class ProgressEvent:
     message: str = ""
 
     def line(self) -> str:
+        if self.total is None and self.done == 0 and self.message:
+            return f"{self.stage}: {self.message}"  # a stage starting with no count yet: "0" would read as data
         count = f"{self.done}/{self.total}" if self.total is not None else str(self.done)
         return f"{self.stage}: {count}" + (f" {self.message}" if self.message else "")
 

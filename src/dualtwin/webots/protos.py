@@ -333,7 +333,7 @@ class _Expander:
             where = f" (EXTERNPROTO \"{url}\")" if url else " (no EXTERNPROTO declares it)"
             raise ProtoNotFoundError(
                 f"{raw.location}: PROTO '{name}'{where} not found. Searched: {'; '.join(tried)}. "
-                f"Provide {name}.proto in a folder given by proto_paths or DUALTWIN_PROTO_PATH, "
+                f"Provide {name}.proto in a folder listed in DUALTWIN_PROTO_PATH, "
                 "set WEBOTS_HOME to a Webots installation, or run 'dualtwin webots fetch WORLD' where the "
                 "network is reachable (DUALTWIN_PROTO_MIRROR points at a fetched folder or a mirror)."
             )
