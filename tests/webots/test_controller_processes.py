@@ -220,6 +220,36 @@ def test_controller_not_calling_step_is_stopped_by_the_step_timeout(
     assert len(errors) == 1 and "did not call step()" in errors[0] and "--step-timeout" in errors[0]
 
 
+def test_slow_imports_are_not_a_missed_step_but_a_loop_before_the_first_step_is(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A script busy in its imports (as `import torch` on a loaded machine) longer than the step timeout still
+    runs; one that made its Robot and then spins without ever stepping is stopped after the step timeout."""
+    slow_import = """
+        import time
+        time.sleep(2.5)  # stands for a heavy import before the first call of the API
+        from controller import Robot
+        robot = Robot()
+        while robot.step(8) != -1:
+            pass
+        print("slow starter done")
+    """
+    world = _project(tmp_path / "slow", [("slow", [], slow_import)])
+    assert run_world(world, None, 0.08, step_timeout_s=1.0) == 0
+    assert "slow starter done" in capsys.readouterr().out
+    spinner = """
+        from controller import Robot
+        robot = Robot()
+        while True:
+            pass
+    """
+    world = _project(tmp_path / "spin", [("spin", [], spinner)])
+    start = time.monotonic()
+    assert run_world(world, None, 1.0, step_timeout_s=1.0) == 2
+    assert time.monotonic() - start < 8.0
+    assert "did not call step()" in capsys.readouterr().err
+
+
 def test_step_timeout_option_is_checked(tmp_path: Path) -> None:
     world = _project(tmp_path, [("c", ["c"], ENDING)])
     bad = _cli("webots", "run", str(world), "--duration", "0.048", "--step-timeout", "-1")

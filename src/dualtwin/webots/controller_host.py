@@ -15,7 +15,10 @@ The main thread watches the children:
 * one still running :data:`TERMINATION_GRACE_S` after its ``step`` returned -1 is killed, with a warning
   (Webots' forced termination; the exit code stays 0);
 * one that does not call ``step`` for ``step_timeout_s`` wall-clock seconds (0: never checked, like Webots)
-  is killed with one line on stderr; the run ends (the others' ``step`` returns -1) with exit code 2;
+  is killed with one line on stderr; the run ends (the others' ``step`` returns -1) with exit code 2. The clock
+  runs from its last ``step`` or, before its first, from its last call of the API; until its first call at all
+  (the script's own imports: PyTorch alone can take longer than the timeout on a busy machine) it may take
+  :data:`STARTUP_GRACE_S`;
 * Ctrl-C or SIGTERM kills and reaps every child and returns 130 (the caller says ``error: interrupted``; the command line catches its own SIGINT first).
 
 A child that crashes prints its traceback (through its stderr) and makes the exit code 1; the others keep
@@ -60,6 +63,11 @@ def _exports() -> dict[str, type]:
     return {name: getattr(api, name) for name in api.__all__ if isinstance(getattr(api, name), type)}
 
 
+#: Wall-clock seconds a controller may take before its first call of the API (its imports), when a step timeout
+#: is set: at least this, or the step timeout if longer.
+STARTUP_GRACE_S = 60.0
+
+
 class _Link:
     """One controller process and the thread of this process that serves it."""
 
@@ -75,6 +83,8 @@ class _Link:
         self.thread: threading.Thread | None = None
         self.in_step = False
         self.last_active = time.monotonic()
+        self.heard = False  # any request arrived (the script got past its imports)
+        self.stepped = False  # a step() returned
         self.ended_at: float | None = None  # wall time at which step() returned -1
         self.exit_code: int | None = None  # as the child reported it
         self.stopped: str | None = None  # why the parent killed it: "forced" or "timeout"
@@ -195,6 +205,9 @@ class _Host:
                 if frame is None:
                     break
                 message = link.table.loads(frame)
+                if not link.stepped:
+                    link.last_active = time.monotonic()  # before the first step, any call shows progress
+                link.heard = True
                 out, queued = message[-2], message[-1]
                 link.out.extend(out)
                 if queued:
@@ -240,6 +253,7 @@ class _Host:
                         result = target.step(*args, **kwargs)
                     finally:
                         link.in_step = False
+                        link.stepped = True
                         link.last_active = time.monotonic()
                     if result == -1 and link.ended_at is None:
                         link.ended_at = time.monotonic()
@@ -315,12 +329,15 @@ class _Host:
                                         f"{TERMINATION_GRACE_S:g} s after step() returned -1: forced termination\n"))
                     self._kill(link)
                 elif (self.step_timeout_s > 0 and not link.in_step and link.ended_at is None
-                        and now - link.last_active >= self.step_timeout_s):
+                        and now - link.last_active >= self._allowed(link)):
                     link.stopped = "timeout"
                     link.out.append((2, f"Error: controller {link.script.name} did not call step() for "
                                         f"{self.step_timeout_s:g} s of real time (--step-timeout): stopped\n"))
                     self._kill(link)
                     self.runtime.finish()
+
+    def _allowed(self, link: _Link) -> float:
+        return self.step_timeout_s if link.heard else max(self.step_timeout_s, STARTUP_GRACE_S)
 
     def _kill(self, link: _Link) -> None:
         if link.proc is not None and link.proc.poll() is None:
