@@ -24,7 +24,9 @@ from dualtwin.webots import _math3 as m3
 from dualtwin.webots import schema
 from dualtwin.webots.api_args import as_float, as_floats, as_int, warn
 from dualtwin.webots.nodes import Node as SceneNode
+from dualtwin.webots.nodes import copy_value
 from dualtwin.webots.physics import JointRec, Simulation
+from dualtwin.webots.proto_links import linked_fields
 
 __all__ = ["FIELD_TYPES", "Field", "FieldOwner", "field_type_name", "parse_nodes"]
 
@@ -270,9 +272,20 @@ class Field:
     def _changed(self) -> None:
         if self._is_base():
             self._sim.field_changed(self._node, self._name)
-        elif self._name in self._node.fields:
-            # a PROTO interface field with a base field of the same name (translation, name...): keep both
-            Field(self._owner, self._name).value = self._raw()
+            return
+        # a PROTO interface field: Webots propagates the value through the IS links of the PROTO body
+        value = self._raw()
+        if self._name in self._node.template_fields:
+            warn(
+                f"Field: '{self._name}' is read by the template of procedural PROTO {self._node.proto_name}; Webots "
+                "regenerates the node, dualtwin only follows the IS links (the template's output is not rebuilt)"
+            )
+        base, interfaces = linked_fields(self._node, self._name)
+        for node, name in interfaces:
+            assert node.proto_fields is not None
+            node.proto_fields[name] = copy_value(value)
+        for node, name in base:
+            Field(self._owner._handle(node), name)._store(copy_value(value))
 
     def _convert(self, method: str, kind: str, value: Any) -> tuple[bool, Any]:
         """``value`` as a stored SF value of ``kind`` (stderr error and False when it does not fit)."""
@@ -303,6 +316,11 @@ class Field:
         if not ok:
             warn(f"Field.{method}(): new field value has wrong type or length ('{self._name}'): ignored")
             return
+        self._store(converted)
+
+    def _store(self, converted: Any) -> None:
+        """Write an already checked value and send it to the physics (joint position, pose, other fields)."""
+        kind = self._vrml
         if kind == "SFFloat":
             joint = self._joint()
             if joint is not None:

@@ -63,6 +63,18 @@ class Node:
     proto_def_name: str | None = None
     #: Interface values of the PROTO instance this node is the expanded root of (``proto_name``).
     proto_fields: dict[str, Any] | None = field(default=None, repr=False)
+    #: Numbers the PROTO instance this node is the expanded root of (the key of the ``IS`` links below).
+    proto_instance: int | None = None
+    #: Shared by a DEF'd node and its USE copies (Webots' same node; DEF names alone repeat across PROTO
+    #: instances and may be redefined).
+    def_group: int | None = None
+    #: Interface fields a procedural PROTO's template reads (Webots regenerates the instance when they change).
+    template_fields: frozenset[str] = frozenset()
+    #: ``IS`` links of this node's own fields: field name -> (PROTO instance number, interface field name).
+    is_links: dict[str, tuple[int, str]] = field(default_factory=dict, repr=False)
+    #: ``IS`` links of the interface values of a PROTO instance written in another PROTO's body (this node
+    #: is its expanded root): (outer instance, outer field, inner instance, inner field).
+    instance_links: list[tuple[int, str, int, str]] = field(default_factory=list, repr=False)
 
     def get(self, name: str, default: Any = None) -> Any:
         return self.fields.get(name, default)
@@ -101,6 +113,11 @@ class Node:
             proto_fields=None
             if self.proto_fields is None
             else {k: copy_value(v) for k, v in self.proto_fields.items()},
+            proto_instance=self.proto_instance,
+            def_group=self.def_group,
+            template_fields=self.template_fields,
+            is_links=dict(self.is_links),
+            instance_links=list(self.instance_links),
         )
 
 

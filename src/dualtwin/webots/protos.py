@@ -131,6 +131,8 @@ class _Scope:
     proto: ParsedProto | None = None
     values: dict[str, Any] | None = None
     in_world: bool = False
+    #: Number of the PROTO instance whose body this is (the key of the ``IS`` links recorded on nodes).
+    instance: int | None = None
     expanded: dict[int, Node | None] = field(default_factory=dict)
 
 
@@ -212,6 +214,10 @@ def _joints_of(solid: Node) -> list[Node]:
     return out
 
 
+# Process-wide, so a node imported at run time never shares an instance number with one already loaded.
+_INSTANCE_NUMBERS = itertools.count(1)
+
+
 class _Expander:
     def __init__(self, resolver: ProtoResolver, world_path: str, warnings: list[str]) -> None:
         self.resolver = resolver
@@ -256,6 +262,8 @@ class _Expander:
 
     @staticmethod
     def _set_def(node: Node, def_name: str | None, scope: _Scope) -> None:
+        if def_name is not None:
+            node.def_group = next(_INSTANCE_NUMBERS)
         if scope.in_world:
             node.def_name, node.proto_def_name = def_name, None
         else:
@@ -269,9 +277,17 @@ class _Expander:
             fields[name] = self.field_value(rf, spec.fields[name].type, scope)
             locations[name] = rf.location
         node = Node(raw.type_name, fields, location=raw.location, field_locations=locations)
+        node.is_links = self.links_of(raw, scope)
         self._set_def(node, raw.def_name, scope)
         node.hidden = self.hidden_values(raw)
         return node
+
+    @staticmethod
+    def links_of(raw: RawNode, scope: _Scope) -> dict[str, tuple[int, str]]:
+        """The fields of ``raw`` written ``<field> IS <interface field>`` (Webots propagates edits through them)."""
+        if scope.instance is None:
+            return {}
+        return {name: (scope.instance, rf.value.name) for name, rf in raw.fields.items() if isinstance(rf.value, IsLink)}
 
     def field_value(self, rf: RawField, vrml_type: str, scope: _Scope) -> Any:
         if isinstance(rf.value, IsLink):
@@ -379,6 +395,7 @@ class _Expander:
             if fname not in values:
                 values[fname] = self.default_value(decl, proto)
         values = {fname: values[fname] for fname in proto.interface}
+        instance = next(_INSTANCE_NUMBERS)
         self._stack.append(proto.path)
         try:
             if proto.template is not None:
@@ -387,7 +404,7 @@ class _Expander:
                 assert proto.body is not None
                 body = proto.body
             body_scope = self._proto_scope(proto)
-            body_scope.proto, body_scope.values = proto, values
+            body_scope.proto, body_scope.values, body_scope.instance = proto, values, instance
             root = self.expand_node(body, body_scope)
         finally:
             self._stack.pop()
@@ -396,6 +413,13 @@ class _Expander:
         root.proto_name = raw.type_name
         root.location = raw.location
         root.proto_fields = values
+        root.instance_links = [
+            (outer, outer_field, instance, name)
+            for name, (outer, outer_field) in self.links_of(raw, scope).items()
+        ] + root.instance_links
+        root.proto_instance = instance
+        if proto.template is not None:
+            root.template_fields = frozenset(re.findall(r"\bfields\.(\w+)", proto.template)) & set(values)
         self._set_def(root, raw.def_name, scope)
         hidden = self.hidden_values(raw)
         if hidden:

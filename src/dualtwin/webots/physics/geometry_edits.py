@@ -43,9 +43,12 @@ class GeometryEdits(CollisionPass):
         if not name:
             return [node]
         out = [node]
+        group = node.def_group  # recorded at load: a DEF name repeats in every instance of a PROTO
         for top in self.world.nodes:
             for other in top.walk():
-                if other is not node and other.type_name == node.type_name and name in (other.def_name, other.use_name):
+                if other is node or other.type_name != node.type_name:
+                    continue
+                if other.def_group == group if group is not None else name in (other.def_name, other.use_name):
                     out.append(other)
         return out
 

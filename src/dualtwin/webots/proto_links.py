@@ -1,0 +1,37 @@
+"""Where an edit of a PROTO instance's interface field goes: the internal fields linked to it by ``IS``.
+
+Webots propagates a PROTO field's value to every field of its body written ``<field> IS <protoField>``,
+through nested PROTO instances whose own interface fields are ``IS`` the outer one. The expansion
+(:mod:`.protos`) records those links on the nodes; this module follows them.
+"""
+
+from __future__ import annotations
+
+from dualtwin.webots.nodes import Node
+
+__all__ = ["linked_fields"]
+
+
+def linked_fields(root: Node, name: str) -> tuple[list[tuple[Node, str]], list[tuple[Node, str]]]:
+    """The base-node fields and the nested instances' interface fields that ``IS`` ``root``'s field ``name``.
+
+    Returns ``(base, interfaces)``: ``base`` are ``(node, field)`` pairs of ``node.fields`` to update,
+    ``interfaces`` are ``(nested root, field)`` pairs of ``proto_fields`` to update (the nested instance
+    whose expanded root is also this PROTO's root, a derived PROTO, keeps no interface values of its own).
+    Empty when ``root`` is not a PROTO instance.
+    """
+    base: list[tuple[Node, str]] = []
+    interfaces: list[tuple[Node, str]] = []
+    if root.proto_instance is None:
+        return base, interfaces
+    pending = [(root, root.proto_instance, name)]
+    while pending:
+        top, instance, field = pending.pop()
+        for node in top.walk():
+            base.extend((node, f) for f, link in node.is_links.items() if link == (instance, field))
+            for outer, outer_field, inner, inner_field in node.instance_links:
+                if (outer, outer_field) == (instance, field):
+                    if node.proto_instance == inner and node.proto_fields is not None:
+                        interfaces.append((node, inner_field))
+                    pending.append((node, inner, inner_field))
+    return base, interfaces

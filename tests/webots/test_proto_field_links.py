@@ -1,0 +1,107 @@
+"""A supervisor's edit of a PROTO instance's field reaches the fields its body links to it with ``IS``.
+
+Webots propagates a PROTO field's value to every body field written ``<field> IS <protoField>`` (through
+nested and derived PROTOs), and those fields reach ODE at the next step like any field edit. The PROTOs in
+``proto_links/`` name their interface fields differently from the base fields (``place`` -> ``translation``,
+``extent`` -> ``size``, ``weight`` -> ``mass``), so only the recorded links can carry an edit. Before this
+change the interface value read back but nothing else moved: rays saw the old box, the body kept its pose
+and its mass.
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import pytest
+
+from dualtwin.webots import load_world_text
+from dualtwin.webots.controller import Supervisor
+from dualtwin.webots.physics import Simulation
+
+HERE = Path(__file__).parent / "proto_links"
+STEP = 8
+
+
+def _supervisor(body: str) -> Supervisor:
+    text = (
+        '#VRML_SIM R2023b utf8\nEXTERNPROTO "Slab.proto"\nEXTERNPROTO "Wall.proto"\nEXTERNPROTO "Post.proto"\n'
+        'EXTERNPROTO "Bar.proto"\n'
+        f"WorldInfo {{ basicTimeStep {STEP} gravity 0 }}\n{body}"
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sim = Simulation(load_world_text(text, HERE / "links.wbt"))
+    return Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+
+
+def _sensors(*ys: float) -> str:
+    # one ray along +x; the table maps distance to itself, so a box centred 1 m ahead reads 1 - half extent
+    return "".join(
+        f'DistanceSensor {{ name "s{i}" translation 0 {y} 0 lookupTable [ 0 0 0, 2 2 0 ] }} ' for i, y in enumerate(ys)
+    )
+
+
+def test_a_proto_size_field_reaches_the_rays_through_plain_nested_and_derived_protos() -> None:
+    sup = _supervisor(
+        f"Robot {{ supervisor TRUE children [ {_sensors(0, 2, 4)} ] }}\n"
+        "DEF SLAB Slab { place 1 0 0 }\nDEF WALL Wall { at 1 2 0 }\nDEF POST Post { at 1 4 0 }\n"
+    )
+    sensors = [sup.getDevice(f"s{i}") for i in range(3)]
+    for s in sensors:
+        s.enable(STEP)
+    sup.step(STEP)
+    assert [s.getValue() for s in sensors] == pytest.approx([0.9, 0.9, 0.9])
+    sup.getFromDef("SLAB").getField("extent").setSFVec3f([0.6, 0.2, 0.2])
+    sup.getFromDef("WALL").getField("dims").setSFVec3f([1.0, 0.2, 0.2])
+    sup.getFromDef("POST").getField("dims").setSFVec3f([0.4, 0.2, 0.2])
+    sup.step(STEP)
+    assert [s.getValue() for s in sensors] == pytest.approx([0.7, 0.5, 0.8])
+    # the interface reads back the new value; the derived PROTO's inner Slab instance follows it too
+    wall = sup.getFromDef("WALL")
+    assert wall.getField("dims").getSFVec3f() == [1.0, 0.2, 0.2]
+    box = next(n for n in wall.scene_node.walk() if n.type_name == "Box")
+    assert box.fields["size"] == (1.0, 0.2, 0.2)
+
+
+def test_a_proto_field_linked_to_translation_moves_the_body_at_the_next_step() -> None:
+    sup = _supervisor("Robot { supervisor TRUE }\nDEF SLAB Slab { place 1 0 0 }\nDEF WALL Wall { at 0 3 0 }\n")
+    slab, wall = sup.getFromDef("SLAB"), sup.getFromDef("WALL")
+    sup.step(STEP)
+    slab.getField("place").setSFVec3f([0.0, -2.0, 0.5])
+    wall.getField("at").setSFVec3f([0.0, 5.0, 0.0])
+    assert slab.getPosition() == pytest.approx([1.0, 0.0, 0.0])  # queued: applied before the next step
+    sup.step(STEP)
+    assert slab.getPosition() == pytest.approx([0.0, -2.0, 0.5])
+    assert wall.getPosition() == pytest.approx([0.0, 5.0, 0.0])
+    assert slab.getProtoField("translation").getSFVec3f() == [0.0, -2.0, 0.5]
+
+
+def test_a_proto_field_linked_to_mass_changes_the_body_response_to_a_force() -> None:
+    sup = _supervisor("Robot { supervisor TRUE }\nDEF A Slab { place 0 0 0 }\nDEF B Slab { place 0 2 0 }\n")
+    a, b = sup.getFromDef("A"), sup.getFromDef("B")
+    b.getField("weight").setSFFloat(4.0)  # B: 4 kg; A (control) keeps 1 kg
+    sup.step(STEP)
+    for node in (a, b):
+        node.addForce([2.0, 0.0, 0.0], False)
+    sup.step(STEP)
+    dt = STEP / 1000
+    assert a.getVelocity()[0] == pytest.approx(2.0 * dt / 1.0)
+    assert b.getVelocity()[0] == pytest.approx(2.0 * dt / 4.0)
+
+
+def test_a_procedural_proto_follows_its_is_links_and_says_a_template_field_is_not_regenerated(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    sup = _supervisor('Robot { supervisor TRUE }\nDEF BAR Bar { place 1 0 0 }\n')
+    bar = sup.getFromDef("BAR")
+    sup.step(STEP)
+    capsys.readouterr()
+    bar.getField("place").setSFVec3f([0.0, 1.0, 0.0])
+    assert capsys.readouterr().err == ""
+    sup.step(STEP)
+    assert bar.getPosition() == pytest.approx([0.0, 1.0, 0.0])
+    bar.getField("length").setSFFloat(0.5)
+    err = capsys.readouterr().err
+    assert "'length' is read by the template of procedural PROTO Bar" in err and err.count("\n") == 1
+    assert bar.getField("length").getSFFloat() == 0.5
