@@ -15,9 +15,13 @@ Valid value per kind (what a new command's required option gets):
 
     kind          valid value                                   bad-input families
     ----------    -------------------------------------------   ---------------------------------------------
-    suite         a one-scenario suite file                      missing, directory, binary, invalid-json
-    json          a JSON object file (for optional inputs)       missing, directory, binary, invalid-json
-    yaml          (optional inputs only)                         missing, directory, binary, invalid-yaml
+    suite         a one-scenario suite file                      missing, directory, binary, invalid-json,
+                                                                  deep-nesting, duplicate-keys, and every
+                                                                  numeric field huge or non-finite
+    json          a JSON object file (for optional inputs)       missing, directory, binary, invalid-json,
+                                                                  deep-nesting, duplicate-keys
+    yaml          (optional inputs only)                         missing, directory, binary, invalid-yaml,
+                                                                  deep-nesting, duplicate-keys
     wbt           the bundled cartpole.wbt                       missing, directory, binary
     file          (optional inputs only)                         missing, directory, binary
     run           a finished suite run of the small suite        missing, file-for-folder, not-a-run, bad-manifest
@@ -34,6 +38,7 @@ Valid value per kind (what a new command's required option gets):
     env           dualtwin/CartPole-MuJoCo-Continuous-v0         unknown-env
     knob          physics.substeps                               unknown-knob
     url           placeholder (nothing listens there)            unreachable
+    address       (optional: a Ray address, with --executor ray)  unreachable (a loopback port nothing listens on)
     number        the option's default                          nan, negative
     numlist       "1" (a list is a repeatable option)            nan, negative
     perturb       initial_angle=0.01                             nan, negative
@@ -98,13 +103,16 @@ PARAMS: dict[str, str] = {
     "fd_step": "number", "lsq_max_iter": "number", "lsq_restarts": "number", "regularization": "number",
     "dr_top_fraction": "number", "dr_generations": "number", "dr_min_rel_width": "number",
     "reference_knobs": "text", "bounds": "text", "thresholds": "text", "weights": "text", "scales": "text",
-    "channels": "text", "ray_address": "text",
+    "channels": "text", "ray_address": "address",
 }
 
+# Issue 27's families: structure no reader should trust (deep nesting, the same key twice) and, for suites,
+# every numeric field holding a huge or non-finite number (NUMERIC_FIELDS below).
+HOSTILE = ("deep-nesting", "duplicate-keys")
 FAMILIES: dict[str, tuple[str, ...]] = {
-    "suite": ("missing", "directory", "binary", "invalid-json"),
-    "json": ("missing", "directory", "binary", "invalid-json"),
-    "yaml": ("missing", "directory", "binary", "invalid-yaml"),
+    "suite": ("missing", "directory", "binary", "invalid-json", *HOSTILE),
+    "json": ("missing", "directory", "binary", "invalid-json", *HOSTILE),
+    "yaml": ("missing", "directory", "binary", "invalid-yaml", *HOSTILE),
     "wbt": ("missing", "directory", "binary"),
     "file": ("missing", "directory", "binary"),
     "run": ("missing", "file-for-folder", "not-a-run", "bad-manifest"),
@@ -112,7 +120,7 @@ FAMILIES: dict[str, tuple[str, ...]] = {
     "out": ("non-empty-foreign", "file-for-folder"),
     "outfile": ("foreign-file", "directory"),
     "robot": ("unknown-robot",), "twin": ("unknown-twin",), "env": ("unknown-env",), "knob": ("unknown-knob",),
-    "url": ("unreachable",), "number": ("nan", "negative"), "numlist": ("nan", "negative"),
+    "url": ("unreachable",), "address": ("unreachable",), "number": ("nan", "negative"), "numlist": ("nan", "negative"),
     "perturb": ("nan", "negative"), "choice": ("unknown-choice",), "text": (), "flag": (),
 }
 
@@ -158,6 +166,35 @@ class Case:
         return f"{' '.join(self.path)}--{self.param}--{self.family}"
 
 
+# Every numeric field of a suite, and the values each must refuse: an absurd magnitude where no legitimate value
+# is that large, a non-finite number (JSON's NaN/Infinity tokens, 1e999 which reads as infinity) everywhere.
+# A threshold or a tolerance of 1e308 is legitimate ("never"), so those get the non-finite values only.
+NON_FINITE = ("NaN", "Infinity", "1e999")
+HUGE = ("1e308", "-1e308")
+NUMERIC_FIELDS: dict[str, tuple[str, ...]] = {
+    "duration_s": (*NON_FINITE, *HUGE), "seed": (*NON_FINITE, *HUGE), "TIME_STEP": (*NON_FINITE, *HUGE),
+    "initial_angle": (*NON_FINITE, *HUGE), "wheel_velocity": (*NON_FINITE, *HUGE),
+    "failure_pole_angle_rad": NON_FINITE, "tolerance_rmse": NON_FINITE,
+}
+
+
+def suite_with(field: str, number: str) -> str:
+    """The small suite with ``field`` set to the literal ``number`` (JSON text, so NaN/1e999 stay as written)."""
+    scenario = '"name": "a", "duration_s": 0.1, "initial_angle": 0.1'
+    settings = '"TIME_STEP": 32'
+    if field in ("duration_s", "initial_angle"):
+        scenario = scenario.replace(f'"{field}": 0.1', f'"{field}": {number}')
+    elif field == "TIME_STEP":
+        settings = f'"TIME_STEP": {number}'
+    elif field == "failure_pole_angle_rad":
+        settings += f', "failure_pole_angle_rad": {number}'
+    elif field == "tolerance_rmse":
+        scenario += f', "tolerances": {{"pole_angle_rad": {{"rmse": {number}}}}}'
+    else:
+        scenario += f', "{field}": {number}'
+    return f'{{"suite_name": "s", "global_settings": {{{settings}}},\n "scenarios": [{{{scenario}}}]}}'
+
+
 def cases() -> list[Case]:
     out = []
     for path, command in commands():
@@ -165,6 +202,9 @@ def cases() -> list[Case]:
             kind = kind_of(path, param.name)
             for family in FAMILIES.get(kind or "", ()):
                 out.append(Case(path, param.name, kind or "", family))
+            if kind == "suite":
+                out += [Case(path, param.name, kind, f"number:{field}={number}")
+                        for field, numbers in NUMERIC_FIELDS.items() for number in numbers]
     return out
 
 
@@ -278,6 +318,20 @@ def bad_value(case: Case, here: Path, url: str) -> str:
         path = here / f"invalid_{name}.json"
         path.write_text('{"suite_name": "s",\n  "scenarios": [')
         return str(path)
+    if family == "deep-nesting":  # 100,000 levels: a RecursionError in any recursive reader
+        path = here / f"deep_{name}.{'yaml' if case.kind == 'yaml' else 'json'}"
+        path.write_text("[" * 100_000 + "]" * 100_000)
+        return str(path)
+    if family == "duplicate-keys":  # the later one silently wins in most parsers
+        path = here / f"dupkeys_{name}.{'yaml' if case.kind == 'yaml' else 'json'}"
+        path.write_text("a: 1\nb: 2\na: 3\n" if case.kind == "yaml" else
+                        '{"suite_name": "s",\n "suite_name": "t",\n "scenarios": []}')
+        return str(path)
+    if family.startswith("number:"):
+        field, number = family.removeprefix("number:").split("=")
+        path = here / f"number_{name}.json"
+        path.write_text(suite_with(field, number))
+        return str(path)
     if family == "invalid-yaml":
         path = here / f"invalid_{name}.yaml"
         path.write_text("a: [1, 2\nb: }\n")
@@ -314,7 +368,7 @@ def bad_value(case: Case, here: Path, url: str) -> str:
         path.write_text("precious\n")
         return str(path)
     if family == "unreachable":
-        return url
+        return url.removeprefix("http://") if case.kind == "address" else url
     if family == "unknown-robot":
         return "no_such_robot"
     if family == "unknown-twin":
@@ -371,6 +425,8 @@ def argv_for(case: Case, command: Any, here: Path, runs: dict[str, Path],
             positional.append(value)
         else:
             args += [param.opts[0], value]
+    if case.kind == "address":  # a Ray address is only contacted for the Ray executor
+        args += ["--executor", "ray"]
     return args + positional, bad, placeholders
 
 
@@ -426,6 +482,8 @@ def test_bad_input(case: Case, tmp_path: Path, runs: dict[str, Path], folders: d
         names |= set(placeholders) | {Path(p).name for p in placeholders}
     assert any(n and n in lines[0] for n in names), f"the line does not name {sorted(names)}; {shown}"
     assert snapshot(here) == before, f"files were created or changed; {shown}"
+    if case.family == "duplicate-keys" and bad in lines[0]:
+        assert ("lines 1 and 3" if case.kind == "yaml" else "lines 1 and 2") in lines[0], shown
 
 
 # ------------------------------------------------------------------ specific promises
