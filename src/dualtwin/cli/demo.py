@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from dualtwin.cli.common import OutOption, app, console
+from dualtwin.cli.common import OutOption, app, console, on_interrupt
 
 
 @app.command("demo")
@@ -16,4 +16,5 @@ def demo(out: Annotated[Path, OutOption("demo output folder (new or empty)")] = 
     """Run the bundled CartPole suite on both twins and write the comparison report."""
     from dualtwin.demo import run_demo
 
+    on_interrupt(lambda: "resume with --resume" if (out / "manifest.json").is_file() else "")
     run_demo(out, console, resume=resume)

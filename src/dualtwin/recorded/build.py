@@ -43,6 +43,7 @@ from dualtwin.artifacts import (
     package_versions,
     read_json,
     sha256_file,
+    write_failed,
 )
 from dualtwin.divergence.metrics import default_resolution
 from dualtwin.errors import DualtwinError
@@ -522,8 +523,11 @@ def publish(out: Path, files: dict[str, bytes], option: str = "--out") -> None:
             if path.parent not in made:
                 path.parent.mkdir(parents=True, exist_ok=True)
                 made.add(path.parent)
-            with open(path, "wb") as handle:
-                handle.write(data)
+            try:
+                with open(path, "wb") as handle:
+                    handle.write(data)
+            except OSError as exc:  # a full disk names the run's file, not the staging folder's
+                raise write_failed(exc, out / rel) from None
         os.sync()  # one flush for the whole folder instead of one fsync per file, then one atomic rename
         if out.exists():
             if replacing:
