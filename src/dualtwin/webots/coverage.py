@@ -55,7 +55,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "bodies with mass from Physics/boundingObject, merging and the static basis, kinematic solids, "
              "supervisor pose/velocity edits; Box/Sphere/Cylinder/Capsule/IndexedFaceSet edits (also through "
              "DEF/USE) resize the ODE geom at the next step, wake bodies around it and reach ray sensors; "
-             "edits of PROTO interface fields do not reach the expanded nodes yet"),
+             "edits of a PROTO instance's fields follow its IS links (also through nested and derived PROTOs) "
+             "to the expanded nodes; a field read by a procedural PROTO's template warns (no regeneration)"),
     Coverage("Robot", "scene", "supported",
              "Python controllers run unchanged, each in its own process (runner), supervisor API, selfCollision, "
              "controllerArgs; C "
