@@ -34,6 +34,10 @@ ENV_IDS: dict[str, dict[str, Any]] = {
     "dualtwin/Arm-Reach-MuJoCo-v0": {"twin": "mujoco", "robot": "arm", "task": "reach", "continuous": True},
     "dualtwin/Arm-Reach-Webots-v0": {"twin": "webots", "robot": "arm", "task": "reach", "continuous": True},
 }
+# Ids whose envs can also be made N at a time as one batch of MuJoCo simulations (dualtwin.rl.vector_env):
+# gym.make_vec(id, num_envs=N) then uses it (vectorization_mode="sync" still gives N separate envs).
+VECTOR_ENTRY_POINT = "dualtwin.rl.vector_env:TwinVectorEnv"
+VECTOR_ENV_IDS = ("dualtwin/CartPole-MuJoCo-v0", "dualtwin/CartPole-MuJoCo-Continuous-v0")
 # Episode caps (control periods) of ids that do not use DEFAULT_MAX_EPISODE_STEPS. 250 x 32 ms = 8 s: the
 # farthest goal (2.5 m) behind the robot takes about 5 s at full wheel speed (half a turn in place, then 2.5 m).
 MAX_EPISODE_STEPS: dict[str, int] = {"dualtwin/Pioneer-DriveToGoal-MuJoCo-v0": 250,
@@ -57,7 +61,8 @@ def register_envs() -> list[str]:
         if env_id not in gym.registry:
             gym.register(id=env_id, entry_point=ENTRY_POINT,
                          max_episode_steps=MAX_EPISODE_STEPS.get(env_id, DEFAULT_MAX_EPISODE_STEPS),
-                         kwargs=dict(kwargs))
+                         kwargs=dict(kwargs),
+                         vector_entry_point=VECTOR_ENTRY_POINT if env_id in VECTOR_ENV_IDS else None)
             added.append(env_id)
     return added
 

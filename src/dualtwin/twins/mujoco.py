@@ -177,7 +177,6 @@ class MuJoCoTwin(Twin):
             self._friction_box.step if self._friction_box else mujoco.mj_step)
         self.reset()
 
-    # ---------------------------------------------------------------- set-up
     def _id(self, kind: mujoco.mjtObj, name: str, label: str) -> int:
         resolved = self._aliases.get(name, name)
         index = mujoco.mj_name2id(self.model, kind, resolved)
@@ -359,32 +358,34 @@ class MuJoCoTwin(Twin):
     def _set_servo(self, motor: _Motor) -> None:
         """Servo mode: ctrl is the explicit torque ``kv (u - qdot)``, and ``dt·kv`` of armature makes it implicit
         (the native law adds it inside the step: nothing to do)."""
+        self._set_torque(motor, None)
+
+    def _set_torque(self, motor: _Motor, torque: float | None) -> None:  # None: servo mode (see _set_servo)
         m = self.model
         if motor.plugin >= 0:
             return
         m.actuator_gainprm[motor.index, 0] = 1.0
         m.actuator_biastype[motor.index] = mujoco.mjtBias.mjBIAS_NONE
         m.actuator_biasprm[motor.index, :3] = 0.0
-        m.dof_armature[motor.dof] = self._armature[motor.dof] + motor.kv * m.opt.timestep
+        m.dof_armature[motor.dof] = self._armature[motor.dof] + (motor.kv * m.opt.timestep if torque is None else 0.0)
+        if torque is not None:
+            self.data.ctrl[motor.index] = torque
 
-    def _set_torque(self, motor: _Motor, torque: float) -> None:
-        m = self.model
-        if motor.plugin >= 0:
-            return
-        m.actuator_gainprm[motor.index, 0] = 1.0
-        m.actuator_biastype[motor.index] = mujoco.mjtBias.mjBIAS_NONE
-        m.actuator_biasprm[motor.index, :3] = 0.0
-        m.dof_armature[motor.dof] = self._armature[motor.dof]
-        self.data.ctrl[motor.index] = torque
-
-    def step(self) -> None:
-        m, d = self.model, self.data
-        self._period_start = d.time
+    def start_period(self) -> None:
+        """step() but its physics and stability check (:meth:`finish_period`), for a caller that batches."""
+        self._period_start = self.data.time
         if self._pending or self._delayed_sensors:
             self._before_step()
         # mj_step computes poses and sensors before it integrates: afterwards they describe the state one
         # physics step ago (see refresh).
         self._poses_current = False
+
+    def finish_period(self, bad_state: bool) -> None:
+        self._check_stable(bad_state)
+
+    def step(self) -> None:
+        m, d = self.model, self.data
+        self.start_period()
         servos = [] if self.native_law else [mo for mo in self._motors if not mo.state.torque_mode]
         if not servos:
             if self._friction_box is None:
@@ -453,7 +454,7 @@ class MuJoCoTwin(Twin):
                 mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)]
         return counters[0].number + counters[1].number + counters[2].number
 
-    def _check_stable(self) -> None:
+    def _check_stable(self, bad_state: bool | None = None) -> None:
         d = self.data
         if d.time > self._period_start + (self._substeps - 0.5) * self.model.opt.timestep and not (
                 self.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_AUTORESET):
@@ -461,8 +462,10 @@ class MuJoCoTwin(Twin):
             # none leaves finite values: a period that ended on time was stable (the cheap test, every period).
             return
         warnings = self._bad_state_warnings()
+        if bad_state is None:
+            bad_state = warnings != self._bad_state
         # One finiteness test for both vectors (a NaN or infinity anywhere makes the sum of squares non-finite).
-        if warnings != self._bad_state or not math.isfinite(np.dot(d.qpos, d.qpos) + np.dot(d.qvel, d.qvel)):
+        if bad_state or not math.isfinite(np.dot(d.qpos, d.qpos) + np.dot(d.qvel, d.qvel)):
             self._bad_state = warnings
             raise SimulationUnstable(f"MuJoCo twin became numerically unstable (MuJoCo warning: "
                                      f"bad qpos, qvel or qacc) within the period ending near t = {d.time:.3f} s")
