@@ -105,3 +105,18 @@ def test_a_procedural_proto_follows_its_is_links_and_says_a_template_field_is_no
     err = capsys.readouterr().err
     assert "'length' is read by the template of procedural PROTO Bar" in err and err.count("\n") == 1
     assert bar.getField("length").getSFFloat() == 0.5
+
+
+def test_simulation_reset_restores_a_proto_field_with_the_nodes_it_feeds() -> None:
+    sup = _supervisor(f"Robot {{ supervisor TRUE children [ {_sensors(0)} ] }}\nDEF SLAB Slab {{ place 1 0 0 }}\n")
+    sensor = sup.getDevice("s0")
+    sensor.enable(STEP)
+    extent = sup.getFromDef("SLAB").getField("extent")
+    extent.setSFVec3f([0.6, 0.2, 0.2])
+    sup.step(STEP)
+    assert sensor.getValue() == pytest.approx(0.7)
+    sup.simulationReset()
+    sup.step(STEP)
+    sup.step(STEP)
+    assert sensor.getValue() == pytest.approx(0.9)
+    assert extent.getSFVec3f() == [0.2, 0.2, 0.2]  # the interface value is reset too, not only the Box

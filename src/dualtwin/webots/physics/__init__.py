@@ -218,19 +218,25 @@ class Simulation(Stepper):
 
     # ------------------------------------------------------------------ snapshot / restore of fields
 
-    def _snapshot_fields(self) -> list[tuple[Node, dict[str, Any]]]:
+    def _snapshot_fields(self) -> list[tuple[Node, dict[str, Any], dict[str, Any] | None]]:
+        def copied(values: dict[str, Any]) -> dict[str, Any]:
+            return {k: (list(v) if isinstance(v, list) else v) for k, v in values.items()}
+
         snap = []
         for top in self.world.nodes:
             for node in top.walk():
-                snap.append(
-                    (node, {k: (list(v) if isinstance(v, list) else v) for k, v in node.fields.items()})
-                )
+                interface = None if node.proto_fields is None else copied(node.proto_fields)
+                snap.append((node, copied(node.fields), interface))
         return snap
 
     def _restore_fields(self) -> None:
-        for node, values in self._snapshot:
+        for node, values, interface in self._snapshot:
             node.fields.clear()
             node.fields.update({k: (list(v) if isinstance(v, list) else v) for k, v in values.items()})
+            if interface is not None and node.proto_fields is not None:
+                # a PROTO instance's fields are restored with the nodes they feed (Webots resets every field)
+                node.proto_fields.clear()
+                node.proto_fields.update({k: (list(v) if isinstance(v, list) else v) for k, v in interface.items()})
 
     # ------------------------------------------------------------------ build
 

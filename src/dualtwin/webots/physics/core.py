@@ -85,7 +85,7 @@ class SimulationCore:
     world_damping: tuple[float, float]
     random_seed: int
     contact_properties: list[Node]
-    _snapshot: list[tuple[Node, dict[str, Any]]]
+    _snapshot: list[tuple[Node, dict[str, Any], dict[str, Any] | None]]  # node, fields, PROTO interface
     # created by the build (_build, _categories, _init_contacts, _prepare_step_lists)
     _world: Any
     _space: Any
