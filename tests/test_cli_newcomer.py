@@ -142,3 +142,46 @@ def test_deploy_has_a_json_flag(capsys: pytest.CaptureFixture[str], monkeypatch:
     monkeypatch.setenv("COLUMNS", "250")
     assert main(["deploy", "--help"]) == 0
     assert "--json" in capsys.readouterr().out
+
+
+@pytest.fixture(scope="module")
+def paired_runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """The same logs imported as a cartpole run and as a cartpole_paper run (seconds, no simulation)."""
+    from tests.recorded.test_data_evidence import SUITE, write_logs
+
+    root = tmp_path_factory.mktemp("pairs")
+    logs = write_logs(root / "logs", [0.0] * 6, [0.0] * 6)
+    runs = {}
+    for robot in ("cartpole", "cartpole_paper"):
+        runs[robot] = root / robot
+        assert main(["import", "paper", str(logs), "--scenarios", str(SUITE), "--robot", robot,
+                     "--out", str(runs[robot])]) == 0
+    runs["logs"] = logs
+    return runs
+
+
+WRONG_PAIRINGS = {
+    "suite run: another robot's suite": (["suite", "run", "--twin", "mujoco", "--robot", "cartpole",
+                                          "--scenarios", "arm"], "arm"),
+    "lockstep: another robot's suite": (["lockstep", "--reference", "webots", "--target", "mujoco", "--robot",
+                                         "cartpole", "--scenarios", "arm"], "arm"),
+    "import paper: a robot without the paper's channels": (["import", "paper", "{logs}", "--scenarios", "cartpole",
+                                                            "--robot", "arm"], "arm"),
+    "compare: runs of two robots": (["compare", "--reference-run", "{cartpole}", "--target-run",
+                                     "{cartpole_paper}"], "cartpole_paper"),
+    "analyze: runs of two robots": (["analyze", "--reference-run", "{cartpole}", "--target-run",
+                                     "{cartpole_paper}"], "cartpole_paper"),
+}
+
+
+@pytest.mark.parametrize("name", list(WRONG_PAIRINGS))
+def test_a_wrong_pairing_is_one_line_and_leaves_nothing(name: str, paired_runs: dict[str, Path], tmp_path: Path,
+                                                         capsys: pytest.CaptureFixture[str]) -> None:
+    argv, named = WRONG_PAIRINGS[name]
+    out = tmp_path / "out"
+    argv = [a.format(**{k: str(v) for k, v in paired_runs.items()}) for a in argv] + ["--out", str(out)]
+    capsys.readouterr()
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and named in err[0], err
+    assert not out.exists()
