@@ -31,6 +31,10 @@ from dualtwin.parallel import ExecutorKind
 
 Optimizer = Literal["cma", "lsq"]
 Objective = Literal["trajectory", "prediction"]
+GlobalSearch = Literal["multistart", "off"]
+#: Fields added after folders were written without them: left out of the saved config while at their default,
+#: so those folders stay resumable and a run that does not use them writes the same bytes as before.
+LATER_FIELDS = frozenset({"global_search", "starts", "tie", "sysid_params"})
 #: Horizons of the prediction objective: 1 and 5 periods stay smooth in the knobs; 25 periods already cross
 #: impacts (a pole landing on its stop) and make the residual as rough as an open-loop one.
 OBJECTIVE_HORIZONS = (1, 5)
@@ -76,6 +80,15 @@ class AlignConfig(FrozenModel):
     fd_step: float = Field(default=0.03, gt=0, lt=0.5, description="finite-difference step, normalised units")
     lsq_max_iter: int = Field(default=50, ge=1, description="least-squares iterations per start")
     lsq_restarts: int = Field(default=3, ge=0, description="restarts from a better neighbour after a stall")
+    global_search: GlobalSearch = Field(
+        default="multistart", description="least squares: find the basin first (a Sobol screen of the knob box, "
+        "then polish the best distinct starts) or polish from the start point only (off)")
+    starts: int = Field(default=0, ge=0, description="points of the basin screen (0: max(8, 4 per knob), at most "
+                        "a quarter of the budget)")
+    tie: list[str] = Field(default_factory=list, description="globs of knobs fitted as one shared value (e.g. "
+                           "'motor.*.gain')")
+    sysid_params: str = Field(default="", description="a mujoco.sysid parameter file (YAML) whose parameters, "
+                              "named as knobs, add to --knobs with their bounds", json_schema_extra={"path": True})
     executor: ExecutorKind = Field(default="process", description="where candidates are simulated")
     workers: int = Field(default=2, ge=1, description="process-pool size")
     ray_address: str | None = Field(default=None, description="Ray cluster address, with --executor ray")
@@ -106,6 +119,8 @@ class AlignConfig(FrozenModel):
 
     def saved_json(self) -> str:
         exclude = set(PREDICTION_FIELDS) if self.objective == "trajectory" else set()
+        exclude |= {name for name in LATER_FIELDS
+                    if getattr(self, name) == AlignConfig.model_fields[name].get_default(call_default_factory=True)}
         return self.model_dump_json(exclude=exclude)
 
     def digest(self) -> str:

@@ -56,6 +56,11 @@ the twin rounds. Both optimisers first try every integer in their bounds and sta
 squares then holds it while it fits the continuous knobs, CMA-ES moves it in rounded steps. Knobs whose
 bounds span a factor of 50 or more above zero (masses, velocity limits, contact time constants) are searched
 in log space.
+
+Tied knobs: a glob given to ``tie`` (``motor.*.gain``) turns the selected knobs it matches into one knob named
+by the glob, whose single value every member takes. Four wheel gains that the suite can only see as one
+number are then fitted as one number, instead of four values fighting along a flat valley. The tied knob's
+bounds are the intersection of its members' bounds and its nominal value their mean.
 """
 
 from __future__ import annotations
@@ -89,6 +94,14 @@ class KnobSpec:
     description: str = ""
     scale: Literal["linear", "log"] = "linear"
     integer: bool = False
+    #: The knobs that take this knob's value (a tied knob, named by its glob); () for an ordinary knob.
+    members: tuple[str, ...] = ()
+    #: The members' own nominal values (same order).
+    member_nominals: tuple[float, ...] = ()
+
+    def names(self) -> tuple[str, ...]:
+        """The twin knobs this knob sets: its members when tied, else itself."""
+        return self.members or (self.name,)
 
     def to_unit(self, value: float) -> float:
         """Map a physical value into ``[0, 1]`` (clipped)."""
@@ -125,8 +138,11 @@ class KnobSpec:
         return None
 
     def to_dict(self) -> dict[str, object]:
-        return {"name": self.name, "nominal": self.nominal, "lower": self.lower, "upper": self.upper,
-                "unit": self.unit, "scale": self.scale, "integer": self.integer}
+        out: dict[str, object] = {"name": self.name, "nominal": self.nominal, "lower": self.lower,
+                                  "upper": self.upper, "unit": self.unit, "scale": self.scale, "integer": self.integer}
+        if self.members:
+            out["tied"] = list(self.members)
+        return out
 
 
 def _is_glob(pattern: str) -> bool:
@@ -235,10 +251,73 @@ def check_values(available: Mapping[str, Knob], values: Mapping[str, float], whe
 
 
 def values_from_unit(specs: Sequence[KnobSpec], u: Sequence[float]) -> dict[str, float]:
-    """Physical knob values for a point of the unit cube."""
-    return {spec.name: spec.from_unit(float(x)) for spec, x in zip(specs, u, strict=True)}
+    """Physical knob values for a point of the unit cube (a tied knob's value given to each member)."""
+    return {name: spec.from_unit(float(x)) for spec, x in zip(specs, u, strict=True) for name in spec.names()}
+
+
+def spec_value(spec: KnobSpec, values: Mapping[str, float]) -> float:
+    """``spec``'s value in ``values`` (by its name, else the mean of its members given there), else nominal."""
+    if spec.name in values:
+        return float(values[spec.name])
+    given = [float(values[m]) for m in spec.members if m in values]
+    return sum(given) / len(given) if given else spec.nominal
 
 
 def unit_from_values(specs: Sequence[KnobSpec], values: Mapping[str, float]) -> list[float]:
     """Unit-cube point of knob values (nominal for knobs not given)."""
-    return [spec.to_unit(values.get(spec.name, spec.nominal)) for spec in specs]
+    return [spec.to_unit(spec_value(spec, values)) for spec in specs]
+
+
+def tie_knobs(specs: Sequence[KnobSpec], patterns: Sequence[str], where: str = "") -> list[KnobSpec]:
+    """``specs`` with the knobs each glob of ``patterns`` matches replaced by one tied knob (at the first one's place).
+
+    Raises:
+        DualtwinError: A pattern matching fewer than two selected knobs, knobs of different units or kinds
+            (integer and continuous), members whose bounds do not overlap, or a knob claimed by two patterns.
+    """
+    prefix = f"{where}: " if where else ""
+    out = list(specs)
+    claimed: dict[str, str] = {}
+    for pattern in patterns:
+        group = [s for s in out if not s.members and (s.name == pattern or fnmatch.fnmatchcase(s.name, pattern))]
+        if len(group) < 2:
+            taken = [n for n, p in claimed.items() if fnmatch.fnmatchcase(n, pattern)]
+            why = f" (already tied by {claimed[taken[0]]!r})" if taken else ""
+            raise DualtwinError(f"{prefix}tie {pattern!r} matches {len(group)} of the selected knobs{why}; a tie "
+                                f"needs at least two (selected: {', '.join(s.name for s in out)})")
+        if len({(s.unit, s.integer) for s in group}) > 1:
+            raise DualtwinError(f"{prefix}tie {pattern!r} groups knobs of different units: "
+                                + ", ".join(f"{s.name} [{s.unit or '-'}]" for s in group))
+        lower, upper = max(s.lower for s in group), min(s.upper for s in group)
+        nominal = sum(s.nominal for s in group) / len(group)
+        if not lower < upper:
+            raise DualtwinError(f"{prefix}tie {pattern!r}: the members' bounds do not overlap "
+                                f"([{lower:g}, {upper:g}]); give common bounds with bounds {pattern}=LOW,HIGH")
+        nominal = min(upper, max(lower, nominal))
+        tied = KnobSpec(pattern, nominal, lower, upper, group[0].unit, f"one value shared by {len(group)} knobs",
+                        _scale_for(lower, upper, group[0].integer), group[0].integer,
+                        tuple(s.name for s in group), tuple(s.nominal for s in group))
+        for s in group:
+            claimed[s.name] = pattern
+        first = out.index(group[0])
+        out = [s for s in out if s not in group]
+        out.insert(first, tied)
+    return out
+
+
+def expand_ties(specs: Sequence[KnobSpec]) -> tuple[list[KnobSpec], list[int]]:
+    """One spec per twin knob (a tied knob's members take its bounds and scale, keep their own nominal), and for
+    each the index of the spec it came from, so unit points, intervals and records map onto the twin's knobs."""
+    out: list[KnobSpec] = []
+    column: list[int] = []
+    for i, spec in enumerate(specs):
+        if not spec.members:
+            out.append(spec)
+            column.append(i)
+            continue
+        for name, nominal in zip(spec.members, spec.member_nominals or [spec.nominal] * len(spec.members),
+                                 strict=True):
+            out.append(KnobSpec(name, nominal, spec.lower, spec.upper, spec.unit, f"tied: {spec.name}",
+                                spec.scale, spec.integer))
+            column.append(i)
+    return out, column

@@ -288,6 +288,37 @@ def residual_size(spec: ObjectiveSpec) -> int:
     return n
 
 
+@dataclass(frozen=True)
+class ResidualBlock:
+    """A stretch ``[start, stop)`` of the residual vector: one channel's samples in one scenario (``series``),
+    or that scenario's scalar event, end-time and stability terms (``scalar``)."""
+
+    scenario: str
+    channel: str | None
+    start: int
+    stop: int
+    kind: str
+
+
+def residual_layout(spec: ObjectiveSpec) -> list[ResidualBlock]:
+    """Where each scenario's and channel's residuals lie in `residuals` (same order), so interval estimates can
+    treat a time series as one autocorrelated block and the identifiability check can look per scenario."""
+    out: list[ResidualBlock] = []
+    n = 0
+    for sid in spec.scenarios:
+        ref = spec.reference[sid]
+        for name in spec.channels:
+            size = finite_prefix(ref.series[name].t, ref.series[name].y)[0].size
+            out.append(ResidualBlock(sid, name, n, n + size, "series"))
+            n += size
+            if name in spec.thresholds:
+                out.append(ResidualBlock(sid, name, n, n + 1, "scalar"))
+                n += 1
+        out.append(ResidualBlock(sid, None, n, n + 2, "scalar"))
+        n += 2
+    return out
+
+
 def residuals(spec: ObjectiveSpec, candidate: Mapping[str, ScenarioTrace]) -> FloatArray:
     """Fixed-length residual vector for least squares; its squared norm is comparable to a mean squared error."""
     w = spec.weights

@@ -16,7 +16,11 @@ Both see an objective only through the problem protocol, so every objective is f
 * ``optimizer="lsq"`` (:func:`fit_lsq`): ``mujoco.minimize.least_squares`` (bounded Levenberg-Marquardt with
   a finite-difference Jacobian whose perturbed points are simulated in parallel) on the residual vector.
   When it stops, the points four finite-difference steps away along each knob are tried, and the fit
-  restarts from a better one (``lsq_restarts`` times at most). Integer knobs (delays, physics sub-steps)
+  restarts from a better one (``lsq_restarts`` times at most). Before it, ``global_search="multistart"`` (the
+  default) finds the basin: a scrambled Sobol screen of the knob box, simulated as one batch, gives up to two
+  distinct starts that beat the given one; each start (and the given one) is polished with its share of the
+  budget, and the best end wins. The stop reason says how many points were screened and which start won: a
+  fit that ends in a valley while the truth scores better elsewhere is what this prevents. Integer knobs (delays, physics sub-steps)
   have no derivative: each is first set to its best value by simulating every integer in its bounds, then
   held while least squares fits the continuous knobs.
   ``mujoco.sysid`` is not used, even when it is installed: it computes residuals with ``mujoco.rollout``
@@ -45,7 +49,15 @@ import cma
 import numpy as np
 
 from dualtwin.align.config import AlignConfig
-from dualtwin.align.core import GenerationInfo, Outcome, Point, Problem, residual_norm, screen_integers
+from dualtwin.align.core import (
+    GenerationInfo,
+    Outcome,
+    Point,
+    Problem,
+    fd_jacobian,
+    residual_norm,
+    screen_integers,
+)
 from dualtwin.artifacts import write_json
 from dualtwin.errors import DualtwinError
 from dualtwin.suite.loader import read_json
@@ -260,9 +272,11 @@ def fit_lsq(problem: Problem, config: AlignConfig, out_dir: Path, x0: Sequence[f
             full[i] = min(1.0, max(0.0, float(x[j])))
         return full
 
+    limit = config.budget  # the evaluation count a polish may reach (each start of several gets its share)
+
     def residual(x: np.ndarray) -> np.ndarray:
         columns = [expand(x[:, j]) for j in range(x.shape[1])]
-        if problem.evaluations + len(columns) > config.budget:
+        if problem.evaluations + len(columns) > limit:
             raise BudgetExhausted
         points = problem.run(columns)
         for p in points:
@@ -303,7 +317,7 @@ def fit_lsq(problem: Problem, config: AlignConfig, out_dir: Path, x0: Sequence[f
                 final = [line for line in output.getvalue().splitlines() if line.startswith("Terminated after")]
                 reason = final[-1].split(": ", 1)[-1].split(" y:")[0] if final else "done"
             except BudgetExhausted:
-                best = min(seen.values(), key=residual_norm, default=None)
+                best = min((q for q in seen.values() if _near(q.u, held, free)), key=residual_norm, default=None)
                 u = best.u if best is not None else u
                 return u, f"budget ({problem.evaluations} of {config.budget} evaluations used)", restarts, True
             # Rough residuals (impacts sampled once per control period) can trap a Gauss-Newton step in a dent:
@@ -311,7 +325,7 @@ def fit_lsq(problem: Problem, config: AlignConfig, out_dir: Path, x0: Sequence[f
             kick = 4 * config.fd_step
             probes = [p for i in free for p in (
                 [*u[:i], min(1.0, u[i] + kick), *u[i + 1:]], [*u[:i], max(0.0, u[i] - kick), *u[i + 1:]]) if p != u]
-            if attempt == config.lsq_restarts or not probes or problem.evaluations + len(probes) + 1 > config.budget:
+            if attempt == config.lsq_restarts or not probes or problem.evaluations + len(probes) + 1 > limit:
                 break
             here = seen.get(tuple(u)) or problem.run([u])[0]
             scored = problem.run(probes)
@@ -324,25 +338,122 @@ def fit_lsq(problem: Problem, config: AlignConfig, out_dir: Path, x0: Sequence[f
             restarts += 1
         return u, reason, restarts, False
 
+    def polish(u: list[float]) -> tuple[list[float], str, int, bool]:
+        """One start: least squares, then (with integer knobs) re-screen the integers and refit until they settle."""
+        u, reason, restarts, spent = fit_continuous(u)
+        # Integer and continuous knobs can stand in for each other (a coarser step for less damping): screen the
+        # integers again at the fitted values and refit until they settle.
+        for _ in range(LSQ_INTEGER_ROUNDS):
+            if not integer or spent:
+                break
+            again = screen_integers(problem, u, integer, limit, residual_norm)
+            if again == u:
+                break
+            u, reason, more, spent = fit_continuous(again)
+            restarts += more
+        if restarts:
+            reason += f" (after {restarts} restart{'s' if restarts > 1 else ''} from a better neighbour)"
+        return u, reason, restarts, spent
+
     u = list(start)
     if not free:
         return Outcome(u, 0, "integer knobs screened; no continuous knob to fit", trace)
-    u, reason, restarts, spent = fit_continuous(u)
-    # Integer and continuous knobs can stand in for each other (a coarser step for less damping): screen the
-    # integers again at the fitted values and refit until they settle.
-    for _ in range(LSQ_INTEGER_ROUNDS):
-        if not integer or spent:
+    starts, screened = [u], 0
+    if config.global_search == "multistart" and not trace:
+        starts, screened = basin_starts(problem, config, u, free)
+    results: list[tuple[list[float], str, float]] = []
+    for n, begin in enumerate(starts):
+        # Each remaining start gets an equal share of what is left, so the last one is not starved.
+        limit = problem.evaluations + (config.budget - problem.evaluations) // (len(starts) - n)
+        end, reason, _, _ = polish(list(begin))
+        point = seen.get(tuple(end)) or problem.run([end])[0]
+        results.append((end, reason, residual_norm(point)))
+        if problem.evaluations >= config.budget - len(free) - 1:
             break
-        again = screen_integers(problem, u, integer, config.budget, residual_norm)
-        if again == u:
-            break
-        u, reason, more, spent = fit_continuous(again)
-        restarts += more
-    if restarts:
-        reason += f" (after {restarts} restart{'s' if restarts > 1 else ''} from a better neighbour)"
-    iterations = len(trace)
-    return Outcome(u, iterations, reason, trace)
+    best_i = min(range(len(results)), key=lambda j: results[j][2])
+    u, reason, _ = results[best_i]
+    steps = gauss_newton_polish(problem, u, free, config)
+    if steps[1]:
+        u = steps[0]
+        reason += f"; {steps[1]} central-difference Gauss-Newton step{'s' if steps[1] > 1 else ''}"
+    if screened:
+        beat = f"{len(starts) - 1} beat the start" if len(starts) > 1 else "none beat the start"
+        reason = (f"basin search: {screened} points screened ({beat}), {len(results)} start"
+                  f"{'s' if len(results) > 1 else ''} polished, start {best_i + 1} best; least squares: {reason}")
+    return Outcome(u, len(trace), reason, trace)
 
+
+#: Gauss-Newton steps with a central-difference Jacobian after least squares (each costs 2·knobs + 2 runs).
+POLISH_STEPS = 2
+
+
+def gauss_newton_polish(problem: Problem, u: list[float], free: Sequence[int], config: AlignConfig
+                        ) -> tuple[list[float], int]:
+    """Full and half Gauss-Newton steps from ``u`` with a central-difference Jacobian, kept while they lower the
+    residual norm (within the budget). Least squares stops where the *forward*-difference gradient vanishes,
+    which at a 3 % step is not where the true gradient does; this moves the end to the true minimum."""
+    taken = 0
+    for _ in range(POLISH_STEPS):
+        if problem.evaluations + 2 * len(free) + 3 > config.budget:
+            break
+        jac, r0 = fd_jacobian(problem, u, config.fd_step, free, central=True)
+        delta, *_ = np.linalg.lstsq(jac, -r0, rcond=1e-10)
+        tries = []
+        for scale in (1.0, 0.5):
+            p = list(u)
+            for j, i in enumerate(free):
+                p[i] = min(1.0, max(0.0, u[i] + scale * float(delta[j])))
+            tries.append(p)
+        here = float(r0 @ r0)
+        best = min(problem.run(tries), key=residual_norm)
+        if residual_norm(best) >= here * (1 - 1e-9):
+            break
+        u, taken = best.u, taken + 1
+    return u, taken
+
+
+def _near(a: Sequence[float], b: Sequence[float], free: Sequence[int]) -> bool:
+    """Same held (integer) coordinates: a point least squares could have reached from ``b``."""
+    return all(a[i] == b[i] for i in range(len(a)) if i not in free)
+
+
+#: Distinct starts polished after the basin screen (besides the given start), at least this far apart (unit cube).
+POLISH_STARTS = 2
+START_SEPARATION = 0.15
+
+
+def basin_starts(problem: Problem, config: AlignConfig, u: Sequence[float], free: Sequence[int]
+                 ) -> tuple[list[list[float]], int]:
+    """Find the basin before polishing: a scrambled Sobol screen of the continuous knobs (one batch), and the
+    starts worth polishing, best first: the screen's best points that beat the given start, spread at least
+    :data:`START_SEPARATION` apart, then the given start itself.
+
+    The screen's size is ``config.starts`` (0: ``max(8, 4·knobs)``, at most a quarter of the budget).
+    """
+    from scipy.stats import qmc
+
+    size = min(config.starts or max(8, 4 * len(free)), max(0, config.budget // 4 - 1))
+    if size < 2:
+        return [list(u)], 0
+    # Sobol points keep their balance in powers of two.
+    exponent = int(math.log2(size))
+    size = 2 ** exponent
+    sample = qmc.Sobol(len(free), scramble=True, seed=config.seed).random_base2(exponent)
+    points = []
+    for row in sample:
+        p = list(u)
+        for j, i in enumerate(free):
+            p[i] = float(row[j])
+        points.append(p)
+    scored = problem.run([list(u), *points])
+    here, rest = residual_norm(scored[0]), sorted(scored[1:], key=residual_norm)
+    chosen: list[list[float]] = []
+    for q in rest:
+        if residual_norm(q) >= here or len(chosen) >= POLISH_STARTS:
+            break
+        if all(max(abs(q.u[i] - c[i]) for i in free) > START_SEPARATION for c in [list(u), *chosen]):
+            chosen.append(q.u)
+    return [*chosen, list(u)], size
 
 
 def mujoco_module(name: str) -> Any:

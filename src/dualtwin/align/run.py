@@ -23,16 +23,27 @@ from typing import Literal
 from dualtwin.align import nuisance
 from dualtwin.align.analyze import ProposeFn, analyze_runs
 from dualtwin.align.config import PREDICTION_FIELDS, AlignConfig
-from dualtwin.align.core import GenerationInfo, Point, estimate_uncertainty, residual_norm
+from dualtwin.align.core import GenerationInfo, Point, fd_jacobian, residual_norm
 from dualtwin.align.dr import ranges_from_intervals, ranges_from_population
 from dualtwin.align.ensemble import EnsembleProblem
-from dualtwin.align.knobs import check_values, select_knobs, unit_from_values, values_from_unit
+from dualtwin.align.identifiability import Identifiability, check
+from dualtwin.align.intervals import estimate_intervals
+from dualtwin.align.knobs import (
+    check_values,
+    expand_ties,
+    select_knobs,
+    tie_knobs,
+    unit_from_values,
+    values_from_unit,
+)
 from dualtwin.align.objective import ObjectiveWeights, build_spec, mean_trace
 from dualtwin.align.optimize import fit_cma, fit_lsq
 from dualtwin.align.propose import ProposalOutcome, try_proposals
 from dualtwin.align.reference import ensemble_members_of, shared_with_reference
 from dualtwin.align.report import write_align_report
 from dualtwin.align.simulate import Evaluator, SimJob, check_executor, load_member_traces, load_traces
+from dualtwin.align.stuck import stuck_advice
+from dualtwin.align.sysid_io import read_sysid_params, write_sysid_params
 from dualtwin.align.trajectory import TrajectoryProblem
 from dualtwin.align.writers import (
     AlignResult,
@@ -181,7 +192,13 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
         # Physics knobs of the target twin, and nuisance knobs (initial conditions, time offsets) of the
         # fitted scenarios; `nuisance` explains why the two are kept apart.
         registry = {**target.knobs(), **nuisance.registry(suite, binding, fitted_ids)}
-        specs = select_knobs(registry, list(config.knobs), config.bounds, where=f"twin {config.target!r}")
+        patterns, bounds = list(config.knobs), dict(config.bounds)
+        if config.sysid_params:
+            sysid_names, sysid_bounds = read_sysid_params(Path(config.sysid_params))
+            patterns += [n for n in sysid_names if n not in patterns]
+            bounds = {**sysid_bounds, **bounds}  # bounds given to align win over the file's
+        specs = select_knobs(registry, patterns, bounds, where=f"twin {config.target!r}")
+        specs = tie_knobs(specs, config.tie, where=f"twin {config.target!r}")
 
         # Output folder: fresh, or the same configuration when resuming.
         config_path = out_dir / "align_config.json"
@@ -234,6 +251,8 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
             problem.calibrate(before)
             analysis_before = analyze_runs(ref_dir, before_dir, thresholds=thresholds)
             x0, f0 = nominal_u, before.train
+            # Identifiability before the fit, from the suite and the knobs alone: one batch of perturbed runs.
+            identifiability = identify(problem, nominal_u, config.fd_step)
             proposals: list[ProposalOutcome] = []
             if propose_fn is not None:
                 proposals = try_proposals(propose_fn, analysis_before, specs, before.train, problem.run_values)
@@ -253,10 +272,13 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
                 # Never hand back something worse than where we started.
                 outcome.u, after = nominal_u, before
                 warnings.append("no knob setting beat the nominal twin; the fitted values are the nominal ones")
-            uncertainty = estimate_uncertainty(problem, outcome.u, config.fd_step)
+            uncertainty = estimate_intervals(problem, outcome.u, config.fd_step)
         fitted, fitted_nuisance = nuisance.split(values_from_unit(specs, outcome.u))
         warnings += uncertainty.warnings
-        all_fits, bound_warnings = fit_records(specs, {**fitted, **fitted_nuisance}, uncertainty.half_widths)
+        warnings += [f"after the fit, {a} and {b} are correlated (r = {e['r']:+.3f}): the data fix a combination of "
+                     "them, not each" for e in uncertainty.correlated for a, b in [e["knobs"]]]
+        all_fits, bound_warnings = fit_records(specs, {**fitted, **fitted_nuisance}, uncertainty.half_widths,
+                                               uncertainty)
         knob_fits = {n: k for n, k in all_fits.items() if not nuisance.is_nuisance(n)}
         nuisance_fits = {n: k for n, k in all_fits.items() if nuisance.is_nuisance(n)}
         warnings += bound_warnings
@@ -276,6 +298,8 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
         after_dir = run_suite(after_suite, config.target, binding, out_dir / "runs" / "after", sim_seed, target,
                                fitted, False)
         analysis_after = analyze_runs(ref_dir, after_dir, thresholds=thresholds)
+        advice = stuck_advice(criterion(before), criterion(after), knob_fits, analysis_before, ref_dir)
+        warnings += advice
     finally:
         target.close()
 
@@ -283,24 +307,31 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
                              "before": "runs/before", "after": "runs/after"}
     write_knobs(out_dir, files, config.target, binding.name, optimizer, fitted, knob_fits)
 
+    flat, column = expand_ties(specs)
     if optimizer == "cma" and outcome.population:
-        ranges = ranges_from_population(specs, outcome.population, config.dr_top_fraction)
+        population = [([u[c] for c in column], f) for u, f in outcome.population]
+        ranges = ranges_from_population(flat, population, config.dr_top_fraction)
         source = "cma-population"
     else:
-        ranges = ranges_from_intervals([s for s in specs if not nuisance.is_nuisance(s.name)], fitted,
-                                       uncertainty.half_widths)
+        flat_half = {s.name: uncertainty.half_widths.get(specs[c].name) for s, c in zip(flat, column, strict=True)}
+        ranges = ranges_from_intervals([s for s in flat if not nuisance.is_nuisance(s.name)], fitted, flat_half)
         source = "lsq-interval" if optimizer == "lsq" else "jacobian-interval"
-    physics_specs = [s for s in specs if not nuisance.is_nuisance(s.name)]
+    physics_specs = [s for s in flat if not nuisance.is_nuisance(s.name)]
     ranges = {k: v for k, v in ranges.items() if not nuisance.is_nuisance(k)}
     write_dr_ranges(out_dir, files, physics_specs, fitted, ranges, source, config.dr_min_rel_width)
     patch = write_patched_model(out_dir, files, binding, config.target, fitted, period)
+    write_sysid_params(out_dir, files, knob_fits)
     result = AlignResult(
         out_dir=out_dir, optimizer=optimizer, knobs=knob_fits, objective_before=before.train,
         objective_after=after.train, holdout_before=before.holdout, holdout_after=after.holdout,
         residual_before=float(before.residual @ before.residual), residual_after=float(after.residual @ after.residual),
         evaluations=problem.evaluations, iterations=outcome.iterations, wall_time_s=0.0,
         stop_reason=outcome.stop_reason, warnings=warnings, condition_number=uncertainty.condition,
-        files=files, proposals=proposals, nuisance=nuisance_fits, left_out=left)
+        files=files, proposals=proposals, nuisance=nuisance_fits, left_out=left,
+        identifiability={"before": identifiability.to_dict(), "after": {
+            "correlation": uncertainty.correlation, "correlated": uncertainty.correlated,
+            "noise": uncertainty.noise}},
+        advice=advice)
     narrative = getattr(propose_fn, "narrative", None)
     if narrative is not None:
         result.narrative = narrative.to_dict()
@@ -313,3 +344,13 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
     files["record"] = "align_record.json"
     result.wall_time_s = time.perf_counter() - t_start  # printed only: no file of the run folder holds it
     return result
+
+
+def identify(problem: TrajectoryProblem, u: list[float], step: float) -> Identifiability:
+    """The identifiability check at ``u`` (continuous knobs), with each scenario's stretch of the residuals."""
+    cont = [i for i, spec in enumerate(problem.specs) if not spec.integer]
+    jac, _ = fd_jacobian(problem, u, step, cont)
+    blocks: dict[str, list[tuple[int, int]]] = {}
+    for b in problem.residual_blocks():
+        blocks.setdefault(b.scenario, []).append((b.start, b.stop))
+    return check(jac, [problem.specs[i] for i in cont], blocks)

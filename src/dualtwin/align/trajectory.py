@@ -11,7 +11,7 @@ from collections.abc import Mapping, Sequence
 
 from dualtwin.align.core import CachedProblem, Evaluation
 from dualtwin.align.knobs import KnobSpec
-from dualtwin.align.objective import ObjectiveSpec, evaluate, residuals
+from dualtwin.align.objective import ObjectiveSpec, ResidualBlock, evaluate, residual_layout, residuals
 from dualtwin.align.simulate import Evaluator, SimJob, Traces
 
 
@@ -37,3 +37,7 @@ class TrajectoryProblem(CachedProblem):
             holdout = evaluate(self.holdout, traces).total if self.holdout is not None else None
             out.append(Evaluation(train, holdout, residuals(self.train, traces)))
         return out
+
+    def residual_blocks(self) -> list[ResidualBlock]:
+        """The training residuals' layout (scenario and channel per stretch), for intervals and identifiability."""
+        return residual_layout(self.train)

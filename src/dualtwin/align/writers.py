@@ -19,9 +19,9 @@ from rich.markup import escape
 
 from dualtwin.align.analyze import Analysis
 from dualtwin.align.config import AlignConfig
-from dualtwin.align.core import Outcome
+from dualtwin.align.core import Outcome, Uncertainty
 from dualtwin.align.dr import dr_document
-from dualtwin.align.knobs import KnobSpec
+from dualtwin.align.knobs import KnobSpec, expand_ties
 from dualtwin.align.optimize import sysid_status
 from dualtwin.align.patch import PatchResult, patch_mjcf, patch_webots
 from dualtwin.align.propose import ProposalOutcome
@@ -48,10 +48,22 @@ class KnobFit:
     upper: float
     half_width_95: float | None = None
     at_bound: str | None = None
+    #: The 95 % interval (possibly asymmetric; the bounds where the data pin nothing) and the method that gave it.
+    interval_95: tuple[float, float] | None = None
+    method: str | None = None
+    #: The glob this knob is tied by (one value shared with its other members), if any.
+    tied: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        return {"nominal": self.nominal, "fitted": self.fitted, "lower": self.lower, "upper": self.upper,
-                "unit": self.unit, "half_width_95": self.half_width_95, "at_bound": self.at_bound}
+        out: dict[str, Any] = {"nominal": self.nominal, "fitted": self.fitted, "lower": self.lower,
+                               "upper": self.upper, "unit": self.unit, "half_width_95": self.half_width_95,
+                               "at_bound": self.at_bound}
+        if self.method is not None:
+            out["interval_95"] = list(self.interval_95) if self.interval_95 is not None else None
+            out["interval_method"] = self.method
+        if self.tied is not None:
+            out["tied"] = self.tied
+        return out
 
 
 @dataclass
@@ -85,6 +97,11 @@ class AlignResult:
     nuisance: dict[str, KnobFit] = field(default_factory=dict)
     #: Scenarios and channels of the suite or the reference that only one side has, with why (not fitted).
     left_out: dict[str, dict[str, str]] = field(default_factory=dict)
+    #: ``before``: the identifiability check (:mod:`dualtwin.align.identifiability`); ``after``: the correlation
+    #: matrix, the pairs with |r| > 0.9 and the noise estimate.
+    identifiability: dict[str, Any] = field(default_factory=dict)
+    #: When the fit could not move: what the analysis suggests instead (sign flip, carried-over state, ...).
+    advice: list[str] = field(default_factory=list)
 
     @property
     def fitted(self) -> dict[str, float]:
@@ -94,15 +111,22 @@ class AlignResult:
 
 
 def fit_records(specs: Sequence[KnobSpec], fitted: Mapping[str, float],
-                half_widths: Mapping[str, float | None]) -> tuple[dict[str, KnobFit], list[str]]:
-    """Per-knob fit records, and a warning for every knob that left its nominal value to end at a bound."""
+                half_widths: Mapping[str, float | None], unc: Uncertainty | None = None
+                ) -> tuple[dict[str, KnobFit], list[str]]:
+    """Per-knob fit records (one per member of a tied knob), and a warning for every knob that left its nominal
+    value to end at a bound. ``unc`` adds each knob's interval and its method."""
     records: dict[str, KnobFit] = {}
     warnings: list[str] = []
-    for spec in specs:
+    flat, column = expand_ties(specs)
+    for spec, col in zip(flat, column, strict=True):
+        source = specs[col].name
         value = fitted[spec.name]
         bound = spec.at_bound(value)
         records[spec.name] = KnobFit(spec.name, spec.unit, spec.nominal, value, spec.lower, spec.upper,
-                                     half_widths.get(spec.name), bound)
+                                     half_widths.get(source), bound,
+                                     unc.intervals.get(source) if unc is not None else None,
+                                     unc.methods.get(source) if unc is not None else None,
+                                     source if specs[col].members else None)
         if bound is not None and value != spec.nominal:
             edge = spec.lower if bound == "lower" else spec.upper
             warnings.append(f"{spec.name} ended at its {bound} bound ({edge:g}): the best value may lie beyond "
@@ -220,6 +244,7 @@ def trajectory_record(config: AlignConfig, result: AlignResult, outcome: Outcome
             "residual_norm2_before": result.residual_before, "residual_norm2_after": result.residual_after,
             "condition_number": _condition(result.condition_number),
             "stop_reason": result.stop_reason, "warnings": result.warnings,
+            "identifiability": result.identifiability, "advice": result.advice,
         },
         "evaluations": result.evaluations,
         "iterations": result.iterations,
@@ -249,13 +274,19 @@ def print_result(result: AlignResult, console: Console) -> None:
                       f"{result.holdout_after:.4g}")
     from dualtwin.reporting import Column, print_table
 
-    columns = [Column("knob", False), Column("nominal"), Column("fitted"), Column("± 95 %"), Column("unit", False),
-               Column("note", False)]
+    before = result.identifiability.get("before", {})
+    for line in before.get("advice", []):
+        console.print(f"[yellow]identifiability (before the fit):[/] {escape(line)}")
+    columns = [Column("knob", False), Column("nominal"), Column("fitted"), Column("± 95 %"),
+               Column("95 % interval", False), Column("method", False), Column("unit", False), Column("note", False)]
 
     def knob_rows(knobs: Mapping[str, KnobFit]) -> list[list[str]]:
         return [[k.name, f"{k.nominal:.5g}", f"{k.fitted:.5g}",
-                 f"{k.half_width_95:.2g}" if k.half_width_95 is not None else "–", k.unit,
-                 f"at {k.at_bound} bound" if k.at_bound else ""] for k in knobs.values()]
+                 f"{k.half_width_95:.2g}" if k.half_width_95 is not None else "∞",
+                 f"[{k.interval_95[0]:.4g}, {k.interval_95[1]:.4g}]" if k.interval_95 is not None else "–",
+                 k.method or "", k.unit,
+                 "; ".join(x for x in (f"at {k.at_bound} bound" if k.at_bound else "",
+                                       f"tied: {k.tied}" if k.tied else "") if x)] for k in knobs.values()]
 
     print_table(console, columns, knob_rows(result.knobs))
     if result.nuisance:

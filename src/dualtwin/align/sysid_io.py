@@ -1,0 +1,87 @@
+"""`mujoco.sysid` parameter files as knob definitions, and fitted knobs written back in that format.
+
+A ``mujoco.sysid`` user describes what to identify as a ``ParameterDict``, saved by
+``ParameterDict.save_to_disk`` as YAML: one entry per parameter with ``name``, ``nominal``, ``min_value``,
+``max_value``, ``value`` and ``frozen`` (arrays as lists). Alignment reads such a file (``sysid_params``):
+every scalar, unfrozen parameter whose name is a knob of the target twin (or a glob of knobs) is fitted, within
+the file's bounds. The twin's nominal value stays the knob's nominal (the file's ``nominal`` is the sysid
+user's start, and the twin's model is what alignment starts from). Frozen parameters are skipped; a
+multi-dimensional parameter or a name that matches no knob is refused with the reason.
+
+After the fit, ``sysid_params.yaml`` holds the fitted physics knobs in the same format (``value`` the fitted
+value), readable by ``ParameterDict.load_from_disk``. The file is written without importing ``mujoco.sysid``
+(its optional dependencies need not be installed), with the field order ``save_to_disk`` uses.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from dualtwin.align.writers import KnobFit
+from dualtwin.artifacts import write_text
+from dualtwin.errors import DualtwinError
+
+SYSID_FILE = "sysid_params.yaml"
+
+
+def _scalar(value: Any, where: str) -> float:
+    items = value if isinstance(value, list) else [value]
+    if len(items) != 1 or isinstance(items[0], list):
+        raise DualtwinError(f"{where}: a {len(items)}-element parameter; alignment knobs are scalars (split it "
+                            "into one parameter per knob)")
+    try:
+        number = float(items[0])
+    except (TypeError, ValueError):
+        raise DualtwinError(f"{where}: {items[0]!r} is not a number") from None
+    if not math.isfinite(number):
+        raise DualtwinError(f"{where}: {number} is not finite")
+    return number
+
+
+def read_sysid_params(path: Path) -> tuple[list[str], dict[str, tuple[float, float]]]:
+    """The knob names (or globs) and bounds of a ``mujoco.sysid`` parameter file (frozen ones skipped).
+
+    Raises:
+        DualtwinError: Unreadable or malformed file, a non-scalar parameter, or bounds not below one another.
+    """
+    try:
+        doc = yaml.safe_load(Path(path).read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise DualtwinError(f"{path}: cannot read the mujoco.sysid parameter file ({type(exc).__name__})") from None
+    if not isinstance(doc, dict) or not doc:
+        raise DualtwinError(f"{path}: expected a mujoco.sysid parameter file (a mapping of parameter names to "
+                            "name/nominal/min_value/max_value/frozen), got something else")
+    names: list[str] = []
+    bounds: dict[str, tuple[float, float]] = {}
+    for key, entry in doc.items():
+        where = f"{path}: parameter {key!r}"
+        if not isinstance(entry, dict) or not {"min_value", "max_value"} <= set(entry):
+            raise DualtwinError(f"{where}: needs min_value and max_value")
+        if entry.get("frozen", False):
+            continue
+        name = str(entry.get("name", key))
+        lower, upper = _scalar(entry["min_value"], where + " min_value"), _scalar(entry["max_value"], where + " max_value")
+        if not lower < upper:
+            raise DualtwinError(f"{where}: min_value {lower:g} is not below max_value {upper:g}")
+        names.append(name)
+        bounds[name] = (lower, upper)
+    if not names:
+        raise DualtwinError(f"{path}: every parameter is frozen; nothing to fit")
+    return names, bounds
+
+
+def sysid_document(knobs: Mapping[str, KnobFit]) -> dict[str, dict[str, Any]]:
+    """Fitted knobs as a ``ParameterDict.save_to_disk`` document."""
+    return {name: {"name": name, "nominal": [k.nominal], "min_value": [k.lower], "max_value": [k.upper],
+                   "value": [k.fitted], "frozen": False} for name, k in knobs.items()}
+
+
+def write_sysid_params(out_dir: Path, files: dict[str, str], knobs: Mapping[str, KnobFit]) -> None:
+    """``sysid_params.yaml``: the fitted physics knobs in ``mujoco.sysid``'s parameter format."""
+    write_text(out_dir / SYSID_FILE, yaml.safe_dump(sysid_document(knobs), default_flow_style=False, sort_keys=True))
+    files["sysid_params"] = SYSID_FILE

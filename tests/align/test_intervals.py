@@ -1,0 +1,124 @@
+"""Honest intervals (issue 24): autocorrelated residuals widen them, a non-quadratic criterion is profiled, an
+unseen knob gets its bounds, and a two-valley fit finds the deeper valley. Closed-form problems, no simulator."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dualtwin.align import AlignConfig, CachedProblem, Evaluation, fit_lsq
+from dualtwin.align.core import residual_norm
+from dualtwin.align.intervals import effective_samples, estimate_intervals
+from dualtwin.align.knobs import KnobSpec, unit_from_values, values_from_unit
+from dualtwin.align.objective import ResidualBlock
+
+T = np.linspace(0.0, 1.0, 400)
+
+
+def ar1(rho: float, n: int, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    e = np.zeros(n)
+    for k in range(1, n):
+        e[k] = rho * e[k - 1] + rng.normal(0.0, 0.01)
+    return e
+
+
+class Line(CachedProblem):
+    """``y = a t + b + noise``, the residuals one time series (so the layout makes them one block)."""
+
+    def __init__(self, specs: Sequence[KnobSpec], y: np.ndarray, blocks: bool = True, model: str = "line") -> None:
+        super().__init__(specs, budget=10_000)
+        self.y, self.blocks, self.model = y, blocks, model
+
+    def evaluate_knobs(self, values: Sequence[Mapping[str, float]]) -> list[Evaluation]:
+        out = []
+        for v in values:
+            a = v["a"] ** 3 if self.model == "cubic" else v["a"]
+            r = a * T + v.get("b", 0.0) - self.y
+            out.append(Evaluation(float(r @ r), None, r))
+        return out
+
+    def residual_blocks(self) -> list[ResidualBlock]:
+        return [ResidualBlock("s", "y", 0, T.size, "series")]
+
+
+SPECS = [KnobSpec("a", 1.0, 0.0, 4.0), KnobSpec("b", 0.0, -2.0, 2.0)]
+
+
+def ols_u(problem: Line) -> list[float]:
+    x = np.stack([T, np.ones_like(T)], axis=1)
+    coef, *_ = np.linalg.lstsq(x, problem.y, rcond=None)
+    return unit_from_values(problem.specs, {"a": float(coef[0]), "b": float(coef[1])})
+
+
+def test_effective_samples_follow_the_autocorrelation() -> None:
+    block = [ResidualBlock("s", "y", 0, 4000, "series")]
+    white, red = ar1(0.0, 4000, 1), ar1(0.9, 4000, 1)
+    assert effective_samples(white, block) == pytest.approx(4000, rel=0.1)
+    # AR(1) with rho 0.9: n (1 - rho) / (1 + rho) = 210.
+    assert effective_samples(red, block) == pytest.approx(4000 * 0.1 / 1.9, rel=0.25)
+    # Without a layout the residuals count as independent (the textbook interval).
+    assert effective_samples(red, None) == 4000
+
+
+def test_autocorrelated_residuals_widen_the_interval_and_say_so() -> None:
+    y = 2.5 * T - 0.7 + ar1(0.95, T.size, 3)
+    red, iid = Line(SPECS, y, blocks=True), Line(SPECS, y)
+    u = ols_u(red)
+    honest = estimate_intervals(red, u, 0.03, profile=False)
+    # The same data judged as independent samples (the interval alignment used to report).
+    iid.residual_blocks = None  # type: ignore[assignment,method-assign]
+    textbook = estimate_intervals(iid, u, 0.03, profile=False)
+    assert honest.methods["a"] == "jacobian (n_eff)" and textbook.methods["a"] == "jacobian (iid)"
+    ratio = (honest.half_widths["a"] or 0) / (textbook.half_widths["a"] or 1)
+    assert ratio > 3.0, ratio  # sqrt((1 + 0.95) / (1 - 0.95)) = 6.2, less the sample autocorrelation's bias
+    assert honest.noise["effective_samples"] < 0.2 * T.size
+    lo, hi = honest.intervals["a"] or (0.0, 0.0)
+    assert lo < 2.5 < hi
+
+
+def test_a_cubic_criterion_is_profiled_and_an_unseen_knob_gets_its_bounds() -> None:
+    specs = [KnobSpec("a", 1.0, 0.0, 2.0), KnobSpec("c", 0.5, 0.0, 1.0)]
+    # a enters as a³ and the truth is a = 0.25, where the cube is flat: the criterion is far from quadratic.
+    y = 0.25 ** 3 * T + np.random.default_rng(5).normal(0.0, 0.1, T.size)
+    problem = Line(specs, y, model="cubic")
+    best = min(problem.run([[x, 0.5] for x in np.linspace(0, 1, 2001)]), key=residual_norm)
+    unc = estimate_intervals(problem, best.u, 0.03)
+    assert unc.methods["a"].startswith("profile"), unc.methods
+    lo, hi = unc.intervals["a"] or (0.0, 0.0)
+    fitted = values_from_unit(specs, best.u)["a"]
+    assert lo < 0.25 < hi and (fitted - lo) > 1.3 * (hi - fitted)  # asymmetric, wider toward the flat side
+    assert unc.intervals["c"] == (0.0, 1.0) and unc.half_widths["c"] is None
+    assert unc.methods["c"].startswith("unpinned")
+
+
+class TwoValleys(CachedProblem):
+    """r(a) = [a² - 1, 0.3 (a - 1)]: a shallow valley at a = -1 and the true minimum at a = 1."""
+
+    def evaluate_knobs(self, values: Sequence[Mapping[str, float]]) -> list[Evaluation]:
+        out = []
+        for v in values:
+            a = v["a"]
+            r = np.array([a * a - 1.0, 0.3 * (a - 1.0)])
+            out.append(Evaluation(float(r @ r), None, r))
+        return out
+
+
+@pytest.mark.parametrize("search", ["off", "multistart"])
+def test_basin_search_finds_the_deeper_valley(tmp_path: Path, search: str) -> None:
+    specs = [KnobSpec("a", -1.4, -2.0, 2.0)]
+    problem = TwoValleys(specs, budget=200)
+    x0 = unit_from_values(specs, {})
+    problem.calibrate(problem.run([x0])[0])
+    config = AlignConfig(reference="v", target="v", robot="v", knobs=["a"], optimizer="lsq", budget=200,
+                         global_search=search)  # type: ignore[arg-type]
+    outcome = fit_lsq(problem, config, tmp_path, x0, 1.0, False, None)
+    a = values_from_unit(specs, outcome.u)["a"]
+    if search == "off":
+        assert a == pytest.approx(-1.0, abs=0.05)  # the control: polishing the start stays in its valley
+    else:
+        assert a == pytest.approx(1.0, abs=1e-3), outcome.stop_reason
+        assert outcome.stop_reason.startswith("basin search: 8 points screened")
