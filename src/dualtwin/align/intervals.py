@@ -52,20 +52,40 @@ SCAN = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 5.0, 8.0)
 
 
 def effective_samples(r: np.ndarray, blocks: Sequence[ResidualBlock] | None) -> float:
-    """Σ n_eff over the residual blocks (AR(1) from each series' lag-1 autocorrelation; the rest count once)."""
+    """Σ n_eff over the residual blocks (AR(1) from each series' lag-1 autocorrelation; the rest count once).
+
+    Channels of one scenario can repeat one another (a joint's angle logged twice, time-stamp jitter shared by
+    a row's columns): within a scenario, the series of equal length count as the participation ratio
+    ``(Σλ)² / Σλ²`` of their correlation matrix's eigenvalues, not as one channel each.
+    """
     if blocks is None:
         return float(r.size)
     covered = 0
     total = 0.0
+    by_scenario: dict[tuple[str, int], list[np.ndarray]] = {}
     for b in blocks:
         if b.kind != "series" or b.stop - b.start < 3:
             continue
         x = r[b.start:b.stop]
         covered += x.size
-        energy = float(x @ x)
-        rho = float(x[:-1] @ x[1:]) / energy if energy > 0 else 0.0
-        rho = min(0.999, max(0.0, rho))
-        total += max(1.0, x.size * (1.0 - rho) / (1.0 + rho))
+        by_scenario.setdefault((b.scenario, x.size), []).append(x)
+    for series in by_scenario.values():
+        n_eff = []
+        for x in series:
+            energy = float(x @ x)
+            rho = float(x[:-1] @ x[1:]) / energy if energy > 0 else 0.0
+            rho = min(0.999, max(0.0, rho))
+            n_eff.append(max(1.0, x.size * (1.0 - rho) / (1.0 + rho)))
+        share = 1.0
+        if len(series) > 1:
+            stack = np.stack(series, axis=1)
+            norms = np.linalg.norm(stack, axis=0)
+            live = norms > 0
+            if live.sum() > 1:
+                unit = stack[:, live] / norms[live]
+                eig = np.linalg.eigvalsh(unit.T @ unit)
+                share = float(eig.sum() ** 2 / (eig @ eig)) / len(series)
+        total += share * sum(n_eff)
     return total + float(r.size - covered)
 
 

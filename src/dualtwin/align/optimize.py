@@ -384,7 +384,7 @@ def fit_lsq(problem: Problem, config: AlignConfig, out_dir: Path, x0: Sequence[f
 
 
 #: Gauss-Newton steps with a central-difference Jacobian after least squares (each costs 2·knobs + 2 runs).
-POLISH_STEPS = 2
+POLISH_STEPS = 4
 
 
 def gauss_newton_polish(problem: Problem, u: list[float], free: Sequence[int], config: AlignConfig

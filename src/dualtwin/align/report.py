@@ -28,7 +28,7 @@ from dualtwin.reporting import evidence_html, html_table, img_html, page_head, p
 
 if TYPE_CHECKING:
     from dualtwin.align.config import AlignConfig
-    from dualtwin.align.writers import AlignResult
+    from dualtwin.align.writers import AlignResult, KnobFit
 
 
 def _f(value: float | None, spec: str = ".4g") -> str:
@@ -124,6 +124,10 @@ def scenario_png(sb: ScenarioComparison, sa: ScenarioComparison | None, channels
     return png_bytes(fig)
 
 
+def _interval(k: KnobFit) -> str:
+    return "–" if k.interval_95 is None else f"[{k.interval_95[0]:.4g}, {k.interval_95[1]:.4g}]"
+
+
 def write_align_report(out_dir: Path, result: AlignResult, reference: Path, before: Path, after: Path,
                        analysis_before: Analysis, analysis_after: Analysis, train: Sequence[str],
                        held: Sequence[str], thresholds: Mapping[str, float] | None = None) -> Path:
@@ -132,7 +136,9 @@ def write_align_report(out_dir: Path, result: AlignResult, reference: Path, befo
     comp_after = compare_runs(reference, after, thresholds)
     labels = trace_labels(comp_before.twin_a, comp_before.twin_b)
     knob_rows = [[k.name, f"{k.nominal:.5g}", f"<b>{k.fitted:.5g}</b>", _f(k.half_width_95, ".2g"),
-                  f"[{k.lower:.4g}, {k.upper:.4g}]", k.at_bound or ""] for k in result.knobs.values()]
+                  _interval(k), k.method or "", f"[{k.lower:.4g}, {k.upper:.4g}]",
+                  "; ".join(x for x in (k.at_bound or "", f"tied: {k.tied}" if k.tied else "") if x)]
+                 for k in result.knobs.values()]
     summary = [
         ("optimizer", result.optimizer), ("stop", result.stop_reason),
         ("evaluations", str(result.evaluations)), ("iterations", str(result.iterations)),
@@ -148,16 +154,28 @@ def write_align_report(out_dir: Path, result: AlignResult, reference: Path, befo
         f"<h1>Alignment: {html.escape(comp_before.twin_b)} to the reference ({html.escape(comp_before.twin_a)})</h1>",
         html_table(["", ""], summary, left=(0, 1)),
         "<h2>Knobs</h2>",
-        html_table(["knob", "nominal", "fitted", "± 95 %", "bounds", "at bound"], knob_rows, left=(0, 5), raw=(2,)),
+        html_table(["knob", "nominal", "fitted", "± 95 %", "95 % interval", "method", "bounds", "note"], knob_rows,
+                   left=(0, 4, 5, 7), raw=(2,)),
     ]
+    before_check = result.identifiability.get("before", {})
+    correlated = result.identifiability.get("after", {}).get("correlated", [])
+    if before_check.get("advice") or correlated:
+        parts.append("<h2>Identifiability</h2><p>Before the fit (from the suite and the knobs alone):</p><ul>"
+                     + "".join(f"<li>{html.escape(a)}</li>" for a in before_check.get("advice", []))
+                     + ("" if before_check.get("advice") else "<li>no trade-off found</li>")
+                     + "</ul><p>After the fit (pairs with |r| &gt; 0.9):</p><ul>"
+                     + "".join(f"<li>{html.escape(e['knobs'][0])} and {html.escape(e['knobs'][1])}: r = "
+                               f"{e['r']:+.3f}</li>" for e in correlated)
+                     + ("" if correlated else "<li>none</li>") + "</ul>")
     if result.nuisance:
         # Initial conditions and time offsets of this reference: fitted with the physics, not part of the model.
         nuisance_rows = [[k.name, f"{k.nominal:.5g}", f"<b>{k.fitted:.5g}</b>", _f(k.half_width_95, ".2g"),
-                          f"[{k.lower:.4g}, {k.upper:.4g}]", k.unit, k.at_bound or ""] for k in result.nuisance.values()]
+                          _interval(k), f"[{k.lower:.4g}, {k.upper:.4g}]", k.unit, k.at_bound or ""]
+                         for k in result.nuisance.values()]
         parts += ["<h2>Nuisance knobs (this reference's initial conditions and time offsets; not in the aligned "
                   "model)</h2>",
-                  html_table(["knob", "nominal", "fitted", "± 95 %", "bounds", "unit", "at bound"], nuisance_rows,
-                             left=(0, 5, 6), raw=(2,))]
+                  html_table(["knob", "nominal", "fitted", "± 95 %", "95 % interval", "bounds", "unit", "at bound"],
+                             nuisance_rows, left=(0, 4, 6, 7), raw=(2,))]
     if result.warnings:
         parts.append("<h2>Warnings</h2><ul class='viol'>" + "".join(f"<li>{html.escape(w)}</li>"
                                                                       for w in result.warnings) + "</ul>")
