@@ -1,7 +1,6 @@
 """Known-truth recordings degraded like a real logger's: noise, rounding, time-stamp jitter, a logging delay.
 
-Used by the identifiability tests (an exact fit has no noise to judge intervals by) and by the coverage study
-(bench/bench_align_coverage.py).
+Used by the identifiability tests: an exact fit has no noise to judge intervals by.
 """
 
 from __future__ import annotations
