@@ -24,8 +24,8 @@ from dualtwin.align.knobs import KnobSpec, tie_knobs
 from dualtwin.align.stuck import stuck_advice
 from dualtwin.align.writers import KnobFit
 from dualtwin.errors import DualtwinError
-from tests.support.noisy_runs import noisy_recording
 from tests.support.fake_twin import NAME, ROBOT, SUITE, registered
+from tests.support.noisy_runs import noisy_recording
 
 J1 = ["joint.j1.mass", "joint.j1.stiffness", "joint.j1.damping"]
 OTHERS = ["01_release_2", "02_push", "03_drive", "04_kick"]
