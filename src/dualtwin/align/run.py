@@ -272,6 +272,8 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
                 # Never hand back something worse than where we started.
                 outcome.u, after = nominal_u, before
                 warnings.append("no knob setting beat the nominal twin; the fitted values are the nominal ones")
+            # The budget is the fit's: the interval checks after it are counted apart.
+            fit_evaluations = problem.evaluations
             uncertainty = estimate_intervals(problem, outcome.u, config.fd_step)
         fitted, fitted_nuisance = nuisance.split(values_from_unit(specs, outcome.u))
         warnings += uncertainty.warnings
@@ -325,7 +327,7 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
         out_dir=out_dir, optimizer=optimizer, knobs=knob_fits, objective_before=before.train,
         objective_after=after.train, holdout_before=before.holdout, holdout_after=after.holdout,
         residual_before=float(before.residual @ before.residual), residual_after=float(after.residual @ after.residual),
-        evaluations=problem.evaluations, iterations=outcome.iterations, wall_time_s=0.0,
+        evaluations=fit_evaluations, iterations=outcome.iterations, wall_time_s=0.0,
         stop_reason=outcome.stop_reason, warnings=warnings, condition_number=uncertainty.condition,
         files=files, proposals=proposals, nuisance=nuisance_fits, left_out=left,
         identifiability={"before": identifiability.to_dict(), "after": {
