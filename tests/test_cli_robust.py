@@ -35,6 +35,28 @@ SEED = int(os.environ.get("DUALTWIN_INTERRUPT_SEED", time.time_ns() % 1_000_000)
 EARLIEST_S = 0.3
 
 
+#: Every test's wall-clock bound: an in-process hang (an endless loop in the physics) fails instead of blocking.
+CASE_SECONDS = 240
+
+
+class CaseTimeout(Exception):
+    pass
+
+
+@pytest.fixture(autouse=True)
+def wall_clock_bound() -> Iterator[None]:
+    def fire(signum: int, frame: object) -> None:
+        raise CaseTimeout(f"still running after {CASE_SECONDS} s")
+
+    previous = signal.signal(signal.SIGALRM, fire)
+    signal.alarm(CASE_SECONDS)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
+
+
 def closed_port() -> int:
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
