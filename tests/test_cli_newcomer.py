@@ -99,7 +99,7 @@ def _closed_port() -> int:
 
 def test_analyze_llm_unreachable_exits_2_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                                       monkeypatch: pytest.MonkeyPatch) -> None:
-    from tests.recorded.test_data_evidence import SUITE, write_logs
+    from tests.support.paper_logs import SUITE, write_logs
 
     runs = []
     for name in ("a", "b"):
@@ -147,7 +147,7 @@ def test_deploy_has_a_json_flag(capsys: pytest.CaptureFixture[str], monkeypatch:
 @pytest.fixture(scope="module")
 def paired_runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """The same logs imported as a cartpole run and as a cartpole_paper run (seconds, no simulation)."""
-    from tests.recorded.test_data_evidence import SUITE, write_logs
+    from tests.support.paper_logs import SUITE, write_logs
 
     root = tmp_path_factory.mktemp("pairs")
     logs = write_logs(root / "logs", [0.0] * 6, [0.0] * 6)
