@@ -96,8 +96,11 @@ def test_train_writes_the_learning_curve_and_reports_each_evaluation(tmp_path: P
     import json
 
     record = json.loads((out / "run.json").read_text())
-    assert len(lines) == len(record["evaluations"]) >= 2
-    assert lines[0].startswith("eval at 512/1,024 steps: mean reward")
+    # Set-up lines (loading, building the environments) come first; then one line per evaluation.
+    evaluations = [line for line in lines if line.startswith("eval at ")]
+    assert len(evaluations) == len(record["evaluations"]) >= 2
+    assert lines[-len(evaluations):] == evaluations
+    assert evaluations[0].startswith("eval at 512/1,024 steps: mean reward")
     with open(out / "learning_curve.csv", encoding="utf-8") as handle:
         rows = list(csv.DictReader(handle))
     assert rows and list(rows[0]) == ["episode", "env_steps", "episode_length_steps", "episode_reward",

@@ -117,8 +117,9 @@ def train(env_id: str, config_path: Path | str | Mapping[str, Any] | PPOConfig |
             aligned twin (``aligned=``) or with calibrated domain randomisation.
         trust_pickles: allow unpickling an old run's ``vecnormalize.pkl`` (resume or ``init_from``); pickles
             can run code, so only for files the user trusts.
-        report: called with one line per evaluation (steps, mean reward, mean length, wall time); the CLI
-            prints them to stderr.
+        report: called with a few set-up lines (loading, building the environments, the steps to train)
+            and then one line per evaluation (steps, mean reward, mean length, wall time); the CLI prints
+            them to stderr.
     """
     from dualtwin.rl import check_env_id
     from dualtwin.rl.randomize import load_ranges
