@@ -118,3 +118,17 @@ def test_camera_spec_validation() -> None:
         CameraSpec.from_dict("c", {"pos": [0, -1, 0], "lookat": [0, 0, 0], "zoom": 2})
     with pytest.raises(DualtwinError, match="no camera"):
         camera_for(ROBOT, "missing")
+
+
+def test_webots_scene_draws_proto_instances_from_their_base_node() -> None:
+    # The Floor is a PROTO instance: getField answers its interface (size, ...), so its Shape is reached through
+    # the base node's children; a walk through getField alone leaves the floor out of every frame.
+    import mujoco
+
+    from dualtwin.webots.visual_scene import WebotsVisualScene
+
+    twin = pose("webots", 0.0)
+    scene = WebotsVisualScene(twin.sup)
+    planes = [i for i in range(scene.model.ngeom) if scene.model.geom_type[i] == mujoco.mjtGeom.mjGEOM_PLANE]
+    assert [scene.model.geom_size[i][:2].tolist() for i in planes] == [[10.0, 10.0]]  # Floor { size 20 20 }
+    twin.close()

@@ -63,7 +63,9 @@ def _rgba(shape: Any) -> list[float]:
 
 
 def _children(handle: Any, field: str) -> list[Any]:
-    f = handle.getField(field)
+    # The scene draws the expanded tree: a PROTO instance's getField answers its interface (as Webots does), its
+    # base node's children/endPoint come from getProtoField.
+    f = handle.getProtoField(field) if handle.isProto() else handle.getField(field)
     if f is None:
         return []
     if f.getCount() < 0:  # an SF field
