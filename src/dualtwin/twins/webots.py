@@ -34,6 +34,7 @@ from dualtwin.twins.webots_state import (
     MOTOR_TYPES,
     Joint,
     StateStructure,
+    base_field,
     cross,
 )
 
@@ -94,8 +95,8 @@ class WebotsTwin(Twin):
             if node.getDef() == name and ok(node):
                 return node
         for node in nodes:
-            field = node.getField("name")
-            is_solid = node.getField("children") is not None and node.getField("boundingObject") is not None
+            field = base_field(node, "name")
+            is_solid = base_field(node, "children") is not None and base_field(node, "boundingObject") is not None
             if field is not None and is_solid and ok(node) and field.getSFString() == name:
                 return node
         node = self.sup.getFromDef(name)
@@ -145,11 +146,11 @@ class WebotsTwin(Twin):
             node = stack.pop()
             yield node
             for field in ("children", "device"):
-                handle = node.getField(field)
+                handle = base_field(node, field)
                 if handle is not None and handle.getCount() > 0:
                     stack.extend(n for n in (handle.getMFNode(i) for i in range(handle.getCount())) if n)
             for field in ("endPoint", "jointParameters", "physics"):
-                handle = node.getField(field)
+                handle = base_field(node, field)
                 child = handle.getSFNode() if handle is not None else None
                 if child is not None:
                     stack.append(child)
@@ -161,8 +162,8 @@ class WebotsTwin(Twin):
         out = []
         for node in self._walk():
             kind = node.getTypeName()
-            name_field = node.getField("name")
-            is_device = node.getField("device") is None and name_field is not None and kind != "Robot"
+            name_field = base_field(node, "name")
+            is_device = base_field(node, "device") is None and name_field is not None and kind != "Robot"
             wanted = kind.endswith("Sensor") if types is None else kind in types
             if is_device and wanted:
                 out.append(name_field.getSFString())
@@ -214,7 +215,7 @@ class WebotsTwin(Twin):
 
     def set_body_position(self, body: str, axis: int, value: float) -> None:
         node = self._body(body)
-        field = node.getField("translation")
+        field = base_field(node, "translation")
         translation = list(field.getSFVec3f())
         parent = node.getParentNode()
         if parent is not None and parent.getTypeName() not in ("Group", ""):
@@ -250,7 +251,7 @@ class WebotsTwin(Twin):
         return rotation @ j.axis
 
     def _anchor_world(self, j: Joint) -> np.ndarray:
-        anchor_field = j.params.getField("anchor")
+        anchor_field = base_field(j.params, "anchor")
         local = np.array(anchor_field.getSFVec3f() if anchor_field is not None else [0.0, 0.0, 0.0])
         rotation = np.array(j.parent.getOrientation(), dtype=float).reshape(3, 3)
         return np.array(j.parent.getPosition(), dtype=float) + rotation @ local

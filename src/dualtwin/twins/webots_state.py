@@ -30,6 +30,15 @@ from dualtwin.geometry import (
 from dualtwin.twins.base import BALL_COMPONENTS, MechanicalState, StateLayout, SyncError
 
 JOINT_TYPES = ("HingeJoint", "SliderJoint", "Hinge2Joint", "BallJoint")
+
+
+def base_field(node: Any, name: str) -> Any:
+    """A field of what ``node`` is in the simulation: for a PROTO instance its base node's field.
+
+    Webots' ``getField`` on a PROTO instance sees only the PROTO's interface (a Pioneer3at has ``extensionSlot``,
+    not ``children``); the twin walks the scene it simulates, so it reads the base node (``getProtoField``).
+    """
+    return node.getProtoField(name) if node.isProto() else node.getField(name)
 MOTOR_TYPES = ("RotationalMotor", "LinearMotor")
 #: set_state refuses a state to which a free body responds, within one basic step, with a velocity jump
 #: above these (m/s, rad/s): ODE pushing a penetrating body out (softERP 0.2 moves 2 cm of overlap at
@@ -55,13 +64,13 @@ class Joint:
     def __init__(self, node: Any) -> None:
         self.node = node
         self.kind = node.getTypeName()
-        self.params = node.getField("jointParameters").getSFNode()
+        self.params = base_field(node, "jointParameters").getSFNode()
         if self.params is None:
             raise DualtwinError(f"joint {node.getDef()!r} has no jointParameters; give it one to use it by name")
-        self.position = self.params.getField("position")
-        self.axis = np.array(self.params.getField("axis").getSFVec3f(), dtype=float)
+        self.position = base_field(self.params, "position")
+        self.axis = np.array(base_field(self.params, "axis").getSFVec3f(), dtype=float)
         self.axis /= np.linalg.norm(self.axis)
-        self.child = node.getField("endPoint").getSFNode()
+        self.child = base_field(node, "endPoint").getSFNode()
         self.parent = node.getParentNode()
 
 
@@ -72,16 +81,16 @@ class Hinge2:
     def __init__(self, node: Any, second: str) -> None:
         self.node = node
         self.second = second
-        params = [node.getField(f).getSFNode() for f in ("jointParameters", "jointParameters2")]
+        params = [base_field(node, f).getSFNode() for f in ("jointParameters", "jointParameters2")]
         if params[0] is None or params[1] is None:
             raise DualtwinError(f"Hinge2Joint {node.getDef()!r} needs jointParameters and jointParameters2 "
                                 "for its state to be read and written")
         self.params, self.params2 = params
-        self.position, self.position2 = (p.getField("position") for p in params)
-        self.axis, self.axis2 = (np.array(p.getField("axis").getSFVec3f(), dtype=float) for p in params)
+        self.position, self.position2 = (base_field(p, "position") for p in params)
+        self.axis, self.axis2 = (np.array(base_field(p, "axis").getSFVec3f(), dtype=float) for p in params)
         self.axis /= np.linalg.norm(self.axis)
         self.axis2 /= np.linalg.norm(self.axis2)
-        self.child = node.getField("endPoint").getSFNode()
+        self.child = base_field(node, "endPoint").getSFNode()
         self.parent = node.getParentNode()
 
     def world_axes(self, q1: float) -> tuple[np.ndarray, np.ndarray]:
@@ -103,14 +112,14 @@ class StateStructure:
         self.bodies: dict[str, Any] = {}
         me = sup.getSelf()
         candidates = [me]
-        root = sup.getRoot().getField("children")
+        root = base_field(sup.getRoot(), "children")
         for i in range(root.getCount()):
             node = root.getMFNode(i)
             if node is not None and node != me and node.getDef() and self._has_body(node):
                 candidates.append(node)
         for node in candidates:
             if self._has_body(node):
-                name = node.getDef() or node.getField("name").getSFString()
+                name = node.getDef() or base_field(node, "name").getSFString()
                 self.bodies[inverse.get(name, name)] = node
         self.joints: dict[str, Joint] = {}
         self.hinge2: dict[str, Hinge2] = {}
@@ -118,8 +127,8 @@ class StateStructure:
         self.motors: dict[str, list[Any]] = {}  # state joint name -> its motor devices
 
         def motors(node: Any, field: str) -> list[Any]:
-            devices = node.getField(field)
-            names = [devices.getMFNode(i).getField("name").getSFString() for i in range(devices.getCount())
+            devices = base_field(node, field)
+            names = [base_field(devices.getMFNode(i), "name").getSFString() for i in range(devices.getCount())
                      if devices.getMFNode(i) is not None and devices.getMFNode(i).getTypeName() in MOTOR_TYPES]
             return [d for d in (sup.getDevice(n) for n in names) if d is not None]
 
@@ -127,7 +136,7 @@ class StateStructure:
             kind = node.getTypeName()
             if kind not in JOINT_TYPES or not node.getDef():
                 continue
-            end = node.getField("endPoint")
+            end = base_field(node, "endPoint")
             if end is None or end.getSFNode() is None:
                 continue
             name = inverse.get(node.getDef(), node.getDef())
@@ -137,7 +146,7 @@ class StateStructure:
                 second = inverse.get(node.getDef() + "2", node.getDef() + "2")
                 self.hinge2[name] = Hinge2(node, second)
                 self.motors[name], self.motors[second] = motors(node, "device"), motors(node, "device2")
-            elif node.getField("jointParameters").getSFNode() is not None:
+            elif base_field(node, "jointParameters").getSFNode() is not None:
                 self.joints[name] = Joint(node)
                 self.motors[name] = motors(node, "device")
         self.names = [*self.joints, *(n for name, h in self.hinge2.items() for n in (name, h.second)),
@@ -247,12 +256,12 @@ class StateStructure:
 
     @staticmethod
     def _has_body(node: Any) -> bool:
-        physics = node.getField("physics")
+        physics = base_field(node, "physics")
         return physics is not None and physics.getSFNode() is not None
 
     @staticmethod
     def _is_solid(node: Any) -> bool:
-        return node.getField("physics") is not None
+        return base_field(node, "physics") is not None
 
     def parent_solid(self, node: Any) -> Any:
         """The closest Solid above ``node`` (None for a top-level node)."""
@@ -273,7 +282,7 @@ class StateStructure:
     def _anchor(frame: Any, params: Any) -> np.ndarray:
         """World anchor of a joint now, from its parameters' ``anchor`` in the closest upper Pose ``frame``."""
         rotation, position = pose_of(frame)
-        field = params.getField("anchor") if params is not None else None
+        field = base_field(params, "anchor") if params is not None else None
         anchor = np.array(field.getSFVec3f() if field is not None else [0.0, 0.0, 0.0], dtype=float)
         return position + rotation @ anchor
 
@@ -350,10 +359,10 @@ class StateStructure:
     @staticmethod
     def _local_fields(node: Any) -> tuple[np.ndarray, np.ndarray]:
         """(rotation matrix, translation) of a Solid's ``rotation`` and ``translation`` fields now."""
-        rotation = node.getField("rotation").getSFRotation()
+        rotation = base_field(node, "rotation").getSFRotation()
         axis = np.array(rotation[:3], dtype=float)
         return rotation_about(axis / np.linalg.norm(axis), float(rotation[3])), \
-            np.array(node.getField("translation").getSFVec3f(), dtype=float)
+            np.array(base_field(node, "translation").getSFVec3f(), dtype=float)
 
     def _turn_free(self, key: int, state: MechanicalState, free: tuple[np.ndarray, ...], q_now: dict[str, float],
                    qd_now: dict[str, float], rp_now: np.ndarray, pp_now: np.ndarray, rel_r: np.ndarray,
@@ -413,7 +422,7 @@ class StateStructure:
             a1, a2 = h.world_axes(joint_q[name])
             free[h.child.getId()] = (a1, a2, self._anchor(h.parent, h.params), *self._local_fields(h.child))
         for joint, end in self.balls.values():
-            params = joint.getField("jointParameters").getSFNode()
+            params = base_field(joint, "jointParameters").getSFNode()
             free[end.getId()] = (np.zeros(3), np.zeros(3), self._anchor(joint.getParentNode(), params),
                                  *self._local_fields(end))
         for key in free:
@@ -499,8 +508,8 @@ class StateStructure:
             if parent is not None and parent.getTypeName() not in ("Group", ""):
                 raise DualtwinError(f"{self.origin}: body {name!r} is not a top-level Solid; cannot write its pose")
             rotation, position, _, _ = new[node.getId()]
-            node.getField("translation").setSFVec3f([float(v) for v in position])
-            node.getField("rotation").setSFRotation(axis_angle_from_matrix(rotation))
+            base_field(node, "translation").setSFVec3f([float(v) for v in position])
+            base_field(node, "rotation").setSFRotation(axis_angle_from_matrix(rotation))
         for name, joint in self.joints.items():
             if name in state.joint_positions:
                 joint.position.setSFFloat(float(state.joint_positions[name]))
@@ -512,9 +521,9 @@ class StateStructure:
             # The fields are relative to the parent Solid through fixed Poses: turn them by the relative motion.
             _, _, _, local_r, local_t = free[key]
             node = nodes[key]
-            node.getField("translation").setSFVec3f([float(v) for v in local_r @ (rel_r_now.T @ (rel_p - rel_p_now))
+            base_field(node, "translation").setSFVec3f([float(v) for v in local_r @ (rel_r_now.T @ (rel_p - rel_p_now))
                                                      + local_t])
-            node.getField("rotation").setSFRotation(axis_angle_from_matrix(local_r @ rel_r_now.T @ rel_r))
+            base_field(node, "rotation").setSFRotation(axis_angle_from_matrix(local_r @ rel_r_now.T @ rel_r))
         for name, motors in self.motors.items():
             if name not in state.joint_positions:
                 continue
