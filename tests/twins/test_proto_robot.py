@@ -24,3 +24,15 @@ def test_the_webots_twin_finds_and_sets_a_joint_inside_a_proto_robot(tmp_path: P
     assert abs(truth[0] - 0.4) < 0.05  # the initial angle was set on the joint inside the PROTO
     assert truth[-1] > truth[0] + 0.05  # and the arm falls under gravity from there
     np.testing.assert_allclose(sensor, truth, atol=1e-3)
+
+
+def test_the_knobs_of_a_proto_robots_parts_are_offered() -> None:
+    """Knob discovery walks the same base nodes: the arm's mass and the hinge's damping are knobs."""
+    from dualtwin.twins import make_twin
+
+    twin = make_twin("webots", load_binding(HERE / "binding.yaml"), 0.032)
+    try:
+        names = set(twin.knobs())
+    finally:
+        twin.close()
+    assert "body.ARM.mass" in names and any(n.startswith("joint.PIVOT.") for n in names), sorted(names)

@@ -13,7 +13,7 @@ from collections.abc import Callable, Iterator
 from typing import Any, Protocol
 
 from dualtwin.twins.knob_table import KnobGroup, KnobKind, KnobTable
-from dualtwin.twins.webots_state import JOINT_TYPES, MOTOR_TYPES
+from dualtwin.twins.webots_state import JOINT_TYPES, MOTOR_TYPES, base_field
 
 
 class KnobTarget(Protocol):
@@ -36,7 +36,7 @@ FieldHandle = tuple[Any, str, "int | None"]
 
 def read_field(tw: KnobTarget, handle: FieldHandle) -> float:
     node, field, index = handle
-    value = node.getField(field)
+    value = base_field(node, field)
     return float(value.getMFFloat(index) if index is not None else value.getSFFloat())
 
 
@@ -45,7 +45,7 @@ def write_field(tw: KnobTarget, handle: FieldHandle, value: float) -> None:
     if read_field(tw, handle) == value:
         return
     node, field, index = handle
-    target = node.getField(field)
+    target = base_field(node, field)
     if index is not None:
         target.setMFFloat(index, float(value))
     else:
@@ -74,7 +74,7 @@ def _joint_field(field: str) -> Callable[[KnobTarget, Any], tuple[str, Any] | No
     def find(tw: KnobTarget, node: Any) -> tuple[str, Any] | None:
         if node.getTypeName() not in JOINT_TYPES or not node.getDef():
             return None
-        params = node.getField("jointParameters").getSFNode()
+        params = base_field(node, "jointParameters").getSFNode()
         return (node.getDef(), (params, field, None)) if params is not None else None
     return find
 
@@ -84,7 +84,7 @@ def _motor_field(rotational: str, linear: str) -> Callable[[KnobTarget, Any], tu
         kind = node.getTypeName()
         if kind not in MOTOR_TYPES:
             return None
-        return node.getField("name").getSFString(), (node, rotational if kind == "RotationalMotor" else linear, None)
+        return base_field(node, "name").getSFString(), (node, rotational if kind == "RotationalMotor" else linear, None)
     return find
 
 
@@ -92,9 +92,9 @@ def _body_mass(tw: KnobTarget, node: Any) -> tuple[str, Any] | None:
     # Solids with a DEF and a Physics node of positive mass (a mass of -1 means "from density").
     if node.getTypeName() == "Physics":
         return None
-    physics = node.getField("physics")
+    physics = base_field(node, "physics")
     physics_node = physics.getSFNode() if physics is not None else None
-    if node.getDef() and physics_node is not None and physics_node.getField("mass").getSFFloat() > 0:
+    if node.getDef() and physics_node is not None and base_field(physics_node, "mass").getSFFloat() > 0:
         return node.getDef(), (physics_node, "mass", None)
     return None
 
@@ -116,7 +116,7 @@ NODE_KINDS: tuple[KnobKind[KnobTarget], ...] = (
 
 # ---------------------------------------------------------------- WorldInfo and its contact properties
 def _world_info(tw: KnobTarget) -> Iterator[Any]:
-    root = tw.sup.getRoot().getField("children")
+    root = base_field(tw.sup.getRoot(), "children")
     info = next((n for n in (root.getMFNode(i) for i in range(root.getCount())) if n
                  and n.getTypeName() == "WorldInfo"), None)
     if info is not None:
@@ -125,10 +125,10 @@ def _world_info(tw: KnobTarget) -> Iterator[Any]:
 
 def _contacts(tw: KnobTarget) -> Iterator[tuple[str, Any]]:
     for info in _world_info(tw):
-        contacts = info.getField("contactProperties")
+        contacts = base_field(info, "contactProperties")
         for i in range(contacts.getCount()):
             cp = contacts.getMFNode(i)
-            yield f"{cp.getField('material1').getSFString()}:{cp.getField('material2').getSFString()}", cp
+            yield f"{base_field(cp, 'material1').getSFString()}:{base_field(cp, 'material2').getSFString()}", cp
 
 
 def _world(tw: KnobTarget) -> Iterator[tuple[str, Any]]:
