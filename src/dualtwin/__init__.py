@@ -17,6 +17,9 @@ import sys
 from dualtwin.errors import quiet_interrupts_in_cli
 
 quiet_interrupts_in_cli(sys.argv[0] if sys.argv else "")
+from dualtwin.interrupts import hold_while_loading  # noqa: E402 - after the interrupt hook
+
+hold_while_loading(only_command_line=True)  # the command says what a Ctrl-C while it loads keeps
 
 from dualtwin.headless import GLChoice, gl_backend, route_mujoco_warnings  # noqa: E402 - after the interrupt hook
 

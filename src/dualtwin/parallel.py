@@ -24,8 +24,10 @@ import math
 import multiprocessing
 import os
 import signal
-from collections.abc import Callable, Sequence
+import threading
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import contextmanager
 from typing import Any, Literal, TypeVar
 
 from dualtwin.errors import DualtwinError
@@ -54,6 +56,32 @@ def ignore_interrupts() -> None:
     parent's job (it shuts the pool down, keeping what finished); a worker that raised KeyboardInterrupt
     would print its own traceback."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+@contextmanager
+def interrupts_held() -> Iterator[None]:
+    """Ctrl-C held (not lost) for the block, then delivered to this process's handler as usual.
+
+    Blocked in this thread, so processes started meanwhile inherit the mask; and recorded, not raised, where
+    another thread of ours (a pool's manager thread, a BLAS thread) receives it, since Python would raise it in
+    the main thread mid-block all the same. Elsewhere than the main thread (where Python handles signals) it
+    changes nothing.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    came: list[int] = []
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    handler = signal.signal(signal.SIGINT, lambda signum, frame: came.append(signum))
+    try:
+        yield
+    finally:
+        if signal.SIGINT in signal.sigpending() and signal.sigtimedwait({signal.SIGINT}, 0) is not None:
+            came.append(signal.SIGINT)
+        signal.signal(signal.SIGINT, handler)
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+        if came:
+            signal.raise_signal(signal.SIGINT)
 
 
 #: Seconds allowed to open a TCP connection to a Ray cluster's address before it counts as unreachable.
@@ -156,7 +184,14 @@ class ParallelMap:
             self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=context,
                                              initializer=ignore_interrupts)
         chunk = max(1, math.ceil(len(items) / self.workers))
-        return list(self._pool.map(fn, items, chunksize=chunk))
+        # Submitting starts the fork server and the workers (on the first map): SIGINT is blocked meanwhile, so
+        # they are born with it blocked (as CPython starts its resource tracker) and a Ctrl-C in their start-up
+        # (interpreter start, the preload imports, before the initializer runs) cannot trace back in them. Here
+        # it is held until the submissions are done: raised mid-start, it left a worker the pool did not know,
+        # still starting after this process had exited (a traceback from its missing semaphore).
+        with interrupts_held():
+            results = self._pool.map(fn, items, chunksize=chunk)
+        return list(results)
 
     def close(self) -> None:
         if self._pool is not None:

@@ -9,9 +9,11 @@ from __future__ import annotations
 import errno
 import signal
 import sys
-import threading
 from collections.abc import Sequence
-from typing import Any
+
+from dualtwin.interrupts import Interrupted, came, hold_while_loading, loaded, stop_on_interrupt, take_held
+
+hold_while_loading()  # before typer and the command modules: a Ctrl-C from here on is ours to report
 
 try:
     import typer
@@ -26,11 +28,13 @@ try:
     from dualtwin.cli.common import app, interrupted_note
     from dualtwin.cli.policy import harden
     from dualtwin.errors import DualtwinError
-except KeyboardInterrupt:  # Ctrl-C while the command line is still loading: a normal way to stop, too
+except (KeyboardInterrupt, Interrupted):  # Ctrl-C while the command line is still loading: a normal way to stop, too
     print("error: interrupted", file=sys.stderr)
     raise SystemExit(130) from None
 
-__all__ = ["app", "main", "one_line"]
+loaded()
+
+__all__ = ["Interrupted", "app", "main", "one_line"]
 
 #: OS errors that are about the machine, not the program: a full disk or quota, an I/O error, a read-only
 #: file system, a file over the size limit. Always one line, never a traceback (and never exit 0).
@@ -40,30 +44,6 @@ _MACHINE_ERRORS = {errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EROFS, errno.EFB
 def one_line(message: str) -> str:
     """The error promise: one line, whatever the message's own line breaks."""
     return "; ".join(part.strip() for part in str(message).splitlines() if part.strip())
-
-
-class Interrupted(BaseException):
-    """Ctrl-C (SIGINT) while a command runs. Not a KeyboardInterrupt: typer would turn that into a silent exit
-    130, and library code that handles KeyboardInterrupt its own way must not swallow the user's stop."""
-
-
-def _raise_interrupted(signum: int, frame: Any) -> None:
-    raise Interrupted()
-
-
-def _stop_on_interrupt() -> Any:
-    """Route SIGINT to :class:`Interrupted` for the command's duration; the previous handler (None: unchanged).
-
-    Only where Python lets us (the main thread) and where SIGINT is not ignored (a job started in the
-    background by a shell ignores it on purpose).
-    """
-    if threading.current_thread() is not threading.main_thread():
-        return None
-    previous = signal.getsignal(signal.SIGINT)
-    if previous is signal.SIG_IGN or previous is None:
-        return None
-    signal.signal(signal.SIGINT, _raise_interrupted)
-    return previous
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -76,12 +56,13 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     code = 0
     interrupted_note(reset=True)
-    previous = _stop_on_interrupt()
+    previous = stop_on_interrupt()
     try:
         command = harden(typer.main.get_command(app))
         result = command.main(args=list(sys.argv[1:] if argv is None else argv), prog_name="dualtwin",
                               standalone_mode=False)
         code = result if isinstance(result, int) else 0
+        take_held()  # a Ctrl-C held while loading, for a command that never said what stopping keeps
     except (Interrupted, Abort, KeyboardInterrupt):
         # Ctrl-C is a normal way to stop: every file is written whole or not at all (dualtwin.artifacts), so
         # what was finished is kept; the note says how much and how to continue, where a command can.
@@ -107,14 +88,26 @@ def main(argv: Sequence[str] | None = None) -> int:
         # A file the user named cannot be read or written (permissions, a folder where a file belongs, a full
         # disk): their input or their machine, not our bug. A full disk or an I/O error is one line even where
         # the writer could not say which file it was; other errors without a file name keep their traceback.
-        if exc.filename is None and exc.errno not in _MACHINE_ERRORS:
+        if came():
+            print(f"error: interrupted{interrupted_note()}", file=sys.stderr)
+            code = 130
+        elif exc.filename is None and exc.errno not in _MACHINE_ERRORS:
             raise
-        where = f"{exc.filename}: " if exc.filename is not None else ""
-        print(f"error: {where}{exc.strerror or exc}", file=sys.stderr)
-        code = 2
+        else:
+            where = f"{exc.filename}: " if exc.filename is not None else ""
+            print(f"error: {where}{exc.strerror or exc}", file=sys.stderr)
+            code = 2
+    except Exception:  # after the errors above: a user's error stays theirs
+        if not came():
+            raise
+        # A Ctrl-C that code on the way wrapped into another error (ctypes mid-import: ArgumentError).
+        print(f"error: interrupted{interrupted_note()}", file=sys.stderr)
+        code = 130
     finally:
         if previous is not None:
-            signal.signal(signal.SIGINT, previous)
+            # The program ends here (argv None): a late Ctrl-C has nothing left to stop, and Python restores the
+            # default action while it finalises (killed by SIGINT: exit -2 after a finished run).
+            signal.signal(signal.SIGINT, signal.SIG_IGN if argv is None else previous)
     sys.stdout.flush()
     if argv is None:
         sys.exit(code)

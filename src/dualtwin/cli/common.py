@@ -28,6 +28,7 @@ import typer
 from rich.console import Console
 
 from dualtwin.errors import DualtwinError
+from dualtwin.interrupts import ready
 from dualtwin.reporting import configure_console
 from dualtwin.reporting import (
     report_progress as _report_progress,
@@ -130,6 +131,7 @@ def on_interrupt(describe: Any) -> None:
     """Register ``describe() -> str`` ("3 scenarios kept, resume with --resume"), called if Ctrl-C stops the
     command; it must only read files (the command's own writes are atomic, so what it reads is whole)."""
     _interrupt_notes.append(describe)
+    ready()  # a Ctrl-C held while the command line loaded stops the command now, with this note
 
 
 def interrupted_note(reset: bool = False) -> str:

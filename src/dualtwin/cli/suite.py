@@ -59,6 +59,8 @@ def suite_run(
     json_out: JsonOutput = False,
 ) -> None:
     """Run a suite on one twin, writing on-board and ground-truth logs per scenario (and ensemble members)."""
+    # First: a Ctrl-C during the imports below already names what OUT holds (a finished run being resumed).
+    on_interrupt(lambda: resume_note(out / "manifest.json", "scenarios", "scenarios"))
     from dualtwin.parallel import check_executor
     from dualtwin.robots.binding import resolve_robot
     from dualtwin.suite.runner import SuiteRun
@@ -69,7 +71,6 @@ def suite_run(
         raise DualtwinError(f"--executor: {exc}") from None
     twin_name = twin.value
     binding = resolve_robot(robot)
-    on_interrupt(lambda: resume_note(out / "manifest.json", "scenarios", "scenarios"))
     if ensemble is not None or perturb:
         from dualtwin.suite.ensemble import EnsembleRun, make_spec, parse_perturb
 

@@ -1,0 +1,110 @@
+"""Ctrl-C (SIGINT) for the ``dualtwin`` command line: from its first import on, one line and exit 130.
+
+``import dualtwin`` calls :func:`hold_while_loading` first thing in the command line (and ``dualtwin.cli`` once
+more, for programs that call its ``main``): a Ctrl-C while the command line is still loading is *held*
+(recorded, not raised) and delivered once the command has said what an interruption keeps
+(:func:`ready`, called by ``on_interrupt``) or, for a command that says nothing, when it returns. Raising it at
+once would stop before the command could name what is on disk ("3 scenarios kept, resume with --resume").
+Only the standard library here: this module must load in microseconds.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import threading
+from typing import Any
+
+__all__ = ["Interrupted", "came", "hold_while_loading", "ready", "stop_on_interrupt", "take_held"]
+
+
+class Interrupted(BaseException):
+    """Ctrl-C (SIGINT) while a command runs. Not a KeyboardInterrupt: typer would turn that into a silent exit
+    130, and library code that handles KeyboardInterrupt its own way must not swallow the user's stop."""
+
+
+#: [a Ctrl-C is held, it is raised at once (the command has said what stopping keeps), one was raised]
+_state = [False, True, False]
+#: The SIGINT handler found before loading held it (restored when a command ends).
+_before_loading: list[Any] = []
+
+
+def _on_sigint(signum: int, frame: Any) -> None:
+    if _state[1]:
+        _state[2] = True
+        raise Interrupted()
+    _state[0] = True
+
+
+def came() -> bool:
+    """A Ctrl-C was raised in this command: whatever it turned into (code that wraps exceptions, such as
+    ctypes' ArgumentError mid-import or an ImportError, loses the Interrupted), the command was interrupted."""
+    return _state[2]
+
+
+def _in_charge() -> bool:
+    """Only where Python lets us (the main thread) and where SIGINT is not ignored (a job started in the
+    background by a shell ignores it on purpose)."""
+    if threading.current_thread() is not threading.main_thread():
+        return False
+    current = signal.getsignal(signal.SIGINT)
+    return current is not signal.SIG_IGN and current is not None
+
+
+def is_command_line() -> bool:
+    """This program is the ``dualtwin`` command: its script, ``python -m dualtwin.cli`` or ``python -c`` code
+    that imports ``dualtwin.cli`` (as the tests start it)."""
+    argv = list(getattr(sys, "orig_argv", sys.argv))
+    if sys.argv and os.path.basename(sys.argv[0]) == "dualtwin":
+        return True
+    return any(flag in argv[:-1] and "dualtwin.cli" in argv[argv.index(flag) + 1] for flag in ("-m", "-c"))
+
+
+def hold_while_loading(only_command_line: bool = False) -> None:
+    """Hold a Ctrl-C that comes while the command line loads (``only_command_line``: only in the command)."""
+    if not _in_charge() or signal.getsignal(signal.SIGINT) is _on_sigint:
+        return
+    if only_command_line and not is_command_line():
+        return
+    _before_loading.append(signal.getsignal(signal.SIGINT))
+    _state[1] = False
+    signal.signal(signal.SIGINT, _on_sigint)
+
+
+def loaded() -> None:
+    """The command line has loaded: nothing held, the previous handler comes back (importing ``dualtwin.cli``
+    in a program of its own changes nothing); a held Ctrl-C stays held for :func:`stop_on_interrupt`."""
+    if not _state[0] and _before_loading and signal.getsignal(signal.SIGINT) is _on_sigint:
+        signal.signal(signal.SIGINT, _before_loading.pop())
+        _state[1] = True
+
+
+def stop_on_interrupt() -> Any:
+    """Route SIGINT to :class:`Interrupted` for a command's duration; the handler to restore (None: unchanged).
+
+    A Ctrl-C held while loading keeps being held until :func:`ready` or the command's end (:func:`take_held`).
+    """
+    if not _in_charge():
+        return None
+    previous = signal.getsignal(signal.SIGINT)
+    if previous is _on_sigint:
+        previous = _before_loading.pop() if _before_loading else signal.default_int_handler
+    _state[1] = not _state[0]
+    _state[2] = False
+    signal.signal(signal.SIGINT, _on_sigint)
+    return previous
+
+
+def ready() -> None:
+    """The command has said what an interruption keeps: from now on Ctrl-C stops it at once, a held one now."""
+    _state[1] = True
+    take_held()
+
+
+def take_held() -> None:
+    """Raise :class:`Interrupted` for a Ctrl-C held until now."""
+    if _state[0]:
+        _state[0] = False
+        _state[2] = True
+        raise Interrupted()
