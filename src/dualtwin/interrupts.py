@@ -3,7 +3,7 @@
 ``import dualtwin`` calls :func:`hold_while_loading` first thing in the command line (and ``dualtwin.cli`` once
 more, for programs that call its ``main``): a Ctrl-C while the command line is still loading is *held*
 (recorded, not raised) and delivered once the command has said what an interruption keeps
-(:func:`ready`, called by ``on_interrupt``) or, for a command that says nothing, when it returns. Raising it at
+(:func:`ready`, called by ``on_interrupt``) or, for a command that says nothing, :data:`HELD_GRACE_S` later. Raising it at
 once would stop before the command could name what is on disk ("3 scenarios kept, resume with --resume").
 Only the standard library here: this module must load in microseconds.
 """
@@ -30,11 +30,28 @@ _state = [False, True, False]
 _before_loading: list[Any] = []
 
 
+#: Seconds a Ctrl-C held while loading waits for the command to say what stopping keeps; then it stops it anyway
+#: (a command that never says, or a user who pressed Ctrl-C early, must not wait for the whole command).
+HELD_GRACE_S = 2.0
+
+
 def _on_sigint(signum: int, frame: Any) -> None:
     if _state[1]:
+        _state[0] = False
         _state[2] = True
         raise Interrupted()
     _state[0] = True
+
+
+def _release_held_later(seconds: float) -> None:
+    def release() -> None:
+        if _state[0] and not _state[1]:
+            _state[1] = True
+            os.kill(os.getpid(), signal.SIGINT)  # delivered to the main thread, where the handler raises
+
+    timer = threading.Timer(seconds, release)
+    timer.daemon = True
+    timer.start()
 
 
 def came() -> bool:
@@ -83,7 +100,7 @@ def loaded() -> None:
 def stop_on_interrupt() -> Any:
     """Route SIGINT to :class:`Interrupted` for a command's duration; the handler to restore (None: unchanged).
 
-    A Ctrl-C held while loading keeps being held until :func:`ready` or the command's end (:func:`take_held`).
+    A Ctrl-C held while loading keeps being held until :func:`ready`, at most :data:`HELD_GRACE_S`.
     """
     if not _in_charge():
         return None
@@ -93,6 +110,8 @@ def stop_on_interrupt() -> Any:
     _state[1] = not _state[0]
     _state[2] = False
     signal.signal(signal.SIGINT, _on_sigint)
+    if _state[0]:
+        _release_held_later(HELD_GRACE_S)
     return previous
 
 
