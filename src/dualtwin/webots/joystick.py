@@ -10,38 +10,13 @@ from __future__ import annotations
 from typing import Any
 
 from dualtwin.webots.api_args import as_float, as_int
-from dualtwin.webots.device_base import current_host
+from dualtwin.webots.polled_input import PolledInput
 
 __all__ = ["Joystick"]
 
 
-class Joystick:
+class Joystick(PolledInput):
     """Webots ``Joystick`` (``robot.joystick``): the robot's own is created disabled (``Joystick(0)``)."""
-
-    def __init__(self, sampling_period: Any = None) -> None:
-        host = current_host()
-        self._period = 0
-        if sampling_period is None:
-            self.enable(int(host.getBasicTimeStep()))
-        elif sampling_period:
-            self.enable(sampling_period)
-
-    def enable(self, p: Any) -> None:
-        self._period = max(0, as_int(p, "Joystick.enable"))
-
-    def disable(self) -> None:
-        self._period = 0
-
-    def getSamplingPeriod(self) -> int:
-        return self._period
-
-    @property
-    def sampling_period(self) -> int:
-        return self._period
-
-    @sampling_period.setter
-    def sampling_period(self, p: Any) -> None:
-        self.enable(0 if p is None else p)
 
     def isConnected(self) -> bool:
         return False

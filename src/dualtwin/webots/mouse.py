@@ -10,8 +10,9 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from dualtwin.webots.api_args import as_int, warn
+from dualtwin.webots.api_args import warn
 from dualtwin.webots.device_base import current_host
+from dualtwin.webots.polled_input import PolledInput
 
 __all__ = ["Mouse", "MouseState"]
 
@@ -38,35 +39,13 @@ class MouseState:
                 f"middle={self.middle}, right={self.right})")
 
 
-class Mouse:
+class Mouse(PolledInput):
     """Webots ``Mouse`` (``robot.mouse``): the robot's own is created disabled (``Mouse(0)``)."""
 
     def __init__(self, sampling_period: Any = None) -> None:
-        host = current_host()
-        self._robot = host
-        self._period = 0
+        self._robot = current_host()
         self._3d = False
-        if sampling_period is None:
-            self.enable(int(host.getBasicTimeStep()))
-        elif sampling_period:
-            self.enable(sampling_period)
-
-    def enable(self, p: Any) -> None:
-        self._period = max(0, as_int(p, "Mouse.enable"))
-
-    def disable(self) -> None:
-        self._period = 0
-
-    def getSamplingPeriod(self) -> int:
-        return self._period
-
-    @property
-    def sampling_period(self) -> int:
-        return self._period
-
-    @sampling_period.setter
-    def sampling_period(self, p: Any) -> None:
-        self.enable(0 if p is None else p)
+        super().__init__(sampling_period)
 
     def enable3dPosition(self) -> None:
         self._3d = True
