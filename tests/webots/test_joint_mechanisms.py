@@ -3,6 +3,7 @@ limits at load. Own small worlds; expected values from Webots' documented rules,
 
 from __future__ import annotations
 
+import math
 import warnings
 
 import pytest
@@ -193,3 +194,82 @@ def test_hinge2_suspension_is_a_spring_along_the_first_axis() -> None:
         9.81 / 1000, rel=0.02
     )
     assert abs(_hinge2_sag("")) < 2e-4  # control: without suspension the anchor holds (world ERP/CFM)
+
+
+def _fast_hinge2(motor: str) -> tuple[list[float], float]:
+    """A Hinge2 wheel (fixed parent, no gravity) spinning one axis at 60 rad/s with basicTimeStep 32 ms: 1.92 rad
+    of turn per step, more than π/2. Returns the axis' readings over 4 steps and its joint rate."""
+    world = """#VRML_SIM R2023b utf8
+WorldInfo { basicTimeStep 32 gravity 0 }
+Robot { supervisor TRUE children [ Solid { children [ Solid {
+  physics Physics { density -1 mass 50 } boundingObject Box { size 0.1 0.1 0.1 }
+  children [ Hinge2Joint {
+    jointParameters HingeJointParameters { axis 0 0 1 anchor 0 0 -0.3 }
+    jointParameters2 JointParameters { axis 0 1 0 }
+    device [ RotationalMotor { name "steer" maxVelocity 100 } PositionSensor { name "s1" } ]
+    device2 [ RotationalMotor { name "drive" maxVelocity 100 } PositionSensor { name "s2" } ]
+    endPoint Solid { translation 0 0 -0.3 boundingObject Sphere { radius 0.1 }
+                     physics Physics { density -1 mass 1 } } } ] } ] } ] }"""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sim = Simulation(load_world_text(world))
+    sup = Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    sensor = sup.getDevice("s1" if motor == "steer" else "s2")
+    sensor.enable(32)
+    m = sup.getDevice(motor)
+    m.setPosition(float("inf"))
+    m.setVelocity(60.0)
+    out = []
+    for _ in range(4):
+        sup.step(32)
+        out.append(sensor.getValue())
+    joint = next(j for j in sim.joints if j.kind == "hinge2")
+    return out, sim.joint_velocity(joint, 0 if motor == "steer" else 1)
+
+
+@pytest.mark.parametrize("motor", ["drive", "steer"])
+def test_hinge2_axes_read_a_fast_turn_forward(motor: str) -> None:
+    # ODE turns a body by 2·atan(ω·h/2) per step (its infinitesimal quaternion update): 1.5348 rad at ω·h = 1.92.
+    # Each position must advance by that much every step, and the joint rate read +60 rad/s. Axis 2's reading
+    # used to be unwrapped about a prediction of the wrong sign (it went backwards by 2π − 1.53 per step) and
+    # its rate had the wrong sign. The steering axis is the control.
+    per_step = 2 * math.atan(60.0 * 0.032 / 2)
+    readings, rate = _fast_hinge2(motor)
+    assert readings == pytest.approx([per_step * k for k in (1, 2, 3, 4)], abs=1e-6)
+    assert rate == pytest.approx(60.0, rel=1e-6)
+
+
+def _hinge2_spring_swing(axis: int) -> list[float]:
+    """A sphere (I = 2/5·m·r² = 0.004 kg·m² about any axis) on a Hinge2 whose ``axis`` (1 or 2) has a spring
+    K = 1 N·m/rad, started at 0.05 rad/s about that axis: readings of that axis over 200 steps of 8 ms."""
+    spring = ("springConstant 1", "") if axis == 1 else ("", "springConstant 1")
+    spin = "0 0 0.05" if axis == 1 else "0 0.05 0"
+    sup = _sup(
+        f"""Robot {{ supervisor TRUE children [ Solid {{ children [ Solid {{
+  physics Physics {{ density -1 mass 50 }} boundingObject Box {{ size 0.1 0.1 0.1 }}
+  children [ Hinge2Joint {{
+    jointParameters HingeJointParameters {{ axis 0 0 1 anchor 0 0 -0.3 {spring[0]} }}
+    jointParameters2 JointParameters {{ axis 0 1 0 {spring[1]} }}
+    device [ PositionSensor {{ name "s1" }} ]
+    device2 [ PositionSensor {{ name "s2" }} ]
+    endPoint Solid {{ translation 0 0 -0.3 angularVelocity {spin} boundingObject Sphere {{ radius 0.1 }}
+                     physics Physics {{ density -1 mass 1 }} }} }} ] }} ] }} ] }}""",
+        info="gravity 0",
+    )
+    sensor = sup.getDevice(f"s{axis}")
+    sensor.enable(8)
+    out = []
+    for _ in range(200):
+        sup.step(8)
+        out.append(sensor.getValue())
+    return out
+
+
+def test_a_spring_on_the_second_hinge2_axis_pulls_back() -> None:
+    # ω_n = √(K/I) = 15.8 rad/s: amplitude ω0/ω_n = 3.16 mrad (a little less: ODE's implicit spring row damps),
+    # swinging back through zero every 25 steps. The second axis' spring row measured its angle with the wrong
+    # sign and pushed away (the wheel spun off to radians). Control: the first axis' spring, the same swing.
+    second, first = _hinge2_spring_swing(2), _hinge2_spring_swing(1)
+    assert max(second) == pytest.approx(0.05 / math.sqrt(1 / 0.004), rel=0.12)
+    assert min(second) < -0.002 and abs(second[-1]) < 1e-3
+    assert second == pytest.approx(first, abs=1e-9)

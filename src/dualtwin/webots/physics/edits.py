@@ -301,9 +301,10 @@ class SupervisorEdits(GeometryEdits):
             return float(rate if joint.reverse else -rate)
         if joint.kind == "slider":
             return float(lib.dJointGetSliderPositionRate(joint.ptr))
+        # both Hinge2 positions advance against ODE's angle rates (physics/joints.py _read_joint)
         if axis_index == 0:
             return float(-lib.dJointGetHinge2Angle1Rate(joint.ptr))
-        return float(lib.dJointGetHinge2Angle2Rate(joint.ptr))
+        return float(-lib.dJointGetHinge2Angle2Rate(joint.ptr))
 
     def set_body_velocity(self, solid: SolidRec, velocity: Sequence[float]) -> None:
         """``Node.setVelocity``: set the ODE body's linear (CoM) and angular velocity (world frame).

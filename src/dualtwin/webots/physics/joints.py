@@ -310,8 +310,10 @@ class JointBuilder(SceneBuilder):
         return am  # type: ignore[no-any-return]
 
     def _create_hinge2_springs(self, joint: JointRec) -> None:
-        """Hinge2: one stop AMotor per sprung/damped axis; axis 1 turns with body 1 and its ODE angle is
-        −(position − offset), axis 2 turns with body 2 and its ODE angle is +(position − offset) (§4.4)."""
+        """Hinge2: one stop AMotor per sprung/damped axis, axis 1 turning with body 1, axis 2 with body 2. An AMotor
+        row measures its angle in the sense of ODE's angle rates, (ω1 − ω2)·axis; both Webots positions run
+        against those rates, so each AMotor angle is −(position − offset): ODE's angle 1 itself, and minus ODE's
+        angle 2 (which runs against its rate; §4.4). The stop (spring rest) is then the offset on both axes."""
         lib = self._lib
         for i in range(2):
             k, b = self.axis_spring_constants(joint, i)
@@ -320,7 +322,7 @@ class JointBuilder(SceneBuilder):
             out = (ctypes.c_double * 4)()
             (lib.dJointGetHinge2Axis1 if i == 0 else lib.dJointGetHinge2Axis2)(joint.ptr, out)
             axis = (out[0], out[1], out[2])
-            stop = m3.normalize_angle(joint.offsets[0] if i == 0 else -joint.offsets[1])
+            stop = m3.normalize_angle(joint.offsets[i])
             am = self._stop_amotor(joint, axis, i + 1, stop, k, b)
             if i == 0:
                 joint.spring = am
@@ -397,7 +399,7 @@ class JointBuilder(SceneBuilder):
             if joint.spring:
                 lib.dJointSetAMotorAngle(joint.spring, 0, lib.dJointGetHinge2Angle1(joint.ptr))
             if joint.spring2:
-                lib.dJointSetAMotorAngle(joint.spring2, 0, lib.dJointGetHinge2Angle2(joint.ptr))
+                lib.dJointSetAMotorAngle(joint.spring2, 0, -lib.dJointGetHinge2Angle2(joint.ptr))
         elif joint.kind == "hinge":
             a = lib.dJointGetHingeAngle(joint.ptr)
             lib.dJointSetAMotorAngle(joint.spring, 0, -a if joint.reverse else a)
@@ -434,8 +436,11 @@ class JointBuilder(SceneBuilder):
             a1 = lib.dJointGetHinge2Angle1(j)
             a2 = lib.dJointGetHinge2Angle2(j)
             if predict:
+                # ODE's angle rates are both (ω1 − ω2)·axis, the motor rows' sense; angle 1 follows its rate
+                # and angle 2 runs against it, so both positions advance by −rate·dt (a +rate prediction for
+                # axis 2 unwrapped a wheel turning faster than π/(2·dt) the wrong way round)
                 pred1 = joint.positions[0] - lib.dJointGetHinge2Angle1Rate(j) * self.dt
-                pred2 = joint.positions[1] + lib.dJointGetHinge2Angle2Rate(j) * self.dt
+                pred2 = joint.positions[1] - lib.dJointGetHinge2Angle2Rate(j) * self.dt
             else:
                 pred1, pred2 = joint.positions[0], joint.positions[1]
             joint.positions[0] = m3.normalize_angle(-a1 + joint.offsets[0], pred1)
