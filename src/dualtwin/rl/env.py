@@ -308,6 +308,56 @@ class CartPoleBalance(Task):
         return {"true_pole_angle": float(self._truth[self._true_angle]),
                 "true_cart_position": float(self._truth[self._true_x]), "true_cart_tilt": self._tilt}
 
+    # ---- many envs at once (dualtwin.rl.vector_env): the arithmetic above, in the same order, on one column
+    # per channel, so that a batch of envs is bit-identical to envs stepped one by one (tests/rl/test_vector_env.py).
+    def last_odometry(self) -> float:
+        """The wheel odometry of the last sample (the batch carries it into the next odometry velocity)."""
+        return float(self._onboard[self._odometry_index])
+
+    def batch_channels(self) -> tuple[list[int], list[int]]:
+        """Indices of the on-board and ground-truth channels that the batch methods read."""
+        onboard = {i for r, i in self._obs_index if r == 0} | {self._odometry_index}
+        truth = {i for r, i in self._obs_index if r == 1} | {self._true_angle, self._true_x}
+        return sorted(onboard), sorted(truth)
+
+    def batch_wheel_speeds(self, actions: Any) -> np.ndarray:
+        """:meth:`apply_action`'s wheel speed (rad/s, every actuator) for each row of ``actions``."""
+        actions = np.asarray(actions)
+        n = actions.shape[0]
+        if self.continuous:
+            value = np.clip(actions.astype(np.float64).reshape(n, -1)[:, 0], -1.0, 1.0)
+            return value * self.max_cart_speed / self.wheel_radius
+        index = actions.reshape(n).astype(np.int64)  # int(action), as cart_speed does
+        bad = (index != 0) & (index != 1)
+        if bad.any():
+            raise DualtwinError(f"cartpole_balance: discrete action must be 0 or 1, "
+                                f"got {actions.reshape(n)[bad][0]!r}")
+        low, high = self.speed_table()
+        return np.where(index == 1, high, low) / self.wheel_radius
+
+    def batch_outcome(self, onboard: np.ndarray, truth: np.ndarray, tilt: np.ndarray,
+                      previous_odometry: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any], np.ndarray]:
+        """Observations, rewards, terminations and infos of samples (n, channels) taken after a period, and
+        the odometry that the next period's odometry velocity starts from."""
+        rows = (onboard, truth)
+        columns = [rows[r][:, i] for r, i in self._obs_index]
+        if self.odometry_velocity:
+            columns[1] = (onboard[:, self._odometry_index] - previous_odometry) / self._period
+        values = np.stack(columns, axis=1)
+        if self.observation_ranges is not None:
+            obs = np.clip(values / self.observation_ranges, -1.0, 1.0).astype(np.float32)
+        else:
+            obs = values.astype(np.float32)
+        angle, x = truth[:, self._true_angle], truth[:, self._true_x]
+        upright = tilt <= self.upright_angle
+        reward = np.where(upright & (np.abs(angle) <= self.balance_angle), 1.0, 0.0)
+        terminated = np.abs(x) > self.x_limit
+        if self.terminate_on_fall:
+            terminated |= (np.abs(angle) > self.balance_angle) | (tilt > self.upright_angle)
+        info = {"true_pole_angle": angle.copy(), "true_cart_position": x.copy(), "true_cart_tilt": tilt}
+        return obs, reward, terminated, info, onboard[:, self._odometry_index].copy()
+
 
 # Task name -> constructor (keyword arguments: ``continuous`` and the task's own); task modules add theirs.
 TASKS: dict[str, Callable[..., Task]] = {"cartpole_balance": CartPoleBalance}

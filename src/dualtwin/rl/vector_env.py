@@ -1,25 +1,32 @@
-"""N MuJoCo-twin envs whose physics runs as one ``mujoco.batch.Batch``: one batched call per control period.
+"""N MuJoCo-twin envs as one ``mujoco.batch.Batch``: one batched call per control period, the rest on arrays.
 
-Each env is a :class:`~dualtwin.rl.env.TwinEnv` (its task, its twin, its seeds and knobs); only the physics
-of a period moves out of the twin. A step writes every env's command through its task (the native motor law
-keeps its targets in ``plugin_state``), copies each twin's integration state into the batch's row, steps every
-row's substeps on the batch's C threads, and copies the rows back; then each task samples, rewards and
-terminates as in ``TwinEnv.step``. A period is nothing but ``mj_step`` from the integration state once the
-motor law is native (see :mod:`dualtwin.twins.motor_plugin`), so the results are bit-identical to N separate
-envs (tests/rl/test_vector_env.py). Each simulation runs on its twin's own model (``Batch.set_models``), so
-per-env knobs apply; resets run one env at a time through ``TwinEnv.reset``, as they would unbatched.
+Each env is a :class:`~dualtwin.rl.env.TwinEnv` (its task, its twin, its seeds and knobs), used to reset it;
+between resets the batch's state row *is* the env's state. A step writes every env's command into the rows'
+``plugin_state`` (the native motor law, :mod:`dualtwin.twins.motor_plugin`, keeps its targets there), steps
+all rows on the batch's C threads with the poses and sensors computed at the new state
+(``stage=mjSTAGE_VEL``), reads the binding's channels as columns (:mod:`dualtwin.rl.batch_io`), and lets the
+task compute observations, rewards and terminations on those columns (``CartPoleBalance.batch_outcome``):
+no Python per env in the loop. A period is nothing but ``mj_step`` from the integration state once the motor
+law is native, and the column arithmetic is the single env's, in its order, so the results are bit-identical
+to N separate envs (tests/rl/test_vector_env.py). Each simulation runs on its twin's own model
+(``Batch.set_models``), so per-env knobs apply.
+
+An env whose episode needs Python per period or per reading (sensor noise, bias, resolution or delay, the
+control delay: :func:`~dualtwin.rl.batch_io.plain_sensors`; a task without batch methods; a channel the
+columns do not cover) runs that episode through its twin instead: its row is copied into the twin, stepped
+with the others, and copied back, and the twin and task do the rest as ``TwinEnv.step`` does.
 
 Episodes end and restart as in ``gymnasium.vector.SyncVectorEnv`` over ``gym.make`` envs: a ``TimeLimit`` of
 ``max_episode_steps`` truncates, and an env whose episode ended resets on its next step (autoreset mode
 ``NEXT_STEP``: that step returns the reset observation, reward 0, not done).
 
-The gain is the Python a loop of single envs pays per env and the physics on threads: wall time scales with
-cores; CPU time per env step cannot fall below the physics itself (bench/bench_vector_env.py).
+CPU time per env step cannot fall below the physics itself (bench/bench_vector_env.py gives both); wall time
+also scales with the batch's threads.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Protocol, cast, runtime_checkable
 
 import mujoco
 import mujoco.batch
@@ -28,12 +35,17 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from dualtwin.errors import DualtwinError, SimulationUnstable
+from dualtwin.rl.batch_io import BatchChannels, Column, plain_sensors
 from dualtwin.rl.env import TwinEnv
+from dualtwin.twins import motor_plugin
 from dualtwin.twins.mujoco import MuJoCoTwin
 
 _INTEGRATION = mujoco.mjtState.mjSTATE_INTEGRATION.value
 _BAD_STATE = [int(w) for w in (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
                                mujoco.mjtWarning.mjWARN_BADQACC)]
+_AUTORESET_OFF = int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
+_POSES = mujoco.mjtStage.mjSTAGE_VEL.value
+_SLOT = motor_plugin.SLOT
 
 
 def batchable(twin: Any) -> MuJoCoTwin:
@@ -49,11 +61,76 @@ def batchable(twin: Any) -> MuJoCoTwin:
     return twin
 
 
+@runtime_checkable
+class BatchTask(Protocol):
+    """What the array path needs of a task (``CartPoleBalance`` has it): one velocity command for all its
+    actuators, the tilt of one body, and its arithmetic on columns (see ``CartPoleBalance.batch_outcome``)."""
+
+    actuators: list[str]
+    cart_body: str
+
+    def batch_channels(self) -> tuple[list[int], list[int]]: ...
+
+    def batch_wheel_speeds(self, actions: Any) -> np.ndarray: ...
+
+    def batch_outcome(self, onboard: np.ndarray, truth: np.ndarray, tilt: np.ndarray, previous_odometry: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any], np.ndarray]: ...
+
+    def last_odometry(self) -> float: ...
+
+
+class _Columns:
+    """What the array path needs of the task and the binding, or why it cannot run (``reason``)."""
+
+    def __init__(self, env: TwinEnv, batch: mujoco.batch.Batch) -> None:
+        task, model = env.task, batchable(env.twin).model
+        self.reason: str | None = None
+        if not isinstance(task, BatchTask):
+            self.reason = f"task {env.task_name!r} has no batch methods"
+            return
+        self.task: BatchTask = task
+        channels = BatchChannels(env.robot, model, batch)
+        spec = env.robot.spec
+        onboard, truth = task.batch_channels()
+        readers = [channels.reader(c) for c in spec.onboard.values()], [channels.reader(c) for c in spec.ground_truth.values()]
+        tilt = channels.tilt(task.cart_body)
+        self.shape = (len(spec.onboard), len(spec.ground_truth))
+        self.onboard = [(i, read) for i in onboard if (read := readers[0][i]) is not None]
+        self.truth = [(i, read) for i in truth if (read := readers[1][i]) is not None]
+        if tilt is None or len(self.onboard) < len(onboard) or len(self.truth) < len(truth):
+            self.reason = "a channel the task reads is not a column of the batch"
+            return
+        self.tilt: Column = tilt
+        # Each actuator's plugin_state slots (velocity commands: mode, target position and velocity, gain...).
+        section = spec.twins.get("mujoco")
+        aliases = dict(section.aliases) if section else {}
+        starts = []
+        for name in task.actuators:
+            a = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, aliases.get(name, name))
+            instance = int(model.actuator_plugin[a]) if a >= 0 else -1
+            if instance < 0:
+                self.reason = f"actuator {name!r} is not a native-law motor"
+                return
+            starts.append(int(model.plugin_stateadr[instance]))
+        #: per slot name, its column in plugin_state for every actuator
+        self.slot = {name: np.array(starts) + index for name, index in _SLOT.items()}
+
+    def sample(self, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        onboard, truth = np.full((n, self.shape[0]), np.nan), np.full((n, self.shape[1]), np.nan)
+        for i, read in self.onboard:
+            onboard[:, i] = read()
+        for i, read in self.truth:
+            truth[:, i] = read()
+        return onboard, truth, self.tilt()
+
+
 class TwinVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
     """``num_envs`` TwinEnvs (same arguments) stepped through one batch on ``nthread`` threads (0: all CPUs).
 
     Registered as the ``vector_entry_point`` of the MuJoCo CartPole ids:
     ``gym.make_vec("dualtwin/CartPole-MuJoCo-Continuous-v0", num_envs=16, vectorization_mode="vector_entry_point")``.
+    The batch's rows hold the envs' states (``batch.get_data(i)`` materialises one); the twins of
+    :attr:`envs` hold them only right after a reset and for envs that step through their twin.
     """
 
     metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -66,36 +143,53 @@ class TwinVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
             raise DualtwinError("the batched vector env does not render (make single envs for that)")
         self.envs = [TwinEnv(**env_kwargs) for _ in range(num_envs)]
         self.twins = [batchable(env.twin) for env in self.envs]
-        self.num_envs = num_envs
+        self.num_envs = n = num_envs
         self.max_episode_steps = max_episode_steps
         self.render_mode = None
         self.single_observation_space = self.envs[0].observation_space
-        self._obs_shape = (num_envs, *(self.single_observation_space.shape or ()))
+        self._obs_shape = (n, *(self.single_observation_space.shape or ()))
         self.single_action_space = self.envs[0].action_space
-        self.observation_space = batch_space(self.single_observation_space, num_envs)
-        self.action_space = batch_space(self.single_action_space, num_envs)
-        self.batch = mujoco.batch.Batch(self.twins[0].model, num_envs, nthread=nthread)
-        self._rows = [self.batch.state[i] for i in range(num_envs)]
+        self.observation_space = batch_space(self.single_observation_space, n)
+        self.action_space = batch_space(self.single_action_space, n)
+        # persistent: a step that ends on mjSTAGE_VEL lets the next one continue from it (no extra work)
+        self.batch = mujoco.batch.Batch(self.twins[0].model, n, nthread=nthread, persistent=True)
+        self._rows = [self.batch.state[i] for i in range(n)]
+        self._time = self.batch.bind("time")
+        self._plugin_state = self.batch.bind("plugin_state")
         self._models_stale = True  # a reset may change a twin's model (knobs): the batch reads it again
-        self._elapsed = np.zeros(num_envs, dtype=np.int64)
-        self._autoreset = np.zeros(num_envs, dtype=bool)
+        self._elapsed = np.zeros(n, dtype=np.int64)
+        self._autoreset = np.zeros(n, dtype=bool)
+        self._columns = _Columns(self.envs[0], self.batch)
+        #: Per env: True while its episode runs on arrays (see the module docstring), False through its twin.
+        self.on_arrays = np.zeros(n, dtype=bool)
+        self._substeps = np.ones(n, dtype=np.int64)
+        self._timestep = np.ones(n)
+        self._odometry = np.zeros(n)
+        self._obs = np.zeros(self._obs_shape, dtype=np.float32)  # the last observation (an unstable period's)
+        self._info: dict[str, np.ndarray] = {}
         # Acceleration-stage sensors (touch, force...) are what the last substep computed: copied from the
-        # batch, as mj_step leaves them in the twin's data; refresh() recomputes the position/velocity ones.
+        # batch into a twin that steps through the batch, as mj_step leaves them in its data.
         model = self.twins[0].model
         self._copy_sensors = bool(model.nsensor) and bool(
             (model.sensor_needstage == mujoco.mjtStage.mjSTAGE_ACC).any())
-        self._sensordata = self.batch.bind("sensordata") if self._copy_sensors else None
+        self._sensordata = self.batch.bind("sensordata")
 
-    def _load(self, i: int) -> None:
-        """Env i's twin state into its batch row (after a reset or a step of the twin itself)."""
-        twin = self.twins[i]
-        mujoco.mj_getState(twin.model, twin.data, self._rows[i], _INTEGRATION)
-
+    # ------------------------------------------------------------------ resets
     def _reset_env(self, i: int, seed: int | None, options: dict[str, Any] | None) -> tuple[np.ndarray, dict]:
-        obs, info = self.envs[i].reset(seed=seed, options=options)
-        self._load(i)
+        env, twin = self.envs[i], self.twins[i]
+        obs, info = env.reset(seed=seed, options=options)
+        mujoco.mj_getState(twin.model, twin.data, self._rows[i], _INTEGRATION)
         self._elapsed[i] = 0
         self._models_stale = True
+        # knobs may change the physics step (and so the substeps of a period) per env
+        self._timestep[i] = twin.model.opt.timestep
+        self._substeps[i] = int(round(twin.control_period / twin.model.opt.timestep))
+        self.on_arrays[i] = self._columns.reason is None and plain_sensors(twin.model, env.knob_values)
+        if self.on_arrays[i]:
+            self._odometry[i] = cast(BatchTask, env.task).last_odometry()
+            self._obs[i] = obs
+            for key, value in info.items():
+                self._info.setdefault(key, np.zeros(self.num_envs))[i] = value
         return obs, info
 
     def _set_models(self) -> None:
@@ -118,6 +212,7 @@ class TwinVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         self._set_models()
         return obs, infos
 
+    # ------------------------------------------------------------------ steps
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         n = self.num_envs
         obs = np.empty(self._obs_shape, dtype=np.float32)
@@ -125,46 +220,117 @@ class TwinVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         terminated = np.zeros(n, dtype=bool)
         truncated = np.zeros(n, dtype=bool)
         infos: dict[str, Any] = {}
-        by_substeps: dict[int, list[int]] = {}
-        for i, env in enumerate(self.envs):
-            if self._autoreset[i]:
-                obs[i], info = self._reset_env(i, None, None)
-                infos = self._add_info(infos, info, i)
-                continue
-            twin = self.twins[i]
-            env.task.apply_action(actions[i])
-            twin.start_period()
-            mujoco.mj_getState(twin.model, twin.data, self._rows[i], _INTEGRATION)
-            # knobs may change the physics step (and so the substeps of a period) per env
-            substeps = int(round(twin.control_period / twin.model.opt.timestep))
-            by_substeps.setdefault(substeps, []).append(i)
+        for i in np.flatnonzero(self._autoreset) if self._autoreset.any() else ():
+            obs[i], info = self._reset_env(int(i), None, None)
+            infos = self._add_info(infos, info, int(i))
+        stepping = ~self._autoreset
+        arrays = stepping & self.on_arrays
+        twins = np.flatnonzero(stepping & ~self.on_arrays) if not arrays.all() else ()
+        if arrays.any():
+            self._command(arrays, actions)
+        for i in twins:
+            self.envs[i].task.apply_action(actions[i])
+            self.twins[i].start_period()
+            mujoco.mj_getState(self.twins[i].model, self.twins[i].data, self._rows[i], _INTEGRATION)
         self._set_models()
+        started = self._time.copy()
         warnings = self.batch.warning
         before = warnings[:, _BAD_STATE, 1].sum(axis=1)
-        for substeps, ids in by_substeps.items():
-            self.batch.step(ids if len(ids) < n else None, nstep=substeps)
+        periods = self._substeps[stepping]
+        for substeps in periods[:1] if periods.size == 0 or periods.min() == periods.max() else np.unique(periods):
+            ids = stepping & (self._substeps == substeps)
+            self.batch.step(None if ids.all() else ids, nstep=int(substeps), stage=_POSES)
         bad = warnings[:, _BAD_STATE, 1].sum(axis=1) != before
-        for ids in by_substeps.values():
-            for i in ids:
-                env, twin = self.envs[i], self.twins[i]
-                mujoco.mj_setState(twin.model, twin.data, self._rows[i], _INTEGRATION)
-                if self._sensordata is not None:
-                    twin.data.sensordata[:] = self._sensordata[i]
-                task = env.task
-                try:
-                    twin.finish_period(bool(bad[i]))
-                except SimulationUnstable as exc:  # as TwinEnv.step: the episode ends, training goes on
-                    obs[i], terminated[i] = task.observation(), True
-                    info = {**task.info(), "unstable": str(exc)}
-                else:
-                    task.sample()
-                    obs[i], rewards[i], terminated[i] = task.observation(), task.reward(), task.terminated()
-                    info = task.info()
-                self._elapsed[i] += 1
-                truncated[i] = self.max_episode_steps is not None and self._elapsed[i] >= self.max_episode_steps
-                infos = self._add_info(infos, info, i)
+        if arrays.any():
+            self._outcome(arrays, started, bad, obs, rewards, terminated, infos)
+        for i in twins:
+            self._twin_outcome(int(i), bool(bad[i]), obs, rewards, terminated, infos)
+        self._elapsed[stepping] += 1
+        if self.max_episode_steps is not None:
+            truncated[stepping] = self._elapsed[stepping] >= self.max_episode_steps
         self._autoreset = terminated | truncated
         return obs, rewards, terminated, truncated, infos
+
+    def _command(self, arrays: np.ndarray, actions: Any) -> None:
+        """Every array env's velocity command into its row's plugin slots, as ``MuJoCoTwin.command`` writes
+        them (``MotorState.set_velocity``: the command times the gain, clamped to the maximum velocity)."""
+        rows = slice(None) if arrays.all() else np.flatnonzero(arrays)
+        wheel = self._columns.task.batch_wheel_speeds(np.asarray(actions)[rows])
+        state, slot = self._plugin_state[rows], self._columns.slot  # a view for all rows, else a copy
+        limit = state[:, slot["max_velocity"]]
+        v = wheel[:, None] * state[:, slot["gain"]]
+        v = np.where(v < limit, v, limit)  # min(limit, v), then max(-limit, v): Python's picks, NaN included
+        state[:, slot["target_velocity"]] = np.where(v > -limit, v, -limit)
+        state[:, slot["torque_mode"]] = 0.0
+        state[:, slot["target_position"]] = np.inf
+        state[:, slot["saturated"]] = 0.0
+        if not isinstance(rows, slice):
+            self._plugin_state[rows] = state
+
+    def _outcome(self, arrays: np.ndarray, started: np.ndarray, bad: np.ndarray, obs: np.ndarray,
+                 rewards: np.ndarray, terminated: np.ndarray, infos: dict[str, Any]) -> None:
+        n = self.num_envs
+        onboard, truth, tilt = self._columns.sample(n)
+        new_obs, reward, done, info, odometry = self._columns.task.batch_outcome(onboard, truth, tilt, self._odometry)
+        # MuJoCo resets a simulation (time 0) when a step meets a bad qpos, qvel or qacc: a period that ended on
+        # time was stable, as the twin's own check says (MuJoCoTwin._check_stable); the others are checked there.
+        on_time = self._time > started + (self._substeps - 0.5) * self._timestep
+        suspect = np.flatnonzero(arrays & ~on_time) if not self.twins[0].model.opt.disableflags & _AUTORESET_OFF \
+            else np.flatnonzero(arrays)
+        unstable: dict[int, str] = {}
+        for i in suspect.tolist():
+            message = self._instability(i, float(started[i]), bool(bad[i]))
+            if message is not None:
+                unstable[i] = message
+        keep = arrays.copy()
+        keep[list(unstable)] = False
+        obs[keep], rewards[keep], terminated[keep] = new_obs[keep], reward[keep], done[keep]
+        self._obs[keep] = new_obs[keep]
+        self._odometry[keep] = odometry[keep]
+        for key, values in info.items():
+            self._info.setdefault(key, np.zeros(n))[keep] = values[keep]
+        for key, values in self._info.items():
+            column = infos.get(key)
+            if column is None:
+                column, infos[f"_{key}"] = np.zeros(n), np.zeros(n, dtype=bool)
+                infos[key] = column
+            column[arrays] = values[arrays]
+            infos[f"_{key}"][arrays] = True
+        for i, message in unstable.items():
+            # as TwinEnv.step: the last observation, reward 0, the episode ends, training goes on
+            obs[i], terminated[i] = self._obs[i], True
+            infos = self._add_info(infos, {"unstable": message}, i)
+
+    def _instability(self, i: int, started: float, bad: bool) -> str | None:
+        """The twin's verdict on env i's period (its message if unstable): its row goes into the twin."""
+        twin = self.twins[i]
+        twin.data.time = started
+        twin.start_period()
+        mujoco.mj_setState(twin.model, twin.data, self._rows[i], _INTEGRATION)
+        try:
+            twin.finish_period(bad)
+        except SimulationUnstable as exc:
+            return str(exc)
+        return None
+
+    def _twin_outcome(self, i: int, bad: bool, obs: np.ndarray, rewards: np.ndarray, terminated: np.ndarray,
+                      infos: dict[str, Any]) -> None:
+        """Env i's period through its twin and task, as ``TwinEnv.step`` after ``twin.step()``."""
+        env, twin = self.envs[i], self.twins[i]
+        mujoco.mj_setState(twin.model, twin.data, self._rows[i], _INTEGRATION)
+        if self._copy_sensors:
+            twin.data.sensordata[:] = self._sensordata[i]
+        task = env.task
+        try:
+            twin.finish_period(bad)
+        except SimulationUnstable as exc:
+            obs[i], terminated[i] = task.observation(), True
+            info = {**task.info(), "unstable": str(exc)}
+        else:
+            task.sample()
+            obs[i], rewards[i], terminated[i] = task.observation(), task.reward(), task.terminated()
+            info = task.info()
+        self._add_info(infos, info, i)
 
     def close_extras(self, **kwargs: Any) -> None:
         for env in self.envs:
