@@ -80,3 +80,30 @@ def test_gps_speed_is_nan_until_the_first_sample() -> None:
     assert math.isnan(gps.getSpeed()) and all(math.isnan(v) for v in gps.getSpeedVector())
     sup.step(32)
     assert gps.getSpeed() == 0.0
+
+
+def test_a_solid_without_physics_moves_by_its_velocity_fields_and_sensors_sample_it() -> None:
+    # A Robot without Physics (no body: a kinematic Solid) with linearVelocity v and angularVelocity ω moves by
+    # v·dt and turns by |ω|·dt about ω every basic step (32 ms here). Its GPS, 0.1 m along the robot's x, samples
+    # every 64 ms: after 96 ms it still shows the 64 ms pose, and its speed vector is the last step's displacement
+    # of the device origin over dt. Control: a Solid without velocity fields stays where it is.
+    sup = _supervisor("""Robot { supervisor TRUE translation 1 2 3 linearVelocity 0.5 -0.25 1 angularVelocity 0 0 1
+  children [ GPS { name "gps" translation 0.1 0 0 } ] }
+DEF STILL Solid { translation 0 0 1 }""")
+    gps = sup.getDevice("gps")
+    gps.enable(64)
+    sup.step(96)
+    t = 0.064
+
+    def device_origin(time: float) -> list[float]:
+        return [1 + 0.5 * time + 0.1 * math.cos(time), 2 - 0.25 * time + 0.1 * math.sin(time), 3 + time]
+
+    assert gps.getValues() == pytest.approx(device_origin(t), abs=1e-12)
+    before = device_origin(t - DT)
+    speed = [(a - b) / DT for a, b in zip(device_origin(t), before, strict=True)]
+    assert gps.getSpeedVector() == pytest.approx(speed, abs=1e-9)
+    robot = sup.getSelf()
+    assert robot.getPosition() == pytest.approx([1 + 0.5 * 0.096, 2 - 0.25 * 0.096, 3.096], abs=1e-12)
+    assert robot.getVelocity() == pytest.approx([0.5, -0.25, 1, 0, 0, 1], abs=1e-12)
+    assert robot.getField("translation").getSFVec3f() == pytest.approx(robot.getPosition(), abs=1e-12)
+    assert sup.getFromDef("STILL").getPosition() == [0.0, 0.0, 1.0]

@@ -108,6 +108,7 @@ class SimulationCore:
     _tracked: list[JointRec]
     _moving_static: list[GeomRec]
     _views: list[tuple[Any, Any, Any]]
+    _drifting: list[SolidRec]  # Solids without Physics moved by their own velocity fields (Stepper._drift)
 
     @property
     def time(self) -> float:

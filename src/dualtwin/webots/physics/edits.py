@@ -341,27 +341,51 @@ class SupervisorEdits(GeometryEdits):
         while anc is not None and anc.body is None:
             anc = anc.parent
         if anc is None or anc.body is None:
-            return (0.0,) * 6
+            return self._drift_velocity(solid)
         b = anc.body
         w = (b.avel[0], b.avel[1], b.avel[2])
         r = m3.sub(self.solid_world_pose(solid).t, (b.pos[0], b.pos[1], b.pos[2]))
         v = m3.add((b.lvel[0], b.lvel[1], b.lvel[2]), m3.cross(w, r))
         return (*v, *w)
 
+    def kinematic_velocity(self, solid: SolidRec) -> tuple[float, ...]:
+        """The six world velocities of a Solid without Physics: its ``linearVelocity`` and ``angularVelocity``."""
+        fields = solid.node.fields
+        lin = fields.get("linearVelocity", (0.0, 0.0, 0.0))
+        ang = fields.get("angularVelocity", (0.0, 0.0, 0.0))
+        return tuple(float(v) for v in (*lin, *ang))
+
+    def _drift_velocity(self, solid: SolidRec) -> tuple[float, ...]:
+        """A Solid that no body carries moves only with a drifting Solid (itself or an ancestor, Stepper._drift):
+        that Solid's velocity, plus ω × lever arm for a Solid inside it; zero otherwise."""
+        s: SolidRec | None = solid
+        while s is not None and s not in self._drifting:
+            s = s.parent
+        if s is None:
+            return (0.0,) * 6
+        v = self.kinematic_velocity(s)
+        w = (v[3], v[4], v[5])
+        r = m3.sub(self.solid_world_pose(solid).t, self.solid_world_pose(s).t)
+        return (*m3.add((v[0], v[1], v[2]), m3.cross(w, r)), *w)
+
     def point_velocity(self, solid: SolidRec) -> m3.Vec3:
         """World velocity of the Solid's frame origin as a point of the body carrying it (``dBodyGetPointVel``:
-        the CoM velocity plus ω × lever arm); zero for a Solid that no body carries."""
+        the CoM velocity plus ω × lever arm); without a body, that of the drifting Solid moving it, if any."""
         body = self._nearest_body(solid)
         if body is None:
-            return (0.0, 0.0, 0.0)
+            v = self._drift_velocity(solid)
+            return (v[0], v[1], v[2])
         r = m3.sub(self.solid_world_pose(solid).t, (body.pos[0], body.pos[1], body.pos[2]))
         w = (body.avel[0], body.avel[1], body.avel[2])
         return m3.add((body.lvel[0], body.lvel[1], body.lvel[2]), m3.cross(w, r))
 
     def angular_velocity(self, solid: SolidRec) -> m3.Vec3:
-        """World angular velocity of the body carrying the Solid (zero without one)."""
+        """World angular velocity of the body carrying the Solid (without one: of the drifting Solid moving it)."""
         body = self._nearest_body(solid)
-        return (body.avel[0], body.avel[1], body.avel[2]) if body is not None else (0.0, 0.0, 0.0)
+        if body is None:
+            v = self._drift_velocity(solid)
+            return (v[3], v[4], v[5])
+        return (body.avel[0], body.avel[1], body.avel[2])
 
     def center_of_mass(self, solid: SolidRec) -> m3.Vec3:
         """World position of the body CoM holding ``solid`` (its own origin if it has no body)."""

@@ -7,7 +7,9 @@ import math
 import threading
 
 from dualtwin.errors import SimulationUnstable
+from dualtwin.webots import _math3 as m3
 from dualtwin.webots import ode
+from dualtwin.webots._math3 import Pose
 from dualtwin.webots.physics.edits import SupervisorEdits
 from dualtwin.webots.physics.records import (
     MotorRec,
@@ -29,6 +31,14 @@ class Stepper(SupervisorEdits):
             if gr.body is None and gr.solid.robot is not None and self._moves(gr.solid):
                 self._moving_static.append(gr)
         self._views = [(b.pos, b.lvel, b.avel) for b in self.bodies]
+        self._drifting = [s for s in self.solids if self._drifts(s)]
+
+    def _drifts(self, solid: SolidRec) -> bool:
+        """A Solid without Physics, carried by no body and no joint, whose ``linearVelocity`` or
+        ``angularVelocity`` is not zero: Webots moves it by that velocity every step (kinematic motion)."""
+        if solid.joint is not None or self._nearest_body(solid) is not None:
+            return False
+        return any(float(v) != 0.0 for v in self.kinematic_velocity(solid))
 
     def _moves(self, solid: SolidRec) -> bool:
         s: SolidRec | None = solid
@@ -68,6 +78,8 @@ class Stepper(SupervisorEdits):
 
     def _pre_physics(self) -> None:
         dt = self.dt
+        for solid in self._drifting:
+            self._drift(solid, dt)
         for motor in self._dyn_motors:
             self._apply_motor(motor, dt)
         for joint in self._springs:
@@ -117,6 +129,18 @@ class Stepper(SupervisorEdits):
             setp(joint.ptr, ode.dParamVel, u)
         else:  # Hinge2 and BallJoint axes (physics/joints.py picks the ODE joint and parameter group)
             self._set_motor_row(joint, i, -u, fmax)
+
+    def _drift(self, solid: SolidRec, dt: float) -> None:
+        """One step of a drifting Solid's kinematic motion: its origin moves by v·dt and its frame turns by |ω|·dt
+        about ω, both in world axes; its subtree, static geoms and fields follow, as in a supervisor move."""
+        v = self.kinematic_velocity(solid)
+        world = self.solid_world_pose(solid)
+        w = v[3:]
+        turn = m3.rot_axis_angle((*w, m3.norm(w) * dt)) if any(w) else m3.IDENTITY
+        moved = Pose(m3.mat_mul(turn, world.R), m3.add(world.t, m3.scale(v[:3], dt)))
+        frame = solid.pre if solid.parent is None else self.solid_world_pose(solid.parent) * solid.pre
+        local = frame.inverse() * moved
+        self._teleport_solid(solid, local.t, m3.axis_angle_from_mat(local.R))
 
     def _kinematic_motor(self, motor: MotorRec, dt: float) -> None:
         """§5.3 (kinematic joints): move toward the target at the commanded velocity."""
