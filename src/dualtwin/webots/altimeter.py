@@ -10,6 +10,7 @@ import math
 from dualtwin.webots.compass import coordinate_system
 from dualtwin.webots.device_base import SolidSensor
 from dualtwin.webots.lut import discretize
+from dualtwin.webots.step_hints import step_value
 
 __all__ = ["Altimeter"]
 
@@ -30,6 +31,7 @@ class Altimeter(SolidSensor):
             value += sim.rng.gauss(0.0, accuracy)
         self._value = discretize(value, float(f.get("resolution", -1.0)))
 
+    @step_value
     def getValue(self) -> float:
         return self._value
 

@@ -15,6 +15,7 @@ from dualtwin.webots import _math3 as m3
 from dualtwin.webots.device_base import SolidSensor
 from dualtwin.webots.lut import discretize, lookup, table_from_field
 from dualtwin.webots.physics import Simulation
+from dualtwin.webots.step_hints import step_value
 
 __all__ = ["Compass", "coordinate_system", "north"]
 
@@ -47,6 +48,7 @@ class Compass(SolidSensor):
             for v, axis in zip(local, "xyz", strict=True)
         ]
 
+    @step_value
     def getValues(self) -> list[float]:
         return list(self._values)
 

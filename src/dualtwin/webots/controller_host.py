@@ -42,8 +42,8 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from dualtwin.webots import controller as api
-from dualtwin.webots.controller_process import CACHED_READS, Wire
-from dualtwin.webots.controller_wire import HandleTable
+from dualtwin.webots.controller_process import Wire
+from dualtwin.webots.controller_wire import HandleTable, plain
 from dualtwin.webots.device_base import Device
 from dualtwin.webots.nodes import Node as SceneNode
 
@@ -55,6 +55,9 @@ TERMINATION_GRACE_S = 1.0
 #: Default wall-clock seconds a controller may run without calling step() (``--step-timeout``).
 DEFAULT_STEP_TIMEOUT_S = 5.0
 _POLL_S = 0.02
+#: Robot methods that run the simulation: their answer brings the subscribed getters' values.
+_STEPS = frozenset({"step", "stepEnd"})
+_FLAT = frozenset({float, int, bool, str, type(None)})
 #: Real seconds a controller that reported its exit may take to shut its interpreter down before it is killed.
 EXIT_GRACE_S = 2.0
 
@@ -89,6 +92,9 @@ class _Link:
         self.exit_code: int | None = None  # as the child reported it
         self.stopped: str | None = None  # why the parent killed it: "forced" or "timeout"
         self.deferred: BaseException | None = None  # raised by a queued command, reported at the next call
+        #: the marked getters the child reads (bound here), in its subscription order: their values go
+        #: with every step's answer
+        self.subscribed: list[Any] = []
         self.robot_object: api.Robot | None = None
         self.done = threading.Event()
 
@@ -208,10 +214,12 @@ class _Host:
                 if not link.stepped:
                     link.last_active = time.monotonic()  # before the first step, any call shows progress
                 link.heard = True
-                out, queued = message[-2], message[-1]
-                link.out.extend(out)
-                if queued:
-                    self._run_queued(link, queued)
+                pending, subscriptions = message[-2], message[-1]
+                if pending:
+                    self._run_pending(link, pending)
+                if subscriptions:
+                    objects = link.table.objects
+                    link.subscribed.extend(getattr(objects[handle], name) for handle, name in subscriptions)
                 op = message[0]
                 if op == "out":
                     continue
@@ -229,12 +237,18 @@ class _Host:
             link.done.set()
             self.changed.set()
 
-    def _run_queued(self, link: _Link, queued: list[tuple[int, str, tuple[Any, ...]]]) -> None:
+    def _run_pending(self, link: _Link, pending: list[tuple[Any, ...]]) -> None:
+        """The child's output and buffered commands, in its order (a command's warning lands between)."""
         objects = link.table.objects
-        for handle, name, args in queued:
+        out = link.out
+        for entry in pending:
+            if len(entry) == 2:
+                out.append(entry)
+                continue
+            handle, name, args = entry
             try:
                 getattr(objects[handle], name)(*args)
-            except Exception as exc:
+            except Exception as exc:  # a marked command does not raise; should one, it is not lost
                 if link.deferred is None:
                     link.deferred = exc
 
@@ -244,22 +258,26 @@ class _Host:
             if link.deferred is not None:
                 error, link.deferred = link.deferred, None
                 raise error
+            fresh = None
             if op == "call":
-                handle, name, args, kwargs, reads = body
+                handle, name, args, kwargs = body
                 target = table.objects[handle]
-                if name == "step" and isinstance(target, api.Robot):
+                if name in _STEPS and isinstance(target, api.Robot):
                     link.in_step = True
                     try:
-                        result = target.step(*args, **kwargs)
+                        value: Any = getattr(target, name)(*args, **kwargs)
                     finally:
                         link.in_step = False
                         link.stepped = True
                         link.last_active = time.monotonic()
-                    if result == -1 and link.ended_at is None:
+                    if value == -1 and link.ended_at is None:
                         link.ended_at = time.monotonic()
-                    value: Any = (result, self._prefetch(link, reads))
+                    fresh = self._fresh(link)
                 else:
                     value = getattr(target, name)(*args, **kwargs)
+            elif op == "read":
+                handle, name = body
+                value = getattr(table.objects[handle], name)()
             elif op == "new":
                 key, args, kwargs = body
                 cls = self.exports[key]
@@ -285,32 +303,40 @@ class _Host:
                 value = getattr(self.exports[key], name)(*args, **kwargs)
             else:
                 raise RuntimeError(f"unknown request {op!r}")
-            return table.dumps("ok", value)
+            return table.dumps("ok", value, fresh)
         except SystemExit as exc:  # ControllerStopped: Webots' library ends the controller here
             link.last_active = time.monotonic()
             return table.dumps("err", ("exit", type(exc).__name__, "", exc.code))
         except Exception as exc:
             return table.dumps("err", ("error", type(exc).__name__, str(exc)))
 
-    def _prefetch(self, link: _Link, reads: tuple[tuple[int, str], ...]) -> list[tuple[tuple[int, str], Any]]:
-        """Values of last step's reads, read now: the child finds them in its cache (no round trip)."""
-        values: list[tuple[tuple[int, str], Any]] = []
-        objects = link.table.objects
+    def _fresh(self, link: _Link) -> tuple[list[Any], list[int]]:
+        """The subscribed getters' values now, for the child's step answer: ``(values, missing)``, where
+        ``missing`` lists the getters left to the child's own read: one that warns (so the warning comes at
+        its call, as in a thread), raises, or returns anything but plain data."""
+        values: list[Any] = []
+        missing: list[int] = []
+        captured: list[str] = []
         state = self.state
-        for handle, name in reads:
-            if name not in CACHED_READS:
-                continue
-            captured: list[str] = []
-            state.capture = captured
-            try:
-                value = getattr(objects[handle], name)()
-            except Exception:
-                continue
-            finally:
-                state.capture = None
-            if not captured:  # a read that warns is left to the child, so the warning comes at its call
-                values.append(((handle, name), value))
-        return values
+        state.capture = captured
+        try:
+            for index, getter in enumerate(link.subscribed):
+                try:
+                    value = getter()
+                except Exception:
+                    value = None
+                    missing.append(index)
+                else:
+                    if captured:
+                        captured.clear()
+                        missing.append(index)
+                    elif type(value) not in _FLAT and not plain(value):
+                        value = None
+                        missing.append(index)
+                values.append(value)
+        finally:
+            state.capture = None
+        return values, missing
 
     # -- watching
 

@@ -9,15 +9,17 @@ plain instance attributes), then runs the controller script with its own ``sys.a
 module state and output.
 
 Wire protocol (both directions): frames of a 4-byte big-endian length and a pickle. API objects cross as
-handles (pickle persistent ids), plain data by value. Like Webots' libController, the child batches commands
-and caches sensor readings, so a steady control loop costs one round trip per ``step``:
+handles (pickle persistent ids), plain data by value. As Webots' libController does, a steady control loop
+costs one message each way per ``step`` (the parent's methods are marked in :mod:`.step_hints`):
 
-* a device's ``set*``/``enable``/``disable`` call whose arguments are plain numbers is queued and sent, in
-  order, with the next message, once a call of the same method with the same argument types was accepted
-  (the first one, and any other argument, is sent at once, so a ``TypeError`` is raised at the call); an
-  error a queued command raises (a value refused) is raised at the next synchronous call;
-* argument-less sensor reads (:data:`CACHED_READS`) are kept until the next ``step``, and the reads made
-  during one step are computed by the parent right after the next one and returned with its reply.
+* a buffered command (``motor.setVelocity(1.0)``: a marked method called with its exact number of arguments
+  of the marked types) is queued, in order with the controller's output, and sent with the next message;
+  any other call (a supervisor edit, ``enable``, an argument of another type) sends what is queued first, so
+  the order of effects is the one the script wrote, and errors surface at the call;
+* a marked getter (a sensor reading, the clock) is read at most once per step through the parent: its key
+  joins the subscriptions sent with the next ``step``, whose answer brings the fresh value of every
+  subscribed getter; the cache is dropped at each step and by any call that goes to the parent other than a
+  read (a buffered command drops the values that echo commands, such as a motor's target).
 
 The controller's ``sys.stdout``/``sys.stderr`` travel on the same channel, so the parent can print every
 controller's output in robot order at each synchronisation point (deterministic output). SIGINT is ignored
@@ -43,23 +45,24 @@ from typing import Any
 _LENGTH = struct.Struct("!I")
 #: Output kept in the child before it is sent although no line ended (characters).
 OUTPUT_CHUNK = 1 << 16
-#: Argument-less reads whose value changes only at ``step`` (cached per step and prefetched).
-CACHED_READS = frozenset(
-    {"getValue", "getValues", "getRollPitchYaw", "getQuaternion", "getSpeed", "getSpeedVector",
-     "getTargetPosition", "getVelocity", "getTorqueFeedback", "getForceFeedback", "getSamplingPeriod"}
-)
-#: Device methods queued when their arguments are plain numbers (commands Webots sends with the next step).
-QUEUED_PREFIXES = ("set",)
-QUEUED_NAMES = frozenset({"enable", "disable"})
-_PLAIN_NUMBERS = (int, float)
+#: Receive buffer of a :class:`Wire` (bytes; it grows for a larger frame).
+RECEIVE_BUFFER = 1 << 16
+_MISSING = object()
 
 
 class Wire:
-    """Frames over a connected stream file descriptor (a socketpair end), read in large chunks."""
+    """Frames over a connected stream file descriptor (a socketpair end).
+
+    A frame is written with one ``write``; reads go into one preallocated buffer (``readv``), so a message
+    costs one system call each way and allocates nothing (a large ``os.read`` would map and unmap its
+    buffer on every call)."""
 
     def __init__(self, fd: int) -> None:
         self.fd = fd
-        self._buffer = bytearray()
+        self._buffer = bytearray(RECEIVE_BUFFER)
+        self._view = memoryview(self._buffer)
+        self._start = 0  # unread bytes are self._buffer[self._start:self._end]
+        self._end = 0
 
     def send(self, data: bytes) -> None:
         view = memoryview(_LENGTH.pack(len(data)) + data)
@@ -68,18 +71,24 @@ class Wire:
 
     def receive(self) -> bytes | None:
         """One frame's payload, or None when the other side closed the channel."""
-        buffer = self._buffer
         while True:
-            if len(buffer) >= _LENGTH.size:
-                end = _LENGTH.size + _LENGTH.unpack_from(buffer)[0]
-                if len(buffer) >= end:
-                    frame = bytes(buffer[_LENGTH.size:end])
-                    del buffer[:end]
+            buffer, start, end = self._buffer, self._start, self._end
+            need = _LENGTH.size
+            if end - start >= need:
+                need += _LENGTH.unpack_from(buffer, start)[0]
+                if end - start >= need:
+                    frame = bytes(buffer[start + _LENGTH.size:start + need])
+                    self._start, self._end = (0, 0) if start + need == end else (start + need, end)
                     return frame
-            chunk = os.read(self.fd, 1 << 18)
-            if not chunk:
+            if start + need > len(buffer):  # make room: move the partial frame to the front, grow if needed
+                moved = bytearray(max(len(buffer), need))
+                moved[:end - start] = buffer[start:end]
+                self._buffer, self._view, self._start, self._end = moved, memoryview(moved), 0, end - start
+                start, end = 0, end - start
+            got = os.readv(self.fd, (self._view[end:],))
+            if not got:
                 return None
-            buffer += chunk
+            self._end = end + got
 
     def close(self) -> None:
         with contextlib.suppress(OSError):
@@ -122,51 +131,54 @@ class _RemoteError(Exception):
 
 
 class _Channel:
-    """The child's end: RPCs, queued commands, the per-step read cache and the output buffer."""
+    """The child's end: requests, buffered commands, the step's values and the output buffer."""
 
     def __init__(self, wire: Wire) -> None:
         self.wire = wire
         self.proxies: dict[int, Any] = {}
         self.classes: dict[str, type] = {}
         self.descriptions: dict[str, dict[str, Any]] = {}
-        self.queued: list[tuple[int, str, tuple[Any, ...]]] = []
-        self.cache: dict[tuple[int, str], Any] = {}
-        self.reads: set[tuple[int, str]] = set()
-        self.out: list[tuple[int, str]] = []
+        #: what goes with the next message, in the script's order: output ``(fd, text)`` and buffered
+        #: commands ``(handle, name, args)``
+        self.pending: list[tuple[Any, ...]] = []
         self.out_size = 0
+        #: marked getters' values valid now, by (handle, name); ``echoes``: those a command drops
+        self.values: dict[tuple[int, str], Any] = {}
+        self.echoes: list[tuple[int, str]] = []
+        #: every marked getter read so far (the parent sends their values with each step), and its kind
+        self.subscribed: list[tuple[int, str]] = []
+        self.subscribed_echoes: list[tuple[int, str]] = []
+        self.subscribed_set: set[tuple[int, str]] = set()
+        self.new_subscriptions: list[tuple[int, str]] = []
         self.errors: dict[str, type[BaseException]] = {}
-        self.accepted: set[tuple[str, str, tuple[type, ...]]] = set()  # command shapes known to be accepted
         self.closed = False
 
     # -- output
 
     def output(self, fd: int, text: str) -> None:
-        self.out.append((fd, text))
+        self.pending.append((fd, text))
         self.out_size += len(text)
         if "\n" in text or self.out_size >= OUTPUT_CHUNK:  # line-buffered, so nothing waits for a call
             self.flush_output()
 
     def flush_output(self) -> None:
-        if self.out and not self.closed:
+        if self.out_size and not self.closed:
             self._send(("out",))
-
-    def _take(self) -> tuple[list[tuple[int, str]], list[tuple[int, str, tuple[Any, ...]]]]:
-        out, queued = self.out, self.queued
-        self.out, self.out_size, self.queued = [], 0, []
-        return out, queued
 
     # -- wire
 
     def _send(self, message: tuple[Any, ...]) -> None:
-        out, queued = self._take()
+        """Send ``message`` with what is pending and the new subscriptions: one pickle, one write."""
+        message = (*message, self.pending, self.new_subscriptions)
+        self.pending, self.out_size, self.new_subscriptions = [], 0, []
         try:  # plain data (the usual case) pickles in C; an API object in it needs its handle
-            data = pickle.dumps((*message, out, queued), protocol=pickle.HIGHEST_PROTOCOL)
+            data = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
         except _HandleNeeded:
             buf = io.BytesIO()
             pickler = pickle.Pickler(buf, protocol=pickle.HIGHEST_PROTOCOL)
             pickler.persistent_id = self._persistent_id  # type: ignore[method-assign]
-            pickler.dump((*message, out, queued))
-            data = buf.getvalue()
+            pickler.dump(message)
+            data = pickle.dumps(("H", buf.getvalue()), protocol=pickle.HIGHEST_PROTOCOL)
         self.wire.send(data)
 
     def _persistent_id(self, obj: Any) -> Any:
@@ -174,7 +186,15 @@ class _Channel:
         return ("h", handle) if handle is not None else None
 
     def request(self, message: tuple[Any, ...]) -> Any:
-        """Send ``message`` (with pending output and commands) and return the parent's answer."""
+        """Send ``message`` (with what is pending) and return the parent's answer. Any request but a read
+        may change what the marked getters return: their values are dropped (a read keeps them)."""
+        if message[0] != "read":
+            self.values = {}
+            self.echoes = []
+        return self._exchange(message)[0]
+
+    def _exchange(self, message: tuple[Any, ...]) -> tuple[Any, Any]:
+        """(answer, fresh values of the subscribed getters or None)."""
         if self.closed:
             raise SystemExit(0)
         self._send(message)
@@ -182,14 +202,16 @@ class _Channel:
         if frame is None:  # the parent is gone or stopped this controller
             self.closed = True
             os._exit(0)
-        status, descriptions, payload = pickle.loads(frame)
-        for description in descriptions:
-            self.descriptions[description["key"]] = description
-        unpickler = pickle.Unpickler(io.BytesIO(payload))
-        unpickler.persistent_load = self._persistent_load  # type: ignore[assignment]
-        value = unpickler.load()
+        reply = pickle.loads(frame)
+        status, value, fresh = reply[0], reply[1], reply[2]
+        if len(reply) > 3:  # the answer names API objects: pickled with handles, after new descriptions
+            for description in reply[3]:
+                self.descriptions[description["key"]] = description
+            unpickler = pickle.Unpickler(io.BytesIO(value))
+            unpickler.persistent_load = self._persistent_load  # type: ignore[assignment]
+            value = unpickler.load()
         if status == "ok":
-            return value
+            return value, fresh
         raise self._error(*value)
 
     def _error(self, kind: str, name: str, message: str, code: Any = None) -> BaseException:
@@ -226,38 +248,47 @@ class _Channel:
     # -- API calls
 
     def call(self, proxy: Any, name: str, args: tuple[Any, ...], kwargs: dict[str, Any]) -> Any:
-        handle = proxy._dualtwin_handle
-        role = type(proxy)._dualtwin_role
-        if role == "device" and not kwargs and (name in QUEUED_NAMES or name.startswith(QUEUED_PREFIXES)):
-            kinds = tuple(type(a) for a in args)
-            if all(k in _PLAIN_NUMBERS for k in kinds):
-                shape = (type(proxy)._dualtwin_real, name, kinds)
-                for key in [k for k in self.cache if k[0] == handle]:
-                    del self.cache[key]
-                if shape in self.accepted:
-                    self.queued.append((handle, name, args))
-                    return None
-                # the first call of this shape goes at once, so a type the method refuses raises here
-                value = self.request(("call", handle, name, args, kwargs, ()))
-                self.accepted.add(shape)
-                return value
-        if role == "device" and name in CACHED_READS and not args and not kwargs:
-            key = (handle, name)
-            self.reads.add(key)
-            if key in self.cache:
-                return self.cache[key]
-            value = self.request(("call", handle, name, args, kwargs, ()))
-            self.cache[key] = value
-            return value
-        if role == "robot" and name == "step":
-            reads = tuple(self.reads)
-            self.reads = set()
-            self.cache = {}
-            result, prefetched = self.request(("call", handle, name, args, kwargs, reads))
-            self.cache = dict(prefetched)
-            return result
-        self.cache = {}
-        return self.request(("call", handle, name, args, kwargs, ()))
+        return self.request(("call", proxy._dualtwin_handle, name, args, kwargs))
+
+    def buffer(self, handle: int, name: str, args: tuple[Any, ...]) -> None:
+        """Queue a command for the next message; the values that echo commands are no longer known."""
+        self.pending.append((handle, name, args))
+        if self.echoes:
+            values = self.values
+            for key in self.echoes:
+                values.pop(key, None)
+            self.echoes = []
+
+    def read(self, handle: int, name: str, echo: bool) -> Any:
+        """A marked getter's value: from this step's values, else read through the parent (and subscribed)."""
+        key = (handle, name)
+        value = self.values.get(key, _MISSING)
+        if value is _MISSING:
+            if key not in self.subscribed_set:
+                self.subscribed_set.add(key)
+                self.subscribed.append(key)
+                self.new_subscriptions.append(key)
+                if echo:
+                    self.subscribed_echoes.append(key)
+            value = self.request(("read", handle, name))
+            self.values[key] = value
+            if echo:
+                self.echoes.append(key)
+        return value.copy() if type(value) is list else value  # a fresh list per call, as the parent gives
+
+    def advance(self, proxy: Any, name: str, args: tuple[Any, ...], kwargs: dict[str, Any]) -> Any:
+        """``step``: the answer brings the fresh values of every subscribed getter (``(values, missing)``:
+        values in subscription order; ``missing``: indexes the parent could not read quietly, left to a read)."""
+        self.values = {}
+        self.echoes = []
+        result, fresh = self._exchange(("call", proxy._dualtwin_handle, name, args, kwargs))
+        if fresh is not None:
+            values, missing = fresh
+            self.values = dict(zip(self.subscribed, values, strict=True))
+            for index in missing:
+                del self.values[self.subscribed[index]]
+            self.echoes = list(self.subscribed_echoes)
+        return result
 
     def proxy_class(self, name: str) -> type[Any]:
         cls = self.classes.get(name)
@@ -306,9 +337,39 @@ def _build_class(channel: _Channel, description: dict[str, Any], bases: tuple[ty
     return type(name, bases, ns)
 
 
-def _remote_method(channel: _Channel, name: str, signature: inspect.Signature | None) -> Any:
-    def method(self: Any, *args: Any, **kwargs: Any) -> Any:
-        return channel.call(self, name, args, kwargs)
+def _remote_method(channel: _Channel, name: str, extra: tuple[inspect.Signature | None, Any]) -> Any:
+    signature, hint = extra
+    kind = hint[0] if hint else None
+    if kind == "buffered":
+        arity, accepted = hint[1], frozenset(hint[2])
+
+        def method(self: Any, *args: Any, **kwargs: Any) -> Any:
+            if not kwargs and len(args) == arity:
+                for arg in args:
+                    if type(arg) not in accepted:
+                        break
+                else:
+                    channel.buffer(self._dualtwin_handle, name, args)
+                    return None
+            return channel.call(self, name, args, kwargs)
+
+    elif kind in ("step", "command"):
+        echo = kind == "command"
+
+        def method(self: Any, *args: Any, **kwargs: Any) -> Any:
+            if args or kwargs:  # Webots' own TypeError, from the parent
+                return channel.call(self, name, args, kwargs)
+            return channel.read(self._dualtwin_handle, name, echo)
+
+    elif kind == "advances":
+
+        def method(self: Any, *args: Any, **kwargs: Any) -> Any:
+            return channel.advance(self, name, args, kwargs)
+
+    else:
+
+        def method(self: Any, *args: Any, **kwargs: Any) -> Any:
+            return channel.call(self, name, args, kwargs)
 
     method.__name__ = method.__qualname__ = name
     if signature is not None:
@@ -328,17 +389,17 @@ def _static_method(channel: _Channel, class_name: str, name: str, signature: ins
 
 def _remote_property(channel: _Channel, name: str, settable: bool) -> property:
     def fget(self: Any) -> Any:
-        channel.cache = {}
         return channel.request(("get", self._dualtwin_handle, name))
 
     def fset(self: Any, value: Any) -> None:
-        channel.cache = {}
         channel.request(("set", self._dualtwin_handle, name, value))
 
     return property(fget, fset if settable else None)
 
 
-def _value_method(name: str, signature: inspect.Signature | None) -> Any:
+def _value_method(name: str, extra: tuple[inspect.Signature | None, Any]) -> Any:
+    signature = extra[0]
+
     def method(self: Any, *args: Any, **kwargs: Any) -> Any:
         results = self._dualtwin_results
         if args or kwargs or name not in results:

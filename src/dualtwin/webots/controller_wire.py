@@ -10,6 +10,9 @@ child (:mod:`.controller_process`) can generate a proxy class of the same name a
 * *value* classes (dataclasses, classes setting ``__webots_value__ = True``, and :data:`VALUE_CLASSES`) are
   plain data: their public attributes and the results of their argument-less getters travel by value;
 * everything else (numbers, strings, bytes, lists, dicts, NumPy arrays) is pickled as is.
+
+A method's description carries its mark from :mod:`.step_hints` (a getter served from the step's values, a
+command buffered until the next message, the step itself), so the child knows which calls need no round trip.
 """
 
 from __future__ import annotations
@@ -20,11 +23,14 @@ import io
 import pickle
 from typing import Any
 
+from dualtwin.webots.step_hints import hint_of
+
 __all__ = ["VALUE_CLASSES", "HandleTable", "class_key", "describe_class", "is_value_class", "plain"]
 
 #: API classes whose instances are plain data (Webots builds them from C structs on the controller side).
 VALUE_CLASSES = frozenset({"ContactPoint", "LidarPoint"})
 _PLAIN_SCALARS = (type(None), bool, int, float, complex, str, bytes)
+_SCALARS = frozenset(_PLAIN_SCALARS)
 
 
 def plain(value: Any, depth: int = 0) -> bool:
@@ -78,7 +84,7 @@ def describe_class(cls: type, exported: dict[str, type], role: str) -> dict[str,
         elif isinstance(member, (staticmethod, classmethod)):
             members[name] = ("static", _signature(getattr(cls, name)))
         elif inspect.isfunction(member):
-            members[name] = ("method", _signature(member))
+            members[name] = ("method", (_signature(member), hint_of(member)))
         elif plain(member):
             members[name] = ("constant", member)
     if role == "value":  # dataclass fields and annotated attributes come with each instance
@@ -195,18 +201,25 @@ class HandleTable:
             return self.objects[pid[1]]
         raise pickle.UnpicklingError(f"unknown object reference {pid!r}")
 
-    def dumps(self, status: str, value: Any) -> bytes:
-        """A reply frame: new class descriptions first (the child needs them to unpickle the value)."""
-        if not self._new and plain(value):  # numbers, strings, lists (most replies): no object to look at
-            return pickle.dumps((status, [], pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)),
-                                protocol=pickle.HIGHEST_PROTOCOL)
+    def dumps(self, status: str, value: Any, fresh: Any = None) -> bytes:
+        """A reply frame: ``(status, value, fresh)``, one pickle made in C, when the value is plain data (most
+        replies); else ``(status, pickled value, fresh, new class descriptions)``, the value pickled with
+        handles (the child reads the descriptions first, it needs them to unpickle the value). ``fresh``:
+        a step's values of the getters the child subscribed to (plain data, see the host)."""
+        if not self._new and (type(value) in _SCALARS or plain(value)):
+            return pickle.dumps((status, value, fresh), protocol=pickle.HIGHEST_PROTOCOL)
         buf = io.BytesIO()
         pickler = pickle.Pickler(buf, protocol=pickle.HIGHEST_PROTOCOL)
         pickler.persistent_id = self.persistent_id  # type: ignore[method-assign]
         pickler.dump(value)
-        return pickle.dumps((status, self.take_descriptions(), buf.getvalue()), protocol=pickle.HIGHEST_PROTOCOL)
+        return pickle.dumps((status, buf.getvalue(), fresh, self.take_descriptions()),
+                            protocol=pickle.HIGHEST_PROTOCOL)
 
     def loads(self, frame: bytes) -> Any:
-        unpickler = pickle.Unpickler(io.BytesIO(frame))
+        """A message of the child: plain data, or ``("H", pickle with handles)`` when it names API objects."""
+        message = pickle.loads(frame)
+        if message[0] != "H":
+            return message
+        unpickler = pickle.Unpickler(io.BytesIO(message[1]))
         unpickler.persistent_load = self.persistent_load  # type: ignore[assignment]
         return unpickler.load()

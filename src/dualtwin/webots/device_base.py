@@ -15,6 +15,7 @@ from dualtwin.webots import _math3 as m3
 from dualtwin.webots.api_args import as_int
 from dualtwin.webots.node_types import node_type_of
 from dualtwin.webots.physics import DeviceRec, RobotRec, Simulation
+from dualtwin.webots.step_hints import buffered, command_value, step_value
 
 
 class DeviceHost(Protocol):
@@ -171,6 +172,7 @@ class Sensor(Device):
         self._period = 0
         self._robot._sensors.pop(id(self), None)
 
+    @step_value
     def getSamplingPeriod(self) -> int:
         return self._period
 
@@ -264,6 +266,7 @@ class KinematicMotor(Device):
     def _state(self) -> Any:
         return self._record
 
+    @buffered()
     def setVelocity(self, velocity: Any) -> None:
         from dualtwin.webots.api_args import as_float, finite, warn
 
@@ -277,6 +280,7 @@ class KinematicMotor(Device):
             v = math.copysign(state.max_velocity, v)
         state.target_velocity = v
 
+    @buffered()
     def setAcceleration(self, acceleration: Any) -> None:
         from dualtwin.webots.api_args import as_float, finite
 
@@ -284,15 +288,18 @@ class KinematicMotor(Device):
         if finite(a):
             self._state().acceleration = a
 
+    @command_value
     def getTargetPosition(self) -> float:
         return float(self._state().target_position)
 
+    @command_value
     def getVelocity(self) -> float:
         return float(self._state().target_velocity)
 
     def getMaxVelocity(self) -> float:
         return float(self._state().max_velocity)
 
+    @command_value
     def getAcceleration(self) -> float:
         return float(self._state().acceleration)
 

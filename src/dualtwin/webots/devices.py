@@ -29,6 +29,7 @@ from dualtwin.webots.pen import Pen
 from dualtwin.webots.radar import Radar
 from dualtwin.webots.radio import Emitter, Receiver
 from dualtwin.webots.ranging import DistanceSensor, Lidar, RangeFinder
+from dualtwin.webots.step_hints import step_value
 from dualtwin.webots.touch import TouchSensor
 from dualtwin.webots.vacuum_gripper import VacuumGripper
 from dualtwin.webots.world_frame import in_reference_frame, to_wgs84
@@ -86,6 +87,7 @@ class _TableSensor(_SolidSensor):
     def lookup_table(self) -> list[float]:
         return self.getLookupTable()
 
+    @step_value
     def getValues(self) -> list[float]:
         return list(self._values)
 
@@ -142,6 +144,7 @@ class GPS(_SolidSensor):
         velocity = m3.scale(m3.sub(self._position_now, self._position_before), 1.0 / sim.dt)
         self._speed_vector = [discretize(v, speed_resolution) for v in velocity]
 
+    @step_value
     def getValues(self) -> list[float]:
         return list(self._values)
 
@@ -149,6 +152,7 @@ class GPS(_SolidSensor):
     def value(self) -> list[float]:
         return self.getValues()
 
+    @step_value
     def getSpeed(self) -> float:
         return m3.norm(self._speed_vector) if all(math.isfinite(v) for v in self._speed_vector) else math.nan
 
@@ -156,6 +160,7 @@ class GPS(_SolidSensor):
     def speed(self) -> float:
         return self.getSpeed()
 
+    @step_value
     def getSpeedVector(self) -> list[float]:
         return list(self._speed_vector)
 
@@ -222,6 +227,7 @@ class InertialUnit(_SolidSensor):
     def _read(self) -> None:
         self._R = in_reference_frame(self._pose().R, self._robot._sim.coordinate_system)
 
+    @step_value
     def getRollPitchYaw(self) -> list[float]:
         if self._R is None:
             return [math.nan] * 3
@@ -237,6 +243,7 @@ class InertialUnit(_SolidSensor):
     def roll_pitch_yaw(self) -> list[float]:
         return self.getRollPitchYaw()
 
+    @step_value
     def getQuaternion(self) -> list[float]:
         if self._R is None:
             return [math.nan] * 4

@@ -16,6 +16,7 @@ from dualtwin.webots import ode
 from dualtwin.webots.api_args import as_float, finite, warn
 from dualtwin.webots.device_base import Device, SampledDevice
 from dualtwin.webots.physics import BrakeRec, MotorRec, PositionSensorRec
+from dualtwin.webots.step_hints import buffered, command_value, step_value
 
 __all__ = ["Brake", "Motor", "PositionSensor"]
 
@@ -41,6 +42,7 @@ class PositionSensor(_Sampled):
         value = rec.joint.positions[rec.axis_index]
         self._value = self._robot._sim.sensor_noise(value, rec.noise, rec.resolution)
 
+    @step_value
     def getValue(self) -> float:
         return getattr(self, "_value", math.nan)
 
@@ -72,6 +74,7 @@ class Brake(Device):
 
     _record: BrakeRec
 
+    @buffered()
     def setDampingConstant(self, c: Any) -> None:
         value = as_float(c, "Brake.setDampingConstant")
         if not _finite(value) or value < 0:
@@ -177,6 +180,7 @@ class Motor(Device):
             self._group = group
         return group
 
+    @buffered()
     def setPosition(self, position: Any) -> None:
         position = as_float(position, "Motor.setPosition")
         if not _finite(position):
@@ -197,6 +201,7 @@ class Motor(Device):
         rec.torque_mode = False
         self._changed()
 
+    @buffered()
     def setVelocity(self, velocity: Any) -> None:
         velocity = as_float(velocity, "Motor.setVelocity")
         if not _finite(velocity):
@@ -214,11 +219,13 @@ class Motor(Device):
         rec.target_velocity = v
         self._changed()
 
+    @buffered()
     def setAcceleration(self, acceleration: Any) -> None:
         acceleration = as_float(acceleration, "Motor.setAcceleration")
         if _finite(acceleration):
             self._record.acceleration = float(acceleration)
 
+    @buffered()
     def setAvailableForce(self, force: Any) -> None:
         rec = self._record
         force = as_float(force, "Motor.setAvailableForce")
@@ -228,9 +235,11 @@ class Motor(Device):
         rec.available = min(float(force), rec.max_force)
         self._changed()
 
+    @buffered()
     def setAvailableTorque(self, torque: Any) -> None:
         self.setAvailableForce(torque)
 
+    @buffered()
     def setForce(self, force: Any) -> None:
         force = as_float(force, "Motor.setForce")
         if not _finite(force):
@@ -248,9 +257,11 @@ class Motor(Device):
             rec.torque_params_set = False
         self._changed()
 
+    @buffered()
     def setTorque(self, torque: Any) -> None:
         self.setForce(torque)
 
+    @buffered()
     def setControlPID(self, p: Any, i: Any, d: Any) -> None:
         rec = self._record
         gains = [as_float(v, "Motor.setControlPID") for v in (p, i, d)]
@@ -261,6 +272,7 @@ class Motor(Device):
         rec.integral = 0.0
         rec.prev_error = 0.0
 
+    @command_value
     def getTargetPosition(self) -> float:
         return self._record.target_position
 
@@ -270,15 +282,18 @@ class Motor(Device):
     def getMaxPosition(self) -> float:
         return self._record.max_position
 
+    @command_value
     def getVelocity(self) -> float:
         return self._record.target_velocity
 
     def getMaxVelocity(self) -> float:
         return self._record.max_velocity
 
+    @command_value
     def getAcceleration(self) -> float:
         return self._record.acceleration
 
+    @command_value
     def getAvailableForce(self) -> float:
         return self._record.available
 
@@ -320,6 +335,7 @@ class Motor(Device):
     def getForceFeedbackSamplingPeriod(self) -> int:
         return self._feedback().getSamplingPeriod()
 
+    @step_value
     def getForceFeedback(self) -> float:
         return float(self._feedback()._value)
 
@@ -332,6 +348,7 @@ class Motor(Device):
     def getTorqueFeedbackSamplingPeriod(self) -> int:
         return self._feedback().getSamplingPeriod()
 
+    @step_value
     def getTorqueFeedback(self) -> float:
         return float(self._feedback()._value)
 

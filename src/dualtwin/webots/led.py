@@ -11,6 +11,7 @@ from typing import Any
 
 from dualtwin.webots.api_args import as_int, warn
 from dualtwin.webots.device_base import Device
+from dualtwin.webots.step_hints import buffered, command_value
 
 __all__ = ["LED"]
 
@@ -20,6 +21,7 @@ class LED(Device):
 
     _state = 0  # off until set (per instance once set)
 
+    @buffered(int)
     def set(self, v: Any) -> None:
         value = as_int(v, "LED.set")
         fields = self._record.node.fields
@@ -33,6 +35,7 @@ class LED(Device):
             return
         self._state = value
 
+    @command_value
     def get(self) -> int:
         return self._state
 

@@ -33,6 +33,7 @@ from dualtwin.webots.lut import Table, discretize, lookup, table_from_field
 from dualtwin.webots.physics import Simulation
 from dualtwin.webots.ranging import caster_for
 from dualtwin.webots.rays import candidate_geoms
+from dualtwin.webots.step_hints import step_value
 
 __all__ = ["LightSensor", "irradiance"]
 
@@ -127,6 +128,7 @@ class LightSensor(SolidSensor):
         )  # fmt: skip
         self._value = discretize(lookup(self._table(), e, sim.rng), float(f.get("resolution", -1.0)))
 
+    @step_value
     def getValue(self) -> float:
         return self._value
 

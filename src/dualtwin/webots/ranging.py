@@ -47,6 +47,7 @@ from dualtwin.webots.display import png_bytes
 from dualtwin.webots.lut import Table, discretize, lookup, table_from_field
 from dualtwin.webots.physics import GeomRec, RobotRec, Simulation
 from dualtwin.webots.rays import RayCaster, RayHits, candidate_geoms
+from dualtwin.webots.step_hints import step_value
 from dualtwin.webots.visual_rays import scene_of, visual_targets
 
 __all__ = [
@@ -366,6 +367,7 @@ class DistanceSensor(SolidSensor):
     def _needs_normals(self) -> bool:
         return self._model().kind == self.SONAR
 
+    @step_value
     def getValue(self) -> float:
         return getattr(self, "_value", math.nan)
 

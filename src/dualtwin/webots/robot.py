@@ -33,6 +33,7 @@ from dualtwin.webots.nodes import Node as SceneNode
 from dualtwin.webots.physics import Simulation
 from dualtwin.webots.robot_link import RobotLink
 from dualtwin.webots.runtime import Runtime
+from dualtwin.webots.step_hints import advances, step_value
 from dualtwin.webots.urdf import robot_urdf
 
 __all__ = ["Robot", "link_of"]
@@ -116,6 +117,7 @@ class Robot:
 
     # -- timing
 
+    @advances
     def step(self, time_step: Any = None) -> int:
         """Run the simulation for ``time_step`` ms (default: basicTimeStep); -1 when the run is over."""
         link = self.__link
@@ -133,15 +135,18 @@ class Robot:
         link.pending_step = ms
         return -1 if link._runtime.finished else 0
 
+    @advances
     def stepEnd(self) -> int:
         """Second half of ``step``: the simulation runs the duration given to ``stepBegin``; readings arrive."""
         ms = self.__link.pending_step
         self.__link.pending_step = None
         return self.__link.step(self.__link._sim.basic_time_step if ms is None else ms)
 
+    @step_value
     def getBasicTimeStep(self) -> float:
         return self.__link._sim.basic_time_step
 
+    @step_value
     def getTime(self) -> float:
         return self.__link._sim.time
 

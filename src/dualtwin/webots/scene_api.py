@@ -21,6 +21,7 @@ from dualtwin.webots.nodes import Node as SceneNode
 from dualtwin.webots.nodes import copy_value
 from dualtwin.webots.physics import Simulation, SolidRec
 from dualtwin.webots.schema import SOLID_TYPES
+from dualtwin.webots.step_hints import step_value
 from dualtwin.webots.writer import write_node
 
 
@@ -281,9 +282,11 @@ class Node:
                 pose = pose * m3.Pose.from_fields(n.fields.get("translation"), n.fields.get("rotation"))
         return pose
 
+    @step_value
     def getPosition(self) -> list[float]:
         return list(self._world_pose().t)
 
+    @step_value
     def getOrientation(self) -> list[float]:
         return list(self._world_pose().R)
 
@@ -301,6 +304,7 @@ class Node:
     def disablePoseTracking(self, fromNode: Node | None = None) -> None:
         pass
 
+    @step_value
     def getVelocity(self) -> list[float]:
         solid = self._solid()
         return list(self._sim.solid_velocity(solid)) if solid is not None else [0.0] * 6

@@ -34,6 +34,7 @@ from dualtwin.webots.api_args import warn
 from dualtwin.webots.device_base import SolidSensor
 from dualtwin.webots.lut import discretize, lookup, table_from_field
 from dualtwin.webots.physics import GeomRec, Simulation, SolidRec
+from dualtwin.webots.step_hints import step_value
 
 __all__ = ["TouchSensor", "bumper_touches"]
 
@@ -176,12 +177,14 @@ class TouchSensor(SolidSensor):
             local = m3.mat_t_vec(R, f1)
             self._values = [discretize(lookup(self._table, v, sim.rng), self._resolution) for v in local]
 
+    @step_value
     def getValue(self) -> float:
         if self._kind() == self.FORCE3D:
             warn("TouchSensor.getValue() cannot be used with a 'force-3d' sensor: use getValues()")
             return math.nan
         return self._value
 
+    @step_value
     def getValues(self) -> list[float]:
         if self._kind() != self.FORCE3D:
             warn("TouchSensor.getValues() can only be used with a 'force-3d' sensor: use getValue()")

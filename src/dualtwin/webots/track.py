@@ -29,6 +29,7 @@ from dualtwin.webots.device_base import Device, KinematicMotor, SampledDevice
 from dualtwin.webots.motor_law import motor_velocity
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import Simulation, SolidRec
+from dualtwin.webots.step_hints import step_value
 
 __all__ = ["TrackMotor", "TrackPositionSensor", "TrackRec", "install"]
 
@@ -243,6 +244,7 @@ class TrackPositionSensor(SampledDevice):
         resolution = float(node.fields.get("resolution", -1.0)) if node is not None else -1.0
         self._value = self._robot._sim.sensor_noise(self._record.track.position, noise, resolution)
 
+    @step_value
     def getValue(self) -> float:
         return getattr(self, "_value", math.nan)
 
