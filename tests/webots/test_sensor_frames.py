@@ -165,19 +165,48 @@ def test_gps_position_speed_vector_and_nan_before_the_first_sample() -> None:
     assert gps.getSpeed() == pytest.approx(math.sqrt(0.25 + 0.0625 + 1.0), abs=1e-9)
 
 
-def test_gps_wgs84_around_the_reference() -> None:
+def test_gps_wgs84_goes_through_utm_grid_metres() -> None:
+    # Webots projects through UTM: world east/north metres are added to the reference's easting/northing (zone 32
+    # here, central meridian 9° E) and projected back. Grid metres are ground metres scaled by 1/k and turned by
+    # the grid convergence γ, so by hand (Snyder's point scale and convergence, ellipsoidal terms):
+    #   ground east = (dE·cos γ + dN·sin γ)/k,  ground north = (−dE·sin γ + dN·cos γ)/k,
+    #   Δlatitude = ground north / M,  Δlongitude = ground east / (N·cos φ).
+    # The differences are taken from the world origin's own reading (the reference, to the series' 1e-8°).
+    # Control: a local tangent plane (the old reading) misses γ and k by about 3e-7° here.
     sup = _supervisor(GPS_WORLD.format(extra='gpsCoordinateSystem "WGS84" gpsReference 46.5 6.6 400'))
     gps = sup.getDevice("gps")
     assert gps.getCoordinateSystem() == gps.WGS84
     gps.enable(8)
     sup.step(8)
-    east, north, up = 1.1 + 0.004, 2.2 - 0.002, 3.008
+    d_east, d_north, up = 1.1 + 0.004, 2.2 - 0.002, 3.008
     a, e2 = 6378137.0, 6.69437999014e-3
-    phi = math.radians(46.5)
+    ep2 = e2 / (1 - e2)
+    phi, dl = math.radians(46.5), math.radians(6.6 - 9.0)
+    c, t, amp = ep2 * math.cos(phi) ** 2, math.tan(phi) ** 2, dl * math.cos(phi)
+    gamma = dl * math.sin(phi) * (1 + dl**2 * math.cos(phi) ** 2 / 3 * (1 + 3 * c + 2 * c**2))
+    k = 0.9996 * (1 + (1 + c) * amp**2 / 2 + (5 - 4 * t + 42 * c + 13 * c**2 - 28 * ep2) * amp**4 / 24)
     w = 1 - e2 * math.sin(phi) ** 2
-    lat = 46.5 + math.degrees(north / (a * (1 - e2) / w**1.5 + 400))
-    lon = 6.6 + math.degrees(east / ((a / math.sqrt(w) + 400) * math.cos(phi)))
+    meridian, prime = a * (1 - e2) / w**1.5, a / math.sqrt(w)
+    east = (d_east * math.cos(gamma) + d_north * math.sin(gamma)) / k
+    north = (-d_east * math.sin(gamma) + d_north * math.cos(gamma)) / k
+    from dualtwin.webots.world_frame import gps_position  # (not in the tangent-plane code this test replaced)
+
+    reference = gps_position((0.0, 0.0, 0.0), (46.5, 6.6, 400.0), "ENU", wgs84=True)
+    assert reference[:2] == pytest.approx([46.5, 6.6], abs=1e-8) and reference[2] == 400.0
     got = gps.getValues()
-    assert got[:2] == pytest.approx([lat, lon], abs=1e-10)
-    assert got[2] == pytest.approx(400 + up, abs=1e-9)
-    assert got[0] != pytest.approx(north, abs=1.0)  # control: not the local position
+    expected = [reference[0] + math.degrees(north / meridian),
+                reference[1] + math.degrees(east / (prime * math.cos(phi))), 400 + up]
+    assert got == pytest.approx(expected, abs=1e-10)
+    tangent_plane = [46.5 + math.degrees(d_north / (meridian + 400)),
+                     6.6 + math.degrees(d_east / ((prime + 400) * math.cos(phi)))]
+    assert abs(got[1] - tangent_plane[1]) > 5e-7
+
+
+def test_gps_local_readings_are_offset_by_the_reference() -> None:
+    # gpsReference is the world origin expressed in the GPS coordinate system: in "local" mode, an offset.
+    sup = _supervisor(GPS_WORLD.format(extra="gpsReference 10 -20 30"))
+    gps = sup.getDevice("gps")
+    gps.enable(8)
+    sup.step(8)
+    assert gps.getValues() == pytest.approx([1.104 + 10, 2.198 - 20, 3.008 + 30], abs=1e-12)
+    assert gps.getSpeedVector() == pytest.approx([0.5, -0.25, 1.0], abs=1e-9)  # control: speed has no offset

@@ -32,7 +32,7 @@ from dualtwin.webots.ranging import DistanceSensor, Lidar, RangeFinder
 from dualtwin.webots.step_hints import step_value
 from dualtwin.webots.touch import TouchSensor
 from dualtwin.webots.vacuum_gripper import VacuumGripper
-from dualtwin.webots.world_frame import in_reference_frame, to_wgs84
+from dualtwin.webots.world_frame import gps_position, in_reference_frame
 
 __all__ = [
     "GPS",
@@ -97,9 +97,10 @@ class _TableSensor(_SolidSensor):
 
 
 class GPS(_SolidSensor):
-    """Position of the device's origin in the world (``LOCAL``, metres, the world's own axes) or, when
-    ``WorldInfo.gpsCoordinateSystem`` is ``"WGS84"``, latitude/longitude (degrees) and altitude around
-    ``gpsReference`` (:mod:`.world_frame`); ``accuracy`` adds Gaussian noise (m) and ``resolution`` rounds.
+    """Position of the device's origin in the world (``LOCAL``, metres, the world's own axes, offset by
+    ``gpsReference``) or, when ``WorldInfo.gpsCoordinateSystem`` is ``"WGS84"``, latitude/longitude (degrees)
+    and altitude through UTM around ``gpsReference`` (:mod:`.world_frame`); ``accuracy`` adds Gaussian noise (m)
+    and ``resolution`` rounds.
     Speed: the device origin's displacement over the last basic time step (``getSpeedVector``, world axes,
     and its norm ``getSpeed``), rounded to ``speedResolution``. Everything reads NaN until the first sample."""
 
@@ -135,9 +136,8 @@ class GPS(_SolidSensor):
         accuracy = float(fields.get("accuracy", 0.0))
         if accuracy > 0:
             position = [p + sim.rng.gauss(0.0, accuracy) for p in position]
-        if self.getCoordinateSystem() == self.WGS84:
-            reference = self._world_info().get("gpsReference", (0.0, 0.0, 0.0))
-            position = to_wgs84(position, reference, sim.coordinate_system)
+        reference = self._world_info().get("gpsReference", (0.0, 0.0, 0.0))
+        position = gps_position(position, reference, sim.coordinate_system, self.getCoordinateSystem() == self.WGS84)
         resolution = float(fields.get("resolution", -1.0))
         self._values = [discretize(p, resolution) for p in position]
         speed_resolution = float(fields.get("speedResolution", -1.0))
