@@ -210,3 +210,30 @@ def test_gps_local_readings_are_offset_by_the_reference() -> None:
     sup.step(8)
     assert gps.getValues() == pytest.approx([1.104 + 10, 2.198 - 20, 3.008 + 30], abs=1e-12)
     assert gps.getSpeedVector() == pytest.approx([0.5, -0.25, 1.0], abs=1e-9)  # control: speed has no offset
+
+
+def _imu_samples(noise: float, n: int = 1500) -> list[list[float]]:
+    sup = _supervisor(f"""WorldInfo {{ basicTimeStep 8 randomSeed 3 }}
+Robot {{ supervisor TRUE rotation 0 0 1 0.7 children [ InertialUnit {{ name "imu" noise {noise} }} ] }}""")
+    imu = sup.getDevice("imu")
+    imu.enable(8)
+    out = []
+    for _ in range(n):
+        sup.step(8)
+        out.append(imu.getRollPitchYaw())
+    return out
+
+
+def test_inertial_unit_noise_is_relative_to_each_angle_range() -> None:
+    # Webots' noise is a fraction of each angle's half-range: σ = noise·π on roll and yaw, noise·π/2 on pitch,
+    # drawn afresh at every sample around the true (0, 0, 0.7). 1500 samples: sample σ within 8 %, means within
+    # 4 standard errors. Control: the old unit reported getNoise() but read the exact angles (σ = 0).
+    samples = _imu_samples(0.02)
+    for axis, (truth, sigma) in enumerate(((0.0, 0.02 * math.pi), (0.0, 0.01 * math.pi), (0.7, 0.02 * math.pi))):
+        values = [s[axis] for s in samples]
+        mean = sum(values) / len(values)
+        std = math.sqrt(sum((v - mean) ** 2 for v in values) / (len(values) - 1))
+        assert std == pytest.approx(sigma, rel=0.08)
+        assert abs(mean - truth) < 4 * sigma / math.sqrt(len(values))
+    quiet = _imu_samples(0.0, 5)
+    assert all(s == pytest.approx([0.0, 0.0, 0.7], abs=1e-12) for s in quiet)  # control: no noise, exact

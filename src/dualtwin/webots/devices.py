@@ -218,36 +218,48 @@ class Accelerometer(_TableSensor):
 class InertialUnit(_SolidSensor):
     """Orientation of the device in the world's reference frame (:mod:`.world_frame`: ENU as is, NUE/EUN with
     their up axis as z): roll/pitch/yaw (``R = Rz(yaw)·Ry(pitch)·Rx(roll)``) and the quaternion (x, y, z, w).
-    A disabled axis (``xAxis`` → roll, ``yAxis`` → pitch, ``zAxis`` → yaw) reads NaN; ``resolution`` rounds
-    the angles. ``noise`` is reported by ``getNoise`` but not applied."""
+
+    ``noise`` is relative to each angle's half-range, as Webots applies it: every sample adds
+    noise·π·N(0, 1) to roll and yaw and noise·π/2·N(0, 1) to pitch (drawn in that order from the world's random
+    generator, seeded by ``randomSeed``); roll and yaw are wrapped back into [−π, π] and the quaternion is the
+    noisy angles'. A disabled axis (``xAxis`` → roll, ``yAxis`` → pitch, ``zAxis`` → yaw) reads NaN;
+    ``resolution`` rounds the angles."""
 
     def _invalidate(self) -> None:
-        self._R: m3.Mat3 | None = None
+        self._angles: tuple[float, float, float] | None = None
 
     def _read(self) -> None:
-        self._R = in_reference_frame(self._pose().R, self._robot._sim.coordinate_system)
+        R = in_reference_frame(self._pose().R, self._robot._sim.coordinate_system)
+        roll, pitch, yaw = m3.roll_pitch_yaw(R)
+        noise = self.getNoise()
+        if noise > 0:
+            rng = self._robot._sim.rng
+            roll = m3.normalize_angle(roll + noise * math.pi * rng.gauss(0.0, 1.0))
+            pitch += noise * math.pi / 2 * rng.gauss(0.0, 1.0)
+            yaw = m3.normalize_angle(yaw + noise * math.pi * rng.gauss(0.0, 1.0))
+        self._angles = (roll, pitch, yaw)
 
-    @step_value
     def getRollPitchYaw(self) -> list[float]:
-        if self._R is None:
+        if self._angles is None:
             return [math.nan] * 3
         fields = self._record.node.fields
         resolution = float(fields.get("resolution", -1.0))
-        angles = m3.roll_pitch_yaw(self._R)
         return [
             discretize(a, resolution) if fields.get(flag, True) else math.nan
-            for flag, a in zip(("xAxis", "yAxis", "zAxis"), angles, strict=True)
+            for flag, a in zip(("xAxis", "yAxis", "zAxis"), self._angles, strict=True)
         ]
 
     @property
     def roll_pitch_yaw(self) -> list[float]:
         return self.getRollPitchYaw()
 
-    @step_value
     def getQuaternion(self) -> list[float]:
-        if self._R is None:
+        if self._angles is None:
             return [math.nan] * 4
-        w, x, y, z = m3.quat_from_mat(self._R)
+        roll, pitch, yaw = self._angles
+        R = m3.mat_mul(m3.rot_axis_angle((0.0, 0.0, 1.0, yaw)),
+                       m3.mat_mul(m3.rot_axis_angle((0.0, 1.0, 0.0, pitch)), m3.rot_axis_angle((1.0, 0.0, 0.0, roll))))
+        w, x, y, z = m3.quat_from_mat(R)
         return [x, y, z, w]
 
     @property
