@@ -48,12 +48,14 @@ REGISTRY: tuple[Coverage, ...] = (
     # -- scene structure and world
     Coverage("WorldInfo", "scene", "partial",
              "basicTimeStep, gravity, ERP/CFM, damping, contactProperties, auto-disable, maxContactJoints "
-             "follow Webots; randomSeed does not seed sensor noise; coordinateSystem (ENU/NUE/EUN) sets the "
-             "gravity direction and the InertialUnit's and GPS's reference axes; gpsCoordinateSystem WGS84 and "
-             "gpsReference drive GPS latitude/longitude"),
+             "follow Webots; randomSeed seeds sensor noise (same seed, same noise; not Webots' own numbers); "
+             "coordinateSystem (ENU/NUE/EUN) sets the gravity direction and the InertialUnit's and GPS's "
+             "reference axes; gpsCoordinateSystem WGS84 and gpsReference drive GPS latitude/longitude through "
+             "UTM, and gpsReference offsets local GPS readings"),
     Coverage("Solid", "scene", "supported",
-             "bodies with mass from Physics/boundingObject, merging and the static basis, kinematic solids, "
-             "supervisor pose/velocity edits; Box/Sphere/Cylinder/Capsule/IndexedFaceSet edits (also through "
+             "bodies with mass from Physics/boundingObject, merging and the static basis, kinematic solids "
+             "(one that no body or joint carries moves by its linearVelocity/angularVelocity every step, "
+             "sensors and getVelocity seeing it), supervisor pose/velocity edits; Box/Sphere/Cylinder/Capsule/IndexedFaceSet edits (also through "
              "DEF/USE) resize the ODE geom at the next step, wake bodies around it and reach ray sensors; "
              "edits of a PROTO instance's fields follow its IS links (also through nested and derived PROTOs) "
              "to the expanded nodes; a field read by a procedural PROTO's template warns (no regeneration)"),
@@ -104,9 +106,11 @@ REGISTRY: tuple[Coverage, ...] = (
              "position, stops, springs, dampers, static friction; no suspension (an ODE-fork-only API)"),
     Coverage("SliderJoint", "joint", "supported", "stops; springs emulated with an equivalent LMotor row"),
     Coverage("Hinge2Joint", "joint", "partial",
-             "both axes' motors, sensors, springs and dampers (a stop AMotor per axis; run-time edits reach ODE), "
-             "suspension along the first axis (ODE's hinge2 suspension ERP/CFM); "
-             "upstream ODE never limits the second axis: its stops are ignored"),
+             "both axes' motors, sensors (continuous multi-turn positions on both axes, read with ODE's own "
+             "sign per axis), springs and dampers (a stop AMotor per axis; run-time edits reach ODE), "
+             "suspension along the first axis (ODE's hinge2 suspension ERP/CFM); upstream ODE never limits the "
+             "second axis: its stops are ignored; a Hinge2Joint whose parent has no body is kinematic (its "
+             "endPoint body is not turned), and its motors give no torque feedback"),
     Coverage("BallJoint", "joint", "partial",
              "three axes (the first from jointParameters2, the third from jointParameters3, the second their "
              "cross product) with motors, position sensors, brakes, stops and friction on an Euler AMotor; "
@@ -133,15 +137,18 @@ REGISTRY: tuple[Coverage, ...] = (
              "velocity, position (Webots' PID) and torque control with limits, acceleration and the initial "
              "hold; coupled motors ('name::suffix') relay setPosition/setVelocity/setForce with their "
              "multipliers and their limits are harmonised at load to the first motor's; torque/force feedback "
-             "from ODE's joint feedback (hinge, slider; the commanded value in torque control)"),
+             "from ODE's joint feedback: what the joint applies to the endPoint about the anchor along the "
+             "axis, in the sense setTorque/setForce would command (hinge, slider, also on a static base; the "
+             "commanded value in torque control); the motor rows keep the world CFM (Webots' sign and CFM for "
+             "these are not confirmed against Webots)"),
     Coverage("LinearMotor", "device", "partial", "as RotationalMotor"),
     Coverage("PositionSensor", "device", "supported", "sampled joint position with noise and resolution"),
     Coverage("Brake", "device", "supported",
              "setDampingConstant adds to the axis' dampingConstant through the implicit damper row, from the "
              "next step; linked from its Motor and PositionSensor"),
     Coverage("GPS", "device", "supported",
-             "position of the device origin (world axes, or WGS84 latitude/longitude/altitude around "
-             "gpsReference), accuracy noise, resolution; speed and speed vector from the displacement over the "
+             "position of the device origin (world axes offset by gpsReference, or WGS84 "
+             "latitude/longitude/altitude through UTM around gpsReference), accuracy noise, resolution; speed and speed vector from the displacement over the "
              "last basic step (speedResolution); NaN until the first sample; noiseCorrelation and speedNoise "
              "are not applied"),
     Coverage("Gyro", "device", "supported",
@@ -154,7 +161,8 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("InertialUnit", "device", "supported",
              "roll/pitch/yaw and quaternion of the device frame in the world's reference frame (ENU as is; "
              "NUE/EUN read with their up axis as z, so a turn about the vertical is a yaw), resolution, "
-             "disabled axes read NaN; the noise field is reported, not applied"),
+             "disabled axes read NaN; noise relative to each angle's half-range (noise·π on roll and yaw, "
+             "noise·π/2 on pitch, drawn per sample), the quaternion from the noisy angles"),
     Coverage("DistanceSensor", "device", "partial",
              "generic, sonar and laser as Webots: rays against bounding objects (own robot excluded unless "
              "selfCollision), ray layout and Gaussian weights, sonar echo angle, lookup table with noise, "
