@@ -43,8 +43,11 @@ API_NOTES: tuple[tuple[str, str, str], ...] = (
     ("webots bug", "Keyboard.get_key", "Webots' helper spells Alt 'atl-'; ours writes 'alt-'"),
     # -- not Webots yet, or more permissive than Webots
     ("not yet", "Camera recognition", "the API works, but no object is recognised (getRecognitionObjects() is [])"),
-    ("not yet", "Field.importMFNodeFromString of a Solid",
-     "the node joins the scene tree (read, saved) but not the physics until the world is loaded again"),
+    ("not yet", "Field.import*NodeFromString of a Solid inside an existing Solid",
+     "it would change that Solid's body (merged mass): the node joins the scene tree, not the physics (one "
+     "warning); imported anywhere else, a Solid joins the physics at once and remove() takes it out"),
+    ("not yet", "Robot imported at run time",
+     "its body and devices join the physics, but its controller is not started (Webots starts it); one warning"),
     ("not yet", "Node.restartController", "an error line; the controller keeps running"),
     ("not yet", "Motion", "plays .motion files on the robot's motors (linear interpolation between poses)"),
     ("not yet", "Device(name) built by the user",

@@ -77,10 +77,41 @@ def _registry(sim: Simulation, key: str, factory: Any) -> Any:
 
 
 def _forget_imported(sim: Simulation) -> None:
-    """simulationReset removes the nodes a supervisor added (fields inside nodes are restored by the reset)."""
+    """simulationReset removes the nodes a supervisor added, from the tree and from the physics (fields inside
+    nodes are restored by the reset); nodes a supervisor removed stay removed, as the reset does not reload."""
     imported = sim.extensions.get("imported_nodes", [])
+    for node in imported:
+        sim.remove_nodes(node)
     sim.world.nodes[:] = [n for n in sim.world.nodes if not any(n is i for i in imported)]
     imported.clear()
+    removed = sim.extensions.get("removed_nodes", [])
+    for node in removed:
+        _detach(sim, node)
+
+
+def _detach(sim: Simulation, node: SceneNode) -> None:
+    """Take ``node`` out of the scene tree (wherever it is)."""
+    chain = path_to(sim, node)
+    if chain is None:
+        return
+    if len(chain) == 1:
+        sim.world.nodes[:] = [n for n in sim.world.nodes if n is not node]
+        return
+    parent = chain[-2]
+    for key, value in parent.fields.items():
+        if value is node:
+            parent.fields[key] = None
+        elif isinstance(value, list) and any(v is node for v in value):
+            value[:] = [v for v in value if v is not node]
+
+
+def _scene_edits(sim: Simulation) -> list[Any]:
+    """The per-simulation lists of imported and removed nodes, with the reset hook that acts on them."""
+    if "imported_nodes" not in sim.extensions:
+        sim.extensions["imported_nodes"] = []
+        sim.extensions["removed_nodes"] = []
+        sim.reset_hooks.append(functools.partial(_forget_imported, sim))
+    return [sim.extensions["imported_nodes"], sim.extensions["removed_nodes"]]
 
 
 class Node:
@@ -217,48 +248,49 @@ class Node:
         return Node(self._sup, node)
 
     def _imported(self, nodes: list[SceneNode]) -> None:
+        """Number the new nodes and build their physics (Solids fall, collide, are seen by rays from the next
+        step), as Webots does for an imported node."""
         ids, by_id = self._sup._runtime.node_ids()
         for top in nodes:
             for node in top.walk():
                 if id(node) not in ids:
                     ids[id(node)] = max(by_id, default=0) + 1
                     by_id[ids[id(node)]] = node
-        if "imported_nodes" not in self._sim.extensions:
-            self._sim.extensions["imported_nodes"] = []
-            self._sim.reset_hooks.append(functools.partial(_forget_imported, self._sim))
-        self._sim.extensions["imported_nodes"].extend(nodes)
-        if any(self._sim.solid_for(n) is None and n.type_name in SOLID_TYPES for top in nodes for n in top.walk()):
-            warn("a Solid imported at run time is in the scene tree (read, saved) but takes no part in the physics")
+        imported, _ = _scene_edits(self._sim)
+        imported.extend(nodes)
+        outside = False
+        for top in nodes:
+            chain = path_to(self._sim, top)
+            ancestors = chain[:-1] if chain is not None else []
+            if chain is not None and self._sim.can_add(ancestors):
+                self._sim.add_nodes(top, ancestors)
+            elif any(n.type_name in SOLID_TYPES for n in top.walk()):
+                outside = True
+        started = [n for top in nodes for n in top.walk() if n.type_name == "Robot"
+                   and str(n.fields.get("controller", "")) not in ("", "<none>")]  # fmt: skip
+        if started:
+            warn(f"the controller of a Robot imported at run time is not started (Webots starts it): "
+                 f"'{started[0].fields.get('controller')}'")
+        if outside:
+            warn("a Solid imported inside another Solid is in the scene tree (read, saved) but takes no part in "
+                 "the physics")
 
     def _removed(self, node: SceneNode) -> None:
-        """Take the Solids of a removed subtree out of the physics (their bodies and geoms stop acting)."""
-        lib = self._sim._lib
-        for n in node.walk():
-            solid = self._sim.solid_for(n)
-            if solid is None:
-                continue
-            for geom in solid.geoms:
-                lib.dGeomDisable(geom.ptr)
-            if solid.body is not None and solid.body.root is solid:
-                lib.dBodyDisable(solid.body.ptr)
+        """Take the Solids of a removed subtree out of the physics (no collision, no ray hit, no joint)."""
+        _, removed = _scene_edits(self._sim)
+        imported = self._sim.extensions["imported_nodes"]
+        if not any(node is n for n in imported):
+            removed.append(node)
+        self._sim.remove_nodes(node)
 
     def remove(self) -> None:
         """Delete this node from the scene tree (and its Solids from the physics)."""
         if self._is_root:
             warn("Node.remove(): the root node cannot be removed")
             return
-        chain = path_to(self._sim, self._node)
-        if chain is None:
+        if path_to(self._sim, self._node) is None:
             return
-        if len(chain) == 1:
-            self._sim.world.nodes[:] = [n for n in self._sim.world.nodes if n is not self._node]
-        else:
-            parent = chain[-2]
-            for key, value in parent.fields.items():
-                if value is self._node:
-                    parent.fields[key] = None
-                elif isinstance(value, list) and any(v is self._node for v in value):
-                    value[:] = [v for v in value if v is not self._node]
+        _detach(self._sim, self._node)
         self._removed(self._node)
 
     # -- pose and physics
@@ -271,8 +303,10 @@ class Node:
         if solid is not None:
             return self._sim.solid_world_pose(solid)
         chain = path_to(self._sim, self._node)
-        if chain is None:
-            return m3.Pose()
+        if chain is None:  # removed from the scene: Webots answers NaNs for a handle on a deleted node
+            warn("Node: this node is no longer in the scene (removed); its pose reads NaN")
+            nan = math.nan
+            return m3.Pose((nan,) * 9, (nan, nan, nan))
         pose = m3.Pose()
         for n in chain:
             s = self._sim.solid_for(n)

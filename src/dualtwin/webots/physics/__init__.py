@@ -7,7 +7,8 @@ Layout: this module is the façade (construction, build order, reset, close). Th
 module each, every layer calling only the layers below it: ``records`` (the dataclasses), ``core`` (shared
 state, scene-graph poses), ``build`` (traversal, bodies with the mass rules of
 :mod:`dualtwin.webots.mass_rules`, geoms, devices), ``joints``, ``collision`` (the contact pass),
-``edits`` (supervisor requests, field edits, sensor readings) and ``stepping``.
+``edits`` (supervisor requests, field edits, sensor readings), ``stepping`` and ``scene_changes`` (nodes a
+supervisor imports or removes at run time).
 
 What follows Webots
     One ``dWorldStep`` per ``basicTimeStep``, ENU gravity, world ERP/CFM, damping conversion, max angular
@@ -94,7 +95,7 @@ from dualtwin.webots.physics.records import (
     damping_per_step,
 )
 from dualtwin.webots.physics.records import field_or as _f
-from dualtwin.webots.physics.stepping import Stepper
+from dualtwin.webots.physics.scene_changes import SceneChanges
 
 __all__ = [
     "Simulation",
@@ -117,7 +118,7 @@ __all__ = [
 ]
 
 
-class Simulation(Stepper):
+class Simulation(SceneChanges):
     """A Webots world simulated on ODE with Webots' stepping semantics.
 
     Args:
@@ -292,6 +293,8 @@ class Simulation(Stepper):
         for solid in self.solids:
             solid.rel = solid.load_rel
         for body in self.bodies:
+            if body.removed:
+                continue  # its Solid left the scene at run time; a reset does not bring it back
             self._place_body_at_load(body)
             self._set_auto_disable(body)
         for joint in self.joints:
@@ -316,7 +319,7 @@ class Simulation(Stepper):
         self._edited.clear()
         for motor in self.motors:
             motor.reset_state()
-        self._enabled[:] = [True] * len(self.bodies)
+        self._enabled[:] = [not b.removed for b in self.bodies]
         self._accel_prev.clear()
         for index in self._accel_cur:
             b = self.bodies[index]

@@ -240,8 +240,8 @@ class SceneBuilder(SimulationCore):
 
     # -- bodies (§3.3)
 
-    def _assign_bodies(self) -> None:
-        for solid in self.solids:
+    def _assign_bodies(self, solids: Sequence[SolidRec] | None = None) -> None:
+        for solid in self.solids if solids is None else solids:
             if solid.node.fields.get("physics") is None:
                 continue
             parent = solid.parent
@@ -535,8 +535,8 @@ class SceneBuilder(SimulationCore):
 
     # -- devices
 
-    def _collect_devices(self) -> None:
-        for solid in self.solids:
+    def _collect_devices(self, solids: Sequence[SolidRec] | None = None, robots: Sequence[RobotRec] | None = None) -> None:
+        for solid in self.solids if solids is None else solids:
             robot = solid.robot
             node = solid.node
             if robot is None or node is robot.node:
@@ -547,7 +547,7 @@ class SceneBuilder(SimulationCore):
                 )
                 robot.devices.setdefault(dev.name, dev)
                 self.devices.append(dev)
-        for robot in self.robots:
+        for robot in self.robots if robots is None else robots:
             self._order_devices(robot)
             self._harmonise_coupled_motors(robot)
 

@@ -30,7 +30,7 @@ class SupervisorEdits(GeometryEdits):
         """``simulationResetPhysics`` (or ``Node.resetPhysics`` for a subtree): zero velocities and forces,
         wake bodies, zero motors' current velocity (§6). Poses and time are kept."""
         lib = self._lib
-        bodies = self.bodies if solid is None else self._bodies_in_subtree(solid)
+        bodies = [b for b in self.bodies if not b.removed] if solid is None else self._bodies_in_subtree(solid)
         for body in bodies:
             lib.dBodySetLinearVel(body.ptr, 0.0, 0.0, 0.0)
             lib.dBodySetAngularVel(body.ptr, 0.0, 0.0, 0.0)

@@ -5,13 +5,14 @@ from __future__ import annotations
 
 import ctypes
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots import ode
 from dualtwin.webots._math3 import Pose
 from dualtwin.webots.physics.build import SceneBuilder
 from dualtwin.webots.physics.records import (
+    BodyRec,
     JointRec,
     SolidRec,
 )
@@ -372,9 +373,9 @@ class JointBuilder(SceneBuilder):
                 self._apply_spring(joint)
         self._springs = [j for j in self.joints if j.spring or j.spring2]
 
-    def _create_fixed_joints(self) -> None:
+    def _create_fixed_joints(self, bodies: Sequence[BodyRec] | None = None) -> None:
         lib = self._lib
-        for body in self.bodies:
+        for body in self.bodies if bodies is None else bodies:
             if body.root.joint is not None or body.root.parent is None:
                 continue
             fj = lib.dJointCreateFixed(self._world, None)

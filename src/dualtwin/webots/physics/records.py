@@ -165,6 +165,7 @@ class BodyRec(_ShortRepr):
     joints: list[JointRec] = field(default_factory=list)
     fixed_joint: int = 0
     fixed_to: BodyRec | None = None
+    removed: bool = False  # its Solid left the scene at run time (disabled, jointless, skipped by resets)
 
     def pose(self) -> Pose:
         """Pose of the root Solid frame in the world (body origin is at the CoM, §3.2)."""
