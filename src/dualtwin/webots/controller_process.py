@@ -51,14 +51,15 @@ _MISSING = object()
 
 
 class Wire:
-    """Frames over a connected stream file descriptor (a socketpair end).
+    """Frames over a pair of stream file descriptors (two pipes; or one socket, both ways).
 
     A frame is written with one ``write``; reads go into one preallocated buffer (``readv``), so a message
     costs one system call each way and allocates nothing (a large ``os.read`` would map and unmap its
     buffer on every call)."""
 
-    def __init__(self, fd: int) -> None:
+    def __init__(self, fd: int, out_fd: int | None = None) -> None:
         self.fd = fd
+        self.out_fd = fd if out_fd is None else out_fd
         self._buffer = bytearray(RECEIVE_BUFFER)
         self._view = memoryview(self._buffer)
         self._start = 0  # unread bytes are self._buffer[self._start:self._end]
@@ -67,7 +68,7 @@ class Wire:
     def send(self, data: bytes) -> None:
         view = memoryview(_LENGTH.pack(len(data)) + data)
         while view:
-            view = view[os.write(self.fd, view):]
+            view = view[os.write(self.out_fd, view):]
 
     def receive(self) -> bytes | None:
         """One frame's payload, or None when the other side closed the channel."""
@@ -91,8 +92,9 @@ class Wire:
             self._end = end + got
 
     def close(self) -> None:
-        with contextlib.suppress(OSError):
-            os.close(self.fd)
+        for fd in {self.fd, self.out_fd}:
+            with contextlib.suppress(OSError):
+                os.close(fd)
 
 
 # ------------------------------------------------------------------------------------------ child side
@@ -387,12 +389,29 @@ def _static_method(channel: _Channel, class_name: str, name: str, signature: ins
     return function
 
 
-def _remote_property(channel: _Channel, name: str, settable: bool) -> property:
+def _remote_property(channel: _Channel, name: str, extra: tuple[bool, Any, Any]) -> property:
+    settable, getter, setter = extra
+
     def fget(self: Any) -> Any:
         return channel.request(("get", self._dualtwin_handle, name))
 
     def fset(self: Any, value: Any) -> None:
         channel.request(("set", self._dualtwin_handle, name, value))
+
+    if getter is not None and getter[1][0] in ("step", "command"):  # ``value = property(getValue)``
+        method, echo = getter[0], getter[1][0] == "command"
+
+        def fget(self: Any) -> Any:  # noqa: F811 - the served variant
+            return channel.read(self._dualtwin_handle, method, echo)
+
+    if setter is not None and setter[1][0] == "buffered" and setter[1][1] == 1:  # ``= property(get, setVelocity)``
+        command, accepted = setter[0], frozenset(setter[1][2])
+
+        def fset(self: Any, value: Any) -> None:  # noqa: F811 - the buffered variant
+            if type(value) in accepted:
+                channel.buffer(self._dualtwin_handle, command, (value,))
+            else:
+                channel.request(("set", self._dualtwin_handle, name, value))
 
     return property(fget, fset if settable else None)
 
@@ -441,10 +460,10 @@ def _die_with_parent(parent: int) -> None:
 
 
 def _main(argv: list[str]) -> None:
-    fd, parent = int(argv[1]), int(argv[2])
+    fd, out_fd, parent = int(argv[1]), int(argv[2]), int(argv[3])
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _die_with_parent(parent)
-    wire = Wire(fd)
+    wire = Wire(fd, out_fd)
     frame = wire.receive()
     if frame is None:
         os._exit(1)

@@ -80,7 +80,7 @@ def describe_class(cls: type, exported: dict[str, type], role: str) -> dict[str,
         if name.startswith("_"):
             continue
         if isinstance(member, property):
-            members[name] = ("property", member.fset is not None)
+            members[name] = ("property", (member.fset is not None, _marked(cls, member.fget), _marked(cls, member.fset)))
         elif isinstance(member, (staticmethod, classmethod)):
             members[name] = ("static", _signature(getattr(cls, name)))
         elif inspect.isfunction(member):
@@ -101,6 +101,16 @@ def describe_class(cls: type, exported: dict[str, type], role: str) -> dict[str,
         "constructible": role != "value" and exported.get(cls.__name__) is cls,
         "init": _signature(init) if inspect.isfunction(init) else None,
     }
+
+
+def _marked(cls: type, accessor: Any) -> tuple[str, tuple[Any, ...]] | None:
+    """(method name, mark) of a property's getter or setter that is a marked method of ``cls`` (``value =
+    property(getValue)``), so the child serves the property as it serves the method."""
+    hint = hint_of(accessor)
+    name = getattr(accessor, "__name__", "")
+    if hint is None or name.startswith("_") or getattr(cls, name, None) is not accessor:
+        return None
+    return name, hint
 
 
 def _annotations(cls: type) -> dict[str, Any]:
