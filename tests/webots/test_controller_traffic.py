@@ -87,9 +87,9 @@ LOOP = """
         device.enable(step)
     for k in range(int(sys.argv[1])):
         motors[0].setPosition(0.5 * math.sin(0.1 * k))      # two motors set per step...
-        motors[1].setVelocity(1.0 + 0.01 * k)
+        motors[1].target_velocity = 1.0 + 0.01 * k
         robot.step(step)
-        readings = (robot.getTime(), sensors[0].getValue(), sensors[1].getValue(), gps.getValues(),
+        readings = (robot.getTime(), sensors[0].getValue(), sensors[1].value, gps.getValues(),
                     imu.getRollPitchYaw())                    # ...and four sensors and the clock read
     print("last", readings)
 """
@@ -140,12 +140,16 @@ EDITS = """
               repr(s1.getValue()), repr(s2.getValue()), gps.getValues(), imu.getRollPitchYaw(),
               imu.getQuaternion(), s2.getSamplingPeriod())
         if scene:
-            print(tag, repr(robot.getTime()), box.getPosition(), me.getVelocity())
+            print(tag, repr(robot.getTime()), box.getPosition(), me.getVelocity(), repr(m2.target_velocity),
+                  repr(m1.target_position), repr(s2.value))  # properties served as their getters
 
     for k in range(int(sys.argv[1])):
         m1.setPosition(0.4 * math.sin(0.3 * k))   # coupled: arm::2 follows at once (multiplier -0.5)
         show("set")
-        m2.setVelocity(2.0 + k % 3)
+        if k % 2:
+            m2.setVelocity(2.0 + k % 3)
+        else:
+            m2.target_velocity = 2.5 + k % 3     # a settable property: the same buffered command
         show("velocity")
         if k % 7 == 3:                             # a supervisor edit between two reads
             where.setSFVec3f([2.0, 0.05 * k, 0.5])
@@ -220,3 +224,33 @@ def test_a_command_refused_at_the_call_raises_there(tmp_path: Path, capsys: pyte
     (process_out, _), (thread_out, _) = _both(world, capsys)
     assert process_out == thread_out
     assert process_out.split() == ["TypeError", "accepted", "TypeError", "TypeError"]
+
+
+def test_step_answers_do_not_grow_with_handles_got_anew_each_step(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``robot.getSelf()`` gives a new node handle at each call: reading its position every step subscribes a
+    new getter every step, and the subscriptions not read any more are dropped, so a step's answer (which
+    carries every subscribed value) stays small however long the run."""
+    sizes: list[int] = []
+    real_send = controller_process.Wire.send
+
+    def recording_send(wire: controller_process.Wire, data: bytes) -> None:
+        sizes.append(len(data))
+        real_send(wire, data)
+
+    monkeypatch.setattr(controller_process.Wire, "send", recording_send)
+    anew = """
+        import sys
+        from controller import Supervisor
+        robot = Supervisor()
+        for k in range(int(sys.argv[1])):
+            robot.step(8)
+            position = robot.getSelf().getPosition()
+        print("last", position)
+    """
+    world = _project(tmp_path, anew, 1000)
+    assert run_world(world, None, None) == 0
+    assert "last [" in capsys.readouterr().out
+    assert len(sizes) > 3 * 1000  # each step: getSelf() and the new handle's first read go to the simulation
+    assert max(sizes[1:]) < 8_000, max(sizes[1:])  # (after the API description) at most two sweeps' worth of positions (1,000 would be ~35 kB)

@@ -91,9 +91,9 @@ class _Link:
         self.exit_code: int | None = None  # as the child reported it
         self.stopped: str | None = None  # why the parent killed it: "forced" or "timeout"
         self.deferred: BaseException | None = None  # raised by a queued command, reported at the next call
-        #: the marked getters the child reads (bound here), in its subscription order: their values go
-        #: with every step's answer
-        self.subscribed: list[Any] = []
+        #: the marked getters the child reads, (handle, name) -> bound method, in the child's order: their
+        #: values go with every step's answer
+        self.subscribed: dict[tuple[int, str], Any] = {}
         self.robot_object: api.Robot | None = None
         self.done = threading.Event()
 
@@ -220,19 +220,18 @@ class _Host:
                 if not link.stepped:
                     link.last_active = time.monotonic()  # before the first step, any call shows progress
                 link.heard = True
-                pending, subscriptions = message[-2], message[-1]
+                pending, subscriptions, dropped = message[-3], message[-2], message[-1]
                 if pending:
                     self._run_pending(link, pending)
-                if subscriptions:
-                    objects = link.table.objects
-                    link.subscribed.extend(getattr(objects[handle], name) for handle, name in subscriptions)
+                if subscriptions or dropped:
+                    self._subscribe(link, subscriptions, dropped)
                 op = message[0]
                 if op == "out":
                     continue
                 if op == "exit":
                     link.exit_code = message[1]
                     break
-                reply = self._answer(link, op, message[1:-2])
+                reply = self._answer(link, op, message[1:-3])
                 try:
                     wire.send(reply)
                 except OSError:
@@ -316,6 +315,13 @@ class _Host:
         except Exception as exc:
             return table.dumps("err", ("error", type(exc).__name__, str(exc)))
 
+    def _subscribe(self, link: _Link, keys: list[tuple[int, str]], dropped: list[tuple[int, str]]) -> None:
+        for key in dropped:
+            del link.subscribed[key]
+        objects = link.table.objects
+        for key in keys:
+            link.subscribed[key] = getattr(objects[key[0]], key[1])
+
     def _fresh(self, link: _Link) -> tuple[list[Any], list[int]]:
         """The subscribed getters' values now, for the child's step answer: ``(values, missing)``, where
         ``missing`` lists the getters left to the child's own read: one that warns (so the warning comes at
@@ -326,7 +332,7 @@ class _Host:
         state = self.state
         state.capture = captured
         try:
-            for index, getter in enumerate(link.subscribed):
+            for index, getter in enumerate(link.subscribed.values()):
                 try:
                     value = getter()
                 except Exception:

@@ -19,7 +19,8 @@ costs one message each way per ``step`` (the parent's methods are marked in :mod
 * a marked getter (a sensor reading, the clock) is read at most once per step through the parent: its key
   joins the subscriptions sent with the next ``step``, whose answer brings the fresh value of every
   subscribed getter; the cache is dropped at each step and by any call that goes to the parent other than a
-  read (a buffered command drops the values that echo commands, such as a motor's target).
+  read (a buffered command drops the values that echo commands, such as a motor's target). A subscription
+  not read for :data:`SWEEP_STEPS` steps is dropped (a node handle got anew each step does not pile up).
 
 The controller's ``sys.stdout``/``sys.stderr`` travel on the same channel, so the parent can print every
 controller's output in robot order at each synchronisation point (deterministic output). SIGINT is ignored
@@ -45,6 +46,8 @@ from typing import Any
 _LENGTH = struct.Struct("!I")
 #: Output kept in the child before it is sent although no line ended (characters).
 OUTPUT_CHUNK = 1 << 16
+#: Steps between two sweeps of the subscriptions: one not read since the last sweep is dropped.
+SWEEP_STEPS = 64
 #: Receive buffer of a :class:`Wire` (bytes; it grows for a larger frame).
 RECEIVE_BUFFER = 1 << 16
 _MISSING = object()
@@ -148,10 +151,12 @@ class _Channel:
         self.values: dict[tuple[int, str], Any] = {}
         self.echoes: list[tuple[int, str]] = []
         #: every marked getter read so far (the parent sends their values with each step), and its kind
-        self.subscribed: list[tuple[int, str]] = []
-        self.subscribed_echoes: list[tuple[int, str]] = []
-        self.subscribed_set: set[tuple[int, str]] = set()
+        self.subscribed: dict[tuple[int, str], bool] = {}  # key -> whether a command drops it
+        self.subscribed_echoes: list[tuple[int, str]] | None = None  # (computed when needed)
         self.new_subscriptions: list[tuple[int, str]] = []
+        self.dropped: list[tuple[int, str]] = []
+        self.used: set[tuple[int, str]] = set()  # read since the last sweep
+        self.steps = 0
         self.errors: dict[str, type[BaseException]] = {}
         self.closed = False
 
@@ -170,9 +175,9 @@ class _Channel:
     # -- wire
 
     def _send(self, message: tuple[Any, ...]) -> None:
-        """Send ``message`` with what is pending and the new subscriptions: one pickle, one write."""
-        message = (*message, self.pending, self.new_subscriptions)
-        self.pending, self.out_size, self.new_subscriptions = [], 0, []
+        """Send ``message`` with what is pending and the subscription changes: one pickle, one write."""
+        message = (*message, self.pending, self.new_subscriptions, self.dropped)
+        self.pending, self.out_size, self.new_subscriptions, self.dropped = [], 0, [], []
         try:  # plain data (the usual case) pickles in C; an API object in it needs its handle
             data = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
         except _HandleNeeded:
@@ -264,14 +269,13 @@ class _Channel:
     def read(self, handle: int, name: str, echo: bool) -> Any:
         """A marked getter's value: from this step's values, else read through the parent (and subscribed)."""
         key = (handle, name)
+        self.used.add(key)
         value = self.values.get(key, _MISSING)
         if value is _MISSING:
-            if key not in self.subscribed_set:
-                self.subscribed_set.add(key)
-                self.subscribed.append(key)
+            if key not in self.subscribed:
+                self.subscribed[key] = echo
+                self.subscribed_echoes = None
                 self.new_subscriptions.append(key)
-                if echo:
-                    self.subscribed_echoes.append(key)
             value = self.request(("read", handle, name))
             self.values[key] = value
             if echo:
@@ -283,14 +287,30 @@ class _Channel:
         values in subscription order; ``missing``: indexes the parent could not read quietly, left to a read)."""
         self.values = {}
         self.echoes = []
+        self.steps += 1
+        if self.steps % SWEEP_STEPS == 0:
+            self._sweep()
         result, fresh = self._exchange(("call", proxy._dualtwin_handle, name, args, kwargs))
         if fresh is not None:
             values, missing = fresh
-            self.values = dict(zip(self.subscribed, values, strict=True))
+            keys = list(self.subscribed)
+            self.values = dict(zip(keys, values, strict=True))
             for index in missing:
-                del self.values[self.subscribed[index]]
+                del self.values[keys[index]]
+            if self.subscribed_echoes is None:
+                self.subscribed_echoes = [key for key, echo in self.subscribed.items() if echo]
             self.echoes = list(self.subscribed_echoes)
         return result
+
+    def _sweep(self) -> None:
+        """Drop the subscriptions not read since the last sweep (the parent drops them with the next message)."""
+        stale = [key for key in self.subscribed if key not in self.used]
+        for key in stale:
+            del self.subscribed[key]
+        if stale:
+            self.subscribed_echoes = None
+            self.dropped.extend(stale)
+        self.used = set()
 
     def proxy_class(self, name: str) -> type[Any]:
         cls = self.classes.get(name)
