@@ -133,7 +133,7 @@ def test_scalar_kinds_are_accepted_everywhere() -> None:
         assert isinstance(motor.getVelocity(), float)
     motor.setControlPID(np.float64(10), 0, np.array([0.0]))
     box = sup.getFromDef("BOX")
-    box.getField("translation").setSFVec3f(np.array([0.0, 0.0, 0.5]))
+    box.getField("translation").setSFVec3f([np.float64(0.0), 0, np.float32(0.5)])  # a list of any real scalars
     box.setVelocity(np.zeros(6))
     assert sup.step(np.int64(8)) == 0
     assert box.getPosition()[2] == pytest.approx(0.5, abs=1e-3)

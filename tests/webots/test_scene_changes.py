@@ -1,6 +1,7 @@
 """Nodes a supervisor imports or removes while the simulation runs take part in the physics, as in Webots: an
 imported Solid with Physics falls, collides with the world and with other imported Solids, is seen by ray
-sensors; a removed one stops colliding and stops being seen; a reset takes imported Solids out again.
+sensors; a removed one stops colliding and stops being seen; a reset takes imported Solids out again. The SF
+vector setters that place such nodes take a list only, as Webots' Python Field does.
 
 Expectations follow from the geometry alone: a 0.2 m cube resting on the floor has its centre 0.1 m up (soft
 contacts leave it a few millimetres lower), a distance sensor at the origin looking along +x reads the
@@ -130,3 +131,25 @@ def test_imported_robot_is_a_body_and_says_its_controller_does_not_start(capsys:
     assert "controller of a Robot imported at run time is not started" in capsys.readouterr().err
     _run(sup, 1.0)
     assert sup.getFromDef("R2").getPosition()[2] == pytest.approx(0.1, abs=0.005)
+
+
+@pytest.mark.parametrize("method, good", [("setSFVec3f", [0.5, 0.0, 0.2]), ("setSFRotation", [0.0, 0.0, 1.0, 0.3])])
+def test_sf_vector_setters_take_a_list_only(method: str, good: list[float], capsys: pytest.CaptureFixture[str]) -> None:
+    # Webots' Field.setSFVec2f/Vec3f/Rotation/Color check isinstance(value, list): a tuple or an array prints
+    # Webots' error line and leaves the field as it was
+    import numpy as np
+
+    sup = _supervisor()
+    field = sup.getFromDef("PEDESTAL").getField("translation" if method == "setSFVec3f" else "rotation")
+    before = field.getSFVec3f() if method == "setSFVec3f" else field.getSFRotation()
+    for refused in (tuple(good), np.array(good)):
+        capsys.readouterr()
+        getattr(field, method)(refused)
+        assert capsys.readouterr().err == "Error: new field value has wrong type or length.\n"
+        field.value = refused
+        assert "wrong type or length" in capsys.readouterr().err
+        sup.step(TS)
+        assert (field.getSFVec3f() if method == "setSFVec3f" else field.getSFRotation()) == before
+    getattr(field, method)(good)  # control: the same numbers as a list are applied at the next step
+    sup.step(TS)
+    assert (field.getSFVec3f() if method == "setSFVec3f" else field.getSFRotation()) == pytest.approx(good)

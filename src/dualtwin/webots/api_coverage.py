@@ -52,8 +52,9 @@ API_NOTES: tuple[tuple[str, str, str], ...] = (
     ("not yet", "Motion", "plays .motion files on the robot's motors (linear interpolation between poses)"),
     ("not yet", "Device(name) built by the user",
      "a second handle on the device keeps its own sampling state (Webots shares one per device)"),
-    ("permissive", "Field.setSF*/setMF*",
-     "also take tuples and NumPy arrays (Webots refuses anything but a list, with an error line)"),
+    ("permissive", "Field.setSFBool/Int32/Float",
+     "take any real scalar (Webots' isinstance checks refuse an int for setSFFloat and a NumPy integer for "
+     "setSFInt32, with an error line); the SF vector setters take a list only, as Webots does"),
     ("permissive", "Robot.step, enable, setChannel...",
      "take floats and NumPy scalars (Webots raises ctypes.ArgumentError for them)"),
 )

@@ -18,6 +18,7 @@ import the Node class (which imports it).
 from __future__ import annotations
 
 import math
+import sys
 from typing import Any, Protocol
 
 from dualtwin.webots import _math3 as m3
@@ -311,6 +312,11 @@ class Field:
 
     def _set(self, method: str, kind: str, value: Any) -> None:
         if not self._check(method, kind):
+            return
+        if kind in schema.VECTOR_SIZES and not isinstance(value, list):
+            # Webots' Python Field checks ``isinstance(value, list)``: a tuple or NumPy array is refused with
+            # this line on stderr and the field keeps its value (no exception)
+            print("Error: new field value has wrong type or length.", file=sys.stderr)
             return
         ok, converted = self._convert(method, kind, value)
         if not ok:
