@@ -239,6 +239,7 @@ class InertialUnit(_SolidSensor):
             yaw = m3.normalize_angle(yaw + noise * math.pi * rng.gauss(0.0, 1.0))
         self._angles = (roll, pitch, yaw)
 
+    @step_value
     def getRollPitchYaw(self) -> list[float]:
         if self._angles is None:
             return [math.nan] * 3
@@ -253,6 +254,7 @@ class InertialUnit(_SolidSensor):
     def roll_pitch_yaw(self) -> list[float]:
         return self.getRollPitchYaw()
 
+    @step_value
     def getQuaternion(self) -> list[float]:
         if self._angles is None:
             return [math.nan] * 4

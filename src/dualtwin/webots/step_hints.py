@@ -17,7 +17,9 @@ for the methods marked here; the marks travel with the class descriptions (:mod:
   the call.
 * :func:`advances`: a method that runs the simulation (``step``): its answer carries the fresh values.
 
-A mark is an attribute of the function object, so aliases (``getAvailableTorque = getAvailableForce``) share
+A marked getter must be a pure read of what the last step sampled (no random draw, no change of state): the
+simulation's process calls it after every step for a controller that has read it, whether it reads it again
+or not. A mark is an attribute of the function object, so aliases (``getAvailableTorque = getAvailableForce``) share
 it; a subclass that overrides a marked method without marking it loses the shortcut (never correctness).
 """
 
