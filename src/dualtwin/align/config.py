@@ -34,7 +34,7 @@ Objective = Literal["trajectory", "prediction"]
 GlobalSearch = Literal["multistart", "off"]
 #: Fields added after folders were written without them: left out of the saved config while at their default,
 #: so those folders stay resumable and a run that does not use them writes the same bytes as before.
-LATER_FIELDS = frozenset({"global_search", "starts", "tie", "sysid_params"})
+LATER_FIELDS = frozenset({"global_search", "starts", "tie", "sysid_params", "batch"})
 #: Horizons of the prediction objective: 1 and 5 periods stay smooth in the knobs; 25 periods already cross
 #: impacts (a pole landing on its stop) and make the residual as rough as an open-loop one.
 OBJECTIVE_HORIZONS = (1, 5)
@@ -90,7 +90,11 @@ class AlignConfig(FrozenModel):
     sysid_params: str = Field(default="", description="a mujoco.sysid parameter file (YAML) whose parameters, "
                               "named as knobs, add to --knobs with their bounds", json_schema_extra={"path": True})
     executor: ExecutorKind = Field(default="process", description="where candidates are simulated")
-    workers: int = Field(default=2, ge=1, description="process-pool size")
+    workers: int = Field(default=2, ge=1, description="process-pool size, or the threads of the MuJoCo batch")
+    batch: Literal["auto", "off"] = Field(
+        default="auto", description="auto: a MuJoCo target's candidates (populations, Jacobians) run in this "
+        "process as one mujoco.batch on WORKERS threads (one with --executor serial), bit-identical to the "
+        "executor; off: on the executor (Webots targets and --executor ray always are)")
     ray_address: str | None = Field(default=None, description="Ray cluster address, with --executor ray")
     weights: ObjectiveWeights = Field(default_factory=ObjectiveWeights,
                                       description="objective weights (TERM=VALUE: dtw, event, endpoint, rmse, "

@@ -239,7 +239,7 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
                                 {}, resume)
         job = SimJob(str(binding.path), config.target, str(suite_path.resolve()), tuple(shared.scenarios), (),
                      sim_seed)
-        with Evaluator(config.executor, config.workers, config.ray_address) as evaluator:
+        with Evaluator(config.executor, config.workers, config.ray_address, config.batch) as evaluator:
             problem: TrajectoryProblem
             if members:
                 problem = EnsembleProblem(specs, job, train, hold, evaluator, config.budget, config.regularization,

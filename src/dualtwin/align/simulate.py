@@ -1,18 +1,31 @@
-"""Simulate a suite on a twin in memory, and evaluate many knob settings serially, in processes or on Ray.
+"""Simulate a suite on a twin in memory, and evaluate many knob settings as one MuJoCo batch, serially, in
+processes or on Ray.
 
 A `SimJob` is plain data (paths, names and knob values), so it pickles cheaply: each worker process builds
 its own binding, suite and twin once and reuses them for every job (``set_knobs`` applies values from
 nominal, so reuse cannot leak one job's knobs into the next). Results are `ScenarioTrace` objects keyed by
 scenario id, with the same channel names as a run directory (ground truth by name, on-board channels as
 ``onboard/<column>``), so recorded runs and fresh simulations compare alike.
+
+MuJoCo batch (`BatchedSimulator`, the `Evaluator`'s default for a MuJoCo target): a population or a
+finite-difference Jacobian is a list of jobs that differ only in knob values (and, for an ensemble, initial-
+condition shifts). Each job gets its own twin (kept and reused across calls) and runs as the generator
+:func:`job_periods`, the very code of the one-at-a-time path, which yields wherever the twin's physics advances
+a control period. Every live job is advanced to its next yield, then all their periods are stepped as one
+``mujoco.batch`` call on C threads (`dualtwin.twins.mujoco_batch`), and so on: the Python of each job
+(scenario inputs, resets between scenarios, sampling, failure checks) runs between periods as before, only the
+physics is batched. Jobs may be in different scenarios or at different times; one that ends (finished, failed
+or unstable) leaves the batch. Traces are bit-identical to simulating each job alone, at any thread count
+(tests/align/test_batched.py).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Generator, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
@@ -22,14 +35,20 @@ from dualtwin.errors import DualtwinError
 from dualtwin.parallel import DEFAULT_WORKERS, EXECUTORS, ExecutorKind, ParallelMap, check_executor
 from dualtwin.robots.binding import RobotBinding, load_binding
 from dualtwin.suite.loader import load_suite, read_json
-from dualtwin.suite.runner import check_against_binding, run_scenario
+from dualtwin.suite.runner import Periods, check_against_binding, drive, scenario_periods
 from dualtwin.suite.schema import Suite
 from dualtwin.twins import make_twin
 from dualtwin.twins.base import Twin
 from dualtwin.twins.io import RobotIO
 
+if TYPE_CHECKING:
+    from dualtwin.twins.mujoco_batch import TwinBatch
+
+BatchMode = Literal["auto", "off"]
+BATCH_MODES: tuple[str, ...] = ("auto", "off")
+
 # Re-exported for callers that import them from here (fit, analyze, prediction).
-__all__ = ["DEFAULT_WORKERS", "EXECUTORS", "Evaluator", "ExecutorKind", "ScenarioTrace", "SimJob", "Traces",
+__all__ = ["BATCH_MODES", "DEFAULT_WORKERS", "EXECUTORS", "BatchMode", "BatchedSimulator", "Evaluator", "ExecutorKind", "ScenarioTrace", "SimJob", "Traces",
            "check_executor", "load_traces", "needed_scenarios", "simulate", "simulate_on", "simulate_twin"]
 
 
@@ -133,6 +152,14 @@ def simulate_on(io: RobotIO, suite: Suite, wanted: Sequence[str] | None, seed: i
 
     ``offsets`` shift initial conditions at fresh starts, as an ensemble member does.
     """
+    traces: Traces = drive(suite_periods(io, suite, wanted, seed, offsets), io.twin.step)
+    return traces
+
+
+def suite_periods(io: RobotIO, suite: Suite, wanted: Sequence[str] | None, seed: int,
+                  offsets: Mapping[str, float] | None = None) -> Generator[None, None, Traces]:
+    """`simulate_on` as a generator that yields where the twin's physics steps a period (see
+    `dualtwin.suite.runner.scenario_periods`)."""
     ids = suite.scenario_ids()
     indices = needed_scenarios(suite, wanted if wanted is not None else ids)
     keep = set(wanted if wanted is not None else ids)
@@ -146,8 +173,8 @@ def simulate_on(io: RobotIO, suite: Suite, wanted: Sequence[str] | None, seed: i
         # A skipped predecessor means there is nothing to continue from.
         fresh = need_fresh or scenario.reset == "fresh" or previous != index - 1
         scenario_seed = scenario.seed if scenario.seed is not None else seed
-        result, onboard, truth = run_scenario(io, scenario, scenario_seed, thresholds, fresh,
-                                              offsets if fresh else None)
+        result, onboard, truth = yield from scenario_periods(io, scenario, scenario_seed, thresholds, fresh,
+                                                             offsets if fresh else None)
         need_fresh = result.status == "unstable"
         previous = index
         if ids[index] not in keep:
@@ -167,11 +194,19 @@ def simulate_with_nuisance(io: RobotIO, suite: Suite, knobs: Mapping[str, float]
     Nuisance initial conditions replace the scenario's; a nuisance time offset moves the scenario's time
     stamps onto the reference's clock (see :mod:`dualtwin.align.nuisance`).
     """
+    traces: Traces = drive(job_periods(io, suite, knobs, wanted, seed, offsets), io.twin.step)
+    return traces
+
+
+def job_periods(io: RobotIO, suite: Suite, knobs: Mapping[str, float], wanted: Sequence[str] | None,
+                seed: int, offsets: Mapping[str, float] | None = None) -> Generator[None, None, Traces]:
+    """`simulate_with_nuisance` as a generator that yields where the twin's physics steps a period: the
+    batched path (`BatchedSimulator`) runs many of them, one per candidate twin, in lockstep."""
     physics, extra = nuisance.split(knobs)
     io.twin.set_knobs(physics)
     if not extra:
-        return simulate_on(io, suite, wanted, seed, offsets)
-    traces = simulate_on(io, nuisance.apply_to_suite(suite, extra), wanted, seed, offsets)
+        return (yield from suite_periods(io, suite, wanted, seed, offsets))
+    traces = yield from suite_periods(io, nuisance.apply_to_suite(suite, extra), wanted, seed, offsets)
     for sid, offset in nuisance.time_offsets(extra, suite.scenario_ids()).items():
         if sid in traces:
             trace = traces[sid]
@@ -254,8 +289,87 @@ def ensemble_offsets(run_dir: Path) -> list[dict[str, float]]:
     return offsets
 
 
+class BatchedSimulator:
+    """Simulates jobs of one robot, twin and suite as a batch on ``nthread`` threads (0: all CPUs).
+
+    Raises nothing for a twin that cannot be batched: :attr:`reason` says why (None when it can), and the
+    caller runs its jobs another way.
+    """
+
+    def __init__(self, robot: str, twin: str, suite: str, nthread: int) -> None:
+        self.robot = load_binding(Path(robot))
+        self.suite = load_suite(Path(suite))
+        check_against_binding(self.suite, Path(suite), self.robot)
+        self.twin_name = twin
+        self.nthread = nthread
+        self._period = self.suite.global_settings.control_period_s
+        self._ios: list[RobotIO] = []
+        self._batch: TwinBatch | None = None
+        from dualtwin.twins.mujoco_batch import batch_reason  # imports mujoco.batch: only when batching
+
+        #: Why this twin cannot be batched, or None.
+        self.reason = batch_reason(self._io(0).twin)
+
+    def _io(self, index: int) -> RobotIO:
+        while len(self._ios) <= index:
+            self._ios.append(RobotIO(self.robot, make_twin(self.twin_name, self.robot, self._period)))
+            self._batch = None  # sized for fewer twins
+        return self._ios[index]
+
+    def _twin_batch(self, n: int) -> TwinBatch:
+        from dualtwin.twins.mujoco_batch import TwinBatch
+
+        self._io(n - 1)
+        if self._batch is None:
+            self._batch = TwinBatch([io.twin for io in self._ios], self.nthread)  # type: ignore[misc]
+        return self._batch
+
+    def map(self, jobs: Sequence[SimJob]) -> list[Traces]:
+        """Every job's traces, in job order."""
+        periods: list[Periods] = [
+            job_periods(self._io(i), self.suite, dict(job.knobs), job.scenarios, job.seed, dict(job.offsets) or None)
+            for i, job in enumerate(jobs)]
+        results: list[Traces | None] = [None] * len(jobs)
+        if len(jobs) == 1:  # nothing to batch with: the twin steps itself (the same result)
+            return [drive(periods[0], self._ios[0].twin.step)]
+        batch = self._twin_batch(len(jobs))
+        live: list[int] = []
+        for i, job in enumerate(periods):
+            try:
+                next(job)
+                live.append(i)
+            except StopIteration as stop:
+                results[i] = stop.value
+        while live:
+            unstable = batch.step(live)
+            still: list[int] = []
+            for i, exc in zip(live, unstable, strict=True):
+                try:
+                    if exc is None:
+                        periods[i].send(None)
+                    else:
+                        periods[i].throw(exc)
+                    still.append(i)
+                except StopIteration as stop:
+                    results[i] = stop.value
+            live = still
+        return [r for r in results if r is not None]
+
+    def close(self) -> None:
+        for io in self._ios:
+            io.twin.close()
+        self._ios.clear()
+        self._batch = None
+
+
 class Evaluator:
-    """Runs `SimJob` batches serially, in a process pool, or on a Ray cluster; counts evaluations.
+    """Runs `SimJob` batches as one MuJoCo batch, serially, in a process pool, or on a Ray cluster; counts
+    evaluations.
+
+    ``batch="auto"`` (the default): jobs for a MuJoCo twin whose physics can be batched
+    (`dualtwin.twins.mujoco_batch.batch_reason`) run in this process as one ``mujoco.batch`` on ``workers``
+    threads (one thread with ``kind="serial"``), bit-identical to the other executors; other twins, and every
+    twin with ``kind="ray"`` or ``batch="off"``, run on the executor. :attr:`batched` names what ran the last map.
 
     The process pool uses the ``forkserver`` start method (no fork of a threaded parent) and keeps its
     workers for the evaluator's lifetime, so each worker builds its twin once. As with any non-fork start
@@ -264,21 +378,50 @@ class Evaluator:
     """
 
     def __init__(self, kind: ExecutorKind = "process", workers: int = DEFAULT_WORKERS,
-                 ray_address: str | None = None) -> None:
+                 ray_address: str | None = None, batch: BatchMode = "auto") -> None:
+        if batch not in BATCH_MODES:
+            raise DualtwinError(f"unknown batch mode {batch!r}; use one of {', '.join(BATCH_MODES)}")
         # The generic parallel map lives in `dualtwin.parallel`, shared with suite ensembles.
         self._map = ParallelMap(kind, workers, ray_address, preload=["dualtwin.align.simulate"])
         self.kind = kind
         self.workers = workers
+        self.batch: BatchMode = batch if kind != "ray" else "off"
         self.evaluations = 0
+        #: Whether the last map ran as a MuJoCo batch.
+        self.batched = False
+        self._simulators: dict[tuple[str, str, str], BatchedSimulator | None] = {}
+
+    def _simulator(self, jobs: Sequence[SimJob]) -> BatchedSimulator | None:
+        keys = {(job.robot, job.twin, job.suite) for job in jobs}
+        if self.batch == "off" or len(keys) != 1:
+            return None
+        key = keys.pop()
+        if key not in self._simulators:
+            simulator: BatchedSimulator | None = None
+            if key[1] == "mujoco":
+                simulator = BatchedSimulator(*key, nthread=1 if self.kind == "serial" else self.workers)
+                if simulator.reason is not None:
+                    simulator.close()
+                    simulator = None
+            self._simulators[key] = simulator
+        return self._simulators[key]
 
     def map(self, jobs: Sequence[SimJob]) -> list[Traces]:
         """Simulate every job; results come back in job order."""
         jobs = list(jobs)
         self.evaluations += len(jobs)
+        simulator = self._simulator(jobs) if jobs else None
+        self.batched = simulator is not None
+        if simulator is not None:
+            return simulator.map(jobs)
         return self._map.map(simulate, jobs)
 
     def close(self) -> None:
         self._map.close()
+        for simulator in self._simulators.values():
+            if simulator is not None:
+                simulator.close()
+        self._simulators.clear()
 
     def __enter__(self) -> Evaluator:
         return self

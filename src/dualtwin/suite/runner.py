@@ -14,7 +14,7 @@ what it finished, and ``resume=True`` runs only the rest.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Generator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -86,14 +86,44 @@ def format_rows(names: Sequence[str], rows: Sequence[Sequence[float]]) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: What `scenario_periods` returns: the scenario's result and its two logs (rows of time followed by channels).
+ScenarioLogs = tuple[ScenarioResult, list[list[float]], list[list[float]]]
+#: A simulation that yields once per control period for its twin's physics to be stepped (see `drive`).
+Periods = Generator[None, None, Any]
+
+
 def run_scenario(io: RobotIO, scenario: Scenario, seed: int, thresholds: dict[str, float],
-                 fresh: bool, offsets: Mapping[str, float] | None = None,
-                 ) -> tuple[ScenarioResult, list[list[float]], list[list[float]]]:
+                 fresh: bool, offsets: Mapping[str, float] | None = None) -> ScenarioLogs:
     """Simulate one scenario; returns its result and the two logs (rows of time followed by channels).
 
     ``offsets`` (initial-condition key -> shift) move a fresh scenario's initial conditions, for ensembles
     (`dualtwin.suite.ensemble`): a key the scenario does not set is shifted from the twin's reset value.
     """
+    result: ScenarioLogs = drive(scenario_periods(io, scenario, seed, thresholds, fresh, offsets), io.twin.step)
+    return result
+
+
+def drive(periods: Periods, step: Callable[[], None]) -> Any:
+    """Run a period generator to its end, stepping its twin with ``step`` (e.g. ``twin.step``) at each yield;
+    a `SimulationUnstable` that ``step`` raises is thrown into the generator where it yielded."""
+    try:
+        next(periods)
+        while True:
+            try:
+                step()
+            except SimulationUnstable as exc:
+                periods.throw(exc)
+            else:
+                periods.send(None)
+    except StopIteration as stop:
+        return stop.value
+
+
+def scenario_periods(io: RobotIO, scenario: Scenario, seed: int, thresholds: dict[str, float],
+                     fresh: bool, offsets: Mapping[str, float] | None = None) -> Generator[None, None, ScenarioLogs]:
+    """`run_scenario` as a generator: it yields where the twin's physics advances one control period
+    (``twin.step()``), so a caller can step many twins' physics together (`dualtwin.twins.mujoco_batch`);
+    the step's `SimulationUnstable` comes back through ``throw``. Returns what `run_scenario` does."""
     twin = io.twin
     period = twin.control_period
     if fresh:
@@ -134,7 +164,7 @@ def run_scenario(io: RobotIO, scenario: Scenario, seed: int, thresholds: dict[st
         for key, signal in signals.items():
             io.apply_action(key, signal(t_rel))
         try:
-            twin.step()
+            yield  # twin.step(), by whoever drives this generator
         except SimulationUnstable as exc:
             status, failure = "unstable", {"time_s": round(twin.time - start, 9), "message": str(exc)}
             break
