@@ -23,7 +23,12 @@ Run: ``python bench/bench_arm.py`` (divergence, stepping and alignment; ``--part
   and an ablation naming the knob families and joints that carry the divergence;
 * ``executors``: one batch of 26 candidates of that fit simulated in one process, in the process pool and on
   a local two-worker Ray cluster (speed-up over one process, traces compared bit for bit), and a whole CMA-ES
-  fit through the pool and through Ray (fitted values compared bit for bit).
+  fit through the pool and through Ray (fitted values compared bit for bit), all with align's MuJoCo batch off;
+* ``batch``: the same 26 candidates one at a time in one process, in the two-worker pool, and as one
+  ``mujoco.batch`` on 2 threads (align's default for a MuJoCo target; goal >= 1.8x one process), wall and
+  CPU seconds, traces compared bit for bit. ``align`` fits twice by default (``--batch both``): today's path
+  (batch off, the process pool) and the batched one, with both wall times and the fitted values compared.
+  The thread-scaling curve is ``bench/bench_batch_scaling.py``.
 
 Set ``DUALTWIN_BENCH_ARM_OUT`` to keep the runs.
 """
@@ -328,14 +333,11 @@ def fit_arm(root: Path, out: str, suite: Path, holdout: list[str], channels: lis
     return run_align(config, root / out, propose_fn=(lambda _analysis: [propose]) if propose else None)
 
 
-def alignment(root: Path, budget: int, executor: str, optimizer: str = "cma", restarts: int = 0,
-              polish: int = 0) -> dict[str, Any]:
-    """CMA-ES over 25 knobs of the MuJoCo arm_payload against the Webots stand-in; RMSE before/after per
-    scenario, and which knob families and joints carry the divergence (ablation from the fitted values)."""
-    from fnmatch import fnmatch
-
-    robot, suite, holdout, fit_ids, channels = reference_setup(root)
-    start = time.perf_counter()
+def fit_stages(root: Path, suite: Path, holdout: list[str], channels: list[str], budget: int, executor: str,
+               optimizer: str, restarts: int, polish: int, batch: str, tag: str = "") -> dict[str, Any]:
+    """The arm fit: CMA-ES in stages (then the least-squares polish), simulated with align's ``batch`` setting
+    (``auto``: one mujoco.batch on the pool's worker count of threads; ``off``: the executor, today's path)."""
+    start, cpu = time.perf_counter(), time.process_time()
     # CMA-ES in stages (restarts = stages - 1): each stage starts at the previous stage's best with a step
     # SIGMA_SHRINK times smaller. One stage of sigma 0.25 spent most of its budget shrinking its step from the
     # whole box down to the basin (the last session: 514 evaluations, sigma 0.25 -> 0.033, 7.8 mm worst).
@@ -344,27 +346,61 @@ def alignment(root: Path, budget: int, executor: str, optimizer: str = "cma", re
     fitted: dict[str, float] = {}
     evaluations = 0
     for stage in range(stages):
-        result = fit_arm(root, f"align{stage}", suite, holdout, channels, optimizer=optimizer, budget=budget // stages,
-                     executor=executor, sigma0=sigma, seed=stage, start=dict(fitted))
+        result = fit_arm(root, f"align{tag}{stage}", suite, holdout, channels, optimizer=optimizer,
+                         budget=budget // stages, executor=executor, sigma0=sigma, seed=stage, start=dict(fitted),
+                         batch=batch)
         evaluations += result.evaluations
         fitted = result.fitted
-        print(f"  stage {stage + 1}/{stages}: sigma0 {sigma:.3g}, {result.evaluations} evaluations, objective "
-              f"{result.objective_before:.4g} -> {result.objective_after:.4g}, held out {result.holdout_after}, "
-              f"{time.perf_counter() - start:.0f} s so far, stop: {result.stop_reason}", flush=True)
+        print(f"  [batch {batch}] stage {stage + 1}/{stages}: sigma0 {sigma:.3g}, {result.evaluations} evaluations, "
+              f"objective {result.objective_before:.4g} -> {result.objective_after:.4g}, held out "
+              f"{result.holdout_after}, {time.perf_counter() - start:.0f} s so far, stop: {result.stop_reason}",
+              flush=True)
         sigma *= SIGMA_SHRINK
     cma_only: dict[str, Any] = {}
     if polish > 0 and optimizer == "cma":
         # What CMA-ES alone reached, before the least-squares polish starts from it.
         cma_only = {"wall_s": time.perf_counter() - start, "evaluations": evaluations,
                     "objective": result.objective_after, "fitted": dict(fitted)}
-        result = fit_arm(root, "align_polish", suite, holdout, channels, optimizer="lsq", budget=polish,
-                     executor=executor, start=dict(fitted))
+        result = fit_arm(root, f"align{tag}_polish", suite, holdout, channels, optimizer="lsq", budget=polish,
+                         executor=executor, start=dict(fitted), batch=batch)
         evaluations += result.evaluations
         fitted = result.fitted
-        print(f"  least-squares polish from the CMA-ES result: {result.evaluations} evaluations, objective -> "
-              f"{result.objective_after:.4g}, held out {result.holdout_after}, "
+        print(f"  [batch {batch}] least-squares polish from the CMA-ES result: {result.evaluations} evaluations, "
+              f"objective -> {result.objective_after:.4g}, held out {result.holdout_after}, "
               f"{time.perf_counter() - start:.0f} s so far, stop: {result.stop_reason}", flush=True)
-    wall = time.perf_counter() - start
+    return {"result": result, "fitted": fitted, "evaluations": evaluations, "cma_only": cma_only,
+            "wall_s": time.perf_counter() - start, "cpu_s": time.process_time() - cpu, "stages": stages}
+
+
+def alignment(root: Path, budget: int, executor: str, optimizer: str = "cma", restarts: int = 0,
+              polish: int = 0, batch: str = "both") -> dict[str, Any]:
+    """CMA-ES over 25 knobs of the MuJoCo arm_payload against the Webots stand-in; RMSE before/after per
+    scenario, and which knob families and joints carry the divergence (ablation from the fitted values).
+
+    ``batch="both"`` fits twice in this run, today's path (``off``: the executor) then the batched one
+    (``auto``), and compares wall time, CPU time and every fitted value; the report is the batched fit's."""
+    from fnmatch import fnmatch
+
+    robot, suite, holdout, fit_ids, channels = reference_setup(root)
+    modes = ["off", "auto"] if batch == "both" else [batch]
+    fits = {mode: fit_stages(root, suite, holdout, channels, budget, executor, optimizer, restarts, polish, mode,
+                             tag=f"_{mode}") for mode in modes}
+    fit = fits[modes[-1]]
+    result, fitted, evaluations, cma_only, stages = (fit["result"], fit["fitted"], fit["evaluations"],
+                                                    fit["cma_only"], fit["stages"])
+    wall = fit["wall_s"]
+    comparison: dict[str, Any] = {}
+    if len(fits) == 2:
+        off, auto = fits["off"], fits["auto"]
+        same = off["fitted"] == auto["fitted"] and off["evaluations"] == auto["evaluations"]
+        comparison = {"align_off_wall_s": off["wall_s"], "align_off_cpu_s": off["cpu_s"],
+                      "align_batch_wall_s": auto["wall_s"], "align_batch_cpu_s": auto["cpu_s"],
+                      "align_batch_speedup": off["wall_s"] / auto["wall_s"], "align_batch_same": same}
+        print(f"== alignment, batched vs today's path (executor {executor}, workers 2): off {off['wall_s']:.0f} s wall "
+              f"({off['cpu_s']:.0f} CPU-s of this process; the pool's workers are not counted), batched "
+              f"{auto['wall_s']:.0f} s wall ({auto['cpu_s']:.0f} CPU-s, both threads): "
+              f"{off['wall_s'] / auto['wall_s']:.2f}x (goal >= 2x); {evaluations} evaluations each; fitted values "
+              f"{'identical' if same else 'DIFFER'} ==")
 
     def run(values: dict[str, float], name: str) -> dict[str, dict[str, float]]:
         twin = make_twin("mujoco", robot)
@@ -425,7 +461,60 @@ def alignment(root: Path, budget: int, executor: str, optimizer: str = "cma", re
                  for src in ("fitted", "truth")]
         print(f"    {label:16s} {cells[0]} {cells[1]}")
     return {"align_wall_s": wall, "align_evaluations": evaluations, "rmse_before": before,
-            "rmse_after": after, "ablation": ablation, "fitted": fitted}
+            "rmse_after": after, "ablation": ablation, "fitted": fitted, **comparison}
+
+
+def arm_population(batch: int) -> list[dict[str, float]]:
+    """``batch`` seeded settings of the fit's 25 knobs (two CMA-ES generations' worth at 26)."""
+    rng = np.random.default_rng(0)
+    return [{**{f"joint.{j}.damping": float(rng.uniform(0, 10)) for j in JOINTS},
+             **{f"joint.{j}.friction": float(rng.uniform(0, 1)) for j in JOINTS},
+             **{f"joint.{j}.armature": float(rng.uniform(0, 0.05)) for j in JOINTS},
+             **{f"motor.{j}.kp": float(rng.uniform(8, 12)) for j in JOINTS},
+             "body.wrist_3_link.mass": float(rng.uniform(3, 6))} for _ in range(batch)]
+
+
+BATCH_GOAL = 1.8
+
+
+def batched_population(root: Path, batch: int = 26, threads: int = 2) -> dict[str, Any]:
+    """One population of ``batch`` candidates of the arm fit (its alignment suite) simulated one at a time in one
+    process (today's serial executor), in the two-worker process pool (today's default), and as one mujoco.batch
+    on ``threads`` threads (align's default for a MuJoCo target now): best of three warm passes, wall and CPU
+    seconds (this process's, all threads; the pool's workers are separate processes, so their CPU is not in it),
+    traces compared bit for bit. Goal: the batch >= 1.8x one process on 2 threads."""
+    from dualtwin.align.simulate import Evaluator, SimJob
+
+    robot, suite, holdout, fit_ids, channels = reference_setup(root)
+    job = SimJob(str(robot.path), "mujoco", str(suite.resolve()))
+    jobs = [job.with_knobs(c) for c in arm_population(batch)]
+    rows: dict[str, tuple[float, float, str]] = {}
+    for label, kwargs in (("one process", {"kind": "serial", "batch": "off"}),
+                          ("pool of 2", {"kind": "process", "workers": 2, "batch": "off"}),
+                          (f"batch, {threads} thr", {"kind": "process", "workers": threads})):
+        with Evaluator(**kwargs) as evaluator:  # type: ignore[arg-type]
+            evaluator.map(jobs)  # warm: workers started, twins built
+            best = (math.inf, 0.0, "")
+            for _ in range(3):
+                wall, cpu = time.perf_counter(), time.process_time()
+                traces = evaluator.map(jobs)
+                wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+                if wall < best[0]:
+                    best = (wall, cpu, _digest(traces))
+            rows[label] = best
+    print(f"== batched population: {batch} candidates (25 knobs) x {len(fit_ids) + len(holdout)} scenarios of the "
+          "arm_payload alignment suite, best of 3 ==")
+    one = rows["one process"][0]
+    out: dict[str, Any] = {}
+    for label, (wall, cpu, digest) in rows.items():
+        same = digest == rows["one process"][2]
+        goal = f"  (goal >= {BATCH_GOAL}x)" if label.startswith("batch") else ""
+        print(f"  {label:14s} {wall:6.2f} s wall {cpu:6.2f} CPU-s  {one / wall:4.2f}x one process{goal}  traces "
+              f"{'identical' if same else 'DIFFER'}")
+        key = label.split(",")[0].replace(" ", "_")
+        out[f"population_{key}_wall_s"], out[f"population_{key}_cpu_s"] = wall, cpu
+        out[f"population_{key}_same"] = same
+    return out
 
 
 def executors(root: Path, budget: int, batch: int = 26) -> dict[str, Any]:
@@ -439,12 +528,7 @@ def executors(root: Path, budget: int, batch: int = 26) -> dict[str, Any]:
     from dualtwin.artifacts import read_json
 
     robot, suite, holdout, fit_ids, channels = reference_setup(root)
-    rng = np.random.default_rng(0)
-    candidates = [{**{f"joint.{j}.damping": float(rng.uniform(0, 10)) for j in JOINTS},
-                   **{f"joint.{j}.friction": float(rng.uniform(0, 1)) for j in JOINTS},
-                   **{f"joint.{j}.armature": float(rng.uniform(0, 0.05)) for j in JOINTS},
-                   **{f"motor.{j}.kp": float(rng.uniform(8, 12)) for j in JOINTS},
-                   "body.wrist_3_link.mass": float(rng.uniform(3, 6))} for _ in range(batch)]
+    candidates = arm_population(batch)
     job = SimJob(str(robot.path), "mujoco", str(suite.resolve()))
     jobs = [job.with_knobs(c) for c in candidates]
     # A local cluster of two worker slots, started by this process and shut down by it; align's Ray
@@ -459,7 +543,7 @@ def executors(root: Path, budget: int, batch: int = 26) -> dict[str, Any]:
                 # Started only now: its daemons take CPU from whatever runs beside them.
                 ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False,
                          _system_config={"worker_niceness": 0})
-            with Evaluator(kind) as evaluator:  # type: ignore[arg-type]
+            with Evaluator(kind, batch="off") as evaluator:  # type: ignore[arg-type]
                 # Workers start, import dualtwin and build their twin in a first pass; the best of the next
                 # three is timed (the least disturbed by other work on the machine).
                 evaluator.map(jobs)
@@ -481,7 +565,8 @@ def executors(root: Path, budget: int, batch: int = 26) -> dict[str, Any]:
         fits = {}
         for kind in ("process", "ray"):
             wall = time.perf_counter()
-            result = fit_arm(root, f"align_{kind}", suite, holdout, channels, budget=budget, executor=kind)
+            result = fit_arm(root, f"align_{kind}", suite, holdout, channels, budget=budget, executor=kind,
+                             batch="off")
             # Every candidate CMA-ES asked for and its objective value, as the checkpoint records them.
             generations = read_json(root / f"align_{kind}" / "checkpoint.json")["generations"]
             fits[kind] = (result.fitted, generations)
@@ -512,7 +597,7 @@ def _digest(traces: list[Any]) -> str:
     return digest.hexdigest()
 
 
-PARTS = ("divergence", "stepping", "align", "executors")
+PARTS = ("divergence", "stepping", "align", "executors", "batch")
 
 
 def main() -> dict[str, Any]:
@@ -529,6 +614,9 @@ def main() -> dict[str, Any]:
                         help="least-squares evaluations that polish the CMA-ES result (0: none)")
     parser.add_argument("--executor-budget", type=int, default=40,
                         help="CMA-ES evaluations of the whole fit run through the pool and through Ray")
+    parser.add_argument("--batch", default="both", choices=["both", "auto", "off"],
+                        help="align part: fit with align's batch setting auto (mujoco.batch), off (the executor) or "
+                        "both, one after the other, compared")
     parser.add_argument("--parts", default="divergence,stepping,align",
                         help=f"comma-separated parts to run, of: {', '.join(PARTS)}")
     args = parser.parse_args()
@@ -544,9 +632,11 @@ def main() -> dict[str, Any]:
             results.update(mujoco_overhead())
         if "align" in parts and args.budget > 0:
             results.update(alignment(root / "alignment", args.budget, args.executor, args.optimizer, args.restarts,
-                                     args.polish))
+                                     args.polish, args.batch))
         if "executors" in parts:
             results.update(executors(root / "executors", args.executor_budget))
+        if "batch" in parts:
+            results.update(batched_population(root / "batch"))
         if kept:
             print(f"runs kept in {root}")
     return results
