@@ -1,9 +1,10 @@
 """Vector-env bench: env steps per CPU-second and per wall second of the batched MuJoCo vector env, against
 the single env measured in the same run.
 
-Run: ``python bench/bench_vector_env.py [--sizes 1 2 4 8 16 32 64] [--steps 300] [--nthread 1 0] [--sync]``.
+Run: ``python bench/bench_vector_env.py [--sizes 1 2 4 8 16 32 64] [--nthread 1 2] [--rounds 210] [--sync]``.
 
-Measured in one run, interleaved, on ``dualtwin/CartPole-MuJoCo-Continuous-v0`` with fixed random actions:
+Every path is built first, then the paths take turns, one chunk of ``--chunk`` env steps each per round
+(``max(chunk, N)`` for N envs), on ``dualtwin/CartPole-MuJoCo-Continuous-v0`` with fixed random actions:
 
 * ``single``: one ``gym.make`` env stepped in a loop (auto-reset by hand), the baseline of every ratio;
 * ``physics``: ``mj_step`` alone over the single env's own trajectory (each period from its recorded state):
@@ -12,8 +13,10 @@ Measured in one run, interleaved, on ``dualtwin/CartPole-MuJoCo-Continuous-v0`` 
   ``mujoco.batch`` call per control period (dualtwin.rl.vector_env); K = 0 means all CPUs;
 * ``sync N`` (with ``--sync``): ``gymnasium.vector.SyncVectorEnv`` of N single envs.
 
-CPU time is the process's (all threads); ratios are to ``single`` within this run, best of ``--repeats``
-interleaved rounds. Episodes are capped at 200 periods so that auto-resets are part of the measurement.
+A path's rate is its fastest chunk (per CPU-second and, separately, per wall second): other jobs on a shared
+machine only ever add time to a chunk, and interleaving gives every path the same quiet moments. CPU time is
+the process's (all threads). Episodes are capped at 200 periods and the default 210 rounds step even the
+largest batch past one auto-reset.
 """
 
 from __future__ import annotations
@@ -35,101 +38,108 @@ EPISODE = 200
 _INTEGRATION = mujoco.mjtState.mjSTATE_INTEGRATION
 
 
-def measure(step: Callable[[int], object], steps: int, envs: int) -> tuple[float, float]:
-    """(env steps per CPU-second, env steps per wall second) of ``steps`` calls of ``step``."""
-    cpu, wall = time.process_time(), time.perf_counter()
-    for k in range(steps):
-        step(k)
-    cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
-    return steps * envs / cpu, steps * envs / wall
+class Path:
+    """One way of stepping envs: ``step()`` advances ``per_call`` env steps; the fastest chunk is kept."""
+
+    def __init__(self, name: str, step: Callable[[], object], per_call: int, close: Callable[[], object]) -> None:
+        self.name, self.step, self.per_call, self.close = name, step, per_call, close
+        self.cpu = self.wall = 0.0  # best env steps per second of either clock
+
+    def chunk(self, env_steps: int) -> None:
+        calls = max(1, env_steps // self.per_call)
+        cpu, wall = time.process_time(), time.perf_counter()
+        for _ in range(calls):
+            self.step()
+        cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
+        done = calls * self.per_call
+        self.cpu = max(self.cpu, done / max(cpu, 1e-9))
+        self.wall = max(self.wall, done / max(wall, 1e-9))
 
 
-def single(steps: int, actions: np.ndarray) -> tuple[float, float]:
+def single(actions: np.ndarray) -> Path:
     env = gym.make(ENV_ID, max_episode_steps=EPISODE)
     env.reset(seed=0)
+    k = [0]
 
-    def step(k: int) -> None:
-        _, _, term, trunc, _ = env.step(actions[k, 0])
+    def step() -> None:
+        _, _, term, trunc, _ = env.step(actions[k[0] % len(actions), 0])
+        k[0] += 1
         if term or trunc:
             env.reset()
 
-    try:
-        return measure(step, steps, 1)
-    finally:
-        env.close()
+    return Path("single", step, 1, env.close)
 
 
-def physics(steps: int, actions: np.ndarray) -> tuple[float, float]:
+def physics(actions: np.ndarray) -> Path:
     """mj_step over the single env's trajectory: its states recorded first, then each period stepped again."""
     env = gym.make(ENV_ID, max_episode_steps=EPISODE)
     env.reset(seed=0)
     twin = env.unwrapped.twin
     m, d = twin.model, twin.data
     substeps = int(round(twin.control_period / m.opt.timestep))
-    states = np.empty((steps, mujoco.mj_stateSize(m, _INTEGRATION)))
-    for k in range(steps):
+    states = np.empty((len(actions), mujoco.mj_stateSize(m, _INTEGRATION)))
+    for k in range(len(actions)):
         mujoco.mj_getState(m, d, states[k], _INTEGRATION)
         _, _, term, trunc, _ = env.step(actions[k, 0])
         if term or trunc:
             env.reset()
     replay = mujoco.MjData(m)
+    k = [0]
 
-    def step(k: int) -> None:
-        mujoco.mj_setState(m, replay, states[k], _INTEGRATION)
+    def step() -> None:
+        mujoco.mj_setState(m, replay, states[k[0] % len(states)], _INTEGRATION)
         mujoco.mj_step(m, replay, nstep=substeps)
+        k[0] += 1
 
-    try:
-        return measure(step, steps, 1)
-    finally:
-        env.close()
+    return Path("physics", step, 1, env.close)
 
 
-def vector(mode: str, n: int, steps: int, actions: np.ndarray, nthread: int) -> tuple[float, float]:
+def vector(name: str, mode: str, n: int, actions: np.ndarray, nthread: int) -> Path:
     kwargs = {"nthread": nthread} if mode == "vector_entry_point" else {}
     env = gym.make_vec(ENV_ID, num_envs=n, vectorization_mode=mode, max_episode_steps=EPISODE, **kwargs)
     env.reset(seed=0)
-    try:
-        return measure(lambda k: env.step(actions[k, :n]), steps, n)
-    finally:
-        env.close()
+    k = [0]
+
+    def step() -> None:
+        env.step(actions[k[0] % len(actions), :n])
+        k[0] += 1
+
+    return Path(name, step, n, env.close)
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[1, 2, 4, 8, 16, 32, 64])
-    parser.add_argument("--steps", type=int, default=300, help="vector steps per measurement")
-    parser.add_argument("--nthread", type=int, nargs="+", default=[1, 0], help="batch threads (0: all CPUs)")
-    parser.add_argument("--repeats", type=int, default=2, help="interleaved rounds; the best of each is kept")
+    parser.add_argument("--nthread", type=int, nargs="+", default=[1, 2], help="batch threads (0: all CPUs)")
+    parser.add_argument("--rounds", type=int, default=210, help="turns every path takes")
+    parser.add_argument("--chunk", type=int, default=64, help="env steps per turn (at least one vector step)")
     parser.add_argument("--sync", action="store_true", help="also measure SyncVectorEnv of N single envs")
     args = parser.parse_args(argv)
-    if min(args.sizes) < 1 or args.steps < 1 or args.repeats < 1 or min(args.nthread) < 0:
-        print("bench_vector_env: sizes, steps and repeats must be >= 1, nthread >= 0", file=sys.stderr)
+    if min(args.sizes) < 1 or args.rounds < 1 or args.chunk < 1 or min(args.nthread) < 0:
+        print("bench_vector_env: sizes, rounds and chunk must be >= 1, nthread >= 0", file=sys.stderr)
         return 2
     gym.register_envs(dualtwin)
     rng = np.random.default_rng(0)
-    most = max(args.sizes)
-    single_steps = args.steps * 4
-    actions = rng.uniform(-1, 1, (max(args.steps, single_steps), most, 1)).astype(np.float32)
-    best: dict[str, tuple[float, float]] = {}
-
-    def keep(name: str, value: tuple[float, float]) -> None:
-        old = best.get(name, (0.0, 0.0))
-        best[name] = (max(old[0], value[0]), max(old[1], value[1]))
-
-    for _ in range(args.repeats):
-        keep("single", single(single_steps, actions))
-        keep("physics", physics(single_steps, actions))
-        for n in args.sizes:
-            if args.sync:
-                keep(f"sync {n}", vector("sync", n, args.steps, actions, 0))
-            for nthread in args.nthread:
-                keep(f"batch {n}/t{nthread}", vector("vector_entry_point", n, args.steps, actions, nthread))
-    base_cpu, base_wall = best["single"]
-    print(f"{ENV_ID}: env steps per CPU-second / per wall second, best of {args.repeats} interleaved rounds; "
-          f"{os.cpu_count()} CPUs; batch N/tK: N envs on K batch threads (0: all CPUs)")
+    actions = rng.uniform(-1, 1, (4096, max(args.sizes), 1)).astype(np.float32)
+    paths = [single(actions), physics(actions)]
+    for n in args.sizes:
+        if args.sync:
+            paths.append(vector(f"sync {n}", "sync", n, actions, 0))
+        paths += [vector(f"batch {n}/t{k}", "vector_entry_point", n, actions, k) for k in args.nthread]
+    try:
+        for _ in range(args.rounds):
+            for path in paths:
+                path.chunk(args.chunk)
+    finally:
+        for path in paths:
+            path.close()
+    base = paths[0]
+    print(f"{ENV_ID}: env steps per CPU-second / per wall second, fastest of {args.rounds} interleaved chunks "
+          f"of {args.chunk} env steps; {os.cpu_count()} CPUs; batch N/tK: N envs on K batch threads (0: all CPUs)")
     print(f"{'path':<14} {'steps/CPU-s':>12} {'x single':>9} {'steps/s':>10} {'x single':>9}")
-    for name, (cpu, wall) in best.items():
-        print(f"{name:<14} {cpu:12.0f} {cpu / base_cpu:8.2f}x {wall:10.0f} {wall / base_wall:8.2f}x")
+    for path in paths:
+        print(f"{path.name:<14} {path.cpu:12.0f} {path.cpu / base.cpu:8.2f}x {path.wall:10.0f} "
+              f"{path.wall / base.wall:8.2f}x")
     return 0
 
 
