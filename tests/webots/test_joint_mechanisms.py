@@ -273,3 +273,41 @@ def test_a_spring_on_the_second_hinge2_axis_pulls_back() -> None:
     assert max(second) == pytest.approx(0.05 / math.sqrt(1 / 0.004), rel=0.12)
     assert min(second) < -0.002 and abs(second[-1]) < 1e-3
     assert second == pytest.approx(first, abs=1e-9)
+
+
+def _hinge2_drive_against_stops(stops: str, velocity: float, position: float = 0.0) -> float:
+    """A Hinge2 wheel (fixed parent, no gravity) steered to 0.4 rad while its second axis is driven at
+    ``velocity`` for 0.8 s; the second axis' position at the end."""
+    sup = _sup(
+        f"""Robot {{ supervisor TRUE children [ Solid {{ children [ Solid {{
+  physics Physics {{ density -1 mass 50 }} boundingObject Box {{ size 0.1 0.1 0.1 }}
+  children [ Hinge2Joint {{
+    jointParameters HingeJointParameters {{ axis 0 0 1 anchor 0 0 -0.3 }}
+    jointParameters2 JointParameters {{ axis 0 1 0 position {position} {stops} }}
+    device [ RotationalMotor {{ name "steer" }} ]
+    device2 [ RotationalMotor {{ name "drive" }} PositionSensor {{ name "s2" }} ]
+    endPoint Solid {{ translation 0 0 -0.3 rotation 0 1 0 {position} boundingObject Sphere {{ radius 0.1 }}
+                     physics Physics {{ density -1 mass 1 }} }} }} ] }} ] }} ] }}""",
+        info="gravity 0",
+    )
+    sensor = sup.getDevice("s2")
+    sensor.enable(8)
+    drive = sup.getDevice("drive")
+    drive.setPosition(float("inf"))
+    drive.setVelocity(velocity)
+    sup.getDevice("steer").setPosition(0.4)
+    for _ in range(100):
+        sup.step(8)
+    return sensor.getValue()
+
+
+def test_the_second_hinge2_axis_stops_at_its_limits() -> None:
+    # Webots limits both Hinge2 axes (§4.4); upstream ODE's hinge2 never limits the second, so the twin holds it
+    # with a stop AMotor. Driven at ±2 rad/s for 0.8 s (1.6 rad of travel), the axis rests on maxStop 0.5 or
+    # minStop −0.3, also when it starts at position 0.2, while the first axis steers. Control: without stops it
+    # turns the full 1.6 rad (and the old twin ignored the stops).
+    stops = "minStop -0.3 maxStop 0.5"
+    assert _hinge2_drive_against_stops(stops, 2.0) == pytest.approx(0.5, abs=2e-3)
+    assert _hinge2_drive_against_stops(stops, -2.0) == pytest.approx(-0.3, abs=2e-3)
+    assert _hinge2_drive_against_stops(stops, 2.0, position=0.2) == pytest.approx(0.5, abs=2e-3)
+    assert _hinge2_drive_against_stops("", 2.0) == pytest.approx(1.6, abs=2e-3)

@@ -108,8 +108,8 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Hinge2Joint", "joint", "partial",
              "both axes' motors, sensors (continuous multi-turn positions on both axes, read with ODE's own "
              "sign per axis), springs and dampers (a stop AMotor per axis; run-time edits reach ODE), "
-             "suspension along the first axis (ODE's hinge2 suspension ERP/CFM); upstream ODE never limits the "
-             "second axis: its stops are ignored; a Hinge2Joint whose parent has no body is kinematic (its "
+             "suspension along the first axis (ODE's hinge2 suspension ERP/CFM); stops on both axes (upstream "
+             "ODE never limits the second, so a stop AMotor holds it); a Hinge2Joint whose parent has no body is kinematic (its "
              "endPoint body is not turned), and its motors give no torque feedback"),
     Coverage("BallJoint", "joint", "partial",
              "three axes (the first from jointParameters2, the third from jointParameters3, the second their "

@@ -31,7 +31,7 @@ What differs (and why)
     * Hinge suspension (fork-only ODE API, Appendix A.2) is not modelled; BallJoint springs/dampers are the
       stop rows of a second Euler AMotor; BallJoint
       positions are read from the bodies' rotations (ODE updates its Euler angles only inside a step); upstream
-      ODE never limits the second Hinge2 axis, so its stops are ignored. A Brake adds its damping constant to
+      ODE never limits the second Hinge2 axis, so a one-axis stop AMotor carries its stops. A Brake adds its damping constant to
       the axis' implicit damper; coupled motors ("name::suffix") are relayed by the controller API and their
       limits harmonised at load.
     * ODE 0.16's ``dJointAddHingeTorque`` negates the torque of reversed hinges (static parent); the

@@ -208,8 +208,8 @@ class JointBuilder(SceneBuilder):
 
     def _set_stops(self, joint: JointRec, i: int) -> None:
         p = joint.params[i]
-        if p is None or (joint.kind == "hinge2" and i == 1):
-            return  # upstream ODE never limits the second Hinge2 axis (module docstring)
+        if p is None:
+            return
         lo_w, hi_w = float(_f(p, "minStop", 0.0)), float(_f(p, "maxStop", 0.0))
         if lo_w == hi_w:
             return
@@ -221,10 +221,34 @@ class JointBuilder(SceneBuilder):
             hi = max(-math.pi, min(math.pi, -lo_w + off))
         if lo > hi:
             lo, hi = hi, lo
+        if joint.kind == "hinge2" and i == 1:
+            self._set_hinge2_second_stops(joint, lo, hi)
+            return
         setp = self._param_setter(joint)
         group = _GROUPS[i]
         setp(joint.ptr, group + ode.dParamLoStop, lo)
         setp(joint.ptr, group + ode.dParamHiStop, hi)
+
+    def _set_hinge2_second_stops(self, joint: JointRec, lo: float, hi: float) -> None:
+        """Upstream ODE's hinge2 never limits its second axis (Webots' fork does, §4.4): a one-axis user AMotor
+        on that axis (turning with body 2) carries the stops instead. Its angle, set before every step, is
+        −(position − offset), the sense of ODE's angle rates, so the stops are −maxStop + offset and
+        −minStop + offset as on the first axis; stop ERP/CFM are the world's, as for any ODE stop."""
+        lib = self._lib
+        if not joint.stop2:
+            am = lib.dJointCreateAMotor(self._world, None)
+            pb = joint.parent_body.ptr if joint.parent_body is not None else None
+            assert joint.child_body is not None
+            lib.dJointAttach(am, pb, joint.child_body.ptr)
+            lib.dJointSetAMotorMode(am, ode.dAMotorUser)
+            lib.dJointSetAMotorNumAxes(am, 1)
+            joint.stop2 = am
+        out = (ctypes.c_double * 4)()
+        lib.dJointGetHinge2Axis2(joint.ptr, out)
+        lib.dJointSetAMotorAxis(joint.stop2, 0, 2, out[0], out[1], out[2])
+        lib.dJointSetAMotorParam(joint.stop2, ode.dParamLoStop, lo)
+        lib.dJointSetAMotorParam(joint.stop2, ode.dParamHiStop, hi)
+        lib.dJointSetAMotorAngle(joint.stop2, 0, -lib.dJointGetHinge2Angle2(joint.ptr))
 
     def _param_setter(self, joint: JointRec) -> Callable[..., None]:
         lib = self._lib
@@ -371,7 +395,7 @@ class JointBuilder(SceneBuilder):
             self._create_spring(joint)
             if joint.spring or joint.spring2:
                 self._apply_spring(joint)
-        self._springs = [j for j in self.joints if j.spring or j.spring2]
+        self._springs = [j for j in self.joints if j.spring or j.spring2 or j.stop2]
 
     def _create_fixed_joints(self, bodies: Sequence[BodyRec] | None = None) -> None:
         lib = self._lib
@@ -399,8 +423,11 @@ class JointBuilder(SceneBuilder):
         if joint.kind == "hinge2":
             if joint.spring:
                 lib.dJointSetAMotorAngle(joint.spring, 0, lib.dJointGetHinge2Angle1(joint.ptr))
-            if joint.spring2:
-                lib.dJointSetAMotorAngle(joint.spring2, 0, -lib.dJointGetHinge2Angle2(joint.ptr))
+            if joint.spring2 or joint.stop2:
+                angle2 = -lib.dJointGetHinge2Angle2(joint.ptr)
+                for am in (joint.spring2, joint.stop2):
+                    if am:
+                        lib.dJointSetAMotorAngle(am, 0, angle2)
         elif joint.kind == "hinge":
             a = lib.dJointGetHingeAngle(joint.ptr)
             lib.dJointSetAMotorAngle(joint.spring, 0, -a if joint.reverse else a)

@@ -296,6 +296,7 @@ class JointRec(_ShortRepr):
     reverse: bool = False
     spring: int = 0  # AMotor/LMotor implementing spring and damper
     spring2: int = 0  # Hinge2: the AMotor of the second axis
+    stop2: int = 0  # Hinge2: a user AMotor holding the second axis' stops (upstream ODE's hinge2 has none there)
     spring_erp: float = 0.0
     spring_cfm: float = 0.0
     motors: list[MotorRec | None] = field(default_factory=lambda: [None])

@@ -23,7 +23,7 @@ class Stepper(SupervisorEdits):
     def _prepare_step_lists(self) -> None:
         self._dyn_motors = [m for m in self.motors if not m.joint.kinematic]
         self._kin_motors = [m for m in self.motors if m.joint.kinematic]
-        self._springs = [j for j in self.joints if j.spring or j.spring2]
+        self._springs = [j for j in self.joints if j.spring or j.spring2 or j.stop2]  # AMotor angles set per step
         self._tracked = [j for j in self.joints if not j.kinematic]
         # kinematic geoms inside robots are re-placed from the scene graph every step (§2.4)
         self._moving_static = []
