@@ -105,6 +105,7 @@ def _compare(env_id: str, n: int, steps: int, task_kwargs: dict[str, object], ca
 @pytest.mark.parametrize(("task_kwargs", "cap"), [
     ({"x_limit": 0.1, "terminate_on_fall": True, "balance_angle": 0.1}, 6),
     ({"x_limit": 0.08, "observation_ranges": [0.05, 0.1, 0.02, 0.5], "upright_angle": 0.2}, CAP),
+    ({"x_limit": 0.05, "cart_velocity": "ground_truth"}, CAP),  # the supervisor's cart velocity: a column too
 ])
 def test_other_task_settings_run_on_arrays_bit_identically(task_kwargs: dict[str, object], cap: int) -> None:
     batched, ended = _compare(CONTINUOUS, 3, 50, task_kwargs, cap)
@@ -140,7 +141,6 @@ def test_a_step_on_arrays_runs_no_python_per_env() -> None:
 
 
 @pytest.mark.parametrize(("task_kwargs", "knobs"), [
-    ({"x_limit": 0.05, "cart_velocity": "ground_truth"}, None),  # a channel that is no column: body velocity
     ({"x_limit": 0.05}, {"sensor.pole sensor.noise": 0.01, "sensor.wheel1 sensor.bias": 0.02}),
     ({"x_limit": 0.05}, {"control.delay_periods": 2}),
 ])
@@ -149,6 +149,19 @@ def test_envs_that_need_python_per_period_step_through_their_twins(task_kwargs: 
     assert not batched.unwrapped.on_arrays.any()
     assert ended["terminated"] or ended["truncated"]
     batched.close()
+
+
+def test_a_task_without_batch_methods_steps_through_its_twins() -> None:
+    env_id = "dualtwin/Pioneer-DriveToGoal-MuJoCo-v0"
+    batched = TwinVectorEnv(2, max_episode_steps=12, **gym.spec(env_id).kwargs)
+    separate = gym.make_vec(env_id, num_envs=2, vectorization_mode="sync", max_episode_steps=12)
+    assert np.array_equal(batched.reset(seed=2)[0], separate.reset(seed=2)[0])
+    assert not batched.on_arrays.any()
+    for action in np.random.default_rng(3).uniform(-1, 1, (20, 2, *batched.single_action_space.shape)):
+        out_b, out_s = batched.step(action.astype(np.float32)), separate.step(action.astype(np.float32))
+        assert all(np.array_equal(b, s) for b, s in zip(out_b[:4], out_s[:4], strict=True))
+    batched.close()
+    separate.close()
 
 
 def test_envs_on_arrays_and_through_twins_step_together() -> None:

@@ -8,8 +8,8 @@ bit-identical to RobotIO on each twin (tests/rl/test_vector_env.py).
 
 Only what the twin's getters do without per-reading Python is covered: sensors read as they are (no noise,
 bias, resolution or delay: :func:`plain_sensors` says whether an env's knobs add any) of types whose value
-depends on joint positions and velocities only, joint positions and velocities, body positions, and a body's
-up-axis tilt. :meth:`BatchChannels.reader` returns None for any other channel; the vector env then reads that
+depends on joint positions and velocities only, joint positions and velocities, body positions and linear
+velocities, and a body's up-axis tilt. :meth:`BatchChannels.reader` returns None for any other channel; the vector env then reads that
 env through its twin.
 """
 
@@ -86,10 +86,29 @@ class BatchChannels:
             qvel, dof = b.bind("qvel"), int(m.jnt_dofadr[j])
             return lambda: qvel[:, dof] * scale
         body = self._id(mujoco.mjtObj.mjOBJ_BODY, channel.body or "")
-        if body < 0 or channel.quantity != "position" or channel.axis not in AXES:
-            return None  # velocities and angles: through the twin
+        if body < 0 or channel.axis not in AXES:
+            return None  # angles (yaw, pitch, roll): through the twin
         xpos, axis = b.bind("xpos"), AXES[channel.axis or "x"]
-        return lambda: xpos[:, body, axis] * scale
+        if channel.quantity == "position":
+            return lambda: xpos[:, body, axis] * scale
+        return self._velocity(body, axis, scale)
+
+    def _velocity(self, body: int, axis: int, scale: float) -> Column:
+        """The body frame's world linear velocity along ``axis``: MuJoCo's own ``mj_objectVelocity`` per
+        simulation (as ``MuJoCoTwin.body_velocity``) on the batch's com-frame velocities, a few µs each."""
+        m, b = self.model, self.batch
+        cvel, com, xpos = b.bind("cvel"), b.bind("subtree_com"), b.bind("xpos")
+        root = int(m.body_rootid[body])
+        scratch, out = mujoco.MjData(m), np.zeros(6)
+
+        def velocity() -> np.ndarray:
+            column = np.empty(len(cvel))
+            for i in range(len(cvel)):
+                scratch.cvel[body], scratch.subtree_com[root], scratch.xpos[body] = cvel[i, body], com[i, root], xpos[i, body]
+                mujoco.mj_objectVelocity(m, scratch, mujoco.mjtObj.mjOBJ_XBODY, body, out, 0)
+                column[i] = out[3 + axis]
+            return column * scale
+        return velocity
 
     def tilt(self, body_name: str) -> Column | None:
         """Angle between the body's up axis and the world's, per simulation (math.acos, as the task computes it)."""
