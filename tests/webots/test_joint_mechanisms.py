@@ -311,3 +311,37 @@ def test_the_second_hinge2_axis_stops_at_its_limits() -> None:
     assert _hinge2_drive_against_stops(stops, -2.0) == pytest.approx(-0.3, abs=2e-3)
     assert _hinge2_drive_against_stops(stops, 2.0, position=0.2) == pytest.approx(0.5, abs=2e-3)
     assert _hinge2_drive_against_stops("", 2.0) == pytest.approx(1.6, abs=2e-3)
+
+
+def test_hinge2_motors_feed_back_the_torque_they_hold() -> None:
+    # The wheel's centre of mass sits 0.2 m along x from the anchor; axis 2 is horizontal (+y), axis 1 vertical.
+    # Gravity pulls with r × F = (0.2, 0, 0) × (0, 0, −9.81) = +1.962 N·m about +y, so the drive motor holding the
+    # wheel still feeds back −1.962 N·m, the torque setTorque would need (the hinge's convention), and the
+    # steering motor, whose axis gravity does not load, about 0. The old twin fed back nothing (NaN) for Hinge2.
+    sup = _sup(
+        """Robot { supervisor TRUE children [ Solid { children [ Solid {
+  physics Physics { density -1 mass 50 } boundingObject Box { size 0.1 0.1 0.1 }
+  children [ Hinge2Joint {
+    jointParameters HingeJointParameters { axis 0 0 1 anchor 0 0 -0.3 }
+    jointParameters2 JointParameters { axis 0 1 0 }
+    device [ RotationalMotor { name "steer" } ]
+    device2 [ RotationalMotor { name "drive" } PositionSensor { name "s2" } ]
+    endPoint Solid { translation 0 0 -0.3 physics Physics { density -1 mass 1 }
+                     boundingObject Pose { translation 0.2 0 0 children [ Sphere { radius 0.05 } ] } } } ] } ] } ] }"""
+    )
+    steer, drive = sup.getDevice("steer"), sup.getDevice("drive")
+    for motor in (steer, drive):
+        motor.enableTorqueFeedback(8)
+    for _ in range(50):
+        sup.step(8)
+    assert drive.getTorqueFeedback() == pytest.approx(-0.2 * 9.81, rel=2e-3)
+    assert abs(steer.getTorqueFeedback()) < 1e-3
+    sensor = sup.getDevice("s2")
+    sensor.enable(8)
+    sup.step(8)
+    held = sensor.getValue()
+    drive.setTorque(-0.2 * 9.81)  # control: commanding the fed-back torque holds the wheel as well
+    for _ in range(25):
+        sup.step(8)
+    assert drive.getTorqueFeedback() == pytest.approx(-0.2 * 9.81)
+    assert sensor.getValue() == pytest.approx(held, abs=2e-3)

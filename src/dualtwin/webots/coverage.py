@@ -110,7 +110,7 @@ REGISTRY: tuple[Coverage, ...] = (
              "sign per axis), springs and dampers (a stop AMotor per axis; run-time edits reach ODE), "
              "suspension along the first axis (ODE's hinge2 suspension ERP/CFM); stops on both axes (upstream "
              "ODE never limits the second, so a stop AMotor holds it); a Hinge2Joint whose parent has no body is kinematic (its "
-             "endPoint body is not turned), and its motors give no torque feedback"),
+             "endPoint body is not turned)"),
     Coverage("BallJoint", "joint", "partial",
              "three axes (the first from jointParameters2, the third from jointParameters3, the second their "
              "cross product) with motors, position sensors, brakes, stops and friction on an Euler AMotor; "
@@ -138,7 +138,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "hold; coupled motors ('name::suffix') relay setPosition/setVelocity/setForce with their "
              "multipliers and their limits are harmonised at load to the first motor's; torque/force feedback "
              "from ODE's joint feedback: what the joint applies to the endPoint about the anchor along the "
-             "axis, in the sense setTorque/setForce would command (hinge, slider, also on a static base; the "
+             "axis, in the sense setTorque/setForce would command (hinge, both Hinge2 axes, slider, also on a "
+             "static base; the "
              "commanded value in torque control); the motor rows keep the world CFM (Webots' sign and CFM for "
              "these are not confirmed against Webots)"),
     Coverage("LinearMotor", "device", "partial", "as RotationalMotor"),

@@ -106,9 +106,10 @@ class Brake(Device):
 
 
 class _Feedback(_Sampled):
-    """The sampled torque/force feedback of a Motor: what its ODE joint row applied to the endPoint along the
-    axis over the last step (ODE's joint feedback: torque about the anchor projected on the axis, or force along
-    the slider axis); in torque/force control, the torque/force commanded. NaN until the first sample."""
+    """The sampled torque/force feedback of a Motor: what its ODE joint applied to the endPoint along the motor's
+    axis over the last step (ODE's joint feedback: torque about the anchor projected on the axis — the hinge's,
+    or the Hinge2 axis the motor drives — or force along the slider axis), in the sense a setTorque/setForce
+    command would have; in torque/force control, the torque/force commanded. NaN until the first sample."""
 
     def __init__(self, motor: Motor) -> None:
         self._motor = motor
@@ -119,7 +120,7 @@ class _Feedback(_Sampled):
     def enable(self, samplingPeriod: Any) -> None:
         rec: MotorRec = self._record
         joint = rec.joint
-        if self._buffer is None and joint.ptr and joint.kind in ("hinge", "slider"):
+        if self._buffer is None and joint.ptr and joint.kind in ("hinge", "slider", "hinge2"):
             self._buffer = ode.dJointFeedback()
             self._robot._sim._lib.dJointSetFeedback(joint.ptr, ctypes.byref(self._buffer))
         super().enable(samplingPeriod)
@@ -138,7 +139,14 @@ class _Feedback(_Sampled):
             return
         sim = self._robot._sim
         frame = sim.solid_world_pose(joint.parent) * joint.frame_rel if joint.parent is not None else joint.frame_rel
-        axis = m3.normalized(frame.rotate(joint.axis_local[0]))
+        if joint.kind == "hinge2":
+            # both Hinge2 positions grow as the endPoint turns about ODE's (world) axis 1 or 2 (physics/joints.py)
+            out = (ctypes.c_double * 4)()
+            lib = sim._lib
+            (lib.dJointGetHinge2Axis1 if rec.axis_index == 0 else lib.dJointGetHinge2Axis2)(joint.ptr, out)
+            axis = m3.normalized((out[0], out[1], out[2]))
+        else:
+            axis = m3.normalized(frame.rotate(joint.axis_local[0]))
         # the endPoint is ODE's second body, or its first one when the joint is reversed (static parent)
         f, t = (fb.f1, fb.t1) if joint.reverse else (fb.f2, fb.t2)
         force = (f[0], f[1], f[2])
