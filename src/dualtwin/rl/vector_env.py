@@ -282,8 +282,12 @@ class TwinVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
             message = self._instability(i, float(started[i]), bool(bad[i]))
             if message is not None:
                 unstable[i] = message
-        keep = arrays.copy()
-        keep[list(unstable)] = False
+        everyone = bool(arrays.all())
+        rows: slice | np.ndarray = slice(None) if everyone else arrays  # whole arrays when every env is here
+        keep: slice | np.ndarray = rows
+        if unstable:
+            keep = arrays.copy()
+            keep[list(unstable)] = False
         obs[keep], rewards[keep], terminated[keep] = new_obs[keep], reward[keep], done[keep]
         self._obs[keep] = new_obs[keep]
         self._odometry[keep] = odometry[keep]
@@ -294,8 +298,8 @@ class TwinVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
             if column is None:
                 column, infos[f"_{key}"] = np.zeros(n), np.zeros(n, dtype=bool)
                 infos[key] = column
-            column[arrays] = values[arrays]
-            infos[f"_{key}"][arrays] = True
+            column[rows] = values[rows]
+            infos[f"_{key}"][rows] = True
         for i, message in unstable.items():
             # as TwinEnv.step: the last observation, reward 0, the episode ends, training goes on
             obs[i], terminated[i] = self._obs[i], True
