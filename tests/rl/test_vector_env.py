@@ -218,6 +218,12 @@ def test_vector_env_checks() -> None:
     assert data_equivalence(runs[0], runs[1], exact=True)
     other, _ = env.reset(seed=10)
     assert not np.array_equal(other, runs[0][0])
+    # Gymnasium's vector wrappers read the infos and the autoreset mode: episode statistics after the cap
+    stats = gym.wrappers.vector.RecordEpisodeStatistics(env)
+    stats.reset(seed=0)
+    ends = [stats.step(action)[4] for action in actions]
+    assert any("episode" in info for info in ends)
+    assert max(int(info["episode"]["l"].max()) for info in ends if "episode" in info) <= CAP
     env.close()
 
 
