@@ -218,3 +218,28 @@ def test_world_save_load_and_reload_in_one_run(tmp_path: Path) -> None:
     assert "reloaded from disk: saved" in lines
     text = (tmp_path / "worlds" / "saved.wbt").read_text()
     assert "translation 0.1 1e-300 123456789012345" in text and 'customData "saved"' in text
+
+
+def test_world_save_writes_proto_instances_as_proto_nodes_and_solids_where_they_are(tmp_path: Path) -> None:
+    sup = _supervisor(tmp_path)
+    crate = sup.getFromDef("CRATE")
+    crate.getField("side").setSFFloat(0.3)  # an edited interface field is written; the untouched ones are not
+    crate.getField("translation").setSFVec3f([1.0, 0.0, 0.5])  # dropped from 0.5 m: it falls
+    for _ in range(20):
+        sup.step(8)
+    box_z, crate_z = sup.getFromDef("BOX").getPosition()[2], crate.getPosition()[2]
+    assert box_z < 0.9 and crate_z < 0.45  # both fell since the world was loaded
+    saved = tmp_path / "worlds" / "saved.wbt"
+    assert sup.worldSave(str(saved)) == 1
+    text = saved.read_text()
+    assert "DEF CRATE Crate {" in text and "side 0.3" in text
+    assert 'name "crate"' not in text and "CRATE_SHAPE" not in text  # the body is not expanded into the file
+    assert 'EXTERNPROTO "../protos/Crate.proto"' in text
+    again = Simulation(load_world(saved))  # the saved world loads back to the same instance
+    node = next(n for n in again.world.nodes if n.def_name == "CRATE")
+    assert node.proto_name == "Crate" and node.type_name == "Solid" and node.fields["name"] == "crate"
+    assert node.proto_fields is not None and node.proto_fields["side"] == 0.3
+    assert node.proto_fields["translation"][2] == pytest.approx(crate_z)  # its pose now, through its IS link
+    box = next(n for n in again.world.nodes if n.def_name == "BOX")
+    assert box.fields["translation"][2] == pytest.approx(box_z)  # Webots saves where the physics has it
+    again.close()

@@ -48,6 +48,10 @@ API_NOTES: tuple[tuple[str, str, str], ...] = (
      "warning); imported anywhere else, a Solid joins the physics at once and remove() takes it out"),
     ("not yet", "Robot imported at run time",
      "its body and devices join the physics, but its controller is not started (Webots starts it); one warning"),
+    ("not yet", "Supervisor.worldSave",
+     "Solids and joints are written where the physics has them and PROTO instances as PROTO nodes with the "
+     "interface fields that differ from their defaults; the state inside a PROTO instance (its internal Solids' "
+     "poses and joint positions, Webots' 'hidden' fields) is not written"),
     ("not yet", "Node.restartController", "an error line; the controller keeps running"),
     ("not yet", "Motion", "plays .motion files on the robot's motors (linear interpolation between poses)"),
     ("not yet", "Device(name) built by the user",

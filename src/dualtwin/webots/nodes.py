@@ -63,6 +63,9 @@ class Node:
     proto_def_name: str | None = None
     #: Interface values of the PROTO instance this node is the expanded root of (``proto_name``).
     proto_fields: dict[str, Any] | None = field(default=None, repr=False)
+    #: The PROTO's default of each interface field (node-typed fields written in the instance are absent:
+    #: always written back), so a saved world writes only the fields that differ, as Webots does.
+    proto_defaults: dict[str, Any] | None = field(default=None, repr=False)
     #: Numbers the PROTO instance this node is the expanded root of (the key of the ``IS`` links below).
     proto_instance: int | None = None
     #: Shared by a DEF'd node and its USE copies (Webots' same node; DEF names alone repeat across PROTO
@@ -113,6 +116,9 @@ class Node:
             proto_fields=None
             if self.proto_fields is None
             else {k: copy_value(v) for k, v in self.proto_fields.items()},
+            proto_defaults=None
+            if self.proto_defaults is None
+            else {k: copy_value(v) for k, v in self.proto_defaults.items()},
             proto_instance=self.proto_instance,
             def_group=self.def_group,
             template_fields=self.template_fields,

@@ -395,6 +395,11 @@ class _Expander:
             if fname not in values:
                 values[fname] = self.default_value(decl, proto)
         values = {fname: values[fname] for fname in proto.interface}
+        defaults = {
+            fname: copy_value(values[fname]) if fname not in raw.fields else copy_value(decl.typed_default)
+            for fname, decl in proto.interface.items()
+            if fname not in raw.fields or decl.type not in ("SFNode", "MFNode")
+        }
         instance = next(_INSTANCE_NUMBERS)
         self._stack.append(proto.path)
         try:
@@ -413,6 +418,7 @@ class _Expander:
         root.proto_name = raw.type_name
         root.location = raw.location
         root.proto_fields = values
+        root.proto_defaults = defaults
         root.instance_links = [
             (outer, outer_field, instance, name)
             for name, (outer, outer_field) in self.links_of(raw, scope).items()

@@ -18,7 +18,7 @@ from dualtwin.webots.contacts import contact_points, solids_of, static_balance
 from dualtwin.webots.field_api import Field
 from dualtwin.webots.node_types import node_type_of
 from dualtwin.webots.nodes import Node as SceneNode
-from dualtwin.webots.nodes import copy_value
+from dualtwin.webots.nodes import World, copy_value
 from dualtwin.webots.physics import Simulation, SolidRec
 from dualtwin.webots.schema import SOLID_TYPES
 from dualtwin.webots.step_hints import step_value
@@ -43,7 +43,8 @@ class SceneHost(Protocol):
 
     def getFromId(self, id: Any) -> Node | None: ...  # noqa: A002, N802 - Webots' names
 
-__all__ = ["ContactPoint", "Field", "Node", "NodeIndex", "SceneHost", "descendants", "find_def", "path_to"]
+__all__ = ["ContactPoint", "Field", "Node", "NodeIndex", "SceneHost", "descendants", "find_def", "path_to",
+           "world_as_saved"]
 
 _warn = warn
 _finite = finite
@@ -542,3 +543,31 @@ def path_to(sim: Simulation, target: SceneNode) -> list[SceneNode] | None:
         if found is not None:
             return found
     return None
+
+
+def world_as_saved(sim: Simulation) -> World:
+    """A copy of the scene tree with every Solid's ``translation``/``rotation`` and every joint's ``position`` at
+    their current values, as Webots writes them in ``worldSave`` (its fields follow the physics). A PROTO
+    instance's own pose goes to the interface field it is ``IS``-linked to."""
+    tops = [node.copy() for node in sim.world.nodes]
+    for original_top, copy_top in zip(sim.world.nodes, tops, strict=True):
+        for original, copy in zip(original_top.walk(), copy_top.walk(), strict=True):
+            solid = sim.solid_for(original)
+            if solid is not None:
+                pose = sim.solid_local_pose(solid)
+                _save_field(copy, "translation", tuple(pose.t))
+                _save_field(copy, "rotation", tuple(m3.axis_angle_from_mat(pose.R)))
+            joint = sim.joint_for(original)
+            if joint is not None and original.type_name.endswith("Parameters") and original in joint.params:
+                _save_field(copy, "position", float(joint.positions[joint.params.index(original)]))
+    return World(sim.world.path, sim.world.header, tops, list(sim.world.externprotos),
+                 list(sim.world.importable_externprotos))
+
+
+def _save_field(node: SceneNode, name: str, value: Any) -> None:
+    if name not in node.fields:
+        return
+    node.fields[name] = value
+    link = node.is_links.get(name)
+    if link is not None and node.proto_fields is not None and link[0] == node.proto_instance:
+        node.proto_fields[link[1]] = value

@@ -20,7 +20,7 @@ from typing import Any
 from dualtwin.webots.api_args import as_float, as_int, warn
 from dualtwin.webots.robot import Robot, link_of
 from dualtwin.webots.runtime import SIMULATION_MODE_FAST, SIMULATION_MODE_PAUSE, SIMULATION_MODE_REAL_TIME
-from dualtwin.webots.scene_api import Node, descendants, find_def
+from dualtwin.webots.scene_api import Node, descendants, find_def, world_as_saved
 from dualtwin.webots.writer import write_world
 
 __all__ = ["Supervisor"]
@@ -71,14 +71,15 @@ class Supervisor(Robot):
     # -- worlds
 
     def worldSave(self, filename: str | None = None) -> int:
-        """Write the current scene tree to ``filename`` (None: over the current world); 1 on success, else 0."""
+        """Write the current scene tree to ``filename`` (None: over the current world); 1 on success, else 0.
+        Solids are written where the physics has them now and PROTO instances as PROTO nodes, as Webots does."""
         sim = link_of(self)._sim
         target = Path(sim.world.path if filename is None else str(filename))
         if target.suffix != ".wbt":
             warn(f"Supervisor.worldSave(): {target} is not a .wbt file")
             return 0
         try:
-            target.write_text(write_world(sim.world), encoding="utf-8")
+            target.write_text(write_world(world_as_saved(sim), protos=True), encoding="utf-8")
         except OSError as exc:
             warn(f"Supervisor.worldSave(): cannot write {target}: {exc.strerror or exc}")
             return 0

@@ -68,8 +68,9 @@ def _scalar(value: Any) -> str:
 
 
 class _Writer:
-    def __init__(self, defaults: bool) -> None:
+    def __init__(self, defaults: bool, protos: bool = False) -> None:
         self.defaults = defaults
+        self.protos = protos
         self.last_def: dict[str, Node] = {}
 
     def value(self, value: Any, indent: int) -> str:
@@ -111,6 +112,8 @@ class _Writer:
     def node(self, node: Node, indent: int) -> str:
         if self._usable(node):
             return f"USE {node.use_name}"
+        if self.protos and node.proto_name is not None and node.proto_fields is not None:
+            return self.proto_instance(node, indent)
         pad = _INDENT * indent
         head = f"DEF {node.def_name} {node.type_name} {{" if node.def_name else f"{node.type_name} {{"
         spec = schema.BASE_NODES.get(node.type_name)
@@ -133,6 +136,23 @@ class _Writer:
         return "\n".join(lines)
 
 
+    def proto_instance(self, node: Node, indent: int) -> str:
+        """A PROTO instance as Webots saves it: its name and the interface fields that differ from the PROTO's
+        defaults (its body is not written: it is expanded again at load), then its ``hidden`` fields."""
+        pad = _INDENT * indent
+        assert node.proto_fields is not None
+        lines = [f"DEF {node.def_name} {node.proto_name} {{" if node.def_name else f"{node.proto_name} {{"]
+        defaults = node.proto_defaults or {}
+        for name, value in node.proto_fields.items():
+            if not self.defaults and name in defaults and values_equal(value, defaults[name]):
+                continue
+            lines.append(f"{pad}{_INDENT}{name} {self.value(value, indent + 1)}")
+        for name, value in node.hidden.items():
+            lines.append(f"{pad}{_INDENT}hidden {name} {self.value(value, indent + 1)}")
+        lines.append(pad + "}")
+        return "\n".join(lines)
+
+
 def write_node(node: Node, indent: int = 0, *, defaults: bool = False) -> str:
     """VRML text of one node (first line not indented, following lines at ``indent`` levels)."""
     return _Writer(defaults).node(node, indent)
@@ -143,12 +163,14 @@ def format_value(value: Any, indent: int = 0) -> str:
     return _Writer(False).value(value, indent)
 
 
-def write_world(world: World, *, defaults: bool = False, externprotos: bool = True) -> str:
+def write_world(world: World, *, defaults: bool = False, externprotos: bool = True, protos: bool = False) -> str:
     """``.wbt`` text of a world; reparsing it gives an equal tree.
 
     Args:
         defaults: also write fields equal to their default.
-        externprotos: keep the world's EXTERNPROTO lines (harmless: the tree holds base nodes only).
+        externprotos: keep the world's EXTERNPROTO lines (needed with ``protos``; harmless without).
+        protos: write each PROTO instance as Webots saves it (its name and interface fields, not its expanded
+            body), as ``Supervisor.worldSave`` does.
     """
     header = world.header if world.header.startswith("#VRML_SIM ") else _DEFAULT_HEADER
     out = [header, ""]
@@ -156,7 +178,7 @@ def write_world(world: World, *, defaults: bool = False, externprotos: bool = Tr
         out += [f"EXTERNPROTO {_quote(url)}" for url in world.externprotos]
         out += [f"IMPORTABLE EXTERNPROTO {_quote(url)}" for url in world.importable_externprotos]
         out.append("")
-    writer = _Writer(defaults)
+    writer = _Writer(defaults, protos)
     out += [writer.node(node, 0) for node in world.nodes]
     return "\n".join(out) + "\n"
 
