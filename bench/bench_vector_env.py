@@ -6,7 +6,11 @@ Run: ``python bench/bench_vector_env.py [--sizes 1 2 4 8 16 32 64] [--nthread 1 
 Every path is built first, then the paths take turns, one chunk of ``--chunk`` env steps each per round
 (``max(chunk, N)`` for N envs), on ``dualtwin/CartPole-MuJoCo-Continuous-v0`` with fixed random actions:
 
-* ``single``: one ``gym.make`` env stepped in a loop (auto-reset by hand), the baseline of every ratio;
+* ``single``: one ``gym.make`` env stepped in a loop (auto-reset by hand), the baseline of the ``x single``
+  columns;
+* ``single-py``: the same env with Webots' motor law in Python per physics step (``DUALTWIN_NATIVE_LAW=0``),
+  the single env as issue 25 measured it before the law moved into MuJoCo's step: the baseline of the
+  ``x issue`` column (the issue's goal is a vector env at >= 3x *that* single env per CPU-second);
 * ``physics``: ``mj_step`` alone over the single env's own trajectory (each period from its recorded state):
   the floor of any CPU figure, since a vector env runs the same physics;
 * ``batch N/tK``: ``gym.make_vec(..., vectorization_mode="vector_entry_point", nthread=K)``, one
@@ -56,8 +60,19 @@ class Path:
         self.wall = max(self.wall, done / max(wall, 1e-9))
 
 
-def single(actions: np.ndarray) -> Path:
-    env = gym.make(ENV_ID, max_episode_steps=EPISODE)
+def single(actions: np.ndarray, python_law: bool = False) -> Path:
+    saved = os.environ.get("DUALTWIN_NATIVE_LAW")
+    if python_law:  # read when the twin is built: only this env gets the Python law
+        os.environ["DUALTWIN_NATIVE_LAW"] = "0"
+    try:
+        env = gym.make(ENV_ID, max_episode_steps=EPISODE)
+    finally:
+        if saved is None:
+            os.environ.pop("DUALTWIN_NATIVE_LAW", None)
+        else:
+            os.environ["DUALTWIN_NATIVE_LAW"] = saved
+    if env.unwrapped.twin.native_law == python_law:
+        raise SystemExit(f"bench_vector_env: the {'Python' if python_law else 'native'} motor law is unavailable")
     env.reset(seed=0)
     k = [0]
 
@@ -67,7 +82,7 @@ def single(actions: np.ndarray) -> Path:
         if term or trunc:
             env.reset()
 
-    return Path("single", step, 1, env.close)
+    return Path("single-py" if python_law else "single", step, 1, env.close)
 
 
 def physics(actions: np.ndarray) -> Path:
@@ -121,7 +136,7 @@ def main(argv: list[str] | None = None) -> int:
     gym.register_envs(dualtwin)
     rng = np.random.default_rng(0)
     actions = rng.uniform(-1, 1, (4096, max(args.sizes), 1)).astype(np.float32)
-    paths = [single(actions), physics(actions)]
+    paths = [single(actions), single(actions, python_law=True), physics(actions)]
     for n in args.sizes:
         if args.sync:
             paths.append(vector(f"sync {n}", "sync", n, actions, 0))
@@ -133,13 +148,13 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         for path in paths:
             path.close()
-    base = paths[0]
+    base, issue = paths[0], paths[1]
     print(f"{ENV_ID}: env steps per CPU-second / per wall second, fastest of {args.rounds} interleaved chunks "
           f"of {args.chunk} env steps; {os.cpu_count()} CPUs; batch N/tK: N envs on K batch threads (0: all CPUs)")
-    print(f"{'path':<14} {'steps/CPU-s':>12} {'x single':>9} {'steps/s':>10} {'x single':>9}")
+    print(f"{'path':<14} {'steps/CPU-s':>12} {'x single':>9} {'x issue':>8} {'steps/s':>10} {'x single':>9}")
     for path in paths:
-        print(f"{path.name:<14} {path.cpu:12.0f} {path.cpu / base.cpu:8.2f}x {path.wall:10.0f} "
-              f"{path.wall / base.wall:8.2f}x")
+        print(f"{path.name:<14} {path.cpu:12.0f} {path.cpu / base.cpu:8.2f}x {path.cpu / issue.cpu:7.2f}x "
+              f"{path.wall:10.0f} {path.wall / base.wall:8.2f}x")
     return 0
 
 
