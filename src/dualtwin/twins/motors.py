@@ -15,7 +15,7 @@ from typing import Any, Protocol
 from dualtwin.webots.motor_law import motor_velocity
 
 
-@dataclass
+@dataclass(slots=True)
 class MotorParams:
     """A Webots RotationalMotor/LinearMotor's fields."""
 
@@ -30,7 +30,7 @@ class MotorParams:
     max_position: float = 0.0
 
 
-@dataclass
+@dataclass(slots=True)
 class MotorState:
     """The controller-side state of one motor, as Webots keeps it (WbMotor)."""
 
@@ -67,10 +67,13 @@ class MotorState:
     def set_position(self, position: float) -> None:
         p = self.params
         target = position * self.gain
-        if p.min_position != p.max_position and math.isfinite(target):
-            target = min(max(target, p.min_position), p.max_position)
+        low, high = p.min_position, p.max_position
+        # min(max(target, low), high) for finite targets, without the calls (a command per motor and period).
+        if low != high and -math.inf < target < math.inf:
+            target = low if low > target else target
+            target = high if high < target else target
         self.target_position = target
-        self.target_velocity = self.params.max_velocity
+        self.target_velocity = p.max_velocity
         self.torque_mode = False
 
     def set_torque(self, torque: float) -> None:

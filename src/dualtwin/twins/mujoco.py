@@ -68,9 +68,10 @@ PREDICT_SATURATION = 1.0 + SERVO_STIFFNESS
 #: set_state refuses states whose contacts overlap deeper than this (m): that is a geometry mismatch or a
 #: bad state, not the millimetres of a resting soft contact.
 MAX_PENETRATION = 0.02
-# plugin_state slots a command writes (the native law, see motor_plugin)
-_TORQUE_MODE, _TARGET_POSITION, _TARGET_VELOCITY, _TORQUE, _SATURATED = (
-    motor_plugin.SLOT[k] for k in ("torque_mode", "target_position", "target_velocity", "torque", "saturated"))
+_AUTORESET_OFF = int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
+# plugin_state slots a command writes (literals in _apply_command: it runs per command and motor)
+assert [motor_plugin.SLOT[k] for k in ("torque_mode", "target_position", "target_velocity", "torque")] == [0, 1, 2, 3]
+assert motor_plugin.SLOT["saturated"] == 14
 
 
 class _Motor:
@@ -144,6 +145,10 @@ class MuJoCoTwin(Twin):
         self._knob_index: dict[str, BoundKnob[KnobTarget]] | None = None
         self._motors = self._build_motors()
         self._motor_by_name = {m.name: m for m in self._motors}
+        # command()'s lookup: motor names and the aliases that resolve to one (an alias wins, as in _id).
+        self._command_index = {name: self._motor_by_name[self._aliases.get(name, name)]
+                               for name in {*self._motor_by_name, *self._aliases}
+                               if self._aliases.get(name, name) in self._motor_by_name}
         self._nominal_kv = {m.name: m.kv for m in self._motors}
         self._nominal_motor: dict[str, tuple[float, float]] = {m.name: (m.state.params.max_torque, m.state.params.max_velocity) for m in self._motors}
         self._nominal_kp: dict[str, float] = {m.name: m.state.params.kp for m in self._motors}
@@ -175,6 +180,7 @@ class MuJoCoTwin(Twin):
         # One physics step; every stepping path below goes through it.
         self._mj_step: Callable[[mujoco.MjModel, mujoco.MjData], None] = (
             self._friction_box.step if self._friction_box else mujoco.mj_step)
+        self._opt = self.model.opt  # a live view of the model's options (each model.opt costs a lookup)
         self.reset()
 
     def _id(self, kind: mujoco.mjtObj, name: str, label: str) -> int:
@@ -293,7 +299,7 @@ class MuJoCoTwin(Twin):
         mujoco.mj_forward(m, self.data)
 
     def command(self, actuator: str, mode: ControlMode, value: float) -> None:
-        motor = self._motor_by_name.get(self._aliases.get(actuator, actuator))
+        motor = self._command_index.get(actuator)
         if motor is None:
             raise unknown_name("motor", actuator, list(self._motor_by_name), self._origin)
         self._commanded.add(motor.name)
@@ -322,22 +328,24 @@ class MuJoCoTwin(Twin):
 
     def _apply_command(self, motor: _Motor, mode: ControlMode, value: float) -> None:
         st = motor.state
-        if mode == "velocity":
-            st.set_velocity(value)
-        elif mode == "position":
+        if mode == "position":
             st.set_position(value)
+        elif mode == "velocity":
+            st.set_velocity(value)
         else:
             st.set_torque(value)
-        if motor.plugin >= 0:
+        adr = motor.plugin
+        if adr >= 0:
             # The native law: only what a command changes (targets, the mode, and for a servo leaving
-            # saturation) goes to plugin_state; the model is not touched.
-            ps, adr = self._plugin_slots, motor.plugin
-            ps[adr + _TORQUE_MODE] = 1.0 if st.torque_mode else 0.0
-            ps[adr + _TARGET_POSITION] = st.target_position
-            ps[adr + _TARGET_VELOCITY] = st.target_velocity
-            ps[adr + _TORQUE] = st.torque
-            if not st.torque_mode:
-                motor.saturated = ps[adr + _SATURATED] = 0.0
+            # saturation) goes to plugin_state; the model is not touched. (Slots 0-3 and 14, see motor_plugin.)
+            ps = self._plugin_slots
+            ps[adr + 1] = st.target_position
+            ps[adr + 2] = st.target_velocity
+            ps[adr + 3] = st.torque
+            if st.torque_mode:
+                ps[adr] = 1.0
+            else:
+                ps[adr] = motor.saturated = ps[adr + 14] = 0.0
         elif st.torque_mode:
             self._set_torque(motor, st.torque)
         else:
@@ -456,8 +464,9 @@ class MuJoCoTwin(Twin):
 
     def _check_stable(self, bad_state: bool | None = None) -> None:
         d = self.data
-        if d.time > self._period_start + (self._substeps - 0.5) * self.model.opt.timestep and not (
-                self.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_AUTORESET):
+        opt = self._opt
+        if d.time > self._period_start + (self._substeps - 0.5) * opt.timestep and not (
+                opt.disableflags & _AUTORESET_OFF):
             # MuJoCo resets mjData (time 0) when a step meets a bad qpos, qvel or qacc, and a step that met
             # none leaves finite values: a period that ended on time was stable (the cheap test, every period).
             return
@@ -693,20 +702,10 @@ class MuJoCoTwin(Twin):
         if unknown:
             raise DualtwinError(f"{self._origin}: unknown knobs: {', '.join(unknown)}")
         m, nominal = self.model, self._nominal
-        m.dof_damping[:] = nominal["dof_damping"]
-        m.dof_frictionloss[:] = nominal["dof_frictionloss"]
-        m.geom_friction[:] = nominal["geom_friction"]
-        m.geom_solref[:] = nominal["geom_solref"]
-        m.geom_size[:] = nominal["geom_size"]
-        m.geom_rbound[:] = nominal["geom_rbound"]
-        m.geom_aabb[:] = nominal["geom_aabb"]
+        for field in ("dof_damping", "dof_frictionloss", "geom_friction", "geom_solref", "geom_size", "geom_rbound",
+                      "geom_aabb", "jnt_solref", "geom_solimp", "jnt_solimp", "body_mass", "body_inertia", "body_ipos"):
+            getattr(m, field)[:] = nominal[field]
         m.opt.impratio = float(nominal["impratio"])
-        m.jnt_solref[:] = nominal["jnt_solref"]
-        m.geom_solimp[:] = nominal["geom_solimp"]
-        m.jnt_solimp[:] = nominal["jnt_solimp"]
-        m.body_mass[:] = nominal["body_mass"]
-        m.body_inertia[:] = nominal["body_inertia"]
-        m.body_ipos[:] = nominal["body_ipos"]
         self._armature[:] = nominal["dof_armature"]
         for mo in self._motors:
             mo.state.params.max_torque, mo.state.params.max_velocity = self._nominal_motor[mo.name]
