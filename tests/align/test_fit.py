@@ -71,7 +71,10 @@ def test_outputs(which: str, request: pytest.FixtureRequest) -> None:
     report = (out / "report.html").read_text()
     for word in ("reference", "before", "after", *SUITE3_IDS, DAMPING):
         assert word in report
-    assert sorted(p.name for p in (out / "plots").iterdir()) == [f"{sid}.png" for sid in SUITE3_IDS]
+    # One block of inline SVG overlays per scenario; no figure files beside the report.
+    blocks = report.split("<div class='plots'>")[1:]
+    assert len(blocks) == len(SUITE3_IDS) and all("<svg" in b and 'd="M' in b for b in blocks)
+    assert not (out / "plots").exists()
     assert json.loads((out / "runs" / "after" / "manifest.json").read_text())["knobs"] == result.fitted
 
 

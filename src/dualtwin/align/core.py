@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
-from scipy import stats
+from scipy import special  # not scipy.stats: its import costs a CPU-second
 
 from dualtwin.align.knobs import KnobSpec, unit_from_values, values_from_unit
 
@@ -268,7 +268,7 @@ def integer_half_width(problem: Problem, u: Sequence[float], i: int) -> float:
     results = problem.run(points)  # cached when the last screening ran at this point
     ssr = [float(r.residual @ r.residual) for r in results]
     dof = max(len(results[0].residual) - len(problem.specs), 1)
-    limit = min(ssr) * (1.0 + float(stats.t.ppf(0.975, dof)) ** 2 / dof)
+    limit = min(ssr) * (1.0 + float(special.stdtrit(dof, 0.975)) ** 2 / dof)
     fitted = problem.specs[i].from_unit(u[i])
     return float(max(abs(v - fitted) for v, s in zip(values, ssr, strict=True) if s <= limit))
 
@@ -299,7 +299,7 @@ def interval_estimate(jac: np.ndarray, r0: np.ndarray, specs: Sequence[KnobSpec]
     condition = math.inf if len(live) < k or small.any() else float(top / eig.min())
     dof = max(m - len(live), 1)
     s2 = float(r0 @ r0) / dof
-    t = float(stats.t.ppf(0.975, dof))
+    t = float(special.stdtrit(dof, 0.975))
     for col, j in enumerate(live):
         loading = vec[col] ** 2
         if float(loading[small].sum()) > 1e-8:

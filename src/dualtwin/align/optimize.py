@@ -45,9 +45,9 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-import cma
 import numpy as np
 
+from dualtwin.align.cma_quiet import cma  # cma without matplotlib.pyplot (see there)
 from dualtwin.align.config import AlignConfig
 from dualtwin.align.core import (
     GenerationInfo,
@@ -464,12 +464,29 @@ def mujoco_module(name: str) -> Any:
 
 def sysid_status() -> str:
     """Whether ``mujoco.sysid`` is usable here, and why alignment uses ``mujoco.minimize`` either way."""
-    try:
-        usable = hasattr(mujoco_module("sysid"), "optimize")
-    except ImportError:
-        usable = False
+    usable = _sysid_installed()
     where = "installed" if usable else "not installed (extra mujoco-core[sysid])"
     return (f"mujoco.sysid is {where}; not used because it simulates the MJCF's own actuators with "
             "mujoco.rollout, while the twin emulates Webots motors, delays and sensor models outside MuJoCo. "
             "The lsq optimiser is mujoco.minimize.least_squares (sysid's own) on residuals from the twin.")
 
+
+
+def _sysid_installed() -> bool:
+    """Whether ``mujoco.sysid`` imports here: it ships with mujoco and needs its ``sysid`` extra's packages.
+    Read from package metadata: importing it to find out costs about a CPU-second (it loads matplotlib)."""
+    import importlib.metadata as metadata
+    import importlib.util
+    import re
+
+    try:
+        if importlib.util.find_spec("mujoco.sysid") is None:
+            return False
+        requirements = metadata.requires("mujoco") or []
+        for requirement in requirements:
+            name, _, marker = requirement.partition(";")
+            if re.search(r"extra\s*==\s*['\"]sysid['\"]", marker):
+                metadata.version(re.split(r"[\s\[<>=!~;]", name.strip(), maxsplit=1)[0])
+    except (ImportError, metadata.PackageNotFoundError):
+        return False
+    return True

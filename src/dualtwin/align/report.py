@@ -1,30 +1,27 @@
 """The before/after alignment report: ``report.html`` with tables, findings and three-trace overlays.
 
-Every plot (one grid per scenario) overlays the reference, the target before alignment and the target after it
-(`dualtwin.reporting.plot_overlay`, one channel and unit per axes), labelled by twin name, with crossing times
-marked. The tables take their MSE, DTW, crossing-time
-and endpoint errors from `compare_runs` (reference vs before, reference vs after).
+Every plot (one block per scenario) overlays the reference, the target before alignment and the target after it
+(`dualtwin.reporting.svg.svg_plot`, one channel and unit per axes, inline SVG: drawing them costs milliseconds
+and a few kilobytes, where matplotlib PNGs cost about 2 CPU-seconds per scenario and megabytes on the arm),
+labelled by twin name, with crossing times marked. The tables take their MSE, DTW, crossing-time and endpoint
+errors from `compare_runs` (reference vs before, reference vs after).
 """
 
 from __future__ import annotations
 
 import html
-import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from matplotlib.axes import Axes
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
-
 from dualtwin.align.analysis_report import findings_html
 from dualtwin.align.analyze import Analysis
 from dualtwin.align.narrate import narrative_html
-from dualtwin.artifacts import write_bytes, write_text
+from dualtwin.artifacts import write_text
 from dualtwin.divergence.comparison import RunComparison, ScenarioComparison, compare_runs
 from dualtwin.divergence.metrics import ChannelDivergence
-from dualtwin.reporting import evidence_html, html_table, img_html, page_head, plot_overlay, png_bytes, slug
+from dualtwin.reporting import evidence_html, html_table, img_html, page_head
+from dualtwin.reporting.svg import SVG_POINTS, legend_html, svg_plot
 
 if TYPE_CHECKING:
     from dualtwin.align.config import AlignConfig
@@ -83,45 +80,33 @@ def scenario_table(before: RunComparison, after: RunComparison, held: Sequence[s
                       left=(0, 1, 2))
 
 
-def _overlay(ax: Axes, sb: ScenarioComparison, sa: ScenarioComparison | None, channel: str, unit: str,
-             labels: tuple[str, str, str]) -> bool:
-    """Reference, before and after traces of one scenario channel on ``ax``; False if nothing to draw."""
+def _overlay(sb: ScenarioComparison, sa: ScenarioComparison | None, channel: str, unit: str,
+             labels: tuple[str, str, str]) -> str:
+    """Reference, before and after traces of one scenario channel as an SVG plot; "" if nothing to draw."""
     traces = []
     crossings: list[float | None] = []
+    widths: list[float] = []
     cb, ca = sb.channels.get(channel), sa.channels.get(channel) if sa else None
-    for label, series, cross in ((labels[0], sb.series_a.get(channel), cb.crossing_a_s if cb else None),
-                                 (labels[1], sb.series_b.get(channel), cb.crossing_b_s if cb else None),
-                                 (labels[2], sa.series_b.get(channel) if sa else None, ca.crossing_b_s if ca else None)):
+    for width, (label, series, cross) in zip((4.0, 1.4, 1.4), (
+            (labels[0], sb.series_a.get(channel), cb.crossing_a_s if cb else None),
+            (labels[1], sb.series_b.get(channel), cb.crossing_b_s if cb else None),
+            (labels[2], sa.series_b.get(channel) if sa else None, ca.crossing_b_s if ca else None)), strict=True):
         if series is not None:
             traces.append((label, series.t, series.y))
             crossings.append(cross)
+            # A wide translucent reference stays visible when an aligned trace lies exactly on it.
+            widths.append(width)
     if not traces:
-        return False
-    lines = plot_overlay(ax, traces, crossings=crossings, threshold=cb.threshold if cb else None,
-                         ylabel=f"{channel} [{unit or 'unit not recorded'}]", title=channel)
-    # A wide translucent reference stays visible when an aligned trace lies exactly on it.
-    lines[0].set_linewidth(4.0)
-    lines[0].set_alpha(0.45)
-    ax.legend(loc="best", fontsize=7)
-    return True
+        return ""
+    return svg_plot(traces, crossings=crossings, threshold=cb.threshold if cb else None, widths=widths,
+                    ylabel=f"{channel} [{unit or 'unit not recorded'}]", title=channel)
 
 
-def scenario_png(sb: ScenarioComparison, sa: ScenarioComparison | None, channels: Sequence[str],
-                 units: Mapping[str, str], labels: tuple[str, str, str] = ("reference", "before", "after")) -> bytes:
-    """One figure per scenario: a grid with every channel's three-trace overlay."""
-    rows = max(1, math.ceil(len(channels) / 2))
-    # One figure per scenario and no layout engine: rendering is most of a small alignment's wall time.
-    fig = Figure(figsize=(11.0, 2.5 * rows), dpi=90)
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(rows, 2, squeeze=False).ravel()
-    for ax, channel in zip(axes, channels, strict=False):
-        if not _overlay(ax, sb, sa, channel, units.get(channel, ""), labels):
-            ax.set_visible(False)
-    for ax in axes[len(channels):]:
-        ax.set_visible(False)
-    fig.suptitle(sb.id, fontsize=11)
-    fig.subplots_adjust(left=0.07, right=0.98, top=1 - 0.35 / rows, bottom=0.25 / rows, hspace=0.55, wspace=0.22)
-    return png_bytes(fig)
+def scenario_svg(sb: ScenarioComparison, sa: ScenarioComparison | None, channels: Sequence[str],
+                 units: Mapping[str, str], labels: tuple[str, str, str] = ("reference", "before", "after")) -> str:
+    """One block per scenario: every channel's three-trace overlay (inline SVG plots, two per row)."""
+    plots = [_overlay(sb, sa, channel, units.get(channel, ""), labels) for channel in channels]
+    return "<div class='plots'>" + "".join(p for p in plots if p) + "</div>"
 
 
 def _interval(k: KnobFit) -> str:
@@ -131,7 +116,7 @@ def _interval(k: KnobFit) -> str:
 def write_align_report(out_dir: Path, result: AlignResult, reference: Path, before: Path, after: Path,
                        analysis_before: Analysis, analysis_after: Analysis, train: Sequence[str],
                        held: Sequence[str], thresholds: Mapping[str, float] | None = None) -> Path:
-    """Write ``report.html`` (and ``plots/*.png``) into ``out_dir``; returns the report path."""
+    """Write ``report.html`` (plots inline) into ``out_dir``; returns the report path."""
     comp_before = compare_runs(reference, before, thresholds)
     comp_after = compare_runs(reference, after, thresholds)
     labels = trace_labels(comp_before.twin_a, comp_before.twin_b)
@@ -190,11 +175,14 @@ def write_align_report(out_dir: Path, result: AlignResult, reference: Path, befo
               "<h2>Findings after alignment</h2>", findings_html(analysis_after.findings),
               "<h2>Overlays</h2>"]
     after_by_id = {s.id: s for s in comp_after.scenarios}
+    # Vector plots of at most SVG_POINTS points per trace (each run of samples keeps its minimum and maximum);
+    # the full traces are the runs' ground_truth.tsv files.
+    parts.append("<p>Every trace is drawn through the minimum and maximum of each run of samples (at most "
+                 f"{SVG_POINTS} points: peaks keep their extent); the full traces are in the runs' "
+                 "<code>ground_truth.tsv</code> files.</p>" + legend_html(labels))
     for sb in comp_before.scenarios:
         parts.append(f"<h3>{html.escape(sb.id)}{' (held out)' if sb.id in held else ''}</h3>")
-        png = scenario_png(sb, after_by_id.get(sb.id), comp_before.channel_names, comp_before.units, labels)
-        write_bytes(out_dir / "plots" / f"{slug(sb.id)}.png", png)
-        parts.append(img_html(png, sb.id))
+        parts.append(scenario_svg(sb, after_by_id.get(sb.id), comp_before.channel_names, comp_before.units, labels))
     parts.append("</body></html>")
     path = out_dir / "report.html"
     write_text(path, "\n".join(parts))

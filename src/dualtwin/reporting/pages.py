@@ -16,6 +16,8 @@ import re
 from collections.abc import Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
+from dualtwin.reporting.svg import SVG_CSS
+
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
@@ -30,6 +32,8 @@ table.evidence{margin:2px 0}table.evidence th,table.evidence td{font-size:12px;p
 .completed{color:#1a7f37}.failed{color:#b35900}.unstable{color:#c62828;font-weight:bold}
 .viol{color:#c62828}img{max-width:100%;margin:4px 0}code{background:#f5f5f5;padding:0 3px}
 section{border-top:2px solid #ddd;margin-top:1.5em}
+div.plots{display:flex;flex-wrap:wrap;gap:4px 12px}div.plots svg{max-width:100%;height:auto}
+""" + SVG_CSS + """
 """
 
 

@@ -15,37 +15,12 @@ from matplotlib.axes import Axes
 from matplotlib.figure import FigureBase
 from matplotlib.lines import Line2D
 
+from dualtwin.reporting.svg import MAX_POINTS, envelope
+
 #: A trace for `plot_overlay`: ``(label, t, y)``.
 Trace = tuple[str, npt.ArrayLike, npt.ArrayLike]
 
-#: `plot_overlay` draws at most this many points per trace: an axes is a few hundred pixels wide.
-MAX_POINTS = 1200
-
-
-def envelope(t: npt.ArrayLike, y: npt.ArrayLike, points: int = MAX_POINTS) -> tuple[np.ndarray, np.ndarray]:
-    """``(t, y)`` reduced to about ``points`` samples that draw the same line at screen resolution.
-
-    Why: drawing (and the legend's "best" placement, which tests every vertex) cost most of a report's time,
-    for long recordings about 10,000 points per line. The samples are cut into ``points / 2`` equal runs and
-    each run keeps its minimum and maximum, in time order, so peaks, steps and oscillations keep their extent
-    (no averaging). Short traces, and traces with gaps (NaN), are returned as they are.
-    """
-    t = np.asarray(t, dtype=float)
-    y = np.asarray(y, dtype=float)
-    n = len(t)
-    runs = max(1, points // 2)
-    if n <= points or y.shape != t.shape or np.isnan(y).any():
-        return t, y
-    size = -(-n // runs)  # ceil: whole runs, and one shorter run at the end
-    full = n // size
-    block = y[:full * size].reshape(full, size)
-    start = np.arange(full) * size
-    keep = [start + block.argmin(axis=1), start + block.argmax(axis=1), [0, n - 1]]
-    if full * size < n:
-        tail = y[full * size:]
-        keep.append([full * size + int(tail.argmin()), full * size + int(tail.argmax())])
-    index = np.unique(np.concatenate(keep))
-    return t[index], y[index]
+__all__ = ["MAX_POINTS", "Trace", "envelope", "plot_overlay", "plot_unit_groups"]
 
 
 def plot_overlay(

@@ -50,7 +50,7 @@ from dualtwin.twins.base import (
 from dualtwin.twins.knob_table import BoundKnob
 from dualtwin.twins.motors import MotorParams, MotorState, servo_steps
 from dualtwin.twins.mujoco_knobs import MAX_DELAY_PERIODS, MUJOCO_KNOBS, KnobPass, KnobTarget
-from dualtwin.twins.mujoco_state import StatePlan
+from dualtwin.twins.mujoco_state import StatePlan, scale_contact_depths
 from dualtwin.twins.ode_friction import FrictionBox, contact_semantics
 
 if TYPE_CHECKING:
@@ -181,9 +181,16 @@ class MuJoCoTwin(Twin):
         self._mj_step: Callable[[mujoco.MjModel, mujoco.MjData], None] = (
             self._friction_box.step if self._friction_box else mujoco.mj_step)
         self._opt = self.model.opt  # a live view of the model's options (each model.opt costs a lookup)
+        self._ids: dict[tuple[mujoco.mjtObj, str], int] = {}  # see _id
+        self._sensor_adr: list[int] = self.model.sensor_adr.tolist()
+        self._sensor_models = bool(self._noise.any())  # any bias, delay, noise or resolution (see sensor())
         self.reset()
 
     def _id(self, kind: mujoco.mjtObj, name: str, label: str) -> int:
+        # Names are looked up on every read (several per period): each found one is kept (names never change).
+        known_id = self._ids.get((kind, name))
+        if known_id is not None:
+            return known_id
         resolved = self._aliases.get(name, name)
         index = mujoco.mj_name2id(self.model, kind, resolved)
         if index < 0:
@@ -192,6 +199,7 @@ class MuJoCoTwin(Twin):
                      mujoco.mjtObj.mjOBJ_GEOM: self.model.ngeom, mujoco.mjtObj.mjOBJ_CAMERA: self.model.ncam}[kind]
             known = [mujoco.mj_id2name(self.model, kind, i) or "" for i in range(count)]
             raise unknown_name(label, resolved, [k for k in known if k], self._origin)
+        self._ids[(kind, name)] = int(index)
         return int(index)
 
     def _motor_params(self, name: str, actuator: int) -> MotorParams:
@@ -525,7 +533,10 @@ class MuJoCoTwin(Twin):
 
     def sensor(self, name: str) -> float:
         s = self._id(mujoco.mjtObj.mjOBJ_SENSOR, name, "sensor")
-        adr = self.model.sensor_adr[s]
+        adr = self._sensor_adr[s]
+        if not self._sensor_models:  # the reading as it is (+ 0.0 as a zero bias adds: -0.0 reads 0.0)
+            self.refresh()
+            return float(self.data.sensordata[adr]) + 0.0
         delay = int(self._sensor_delay[s])
         if delay and self._history:
             # history[-k] is the reading k periods ago; before that much time has passed, the first one.
@@ -618,7 +629,7 @@ class MuJoCoTwin(Twin):
         d.qacc_warmstart[:] = 0.0
         mujoco.mj_forward(m, d)
         if self.reseat_depth_ratio != 1.0:
-            self._scale_contact_depths(self.reseat_depth_ratio)
+            scale_contact_depths(m, d, self.reseat_depth_ratio)
         depth = -min((float(d.contact[i].dist) for i in range(d.ncon)), default=0.0)
         if depth > self.max_penetration:
             pairs = [i for i in range(d.ncon) if -float(d.contact[i].dist) == depth]
@@ -636,43 +647,6 @@ class MuJoCoTwin(Twin):
         d = self.data
         depths = [-float(d.contact[i].dist) for i in range(d.ncon) if d.contact[i].dist < 0]
         return float(np.mean(depths)) if depths else 0.0
-
-    def _scale_contact_depths(self, ratio: float) -> None:
-        """Move the free bodies so that every overlapping contact is ``ratio`` times as deep as written.
-
-        Why: a resting contact's depth is set by the engine's contact compliance under the load, not by the
-        motion. ODE's ERP/CFM spring and MuJoCo's solref/solimp give different depths for the same weight (on
-        the bundled CartPole MuJoCo rests about 1.9 times as deep as the Webots twin), so a state written at
-        the other engine's depth is not at rest here: the contacts push the body out and it bounces within
-        the period. Scaling the depths (``ratio``: this twin's resting depth over the other's, measured by
-        lockstep at rest) carries the contact *load* across instead of the geometry. One linear least-squares
-        step on the free joints' degrees of freedom (the contact normals' Jacobian) is exact for planar
-        contacts; joints and velocities are not touched.
-        """
-        m, d = self.model, self.data
-        free = [int(m.jnt_dofadr[j]) + k for j in range(m.njnt)
-                if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE for k in range(6)]
-        rows: list[np.ndarray] = []
-        wanted: list[float] = []
-        jacp = np.zeros((3, m.nv))
-        for i in range(d.ncon):
-            contact = d.contact[i]
-            if contact.dist >= 0 or not free:
-                continue
-            normal = np.array(contact.frame[:3])  # from geom 1 to geom 2: moving geom 2 along it separates them
-            row = np.zeros(m.nv)
-            for geom, sign in ((contact.geom[0], -1.0), (contact.geom[1], 1.0)):
-                mujoco.mj_jac(m, d, jacp, None, contact.pos, int(m.geom_bodyid[geom]))
-                row += sign * (normal @ jacp)
-            rows.append(row[free])
-            wanted.append((ratio - 1.0) * float(contact.dist))
-        if not rows:
-            return
-        delta = np.linalg.lstsq(np.array(rows), np.array(wanted), rcond=None)[0]
-        step = np.zeros(m.nv)
-        step[free] = delta
-        mujoco.mj_integratePos(m, d.qpos, step, 1.0)
-        mujoco.mj_forward(m, d)
 
     def _reseat_motors(self, holds: dict[int, float]) -> None:
         """After a state write: held motors hold the state's hold (else the new position); every motor
@@ -752,6 +726,8 @@ class MuJoCoTwin(Twin):
             if mo.plugin >= 0:
                 self._write_plugin(mo)
         self._delayed_sensors = bool(self._sensor_delay.any())
+        self._sensor_models = bool(self._delayed_sensors or self._noise.any() or self._sensor_bias.any()
+                                   or self._sensor_quant.any())
         self._knob_values = dict(values)
 
     def _set_substeps(self, substeps: int) -> None:

@@ -76,3 +76,40 @@ class StatePlan:
         out += velocities
         out += [target for _, target in held]
         return out
+
+
+def scale_contact_depths(m: mujoco.MjModel, d: mujoco.MjData, ratio: float) -> None:
+    """Move the free bodies so that every overlapping contact is ``ratio`` times as deep as written.
+
+    Why: a resting contact's depth is set by the engine's contact compliance under the load, not by the
+    motion. ODE's ERP/CFM spring and MuJoCo's solref/solimp give different depths for the same weight (on
+    the bundled CartPole MuJoCo rests about 1.9 times as deep as the Webots twin), so a state written at
+    the other engine's depth is not at rest here: the contacts push the body out and it bounces within
+    the period. Scaling the depths (``ratio``: this twin's resting depth over the other's, measured by
+    lockstep at rest) carries the contact *load* across instead of the geometry. One linear least-squares
+    step on the free joints' degrees of freedom (the contact normals' Jacobian) is exact for planar
+    contacts; joints and velocities are not touched.
+    """
+    free = [int(m.jnt_dofadr[j]) + k for j in range(m.njnt)
+            if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE for k in range(6)]
+    rows: list[np.ndarray] = []
+    wanted: list[float] = []
+    jacp = np.zeros((3, m.nv))
+    for i in range(d.ncon):
+        contact = d.contact[i]
+        if contact.dist >= 0 or not free:
+            continue
+        normal = np.array(contact.frame[:3])  # from geom 1 to geom 2: moving geom 2 along it separates them
+        row = np.zeros(m.nv)
+        for geom, sign in ((contact.geom[0], -1.0), (contact.geom[1], 1.0)):
+            mujoco.mj_jac(m, d, jacp, None, contact.pos, int(m.geom_bodyid[geom]))
+            row += sign * (normal @ jacp)
+        rows.append(row[free])
+        wanted.append((ratio - 1.0) * float(contact.dist))
+    if not rows:
+        return
+    delta = np.linalg.lstsq(np.array(rows), np.array(wanted), rcond=None)[0]
+    step = np.zeros(m.nv)
+    step[free] = delta
+    mujoco.mj_integratePos(m, d.qpos, step, 1.0)
+    mujoco.mj_forward(m, d)
