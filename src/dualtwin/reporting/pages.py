@@ -16,10 +16,13 @@ import re
 from collections.abc import Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
-from dualtwin.reporting.svg import SVG_CSS
-
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
+
+#: The style of `dualtwin.reporting.svg.svg_plot`'s plots (in `CSS`; here: this module loads no numpy).
+SVG_CSS = ("svg.plot{font:10px sans-serif;text-anchor:middle}svg.plot path{fill:none;stroke-width:1.4}"
+           "svg.plot rect{fill:none;stroke:#999}svg.plot .g{stroke:#eee}svg.plot .d{stroke:#888;stroke-dasharray:5 3}"
+           "svg.plot .c{stroke-dasharray:2 2;stroke-width:1.2}svg.plot .e{text-anchor:end}svg.plot .h{font-size:11px}")
 
 CSS = """
 body{font-family:system-ui,sans-serif;margin:2em;color:#222;max-width:1200px}

@@ -90,7 +90,7 @@ def svg_plot(traces: Sequence[tuple[str, npt.ArrayLike, npt.ArrayLike]], *, titl
              xlabel: str = "time [s]", crossings: Sequence[float | None] | None = None, threshold: Any = None,
              widths: Sequence[float] | None = None) -> str:
     """One axes of overlaid ``(label, t, y)`` traces as an inline ``<svg>`` element (colours `COLOURS` in order;
-    styled by `SVG_CSS`, which the page includes; the labels are for `legend_html`).
+    styled by `dualtwin.reporting.pages.SVG_CSS`, which the page includes; the labels are for `legend_html`).
 
     ``crossings``: a time per trace (None: none), drawn dotted in the trace's colour; ``threshold``: an object
     with ``value`` and ``mode`` (``"abs"``: both signs), drawn dashed grey; ``widths``: line width per trace
@@ -150,12 +150,6 @@ def svg_plot(traces: Sequence[tuple[str, npt.ArrayLike, npt.ArrayLike]], *, titl
             out.append(f'<path class="c" stroke="{colour}" d="M{int(px(np.array([when]))[0])} {_T}v{ph}"/>')
     out.append("</svg>")
     return "".join(out)
-
-
-#: The style `svg_plot`'s plots need: a page that shows them includes it (reporting.pages.CSS does).
-SVG_CSS = ("svg.plot{font:10px sans-serif;text-anchor:middle}svg.plot path{fill:none;stroke-width:1.4}"
-           "svg.plot rect{fill:none;stroke:#999}svg.plot .g{stroke:#eee}svg.plot .d{stroke:#888;stroke-dasharray:5 3}"
-           "svg.plot .c{stroke-dasharray:2 2;stroke-width:1.2}svg.plot .e{text-anchor:end}svg.plot .h{font-size:11px}")
 
 
 def legend_html(labels: Sequence[str]) -> str:
