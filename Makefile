@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
 SYSTEM_PACKAGES := libode8 libosmesa6 libegl1 libegl-mesa0 libgl1-mesa-dri gcc libc6-dev
-EXTRAS ?= dev,rl,server,llm,ray,recorded
+EXTRAS ?= dev,rl,server,llm,ray,recorded,sysid
 
 .PHONY: demo test lint typecheck bench system-deps venv clean
 

@@ -25,7 +25,8 @@ A small library in the spirit of ``mujoco.sysid``, in layers:
   sensitivities; `analysis_report` writes them), `dr` (calibrated randomisation ranges), `patch` (model files), `propose` and `narrate`
   (the proposal hook, the LLM narrative), `nuisance` (per-scenario initial conditions and time offsets
   fitted next to the physics, never written into the model) and `reference` (what a reference shares with
-  the suite, its ensemble members).
+  the suite, its ensemble members), `sysid_io` (``mujoco.sysid`` parameter descriptions in, fitted knobs
+  out in its format).
 """
 
 from __future__ import annotations
@@ -59,6 +60,7 @@ if TYPE_CHECKING:
     from dualtwin.align.optimize import fit_cma, fit_lsq, sysid_status
     from dualtwin.align.propose import ProposalOutcome
     from dualtwin.align.run import run_align
+    from dualtwin.align.sysid_io import read_sysid_params, sysid_knobs, to_parameter_dict
     from dualtwin.align.weights import ObjectiveWeights
     from dualtwin.align.writers import AlignResult, KnobFit, print_result
 
@@ -91,6 +93,9 @@ _HOME: dict[str, str] = {
     "sysid_status": "dualtwin.align.optimize",
     "ProposalOutcome": "dualtwin.align.propose",
     "run_align": "dualtwin.align.run",
+    "read_sysid_params": "dualtwin.align.sysid_io",
+    "sysid_knobs": "dualtwin.align.sysid_io",
+    "to_parameter_dict": "dualtwin.align.sysid_io",
     "AlignResult": "dualtwin.align.writers",
     "KnobFit": "dualtwin.align.writers",
     "print_result": "dualtwin.align.writers",
@@ -130,8 +135,11 @@ __all__ = [
     "interval_estimate",
     "print_analysis",
     "print_result",
+    "read_sysid_params",
     "run_align",
     "select_knobs",
+    "sysid_knobs",
     "sysid_status",
+    "to_parameter_dict",
     "write_analysis",
 ]

@@ -60,7 +60,8 @@ class AlignConfig(FrozenModel):
     target: str = Field(description="twin whose knobs are fitted")
     robot: str = Field(description="bundled robot name or binding file")
     suite: str = Field(default="", description="suite JSON file", json_schema_extra={"cli": "scenarios", "path": True})
-    knobs: list[str] = Field(description="knob names or globs of the target twin")
+    knobs: list[str] = Field(default_factory=list, description="knob names or globs of the target twin (at least "
+                             "one, here or in --sysid-params)")
     bounds: dict[str, tuple[float, float]] = Field(default_factory=dict,
                                                    description="(lower, upper) per knob name or glob "
                                                    "(NAME=LOWER,UPPER)")

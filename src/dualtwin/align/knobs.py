@@ -177,7 +177,7 @@ def match_knobs(available: Sequence[str], patterns: Sequence[str], where: str = 
     """
     if not patterns:
         raise DualtwinError(f"{where + ': ' if where else ''}no knobs selected; give names or globs "
-                            "such as 'joint.*.damping'")
+                            "such as 'joint.*.damping' (--knobs), or a mujoco.sysid parameter file (--sysid-params)")
     names = sorted(available)
     out: list[str] = []
     for pattern in patterns:

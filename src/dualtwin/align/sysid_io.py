@@ -11,10 +11,16 @@ multi-dimensional parameter or a name that matches no knob is refused with the r
 After the fit, ``sysid_params.yaml`` holds the fitted physics knobs in the same format (``value`` the fitted
 value), readable by ``ParameterDict.load_from_disk``. The file is written without importing ``mujoco.sysid``
 (its optional dependencies need not be installed), with the field order ``save_to_disk`` uses.
+
+In Python the same two directions work on objects: :func:`sysid_knobs` reads a ``ParameterDict`` (names and
+bounds for ``AlignConfig(knobs=..., bounds=...)``), and :func:`to_parameter_dict` turns fitted knobs
+(``AlignResult.knobs``) into a ``ParameterDict`` (this one needs ``mujoco.sysid`` and its optional
+dependencies: the ``sysid`` extra).
 """
 
 from __future__ import annotations
 
+import importlib
 import math
 from collections.abc import Mapping
 from pathlib import Path
@@ -53,13 +59,36 @@ def read_sysid_params(path: Path) -> tuple[list[str], dict[str, tuple[float, flo
         doc = yaml.safe_load(Path(path).read_text())
     except (OSError, yaml.YAMLError) as exc:
         raise DualtwinError(f"{path}: cannot read the mujoco.sysid parameter file ({type(exc).__name__})") from None
+    return _knobs_of(doc, str(path))
+
+
+def sysid_knobs(params: Any) -> tuple[list[str], dict[str, tuple[float, float]]]:
+    """The knob names (or globs) and bounds of a ``mujoco.sysid.ParameterDict`` (frozen ones skipped), for
+    ``AlignConfig(knobs=names, bounds=bounds)``; the same rules as a saved file (:func:`read_sysid_params`).
+
+    Raises:
+        DualtwinError: Not a ParameterDict, a non-scalar parameter, or bounds not below one another.
+    """
+    try:
+        doc = {key: {"name": p.name, "min_value": _as_list(p.min_value), "max_value": _as_list(p.max_value),
+                     "frozen": bool(p.frozen)} for key, p in params.items()}
+    except (AttributeError, TypeError):
+        raise DualtwinError(f"expected a mujoco.sysid ParameterDict, got {type(params).__name__}") from None
+    return _knobs_of(doc, "ParameterDict")
+
+
+def _as_list(value: Any) -> Any:
+    return value.tolist() if hasattr(value, "tolist") else value
+
+
+def _knobs_of(doc: Any, source: str) -> tuple[list[str], dict[str, tuple[float, float]]]:
     if not isinstance(doc, dict) or not doc:
-        raise DualtwinError(f"{path}: expected a mujoco.sysid parameter file (a mapping of parameter names to "
+        raise DualtwinError(f"{source}: expected a mujoco.sysid parameter file (a mapping of parameter names to "
                             "name/nominal/min_value/max_value/frozen), got something else")
     names: list[str] = []
     bounds: dict[str, tuple[float, float]] = {}
     for key, entry in doc.items():
-        where = f"{path}: parameter {key!r}"
+        where = f"{source}: parameter {key!r}"
         if not isinstance(entry, dict) or not {"min_value", "max_value"} <= set(entry):
             raise DualtwinError(f"{where}: needs min_value and max_value")
         if entry.get("frozen", False):
@@ -71,7 +100,7 @@ def read_sysid_params(path: Path) -> tuple[list[str], dict[str, tuple[float, flo
         names.append(name)
         bounds[name] = (lower, upper)
     if not names:
-        raise DualtwinError(f"{path}: every parameter is frozen; nothing to fit")
+        raise DualtwinError(f"{source}: every parameter is frozen; nothing to fit")
     return names, bounds
 
 
@@ -85,3 +114,25 @@ def write_sysid_params(out_dir: Path, files: dict[str, str], knobs: Mapping[str,
     """``sysid_params.yaml``: the fitted physics knobs in ``mujoco.sysid``'s parameter format."""
     write_text(out_dir / SYSID_FILE, yaml.safe_dump(sysid_document(knobs), default_flow_style=False, sort_keys=True))
     files["sysid_params"] = SYSID_FILE
+
+
+def to_parameter_dict(knobs: Mapping[str, KnobFit]) -> Any:
+    """Fitted knobs (``AlignResult.knobs``) as a ``mujoco.sysid.ParameterDict``: ``value`` the fitted value,
+    ``nominal`` the twin's, the fit's bounds. No modifiers: the names are dualtwin knobs, which only the twin
+    knows how to apply.
+
+    Raises:
+        DualtwinError: ``mujoco.sysid`` or its optional dependencies are not installed.
+    """
+    try:  # imported by name: a static import makes mypy analyse the untyped mujoco package
+        sysid = importlib.import_module("mujoco.sysid")
+    except ImportError:
+        sysid = None
+    if sysid is None or not hasattr(sysid, "ParameterDict"):
+        raise DualtwinError("mujoco.sysid is not usable here: install the sysid extra (pip install 'dualtwin[sysid]')")
+    params = sysid.ParameterDict()
+    for name, k in knobs.items():
+        parameter = sysid.Parameter(name, nominal=k.nominal, min_value=k.lower, max_value=k.upper)
+        parameter.update_from_vector([k.fitted])
+        params.add(parameter)
+    return params
