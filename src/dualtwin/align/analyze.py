@@ -672,7 +672,7 @@ def analyze_runs(
         twin_b: Twin that produced run B (``mujoco``, ``webots``), re-simulated with knobs perturbed.
         knobs: Knob names or globs to perturb (default: every knob of ``twin_b``).
         executor: ``process`` (default), ``serial``, ``ray``, or an existing `Evaluator`.
-        workers: Process-pool size.
+        workers: Process-pool size, or the threads of the MuJoCo batch a MuJoCo ``twin_b`` runs as (see `Evaluator`).
         step: Perturbation as a fraction of each knob's normalised range.
         thresholds: Crossing thresholds per channel (default: 0.99 rad on ``*_angle_rad``).
         propose_fn: Optional proposer (an LLM, see `dualtwin.align.narrate`). It sees the finished
