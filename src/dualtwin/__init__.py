@@ -16,7 +16,8 @@ import sys
 
 from dualtwin.errors import quiet_interrupts_in_cli
 
-quiet_interrupts_in_cli(sys.argv[0] if sys.argv else "")
+# ``python -m dualtwin.cli`` reads "-m" as argv[0] while the package imports: the original command line says more.
+quiet_interrupts_in_cli(sys.argv[0] if sys.argv else "", getattr(sys, "orig_argv", []))
 from dualtwin.interrupts import hold_while_loading  # noqa: E402 - after the interrupt hook
 
 hold_while_loading(only_command_line=True)  # the command says what a Ctrl-C while it loads keeps

@@ -11,8 +11,9 @@ class SimulationUnstable(RuntimeError):
     """The physics produced non-finite values. The scenario is marked unstable; a reset recovers."""
 
 
-def quiet_interrupts_in_cli(argv0: str) -> None:
-    """In the ``dualtwin`` command (``argv0``), Ctrl-C while Python is still importing is one line and exit 130.
+def quiet_interrupts_in_cli(argv0: str, orig_argv: list[str] | None = None) -> None:
+    """In the ``dualtwin`` command (``argv0``, or ``python -m dualtwin[.cli]`` in ``orig_argv``), Ctrl-C while
+    Python is still importing is one line and exit 130.
 
     ``import dualtwin`` calls this first thing: the command line's own handler (``dualtwin.cli.main``) is not
     in place until the package has loaded, and an uncaught KeyboardInterrupt would print an import traceback.
@@ -21,7 +22,10 @@ def quiet_interrupts_in_cli(argv0: str) -> None:
     import os
     import sys
 
-    if os.path.basename(argv0) != "dualtwin":
+    args = list(orig_argv or [])
+    as_module = any(a == "-m" and args[i + 1:i + 2] in (["dualtwin"], ["dualtwin.cli"])
+                    for i, a in enumerate(args))
+    if os.path.basename(argv0) != "dualtwin" and not as_module:
         return
     previous = sys.excepthook
 
