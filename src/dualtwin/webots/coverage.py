@@ -114,7 +114,9 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("BallJoint", "joint", "partial",
              "three axes (the first from jointParameters2, the third from jointParameters3, the second their "
              "cross product) with motors, position sensors, brakes, stops and friction on an Euler AMotor; "
-             "springs, dampers and brakes on a second Euler AMotor; kinematic when the endPoint has no Physics"),
+             "springs, dampers and brakes on a second Euler AMotor; on a static parent both AMotors hang on the "
+             "endPoint alone (ODE's first and third axes swapped), so motors, stops, torques and springs act on "
+             "each axis as with a body as parent; kinematic when the endPoint has no Physics"),
     Coverage("JointParameters", "joint", "supported", "slider axis, position, stops, spring, damping, friction"),
     Coverage("HingeJointParameters", "joint", "supported", "axis, anchor and the JointParameters fields"),
     Coverage("BallJointParameters", "joint", "supported", "anchor"),
@@ -135,7 +137,10 @@ REGISTRY: tuple[Coverage, ...] = (
     # -- devices
     Coverage("RotationalMotor", "device", "partial",
              "velocity, position (Webots' PID) and torque control with limits, acceleration and the initial "
-             "hold; coupled motors ('name::suffix') relay setPosition/setVelocity/setForce with their "
+             "hold, basic step by basic step as Webots' law gives it (a command before step call k acts from the "
+             "first basic step of call k, the law reads the joint position of the previous basic step's end; "
+             "checked by hand for controller steps of one and two basic steps in both controller isolation "
+             "modes); coupled motors ('name::suffix') relay setPosition/setVelocity/setForce with their "
              "multipliers and their limits are harmonised at load to the first motor's; torque/force feedback "
              "from ODE's joint feedback: what the joint applies to the endPoint about the anchor along the "
              "axis, in the sense setTorque/setForce would command (hinge, both Hinge2 axes, slider, also on a "

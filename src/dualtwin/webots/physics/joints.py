@@ -58,7 +58,7 @@ class JointBuilder(SceneBuilder):
             # §4.4: the three axes' motors and stops live on an Euler AMotor (axis 1 turns with the parent,
             # axis 3 with the endPoint); with no motor, stop or friction it adds no constraint row
             joint.amotor = lib.dJointCreateAMotor(w, None)
-            lib.dJointAttach(joint.amotor, pb, joint.child_body.ptr)
+            self._attach_euler(joint.amotor, joint)
             lib.dJointSetAMotorMode(joint.amotor, ode.dAMotorEuler)
         joint.child_body.joints.append(joint)
         if joint.parent_body is not None:
@@ -174,6 +174,16 @@ class JointBuilder(SceneBuilder):
         joint.offsets = list(joint.positions)
         self._read_joint(joint, predict=False)
 
+    def _attach_euler(self, amotor: int, joint: JointRec) -> None:
+        """Attach a BallJoint's Euler AMotor: parent then endPoint, or, on a static parent, the endPoint alone as
+        its first body. (Attached as (none, endPoint), ODE flags the AMotor reversed, and its Euler mode does not
+        follow that flag: its angles then run against its rows, so stops pushed the wrong way.)"""
+        assert joint.child_body is not None
+        if joint.parent_body is None:
+            self._lib.dJointAttach(amotor, joint.child_body.ptr, None)
+        else:
+            self._lib.dJointAttach(amotor, joint.parent_body.ptr, joint.child_body.ptr)
+
     def _set_euler_axes(self, joint: JointRec, frame: Pose) -> None:
         """The Euler AMotor's axes from the current poses, and the reference the positions are measured from:
         ODE's Euler angles are minus Webots' positions (checked), read here from the bodies' rotations after
@@ -183,9 +193,16 @@ class JointBuilder(SceneBuilder):
         a3 = frame.rotate(joint.axis_local[2])
         a3 = m3.normalized(m3.sub(a3, m3.scale(a1, m3.dot(a1, a3))))  # Euler mode needs a3 ⟂ a1
         a2 = m3.cross(a3, a1)
-        sign = -1.0 if joint.reverse else 1.0  # ODE swaps the bodies of a reversed joint
-        lib.dJointSetAMotorAxis(joint.amotor, 0, 1, *m3.scale(a1, sign))
-        lib.dJointSetAMotorAxis(joint.amotor, 2, 2, *m3.scale(a3, sign))
+        if joint.parent_body is None:
+            # the endPoint is the AMotor's first body (_attach_euler): ODE's first axis, relative to it, carries
+            # Webots' third and ODE's third (in the world) Webots' first, both negated as the bodies are swapped;
+            # ODE's middle axis (third × first) is then −a2, the same sense as the others. (Webots' a1 and a3 in
+            # ODE's first and third slots made it +a2: a second-axis motor drove the joint away from its target.)
+            lib.dJointSetAMotorAxis(joint.amotor, 0, 1, *m3.scale(a3, -1.0))
+            lib.dJointSetAMotorAxis(joint.amotor, 2, 2, *m3.scale(a1, -1.0))
+        else:
+            lib.dJointSetAMotorAxis(joint.amotor, 0, 1, *a1)
+            lib.dJointSetAMotorAxis(joint.amotor, 2, 2, *a3)
         parent_R = joint.parent_body.pose().R if joint.parent_body is not None else m3.IDENTITY
         assert joint.child_body is not None
         basis = (a1[0], a2[0], a3[0], a1[1], a2[1], a3[1], a1[2], a2[2], a3[2])  # columns a1, a2, a3
@@ -225,7 +242,7 @@ class JointBuilder(SceneBuilder):
             self._set_hinge2_second_stops(joint, lo, hi)
             return
         setp = self._param_setter(joint)
-        group = _GROUPS[i]
+        group = _GROUPS[joint.ode_axis(i)]
         setp(joint.ptr, group + ode.dParamLoStop, lo)
         setp(joint.ptr, group + ode.dParamHiStop, hi)
 
@@ -266,7 +283,7 @@ class JointBuilder(SceneBuilder):
         sf = joint.static_friction[i]
         if joint.motors[i] is None and sf > 0:
             setp = self._param_setter(joint)
-            group = _GROUPS[i]
+            group = _GROUPS[joint.ode_axis(i)]
             setp(joint.ptr, group + ode.dParamVel, 0.0)
             setp(joint.ptr, group + ode.dParamFMax, sf)
 
@@ -363,9 +380,7 @@ class JointBuilder(SceneBuilder):
         lib = self._lib
         h = self.dt
         am = lib.dJointCreateAMotor(self._world, None)
-        pb = joint.parent_body.ptr if joint.parent_body is not None else None
-        assert joint.child_body is not None
-        lib.dJointAttach(am, pb, joint.child_body.ptr)
+        self._attach_euler(am, joint)
         lib.dJointSetAMotorMode(am, ode.dAMotorEuler)
         for index in (0, 2):
             axis = ctypes.cast((ctypes.c_double * 4)(), ctypes.POINTER(ctypes.c_double))
@@ -375,7 +390,7 @@ class JointBuilder(SceneBuilder):
             if k == 0.0 and b == 0.0:
                 continue
             stop = m3.normalize_angle(joint.offsets[i])
-            g = _GROUPS[i]
+            g = _GROUPS[joint.ode_axis(i)]
             lib.dJointSetAMotorParam(am, g + ode.dParamLoStop, stop)
             lib.dJointSetAMotorParam(am, g + ode.dParamHiStop, stop)
             lib.dJointSetAMotorParam(am, g + ode.dParamStopCFM, 1.0 / (h * k + b))
@@ -412,7 +427,7 @@ class JointBuilder(SceneBuilder):
 
     def _set_motor_row(self, joint: JointRec, i: int, vel: float, fmax: float) -> None:
         setp = self._param_setter(joint)
-        g = _GROUPS[i]
+        g = _GROUPS[joint.ode_axis(i)]
         setp(joint.ptr, g + ode.dParamVel, vel)
         setp(joint.ptr, g + ode.dParamFMax, fmax)
 

@@ -311,6 +311,13 @@ class JointRec(_ShortRepr):
     def kinematic(self) -> bool:
         return self.ptr == 0
 
+    def ode_axis(self, i: int) -> int:
+        """The ODE axis (parameter group, AMotor axis index) carrying Webots axis ``i``. On a static parent a
+        BallJoint's Euler AMotor has the endPoint as its first body, so ODE's first axis turns with the endPoint
+        and its third stays in the world: there Webots' third axis is ODE's first and Webots' first is ODE's
+        third (physics/joints.py ``_attach_euler`` and ``_set_euler_axes``)."""
+        return 2 - i if self.kind == "ball" and self.reverse else i
+
 
 # --------------------------------------------------------------------------------------------------
 

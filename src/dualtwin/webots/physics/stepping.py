@@ -110,7 +110,7 @@ class Stepper(SupervisorEdits):
                 lib.dJointAddSliderForce(joint.ptr, tau)
             elif kind == "ball":
                 torques = [0.0, 0.0, 0.0]
-                torques[i] = -tau
+                torques[joint.ode_axis(i)] = -tau
                 lib.dJointAddAMotorTorques(joint.amotor, *torques)
             elif i == 0:
                 lib.dJointAddHinge2Torques(joint.ptr, -tau, 0.0)
