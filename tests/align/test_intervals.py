@@ -122,3 +122,33 @@ def test_basin_search_finds_the_deeper_valley(tmp_path: Path, search: str) -> No
     else:
         assert a == pytest.approx(1.0, abs=1e-3), outcome.stop_reason
         assert outcome.stop_reason.startswith("basin search: 8 points screened")
+
+
+class Bouncy(Line):
+    """The line plus a bounce: a stretch of samples whose value jumps as ``a`` crosses each multiple of 1.3e-3 (a
+    contact that happens or not), so the criterion is rough far below any finite-difference step."""
+
+    def evaluate_knobs(self, values: Sequence[Mapping[str, float]]) -> list[Evaluation]:
+        out = []
+        for v, e in zip(values, super().evaluate_knobs(values), strict=True):
+            r = e.residual.copy()
+            phase = (v["a"] / 1.3e-3) % 1.0
+            r[200:230] += 0.02 * (phase - 0.5)
+            out.append(Evaluation(float(r @ r), None, r))
+        return out
+
+
+def test_a_rough_criterion_is_profiled_to_what_its_bumps_allow_and_labelled() -> None:
+    y = 2.5 * T - 0.7 + np.random.default_rng(7).normal(0.0, 0.01, T.size)
+    problem = Bouncy(SPECS, y)
+    # The fit ends on a bump's low side near the smooth minimum (as a search in a rough valley does).
+    grid = [[x, u_b] for x in np.linspace(0.6, 0.65, 801) for u_b in (ols_u(problem)[1],)]
+    best = min(problem.run(grid), key=residual_norm)
+    unc = estimate_intervals(problem, best.u, 0.03)
+    assert unc.noise["jitter"] > unc.noise["threshold"]
+    assert unc.methods["a"] == "profile (rough criterion)", unc.methods
+    lo, hi = unc.intervals["a"] or (0.0, 0.0)
+    assert lo < 2.5 < hi and hi - lo > 4e-3  # wider than the bumps' spacing: the data cannot resolve below it
+    # Control: the same data without the bounce keep a quadratic interval that is not labelled rough.
+    smooth = estimate_intervals(Line(SPECS, y), ols_u(problem), 0.03)
+    assert smooth.noise["jitter"] < smooth.noise["threshold"] and "rough" not in smooth.methods["a"]

@@ -163,3 +163,7 @@ def test_a_series_starting_beyond_the_threshold_has_no_crossing_to_shift() -> No
     assert event_difference(ref, shifted, Threshold(0.99)) == 0.0
     falling = Series(t, np.clip(0.5 + t, None, 1.0))
     assert event_difference(falling, Series(t - LATE, falling.y), Threshold(0.99)) == pytest.approx(-LATE)
+    # A pole on its stop that bounces off it: a candidate shifted by a fraction of a period whose first kept
+    # sample falls inside the bounce must not "cross" there (a jump in the criterion at every period).
+    bouncing = np.where((t > 0.1) & (t < 0.2), 0.95, 1.0)
+    assert event_difference(Series(t, bouncing), Series(t - 0.04, bouncing), Threshold(0.99)) == 0.0

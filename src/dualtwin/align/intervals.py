@@ -20,7 +20,17 @@ once reported a damping of 0.0100 ± 0.00007 where the truth was 0.03). Here:
    :data:`QUADRATIC_TOLERANCE` on either side, the direction is scanned (one more batch) and the interval ends
    where the rise crosses the threshold: method ``profile``. A side that never crosses it within the bounds
    ends at the bound (``profile (open to the bound)``).
-3. **Nothing pinned.** A knob along a direction the Jacobian does not see (no effect, or a combination
+3. **A rough criterion.** Contacts and impacts make the criterion rough: a change of a knob far below the
+   finite-difference step can move it by more than the noise threshold (a bounce happens or not). Then both
+   the Jacobian (which sees slopes of the roughness) and a first-crossing profile claim a precision the data
+   never gave: the recorded-runs bench once reported a damping interval of width 1e-5 around 0.0142 while the
+   truth, 0.03, scored the same to within the roughness. Before any interval is trusted, each knob is moved
+   by :data:`ROUGH_PROBE` of the step either way and the criterion compared with the Gauss-Newton prediction
+   from the Jacobian; the largest miss is the criterion's **jitter**. Where it exceeds the noise threshold, a
+   rise below the jitter cannot reject a value: every knob is profiled out to its bounds with the threshold
+   raised by the jitter, the interval is the hull of every scanned value whose rise stays below it (not the
+   first crossing, which a bump gives), and the method says ``profile (rough criterion)``.
+4. **Nothing pinned.** A knob along a direction the Jacobian does not see (no effect, or a combination
    of knobs the suite cannot separate) gets its bounds as the interval, no half-width, method ``unpinned``.
 
 The correlation matrix is taken from the pseudo-inverse of ``JᵀJ`` so that exactly interchangeable knobs show
@@ -49,6 +59,10 @@ PROFILE_RESOLUTION = 1e-6
 PROFILE_CORRECTIONS = 2
 #: Profile scan, in quadratic half-widths from the fit.
 SCAN = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 5.0, 8.0)
+#: Roughness probes: each knob moved by this fraction of the finite-difference step, both ways.
+ROUGH_PROBE = 0.125
+#: A rough criterion's profile: this many points per side, spaced geometrically out to the bound.
+ROUGH_SCAN = 10
 
 
 def effective_samples(r: np.ndarray, blocks: Sequence[ResidualBlock] | None) -> float:
@@ -125,6 +139,10 @@ def estimate_intervals(problem: Problem, u: Sequence[float], step: float, profil
     pinv = (vec[:, keep] / eig[keep]) @ vec[:, keep].T
     cov = s2 * inflation * pinv
     threshold = t * t * s2 * inflation
+    # How rough is the criterion at a fraction of the step? A miss larger than the threshold means rises below
+    # it say nothing: every knob is then profiled to its bounds against the threshold plus the jitter.
+    jitter = criterion_jitter(problem, u, cont, step, jac, r0) if profile else 0.0
+    rough_criterion = jitter > threshold
     names = [specs[i].name for i in cont]
     scans: list[tuple[int, int, float, np.ndarray]] = []
     for col, i in enumerate(cont):
@@ -143,60 +161,127 @@ def estimate_intervals(problem: Problem, u: Sequence[float], step: float, profil
         methods[spec.name] = label
         # Below ~1e-6 of the range a simulation's rise is rounding, not curvature: an exact fit keeps the
         # quadratic interval.
-        if profile and t * sd > PROFILE_RESOLUTION:
+        if profile and (rough_criterion or t * sd > PROFILE_RESOLUTION):
             scans.append((col, i, sd, direction))
-    if scans:
+    if scans and rough_criterion:
+        rough = [(s, 0.0, 0.0) for s in scans]
+    elif scans:
         probes = [_along(u, d, k) for _, _, _, d in scans for k in (-1.0, 1.0)]
         rises = [float(pt.residual @ pt.residual) - ssr0 for pt in problem.run(probes)]
         rough = [(s, rises[2 * j], rises[2 * j + 1]) for j, s in enumerate(scans)
                  if not all(1 / QUADRATIC_TOLERANCE ** 2 <= rise / threshold <= QUADRATIC_TOLERANCE ** 2
                             for rise in rises[2 * j:2 * j + 2])]
-        if rough:
+    else:
+        rough = []
+    if rough:
+        if rough_criterion:
+            # Out to the box on each side, denser near the fit: a rough criterion's rise is not read off a
+            # multiple of a half-width that the Jacobian of the roughness gave.
+            scales = [[s * _reach(u, d, s) * (j / ROUGH_SCAN) ** 2 for s in (-1.0, 1.0)
+                       for j in range(1, ROUGH_SCAN + 1)] for (_, _, _, d), _, _ in rough]
+        else:
             # Multiples of the quadratic half-width, shrunk on a side where the box ends sooner, so the scan
             # stays inside it (a half-width larger than the box would put every point on its corner).
             scales = [[s * k * _room(u, d, s) for s in (-1.0, 1.0) for k in SCAN] for (_, _, _, d), _, _ in rough]
-            points = [_along(u, d, k) for ((_, _, _, d), _, _), ks in zip(rough, scales, strict=True) for k in ks]
-            ks = [0.0] * len(SCAN) * 2
-            current = problem.run(points)
+        points = [_along(u, d, k) for ((_, _, _, d), _, _), ks in zip(rough, scales, strict=True) for k in ks]
+        ks = scales[0]  # every knob's scan has as many points
+        current = problem.run(points)
+        best = [float(pt.residual @ pt.residual) for pt in current]
+        # Gauss-Newton corrections of the other knobs at every scan point (the fit's Jacobian, one batch
+        # each): a profile re-fits the others, and a curved valley leaves any straight line.
+        for _ in range(PROFILE_CORRECTIONS):
+            corrected = []
+            for j, ((col, _, _, _), _, _) in enumerate(rough):
+                others = [c for c in range(p) if c != col]
+                for pt in current[j * len(ks):(j + 1) * len(ks)]:
+                    q = list(pt.u)
+                    if others:
+                        delta, *_ = np.linalg.lstsq(jac[:, others], -pt.residual, rcond=1e-10)
+                        for c, dv in zip(others, delta, strict=True):
+                            q[cont[c]] = min(1.0, max(0.0, q[cont[c]] + float(dv)))
+                    corrected.append(q)
+            stepped = problem.run(corrected)
+            current = [b if float(b.residual @ b.residual) < float(a.residual @ a.residual) else a
+                       for a, b in zip(current, stepped, strict=True)]
             best = [float(pt.residual @ pt.residual) for pt in current]
-            # Gauss-Newton corrections of the other knobs at every scan point (the fit's Jacobian, one batch
-            # each): a profile re-fits the others, and a curved valley leaves any straight line.
-            for _ in range(PROFILE_CORRECTIONS):
-                corrected = []
-                for j, ((col, _, _, _), _, _) in enumerate(rough):
-                    others = [c for c in range(p) if c != col]
-                    for pt in current[j * len(ks):(j + 1) * len(ks)]:
-                        q = list(pt.u)
-                        if others:
-                            delta, *_ = np.linalg.lstsq(jac[:, others], -pt.residual, rcond=1e-10)
-                            for c, dv in zip(others, delta, strict=True):
-                                q[cont[c]] = min(1.0, max(0.0, q[cont[c]] + float(dv)))
-                        corrected.append(q)
-                stepped = problem.run(corrected)
-                current = [b if float(b.residual @ b.residual) < float(a.residual @ a.residual) else a
-                           for a, b in zip(current, stepped, strict=True)]
-                best = [float(pt.residual @ pt.residual) for pt in current]
-            values = [v - ssr0 for v in best]
-            for j, ((_, i, _, d), _, _) in enumerate(rough):
-                curve = dict(zip(scales[j], values[j * len(ks):(j + 1) * len(ks)], strict=True))
-                curve[0.0] = 0.0
-                spec = specs[i]
-                ends, open_side = [], False
-                for sign in (-1.0, 1.0):
-                    k_end, reached = _crossing(curve, sign, threshold)
-                    point = _along(u, d, k_end)
-                    open_side |= not reached
-                    ends.append(spec.lower if not reached and sign < 0 else spec.upper if not reached
-                                else spec.from_unit(point[i]))
-                value = spec.from_unit(u[i])
-                lo, hi = min(ends), max(ends)
-                intervals[spec.name] = (lo, hi)
-                half[spec.name] = None if open_side else max(hi - value, value - lo)
-                methods[spec.name] = "profile (open to the bound)" if open_side else "profile"
+        values = [v - ssr0 for v in best]
+        for j, ((_, i, _, d), _, _) in enumerate(rough):
+            curve = dict(zip(scales[j], values[j * len(ks):(j + 1) * len(ks)], strict=True))
+            curve[0.0] = 0.0
+            spec = specs[i]
+            ends, open_side = [], False
+            for sign in (-1.0, 1.0):
+                k_end, reached = (_hull(curve, sign, threshold + jitter) if rough_criterion
+                                  else _crossing(curve, sign, threshold))
+                point = _along(u, d, k_end)
+                open_side |= not reached
+                ends.append(spec.lower if not reached and sign < 0 else spec.upper if not reached
+                            else spec.from_unit(point[i]))
+            value = spec.from_unit(u[i])
+            lo, hi = min(ends), max(ends)
+            intervals[spec.name] = (lo, hi)
+            half[spec.name] = None if open_side else max(hi - value, value - lo)
+            notes = ["rough criterion"] if rough_criterion else []
+            notes += ["open to the bound"] if open_side else []
+            methods[spec.name] = f"profile ({', '.join(notes)})" if notes else "profile"
     corr = _correlation(pinv)
-    noise = {"s2": s2, "samples": float(n), "effective_samples": n_eff, "inflation": inflation, "dof": float(dof)}
+    noise = {"s2": s2, "samples": float(n), "effective_samples": n_eff, "inflation": inflation, "dof": float(dof),
+             "threshold": threshold, "jitter": jitter}
     return Uncertainty(half, base.condition, base.warnings, intervals, methods,
                        {"knobs": names, "matrix": corr.tolist()}, correlated_pairs(names, corr), noise)
+
+
+def criterion_jitter(problem: Problem, u: Sequence[float], cont: Sequence[int], step: float, jac: np.ndarray,
+                     r0: np.ndarray) -> float:
+    """The criterion's largest miss of its Gauss-Newton prediction ``|r0 + J δ|²`` with each knob moved by
+    :data:`ROUGH_PROBE` of ``step`` either way (one batch): ~0 for a smooth criterion, the size of the bumps
+    for one that contacts make rough."""
+    probes, deltas = [], []
+    for col, i in enumerate(cont):
+        for sign in (-1.0, 1.0):
+            q = list(u)
+            q[i] = min(1.0, max(0.0, u[i] + sign * ROUGH_PROBE * step))
+            if q[i] == u[i]:
+                continue
+            delta = np.zeros(len(cont))
+            delta[col] = q[i] - u[i]
+            probes.append(q)
+            deltas.append(delta)
+    if not probes:
+        return 0.0
+    misses = []
+    for pt, delta in zip(problem.run(probes), deltas, strict=True):
+        predicted = r0 + jac @ delta
+        misses.append(abs(float(pt.residual @ pt.residual) - float(predicted @ predicted)))
+    return max(misses)
+
+
+def _reach(u: Sequence[float], direction: np.ndarray, sign: float) -> float:
+    """How many ``direction`` steps from ``u`` along ``sign`` stay inside the unit box (0 at a bound)."""
+    limit = math.inf
+    for x, dx in zip(u, direction, strict=True):
+        step = sign * float(dx)
+        if step > 1e-15:
+            limit = min(limit, (1.0 - x) / step)
+        elif step < -1e-15:
+            limit = min(limit, x / -step)
+    return 0.0 if not math.isfinite(limit) else limit
+
+
+def _hull(curve: dict[float, float], sign: float, threshold: float) -> tuple[float, bool]:
+    """The outermost scanned point on one side whose rise stays below ``threshold``, extended to where the next
+    point out crosses it (linear in between); ``reached`` is False when even the last scanned point stays below.
+    A rough criterion's bump then cannot end an interval that a lower point further out would have extended."""
+    ks = sorted((k for k in curve if k * sign >= 0), key=abs)
+    inside = [k for k in ks if curve[k] < threshold]
+    last = inside[-1] if inside else 0.0
+    beyond = [k for k in ks if abs(k) > abs(last)]
+    if not beyond:
+        return ks[-1], False
+    nxt = beyond[0]
+    v0, v1 = curve.get(last, 0.0), curve[nxt]
+    frac = (threshold - v0) / (v1 - v0) if v1 > v0 else 1.0
+    return last + min(1.0, max(0.0, frac)) * (nxt - last), True
 
 
 def _room(u: Sequence[float], direction: np.ndarray, sign: float) -> float:

@@ -188,7 +188,9 @@ def event_difference(ref: Series, cand: Series, threshold: Threshold) -> float:
 
     Crossings are looked for from the later of the two first samples on: a candidate shifted onto the
     reference's clock (a nuisance time offset) starts earlier, and a series that starts beyond the threshold
-    (a pole resting on its stop) would otherwise "cross" at its own first sample.
+    (a pole resting on its stop) would otherwise "cross" at its own first sample. A reference already past the
+    threshold there has no crossing to time (0): a candidate shifted by a fraction of a period would otherwise
+    "cross" wherever its first kept sample falls inside a bounce, a jump in the criterion at every period.
     """
     ta, ya = finite_prefix(ref.t, ref.y)
     tb, yb = finite_prefix(cand.t, cand.y)
@@ -196,6 +198,8 @@ def event_difference(ref: Series, cand: Series, threshold: Threshold) -> float:
         start = max(float(ta[0]), float(tb[0])) - 1e-9
         keep_a, keep_b = ta >= start, tb >= start
         ta, ya, tb, yb = ta[keep_a], ya[keep_a], tb[keep_b], yb[keep_b]
+        if ta.size and crossing_time(ta[:1], ya[:1], threshold) is not None:
+            return 0.0
     ca, ca_eff = _crossing_or_end(ta, ya, threshold)
     cb, cb_eff = _crossing_or_end(tb, yb, threshold)
     if ca is None and cb is None:
