@@ -51,7 +51,10 @@ def test_cma_recovers_the_damping(cma_fit: AlignResult) -> None:
 def test_lsq_recovers_the_damping_with_an_interval(lsq_fit: AlignResult) -> None:
     assert rel_error(lsq_fit) < 0.05
     fit = lsq_fit.knobs[DAMPING]
-    assert fit.half_width_95 is not None and fit.half_width_95 < 0.05 * TRUE_DAMPING
+    # Contacts (the pole on its stops) make the criterion rough at 1/4 of the finite-difference step: the interval
+    # is then the profile at the criterion's own bumps (wider than the Jacobian's), and it covers the truth.
+    assert fit.half_width_95 is not None and fit.half_width_95 < 0.1 * TRUE_DAMPING
+    assert fit.interval_95 is not None and fit.interval_95[0] < TRUE_DAMPING < fit.interval_95[1]
     assert lsq_fit.condition_number == pytest.approx(1.0) and not lsq_fit.warnings
 
 

@@ -133,7 +133,7 @@ class Bouncy(Line):
         for v, e in zip(values, super().evaluate_knobs(values), strict=True):
             r = e.residual.copy()
             phase = (v["a"] / 1.3e-3) % 1.0
-            r[200:230] += 0.02 * (phase - 0.5)
+            r[200:230] += 0.1 * (phase - 0.5)
             out.append(Evaluation(float(r @ r), None, r))
         return out
 

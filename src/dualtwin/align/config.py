@@ -34,7 +34,7 @@ Objective = Literal["trajectory", "prediction"]
 GlobalSearch = Literal["multistart", "off"]
 #: Fields added after folders were written without them: left out of the saved config while at their default,
 #: so those folders stay resumable and a run that does not use them writes the same bytes as before.
-LATER_FIELDS = frozenset({"global_search", "starts", "tie", "sysid_params", "batch"})
+LATER_FIELDS = frozenset({"global_search", "starts", "tie", "sysid_params", "batch", "exclude"})
 #: Horizons of the prediction objective: 1 and 5 periods stay smooth in the knobs; 25 periods already cross
 #: impacts (a pole landing on its stop) and make the residual as rough as an open-loop one.
 OBJECTIVE_HORIZONS = (1, 5)
@@ -67,6 +67,9 @@ class AlignConfig(FrozenModel):
                                                    "(NAME=LOWER,UPPER)")
     channels: list[str] | None = Field(default=None, description="channels to fit (default: every shared one)")
     holdout: list[str] = Field(default_factory=list, description="scenario ids held out for validation")
+    exclude: list[str] = Field(default_factory=list, description="scenario ids left out of the objective with "
+                               "your consent (neither fitted nor held out), e.g. one the fit names as beyond its "
+                               "reproducibility floor; the record and report say what was excluded and why")
     thresholds: dict[str, float] | None = Field(default=None, description="crossing threshold per channel "
                                                 "(CHANNEL=VALUE; default 0.99 rad on *_angle_rad)")
     optimizer: Optimizer = Field(default="cma", description="CMA-ES or least squares")

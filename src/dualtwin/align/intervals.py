@@ -25,8 +25,9 @@ once reported a damping of 0.0100 ± 0.00007 where the truth was 0.03). Here:
    the Jacobian (which sees slopes of the roughness) and a first-crossing profile claim a precision the data
    never gave: the recorded-runs bench once reported a damping interval of width 1e-5 around 0.0142 while the
    truth, 0.03, scored the same to within the roughness. Before any interval is trusted, each knob is moved
-   by :data:`ROUGH_PROBE` of the step either way and the criterion compared with the Gauss-Newton prediction
-   from the Jacobian; the largest miss is the criterion's **jitter**. Where it exceeds the noise threshold, a
+   by 1 and 2 × :data:`ROUGH_PROBE` of the step either way and a parabola fitted to the five values; the
+   largest miss is the criterion's **jitter** (a smooth criterion is a parabola there to within its next
+   Taylor term). Where it exceeds the noise threshold, a
    rise below the jitter cannot reject a value: every knob is profiled out to its bounds with the threshold
    raised by the jitter, the interval is the hull of every scanned value whose rise stays below it (not the
    first crossing, which a bump gives), and the method says ``profile (rough criterion)``.
@@ -61,6 +62,8 @@ PROFILE_CORRECTIONS = 2
 SCAN = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 5.0, 8.0)
 #: Roughness probes: each knob moved by this fraction of the finite-difference step, both ways.
 ROUGH_PROBE = 0.125
+#: A parabola's miss below this fraction of the probed values' spread is a smooth criterion's next Taylor term.
+ROUGH_FRACTION = 0.1
 #: A rough criterion's profile: this many points per side, spaced geometrically out to the bound.
 ROUGH_SCAN = 10
 
@@ -141,7 +144,7 @@ def estimate_intervals(problem: Problem, u: Sequence[float], step: float, profil
     threshold = t * t * s2 * inflation
     # How rough is the criterion at a fraction of the step? A miss larger than the threshold means rises below
     # it say nothing: every knob is then profiled to its bounds against the threshold plus the jitter.
-    jitter = criterion_jitter(problem, u, cont, step, jac, r0) if profile else 0.0
+    jitter = criterion_jitter(problem, u, cont, step) if profile else 0.0
     rough_criterion = jitter > threshold
     names = [specs[i].name for i in cont]
     scans: list[tuple[int, int, float, np.ndarray]] = []
@@ -231,29 +234,38 @@ def estimate_intervals(problem: Problem, u: Sequence[float], step: float, profil
                        {"knobs": names, "matrix": corr.tolist()}, correlated_pairs(names, corr), noise)
 
 
-def criterion_jitter(problem: Problem, u: Sequence[float], cont: Sequence[int], step: float, jac: np.ndarray,
-                     r0: np.ndarray) -> float:
-    """The criterion's largest miss of its Gauss-Newton prediction ``|r0 + J δ|²`` with each knob moved by
-    :data:`ROUGH_PROBE` of ``step`` either way (one batch): ~0 for a smooth criterion, the size of the bumps
-    for one that contacts make rough."""
-    probes, deltas = [], []
-    for col, i in enumerate(cont):
-        for sign in (-1.0, 1.0):
+def criterion_jitter(problem: Problem, u: Sequence[float], cont: Sequence[int], step: float) -> float:
+    """The criterion's bumps: each knob moved by 1 and 2 × :data:`ROUGH_PROBE` of ``step`` either way (inward
+    only at a bound; one batch), a parabola fitted to the five values, and the largest miss of a parabola over
+    every knob. A smooth criterion is a parabola at that distance to within its next Taylor term; one that
+    contacts make rough is not. Misses below :data:`ROUGH_FRACTION` of the values' spread are not counted."""
+    ks_of: list[list[float]] = []
+    probes = []
+    for i in cont:
+        delta = ROUGH_PROBE * step
+        ks = [-2.0, -1.0, 1.0, 2.0]
+        if u[i] - 2 * delta < 0.0:
+            ks = [1.0, 2.0, 3.0, 4.0]
+        elif u[i] + 2 * delta > 1.0:
+            ks = [-4.0, -3.0, -2.0, -1.0]
+        ks_of.append(ks)
+        for k in ks:
             q = list(u)
-            q[i] = min(1.0, max(0.0, u[i] + sign * ROUGH_PROBE * step))
-            if q[i] == u[i]:
-                continue
-            delta = np.zeros(len(cont))
-            delta[col] = q[i] - u[i]
+            q[i] = min(1.0, max(0.0, u[i] + k * delta))
             probes.append(q)
-            deltas.append(delta)
     if not probes:
         return 0.0
-    misses = []
-    for pt, delta in zip(problem.run(probes), deltas, strict=True):
-        predicted = r0 + jac @ delta
-        misses.append(abs(float(pt.residual @ pt.residual) - float(predicted @ predicted)))
-    return max(misses)
+    values = [float(pt.residual @ pt.residual) for pt in problem.run([list(u), *probes])]
+    f0, rest = values[0], values[1:]
+    jitter = 0.0
+    for j, ks in enumerate(ks_of):
+        x = np.array([0.0, *ks])
+        f = np.array([f0, *rest[4 * j:4 * j + 4]])
+        coef = np.polyfit(x, f, 2)
+        miss = float(np.max(np.abs(np.polyval(coef, x) - f)))
+        if miss > ROUGH_FRACTION * float(np.ptp(f)):
+            jitter = max(jitter, miss)
+    return jitter
 
 
 def _reach(u: Sequence[float], direction: np.ndarray, sign: float) -> float:

@@ -26,6 +26,7 @@ from dualtwin.align.config import PREDICTION_FIELDS, AlignConfig
 from dualtwin.align.core import GenerationInfo, Point, fd_jacobian, residual_norm
 from dualtwin.align.dr import ranges_from_intervals, ranges_from_population
 from dualtwin.align.ensemble import EnsembleProblem
+from dualtwin.align.floor_check import FLOOR_EPS, FLOOR_LIMIT, beyond_floor, check_floors
 from dualtwin.align.identifiability import Identifiability, check
 from dualtwin.align.intervals import estimate_intervals
 from dualtwin.align.knobs import (
@@ -149,8 +150,15 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
     unknown = sorted(set(held) - set(ids))
     if unknown:
         raise DualtwinError(f"holdout names unknown scenarios {unknown}; the suite has {ids}")
-    if not [s for s in ids if s not in held]:
-        raise DualtwinError("every scenario is held out; nothing is left to fit")
+    excluded = list(config.exclude)
+    unknown = sorted(set(excluded) - set(ids))
+    if unknown:
+        raise DualtwinError(f"exclude names unknown scenarios {unknown}; the suite has {ids}")
+    both = sorted(set(excluded) & set(held))
+    if both:
+        raise DualtwinError(f"scenarios {both} are both held out and excluded; give each to one of them")
+    if not [s for s in ids if s not in held and s not in excluded]:
+        raise DualtwinError("every scenario is held out or excluded; nothing is left to fit")
     check_executor(config.executor)
     kind = reference_kind(config.reference)
     if config.reference_kind not in (None, kind):
@@ -168,7 +176,7 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
     try:
         # Everything checkable is checked before the output folder is touched, so a typo costs nothing.
         channel_names = list(RobotIO(binding, target).channel_info())
-        fitted_ids = [s for s in ids if s not in held]
+        fitted_ids = [s for s in ids if s not in held and s not in excluded]
         left: dict[str, dict[str, str]] = {}
         if kind == "run":
             shared = shared_with_reference(load_traces(Path(config.reference)), ids, channel_names,
@@ -176,7 +184,7 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
             missing_held = [s for s in held if s not in shared.scenarios]
             if missing_held:
                 raise DualtwinError(f"holdout names scenarios the reference does not have: {missing_held}")
-            fitted_ids = [s for s in shared.scenarios if s not in held]
+            fitted_ids = [s for s in shared.scenarios if s not in held and s not in excluded]
             if not fitted_ids:
                 raise DualtwinError(f"every scenario the reference has ({shared.scenarios}) is held out; "
                                     "nothing is left to fit")
@@ -227,7 +235,7 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
         if members:
             reference.update({sid: mean_trace(m) for sid, m in load_member_traces(ref_dir).items()})
         shared = shared_with_reference(reference, ids, channel_names, ref_dir)
-        train_ids = [s for s in shared.scenarios if s not in held]
+        train_ids = [s for s in shared.scenarios if s not in held and s not in excluded]
         train = build_spec(reference, train_ids, config.channels if config.channels is not None else shared.channels,
                            thresholds=thresholds, weights=config.weights)
         hold = build_spec(reference, held, train.channels, thresholds=thresholds, weights=config.weights) if held else None
@@ -275,8 +283,20 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
             # The budget is the fit's: the interval checks after it are counted apart.
             fit_evaluations = problem.evaluations
             uncertainty = estimate_intervals(problem, outcome.u, config.fd_step)
+            # Each fitted (and excluded) scenario against the target's reproducibility floor at the fit: what the
+            # twins cannot share is named, never dropped without consent (not counted in the budget).
+            judged = [s for s in shared.scenarios if s not in held]
+            floors = check_floors(evaluator, job, problem.values(outcome.u), reference, judged, train.channels,
+                                  binding)
         fitted, fitted_nuisance = nuisance.split(values_from_unit(specs, outcome.u))
         warnings += uncertainty.warnings
+        beyond = beyond_floor(floors)
+        warnings += [f"scenario {sid} is beyond its reproducibility floor after the fit ({why}); it stays in the "
+                     f"objective: to fit without it, exclude it with --exclude {sid} (AlignConfig.exclude)"
+                     for sid, why in beyond.items() if sid not in excluded]
+        excluded_why = {sid: "excluded by the user" + (f"; measured after the fit: {beyond[sid]}" if sid in beyond
+                                                        else "") for sid in excluded}
+        warnings += [f"scenario {sid} {why}" for sid, why in excluded_why.items()]
         warnings += [f"after the fit, {a} and {b} are correlated (r = {e['r']:+.3f}): the data fix a combination of "
                      "them, not each" for e in uncertainty.correlated for a, b in [e["knobs"]]]
         all_fits, bound_warnings = fit_records(specs, {**fitted, **fitted_nuisance}, uncertainty.half_widths,
@@ -333,7 +353,9 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
         identifiability={"before": identifiability.to_dict(), "after": {
             "correlation": uncertainty.correlation, "correlated": uncertainty.correlated,
             "noise": uncertainty.noise}},
-        advice=advice)
+        advice=advice, excluded=excluded_why,
+        floor_check={"eps": FLOOR_EPS, "limit": FLOOR_LIMIT, "beyond": beyond,
+                     "rows": [r.to_dict() for r in floors]})
     narrative = getattr(propose_fn, "narrative", None)
     if narrative is not None:
         result.narrative = narrative.to_dict()

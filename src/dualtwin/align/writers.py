@@ -102,6 +102,10 @@ class AlignResult:
     identifiability: dict[str, Any] = field(default_factory=dict)
     #: When the fit could not move: what the analysis suggests instead (sign flip, carried-over state, ...).
     advice: list[str] = field(default_factory=list)
+    #: Scenarios left out of the objective with the user's consent (``AlignConfig.exclude``) -> why.
+    excluded: dict[str, str] = field(default_factory=dict)
+    #: Each judged scenario against the target's reproducibility floor (:mod:`dualtwin.align.floor_check`).
+    floor_check: dict[str, Any] = field(default_factory=dict)
 
     @property
     def fitted(self) -> dict[str, float]:
@@ -245,6 +249,7 @@ def trajectory_record(config: AlignConfig, result: AlignResult, outcome: Outcome
             "condition_number": _condition(result.condition_number),
             "stop_reason": result.stop_reason, "warnings": result.warnings,
             "identifiability": result.identifiability, "advice": result.advice,
+            "excluded": result.excluded, "floor_check": result.floor_check,
         },
         "evaluations": result.evaluations,
         "iterations": result.iterations,

@@ -99,4 +99,6 @@ def _align_json(result: Any) -> dict[str, Any]:
             "knobs": {n: k.to_dict() for n, k in result.knobs.items()},
             "nuisance": {n: k.to_dict() for n, k in (getattr(result, "nuisance", None) or {}).items()},
             "left_out": dict(getattr(result, "left_out", None) or {}),
+            "excluded": dict(getattr(result, "excluded", None) or {}),
+            "beyond_floor": dict((getattr(result, "floor_check", None) or {}).get("beyond", {})),
             "warnings": list(result.warnings), "files": dict(result.files)}
