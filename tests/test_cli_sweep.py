@@ -37,6 +37,7 @@ Valid value per kind (what a new command's required option gets):
     twin          mujoco                                         unknown-twin
     env           dualtwin/CartPole-MuJoCo-Continuous-v0         unknown-env
     knob          physics.substeps                               unknown-knob
+    scenario      (optional: a scenario of the small suite)      unknown-scenario
     url           placeholder (nothing listens there)            unreachable
     address       (optional: a Ray address, with --executor ray)  unreachable (a loopback port nothing listens on)
     number        the option's default                          nan, negative
@@ -104,7 +105,7 @@ PARAMS: dict[str, str] = {
     "dr_top_fraction": "number", "dr_generations": "number", "dr_min_rel_width": "number",
     "reference_knobs": "text", "bounds": "text", "thresholds": "text", "weights": "text", "scales": "text",
     "channels": "text", "ray_address": "address", "global_search": "choice", "starts": "number", "tie": "text",
-    "sysid_params": "text", "batch": "choice",
+    "sysid_params": "text", "batch": "choice", "exclude": "scenario",
 }
 
 # Issue 27's families: structure no reader should trust (deep nesting, the same key twice) and, for suites,
@@ -121,6 +122,7 @@ FAMILIES: dict[str, tuple[str, ...]] = {
     "out": ("non-empty-foreign", "file-for-folder"),
     "outfile": ("foreign-file", "directory"),
     "robot": ("unknown-robot",), "twin": ("unknown-twin",), "env": ("unknown-env",), "knob": ("unknown-knob",),
+    "scenario": ("unknown-scenario",),
     "url": ("unreachable",), "address": ("unreachable",), "number": ("nan", "negative"), "numlist": ("nan", "negative"),
     "perturb": ("nan", "negative"), "choice": ("unknown-choice",), "text": (), "flag": (),
 }
@@ -378,6 +380,8 @@ def bad_value(case: Case, here: Path, url: str) -> str:
         return "dualtwin/NoSuchEnv-v0"
     if family == "unknown-knob":
         return "no.such.knob"
+    if family == "unknown-scenario":
+        return "no_such_scenario"
     if family == "unknown-choice":
         return "no_such_choice"
     if family in ("nan", "negative"):
@@ -476,8 +480,8 @@ def test_bad_input(case: Case, tmp_path: Path, runs: dict[str, Path], folders: d
     assert len(lines) == 1 and lines[0].startswith("error: "), shown
     param = next(p for p in command.params if p.name == case.param)
     names = {bad, Path(bad).name, *(param.opts or []), param.name}
-    if case.family in ("nan", "negative", "unknown-choice", "unknown-twin", "unknown-knob", "unknown-env",
-                       "unknown-robot", "unreachable"):
+    if case.family in ("nan", "negative", "unknown-choice", "unknown-twin", "unknown-knob", "unknown-scenario",
+                       "unknown-env", "unknown-robot", "unreachable"):
         names.add(bad.split("=")[-1].split(",")[-1])
     if placeholders and case.kind not in ("out", "outfile"):  # output folders are checked first: always strict
         names |= set(placeholders) | {Path(p).name for p in placeholders}

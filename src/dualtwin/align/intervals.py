@@ -268,8 +268,8 @@ def criterion_jitter(problem: Problem, u: Sequence[float], cont: Sequence[int], 
     return jitter
 
 
-def _reach(u: Sequence[float], direction: np.ndarray, sign: float) -> float:
-    """How many ``direction`` steps from ``u`` along ``sign`` stay inside the unit box (0 at a bound)."""
+def _box_limit(u: Sequence[float], direction: np.ndarray, sign: float) -> float:
+    """How many ``direction`` steps from ``u`` along ``sign`` stay inside the unit box (inf: no bound ahead)."""
     limit = math.inf
     for x, dx in zip(u, direction, strict=True):
         step = sign * float(dx)
@@ -277,6 +277,12 @@ def _reach(u: Sequence[float], direction: np.ndarray, sign: float) -> float:
             limit = min(limit, (1.0 - x) / step)
         elif step < -1e-15:
             limit = min(limit, x / -step)
+    return limit
+
+
+def _reach(u: Sequence[float], direction: np.ndarray, sign: float) -> float:
+    """How many ``direction`` steps from ``u`` along ``sign`` stay inside the unit box (0 at a bound)."""
+    limit = _box_limit(u, direction, sign)
     return 0.0 if not math.isfinite(limit) else limit
 
 
@@ -298,14 +304,7 @@ def _hull(curve: dict[float, float], sign: float, threshold: float) -> tuple[flo
 
 def _room(u: Sequence[float], direction: np.ndarray, sign: float) -> float:
     """The factor (at most 1) that makes the scan's last point along ``sign · direction`` land inside the box."""
-    limit = math.inf
-    for x, dx in zip(u, direction, strict=True):
-        step = sign * float(dx)
-        if step > 1e-15:
-            limit = min(limit, (1.0 - x) / step)
-        elif step < -1e-15:
-            limit = min(limit, x / -step)
-    return min(1.0, limit / SCAN[-1])
+    return min(1.0, _box_limit(u, direction, sign) / SCAN[-1])
 
 
 def _along(u: Sequence[float], direction: np.ndarray, k: float) -> list[float]:

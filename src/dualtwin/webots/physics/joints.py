@@ -253,13 +253,7 @@ class JointBuilder(SceneBuilder):
         −minStop + offset as on the first axis; stop ERP/CFM are the world's, as for any ODE stop."""
         lib = self._lib
         if not joint.stop2:
-            am = lib.dJointCreateAMotor(self._world, None)
-            pb = joint.parent_body.ptr if joint.parent_body is not None else None
-            assert joint.child_body is not None
-            lib.dJointAttach(am, pb, joint.child_body.ptr)
-            lib.dJointSetAMotorMode(am, ode.dAMotorUser)
-            lib.dJointSetAMotorNumAxes(am, 1)
-            joint.stop2 = am
+            joint.stop2 = self._one_axis_amotor(joint)
         out = (ctypes.c_double * 4)()
         lib.dJointGetHinge2Axis2(joint.ptr, out)
         lib.dJointSetAMotorAxis(joint.stop2, 0, 2, out[0], out[1], out[2])
@@ -332,17 +326,23 @@ class JointBuilder(SceneBuilder):
             lib.dJointSetLMotorParam(am, ode.dParamVel, 0.0)
         joint.spring = am
 
-    def _stop_amotor(self, joint: JointRec, axis: m3.Vec3, rel: int, stop: float, k: float, b: float) -> int:
-        """A one-axis user AMotor whose stop (lo = hi, so bilateral) holds ``stop`` with ERP/CFM from K and B;
-        its angle is set from the joint before every step."""
+    def _one_axis_amotor(self, joint: JointRec) -> int:
+        """A one-axis user AMotor between the joint's parent body (or the world) and its child body."""
         lib = self._lib
-        h = self.dt
         am = lib.dJointCreateAMotor(self._world, None)
         pb = joint.parent_body.ptr if joint.parent_body is not None else None
         assert joint.child_body is not None
         lib.dJointAttach(am, pb, joint.child_body.ptr)
         lib.dJointSetAMotorMode(am, ode.dAMotorUser)
         lib.dJointSetAMotorNumAxes(am, 1)
+        return am
+
+    def _stop_amotor(self, joint: JointRec, axis: m3.Vec3, rel: int, stop: float, k: float, b: float) -> int:
+        """A one-axis user AMotor whose stop (lo = hi, so bilateral) holds ``stop`` with ERP/CFM from K and B;
+        its angle is set from the joint before every step."""
+        lib = self._lib
+        h = self.dt
+        am = self._one_axis_amotor(joint)
         lib.dJointSetAMotorAxis(am, 0, rel, *axis)
         lib.dJointSetAMotorParam(am, ode.dParamLoStop, stop)
         lib.dJointSetAMotorParam(am, ode.dParamHiStop, stop)
