@@ -17,7 +17,6 @@ robot stays in ``MODE_SIMULATION``). The battery level is :mod:`.battery`'s mode
 
 from __future__ import annotations
 
-import contextlib
 import math
 import sys
 from pathlib import Path
@@ -112,8 +111,11 @@ class Robot:
         self.joystick = Joystick(0)
 
     def __del__(self) -> None:
-        with contextlib.suppress(Exception):  # interpreter shutdown: the runtime may already be gone
+        # No contextlib here: at interpreter shutdown module globals may already be None.
+        try:  # noqa: SIM105
             self.__link.close()
+        except Exception:  # interpreter shutdown: the runtime may already be gone
+            pass
 
     # -- timing
 
