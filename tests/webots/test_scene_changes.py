@@ -125,8 +125,10 @@ def test_reset_takes_imported_solids_out_of_the_physics() -> None:
 
 
 def test_imported_robot_is_a_body_and_says_its_controller_does_not_start(capsys: pytest.CaptureFixture[str]) -> None:
+    # a Supervisor driven directly has no process runner to start controllers (tests/webots/test_imported_robots.py
+    # runs one that does)
     sup = _supervisor()
-    _import(sup, 'DEF R2 Robot { translation 1 0 0.5 name "r2" controller "void" '
+    _import(sup, 'DEF R2 Robot { translation 1 0 0.5 name "r2" controller "walker" '
                  'boundingObject DEF S Sphere { radius 0.1 } physics Physics { } }')
     assert "controller of a Robot imported at run time is not started" in capsys.readouterr().err
     _run(sup, 1.0)

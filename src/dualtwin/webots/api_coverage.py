@@ -46,8 +46,9 @@ API_NOTES: tuple[tuple[str, str, str], ...] = (
     ("not yet", "Field.import*NodeFromString of a Solid inside an existing Solid",
      "it would change that Solid's body (merged mass): the node joins the scene tree, not the physics (one "
      "warning); imported anywhere else, a Solid joins the physics at once and remove() takes it out"),
-    ("not yet", "Robot imported at run time",
-     "its body and devices join the physics, but its controller is not started (Webots starts it); one warning"),
+    ("not yet", "Robot imported at run time without the process runner",
+     "a Supervisor driven directly or the threads runtime starts no controller for it (one warning); "
+     "'dualtwin webots run' starts it, as Webots does"),
     ("not yet", "Supervisor.worldSave",
      "Solids and joints are written where the physics has them and PROTO instances as PROTO nodes with the "
      "interface fields that differ from their defaults; the state inside a PROTO instance (its internal Solids' "

@@ -28,6 +28,7 @@ running, as in Webots. Children die with this process (``PR_SET_PDEATHSIG``) and
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import pickle
 import signal
@@ -35,7 +36,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TextIO
@@ -149,6 +150,9 @@ class _Host:
         self.real_err = sys.stderr
         self.changed = threading.Event()
         self._described: tuple[set[type], list[dict[str, Any]]] | None = None
+        self.stopping = False  # stop_all began: no controller starts any more
+        self._adding = threading.Lock()
+        self._to_start: list[_Link] = []
 
     # -- output
 
@@ -199,6 +203,19 @@ class _Host:
         link.last_active = time.monotonic()
         link.thread = threading.Thread(target=self.serve, args=(link,), name=f"controller-{link.index}", daemon=True)
         link.thread.start()
+
+    def add(self, robot: SceneNode, script: Path, args: list[str]) -> None:
+        """Start the controller of a Robot imported while the run goes on: the next step waits for it."""
+        with self._adding:
+            if self.stopping:
+                return
+            link = _Link(len(self.links), robot, script, args, HandleTable(self.exports, self.roles))
+            self.runtime.expect_another()
+            self.links.append(link)
+            # started by the watching thread, which lives as long as the run: a child dies with the thread that
+            # started it (PR_SET_PDEATHSIG), and the importing controller's serving thread may end first
+            self._to_start.append(link)
+        self.changed.set()
 
     # -- serving one child
 
@@ -357,6 +374,8 @@ class _Host:
         while not all(link.done.is_set() for link in self.links):
             self.changed.wait(_POLL_S)
             self.changed.clear()
+            while self._to_start:
+                self.start(self._to_start.pop(0))
             now = time.monotonic()
             for link in self.links:
                 if link.done.is_set() or link.stopped is not None:
@@ -387,6 +406,8 @@ class _Host:
         ``finishing``: the run ended normally, so a child that said it exits gets a moment to finish its own
         interpreter shutdown (files it left open are flushed there) before it is killed.
         """
+        with self._adding:
+            self.stopping = True
         deadline = time.monotonic() + EXIT_GRACE_S
         for link in self.links:
             if finishing and link.proc is not None and link.exit_code is not None:
@@ -448,10 +469,23 @@ def _sigterm_interrupts() -> Iterator[None]:
         signal.signal(signal.SIGTERM, previous)
 
 
+def _start_imported(
+    host: _Host, resolve: Callable[[SceneNode], tuple[Path, list[str]] | None], robot: SceneNode
+) -> None:
+    found = resolve(robot)
+    if found is not None:
+        host.add(robot, *found)
+
+
 def run_in_processes(
-    runtime: api.Runtime, specs: list[tuple[SceneNode, Path, list[str]]], step_timeout_s: float
+    runtime: api.Runtime,
+    specs: list[tuple[SceneNode, Path, list[str]]],
+    step_timeout_s: float,
+    resolve: Callable[[SceneNode], tuple[Path, list[str]] | None] | None = None,
 ) -> ProcessResult:
     """Run each (robot node, script, controllerArgs) as a controller process on ``runtime``'s simulation.
+    ``resolve`` gives the (script, controllerArgs) of a Robot a supervisor imports during the run (None: it runs
+    without a controller); its controller then starts as the others did.
 
     Returns:
         The exit code (0; the first controller's non-zero exit status in robot order; 1 for a crash; 2 for a
@@ -465,6 +499,8 @@ def run_in_processes(
     ]
     runtime.expect(len(host.links))
     runtime.sync_hook = host.emit
+    if resolve is not None:
+        runtime.controller_starter = functools.partial(_start_imported, host, resolve)
     interrupted = False
     with _sigterm_interrupts(), _routed(host):
         try:
@@ -480,6 +516,7 @@ def run_in_processes(
             interrupted = True
         finally:
             runtime.sync_hook = None
+            runtime.controller_starter = None
             host.emit()
     if interrupted:
         return ProcessResult(130, True)

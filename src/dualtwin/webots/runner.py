@@ -28,6 +28,7 @@ keep the initial hold (docs/reference/webots-on-ode.md §5.1).
 from __future__ import annotations
 
 import ctypes
+import functools
 import math
 import os
 import runpy
@@ -44,6 +45,7 @@ from dualtwin.webots.controller_host import DEFAULT_STEP_TIMEOUT_S, run_in_proce
 from dualtwin.webots.keyboard import KeyScript, load_key_script
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import Simulation, SimulationUnstable
+from dualtwin.webots.runtime import NO_CONTROLLER
 
 SHIM_DIR = Path(__file__).resolve().parent / "shim"
 #: Real seconds a controller may keep running after step() returned -1 (Webots waits 1 s, then terminates it).
@@ -52,7 +54,6 @@ TERMINATION_GRACE_S = 1.0
 WORLD_REQUEST = "world_request"
 #: World loads one run may chain (a controller reloading at t = 0 forever would never end otherwise).
 MAX_WORLD_LOADS = 100
-NO_CONTROLLER = frozenset({"", "<none>", "<generic>", "<extern>", "void"})
 
 __all__ = [
     "DEFAULT_STEP_TIMEOUT_S",
@@ -129,22 +130,50 @@ def find_controllers(sim: Simulation, world_path: Path, override: Path | None = 
             matching = named[:1] or robots[:1]
         override_targets = {id(r) for r in matching}
     for robot in robots:
-        args = [str(a) for a in robot.node.fields.get("controllerArgs", []) or []]
         if id(robot) in override_targets and override is not None:
-            specs.append(ControllerSpec(robot.node, override, args))
+            specs.append(ControllerSpec(robot.node, override, _controller_args(robot.node)))
             continue
-        if robot.controller in NO_CONTROLLER:
-            continue
-        script = _controller_script(world_path, robot.node, robot.controller)
-        if script is None:
-            print(
-                f"Warning: no Python controller '{robot.controller}' for robot '{robot.name}' "
-                f"(looked for controllers/{robot.controller}/{robot.controller}.py); it runs without one",
-                file=sys.stderr,
-            )
-            continue
-        specs.append(ControllerSpec(robot.node, script, args))
+        spec = controller_spec(world_path, robot.node)
+        if spec is not None:
+            specs.append(spec)
     return specs
+
+
+def _controller_args(robot: Node) -> list[str]:
+    return [str(a) for a in robot.fields.get("controllerArgs", []) or []]
+
+
+def controller_spec(world_path: Path, robot: Node) -> ControllerSpec | None:
+    """The Python controller of one Robot node, from its ``controller`` field, or None: no controller
+    (``<none>``, ``<extern>``, ``<generic>``, ``void``, empty) or no script on disk (a warning says so).
+
+    Raises:
+        DualtwinError: the field is a path, or its script resolves outside the project's controllers folder.
+    """
+    name = str(robot.fields.get("controller", ""))
+    if name in NO_CONTROLLER:
+        return None
+    script = _controller_script(world_path, robot, name)
+    if script is None:
+        robot_name = str(robot.fields.get("name", "robot"))
+        print(
+            f"Warning: no Python controller '{name}' for robot '{robot_name}' "
+            f"(looked for controllers/{name}/{name}.py); it runs without one",
+            file=sys.stderr,
+        )
+        return None
+    return ControllerSpec(robot, script, _controller_args(robot))
+
+
+def _imported_controller(world_path: Path, robot: Node) -> tuple[Path, list[str]] | None:
+    """Where a Robot imported during the run finds its controller (as at load; a bad field is one error line,
+    and the robot runs without a controller)."""
+    try:
+        spec = controller_spec(world_path, robot)
+    except DualtwinError as exc:
+        print(f"Error: {exc}", file=sys.stderr)
+        return None
+    return None if spec is None else (spec.script, spec.args)
 
 
 # Guards the "is this script still running" flag against the watchdog's asynchronous stop.
@@ -326,7 +355,8 @@ def run_controllers(
     previous_runtime = api.current_runtime()
     api.set_current_runtime(runtime)
     try:
-        result = run_in_processes(runtime, [(s.robot, s.script, s.args) for s in specs], step_timeout_s)
+        result = run_in_processes(runtime, [(s.robot, s.script, s.args) for s in specs], step_timeout_s,
+                                  functools.partial(_imported_controller, Path(sim.world.path)))
         if not result.interrupted:
             return _finish(sim, runtime, duration_s, result.code)
     except KeyboardInterrupt:  # while the world runs on without controllers

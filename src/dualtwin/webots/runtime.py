@@ -23,6 +23,7 @@ from dualtwin.webots.physics import Simulation
 from dualtwin.webots.scene_api import descendants
 
 __all__ = [
+    "NO_CONTROLLER",
     "SIMULATION_MODE_FAST",
     "SIMULATION_MODE_PAUSE",
     "SIMULATION_MODE_REAL_TIME",
@@ -35,6 +36,9 @@ __all__ = [
 ]
 
 _warn = warn
+
+#: ``controller`` field values that start no controller (C controllers aside, as Webots: none, extern, generic).
+NO_CONTROLLER = frozenset({"", "<none>", "<generic>", "<extern>", "void"})
 
 
 class RuntimeRobot(Protocol):
@@ -76,12 +80,13 @@ class Controller:
     serving thread). An object, not a thread id: ids of ended threads are reused by new ones, which made the
     start-up barrier count two controllers as one and wait forever (issue 26.3)."""
 
-    __slots__ = ("robot_node", "arrived", "clients")
+    __slots__ = ("robot_node", "arrived", "clients", "removed")
 
     def __init__(self, robot_node: SceneNode | None) -> None:
         self.robot_node = robot_node
         self.arrived = False
         self.clients: list[_Client] = []
+        self.removed = False  # a supervisor removed its robot: its next (or current) step returns -1
 
 
 class Runtime:
@@ -133,6 +138,8 @@ class Runtime:
         # ended, so all controllers start at t = 0 like in Webots
         self._expected = 0
         self._controllers: list[Controller] = []
+        #: starts the controller of a Robot a supervisor imported (set by the process runner; None: not started)
+        self.controller_starter: Callable[[SceneNode], None] | None = None
 
     @property
     def mode(self) -> int:
@@ -153,6 +160,39 @@ class Runtime:
     def expect(self, n: int) -> None:
         """Hold the first step until ``n`` controllers (see :meth:`bind_thread`) registered a Robot or ended."""
         self._expected = n
+
+    def expect_another(self) -> None:
+        """One more controller joins the run (a Robot imported at run time): the next step waits for it too."""
+        with self._cond:
+            self._expected = max(self._expected, len(self._controllers)) + 1
+
+    def start_controllers(self, robots: list[SceneNode]) -> None:
+        """Robots a supervisor imported: each starts its controller, which steps with the others from the next
+        step, as Webots starts an imported robot's controller."""
+        for node in robots:
+            if str(node.fields.get("controller", "")) in NO_CONTROLLER:
+                continue
+            if self.controller_starter is None:
+                _warn(f"the controller of a Robot imported at run time is not started (only the process runner "
+                      f"starts controllers): '{node.fields.get('controller')}'")
+                continue
+            self.controller_starter(node)
+
+    def end_controllers(self, top: SceneNode) -> None:
+        """A supervisor removed ``top``: the controllers of the robots in it are told -1 at their step (now if
+        they wait in it) and leave the synchronisation, as Webots ends a deleted robot's controller."""
+        gone = {id(n) for n in top.walk()}
+        with self._cond:
+            for controller in self._controllers:
+                if controller.robot_node is None or id(controller.robot_node) not in gone:
+                    continue
+                controller.removed = True
+                controller.arrived = True  # the start-up barrier no longer waits for it
+                for client in controller.clients:
+                    client.active = False
+                    client.waiting = False
+            self._maybe_advance()
+            self._cond.notify_all()
 
     def thread_done(self) -> None:
         """The calling thread's controller ended: release its Robots from the synchronisation."""
@@ -200,6 +240,8 @@ class Runtime:
             controller = getattr(self._thread_controller, "controller", None)
             client = _Client(robot, controller)
             client.target = self.simulation.time
+            if controller is not None and controller.removed:
+                client.active = False  # its robot was removed before it made its Robot: its step returns -1
             self._clients.append(client)
             if controller is not None:
                 controller.arrived = True
@@ -228,6 +270,16 @@ class Runtime:
         self.finished = True
         if client.ended_at is None:
             client.ended_at = time.monotonic()
+        return -1
+
+    @staticmethod
+    def _removed(client: _Client) -> bool:
+        return client.controller is not None and client.controller.removed
+
+    @staticmethod
+    def _end_removed(client: _Client) -> int:
+        # only this controller ends; the run goes on (a second step then ends it, as after any -1)
+        client.ended_at = time.monotonic()
         return -1
 
     def ended_clients(self) -> list[tuple[int, float]]:
@@ -259,6 +311,8 @@ class Runtime:
                 if self.stop_after_end:
                     raise ControllerStopped()
                 return -1
+            if self._removed(client):
+                return self._end_removed(client)
             if self.finished or self._limit_reached():
                 return self._end(client)
             if self.mode == SIMULATION_MODE_PAUSE and duration_ms == 0:
@@ -282,6 +336,8 @@ class Runtime:
                 err, self.error = self.error, None
                 raise err
             client.waiting = False
+            if self._removed(client):
+                return self._end_removed(client)
             return self._end(client) if self.finished or self._limit_reached() else 0
 
     def _maybe_advance(self) -> None:

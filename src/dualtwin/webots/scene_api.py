@@ -20,15 +20,21 @@ from dualtwin.webots.node_types import node_type_of
 from dualtwin.webots.nodes import Node as SceneNode
 from dualtwin.webots.nodes import World, copy_value
 from dualtwin.webots.physics import Simulation, SolidRec
+from dualtwin.webots.physics.records import is_robot
 from dualtwin.webots.schema import SOLID_TYPES
 from dualtwin.webots.step_hints import step_value
 from dualtwin.webots.writer import write_node
 
 
 class NodeIndex(Protocol):
-    """The runtime's numbering of scene nodes (Webots' unique node ids)."""
+    """The runtime's numbering of scene nodes (Webots' unique node ids), and the controllers of the robots a
+    supervisor imports or removes."""
 
     def node_ids(self) -> tuple[dict[int, int], dict[int, SceneNode]]: ...
+
+    def start_controllers(self, robots: list[SceneNode]) -> None: ...
+
+    def end_controllers(self, top: SceneNode) -> None: ...
 
 
 class SceneHost(Protocol):
@@ -267,11 +273,9 @@ class Node:
                 self._sim.add_nodes(top, ancestors)
             elif any(n.type_name in SOLID_TYPES for n in top.walk()):
                 outside = True
-        started = [n for top in nodes for n in top.walk() if n.type_name == "Robot"
-                   and str(n.fields.get("controller", "")) not in ("", "<none>")]  # fmt: skip
-        if started:
-            warn(f"the controller of a Robot imported at run time is not started (Webots starts it): "
-                 f"'{started[0].fields.get('controller')}'")
+        robots = [n for top in nodes for n in top.walk() if is_robot(n)]
+        if robots:
+            self._sup._runtime.start_controllers(robots)
         if outside:
             warn("a Solid imported inside another Solid is in the scene tree (read, saved) but takes no part in "
                  "the physics")
@@ -283,6 +287,7 @@ class Node:
         if not any(node is n for n in imported):
             removed.append(node)
         self._sim.remove_nodes(node)
+        self._sup._runtime.end_controllers(node)
 
     def remove(self) -> None:
         """Delete this node from the scene tree (and its Solids from the physics)."""

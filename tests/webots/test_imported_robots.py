@@ -1,0 +1,106 @@
+"""A Robot a supervisor imports while the run goes on gets its controller, as in Webots: the script named by its
+``controller`` field starts in its own process and steps in lock-step with the others from the next step;
+``<none>`` and ``<extern>`` start nothing. Removing the robot ends its controller: its step returns -1 (then
+the process exits) while the others run on, and nobody hangs.
+
+Expectations by hand: the supervisor imports the robot after its 3rd step of 8 ms (t = 24 ms); the new
+controller's first step returns at t = 32 ms, the supervisor's next step's end. The supervisor removes it after
+its 6th step (t = 48 ms): the child's step that was waiting returns -1 at once (its log says so while the run goes on), and the
+supervisor's steps go on to the end of the 0.1 s run."""
+
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from dualtwin.webots.runner import run_world
+
+SUPERVISOR = """
+    import os, time
+    from controller import Supervisor
+    CHILD_LOG = os.path.join("..", "child", "times.txt")
+    sup = Supervisor()
+    children = sup.getRoot().getField("children")
+    log = open("times.txt", "w")
+    for i in range(12):
+        if sup.step(8) == -1:
+            break
+        log.write(f"sup {sup.getTime():.3f}\\n")
+        if i == 2:
+            children.importMFNodeFromString(-1, 'DEF NEW Robot { translation 1 0 0.5 name "new" '
+                                                 'controller "{child}" }')
+        if i == 5 and "{remove}" == "yes":
+            sup.getFromDef("NEW").remove()
+        if i == 8 and "{remove}" == "yes":  # the child's log says -1 within 3 s of real time, while this run still goes on
+            deadline = time.monotonic() + 3.0
+            ended = False
+            while not ended and time.monotonic() < deadline:
+                ended = os.path.isfile(CHILD_LOG) and "-1" in open(CHILD_LOG).read()
+                time.sleep(0.01)
+            log.write(f"child ended by {sup.getTime():.3f}: {ended}\\n")
+    log.close()
+"""
+CHILD = """
+    from controller import Robot
+    robot = Robot()
+    with open("times.txt", "w") as log:
+        log.write(f"start {robot.getTime():.3f} {robot.getName()}\\n")
+        while True:
+            result = robot.step(8)
+            if result == -1:  # (its robot may be gone: the time is not read then)
+                log.write("child -1\\n")
+                break
+            log.write(f"child {robot.getTime():.3f} {result}\\n")
+            log.flush()
+"""
+
+
+def _project(tmp_path: Path, child: str, remove: bool) -> Path:
+    for name, script in (("sup", SUPERVISOR.replace("{child}", child).replace("{remove}", "yes" if remove else "no")),
+                         ("child", CHILD)):
+        folder = tmp_path / "controllers" / name
+        folder.mkdir(parents=True)
+        (folder / f"{name}.py").write_text(textwrap.dedent(script))
+    (tmp_path / "worlds").mkdir()
+    world = tmp_path / "worlds" / "w.wbt"
+    world.write_text('#VRML_SIM R2023b utf8\nWorldInfo { basicTimeStep 8 }\n'
+                     'Robot { name "boss" controller "sup" supervisor TRUE }\n')
+    return world
+
+
+def _log(tmp_path: Path, name: str) -> list[str]:
+    path = tmp_path / "controllers" / name / "times.txt"
+    return path.read_text().splitlines() if path.is_file() else []
+
+
+def test_imported_robot_controller_starts_and_steps_in_lock_step(tmp_path: Path) -> None:
+    world = _project(tmp_path, "child", remove=False)
+    assert run_world(world, None, 0.1) == 0
+    sup = _log(tmp_path, "sup")
+    assert sup[:3] == ["sup 0.008", "sup 0.016", "sup 0.024"]
+    child = _log(tmp_path, "child")
+    assert child[0] == "start 0.024 new"  # made at the import's time
+    # lock-step from the next step: 32, 40, ... 96 ms, then the run's end (0.1 s reached inside the step to 104)
+    assert child[1:] == [f"child {t / 1000:.3f} 0" for t in range(32, 97, 8)] + ["child -1"]
+    # (control for the removal test below: without a removal, no -1 before the run's end)
+
+
+@pytest.mark.parametrize("field", ["<none>", "<extern>"])
+def test_imported_robot_without_a_controller_starts_nothing(tmp_path: Path, field: str) -> None:
+    world = _project(tmp_path, field, remove=False)
+    assert run_world(world, None, 0.1) == 0
+    assert _log(tmp_path, "child") == []  # control for the test above: the script exists but is not named
+    assert len(_log(tmp_path, "sup")) == 12
+
+
+def test_removing_an_imported_robot_ends_its_controller_and_the_run_goes_on(tmp_path: Path) -> None:
+    world = _project(tmp_path, "child", remove=True)
+    assert run_world(world, None, 0.1) == 0
+    child = _log(tmp_path, "child")
+    # steps to 32, 40, 48 ms; the supervisor removes the robot at 48 ms: the step the child waits in says -1
+    assert child == ["start 0.024 new", "child 0.032 0", "child 0.040 0", "child 0.048 0", "child -1"]
+    sup = _log(tmp_path, "sup")
+    assert "child ended by 0.072: True" in sup  # the -1 came at once, not at the run's end
+    assert sup[-1] == "sup 0.096" and len(sup) == 13  # the supervisor ran on to the end, unhindered
