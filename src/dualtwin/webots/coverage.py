@@ -56,7 +56,10 @@ REGISTRY: tuple[Coverage, ...] = (
              "bodies with mass from Physics/boundingObject, merging and the static basis, kinematic solids "
              "(one that no body or joint carries moves by its linearVelocity/angularVelocity every step, "
              "sensors and getVelocity seeing it), supervisor pose/velocity edits; Box/Sphere/Cylinder/Capsule/IndexedFaceSet edits (also through "
-             "DEF/USE) resize the ODE geom at the next step, wake bodies around it and reach ray sensors; "
+             "DEF/USE) resize the ODE geom at the next step, wake bodies around it and reach ray sensors; a "
+             "boundingObject a supervisor imports (or a node it imports into one) becomes geoms at once, on the "
+             "Solid's body where it is now, and its removal takes them out and wakes what rested on it (the body's mass is "
+             "not recomputed from it); "
              "edits of a PROTO instance's fields follow its IS links (also through nested and derived PROTOs) "
              "to the expanded nodes; a field read by a procedural PROTO's template warns (no regeneration)"),
     Coverage("Robot", "scene", "supported",

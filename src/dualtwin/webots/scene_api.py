@@ -269,7 +269,11 @@ class Node:
         for top in nodes:
             chain = path_to(self._sim, top)
             ancestors = chain[:-1] if chain is not None else []
-            if chain is not None and self._sim.can_add(ancestors):
+            owner = next((n for n in reversed(ancestors) if n.type_name in SOLID_TYPES), None)
+            bounds = owner.fields.get("boundingObject") if owner is not None else None
+            if owner is not None and isinstance(bounds, SceneNode) and any(n is top for n in bounds.walk()):
+                self._sim.bounding_object_changed(owner)  # its shape changed: its geoms are built again
+            elif chain is not None and self._sim.can_add(ancestors):
                 self._sim.add_nodes(top, ancestors)
             elif any(n.type_name in SOLID_TYPES for n in top.walk()):
                 outside = True

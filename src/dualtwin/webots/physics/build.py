@@ -385,11 +385,14 @@ class SceneBuilder(SimulationCore):
     # -- geoms (§3.4)
 
 
-    def _create_geoms(self, solid: SolidRec) -> None:
+    def _create_geoms(self, solid: SolidRec, world: Pose | None = None) -> None:
+        """The geoms of ``solid``'s boundingObject, placed with the Solid frame at ``world`` (default: its
+        load pose; at run time its current pose, so geoms on a moving body sit where the Solid is now)."""
         bo = solid.node.fields.get("boundingObject")
         if not isinstance(bo, Node):
             return
-        world = self.world_pose_at_load(solid)
+        if world is None:
+            world = self.world_pose_at_load(solid)
         self._bo_geoms(bo, Pose(), solid, world, (1.0, 1.0, 1.0))
 
     def _bo_geoms(
@@ -447,7 +450,7 @@ class SceneBuilder(SimulationCore):
             ptr = lib.dCreatePlane(self._space, n[0], n[1], n[2], m3.dot(n, world.t))
             if solid.body is not None:
                 self.warn(f"Solid '{solid.name}': a Plane cannot be attached to a body; it stays static")
-            gr = GeomRec(ptr=ptr, solid=solid, kind=t, local=local, body=None, is_plane=True)
+            gr = GeomRec(ptr=ptr, solid=solid, kind=t, local=local, body=None, is_plane=True, source=node)
             self._register_geom(gr)
             return
         elif t == "IndexedFaceSet":
@@ -462,7 +465,7 @@ class SceneBuilder(SimulationCore):
                 local = local * extra
                 if solid.body is not None:
                     self.warn(f"Solid '{solid.name}': ElevationGrid on a dynamic body stays static")
-                gr = GeomRec(ptr=ptr, solid=solid, kind=t, local=local, body=None, keepalive=keep)
+                gr = GeomRec(ptr=ptr, solid=solid, kind=t, local=local, body=None, keepalive=keep, source=node)
                 self._register_geom(gr)
                 self._place_static_geom(gr, solid_world)
                 return

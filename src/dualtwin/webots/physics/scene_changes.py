@@ -21,9 +21,11 @@ from collections.abc import Iterable
 
 from dualtwin.webots._math3 import Pose
 from dualtwin.webots.nodes import Node
+from dualtwin.webots.physics.geometry_edits import _WAKE_MARGIN
 from dualtwin.webots.physics.records import (
     SOLID_TYPES,
     BodyRec,
+    GeomRec,
     SolidRec,
     field_or,
 )
@@ -73,6 +75,10 @@ class SceneChanges(Stepper):
         """Take every Solid of the subtree ``top`` out of the physics (no-op for nodes that have none)."""
         ids = {id(n) for n in top.walk()}
         gone = [s for s in self.solids if id(s.node) in ids]
+        reshaped = {id(g.solid): g.solid for g in self.geoms.values()
+                    if g.source is not None and id(g.source) in ids and id(g.solid.node) not in ids}  # fmt: skip
+        for solid in reshaped.values():  # a boundingObject (or a part of one) left a Solid that stays
+            self.bounding_object_changed(solid.node)
         if not gone:
             return
         gone_ids = {id(s) for s in gone}
@@ -121,6 +127,41 @@ class SceneChanges(Stepper):
                     self._joint_by_node.pop(id(p), None)
         self.solids[:] = [s for s in self.solids if id(s) not in gone_ids]
         self._geoms_changed()
+
+    def bounding_object_changed(self, solid_node: Node) -> None:
+        """``solid_node``'s boundingObject was imported or removed, or a node inside it was: its geoms are built
+        again from the field, where the Solid is now (on its body if it has one), so contacts and ray sensors
+        see the new shape from the next step on. Bodies near the old or new geoms are woken (one resting on a
+        removed shape must fall)."""
+        solid = self._solid_by_node.get(id(solid_node))
+        if solid is None:
+            return
+        boxes = [self._aabb(g) for g in solid.geoms]
+        self._drop_geoms(solid.geoms)
+        self._create_geoms(solid, self.solid_world_pose(solid))
+        boxes += [self._aabb(g) for g in solid.geoms]
+        self._wake_near(boxes, solid.body)
+        self._geoms_changed()
+
+    def _drop_geoms(self, geoms: list[GeomRec]) -> None:
+        for g in list(geoms):
+            self._lib.dGeomDestroy(g.ptr)
+            del self.geoms[g.ptr]
+            g.solid.geoms.remove(g)
+        self._plans.clear()  # cached pair plans name the destroyed geoms (ODE may reuse their addresses)
+
+    def _wake_near(self, boxes: list[list[float]], body: BodyRec | None) -> None:
+        woken = {body.index} if body is not None else set()
+        for g in self.geoms.values():
+            if g.body is None or g.body.index in woken or g.is_plane:
+                continue
+            other = self._aabb(g)
+            if any(all(other[2 * k] <= box[2 * k + 1] + _WAKE_MARGIN and other[2 * k + 1] >= box[2 * k] - _WAKE_MARGIN
+                       for k in range(3)) for box in boxes):  # fmt: skip
+                woken.add(g.body.index)
+        for index in woken:
+            if not self.bodies[index].removed:
+                self._wake_body(index)
 
     def live_bodies(self) -> list[BodyRec]:
         """The bodies still in the world (a removed Solid's body is kept, disabled, outside it)."""
