@@ -55,8 +55,9 @@ UNVERIFIED choices (spec gaps, most plausible behaviour picked)
       ``(0, -τ)``, the signs for which a positive command turns the endPoint about +axis2 (checked);
       ``jointParameters2 NULL`` uses axis ``0 0 1``.
     * Joint motor commands and supervisor teleports wake the affected bodies (``dBodyEnable``).
-    * Kinematic joints (endPoint without Physics) move at the commanded velocity toward the target
-      without the acceleration limit.
+    * Kinematic joints (endPoint without Physics) ramp their speed by the acceleration (or the available
+      torque, §5.3); in position control the speed is a magnitude that ramps again from rest after a stop,
+      and a new target in the other direction keeps the speed reached (the reversal is not documented).
     * Damping of merged bodies is volume-weighted; solids without boundingObject get weight 0 unless all
       weights are 0 (then a plain average).
     * Sensors sample at the end of a controller step once their sampling period has elapsed; the

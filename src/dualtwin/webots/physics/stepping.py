@@ -143,18 +143,35 @@ class Stepper(SupervisorEdits):
         self._teleport_solid(solid, local.t, m3.axis_angle_from_mat(local.R))
 
     def _kinematic_motor(self, motor: MotorRec, dt: float) -> None:
-        """§5.3 (kinematic joints): move toward the target at the commanded velocity."""
+        """§5.3 kinematic joints (``WbMotor.runKinematicControl``, also what drives a Propeller): the motor's
+        current velocity changes by at most ``a·dt`` per step, ``a`` being its ``acceleration`` or the available
+        torque/force when the acceleration is -1 or larger than that. Velocity control integrates the current
+        velocity; position control moves toward the target at the current speed (a magnitude, as in Webots) and
+        stops on the target once within a step or 1e-6, where the velocity drops to 0."""
         joint = motor.joint
         i = motor.axis_index
         pos = joint.positions[i]
         if motor.torque_mode or motor.available == 0.0:
             return
+        accel = motor.acceleration
+        if accel == -1.0 or accel > motor.available:
+            accel = motor.available
+        slew = accel * dt
+        current = motor.current_velocity
         if math.isinf(motor.target_position):
-            pos += motor.target_velocity * dt
+            current += max(-slew, min(slew, motor.target_velocity - current))
+            pos += current * dt
         else:
-            step = abs(motor.target_velocity) * dt
             err = motor.target_position - pos
-            pos = motor.target_position if abs(err) <= max(step, 1e-6) else pos + math.copysign(step, err)
+            speed = abs(current)
+            speed += max(-slew, min(slew, abs(motor.target_velocity) - speed))
+            step = speed * dt
+            if abs(err) <= max(step, 1e-6):
+                pos, current = motor.target_position, 0.0
+            else:
+                pos += math.copysign(step, err)
+                current = math.copysign(speed, err)  # signed, for the joint's velocity
+        motor.current_velocity = current
         joint.positions[i] = pos
 
     def _swap_and_collide(self) -> None:

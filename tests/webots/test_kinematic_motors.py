@@ -1,0 +1,98 @@
+"""Kinematic joint motors (a joint whose endPoint has no Physics) ramp their speed as Webots' kinematic controller does.
+
+Webots (docs/reference/webots-on-ode.md §5.3, webots-devices.md §8, ``WbMotor.runKinematicControl``): with no ODE
+joint the motor moves the endPoint itself, and its current velocity changes by at most ``a·h`` per basic step, ``a``
+being the motor's ``acceleration`` field, or its available torque when the field is -1 or larger than that. The
+expected positions below are sums of those ramps by hand (basicTimeStep 16 ms); moving at full speed from the first
+step (what the twin did before) is far off in every case.
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from dualtwin.webots import load_world_text
+from dualtwin.webots.controller import Supervisor
+from dualtwin.webots.physics import Simulation
+
+H = 0.016
+
+
+def _robot(motor: str) -> tuple[Supervisor, Simulation]:
+    text = f"""#VRML_SIM R2023b utf8
+WorldInfo {{ basicTimeStep 16 }}
+Robot {{
+  children [
+    HingeJoint {{
+      jointParameters HingeJointParameters {{ axis 0 0 1 }}
+      device [ RotationalMotor {{ name "m" {motor} }} PositionSensor {{ name "ps" }} ]
+      endPoint Solid {{ translation 0.5 0 0 children [ Shape {{ geometry Box {{ size 0.1 0.1 0.1 }} }} ] }}
+    }}
+  ]
+  supervisor TRUE
+}}
+"""
+    sim = Simulation(load_world_text(text))
+    assert sim.joints[0].kinematic
+    return Supervisor(simulation=sim, robot_node=sim.robots[0].node), sim
+
+
+def _readings(robot: Supervisor, steps: int) -> list[float]:
+    sensor = robot.getDevice("ps")
+    sensor.enable(16)
+    out = []
+    for _ in range(steps):
+        robot.step(16)
+        out.append(sensor.getValue())
+    return out
+
+
+@pytest.mark.parametrize(
+    ("fields", "slew", "speed"),
+    [
+        ("maxVelocity 2 acceleration 5", 5.0 * H, 2.0),  # the acceleration field
+        ("maxVelocity 1 maxTorque 3", 3.0 * H, 1.0),  # -1: the available torque, read as rad/s²
+        ("maxVelocity 1 maxTorque 3 acceleration 50", 3.0 * H, 1.0),  # larger than the torque: the torque
+    ],
+    ids=["acceleration", "unlimited", "above-torque"],
+)
+def test_velocity_control_ramps_the_speed(fields: str, slew: float, speed: float) -> None:
+    robot, _ = _robot(fields)
+    motor = robot.getDevice("m")
+    motor.setPosition(math.inf)
+    motor.setVelocity(speed)
+    readings = _readings(robot, 40)
+    expected, position = [], 0.0
+    for k in range(1, 41):
+        position += min(k * slew, speed) * H
+        expected.append(position)
+    assert readings == pytest.approx(expected, abs=1e-12)
+    assert readings[-1] < 40 * speed * H - 0.01  # control: full speed from the first step covers more
+
+
+def test_setting_available_torque_lowers_the_ramp() -> None:
+    robot, _ = _robot("maxVelocity 1 maxTorque 3")
+    motor = robot.getDevice("m")
+    motor.setAvailableTorque(1.0)  # a = min(-1 -> available, ...) = 1 rad/s²
+    motor.setPosition(math.inf)
+    motor.setVelocity(1.0)
+    readings = _readings(robot, 10)
+    assert readings[-1] == pytest.approx(sum(k * H * H for k in range(1, 11)), abs=1e-12)
+
+
+def test_position_control_ramps_then_stops_on_the_target() -> None:
+    robot, sim = _robot("maxVelocity 2 acceleration 5")
+    motor = robot.getDevice("m")
+    motor.setPosition(0.3)
+    readings = _readings(robot, 30)
+    # speed 0.08·k after step k, so 0.016·0.08·k(k+1)/2 = 0.00064·k(k+1) rad: 0.29568 after 21 steps; the 22nd step
+    # (0.02816 rad) would pass the target, so the motor stops on it and its velocity drops to 0
+    assert readings[:21] == pytest.approx([0.00064 * k * (k + 1) for k in range(1, 22)], abs=1e-12)
+    assert readings[21:] == [0.3] * 9
+    assert sim.joint_velocity(sim.joints[0]) == 0.0
+    motor.setPosition(0.0)  # back: the speed ramps again from rest, the other way
+    back = _readings(robot, 2)
+    assert back == pytest.approx([0.3 - 0.00128, 0.3 - 0.00384], abs=1e-12)
+    assert sim.joint_velocity(sim.joints[0]) == pytest.approx(-0.16)
