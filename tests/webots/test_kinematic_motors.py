@@ -96,3 +96,76 @@ def test_position_control_ramps_then_stops_on_the_target() -> None:
     back = _readings(robot, 2)
     assert back == pytest.approx([0.3 - 0.00128, 0.3 - 0.00384], abs=1e-12)
     assert sim.joint_velocity(sim.joints[0]) == pytest.approx(-0.16)
+
+
+HINGE2 = """#VRML_SIM R2023b utf8
+WorldInfo {{ basicTimeStep 16 }}
+Robot {{
+  translation 0 0 1
+  children [
+    Hinge2Joint {{
+      jointParameters HingeJointParameters {{ axis 0 0 1 }}
+      jointParameters2 JointParameters {{ axis 0 1 0 }}
+      device [ RotationalMotor {{ name "steer" }} PositionSensor {{ name "steer sensor" }} ]
+      device2 [ RotationalMotor {{ name "spin" }} PositionSensor {{ name "spin sensor" }} ]
+      endPoint DEF WHEEL Solid {{
+        translation 0.3 0 0
+        boundingObject Box {{ size 0.1 0.1 0.1 }}
+        physics Physics {{ }}
+      }}
+    }}
+  ]
+  {robot_physics}
+  supervisor TRUE
+}}
+"""
+
+
+def _rotation(axis: tuple[float, float, float], angle: float) -> list[list[float]]:
+    x, y, z = axis
+    c, s = math.cos(angle), math.sin(angle)
+    return [
+        [c + x * x * (1 - c), x * y * (1 - c) - z * s, x * z * (1 - c) + y * s],
+        [y * x * (1 - c) + z * s, c + y * y * (1 - c), y * z * (1 - c) - x * s],
+        [z * x * (1 - c) - y * s, z * y * (1 - c) + x * s, c + z * z * (1 - c)],
+    ]
+
+
+def test_a_hinge2_on_a_parent_without_body_moves_its_endpoint_kinematically() -> None:
+    """A static Robot's Hinge2Joint gets no ODE joint (§4.4) and is handled kinematically (§4.1): its motors turn the
+    endPoint, which has Physics of its own, about the first axis (steering) and the carried second axis (spin), and
+    gravity does not pull it off the joint. Before, the endPoint fell as a free body and never turned."""
+    with pytest.warns(UserWarning, match="handled kinematically"):
+        sim = Simulation(load_world_text(HINGE2.format(robot_physics="")))
+    robot = Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    steer, spin = robot.getDevice("steer"), robot.getDevice("spin")
+    sensors = [robot.getDevice("steer sensor"), robot.getDevice("spin sensor")]
+    for sensor in sensors:
+        sensor.enable(16)
+    steer.setPosition(0.5)
+    spin.setPosition(math.inf)
+    spin.setVelocity(2.0)
+    wheel = robot.getFromDef("WHEEL")
+    for _ in range(40):
+        robot.step(16)
+    a, b = (sensor.getValue() for sensor in sensors)
+    assert a == 0.5  # reached and stopped
+    assert b == pytest.approx(sum(min(0.16 * k, 2.0) * H for k in range(1, 41)), abs=1e-12)  # 10 rad/s² ramp
+    z, y = _rotation((0.0, 0.0, 1.0), a), _rotation((0.0, 1.0, 0.0), b)
+    expected = [sum(z[i][k] * y[k][j] for k in range(3)) for i in range(3) for j in range(3)]
+    assert wheel.getOrientation() == pytest.approx(expected, abs=1e-9)
+    # both axes pass through the anchor (the Robot's origin): the wheel's centre is turned about it
+    assert wheel.getPosition() == pytest.approx([0.3 * expected[0], 0.3 * expected[3], 1.0 + 0.3 * expected[6]], abs=1e-9)
+    assert wheel.getVelocity() == pytest.approx([0.0] * 6, abs=1e-9)
+
+
+def test_a_hinge2_on_a_body_stays_dynamic() -> None:
+    """Control: with a body as parent the Hinge2 is an ODE joint and its endPoint a free-moving body under gravity."""
+    text = HINGE2.format(robot_physics="physics Physics { }\n  boundingObject Box { size 0.1 0.1 0.1 }")
+    sim = Simulation(load_world_text(text))
+    assert not sim.joints[0].kinematic
+    robot = Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    wheel = robot.getFromDef("WHEEL")
+    for _ in range(10):
+        robot.step(16)
+    assert wheel.getPosition()[2] < 0.99  # robot and wheel fall together

@@ -113,8 +113,10 @@ REGISTRY: tuple[Coverage, ...] = (
              "both axes' motors, sensors (continuous multi-turn positions on both axes, read with ODE's own "
              "sign per axis), springs and dampers (a stop AMotor per axis; run-time edits reach ODE), "
              "suspension along the first axis (ODE's hinge2 suspension ERP/CFM); stops on both axes (upstream "
-             "ODE never limits the second, so a stop AMotor holds it); a Hinge2Joint whose parent has no body is kinematic (its "
-             "endPoint body is not turned)"),
+             "ODE never limits the second, so a stop AMotor holds it); a Hinge2Joint whose parent has no body gets "
+             "no ODE joint and is kinematic: its motors turn the endPoint, body included, which is held on the "
+             "joint's pose at rest after every step (what gravity or contacts do to it in Webots is not "
+             "documented)"),
     Coverage("BallJoint", "joint", "partial",
              "three axes (the first from jointParameters2, the third from jointParameters3, the second their "
              "cross product) with motors, position sensors, brakes, stops and friction on an Euler AMotor; "

@@ -55,6 +55,8 @@ UNVERIFIED choices (spec gaps, most plausible behaviour picked)
       ``(0, -τ)``, the signs for which a positive command turns the endPoint about +axis2 (checked);
       ``jointParameters2 NULL`` uses axis ``0 0 1``.
     * Joint motor commands and supervisor teleports wake the affected bodies (``dBodyEnable``).
+    * A Hinge2Joint without a parent body (no ODE joint, §4.4) is kinematic even when its endPoint has a body:
+      that body is placed on the joint's pose, at rest, after every physics step.
     * Kinematic joints (endPoint without Physics) ramp their speed by the acceleration (or the available
       torque, §5.3); in position control the speed is a magnitude that ramps again from rest after a stop,
       and a new target in the other direction keeps the speed reached (the reversal is not documented).

@@ -106,6 +106,7 @@ class SimulationCore:
     _kin_motors: list[MotorRec]
     _springs: list[JointRec]
     _tracked: list[JointRec]
+    _held: list[JointRec]  # kinematic Hinge2Joints whose endPoint has a body (Stepper._hold_endpoint)
     _moving_static: list[GeomRec]
     _views: list[tuple[Any, Any, Any]]
     _drifting: list[SolidRec]  # Solids without Physics moved by their own velocity fields (Stepper._drift)

@@ -12,6 +12,7 @@ from dualtwin.webots import ode
 from dualtwin.webots._math3 import Pose
 from dualtwin.webots.physics.edits import SupervisorEdits
 from dualtwin.webots.physics.records import (
+    JointRec,
     MotorRec,
     SolidRec,
 )
@@ -25,6 +26,13 @@ class Stepper(SupervisorEdits):
         self._kin_motors = [m for m in self.motors if m.joint.kinematic]
         self._springs = [j for j in self.joints if j.spring or j.spring2 or j.stop2]  # AMotor angles set per step
         self._tracked = [j for j in self.joints if not j.kinematic]
+        # §4.1/§4.4: a Hinge2Joint without a parent body gets no ODE joint and is handled kinematically, so its
+        # motors move the endPoint directly, also when that endPoint has a body of its own
+        self._held = [
+            j for j in self.joints
+            if j.kind == "hinge2" and j.kinematic and j.child is not None and j.child.body is not None
+            and j.child.body.root is j.child
+        ]  # fmt: skip
         # kinematic geoms inside robots are re-placed from the scene graph every step (§2.4)
         self._moving_static = []
         for gr in self.geoms.values():
@@ -67,6 +75,8 @@ class Stepper(SupervisorEdits):
             for pre_hook in self.pre_step_hooks:
                 pre_hook(self.dt)
             self._step_fn(self._world, self.dt)
+            for joint in self._held:
+                self._hold_endpoint(joint)
             self._check_state()
             self._swap_and_collide()
             self._post_physics()
@@ -173,6 +183,16 @@ class Stepper(SupervisorEdits):
                 current = math.copysign(speed, err)  # signed, for the joint's velocity
         motor.current_velocity = current
         joint.positions[i] = pos
+
+    def _hold_endpoint(self, joint: JointRec) -> None:
+        """Places a kinematic Hinge2's endPoint body (and its subtree) where the joint's positions put it, at rest,
+        after the physics step, so that collisions and sensors see the joint's pose (the body's motion under
+        gravity or contacts in between is not documented for Webots; here it is dropped)."""
+        child = joint.child
+        assert child is not None and child.body is not None
+        parent = Pose() if joint.parent is None else self.solid_world_pose(joint.parent)
+        target = parent * self._chain_motion(joint) * child.rel
+        self._move_subtree(child, target * self.solid_world_pose(child).inverse(), reset_velocity=True)
 
     def _swap_and_collide(self) -> None:
         if self._auto_disable:
