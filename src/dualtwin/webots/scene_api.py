@@ -281,7 +281,7 @@ class Node:
         if robots:
             self._sup._runtime.start_controllers(robots)
         if outside:
-            warn("a Solid imported inside another Solid is in the scene tree (read, saved) but takes no part in "
+            warn("a Solid imported into a joint's endPoint is in the scene tree (read, saved) but takes no part in "
                  "the physics")
 
     def _removed(self, node: SceneNode) -> None:

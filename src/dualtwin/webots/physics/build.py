@@ -268,7 +268,9 @@ class SceneBuilder(SimulationCore):
         """§3.2: mass of one Solid in its own frame and its boundingObject volume (:mod:`..mass_rules`)."""
         return solid_mass(solid.node, solid.name, self.warn)
 
-    def _create_body(self, body: BodyRec) -> None:
+    def _merged_mass(self, body: BodyRec) -> tuple[ode.dMass, list[tuple[float, Node | None]]]:
+        """§3.3: the masses of the body's Solids summed in its root Solid's frame (CoM not yet moved to the
+        origin), with each Solid's boundingObject volume and Damping node (the damping weights, §1.4)."""
         lib = self._lib
         total = mass_zero()
         weights: list[tuple[float, Node | None]] = []
@@ -280,6 +282,13 @@ class SceneBuilder(SimulationCore):
                 lib.dMassTranslate(byref(m), *member.in_body.t)
             lib.dMassAdd(byref(total), byref(m))
             weights.append((volume, _f(member.node.fields["physics"], "damping", None)))
+        return total, weights
+
+    def _centred_mass(self, body: BodyRec) -> tuple[ode.dMass, list[tuple[float, Node | None]]]:
+        """The merged mass moved to its CoM (§3.2: the body origin sits there); ``body.mass``, ``com`` and
+        ``inertia`` are set from it."""
+        lib = self._lib
+        total, weights = self._merged_mass(body)
         com = (total.c[0], total.c[1], total.c[2])
         lib.dMassTranslate(byref(total), -com[0], -com[1], -com[2])
         total.c[0] = total.c[1] = total.c[2] = 0.0
@@ -295,9 +304,14 @@ class SceneBuilder(SimulationCore):
         body.mass = total.mass
         body.com = com
         body.inertia = inertia
+        return total, weights
+
+    def _create_body(self, body: BodyRec) -> None:
+        lib = self._lib
+        total, weights = self._centred_mass(body)
         world = self.world_pose_at_load(body.root)
         body.load_R = world.R
-        body.load_pos = world.apply(com)
+        body.load_pos = world.apply(body.com)
         node = body.root.node
         body.load_lvel = tuple(float(v) for v in _f(node, "linearVelocity", (0.0, 0.0, 0.0)))  # type: ignore[assignment]
         body.load_avel = tuple(float(v) for v in _f(node, "angularVelocity", (0.0, 0.0, 0.0)))  # type: ignore[assignment]
@@ -309,7 +323,14 @@ class SceneBuilder(SimulationCore):
         body.R = ode.mat3(lib.dBodyGetRotation(b))
         body.lvel = ode.vec3(lib.dBodyGetLinearVel(b))
         body.avel = ode.vec3(lib.dBodyGetAngularVel(b))
-        # §1.4 damping: volume-weighted average of the merged solids' Damping nodes
+        self._set_damping(body, weights)
+        lib.dBodySetMaxAngularSpeed(b, MAX_ANGULAR_SPEED)
+        self._set_auto_disable(body)
+        body.groups = [lib.dJointGroupCreate(0), lib.dJointGroupCreate(0)]
+
+    def _set_damping(self, body: BodyRec, weights: list[tuple[float, Node | None]]) -> None:
+        """§1.4 damping: volume-weighted average of the merged solids' Damping nodes."""
+        lib = self._lib
         wsum = sum(w for w, _ in weights)
         lin = ang = 0.0
         for w, damping in weights:
@@ -318,12 +339,9 @@ class SceneBuilder(SimulationCore):
                 lin += weight * float(_f(damping, "linear", 0.2))
                 ang += weight * float(_f(damping, "angular", 0.2))
         if lin > 0 or ang > 0:
-            lib.dBodySetDamping(b, damping_per_step(lin, self.dt), damping_per_step(ang, self.dt))
+            lib.dBodySetDamping(body.ptr, damping_per_step(lin, self.dt), damping_per_step(ang, self.dt))
         else:
-            lib.dBodySetDampingDefaults(b)
-        lib.dBodySetMaxAngularSpeed(b, MAX_ANGULAR_SPEED)
-        self._set_auto_disable(body)
-        body.groups = [lib.dJointGroupCreate(0), lib.dJointGroupCreate(0)]
+            lib.dBodySetDampingDefaults(body.ptr)
 
     def _set_auto_disable(self, body: BodyRec) -> None:
         lib = self._lib

@@ -7,9 +7,12 @@ imported Solid with Physics falls, collides and is seen by ray sensors from the 
 devices. A removed subtree takes its geoms, joints and bodies out of the world at once: nothing collides with
 it, no ray hits it, and nothing stays jointed to it.
 
-What is supported: a subtree imported where no Solid is above it (the root's ``children``, or a Group/Pose
-chain at the top). A Solid imported inside an existing Solid would change that Solid's body (merged mass,
-static basis); it stays in the scene tree without physics, with one warning, as before.
+A subtree imported inside an existing Solid follows the load's rules too (§3.3): a Solid with Physics merges
+into the body of a parent that has one (its mass is summed again, the parent stays where it is), or gets its
+own body fixed to the nearest body above or to the world; a Solid without Physics brings body-less geoms. Its
+removal takes its mass out of the body again. Not supported: a Solid imported into a joint's ``endPoint`` (it
+stays in the scene tree without physics, with one warning). A boundingObject imported or removed on its own
+rebuilds its Solid's geoms (:meth:`SceneChanges.bounding_object_changed`).
 
 Removed bodies are disabled and detached from every joint rather than destroyed, so the per-body indices and
 the live views into ODE memory that the stepping keeps stay valid; they are skipped by resets.
@@ -18,11 +21,15 @@ the live views into ODE memory that the stepping keeps stay valid; they are skip
 from __future__ import annotations
 
 from collections.abc import Iterable
+from ctypes import byref
 
+from dualtwin.webots import _math3 as m3
 from dualtwin.webots._math3 import Pose
+from dualtwin.webots.mass_rules import rot_matrix
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics.geometry_edits import _WAKE_MARGIN
 from dualtwin.webots.physics.records import (
+    JOINT_TYPES,
     SOLID_TYPES,
     BodyRec,
     GeomRec,
@@ -39,37 +46,97 @@ class SceneChanges(Stepper):
 
     def can_add(self, ancestors: Iterable[Node]) -> bool:
         """Whether a node placed below ``ancestors`` (top-level first, its parent last) can join the physics:
-        no Solid may be above it."""
-        return not any(node.type_name in SOLID_TYPES for node in ancestors)
+        its nearest Solid above (if any) is in the physics, and no joint or Slot lies between them (a Solid
+        imported into an ``endPoint`` is not supported)."""
+        chain = list(ancestors)
+        at = self._parent_solid_at(chain)
+        if at < 0:
+            return True
+        if id(chain[at]) not in self._solid_by_node:
+            return False
+        return not any(n.type_name in JOINT_TYPES or n.type_name == "Slot" for n in chain[at + 1 :])
+
+    @staticmethod
+    def _parent_solid_at(chain: list[Node]) -> int:
+        return max((i for i, n in enumerate(chain) if n.type_name in SOLID_TYPES), default=-1)
 
     def add_nodes(self, top: Node, ancestors: Iterable[Node] = ()) -> list[SolidRec]:
-        """Build the ODE objects of ``top`` (just inserted below ``ancestors``, none of them a Solid) and
-        return the new Solids' records. Geoms, bodies and joints exist when this returns."""
+        """Build the ODE objects of ``top`` (just inserted below ``ancestors``, see :meth:`can_add`) as the
+        load builds them, and return the new Solids' records. Geoms, bodies and joints exist when this returns.
+
+        Below an existing Solid the load's rules hold (§3.3): a Solid with Physics that is a plain child of a
+        Solid with a body is merged into that body, whose mass, centre of mass and inertia are summed again
+        (the root Solid stays where it is and keeps its velocity); one below a Solid without a body gets its
+        own body, fixed to the nearest body above or to the world (static basis); a Solid without Physics
+        has body-less geoms (inside a robot they follow it every step). Everything is placed where the parent
+        Solid is now, not where it was at load."""
+        chain = list(ancestors)
+        at = self._parent_solid_at(chain)
+        parent = self._solid_by_node[id(chain[at])] if at >= 0 else None
         frame = Pose()
-        for node in ancestors:  # Pose/Transform chain above the node (Groups add nothing)
+        for node in chain[at + 1 :]:  # Pose/Transform chain above the node (Groups add nothing)
             if "translation" in node.fields and "rotation" in node.fields:
                 frame = frame * Pose.from_fields(field_or(node, "translation", None), field_or(node, "rotation", None))
         n_solids, n_bodies, n_joints = len(self.solids), len(self.bodies), len(self.joints)
         n_robots, n_motors, n_loops = len(self.robots), len(self.motors), len(self._loops)
-        self._walk_children([top], frame, None, None)
+        self._walk_children([top], frame, parent, parent.robot if parent is not None else None)
         solids = self.solids[n_solids:]
         self._assign_bodies(solids)
         bodies = self.bodies[n_bodies:]
         for body in bodies:
             self._create_body(body)
             self._enabled.append(True)
+            if parent is not None:
+                self._place_where_it_is_now(body)
+        grown = {id(s.body): s.body for s in solids if s.body is not None and s.body.index < n_bodies}
+        for body in grown.values():
+            self._remass(body)
         for solid in solids:
-            self._create_geoms(solid)
+            self._create_geoms(solid, None if parent is None else self.solid_world_pose(solid))
         for joint in self.joints[n_joints:]:
             self._create_joint(joint)
         for joint, name in self._loops[n_loops:]:
             self._close_loop(joint, name)
         self._create_fixed_joints(bodies)
-        self._collect_devices(solids, self.robots[n_robots:])
+        robots = self.robots[n_robots:]
+        if parent is not None and parent.robot is not None:
+            robots = [parent.robot, *robots]  # its new devices take their places in its device order
+        self._collect_devices(solids, robots)
         for motor in self.motors[n_motors:]:
             motor.reset_state()
         self._geoms_changed()
         return solids
+
+    def _place_where_it_is_now(self, body: BodyRec) -> None:
+        """A new body below an existing Solid: at its Solid's current pose, and that pose is its load pose
+        (a reset removes imported nodes anyway)."""
+        root = body.root
+        world = (self.solid_world_pose(root.parent) if root.parent is not None else Pose()) * root.rel
+        body.load_R = world.R
+        body.load_pos = world.apply(body.com)
+        self._place_body_at_load(body)
+
+    def _remass(self, body: BodyRec) -> None:
+        """Sum the mass of a body whose merged Solids changed (§3.3) and set it: the root Solid frame stays
+        where it is, the body origin moves to the new centre of mass with the velocity of that point, and every
+        geom on the body keeps its place in the world."""
+        lib = self._lib
+        now, load = body.pose(), Pose(body.load_R, m3.sub(body.load_pos, m3.mat_vec(body.load_R, body.com)))
+        old_com_world = now.apply(body.com)
+        lvel, avel = tuple(body.lvel[:3]), tuple(body.avel[:3])
+        total, weights = self._centred_mass(body)
+        lib.dBodySetMass(body.ptr, byref(total))
+        new_com_world = now.apply(body.com)
+        lib.dBodySetPosition(body.ptr, *new_com_world)
+        v = m3.add(lvel, m3.cross(avel, m3.sub(new_com_world, old_com_world)))
+        lib.dBodySetLinearVel(body.ptr, *v)
+        body.load_pos = load.apply(body.com)  # a reset places the root Solid where it was at load
+        self._set_damping(body, weights)
+        for g in (g for m in body.members for g in m.geoms if g.body is body):
+            world = self.solid_world_pose(g.solid) * g.local
+            lib.dGeomSetOffsetWorldPosition(g.ptr, *world.t)
+            lib.dGeomSetOffsetWorldRotation(g.ptr, rot_matrix(world.R))
+        self._wake_body(body.index)
 
     def remove_nodes(self, top: Node) -> None:
         """Take every Solid of the subtree ``top`` out of the physics (no-op for nodes that have none)."""
@@ -90,6 +157,11 @@ class SceneChanges(Stepper):
         for s in gone:
             s.geoms.clear()
         self._plans.clear()  # cached pair plans name the destroyed geoms (ODE may reuse their addresses)
+        shrunk = {id(s.body): s.body for s in gone
+                  if s.body is not None and id(s.body.root) not in gone_ids and not s.body.removed}  # fmt: skip
+        for body in shrunk.values():  # merged Solids leave a body that stays: its mass is summed again
+            body.members[:] = [m for m in body.members if id(m) not in gone_ids]
+            self._remass(body)
         dead_bodies = [b for b in self.bodies if id(b.root) in gone_ids and not b.removed]
         for body in dead_bodies:
             joints = [lib.dBodyGetJoint(body.ptr, i) for i in range(lib.dBodyGetNumJoints(body.ptr))]
