@@ -8,7 +8,9 @@ Each test builds its own project (``worlds/w.wbt`` + ``controllers/c/c.py``) and
 
 from __future__ import annotations
 
+import os
 import textwrap
+import threading
 from pathlib import Path
 
 import pytest
@@ -255,3 +257,32 @@ def test_step_answers_do_not_grow_with_handles_got_anew_each_step(
     assert len(sizes) > 3 * 400  # each step: getSelf() and the new handle's first read go to the simulation
     # after the API's description: at most two sweeps' worth of positions (all 400 would be about 12 kB)
     assert max(sizes[1:]) < 8_000, max(sizes[1:])
+
+
+# ------------------------------------------------------------------ the channel itself
+
+
+def test_a_frame_crosses_whole_when_the_kernel_takes_it_in_parts(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A frame (length and payload go out in one ``writev``) larger than a pipe holds, whose first write the
+    kernel cuts short (as a signal can), still arrives whole and in order, followed by the next frame."""
+    read_fd, write_fd = os.pipe()
+    writer, reader = controller_process.Wire(read_fd, write_fd), controller_process.Wire(read_fd, write_fd)
+    real_writev = os.writev
+    cut: list[int] = []
+
+    def short_writev(fd: int, buffers: list[bytes]) -> int:
+        cut.append(fd)
+        return real_writev(fd, [bytes(buffers[0])[:2]])  # two bytes of the length, nothing more
+
+    monkeypatch.setattr(controller_process.os, "writev", short_writev)
+    big = bytes(range(256)) * 4096  # 1 MiB: sixteen times what a pipe holds
+    received: list[bytes | None] = []
+    thread = threading.Thread(target=lambda: received.extend((reader.receive(), reader.receive())))
+    thread.start()
+    writer.send(big)
+    writer.send(b"next")
+    thread.join(timeout=30)
+    os.close(read_fd)
+    os.close(write_fd)
+    assert cut == [write_fd, write_fd]
+    assert received == [big, b"next"]

@@ -96,6 +96,8 @@ class _Link:
         #: values go with every step's answer
         self.subscribed: dict[tuple[int, str], Any] = {}
         self.robot_object: api.Robot | None = None
+        #: bound methods of the buffered commands, by (handle, name): found once, not each step
+        self.commands: dict[tuple[int, str], Any] = {}
         self.done = threading.Event()
 
 
@@ -261,15 +263,18 @@ class _Host:
 
     def _run_pending(self, link: _Link, pending: list[tuple[Any, ...]]) -> None:
         """The child's output and buffered commands, in its order (a command's warning lands between)."""
-        objects = link.table.objects
         out = link.out
+        commands = link.commands
         for entry in pending:
             if len(entry) == 2:
                 out.append(entry)
                 continue
             handle, name, args = entry
             try:
-                getattr(objects[handle], name)(*args)
+                command = commands.get((handle, name))
+                if command is None:
+                    command = commands[handle, name] = getattr(link.table.objects[handle], name)
+                command(*args)
             except Exception as exc:  # a marked command does not raise; should one, it is not lost
                 if link.deferred is None:
                     link.deferred = exc

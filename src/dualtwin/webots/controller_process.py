@@ -69,9 +69,13 @@ class Wire:
         self._end = 0
 
     def send(self, data: bytes) -> None:
-        view = memoryview(_LENGTH.pack(len(data)) + data)
-        while view:
-            view = view[os.write(self.out_fd, view):]
+        """Length and payload in one ``writev`` (no copy of the payload to join them)."""
+        header = _LENGTH.pack(len(data))
+        written = os.writev(self.out_fd, (header, data))
+        if written < len(header) + len(data):  # a large frame on a full pipe: the rest, as it drains
+            view = memoryview(header + data)[written:]
+            while view:
+                view = view[os.write(self.out_fd, view):]
 
     def receive(self) -> bytes | None:
         """One frame's payload, or None when the other side closed the channel."""
@@ -81,7 +85,7 @@ class Wire:
             if end - start >= need:
                 need += _LENGTH.unpack_from(buffer, start)[0]
                 if end - start >= need:
-                    frame = bytes(buffer[start + _LENGTH.size:start + need])
+                    frame = bytes(self._view[start + _LENGTH.size:start + need])  # one copy
                     self._start, self._end = (0, 0) if start + need == end else (start + need, end)
                     return frame
             if start + need > len(buffer):  # make room: move the partial frame to the front, grow if needed
@@ -153,6 +157,7 @@ class _Channel:
         #: every marked getter read so far (the parent sends their values with each step), and its kind
         self.subscribed: dict[tuple[int, str], bool] = {}  # key -> whether a command drops it
         self.subscribed_echoes: list[tuple[int, str]] | None = None  # (computed when needed)
+        self.subscribed_keys: list[tuple[int, str]] | None = None  # the keys in order (likewise)
         self.new_subscriptions: list[tuple[int, str]] = []
         self.dropped: list[tuple[int, str]] = []
         self.used: set[tuple[int, str]] = set()  # read since the last sweep
@@ -177,7 +182,11 @@ class _Channel:
     def _send(self, message: tuple[Any, ...]) -> None:
         """Send ``message`` with what is pending and the subscription changes: one pickle, one write."""
         message = (*message, self.pending, self.new_subscriptions, self.dropped)
-        self.pending, self.out_size, self.new_subscriptions, self.dropped = [], 0, [], []
+        self.pending, self.out_size = [], 0
+        if self.new_subscriptions:  # (most messages change no subscription: no new lists for them)
+            self.new_subscriptions = []
+        if self.dropped:
+            self.dropped = []
         try:  # plain data (the usual case) pickles in C; an API object in it needs its handle
             data = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
         except _HandleNeeded:
@@ -274,7 +283,7 @@ class _Channel:
         if value is _MISSING:
             if key not in self.subscribed:
                 self.subscribed[key] = echo
-                self.subscribed_echoes = None
+                self.subscribed_echoes = self.subscribed_keys = None
                 self.new_subscriptions.append(key)
             value = self.request(("read", handle, name))
             self.values[key] = value
@@ -293,7 +302,9 @@ class _Channel:
         result, fresh = self._exchange(("call", proxy._dualtwin_handle, name, args, kwargs))
         if fresh is not None:
             values, missing = fresh
-            keys = list(self.subscribed)
+            keys = self.subscribed_keys
+            if keys is None:
+                keys = self.subscribed_keys = list(self.subscribed)
             self.values = dict(zip(keys, values, strict=True))
             for index in missing:
                 del self.values[keys[index]]
@@ -308,7 +319,7 @@ class _Channel:
         for key in stale:
             del self.subscribed[key]
         if stale:
-            self.subscribed_echoes = None
+            self.subscribed_echoes = self.subscribed_keys = None
             self.dropped.extend(stale)
         self.used = set()
 
