@@ -13,14 +13,17 @@ joint damping, dry friction, armature and P gain, and the flange mass; seeded), 
 * ``loop``: the one-at-a-time path in this process (``Evaluator("serial", batch="off")``, today's serial
   executor: each candidate's scenarios run on one twin, ``twin.step()`` per control period);
 * ``batch T``: the batched path on ``T`` threads (``Evaluator("process", workers=T)``, align's default for a
-  MuJoCo target): every candidate's control period stepped as one ``mujoco.batch`` call, the Python between
-  periods (inputs, sampling) still serial.
+  MuJoCo target): every candidate's control period stepped as one ``mujoco.batch`` call, with the poses and
+  sensors of the new state computed on the batch's threads and every candidate's channels read from the
+  batch's arrays at once; the Python between periods (commands, each twin's period bookkeeping) stays serial.
 
 Each row is timed best of ``--repeats`` after a warm pass (twins built, plugin loaded); CPU seconds are the
 process's, all threads. Every row's traces are compared bit for bit with the loop's. The table gives wall s,
 CPU s, candidates per wall second, and the speed-up over 1 thread and over the loop; ``--out`` writes it as
-JSON. The Python between periods does not scale with threads: its share (the ``python share`` line, measured
-by timing the batch calls) bounds the speed-up (Amdahl).
+JSON. The Python between periods does not scale with threads: its share bounds the speed-up (Amdahl). The
+``python share`` line gives it by CPU seconds (the 1-thread batch's physics runs on the calling thread, whose
+CPU time inside the batch calls is measured), which a loaded machine does not distort as it does wall
+seconds; the load average is printed with the table, since wall ratios mean something only on idle cores.
 """
 
 from __future__ import annotations
@@ -70,19 +73,22 @@ def digest(results: list[Traces]) -> str:
 
 
 class _BatchClock:
-    """CPU and wall seconds spent inside ``mujoco.batch.Batch.step`` (the physics) while installed."""
+    """Wall seconds spent inside ``mujoco.batch.Batch.step`` (the physics) while installed, and the calling
+    thread's CPU seconds there (all of the physics on one thread: the batch's threads include the caller's)."""
 
     def __init__(self) -> None:
         self.wall = 0.0
+        self.thread_cpu = 0.0
         self._step = mujoco.batch.Batch.step
 
     def __enter__(self) -> _BatchClock:
         original = self._step
 
         def timed(batch: Any, *args: Any, **kwargs: Any) -> None:
-            start = time.perf_counter()
+            start, cpu = time.perf_counter(), time.thread_time()
             original(batch, *args, **kwargs)
             self.wall += time.perf_counter() - start
+            self.thread_cpu += time.thread_time() - cpu
 
         mujoco.batch.Batch.step = timed  # type: ignore[method-assign]
         return self
@@ -101,7 +107,8 @@ def measure(evaluator: Evaluator, jobs: list[SimJob], repeats: int) -> dict[str,
             results = evaluator.map(jobs)
             wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
         if wall < best["wall_s"]:
-            best = {"wall_s": wall, "cpu_s": cpu, "physics_wall_s": clock.wall, "digest": digest(results),
+            best = {"wall_s": wall, "cpu_s": cpu, "physics_wall_s": clock.wall,
+                    "physics_thread_cpu_s": clock.thread_cpu, "digest": digest(results),
                     "batched": evaluator.batched}
     return best
 
@@ -132,13 +139,20 @@ def run(threads: list[int], candidates: int, scenarios: int, repeats: int) -> di
         vs_one = f"{r['speedup_vs_1_thread']:10.2f}x" if r["speedup_vs_1_thread"] else f"{'-':>11s}"
         print(f"  {r['row']:9s} {r['threads']:7d} {r['wall_s']:8.2f} {r['cpu_s']:8.2f} {r['candidates_per_s']:8.2f} "
               f"{vs_one} {r['speedup_vs_loop']:7.2f}x  {'identical' if r['identical_to_loop'] else 'DIFFER'}")
-    first = next((r for r in rows[1:] if r["threads"] == 1), rows[1] if len(rows) > 1 else None)
+    first = next((r for r in rows[1:] if r["threads"] == 1), None)
     if first is not None:
-        share = 1.0 - first["physics_wall_s"] * first["threads"] / first["wall_s"] if first["threads"] == 1 else None
-        if share is not None:
-            print(f"  python share of the 1-thread batch: {share:.0%} (the batch calls took "
-                  f"{first['physics_wall_s']:.2f} s of {first['wall_s']:.2f} s); speed-up bound {1 / share:.2f}x")
-    return {"candidates": candidates, "scenarios": ids, "repeats": repeats, "cpus": os.cpu_count(),
+        # By CPU seconds, which a loaded machine does not distort (the wall split is printed beside it).
+        physics = first["physics_thread_cpu_s"]
+        share = 1.0 - physics / first["cpu_s"]
+        first["python_share"] = share
+        print(f"  python share of the 1-thread batch: {share:.0%} of its CPU seconds (physics {physics:.2f} of "
+              f"{first['cpu_s']:.2f} CPU s; by wall {1 - first['physics_wall_s'] / first['wall_s']:.0%}); "
+              f"speed-up bound {1 / share:.2f}x over 1 thread")
+    load = os.getloadavg() if hasattr(os, "getloadavg") else None
+    if load is not None:
+        print(f"  load average after the run: {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} on {os.cpu_count()} CPUs "
+              "(wall ratios need idle cores)")
+    return {"candidates": candidates, "scenarios": ids, "repeats": repeats, "cpus": os.cpu_count(), "load": load,
             "machine": platform.processor() or platform.machine(), "mujoco": mujoco.__version__,
             "rows": [{k: v for k, v in r.items() if k != "digest"} for r in rows]}
 

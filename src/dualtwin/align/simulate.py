@@ -13,9 +13,12 @@ condition shifts). Each job gets its own twin (kept and reused across calls) and
 :func:`job_periods`, the very code of the one-at-a-time path, which yields wherever the twin's physics advances
 a control period. Every live job is advanced to its next yield, then all their periods are stepped as one
 ``mujoco.batch`` call on C threads (`dualtwin.twins.mujoco_batch`), and so on: the Python of each job
-(scenario inputs, resets between scenarios, sampling, failure checks) runs between periods as before, only the
-physics is batched. Jobs may be in different scenarios or at different times; one that ends (finished, failed
-or unstable) leaves the batch. Traces are bit-identical to simulating each job alone, at any thread count
+(scenario inputs, resets between scenarios, failure checks) runs between periods as before. The samples are
+read for every job at once: the batch computes the new state's poses and sensors on its threads, and
+`~dualtwin.twins.mujoco_batch.ChannelColumns` reads the binding's channels from its arrays, which the driver
+sends into each job's generator (a twin with sensor noise, bias, resolution or delay reads its own). Signal
+values are computed once per scenario signal and shared (`dualtwin.suite.runner.signal_values`). Jobs may be
+in different scenarios or at different times; one that ends (finished, failed or unstable) leaves the batch. Traces are bit-identical to simulating each job alone, at any thread count
 (tests/align/test_batched.py).
 """
 
@@ -35,14 +38,14 @@ from dualtwin.errors import DualtwinError
 from dualtwin.parallel import DEFAULT_WORKERS, EXECUTORS, ExecutorKind, ParallelMap, check_executor
 from dualtwin.robots.binding import RobotBinding, load_binding
 from dualtwin.suite.loader import load_suite, read_json
-from dualtwin.suite.runner import Periods, check_against_binding, drive, scenario_periods
+from dualtwin.suite.runner import Periods, Samples, check_against_binding, drive, scenario_periods
 from dualtwin.suite.schema import Suite
 from dualtwin.twins import make_twin
 from dualtwin.twins.base import Twin
 from dualtwin.twins.io import RobotIO
 
 if TYPE_CHECKING:
-    from dualtwin.twins.mujoco_batch import TwinBatch
+    from dualtwin.twins.mujoco_batch import ChannelColumns, TwinBatch
 
 BatchMode = Literal["auto", "off"]
 BATCH_MODES: tuple[str, ...] = ("auto", "off")
@@ -157,7 +160,7 @@ def simulate_on(io: RobotIO, suite: Suite, wanted: Sequence[str] | None, seed: i
 
 
 def suite_periods(io: RobotIO, suite: Suite, wanted: Sequence[str] | None, seed: int,
-                  offsets: Mapping[str, float] | None = None) -> Generator[None, None, Traces]:
+                  offsets: Mapping[str, float] | None = None) -> Generator[None, Samples, Traces]:
     """`simulate_on` as a generator that yields where the twin's physics steps a period (see
     `dualtwin.suite.runner.scenario_periods`)."""
     ids = suite.scenario_ids()
@@ -199,7 +202,7 @@ def simulate_with_nuisance(io: RobotIO, suite: Suite, knobs: Mapping[str, float]
 
 
 def job_periods(io: RobotIO, suite: Suite, knobs: Mapping[str, float], wanted: Sequence[str] | None,
-                seed: int, offsets: Mapping[str, float] | None = None) -> Generator[None, None, Traces]:
+                seed: int, offsets: Mapping[str, float] | None = None) -> Generator[None, Samples, Traces]:
     """`simulate_with_nuisance` as a generator that yields where the twin's physics steps a period: the
     batched path (`BatchedSimulator`) runs many of them, one per candidate twin, in lockstep."""
     physics, extra = nuisance.split(knobs)
@@ -305,6 +308,10 @@ class BatchedSimulator:
         self._period = self.suite.global_settings.control_period_s
         self._ios: list[RobotIO] = []
         self._batch: TwinBatch | None = None
+        self._columns: ChannelColumns | None = None
+        #: Periods of the last map whose samples were read for many jobs at once / by each job's twin.
+        self.read_together = 0
+        self.read_alone = 0
         from dualtwin.twins.mujoco_batch import batch_reason  # imports mujoco.batch: only when batching
 
         #: Why this twin cannot be batched, or None.
@@ -317,11 +324,16 @@ class BatchedSimulator:
         return self._ios[index]
 
     def _twin_batch(self, n: int) -> TwinBatch:
-        from dualtwin.twins.mujoco_batch import TwinBatch
+        from dualtwin.twins.mujoco_batch import ChannelColumns, TwinBatch
 
         self._io(n - 1)
         if self._batch is None:
             self._batch = TwinBatch([io.twin for io in self._ios], self.nthread)  # type: ignore[misc]
+            section = self.robot.spec.twins.get("mujoco")
+            spec = self.robot.spec
+            # Ground truth, then on-board channels (the order of a period's samples, see `_send`).
+            self._columns = ChannelColumns.build(self._batch, dict(section.aliases) if section else {},
+                                                 [*spec.ground_truth.values(), *spec.onboard.values()])
         return self._batch
 
     def map(self, jobs: Sequence[SimJob]) -> list[Traces]:
@@ -336,19 +348,34 @@ class BatchedSimulator:
         live: list[int] = []
         for i, job in enumerate(periods):
             try:
-                next(job)
+                next(job)  # knobs set, first period's commands given
                 live.append(i)
             except StopIteration as stop:
                 results[i] = stop.value
+        columns = self._columns
+        # Jobs whose samples are read for all of them at once from the batch's arrays (the same values as each
+        # twin's getters); a twin with sensor noise, bias, resolution or delay reads its own.
+        together = {i for i in live if columns is not None and getattr(self._ios[i].twin, "plain_sensor_reads", False)}
+        truth_width = len(self.robot.spec.ground_truth)
+        self.read_together = self.read_alone = 0
         while live:
             unstable = batch.step(live)
+            samples: dict[int, list[float]] = {}
+            read = [i for i, exc in zip(live, unstable, strict=True) if exc is None and i in together]
+            if read and columns is not None:
+                samples = dict(zip(read, columns.read(np.asarray(read)).tolist(), strict=True))
             still: list[int] = []
             for i, exc in zip(live, unstable, strict=True):
                 try:
-                    if exc is None:
-                        periods[i].send(None)
-                    else:
+                    if exc is not None:
                         periods[i].throw(exc)
+                    elif i in samples:
+                        row = samples[i]
+                        self.read_together += 1
+                        periods[i].send((row[truth_width:], row[:truth_width]))
+                    else:
+                        self.read_alone += 1
+                        periods[i].send(None)
                     still.append(i)
                 except StopIteration as stop:
                     results[i] = stop.value
@@ -360,6 +387,7 @@ class BatchedSimulator:
             io.twin.close()
         self._ios.clear()
         self._batch = None
+        self._columns = None
 
 
 class Evaluator:

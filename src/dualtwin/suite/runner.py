@@ -35,6 +35,7 @@ from dualtwin.robots.binding import RobotBinding
 from dualtwin.suite.loader import load_suite, read_json
 from dualtwin.suite.physical import check_initial_value, impossible_reason, joint_stops
 from dualtwin.suite.schema import Scenario, Suite
+from dualtwin.suite.signals import Signal
 from dualtwin.twins import make_twin
 from dualtwin.twins.base import Twin
 from dualtwin.twins.io import RobotIO
@@ -88,8 +89,11 @@ def format_rows(names: Sequence[str], rows: Sequence[Sequence[float]]) -> str:
 
 #: What `scenario_periods` returns: the scenario's result and its two logs (rows of time followed by channels).
 ScenarioLogs = tuple[ScenarioResult, list[list[float]], list[list[float]]]
+#: What a driver may send a period generator after a period: the period's samples, ``(onboard, ground_truth)``
+#: values in the binding's channel order, or None for the generator to read them itself.
+Samples = tuple[list[float], list[float]] | None
 #: A simulation that yields once per control period for its twin's physics to be stepped (see `drive`).
-Periods = Generator[None, None, Any]
+Periods = Generator[None, Samples, Any]
 
 
 def run_scenario(io: RobotIO, scenario: Scenario, seed: int, thresholds: dict[str, float],
@@ -119,17 +123,39 @@ def drive(periods: Periods, step: Callable[[], None]) -> Any:
         return stop.value
 
 
+_SIGNAL_TABLES: dict[tuple[type, str, float, int], list[float]] = {}
+
+
+def signal_values(signal: Signal, period: float, steps: int) -> list[float]:
+    """``signal(k * period)`` for ``k`` in ``range(steps)``, as the period loop evaluates it, kept for the next
+    twin that runs an equal signal: signals are frozen documents and pure functions of time
+    (`dualtwin.suite.signals`), and their repr gives every field exactly (floats round-trip)."""
+    key = (type(signal), repr(signal), period, steps)
+    values = _SIGNAL_TABLES.get(key)
+    if values is None:
+        values = [signal(k * period) for k in range(steps)]
+        if len(_SIGNAL_TABLES) >= 256:
+            _SIGNAL_TABLES.clear()
+        _SIGNAL_TABLES[key] = values
+    return values
+
+
 def scenario_periods(io: RobotIO, scenario: Scenario, seed: int, thresholds: dict[str, float],
-                     fresh: bool, offsets: Mapping[str, float] | None = None) -> Generator[None, None, ScenarioLogs]:
+                     fresh: bool, offsets: Mapping[str, float] | None = None) -> Generator[None, Samples, ScenarioLogs]:
     """`run_scenario` as a generator: it yields where the twin's physics advances one control period
     (``twin.step()``), so a caller can step many twins' physics together (`dualtwin.twins.mujoco_batch`);
-    the step's `SimulationUnstable` comes back through ``throw``. Returns what `run_scenario` does."""
+    the step's `SimulationUnstable` comes back through ``throw``. Returns what `run_scenario` does.
+
+    Whoever resumes it after a period may send the period's samples, ``(onboard, ground_truth)`` values in
+    the binding's channel order, read for many twins at once (`dualtwin.twins.mujoco_batch.ChannelColumns`);
+    None (``next``, `drive`) has the generator read them through ``io``. Either way the values are the same."""
     twin = io.twin
     period = twin.control_period
     if fresh:
         twin.reset(seed)
     inputs = scenario.inputs
     actions = io.robot.spec.actions
+    steps = math.ceil(scenario.duration_s / period - 1e-9)
     constant = {k: v for k, v in inputs.items() if k in actions and isinstance(v, float)}
     signals = {k: v for k, v in inputs.items() if k in actions and not isinstance(v, float)}
     if fresh:
@@ -149,29 +175,40 @@ def scenario_periods(io: RobotIO, scenario: Scenario, seed: int, thresholds: dic
             io.apply_initial(key, values[key])
     for key, value in constant.items():
         io.apply_action(key, value)
+    # The signals' values for every period, computed once per signal and shared by every twin that runs
+    # this scenario (a population runs the same one on each candidate), and each action's motor commands.
+    command = twin.command
+    timed = [(signal_values(signal, period, steps), io.action_commands(key)) for key, signal in signals.items()]
     failures = [(key, io.robot.spec.failures[key].channel, limit) for key, limit in thresholds.items()]
     failure_index = [(key, channel, io.ground_truth_index(channel), limit) for key, channel, limit in failures]
 
     start = twin.time
-    steps = math.ceil(scenario.duration_s / period - 1e-9)
     # Like the paper's orchestrator, sample after each control period: a Webots supervisor's teleports only
     # take effect at the next step, so a t = 0 sample would not show the initial condition on every twin.
     onboard: list[list[float]] = []
     truth: list[list[float]] = []
     status, failure = "completed", None
     for k in range(steps):
-        t_rel = k * period
-        for key, signal in signals.items():
-            io.apply_action(key, signal(t_rel))
+        for table, commands in timed:
+            value = table[k]
+            for actuator, mode, scale in commands:  # io.apply_action(key, value)
+                command(actuator, mode, value * scale)
         try:
-            yield  # twin.step(), by whoever drives this generator
+            samples = yield  # twin.step(), by whoever drives this generator
         except SimulationUnstable as exc:
             status, failure = "unstable", {"time_s": round(twin.time - start, 9), "message": str(exc)}
             break
         t = round(twin.time - start, 9)
-        onboard_row = [t, *io.sample_onboard()]
-        truth_row = [t, *io.sample_ground_truth()]
-        if not all(math.isfinite(v) for v in onboard_row + truth_row):
+        if samples is None:
+            onboard_row = [t, *io.sample_onboard()]
+            truth_row = [t, *io.sample_ground_truth()]
+        else:
+            onboard_row = [t, *samples[0]]
+            truth_row = [t, *samples[1]]
+        # A NaN or infinity anywhere makes the sum non-finite; only then is each value looked at (a sum of
+        # finite values may overflow).
+        if not math.isfinite(sum(onboard_row) + sum(truth_row)) and not all(
+                math.isfinite(v) for v in onboard_row + truth_row):
             status, failure = "unstable", {"time_s": t, "message": "non-finite channel value"}
             break
         onboard.append(onboard_row)

@@ -11,12 +11,13 @@ from typing import Any
 
 from dualtwin.geometry import rpy_from_matrix
 from dualtwin.robots.binding import Channel, RobotBinding
-from dualtwin.twins.base import Twin
+from dualtwin.twins.base import ControlMode, Twin
 
 AXES = {"x": 0, "y": 1, "z": 2}
 
 
-def _reader(twin: Twin, channel: Channel) -> Callable[[], float]:
+def channel_reader(twin: Twin, channel: Channel) -> Callable[[], float]:
+    """A function reading ``channel`` from ``twin`` through its getters (what RobotIO samples)."""
     scale = channel.scale
     if channel.sensors:
         names = list(channel.sensors)
@@ -58,8 +59,8 @@ class RobotIO:
         spec = robot.spec
         self.onboard_names = list(spec.onboard)
         self.ground_truth_names = list(spec.ground_truth)
-        self._onboard = [_reader(twin, c) for c in spec.onboard.values()]
-        self._ground_truth = [_reader(twin, c) for c in spec.ground_truth.values()]
+        self._onboard = [channel_reader(twin, c) for c in spec.onboard.values()]
+        self._ground_truth = [channel_reader(twin, c) for c in spec.ground_truth.values()]
         self._gt_index = {name: i for i, name in enumerate(self.ground_truth_names)}
 
     def apply_initial(self, key: str, value: float) -> None:
@@ -85,6 +86,12 @@ class RobotIO:
         action = self.robot.spec.actions[key]
         for actuator in action.actuators:
             self.twin.command(actuator, action.mode, value * action.scale)
+
+    def action_commands(self, key: str) -> list[tuple[str, ControlMode, float]]:
+        """What `apply_action` does for ``key``, as ``twin.command(actuator, mode, value * scale)`` per entry:
+        for a caller that commands every control period."""
+        action = self.robot.spec.actions[key]
+        return [(actuator, action.mode, action.scale) for actuator in action.actuators]
 
     def sample_onboard(self) -> list[float]:
         return [read() for read in self._onboard]

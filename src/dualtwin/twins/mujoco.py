@@ -531,6 +531,12 @@ class MuJoCoTwin(Twin):
         mujoco.mj_objectVelocity(self.model, self.data, mujoco.mjtObj.mjOBJ_XBODY, b, out, 0)
         return np.concatenate([out[3:], out[:3]])
 
+    @property
+    def plain_sensor_reads(self) -> bool:
+        """True when :meth:`sensor` returns MuJoCo's reading as it is (+ 0.0): no noise, bias, resolution or
+        delay applies (a batch may then read every twin's sensors at once, `dualtwin.twins.mujoco_batch`)."""
+        return not self._sensor_models
+
     def sensor(self, name: str) -> float:
         s = self._id(mujoco.mjtObj.mjOBJ_SENSOR, name, "sensor")
         adr = self._sensor_adr[s]
