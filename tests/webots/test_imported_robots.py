@@ -31,9 +31,11 @@ SUPERVISOR = """
         if i == 2:
             children.importMFNodeFromString(-1, 'DEF NEW Robot { translation 1 0 0.5 name "new" '
                                                  'controller "{child}" }')
-        if i == 5 and "{remove}" == "yes":
+        if i == 5 and "{remove}" == "remove":
             sup.getFromDef("NEW").remove()
-        if i == 8 and "{remove}" == "yes":  # the child's log says -1 within 3 s of real time, while this run still goes on
+        if i == 5 and "{remove}" == "reset":
+            sup.simulationReset()  # done at the next step: the reset takes imported nodes out
+        if i == 8 and "{remove}" != "no":  # the child's log says -1 within 3 s of real time, while this run still goes on
             deadline = time.monotonic() + 3.0
             ended = False
             while not ended and time.monotonic() < deadline:
@@ -57,8 +59,8 @@ CHILD = """
 """
 
 
-def _project(tmp_path: Path, child: str, remove: bool) -> Path:
-    for name, script in (("sup", SUPERVISOR.replace("{child}", child).replace("{remove}", "yes" if remove else "no")),
+def _project(tmp_path: Path, child: str, remove: str = "no") -> Path:
+    for name, script in (("sup", SUPERVISOR.replace("{child}", child).replace("{remove}", remove)),
                          ("child", CHILD)):
         folder = tmp_path / "controllers" / name
         folder.mkdir(parents=True)
@@ -76,7 +78,7 @@ def _log(tmp_path: Path, name: str) -> list[str]:
 
 
 def test_imported_robot_controller_starts_and_steps_in_lock_step(tmp_path: Path) -> None:
-    world = _project(tmp_path, "child", remove=False)
+    world = _project(tmp_path, "child")
     assert run_world(world, None, 0.1) == 0
     sup = _log(tmp_path, "sup")
     assert sup[:3] == ["sup 0.008", "sup 0.016", "sup 0.024"]
@@ -89,14 +91,14 @@ def test_imported_robot_controller_starts_and_steps_in_lock_step(tmp_path: Path)
 
 @pytest.mark.parametrize("field", ["<none>", "<extern>"])
 def test_imported_robot_without_a_controller_starts_nothing(tmp_path: Path, field: str) -> None:
-    world = _project(tmp_path, field, remove=False)
+    world = _project(tmp_path, field)
     assert run_world(world, None, 0.1) == 0
     assert _log(tmp_path, "child") == []  # control for the test above: the script exists but is not named
     assert len(_log(tmp_path, "sup")) == 12
 
 
 def test_removing_an_imported_robot_ends_its_controller_and_the_run_goes_on(tmp_path: Path) -> None:
-    world = _project(tmp_path, "child", remove=True)
+    world = _project(tmp_path, "child", "remove")
     assert run_world(world, None, 0.1) == 0
     child = _log(tmp_path, "child")
     # steps to 32, 40, 48 ms; the supervisor removes the robot at 48 ms: the step the child waits in says -1
@@ -104,3 +106,15 @@ def test_removing_an_imported_robot_ends_its_controller_and_the_run_goes_on(tmp_
     sup = _log(tmp_path, "sup")
     assert "child ended by 0.072: True" in sup  # the -1 came at once, not at the run's end
     assert sup[-1] == "sup 0.096" and len(sup) == 13  # the supervisor ran on to the end, unhindered
+
+
+def test_a_reset_that_takes_an_imported_robot_out_ends_its_controller(tmp_path: Path) -> None:
+    # simulationReset removes what a supervisor imported; it is done at the supervisor's step after the request
+    # (its 7th, from 48 ms), while the child waits in its step to 56 ms: that step says -1
+    world = _project(tmp_path, "child", "reset")
+    assert run_world(world, None, 0.1) == 0
+    assert _log(tmp_path, "child") == ["start 0.024 new", "child 0.032 0", "child 0.040 0", "child 0.048 0",
+                                       "child -1"]
+    sup = _log(tmp_path, "sup")
+    assert sup[6] == "sup 0.000"  # the reset
+    assert "child ended by 0.016: True" in sup

@@ -65,7 +65,8 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Robot", "scene", "supported",
              "Python controllers run unchanged, each in its own process (runner), supervisor API, selfCollision, "
              "controllerArgs; a Robot a supervisor imports at run time starts its controller in its own "
-             "process, stepping with the others from the next step, and remove() ends it (its step returns -1); C "
+             "process, stepping with the others from the next step, and remove() (or a reset, which takes imported nodes "
+             "out) ends it (its step returns -1); C "
              "controllers do not run; battery drained by cpuConsumption and motor consumptionFactor × |torque| "
              "(no Charger recharge; an empty battery stops nothing)"),
     Coverage("Group", "scene", "supported", "children expanded"),

@@ -194,6 +194,16 @@ class Runtime:
             self._maybe_advance()
             self._cond.notify_all()
 
+    def _end_orphans(self) -> None:
+        """End the controllers whose robot is no longer in the scene tree (caller holds the condition)."""
+        present: set[int] = set()
+        for top in self.simulation.world.nodes:
+            present.update(id(n) for n in top.walk())
+        for controller in self._controllers:
+            node = controller.robot_node
+            if node is not None and id(node) not in present and not controller.removed:
+                self.end_controllers(node)
+
     def thread_done(self) -> None:
         """The calling thread's controller ended: release its Robots from the synchronisation."""
         with self._cond:
@@ -326,6 +336,7 @@ class Runtime:
                 for c in self._clients:
                     c.target = 0.0
                     c.robot._after_reset()
+                self._end_orphans()  # the reset took the robots a supervisor imported out of the scene
                 return self._end(client) if self._limit_reached() else 0
             client.target = sim.time + n * sim.basic_time_step / 1000.0
             client.waiting = True
