@@ -104,3 +104,22 @@ def test_solid_with_physics_under_a_static_solid_is_fixed_to_the_world() -> None
     control = _supervisor()
     _run(control, 1.5)
     assert control.getFromDef("BALL").getPosition()[2] == pytest.approx(0.1, abs=0.005)
+
+
+def test_importing_at_the_start_is_loading_it() -> None:
+    # the merge at run time is the load's merge: the weight imported before the first step, or written in the
+    # world, gives the same motion (same body, mass, centre of mass and inertia; only the order of the calls
+    # that build it differs)
+    sup = _supervisor()
+    _add_weight(sup, 8000)
+    written = WORLD.replace("physics Physics { } }\nDEF SHELF",
+                            "physics Physics { } children [ " + WEIGHT.format(density=8000) + " ] }\nDEF SHELF")
+    assert written != WORLD
+    loaded = Supervisor(simulation=Simulation(load_world_text(written)))
+    for s in (sup, loaded):
+        _run(s, 0.6)
+    for name in ("BASE", "W"):
+        assert sup.getFromDef(name).getPosition() == pytest.approx(loaded.getFromDef(name).getPosition(), abs=1e-4)
+    assert sup.getFromDef("BASE").getOrientation() == pytest.approx(loaded.getFromDef("BASE").getOrientation(),
+                                                                    abs=1e-4)
+    assert _tilt(sup) > 5.0  # it is tipping by then
