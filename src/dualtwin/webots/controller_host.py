@@ -10,6 +10,10 @@ Output is deterministic: a child's ``print`` travels with its next message, and 
 its behalf are kept with it; everything is written in robot order each time the simulation advances (every
 controller is then waiting in ``step``, so all it printed before has arrived), and at the end.
 
+A Robot a supervisor imports during the run starts its controller the same way (:meth:`_Host.add`): the runtime
+expects one more controller at once, so the next step waits for it, and the watching thread starts the child
+(a child dies with the thread that started it, and the importing controller's serving thread may end first).
+
 The main thread watches the children:
 
 * one still running :data:`TERMINATION_GRACE_S` after its ``step`` returned -1 is killed, with a warning

@@ -10,6 +10,10 @@ As Webots does, every controller runs in its own process (:mod:`dualtwin.webots.
 simulation advances only when every controller has called ``step`` (Webots' synchronisation), and the
 controllers' output is printed in robot order at each step, so the same world prints the same bytes.
 
+A Robot a supervisor imports during the run gets its controller as at load (:func:`controller_spec`), started
+in its own process and waited for from the next step; a robot removed (or taken out by a reset) has its
+controller's step return -1, then that controller ends as after any -1.
+
 ``robot.step`` returns -1 once ``duration_s`` of simulated time has elapsed, counted across
 ``simulationReset``. As in Webots, a controller that calls ``step`` again after -1 is ended there (exit status
 0), and one still running 1 s of real time after its -1 is killed with a warning (Webots' "Forced
