@@ -169,3 +169,31 @@ def test_a_hinge2_on_a_body_stays_dynamic() -> None:
     for _ in range(10):
         robot.step(16)
     assert wheel.getPosition()[2] < 0.99  # robot and wheel fall together
+
+
+def test_a_propeller_in_position_mode_ramps_its_speed_too() -> None:
+    """A Propeller's motor runs the same kinematic controller: in position mode its speed ramps by the acceleration
+    (500 rad/s², 2 rad/s more per 4 ms step) and drops to 0 on the target, so the thrust t1·ω² a 1 kg drone feels
+    (no gravity) grows step by step and stops. Before, ω jumped to the commanded 100 rad/s at once."""
+    text = """#VRML_SIM R2023b utf8
+WorldInfo { basicTimeStep 4 gravity 0 }
+DEF DRONE Robot {
+  supervisor TRUE boundingObject Box { size 0.1 0.1 0.1 } physics Physics { mass 1 }
+  children [ Propeller { shaftAxis 0 0 1 thrustConstants 1e-4 0 torqueConstants 0 0
+    device RotationalMotor { name "prop" maxVelocity 200 maxTorque 1000 acceleration 500 } } ]
+}
+"""
+    sim = Simulation(load_world_text(text))
+    robot = Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    prop = robot.getDevice("prop")
+    prop.setPosition(1.0)  # the angle moves 0.004·2·k(k+1)/2 rad in k steps: 0.96 after 15, on 1.0 at the 16th
+    prop.setVelocity(100.0)
+    drone = robot.getFromDef("DRONE")
+    speeds, vz = [], 0.0
+    for k in range(1, 21):
+        robot.step(4)
+        if k < 16:
+            vz += 1e-4 * (2.0 * k) ** 2 * 0.004  # m = 1 kg
+        speeds.append(drone.getVelocity()[2])
+        assert speeds[-1] == pytest.approx(vz, rel=1e-9, abs=1e-15)
+    assert speeds[15:] == [speeds[14]] * 5

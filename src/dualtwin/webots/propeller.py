@@ -3,8 +3,8 @@
 Webots (``WbPropeller``) does not simulate the propeller as a body: its RotationalMotor runs a kinematic
 controller every step. In velocity mode (``setPosition(inf)``) the speed ω ramps toward the target with the
 motor's ``acceleration``, or with ``maxTorque`` (read as rad/s²) when the acceleration is -1 or larger than
-``maxTorque``; in position mode the angle moves toward the target at ``|velocity|`` (ω ≥ 0 there) and ω is 0 once
-it is reached. Each step with ω ≠ 0, with ``V`` the velocity of the centre of thrust along the shaft axis,
+``maxTorque``; in position mode the angle moves toward the target at a speed ramping the same way toward
+``|velocity|`` (ω ≥ 0 there), and ω is 0 once it is reached (the same controller as kinematic joints'). Each step with ω ≠ 0, with ``V`` the velocity of the centre of thrust along the shaft axis,
 
     T = t1·ω·|ω| − t2·|ω|·V        Q = q1·ω·|ω| − q2·|ω|·V   (Q clamped to ±maxTorque)
 
@@ -23,6 +23,7 @@ from typing import Any
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots.api_args import as_float, finite, warn
 from dualtwin.webots.device_base import KinematicMotor
+from dualtwin.webots.motor_law import kinematic_motion
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import AttachmentRec, Simulation
 
@@ -62,25 +63,12 @@ class PropellerRec:
         return PropellerMotor
 
     def control(self, dt: float) -> None:
-        """One step of Webots' kinematic motor controller: updates ω and the angle."""
-        if math.isinf(self.target_position):
-            accel = (
-                self.max_torque
-                if self.acceleration == -1 or self.acceleration > self.max_torque
-                else self.acceleration
-            )
-            step = accel * dt
-            self.omega += max(-step, min(step, self.target_velocity - self.omega))
-            self.angle += self.omega * dt
-            return
-        err = self.target_position - self.angle
-        speed = abs(self.target_velocity)
-        if err == 0.0 or speed == 0.0:
-            self.omega = 0.0
-            return
-        move = min(abs(err), speed * dt)
-        self.angle += math.copysign(move, err)
-        self.omega = move / dt  # a speed magnitude in position mode
+        """One step of Webots' kinematic motor controller: updates ω and the angle (ω is a speed magnitude in
+        position mode, as in Webots)."""
+        self.angle, omega = kinematic_motion(
+            position=self.angle, current_velocity=self.omega, target_position=self.target_position,
+            target_velocity=self.target_velocity, available=self.max_torque, acceleration=self.acceleration, dt=dt)
+        self.omega = omega if math.isinf(self.target_position) else abs(omega)
 
 
 def _make(site: AttachmentRec) -> PropellerRec:

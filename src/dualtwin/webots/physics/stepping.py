@@ -3,13 +3,13 @@ the buffer swap and the collision pass for the next step after it, and joint pos
 
 from __future__ import annotations
 
-import math
 import threading
 
 from dualtwin.errors import SimulationUnstable
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots import ode
 from dualtwin.webots._math3 import Pose
+from dualtwin.webots.motor_law import kinematic_motion
 from dualtwin.webots.physics.edits import SupervisorEdits
 from dualtwin.webots.physics.records import (
     JointRec,
@@ -153,36 +153,14 @@ class Stepper(SupervisorEdits):
         self._teleport_solid(solid, local.t, m3.axis_angle_from_mat(local.R))
 
     def _kinematic_motor(self, motor: MotorRec, dt: float) -> None:
-        """§5.3 kinematic joints (``WbMotor.runKinematicControl``, also what drives a Propeller): the motor's
-        current velocity changes by at most ``a·dt`` per step, ``a`` being its ``acceleration`` or the available
-        torque/force when the acceleration is -1 or larger than that. Velocity control integrates the current
-        velocity; position control moves toward the target at the current speed (a magnitude, as in Webots) and
-        stops on the target once within a step or 1e-6, where the velocity drops to 0."""
-        joint = motor.joint
-        i = motor.axis_index
-        pos = joint.positions[i]
+        """§5.3 kinematic joints: the motor moves the joint itself, its speed ramping (motor_law.kinematic_motion)."""
         if motor.torque_mode or motor.available == 0.0:
             return
-        accel = motor.acceleration
-        if accel == -1.0 or accel > motor.available:
-            accel = motor.available
-        slew = accel * dt
-        current = motor.current_velocity
-        if math.isinf(motor.target_position):
-            current += max(-slew, min(slew, motor.target_velocity - current))
-            pos += current * dt
-        else:
-            err = motor.target_position - pos
-            speed = abs(current)
-            speed += max(-slew, min(slew, abs(motor.target_velocity) - speed))
-            step = speed * dt
-            if abs(err) <= max(step, 1e-6):
-                pos, current = motor.target_position, 0.0
-            else:
-                pos += math.copysign(step, err)
-                current = math.copysign(speed, err)  # signed, for the joint's velocity
-        motor.current_velocity = current
-        joint.positions[i] = pos
+        positions = motor.joint.positions
+        i = motor.axis_index
+        positions[i], motor.current_velocity = kinematic_motion(
+            position=positions[i], current_velocity=motor.current_velocity, target_position=motor.target_position,
+            target_velocity=motor.target_velocity, available=motor.available, acceleration=motor.acceleration, dt=dt)
 
     def _hold_endpoint(self, joint: JointRec) -> None:
         """Places a kinematic Hinge2's endPoint body (and its subtree) where the joint's positions put it, at rest,
