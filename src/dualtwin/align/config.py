@@ -32,9 +32,10 @@ from dualtwin.parallel import ExecutorKind
 Optimizer = Literal["cma", "lsq"]
 Objective = Literal["trajectory", "prediction"]
 GlobalSearch = Literal["multistart", "off"]
+Intervals = Literal["auto", "profile", "off"]
 #: Fields added after folders were written without them: left out of the saved config while at their default,
 #: so those folders stay resumable and a run that does not use them writes the same bytes as before.
-LATER_FIELDS = frozenset({"global_search", "starts", "tie", "sysid_params", "batch", "exclude"})
+LATER_FIELDS = frozenset({"global_search", "starts", "tie", "sysid_params", "batch", "exclude", "intervals"})
 #: Horizons of the prediction objective: 1 and 5 periods stay smooth in the knobs; 25 periods already cross
 #: impacts (a pole landing on its stop) and make the residual as rough as an open-loop one.
 OBJECTIVE_HORIZONS = (1, 5)
@@ -82,6 +83,11 @@ class AlignConfig(FrozenModel):
     patience: int | None = Field(default=None, ge=1,
                                  description="CMA generations without improvement before stopping (max(15, 3n))")
     fd_step: float = Field(default=0.03, gt=0, lt=0.5, description="finite-difference step, normalised units")
+    intervals: Intervals = Field(
+        default="auto", description="95 % intervals after the fit: profile (the Jacobian with effective samples, "
+        "checked for roughness and profiled where needed: 6 to 70 simulations per knob, not counted in the "
+        "budget), off (not computed, and the outputs say so), or auto: profile when the budget is at least 6 "
+        "simulations per knob plus one, off below that")
     lsq_max_iter: int = Field(default=50, ge=1, description="least-squares iterations per start")
     lsq_restarts: int = Field(default=3, ge=0, description="restarts from a better neighbour after a stall")
     global_search: GlobalSearch = Field(

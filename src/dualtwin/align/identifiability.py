@@ -18,6 +18,11 @@ says, from the suite and the knobs alone:
 After the fit, the correlation matrix of the fitted knobs (from the interval estimate's covariance) names every
 pair with ``|r| > CORRELATED`` in the terminal, the report and ``align_record.json``.
 
+The check's Jacobian costs one simulation per continuous knob, counted in the fit's budget (the least-squares
+fit reuses them). It runs when the nominal point and it take at most half the budget
+(:func:`check_skipped`); with a smaller budget it would leave the fit nothing, so it is skipped and the
+advice says so, with the budget that would run it.
+
 Cosines are of columns in normalised knob units, so they do not depend on the knobs' physical units.
 """
 
@@ -92,10 +97,25 @@ class Identifiability:
     tradeoffs: list[list[str]] = field(default_factory=list)
     ties: list[str] = field(default_factory=list)
     advice: list[str] = field(default_factory=list)
+    #: Why the check was not run (None: it was).
+    not_computed: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
+        if self.not_computed is not None:
+            return {"knobs": self.knobs, "not_computed": self.not_computed, "advice": self.advice}
         return {"knobs": self.knobs, "rank": self.rank, "unmoved": self.unmoved, "parallel": self.parallel,
                 "tradeoffs": self.tradeoffs, "suggested_ties": self.ties, "advice": self.advice}
+
+
+def check_skipped(names: Sequence[str], budget: int) -> Identifiability | None:
+    """The check's stand-in when the nominal point and the check's Jacobian (one simulation per knob of ``names``,
+    the continuous ones) would take more than half of ``budget``; None when the check fits."""
+    cost = 1 + len(names)
+    if not names or 2 * cost <= budget:
+        return None
+    why = (f"not computed: the check's {len(names)} simulations (counted in the fit's budget) and the nominal run "
+           f"would take more than half of the budget of {budget}; give --budget {2 * cost} or more to run it")
+    return Identifiability(list(names), 0, advice=[why], not_computed=why)
 
 
 def _unit_columns(jac: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -31,7 +31,15 @@ once reported a damping of 0.0100 ± 0.00007 where the truth was 0.03). Here:
    rise below the jitter cannot reject a value: every knob is profiled out to its bounds with the threshold
    raised by the jitter, the interval is the hull of every scanned value whose rise stays below it (not the
    first crossing, which a bump gives), and the method says ``profile (rough criterion)``.
-4. **Nothing pinned.** A knob along a direction the Jacobian does not see (no effect, or a combination
+4. **Proportionate to the fit.** The checks above take 6 to 70 simulations per knob (the central Jacobian 2,
+   the roughness probes 4, the quadratic check 2, a scan 18 to 60), not counted in the fit's budget. A fit
+   with a tiny budget would spend most of its time here: ``AlignConfig.intervals="auto"`` (the default)
+   computes them only when the budget is at least :data:`SIMULATIONS_PER_KNOB` per continuous knob plus one
+   (:func:`intervals_skipped`); below that, and with ``intervals="off"``, no interval is computed and every
+   knob's method says so and how to get one (``not computed: ...``) in the terminal, the report and
+   ``align_record.json``: a missing interval is never shown as a width. ``intervals="profile"`` always
+   computes them.
+5. **Nothing pinned.** A knob along a direction the Jacobian does not see (no effect, or a combination
    of knobs the suite cannot separate) gets its bounds as the interval, no half-width, method ``unpinned``.
 
 The correlation matrix is taken from the pseudo-inverse of ``JᵀJ`` so that exactly interchangeable knobs show
@@ -49,6 +57,7 @@ from scipy import special  # not scipy.stats: its import costs a CPU-second
 
 from dualtwin.align.core import Problem, Uncertainty, fd_jacobian, integer_half_width, interval_estimate
 from dualtwin.align.identifiability import correlated_pairs
+from dualtwin.align.knobs import KnobSpec
 from dualtwin.align.objective import ResidualBlock
 
 #: The criterion's rise at the quadratic half-width may be off by this factor (either way) before the
@@ -66,6 +75,28 @@ ROUGH_PROBE = 0.125
 ROUGH_FRACTION = 0.1
 #: A rough criterion's profile: this many points per side, spaced geometrically out to the bound.
 ROUGH_SCAN = 10
+#: ``intervals="auto"`` computes intervals when the fit's budget is at least this many simulations per continuous
+#: knob, plus one: the fewest the checks take (a central Jacobian, 2 per knob; the roughness probes, 4 per knob).
+SIMULATIONS_PER_KNOB = 6
+
+
+def intervals_skipped(choice: str, budget: int, knobs: int) -> str | None:
+    """Why the intervals are not computed (the method every knob shows), or None when they are.
+
+    ``choice`` is ``AlignConfig.intervals``; ``knobs`` the number of continuous knobs."""
+    if choice == "off":
+        return "not computed (intervals off): use --intervals profile"
+    needed = SIMULATIONS_PER_KNOB * knobs + 1
+    if choice == "auto" and knobs and budget < needed:
+        return (f"not computed: budget too small ({budget} < {needed}, {SIMULATIONS_PER_KNOB} per knob + 1), "
+                "use --intervals profile")
+    return None
+
+
+def not_computed(specs: Sequence[KnobSpec], why: str) -> Uncertainty:
+    """No interval for any knob: no half-width, no interval, the method says ``why``."""
+    return Uncertainty({s.name: None for s in specs}, None, [], {s.name: None for s in specs},
+                       {s.name: why for s in specs})
 
 
 def effective_samples(r: np.ndarray, blocks: Sequence[ResidualBlock] | None) -> float:

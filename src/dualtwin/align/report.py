@@ -113,12 +113,23 @@ def _interval(k: KnobFit) -> str:
     return "–" if k.interval_95 is None else f"[{k.interval_95[0]:.4g}, {k.interval_95[1]:.4g}]"
 
 
+def _comparison(analysis: Analysis, reference: Path, run: Path, thresholds: Mapping[str, float] | None
+                ) -> RunComparison:
+    """``reference`` against ``run``: the analysis's comparison when it compared the same runs alike."""
+    same = (Path(analysis.config.run_a), Path(analysis.config.run_b), analysis.config.thresholds) == (
+        Path(reference), Path(run), None if thresholds is None else dict(thresholds))
+    return analysis.comparison if same else compare_runs(reference, run, thresholds)
+
+
 def write_align_report(out_dir: Path, result: AlignResult, reference: Path, before: Path, after: Path,
                        analysis_before: Analysis, analysis_after: Analysis, train: Sequence[str],
                        held: Sequence[str], thresholds: Mapping[str, float] | None = None) -> Path:
-    """Write ``report.html`` (plots inline) into ``out_dir``; returns the report path."""
-    comp_before = compare_runs(reference, before, thresholds)
-    comp_after = compare_runs(reference, after, thresholds)
+    """Write ``report.html`` (plots inline) into ``out_dir``; returns the report path.
+
+    The comparisons are the analyses' own (``reference`` against ``before`` and ``after`` with ``thresholds``),
+    not computed again; a caller whose analyses compared other runs gets them compared here."""
+    comp_before = _comparison(analysis_before, reference, before, thresholds)
+    comp_after = _comparison(analysis_after, reference, after, thresholds)
     labels = trace_labels(comp_before.twin_a, comp_before.twin_b)
     knob_rows = [[k.name, f"{k.nominal:.5g}", f"<b>{k.fitted:.5g}</b>", _f(k.half_width_95, ".2g"),
                   _interval(k), k.method or "", f"[{k.lower:.4g}, {k.upper:.4g}]",

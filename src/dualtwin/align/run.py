@@ -27,8 +27,8 @@ from dualtwin.align.core import GenerationInfo, Point, fd_jacobian, residual_nor
 from dualtwin.align.dr import ranges_from_intervals, ranges_from_population
 from dualtwin.align.ensemble import EnsembleProblem
 from dualtwin.align.floor_check import FLOOR_EPS, FLOOR_LIMIT, beyond_floor, check_floors
-from dualtwin.align.identifiability import Identifiability, check
-from dualtwin.align.intervals import estimate_intervals
+from dualtwin.align.identifiability import Identifiability, check, check_skipped
+from dualtwin.align.intervals import estimate_intervals, intervals_skipped, not_computed
 from dualtwin.align.knobs import (
     check_values,
     expand_ties,
@@ -92,7 +92,8 @@ def run_align(config: AlignConfig, out_dir: Path, *, resume: bool = False, propo
         unused = [name for name, given in (
             ("holdout", bool(config.holdout)), ("channels", config.channels is not None),
             ("thresholds", config.thresholds is not None), ("weights", config.weights != ObjectiveWeights()),
-            ("ensemble", config.ensemble != "off"), ("propose_fn", propose_fn is not None)) if given]
+            ("ensemble", config.ensemble != "off"), ("propose_fn", propose_fn is not None),
+            ("intervals", config.intervals != "auto")) if given]
         if unused or config.executor == "ray":
             raise DualtwinError(f"the prediction objective does not take {', '.join(unused) or 'executor ray'}")
         from dualtwin.align.prediction import run_prediction
@@ -255,12 +256,19 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
             else:
                 problem = TrajectoryProblem(specs, job, train, hold, evaluator, config.budget, config.regularization)
             nominal_u = unit_from_values(specs, {})
-            before = problem.run([nominal_u])[0]
+            # The nominal twin's run was just written to runs/before: scored from there, not simulated again
+            # (an ensemble simulates members, and nuisance knobs change the suite, so those are simulated).
+            reuse = not members and problem.values(nominal_u) == {
+                s.name: s.nominal for s in expand_ties(specs)[0] if not nuisance.is_nuisance(s.name)}
+            before = (problem.remember(nominal_u, load_traces(before_dir, shared.scenarios)) if reuse
+                      else problem.run([nominal_u])[0])
             problem.calibrate(before)
             analysis_before = analyze_runs(ref_dir, before_dir, thresholds=thresholds)
             x0, f0 = nominal_u, before.train
-            # Identifiability before the fit, from the suite and the knobs alone: one batch of perturbed runs.
-            identifiability = identify(problem, nominal_u, config.fd_step)
+            # Identifiability before the fit, from the suite and the knobs alone: one batch of perturbed runs,
+            # unless it would take more than half the budget.
+            identifiability = (check_skipped([s.name for s in specs if not s.integer], config.budget)
+                               or identify(problem, nominal_u, config.fd_step))
             proposals: list[ProposalOutcome] = []
             if propose_fn is not None:
                 proposals = try_proposals(propose_fn, analysis_before, specs, before.train, problem.run_values)
@@ -282,13 +290,25 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
                 warnings.append("no knob setting beat the nominal twin; the fitted values are the nominal ones")
             # The budget is the fit's: the interval checks after it are counted apart.
             fit_evaluations = problem.evaluations
-            uncertainty = estimate_intervals(problem, outcome.u, config.fd_step)
+            # Intervals cost 6 to 70 simulations per knob: with a budget too small for that, not computed.
+            skipped = intervals_skipped(config.intervals, config.budget, sum(not s.integer for s in specs))
+            uncertainty = (not_computed(specs, skipped) if skipped is not None
+                           else estimate_intervals(problem, outcome.u, config.fd_step))
+            fitted, fitted_nuisance = nuisance.split(values_from_unit(specs, outcome.u))
+            # The after run uses the fitted initial conditions too, so it shows what the fit matched; time
+            # offsets only move the objective's time axis and are not in the run.
+            after_suite = suite_path
+            if any(nuisance.parse(n, ids)[1] != nuisance.TIME_OFFSET for n in fitted_nuisance):
+                after_suite = out_dir / "suite_with_nuisance.json"
+                write_json(after_suite, nuisance.apply_to_document(read_json(suite_path), ids, fitted_nuisance))
+            after_dir = run_suite(after_suite, config.target, binding, out_dir / "runs" / "after", sim_seed, target,
+                                  fitted, False)
             # Each fitted (and excluded) scenario against the target's reproducibility floor at the fit: what the
-            # twins cannot share is named, never dropped without consent (not counted in the budget).
+            # twins cannot share is named, never dropped without consent (not counted in the budget). Without
+            # nuisance knobs the after run is the fit's run, so only the shifted members are simulated.
             judged = [s for s in shared.scenarios if s not in held]
             floors = check_floors(evaluator, job, problem.values(outcome.u), reference, judged, train.channels,
-                                  binding)
-        fitted, fitted_nuisance = nuisance.split(values_from_unit(specs, outcome.u))
+                                  binding, after=None if fitted_nuisance else load_traces(after_dir, judged))
         warnings += uncertainty.warnings
         beyond = beyond_floor(floors)
         warnings += [f"scenario {sid} is beyond its reproducibility floor after the fit ({why}); it stays in the "
@@ -311,14 +331,6 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
             if overfit:
                 warnings.append(overfit)
 
-        # The after run uses the fitted initial conditions too, so it shows what the fit matched; time offsets
-        # only move the objective's time axis and are not in the run.
-        after_suite = suite_path
-        if any(nuisance.parse(n, ids)[1] != nuisance.TIME_OFFSET for n in fitted_nuisance):
-            after_suite = out_dir / "suite_with_nuisance.json"
-            write_json(after_suite, nuisance.apply_to_document(read_json(suite_path), ids, fitted_nuisance))
-        after_dir = run_suite(after_suite, config.target, binding, out_dir / "runs" / "after", sim_seed, target,
-                               fitted, False)
         analysis_after = analyze_runs(ref_dir, after_dir, thresholds=thresholds)
         advice = stuck_advice(criterion(before), criterion(after), knob_fits, analysis_before, ref_dir)
         warnings += advice
@@ -338,6 +350,8 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
         flat_half = {s.name: uncertainty.half_widths.get(specs[c].name) for s, c in zip(flat, column, strict=True)}
         ranges = ranges_from_intervals([s for s in flat if not nuisance.is_nuisance(s.name)], fitted, flat_half)
         source = "lsq-interval" if optimizer == "lsq" else "jacobian-interval"
+        if skipped is not None:
+            source = "bounds (intervals not computed)"
     physics_specs = [s for s in flat if not nuisance.is_nuisance(s.name)]
     ranges = {k: v for k, v in ranges.items() if not nuisance.is_nuisance(k)}
     write_dr_ranges(out_dir, files, physics_specs, fitted, ranges, source, config.dr_min_rel_width)
@@ -352,7 +366,7 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
         files=files, proposals=proposals, nuisance=nuisance_fits, left_out=left,
         identifiability={"before": identifiability.to_dict(), "after": {
             "correlation": uncertainty.correlation, "correlated": uncertainty.correlated,
-            "noise": uncertainty.noise}},
+            "noise": uncertainty.noise, **({"not_computed": skipped} if skipped is not None else {})}},
         advice=advice, excluded=excluded_why,
         floor_check={"eps": FLOOR_EPS, "limit": FLOOR_LIMIT, "beyond": beyond,
                      "rows": [r.to_dict() for r in floors]})

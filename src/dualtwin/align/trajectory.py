@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
-from dualtwin.align.core import CachedProblem, Evaluation
+from dualtwin.align.core import CachedProblem, Evaluation, Point
 from dualtwin.align.knobs import KnobSpec
 from dualtwin.align.objective import ObjectiveSpec, ResidualBlock, evaluate, residual_layout, residuals
 from dualtwin.align.simulate import Evaluator, SimJob, Traces
@@ -31,12 +31,22 @@ class TrajectoryProblem(CachedProblem):
         return self.evaluator.map([self.job.with_knobs(v) for v in values])
 
     def evaluate_knobs(self, values: Sequence[Mapping[str, float]]) -> list[Evaluation]:
-        out: list[Evaluation] = []
-        for traces in self.simulate(values):
-            train = evaluate(self.train, traces).total
-            holdout = evaluate(self.holdout, traces).total if self.holdout is not None else None
-            out.append(Evaluation(train, holdout, residuals(self.train, traces)))
-        return out
+        return [self.score(traces) for traces in self.simulate(values)]
+
+    def score(self, traces: Traces) -> Evaluation:
+        """The objective of one knob setting's traces."""
+        train = evaluate(self.train, traces).total
+        holdout = evaluate(self.holdout, traces).total if self.holdout is not None else None
+        return Evaluation(train, holdout, residuals(self.train, traces))
+
+    def remember(self, u: Sequence[float], traces: Traces) -> Point:
+        """The point ``u`` from traces already simulated there (a suite run this alignment wrote), counted as
+        one evaluation like :meth:`run` and cached: the same simulation is not run twice."""
+        key = tuple(min(1.0, max(0.0, float(x))) for x in u)
+        if key not in self._cache:
+            self.evaluations += 1
+            self._cache[key] = self._score(list(key), self.score(traces))
+        return self._cache[key]
 
     def residual_blocks(self) -> list[ResidualBlock]:
         """The training residuals' layout (scenario and channel per stretch), for intervals and identifiability."""
