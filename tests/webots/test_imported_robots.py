@@ -31,11 +31,13 @@ SUPERVISOR = """
         if i == 2:
             children.importMFNodeFromString(-1, 'DEF NEW Robot { translation 1 0 0.5 name "new" '
                                                  'controller "{child}" }')
+        if i == 2 and "{remove}" == "at once":
+            sup.getFromDef("NEW").remove()  # before its controller could start
         if i == 5 and "{remove}" == "remove":
             sup.getFromDef("NEW").remove()
         if i == 5 and "{remove}" == "reset":
             sup.simulationReset()  # done at the next step: the reset takes imported nodes out
-        if i == 8 and "{remove}" != "no":  # the child's log says -1 within 3 s of real time, while this run still goes on
+        if i == 8 and "{remove}" in ("remove", "reset"):  # the child's log says -1 within 3 s of real time, while this run still goes on
             deadline = time.monotonic() + 3.0
             ended = False
             while not ended and time.monotonic() < deadline:
@@ -118,3 +120,10 @@ def test_a_reset_that_takes_an_imported_robot_out_ends_its_controller(tmp_path: 
     sup = _log(tmp_path, "sup")
     assert sup[6] == "sup 0.000"  # the reset
     assert "child ended by 0.016: True" in sup
+
+
+def test_a_robot_removed_in_the_step_it_was_imported_never_runs_and_nobody_waits_for_it(tmp_path: Path) -> None:
+    world = _project(tmp_path, "child", "at once")
+    assert run_world(world, None, 0.1) == 0
+    assert _log(tmp_path, "child") == []
+    assert len(_log(tmp_path, "sup")) == 12

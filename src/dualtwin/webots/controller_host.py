@@ -312,6 +312,8 @@ class _Host:
             elif op == "new":
                 key, args, kwargs = body
                 cls = self.exports[key]
+                if issubclass(cls, api.Robot) and self.runtime.robot_gone(link.robot):
+                    raise api.ControllerStopped  # removed before its controller made its Robot: it ends there
                 if issubclass(cls, api.Robot) and link.robot_object is not None:
                     # Webots' library says so and keeps the first one: a second Robot would never step
                     print("Error: only one Robot instance can be created per controller process.", file=sys.stderr)
@@ -384,7 +386,12 @@ class _Host:
             self.changed.wait(_POLL_S)
             self.changed.clear()
             while self._to_start:
-                self.start(self._to_start.pop(0))
+                link = self._to_start.pop(0)
+                if self.runtime.claim_start(link.robot):
+                    self.start(link)
+                else:  # its robot was removed in the step it was imported: Webots never runs it
+                    link.exit_code = 0
+                    link.done.set()
             now = time.monotonic()
             for link in self.links:
                 if link.done.is_set() or link.stopped is not None:

@@ -140,6 +140,7 @@ class Runtime:
         self._controllers: list[Controller] = []
         #: starts the controller of a Robot a supervisor imported (set by the process runner; None: not started)
         self.controller_starter: Callable[[SceneNode], None] | None = None
+        self._gone_nodes: dict[int, SceneNode] = {}  # removed robots' subtrees (kept, so their ids stay theirs)
 
     @property
     def mode(self) -> int:
@@ -166,6 +167,21 @@ class Runtime:
         with self._cond:
             self._expected = max(self._expected, len(self._controllers)) + 1
 
+    def robot_gone(self, robot_node: SceneNode) -> bool:
+        """Whether a supervisor removed this robot during the run."""
+        return id(robot_node) in self._gone_nodes
+
+    def claim_start(self, robot_node: SceneNode) -> bool:
+        """Whether the controller of an imported robot (see :meth:`expect_another`) may start now: False if its
+        robot was removed before, and then the run no longer waits for it."""
+        with self._cond:
+            if id(robot_node) not in self._gone_nodes:
+                return True
+            self._expected -= 1
+            self._maybe_advance()
+            self._cond.notify_all()
+            return False
+
     def start_controllers(self, robots: list[SceneNode]) -> None:
         """Robots a supervisor imported: each starts its controller, which steps with the others from the next
         step, as Webots starts an imported robot's controller."""
@@ -183,6 +199,7 @@ class Runtime:
         they wait in it) and leave the synchronisation, as Webots ends a deleted robot's controller."""
         gone = {id(n) for n in top.walk()}
         with self._cond:
+            self._gone_nodes.update((id(n), n) for n in top.walk())  # a controller not started yet never starts
             for controller in self._controllers:
                 if controller.robot_node is None or id(controller.robot_node) not in gone:
                     continue
@@ -232,6 +249,8 @@ class Runtime:
         """Make the calling thread one controller, whose ``Robot()`` refers to ``robot_node``."""
         controller = Controller(robot_node)
         with self._cond:
+            if id(robot_node) in self._gone_nodes:  # its robot was removed before its process started
+                controller.removed = controller.arrived = True
             self._controllers.append(controller)
         self._thread_controller.controller = controller
         return controller
