@@ -62,6 +62,21 @@ def test_native_law_is_bit_identical_to_the_python_law(robot: str) -> None:
     assert _trajectory(robot, True, kp_scale=1.1)[0].tobytes() != native.tobytes()
 
 
+def test_the_twin_drives_all_its_motors_from_one_plugin_instance() -> None:
+    """MuJoCo dispatches plugins per instance and stage, which costs more than the law: the twin's motors share
+    one instance, each with its block of plugin_state in actuator order (the bit-identity test above steps
+    it; the converted model's one instance per motor steps the same, see the last test)."""
+    twin = MuJoCoTwin(resolve_robot("arm").model_path("mujoco"), PERIOD)
+    model = twin.model
+    assert model.nu == 6 and model.nplugin == 1
+    assert model.plugin_statenum[0] == motor_plugin.NSTATE * model.nu
+    assert [mo.plugin for mo in twin._motors] == [motor_plugin.NSTATE * k for k in range(model.nu)]
+    blocks = twin.data.plugin_state.reshape(model.nu, motor_plugin.NSTATE)
+    assert blocks[:, motor_plugin.SLOT["actuator"]].tolist() == list(range(model.nu))
+    # control: only the last block factorises the inertia matrix
+    assert blocks[:, motor_plugin.SLOT["last"]].tolist() == [0.0] * (model.nu - 1) + [1.0]
+
+
 PENDULUM = """<mujoco>
   <extension><plugin plugin="dualtwin-webots-motor"/></extension>
   <option timestep="0.002"/>

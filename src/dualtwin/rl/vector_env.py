@@ -107,11 +107,11 @@ class _Columns:
         starts = []
         for name in task.actuators:
             a = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, aliases.get(name, name))
-            instance = int(model.actuator_plugin[a]) if a >= 0 else -1
-            if instance < 0:
+            start = motor_plugin.state_address(model, a) if a >= 0 else -1
+            if start < 0:
                 self.reason = f"actuator {name!r} is not a native-law motor"
                 return
-            starts.append(int(model.plugin_stateadr[instance]))
+            starts.append(start)
         #: per slot name, its column in plugin_state for every actuator
         self.slot = {name: np.array(starts) + index for name, index in _SLOT.items()}
 

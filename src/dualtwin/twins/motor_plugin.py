@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import mujoco
+import numpy as np
 
 from dualtwin.errors import DualtwinError
 
@@ -133,23 +134,33 @@ def config(max_velocity: float, max_torque: float, kp: float, ki: float, kd: flo
     return out
 
 
-def attach(spec: mujoco.MjSpec, actuator: mujoco.MjsActuator, settings: dict[str, str]) -> None:
-    """Make ``actuator`` (a joint actuator of ``spec``) a plugin motor with ``settings`` (see :func:`config`):
-    one plugin instance per motor."""
+def attach(spec: mujoco.MjSpec, actuators: list[mujoco.MjsActuator], settings: dict[str, str], name: str) -> None:
+    """Make ``actuators`` (joint actuators of ``spec``) plugin motors driven by one new instance ``name`` with
+    ``settings`` (see :func:`config`; it applies to each of them)."""
     if not any(p.plugin_name == PLUGIN for p in spec.plugins if not p.name):
         spec.activate_plugin(PLUGIN)
-    instance = spec.add_plugin(name=f"webots_motor:{actuator.name or len(spec.plugins)}", plugin_name=PLUGIN,
-                               active=True)
+    instance = spec.add_plugin(name=name, plugin_name=PLUGIN, active=True)
     instance.config = settings
-    actuator.plugin = instance
-    actuator.plugin.active = True
+    for actuator in actuators:
+        actuator.plugin = instance
+        actuator.plugin.active = True
+
+
+def state_address(model: mujoco.MjModel, actuator: int) -> int:
+    """The first plugin_state slot of ``actuator``'s block (-1 for an actuator without the plugin): an
+    instance keeps one block of ``NSTATE`` slots per actuator it drives, in actuator order."""
+    instance = int(model.actuator_plugin[actuator])
+    if instance < 0:
+        return -1
+    before = int(np.count_nonzero(model.actuator_plugin[:actuator] == instance))
+    return int(model.plugin_stateadr[instance]) + NSTATE * before
 
 
 def native_spec(spec: mujoco.MjSpec, wanted: bool | None = None, origin: str = "<MjSpec>") -> mujoco.MjSpec | None:
     """A copy of ``spec`` whose joint actuators run Webots' law in the plugin, or None for the Python law:
     when ``wanted`` is False, or None and the plugin cannot be loaded. Actuators that already use it keep
-    their config; the MuJoCo twin writes its own values into plugin_state anyway, so injected ones get an
-    empty config (``ctrl`` unused).
+    their config; the MuJoCo twin writes its own values into plugin_state anyway, so injected ones share one
+    instance with an empty config (``ctrl`` unused).
 
     Raises:
         DualtwinError: ``wanted`` is True and the plugin cannot be loaded, or False for a model whose
@@ -166,9 +177,10 @@ def native_spec(spec: mujoco.MjSpec, wanted: bool | None = None, origin: str = "
             raise DualtwinError(f"{origin}: the native motor law is unavailable: {why}")
         return None
     native = spec.copy()
-    for actuator in native.actuators:
-        if actuator.trntype == mujoco.mjtTrn.mjTRN_JOINT and not actuator.plugin.active:
-            attach(native, actuator, {"ctrl": "none"})
+    # One instance for all of them: MuJoCo's dispatch per instance and stage costs more than the law itself.
+    plain = [a for a in native.actuators if a.trntype == mujoco.mjtTrn.mjTRN_JOINT and not a.plugin.active]
+    if plain:
+        attach(native, plain, {"ctrl": "none"}, "webots_motors")
     return native
 
 
@@ -193,7 +205,8 @@ def standalone_spec(spec: mujoco.MjSpec, ctrl: str = "position") -> mujoco.MjSpe
         defaults = (10.0, 10.0, 0.0, 0.0, -1.0, 0.0, 0.0)
         v = [d if math.isnan(f) else f for f, d in zip(fields[:7], defaults, strict=True)]
         torque = abs(float(actuator.forcerange[1])) if actuator.forcerange[1] else 10.0
-        attach(out, actuator, config(v[0], torque, v[1], v[2], v[3], v[4], v[5], v[6], ctrl))
+        attach(out, [actuator], config(v[0], torque, v[1], v[2], v[3], v[4], v[5], v[6], ctrl),
+               f"webots_motor:{actuator.name or len(out.plugins)}")
         # Webots clamps the torque and the command itself; MuJoCo's clamps would cut the servo.
         actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_FALSE
         actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE

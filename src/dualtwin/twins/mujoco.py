@@ -180,6 +180,8 @@ class MuJoCoTwin(Twin):
         # One physics step; every stepping path below goes through it.
         self._mj_step: Callable[[mujoco.MjModel, mujoco.MjData], None] = (
             self._friction_box.step if self._friction_box else mujoco.mj_step)
+        # No Python between physics steps: step() makes one mj_step call per period.
+        self._one_call = self.native_law and self._friction_box is None
         self._opt = self.model.opt  # a live view of the model's options (each model.opt costs a lookup)
         self._ids: dict[tuple[mujoco.mjtObj, str], int] = {}  # see _id
         self._sensor_adr: list[int] = self.model.sensor_adr.tolist()
@@ -231,8 +233,7 @@ class MuJoCoTwin(Twin):
             m.actuator_ctrllimited[i] = 0
             inertia = float(m.dof_M0[dof])  # the joint's inertia, armature included
             kv = SERVO_STIFFNESS * inertia / m.opt.timestep
-            instance = int(m.actuator_plugin[i])
-            plugin = int(m.plugin_stateadr[instance]) if instance >= 0 else -1
+            plugin = motor_plugin.state_address(m, i)
             motors.append(_Motor(name, i, int(m.jnt_qposadr[joint]), dof, kv, MotorState(params), plugin))
         return motors
 
@@ -315,6 +316,19 @@ class MuJoCoTwin(Twin):
             # control.delay_periods: the command reaches the motor k control periods late.
             self._pending.append((self._periods() + self._delay, motor, mode, value))
             return
+        adr = motor.plugin
+        if adr >= 0 and (mode == "position" or mode == "velocity"):
+            # _apply_command's native servo branch, inlined: the hot path (a target per motor and period).
+            st = motor.state
+            if mode == "position":
+                st.set_position(value)
+            else:
+                st.set_velocity(value)
+            ps = self._plugin_slots
+            ps[adr + 1] = st.target_position
+            ps[adr + 2] = st.target_velocity
+            ps[adr] = motor.saturated = ps[adr + 14] = 0.0
+            return
         self._apply_command(motor, mode, value)
 
     def _periods(self) -> int:
@@ -344,15 +358,16 @@ class MuJoCoTwin(Twin):
             st.set_torque(value)
         adr = motor.plugin
         if adr >= 0:
-            # The native law: only what a command changes (targets, the mode, and for a servo leaving
-            # saturation) goes to plugin_state; the model is not touched. (Slots 0-3 and 14, see motor_plugin.)
+            # The native law: only what a command changes goes to plugin_state (the model is not touched): a
+            # torque command its torque (the targets stay), any other the targets, and the servo leaves
+            # saturation (the torque stays). Slots 0-3 and 14, see motor_plugin.
             ps = self._plugin_slots
-            ps[adr + 1] = st.target_position
-            ps[adr + 2] = st.target_velocity
-            ps[adr + 3] = st.torque
             if st.torque_mode:
+                ps[adr + 3] = st.torque
                 ps[adr] = 1.0
             else:
+                ps[adr + 1] = st.target_position
+                ps[adr + 2] = st.target_velocity
                 ps[adr] = motor.saturated = ps[adr + 14] = 0.0
         elif st.torque_mode:
             self._set_torque(motor, st.torque)
@@ -402,6 +417,11 @@ class MuJoCoTwin(Twin):
     def step(self) -> None:
         m, d = self.model, self.data
         self.start_period()
+        if self._one_call:
+            # The native law and plain contacts: the period is one mj_step call (nstep positional: cheaper).
+            mujoco.mj_step(m, d, self._substeps)
+            self._check_stable()
+            return
         servos = [] if self.native_law else [mo for mo in self._motors if not mo.state.torque_mode]
         if not servos:
             if self._friction_box is None:

@@ -1,7 +1,12 @@
 // Webots' motor law inside MuJoCo's step: the actuator plugin "dualtwin-webots-motor".
 //
-// One plugin instance per actuator (a joint transmission). Per physics step it does what the Python
-// reference (dualtwin.twins.motors.servo_steps with the MuJoCo twin's saturation state machine) does:
+// An instance drives every actuator that names it (joint transmissions): the twin gives all its motors one
+// instance, since MuJoCo's per-instance dispatch (several table look-ups per stage and step) costs more than
+// the law; a converted model (motor_plugin.standalone_spec) has one per actuator, each with its motor's
+// config. plugin_state holds one block of S_SIZE slots per actuator of the instance, in actuator order.
+//
+// Per physics step and actuator it does what the Python reference (dualtwin.twins.motors.servo_steps with the
+// MuJoCo twin's saturation state machine) does:
 //
 //   * u, the velocity the motor tracks: 0 without available torque; the target velocity under velocity
 //     control; Webots' PID on the position error, clamped to the target velocity, under position control;
@@ -35,7 +40,7 @@
 
 #include <mujoco/mujoco.h>
 
-// plugin_state layout, per instance (kept in sync with dualtwin/twins/motor_plugin.py)
+// plugin_state layout, per actuator (kept in sync with dualtwin/twins/motor_plugin.py)
 enum {
   S_TORQUE_MODE = 0,  // 1: torque control
   S_TARGET_POSITION,  // +inf: velocity control
@@ -66,7 +71,7 @@ enum {
   S_ACTUATOR,         // actuator id, joint dof and qpos address (set by reset)
   S_DOF,
   S_QPOS,
-  S_LAST,             // 1: the last instance of this plugin, which refactorises the inertia matrix
+  S_LAST,             // 1: the last block of the last instance of this plugin, which refactorises M
   S_ARMATURE,         // rotor inertia added here rather than by the model (see below)
   S_SIZE
 };
@@ -83,28 +88,37 @@ static mjtNum config_number(const mjModel* m, int instance, const char* key, mjt
   return end == text ? fallback : value;
 }
 
-static int actuator_of(const mjModel* m, int instance) {
-  for (int i = 0; i < m->nu; i++) {
-    if (m->actuator_plugin[i] == instance) return i;
-  }
-  return -1;
+// The number of actuators driven by ``instance``.
+static int actuator_count(const mjModel* m, int instance) {
+  int count = 0;
+  for (int i = 0; i < m->nu; i++) count += m->actuator_plugin[i] == instance;
+  return count;
 }
 
-static int motor_nstate(const mjModel* m, int instance) { return S_SIZE; }
+static int motor_nstate(const mjModel* m, int instance) { return S_SIZE * actuator_count(m, instance); }
 
 static int motor_init(const mjModel* m, mjData* d, int instance) {
-  int actuator = actuator_of(m, instance);
-  if (actuator < 0 || m->actuator_trntype[actuator] != mjTRN_JOINT) {
+  int count = 0;
+  for (int i = 0; i < m->nu; i++) {
+    if (m->actuator_plugin[i] != instance) continue;
+    count++;
+    if (m->actuator_trntype[i] != mjTRN_JOINT) {
+      mju_warning("dualtwin-webots-motor: instance %d drives actuator %d, which has no joint transmission",
+                  instance, i);
+      return -1;
+    }
+  }
+  if (count == 0 || m->plugin_statenum[instance] != S_SIZE * count) {
     mju_warning("dualtwin-webots-motor: instance %d drives no joint actuator", instance);
     return -1;
   }
   return 0;
 }
 
-static void motor_reset(const mjModel* m, mjtNum* state, void* plugin_data, int instance) {
+// One actuator's block of plugin_state from the instance's config.
+static void reset_block(const mjModel* m, mjtNum* state, int instance, int actuator, int last) {
   memset(state, 0, sizeof(mjtNum) * S_SIZE);
-  int actuator = actuator_of(m, instance);
-  int joint = actuator < 0 ? 0 : m->actuator_trnid[2 * actuator];
+  int joint = m->actuator_trnid[2 * actuator];
   int dof = m->jnt_dofadr[joint];
   int qpos = m->jnt_qposadr[joint];
   mjtNum max_torque = config_number(m, instance, "maxTorque", 10.0);
@@ -135,11 +149,21 @@ static void motor_reset(const mjModel* m, mjtNum* state, void* plugin_data, int 
   state[S_ACTUATOR] = actuator;
   state[S_DOF] = dof;
   state[S_QPOS] = qpos;
-  int last = 1;
-  for (int i = instance + 1; i < m->nplugin; i++) {
-    if (m->plugin[i] == kSlot) last = 0;
-  }
   state[S_LAST] = last;
+}
+
+static void motor_reset(const mjModel* m, mjtNum* state, void* plugin_data, int instance) {
+  int last_instance = 1;
+  for (int i = instance + 1; i < m->nplugin; i++) {
+    if (m->plugin[i] == kSlot) last_instance = 0;
+  }
+  int remaining = actuator_count(m, instance);
+  for (int i = 0; i < m->nu; i++) {
+    if (m->actuator_plugin[i] != instance) continue;
+    remaining--;
+    reset_block(m, state, instance, i, last_instance && remaining == 0);
+    state += S_SIZE;
+  }
 }
 
 static mjtNum clamp(mjtNum x, mjtNum lo, mjtNum hi) { return x < lo ? lo : (x > hi ? hi : x); }
@@ -169,8 +193,8 @@ static void apply_ctrl(mjtNum* s, mjtNum ctrl) {
   s[S_SATURATED] = 0;
 }
 
-static void motor_compute(const mjModel* m, mjData* d, int instance, int capability_bit) {
-  mjtNum* s = d->plugin_state + m->plugin_stateadr[instance];
+// One actuator's law for this step: its force, its term on M's diagonal, its pending state.
+static void compute_block(const mjModel* m, mjData* d, mjtNum* s) {
   int actuator = (int)s[S_ACTUATOR];
   int dof = (int)s[S_DOF];
   mjtNum dt = m->opt.timestep;
@@ -230,14 +254,22 @@ static void motor_compute(const mjModel* m, mjData* d, int instance, int capabil
   s[S_NEXT_U] = u;
   s[S_NEXT_SATURATED] = saturated;
   d->actuator_force[actuator] = force;
-  if (s[S_LAST] != 0) {
-    // The last instance: every servo's term is on the diagonal, factorise once.
-    mj_factorM(m, d);
+}
+
+static void motor_compute(const mjModel* m, mjData* d, int instance, int capability_bit) {
+  mjtNum* s = d->plugin_state + m->plugin_stateadr[instance];
+  mjtNum* end = s + m->plugin_statenum[instance];
+  for (; s < end; s += S_SIZE) {
+    compute_block(m, d, s);
+    if (s[S_LAST] != 0) {
+      // The last actuator of the last instance: every servo's term is on the diagonal, factorise once.
+      mj_factorM(m, d);
+    }
   }
 }
 
-static void motor_advance(const mjModel* m, mjData* d, int instance) {
-  mjtNum* s = d->plugin_state + m->plugin_stateadr[instance];
+// Commit one actuator's step.
+static void advance_block(const mjModel* m, mjData* d, mjtNum* s) {
   if (s[S_TORQUE_MODE] != 0) return;
   s[S_INTEGRAL] = s[S_NEXT_INTEGRAL];
   s[S_PREVIOUS_ERROR] = s[S_NEXT_PREVIOUS_ERROR];
@@ -248,6 +280,12 @@ static void motor_advance(const mjModel* m, mjData* d, int instance) {
     mjtNum torque = s[S_KV] * (s[S_U] - d->qvel[(int)s[S_DOF]]);
     if (fabs(torque) > s[S_AVAILABLE]) s[S_SATURATED] = copysign(1.0, torque);
   }
+}
+
+static void motor_advance(const mjModel* m, mjData* d, int instance) {
+  mjtNum* s = d->plugin_state + m->plugin_stateadr[instance];
+  mjtNum* end = s + m->plugin_statenum[instance];
+  for (; s < end; s += S_SIZE) advance_block(m, d, s);
 }
 
 mjPLUGIN_LIB_INIT(dualtwin_webots_motor) {
