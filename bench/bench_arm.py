@@ -39,14 +39,13 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import mujoco
 import numpy as np
 
-from _common import output_folder
+from _common import cpu_time, output_folder
 from dualtwin.robots.binding import resolve_robot
 from dualtwin.suite.runner import SuiteRun
 from dualtwin.twins import ControlMode, make_twin
@@ -107,14 +106,6 @@ def divergence(root: Path) -> dict[str, dict[str, float]]:
         worst = max(v["ee_m"] for k, v in out.items() if k.startswith(name + "/"))
         print(f"  worst flange-position RMSE: {worst * 1000:.3f} mm (issue goal after alignment: <= 2 mm)")
     return out
-
-
-def cpu_time(fn: Callable[[], object]) -> float:
-    """CPU seconds of one call. The stepping loops are single-threaded, so CPU time, unlike wall time, leaves
-    out the time other work on the machine holds the core (the rates below are per CPU second)."""
-    start = time.process_time()
-    fn()
-    return time.process_time() - start
 
 
 def targets(k: int) -> list[float]:
