@@ -117,15 +117,16 @@ class TwinBatch:
         for substeps, group in by_substeps.items():
             self.batch.step(None if len(group) == self.nsim else np.asarray(group, dtype=np.int32), nstep=substeps,
                             stage=_POSES)
-        bad = warnings[:, _BAD_STATE, 1].sum(axis=1) != before
+        bad: list[bool] = (warnings[:, _BAD_STATE, 1].sum(axis=1) != before).tolist()
         out: list[SimulationUnstable | None] = []
+        sensordata = self._sensordata if self._copy_sensors else None
         for i in ids:
             twin = self.twins[i]
             mujoco.mj_setState(twin.model, twin.data, self._rows[i], _INTEGRATION)
-            if self._copy_sensors and self._sensordata is not None:
-                twin.data.sensordata[:] = self._sensordata[i]
+            if sensordata is not None:
+                twin.data.sensordata[:] = sensordata[i]
             try:
-                twin.finish_period(bool(bad[i]))
+                twin.finish_period(bad[i])
             except SimulationUnstable as exc:
                 out.append(exc)
             else:
