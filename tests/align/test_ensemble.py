@@ -11,12 +11,23 @@ import pytest
 import yaml
 
 from dualtwin.align import AlignConfig, run_align
-from dualtwin.align.objective import mean_trace
-from dualtwin.align.simulate import ScenarioTrace, ensemble_offsets, load_member_traces
+from dualtwin.align.ensemble import EnsembleProblem
+from dualtwin.align.knobs import select_knobs
+from dualtwin.align.objective import build_spec, mean_trace, residual_layout
+from dualtwin.align.simulate import (
+    Evaluator,
+    ScenarioTrace,
+    SimJob,
+    ensemble_offsets,
+    load_member_traces,
+    load_traces,
+)
 from dualtwin.divergence.runs import Series
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import BUNDLED, RobotBinding, load_binding
 from dualtwin.suite.ensemble import EnsembleRun, make_spec
+from dualtwin.suite.loader import load_suite
+from dualtwin.twins import make_twin
 from tests.support.align_runs import TRUE_DAMPING
 
 DAMPING = "joint.pole_hinge.damping"
@@ -88,3 +99,53 @@ def test_ensemble_mean_needs_members(tmp_path: Path, robot: RobotBinding, suite3
                               suite=str(suite3), knobs=[DAMPING], executor="serial", ensemble="mean"),
                   tmp_path / "b")
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+def members_problem(ref_dir: Path, robot: RobotBinding, suite: Path, mode: str,
+                    reference_members: dict[str, list[ScenarioTrace]]) -> EnsembleProblem:
+    """An ensemble problem on the pole angle with the pole damping as its only knob (serial, no held-out)."""
+    reference = load_traces(ref_dir)
+    reference.update({sid: mean_trace(m) for sid, m in reference_members.items()})
+    ids = list(reference)
+    twin = make_twin("mujoco", robot, load_suite(suite).global_settings.control_period_s)
+    specs = select_knobs(twin.knobs(), [DAMPING], {}, where="mujoco")
+    twin.close()
+    job = SimJob(str(robot.path), "mujoco", str(suite), tuple(ids), (), 0)
+    return EnsembleProblem(specs, job, build_spec(reference, ids, ["pole_angle_rad"]), None, Evaluator("serial"), 20,
+                           0.0, ensemble_offsets(ref_dir), mode, reference_members)  # type: ignore[arg-type]
+
+
+def test_members_mode_scores_each_member_against_the_reference_member_of_its_shift(
+        robot: RobotBinding, suite3: Path, ensemble_ref: Path) -> None:
+    members = load_member_traces(ensemble_ref)
+    # Members 1 and 2 of every scenario swapped: the same trajectories, each filed under the other's shift.
+    swapped = {sid: [m[0], m[2], m[1]] for sid, m in members.items()}
+    truth = [{DAMPING: TRUE_DAMPING}]
+    norms = {}
+    for mode in ("mean", "members"):
+        for label, reference_members in (("own", members), ("swapped", swapped)):
+            problem = members_problem(ensemble_ref, robot, suite3, mode, reference_members)
+            point = problem.evaluate_knobs(truth)[0]
+            problem.evaluator.close()
+            norms[mode, label] = float(point.residual @ point.residual)
+            if mode == "members":
+                # One block layout per member, back to back, covering the stacked residuals.
+                layout = problem.residual_blocks()
+                assert len(layout) == MEMBERS * len(residual_layout(problem.train))
+                assert layout[-1].stop == point.residual.size
+    # At the truth every member reproduces its own reference member (the same engine and shifts).
+    assert norms["mean", "own"] < 1e-20 and norms["members", "own"] < 1e-20
+    # The mean cannot tell which trajectory came from which shift; member by member, the swap shows.
+    assert norms["mean", "swapped"] < 1e-20
+    assert norms["members", "swapped"] > 1e-6
+
+
+def test_align_fits_member_by_member(tmp_path: Path, robot: RobotBinding, suite3: Path, ensemble_ref: Path) -> None:
+    result = run_align(AlignConfig(reference=str(ensemble_ref), target="mujoco", robot=str(robot.path),
+                                   suite=str(suite3), knobs=[DAMPING], optimizer="lsq", budget=30,
+                                   executor="serial", ensemble="members"), tmp_path / "out")
+    # Each member's impacts keep their own roughness (the mean smooths them): the stop is a little wider.
+    assert result.fitted[DAMPING] == pytest.approx(TRUE_DAMPING, rel=5e-2)
+    assert result.objective_after < 0.05 * result.objective_before
+    record = json.loads((tmp_path / "out" / "align_record.json").read_text())
+    assert record["config"]["ensemble"] == "members"

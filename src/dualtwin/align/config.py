@@ -114,9 +114,10 @@ class AlignConfig(FrozenModel):
                                    description="share of the last CMA populations that sets the DR ranges")
     dr_generations: int = Field(default=3, ge=1, description="CMA generations that set the DR ranges")
     dr_min_rel_width: float = Field(default=0.02, ge=0, description="narrowest DR range, relative to the value")
-    ensemble: Literal["off", "mean"] = Field(
+    ensemble: Literal["off", "mean", "members"] = Field(
         default="off", description="mean: fit the ensemble mean of the reference run's members, the target "
-        "simulated with the same initial-condition shifts")
+        "simulated with the same initial-condition shifts; members: fit each member against the target run "
+        "with its shift, residuals stacked")
     objective: Objective = Field(default="trajectory", description="trajectory (suite runs) or prediction (short "
                                  "horizons from synchronised start states)")
     horizons: list[int] = Field(default_factory=lambda: list(OBJECTIVE_HORIZONS),

@@ -196,7 +196,7 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
                                         f"shared: {shared.channels}")
             left = shared.left_out
         members: list[dict[str, float]] = []
-        if config.ensemble == "mean":
+        if config.ensemble != "off":
             members = ensemble_members_of(config.reference, kind, fitted_ids + held, binding)
         # Physics knobs of the target twin, and nuisance knobs (initial conditions, time offsets) of the
         # fitted scenarios; `nuisance` explains why the two are kept apart.
@@ -233,8 +233,9 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
             finally:
                 ref_twin.close()
         reference = load_traces(ref_dir)
-        if members:
-            reference.update({sid: mean_trace(m) for sid, m in load_member_traces(ref_dir).items()})
+        member_traces = load_member_traces(ref_dir) if members else {}
+        # The mean is the reference of both ensemble modes' reports (and its scales those of the members' specs).
+        reference.update({sid: mean_trace(m) for sid, m in member_traces.items()})
         shared = shared_with_reference(reference, ids, channel_names, ref_dir)
         train_ids = [s for s in shared.scenarios if s not in held and s not in excluded]
         train = build_spec(reference, train_ids, config.channels if config.channels is not None else shared.channels,
@@ -252,7 +253,7 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
             problem: TrajectoryProblem
             if members:
                 problem = EnsembleProblem(specs, job, train, hold, evaluator, config.budget, config.regularization,
-                                          members)
+                                          members, "members" if config.ensemble == "members" else "mean", member_traces)
             else:
                 problem = TrajectoryProblem(specs, job, train, hold, evaluator, config.budget, config.regularization)
             nominal_u = unit_from_values(specs, {})
