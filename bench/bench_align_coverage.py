@@ -1,7 +1,7 @@
 """Coverage of alignment's 95 % intervals (issue 24): how often they contain the truth, per knob family and method.
 
 Run: ``python bench/bench_align_coverage.py`` (both parts), ``--parts fast`` (100 fits, 2 processes; or
-``--fits 20 --processes 1``) or ``--parts cartpole`` (``--cartpole-fits 20``).
+``--fits 20 --processes 1``) or ``--parts cartpole`` (``--cartpole-fits 20 --cartpole-budget 300``).
 Set ``DUALTWIN_BENCH_ALIGN_COVERAGE_OUT=DIR`` to keep the runs and ``coverage.json``.
 
 Part ``fast``: each fit is a known-truth recording of the fake twin (tests/support/fake_twin.py: damped springs driven by
@@ -144,6 +144,10 @@ CARTPOLE_KICK = "scenario.00_Step_Response.initial_angular_velocity"
 CARTPOLE_FAMILY = {POLE_DAMPING: "damping", POLE_MASS: "mass", CARTPOLE_KICK: "nuisance: kick",
                    OFFSET: "nuisance: time offset"}
 CARTPOLE_TWINS = ("mujoco", "webots")
+#: Simulations per CartPole fit. The fall from upright makes the truth a narrow, curved valley in (kick, time
+#: offset, mass, damping): least squares from the best screened start needs 150-200 runs to reach its floor
+#: (4 knobs: 5 runs per iteration), so a budget of 100 measured where the budget ran out, not the intervals.
+CARTPOLE_BUDGET = 300
 
 
 def cartpole_suite(folder: Path, kick: float | None) -> Path:
@@ -178,21 +182,27 @@ def criterion_at(fit_dir: Path, values: dict[str, float], twin_name: str) -> flo
 
 
 def explain(fits: list[dict[str, Any]]) -> None:
-    """Split the intervals that miss into fits that ended short of the minimum and fits that did not."""
+    """Split the intervals that miss into fits that ended short of the minimum and fits that did not.
+
+    The criterion is rough (the pole's bounces on its stop): it jitters by about the ``jitter`` the intervals
+    measure around the fit's end, so an end within that of the truth's criterion is in the truth's basin
+    even when the truth scores a little lower."""
     short = [f for f in fits if f["criterion_truth"] < f["criterion"]]
-    print(f"\n   {len(short)} of {len(fits)} fits ended where the truth scores lower (the optimiser stopped short of "
-          "the minimum); their intervals, centred on that end, hold "
-          f"{sum(r['covered'] for f in short for r in f['rows'])} of {sum(len(f['rows']) for f in short)} truths; "
-          f"the other fits' hold {sum(r['covered'] for f in fits if f not in short for r in f['rows'])} of "
-          f"{sum(len(f['rows']) for f in fits if f not in short)}")
+    far = [f for f in short if f["criterion"] - f["criterion_truth"] > f.get("jitter", 0.0)]
+    print(f"\n   {len(short)} of {len(fits)} fits ended where the truth scores lower, {len(far)} of them by more than "
+          "the criterion's jitter (the optimiser stopped short of the minimum's basin); the intervals of those "
+          f"{len(far)} hold {sum(r['covered'] for f in far for r in f['rows'])} of "
+          f"{sum(len(f['rows']) for f in far)} truths; the other fits' hold "
+          f"{sum(r['covered'] for f in fits if f not in far for r in f['rows'])} of "
+          f"{sum(len(f['rows']) for f in fits if f not in far)}")
     for f in fits:
         print(f"     fit {f['index']:>3} {f['twin']:<7} criterion at the end {f['criterion']:.4g}, at the truth "
-              f"{f['criterion_truth']:.4g}; {sum(r['covered'] for r in f['rows'])} of {len(f['rows'])} covered; "
-              f"stop: {f['stop'].split('; ')[-1]}")
+              f"{f['criterion_truth']:.4g} (jitter {f.get('jitter', 0.0):.2g}); "
+              f"{sum(r['covered'] for r in f['rows'])} of {len(f['rows'])} covered; stop: {f['stop'].split('; ')[-1]}")
 
 
-def one_cartpole_fit(args: tuple[int, str]) -> dict[str, Any]:
-    index, root_text = args
+def one_cartpole_fit(args: tuple[int, str, int]) -> dict[str, Any]:
+    index, root_text, budget = args
     align_run.write_align_report = no_report  # type: ignore[assignment]
     twin_name = CARTPOLE_TWINS[index % len(CARTPOLE_TWINS)]
     root = Path(root_text) / f"cartpole_{index:03d}_{twin_name}"
@@ -210,7 +220,7 @@ def one_cartpole_fit(args: tuple[int, str]) -> dict[str, Any]:
     start = time.perf_counter()
     config = AlignConfig(reference=str(root / "recording"), target=twin_name, robot=str(robot.path),
                          suite=str(suite), knobs=[*truth, CARTPOLE_KICK, OFFSET],
-                         channels=["pole_angle_rad", "cart_pos_m"], optimizer="lsq", budget=100,
+                         channels=["pole_angle_rad", "cart_pos_m"], optimizer="lsq", budget=budget,
                          bounds={POLE_DAMPING: (0.0, 0.1), POLE_MASS: (0.1, 0.4)}, executor="serial", seed=index)
     result = run_align(config, root / "fit")
     wall = time.perf_counter() - start
@@ -223,8 +233,10 @@ def one_cartpole_fit(args: tuple[int, str]) -> dict[str, Any]:
     print(f"   fit {index:>3} {twin_name:<7} {wall:5.0f} s, {result.evaluations} runs, stop: {result.stop_reason}; "
           + ", ".join(f"{r['knob'].split('.')[-1]} {r['fitted']:.4g} (true {r['truth']:.4g}) "
                       f"{'in' if r['covered'] else 'OUT'}" for r in rows), flush=True)
+    record = json.loads((root / "fit" / "align_record.json").read_text())
+    jitter = record["result"]["identifiability"]["after"]["noise"].get("jitter", 0.0)
     out = {"index": index, "twin": twin_name, "wall_s": wall, "stop": result.stop_reason, "rows": rows,
-           "criterion": at_fit, "criterion_truth": at_truth, "evaluations": result.evaluations}
+           "criterion": at_fit, "criterion_truth": at_truth, "jitter": jitter, "evaluations": result.evaluations}
     write_json(root / "coverage_fit.json", out)  # each fit as it ends: a long study can be read before it ends
     return out
 
@@ -257,9 +269,9 @@ def table(fits: list[dict[str, Any]]) -> dict[str, Any]:
     return out
 
 
-def run_part(label: str, fn: Any, fits: int, processes: int, root: Path) -> dict[str, Any]:
+def run_part(label: str, fn: Any, fits: int, processes: int, root: Path, *extra: Any) -> dict[str, Any]:
     start = time.perf_counter()
-    jobs = [(i, str(root)) for i in range(fits)]
+    jobs = [(i, str(root), *extra) for i in range(fits)]
     if processes > 1:
         with multiprocessing.get_context("fork").Pool(processes) as pool:
             results = pool.map(fn, jobs, chunksize=1)
@@ -277,7 +289,8 @@ def run_part(label: str, fn: Any, fits: int, processes: int, root: Path) -> dict
     return {"fits": results, "summary": summary}
 
 
-def main(fits: int, processes: int, parts: list[str] | None = None, cartpole_fits: int = 20) -> dict[str, Any]:
+def main(fits: int, processes: int, parts: list[str] | None = None, cartpole_fits: int = 20,
+         cartpole_budget: int = CARTPOLE_BUDGET) -> dict[str, Any]:
     parts = parts or ["fast", "cartpole"]
     out: dict[str, Any] = {}
     with output_folder("DUALTWIN_BENCH_ALIGN_COVERAGE_OUT", "align-coverage") as (root, _):
@@ -288,7 +301,7 @@ def main(fits: int, processes: int, parts: list[str] | None = None, cartpole_fit
         if "cartpole" in parts:
             print(f"== coverage of 95 % intervals: {cartpole_fits} known-truth fits of the CartPole, alternating "
                   f"{' and '.join(CARTPOLE_TWINS)} twins (noise, rounding, jitter, a kick and a logging delay) ==")
-            out["cartpole"] = run_part("cartpole", one_cartpole_fit, cartpole_fits, processes, root)
+            out["cartpole"] = run_part("cartpole", one_cartpole_fit, cartpole_fits, processes, root, cartpole_budget)
         write_json(root / "coverage.json", out)
     return {part: result["summary"] for part, result in out.items()}
 
@@ -298,10 +311,12 @@ if __name__ == "__main__":
     parser.add_argument("--parts", default="fast,cartpole", help="comma-separated: fast, cartpole")
     parser.add_argument("--fits", type=int, default=100, help="fits of the fast twin")
     parser.add_argument("--cartpole-fits", type=int, default=20, help="fits of the CartPole (alternating twins)")
+    parser.add_argument("--cartpole-budget", type=int, default=CARTPOLE_BUDGET,
+                        help="simulations per CartPole fit (align --budget)")
     parser.add_argument("--processes", type=int, default=2)
     args = parser.parse_args()
     chosen = [p for p in args.parts.split(",") if p]
     unknown = sorted(set(chosen) - {"fast", "cartpole"})
     if unknown:
         parser.error(f"unknown part(s) {unknown}; choose from fast, cartpole")
-    main(args.fits, args.processes, chosen, args.cartpole_fits)
+    main(args.fits, args.processes, chosen, args.cartpole_fits, args.cartpole_budget)
