@@ -371,7 +371,7 @@ def fit_lsq(problem: Problem, config: AlignConfig, out_dir: Path, x0: Sequence[f
     starts, screened = [u], 0
     if config.global_search == "multistart" and not trace:
         starts, screened = basin_starts(problem, config, u, free)
-    race = ""
+    race, beaten = "", len(starts) - 1  # screened starts that beat the given one
     if len(starts) > 1:
         # A race, not equal shares: every start runs a few iterations, then the one that got furthest continues
         # with everything left. Equal shares of a small budget leave every start short of the minimum (a
@@ -405,7 +405,7 @@ def fit_lsq(problem: Problem, config: AlignConfig, out_dir: Path, x0: Sequence[f
         u = steps[0]
         reason += f"; {steps[1]} central-difference Gauss-Newton step{'s' if steps[1] > 1 else ''}"
     if screened:
-        beat = f"{len(starts) - 1} beat the start" if len(starts) > 1 else "none beat the start"
+        beat = f"{beaten} beat the start" if beaten else "none beat the start"
         reason = (f"basin search: {screened} points screened ({beat}), {race}{len(results)} start"
                   f"{'s' if len(results) > 1 else ''} polished, start {best_i + 1} best; least squares: {reason}")
     return Outcome(u, len(trace), reason, trace)
