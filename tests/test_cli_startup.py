@@ -28,9 +28,17 @@ def loaded_after(code: str) -> list[str]:
 
 
 def test_the_control_sees_heavy_modules() -> None:
-    """The probe is able to see them: running an alignment's module imports the optimiser stack."""
-    seen = loaded_after("import dualtwin.align.run")
+    """The probe is able to see them: running an alignment's module imports the optimiser stack, and an interval's
+    t quantile SciPy."""
+    seen = loaded_after("import dualtwin.align.run\nfrom dualtwin.align.core import t_quantile\nt_quantile(3)")
     assert {"numpy", "scipy", "cma"} <= set(seen), seen
+
+
+def test_an_alignment_imports_scipy_only_for_its_intervals() -> None:
+    """A small fit computes no interval (a budget below 6 simulations per knob), so it does not pay for SciPy's
+    import (about half a CPU-second): the module imports it where a t quantile is asked for."""
+    seen = loaded_after("import dualtwin.align.run, dualtwin.align.report, dualtwin.cli.align")
+    assert {"numpy", "cma"} <= set(seen) and "scipy" not in seen, seen
 
 
 def test_importing_the_cli_imports_nothing_heavy() -> None:

@@ -20,7 +20,6 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
-from scipy import special  # not scipy.stats: its import costs a CPU-second
 
 from dualtwin.align.knobs import KnobSpec, unit_from_values, values_from_unit
 
@@ -177,6 +176,15 @@ def screen_integers(problem: Problem, u: Sequence[float], integer: Sequence[int]
     return u
 
 
+def t_quantile(dof: float, p: float = 0.975) -> float:
+    """The Student-t quantile (what ``scipy.stats.t.ppf`` computes). ``scipy.special`` is imported here, not with
+    the module: its import costs about half a CPU-second that a fit without intervals need not pay, and
+    ``scipy.stats`` a second."""
+    from scipy import special
+
+    return float(special.stdtrit(dof, p))
+
+
 def residual_norm(p: Point) -> float:
     return float(p.residual @ p.residual)
 
@@ -268,7 +276,7 @@ def integer_half_width(problem: Problem, u: Sequence[float], i: int) -> float:
     results = problem.run(points)  # cached when the last screening ran at this point
     ssr = [float(r.residual @ r.residual) for r in results]
     dof = max(len(results[0].residual) - len(problem.specs), 1)
-    limit = min(ssr) * (1.0 + float(special.stdtrit(dof, 0.975)) ** 2 / dof)
+    limit = min(ssr) * (1.0 + t_quantile(dof) ** 2 / dof)
     fitted = problem.specs[i].from_unit(u[i])
     return float(max(abs(v - fitted) for v, s in zip(values, ssr, strict=True) if s <= limit))
 
@@ -299,7 +307,7 @@ def interval_estimate(jac: np.ndarray, r0: np.ndarray, specs: Sequence[KnobSpec]
     condition = math.inf if len(live) < k or small.any() else float(top / eig.min())
     dof = max(m - len(live), 1)
     s2 = float(r0 @ r0) / dof
-    t = float(special.stdtrit(dof, 0.975))
+    t = t_quantile(dof)
     for col, j in enumerate(live):
         loading = vec[col] ** 2
         if float(loading[small].sum()) > 1e-8:

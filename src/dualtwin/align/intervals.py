@@ -53,9 +53,15 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from scipy import special  # not scipy.stats: its import costs a CPU-second
 
-from dualtwin.align.core import Problem, Uncertainty, fd_jacobian, integer_half_width, interval_estimate
+from dualtwin.align.core import (
+    Problem,
+    Uncertainty,
+    fd_jacobian,
+    integer_half_width,
+    interval_estimate,
+    t_quantile,
+)
 from dualtwin.align.identifiability import correlated_pairs
 from dualtwin.align.knobs import KnobSpec
 from dualtwin.align.objective import ResidualBlock
@@ -164,7 +170,7 @@ def estimate_intervals(problem: Problem, u: Sequence[float], step: float, profil
     base = interval_estimate(jac, r0, [specs[i] for i in cont], [u[i] for i in cont])
     ssr0 = float(r0 @ r0)
     s2 = ssr0 / max(n - p, 1)
-    t = float(special.stdtrit(dof, 0.975))
+    t = t_quantile(dof)
     label = "jacobian (n_eff)" if blocks is not None else "jacobian (iid)"
     # Covariance in unit coordinates from the pseudo-inverse (null directions dropped).
     jtj = jac.T @ jac
