@@ -180,8 +180,7 @@ class MuJoCoTwin(Twin):
         # One physics step; every stepping path below goes through it.
         self._mj_step: Callable[[mujoco.MjModel, mujoco.MjData], None] = (
             self._friction_box.step if self._friction_box else mujoco.mj_step)
-        # No Python between physics steps: step() makes one mj_step call per period.
-        self._one_call = self.native_law and self._friction_box is None
+        self._one_call = self.native_law and self._friction_box is None  # no Python between physics steps
         self._opt = self.model.opt  # a live view of the model's options (each model.opt costs a lookup)
         self._ids: dict[tuple[mujoco.mjtObj, str], int] = {}  # see _id
         self._sensor_adr: list[int] = self.model.sensor_adr.tolist()
@@ -320,10 +319,7 @@ class MuJoCoTwin(Twin):
         if adr >= 0 and (mode == "position" or mode == "velocity"):
             # _apply_command's native servo branch, inlined: the hot path (a target per motor and period).
             st = motor.state
-            if mode == "position":
-                st.set_position(value)
-            else:
-                st.set_velocity(value)
+            (st.set_position if mode == "position" else st.set_velocity)(value)
             ps = self._plugin_slots
             ps[adr + 1] = st.target_position
             ps[adr + 2] = st.target_velocity
@@ -358,9 +354,8 @@ class MuJoCoTwin(Twin):
             st.set_torque(value)
         adr = motor.plugin
         if adr >= 0:
-            # The native law: only what a command changes goes to plugin_state (the model is not touched): a
-            # torque command its torque (the targets stay), any other the targets, and the servo leaves
-            # saturation (the torque stays). Slots 0-3 and 14, see motor_plugin.
+            # The native law: only what a command changes goes to plugin_state, not the model: the torque, or the
+            # targets and leaving saturation (slots 0-3 and 14, see motor_plugin).
             ps = self._plugin_slots
             if st.torque_mode:
                 ps[adr + 3] = st.torque
