@@ -130,3 +130,16 @@ def test_the_prediction_objective_takes_no_intervals_choice(tmp_path: Path) -> N
     with pytest.raises(DualtwinError, match="does not take intervals"):
         fit(tmp_path / "p", objective="prediction", intervals="off")
     assert not (tmp_path / "p").exists()
+
+
+def test_cma_with_a_budget_below_one_generation_still_searches(tmp_path: Path) -> None:
+    # CMA-ES's default population for 2 knobs is 6: a budget of 4 used to end before the first generation
+    # (1 of 4 evaluations, the nominal run) and then blame the knobs. The population now shrinks to what the
+    # budget affords; the control is a population the user set, which is kept (and so cannot start).
+    small = fit(tmp_path / "small", optimizer="cma")
+    assert small.evaluations > 1 and small.iterations == 1, (small.evaluations, small.stop_reason)
+    assert all("cannot express" not in w for w in small.warnings), small.warnings
+    kept = fit(tmp_path / "kept", optimizer="cma", popsize=6)
+    assert kept.evaluations == 1 and kept.iterations == 0, (kept.evaluations, kept.stop_reason)
+    stuck = [w for w in kept.warnings if w.startswith("the fit did not move")]
+    assert stuck and "before its budget ran out" in stuck[0] and "raise --budget" in stuck[0], kept.warnings

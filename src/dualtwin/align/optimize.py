@@ -123,7 +123,7 @@ def fit_cma(problem: Problem, config: AlignConfig, out_dir: Path, x0: Sequence[f
             screened = problem.run([screen_integers(problem, x0, integer, config.budget, lambda p: p.train)])[0]
             if screened.train < f0:
                 x0, f0 = screened.u, screened.train
-        es = _new_cma(list(x0), config)
+        es = _new_cma(list(x0), config, _affordable_popsize(len(x0), config, config.budget - problem.evaluations))
         generations = []
         trace, archive = [], []
         # The start point (nominal, the best kept proposal, or the best integer setting) is the one to beat.
@@ -170,11 +170,23 @@ def fit_cma(problem: Problem, config: AlignConfig, out_dir: Path, x0: Sequence[f
 CMA_CHECKPOINT_SCHEMA = "dualtwin.align.checkpoint/2"
 
 
-def _new_cma(x0: list[float], config: AlignConfig) -> Any:
+def _affordable_popsize(n: int, config: AlignConfig, left: int) -> int | None:
+    """The population of a first CMA generation the budget cannot otherwise afford, else None (CMA's default).
+
+    CMA-ES's default population is 4 + 3 ln n; a smaller budget (a tutorial's ``--budget 4``) would end before
+    its first generation and fit nothing, so the population shrinks to what is left (at least 2). A population
+    the user set is kept."""
+    if config.popsize or left < 2:
+        return None
+    default = 4 + int(3 * math.log(max(n, 1)))
+    return left if left < default else None
+
+
+def _new_cma(x0: list[float], config: AlignConfig, popsize: int | None = None) -> Any:
     opts: dict[str, Any] = {"bounds": [0.0, 1.0], "randn": _Randn(config.seed), "tolfun": config.tolfun,
                             "tolx": config.tolx, "verbose": -9, "verb_log": 0, "verb_disp": 0}
-    if config.popsize:
-        opts["popsize"] = config.popsize
+    if popsize or config.popsize:
+        opts["popsize"] = popsize or config.popsize
     return cma.CMAEvolutionStrategy(x0, config.sigma0, opts)
 
 
@@ -215,7 +227,8 @@ def _replay_cma(checkpoint: Path, state: dict[str, Any], config: AlignConfig
         iteration = int(state["iteration"])
     except (KeyError, TypeError, ValueError) as exc:
         raise DualtwinError(f"{checkpoint}: damaged CMA checkpoint ({type(exc).__name__}: {exc})") from None
-    es = _new_cma(x0, config)
+    popsize = state.get("popsize")
+    es = _new_cma(x0, config, popsize if isinstance(popsize, int) and popsize >= 2 else None)
     for n, (injected, asked, fitness) in enumerate(history, start=1):
         es.stop()  # as in the original loop (the stop test runs before every generation)
         _cma_inject(es, injected)
@@ -237,7 +250,7 @@ def _write_cma_checkpoint(out_dir: Path, config: AlignConfig, es: Any, problem: 
     write_json(out_dir / "checkpoint.json", {
         "schema": CMA_CHECKPOINT_SCHEMA, "config": config.digest(), "optimizer": "cma",
         "iteration": int(es.countiter), "x0": list(x0), "generations": generations,
-        "evaluations": problem.evaluations, "best_u": best_u, "best_value": best_f, "stale": stale,
+        "popsize": int(es.popsize), "evaluations": problem.evaluations, "best_u": best_u, "best_value": best_f, "stale": stale,
         "incumbent": problem.point_state(best_u), "trace": trace, "archive": [[[u, f] for u, f in gen] for gen in archive],
     })
 

@@ -333,7 +333,8 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
                 warnings.append(overfit)
 
         analysis_after = analyze_runs(ref_dir, after_dir, thresholds=thresholds)
-        advice = stuck_advice(criterion(before), criterion(after), knob_fits, analysis_before, ref_dir)
+        advice = stuck_advice(criterion(before), criterion(after), knob_fits, analysis_before, ref_dir,
+                              outcome.stop_reason)
         warnings += advice
     finally:
         target.close()
