@@ -143,3 +143,16 @@ def test_cma_with_a_budget_below_one_generation_still_searches(tmp_path: Path) -
     assert kept.evaluations == 1 and kept.iterations == 0, (kept.evaluations, kept.stop_reason)
     stuck = [w for w in kept.warnings if w.startswith("the fit did not move")]
     assert stuck and "before its budget ran out" in stuck[0] and "raise --budget" in stuck[0], kept.warnings
+
+
+def test_a_fit_cut_off_by_its_budget_says_its_values_may_not_be_the_minimum(tmp_path: Path) -> None:
+    short = fit(tmp_path / "short")  # least squares, budget 4: cut off
+    assert "evaluations used)" in short.stop_reason, short.stop_reason
+    cut = [w for w in short.warnings if w.startswith("the fit ended on its budget")]
+    assert cut and "may not cover" in cut[0], short.warnings
+    record = json.loads((tmp_path / "short" / "align_record.json").read_text())
+    assert cut[0] in record["result"]["warnings"]
+    # The control: with room, least squares stops by its own rule and the warning is absent.
+    roomy = fit(tmp_path / "roomy", budget=80)
+    assert "evaluations used)" not in roomy.stop_reason, roomy.stop_reason
+    assert not any(w.startswith("the fit ended on its budget") for w in roomy.warnings), roomy.warnings

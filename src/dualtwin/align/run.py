@@ -336,6 +336,12 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
         advice = stuck_advice(criterion(before), criterion(after), knob_fits, analysis_before, ref_dir,
                               outcome.stop_reason)
         warnings += advice
+        if not advice and "evaluations used)" in outcome.stop_reason:  # the optimisers' budget stop
+            # Issue 24: a fit cut off by its budget is not shown to be at the minimum; intervals around an
+            # unfinished point can be too narrow (measured in the coverage study), so say so.
+            warnings.append(f"the fit ended on its budget ({outcome.stop_reason}), not by a convergence rule: "
+                            "the fitted values may not be the minimum and intervals around them may not cover; "
+                            "raise --budget to let it converge")
     finally:
         target.close()
 
