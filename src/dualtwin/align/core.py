@@ -155,6 +155,8 @@ class Outcome:
     stop_reason: str
     trace: list[dict[str, Any]]
     population: list[tuple[list[float], float]] = field(default_factory=list)
+    #: True when the optimiser stopped because its evaluation budget ran out, not by a convergence rule.
+    ended_on_budget: bool = False
 
 
 

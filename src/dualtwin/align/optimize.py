@@ -131,6 +131,7 @@ def fit_cma(problem: Problem, config: AlignConfig, out_dir: Path, x0: Sequence[f
     while True:
         reason = _cma_stop(es, problem, config, stale, best_f)
         if reason:
+            on_budget = problem.evaluations + es.popsize > config.budget  # _cma_stop's first rule
             break
         # Elitist injection: the incumbent (at first the start point) joins every population, so when the
         # start is already good the search contracts around it instead of drifting off with a worse mean.
@@ -163,7 +164,7 @@ def fit_cma(problem: Problem, config: AlignConfig, out_dir: Path, x0: Sequence[f
         if mean.train < best_f:
             best_u, best_f = mean.u, mean.train
     population = [p for gen in archive for p in gen]
-    return Outcome(best_u, int(es.countiter), reason, trace, population)
+    return Outcome(best_u, int(es.countiter), reason, trace, population, on_budget)
 
 
 #: CMA-ES checkpoints record the ask/tell history (JSON); version 1 named a pickled strategy, never loaded now.
@@ -394,7 +395,7 @@ def fit_lsq(problem: Problem, config: AlignConfig, out_dir: Path, x0: Sequence[f
         ends: list[tuple[float, int, list[float]]] = []
         for begin in starts:
             limit = problem.evaluations + heat
-            end, _, _, spent = fit_continuous(list(begin), max_iter=RACE_ITERATIONS)
+            end, _, _, _ = fit_continuous(list(begin), max_iter=RACE_ITERATIONS)
             point = seen.get(tuple(end)) or problem.run([end])[0]
             ends.append((residual_norm(point), len(ends), end))
             if problem.evaluations >= config.budget - len(free) - 1:
@@ -402,17 +403,17 @@ def fit_lsq(problem: Problem, config: AlignConfig, out_dir: Path, x0: Sequence[f
         ends.sort()
         race = f"a race of {len(ends)} starts ({RACE_ITERATIONS} iterations each), start {ends[0][1] + 1} ahead; "
         starts = [e[2] for e in ends]
-    results: list[tuple[list[float], str, float]] = []
+    results: list[tuple[list[float], str, float, bool]] = []
     for begin in starts:
         # The leader takes what is left; a runner-up continues only with what the leader did not need.
         limit = config.budget
-        end, reason, _, _ = polish(list(begin))
+        end, reason, _, spent = polish(list(begin))
         point = seen.get(tuple(end)) or problem.run([end])[0]
-        results.append((end, reason, residual_norm(point)))
+        results.append((end, reason, residual_norm(point), spent))
         if problem.evaluations >= config.budget - len(free) - 1:
             break
     best_i = min(range(len(results)), key=lambda j: results[j][2])
-    u, reason, _ = results[best_i]
+    u, reason, _, on_budget = results[best_i]
     steps = gauss_newton_polish(problem, u, free, config)
     if steps[1]:
         u = steps[0]
@@ -421,7 +422,7 @@ def fit_lsq(problem: Problem, config: AlignConfig, out_dir: Path, x0: Sequence[f
         beat = f"{beaten} beat the start" if beaten else "none beat the start"
         reason = (f"basin search: {screened} points screened ({beat}), {race}{len(results)} start"
                   f"{'s' if len(results) > 1 else ''} polished, start {best_i + 1} best; least squares: {reason}")
-    return Outcome(u, len(trace), reason, trace)
+    return Outcome(u, len(trace), reason, trace, ended_on_budget=on_budget)
 
 
 #: Gauss-Newton steps with a central-difference Jacobian after least squares (each costs 2·knobs + 2 runs).

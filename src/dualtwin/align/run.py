@@ -334,9 +334,9 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
 
         analysis_after = analyze_runs(ref_dir, after_dir, thresholds=thresholds)
         advice = stuck_advice(criterion(before), criterion(after), knob_fits, analysis_before, ref_dir,
-                              outcome.stop_reason)
+                              outcome.stop_reason, outcome.ended_on_budget)
         warnings += advice
-        if not advice and "evaluations used)" in outcome.stop_reason:  # the optimisers' budget stop
+        if not advice and outcome.ended_on_budget:
             # Issue 24: a fit cut off by its budget is not shown to be at the minimum; intervals around an
             # unfinished point can be too narrow (measured in the coverage study), so say so.
             warnings.append(f"the fit ended on its budget ({outcome.stop_reason}), not by a convergence rule: "

@@ -29,18 +29,18 @@ REMEDY = {
 
 
 def stuck_advice(before: float, after: float, knobs: Mapping[str, KnobFit], analysis: Analysis,
-                 reference: Path, stop_reason: str = "") -> list[str]:
+                 reference: Path, stop_reason: str = "", on_budget: bool = False) -> list[str]:
     """Sentences for the terminal and the report when the fit could not move (empty otherwise).
 
     A fit that ran out of budget has not shown that its knobs cannot express the mismatch: the first sentence
-    then names the budget instead (``stop_reason`` is the optimiser's)."""
+    then names the budget instead (``on_budget``: the optimiser stopped on it; ``stop_reason``: its words)."""
     unchanged = after >= before * (1.0 - UNCHANGED)
     moved = [k for k in knobs.values() if k.fitted != k.nominal]
     all_at_bounds = bool(moved) and all(k.at_bound for k in moved)
     if not (unchanged or all_at_bounds):
         return []
     why = ("the criterion did not change" if unchanged else "every knob that moved ended at a bound")
-    if "budget" in stop_reason:
+    if on_budget:
         out = [f"the fit did not move ({why}: {before:.4g} → {after:.4g}) before its budget ran out "
                f"({stop_reason}): that says nothing yet about the knobs; raise --budget"]
         return out
