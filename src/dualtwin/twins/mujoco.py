@@ -180,7 +180,6 @@ class MuJoCoTwin(Twin):
         # One physics step; every stepping path below goes through it.
         self._mj_step: Callable[[mujoco.MjModel, mujoco.MjData], None] = (
             self._friction_box.step if self._friction_box else mujoco.mj_step)
-        self._one_call = self.native_law and self._friction_box is None  # no Python between physics steps
         self._opt = self.model.opt  # a live view of the model's options (each model.opt costs a lookup)
         self._ids: dict[tuple[mujoco.mjtObj, str], int] = {}  # see _id
         self._sensor_adr: list[int] = self.model.sensor_adr.tolist()
@@ -412,15 +411,12 @@ class MuJoCoTwin(Twin):
     def step(self) -> None:
         m, d = self.model, self.data
         self.start_period()
-        if self._one_call:
-            # The native law and plain contacts: the period is one mj_step call (nstep positional: cheaper).
-            mujoco.mj_step(m, d, self._substeps)
-            self._check_stable()
-            return
         servos = [] if self.native_law else [mo for mo in self._motors if not mo.state.torque_mode]
         if not servos:
             if self._friction_box is None:
-                mujoco.mj_step(m, d, nstep=self._substeps)
+                # The native law (or torque control) and plain contacts: one mj_step call for the period (nstep
+                # positional: cheaper than the keyword).
+                mujoco.mj_step(m, d, self._substeps)
             else:
                 for _ in range(self._substeps):
                     self._mj_step(m, d)
