@@ -2,9 +2,10 @@
 
 ``import dualtwin`` calls :func:`hold_while_loading` first thing in the command line (and ``dualtwin.cli`` once
 more, for programs that call its ``main``): a Ctrl-C while the command line is still loading is *held*
-(recorded, not raised) and delivered once the command has said what an interruption keeps
-(:func:`ready`, called by ``on_interrupt``) or, for a command that says nothing, :data:`HELD_GRACE_S` later. Raising it at
-once would stop before the command could name what is on disk ("3 scenarios kept, resume with --resume").
+(recorded, not raised) until the command itself starts (:func:`command_starts`, after its options are parsed):
+then at once for a command that says nothing about what stopping keeps, or once it has said so (:func:`ready`,
+called by ``on_interrupt``), at most :data:`HELD_GRACE_S` later. Raising it earlier would stop before the command
+could name what is on disk ("3 scenarios kept, resume with --resume"), on a slow machine even after loading.
 Only the standard library here: this module must load in microseconds.
 """
 
@@ -16,7 +17,7 @@ import sys
 import threading
 from typing import Any
 
-__all__ = ["Interrupted", "came", "hold_while_loading", "ready", "stop_on_interrupt", "take_held"]
+__all__ = ["Interrupted", "came", "command_starts", "hold_while_loading", "ready", "stop_on_interrupt", "take_held"]
 
 
 class Interrupted(BaseException):
@@ -24,8 +25,9 @@ class Interrupted(BaseException):
     130, and library code that handles KeyboardInterrupt its own way must not swallow the user's stop."""
 
 
-#: [a Ctrl-C is held, it is raised at once (the command has said what stopping keeps), one was raised]
-_state = [False, True, False]
+#: [a Ctrl-C is held, it is raised at once (the command has said what stopping keeps), one was raised,
+#: the command has started and will say what stopping keeps]
+_state = [False, True, False, False]
 #: The SIGINT handler found before loading held it (restored when a command ends).
 _before_loading: list[Any] = []
 
@@ -41,6 +43,8 @@ def _on_sigint(signum: int, frame: Any) -> None:
         _state[2] = True
         raise Interrupted()
     _state[0] = True
+    if _state[3]:  # the command's code runs: it gets its grace to say what stopping keeps, no more
+        _release_held_later(HELD_GRACE_S)
 
 
 def _release_held_later(seconds: float) -> None:
@@ -90,8 +94,11 @@ def hold_while_loading(only_command_line: bool = False) -> None:
 
 
 def loaded() -> None:
-    """The command line has loaded: nothing held, the previous handler comes back (importing ``dualtwin.cli``
-    in a program of its own changes nothing); a held Ctrl-C stays held for :func:`stop_on_interrupt`."""
+    """The command line has loaded. In the ``dualtwin`` command a Ctrl-C stays held (one that comes between here
+    and :func:`stop_on_interrupt` too); in a program that imports ``dualtwin.cli`` of its own, if nothing is
+    held, the previous handler comes back (nothing changes for it)."""
+    if is_command_line():
+        return
     if not _state[0] and _before_loading and signal.getsignal(signal.SIGINT) is _on_sigint:
         signal.signal(signal.SIGINT, _before_loading.pop())
         _state[1] = True
@@ -100,19 +107,29 @@ def loaded() -> None:
 def stop_on_interrupt() -> Any:
     """Route SIGINT to :class:`Interrupted` for a command's duration; the handler to restore (None: unchanged).
 
-    A Ctrl-C held while loading keeps being held until :func:`ready`, at most :data:`HELD_GRACE_S`.
+    A Ctrl-C (held while loading, or coming while the options are parsed) is held until :func:`command_starts`.
     """
     if not _in_charge():
         return None
     previous = signal.getsignal(signal.SIGINT)
     if previous is _on_sigint:
         previous = _before_loading.pop() if _before_loading else signal.default_int_handler
-    _state[1] = not _state[0]
+    _state[1] = False
     _state[2] = False
+    _state[3] = False
     signal.signal(signal.SIGINT, _on_sigint)
+    return previous
+
+
+def command_starts(says_what_stopping_keeps: bool) -> None:
+    """The command's own code starts (its options parsed). One that will say what stopping keeps (by
+    :func:`ready`) has :data:`HELD_GRACE_S` to say it; any other is stopped now by a Ctrl-C held until here."""
+    if not says_what_stopping_keeps:
+        ready()
+        return
+    _state[3] = True
     if _state[0]:
         _release_held_later(HELD_GRACE_S)
-    return previous
 
 
 def ready() -> None:

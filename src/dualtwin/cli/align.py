@@ -23,6 +23,7 @@ from dualtwin.cli.common import (
     llm_proposer,
     on_interrupt,
     report_progress,
+    resumable,
 )
 from dualtwin.cli.model_options import model_options, validate_model
 from dualtwin.errors import DualtwinError
@@ -30,6 +31,7 @@ from dualtwin.reporting import ProgressEvent, emit_json
 
 
 @app.command("align")
+@resumable
 @model_options(AlignConfig, optional={"reference"},
                choices={"reference": [t.value for t in Twin], "target": [t.value for t in Twin]})
 def align(

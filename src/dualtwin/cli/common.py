@@ -127,6 +127,13 @@ def _global_options(
 _interrupt_notes: list[Any] = []
 
 
+def resumable(command: Any) -> Any:
+    """Mark a command that names what an interruption keeps (:func:`on_interrupt`, early in its code): a Ctrl-C
+    that came while the command line loaded waits for that note (dualtwin.interrupts.command_starts)."""
+    command.says_what_stopping_keeps = True
+    return command
+
+
 def on_interrupt(describe: Any) -> None:
     """Register ``describe() -> str`` ("3 scenarios kept, resume with --resume"), called if Ctrl-C stops the
     command; it must only read files (the command's own writes are atomic, so what it reads is whole)."""

@@ -7,10 +7,11 @@ from typing import Annotated
 
 import typer
 
-from dualtwin.cli.common import OutOption, app, console, on_interrupt
+from dualtwin.cli.common import OutOption, app, console, on_interrupt, resumable
 
 
 @app.command("demo")
+@resumable
 def demo(out: Annotated[Path, OutOption("demo output folder (new or empty)")] = Path("runs/demo"),
          resume: Annotated[bool, typer.Option(help="continue an earlier demo in OUT")] = False) -> None:
     """Run the bundled CartPole suite on both twins and write the comparison report."""

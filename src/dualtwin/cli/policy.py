@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 from typing import Any
 
 from dualtwin.errors import DualtwinError
+from dualtwin.interrupts import command_starts
 
 # Ranges for numeric options, by option name, the same in every command (a new command's --seed is checked like
 # every other). (low, high): None means unbounded; high may be a float for float options. Numeric options not
@@ -83,8 +85,26 @@ def _flag_help_option(original: Any) -> Any:
     return get_help_option
 
 
+def _starting(callback: Any) -> Any:
+    """A command's code, told to the Ctrl-C handling first: a Ctrl-C held until its options were parsed stops it
+    now, or (a :func:`dualtwin.cli.common.resumable` command) once it has said what stopping keeps."""
+    says = bool(getattr(callback, "says_what_stopping_keeps", False))
+
+    @functools.wraps(callback)
+    def run(*args: Any, **kwargs: Any) -> Any:
+        command_starts(says)
+        return callback(*args, **kwargs)
+
+    run._dualtwin_starting = True  # type: ignore[attr-defined]
+    return run
+
+
 def harden(command: Any) -> Any:
-    """Apply the option policies above to every parameter of every command, recursively (new commands too)."""
+    """Apply the option policies above to every parameter of every command, recursively (new commands too), and
+    tell the Ctrl-C handling when each command's own code starts."""
+    if (not hasattr(command, "commands") and command.callback is not None
+            and not getattr(command.callback, "_dualtwin_starting", False)):
+        command.callback = _starting(command.callback)
     for param in command.params:
         if not getattr(param, "_dualtwin_policy", False):
             param.callback = _policy_callback(param.callback)

@@ -15,6 +15,7 @@ from dualtwin.cli.common import (
     console,
     on_interrupt,
     report_progress,
+    resumable,
     resume_note,
     suite_app,
 )
@@ -42,6 +43,7 @@ def suite_validate(
 
 
 @suite_app.command("run")
+@resumable
 def suite_run(
     twin: Annotated[Twin, typer.Option(help="twin to run on")],
     robot: Annotated[str, typer.Option(help="bundled robot name (cartpole) or path to a binding file")],
