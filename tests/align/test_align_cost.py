@@ -21,12 +21,12 @@ from typing import Any
 
 import pytest
 
-from dualtwin.align import AlignConfig, AlignResult, run_align
+from dualtwin.align import AlignResult
 from dualtwin.align.floor_check import check_floors
 from dualtwin.align.simulate import Evaluator, SimJob, Traces, load_traces
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import load_binding
-from tests.support.fake_twin import NAME, ROBOT, SUITE, registered
+from tests.support.fake_twin import NAME, fit_fake, registered
 
 TRUTH = {"joint.j1.damping": 0.9, "joint.j2.stiffness": 6.5}
 KNOBS = sorted(TRUTH)
@@ -54,10 +54,7 @@ def simulated(monkeypatch: pytest.MonkeyPatch) -> list[int]:
 
 
 def fit(out: Path, **settings: Any) -> AlignResult:
-    config = AlignConfig.model_validate({"reference": NAME, "target": NAME, "robot": str(ROBOT), "suite": str(SUITE),
-                                         "knobs": KNOBS, "reference_knobs": TRUTH, "executor": "serial",
-                                         "optimizer": "lsq", "budget": 4, **settings})
-    return run_align(config, out)
+    return fit_fake(out, KNOBS, TRUTH, **{"budget": 4, **settings})
 
 
 def test_a_tiny_budget_computes_no_interval_and_says_so(tmp_path: Path, simulated: list[int]) -> None:

@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from dualtwin.align import AlignConfig, AlignResult, run_align
-from tests.support.fake_twin import NAME, ROBOT, SUITE, registered
+from dualtwin.align import AlignResult
+from tests.support.fake_twin import fit_fake, registered
 
 #: j2's spring differs in the reference; only j1's damping is fitted, so the j2 scenario stays apart.
 TRUTH = {"joint.j1.damping": 0.9, "joint.j2.stiffness": 6.5}
@@ -27,10 +27,7 @@ def fake() -> Iterator[str]:
 
 
 def fit(out: Path, **settings: object) -> AlignResult:
-    config = AlignConfig.model_validate({"reference": NAME, "target": NAME, "robot": str(ROBOT), "suite": str(SUITE),
-                                         "knobs": KNOBS, "reference_knobs": TRUTH, "executor": "serial",
-                                         "optimizer": "lsq", "budget": 40, **settings})
-    return run_align(config, out)
+    return fit_fake(out, KNOBS, TRUTH, **{"budget": 40, **settings})
 
 
 def test_a_scenario_beyond_its_floor_is_named_and_kept_without_consent(tmp_path: Path) -> None:

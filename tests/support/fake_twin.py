@@ -291,3 +291,14 @@ def step_rate(twin: Twin, steps: int = 2000) -> float:
 
 __all__ = ["ENTRY", "NAME", "ROBOT", "SUITE", "FakeTwin", "fake_robot", "from_binding", "load_model", "registered",
            "step_rate"]
+
+
+def fit_fake(out: Path, knobs: list[str], truth: dict[str, float], **settings: Any) -> Any:
+    """Fit ``knobs`` of the fake twin to the fake twin run with ``truth`` (least squares, serial, unless
+    ``settings`` say otherwise); the AlignResult."""
+    from dualtwin.align import AlignConfig, run_align
+
+    config = AlignConfig.model_validate({"reference": NAME, "target": NAME, "robot": str(ROBOT), "suite": str(SUITE),
+                                         "knobs": knobs, "reference_knobs": truth, "executor": "serial",
+                                         "optimizer": "lsq", **settings})
+    return run_align(config, out)
