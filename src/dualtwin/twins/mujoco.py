@@ -314,16 +314,6 @@ class MuJoCoTwin(Twin):
             # control.delay_periods: the command reaches the motor k control periods late.
             self._pending.append((self._periods() + self._delay, motor, mode, value))
             return
-        adr = motor.plugin
-        if adr >= 0 and (mode == "position" or mode == "velocity"):
-            # _apply_command's native servo branch, inlined: the hot path (a target per motor and period).
-            st = motor.state
-            (st.set_position if mode == "position" else st.set_velocity)(value)
-            ps = self._plugin_slots
-            ps[adr + 1] = st.target_position
-            ps[adr + 2] = st.target_velocity
-            ps[adr] = motor.saturated = ps[adr + 14] = 0.0
-            return
         self._apply_command(motor, mode, value)
 
     def _periods(self) -> int:
