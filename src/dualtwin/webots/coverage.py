@@ -57,9 +57,14 @@ REGISTRY: tuple[Coverage, ...] = (
              "(one that no body or joint carries moves by its linearVelocity/angularVelocity every step, "
              "sensors and getVelocity seeing it), supervisor pose/velocity edits; Box/Sphere/Cylinder/Capsule/IndexedFaceSet edits (also through "
              "DEF/USE) resize the ODE geom at the next step, wake bodies around it and reach ray sensors; a "
-             "boundingObject a supervisor imports (or a node it imports into one) becomes geoms at once, on the "
-             "Solid's body where it is now, and its removal takes them out and wakes what rested on it (the body's mass is "
-             "not recomputed from it); "
+             "Solid a supervisor imports joins the physics at once by the load's rules (merged into its parent's "
+             "body, fixed to the static basis, or in a joint's empty endPoint jointed to the parent where that is "
+             "now, the joint's motor and sensor then acting on it; a joint imported inside a Solid that moved since "
+             "load is made where the Solid is now, springs included) and remove() takes it out (a joint that loses "
+             "its endPoint keeps its devices); a boundingObject a supervisor imports (or a node it imports into "
+             "one) becomes geoms at once, on the Solid's body where it is now, and its removal takes them out and "
+             "wakes what rested on it; either way the body's mass, centre of mass and inertia are summed again "
+             "from it (the Solid stays put, its joints keep their anchors); "
              "edits of a PROTO instance's fields follow its IS links (also through nested and derived PROTOs) "
              "to the expanded nodes; a field read by a procedural PROTO's template warns (no regeneration)"),
     Coverage("Robot", "scene", "supported",

@@ -310,7 +310,9 @@ class JointBuilder(SceneBuilder):
         joint.spring_erp = min(h * k / (h * k + b), 1.0)
         pb = joint.parent_body.ptr if joint.parent_body is not None else None
         assert joint.child_body is not None
-        frame = self._joint_world_frame(joint) if joint.parent is not None else joint.frame_rel
+        # the parent's current pose, as for the anchor: a joint imported (or its springs rebuilt) after the
+        # parent moved has its spring about the axis where it is now, not where it was at load
+        frame = self.solid_world_pose(joint.parent) * joint.frame_rel if joint.parent is not None else joint.frame_rel
         axis = frame.rotate(joint.axis_local[0])
         rel = 0 if joint.reverse else 1
         if joint.kind == "hinge":

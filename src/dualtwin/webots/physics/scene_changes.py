@@ -10,9 +10,13 @@ it, no ray hits it, and nothing stays jointed to it.
 A subtree imported inside an existing Solid follows the load's rules too (§3.3): a Solid with Physics merges
 into the body of a parent that has one (its mass is summed again, the parent stays where it is), or gets its
 own body fixed to the nearest body above or to the world; a Solid without Physics brings body-less geoms. Its
-removal takes its mass out of the body again. Not supported: a Solid imported into a joint's ``endPoint`` (it
-stays in the scene tree without physics, with one warning). A boundingObject imported or removed on its own
-rebuilds its Solid's geoms (:meth:`SceneChanges.bounding_object_changed`).
+removal takes its mass out of the body again. A Solid imported into a joint's empty ``endPoint`` (directly or
+through a Slot pair) becomes that joint's endPoint as at load (§4.1): its own body if it has Physics, and the
+ODE joint made between the parent's body and it, anchored where the parent is now; the joint's motor and
+position sensor then act on it. Its removal leaves the joint (and its devices) without an endPoint. A
+boundingObject imported or removed on its own rebuilds its Solid's geoms and, as the mass of a Solid with
+Physics comes from its boundingObject (§3.2), sums its body's mass again
+(:meth:`SceneChanges.bounding_object_changed`).
 
 Removed bodies are disabled and detached from every joint rather than destroyed, so the per-body indices and
 the live views into ODE memory that the stepping keeps stay valid; they are skipped by resets.
@@ -33,8 +37,10 @@ from dualtwin.webots.physics.records import (
     SOLID_TYPES,
     BodyRec,
     GeomRec,
+    JointRec,
     SolidRec,
     field_or,
+    is_solid,
 )
 from dualtwin.webots.physics.stepping import Stepper
 
@@ -46,23 +52,48 @@ class SceneChanges(Stepper):
 
     def can_add(self, ancestors: Iterable[Node]) -> bool:
         """Whether a node placed below ``ancestors`` (top-level first, its parent last) can join the physics:
-        its nearest Solid above (if any) is in the physics, and no joint or Slot lies between them (a Solid
-        imported into an ``endPoint`` is not supported)."""
+        its nearest Solid above (if any) is in the physics, and no joint or Slot lies between them unless the
+        node is in a joint's ``endPoint`` (through Slots), a joint that is in the physics."""
         chain = list(ancestors)
         at = self._parent_solid_at(chain)
-        if at < 0:
-            return True
-        if id(chain[at]) not in self._solid_by_node:
+        if at >= 0 and id(chain[at]) not in self._solid_by_node:
             return False
-        return not any(n.type_name in JOINT_TYPES or n.type_name == "Slot" for n in chain[at + 1 :])
+        between = chain[at + 1 :]
+        joints = [i for i, n in enumerate(between) if n.type_name in JOINT_TYPES]
+        if not joints:
+            return not any(n.type_name == "Slot" for n in between)
+        first = joints[0]
+        return (first == len(between) - 1 - sum(n.type_name == "Slot" for n in between[first + 1 :])
+                and id(between[first]) in self._joint_by_node)  # fmt: skip
 
     @staticmethod
     def _parent_solid_at(chain: list[Node]) -> int:
         return max((i for i, n in enumerate(chain) if n.type_name in SOLID_TYPES), default=-1)
 
+    def _endpoint_of(self, chain: list[Node], top: Node) -> tuple[JointRec | None, Node | None]:
+        """The joint whose ``endPoint`` holds ``top`` (directly or through Slots) and the Solid that ends up
+        there, or (None, None) when ``top`` is not in an endPoint."""
+        holder = top
+        for node in reversed(chain[self._parent_solid_at(chain) + 1 :]):
+            if node.type_name not in JOINT_TYPES and node.type_name != "Slot":
+                break
+            if field_or(node, "endPoint", None) is not holder:
+                return None, None  # a joint's device or parameters field, not its endPoint
+            if node.type_name in JOINT_TYPES:
+                end: Node | None = top
+                while isinstance(end, Node) and end.type_name == "Slot":
+                    end = field_or(end, "endPoint", None)
+                return self._joint_by_node.get(id(node)), end if isinstance(end, Node) and is_solid(end) else None
+            holder = node
+        return None, None
+
     def add_nodes(self, top: Node, ancestors: Iterable[Node] = ()) -> list[SolidRec]:
         """Build the ODE objects of ``top`` (just inserted below ``ancestors``, see :meth:`can_add`) as the
         load builds them, and return the new Solids' records. Geoms, bodies and joints exist when this returns.
+
+        In a joint's empty ``endPoint`` the Solid becomes the joint's endPoint as at load: the joint's ODE joint
+        is made (when the Solid has a body) from the parent's current pose, its zero at the joint's current
+        position, which the Solid's translation and rotation describe (§4.1).
 
         Below an existing Solid the load's rules hold (§3.3): a Solid with Physics that is a plain child of a
         Solid with a body is merged into that body, whose mass, centre of mass and inertia are summed again
@@ -73,13 +104,22 @@ class SceneChanges(Stepper):
         chain = list(ancestors)
         at = self._parent_solid_at(chain)
         parent = self._solid_by_node[id(chain[at])] if at >= 0 else None
+        in_joint = any(n.type_name in JOINT_TYPES for n in chain[at + 1 :])
+        joint, end = self._endpoint_of(chain, top) if in_joint else (None, None)
+        if in_joint and (joint is None or end is None or joint.child is not None):
+            return []  # a device or parameters node, or nothing a joint can hold
         frame = Pose()
         for node in chain[at + 1 :]:  # Pose/Transform chain above the node (Groups add nothing)
             if "translation" in node.fields and "rotation" in node.fields:
                 frame = frame * Pose.from_fields(field_or(node, "translation", None), field_or(node, "rotation", None))
         n_solids, n_bodies, n_joints = len(self.solids), len(self.bodies), len(self.joints)
         n_robots, n_motors, n_loops = len(self.robots), len(self.motors), len(self._loops)
-        self._walk_children([top], frame, parent, parent.robot if parent is not None else None)
+        robot = parent.robot if parent is not None else None
+        if joint is not None and end is not None:
+            joint.child = self._add_solid(end, joint.frame_rel, parent, robot, joint)
+            self._at_joint_position(joint.child)
+        else:
+            self._walk_children([top], frame, parent, robot)
         solids = self.solids[n_solids:]
         self._assign_bodies(solids)
         bodies = self.bodies[n_bodies:]
@@ -93,10 +133,12 @@ class SceneChanges(Stepper):
             self._remass(body)
         for solid in solids:
             self._create_geoms(solid, None if parent is None else self.solid_world_pose(solid))
-        for joint in self.joints[n_joints:]:
-            self._create_joint(joint)
-        for joint, name in self._loops[n_loops:]:
-            self._close_loop(joint, name)
+        for new in ([joint] if joint is not None else []) + self.joints[n_joints:]:
+            self._create_joint(new)
+        for loop, name in self._loops[n_loops:]:
+            self._close_loop(loop, name)
+        if joint is not None:
+            self._plans.clear()  # the endPoint's body is jointed to its parent's now (no contacts between them)
         self._create_fixed_joints(bodies)
         robots = self.robots[n_robots:]
         if parent is not None and parent.robot is not None:
@@ -107,11 +149,19 @@ class SceneChanges(Stepper):
         self._geoms_changed()
         return solids
 
+    def _at_joint_position(self, solid: SolidRec) -> None:
+        """An endPoint imported into a joint that has moved since load: its translation and rotation give its
+        pose at the joint's current position, while an endPoint's ``rel`` is kept at the joint's initial
+        position (the kinematic motion, teleports and resets start from there)."""
+        moved = self._kinematic_rel(solid) * solid.rel.inverse()  # initial position -> current one
+        solid.rel = solid.load_rel = moved.inverse() * solid.rel
+
     def _place_where_it_is_now(self, body: BodyRec) -> None:
         """A new body below an existing Solid: at its Solid's current pose, and that pose is its load pose
-        (a reset removes imported nodes anyway)."""
+        (a reset removes imported nodes anyway). An endPoint is where its joint's current position puts it
+        (its ODE joint does not exist yet, so the joint's kinematic motion gives it)."""
         root = body.root
-        world = (self.solid_world_pose(root.parent) if root.parent is not None else Pose()) * root.rel
+        world = (self.solid_world_pose(root.parent) if root.parent is not None else Pose()) * self._kinematic_rel(root)
         body.load_R = world.R
         body.load_pos = world.apply(body.com)
         self._place_body_at_load(body)
@@ -124,6 +174,7 @@ class SceneChanges(Stepper):
         now, load = body.pose(), Pose(body.load_R, m3.sub(body.load_pos, m3.mat_vec(body.load_R, body.com)))
         old_com_world = now.apply(body.com)
         lvel, avel = tuple(body.lvel[:3]), tuple(body.avel[:3])
+        old_com = body.com
         total, weights = self._centred_mass(body)
         lib.dBodySetMass(body.ptr, byref(total))
         new_com_world = now.apply(body.com)
@@ -136,7 +187,23 @@ class SceneChanges(Stepper):
             world = self.solid_world_pose(g.solid) * g.local
             lib.dGeomSetOffsetWorldPosition(g.ptr, *world.t)
             lib.dGeomSetOffsetWorldRotation(g.ptr, rot_matrix(world.R))
+        if body.com != old_com:
+            self._rejoin(body)
         self._wake_body(body.index)
+
+    def _rejoin(self, body: BodyRec) -> None:
+        """ODE keeps a joint's anchors and a fixed joint's offset relative to each body's origin, the centre of
+        mass: once that moved, the joints on the body are set again from where the Solids are now (their ODE
+        zero re-based on the current positions, as a teleport does, §6)."""
+        for joint in list(body.joints):
+            if joint.ptr:
+                self._anchor_joint(joint)
+                for i in range(len(joint.params)):
+                    self._set_stops(joint, i)
+                self.rebuild_springs(joint)
+        for other in self.bodies:
+            if other.fixed_joint and not other.removed and (other is body or other.fixed_to is body):
+                self._lib.dJointSetFixed(other.fixed_joint)
 
     def remove_nodes(self, top: Node) -> None:
         """Take every Solid of the subtree ``top`` out of the physics (no-op for nodes that have none)."""
@@ -177,12 +244,19 @@ class SceneChanges(Stepper):
         dead_joints = [j for j in self.joints if (j.child is not None and id(j.child) in gone_ids)
                        or (j.parent is not None and id(j.parent) in gone_ids)]  # fmt: skip
         for joint in dead_joints:
-            for ptr in (joint.ptr, joint.amotor, joint.spring, joint.spring2):
+            for ptr in (joint.ptr, joint.amotor, joint.spring, joint.spring2, joint.stop2):
                 if ptr:
                     lib.dJointAttach(ptr, None, None)
             for end in (joint.parent_body, joint.child_body):
                 if end is not None and joint in end.joints:
                     end.joints.remove(joint)
+        for joint in dead_joints:
+            if joint.parent is not None and joint in joint.parent.child_joints:
+                joint.parent.child_joints.remove(joint)
+        kept = [j for j in dead_joints if id(j.node) not in ids]  # an endPoint left a joint that stays
+        for joint in kept:
+            self._without_endpoint(joint)
+        dead_joints = [j for j in dead_joints if id(j.node) in ids]
         dead_joint_ids = {id(j) for j in dead_joints}
         self.joints[:] = [j for j in self.joints if id(j) not in dead_joint_ids]
         self.motors[:] = [m for m in self.motors if id(m.joint) not in dead_joint_ids]
@@ -200,16 +274,33 @@ class SceneChanges(Stepper):
         self.solids[:] = [s for s in self.solids if id(s) not in gone_ids]
         self._geoms_changed()
 
+    @staticmethod
+    def _without_endpoint(joint: JointRec) -> None:
+        """A joint whose endPoint was removed (its ODE parts already detached) stays in the scene with its
+        devices, kinematic and holding nothing, until a new endPoint is imported (:meth:`add_nodes`)."""
+        if joint.parent is not None:
+            joint.parent.child_joints.append(joint)
+        joint.child = None
+        joint.ptr = joint.amotor = joint.spring = joint.spring2 = joint.stop2 = 0
+        joint.parent_body = joint.child_body = None
+        joint.reverse = False
+        joint.euler_ref = ()
+
     def bounding_object_changed(self, solid_node: Node) -> None:
         """``solid_node``'s boundingObject was imported or removed, or a node inside it was: its geoms are built
         again from the field, where the Solid is now (on its body if it has one), so contacts and ray sensors
         see the new shape from the next step on. Bodies near the old or new geoms are woken (one resting on a
-        removed shape must fall)."""
+        removed shape must fall). On a body, the mass is summed again (§3.2: a Physics node without an inertia
+        matrix takes its mass distribution, its centre of mass and, from its density, its mass from the
+        boundingObject; without one, the density's or mass's default): the Solid stays where it is, the body's
+        origin moves to the new centre of mass."""
         solid = self._solid_by_node.get(id(solid_node))
         if solid is None:
             return
         boxes = [self._aabb(g) for g in solid.geoms]
         self._drop_geoms(solid.geoms)
+        if solid.body is not None and not solid.body.removed:
+            self._remass(solid.body)
         self._create_geoms(solid, self.solid_world_pose(solid))
         boxes += [self._aabb(g) for g in solid.geoms]
         self._wake_near(boxes, solid.body)
