@@ -186,10 +186,12 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("DistanceSensor", "device", "partial",
              "generic, sonar and laser as Webots: rays against bounding objects (own robot excluded unless "
              "selfCollision), ray layout and Gaussian weights, sonar echo angle, lookup table with noise, "
-             "resolution, sampled at the basic step where the period elapses; infra-red rays hit the visual "
-             "Shapes (own robot included, transparent ones skipped), weighted by the reflection factor of the "
-             "hit Shape's red (Material diffuseColor or PBR baseColor and roughness; no textures) and "
-             "redColorSensitivity"),
+             "resolution, sampled at the basic step where the period elapses from the poses after that "
+             "step's physics (sensor, targets), so rays follow a driving robot and see a falling target where "
+             "it is; infra-red rays hit the visual Shapes (own robot included except a Shape enclosing the "
+             "sensor, judged in that Shape's own frame; transparent ones skipped), weighted by the reflection "
+             "factor of the hit Shape's red (Material diffuseColor or PBR baseColor and roughness; no "
+             "textures) and redColorSensitivity"),
     Coverage("Compass", "device", "supported",
              "north of WorldInfo.coordinateSystem (+y ENU, +x NUE, +z EUN) in the device frame, per-axis "
              "lookupTable and resolution"),
@@ -218,14 +220,16 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Zoom", "device", "not", "not yet (Camera)"),
     Coverage("Radar", "device", "partial",
              "targets: Solids with radarCrossSection whose bounding box overlaps the field of view, in range; "
-             "distance, radar-equation power, radial speed, azimuth, occlusion ray, noise; cellDistance and "
-             "cellSpeed are not modelled"),
+             "distance, radar-equation power, radial speed, azimuth, occlusion ray, noise, from the poses after "
+             "the physics step; cellDistance and cellSpeed are not modelled"),
     Coverage("LightSensor", "device", "supported",
              "irradiance of Directional/Point/SpotLights (attenuation, radius, linear spot fall-off, cos θ, "
-             "ambient), colorFilter averaged over RGB, occlusion rays, lookupTable and resolution"),
+             "ambient), colorFilter averaged over RGB, occlusion rays (the Solid carrying the light does not "
+             "hide it), lookupTable and resolution, from the poses after the physics step"),
     Coverage("Emitter", "device", "partial",
              "in-process channels: channel filters, range and maxRange, medium type, buffer size, baud rate, "
-             "infra-red line of sight and aperture; simulationReset clears the queues"),
+             "infra-red line of sight and aperture, judged from the poses after the physics step of the "
+             "packet's arrival; simulationReset clears the queues"),
     Coverage("Receiver", "device", "partial",
              "queue, channel filter, buffer size, signal strength 1/d² with noise, emitter direction with noise; "
              "no physics-plugin copy of channel 0"),

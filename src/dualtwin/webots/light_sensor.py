@@ -30,9 +30,9 @@ from dualtwin.webots import _math3 as m3
 from dualtwin.webots.device_base import SolidSensor
 from dualtwin.webots.lights import LightSource, light_sources
 from dualtwin.webots.lut import Table, discretize, lookup, table_from_field
-from dualtwin.webots.physics import Simulation
+from dualtwin.webots.physics import GeomRec, Simulation
 from dualtwin.webots.ranging import caster_for
-from dualtwin.webots.rays import candidate_geoms
+from dualtwin.webots.rays import candidate_geoms, geom_list
 from dualtwin.webots.step_hints import step_value
 
 __all__ = ["LightSensor", "irradiance"]
@@ -50,11 +50,15 @@ def _spot_factor(direction: m3.Vec3, cut: float, beam: float, to_sensor: m3.Vec3
 
 
 def _visible(sim: Simulation, light: LightSource, origin: m3.Vec3, toward: m3.Vec3, length: float, robot: Any) -> bool:
-    geoms = [
-        g
-        for g in candidate_geoms(sim, robot)
-        if light.solid is None or (g.solid is not light.solid and (g.body is None or g.body is not light.solid.body))
-    ]
+    def build() -> list[GeomRec]:
+        return [
+            g
+            for g in candidate_geoms(sim, robot)
+            if light.solid is None
+            or (g.solid is not light.solid and (g.body is None or g.body is not light.solid.body))
+        ]
+
+    geoms = geom_list(sim, ("light", id(robot), id(light.node)), build)
     if not geoms:
         return True
     hits = caster_for(sim).cast(

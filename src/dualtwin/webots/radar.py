@@ -31,9 +31,9 @@ import numpy as np
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots import ode
 from dualtwin.webots.device_base import SolidSensor
-from dualtwin.webots.physics import Simulation, SolidRec
+from dualtwin.webots.physics import GeomRec, Simulation, SolidRec
 from dualtwin.webots.ranging import caster_for
-from dualtwin.webots.rays import candidate_geoms
+from dualtwin.webots.rays import candidate_geoms, geom_list
 
 __all__ = ["Radar", "RadarTarget", "detect_targets"]
 
@@ -119,7 +119,11 @@ def _occluded(sim: Simulation, radar: SolidRec, target: SolidRec, origin: m3.Vec
     if distance == 0.0:
         return False
     body = target.body
-    geoms = [g for g in candidate_geoms(sim, radar.robot) if g.solid is not target and (body is None or g.body is not body)]
+
+    def build() -> list[GeomRec]:
+        return [g for g in candidate_geoms(sim, radar.robot) if g.solid is not target and (body is None or g.body is not body)]
+
+    geoms = geom_list(sim, ("radar", id(radar.robot), id(target)), build)
     if not geoms:
         return False
     hits = caster_for(sim).cast(

@@ -36,7 +36,7 @@ from dualtwin.webots.api_args import as_float, as_int, warn
 from dualtwin.webots.device_base import Device, SolidSensor
 from dualtwin.webots.physics import Simulation
 from dualtwin.webots.ranging import caster_for
-from dualtwin.webots.rays import candidate_geoms
+from dualtwin.webots.rays import candidate_geoms, geom_list
 
 __all__ = ["Emitter", "Receiver"]
 
@@ -138,9 +138,11 @@ class _Medium:
             return True
         # a ray from emitter to receiver: any Solid of another robot than the two ends blocks the beam
         e_robot, r_robot = emitter._record.solid.robot, receiver._record.solid.robot
-        geoms = [
-            g for g in candidate_geoms(self.sim, e_robot) if g.solid.robot is not r_robot or r_robot is None
-        ]
+        geoms = geom_list(
+            self.sim,
+            ("infra-red", id(e_robot), id(r_robot)),
+            lambda: [g for g in candidate_geoms(self.sim, e_robot) if g.solid.robot is not r_robot or r_robot is None],
+        )
         origin = np.array([e_pose.t])
         direction = np.array([m3.scale(m3.sub(r_pose.t, e_pose.t), 1.0 / d)])
         hits = caster_for(self.sim).cast(origin, direction, d, geoms, normals=False)

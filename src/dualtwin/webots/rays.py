@@ -23,7 +23,7 @@ with the normal facing inward, and a plane is hit from either side.
 from __future__ import annotations
 
 import ctypes
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -32,7 +32,7 @@ import numpy as np
 from dualtwin.webots import ode
 from dualtwin.webots.physics import GeomRec, RobotRec, Simulation
 
-__all__ = ["RayCaster", "RayHits", "cast_ode", "candidate_geoms"]
+__all__ = ["RayCaster", "RayHits", "cast_ode", "candidate_geoms", "geom_list"]
 
 _PRIMITIVES = {ode.dBoxClass, ode.dSphereClass, ode.dCapsuleClass, ode.dCylinderClass, ode.dPlaneClass}
 
@@ -57,6 +57,23 @@ def candidate_geoms(sim: Simulation, robot: RobotRec | None) -> list[GeomRec]:
     if robot is None or robot.self_collision:
         return list(sim.geoms.values())
     return [g for g in sim.geoms.values() if g.solid.robot is not robot]
+
+
+def geom_list(sim: Simulation, key: Hashable, build: Callable[[], list[GeomRec]]) -> list[GeomRec]:
+    """The geoms a kind of ray may hit (``build()``), kept under ``key`` until the scene's geoms change.
+
+    :class:`RayCaster` groups the geoms of each list it is given once and keys that work by the list itself, so
+    a device that built a fresh list at every sample would be regrouped every time and leave one grouping
+    behind per sample. Light sensors, radars and infra-red links ask here instead."""
+    stamp = (sim.geometry_version, len(sim.geoms))
+    cached: tuple[tuple[int, int], dict[Hashable, list[GeomRec]]] | None = sim.extensions.get("ray_geom_lists")
+    if cached is None or cached[0] != stamp:
+        cached = sim.extensions["ray_geom_lists"] = (stamp, {})
+    lists = cached[1]
+    found = lists.get(key)
+    if found is None:
+        found = lists[key] = build()
+    return found
 
 
 def cast_ode(

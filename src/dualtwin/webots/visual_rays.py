@@ -12,7 +12,9 @@ world pose before each cast and intersected by the same ray code as bounding obj
 ``size`` rectangle, so it is a flat box here. A Shape whose appearance is fully transparent is skipped, as
 Webots' infra-red and depth rendering skip it. Shapes of the device's robot that enclose the device's origin
 (its own housing) are not seen, as a camera inside a Shape does not draw its back faces; the rest of the robot
-is seen.
+is seen. Enclosing is judged against the box around the Shape in the Shape's own frame: a box around it in
+world axes would grow as the robot tilts, and a sensor just outside its robot's body would stop seeing that
+body whenever the robot pitched.
 """
 
 from __future__ import annotations
@@ -45,6 +47,8 @@ class VisualGeoms:
         self.geoms: list[GeomRec] = []
         self._targets: dict[tuple[int, tuple[int, ...]], list[GeomRec]] = {}
         self._reflection: dict[int, float] = {}  # geom pointer → infra-red reflection factor
+        self._extent: dict[int, tuple[float, ...]] = {}  # geom pointer → its box in its own frame
+        self._world: dict[int, Pose] = {}  # geom pointer → world pose at the last place()
         for solid in sim.solids:
             for child in solid.node.children():
                 self._walk(child, Pose(), (1.0, 1.0, 1.0), solid)
@@ -105,6 +109,9 @@ class VisualGeoms:
                 keep = built
         if not ptr:
             return None
+        box = (ctypes.c_double * 6)()
+        lib.dGeomGetAABB(ptr, box)  # created at the origin, unrotated: the box around it in its own frame
+        self._extent[ptr] = tuple(box)
         gr = GeomRec(ptr=ptr, solid=solid, kind=t, local=local, body=None, keepalive=keep, source=node,
                      scale=tuple(float(v) for v in scale))  # fmt: skip
         self.geoms.append(gr)
@@ -116,17 +123,19 @@ class VisualGeoms:
 
     def targets(self, own: SolidRec | None) -> list[GeomRec]:
         """The geoms a device mounted as Solid ``own`` sees: all but the Shapes of its robot that enclose its
-        origin (a depth camera inside a Shape sees out of it: back faces are not drawn). A list that stays the
-        same object while the answer does not change, so the ray caster's per-list caches hold."""
+        origin (a depth camera inside a Shape sees out of it: back faces are not drawn). Whether a Shape
+        encloses the origin is decided in the Shape's own frame, so it does not change as the robot tilts or
+        turns. A list that stays the same object while the answer does not change, so the ray caster's
+        per-list caches hold. Call after :meth:`place`."""
         if own is None:
             return self.geoms
         origin = self.sim.solid_world_pose(own).t
-        box = (ctypes.c_double * 6)()
         inside = []
         for i, g in enumerate(self.geoms):
             if g.solid is own or (own.robot is not None and g.solid.robot is own.robot):
-                self.lib.dGeomGetAABB(g.ptr, box)
-                if all(box[2 * k] <= origin[k] <= box[2 * k + 1] for k in range(3)):
+                local = self._world[g.ptr].inverse().apply(origin)
+                box = self._extent[g.ptr]
+                if all(box[2 * k] <= local[k] <= box[2 * k + 1] for k in range(3)):
                     inside.append(i)
         key = (id(own), tuple(inside))
         found = self._targets.get(key)
@@ -143,7 +152,7 @@ class VisualGeoms:
             solid_world = poses.get(id(g.solid))
             if solid_world is None:
                 solid_world = poses[id(g.solid)] = self.sim.solid_world_pose(g.solid)
-            world = solid_world * g.local
+            world = self._world[g.ptr] = solid_world * g.local
             lib.dGeomSetPosition(g.ptr, *world.t)
             lib.dGeomSetRotation(g.ptr, rot_matrix(world.R))
 
@@ -152,6 +161,7 @@ class VisualGeoms:
             self.lib.dGeomDestroy(g.ptr)
         self.geoms = []
         self._targets.clear()
+        self._world.clear()
 
 
 def infra_red_reflection(shape: Node) -> float:
