@@ -1,7 +1,8 @@
 """A Solid a supervisor imports into a joint's empty ``endPoint`` becomes that joint's endPoint as at load (Webots
 §4.1): with Physics it gets its own body, the ODE joint is made between the parent's body (here the static
 world) and it, anchored where the parent (the supervisor's own robot) is now: it was moved after load, and the joint's position sensor and
-motor act on it. Removing it leaves the joint empty; another endPoint imported there is jointed the same way.
+motor act on it (also when a supervisor controller in its own process does it). Removing it leaves the joint
+empty; another endPoint imported there is jointed the same way.
 
 Expectations by hand. The pendulum is a sphere (radius r = 0.05 m, density 1000: m = 0.5236 kg) whose centre is
 L below the anchor, swinging about a horizontal axis: a physical pendulum of period
@@ -13,12 +14,15 @@ the motor has, so it gets there."""
 from __future__ import annotations
 
 import math
+import textwrap
+from pathlib import Path
 
 import pytest
 
 from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Supervisor
 from dualtwin.webots.physics import Simulation
+from dualtwin.webots.runner import run_world
 
 TS = 4
 G = 9.81
@@ -139,3 +143,33 @@ def test_without_an_endpoint_nothing_swings() -> None:
         sup.step(TS)
     assert sup.getDevice("free sensor").getValue() == 0.0
     assert sup.getDevice("driven sensor").getValue() == 0.0
+
+
+RUNNER_SUPERVISOR = """
+    from controller import Supervisor
+    sup = Supervisor()
+    sensor = sup.getDevice("driven sensor")
+    sensor.enable(4)
+    sup.step(4)
+    sup.getFromDef("DRIVEN").getField("endPoint").importSFNodeFromString('{bob}')
+    sup.getDevice("motor").setPosition(0.5)
+    for _ in range(500):
+        sup.step(4)
+    with open("out.txt", "w") as out:
+        out.write(" ".join(str(v) for v in [sensor.getValue(), *sup.getFromDef("BOB").getPosition()]))
+"""
+
+
+def test_supervisor_controller_imports_an_endpoint_and_drives_it(tmp_path: Path) -> None:
+    # the same as the motor test above, from a supervisor controller in its own process ('dualtwin webots run'):
+    # the frame stays at the origin, so the bob ends at (0, 0.5, 0) + (-0.5·sin 0.5, 0, -0.5·cos 0.5)
+    folder = tmp_path / "controllers" / "sup"
+    folder.mkdir(parents=True)
+    (folder / "sup.py").write_text(textwrap.dedent(RUNNER_SUPERVISOR).replace("{bob}", pendulum(0.5)))
+    (tmp_path / "worlds").mkdir()
+    world = tmp_path / "worlds" / "w.wbt"
+    world.write_text(WORLD.replace("supervisor TRUE", 'supervisor TRUE controller "sup"'))
+    assert run_world(world, None, 2.1) == 0
+    values = [float(v) for v in (folder / "out.txt").read_text().split()]
+    expected = [0.5, -0.5 * math.sin(0.5), 0.5, -0.5 * math.cos(0.5)]
+    assert values == pytest.approx(expected, abs=2e-3)

@@ -125,7 +125,7 @@ REGISTRY: tuple[Coverage, ...] = (
              "documented)"),
     Coverage("BallJoint", "joint", "partial",
              "three axes (the first from jointParameters2, the third from jointParameters3, the second their "
-             "cross product) with motors, position sensors, brakes, stops and friction on an Euler AMotor; "
+             "cross product; first and third aligned or zero: x and z, with a warning) with motors, position sensors, brakes, stops and friction on an Euler AMotor; "
              "springs, dampers and brakes on a second Euler AMotor; on a static parent both AMotors hang on the "
              "endPoint alone (ODE's first and third axes swapped), so motors, stops, torques and springs act on "
              "each axis as with a body as parent; kinematic when the endPoint has no Physics"),

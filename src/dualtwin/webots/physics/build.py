@@ -128,6 +128,10 @@ class SceneBuilder(SimulationCore):
             # jointParameters3's, the second their cross product (axis3 × axis1), as in a chain of three hinges
             a1 = tuple(float(v) for v in _f(params[1], "axis", (1.0, 0.0, 0.0)))
             a3 = tuple(float(v) for v in _f(params[2], "axis", (0.0, 0.0, 1.0)))
+            if m3.norm(m3.cross(m3.normalized(a1), m3.normalized(a3))) < 1e-6:
+                # no Euler frame spans them (ODE would abort the process normalising their cross product)
+                self.warn("BallJoint first and third axes are aligned or zero; falling back to x and z")
+                a1, a3 = (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)
             axes = [a1, m3.cross(a3, a1), a3]
         if kind == "slider":
             axes[0] = m3.normalized(axes[0])  # §4.3: Webots normalises the slider axis
