@@ -173,3 +173,36 @@ def test_supervisor_controller_imports_an_endpoint_and_drives_it(tmp_path: Path)
     values = [float(v) for v in (folder / "out.txt").read_text().split()]
     expected = [0.5, -0.5 * math.sin(0.5), 0.5, -0.5 * math.cos(0.5)]
     assert values == pytest.approx(expected, abs=2e-3)
+
+
+LOOP_WORLD = f"""#VRML_SIM R2023b utf8
+WorldInfo {{ basicTimeStep {TS} }}
+Robot {{ supervisor TRUE children [
+  HingeJoint {{ jointParameters HingeJointParameters {{ axis 0 1 0 }}
+    endPoint DEF BOB Solid {{ translation 0.5 0 0 name "bob" boundingObject Sphere {{ radius {R} }} physics Physics {{ }}
+      children [ DEF PIN {{pin}} ] }} }}
+] }}
+"""
+STATIC = 'SolidReference { solidName "<static environment>" }'
+
+
+@pytest.mark.parametrize("pin", ["BallJoint { }", "HingeJoint { jointParameters HingeJointParameters { axis 1 0 0 } }"])
+def test_solid_reference_imported_as_an_endpoint_closes_the_loop_and_its_removal_opens_it(pin: str) -> None:
+    # the bob, released level with its hinge, swings; pinned to the static environment by a second joint at its
+    # centre (a loop through a SolidReference, §10), it is held where it is; unpinned, it swings on
+    sup = Supervisor(simulation=Simulation(load_world_text(LOOP_WORLD.replace("{pin}", pin))))
+    control = Supervisor(simulation=Simulation(load_world_text(LOOP_WORLD.replace("{pin}", pin))))
+    for s in (sup, control):
+        for _ in range(50):
+            s.step(TS)
+    sup.getFromDef("PIN").getField("endPoint").importSFNodeFromString(STATIC)
+    pinned, free = sup.getFromDef("BOB").getPosition(), control.getFromDef("BOB").getPosition()
+    for s in (sup, control):
+        for _ in range(250):
+            s.step(TS)
+    assert math.dist(sup.getFromDef("BOB").getPosition(), pinned) < 1e-3  # (stopped within a step or two)
+    assert math.dist(control.getFromDef("BOB").getPosition(), free) > 0.1  # without the pin it swings
+    sup.getFromDef("PIN").getField("endPoint").removeSF()
+    for _ in range(50):
+        sup.step(TS)
+    assert math.dist(sup.getFromDef("BOB").getPosition(), pinned) > 0.05  # (asleep by then: woken)

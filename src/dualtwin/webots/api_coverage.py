@@ -43,10 +43,10 @@ API_NOTES: tuple[tuple[str, str, str], ...] = (
     ("webots bug", "Keyboard.get_key", "Webots' helper spells Alt 'atl-'; ours writes 'alt-'"),
     # -- not Webots yet, or more permissive than Webots
     ("not yet", "Camera recognition", "the API works, but no object is recognised (getRecognitionObjects() is [])"),
-    ("not yet", "Field.import*NodeFromString into a joint's device or jointParameters field, or of a SolidReference",
-     "the node joins the scene tree only: an imported motor or sensor is no device, imported parameters do not "
-     "reach ODE and a SolidReference imported as an endPoint closes no loop (no warning); Solids, joints and "
-     "boundingObjects imported anywhere join the physics (see Solid)"),
+    ("not yet", "Field.import*NodeFromString into a joint's device or jointParameters field",
+     "the node joins the scene tree only: an imported motor or sensor is no device and imported parameters do "
+     "not reach ODE (no warning); Solids, joints, SolidReferences and boundingObjects imported anywhere join the "
+     "physics (see Solid and SolidReference)"),
     ("not yet", "Robot imported at run time without the process runner",
      "a Supervisor driven directly or the threads runtime starts no controller for it (one warning); "
      "'dualtwin webots run' starts it, as Webots does"),

@@ -134,8 +134,9 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("BallJointParameters", "joint", "supported", "anchor"),
     Coverage("SolidReference", "joint", "partial",
              "closed loops: an ODE joint from the upper body to the named Solid (searched in the joint's "
-             "robot, as Webots does) or to the static environment, built after the other joints; not for "
-             "Hinge2Joint, and a referenced Solid without Physics is ignored"),
+             "robot, as Webots does) or to the static environment, built after the other joints; one a "
+             "supervisor imports into a joint's empty endPoint closes the loop at once, its removal opens it; not "
+             "for Hinge2Joint, and a referenced Solid without Physics is ignored"),
     Coverage("Track", "joint", "partial",
              "belt motion through ODE contact surface velocity (Webots' per-contact sign rule), its LinearMotor "
              "(position/velocity/force control) and PositionSensor are devices; no Brake, no texture or "

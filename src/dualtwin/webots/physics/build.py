@@ -197,6 +197,7 @@ class SceneBuilder(SimulationCore):
         if isinstance(end, Node) and is_solid(end):
             joint.child = self._add_solid(end, frame_rel, parent, robot, joint)
         elif isinstance(end, Node) and end.type_name == "SolidReference":
+            joint.reference = end
             self._loops.append((joint, str(_f(end, "solidName", ""))))  # closed once every body exists
         elif isinstance(end, Node):
             self.warn(f"{node.type_name} endPoint {end.type_name} is not supported; joint ignored")

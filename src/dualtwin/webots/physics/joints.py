@@ -130,6 +130,10 @@ class JointBuilder(SceneBuilder):
             joint.reverse = True
         else:
             lib.dJointAttach(joint.ptr, pb.ptr, cb.ptr if cb is not None else None)
+        if joint.kind == "ball":  # its axes' motors, stops and friction live on an Euler AMotor, as in _create_joint
+            joint.amotor = lib.dJointCreateAMotor(self._world, None)
+            self._attach_euler(joint.amotor, joint)
+            lib.dJointSetAMotorMode(joint.amotor, ode.dAMotorEuler)
         for b in (pb, cb):
             if b is not None:
                 b.joints.append(joint)
@@ -177,12 +181,14 @@ class JointBuilder(SceneBuilder):
     def _attach_euler(self, amotor: int, joint: JointRec) -> None:
         """Attach a BallJoint's Euler AMotor: parent then endPoint, or, on a static parent, the endPoint alone as
         its first body. (Attached as (none, endPoint), ODE flags the AMotor reversed, and its Euler mode does not
-        follow that flag: its angles then run against its rows, so stops pushed the wrong way.)"""
-        assert joint.child_body is not None
+        follow that flag: its angles then run against its rows, so stops pushed the wrong way.) A loop closed on
+        the static environment (§10) has the parent alone, its third axis then fixed in the world."""
+        child = joint.child_body.ptr if joint.child_body is not None else None
         if joint.parent_body is None:
-            self._lib.dJointAttach(amotor, joint.child_body.ptr, None)
+            assert child is not None
+            self._lib.dJointAttach(amotor, child, None)
         else:
-            self._lib.dJointAttach(amotor, joint.parent_body.ptr, joint.child_body.ptr)
+            self._lib.dJointAttach(amotor, joint.parent_body.ptr, child)
 
     def _set_euler_axes(self, joint: JointRec, frame: Pose) -> None:
         """The Euler AMotor's axes from the current poses, and the reference the positions are measured from:
@@ -204,17 +210,16 @@ class JointBuilder(SceneBuilder):
             lib.dJointSetAMotorAxis(joint.amotor, 0, 1, *a1)
             lib.dJointSetAMotorAxis(joint.amotor, 2, 2, *a3)
         parent_R = joint.parent_body.pose().R if joint.parent_body is not None else m3.IDENTITY
-        assert joint.child_body is not None
+        child_R = joint.child_body.pose().R if joint.child_body is not None else m3.IDENTITY
         basis = (a1[0], a2[0], a3[0], a1[1], a2[1], a3[1], a1[2], a2[2], a3[2])  # columns a1, a2, a3
-        joint.euler_ref = (parent_R, joint.child_body.pose().R, basis)
+        joint.euler_ref = (parent_R, child_R, basis)
 
     def _ball_angles(self, joint: JointRec) -> tuple[float, float, float]:
         """Webots' three BallJoint angles (before offsets): the endPoint's rotation relative to its parent since
         the axes were set, decomposed as R(axis1, p1)·R(axis2, p2)·R(axis3, p3) (a chain of three hinges)."""
         parent0, child0, basis = joint.euler_ref
         parent = joint.parent_body.pose().R if joint.parent_body is not None else m3.IDENTITY
-        assert joint.child_body is not None
-        child = joint.child_body.pose().R
+        child = joint.child_body.pose().R if joint.child_body is not None else m3.IDENTITY
         # relative rotation in the load-time world frame: Q = (P·P0ᵀ)ᵀ·(C·C0ᵀ)
         q = m3.mat_mul(m3.mat_t(m3.mat_mul(parent, m3.mat_t(parent0))), m3.mat_mul(child, m3.mat_t(child0)))
         m = m3.mat_mul(m3.mat_t(basis), m3.mat_mul(q, basis))  # = Rx(p1)·Ry(p2)·Rz(p3)

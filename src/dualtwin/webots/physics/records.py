@@ -306,6 +306,7 @@ class JointRec(_ShortRepr):
     brakes: list[BrakeRec | None] = field(default_factory=lambda: [None])
     amotor: int = 0  # BallJoint: the Euler AMotor carrying the three axes' motors and stops
     euler_ref: tuple[Any, ...] = ()  # BallJoint: (parent R, child R, axes basis) when the axes were set
+    reference: Node | None = None  # the SolidReference endPoint of a joint closing a loop (§10)
 
     @property
     def kinematic(self) -> bool:

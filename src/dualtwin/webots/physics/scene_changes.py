@@ -14,6 +14,7 @@ removal takes its mass out of the body again. A Solid imported into a joint's em
 through a Slot pair) becomes that joint's endPoint as at load (§4.1): its own body if it has Physics, and the
 ODE joint made between the parent's body and it, anchored where the parent is now; the joint's motor and
 position sensor then act on it. Its removal leaves the joint (and its devices) without an endPoint. A
+SolidReference imported there closes a loop as at load (§10) and its removal opens it again. A
 boundingObject imported or removed on its own rebuilds its Solid's geoms and, as the mass of a Solid with
 Physics comes from its boundingObject (§3.2), sums its body's mass again
 (:meth:`SceneChanges.bounding_object_changed`).
@@ -83,7 +84,8 @@ class SceneChanges(Stepper):
                 end: Node | None = top
                 while isinstance(end, Node) and end.type_name == "Slot":
                     end = field_or(end, "endPoint", None)
-                return self._joint_by_node.get(id(node)), end if isinstance(end, Node) and is_solid(end) else None
+                held = isinstance(end, Node) and (is_solid(end) or end.type_name == "SolidReference")
+                return self._joint_by_node.get(id(node)), end if held else None
             holder = node
         return None, None
 
@@ -106,8 +108,14 @@ class SceneChanges(Stepper):
         parent = self._solid_by_node[id(chain[at])] if at >= 0 else None
         in_joint = any(n.type_name in JOINT_TYPES for n in chain[at + 1 :])
         joint, end = self._endpoint_of(chain, top) if in_joint else (None, None)
-        if in_joint and (joint is None or end is None or joint.child is not None):
+        if in_joint and (joint is None or end is None or joint.child is not None or joint.ptr):
             return []  # a device or parameters node, or nothing a joint can hold
+        if joint is not None and end is not None and end.type_name == "SolidReference":
+            joint.reference = end
+            self._close_loop(joint, str(field_or(end, "solidName", "")))
+            self._plans.clear()  # the two bodies are jointed now (no contacts between them)
+            self._geoms_changed()
+            return []
         frame = Pose()
         for node in chain[at + 1 :]:  # Pose/Transform chain above the node (Groups add nothing)
             if "translation" in node.fields and "rotation" in node.fields:
@@ -213,7 +221,11 @@ class SceneChanges(Stepper):
                     if g.source is not None and id(g.source) in ids and id(g.solid.node) not in ids}  # fmt: skip
         for solid in reshaped.values():  # a boundingObject (or a part of one) left a Solid that stays
             self.bounding_object_changed(solid.node)
+        for joint in [j for j in self.joints if j.reference is not None and id(j.reference) in ids
+                      and id(j.node) not in ids]:  # fmt: skip
+            self._open_loop(joint)
         if not gone:
+            self._geoms_changed()
             return
         gone_ids = {id(s) for s in gone}
         lib = self._lib
@@ -244,19 +256,14 @@ class SceneChanges(Stepper):
         dead_joints = [j for j in self.joints if (j.child is not None and id(j.child) in gone_ids)
                        or (j.parent is not None and id(j.parent) in gone_ids)]  # fmt: skip
         for joint in dead_joints:
-            for ptr in (joint.ptr, joint.amotor, joint.spring, joint.spring2, joint.stop2):
-                if ptr:
-                    lib.dJointAttach(ptr, None, None)
-            for end in (joint.parent_body, joint.child_body):
-                if end is not None and joint in end.joints:
-                    end.joints.remove(joint)
-        for joint in dead_joints:
-            if joint.parent is not None and joint in joint.parent.child_joints:
-                joint.parent.child_joints.remove(joint)
+            self._detach_joint(joint)
         kept = [j for j in dead_joints if id(j.node) not in ids]  # an endPoint left a joint that stays
         for joint in kept:
             self._without_endpoint(joint)
         dead_joints = [j for j in dead_joints if id(j.node) in ids]
+        for joint in dead_joints:
+            if joint.parent is not None and joint in joint.parent.child_joints:
+                joint.parent.child_joints.remove(joint)
         dead_joint_ids = {id(j) for j in dead_joints}
         self.joints[:] = [j for j in self.joints if id(j) not in dead_joint_ids]
         self.motors[:] = [m for m in self.motors if id(m.joint) not in dead_joint_ids]
@@ -274,12 +281,33 @@ class SceneChanges(Stepper):
         self.solids[:] = [s for s in self.solids if id(s) not in gone_ids]
         self._geoms_changed()
 
+    def _detach_joint(self, joint: JointRec) -> None:
+        """Take a joint's ODE parts out of the world (detached, not destroyed, as for bodies)."""
+        for ptr in (joint.ptr, joint.amotor, joint.spring, joint.spring2, joint.stop2):
+            if ptr:
+                self._lib.dJointAttach(ptr, None, None)
+        for end in (joint.parent_body, joint.child_body):
+            if end is not None and joint in end.joints:
+                end.joints.remove(joint)
+
+    def _open_loop(self, joint: JointRec) -> None:
+        """The SolidReference endPoint of a joint closing a loop was removed: the loop opens."""
+        for end in (joint.parent_body, joint.child_body):
+            if end is not None:
+                self._wake_body(end.index)  # (a body held still may have fallen asleep)
+        body = joint.parent_body if joint.child_body is None else None  # jointed to the static environment
+        self._detach_joint(joint)
+        self._without_endpoint(joint)
+        if body is not None:  # §2.3 rule 6 holds while another joint or a fixed joint holds it to the world
+            body.attached_to_world = (body.fixed_joint != 0 and body.fixed_to is None) or any(
+                j.parent_body is None or j.child_body is None for j in body.joints)
+        self._plans.clear()  # the bodies it held together collide again
+
     @staticmethod
     def _without_endpoint(joint: JointRec) -> None:
-        """A joint whose endPoint was removed (its ODE parts already detached) stays in the scene with its
-        devices, kinematic and holding nothing, until a new endPoint is imported (:meth:`add_nodes`)."""
-        if joint.parent is not None:
-            joint.parent.child_joints.append(joint)
+        """A joint whose endPoint was removed (its ODE parts detached) stays in the scene with its devices,
+        kinematic and holding nothing, until a new endPoint is imported (:meth:`add_nodes`)."""
+        joint.reference = None
         joint.child = None
         joint.ptr = joint.amotor = joint.spring = joint.spring2 = joint.stop2 = 0
         joint.parent_body = joint.child_body = None
