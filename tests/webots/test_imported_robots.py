@@ -6,7 +6,7 @@ the process exits) while the others run on, and nobody hangs.
 Expectations by hand: the supervisor imports the robot after its 3rd step of 8 ms (t = 24 ms); the new
 controller's first step returns at t = 32 ms, the supervisor's next step's end. The supervisor removes it after
 its 6th step (t = 48 ms): the child's step that was waiting returns -1 at once (its log says so while the run goes on), and the
-supervisor's steps go on to the end of the 0.1 s run."""
+supervisor's steps go on to the end of the 0.1 s run. The threads runtime does the same."""
 
 from __future__ import annotations
 
@@ -20,10 +20,11 @@ from dualtwin.webots.runner import run_world
 SUPERVISOR = """
     import os, time
     from controller import Supervisor
-    CHILD_LOG = os.path.join("..", "child", "times.txt")
+    HERE = os.path.dirname(os.path.abspath(__file__))  # (threads share one working folder)
+    CHILD_LOG = os.path.join(HERE, "..", "child", "times.txt")
     sup = Supervisor()
     children = sup.getRoot().getField("children")
-    log = open("times.txt", "w")
+    log = open(os.path.join(HERE, "times.txt"), "w")
     for i in range(12):
         if sup.step(8) == -1:
             break
@@ -47,18 +48,27 @@ SUPERVISOR = """
     log.close()
 """
 CHILD = """
+    import os
     from controller import Robot
     robot = Robot()
-    with open("times.txt", "w") as log:
-        log.write(f"start {robot.getTime():.3f} {robot.getName()}\\n")
+    with open(os.path.join(os.path.dirname(os.path.abspath(__file__)), "times.txt"), "w") as log:
+        ms = round(robot.getTime() * 1000)
+        log.write(f"start {ms / 1000:.3f} {robot.getName()}\\n")
         while True:
             result = robot.step(8)
             if result == -1:  # (its robot may be gone: the time is not read then)
                 log.write("child -1\\n")
                 break
-            log.write(f"child {robot.getTime():.3f} {result}\\n")
+            # the step's time counted here: a thread reading the clock just after its robot's removal could see
+            # time its step never reached (the simulation no longer waits for it)
+            ms += 8
+            log.write(f"child {ms / 1000:.3f} {result}\\n")
             log.flush()
 """
+
+
+#: controller processes (as Webots), and the threads runtime the tests compare them with: both start them alike
+BOTH_RUNTIMES = pytest.mark.parametrize("isolation", ["process", "threads"])
 
 
 def _project(tmp_path: Path, child: str, remove: str = "no") -> Path:
@@ -79,9 +89,10 @@ def _log(tmp_path: Path, name: str) -> list[str]:
     return path.read_text().splitlines() if path.is_file() else []
 
 
-def test_imported_robot_controller_starts_and_steps_in_lock_step(tmp_path: Path) -> None:
+@BOTH_RUNTIMES
+def test_imported_robot_controller_starts_and_steps_in_lock_step(tmp_path: Path, isolation: str) -> None:
     world = _project(tmp_path, "child")
-    assert run_world(world, None, 0.1) == 0
+    assert run_world(world, None, 0.1, isolation=isolation) == 0
     sup = _log(tmp_path, "sup")
     assert sup[:3] == ["sup 0.008", "sup 0.016", "sup 0.024"]
     child = _log(tmp_path, "child")
@@ -91,17 +102,19 @@ def test_imported_robot_controller_starts_and_steps_in_lock_step(tmp_path: Path)
     # (control for the removal test below: without a removal, no -1 before the run's end)
 
 
+@BOTH_RUNTIMES
 @pytest.mark.parametrize("field", ["<none>", "<extern>"])
-def test_imported_robot_without_a_controller_starts_nothing(tmp_path: Path, field: str) -> None:
+def test_imported_robot_without_a_controller_starts_nothing(tmp_path: Path, field: str, isolation: str) -> None:
     world = _project(tmp_path, field)
-    assert run_world(world, None, 0.1) == 0
+    assert run_world(world, None, 0.1, isolation=isolation) == 0
     assert _log(tmp_path, "child") == []  # control for the test above: the script exists but is not named
     assert len(_log(tmp_path, "sup")) == 12
 
 
-def test_removing_an_imported_robot_ends_its_controller_and_the_run_goes_on(tmp_path: Path) -> None:
+@BOTH_RUNTIMES
+def test_removing_an_imported_robot_ends_its_controller_and_the_run_goes_on(tmp_path: Path, isolation: str) -> None:
     world = _project(tmp_path, "child", "remove")
-    assert run_world(world, None, 0.1) == 0
+    assert run_world(world, None, 0.1, isolation=isolation) == 0
     child = _log(tmp_path, "child")
     # steps to 32, 40, 48 ms; the supervisor removes the robot at 48 ms: the step the child waits in says -1
     assert child == ["start 0.024 new", "child 0.032 0", "child 0.040 0", "child 0.048 0", "child -1"]
@@ -110,11 +123,12 @@ def test_removing_an_imported_robot_ends_its_controller_and_the_run_goes_on(tmp_
     assert sup[-1] == "sup 0.096" and len(sup) == 13  # the supervisor ran on to the end, unhindered
 
 
-def test_a_reset_that_takes_an_imported_robot_out_ends_its_controller(tmp_path: Path) -> None:
+@BOTH_RUNTIMES
+def test_a_reset_that_takes_an_imported_robot_out_ends_its_controller(tmp_path: Path, isolation: str) -> None:
     # simulationReset removes what a supervisor imported; it is done at the supervisor's step after the request
     # (its 7th, from 48 ms), while the child waits in its step to 56 ms: that step says -1
     world = _project(tmp_path, "child", "reset")
-    assert run_world(world, None, 0.1) == 0
+    assert run_world(world, None, 0.1, isolation=isolation) == 0
     assert _log(tmp_path, "child") == ["start 0.024 new", "child 0.032 0", "child 0.040 0", "child 0.048 0",
                                        "child -1"]
     sup = _log(tmp_path, "sup")
@@ -122,8 +136,11 @@ def test_a_reset_that_takes_an_imported_robot_out_ends_its_controller(tmp_path: 
     assert "child ended by 0.016: True" in sup
 
 
-def test_a_robot_removed_in_the_step_it_was_imported_never_runs_and_nobody_waits_for_it(tmp_path: Path) -> None:
+@BOTH_RUNTIMES
+def test_a_robot_removed_in_the_step_it_was_imported_never_runs_and_nobody_waits_for_it(
+    tmp_path: Path, isolation: str
+) -> None:
     world = _project(tmp_path, "child", "at once")
-    assert run_world(world, None, 0.1) == 0
+    assert run_world(world, None, 0.1, isolation=isolation) == 0
     assert _log(tmp_path, "child") == []
     assert len(_log(tmp_path, "sup")) == 12

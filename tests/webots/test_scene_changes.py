@@ -130,8 +130,8 @@ def test_imported_robot_is_a_body_and_says_its_controller_does_not_start(capsys:
     sup = _supervisor()
     _import(sup, 'DEF R2 Robot { translation 1 0 0.5 name "r2" controller "walker" '
                  'boundingObject DEF S Sphere { radius 0.1 } physics Physics { } }')
-    assert "controller of a Robot imported at run time is not started" in capsys.readouterr().err
-    _run(sup, 1.0)
+    _run(sup, 1.0)  # (the import's start is carried out at the supervisor's next step, as Webots does)
+    assert "the controller of robot 'r2' is not started: only a runner" in capsys.readouterr().err
     assert sup.getFromDef("R2").getPosition()[2] == pytest.approx(0.1, abs=0.005)
 
 

@@ -47,14 +47,14 @@ API_NOTES: tuple[tuple[str, str, str], ...] = (
      "the node joins the scene tree only: an imported motor or sensor is no device and imported parameters do "
      "not reach ODE (no warning); Solids, joints, SolidReferences and boundingObjects imported anywhere join the "
      "physics (see Solid and SolidReference)"),
-    ("not yet", "Robot imported at run time without the process runner",
-     "a Supervisor driven directly or the threads runtime starts no controller for it (one warning); "
-     "'dualtwin webots run' starts it, as Webots does"),
+    ("not yet", "Robot imported, or controller restarted, without a runner",
+     "a Supervisor driven directly (no run_world) starts no controller (one warning at its next step) and a "
+     "restarted one keeps running; 'dualtwin webots run' and run_world (processes or threads) start and restart "
+     "them as Webots does"),
     ("not yet", "Supervisor.worldSave",
      "Solids and joints are written where the physics has them and PROTO instances as PROTO nodes with the "
      "interface fields that differ from their defaults; the state inside a PROTO instance (its internal Solids' "
      "poses and joint positions, Webots' 'hidden' fields) is not written"),
-    ("not yet", "Node.restartController", "an error line; the controller keeps running"),
     ("not yet", "Motion", "plays .motion files on the robot's motors (linear interpolation between poses)"),
     ("not yet", "Device(name) built by the user",
      "a second handle on the device keeps its own sampling state (Webots shares one per device)"),

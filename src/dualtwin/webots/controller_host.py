@@ -10,9 +10,11 @@ Output is deterministic: a child's ``print`` travels with its next message, and 
 its behalf are kept with it; everything is written in robot order each time the simulation advances (every
 controller is then waiting in ``step``, so all it printed before has arrived), and at the end.
 
-A Robot a supervisor imports during the run starts its controller the same way (:meth:`_Host.add`): the runtime
-expects one more controller at once, so the next step waits for it, and the watching thread starts the child
-(a child dies with the thread that started it, and the importing controller's serving thread may end first).
+A Robot a supervisor imports during the run, or one whose controller it restarts, starts its controller the same
+way (:meth:`_Host.add`, called by the runtime when the supervisor next steps): the runtime expects one more
+controller at once, so that step waits for it, and the watching thread starts the child (a child dies with the
+thread that started it, and the supervisor's serving thread may end first). A restarted robot's former
+controller is told -1 at its step and ends as after any -1.
 
 The main thread watches the children:
 
@@ -211,7 +213,7 @@ class _Host:
         link.thread.start()
 
     def add(self, robot: SceneNode, script: Path, args: list[str]) -> None:
-        """Start the controller of a Robot imported while the run goes on: the next step waits for it."""
+        """Start the controller of a Robot imported (or restarted) while the run goes on: the step waits for it."""
         with self._adding:
             if self.stopping:
                 return
@@ -500,8 +502,8 @@ def run_in_processes(
     resolve: Callable[[SceneNode], tuple[Path, list[str]] | None] | None = None,
 ) -> ProcessResult:
     """Run each (robot node, script, controllerArgs) as a controller process on ``runtime``'s simulation.
-    ``resolve`` gives the (script, controllerArgs) of a Robot a supervisor imports during the run (None: it runs
-    without a controller); its controller then starts as the others did.
+    ``resolve`` gives the (script, controllerArgs) of a Robot a supervisor imports, or whose controller it
+    restarts, during the run (None: it runs without a controller); its controller then starts as the others did.
 
     Returns:
         The exit code (0; the first controller's non-zero exit status in robot order; 1 for a crash; 2 for a

@@ -27,6 +27,7 @@ from dualtwin.webots.api_args import as_float, as_floats, as_int, warn
 from dualtwin.webots.nodes import Node as SceneNode
 from dualtwin.webots.nodes import copy_value
 from dualtwin.webots.physics import JointRec, Simulation
+from dualtwin.webots.physics.records import is_robot
 from dualtwin.webots.proto_links import linked_fields
 
 __all__ = ["FIELD_TYPES", "Field", "FieldOwner", "field_type_name", "parse_nodes"]
@@ -51,6 +52,8 @@ class FieldOwner(Protocol):
     def _handle(self, node: SceneNode) -> Any: ...
 
     def _removed(self, node: SceneNode) -> None: ...
+
+    def _controller_changed(self) -> None: ...
 
 
 def _guess_type(value: Any) -> str:
@@ -343,8 +346,11 @@ class Field:
                 self._sim.queue_set_pose(solid, None, converted)
             self._values[self._name] = converted
             return
+        changed = converted != self._values.get(self._name)
         self._values[self._name] = converted
         self._changed()
+        if changed and self._name == "controller" and kind == "SFString" and self._is_base() and is_robot(self._node):
+            self._owner._controller_changed()  # Webots restarts the robot's controller with the new one
 
     def setSFBool(self, value: Any) -> None:
         self._set("setSFBool", "SFBool", value)

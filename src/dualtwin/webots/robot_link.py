@@ -19,7 +19,7 @@ from dualtwin.webots.devices import SOLID_DEVICE_CLASSES, Brake, Motor, Position
 from dualtwin.webots.nodes import Node as SceneNode
 from dualtwin.webots.physics import BrakeRec, DeviceRec, MotorRec, PositionSensorRec, RobotRec, Simulation
 from dualtwin.webots.propeller import install as install_propellers
-from dualtwin.webots.runtime import Runtime, current_runtime
+from dualtwin.webots.runtime import ControllerStopped, Runtime, current_runtime
 from dualtwin.webots.scene_api import Node
 from dualtwin.webots.track import install as install_tracks
 from dualtwin.webots.vacuum_gripper import install as install_vacuum_grippers
@@ -57,6 +57,8 @@ class RobotLink:
         self._runtime = runtime
         self._sim = runtime.simulation
         node = robot_node if robot_node is not None else runtime.robot_node_for_thread()
+        if runtime.robot_gone(node):
+            raise ControllerStopped  # a supervisor removed its robot before this controller made its Robot
         rec = next((r for r in self._sim.robots if r.node is node), None)
         if rec is None:
             raise ValueError("robot_node is not a Robot of this simulation")
@@ -152,6 +154,12 @@ class RobotLink:
             sensor._invalidate()
         for item in self.inputs:
             item._after_reset()
+
+    def _release(self) -> None:
+        """Its controller was restarted: its sensors and inputs are no longer sampled (the next controller's
+        devices start disabled, as a fresh controller's do)."""
+        self._sensors.clear()
+        self.inputs.clear()
 
     def close(self) -> None:
         if self.client.active:

@@ -12,7 +12,9 @@ controllers' output is printed in robot order at each step, so the same world pr
 
 A Robot a supervisor imports during the run gets its controller as at load (:func:`controller_spec`), started
 in its own process and waited for from the next step; a robot removed (or taken out by a reset) has its
-controller's step return -1, then that controller ends as after any -1.
+controller's step return -1, then that controller ends as after any -1. ``Node.restartController()`` and a new
+``controller`` field do both: at the supervisor's next step the robot's controller is told -1 and the one its
+field names starts, with the clock going on and none of its devices enabled.
 
 ``robot.step`` returns -1 once ``duration_s`` of simulated time has elapsed, counted across
 ``simulationReset``. As in Webots, a controller that calls ``step`` again after -1 is ended there (exit status
@@ -24,7 +26,8 @@ and makes the exit code 1 (the other controllers keep running). ``keys`` names a
 exit code 130.
 
 ``isolation="threads"`` keeps the former runtime (every controller a thread of this process, sharing argv,
-working directory and modules) as a baseline for the benchmark. Robots whose controller is not a Python script
+working directory and modules) as a baseline for the benchmark and a reference the tests compare the processes'
+output with; it starts and restarts controllers during the run the same way, as threads. Robots whose controller is not a Python script
 found on disk (C controllers, ``<generic>``, ``<extern>``, ``<none>``) run without a controller: their motors
 keep the initial hold (docs/reference/webots-on-ode.md §5.1).
 """
@@ -32,7 +35,6 @@ keep the initial hold (docs/reference/webots-on-ode.md §5.1).
 from __future__ import annotations
 
 import ctypes
-import functools
 import math
 import os
 import runpy
@@ -40,6 +42,7 @@ import sys
 import threading
 import time
 import traceback
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -169,15 +172,26 @@ def controller_spec(world_path: Path, robot: Node) -> ControllerSpec | None:
     return ControllerSpec(robot, script, _controller_args(robot))
 
 
-def _imported_controller(world_path: Path, robot: Node) -> tuple[Path, list[str]] | None:
-    """Where a Robot imported during the run finds its controller (as at load; a bad field is one error line,
-    and the robot runs without a controller)."""
-    try:
-        spec = controller_spec(world_path, robot)
-    except DualtwinError as exc:
-        print(f"Error: {exc}", file=sys.stderr)
-        return None
-    return None if spec is None else (spec.script, spec.args)
+class _LaterControllers:
+    """Where a controller started during the run finds its script: a Robot a supervisor imported, or one whose
+    controller it restarted (``Node.restartController``, a new ``controller`` field). As at load, from the
+    ``controller`` field; a robot whose field still names what it named at load restarts the script it ran then
+    (the ``--controller`` override, if it replaced it). A bad field is one error line, and no controller runs."""
+
+    def __init__(self, world_path: Path, specs: list[ControllerSpec]) -> None:
+        self.world_path = world_path
+        self.at_load = {id(s.robot): (str(s.robot.fields.get("controller", "")), s.script) for s in specs}
+
+    def __call__(self, robot: Node) -> tuple[Path, list[str]] | None:
+        loaded = self.at_load.get(id(robot))
+        if loaded is not None and loaded[0] == str(robot.fields.get("controller", "")):
+            return loaded[1], _controller_args(robot)
+        try:
+            spec = controller_spec(self.world_path, robot)
+        except DualtwinError as exc:
+            print(f"Error: {exc}", file=sys.stderr)
+            return None
+        return None if spec is None else (spec.script, spec.args)
 
 
 # Guards the "is this script still running" flag against the watchdog's asynchronous stop.
@@ -327,7 +341,7 @@ def _watch(runtime: api.Runtime, results: list[_ScriptResult], stop: threading.E
         for thread, ended in runtime.ended_clients():
             if now - ended < TERMINATION_GRACE_S:
                 continue
-            for result in results:
+            for result in list(results):
                 with _GUARD:
                     if result.thread == thread and result.running and not result.forced:
                         result.forced = True
@@ -351,16 +365,16 @@ def run_controllers(
         The exit code: 0, the first non-zero ``SystemExit`` code, 1 if a script raised, 2 if one was stopped
         by the step timeout, 130 if the run was interrupted (Ctrl-C, SIGTERM).
     """
+    later = _LaterControllers(Path(sim.world.path), specs)
     if isolation == "threads":
-        return _run_in_threads(sim, specs, duration_s, keys)
+        return _run_in_threads(sim, specs, duration_s, keys, later)
     if isolation != "process":
         raise ValueError(f"isolation must be 'process' or 'threads', got {isolation!r}")
     runtime = api.Runtime(sim, duration_s, keys=keys, stop_after_end=True)
     previous_runtime = api.current_runtime()
     api.set_current_runtime(runtime)
     try:
-        result = run_in_processes(runtime, [(s.robot, s.script, s.args) for s in specs], step_timeout_s,
-                                  functools.partial(_imported_controller, Path(sim.world.path)))
+        result = run_in_processes(runtime, [(s.robot, s.script, s.args) for s in specs], step_timeout_s, later)
         if not result.interrupted:
             return _finish(sim, runtime, duration_s, result.code)
     except KeyboardInterrupt:  # while the world runs on without controllers
@@ -385,15 +399,72 @@ def _finish(sim: Simulation, runtime: api.Runtime, duration_s: float | None, cod
     return code
 
 
+class _Threads:
+    """The controller threads of a threads run: those of the load, then those started during it (a Robot a
+    supervisor imported, a restarted controller), which the run waits for from the step they start at."""
+
+    def __init__(self, runtime: api.Runtime, later: Callable[[Node], tuple[Path, list[str]] | None]) -> None:
+        self.runtime = runtime
+        self.later = later
+        self.results: list[_ScriptResult] = []
+        self.threads: list[threading.Thread] = []
+        self._lock = threading.Lock()
+        self._closed = False
+
+    def thread(self, spec: ControllerSpec, claim: bool = False) -> threading.Thread:
+        result = _ScriptResult()
+        target = self._claimed if claim else _run_script
+        thread = threading.Thread(target=target, args=(self.runtime, spec, result),
+                                  name=f"controller-{len(self.threads)}", daemon=True)
+        with self._lock:
+            self.results.append(result)
+            self.threads.append(thread)
+        return thread
+
+    def start_later(self, robot: Node) -> None:
+        """The runtime's ``controller_starter``: the robot's controller joins the run from the current step."""
+        found = self.later(robot)
+        if found is None:
+            return
+        with self._lock:
+            if self._closed:
+                return
+            self.runtime.expect_another()
+        self.thread(ControllerSpec(robot, *found), claim=True).start()
+
+    @staticmethod
+    def _claimed(runtime: api.Runtime, spec: ControllerSpec, result: _ScriptResult) -> None:
+        if runtime.claim_start(spec.robot):  # its robot may have been removed since
+            _run_script(runtime, spec, result)
+
+    def join(self) -> None:
+        """Wait for every controller thread, those started meanwhile too; then no more start."""
+        joined = 0
+        while True:
+            with self._lock:
+                if joined == len(self.threads):
+                    self._closed = True
+                    return
+                thread = self.threads[joined]
+            if thread.ident is not None:  # the main thread ran the only controller of the load itself
+                thread.join()
+            joined += 1
+
+    def code(self) -> int:
+        return next((r.code for r in self.results if r.code != 0), 0)
+
+
 def _run_in_threads(
-    sim: Simulation, specs: list[ControllerSpec], duration_s: float | None, keys: KeyScript | None
+    sim: Simulation, specs: list[ControllerSpec], duration_s: float | None, keys: KeyScript | None,
+    later: Callable[[Node], tuple[Path, list[str]] | None],
 ) -> int:
     """The former runtime: every controller a thread of this process (shared argv, cwd and modules)."""
     runtime = api.Runtime(sim, duration_s, keys=keys, stop_after_end=True)
     runtime.expect(len(specs))
-    results = [_ScriptResult() for _ in specs]
+    threads = _Threads(runtime, later)
+    runtime.controller_starter = threads.start_later
     stop_watch = threading.Event()
-    watchdog = threading.Thread(target=_watch, args=(runtime, results, stop_watch), daemon=True)
+    watchdog = threading.Thread(target=_watch, args=(runtime, threads.results, stop_watch), daemon=True)
     watchdog.start()
     saved_cwd = os.getcwd()
     saved_path = list(sys.path)
@@ -412,23 +483,18 @@ def _run_in_threads(
                     file=sys.stderr,
                 )
             os.chdir(specs[0].script.parent)
-            if len(specs) == 1:
-                _run_script(runtime, specs[0], results[0])
+            loaded = [threads.thread(s) for s in specs]
+            if len(specs) == 1:  # run in this thread (a Ctrl-C reaches it)
+                _run_script(runtime, specs[0], threads.results[0])
             else:
-                threads = [
-                    threading.Thread(
-                        target=_run_script, args=(runtime, s, r), name=f"controller-{i}", daemon=True
-                    )
-                    for i, (s, r) in enumerate(zip(specs, results, strict=True))
-                ]
-                for t in threads:
+                for t in loaded:
                     t.start()
-                for t in threads:
-                    t.join()
-        code = _finish(sim, runtime, duration_s, next((r.code for r in results if r.code != 0), 0))
+        threads.join()
+        code = _finish(sim, runtime, duration_s, threads.code())
     finally:
         stop_watch.set()
         watchdog.join()
+        runtime.controller_starter = None
         os.chdir(saved_cwd)
         sys.path[:] = saved_path
         sys.modules.pop("controller", None)

@@ -46,6 +46,8 @@ class RuntimeRobot(Protocol):
 
     def _after_reset(self) -> None: ...
 
+    def _release(self) -> None: ...
+
 
 # ------------------------------------------------------------------------------------------ runtime
 
@@ -63,7 +65,7 @@ class ControllerStopped(SystemExit):
 
 
 class _Client:
-    __slots__ = ("robot", "target", "waiting", "active", "ended_at", "thread", "controller")
+    __slots__ = ("robot", "target", "waiting", "active", "ended_at", "thread", "controller", "running", "cut")
 
     def __init__(self, robot: RuntimeRobot, controller: Controller | None) -> None:
         self.robot = robot
@@ -73,6 +75,8 @@ class _Client:
         self.ended_at: float | None = None  # monotonic wall time at which step() returned -1
         self.thread = threading.get_ident()
         self.controller = controller
+        self.running = True  # its controller has not ended (its thread id may be reused once it has)
+        self.cut = False  # ended by a supervisor while it waited in a step that had not reached its end
 
 
 class Controller:
@@ -86,7 +90,8 @@ class Controller:
         self.robot_node = robot_node
         self.arrived = False
         self.clients: list[_Client] = []
-        self.removed = False  # a supervisor removed its robot: its next (or current) step returns -1
+        #: a supervisor removed its robot or restarted its controller: its next (or current) step returns -1
+        self.removed = False
 
 
 class Runtime:
@@ -128,6 +133,7 @@ class Runtime:
         self._cond = threading.Condition()
         self._clients: list[_Client] = []
         self._reset_requested = False
+        self._reset_by: _Client | None = None
         self.finished = False
         self._thread_controller = threading.local()
         self.error: BaseException | None = None
@@ -138,8 +144,11 @@ class Runtime:
         # ended, so all controllers start at t = 0 like in Webots
         self._expected = 0
         self._controllers: list[Controller] = []
-        #: starts the controller of a Robot a supervisor imported (set by the process runner; None: not started)
+        #: starts the controller of a Robot from its ``controller`` field, for a Robot a supervisor imported or
+        #: whose controller it restarts (set by the runner; None: nothing starts, a warning says so)
         self.controller_starter: Callable[[SceneNode], None] | None = None
+        #: (robot, restart) a supervisor asked for since the last step: started when it next steps (or ends)
+        self._to_start: list[tuple[SceneNode, bool]] = []
         self._gone_nodes: dict[int, SceneNode] = {}  # removed robots' subtrees (kept, so their ids stay theirs)
 
     @property
@@ -184,32 +193,72 @@ class Runtime:
 
     def start_controllers(self, robots: list[SceneNode]) -> None:
         """Robots a supervisor imported: each starts its controller, which steps with the others from the next
-        step, as Webots starts an imported robot's controller."""
-        for node in robots:
-            if str(node.fields.get("controller", "")) in NO_CONTROLLER:
-                continue
-            if self.controller_starter is None:
-                _warn(f"the controller of a Robot imported at run time is not started (only the process runner "
-                      f"starts controllers): '{node.fields.get('controller')}'")
-                continue
-            self.controller_starter(node)
+        step, as Webots starts an imported robot's controller. Like every supervisor request, it is carried out
+        when the supervisor next steps (or ends): a robot it removes before that never runs."""
+        with self._cond:
+            self._to_start.extend((node, False) for node in robots)
+
+    def restart_controller(self, robot_node: SceneNode) -> None:
+        """``Node.restartController()`` or a new ``controller`` field: when the supervisor next steps (or ends),
+        the robot's controller is ended (its step returns -1, then it ends as after any -1) and the one its
+        ``controller`` field names now starts, stepping with the others from that step; time goes on."""
+        with self._cond:
+            self._to_start.append((robot_node, True))
+
+    def _start_requested(self) -> None:
+        """Carry out the imports' starts and the restarts requested since the last step (called by any controller
+        as it steps or ends, so before the simulation can advance). All of it under the condition: the
+        simulation cannot advance between a restarted controller's end and its successor's start. A robot asked
+        for twice in one step starts one controller."""
+        with self._cond:
+            if not self._to_start:
+                return
+            requested, self._to_start = self._to_start, []
+            robots: dict[int, tuple[SceneNode, bool]] = {}
+            for node, restart in requested:
+                previous = robots.get(id(node))
+                robots[id(node)] = (node, restart or (previous is not None and previous[1]))
+            for node, restart in robots.values():
+                if self.robot_gone(node) or self.finished:
+                    continue
+                name = str(node.fields.get("controller", ""))
+                if self.controller_starter is None:
+                    what = "restarted" if restart else "started"
+                    _warn(f"the controller of robot '{node.fields.get('name', 'robot')}' is not {what}: only a "
+                          f"runner (dualtwin webots run, run_world) starts controllers ('{name}')")
+                    continue
+                if restart:
+                    self._end_controllers_of({id(node)}, gone=False, advance=False)
+                if name not in NO_CONTROLLER:
+                    self.controller_starter(node)  # the runtime expects it before this returns
+            self._maybe_advance()
+            self._cond.notify_all()
 
     def end_controllers(self, top: SceneNode) -> None:
         """A supervisor removed ``top``: the controllers of the robots in it are told -1 at their step (now if
         they wait in it) and leave the synchronisation, as Webots ends a deleted robot's controller."""
-        gone = {id(n) for n in top.walk()}
         with self._cond:
             self._gone_nodes.update((id(n), n) for n in top.walk())  # a controller not started yet never starts
+            self._end_controllers_of({id(n) for n in top.walk()}, gone=True)
+
+    def _end_controllers_of(self, robots: set[int], *, gone: bool, advance: bool = True) -> None:
+        """Tell the controllers of these robot nodes -1 at their step and take them out of the synchronisation;
+        a restart (``gone`` False) also stops their sensors, so the next controller finds none enabled."""
+        with self._cond:
             for controller in self._controllers:
-                if controller.robot_node is None or id(controller.robot_node) not in gone:
+                if controller.robot_node is None or id(controller.robot_node) not in robots or controller.removed:
                     continue
                 controller.removed = True
                 controller.arrived = True  # the start-up barrier no longer waits for it
                 for client in controller.clients:
                     client.active = False
+                    client.cut = client.waiting
                     client.waiting = False
-            self._maybe_advance()
-            self._cond.notify_all()
+                    if not gone:
+                        client.robot._release()
+            if advance:
+                self._maybe_advance()
+                self._cond.notify_all()
 
     def _end_orphans(self) -> None:
         """End the controllers whose robot is no longer in the scene tree (caller holds the condition)."""
@@ -223,6 +272,7 @@ class Runtime:
 
     def thread_done(self) -> None:
         """The calling thread's controller ended: release its Robots from the synchronisation."""
+        self._start_requested()  # what it asked for in its last step
         with self._cond:
             controller = getattr(self._thread_controller, "controller", None)
             if controller is not None:
@@ -230,6 +280,7 @@ class Runtime:
                 for client in controller.clients:
                     client.active = False
                     client.waiting = False
+                    client.running = False
                 controller.clients = []
                 self._thread_controller.controller = None
             self._maybe_advance()
@@ -284,8 +335,11 @@ class Runtime:
             self._maybe_advance()
             self._cond.notify_all()
 
-    def request_reset(self) -> None:
+    def request_reset(self, client: _Client | None = None) -> None:
+        """Reset the simulation at ``client``'s next step (as Webots carries a supervisor's request with its step
+        message); None: at the next step of any controller."""
         self._reset_requested = True
+        self._reset_by = client
 
     @property
     def clock(self) -> float:
@@ -312,9 +366,10 @@ class Runtime:
         return -1
 
     def ended_clients(self) -> list[tuple[int, float]]:
-        """(thread id, wall time of the -1) of controllers that were told the run is over."""
+        """(thread id, wall time of the -1) of controllers that were told the run is over (or that their robot
+        was removed or their controller restarted)."""
         with self._cond:
-            return [(c.thread, c.ended_at) for c in self._clients if c.ended_at is not None and c.active]
+            return [(c.thread, c.ended_at) for c in self._clients if c.ended_at is not None and c.running]
 
     def node_ids(self) -> tuple[dict[int, int], dict[int, SceneNode]]:
         """Webots-style unique ids: the root is 0, then every node of the scene tree in pre-order."""
@@ -335,6 +390,7 @@ class Runtime:
     def advance(self, client: _Client, duration_ms: float) -> int:
         """Advance the shared simulation by ``duration_ms`` for ``client`` (blocking until done)."""
         sim = self.simulation
+        self._start_requested()  # a supervisor's imports and restarts act on this step
         with self._cond:
             if client.ended_at is not None:
                 if self.stop_after_end:
@@ -347,7 +403,8 @@ class Runtime:
             if self.mode == SIMULATION_MODE_PAUSE and duration_ms == 0:
                 return 0  # step(0) exchanges commands without time passing, even paused
             n = max(1, math.ceil(duration_ms / sim.basic_time_step - 1e-9))
-            if self._reset_requested:
+            by = self._reset_by
+            if self._reset_requested and (by is None or by is client or not by.active):
                 self._reset_requested = False
                 # Webots simulates the step that carries the request, then resets: the run's clock counts it
                 self.elapsed_before_reset += sim.time + n * sim.basic_time_step / 1000.0
@@ -356,6 +413,8 @@ class Runtime:
                     c.target = 0.0
                     c.robot._after_reset()
                 self._end_orphans()  # the reset took the robots a supervisor imported out of the scene
+                if self._removed(client):  # the caller's own robot was one of them
+                    return self._end_removed(client)
                 return self._end(client) if self._limit_reached() else 0
             client.target = sim.time + n * sim.basic_time_step / 1000.0
             client.waiting = True
@@ -366,7 +425,7 @@ class Runtime:
                 err, self.error = self.error, None
                 raise err
             client.waiting = False
-            if self._removed(client):
+            if client.cut:  # (a step that reached its end before the supervisor's request still counts)
                 return self._end_removed(client)
             return self._end(client) if self.finished or self._limit_reached() else 0
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import math
+import sys
 from collections.abc import Sequence
 from typing import Any, Protocol
 
@@ -35,6 +36,8 @@ class NodeIndex(Protocol):
     def start_controllers(self, robots: list[SceneNode]) -> None: ...
 
     def end_controllers(self, top: SceneNode) -> None: ...
+
+    def restart_controller(self, robot_node: SceneNode) -> None: ...
 
 
 class SceneHost(Protocol):
@@ -430,8 +433,19 @@ class Node:
                 self._sim.queue_set_joint_position(joint, axis, position)
 
     def restartController(self) -> None:
-        """Webots restarts the robot's controller process; here controllers run as the runner started them."""
-        _warn("Node.restartController(): restarting a controller is not supported headless; it keeps running")
+        """End this Robot's controller and start the one its ``controller`` field names, at the next step (as
+        Webots: time goes on, the new controller's devices start disabled). On another node: an error line."""
+        if not is_robot(self._node):
+            print("Error: wb_supervisor_node_restart_controller() can only be called on a Robot node.",
+                  file=sys.stderr)
+            return
+        if path_to(self._sim, self._node) is None:
+            return  # removed: it has no controller any more
+        self._sup._runtime.restart_controller(self._node)
+
+    def _controller_changed(self) -> None:
+        """A supervisor gave this Robot another ``controller``: Webots restarts it with the new one."""
+        self._sup._runtime.restart_controller(self._node)
 
     def moveViewpoint(self) -> None:
         """There is no 3D view headless: nothing to move."""

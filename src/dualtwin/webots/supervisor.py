@@ -57,7 +57,8 @@ class Supervisor(Robot):
 
     def simulationReset(self) -> None:
         """Restore the load state at the next ``step`` (controllers keep running)."""
-        link_of(self)._runtime.request_reset()
+        link = link_of(self)
+        link._runtime.request_reset(link.client)
 
     def simulationResetPhysics(self) -> None:
         link_of(self)._sim.reset_physics()
