@@ -11,6 +11,10 @@ logs into ``<script>_<start ms>.txt`` at the project's root. The supervisor rest
 disabled, and steps to 32, 40, 48. After the 6th step (48 ms) the field becomes "other": ``child_24`` gets -1
 and ``other_48`` steps to 56, 64, 72; setting "other" again at 64 ms changes nothing; "<extern>" at 72 ms ends
 it (-1) and starts nothing. The supervisor steps on to 96 ms.
+
+Also: a ``--controller`` override is what a restart runs again while the field is unchanged; a supervisor may
+restart itself (its next step says -1, a fresh one starts at that time); a robot imported and restarted twice
+in one step runs one controller.
 """
 
 from __future__ import annotations
@@ -52,7 +56,8 @@ CHILD = """
     robot = Robot()
     gps = robot.getDevice("gps")
     start = robot.getTime()
-    with open(os.path.join(ROOT, f"{NAME}_{round(start * 1000)}.txt"), "w") as log:
+    # "x": a second controller of the same robot started at the same time would fail here (exit code 1)
+    with open(os.path.join(ROOT, f"{NAME}_{round(start * 1000)}.txt"), "x") as log:
         log.write(f"start {start:.3f} gps period {gps.getSamplingPeriod()}\\n")
         gps.enable(8)
         ms = round(start * 1000)
@@ -136,3 +141,42 @@ def test_a_restart_keeps_the_controller_override_while_the_field_names_the_same_
     assert logs["override_24"] == ["start 0.024 gps period 0", *_steps(32, 48), "-1"]
     assert logs["other_48"] == ["start 0.048 gps period 0", *_steps(56, 72), "-1"]
     assert set(logs) == {"sup", "override_0", "override_24", "other_48"}
+
+
+SELF_RESTARTING = """
+    import os
+    from controller import Supervisor
+    ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
+    sup = Supervisor()
+    start = round(sup.getTime() * 1000)
+    with open(os.path.join(ROOT, f"sup_{start}.txt"), "w") as log:
+        for i in range(6):
+            if sup.step(8) == -1:
+                log.write(f"-1 at step {i + 1}\\n")
+                break
+            if i == 2:
+                sup.getSelf().restartController()  # its own: this step says -1, a fresh one starts
+            if i == 1 and start == 0:  # imported and restarted twice in one step: one controller starts
+                sup.getRoot().getField("children").importMFNodeFromString(
+                    -1, 'DEF NEW Robot { translation 1 0 0 name "new" controller "child" children [ GPS { } ] }')
+                sup.getFromDef("NEW").restartController()
+                sup.getFromDef("NEW").restartController()
+"""
+
+
+@pytest.mark.parametrize("isolation", ["process", "threads"])
+def test_a_supervisor_restarting_itself_and_a_robot_asked_for_twice_in_one_step(
+    tmp_path: Path, isolation: str
+) -> None:
+    world = _project(tmp_path, "none")
+    (tmp_path / "controllers" / "sup" / "sup.py").write_text(textwrap.dedent(SELF_RESTARTING))
+    (tmp_path / "worlds" / "w.wbt").write_text(WORLD.replace('controller "child"', 'controller "<none>"'))
+    assert run_world(world, None, 0.1, isolation=isolation) == 0
+    logs = _logs(tmp_path)
+    # each supervisor restarts itself after its 3rd step: its 4th says -1 and the next starts 24 ms later
+    assert {name: logs[name] for name in logs if name.startswith("sup")} == {
+        "sup_0": ["-1 at step 4"], "sup_24": ["-1 at step 4"], "sup_48": ["-1 at step 4"],
+        "sup_72": ["-1 at step 4"], "sup_96": ["-1 at step 1"]}
+    # the robot imported at 16 ms runs one controller, from then to the end of the run
+    assert logs["child_16"] == ["start 0.016 gps period 0", *_steps(24, 96), "-1"]
+    assert set(logs) == {"sup_0", "sup_24", "sup_48", "sup_72", "sup_96", "child_16"}

@@ -144,3 +144,14 @@ def test_a_robot_removed_in_the_step_it_was_imported_never_runs_and_nobody_waits
     assert run_world(world, None, 0.1, isolation=isolation) == 0
     assert _log(tmp_path, "child") == []
     assert len(_log(tmp_path, "sup")) == 12
+
+
+@BOTH_RUNTIMES
+def test_a_world_given_by_a_relative_path_finds_the_imported_robots_controller(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, isolation: str
+) -> None:
+    # the threads runtime moves the working folder to the first controller's: the project is found all the same
+    world = _project(tmp_path, "child")
+    monkeypatch.chdir(tmp_path)
+    assert run_world(world.relative_to(tmp_path), None, 0.1, isolation=isolation) == 0
+    assert _log(tmp_path, "child")[:2] == ["start 0.024 new", "child 0.032 0"]

@@ -179,7 +179,7 @@ class _LaterControllers:
     (the ``--controller`` override, if it replaced it). A bad field is one error line, and no controller runs."""
 
     def __init__(self, world_path: Path, specs: list[ControllerSpec]) -> None:
-        self.world_path = world_path
+        self.world_path = world_path.resolve()  # the threads runtime changes the working folder
         self.at_load = {id(s.robot): (str(s.robot.fields.get("controller", "")), s.script) for s in specs}
 
     def __call__(self, robot: Node) -> tuple[Path, list[str]] | None:
