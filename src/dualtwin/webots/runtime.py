@@ -210,6 +210,8 @@ class Runtime:
         as it steps or ends, so before the simulation can advance). All of it under the condition: the
         simulation cannot advance between a restarted controller's end and its successor's start. A robot asked
         for twice in one step starts one controller."""
+        if not self._to_start:  # the common case, read without the lock (a request comes before its step)
+            return
         with self._cond:
             if not self._to_start:
                 return
