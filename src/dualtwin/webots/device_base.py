@@ -208,15 +208,16 @@ class Sensor(Device):
 SampledDevice = Sensor  # the name the device modules used before Webots' ``Sensor``
 
 
-def sample_due(host: DeviceHost, now: float) -> None:
-    """Sample ``host``'s enabled sensors that are due at ``now`` (the end of a basic time step)."""
+def sample_due(host: DeviceHost, now: float, every: bool = False) -> None:
+    """Sample ``host``'s enabled sensors that are due at ``now`` (the end of a basic time step); with ``every``,
+    all of them (after a simulation reset)."""
     sensors = list(host._sensors.values())
     for sensor in sensors:
         if sensor._tracks_steps:
             sensor._each_step()
     batches: dict[Any, list[Sensor]] = {}
     for sensor in sensors:
-        if not sensor._due(now):
+        if not every and not sensor._due(now):
             continue
         if sensor._batch_sampler is None:
             sensor._sample(now)

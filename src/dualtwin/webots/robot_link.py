@@ -14,7 +14,7 @@ from typing import Any
 from dualtwin.webots.api_args import as_int
 from dualtwin.webots.battery import install as install_batteries
 from dualtwin.webots.connector import install as install_connectors
-from dualtwin.webots.device_base import Device, DeviceBinding, Sensor, bind_host
+from dualtwin.webots.device_base import Device, DeviceBinding, Sensor, bind_host, sample_due
 from dualtwin.webots.devices import SOLID_DEVICE_CLASSES, Brake, Motor, PositionSensor, UnsupportedSensor
 from dualtwin.webots.nodes import Node as SceneNode
 from dualtwin.webots.physics import BrakeRec, DeviceRec, MotorRec, PositionSensorRec, RobotRec, Simulation
@@ -148,10 +148,15 @@ class RobotLink:
         return result
 
     def _after_reset(self) -> None:
+        # Webots resets every sensor's sampling clock (its last update set far in the past): each enabled sensor
+        # is due at once, so the step that returns at t = 0 reads the reset state, and the next sample comes one
+        # period later. The controller's readings are never NaN again (its library keeps the last values).
+        now = self._sim.time
         for sensor in self._sensors.values():
-            sensor._enabled_at = 0.0
+            sensor._enabled_at = now
             sensor._last_sample = None
             sensor._invalidate()
+        sample_due(self, now, every=True)
         for item in self.inputs:
             item._after_reset()
 
