@@ -268,7 +268,7 @@ class Node:
                     by_id[ids[id(node)]] = node
         imported, _ = _scene_edits(self._sim)
         imported.extend(nodes)
-        outside = False
+        outside: list[str] = []
         for top in nodes:
             chain = path_to(self._sim, top)
             ancestors = chain[:-1] if chain is not None else []
@@ -279,13 +279,15 @@ class Node:
             elif chain is not None and self._sim.can_add(ancestors):
                 self._sim.add_nodes(top, ancestors)
             elif any(n.type_name in SOLID_TYPES for n in top.walk()):
-                outside = True
+                outside.append(" > ".join(n.type_name for n in ancestors) or "the scene root")
         robots = [n for top in nodes for n in top.walk() if is_robot(n)]
         if robots:
             self._sup._runtime.start_controllers(robots)
         if outside:
-            warn("a Solid imported into a joint's endPoint is in the scene tree (read, saved) but takes no part in "
-                 "the physics")
+            # (a joint's endPoint joins the physics; a Slot with no joint, or a parent Solid outside the physics,
+            # has no body to join)
+            warn(f"a Solid imported under {outside[0]} is in the scene tree (read, saved) but takes no part in the "
+                 "physics: nothing there for it to join")
 
     def _removed(self, node: SceneNode) -> None:
         """Take the Solids of a removed subtree out of the physics (no collision, no ray hit, no joint)."""
