@@ -56,7 +56,9 @@ REGISTRY: tuple[Coverage, ...] = (
              "bodies with mass from Physics/boundingObject, merging and the static basis, kinematic solids "
              "(one that no body or joint carries moves by its linearVelocity/angularVelocity every step, "
              "sensors and getVelocity seeing it), supervisor pose/velocity edits; Box/Sphere/Cylinder/Capsule/IndexedFaceSet edits (also through "
-             "DEF/USE) resize the ODE geom at the next step, wake bodies around it and reach ray sensors; a "
+             "DEF/USE) resize the ODE geom at the next step, wake bodies around it and reach ray sensors, and "
+             "the body's mass, centre of mass and inertia follow the new shape as at load (with a density the "
+             "mass follows too, a given mass stays); a "
              "Solid a supervisor imports joins the physics at once by the load's rules (merged into its parent's "
              "body, fixed to the static basis, or in a joint's empty endPoint jointed to the parent where that is "
              "now, the joint's motor and sensor then acting on it; a joint imported inside a Solid that moved since "
@@ -86,7 +88,10 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("ImmersionProperties", "scene", "not", "not yet: no fluid forces"),
     # -- physics
     Coverage("Physics", "physics", "supported",
-             "density or mass, centerOfMass, inertiaMatrix, damping (volume-weighted over merged solids)"),
+             "density or mass, centerOfMass, inertiaMatrix, damping (volume-weighted over merged solids); a "
+             "supervisor's edit of mass, density, centerOfMass or inertiaMatrix (on every USE of the node) sums "
+             "the body's mass again by the load's rules (the Solid stays put, its joints are re-anchored where "
+             "the centre of mass moved)"),
     Coverage("Damping", "physics", "supported", "linear and angular, converted per step as Webots does"),
     Coverage("ContactProperties", "physics", "partial",
              "material pairs, Coulomb friction, bounce, soft ERP/CFM follow Webots; asymmetric friction (2-4 "

@@ -6,7 +6,6 @@ from __future__ import annotations
 import random
 import threading
 from collections.abc import Sequence
-from ctypes import byref
 from typing import Any
 
 from dualtwin.webots import _math3 as m3
@@ -14,7 +13,8 @@ from dualtwin.webots import ode
 from dualtwin.webots._math3 import Pose
 from dualtwin.webots.mass_rules import rot_matrix
 from dualtwin.webots.nodes import Node
-from dualtwin.webots.physics.geometry_edits import GEOMETRY_TYPES, GeometryEdits
+from dualtwin.webots.physics.geometry_edits import GEOMETRY_TYPES
+from dualtwin.webots.physics.mass_edits import MASS_FIELDS, MassEdits
 from dualtwin.webots.physics.records import (
     BodyRec,
     JointRec,
@@ -23,7 +23,7 @@ from dualtwin.webots.physics.records import (
 )
 
 
-class SupervisorEdits(GeometryEdits):
+class SupervisorEdits(MassEdits):
     """Teleports, field edits, velocities and sensor readings (see the module docstring)."""
 
     def reset_physics(self, solid: SolidRec | None = None) -> None:
@@ -229,9 +229,11 @@ class SupervisorEdits(GeometryEdits):
 
         Webots reacts to field edits at run time (WbJoint/WbMotor/WbPhysics/WbContactProperties update
         their ODE objects). Supported: joint ``dampingConstant``/``springConstant``/``staticFriction``,
-        motor ``maxVelocity``/``maxTorque``/``maxForce``, ``Physics.mass`` (inertia scaled with it, CoM
-        unchanged), ``ContactProperties`` friction/bounce/soft ERP/CFM, ``WorldInfo`` ERP/CFM, and the
-        dimensions of bounding geometries (:mod:`.geometry_edits`). Returns False for fields whose edit has no physics effect here.
+        motor ``maxVelocity``/``maxTorque``/``maxForce``, ``Physics`` ``mass``/``density``/``centerOfMass``/
+        ``inertiaMatrix`` (the body's mass properties summed again as at load, :mod:`.mass_edits`),
+        ``ContactProperties`` friction/bounce/soft ERP/CFM, ``WorldInfo`` ERP/CFM, and the dimensions of
+        bounding geometries (:mod:`.geometry_edits`; the mass properties of a body they bound follow).
+        Returns False for fields whose edit has no physics effect here.
         """
         applied = self._apply_field(node, name)
         if applied:
@@ -266,19 +268,8 @@ class SupervisorEdits(GeometryEdits):
                 motor.available = motor.max_force
                 return True
             return False
-        if node.type_name == "Physics" and name == "mass":
-            body = next((b for b in self.bodies if any(m.node.fields.get("physics") is node for m in b.members)), None)
-            if body is None or float(value) <= 0:
-                return False
-            # The merged members' masses, re-read from their (edited) Physics nodes; the inertia scales
-            # with the total and the CoM stays put (exact for single-solid bodies).
-            total = sum(self._solid_mass(member)[0].mass for member in body.members)
-            mass = ode.dMass()
-            lib.dBodyGetMass(body.ptr, byref(mass))
-            lib.dMassAdjust(byref(mass), total)
-            lib.dBodySetMass(body.ptr, byref(mass))
-            body.mass = mass.mass
-            return True
+        if node.type_name == "Physics" and name in MASS_FIELDS:
+            return self._apply_physics_mass(node, name)
         if node.type_name == "ContactProperties":
             self._surfaces.pop(id(node), None)
             return True

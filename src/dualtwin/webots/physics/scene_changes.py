@@ -26,11 +26,8 @@ the live views into ODE memory that the stepping keeps stay valid; they are skip
 from __future__ import annotations
 
 from collections.abc import Iterable
-from ctypes import byref
 
-from dualtwin.webots import _math3 as m3
 from dualtwin.webots._math3 import Pose
-from dualtwin.webots.mass_rules import rot_matrix
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics.geometry_edits import _WAKE_MARGIN
 from dualtwin.webots.physics.records import (
@@ -173,45 +170,6 @@ class SceneChanges(Stepper):
         body.load_R = world.R
         body.load_pos = world.apply(body.com)
         self._place_body_at_load(body)
-
-    def _remass(self, body: BodyRec) -> None:
-        """Sum the mass of a body whose merged Solids changed (§3.3) and set it: the root Solid frame stays
-        where it is, the body origin moves to the new centre of mass with the velocity of that point, and every
-        geom on the body keeps its place in the world."""
-        lib = self._lib
-        now, load = body.pose(), Pose(body.load_R, m3.sub(body.load_pos, m3.mat_vec(body.load_R, body.com)))
-        old_com_world = now.apply(body.com)
-        lvel, avel = tuple(body.lvel[:3]), tuple(body.avel[:3])
-        old_com = body.com
-        total, weights = self._centred_mass(body)
-        lib.dBodySetMass(body.ptr, byref(total))
-        new_com_world = now.apply(body.com)
-        lib.dBodySetPosition(body.ptr, *new_com_world)
-        v = m3.add(lvel, m3.cross(avel, m3.sub(new_com_world, old_com_world)))
-        lib.dBodySetLinearVel(body.ptr, *v)
-        body.load_pos = load.apply(body.com)  # a reset places the root Solid where it was at load
-        self._set_damping(body, weights)
-        for g in (g for m in body.members for g in m.geoms if g.body is body):
-            world = self.solid_world_pose(g.solid) * g.local
-            lib.dGeomSetOffsetWorldPosition(g.ptr, *world.t)
-            lib.dGeomSetOffsetWorldRotation(g.ptr, rot_matrix(world.R))
-        if body.com != old_com:
-            self._rejoin(body)
-        self._wake_body(body.index)
-
-    def _rejoin(self, body: BodyRec) -> None:
-        """ODE keeps a joint's anchors and a fixed joint's offset relative to each body's origin, the centre of
-        mass: once that moved, the joints on the body are set again from where the Solids are now (their ODE
-        zero re-based on the current positions, as a teleport does, §6)."""
-        for joint in list(body.joints):
-            if joint.ptr:
-                self._anchor_joint(joint)
-                for i in range(len(joint.params)):
-                    self._set_stops(joint, i)
-                self.rebuild_springs(joint)
-        for other in self.bodies:
-            if other.fixed_joint and not other.removed and (other is body or other.fixed_to is body):
-                self._lib.dJointSetFixed(other.fixed_joint)
 
     def remove_nodes(self, top: Node) -> None:
         """Take every Solid of the subtree ``top`` out of the physics (no-op for nodes that have none)."""
