@@ -47,6 +47,9 @@ API_NOTES: tuple[tuple[str, str, str], ...] = (
      "the node joins the scene tree only: an imported motor or sensor is no device and imported parameters do "
      "not reach ODE (no warning); Solids, joints, SolidReferences and boundingObjects imported anywhere join the "
      "physics (see Solid and SolidReference)"),
+    ("not yet", "Field.importSFNodeFromString / removeSF of a Physics node inside a Robot",
+     "a warning: the Solid keeps its body or stays static (outside robots it becomes a body or static, see "
+     "Physics)"),
     ("not yet", "Robot imported, or controller restarted, without a runner",
      "a Supervisor driven directly (no run_world) starts no controller (one warning at its next step) and a "
      "restarted one keeps running; 'dualtwin webots run' and run_world (processes or threads) start and restart "

@@ -91,7 +91,9 @@ REGISTRY: tuple[Coverage, ...] = (
              "density or mass, centerOfMass, inertiaMatrix, damping (volume-weighted over merged solids); a "
              "supervisor's edit of mass, density, centerOfMass or inertiaMatrix (on every USE of the node) sums "
              "the body's mass again by the load's rules (the Solid stays put, its joints are re-anchored where "
-             "the centre of mass moved)"),
+             "the centre of mass moved); a Physics node imported into a Solid without one makes it a body by the "
+             "load's rules where it is now (its own, merged into its parent's, or jointed as a joint's endPoint), "
+             "its removal makes the Solid static where it is (not yet inside a Robot: a warning)"),
     Coverage("Damping", "physics", "supported", "linear and angular, converted per step as Webots does"),
     Coverage("ContactProperties", "physics", "partial",
              "material pairs, Coulomb friction, bounce, soft ERP/CFM follow Webots; asymmetric friction (2-4 "

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
+from dualtwin.webots import _math3 as m3
 from dualtwin.webots._math3 import Pose
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics.geometry_edits import _WAKE_MARGIN
@@ -101,6 +102,9 @@ class SceneChanges(Stepper):
         has body-less geoms (inside a robot they follow it every step). Everything is placed where the parent
         Solid is now, not where it was at load."""
         chain = list(ancestors)
+        if top.type_name == "Physics" and chain and chain[-1] is not None and is_solid(chain[-1]):
+            self.physics_changed(chain[-1])  # a Physics imported into a Solid's empty physics field
+            return []
         at = self._parent_solid_at(chain)
         parent = self._solid_by_node[id(chain[at])] if at >= 0 else None
         in_joint = any(n.type_name in JOINT_TYPES for n in chain[at + 1 :])
@@ -173,6 +177,11 @@ class SceneChanges(Stepper):
 
     def remove_nodes(self, top: Node) -> None:
         """Take every Solid of the subtree ``top`` out of the physics (no-op for nodes that have none)."""
+        if top.type_name == "Physics":  # taken out of a Solid's physics field: that Solid has a body still
+            for solid in [s for s in self.solids if s.body is not None and s in s.body.members
+                          and not isinstance(s.node.fields.get("physics"), Node)]:  # fmt: skip
+                self.physics_changed(solid.node)
+            return
         ids = {id(n) for n in top.walk()}
         gone = [s for s in self.solids if id(s.node) in ids]
         reshaped = {id(g.solid): g.solid for g in self.geoms.values()
@@ -271,6 +280,59 @@ class SceneChanges(Stepper):
         joint.parent_body = joint.child_body = None
         joint.reverse = False
         joint.euler_ref = ()
+
+    def physics_changed(self, solid_node: Node) -> None:
+        """``solid_node`` gained or lost its Physics node: the Solid (with the Solids inside it) is built again
+        by the load's rules (§3.3), where it is now, as if it were imported there: with Physics it gets a body
+        (its own, or merged into its parent's) and falls from rest; without, it becomes static (or part of its
+        parent's body) and stays where it was. Its joints keep their current positions. Not done (a warning)
+        for Solids inside a Robot, whose devices the controller holds."""
+        solid = self._solid_by_node.get(id(solid_node))
+        if solid is None or isinstance(solid_node.fields.get("physics"), Node) == (solid.body is not None):
+            return
+        subtree = self._subtree(solid)
+        inside = {id(s) for s in subtree}
+        if any(s.robot is not None for s in subtree) or any(id(a.solid) in inside for a in self.attachments):
+            self.warn(f"Solid '{solid.name}': a Physics node imported or removed inside a Robot is not supported "
+                      "yet; its body is left as it was")
+            return
+        chain = self._chain_to(solid_node)
+        if chain is None:
+            return
+        for s in subtree:  # the fields of moving Solids are only refreshed lazily: where they are now
+            local = self.solid_local_pose(s)
+            s.node.fields["translation"] = local.t
+            s.node.fields["rotation"] = m3.axis_angle_from_mat(local.R)
+        for joint in self.joints:
+            if joint.parent is not None and id(joint.parent) in inside:
+                for p, position in zip(joint.params, joint.positions, strict=False):
+                    if p is not None:
+                        p.fields["position"] = position
+        load_rels = {id(s.node): s.load_rel for s in subtree}
+        self.remove_nodes(solid_node)
+        for s in self.add_nodes(solid_node, chain[:-1]):
+            if s.body is None and id(s.node) in load_rels:
+                s.load_rel = load_rels[id(s.node)]  # a reset puts a static Solid back where it was at load
+
+    def _chain_to(self, target: Node) -> list[Node] | None:
+        """The nodes from a top-level node of the world down to ``target`` (inclusive)."""
+
+        def search(node: Node, path: list[Node]) -> list[Node] | None:
+            path.append(node)
+            if node is target:
+                return path
+            for value in node.fields.values():
+                for child in value if isinstance(value, list) else [value]:
+                    if isinstance(child, Node) and search(child, path) is not None:
+                        return path
+            path.pop()
+            return None
+
+        for top in self.world.nodes:
+            found = search(top, [])
+            if found is not None:
+                return found
+        return None
 
     def bounding_object_changed(self, solid_node: Node) -> None:
         """``solid_node``'s boundingObject was imported or removed, or a node inside it was: its geoms are built
