@@ -8,6 +8,7 @@ recorded with its row count and SHA-256 so readers can verify it (:func:`log_rec
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import math
@@ -135,13 +136,21 @@ def sha256_files(paths: Iterable[Path]) -> str:
 
 
 def package_versions() -> dict[str, str]:
+    """The interpreter, platform and tracked packages' versions (a fresh dict each call)."""
+    return dict(_package_versions())
+
+
+@functools.cache
+def _package_versions() -> tuple[tuple[str, str], ...]:
+    # Read once per process: every run folder and record a command writes names them (an alignment writes
+    # four), and each lookup scans the installed distributions; they do not change while a command runs.
     versions = {"python": sys.version.split()[0], "platform": platform.platform()}
     for name in TRACKED_PACKAGES:
         try:
             versions[name] = metadata.version(name)
         except metadata.PackageNotFoundError:
             continue
-    return versions
+    return tuple(versions.items())
 
 
 # ------------------------------------------------------------------ reading user files

@@ -52,12 +52,14 @@ class Point:
 @dataclass
 class Evaluation:
     """What an objective says about one knob setting: its training value (before regularisation), its
-    held-out value (None without held-out data), its residual vector, and any per-point detail to keep."""
+    held-out value (None without held-out data), its residual vector, any per-point detail to keep, and what
+    was simulated (offered to :meth:`CachedProblem.keep`, not kept for every point)."""
 
     train: float
     holdout: float | None
     residual: np.ndarray
     detail: Any = None
+    simulated: Any = None
 
 
 class Problem(Protocol):
@@ -128,7 +130,12 @@ class CachedProblem(ABC):
             self._cache[tuple(p)] = self._score(list(p), evaluation)
             if evaluation.detail is not None:
                 self.details[tuple(p)] = evaluation.detail
+            self.keep(tuple(p), self._cache[tuple(p)], evaluation.simulated)
         return [self._cache[tuple(p)] for p in points]
+
+    def keep(self, key: tuple[float, ...], point: Point, simulated: Any) -> None:
+        """Offered what was simulated for each new point (``Evaluation.simulated``); kept by none here."""
+        return None
 
     def run_values(self, values: Sequence[Mapping[str, float]]) -> list[float]:
         """Training values of explicit knob settings (for proposals; no regularisation, not cached)."""

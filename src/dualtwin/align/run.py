@@ -42,7 +42,15 @@ from dualtwin.align.optimize import fit_cma, fit_lsq
 from dualtwin.align.propose import ProposalOutcome, try_proposals
 from dualtwin.align.reference import ensemble_members_of, shared_with_reference
 from dualtwin.align.report import write_align_report
-from dualtwin.align.simulate import Evaluator, SimJob, check_executor, load_member_traces, load_traces
+from dualtwin.align.simulate import (
+    Evaluator,
+    SimJob,
+    Traces,
+    check_executor,
+    load_member_traces,
+    load_traces,
+    scenario_logs,
+)
 from dualtwin.align.stuck import stuck_advice
 from dualtwin.align.sysid_io import read_sysid_params, write_sysid_params
 from dualtwin.align.trajectory import TrajectoryProblem
@@ -126,12 +134,22 @@ def _record_run_knobs(run_dir: Path, knobs: Mapping[str, float]) -> None:
 
 
 def run_suite(suite: Path, twin_name: str, robot: RobotBinding, out: Path, seed: int, twin: Twin,
-              knobs: Mapping[str, float], resume: bool) -> Path:
-    """The suite on ``twin`` with ``knobs`` into ``out`` (replacing only a suite run this alignment wrote)."""
+              knobs: Mapping[str, float], resume: bool, replay: Traces | None = None) -> Path:
+    """The suite on ``twin`` with ``knobs`` into ``out`` (replacing only a suite run this alignment wrote).
+
+    ``replay``: every scenario's traces, already simulated with these knobs, suite and seed: written as the
+    simulation would write them, not simulated again (None when some scenario cannot be rebuilt)."""
     if out.exists() and not resume:
         remove_output_dir(out, "suite-run")  # only a suite run this alignment wrote, never a foreign folder
-    twin.set_knobs(dict(knobs))
-    SuiteRun(suite, twin_name, robot, out, seed=seed, twin=twin).run(resume=resume)
+    logs = None
+    if replay is not None:
+        spec = robot.spec
+        rebuilt = {sid: scenario_logs(trace, list(spec.ground_truth), list(spec.onboard))
+                   for sid, trace in replay.items()}
+        logs = {sid: log for sid, log in rebuilt.items() if log is not None} if all(rebuilt.values()) else None
+    if logs is None:
+        twin.set_knobs(dict(knobs))
+    SuiteRun(suite, twin_name, robot, out, seed=seed, twin=twin).run(resume=resume, replay=logs)
     _record_run_knobs(out, knobs)
     return out
 
@@ -302,8 +320,13 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
             if any(nuisance.parse(n, ids)[1] != nuisance.TIME_OFFSET for n in fitted_nuisance):
                 after_suite = out_dir / "suite_with_nuisance.json"
                 write_json(after_suite, nuisance.apply_to_document(read_json(suite_path), ids, fitted_nuisance))
+            # The fitted point's suite was simulated during the fit (or read from runs/before): its kept traces
+            # are written, not simulated again, when they are the whole suite as run_suite would run it (no
+            # ensemble members, no nuisance knobs moving the suite or its time axis).
+            kept = problem.traces_at(outcome.u) if not members and not fitted_nuisance else None
+            replay = kept if kept is not None and set(ids) <= set(kept) else None
             after_dir = run_suite(after_suite, config.target, binding, out_dir / "runs" / "after", sim_seed, target,
-                                  fitted, False)
+                                  fitted, False, replay)
             # Each fitted (and excluded) scenario against the target's reproducibility floor at the fit: what the
             # twins cannot share is named, never dropped without consent (not counted in the budget). Without
             # nuisance knobs the after run is the fit's run, so only the shifted members are simulated.

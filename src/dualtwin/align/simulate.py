@@ -28,7 +28,7 @@ import math
 from collections.abc import Generator, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
@@ -38,7 +38,15 @@ from dualtwin.errors import DualtwinError
 from dualtwin.parallel import DEFAULT_WORKERS, EXECUTORS, ExecutorKind, ParallelMap, check_executor
 from dualtwin.robots.binding import RobotBinding, load_binding
 from dualtwin.suite.loader import load_suite, read_json
-from dualtwin.suite.runner import Periods, Samples, check_against_binding, drive, scenario_periods
+from dualtwin.suite.runner import (
+    Periods,
+    Samples,
+    ScenarioLogs,
+    ScenarioResult,
+    check_against_binding,
+    drive,
+    scenario_periods,
+)
 from dualtwin.suite.schema import Suite
 from dualtwin.twins import make_twin
 from dualtwin.twins.base import Twin
@@ -52,7 +60,7 @@ BATCH_MODES: tuple[str, ...] = ("auto", "off")
 
 # Re-exported for callers that import them from here (fit, analyze, prediction).
 __all__ = ["BATCH_MODES", "DEFAULT_WORKERS", "EXECUTORS", "BatchMode", "BatchedSimulator", "Evaluator", "ExecutorKind", "ScenarioTrace", "SimJob", "Traces",
-           "check_executor", "load_traces", "needed_scenarios", "simulate", "simulate_on", "simulate_twin"]
+           "check_executor", "load_traces", "needed_scenarios", "scenario_logs", "simulate", "simulate_on", "simulate_twin"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -64,12 +72,14 @@ class ScenarioTrace:
         status: ``completed``, ``failed`` (a failure threshold stopped it) or ``unstable``.
         duration_s: Planned scenario duration.
         series: Channel name -> time stamps (s since the scenario started) and values.
+        failure: What stopped a failed or unstable scenario, as a run manifest records it (None otherwise).
     """
 
     id: str
     status: str
     duration_s: float
     series: Mapping[str, Series] = field(default_factory=dict)
+    failure: Mapping[str, Any] | None = None
 
     @property
     def end_time_s(self) -> float:
@@ -186,7 +196,7 @@ def suite_periods(io: RobotIO, suite: Suite, wanted: Sequence[str] | None, seed:
         ob = np.asarray(onboard, dtype=np.float64).reshape(len(onboard), 1 + len(io.onboard_names))
         columns = [gt[:, i] for i in range(1, gt.shape[1])] + [ob[:, i] for i in range(1, ob.shape[1])]
         series = {name: Series(gt[:, 0].copy(), col.copy()) for name, col in zip(names, columns, strict=True)}
-        out[ids[index]] = ScenarioTrace(ids[index], result.status, float(scenario.duration_s), series)
+        out[ids[index]] = ScenarioTrace(ids[index], result.status, float(scenario.duration_s), series, result.failure)
     return out
 
 
@@ -214,7 +224,7 @@ def job_periods(io: RobotIO, suite: Suite, knobs: Mapping[str, float], wanted: S
         if sid in traces:
             trace = traces[sid]
             traces[sid] = ScenarioTrace(trace.id, trace.status, trace.duration_s,
-                                        nuisance.shift_series(trace.series, offset))
+                                        nuisance.shift_series(trace.series, offset), trace.failure)
     return traces
 
 
@@ -250,8 +260,34 @@ def load_traces(run_dir: Path, scenarios: Sequence[str] | None = None) -> Traces
         series = run.series(sid)
         # Without the suite copy, the last logged sample stands in for the planned duration.
         fallback = max((float(v.t[-1]) for v in series.values() if v.t.size), default=0.0)
-        out[sid] = ScenarioTrace(sid, run.scenario(sid).status, durations.get(sid, fallback), series)
+        entry = run.scenario(sid)
+        failure = dict(entry.failure) if entry.failure is not None else None
+        out[sid] = ScenarioTrace(sid, entry.status, durations.get(sid, fallback), series, failure)
     return out
+
+
+def scenario_logs(trace: ScenarioTrace, ground_truth_names: Sequence[str],
+                  onboard_names: Sequence[str]) -> ScenarioLogs | None:
+    """The logs a suite run writes for ``trace`` (rows of time and channels in the binding's order), rebuilt
+    exactly: every value is a float64 the simulation produced, and ``float`` gives it back as it was logged.
+    None when the trace cannot give them (a channel missing, or channels of different lengths)."""
+    try:
+        truth = [trace.series[n] for n in ground_truth_names]
+        onboard = [trace.series[f"onboard/{n}"] for n in onboard_names]
+    except KeyError:
+        return None
+    if not truth and not onboard:
+        return None
+    t = (truth or onboard)[0].t
+    if any(s.t.shape != t.shape or s.y.shape != t.shape or not np.array_equal(s.t, t) for s in truth + onboard):
+        return None
+
+    def rows(series: list[Series]) -> list[list[float]]:
+        rows_out: list[list[float]] = np.column_stack([t, *(s.y for s in series)]).tolist()
+        return rows_out
+
+    failure = dict(trace.failure) if trace.failure is not None else None
+    return ScenarioResult("", trace.status, failure, int(t.size)), rows(onboard), rows(truth)
 
 
 def load_member_traces(run_dir: Path, scenarios: Sequence[str] | None = None) -> dict[str, list[ScenarioTrace]]:

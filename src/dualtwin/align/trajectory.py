@@ -8,8 +8,9 @@ scenarios are simulated for every candidate but never steer the search: they sho
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import Any
 
-from dualtwin.align.core import CachedProblem, Evaluation, Point
+from dualtwin.align.core import CachedProblem, Evaluation, Point, residual_norm
 from dualtwin.align.knobs import KnobSpec
 from dualtwin.align.objective import ObjectiveSpec, ResidualBlock, evaluate, residual_layout, residuals
 from dualtwin.align.simulate import Evaluator, SimJob, Traces
@@ -25,6 +26,11 @@ class TrajectoryProblem(CachedProblem):
         self.train = train
         self.holdout = holdout
         self.evaluator = evaluator
+        # The traces of a few points, so the fitted point's suite run is written, not simulated again: the best
+        # by either optimiser's criterion (objective, residual norm), the last point evaluated, and points
+        # scored from a run folder (`remember`). A few suite runs in memory, whatever the budget.
+        self._kept: dict[str, tuple[float, tuple[float, ...], Traces]] = {}
+        self._remembered: dict[tuple[float, ...], Traces] = {}
 
     def simulate(self, values: Sequence[Mapping[str, float]]) -> list[Traces]:
         """One suite run per knob setting (in parallel through the evaluator)."""
@@ -37,7 +43,22 @@ class TrajectoryProblem(CachedProblem):
         """The objective of one knob setting's traces."""
         train = evaluate(self.train, traces).total
         holdout = evaluate(self.holdout, traces).total if self.holdout is not None else None
-        return Evaluation(train, holdout, residuals(self.train, traces))
+        return Evaluation(train, holdout, residuals(self.train, traces), simulated=traces)
+
+    def keep(self, key: tuple[float, ...], point: Point, simulated: Any) -> None:
+        if simulated is None:
+            return
+        for slot, value in (("objective", point.train), ("residual", residual_norm(point)), ("last", 0.0)):
+            held = self._kept.get(slot)
+            if slot == "last" or held is None or value < held[0]:
+                self._kept[slot] = (value, key, simulated)
+
+    def traces_at(self, u: Sequence[float]) -> Traces | None:
+        """The traces simulated at ``u`` if they were kept (see ``_kept``), else None."""
+        key = tuple(min(1.0, max(0.0, float(x))) for x in u)
+        if key in self._remembered:
+            return self._remembered[key]
+        return next((traces for _, k, traces in self._kept.values() if k == key), None)
 
     def remember(self, u: Sequence[float], traces: Traces) -> Point:
         """The point ``u`` from traces already simulated there (a suite run this alignment wrote), counted as
@@ -46,6 +67,7 @@ class TrajectoryProblem(CachedProblem):
         if key not in self._cache:
             self.evaluations += 1
             self._cache[key] = self._score(list(key), self.score(traces))
+            self._remembered[key] = traces
         return self._cache[key]
 
     def residual_blocks(self) -> list[ResidualBlock]:

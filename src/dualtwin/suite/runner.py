@@ -247,8 +247,17 @@ class SuiteRun:
             "model": {"path": str(model), "sha256": sha256_file(model)},
         }
 
-    def run(self, resume: bool = False, on_scenario: Callable[[str, str], None] | None = None) -> dict[str, Any]:
+    def run(self, resume: bool = False, on_scenario: Callable[[str, str], None] | None = None,
+            replay: Mapping[str, ScenarioLogs] | None = None) -> dict[str, Any]:
+        """Simulate every scenario (or, with ``resume``, those an interrupted run left) and write the run.
+
+        ``replay`` (scenario id -> its logs, for every scenario of the suite) writes logs already simulated
+        on this twin with the same knobs, suite and seed (an alignment's best candidate, simulated in memory)
+        instead of simulating them again: the files are those a simulation writes, byte for byte.
+        """
         out = self.out_dir
+        if replay is not None and not set(self.suite.scenario_ids()) <= set(replay):
+            raise ValueError(f"replay lacks scenarios {sorted(set(self.suite.scenario_ids()) - set(replay))}")
         manifest_path = out / "manifest.json"
         inputs = self._inputs_record()
         done: dict[str, dict[str, Any]] = {}
@@ -314,7 +323,8 @@ class SuiteRun:
                     if on_scenario:
                         on_scenario(sid, "skipped (done)")
                     continue
-                result, onboard, truth = run_scenario(io, scenario, seed, thresholds, fresh)
+                result, onboard, truth = (replay[sid] if replay is not None
+                                          else run_scenario(io, scenario, seed, thresholds, fresh))
                 # An unstable end state cannot be continued from: the next scenario starts fresh.
                 need_fresh = result.status == "unstable"
                 if sid not in done:
