@@ -8,7 +8,9 @@ Goals: ``align --budget 4`` on the CartPole <= 3 CPU-seconds in total; the arm's
 CPU time, not wall time: the machine may be shared. The command runs with ``--executor serial``, so every
 simulation is in the measured process (a process pool's workers are the fork server's children, and their
 time is lost when it exits before reaping them); the default executor's figure is printed beside it. Each
-figure is the best of ``--runs`` runs. The command, as a user types it::
+figure is the best of ``--runs`` runs, with their median beside it. Several source folders are measured in
+turns (one run of each, then the next round), so a change of the machine's load falls on all of them alike
+rather than on whichever was measured last. The command, as a user types it::
 
     dualtwin align --reference webots --target mujoco --robot cartpole --scenarios cartpole \\
         --knobs 'joint.pole_hinge.*' --budget 4 --out OUT
@@ -28,6 +30,7 @@ import argparse
 import os
 import resource
 import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -65,23 +68,38 @@ def main() -> dict[str, float]:
     parser.add_argument("--arm", action="store_true", help="also the arm's report size (minutes)")
     parser.add_argument("--runs", type=int, default=2, help="runs per figure (the best counts)")
     ns = parser.parse_args()
+    sources = [src.resolve() for src in ns.sources or [ROOT / "src"]]
     out: dict[str, float] = {}
-    for src in ns.sources or [ROOT / "src"]:
-        with tempfile.TemporaryDirectory() as pycache:
-            out.update(measure(src.resolve(), Path(pycache), ns.runs, ns.arm))
+    with tempfile.TemporaryDirectory() as caches:
+        pycache = {src: Path(caches) / str(i) for i, src in enumerate(sources)}
+        for src in sources:
+            align_cpu(src, CARTPOLE, "serial", pycache[src])  # warm-up: compiles the bytecode
+        serial = in_turns(sources, pycache, "serial", ns.runs)
+        pooled = in_turns(sources, pycache, "process", ns.runs)
+        for src in sources:
+            out.update(report(src, pycache[src], serial[src], pooled[src], ns.arm))
     return out
 
 
-def measure(src: Path, pycache: Path, runs: int, arm: bool) -> dict[str, float]:
-    """One source folder's figures (bytecode compiled into ``pycache`` by a warm-up run first)."""
+def in_turns(sources: list[Path], pycache: dict[Path, Path], executor: str,
+             runs: int) -> dict[Path, list[tuple[float, int]]]:
+    """``runs`` runs of each source folder, one of each per round."""
+    out: dict[Path, list[tuple[float, int]]] = {src: [] for src in sources}
+    for _ in range(runs):
+        for src in sources:
+            out[src].append(align_cpu(src, CARTPOLE, executor, pycache[src]))
+    return out
+
+
+def report(src: Path, pycache: Path, serial_runs: list[tuple[float, int]], pooled_runs: list[tuple[float, int]],
+           arm: bool) -> dict[str, float]:
+    """Print and return one source folder's figures (the best run's, and the median CPU beside it)."""
     out: dict[str, float] = {}
-    align_cpu(src, CARTPOLE, "serial", pycache)  # warm-up: compiles the bytecode
-    serial = min(align_cpu(src, CARTPOLE, "serial", pycache) for _ in range(runs))
-    pooled = min(align_cpu(src, CARTPOLE, "process", pycache) for _ in range(runs))
+    serial, pooled = min(serial_runs), min(pooled_runs)
     load = os.getloadavg()[0]
     print(f"{src} (load {load:.1f} on {os.cpu_count()} cores):")
     print(f"  align --budget 4, CartPole, serial executor   {serial[0]:6.2f} CPU-s (goal <= {CPU_GOAL_S:g})  "
-          f"report {serial[1] / 1000:7.1f} kB")
+          f"report {serial[1] / 1000:7.1f} kB  (median {statistics.median(c for c, _ in serial_runs):.2f})")
     print(f"  align --budget 4, CartPole, process pool      {pooled[0]:6.2f} CPU-s (workers' time may be missing)")
     out.update({f"{src}:cartpole_cpu_s": serial[0], f"{src}:cartpole_pool_cpu_s": pooled[0],
                 f"{src}:cartpole_report_bytes": serial[1]})
