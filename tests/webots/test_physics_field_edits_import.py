@@ -9,6 +9,8 @@ forces do nothing, it does not move."""
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from dualtwin.webots import load_world_text
@@ -131,3 +133,49 @@ def test_a_physics_node_imported_inside_a_robot_is_refused_with_a_warning() -> N
     with pytest.warns(UserWarning, match="inside a Robot is not supported"):
         part.getField("physics").importSFNodeFromString("Physics { }")
     assert _kick(sup, "PART") == (0.0, 0.0)
+
+
+CHAIN_WORLD = f"""#VRML_SIM R2023b utf8
+WorldInfo {{ basicTimeStep {TS} }}
+DEF BASE Solid {{
+  translation 0 0 1
+  children [
+    HingeJoint {{
+      jointParameters HingeJointParameters {{ axis 0 1 0 }}
+      endPoint DEF ARM Solid {{
+        translation 0.5 0 0
+        boundingObject Sphere {{ radius 0.05 }}
+        physics Physics {{ }}
+        children [
+          HingeJoint {{
+            jointParameters HingeJointParameters {{ axis 0 1 0 }}
+            endPoint DEF TIP Solid {{ name "tip" translation 0.2 0 0 boundingObject Sphere {{ radius 0.02 }}
+                                     physics Physics {{ }} }}
+          }}
+        ]
+      }}
+    }}
+  ]
+}}
+Robot {{ supervisor TRUE }}
+"""
+
+
+def test_removing_the_physics_of_a_swinging_arm_stops_it_where_it_is_its_own_jointed_child_swings_on() -> None:
+    sup = Supervisor(simulation=Simulation(load_world_text(CHAIN_WORLD)))
+    arm, tip = sup.getFromDef("ARM"), sup.getFromDef("TIP")
+    for _ in range(50):
+        sup.step(TS)
+    stopped = arm.getPosition()
+    assert stopped[2] < 0.95  # control: the arm swings down
+    arm.getField("physics").removeSF()
+    tip_before = tip.getPosition()
+    for _ in range(50):
+        sup.step(TS)
+    assert arm.getPosition() == pytest.approx(stopped, abs=1e-12)  # static where it was
+    assert tip.getPosition()[2] < tip_before[2] - 0.01  # the tip falls on...
+    assert math.dist(tip.getPosition(), stopped) == pytest.approx(0.2, abs=1e-3)  # ...held by its hinge
+    sup.simulationReset()  # the removed Physics stays removed; the fields go back to the load's
+    sup.step(TS)
+    assert arm.getPosition() == pytest.approx([0.5, 0.0, 1.0], abs=1e-9)
+    assert tip.getPosition() == pytest.approx([0.7, 0.0, 1.0], abs=1e-6)

@@ -299,20 +299,29 @@ class SceneChanges(Stepper):
         chain = self._chain_to(solid_node)
         if chain is None:
             return
-        for s in subtree:  # the fields of moving Solids are only refreshed lazily: where they are now
-            local = self.solid_local_pose(s)
-            s.node.fields["translation"] = local.t
-            s.node.fields["rotation"] = m3.axis_angle_from_mat(local.R)
-        for joint in self.joints:
-            if joint.parent is not None and id(joint.parent) in inside:
-                for p, position in zip(joint.params, joint.positions, strict=False):
-                    if p is not None:
-                        p.fields["position"] = position
+        # Before the first step, and during a reset, the fields hold where everything is (at load); after it,
+        # the fields of moving Solids are only refreshed lazily: they are set to where the Solids are now, and
+        # the rebuilt Solids and bodies keep their load poses (a reset puts them back there).
+        running = self.step_count > 0
+        if running:
+            for s in subtree:
+                local = self.solid_local_pose(s)
+                s.node.fields["translation"] = local.t
+                s.node.fields["rotation"] = m3.axis_angle_from_mat(local.R)
+            for joint in self.joints:
+                if joint.parent is not None and id(joint.parent) in inside:
+                    for p, position in zip(joint.params, joint.positions, strict=False):
+                        if p is not None:
+                            p.fields["position"] = position
         load_rels = {id(s.node): s.load_rel for s in subtree}
         self.remove_nodes(solid_node)
-        for s in self.add_nodes(solid_node, chain[:-1]):
-            if s.body is None and id(s.node) in load_rels:
-                s.load_rel = load_rels[id(s.node)]  # a reset puts a static Solid back where it was at load
+        rebuilt = self.add_nodes(solid_node, chain[:-1])
+        if running:
+            for s in rebuilt:
+                s.load_rel = load_rels.get(id(s.node), s.load_rel)
+            for body in {id(s.body): s.body for s in rebuilt if s.body is not None and s.body.root is s}.values():
+                world = self.world_pose_at_load(body.root)
+                body.load_R, body.load_pos = world.R, world.apply(body.com)
 
     def _chain_to(self, target: Node) -> list[Node] | None:
         """The nodes from a top-level node of the world down to ``target`` (inclusive)."""
