@@ -19,6 +19,7 @@ import pytest
 from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Supervisor
 from dualtwin.webots.physics import Simulation
+from tests.support.kicks import kick, supervisor_in
 
 TS = 4
 H = TS / 1000
@@ -26,25 +27,11 @@ CUBE = "Pose { translation 0.1 0 0 children [ Box { size 0.2 0.2 0.2 } ] }"
 
 
 def _supervisor(physics: str) -> Supervisor:
-    world = f"""#VRML_SIM R2023b utf8
-WorldInfo {{ basicTimeStep {TS} gravity 0 }}
-DEF BODY Solid {{ translation 0 0 1 name "body" physics Physics {{ {physics} }} }}
-Robot {{ supervisor TRUE }}
-"""
-    sup = Supervisor(simulation=Simulation(load_world_text(world)))
-    sup.step(TS)
-    return sup
+    return supervisor_in(f'DEF BODY Solid {{ translation 0 0 1 name "body" physics Physics {{ {physics} }} }}', TS)
 
 
 def _kick(sup: Supervisor) -> tuple[float, float]:
-    """The speed along x and the spin about z one step of a 1 N force and a 0.01 N·m torque add."""
-    body = sup.getFromDef("BODY")
-    before = body.getVelocity()
-    body.addForce([1.0, 0.0, 0.0], False)
-    body.addTorque([0.0, 0.0, 0.01], False)
-    sup.step(TS)
-    after = body.getVelocity()
-    return after[0] - before[0], after[5] - before[5]
+    return kick(sup, TS)
 
 
 @pytest.mark.parametrize(

@@ -16,32 +16,19 @@ import pytest
 from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Supervisor
 from dualtwin.webots.physics import Simulation
+from tests.support.kicks import TORQUE, kick, supervisor_in
 
 TS = 4
 H = TS / 1000
-TAU = 0.01
+TAU = TORQUE  # N·m about z, with a 1 N force along x: the kick of tests.support.kicks
 
 
 def _supervisor(solid_body: str, gravity: float = 0.0) -> Supervisor:
-    world = f"""#VRML_SIM R2023b utf8
-WorldInfo {{ basicTimeStep {TS} gravity {gravity} }}
-DEF BODY Solid {{ translation 0 0 1 name "body" {solid_body} }}
-Robot {{ supervisor TRUE }}
-"""
-    sup = Supervisor(simulation=Simulation(load_world_text(world)))
-    sup.step(TS)
-    return sup
+    return supervisor_in(f'DEF BODY Solid {{ translation 0 0 1 name "body" {solid_body} }}', TS, gravity)
 
 
 def _kick(sup: Supervisor) -> tuple[float, float]:
-    """The x speed and z spin one step of a 1 N force along x and a 0.01 N·m torque about z add."""
-    body = sup.getFromDef("BODY")
-    before = body.getVelocity()
-    body.addForce([1.0, 0.0, 0.0], False)
-    body.addTorque([0.0, 0.0, TAU], False)
-    sup.step(TS)
-    after = body.getVelocity()
-    return after[0] - before[0], after[5] - before[5]
+    return kick(sup, TS)
 
 
 def _box(m: float, x: float, y: float) -> float:

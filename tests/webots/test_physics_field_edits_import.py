@@ -16,32 +16,20 @@ import pytest
 from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Supervisor
 from dualtwin.webots.physics import Simulation
+from tests.support.kicks import TORQUE, kick, supervisor_in
 
 TS = 4
 H = TS / 1000
-TAU = 0.01
+TAU = TORQUE  # N·m about z, with a 1 N force along x: the kick of tests.support.kicks
 CUBE_IZZ = 8 * 0.08 / 12
 
 
 def _supervisor(world_body: str) -> Supervisor:
-    world = f"""#VRML_SIM R2023b utf8
-WorldInfo {{ basicTimeStep {TS} gravity 0 }}
-{world_body}
-Robot {{ supervisor TRUE }}
-"""
-    sup = Supervisor(simulation=Simulation(load_world_text(world)))
-    sup.step(TS)
-    return sup
+    return supervisor_in(world_body, TS)
 
 
 def _kick(sup: Supervisor, name: str) -> tuple[float, float]:
-    body = sup.getFromDef(name)
-    before = body.getVelocity()
-    body.addForce([1.0, 0.0, 0.0], False)
-    body.addTorque([0.0, 0.0, TAU], False)
-    sup.step(TS)
-    after = body.getVelocity()
-    return after[0] - before[0], after[5] - before[5]
+    return kick(sup, TS, name)
 
 
 def test_a_physics_node_imported_into_a_static_solid_makes_it_a_body_and_removing_it_makes_it_static() -> None:
