@@ -77,8 +77,13 @@ REGISTRY: tuple[Coverage, ...] = (
              "controllers do not run; battery drained by cpuConsumption and motor consumptionFactor × |torque| "
              "(no Charger recharge; an empty battery stops nothing)"),
     Coverage("Group", "scene", "supported", "children expanded"),
-    Coverage("Pose", "scene", "supported", "frames of children and bounding objects"),
-    Coverage("Transform", "scene", "partial", "scale honoured inside boundingObjects only (warning elsewhere)"),
+    Coverage("Pose", "scene", "supported",
+             "frames of children and bounding objects; a supervisor's translation/rotation edit of one inside "
+             "boundingObjects (or of a DEF of it they USE) moves their geoms at the next step, each in its own "
+             "Solid's frame, and a body's mass and centre of mass follow (the Solid stays put)"),
+    Coverage("Transform", "scene", "partial",
+             "scale honoured inside boundingObjects only (warning elsewhere); inside them a supervisor's "
+             "translation/rotation/scale edit moves and resizes their geoms at the next step as a Pose's does"),
     Coverage("Slot", "scene", "supported",
              "its endPoint is placed as a child; a Slot pair as a joint endPoint passes the joint through"),
     Coverage("Billboard", "scene", "visual", "a view-facing group; no physics"),
@@ -94,7 +99,10 @@ REGISTRY: tuple[Coverage, ...] = (
              "the centre of mass moved); a Physics node imported into a Solid without one makes it a body by the "
              "load's rules where it is now (its own, merged into its parent's, or jointed as a joint's endPoint), "
              "its removal makes the Solid static where it is (not yet inside a Robot: a warning)"),
-    Coverage("Damping", "physics", "supported", "linear and angular, converted per step as Webots does"),
+    Coverage("Damping", "physics", "supported",
+             "linear and angular, converted per step as Webots does; a supervisor's edit of them, or a Damping "
+             "node imported into or removed from Physics.damping or WorldInfo.defaultDamping, sets the bodies' "
+             "damping again at the next step (both 0 or none: the world's default)"),
     Coverage("ContactProperties", "physics", "partial",
              "material pairs, Coulomb friction, bounce, soft ERP/CFM follow Webots; asymmetric friction (2-4 "
              "values: fdir1 from material1's Box/Plane/Cylinder turned by frictionRotation, mu/mu2 combined with "

@@ -230,7 +230,8 @@ class SupervisorEdits(MassEdits):
         Webots reacts to field edits at run time (WbJoint/WbMotor/WbPhysics/WbContactProperties update
         their ODE objects). Supported: joint ``dampingConstant``/``springConstant``/``staticFriction``,
         motor ``maxVelocity``/``maxTorque``/``maxForce``, ``Physics`` ``mass``/``density``/``centerOfMass``/
-        ``inertiaMatrix`` (the body's mass properties summed again as at load, :mod:`.mass_edits`),
+        ``inertiaMatrix`` (the body's mass properties summed again as at load, :mod:`.mass_edits`), a
+        ``Damping`` node's ``linear``/``angular`` (bodies and, for ``WorldInfo.defaultDamping``, the world),
         ``ContactProperties`` friction/bounce/soft ERP/CFM, ``WorldInfo`` ERP/CFM, and the dimensions of
         bounding geometries (:mod:`.geometry_edits`; the mass properties of a body they bound follow).
         Returns False for fields whose edit has no physics effect here.
@@ -270,6 +271,8 @@ class SupervisorEdits(MassEdits):
             return False
         if node.type_name == "Physics" and name in MASS_FIELDS:
             return self._apply_physics_mass(node, name)
+        if node.type_name == "Damping" and name in ("linear", "angular"):
+            return self._apply_damping(node, name)
         if node.type_name == "ContactProperties":
             self._surfaces.pop(id(node), None)
             return True

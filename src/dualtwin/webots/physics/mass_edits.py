@@ -12,6 +12,10 @@ body's mass is summed again from its Solids' current fields (:meth:`MassEdits._r
 they are, the body's origin (ODE's centre of mass) moves to the new centre of mass with that point's velocity,
 and the joints on the body are anchored again where the Solids are now. A DEF Physics node shared by USE is
 one node in Webots: an edit reaches every Solid using it.
+
+A body's damping (§1.4: its Solids' ``Damping`` nodes weighted by volume, else the world's
+``WorldInfo.defaultDamping``) is set again in the same way when a Damping node's field is edited or a Damping
+node comes or goes (:meth:`MassEdits._refresh_damping`), as Webots re-applies it to ODE at once.
 """
 
 from __future__ import annotations
@@ -23,7 +27,8 @@ from dualtwin.webots._math3 import Pose
 from dualtwin.webots.mass_rules import rot_matrix
 from dualtwin.webots.nodes import Node, copy_value
 from dualtwin.webots.physics.geometry_edits import GeometryEdits
-from dualtwin.webots.physics.records import BodyRec
+from dualtwin.webots.physics.records import BodyRec, damping_per_step
+from dualtwin.webots.physics.records import field_or as _f
 
 __all__ = ["MASS_FIELDS", "MassEdits"]
 
@@ -62,6 +67,33 @@ class MassEdits(GeometryEdits):
                     self._remass(body)
                     break
         return applied
+
+    def _apply_damping(self, node: Node, name: str) -> bool:
+        """A ``Damping`` node's ``linear`` or ``angular`` was edited (or a Damping node came or went): copy the
+        value to its DEF/USE copies and set the damping of the world and of every body again (§1.4)."""
+        if name:
+            value = node.fields.get(name)
+            for other in self.linked_nodes(node)[1:]:
+                other.fields[name] = copy_value(value)
+        self._refresh_damping()
+        return True
+
+    def _refresh_damping(self) -> None:
+        """Set the world's damping from ``WorldInfo.defaultDamping`` and every body's from its Solids' Damping
+        nodes (§1.4, as the load does): ODE copies the world's values into a body only when told
+        (``dBodySetDampingDefaults``), so the bodies falling back to them are set again too."""
+        info = self.world.world_info()
+        default = info.fields.get("defaultDamping") if info is not None else None
+        self.world_damping = (
+            (damping_per_step(float(_f(default, "linear", 0.2)), self.dt),
+             damping_per_step(float(_f(default, "angular", 0.2)), self.dt))
+            if isinstance(default, Node) else (0.0, 0.0)
+        )  # fmt: skip
+        self._lib.dWorldSetDamping(self._world, *self.world_damping)
+        for body in self.bodies:
+            if not body.removed:
+                weights = [(m.volume, _f(m.node.fields.get("physics"), "damping", None)) for m in body.members]
+                self._set_damping(body, weights)
 
     def _remass(self, body: BodyRec) -> None:
         """Sum the mass of a body whose merged Solids or their mass sources changed (§3.2, §3.3) and set it: the

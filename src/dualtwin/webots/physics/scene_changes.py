@@ -17,7 +17,9 @@ position sensor then act on it. Its removal leaves the joint (and its devices) w
 SolidReference imported there closes a loop as at load (§10) and its removal opens it again. A
 boundingObject imported or removed on its own rebuilds its Solid's geoms and, as the mass of a Solid with
 Physics comes from its boundingObject (§3.2), sums its body's mass again
-(:meth:`SceneChanges.bounding_object_changed`).
+(:meth:`SceneChanges.bounding_object_changed`). The same happens when a supervisor moves (or, a Transform,
+scales) a frame inside a boundingObject: Webots moves the geoms to the new offset from the Solid at the next
+step, and on a body the mass distribution follows.
 
 Removed bodies are disabled and detached from every joint rather than destroyed, so the per-body indices and
 the live views into ODE memory that the stepping keeps stay valid; they are skipped by resets.
@@ -29,7 +31,7 @@ from collections.abc import Iterable
 
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots._math3 import Pose
-from dualtwin.webots.nodes import Node
+from dualtwin.webots.nodes import Node, copy_value
 from dualtwin.webots.physics.geometry_edits import _WAKE_MARGIN
 from dualtwin.webots.physics.records import (
     JOINT_TYPES,
@@ -102,6 +104,9 @@ class SceneChanges(Stepper):
         has body-less geoms (inside a robot they follow it every step). Everything is placed where the parent
         Solid is now, not where it was at load."""
         chain = list(ancestors)
+        if top.type_name == "Damping":  # into a Physics node's or WorldInfo's damping field
+            self._apply_damping(top, "")
+            return []
         if top.type_name == "Physics" and chain and chain[-1] is not None and is_solid(chain[-1]):
             self.physics_changed(chain[-1])  # a Physics imported into a Solid's empty physics field
             return []
@@ -177,6 +182,9 @@ class SceneChanges(Stepper):
 
     def remove_nodes(self, top: Node) -> None:
         """Take every Solid of the subtree ``top`` out of the physics (no-op for nodes that have none)."""
+        if top.type_name == "Damping":  # out of a Physics node's or WorldInfo's damping field
+            self._apply_damping(top, "")
+            return
         if top.type_name == "Physics":  # taken out of a Solid's physics field: that Solid has a body still
             for solid in [s for s in self.solids if s.body is not None and s in s.body.members
                           and not isinstance(s.node.fields.get("physics"), Node)]:  # fmt: skip
@@ -322,6 +330,32 @@ class SceneChanges(Stepper):
             for body in {id(s.body): s.body for s in rebuilt if s.body is not None and s.body.root is s}.values():
                 world = self.world_pose_at_load(body.root)
                 body.load_R, body.load_pos = world.R, world.apply(body.com)
+
+    def _apply_field(self, node: Node, name: str) -> bool:
+        if node.type_name in ("Pose", "Transform") and name in ("translation", "rotation", "scale"):
+            return self._bounding_frame_changed(node, name)
+        return super()._apply_field(node, name)
+
+    def _bounding_frame_changed(self, node: Node, name: str) -> bool:
+        """A Pose or Transform inside boundingObjects moved (or, a Transform, was scaled): the geoms of every
+        Solid bounded by it or by one of its DEF/USE copies are built again where the new frame puts them and
+        their bodies' mass summed again (:meth:`bounding_object_changed`), as Webots moves the geoms at the next
+        step. False when no boundingObject holds it (a Pose among a Solid's children has no physics here)."""
+        linked = self.linked_nodes(node)
+        ids = {id(n) for n in linked}
+        bounded = []
+        for solid in self.solids:
+            bounds = solid.node.fields.get("boundingObject")
+            if isinstance(bounds, Node) and any(id(n) in ids for n in bounds.walk()):
+                bounded.append(solid)
+        if not bounded:
+            return False
+        value = node.fields.get(name)
+        for other in linked[1:]:
+            other.fields[name] = copy_value(value)
+        for solid in bounded:
+            self.bounding_object_changed(solid.node)
+        return True
 
     def _chain_to(self, target: Node) -> list[Node] | None:
         """The nodes from a top-level node of the world down to ``target`` (inclusive)."""
