@@ -174,3 +174,25 @@ def test_a_visual_pose_edited_moves_the_boundingObject_that_uses_it() -> None:
     assert _read(sup)[0] == pytest.approx(0.9, abs=1e-9)
     sup.getFromDef("BP").getField("translation").setSFVec3f([-0.5, 0.0, 0.0])
     assert _read(sup)[0] == pytest.approx(0.4, abs=1e-9)
+
+
+def test_a_resting_body_whose_bounding_pose_is_raised_wakes_and_settles_that_much_lower() -> None:
+    # a 0.2 m cube resting on the floor (asleep after 4 s); its bounding frame raised 0.1 m above the Solid: the
+    # Solid stays where it is at the edit, then falls 0.1 m until the box is on the floor again
+    sup = _supervisor(
+        'Solid { boundingObject Plane { size 10 10 } } DEF BODY Solid { translation 0 0 0.1 name "body" '
+        "boundingObject DEF BP Pose { children [ Box { size 0.2 0.2 0.2 } ] } physics Physics { } }",
+        gravity=9.81,
+    )
+    body = sup.getFromDef("BODY")
+    for _ in range(int(4.0 / H)):
+        sup.step(TS)
+    rest = body.getPosition()[2]
+    assert rest == pytest.approx(0.1, abs=1e-3)
+    sup.getFromDef("BP").getField("translation").setSFVec3f([0.0, 0.0, 0.1])
+    sup.step(TS)
+    assert body.getPosition()[2] == pytest.approx(rest, abs=1e-4)
+    for _ in range(int(1.0 / H)):
+        sup.step(TS)
+    assert body.getPosition()[2] == pytest.approx(rest - 0.1, abs=1e-4)
+    assert body.getCenterOfMass()[2] == pytest.approx(rest, abs=1e-4)
