@@ -78,3 +78,16 @@ def test_a_reset_gives_the_body_its_load_damping_again() -> None:
     sup.simulationReset()
     sup.step(TS)
     assert _decay(sup) == pytest.approx((_kept(0.5), _kept(0.2)), rel=1e-9)
+
+
+def test_a_shared_damping_node_edited_damps_every_body_using_it() -> None:
+    sup = supervisor_in("DEF BODY Solid { boundingObject Sphere { radius 0.1 } physics DEF P Physics { damping "
+                        'DEF D Damping { linear 0.5 } } } DEF OTHER Solid { translation 1 0 0 name "other" '
+                        "boundingObject Sphere { radius 0.1 } physics USE P }", TS)  # fmt: skip
+    sup.getFromDef("D").getField("linear").setSFFloat(0.9)
+    bodies = [sup.getFromDef(name) for name in ("BODY", "OTHER")]
+    for body in bodies:
+        body.setVelocity([1.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    for _ in range(N):
+        sup.step(TS)
+    assert [body.getVelocity()[0] for body in bodies] == pytest.approx([_kept(0.9)] * 2, rel=1e-9)
