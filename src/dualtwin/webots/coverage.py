@@ -323,8 +323,13 @@ def render_markdown() -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Write the page to ``docs/webots-coverage.md`` of the checkout (or the path given)."""
-    args = sys.argv[1:] if argv is None else argv
-    target = Path(args[0]) if args else Path(__file__).resolve().parents[3] / "docs" / "webots-coverage.md"
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="python -m dualtwin.webots.coverage", description=main.__doc__)
+    parser.add_argument("target", nargs="?", type=Path,
+                        default=Path(__file__).resolve().parents[3] / "docs" / "webots-coverage.md",
+                        help="where to write the page (default: docs/webots-coverage.md of this checkout)")
+    target = parser.parse_args(sys.argv[1:] if argv is None else argv).target
     target.write_text(render_markdown(), encoding="utf-8")
     print(f"wrote {target}")
     return 0
