@@ -25,8 +25,8 @@ What follows Webots (``camera.c`` and ``camera.py`` of its controller library, a
   the size and averages 2×2 blocks.
 
 Decisions: an image is rendered lazily, at the first ``getImage`` after a sample became due (a camera that is
-enabled but never read costs nothing); the scene is built once per simulation, so nodes a supervisor adds
-later are not drawn. Not simulated: spherical and cylindrical projections (drawn planar, with a warning),
+enabled but never read costs nothing); the scene is built at the first frame and again after a supervisor changed the
+scene tree (nodes imported or removed, a Pose among a Solid's children moved, a geometry resized). Not simulated: spherical and cylindrical projections (drawn planar, with a warning),
 exposure, lens distortion, motion blur, bloom, ambient occlusion, textures (a Shape is drawn in its flat
 ``baseColor``/``diffuseColor``), the Background colour (MuJoCo's clear colour) and Recognition.
 """
@@ -97,13 +97,16 @@ class _RootView:
 
 
 def _visual_scene(robot: Any) -> Any:
-    """The simulation's visual scene, built at the first camera frame and shared by every camera."""
+    """The simulation's visual scene, built at the first camera frame and shared by every camera; built again
+    from the scene tree when a supervisor changed it (the geometry version moved: nodes imported or removed,
+    a frame among a Solid's children moved, a geometry resized)."""
     sim = robot._sim
     scene = sim.extensions.get("visual_scene")
-    if scene is None:
+    if scene is None or scene.geometry_version != sim.geometry_version:
         from dualtwin.webots.visual_scene import WebotsVisualScene
 
         scene = sim.extensions["visual_scene"] = WebotsVisualScene(_RootView(robot), allow_empty=True)
+        scene.geometry_version = sim.geometry_version
     return scene
 
 
@@ -132,9 +135,12 @@ class Camera(SolidSensor):
         m = self._model()
         scene = _visual_scene(self._robot)
         renderer = getattr(self, "_renderer", None)
-        if renderer is None:
+        if renderer is None or getattr(self, "_drawn", None) is not scene:  # a first frame, or a scene rebuilt
+            if renderer is not None:
+                renderer.close()
             renderer = self._renderer = FrameRenderer(scene.model, m.width, m.height,
                                                       supersample=2 if m.anti_aliasing else 1)
+            self._drawn = scene
         scene.sync()
         pose = self._pose()
         R = np.asarray(pose.R, dtype=float).reshape(3, 3)

@@ -80,10 +80,15 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Pose", "scene", "supported",
              "frames of children and bounding objects; a supervisor's translation/rotation edit of one inside "
              "boundingObjects (or of a DEF of it they USE) moves their geoms at the next step, each in its own "
-             "Solid's frame, and a body's mass and centre of mass follow (the Solid stays put)"),
+             "Solid's frame, and a body's mass and centre of mass follow (the Solid stays put); among a Solid's "
+             "children such an edit moves everything below it at the next step: devices (their readings), the "
+             "Shapes that rays and cameras see, merged Solids (their body's mass follows), Solids with bodies "
+             "of their own and joints (moved with their subtrees); DEF/USE copies move together"),
     Coverage("Transform", "scene", "partial",
              "scale honoured inside boundingObjects only (warning elsewhere); inside them a supervisor's "
-             "translation/rotation/scale edit moves and resizes their geoms at the next step as a Pose's does"),
+             "translation/rotation/scale edit moves and resizes their geoms at the next step as a Pose's does; "
+             "among a Solid's children a translation/rotation edit moves what is below it as a Pose's does "
+             "(scale: the Shapes seen by rays and cameras only)"),
     Coverage("Slot", "scene", "supported",
              "its endPoint is placed as a child; a Slot pair as a joint endPoint passes the joint through"),
     Coverage("Billboard", "scene", "visual", "a view-facing group; no physics"),
@@ -227,8 +232,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "planar BGRA image of the world's Shapes in their flat colours, drawn headless by the MuJoCo "
              "renderer from the camera's frame: width, height, fieldOfView, near, far, noise, antiAliasing, "
              "sampling, getImageArray, imageGet*, saveImage (PNG/JPEG); no textures, Background colour, "
-             "exposure, lens, motion blur or spherical/cylindrical projection (drawn planar); nodes a "
-             "supervisor adds after the first frame are not drawn"),
+             "exposure, lens, motion blur or spherical/cylindrical projection (drawn planar); the scene is "
+             "drawn again after a supervisor changed it (nodes imported or removed, a Pose moved)"),
     Coverage("Recognition", "device", "not", "not yet (Camera)"),
     Coverage("Lens", "device", "not", "not yet (Camera)"),
     Coverage("LensFlare", "device", "not", "not yet (Camera)"),

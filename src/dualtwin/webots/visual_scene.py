@@ -86,6 +86,7 @@ class WebotsVisualScene:
         self.spec = mujoco.MjSpec()
         self.spec.compiler.degree = False
         self.warnings: list[str] = []
+        self.geometry_version: int | None = None  # the simulation's, when its owner built it (camera.py)
         self._solids: list[tuple[Any, str]] = []
         self._cameras: dict[str, Any] = {}
         self._viewpoint: Any = None

@@ -79,6 +79,7 @@ from dualtwin.errors import SimulationUnstable
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots import ode
 from dualtwin.webots.nodes import Node, World
+from dualtwin.webots.physics.frame_edits import FrameEdits
 from dualtwin.webots.physics.records import (
     ATTACHMENT_TYPES,
     JOINT_TYPES,
@@ -98,7 +99,6 @@ from dualtwin.webots.physics.records import (
     damping_per_step,
 )
 from dualtwin.webots.physics.records import field_or as _f
-from dualtwin.webots.physics.scene_changes import SceneChanges
 
 __all__ = [
     "Simulation",
@@ -121,7 +121,7 @@ __all__ = [
 ]
 
 
-class Simulation(SceneChanges):
+class Simulation(FrameEdits):
     """A Webots world simulated on ODE with Webots' stepping semantics.
 
     Args:

@@ -1,0 +1,215 @@
+"""Supervisor edits of the frames among a Solid's children: a ``Pose`` or ``Transform`` moved (``translation``,
+``rotation``; a Transform's ``scale``) while the simulation runs.
+
+In Webots such a frame carries everything below it, and the move shows at the next step: the Solid-derived
+devices under it (their readings come from their Solids' poses), the Shapes that cameras, infra-red distance
+sensors and lidars see, the joints and Propellers it holds, and the Solids below it with their subtrees. Every
+frame cached under the edited node (a Solid's ``pre`` frame, a joint's or a Propeller's ``frame_rel``) is
+computed again from the scene tree, as the load computed it (:meth:`SceneBuilder._walk_children`), and what
+hangs on it follows:
+
+* a Solid without a body of its own (static, or a device on a robot without Physics) moves with its subtree;
+  its body-less geoms are placed again;
+* a Solid merged into its parent's body (§3.3) takes its new place in that body: the body's mass and centre
+  of mass are summed again (:meth:`MassEdits._remass`, the root Solid stays put) and its geoms move on the
+  body;
+* a Solid with a body of its own (fixed to its parent, or a joint's endPoint) is moved with its subtree as a
+  supervisor edit of that Solid's ``translation``/``rotation`` would move it, the joints crossing its subtree's
+  border anchored again.
+
+The Shapes are drawn and ray-cast from the fields at their next use (the geometry version changes). DEF/USE
+copies of the frame are one node in Webots: they move together. A reset restores the fields and applies the
+edit again, which puts every frame back where the load had it.
+
+A Transform's ``scale`` is applied to the Shapes seen by rays; the load ignores it for Solids (with a warning),
+so the Solids below a scaled Transform are placed without it here too.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator
+
+from dualtwin.webots._math3 import Pose
+from dualtwin.webots.mass_rules import rot_matrix
+from dualtwin.webots.nodes import Node, copy_value
+from dualtwin.webots.physics.records import (
+    ATTACHMENT_TYPES,
+    JOINT_TYPES,
+    BodyRec,
+    SolidRec,
+    field_or,
+    is_solid,
+)
+from dualtwin.webots.physics.scene_changes import SceneChanges
+
+__all__ = ["FrameEdits", "FRAME_FIELDS"]
+
+FRAME_FIELDS = ("translation", "rotation", "scale")
+
+
+class FrameEdits(SceneChanges):
+    """Frames among a Solid's children moved by a supervisor (see the module docstring)."""
+
+    def _apply_field(self, node: Node, name: str) -> bool:
+        bounded = super()._apply_field(node, name)  # the frame may sit in boundingObjects (scene_changes)
+        if node.type_name in ("Pose", "Transform") and name in FRAME_FIELDS:
+            return self._children_frame_changed(node, name) or bounded
+        return bounded
+
+    def _children_frame_changed(self, node: Node, name: str) -> bool:
+        """``node`` (a Pose or Transform) moved: every record below it or below one of its DEF/USE copies among
+        Solids' children is placed again. False when no Solid's children hold it."""
+        linked = self.linked_nodes(node)
+        ids = {id(n) for n in linked}
+        value = node.fields.get(name)
+        for other in linked[1:]:
+            other.fields[name] = copy_value(value)
+        found = False
+        solids: dict[int, tuple[SolidRec, Pose]] = {}
+        joints = []
+        tops: list[tuple[Iterable[Node], SolidRec | None]] = [(self.world.nodes, None)]
+        tops += [(s.node.children(), s) for s in self.solids]
+        for children, _ in tops:
+            for kind, item, frame, under in self._frames(children, Pose(), False, ids):
+                found = True
+                if not under:
+                    continue
+                if kind == "solid":
+                    solid = self._solid_by_node.get(id(item))
+                    if solid is not None:
+                        solids[id(solid)] = (solid, frame)
+                elif kind == "joint":
+                    joint = self._joint_by_node.get(id(item))
+                    if joint is not None and joint.frame_rel != frame:
+                        joint.frame_rel = frame
+                        joints.append(joint)
+                else:
+                    for site in self.attachments:
+                        if site.node is item:
+                            site.frame_rel = frame
+        if not found:
+            return False
+        for solid in self.solids:  # parents first: a Solid moved carries the Solids below it
+            if id(solid) in solids:
+                self._reframe(solid, solids[id(solid)][1])
+        for joint in joints:  # a reset anchored them before the edit was applied again
+            if joint.ptr:
+                self._anchor_joint(joint)
+                for i in range(len(joint.params)):
+                    self._set_stops(joint, i)
+                self._respring(joint)
+        self._geoms_changed()  # visual Shapes and ray casters follow the fields at their next use
+        return True
+
+    def _frames(
+        self, children: Iterable[Node | None], frame: Pose, under: bool, ids: set[int]
+    ) -> Iterator[tuple[str, Node, Pose, bool]]:
+        """Walk a Solid's children as the load does: each Solid, joint and attachment met with the frame it
+        hangs in (in the Solid's frame) and whether an edited node lies above it. Yields ("frame", node, ...)
+        for an edited node itself, so a frame that holds only Shapes counts as found."""
+        for child in children:
+            if child is None:
+                continue
+            if is_solid(child):
+                yield "solid", child, frame, under
+            elif child.type_name in JOINT_TYPES:
+                yield "joint", child, frame, under
+                end = field_or(child, "endPoint", None)
+                while isinstance(end, Node) and end.type_name == "Slot":
+                    end = field_or(end, "endPoint", None)
+                if isinstance(end, Node) and is_solid(end):
+                    yield "solid", end, frame, under
+            elif child.type_name in ATTACHMENT_TYPES:
+                yield "attachment", child, frame, under
+            elif "translation" in child.fields and "rotation" in child.fields and "children" in child.fields:
+                local = Pose.from_fields(field_or(child, "translation", None), field_or(child, "rotation", None))
+                inside = under or id(child) in ids
+                if id(child) in ids:
+                    yield "frame", child, frame, True
+                yield from self._frames(child.children(), frame * local, inside, ids)
+            elif "children" in child.fields:
+                yield from self._frames(child.children(), frame, under, ids)
+            elif child.type_name == "Slot" and isinstance(field_or(child, "endPoint", None), Node):
+                yield from self._frames([child.fields["endPoint"]], frame, under, ids)
+
+    def _reframe(self, solid: SolidRec, frame: Pose) -> None:
+        """Put ``solid`` in its new parent frame ``frame`` (its own translation and rotation kept) and move what
+        hangs on it (see the module docstring)."""
+        load_pre = self.__dict__.setdefault("_load_pre", {})
+        load_pre.setdefault(solid, solid.pre)
+        # a reset put the Solid back at its load pose (rel is load_rel again) before this edit is applied again
+        pre = load_pre[solid] if solid.rel is solid.load_rel else solid.pre
+        body = solid.body
+        if frame == pre:  # (bit for bit the load's frame after a reset: the Solid stays where the reset put it)
+            solid.pre = frame
+        merged = body is not None and body.root is not solid and not body.removed
+        if merged and body is not None:
+            if frame != pre:
+                solid.pre, solid.rel = frame, frame * (pre.inverse() * solid.rel)
+            self._rebody(solid, body)
+            return
+        if frame == pre:
+            return
+        old_world = self.solid_world_pose(solid)
+        if body is None:
+            solid.pre, solid.rel = frame, frame * (pre.inverse() * solid.rel)
+            new_world = self.solid_world_pose(solid)
+        else:  # a body of its own: moved as a supervisor edit of its translation would move it
+            local = pre.inverse() * self._unmoved_rel(solid)
+            solid.pre, solid.rel = frame, frame * (pre.inverse() * solid.rel)
+            parent_world = self.solid_world_pose(solid.parent) if solid.parent is not None else Pose()
+            new_world = parent_world * self._kinematic_extra(solid) * frame * local
+        self._carry(solid, new_world * old_world.inverse(), None)
+
+    def _unmoved_rel(self, solid: SolidRec) -> Pose:
+        """The current pose of a Solid with its own body in its parent Solid's frame (its joint's motion in)."""
+        world = self.solid_world_pose(solid)
+        parent = self.solid_world_pose(solid.parent) if solid.parent is not None else Pose()
+        return parent.inverse() * world
+
+    def _rebody(self, solid: SolidRec, body: BodyRec) -> None:
+        """A merged Solid moved inside its body: the frames of the body's Solids in its root Solid's frame are
+        computed again and, if one changed, the body's mass summed again (its geoms follow); the bodies and
+        body-less geoms below it are carried along."""
+        old_world = self.solid_world_pose(solid)
+        changed = False
+        for member in self._subtree(solid):
+            if member.body is body and member.parent is not None and member is not body.root:
+                in_body = member.parent.in_body * member.rel
+                changed |= in_body != member.in_body
+                member.in_body = in_body
+        if not changed:
+            return
+        self._remass(body)
+        new_world = self.solid_world_pose(solid)
+        self._carry(solid, new_world * old_world.inverse(), body)
+
+    def _carry(self, solid: SolidRec, T: Pose, own: BodyRec | None) -> None:
+        """Move the bodies whose root Solid lies in ``solid``'s subtree (but ``own``, the body it is merged
+        into) by the world transform ``T``, place its body-less geoms again and anchor the joints touching the
+        subtree where their Solids now are."""
+        lib = self._lib
+        subtree = self._subtree(solid)
+        inside = {id(s) for s in subtree}
+        moved = [s.body for s in subtree if s.body is not None and s.body.root is s and s.body is not own
+                 and not s.body.removed]  # fmt: skip
+        for body in moved:
+            new_root = T * body.pose()
+            lib.dBodySetPosition(body.ptr, *new_root.apply(body.com))
+            lib.dBodySetRotation(body.ptr, rot_matrix(new_root.R))
+            self._wake_body(body.index)
+        for s in subtree:
+            for g in s.geoms:
+                if g.body is None:
+                    self._place_static_geom(g, self.solid_world_pose(s))
+        for body in moved:
+            if body.fixed_joint:
+                lib.dJointSetFixed(body.fixed_joint)
+        for joint in self.joints:
+            touches = (joint.parent is not None and id(joint.parent) in inside) or (
+                joint.child is not None and id(joint.child) in inside)
+            if joint.ptr and touches:
+                self._anchor_joint(joint)
+                for i in range(len(joint.params)):
+                    self._set_stops(joint, i)
+                self._respring(joint)
