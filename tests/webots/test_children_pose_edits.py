@@ -100,6 +100,17 @@ def test_an_accelerometer_on_a_spinning_robot_reads_the_centripetal_acceleration
     assert math.hypot(*acc.getValues()) == pytest.approx(omega**2 * 0.3, rel=1e-5)
 
 
+def test_a_light_sensor_sees_a_point_light_where_its_moved_pose_puts_it() -> None:
+    # a PointLight of intensity 1 and attenuation 1/d² in a Solid 2 m ahead of the sensor: E = 1/4, read
+    # through the default table (×1000) as 250; its Pose moved 1 m towards the sensor: d = 1 m, 1000
+    scene = 'Solid { translation 2 0 0 children [ DEF LAMP Pose { children [ PointLight { attenuation 0 0 1 } ] } ] }'
+    sup = _supervisor(scene, 'children [ LightSensor { name "light" } ]')
+    sup.getDevice("light").enable(TS)
+    assert _value(sup, "light") == pytest.approx(250.0, rel=1e-9)
+    sup.getFromDef("LAMP").getField("translation").setSFVec3f([-1.0, 0.0, 0.0])
+    assert _value(sup, "light") == pytest.approx(1000.0, rel=1e-9)
+
+
 def test_an_infra_red_sensor_sees_a_shape_where_its_moved_pose_puts_it() -> None:
     # a Shape without boundingObject, its Pose among the target Solid's children: only visual rays see it
     scene = ('Solid { translation 1 0 0 children [ DEF SHIFT Pose { children [ Shape { geometry Box { size 0.1 1 1 } } '
@@ -215,3 +226,19 @@ def test_a_jointed_solid_with_its_own_body_moves_with_the_pose_above_its_joint()
     sup.getDevice("ds").enable(TS)
     assert _value(sup, "ds") == pytest.approx(0.95, abs=1e-9)
     assert sup.getFromDef("TIP").getPosition() == pytest.approx([1.0, 0.0, 0.1], abs=1e-12)
+
+
+def test_a_solid_with_its_own_body_fixed_in_a_static_solid_moves_with_its_pose_and_is_held_there() -> None:
+    # a wall with Physics in a static Solid: a body fixed to the world (§3.3); its Pose moved 0.3 m towards the
+    # sensor: 0.65 m, and under gravity it stays there, held where it now is
+    scene = ('Solid { translation 1 0 0.1 children [ DEF ARM Pose { children [ DEF WALL Solid { physics Physics { } '
+             'boundingObject Box { size 0.1 1 1 } } ] } ] }')  # fmt: skip
+    sup = _supervisor(scene, f"children [ {_RAY} ]", gravity=9.81)
+    sup.getDevice("ds").enable(TS)
+    assert _value(sup, "ds") == pytest.approx(0.95, abs=1e-9)
+    sup.getFromDef("ARM").getField("translation").setSFVec3f([-0.3, 0.0, 0.0])
+    assert _value(sup, "ds") == pytest.approx(0.65, abs=1e-9)
+    for _ in range(50):
+        sup.step(TS)
+    # held: a free fall would have taken it 5 cm down in 0.1 s (the fixed joint's softness lets it sag 0.1 mm)
+    assert sup.getFromDef("WALL").getPosition() == pytest.approx([0.7, 0.0, 0.1], abs=1e-3)

@@ -2,8 +2,8 @@
 
 A light is a plain node: at the top level its ``location``/``direction`` are world coordinates; inside a Solid
 (possibly under ``Pose``/``Transform`` nodes) they are in that frame and the light moves with the Solid, as in
-Webots. :func:`light_sources` walks the scene once per simulation and keeps, for each light, the Solid it rides
-on and its fixed pose in that Solid's frame; :meth:`LightSource.world_pose` composes the Solid's current pose.
+Webots. :func:`light_sources` walks the scene once (and again after a supervisor changed it) and keeps, for
+each light, the Solid it rides on and its pose in that Solid's frame; :meth:`LightSource.world_pose` composes the Solid's current pose.
 """
 
 from __future__ import annotations
@@ -53,11 +53,12 @@ def _walk(sim: Simulation, node: Any, solid: SolidRec | None, frame: m3.Pose, ou
 
 
 def light_sources(sim: Simulation) -> list[LightSource]:
-    """Every light of the world (computed once per simulation; lights cannot be added headless)."""
+    """Every light of the world, walked again when a supervisor changed the scene (the geometry version moved:
+    a Pose above a light moved, a light imported or removed)."""
     cached = sim.extensions.get("lights")
-    if cached is None:
-        cached = []
+    if cached is None or cached[0] != sim.geometry_version:
+        cached = (sim.geometry_version, [])
         for top in sim.world.nodes:
-            _walk(sim, top, None, m3.Pose(), cached)
+            _walk(sim, top, None, m3.Pose(), cached[1])
         sim.extensions["lights"] = cached
-    return cached  # type: ignore[no-any-return]
+    return cached[1]  # type: ignore[no-any-return]

@@ -135,7 +135,7 @@ class FrameEdits(SceneChanges):
     def _reframe(self, solid: SolidRec, frame: Pose) -> None:
         """Put ``solid`` in its new parent frame ``frame`` (its own translation and rotation kept) and move what
         hangs on it (see the module docstring)."""
-        load_pre = self.__dict__.setdefault("_load_pre", {})
+        load_pre: dict[SolidRec, Pose] = self.__dict__.setdefault("_load_pre", {})  # (no __init__ in the mixins)
         load_pre.setdefault(solid, solid.pre)
         # a reset put the Solid back at its load pose (rel is load_rel again) before this edit is applied again
         pre = load_pre[solid] if solid.rel is solid.load_rel else solid.pre
