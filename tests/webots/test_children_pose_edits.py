@@ -242,3 +242,33 @@ def test_a_solid_with_its_own_body_fixed_in_a_static_solid_moves_with_its_pose_a
         sup.step(TS)
     # held: a free fall would have taken it 5 cm down in 0.1 s (the fixed joint's softness lets it sag 0.1 mm)
     assert sup.getFromDef("WALL").getPosition() == pytest.approx([0.7, 0.0, 0.1], abs=1e-3)
+
+
+def test_a_compass_below_a_turned_transform_reads_north_in_its_new_frame() -> None:
+    # north is the world's +y (ENU): (0, 1, 0) in the compass frame at load; the Transform turned 90° about z
+    # brings the compass's x onto north: (1, 0, 0)
+    sup = _supervisor("", 'children [ DEF TURN Transform { children [ Compass { name "compass" } ] } ]')
+    compass = sup.getDevice("compass")
+    compass.enable(TS)
+    sup.step(TS)
+    assert compass.getValues() == pytest.approx([0.0, 1.0, 0.0], abs=1e-12)
+    sup.getFromDef("TURN").getField("rotation").setSFRotation([0.0, 0.0, 1.0, math.pi / 2])
+    sup.step(TS)
+    assert compass.getValues() == pytest.approx([1.0, 0.0, 0.0], abs=1e-12)
+
+
+def test_a_kinematic_joint_and_its_endpoint_move_with_the_pose_above_them() -> None:
+    # a hinge whose endPoint has no Physics (kinematic) below DEF ARM in a static Solid at (1, 0, 0.1); ARM
+    # moved 0.3 m towards the sensor: the endPoint's wall at 0.65 m; turned 0.5 rad about z as well: the ray
+    # meets the turned 0.1 m thick wall at 0.7 - 0.05 / cos(0.5) m
+    scene = ('Solid { translation 1 0 0.1 children [ DEF ARM Pose { children [ HingeJoint { jointParameters '
+             'HingeJointParameters { axis 0 0 1 } endPoint DEF TIP Solid { boundingObject Box { size 0.1 1 1 } } } '
+             '] } ] }')  # fmt: skip
+    sup = _supervisor(scene, f"children [ {_RAY} ]")
+    sup.getDevice("ds").enable(TS)
+    assert _value(sup, "ds") == pytest.approx(0.95, abs=1e-9)
+    arm = sup.getFromDef("ARM")
+    arm.getField("translation").setSFVec3f([-0.3, 0.0, 0.0])
+    assert _value(sup, "ds") == pytest.approx(0.65, abs=1e-9)
+    arm.getField("rotation").setSFRotation([0.0, 0.0, 1.0, 0.5])
+    assert _value(sup, "ds") == pytest.approx(0.7 - 0.05 / math.cos(0.5), abs=1e-9)
