@@ -272,3 +272,30 @@ def test_a_kinematic_joint_and_its_endpoint_move_with_the_pose_above_them() -> N
     assert _value(sup, "ds") == pytest.approx(0.65, abs=1e-9)
     arm.getField("rotation").setSFRotation([0.0, 0.0, 1.0, 0.5])
     assert _value(sup, "ds") == pytest.approx(0.7 - 0.05 / math.cos(0.5), abs=1e-9)
+
+
+def test_a_propeller_below_a_turned_pose_pushes_along_its_new_shaft() -> None:
+    # thrust t1·ω² = 1e-4·100² = 1 N on a 1 kg robot along the shaft (z); the Pose turned 90° about y puts the
+    # shaft along x: the robot then gains 1 m/s² along x and no more along z
+    robot = ('boundingObject Box { size 0.1 0.1 0.1 } physics Physics { mass 1 } children [ DEF MOUNT Pose { '
+             'children [ Propeller { shaftAxis 0 0 1 thrustConstants 1e-4 0 torqueConstants 0 0 device '
+             'RotationalMotor { name "prop" maxVelocity 200 maxTorque 1000 } } ] } ]')  # fmt: skip
+    sup = _supervisor("", robot)
+    prop = sup.getDevice("prop")
+    prop.setPosition(math.inf)
+    prop.setVelocity(100.0)
+    for _ in range(100):  # full speed after 0.1 s
+        sup.step(TS)
+    drone = sup.getSelf()
+    v0 = drone.getVelocity()
+    for _ in range(100):
+        sup.step(TS)
+    v1 = drone.getVelocity()
+    assert [(v1[0] - v0[0]) / 0.2, (v1[2] - v0[2]) / 0.2] == pytest.approx([0.0, 1.0], abs=1e-3)
+    sup.getFromDef("MOUNT").getField("rotation").setSFRotation([0.0, 1.0, 0.0, math.pi / 2])
+    sup.step(TS)
+    v0 = drone.getVelocity()
+    for _ in range(100):
+        sup.step(TS)
+    v1 = drone.getVelocity()
+    assert [(v1[0] - v0[0]) / 0.2, (v1[2] - v0[2]) / 0.2] == pytest.approx([1.0, 0.0], abs=1e-3)

@@ -81,7 +81,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "frames of children and bounding objects; a supervisor's translation/rotation edit of one inside "
              "boundingObjects (or of a DEF of it they USE) moves their geoms at the next step, each in its own "
              "Solid's frame, and a body's mass and centre of mass follow (the Solid stays put); among a Solid's "
-             "children such an edit moves everything below it at the next step: devices (their readings), the "
+             "children such an edit moves everything below it at the next step: devices (their readings), lights, "
+             "Propellers, the "
              "Shapes that rays and cameras see, merged Solids (their body's mass follows), Solids with bodies "
              "of their own and joints (moved with their subtrees); DEF/USE copies move together"),
     Coverage("Transform", "scene", "partial",
