@@ -299,3 +299,20 @@ def test_a_propeller_below_a_turned_pose_pushes_along_its_new_shaft() -> None:
         sup.step(TS)
     v1 = drone.getVelocity()
     assert [(v1[0] - v0[0]) / 0.2, (v1[2] - v0[2]) / 0.2] == pytest.approx([1.0, 0.0], abs=1e-3)
+
+
+def test_a_box_asleep_on_a_platform_whose_pose_moves_away_wakes_and_falls() -> None:
+    # a 0.1 m box resting on a static platform (no Physics) below DEF SLIDE; after 1.5 s at rest it sleeps
+    # (physicsDisableTime 1 s); the platform moved 2 m aside: the box must wake and fall
+    scene = ('Solid { children [ DEF SLIDE Pose { children [ Solid { boundingObject Box { size 1 1 0.1 } } ] } ] } '
+             'DEF BOX Solid { translation 0 0 0.1 physics Physics { } boundingObject Box { size 0.1 0.1 0.1 } }')  # fmt: skip
+    sup = _supervisor(scene, gravity=9.81)
+    box = sup.getFromDef("BOX")
+    for _ in range(750):
+        sup.step(TS)
+    z0 = box.getPosition()[2]
+    assert z0 == pytest.approx(0.1, abs=1e-3)  # resting on the platform's top face at z = 0.05
+    sup.getFromDef("SLIDE").getField("translation").setSFVec3f([2.0, 0.0, 0.0])
+    for _ in range(50):
+        sup.step(TS)
+    assert box.getPosition()[2] < z0 - 0.01  # ½·g·t² = 4.9 cm in 0.1 s
