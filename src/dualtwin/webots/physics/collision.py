@@ -272,6 +272,7 @@ class CollisionPass(JointBuilder):
         sizeof = SIZEOF_CONTACT
         geom_offset = GEOM_OFFSET
         addressof = ctypes.addressof
+        auto_disable = self._auto_disable  # set once, just before this callback is made (_init_contacts)
 
         def near(_data: Any, o1: int, o2: int) -> None:
             try:
@@ -282,7 +283,7 @@ class CollisionPass(JointBuilder):
                 if plan is False:
                     return
                 surface, owner, p1, p2, i1, i2, modifier = plan
-                if self._auto_disable:
+                if auto_disable:
                     e1 = enabled[i1] if i1 >= 0 else None
                     e2 = enabled[i2] if i2 >= 0 else None
                     if (e1 is None or not e1) and (e2 is None or not e2):

@@ -3,6 +3,7 @@ the buffer swap and the collision pass for the next step after it, and joint pos
 
 from __future__ import annotations
 
+import math
 import threading
 
 from dualtwin.errors import SimulationUnstable
@@ -16,6 +17,10 @@ from dualtwin.webots.physics.records import (
     MotorRec,
     SolidRec,
 )
+
+_FMAX = ode.dParamFMax
+_VEL = ode.dParamVel
+_PI = math.pi
 
 
 class Stepper(SupervisorEdits):
@@ -90,8 +95,17 @@ class Stepper(SupervisorEdits):
         dt = self.dt
         for solid in self._drifting:
             self._drift(solid, dt)
+        set_hinge = self._lib.dJointSetHingeParam
         for motor in self._dyn_motors:
-            self._apply_motor(motor, dt)
+            joint = motor.joint
+            if joint.kind == "hinge" and not motor.torque_mode:
+                # _apply_motor's most common case written out here: it runs for every motor at every step
+                u = motor.command_velocity(dt)
+                ptr = joint.ptr
+                set_hinge(ptr, _FMAX, max(joint.static_friction[motor.axis_index], motor.available))
+                set_hinge(ptr, _VEL, -u)
+            else:
+                self._apply_motor(motor, dt)
         for joint in self._springs:
             self._apply_spring(joint)
         if self._kin_motors:
@@ -173,33 +187,50 @@ class Stepper(SupervisorEdits):
         self._move_subtree(child, target * self.solid_world_pose(child).inverse(), reset_velocity=True)
 
     def _swap_and_collide(self) -> None:
-        if self._auto_disable:
+        auto_disable = self._auto_disable
+        enabled = self._enabled
+        if auto_disable:
             is_enabled = self._is_enabled
-            enabled = self._enabled
             for b in self.bodies:
                 enabled[b.index] = bool(is_enabled(b.ptr))
         consumed = self._buffer
-        self._buffer ^= 1
+        self._buffer = consumed ^ 1
         self._collide()  # §1.6 step 4: contacts for the next step, into the other buffer
         used = self._used[consumed]
         if used:
             keep = []
             empty = self._empty_group
-            enabled = self._enabled
             done: set[int] = set()
             for body in used:
-                if body.index in done:
+                index = body.index
+                if index in done:
                     continue
-                done.add(body.index)
-                if enabled[body.index] or not self._auto_disable:
+                done.add(index)
+                if not auto_disable or enabled[index]:
                     empty(body.groups[consumed])
                 else:
                     keep.append(body)  # §1.3: contacts of disabled bodies persist
             self._used[consumed] = keep
 
     def _post_physics(self) -> None:
+        dt = self.dt
+        hinge_angle = self._hinge_angle
+        hinge_rate = self._hinge_rate
         for joint in self._tracked:
-            self._read_joint(joint, predict=True)
+            if joint.kind != "hinge":
+                self._read_joint(joint, predict=True)
+                continue
+            # _read_joint(joint, predict=True) for a hinge, written out here (it runs for every joint at every step)
+            ptr = joint.ptr
+            a = hinge_angle(ptr)
+            joint.raw_angles[0] = a
+            rate = hinge_rate(ptr)
+            positions = joint.positions
+            pred = positions[0] + (rate if joint.reverse else -rate) * dt
+            pos = (a if joint.reverse else -a) + joint.offsets[0]
+            # already within (pred - π, pred + π]: normalize_angle would return it unchanged (both comparisons
+            # are its loops' conditions; they also fail for NaN or infinite values, which take the slow path)
+            positions[0] = pos if pred - _PI < pos <= pred + _PI else m3.normalize_angle(pos, pred)
         if self._accel_cur:
             for index in self._accel_cur:
                 b = self.bodies[index]
