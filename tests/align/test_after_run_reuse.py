@@ -14,7 +14,7 @@ Simulations are counted where they happen (``run_scenario`` and ``Evaluator.map`
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +28,7 @@ from dualtwin.suite import runner
 from dualtwin.suite.loader import load_suite
 from dualtwin.suite.runner import SuiteRun
 from dualtwin.twins import make_twin
-from tests.support.align_runs import write_suite
+from tests.support.align_runs import count_batches, write_suite
 from tests.support.fake_twin import NAME, fit_fake, registered
 
 # A fall that crosses the failure threshold, a scenario continuing from where it stopped, and a sine drive.
@@ -66,16 +66,7 @@ def scenario_runs(monkeypatch: pytest.MonkeyPatch) -> list[str]:
 @pytest.fixture()
 def evaluated(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     """The size of every batch the evaluators simulate."""
-    sizes: list[int] = []
-    original = Evaluator.map
-
-    def counting(self: Evaluator, jobs: Sequence[SimJob]) -> list[Traces]:
-        jobs = list(jobs)
-        sizes.append(len(jobs))
-        return original(self, jobs)
-
-    monkeypatch.setattr(Evaluator, "map", counting)
-    return sizes
+    return count_batches(monkeypatch)
 
 
 def replayed(robot: RobotBinding, suite: Path, out: Path, traces: Traces) -> Path:

@@ -15,7 +15,7 @@ Simulations are counted at the evaluator (its ``map`` is wrapped, not replaced).
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -23,9 +23,10 @@ import pytest
 
 from dualtwin.align import AlignResult
 from dualtwin.align.floor_check import check_floors
-from dualtwin.align.simulate import Evaluator, SimJob, Traces, load_traces
+from dualtwin.align.simulate import Evaluator, SimJob, load_traces
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import load_binding
+from tests.support.align_runs import count_batches
 from tests.support.fake_twin import NAME, fit_fake, registered
 
 TRUTH = {"joint.j1.damping": 0.9, "joint.j2.stiffness": 6.5}
@@ -41,16 +42,7 @@ def fake() -> Iterator[str]:
 @pytest.fixture()
 def simulated(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     """The size of every batch the evaluators simulate."""
-    sizes: list[int] = []
-    original = Evaluator.map
-
-    def counting(self: Evaluator, jobs: Sequence[SimJob]) -> list[Traces]:
-        jobs = list(jobs)
-        sizes.append(len(jobs))
-        return original(self, jobs)
-
-    monkeypatch.setattr(Evaluator, "map", counting)
-    return sizes
+    return count_batches(monkeypatch)
 
 
 def fit(out: Path, **settings: Any) -> AlignResult:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 from dualtwin.robots.binding import RobotBinding
 from dualtwin.suite.runner import SuiteRun
@@ -38,3 +39,19 @@ def record(robot: RobotBinding, suite: Path, out: Path, knobs: Mapping[str, floa
     instance.set_knobs(dict(knobs or {}))
     SuiteRun(suite, twin, robot, out, twin=instance).run()
     return out
+
+
+def count_batches(monkeypatch: Any) -> list[int]:
+    """The size of every batch the alignment evaluators simulate from now on (the real Evaluator.map, counted)."""
+    from dualtwin.align.simulate import Evaluator
+
+    sizes: list[int] = []
+    original = Evaluator.map
+
+    def counting(self: Evaluator, jobs: Any) -> Any:
+        jobs = list(jobs)
+        sizes.append(len(jobs))
+        return original(self, jobs)
+
+    monkeypatch.setattr(Evaluator, "map", counting)
+    return sizes
