@@ -17,7 +17,8 @@ import sys
 import threading
 from typing import Any
 
-__all__ = ["Interrupted", "came", "command_starts", "hold_while_loading", "ready", "stop_on_interrupt", "take_held"]
+__all__ = ["Interrupted", "came", "command_starts", "enter_native_callbacks", "hold_while_loading", "leave_native_callbacks",
+           "ready", "stop_on_interrupt", "take_held"]
 
 
 class Interrupted(BaseException):
@@ -37,14 +38,33 @@ _before_loading: list[Any] = []
 HELD_GRACE_S = 2.0
 
 
+#: How deep the program is in native code that calls back into Python (ODE's collision pass): an exception a
+#: ctypes callback raises is printed as "Exception ignored" and lost, and Python runs a signal handler at the
+#: first instruction of the next callback, before any ``try`` in it. A Ctrl-C there is held until the native
+#: call returns (:func:`leave_native_callbacks`).
+_in_native = [0]
+
+
 def _on_sigint(signum: int, frame: Any) -> None:
-    if _state[1]:
+    if _state[1] and not _in_native[0]:
         _state[0] = False
         _state[2] = True
         raise Interrupted()
     _state[0] = True
-    if _state[3]:  # the command's code runs: it gets its grace to say what stopping keeps, no more
+    if _state[3] and not _state[1]:  # the command's code runs: it gets its grace to say what stopping keeps
         _release_held_later(HELD_GRACE_S)
+
+
+def enter_native_callbacks() -> None:
+    """A native call that calls back into Python starts: a Ctrl-C is held until :func:`leave_native_callbacks`."""
+    _in_native[0] += 1
+
+
+def leave_native_callbacks() -> None:
+    """The native call returned: a Ctrl-C held meanwhile (with the command ready to stop) is raised now."""
+    _in_native[0] -= 1
+    if not _in_native[0] and _state[0] and _state[1]:
+        take_held()
 
 
 def _release_held_later(seconds: float) -> None:

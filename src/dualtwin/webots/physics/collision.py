@@ -10,6 +10,7 @@ import ctypes
 from collections.abc import Callable, Iterable
 from typing import Any
 
+from dualtwin.interrupts import enter_native_callbacks, leave_native_callbacks
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots import ode
 from dualtwin.webots.nodes import Node
@@ -331,7 +332,11 @@ class CollisionPass(JointBuilder):
         return {lib.dSpaceGetGeom(space, i): i for i in range(lib.dSpaceGetNumGeoms(space))}
 
     def _collide(self) -> None:
-        self._lib.dSpaceCollide(self._space, None, self._near_cb)
+        enter_native_callbacks()  # a Ctrl-C in the near callback would be printed and lost: held until here
+        try:
+            self._lib.dSpaceCollide(self._space, None, self._near_cb)
+        finally:
+            leave_native_callbacks()
         if self._callback_error is not None:
             exc, self._callback_error = self._callback_error, None
             raise exc
