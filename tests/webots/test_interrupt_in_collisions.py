@@ -33,8 +33,8 @@ for _ in range(20):
     stop_on_interrupt()
     ready()  # as the command line is once a command has said what stopping keeps
     timer = threading.Timer(rng.uniform(0.0, 0.01), os.kill, (os.getpid(), signal.SIGINT))
-    timer.start()
     try:
+        timer.start()  # (on a loaded machine the signal may come before start() returns)
         for _ in range(2000):
             sim.step()
     except Interrupted:
