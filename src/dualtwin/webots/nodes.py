@@ -127,6 +127,28 @@ class Node:
         )
 
 
+def path_to_node(tops: list[Node], target: Node) -> list[Node] | None:
+    """The nodes from one of the top-level nodes ``tops`` down to ``target`` (inclusive), through every SFNode
+    and MFNode field; None when ``target`` is not in the tree."""
+
+    def search(node: Node, path: list[Node]) -> list[Node] | None:
+        path.append(node)
+        if node is target:
+            return path
+        for value in node.fields.values():
+            for child in value if isinstance(value, list) else [value]:
+                if isinstance(child, Node) and search(child, path) is not None:
+                    return path
+        path.pop()
+        return None
+
+    for top in tops:
+        found = search(top, [])
+        if found is not None:
+            return found
+    return None
+
+
 def copy_value(value: Any) -> Any:
     """Deep copy of a field value (nodes, lists; tuples and scalars are immutable)."""
     if isinstance(value, Node):

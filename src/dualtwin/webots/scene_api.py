@@ -19,7 +19,7 @@ from dualtwin.webots.contacts import contact_points, solids_of, static_balance
 from dualtwin.webots.field_api import Field
 from dualtwin.webots.node_types import node_type_of
 from dualtwin.webots.nodes import Node as SceneNode
-from dualtwin.webots.nodes import World, copy_value
+from dualtwin.webots.nodes import World, copy_value, path_to_node
 from dualtwin.webots.physics import Simulation, SolidRec
 from dualtwin.webots.physics.records import is_robot
 from dualtwin.webots.schema import SOLID_TYPES
@@ -551,23 +551,7 @@ class ContactPoint:
 
 def path_to(sim: Simulation, target: SceneNode) -> list[SceneNode] | None:
     """Nodes from a top-level node down to ``target`` (inclusive)."""
-
-    def search(node: SceneNode, path: list[SceneNode]) -> list[SceneNode] | None:
-        path.append(node)
-        if node is target:
-            return path
-        for child in descendants(node):
-            found = search(child, path)
-            if found is not None:
-                return found
-        path.pop()
-        return None
-
-    for top in sim.world.nodes:
-        found = search(top, [])
-        if found is not None:
-            return found
-    return None
+    return path_to_node(sim.world.nodes, target)
 
 
 def world_as_saved(sim: Simulation) -> World:

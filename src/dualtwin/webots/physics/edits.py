@@ -176,10 +176,15 @@ class SupervisorEdits(MassEdits):
             child_in = joint.child is not None and id(joint.child) in inside
             parent_in = joint.parent is not None and id(joint.parent) in inside
             if child_in != parent_in or (child_in and joint.reverse):
-                self._anchor_joint(joint)
-                for i in range(len(joint.params)):
-                    self._set_stops(joint, i)
-                self._respring(joint)
+                self._reanchor(joint)
+
+    def _reanchor(self, joint: JointRec) -> None:
+        """Set a joint again from where its Solids are now: anchor and axes, stops and the hinge spring's rest
+        position, all about its new ODE zero (§6)."""
+        self._anchor_joint(joint)
+        for i in range(len(joint.params)):
+            self._set_stops(joint, i)
+        self._respring(joint)
 
     def _respring(self, joint: JointRec) -> None:
         if joint.spring and joint.kind == "hinge":

@@ -51,19 +51,20 @@ class FrameEdits(SceneChanges):
     """Frames among a Solid's children moved by a supervisor (see the module docstring)."""
 
     def _apply_field(self, node: Node, name: str) -> bool:
-        bounded = super()._apply_field(node, name)  # the frame may sit in boundingObjects (scene_changes)
         if node.type_name in ("Pose", "Transform") and name in FRAME_FIELDS:
-            return self._children_frame_changed(node, name) or bounded
-        return bounded
+            # Its DEF/USE copies (one walk of the world) take the new value before anything is placed again.
+            linked = self.linked_nodes(node)
+            value = node.fields.get(name)
+            for other in linked[1:]:
+                other.fields[name] = copy_value(value)
+            bounded = self._bounding_frame_changed(linked)  # the frame may sit in boundingObjects (scene_changes)
+            return self._children_frame_changed(linked) or bounded
+        return super()._apply_field(node, name)
 
-    def _children_frame_changed(self, node: Node, name: str) -> bool:
-        """``node`` (a Pose or Transform) moved: every record below it or below one of its DEF/USE copies among
-        Solids' children is placed again. False when no Solid's children hold it."""
-        linked = self.linked_nodes(node)
+    def _children_frame_changed(self, linked: list[Node]) -> bool:
+        """A Pose or Transform moved, ``linked`` being it and its DEF/USE copies: every record below one of them
+        among Solids' children is placed again. False when no Solid's children hold it."""
         ids = {id(n) for n in linked}
-        value = node.fields.get(name)
-        for other in linked[1:]:
-            other.fields[name] = copy_value(value)
         found = False
         solids: dict[int, tuple[SolidRec, Pose]] = {}
         joints = []
@@ -94,10 +95,7 @@ class FrameEdits(SceneChanges):
                 self._reframe(solid, solids[id(solid)][1])
         for joint in joints:  # a reset anchored them before the edit was applied again
             if joint.ptr:
-                self._anchor_joint(joint)
-                for i in range(len(joint.params)):
-                    self._set_stops(joint, i)
-                self._respring(joint)
+                self._reanchor(joint)
         self._geoms_changed()  # visual Shapes and ray casters follow the fields at their next use
         return True
 
@@ -213,7 +211,4 @@ class FrameEdits(SceneChanges):
             touches = (joint.parent is not None and id(joint.parent) in inside) or (
                 joint.child is not None and id(joint.child) in inside)
             if joint.ptr and touches:
-                self._anchor_joint(joint)
-                for i in range(len(joint.params)):
-                    self._set_stops(joint, i)
-                self._respring(joint)
+                self._reanchor(joint)

@@ -19,7 +19,7 @@ from typing import Any
 from dualtwin.webots.mass_rules import trimesh_data
 from dualtwin.webots.nodes import Node, copy_value
 from dualtwin.webots.physics.collision import CollisionPass
-from dualtwin.webots.physics.records import GeomRec
+from dualtwin.webots.physics.records import GeomRec, SolidRec
 from dualtwin.webots.physics.records import field_or as _f
 
 __all__ = ["GEOMETRY_TYPES", "GeometryEdits"]
@@ -50,6 +50,15 @@ class GeometryEdits(CollisionPass):
                     continue
                 if other.def_group == group if group is not None else name in (other.def_name, other.use_name):
                     out.append(other)
+        return out
+
+    def _bounded_by(self, ids: set[int]) -> list[SolidRec]:
+        """The Solids whose boundingObject holds one of the nodes whose ``id`` is in ``ids``."""
+        out = []
+        for solid in self.solids:
+            bounds = solid.node.fields.get("boundingObject")
+            if isinstance(bounds, Node) and any(id(n) in ids for n in bounds.walk()):
+                out.append(solid)
         return out
 
     def _apply_geometry(self, node: Node, name: str) -> bool:

@@ -57,15 +57,10 @@ class MassEdits(GeometryEdits):
         """Resize the geoms (:class:`GeometryEdits`), then sum again the mass of every body one of whose Solids
         has the edited node (or a DEF/USE copy of it) in its boundingObject."""
         applied = super()._apply_geometry(node, name)
-        ids = {id(n) for n in self.linked_nodes(node)}
+        bounded = {id(s) for s in self._bounded_by({id(n) for n in self.linked_nodes(node)})}
         for body in self.bodies:
-            if body.removed:
-                continue
-            for member in body.members:
-                bounding = member.node.fields.get("boundingObject")
-                if isinstance(bounding, Node) and any(id(n) in ids for n in bounding.walk()):
-                    self._remass(body)
-                    break
+            if not body.removed and any(id(member) in bounded for member in body.members):
+                self._remass(body)
         return applied
 
     def _apply_damping(self, node: Node, name: str) -> bool:

@@ -31,7 +31,7 @@ from collections.abc import Iterable
 
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots._math3 import Pose
-from dualtwin.webots.nodes import Node, copy_value
+from dualtwin.webots.nodes import Node, path_to_node
 from dualtwin.webots.physics.geometry_edits import _WAKE_MARGIN
 from dualtwin.webots.physics.records import (
     JOINT_TYPES,
@@ -304,7 +304,7 @@ class SceneChanges(Stepper):
             self.warn(f"Solid '{solid.name}': a Physics node imported or removed inside a Robot is not supported "
                       "yet; its body is left as it was")
             return
-        chain = self._chain_to(solid_node)
+        chain = path_to_node(self.world.nodes, solid_node)
         if chain is None:
             return
         # Before the first step, and during a reset, the fields hold where everything is (at load); after it,
@@ -331,51 +331,16 @@ class SceneChanges(Stepper):
                 world = self.world_pose_at_load(body.root)
                 body.load_R, body.load_pos = world.R, world.apply(body.com)
 
-    def _apply_field(self, node: Node, name: str) -> bool:
-        if node.type_name in ("Pose", "Transform") and name in ("translation", "rotation", "scale"):
-            return self._bounding_frame_changed(node, name)
-        return super()._apply_field(node, name)
-
-    def _bounding_frame_changed(self, node: Node, name: str) -> bool:
-        """A Pose or Transform inside boundingObjects moved (or, a Transform, was scaled): the geoms of every
-        Solid bounded by it or by one of its DEF/USE copies are built again where the new frame puts them and
-        their bodies' mass summed again (:meth:`bounding_object_changed`), as Webots moves the geoms at the next
-        step. False when no boundingObject holds it (a Pose among a Solid's children has no physics here)."""
-        linked = self.linked_nodes(node)
-        ids = {id(n) for n in linked}
-        bounded = []
-        for solid in self.solids:
-            bounds = solid.node.fields.get("boundingObject")
-            if isinstance(bounds, Node) and any(id(n) in ids for n in bounds.walk()):
-                bounded.append(solid)
-        if not bounded:
-            return False
-        value = node.fields.get(name)
-        for other in linked[1:]:
-            other.fields[name] = copy_value(value)
+    def _bounding_frame_changed(self, linked: list[Node]) -> bool:
+        """A Pose or Transform inside boundingObjects moved (or, a Transform, was scaled), ``linked`` being it and
+        its DEF/USE copies, which already hold the new value (:meth:`FrameEdits._apply_field`): the geoms of every
+        Solid bounded by one of them are built again where the new frame puts them and their bodies' mass summed
+        again (:meth:`bounding_object_changed`), as Webots moves the geoms at the next step. False when no
+        boundingObject holds it."""
+        bounded = self._bounded_by({id(n) for n in linked})
         for solid in bounded:
             self.bounding_object_changed(solid.node)
-        return True
-
-    def _chain_to(self, target: Node) -> list[Node] | None:
-        """The nodes from a top-level node of the world down to ``target`` (inclusive)."""
-
-        def search(node: Node, path: list[Node]) -> list[Node] | None:
-            path.append(node)
-            if node is target:
-                return path
-            for value in node.fields.values():
-                for child in value if isinstance(value, list) else [value]:
-                    if isinstance(child, Node) and search(child, path) is not None:
-                        return path
-            path.pop()
-            return None
-
-        for top in self.world.nodes:
-            found = search(top, [])
-            if found is not None:
-                return found
-        return None
+        return bool(bounded)
 
     def bounding_object_changed(self, solid_node: Node) -> None:
         """``solid_node``'s boundingObject was imported or removed, or a node inside it was: its geoms are built
