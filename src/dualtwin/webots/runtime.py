@@ -239,9 +239,10 @@ class Runtime:
     def end_controllers(self, top: SceneNode) -> None:
         """A supervisor removed ``top``: the controllers of the robots in it are told -1 at their step (now if
         they wait in it) and leave the synchronisation, as Webots ends a deleted robot's controller."""
+        nodes = {id(n): n for n in top.walk()}
         with self._cond:
-            self._gone_nodes.update((id(n), n) for n in top.walk())  # a controller not started yet never starts
-            self._end_controllers_of({id(n) for n in top.walk()}, gone=True)
+            self._gone_nodes.update(nodes)  # a controller not started yet never starts
+            self._end_controllers_of(set(nodes), gone=True)
 
     def _end_controllers_of(self, robots: set[int], *, gone: bool, advance: bool = True) -> None:
         """Tell the controllers of these robot nodes -1 at their step and take them out of the synchronisation;
