@@ -43,10 +43,10 @@ API_NOTES: tuple[tuple[str, str, str], ...] = (
     ("webots bug", "Keyboard.get_key", "Webots' helper spells Alt 'atl-'; ours writes 'alt-'"),
     # -- not Webots yet, or more permissive than Webots
     ("not yet", "Camera recognition", "the API works, but no object is recognised (getRecognitionObjects() is [])"),
-    ("not yet", "Field.import*NodeFromString into a joint's device or jointParameters field",
-     "the node joins the scene tree only: an imported motor or sensor is no device and imported parameters do "
-     "not reach ODE (no warning); Solids, joints, SolidReferences and boundingObjects imported anywhere join the "
-     "physics (see Solid and SolidReference)"),
+    ("not yet", "Field.import*NodeFromString into a joint's device field",
+     "the imported motor, sensor or brake is a device at once (see PositionSensor), but Robot.devices (the "
+     "dictionary filled once when the Robot is made) does not list it; a removed sensor's handle keeps reading "
+     "its axis"),
     ("not yet", "Field.importSFNodeFromString / removeSF of a Physics node inside a Robot",
      "a warning: the Solid keeps its body or stays static (outside robots it becomes a body or static, see "
      "Physics)"),

@@ -150,8 +150,14 @@ REGISTRY: tuple[Coverage, ...] = (
              "springs, dampers and brakes on a second Euler AMotor; on a static parent both AMotors hang on the "
              "endPoint alone (ODE's first and third axes swapped), so motors, stops, torques and springs act on "
              "each axis as with a body as parent; kinematic when the endPoint has no Physics"),
-    Coverage("JointParameters", "joint", "supported", "slider axis, position, stops, spring, damping, friction"),
-    Coverage("HingeJointParameters", "joint", "supported", "axis, anchor and the JointParameters fields"),
+    Coverage("JointParameters", "joint", "supported",
+             "slider axis, position, stops, spring, damping, friction; imported by a supervisor into a joint's empty "
+             "jointParameters field (any axis) they act from the next step, the joint set again where its Solids "
+             "are (nothing moves, the current configuration reads the node's position); removed, the joint goes "
+             "back to the defaults where it is, its position read on without a jump; a reset puts the joint back "
+             "as at load"),
+    Coverage("HingeJointParameters", "joint", "supported",
+             "axis, anchor and the JointParameters fields (also imported or removed at run time, as JointParameters)"),
     Coverage("BallJointParameters", "joint", "supported", "anchor"),
     Coverage("SolidReference", "joint", "partial",
              "closed loops: an ODE joint from the upper body to the named Solid (searched in the joint's "
@@ -184,7 +190,13 @@ REGISTRY: tuple[Coverage, ...] = (
              "commanded value in torque control); the motor rows keep the world CFM (Webots' sign and CFM for "
              "these are not confirmed against Webots)"),
     Coverage("LinearMotor", "device", "partial", "as RotationalMotor"),
-    Coverage("PositionSensor", "device", "supported", "sampled joint position with noise and resolution"),
+    Coverage("PositionSensor", "device", "supported",
+             "sampled joint position with noise and resolution; a motor, position sensor or brake a supervisor "
+             "imports into a joint's device field joins its robot's devices (getDevice, getNumberOfDevices, in "
+             "scene-tree order for getDeviceByIndex) and acts on the axis from the next step (a motor holding the "
+             "joint where it is, §5.1), also for controllers in their own processes; removed, it leaves the "
+             "device list and its effect ends (a motor lets its axis go, a brake's damping leaves it); one device "
+             "of each kind per axis, a second one is ignored with a warning"),
     Coverage("Brake", "device", "supported",
              "setDampingConstant adds to the axis' dampingConstant through the implicit damper row, from the "
              "next step; linked from its Motor and PositionSensor"),

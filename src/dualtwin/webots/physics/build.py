@@ -119,23 +119,7 @@ class SceneBuilder(SimulationCore):
         for fname in param_fields:
             p = _f(node, fname, None)
             params.append(p if isinstance(p, Node) else None)
-        default_axis = (0.0, 0.0, 1.0) if kind == "slider" else (1.0, 0.0, 0.0)
-        axes = [tuple(float(v) for v in _f(params[0], "axis", default_axis))]
-        if kind == "hinge2":
-            axes.append(tuple(float(v) for v in _f(params[1], "axis", (0.0, 0.0, 1.0))))
-        elif kind == "ball":
-            # §4.4: BallJointParameters has no axis; the first axis is jointParameters2's, the third
-            # jointParameters3's, the second their cross product (axis3 × axis1), as in a chain of three hinges
-            a1 = tuple(float(v) for v in _f(params[1], "axis", (1.0, 0.0, 0.0)))
-            a3 = tuple(float(v) for v in _f(params[2], "axis", (0.0, 0.0, 1.0)))
-            if m3.norm(m3.cross(m3.normalized(a1), m3.normalized(a3))) < 1e-6:
-                # no Euler frame spans them (ODE would abort the process normalising their cross product)
-                self.warn("BallJoint first and third axes are aligned or zero; falling back to x and z")
-                a1, a3 = (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)
-            axes = [a1, m3.cross(a3, a1), a3]
-        if kind == "slider":
-            axes[0] = m3.normalized(axes[0])  # §4.3: Webots normalises the slider axis
-        anchor = tuple(float(v) for v in _f(params[0], "anchor", (0.0, 0.0, 0.0)))
+        axes, anchor = self._joint_axes(kind, params)
         positions = []
         for i, p in enumerate(params):
             hidden = ["position", "position2", "position3"][i]
@@ -166,31 +150,10 @@ class SceneBuilder(SimulationCore):
                 self._joint_by_node[id(p)] = joint
         if parent is not None:
             parent.child_joints.append(joint)
-        device_fields = ["device", "device2", "device3"][:n]
-        for axis_index, fname in enumerate(device_fields):
+        for axis_index, fname in enumerate(["device", "device2", "device3"][:n]):
             for dev in _f(node, fname, []) or []:
-                if not isinstance(dev, Node):
-                    continue
-                if dev.type_name == "Brake":
-                    joint.brakes[axis_index] = BrakeRec(
-                        node=dev, joint=joint, axis_index=axis_index, name=str(_f(dev, "name", "brake"))
-                    )
-                elif dev.type_name in MOTOR_TYPES:
-                    joint.motors[axis_index] = self._make_motor(dev, joint, axis_index)
-                elif dev.type_name == "PositionSensor":
-                    joint.sensors[axis_index] = PositionSensorRec(
-                        node=dev,
-                        joint=joint,
-                        axis_index=axis_index,
-                        name=str(_f(dev, "name", "position sensor")),
-                        noise=float(_f(dev, "noise", 0.0)),
-                        resolution=float(_f(dev, "resolution", -1.0)),
-                    )
-        for axis_index in range(n):
-            motor, sensor = joint.motors[axis_index], joint.sensors[axis_index]
-            if motor is not None:
-                motor.sensor = sensor
-                motor.brake = joint.brakes[axis_index]
+                if isinstance(dev, Node):
+                    self._add_axis_device(joint, axis_index, dev)
         end = _f(node, "endPoint", None)
         while isinstance(end, Node) and end.type_name == "Slot":
             end = _f(end, "endPoint", None)  # a Slot pair is a pass-through: no frame of its own
@@ -206,6 +169,64 @@ class SceneBuilder(SimulationCore):
                 for dev_rec in group:
                     if dev_rec is not None:
                         robot.devices.setdefault(dev_rec.name, dev_rec)
+
+    def _joint_axes(self, kind: str, params: Sequence[Node | None]) -> tuple[list[m3.Vec3], m3.Vec3]:
+        """A joint's axes and anchor in its frame, from its (Hinge)JointParameters nodes (defaults where a
+        jointParameters field is empty)."""
+        default_axis = (0.0, 0.0, 1.0) if kind == "slider" else (1.0, 0.0, 0.0)
+        axes = [tuple(float(v) for v in _f(params[0], "axis", default_axis))]
+        if kind == "hinge2":
+            axes.append(tuple(float(v) for v in _f(params[1], "axis", (0.0, 0.0, 1.0))))
+        elif kind == "ball":
+            # §4.4: BallJointParameters has no axis; the first axis is jointParameters2's, the third
+            # jointParameters3's, the second their cross product (axis3 × axis1), as in a chain of three hinges
+            a1 = tuple(float(v) for v in _f(params[1], "axis", (1.0, 0.0, 0.0)))
+            a3 = tuple(float(v) for v in _f(params[2], "axis", (0.0, 0.0, 1.0)))
+            if m3.norm(m3.cross(m3.normalized(a1), m3.normalized(a3))) < 1e-6:
+                # no Euler frame spans them (ODE would abort the process normalising their cross product)
+                self.warn("BallJoint first and third axes are aligned or zero; falling back to x and z")
+                a1, a3 = (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)
+            axes = [a1, m3.cross(a3, a1), a3]
+        if kind == "slider":
+            axes[0] = m3.normalized(axes[0])  # §4.3: Webots normalises the slider axis
+        anchor = tuple(float(v) for v in _f(params[0], "anchor", (0.0, 0.0, 0.0)))
+        return axes, anchor  # type: ignore[return-value]
+
+    def _add_axis_device(
+        self, joint: JointRec, axis_index: int, dev: Node
+    ) -> MotorRec | PositionSensorRec | BrakeRec | None:
+        """The record of a motor, position sensor or brake in one of ``joint``'s device fields, set on the joint's
+        axis and linked to the axis' other devices (a motor reads its axis' sensor and brake). An axis holds one
+        device of each kind: a second one is left out, with a warning, and None returned (as for a node of
+        another type)."""
+        kind = "Brake" if dev.type_name == "Brake" else "Motor" if dev.type_name in MOTOR_TYPES else dev.type_name
+        groups: dict[str, Sequence[object]] = {"Brake": joint.brakes, "Motor": joint.motors,
+                                               "PositionSensor": joint.sensors}
+        slots = groups.get(kind)
+        if slots is None:
+            return None
+        if slots[axis_index] is not None:  # (Webots' joint takes the first of each kind in the field)
+            self.warn(f"{joint.node.type_name} axis {axis_index + 1}: a second {kind} in its device field is ignored")
+            return None
+        rec: MotorRec | PositionSensorRec | BrakeRec
+        if kind == "Brake":
+            rec = joint.brakes[axis_index] = BrakeRec(
+                node=dev, joint=joint, axis_index=axis_index, name=str(_f(dev, "name", "brake")))
+        elif kind == "Motor":
+            rec = joint.motors[axis_index] = self._make_motor(dev, joint, axis_index)
+        else:
+            rec = joint.sensors[axis_index] = PositionSensorRec(
+                node=dev,
+                joint=joint,
+                axis_index=axis_index,
+                name=str(_f(dev, "name", "position sensor")),
+                noise=float(_f(dev, "noise", 0.0)),
+                resolution=float(_f(dev, "resolution", -1.0)),
+            )
+        motor = joint.motors[axis_index]
+        if motor is not None:
+            motor.sensor, motor.brake = joint.sensors[axis_index], joint.brakes[axis_index]
+        return rec
 
     def _make_motor(self, dev: Node, joint: JointRec, axis_index: int) -> MotorRec:
         rotational = dev.type_name == "RotationalMotor"

@@ -33,6 +33,7 @@ from dualtwin.webots import _math3 as m3
 from dualtwin.webots._math3 import Pose
 from dualtwin.webots.nodes import Node, path_to_node
 from dualtwin.webots.physics.geometry_edits import _WAKE_MARGIN
+from dualtwin.webots.physics.joint_changes import JointChanges
 from dualtwin.webots.physics.records import (
     JOINT_TYPES,
     SOLID_TYPES,
@@ -43,12 +44,11 @@ from dualtwin.webots.physics.records import (
     field_or,
     is_solid,
 )
-from dualtwin.webots.physics.stepping import Stepper
 
 __all__ = ["SceneChanges"]
 
 
-class SceneChanges(Stepper):
+class SceneChanges(JointChanges):
     """Run-time addition and removal of scene subtrees (see the module docstring)."""
 
     def can_add(self, ancestors: Iterable[Node]) -> bool:
@@ -110,6 +110,8 @@ class SceneChanges(Stepper):
         if top.type_name == "Physics" and chain and chain[-1] is not None and is_solid(chain[-1]):
             self.physics_changed(chain[-1])  # a Physics imported into a Solid's empty physics field
             return []
+        if chain and chain[-1].type_name in JOINT_TYPES and self._joint_part_added(chain[-1], top):
+            return []  # a device or parameters node of the joint (physics/joint_changes.py)
         at = self._parent_solid_at(chain)
         parent = self._solid_by_node[id(chain[at])] if at >= 0 else None
         in_joint = any(n.type_name in JOINT_TYPES for n in chain[at + 1 :])
@@ -191,6 +193,7 @@ class SceneChanges(Stepper):
                 self.physics_changed(solid.node)
             return
         ids = {id(n) for n in top.walk()}
+        self._joint_parts_removed(ids)
         gone = [s for s in self.solids if id(s.node) in ids]
         reshaped = {id(g.solid): g.solid for g in self.geoms.values()
                     if g.source is not None and id(g.source) in ids and id(g.solid.node) not in ids}  # fmt: skip
