@@ -42,7 +42,6 @@ API_NOTES: tuple[tuple[str, str, str], ...] = (
     ("webots bug", "Speaker.setLanguage", "Webots' wrapper sets the engine; ours sets the language"),
     ("webots bug", "Keyboard.get_key", "Webots' helper spells Alt 'atl-'; ours writes 'alt-'"),
     # -- not Webots yet, or more permissive than Webots
-    ("not yet", "Camera recognition", "the API works, but no object is recognised (getRecognitionObjects() is [])"),
     ("not yet", "Field.import*NodeFromString into a joint's device field",
      "the imported motor, sensor or brake is a device at once (see PositionSensor), but Robot.devices (the "
      "dictionary filled once when the Robot is made) does not list it; a removed sensor's handle keeps reading "

@@ -28,7 +28,16 @@ Decisions: an image is rendered lazily, at the first ``getImage`` after a sample
 enabled but never read costs nothing); the scene is built at the first frame and again after a supervisor changed the
 scene tree (nodes imported or removed, a Pose among a Solid's children moved, a geometry resized). Not simulated: spherical and cylindrical projections (drawn planar, with a warning),
 exposure, lens distortion, motion blur, bloom, ambient occlusion, textures (a Shape is drawn in its flat
-``baseColor``/``diffuseColor``), the Background colour (MuJoCo's clear colour) and Recognition.
+``baseColor``/``diffuseColor``) and the Background colour (MuJoCo's clear colour).
+
+Recognition (a Recognition node in the ``recognition`` field): ``recognitionEnable(T)`` samples, with the
+sensor protocol and its own period, the Solids with ``recognitionColors`` that the camera sees, as
+:class:`~dualtwin.webots.recognition.CameraRecognitionObject` records (id, pose and size in the camera frame,
+box on the image, colours, model); with ``segmentation TRUE`` and ``enableRecognitionSegmentation()``,
+``getRecognitionSegmentationImage()`` is a BGRA image of the camera's size where recognisable objects have
+their first colour and the rest is black, drawn by MuJoCo's segmentation pass of the same scene. The
+computation, and which choices are our reading of Webots' documentation, are in
+:mod:`dualtwin.webots.camera_recognition`.
 """
 
 from __future__ import annotations
@@ -42,6 +51,12 @@ import numpy as np
 
 from dualtwin.artifacts import write_bytes
 from dualtwin.webots.api_args import as_float, as_int, warn
+from dualtwin.webots.camera_recognition import (
+    CameraView,
+    RecognitionSampler,
+    segmentation_colours,
+    segmentation_image,
+)
 from dualtwin.webots.device_base import SolidSensor
 from dualtwin.webots.display import png_bytes
 from dualtwin.webots.recognition import CameraRecognitionObject
@@ -129,8 +144,17 @@ class Camera(SolidSensor):
 
     # -- rendering
 
+    def _view(self, m: CameraModel) -> Any:
+        """The camera's frame now, as the renderer's camera (Webots: looks along +x, +z up)."""
+        from dualtwin.webots.render import ResolvedCamera
+
+        pose = self._pose()
+        R = np.asarray(pose.R, dtype=float).reshape(3, 3)
+        pos = np.asarray(pose.t, dtype=float)
+        return ResolvedCamera.look(pos, pos + R[:, 0], R[:, 2], m.fovy_degrees())
+
     def _render(self) -> np.ndarray:
-        from dualtwin.webots.render import FrameRenderer, ResolvedCamera
+        from dualtwin.webots.render import FrameRenderer
 
         m = self._model()
         scene = _visual_scene(self._robot)
@@ -142,11 +166,7 @@ class Camera(SolidSensor):
                                                       supersample=2 if m.anti_aliasing else 1)
             self._drawn = scene
         scene.sync()
-        pose = self._pose()
-        R = np.asarray(pose.R, dtype=float).reshape(3, 3)
-        pos = np.asarray(pose.t, dtype=float)
-        camera = ResolvedCamera.look(pos, pos + R[:, 0], R[:, 2], m.fovy_degrees())
-        rgb = renderer.render(scene.data, camera, near=m.near, far=m.far if m.far > 0 else None)
+        rgb = renderer.render(scene.data, self._view(m), near=m.near, far=m.far if m.far > 0 else None)
         image = bgra_from_rgb(rgb)
         if m.noise > 0.0:
             rng = np.random.default_rng(self._robot._sim.rng.getrandbits(64))
@@ -297,33 +317,44 @@ class Camera(SolidSensor):
             return
         self._model().exposure = value  # kept for the getter; the headless image does not change with it
 
-    # -- recognition: the API works, but objects are not detected headless (docs/webots-coverage.md)
+    # -- recognition (computed in camera_recognition.py)
 
     def hasRecognition(self) -> bool:
         return self._part("recognition") is not None
 
-    def _recognition(self, method: str) -> bool:
-        if not self.hasRecognition():
-            warn(f"Camera.{method}(): this camera has no Recognition node")
-            return False
-        return True
+    def _recognizer(self) -> RecognitionSampler:
+        sampler: RecognitionSampler | None = self.__dict__.get("_recognition_sampler")
+        if sampler is None:
+            def view() -> CameraView:
+                m = self._model()
+                return CameraView(m.width, m.height, m.fov, m.near)
+
+            sampler = self.__dict__["_recognition_sampler"] = RecognitionSampler(
+                self._binding(), view, lambda: self._robot._runtime.node_ids()[0])
+        return sampler
 
     def recognitionEnable(self, sampling_period: Any) -> None:
         period = as_int(sampling_period, "Camera.recognitionEnable")
-        if self._recognition("recognitionEnable"):
-            self.__dict__["_recognition_period"] = max(0, period)
+        if not self.hasRecognition():
+            warn("Camera.recognitionEnable(): this camera has no Recognition node")
+            return
+        self._recognizer().enable(period)
 
     def recognitionDisable(self) -> None:
-        self.__dict__["_recognition_period"] = 0
+        if self.hasRecognition():
+            self._recognizer().disable()
 
     def getRecognitionSamplingPeriod(self) -> int:
-        return int(self.__dict__.get("_recognition_period", 0))
+        return self._recognizer().getSamplingPeriod() if self.hasRecognition() else 0
 
     def getRecognitionNumberOfObjects(self) -> int:
         return len(self.getRecognitionObjects())
 
     def getRecognitionObjects(self) -> list[CameraRecognitionObject]:
-        return []
+        """The objects of the last recognition sample, nearest first (none before the first, or disabled)."""
+        if not self.getRecognitionSamplingPeriod():
+            return []
+        return list(self._recognizer().objects)
 
     def hasRecognitionSegmentation(self) -> bool:
         recognition = self._part("recognition")
@@ -341,23 +372,59 @@ class Camera(SolidSensor):
     def isRecognitionSegmentationEnabled(self) -> bool:
         return bool(self.__dict__.get("_segmentation", False))
 
-    def getRecognitionSegmentationImage(self) -> bytes | None:
-        """BGRA, black where no recognised object is (none is, headless); None while disabled."""
+    def _segmentation_image(self) -> np.ndarray | None:
         if not self.isRecognitionSegmentationEnabled() or not self.getRecognitionSamplingPeriod():
             return None
-        return bytes(4 * self.getWidth() * self.getHeight())
+        sampler = self._recognizer()
+        if sampler.pending:
+            sampler.pending = False
+            self.__dict__["_segmentation_frame"] = self._render_segmentation()
+        frame: np.ndarray | None = self.__dict__.get("_segmentation_frame")
+        if frame is None:  # enabled, not sampled yet: a black frame, as the image
+            m = self._model()
+            return np.zeros((m.height, m.width, 4), dtype=np.uint8)
+        return frame
+
+    def _render_segmentation(self) -> np.ndarray:
+        from dualtwin.webots.render import FrameRenderer
+
+        m = self._model()
+        scene = _visual_scene(self._robot)
+        renderer = self.__dict__.get("_segmentation_renderer")
+        if renderer is None or self.__dict__.get("_segmented") is not scene:
+            if renderer is not None:
+                renderer.close()
+            renderer = self.__dict__["_segmentation_renderer"] = FrameRenderer(scene.model, m.width, m.height,
+                                                                               supersample=1)
+            self.__dict__["_segmented"] = scene
+        scene.sync()
+        ids = renderer.render_geom_ids(scene.data, self._view(m), near=m.near, far=m.far if m.far > 0 else None)
+        return segmentation_image(ids, scene.solid_geoms(),
+                                  segmentation_colours(self._robot._sim, self._record.solid))
+
+    def getRecognitionSegmentationImage(self) -> bytes | None:
+        """BGRA: a recognisable object's pixels in its first recognition colour, black elsewhere; None while
+        segmentation or recognition is disabled."""
+        image = self._segmentation_image()
+        return None if image is None else image.tobytes()
 
     def getRecognitionSegmentationImageArray(self) -> list[list[list[int]]] | None:
-        if self.getRecognitionSegmentationImage() is None:
-            return None
-        return [[[0, 0, 0] for _ in range(self.getHeight())] for _ in range(self.getWidth())]
+        """``[x][y] -> [r, g, b]``, as getImageArray."""
+        image = self._segmentation_image()
+        return None if image is None else image[..., 2::-1].transpose(1, 0, 2).tolist()
 
     def saveRecognitionSegmentationImage(self, filename: str, quality: Any) -> int:
-        image = self.getRecognitionSegmentationImage()
+        """Write the segmentation image as PNG; 0 on success, -1 when disabled or not written."""
+        image = self._segmentation_image()
         if image is None:
             return -1
         as_int(quality, "Camera.saveRecognitionSegmentationImage")
-        write_bytes(Path(filename), png_bytes(np.zeros((self.getHeight(), self.getWidth(), 4), dtype=np.uint8)))
+        rgba = np.concatenate([image[..., 2::-1], image[..., 3:]], axis=2)
+        try:
+            write_bytes(Path(filename), png_bytes(np.ascontiguousarray(rgba)))
+        except OSError as exc:
+            warn(f"Camera.saveRecognitionSegmentationImage(): cannot write {filename}: {exc}")
+            return -1
         return 0
 
     image = property(lambda self: self.getImage())

@@ -247,7 +247,19 @@ REGISTRY: tuple[Coverage, ...] = (
              "sampling, getImageArray, imageGet*, saveImage (PNG/JPEG); no textures, Background colour, "
              "exposure, lens, motion blur or spherical/cylindrical projection (drawn planar); the scene is "
              "drawn again after a supervisor changed it (nodes imported or removed, a Pose moved)"),
-    Coverage("Recognition", "device", "not", "not yet (Camera)"),
+    Coverage("Recognition", "device", "partial",
+             "Camera.getRecognitionObjects(): the Solids with recognitionColors in the camera's frustum (near "
+             "plane, horizontal fieldOfView, image aspect) within maxRange, nearest first, at most maxObjects, "
+             "sampled by recognitionEnable() from the poses after the physics step; id (getFromId resolves it), "
+             "position and axis-angle orientation in the camera frame, size along the camera's y and z, "
+             "position_on_image/size_on_image from the pinhole projection clipped to the image, colors, "
+             "model; segmentation image (BGRA, each pixel of a recognisable Solid in its first colour, black "
+             "elsewhere) from MuJoCo's segmentation pass. Our reading, not Webots' text: the object is the "
+             "Solid with its subtree and its box is around their bounding objects (else their Shapes); "
+             "occlusion 1 and 2 both cast one ray to that box's centre against bounding objects (Webots' ray "
+             "rules: the camera's robot does not hide); the camera's Solid and the Solids it is mounted on "
+             "are never reported, other parts of its robot are; a Solid without colours is painted in the "
+             "nearest colours above it; frameColor and frameThickness draw nothing headless"),
     Coverage("Lens", "device", "not", "not yet (Camera)"),
     Coverage("LensFlare", "device", "not", "not yet (Camera)"),
     Coverage("Focus", "device", "not", "not yet (Camera)"),

@@ -31,6 +31,9 @@ class DeviceHost(Protocol):
     def _sensors(self) -> dict[int, Sensor]: ...
 
     @property
+    def _runtime(self) -> Any: ...  # the runtime's node ids (a Camera's recognised objects carry them)
+
+    @property
     def _rec(self) -> RobotRec: ...
 
     def _device_for(self, rec: Any) -> Device: ...

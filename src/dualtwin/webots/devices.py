@@ -323,4 +323,6 @@ def device_class(type_name: str) -> type[Any] | None:
         return Brake
     if type_name == "Keyboard":
         return Keyboard
+    if type_name == "Recognition":
+        return Camera  # a Camera's recognition field: the camera reports the objects
     return SOLID_DEVICE_CLASSES.get(type_name)

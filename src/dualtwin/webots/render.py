@@ -161,20 +161,28 @@ class FrameRenderer:
         Drawn by MuJoCo's segmentation pass from the same camera; coverage is the fraction of the supersampled
         pixels that show the group, so a thin pole gets the same anti-aliased footprint as in the RGB frame.
         """
-        self._prepare(data, camera, None)
-        renderer = self._renderer
-        renderer.enable_segmentation_rendering()
-        try:
-            ids = renderer.render()
-        finally:
-            renderer.disable_segmentation_rendering()
-        geom = np.where(ids[..., 1] == self._geom_type, ids[..., 0], -1)
+        geom = self.render_geom_ids(data, camera)
         s = self.supersample
         out = np.zeros((self.height, self.width, len(groups)), dtype=np.uint8)
         for i, group in enumerate(groups):
             hit = np.isin(geom, group).reshape(self.height, s, self.width, s).sum(axis=(1, 3))
             out[..., i] = np.round(hit * (255.0 / (s * s))).astype(np.uint8)
         return out
+
+    def render_geom_ids(self, data: mujoco.MjData, camera: ResolvedCamera, *, near: float | None = None,
+                        far: float | None = None) -> np.ndarray:
+        """The geom id each rendered pixel shows (-1: none), at the rendered (supersampled) size.
+
+        MuJoCo's segmentation pass from the same camera and clipping planes as :meth:`render`.
+        """
+        self._prepare(data, camera, None, near, far)
+        renderer = self._renderer
+        renderer.enable_segmentation_rendering()
+        try:
+            ids = renderer.render()
+        finally:
+            renderer.disable_segmentation_rendering()
+        return np.where(ids[..., 1] == self._geom_type, ids[..., 0], -1)
 
     def _prepare(self, data: mujoco.MjData, camera: ResolvedCamera, appearance: Appearance | None,
                  near: float | None = None, far: float | None = None) -> None:

@@ -221,6 +221,15 @@ class WebotsVisualScene:
             kwargs.update(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh.name)
         return kwargs
 
+    def solid_geoms(self) -> list[tuple[Any, np.ndarray]]:
+        """(scene-tree node, ids of its body's geoms) of every Solid drawn: what a segmentation pass maps back."""
+        out = []
+        for handle, name in self._solids:
+            body = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, name)
+            start, count = int(self.model.body_geomadr[body]), int(self.model.body_geomnum[body])
+            out.append((handle.scene_node, np.arange(start, start + count)))
+        return out
+
     # ------------------------------------------------------------------ per frame
     def sync(self) -> None:
         """Copy every Solid's current supervisor pose into its mocap body."""
