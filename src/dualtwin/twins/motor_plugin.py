@@ -27,15 +27,12 @@ import sys
 import tempfile
 import threading
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 
 from dualtwin.errors import DualtwinError
-
-if TYPE_CHECKING:
-    from dualtwin.twins.motors import MotorState
+from dualtwin.twins.motors import MotorParams, MotorState
 
 PLUGIN = "dualtwin-webots-motor"
 SOURCE = Path(__file__).with_name("native") / "webots_motor.c"
@@ -229,6 +226,22 @@ def max_torque(model: mujoco.MjModel, actuator: int, default: float) -> float:
     values = bytes(model.plugin_attr[start:end]).decode().split("\0")
     text = dict(zip(ATTRIBUTES, values, strict=False)).get("maxTorque", "")
     return float(text) if text else default
+
+
+def motor_params(model: mujoco.MjModel, name: str, actuator: int) -> MotorParams:
+    """A joint actuator's Webots motor fields: its ``webots_motor.NAME`` numeric (maxVelocity Kp Ki Kd
+    acceleration [minPosition maxPosition]; Webots' defaults for those missing) and :func:`max_torque`."""
+    params = MotorParams()
+    numeric = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_NUMERIC, f"webots_motor.{name}")
+    if numeric >= 0:
+        adr, size = model.numeric_adr[numeric], model.numeric_size[numeric]
+        fields = ("max_velocity", "kp", "ki", "kd", "acceleration", "min_position", "max_position")
+        values = list(model.numeric_data[adr:adr + size]) + [math.nan] * len(fields)
+        for attr, value in zip(fields, values[:len(fields)], strict=True):
+            if not math.isnan(value):
+                setattr(params, attr, float(value))
+    params.max_torque = max_torque(model, actuator, params.max_torque)
+    return params
 
 
 def slot_values(state: MotorState, kv: float, armature: float, predict: float,

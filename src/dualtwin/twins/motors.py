@@ -65,6 +65,7 @@ class MotorState:
         self.torque_mode = False
 
     def set_position(self, position: float) -> None:
+        # MuJoCoTwin.command inlines this for native-law motors (twins/mujoco.py): a change here goes there too.
         p = self.params
         target = position * self.gain
         low, high = p.min_position, p.max_position

@@ -29,6 +29,22 @@ MAX_DELAY_PERIODS = 10
 IMPEDANCE_BOUNDS = (0.5, 0.9999)
 
 
+def nominal_values(model: mujoco.MjModel) -> dict[str, np.ndarray]:
+    """Copies of the compiled model's values that knobs write (set_knobs restores them before each pass)."""
+    m = model
+    return {
+        "dof_damping": m.dof_damping.copy(), "dof_frictionloss": m.dof_frictionloss.copy(),
+        "geom_friction": m.geom_friction.copy(), "body_mass": m.body_mass.copy(),
+        "body_inertia": m.body_inertia.copy(), "body_ipos": m.body_ipos.copy(),
+        "geom_solref": m.geom_solref.copy(), "jnt_stiffness": m.jnt_stiffness.copy(),
+        "sensor_noise": m.sensor_noise.copy(), "body_iquat": m.body_iquat.copy(),
+        "jnt_solref": m.jnt_solref.copy(), "dof_armature": m.dof_armature.copy(),
+        "geom_solimp": m.geom_solimp.copy(), "jnt_solimp": m.jnt_solimp.copy(),
+        "geom_size": m.geom_size.copy(), "geom_rbound": m.geom_rbound.copy(), "geom_aabb": m.geom_aabb.copy(),
+        "impratio": np.array(m.opt.impratio),
+    }
+
+
 def restitution_to_dampratio(restitution: float, nominal: float) -> float:
     """Damping ratio of MuJoCo's contact spring-damper that rebounds with coefficient ``restitution``.
 
