@@ -113,16 +113,6 @@ def test_a_physics_node_imported_into_a_static_joint_endpoint_makes_it_swing_abo
     assert x < 0.45  # it swung in towards under the anchor
 
 
-def test_a_physics_node_imported_inside_a_robot_is_refused_with_a_warning() -> None:
-    # not supported yet (the controller holds the robot's device records): the Solid stays static, one warning
-    sup = _supervisor("DEF BOT Robot { translation 0 0 1 children [ DEF PART Solid { name \"part\" "
-                      "boundingObject Box { size 0.2 0.2 0.2 } } ] }")
-    part = sup.getFromDef("PART")
-    with pytest.warns(UserWarning, match="inside a Robot is not supported"):
-        part.getField("physics").importSFNodeFromString("Physics { }")
-    assert _kick(sup, "PART") == (0.0, 0.0)
-
-
 CHAIN_WORLD = f"""#VRML_SIM R2023b utf8
 WorldInfo {{ basicTimeStep {TS} }}
 DEF BASE Solid {{
@@ -162,7 +152,10 @@ def test_removing_the_physics_of_a_swinging_arm_stops_it_where_it_is_its_own_joi
         sup.step(TS)
     assert arm.getPosition() == pytest.approx(stopped, abs=1e-12)  # static where it was
     assert tip.getPosition()[2] < tip_before[2] - 0.01  # the tip falls on...
-    assert math.dist(tip.getPosition(), stopped) == pytest.approx(0.2, abs=1e-3)  # ...held by its hinge
+    # ...held by its hinge. It keeps the velocity it had (the arm's swing in it: ~2.8 m/s round a 0.2 m circle), and
+    # ODE's soft hinge lets the distance stretch by up to 1.4 mm at that speed (as in a world built with the arm
+    # static and the tip given that velocity)
+    assert math.dist(tip.getPosition(), stopped) == pytest.approx(0.2, abs=2e-3)
     sup.simulationReset()  # the removed Physics stays removed; the fields go back to the load's
     sup.step(TS)
     assert arm.getPosition() == pytest.approx([0.5, 0.0, 1.0], abs=1e-9)

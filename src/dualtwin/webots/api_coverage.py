@@ -46,9 +46,9 @@ API_NOTES: tuple[tuple[str, str, str], ...] = (
      "the imported motor, sensor or brake is a device at once (see PositionSensor), but Robot.devices (the "
      "dictionary filled once when the Robot is made) does not list it; a removed sensor's handle keeps reading "
      "its axis"),
-    ("not yet", "Field.importSFNodeFromString / removeSF of a Physics node inside a Robot",
-     "a warning: the Solid keeps its body or stays static (outside robots it becomes a body or static, see "
-     "Physics)"),
+    ("not yet", "Field.importSFNodeFromString / removeSF of a Physics node",
+     "the Solid's ODE objects are built again below it (see Physics): a joint without jointParameters below it "
+     "reads its position from 0 again, and a motor's torque feedback, if enabled, reads from the next sample"),
     ("not yet", "Robot imported, or controller restarted, without a runner",
      "a Supervisor driven directly (no run_world) starts no controller (one warning at its next step) and a "
      "restarted one keeps running; 'dualtwin webots run' and run_world (processes or threads) start and restart "

@@ -104,7 +104,9 @@ REGISTRY: tuple[Coverage, ...] = (
              "the body's mass again by the load's rules (the Solid stays put, its joints are re-anchored where "
              "the centre of mass moved); a Physics node imported into a Solid without one makes it a body by the "
              "load's rules where it is now (its own, merged into its parent's, or jointed as a joint's endPoint), "
-             "its removal makes the Solid static where it is (not yet inside a Robot: a warning)"),
+             "its removal makes the Solid static where it is; also inside a Robot, whose devices keep working "
+             "(a controller's handles, with their commands and sampling, act on and read the new bodies); the "
+             "Solids below keep their pose and motion (a jointed child body its velocity and its joint position)"),
     Coverage("Damping", "physics", "supported",
              "linear and angular, converted per step as Webots does; a supervisor's edit of them, or a Damping "
              "node imported into or removed from Physics.damping or WorldInfo.defaultDamping, sets the bodies' "

@@ -32,6 +32,7 @@ from collections.abc import Iterable, Iterator
 from dualtwin.webots._math3 import Pose
 from dualtwin.webots.mass_rules import rot_matrix
 from dualtwin.webots.nodes import Node, copy_value
+from dualtwin.webots.physics.physics_changes import PhysicsChanges
 from dualtwin.webots.physics.records import (
     ATTACHMENT_TYPES,
     JOINT_TYPES,
@@ -40,14 +41,13 @@ from dualtwin.webots.physics.records import (
     field_or,
     is_solid,
 )
-from dualtwin.webots.physics.scene_changes import SceneChanges
 
 __all__ = ["FrameEdits", "FRAME_FIELDS"]
 
 FRAME_FIELDS = ("translation", "rotation", "scale")
 
 
-class FrameEdits(SceneChanges):
+class FrameEdits(PhysicsChanges):
     """Frames among a Solid's children moved by a supervisor (see the module docstring)."""
 
     def _apply_field(self, node: Node, name: str) -> bool:

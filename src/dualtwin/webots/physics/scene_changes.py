@@ -29,9 +29,8 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-from dualtwin.webots import _math3 as m3
 from dualtwin.webots._math3 import Pose
-from dualtwin.webots.nodes import Node, path_to_node
+from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics.geometry_edits import _WAKE_MARGIN
 from dualtwin.webots.physics.joint_changes import JointChanges
 from dualtwin.webots.physics.records import (
@@ -293,46 +292,8 @@ class SceneChanges(JointChanges):
         joint.euler_ref = ()
 
     def physics_changed(self, solid_node: Node) -> None:
-        """``solid_node`` gained or lost its Physics node: the Solid (with the Solids inside it) is built again
-        by the load's rules (§3.3), where it is now, as if it were imported there: with Physics it gets a body
-        (its own, or merged into its parent's) and falls from rest; without, it becomes static (or part of its
-        parent's body) and stays where it was. Its joints keep their current positions. Not done (a warning)
-        for Solids inside a Robot, whose devices the controller holds."""
-        solid = self._solid_by_node.get(id(solid_node))
-        if solid is None or isinstance(solid_node.fields.get("physics"), Node) == (solid.body is not None):
-            return
-        subtree = self._subtree(solid)
-        inside = {id(s) for s in subtree}
-        if any(s.robot is not None for s in subtree) or any(id(a.solid) in inside for a in self.attachments):
-            self.warn(f"Solid '{solid.name}': a Physics node imported or removed inside a Robot is not supported "
-                      "yet; its body is left as it was")
-            return
-        chain = path_to_node(self.world.nodes, solid_node)
-        if chain is None:
-            return
-        # Before the first step, and during a reset, the fields hold where everything is (at load); after it,
-        # the fields of moving Solids are only refreshed lazily: they are set to where the Solids are now, and
-        # the rebuilt Solids and bodies keep their load poses (a reset puts them back there).
-        running = self.step_count > 0
-        if running:
-            for s in subtree:
-                local = self.solid_local_pose(s)
-                s.node.fields["translation"] = local.t
-                s.node.fields["rotation"] = m3.axis_angle_from_mat(local.R)
-            for joint in self.joints:
-                if joint.parent is not None and id(joint.parent) in inside:
-                    for p, position in zip(joint.params, joint.positions, strict=False):
-                        if p is not None:
-                            p.fields["position"] = position
-        load_rels = {id(s.node): s.load_rel for s in subtree}
-        self.remove_nodes(solid_node)
-        rebuilt = self.add_nodes(solid_node, chain[:-1])
-        if running:
-            for s in rebuilt:
-                s.load_rel = load_rels.get(id(s.node), s.load_rel)
-            for body in {id(s.body): s.body for s in rebuilt if s.body is not None and s.body.root is s}.values():
-                world = self.world_pose_at_load(body.root)
-                body.load_R, body.load_pos = world.R, world.apply(body.com)
+        """``solid_node`` gained or lost its Physics node (:class:`.physics_changes.PhysicsChanges`)."""
+        raise NotImplementedError
 
     def _bounding_frame_changed(self, linked: list[Node]) -> bool:
         """A Pose or Transform inside boundingObjects moved (or, a Transform, was scaled), ``linked`` being it and
