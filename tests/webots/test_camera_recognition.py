@@ -282,3 +282,22 @@ def test_an_unchanged_controller_reads_the_objects_in_both_isolation_modes(
     box_id = Supervisor(simulation=sim, robot_node=sim.robots[0].node).getFromDef("BOX").getId()
     assert objects == [f"OBJ {box_id} {box_id} [2.25, 0.5, 0.0] [24, 24] [9, 8] [0.5, 0.5] [0.0, 0.0, 1.0] "
                        "blue box blue box"]
+
+
+def test_segmentation_is_drawn_from_the_poses_of_the_recognition_sample(headless_gl: None) -> None:
+    # recognition every 16 ms, the controller steps 8 ms: after the step to 24 ms the last sample is still the
+    # one of 16 ms, so the segmentation (read now) shows the box where the objects list has it, not where a
+    # supervisor moved it at 16 ms (y 0.5 → −0.5: from the left half of the image to the right half)
+    sup, cam = camera(box("BOX", 2.25, 0.5), "segmentation TRUE")
+    cam.recognitionEnable(16)
+    cam.enableRecognitionSegmentation()
+    sup.step(16)
+    sup.getFromDef("BOX").getField("translation").setSFVec3f([2.25, -0.5, 0.0])
+    sup.step(8)
+    assert cam.getRecognitionObjects()[0].getPosition()[1] == pytest.approx(0.5)
+    red = (_segmentation(cam)[..., 2] == 255).any(axis=0)
+    assert red[20:29].any() and not red[W // 2:].any()
+    sup.step(8)  # the sample of 32 ms sees the box moved
+    assert cam.getRecognitionObjects()[0].getPosition()[1] == pytest.approx(-0.5)
+    red = (_segmentation(cam)[..., 2] == 255).any(axis=0)
+    assert red[36:44].any() and not red[: W // 2].any()

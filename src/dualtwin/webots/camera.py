@@ -330,8 +330,16 @@ class Camera(SolidSensor):
                 return CameraView(m.width, m.height, m.fov, m.near)
 
             sampler = self.__dict__["_recognition_sampler"] = RecognitionSampler(
-                self._binding(), view, lambda: self._robot._runtime.node_ids()[0])
+                self._binding(), view, lambda: self._robot._runtime.node_ids()[0], self._keep_segmentation_poses)
         return sampler
+
+    def _keep_segmentation_poses(self) -> None:
+        """At a recognition sample: the poses the segmentation image will be drawn from (at the next read)."""
+        if self.isRecognitionSegmentationEnabled():
+            scene = _visual_scene(self._robot)
+            self.__dict__["_segmentation_poses"] = (scene, scene.snapshot(), self._view(self._model()))
+        else:
+            self.__dict__["_segmentation_poses"] = None
 
     def recognitionEnable(self, sampling_period: Any) -> None:
         period = as_int(sampling_period, "Camera.recognitionEnable")
@@ -397,8 +405,14 @@ class Camera(SolidSensor):
             renderer = self.__dict__["_segmentation_renderer"] = FrameRenderer(scene.model, m.width, m.height,
                                                                                supersample=1)
             self.__dict__["_segmented"] = scene
-        scene.sync()
-        ids = renderer.render_geom_ids(scene.data, self._view(m), near=m.near, far=m.far if m.far > 0 else None)
+        kept = self.__dict__.get("_segmentation_poses")
+        if kept is not None and kept[0] is scene:
+            scene.restore(kept[1])
+            view = kept[2]
+        else:  # enabled after the sample, or the scene rebuilt since: the poses now
+            scene.sync()
+            view = self._view(m)
+        ids = renderer.render_geom_ids(scene.data, view, near=m.near, far=m.far if m.far > 0 else None)
         return segmentation_image(ids, scene.solid_geoms(),
                                   segmentation_colours(self._robot._sim, self._record.solid))
 

@@ -23,8 +23,8 @@ Our reading where Webots' text does not say (Webots' own C++ is not at hand):
   the subtree has no bounding object (an object with neither is a point at its origin). ``size`` is the extent
   of that box's corners along the camera's y and z axes, and the image box is the 2D box around the corners'
   pinhole projections (focal length ``(width/2)/tan(fieldOfView/2)`` for both axes, square pixels), the box
-  first cut at the ``near`` plane, then clipped to the image: ``position_on_image`` is the rounded centre of
-  the clipped box and ``size_on_image`` its rounded width and height;
+  first cut at the ``near`` plane, then clipped to the image: ``position_on_image`` is the centre of
+  the clipped box and ``size_on_image`` its width and height, rounded half up;
 * an object **is in view** when its clipped image box has an area (part of it is inside the frustum), and
   within ``maxRange`` when its origin is;
 * the camera's own Solid and the Solids it is mounted on (its robot among them) are never reported; the other
@@ -36,8 +36,8 @@ Our reading where Webots' text does not say (Webots' own C++ is not at hand):
   keeps the first ones;
 * the segmentation image colours every recognisable Solid the camera draws (a Solid without colours of its
   own takes the nearest Solid above it that has some), whatever its range or occlusion level: what hides an
-  object in the image is what is drawn in front of it; alpha is 255 as in the camera image; like the camera
-  image it is drawn at the first read after a sample, without anti-aliasing.
+  object in the image is what is drawn in front of it; alpha is 255 as in the camera image; it is drawn
+  without anti-aliasing at the first read after a sample, from the poses of that sample.
 """
 
 from __future__ import annotations
@@ -137,12 +137,27 @@ def _geom_corners(lib: Any, g: GeomRec) -> np.ndarray:
     return local @ R.T + np.array([p[0], p[1], p[2]], dtype=float)
 
 
-def _bounds(sim: Simulation, solid: SolidRec, pose: m3.Pose) -> np.ndarray | None:
+class _Shapes:
+    """The visual Shapes' geoms of each Solid, placed once per sample and only if an object needs them."""
+
+    def __init__(self, sim: Simulation) -> None:
+        self._sim = sim
+        self._by_solid: dict[int, list[GeomRec]] | None = None
+
+    def of(self, solids: list[SolidRec]) -> list[GeomRec]:
+        if self._by_solid is None:
+            self._by_solid = {}
+            for g in visual_targets(self._sim, None):
+                self._by_solid.setdefault(id(g.solid), []).append(g)
+        return [g for s in solids for g in self._by_solid.get(id(s), [])]
+
+
+def _bounds(solid: SolidRec, pose: m3.Pose, shapes: _Shapes) -> np.ndarray | None:
     """The 8 corners (world) of the object's bounding box in its own frame, or None (module docstring)."""
-    members = {id(s) for s in _subtree(solid)}
-    geoms = [g for s in _subtree(solid) for g in s.geoms if not g.is_plane]
+    subtree = _subtree(solid)
+    geoms = [g for s in subtree for g in s.geoms if not g.is_plane]
     if not geoms:
-        geoms = [g for g in visual_targets(sim, None) if id(g.solid) in members]
+        geoms = shapes.of(subtree)
     if not geoms:
         return None
     lib = ode.load()
@@ -180,6 +195,11 @@ def _image_box(corners: np.ndarray, view: CameraView) -> tuple[float, float, flo
     return u0, v0, u1, v1
 
 
+def _pixel(value: float) -> int:
+    """A pixel coordinate or size rounded half up (Python's round() would send 24.5 to 24 and 25.5 to 26)."""
+    return math.floor(value + 0.5)
+
+
 def _occluded(sim: Simulation, camera: SolidRec, solid: SolidRec, origin: m3.Vec3, target: m3.Vec3) -> bool:
     delta = m3.sub(target, origin)
     distance = m3.norm(delta)
@@ -209,6 +229,7 @@ def recognise(sim: Simulation, camera: SolidRec, view: CameraView, model: Recogn
     Rc = np.asarray(pose.R, dtype=float).reshape(3, 3)
     tc = np.asarray(pose.t, dtype=float)
     mount = _chain(camera)
+    shapes = _Shapes(sim)
     found: list[tuple[float, int, CameraRecognitionObject]] = []
     for solid in sim.solids:
         colours = colours_of(solid)
@@ -219,7 +240,7 @@ def recognise(sim: Simulation, camera: SolidRec, view: CameraView, model: Recogn
         distance = m3.norm(position)
         if distance > model.max_range:
             continue
-        box = _bounds(sim, solid, spose)
+        box = _bounds(solid, spose, shapes)
         corners = (box - tc) @ Rc if box is not None else np.array([position], dtype=float)
         on_image = _image_box(corners, view)
         if on_image is None:
@@ -236,8 +257,8 @@ def recognise(sim: Simulation, camera: SolidRec, view: CameraView, model: Recogn
             position=[float(v) for v in position],
             orientation=[float(v) for v in m3.axis_angle_from_mat(tuple(relative))],
             size=[float(np.ptp(corners[:, 1])), float(np.ptp(corners[:, 2]))],
-            position_on_image=[round((u0 + u1) / 2.0), round((v0 + v1) / 2.0)],
-            size_on_image=[round(u1 - u0), round(v1 - v0)],
+            position_on_image=[_pixel((u0 + u1) / 2.0), _pixel((v0 + v1) / 2.0)],
+            size_on_image=[_pixel(u1 - u0), _pixel(v1 - v0)],
             number_of_colors=len(colours),
             colors=[c for colour in colours for c in colour],
             _model=str(solid.node.fields.get("model", "")),
@@ -265,10 +286,11 @@ def segmentation_colours(sim: Simulation, camera: SolidRec) -> dict[int, tuple[i
 class RecognitionSampler(SampledDevice):
     """The recognition of one camera, sampled with its own period like every Webots sensor."""
 
-    def __init__(self, binding: DeviceBinding, view: Callable[[], CameraView], node_ids: Callable[[], dict[int, int]]
-                 ) -> None:
+    def __init__(self, binding: DeviceBinding, view: Callable[[], CameraView], node_ids: Callable[[], dict[int, int]],
+                 on_sample: Callable[[], None]) -> None:
         self._view = view
         self._node_ids = node_ids
+        self._on_sample = on_sample  # the camera keeps the poses its segmentation image will be drawn from
         super().__init__(binding)
         self.objects: list[CameraRecognitionObject] = []
         self.pending = False  # a segmentation image is due at the next read
@@ -281,6 +303,7 @@ class RecognitionSampler(SampledDevice):
         record = self._record
         model = RecognitionModel(record.node.fields["recognition"].fields)
         self.objects = recognise(self._robot._sim, record.solid, self._view(), model, self._node_ids())
+        self._on_sample()
         self.pending = True
 
 

@@ -240,6 +240,16 @@ class WebotsVisualScene:
             mujoco.mju_mat2Quat(d.mocap_quat[mocap], R.reshape(9))
         mujoco.mj_forward(self.model, d)
 
+    def snapshot(self) -> tuple[np.ndarray, np.ndarray]:
+        """The Solids' current poses (mocap positions and quaternions), to be drawn later by :meth:`restore`."""
+        self.sync()
+        return self.data.mocap_pos.copy(), self.data.mocap_quat.copy()
+
+    def restore(self, poses: tuple[np.ndarray, np.ndarray]) -> None:
+        """Pose the scene as at a :meth:`snapshot` of it."""
+        self.data.mocap_pos[:], self.data.mocap_quat[:] = poses
+        mujoco.mj_forward(self.model, self.data)
+
     def named_camera(self, name: str, width: int, height: int) -> ResolvedCamera:
         """A Camera device of the world by name, or ``viewpoint`` (Webots FLU: looks along +x, +z up)."""
         if name in self._cameras:
