@@ -140,6 +140,13 @@ def test_occluded_by_a_box_with_occlusion_on_seen_with_it_off_and_no_colours_nev
     assert seen(objects, "occlusion 0") == ["BOX"]
     # control: the wall beside the line of sight hides nothing
     assert seen(box("BOX", 3.0, 0.0) + box("WALL", 1.5, 1.0, size=0.6, colours="")) == ["BOX"]
+    # in one sample, the wall hides the box behind it and not the one beside it (its ray passes y = 0.4·x,
+    # 0.48..0.72 m across the wall's x 1.2..1.8, beyond its y ±0.3)
+    assert seen(objects + box("SIDE", 3.0, 1.2)) == ["SIDE"]
+    # a recognisable object in front hides as well, and is reported itself
+    front = box("BOX", 3.0, 0.0) + box("FRONT", 1.5, 0.0, size=0.6)
+    assert seen(front) == ["FRONT"]
+    assert seen(front, "occlusion 0") == ["FRONT", "BOX"]
 
 
 def test_max_objects_keeps_the_nearest() -> None:

@@ -200,25 +200,30 @@ def _pixel(value: float) -> int:
     return math.floor(value + 0.5)
 
 
-def _occluded(sim: Simulation, camera: SolidRec, solid: SolidRec, origin: m3.Vec3, target: m3.Vec3) -> bool:
-    delta = m3.sub(target, origin)
-    distance = m3.norm(delta)
-    if distance == 0.0:
-        return False
+def _occluded(sim: Simulation, camera: SolidRec, origin: m3.Vec3, targets: list[tuple[SolidRec, m3.Vec3]]
+              ) -> list[bool]:
+    """Whether a ray from ``origin`` to each target point first hits a bounding object outside the target's
+    subtree (the module docstring's occlusion); all rays in one batch."""
     mount = _chain(camera)
 
     def build() -> list[GeomRec]:
-        members = {id(s) for s in _subtree(solid)}
-        return [g for g in candidate_geoms(sim, camera.robot)
-                if id(g.solid) not in members and id(g.solid) not in mount]
+        return [g for g in candidate_geoms(sim, camera.robot) if id(g.solid) not in mount]
 
-    geoms = geom_list(sim, ("recognition", id(camera), id(solid)), build)
-    if not geoms:
-        return False
-    hits = caster_for(sim).cast(np.array([origin], dtype=float),
-                                np.array([m3.scale(delta, 1.0 / distance)], dtype=float), distance, geoms,
-                                normals=False)
-    return bool(np.isfinite(hits.distance[0])) and float(hits.distance[0]) < distance - 1e-9
+    geoms = geom_list(sim, ("recognition", id(camera)), build)
+    out = [False] * len(targets)
+    rays = [(i, m3.sub(point, origin)) for i, (_, point) in enumerate(targets)]
+    rays = [(i, d) for i, d in rays if m3.norm(d) > 0.0]
+    if not geoms or not rays:
+        return out
+    lengths = np.array([m3.norm(d) for _, d in rays], dtype=float)
+    directions = np.array([d for _, d in rays], dtype=float) / lengths[:, None]
+    hits = caster_for(sim).cast(np.repeat(np.array([origin], dtype=float), len(rays), axis=0), directions, lengths,
+                                geoms, normals=False)
+    for k, ((i, _), hit) in enumerate(zip(rays, hits.geom, strict=True)):
+        distance = float(hits.distance[k])
+        if hit is not None and distance < lengths[k] - 1e-9:
+            out[i] = id(hit.solid) not in {id(s) for s in _subtree(targets[i][0])}
+    return out
 
 
 def recognise(sim: Simulation, camera: SolidRec, view: CameraView, model: RecognitionModel,
@@ -230,7 +235,7 @@ def recognise(sim: Simulation, camera: SolidRec, view: CameraView, model: Recogn
     tc = np.asarray(pose.t, dtype=float)
     mount = _chain(camera)
     shapes = _Shapes(sim)
-    found: list[tuple[float, int, CameraRecognitionObject]] = []
+    seen: list[tuple[SolidRec, m3.Pose, m3.Vec3, float, np.ndarray, tuple[float, float, float, float], m3.Vec3]] = []
     for solid in sim.solids:
         colours = colours_of(solid)
         if not colours or id(solid) in mount:
@@ -245,10 +250,15 @@ def recognise(sim: Simulation, camera: SolidRec, view: CameraView, model: Recogn
         on_image = _image_box(corners, view)
         if on_image is None:
             continue
-        if model.occlusion > 0:
-            centre = tuple(float(v) for v in box.mean(axis=0)) if box is not None else spose.t
-            if _occluded(sim, camera, solid, pose.t, (centre[0], centre[1], centre[2])):
-                continue
+        c = box.mean(axis=0) if box is not None else spose.t
+        seen.append((solid, spose, position, distance, corners, on_image, (float(c[0]), float(c[1]), float(c[2]))))
+    hidden = (_occluded(sim, camera, pose.t, [(item[0], item[6]) for item in seen]) if model.occlusion > 0
+              else [False] * len(seen))
+    found: list[tuple[float, int, CameraRecognitionObject]] = []
+    for (solid, spose, position, distance, corners, on_image, _), occluded in zip(seen, hidden, strict=True):
+        if occluded:
+            continue
+        colours = colours_of(solid)
         u0, v0, u1, v1 = on_image
         relative = np.asarray((inverse * spose).R, dtype=float)
         node_id = node_ids.get(id(solid.node), -1)
