@@ -91,6 +91,7 @@ def test_a_physics_node_imported_into_a_solid_of_a_robot_merges_into_its_body_an
 def test_the_devices_of_the_robot_keep_working_across_the_edit() -> None:
     sup = _robot()
     motor, gyro = sup.getDevice("m"), sup.getDevice("gyro")  # handles taken before the edit
+    motor.enableTorqueFeedback(TS)
     motor.setPosition(math.inf)
     motor.setVelocity(1.0)
     for _ in range(5):
@@ -98,9 +99,15 @@ def test_the_devices_of_the_robot_keep_working_across_the_edit() -> None:
     sup.getFromDef("PART").getField("physics").importSFNodeFromString("Physics { }")
     assert _rate(sup) == pytest.approx(1.0, abs=1e-4)  # the command given before the edit still drives it
     motor.setVelocity(-1.0)
-    for _ in range(3):
+    sup.step(TS)
+    # and a new one through the same handle: the motor turns the rotor (I = 2/5·m·r² about its own centre) from
+    # 1 to -1 rad/s in one step, with a torque of I·Δω/h that its feedback reads (to 1 %: the body it is jointed
+    # to turns a little the other way)
+    rotor_inertia = 0.4 * ROTOR_MASS * 0.05**2
+    assert motor.getTorqueFeedback() == pytest.approx(-rotor_inertia * 2.0 / H, rel=1e-2)
+    for _ in range(2):
         sup.step(TS)
-    assert _rate(sup) == pytest.approx(-1.0, abs=1e-4)  # and a new one through the same handle
+    assert _rate(sup) == pytest.approx(-1.0, abs=1e-4)
     bot = sup.getFromDef("BOT")
     bot.addTorque([0.0, 0.0, 0.01], False)
     sup.step(TS)

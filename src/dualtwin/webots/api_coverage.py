@@ -47,8 +47,8 @@ API_NOTES: tuple[tuple[str, str, str], ...] = (
      "dictionary filled once when the Robot is made) does not list it; a removed sensor's handle keeps reading "
      "its axis"),
     ("not yet", "Field.importSFNodeFromString / removeSF of a Physics node",
-     "the Solid's ODE objects are built again below it (see Physics): a joint without jointParameters below it "
-     "reads its position from 0 again, and a motor's torque feedback, if enabled, reads from the next sample"),
+     "the Solid's new body starts from rest, also when the Solid was moving as a kinematic joint's endPoint "
+     "(what Webots gives it then is not checked)"),
     ("not yet", "Robot imported, or controller restarted, without a runner",
      "a Supervisor driven directly (no run_world) starts no controller (one warning at its next step) and a "
      "restarted one keeps running; 'dualtwin webots run' and run_world (processes or threads) start and restart "

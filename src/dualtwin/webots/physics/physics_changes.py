@@ -120,7 +120,7 @@ class PhysicsChanges(SceneChanges):
         """Each old record takes the place of the new one built for its node (:data:`_FROM_NEW`), so that what
         holds the old one (a controller's device handles, the device modules) goes on with the new physics."""
         everything = self._all_records()
-        old_positions = {id(j): list(j.positions) for j in old.values() if isinstance(j, JointRec)}
+        old_joints = {id(j): (list(j.positions), j.ptr) for j in old.values() if isinstance(j, JointRec)}
         swap: dict[int, Any] = {}
         for new in everything:
             was = old.get((type(new), id(getattr(new, "node", None))))
@@ -156,15 +156,18 @@ class PhysicsChanges(SceneChanges):
             if any(b is not None and b.damping for b in joint.brakes):
                 self.rebuild_springs(joint)  # a brake's damping set by its controller acts again
         for joint in (j for j in swap.values() if isinstance(j, JointRec)):
-            self._joint_kept(joint, old_positions[id(joint)])
+            self._joint_kept(joint, *old_joints[id(joint)])
         self._prepare_step_lists()
 
-    def _joint_kept(self, joint: JointRec, positions: list[float]) -> None:
+    def _joint_kept(self, joint: JointRec, positions: list[float], old_ptr: int) -> None:
         """A joint built again below the edited Solid reads on from where it was (its kept load position makes
-        resets right): with an ODE joint, whose zero is where it is now, its offsets are those positions; without
-        one, its endPoint (placed where it is now) is re-based so that the motion from the load position to
-        those positions leaves it there."""
+        resets right): with an ODE joint, whose zero is where it is now, its offsets are those positions (and the
+        torque feedback buffer of an enabled motor feedback moves to it); without one, its endPoint (placed where
+        it is now) is re-based so that the motion from the load position to those positions leaves it there."""
         joint.positions[:] = positions
+        feedback = self._lib.dJointGetFeedback(old_ptr) if old_ptr else None
+        if feedback and joint.ptr:
+            self._lib.dJointSetFeedback(joint.ptr, feedback)
         if joint.ptr:
             joint.offsets = list(positions)
             self._read_joint(joint, predict=False)
