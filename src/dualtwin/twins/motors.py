@@ -60,8 +60,13 @@ class MotorState:
     def set_velocity(self, velocity: float) -> None:
         """Velocity control: ``setPosition(inf)`` + ``setVelocity(v)``, clamped to max velocity."""
         v = velocity * self.gain
+        limit = self.params.max_velocity
+        # max(-limit, min(limit, v)) without the calls (a command per motor and period): the comparisons pick
+        # exactly what min and max pick, NaN and signed zeros included (min keeps its first argument unless the
+        # second is smaller, max unless it is larger).
+        v = v if v < limit else limit
         self.target_position = math.inf
-        self.target_velocity = max(-self.params.max_velocity, min(self.params.max_velocity, v))
+        self.target_velocity = v if v > -limit else -limit
         self.torque_mode = False
 
     def set_position(self, position: float) -> None:
@@ -78,8 +83,11 @@ class MotorState:
         self.torque_mode = False
 
     def set_torque(self, torque: float) -> None:
-        limit = min(self.available_torque, self.params.max_torque)
-        self.torque = max(-limit, min(limit, torque * self.gain))
+        available, most = self.available_torque, self.params.max_torque
+        limit = most if most < available else available  # min(available, most), as in set_velocity
+        t = torque * self.gain
+        t = t if t < limit else limit
+        self.torque = t if t > -limit else -limit  # max(-limit, min(limit, t))
         self.torque_mode = True
 
     @property
