@@ -112,6 +112,19 @@ def test_sampling_follows_the_sensor_protocol() -> None:
     assert cam.getRecognitionSamplingPeriod() == 0 and cam.getRecognitionObjects() == []
 
 
+def test_a_sample_sees_the_poses_after_the_physics_step_of_its_instant() -> None:
+    # a falling box: after each 8 ms step its recognised position is the one the supervisor reads after that
+    # step's physics (the camera sits at the world origin, unrotated), not the one before
+    sup, cam = camera(box("BOX", 2.25, 0.5).replace("boundingObject", "physics Physics { } boundingObject"))
+    cam.recognitionEnable(8)
+    node = sup.getFromDef("BOX")
+    for _ in range(3):
+        before = node.getPosition()[2]
+        sup.step(8)
+        z = cam.getRecognitionObjects()[0].getPosition()[2]
+        assert z == pytest.approx(node.getPosition()[2], abs=1e-12) and z < before - 1e-5
+
+
 def test_only_what_is_in_the_frustum_is_reported_and_a_box_on_the_edge_is_clipped() -> None:
     objects = (box("AHEAD", 2.25, 0.5) + box("BEHIND", -2.25, 0.0) + box("LEFT", 2.25, 5.0)
                + box("ABOVE", 2.25, 0.0, 4.0) + box("EDGE", 2.25, 2.2))
