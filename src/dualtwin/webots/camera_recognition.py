@@ -31,7 +31,9 @@ Our reading where Webots' text does not say (Webots' own C++ is not at hand):
   parts of its robot are, like any Solid;
 * **occlusion** (levels 1 and 2 alike): one ray from the camera to the centre of the object's bounding box,
   against the bounding objects of the world with Webots' ray rules (the camera's robot is transparent to it
-  unless it has selfCollision; the object's own subtree is); a hit before the centre hides the object;
+  unless it has selfCollision; the Solids carrying the camera always are); the object is hidden when the
+  first bounding object the ray meets before that centre is not the object's own (its subtree's), so an
+  object whose centre is hidden is not reported even when an edge of it shows;
 * the objects are reported nearest first (distance of their origin; node id breaks ties), and ``maxObjects``
   keeps the first ones;
 * the segmentation image colours every recognisable Solid the camera draws (a Solid without colours of its
