@@ -182,3 +182,17 @@ Robot {{
     first, last, rate = (tmp_path / "controllers" / "arm" / "out.txt").read_text().split()
     assert (int(first), int(last)) == (1, 2)  # the sensor alone at first, then the imported motor too
     assert float(rate) == pytest.approx(2.0, abs=1e-4)  # the motor turns the joint at the commanded speed
+
+
+def test_an_imported_linear_motor_drives_a_slider() -> None:
+    # the slider's endPoint starts at the joint's origin; a LinearMotor imported into its device field takes it to
+    # the commanded position along the axis (x here): its P control (§5.3) closes the last of the gap with a time
+    # constant of 1/P = 0.1 s, so within 1 mm after a second
+    world = WORLD.replace("HingeJointParameters { axis 0 0 1 }", "JointParameters { axis 1 0 0 }")
+    sup = Supervisor(simulation=Simulation(load_world_text(world.replace("DEF HINGE HingeJoint", "DEF HINGE SliderJoint"))))
+    sup.step(TS)
+    sup.getFromDef("HINGE").getField("device").importMFNodeFromString(-1, 'LinearMotor { name "lm" }')
+    sup.getDevice("lm").setPosition(0.1)
+    for _ in range(250):
+        sup.step(TS)
+    assert sup.getFromDef("ROTOR").getPosition() == pytest.approx([0.1, 0.0, 0.0], abs=1e-3)

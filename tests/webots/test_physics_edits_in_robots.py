@@ -205,3 +205,23 @@ def test_a_controller_drives_its_motor_across_a_supervisors_physics_edit(tmp_pat
     assert speed == pytest.approx(H / (16 + ROTOR_MASS), rel=1e-2)  # the part merged into the robot's body
     rate = float((tmp_path / "controllers" / "arm" / "out.txt").read_text())
     assert rate == pytest.approx(-1.0, abs=1e-4)  # the controller's handle still drives the joint
+
+
+def test_a_physics_node_imported_into_the_robot_itself_makes_it_a_body_its_devices_following() -> None:
+    # a static robot (no Physics) with a GPS: given Physics, its 8 kg cube takes one step of 1 N as h/8, and its
+    # GPS (a handle taken before) follows it as it drifts at that speed
+    sup = Supervisor(simulation=Simulation(load_world_text(_world(
+        f'DEF BOT Robot {{ translation 0 0 1 supervisor TRUE {CUBE} children [ GPS {{ name "gps" }} ] }}'))))
+    gps = sup.getDevice("gps")
+    gps.enable(TS)
+    bot = sup.getFromDef("BOT")
+    bot.addForce([1.0, 0.0, 0.0], False)
+    sup.step(TS)
+    assert bot.getVelocity()[0] == 0.0  # control: static
+    bot.getField("physics").importSFNodeFromString("Physics { }")
+    bot.addForce([1.0, 0.0, 0.0], False)
+    sup.step(TS)
+    assert bot.getVelocity()[0] == pytest.approx(H / 8, rel=1e-9)
+    for _ in range(99):
+        sup.step(TS)
+    assert gps.getValues() == pytest.approx([H / 8 * 100 * H, 0.0, 1.0], rel=1e-6)
