@@ -8,7 +8,11 @@ holds the joint where it is now, at its maxVelocity, with its full torque) and t
 commands; a position sensor reads the axis; a brake adds its damping. Removing the node takes it out of the
 device list and ends its effect: a motor's ODE motor row is let go (only the axis' static friction stays,
 §4.5), a brake's damping leaves the axis' damper. An axis holds one device of each kind, as at load
-(:meth:`SceneBuilder._add_axis_device`).
+(:meth:`SceneBuilder._add_axis_device`). The Python API's reference only says that ``getDevice`` answers the
+device object it made once and that ``Robot.devices`` is filled when the Robot is made; Webots' Robot node
+announces a device inserted below it to its controller, so here ``getDevice`` finds the new device (in both
+controller isolation modes), ``getDeviceByIndex`` numbers it in scene-tree order, and ``Robot.devices`` stays
+as the Robot filled it.
 
 Parameters (``jointParameters``, ``jointParameters2``, ``jointParameters3``): a (Hinge)JointParameters
 imported into an empty field gives the joint its axis, anchor, stops, spring, damping, static friction (and,
