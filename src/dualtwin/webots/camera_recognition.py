@@ -92,22 +92,8 @@ def colours_of(solid: SolidRec) -> list[tuple[float, float, float]]:
 
 
 def _chain(solid: SolidRec) -> set[int]:
-    """The Solid and the Solids it is mounted on."""
-    out = set()
-    s: SolidRec | None = solid
-    while s is not None:
-        out.add(id(s))
-        s = s.parent
-    return out
-
-
-def _subtree(solid: SolidRec) -> list[SolidRec]:
-    out, stack = [], [solid]
-    while stack:
-        s = stack.pop()
-        out.append(s)
-        stack.extend(s.children)
-    return out
+    """Ids of the Solid and the Solids it is mounted on."""
+    return {id(s) for s in solid.carriers()}
 
 
 def _geom_corners(lib: Any, g: GeomRec) -> np.ndarray:
@@ -156,7 +142,7 @@ class _Shapes:
 
 def _bounds(solid: SolidRec, pose: m3.Pose, shapes: _Shapes) -> np.ndarray | None:
     """The 8 corners (world) of the object's bounding box in its own frame, or None (module docstring)."""
-    subtree = _subtree(solid)
+    subtree = solid.subtree()
     geoms = [g for s in subtree for g in s.geoms if not g.is_plane]
     if not geoms:
         geoms = shapes.of(subtree)
@@ -224,7 +210,7 @@ def _occluded(sim: Simulation, camera: SolidRec, origin: m3.Vec3, targets: list[
     for k, ((i, _), hit) in enumerate(zip(rays, hits.geom, strict=True)):
         distance = float(hits.distance[k])
         if hit is not None and distance < lengths[k] - 1e-9:
-            out[i] = id(hit.solid) not in {id(s) for s in _subtree(targets[i][0])}
+            out[i] = id(hit.solid) not in {id(s) for s in targets[i][0].subtree()}
     return out
 
 

@@ -105,15 +105,6 @@ def _in_view(local_corners: list[m3.Vec3], half_h: float, half_v: float) -> bool
     return _overlaps(azimuths, half_h) and _overlaps(elevations, half_v)
 
 
-def _ancestors(solid: SolidRec) -> set[int]:
-    out = set()
-    s: SolidRec | None = solid
-    while s is not None:
-        out.add(id(s))
-        s = s.parent
-    return out
-
-
 def _occluded(sim: Simulation, radar: SolidRec, target: SolidRec, origin: m3.Vec3, delta: m3.Vec3) -> bool:
     distance = m3.norm(delta)
     if distance == 0.0:
@@ -149,7 +140,7 @@ def detect_targets(sim: Simulation, radar: SolidRec) -> list[RadarTarget]:
     min_signal = float(f.get("minDetectableSignal", -100.0))
     occlusion = bool(f.get("occlusion", False))
     noise = (float(f.get("rangeNoise", 0.0)), float(f.get("speedNoise", 0.0)), float(f.get("angularNoise", 0.0)))
-    skip = _ancestors(radar)
+    skip = {id(s) for s in radar.carriers()}
     inverse = pose.inverse()
     found: list[RadarTarget] = []
     for solid in sim.solids:

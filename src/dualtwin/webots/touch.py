@@ -41,21 +41,12 @@ __all__ = ["TouchSensor", "bumper_touches"]
 _TYPES = {"bumper": 0, "force": 1, "force-3d": 2}
 
 
-def _sensor_solids(solid: SolidRec) -> list[SolidRec]:
-    out, stack = [], [solid]
-    while stack:
-        s = stack.pop()
-        out.append(s)
-        stack.extend(s.children)
-    return out
-
-
 def bumper_touches(sim: Simulation, solid: SolidRec) -> bool:
     """Whether the TouchSensor Solid's geoms touch another Solid's geoms now (Webots' bumper pair rules)."""
-    mine = [g for s in _sensor_solids(solid) for g in s.geoms]
+    mine = [g for s in solid.subtree() for g in s.geoms]
     if not mine:
         return False
-    own = {id(s) for s in _sensor_solids(solid)}
+    own = {id(s) for s in solid.subtree()}
     robot = solid.robot
     others: list[GeomRec] = [
         g

@@ -43,13 +43,7 @@ class SupervisorEdits(MassEdits):
                 motor.current_velocity = 0.0
 
     def _bodies_in_subtree(self, solid: SolidRec) -> list[BodyRec]:
-        out: list[BodyRec] = []
-        stack = [solid]
-        while stack:
-            s = stack.pop()
-            if s.body is not None and s.body.root is s:
-                out.append(s.body)
-            stack.extend(s.children)
+        out = [s.body for s in solid.subtree() if s.body is not None and s.body.root is s]
         if solid.body is not None and solid.body not in out:
             out.append(solid.body)
         return out
@@ -159,17 +153,14 @@ class SupervisorEdits(MassEdits):
                 lib.dBodySetForce(body.ptr, 0.0, 0.0, 0.0)
                 lib.dBodySetTorque(body.ptr, 0.0, 0.0, 0.0)
             lib.dBodyEnable(body.ptr)
-        stack = [solid]
-        while stack:
-            s = stack.pop()
+        for s in solid.subtree():
             for gr in s.geoms:
                 if gr.body is None:
                     self._place_static_geom(gr, self.solid_world_pose(s))
-            stack.extend(s.children)
 
     def _reanchor_boundary(self, solid: SolidRec) -> None:
         """Re-set joints crossing the moved subtree's boundary (ODE zero re-based, §6)."""
-        inside = {id(s) for s in self._subtree(solid)}
+        inside = {id(s) for s in solid.subtree()}
         for joint in self.joints:
             if not joint.ptr:
                 continue
@@ -193,15 +184,6 @@ class SupervisorEdits(MassEdits):
             lib.dJointSetAMotorParam(joint.spring, ode.dParamLoStop, stop)
             lib.dJointSetAMotorParam(joint.spring, ode.dParamHiStop, stop)
 
-    def _subtree(self, solid: SolidRec) -> list[SolidRec]:
-        out = []
-        stack = [solid]
-        while stack:
-            s = stack.pop()
-            out.append(s)
-            stack.extend(s.children)
-        return out
-
     def _teleport_joint(self, joint: JointRec, axis_index: int, position: float) -> None:
         """§4.1: move the endPoint to zero-pose ⊕ position, reset its subtree's physics."""
         p = joint.params[axis_index]
@@ -220,7 +202,7 @@ class SupervisorEdits(MassEdits):
         new_rel = self._joint_motion(joint, delta) * child.load_rel if delta else child.load_rel
         new_world = parent_world * new_rel
         self._move_subtree(child, new_world * old_world.inverse(), reset_velocity=True)
-        moved = {id(s) for s in self._subtree(child)}
+        moved = {id(s) for s in child.subtree()}
         for motor in self.motors:
             if motor.joint.child is not None and id(motor.joint.child) in moved:
                 motor.current_velocity = 0.0

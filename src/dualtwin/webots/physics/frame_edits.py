@@ -171,7 +171,7 @@ class FrameEdits(PhysicsChanges):
         body-less geoms below it are carried along."""
         old_world = self.solid_world_pose(solid)
         changed = False
-        for member in self._subtree(solid):
+        for member in solid.subtree():
             if member.body is body and member.parent is not None and member is not body.root:
                 in_body = member.parent.in_body * member.rel
                 changed |= in_body != member.in_body
@@ -187,7 +187,7 @@ class FrameEdits(PhysicsChanges):
         into) by the world transform ``T``, place its body-less geoms again and anchor the joints touching the
         subtree where their Solids now are."""
         lib = self._lib
-        subtree = self._subtree(solid)
+        subtree = solid.subtree()
         inside = {id(s) for s in subtree}
         moved = [s.body for s in subtree if s.body is not None and s.body.root is s and s.body is not own
                  and not s.body.removed]  # fmt: skip

@@ -73,7 +73,7 @@ class PhysicsChanges(SceneChanges):
         chain = path_to_node(self.world.nodes, solid_node)
         if chain is None:
             return
-        subtree = self._subtree(solid)
+        subtree = solid.subtree()
         inside = {id(s) for s in subtree}
         joints = [j for j in self.joints if (j.parent is not None and id(j.parent) in inside)
                   or (j.child is not None and id(j.child) in inside)]  # fmt: skip

@@ -140,6 +140,24 @@ class SolidRec(_ShortRepr):
     def is_dynamic(self) -> bool:
         return self.body is not None
 
+    def subtree(self) -> list[SolidRec]:
+        """This Solid and every Solid below it (depth first)."""
+        out, stack = [], [self]
+        while stack:
+            s = stack.pop()
+            out.append(s)
+            stack.extend(s.children)
+        return out
+
+    def carriers(self) -> list[SolidRec]:
+        """This Solid and the Solids it is mounted on, up to its top Solid."""
+        out: list[SolidRec] = []
+        s: SolidRec | None = self
+        while s is not None:
+            out.append(s)
+            s = s.parent
+        return out
+
 
 @dataclass(eq=False, repr=False)
 class BodyRec(_ShortRepr):
