@@ -202,7 +202,9 @@ def test_a_buffered_command_warns_in_the_scripts_order(tmp_path: Path, capsys: p
     world = _project(tmp_path, ORDER)
     (_, process_err), (_, thread_err) = _both(world, capsys)
     lines = [line.split(":")[0] for line in process_err.splitlines()]
-    assert lines == ["before", "Warning", "Warning", "after", "Warning", "Warning"], process_err  # two coupled motors
+    # the load's warning (the coupled motors' limits harmonised) first, then two coupled motors' per command
+    assert lines == ["Warning", "before", "Warning", "Warning", "after", "Warning", "Warning"], process_err
+    assert "limits set from" in process_err.splitlines()[0]
     assert process_err == thread_err
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import errno
 import signal
 import sys
+import warnings
 from collections.abc import Sequence
 
 from dualtwin.interrupts import Interrupted, came, hold_while_loading, loaded, stop_on_interrupt, take_held
@@ -46,6 +47,14 @@ def one_line(message: str) -> str:
     return "; ".join(part.strip() for part in str(message).splitlines() if part.strip())
 
 
+def _warning_line(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+                  line: str | None = None) -> str:
+    """A warning raised while a command runs (a world's node we do not simulate, a library's complaint), shown
+    as the command line shows its own: one ``warning:`` line, not Python's ``file:line: UserWarning`` and the
+    source line under it."""
+    return f"warning: {one_line(str(message))}\n"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point: user errors become one line on stderr and exit code 2, never a traceback.
 
@@ -57,6 +66,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     code = 0
     interrupted_note(reset=True)
     previous = stop_on_interrupt()
+    previous_format = warnings.formatwarning
+    warnings.formatwarning = _warning_line
     try:
         command = harden(typer.main.get_command(app))
         result = command.main(args=list(sys.argv[1:] if argv is None else argv), prog_name="dualtwin",
@@ -104,6 +115,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"error: interrupted{interrupted_note()}", file=sys.stderr)
         code = 130
     finally:
+        warnings.formatwarning = previous_format
         if previous is not None:
             # The program ends here (argv None): a late Ctrl-C has nothing left to stop, and Python restores the
             # default action while it finalises (killed by SIGINT: exit -2 after a finished run).

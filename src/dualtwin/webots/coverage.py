@@ -94,8 +94,9 @@ REGISTRY: tuple[Coverage, ...] = (
              "its endPoint is placed as a child; a Slot pair as a joint endPoint passes the joint through"),
     Coverage("Billboard", "scene", "visual", "a view-facing group; no physics"),
     Coverage("CadShape", "scene", "visual", "visual mesh; no physics"),
-    Coverage("Charger", "scene", "not", "behaves as a Solid; battery charging is not simulated"),
-    Coverage("Fluid", "scene", "not", "not yet: no buoyancy or drag"),
+    Coverage("Charger", "scene", "not", "behaves as a Solid; battery charging is not simulated (a world with one "
+             "says so once at load)"),
+    Coverage("Fluid", "scene", "not", "not yet: no buoyancy or drag (a world with one says so once at load)"),
     Coverage("ImmersionProperties", "scene", "not", "not yet: no fluid forces"),
     # -- physics
     Coverage("Physics", "physics", "supported",

@@ -42,7 +42,9 @@ import sys
 import threading
 import time
 import traceback
-from collections.abc import Callable
+import warnings
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -50,7 +52,7 @@ from dualtwin.errors import DualtwinError
 from dualtwin.webots import controller as api
 from dualtwin.webots.controller_host import DEFAULT_STEP_TIMEOUT_S, run_in_processes
 from dualtwin.webots.keyboard import KeyScript, load_key_script
-from dualtwin.webots.nodes import Node
+from dualtwin.webots.nodes import Node, World
 from dualtwin.webots.physics import Simulation, SimulationUnstable
 from dualtwin.webots.runtime import NO_CONTROLLER
 
@@ -301,6 +303,34 @@ def run_world(
     script = load_key_script(Path(keys)) if keys is not None else None
     path = Path(world_path)
     world = load_world(path, proto_paths)
+    with _warnings_as_lines():
+        return _run_loaded(world, path, proto_paths, controller, duration_s, script, step_timeout_s, isolation)
+
+
+@contextmanager
+def _warnings_as_lines() -> Iterator[None]:
+    """The simulation's warnings (its build, a supervisor's edit it cannot carry out) printed as the world's own
+    are, one ``Warning: ...`` line each as Webots prints them, not Python's ``file:line: UserWarning`` with the
+    source line under it. Each is shown once per place it is raised from, per run: a second run in the same
+    process (a script or a test running two worlds) reports its own world's warnings again, which Python's
+    once-per-process registry would hide (changing the filters, as entering this does, clears it)."""
+
+    def show(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+             file: object = None, line: str | None = None) -> None:
+        print(f"Warning: {message}", file=sys.stderr)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("default")
+        warnings.showwarning = show
+        yield
+
+
+def _run_loaded(world: World, path: Path, proto_paths: tuple[str | os.PathLike[str], ...] | list[str | os.PathLike[str]],
+                controller: str | os.PathLike[str] | None, duration_s: float | None, script: KeyScript | None,
+                step_timeout_s: float, isolation: str) -> int:
+    """:func:`run_world` once its first world is loaded (and for each world a supervisor loads after it)."""
+    from dualtwin.webots import load_world
+
     for _ in range(MAX_WORLD_LOADS + 1):
         for message in world.warnings:
             print(f"Warning: {message}", file=sys.stderr)
