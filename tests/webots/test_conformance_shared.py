@@ -63,3 +63,18 @@ def test_webots_physics_regression_test_passes(test: str, tmp_path: Path) -> Non
     detail = log.read_text()[-3000:] if log.is_file() else ""
     passed, total = int(summary.group(3)), int(summary.group(4))
     assert total > 0 and passed == total, f"{done.stdout}\n--- log tail ---\n{detail}"
+
+
+@pytest.mark.skipif(not SUITE.is_dir(), reason="../shared/conformance/webots-physics is not present")
+def test_the_coverage_page_states_the_figures_these_items_give() -> None:
+    """The coverage page restates the suite's figure (the product does not ship the suite): it must agree with
+    the suite's own table (tests, checks) and with the failures this file knows of (one failing check each)."""
+    from dualtwin.webots.coverage import CONFORMANCE
+
+    table = [line.split("\t") for line in (SUITE / "tests.tsv").read_text().splitlines()
+             if line.strip() and not line.startswith("#")]
+    counted = [fields for fields in table if not (len(fields) > 4 and fields[4].startswith("SKIP"))]
+    assert CONFORMANCE.tests == (len(counted) - len(KNOWN_FAILING), len(counted))
+    total_checks = sum(int(fields[3]) for fields in counted)
+    assert CONFORMANCE.checks == (total_checks - len(KNOWN_FAILING), total_checks)
+    assert [what.split(",")[0] for what in CONFORMANCE.failing] == sorted(KNOWN_FAILING)
