@@ -356,9 +356,27 @@ def pearson(a: npt.ArrayLike, b: npt.ArrayLike) -> float | None:
     y = np.asarray(b, dtype=np.float64)
     if x.size < 2 or _is_constant(x) or _is_constant(y):
         return None
+    return _pearson_varying(x, y)
+
+
+def _pearson_varying(x: FloatArray, y: FloatArray) -> float:
+    """`pearson` of two series already known to vary (the one place its arithmetic is written)."""
     xc, yc = x - x.mean(), y - y.mean()
     r = float(np.dot(xc, yc) / math.sqrt(float(np.dot(xc, xc)) * float(np.dot(yc, yc))))
     return min(1.0, max(-1.0, r))
+
+
+def _constant_ends(x: FloatArray) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """`_is_constant` of every prefix ``x[:m]`` and every suffix ``x[-m:]``, at index ``m - 1``, in one pass.
+
+    The running maximum and minimum are the slices' own (max and min round nothing, and NaN propagates as
+    in `np.ptp`), so each verdict is the one `_is_constant` gives the slice; `best_lag` asks it for about
+    sixty slices of each series, where a call per slice cost more than the correlations."""
+    def verdicts(v: FloatArray) -> npt.NDArray[np.bool_]:
+        with np.errstate(invalid="ignore"):  # inf - inf: NaN, not constant, as np.ptp has it (silently here)
+            spread = np.maximum.accumulate(v) - np.minimum.accumulate(v)
+        return np.asarray(spread <= _REL_EPS * np.maximum(1.0, np.maximum.accumulate(np.abs(v))))
+    return verdicts(x), verdicts(x[::-1])
 
 
 def best_lag(
@@ -388,9 +406,18 @@ def best_lag(
     k_max = max(0, min(int(math.floor(max_lag_s / dt + 1e-9)), (n - 2) // 2))
     lags = np.arange(-k_max, k_max + 1)
     corr: list[float | None] = []
+    # `pearson`'s test for a constant slice, made for every prefix and suffix of each series at once.
+    ends = (_constant_ends(x), _constant_ends(y)) if y.shape == x.shape == (n,) and n - k_max >= 2 else None
     for k in lags:
         # y[i + k] pairs with x[i]: a positive k finds B's copy of A's feature k samples later.
-        corr.append(pearson(x[: n - k], y[k:]) if k >= 0 else pearson(x[-k:], y[: n + k]))
+        xs, ys = (x[: n - k], y[k:]) if k >= 0 else (x[-k:], y[: n + k])
+        if ends is None:
+            corr.append(pearson(xs, ys))
+            continue
+        (x_prefix, x_suffix), (y_prefix, y_suffix) = ends
+        m = n - abs(int(k))  # the overlap's length, 2 or more
+        flat = (x_prefix[m - 1] or y_suffix[m - 1]) if k >= 0 else (x_suffix[m - 1] or y_prefix[m - 1])
+        corr.append(None if flat else _pearson_varying(xs, ys))
     score = np.array([abs(c) if c is not None else -1.0 for c in corr])
     if np.all(score < 0):
         return LagResult(lag_s=0.0, correlation=None)

@@ -33,7 +33,6 @@ from dualtwin.webots.physics import Simulation
 from dualtwin.webots.robot_link import RobotLink
 from dualtwin.webots.runtime import Runtime
 from dualtwin.webots.step_hints import advances, step_value
-from dualtwin.webots.urdf import robot_urdf
 
 __all__ = ["Robot", "link_of"]
 
@@ -191,6 +190,10 @@ class Robot:
 
     def getUrdf(self, prefix: str = "") -> str:
         """URDF text of the robot: links for Solids, joints for hinges and sliders (no mass or inertia)."""
+        # Imported here: its XML quoting (xml.sax.saxutils) loads urllib.request, http.client and ssl, which a
+        # controller that never asks for URDF should not pay for at start-up.
+        from dualtwin.webots.urdf import robot_urdf
+
         return robot_urdf(self.__link._rec.node, self.getName(), str(prefix))
 
     def getMode(self) -> int:
