@@ -85,3 +85,24 @@ def test_the_cases_reach_both_verdicts_at_lags_other_than_zero() -> None:
         for k in range(1, (n - 2) // 2 + 1):
             seen.add((pearson(x[: n - k], y[k:]) is None, pearson(x[k:], y[: n - k]) is None))
     assert {(True, False), (False, True), (False, False)} <= seen
+
+
+def test_median_is_numpys_bit_for_bit() -> None:
+    """``metrics.median`` stands in for np.median (whose NaN check imports numpy.ma): the same value, bit for
+    bit, on random series of every length parity, with ties, infinities and NaN (control: the mean of the two
+    middle values, not either one, is what an even length must give)."""
+    from dualtwin.divergence.metrics import median
+
+    rng = np.random.default_rng(7)
+    cases: list[np.ndarray] = [np.array([2.0]), np.array([1.0, 4.0]), np.array([0.1, 0.2, 0.7, 1e308, 1e308])]
+    for n in range(1, 60):
+        cases.append(rng.normal(size=n) * 10.0 ** rng.integers(-8, 8))
+        cases.append(rng.integers(0, 3, size=n).astype(float) * 0.032)  # ties
+    inf, nan = np.array([1.0, math.inf, -math.inf, 2.0, math.inf]), np.array([0.5, math.nan, 1.5])
+    cases += [inf, nan, np.array([math.nan])]
+    for values in cases:
+        with np.errstate(invalid="ignore"):
+            want = float(np.median(values))
+        assert repr(median(values)) == repr(want), values
+        assert repr(median(list(values))) == repr(want)
+    assert median([1.0, 4.0]) == 2.5

@@ -60,7 +60,7 @@ from dualtwin.align.objective import ObjectiveValue, build_spec, evaluate
 from dualtwin.align.propose import ProposalOutcome, try_proposals
 from dualtwin.align.simulate import Evaluator, ExecutorKind, SimJob, check_executor, load_traces
 from dualtwin.divergence.comparison import Contribution, RunComparison, ScenarioComparison, compare_runs
-from dualtwin.divergence.metrics import ChannelDivergence
+from dualtwin.divergence.metrics import ChannelDivergence, median
 from dualtwin.divergence.runs import load_run
 from dualtwin.errors import DualtwinError
 from dualtwin.models import FrozenModel, StrictModel
@@ -295,7 +295,7 @@ def _consistent(hits: list[Any], value: Callable[[Any], float], tolerance: float
     """Hits whose value lies within ``tolerance`` of their median, if they cover half the diverging scenarios."""
     if not hits:
         return []
-    center = float(np.median([value(h) for h in hits]))
+    center = median([value(h) for h in hits])
     agree = [h for h in hits if abs(value(h) - center) <= tolerance]
     return agree if len(agree) >= max(1, math.ceil(0.5 * diverging)) else []
 
@@ -352,13 +352,13 @@ def detect_lag(comparison: RunComparison) -> list[Finding]:
             before, after = lag_explains(pair[0], pair[1], samples)
             if before > 0 and after <= EXPLAINS_FACTOR * before:
                 hits.append((sc, ch, before, after))
-        dt0 = float(np.median([ch.dt_s for _, ch in diverging])) if diverging else 0.0
+        dt0 = median([ch.dt_s for _, ch in diverging]) if diverging else 0.0
         hits = _consistent(hits, lambda h: h[1].lag_s, LAG_AGREE_SAMPLES * dt0, len(diverging))
         if not hits:
             continue
         lags = [ch.lag_s for _, ch, _, _ in hits]
-        lag = float(np.median(lags))
-        dt = float(np.median([ch.dt_s for _, ch, _, _ in hits]))
+        lag = median(lags)
+        dt = median([ch.dt_s for _, ch, _, _ in hits])
         who, other = ("B", "A") if lag > 0 else ("A", "B")
         message = (f"{_label(name)} in {who} lags {other} by {abs(lag):.3g} s (≈{abs(lag) / dt:.1f} control periods) "
                    f"in {_count(len(hits), total)}; undoing the lag cuts the error by "
@@ -393,7 +393,7 @@ def detect_scale_mismatch(comparison: RunComparison) -> list[Finding]:
         hits = _consistent(hits, lambda h: math.log(h[1].slope or 1.0), math.log(SCALE_MIN_RATIO), len(diverging))
         if not hits:
             continue
-        slope = float(np.median([ch.slope or 1.0 for _, ch, _, _ in hits]))
+        slope = median([ch.slope or 1.0 for _, ch, _, _ in hits])
         message = (f"{_label(name)} in B is {slope:.3g}× A's in {_count(len(hits), total)}: command gain or "
                    "scale mismatch (motor gain, velocity or torque limit, wheel radius)")
         out.append(Finding(kind="scale_mismatch", message=message, channel=name, scenarios=[sc.id for sc, *_ in hits],
