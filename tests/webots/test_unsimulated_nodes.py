@@ -1,8 +1,9 @@
 """A world holding a node whose effect this runtime does not simulate says so once, at load, in one line.
 
-Webots' Fluid (buoyancy and drag on Solids with immersionProperties) and Charger (battery recharging) are kept
-in the scene tree without effect (docs/webots-coverage.md marks them "not"). Before, such a world ran silently:
-a box dropped into water fell through it as in air and nothing said why. The run's warnings (these, and the
+Webots' Charger (battery recharging) is kept in the scene tree without effect (docs/webots-coverage.md marks it
+"not"); a Fluid pushes immersed Solids by buoyancy but not by drag or viscous resistance, so a world whose
+ImmersionProperties ask for those says so (one that asks only for buoyancy says nothing). Before, such a world
+ran silently: a box dropped into water fell through it as in air and nothing said why. The run's warnings (these, and the
 physics plugin's) are printed as ``Warning: ...`` lines, as Webots prints its own, not as Python's
 ``file:line: UserWarning`` followed by a source line.
 """
@@ -30,12 +31,13 @@ Solid {{
   children [ Shape {{ geometry DEF B Box {{ size 0.2 0.2 0.2 }} }} ]
   boundingObject USE B
   physics Physics {{ density 500 }}
-  immersionProperties [ ImmersionProperties {{ fluidName "fluid" }} ]
+  immersionProperties [ ImmersionProperties {{ fluidName "fluid" {props} }} ]
 }}
 Solid {{ children [ Shape {{ geometry DEF P Plane {{ size 10 10 }} }} ] boundingObject USE P name "floor" }}
 """
 FLUID = 'Fluid { translation 0 0 0.5 boundingObject Box { size 4 4 1 } }'
 CHARGER = 'Charger { translation 2 2 0.1 name "charger" }'
+DRAG = "dragForceCoefficients 0.1 0 0"
 
 
 def _build_warnings(text: str) -> list[str]:
@@ -50,19 +52,31 @@ def _build_warnings(text: str) -> list[str]:
 
 @pytest.mark.parametrize(("extra", "node"), [(FLUID, "Fluid"), (CHARGER, "Charger")], ids=["Fluid", "Charger"])
 def test_a_node_without_effect_here_is_named_once_at_load(extra: str, node: str) -> None:
-    said = _build_warnings(POOL.format(info="", extra=f"{extra}\n{extra.replace('charger', 'charger2')}"))
+    text = POOL.format(info="", extra=f"{extra}\n{extra.replace('charger', 'charger2')}", props=DRAG)
+    said = _build_warnings(text)
     named = [w for w in said if f"a {node} node" in w]
     assert len(named) == 1, said  # once, however many there are
     assert "not simulated here" in named[0]
 
 
+def test_a_fluid_says_that_drag_is_missing_and_buoyancy_is_not() -> None:
+    said = _build_warnings(POOL.format(info="", extra=FLUID, props=DRAG))
+    assert len(said) == 1, said
+    assert "buoyancy of immersed Box" in said[0] and "is simulated" in said[0]
+    assert "drag and viscous resistance" in said[0] and "are not simulated here" in said[0]
+
+
+def test_a_fluid_world_asking_for_buoyancy_only_says_nothing() -> None:
+    assert _build_warnings(POOL.format(info="", extra=FLUID, props="")) == []
+
+
 def test_the_control_world_without_them_says_nothing() -> None:
-    assert _build_warnings(POOL.format(info="", extra="")) == []
+    assert _build_warnings(POOL.format(info="", extra="", props=DRAG)) == []
 
 
 def test_webots_run_prints_each_warning_as_one_webots_line(tmp_path: Path) -> None:
     world = tmp_path / "pool.wbt"
-    world.write_text(POOL.format(info='physics "buoyancy_plugin"', extra=FLUID), encoding="utf-8")
+    world.write_text(POOL.format(info='physics "buoyancy_plugin"', extra=FLUID, props=DRAG), encoding="utf-8")
     done = subprocess.run([sys.executable, "-m", "dualtwin.cli", "webots", "run", str(world), "--duration", "0.1"],
                           capture_output=True, text=True, timeout=120, env=env(), cwd=ROOT, check=False)
     assert done.returncode == 0, done.stderr

@@ -96,8 +96,16 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("CadShape", "scene", "visual", "visual mesh; no physics"),
     Coverage("Charger", "scene", "not", "behaves as a Solid; battery charging is not simulated (a world with one "
              "says so once at load)"),
-    Coverage("Fluid", "scene", "not", "not yet: no buoyancy or drag (a world with one says so once at load)"),
-    Coverage("ImmersionProperties", "scene", "not", "not yet: no fluid forces"),
+    Coverage("Fluid", "scene", "partial",
+             "buoyancy (Archimedes: density x immersed volume x gravity, at the immersed volume's centroid, "
+             "before each physics step) on the bodies of Solids whose immersionProperties name it; its "
+             "boundingObject must be Boxes (the top face is the surface); no drag, viscosity or streamVelocity "
+             "(a world that would need them says so once at load); a Fluid inside a Solid is not simulated"),
+    Coverage("ImmersionProperties", "scene", "partial",
+             "fluidName selects the Fluid whose buoyancy acts on the Solid: Box bounding objects exactly, Sphere "
+             "exactly below the surface (the fluid's side walls are not cut), Cylinder and Capsule through a "
+             "48-sided polyhedron of revolution scaled to the true volume; drag and viscous resistance "
+             "coefficients are not simulated (a non-zero one warns once at load), nor meshes"),
     # -- physics
     Coverage("Physics", "physics", "supported",
              "density or mass, centerOfMass, inertiaMatrix, damping (volume-weighted over merged solids); a "

@@ -26,7 +26,8 @@ What differs (and why)
       LCP row as a stop row with that ERP/CFM (Appendix A).
     * Asymmetric friction (2–4 ``coulombFriction`` values) sets fdir1/mu2 per contact from both geometries'
       friction directions (which face gives which direction is our reading of Webots' texture mapping);
-      asymmetric ``forceDependentSlip`` uses its first value; fluids are not simulated. Ray devices, touch sensors and radios live in their
+      asymmetric ``forceDependentSlip`` uses its first value; fluids push immersed Solids by buoyancy only
+      (``immersion``: no drag or viscous resistance). Ray devices, touch sensors and radios live in their
       own modules (``ranging``, ``touch``, ``radio``) and use the ``extensions``/``step_hooks`` slots.
     * Hinge suspension (fork-only ODE API, Appendix A.2) is not modelled; BallJoint springs/dampers are the
       stop rows of a second Euler AMotor; BallJoint
@@ -79,6 +80,7 @@ from dualtwin.errors import SimulationUnstable
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots import ode
 from dualtwin.webots.nodes import Node, World
+from dualtwin.webots.physics import immersion
 from dualtwin.webots.physics.frame_edits import FrameEdits
 from dualtwin.webots.physics.records import (
     ATTACHMENT_TYPES,
@@ -103,7 +105,6 @@ from dualtwin.webots.physics.records import field_or as _f
 #: Nodes that change what Webots simulates but that this runtime keeps without effect (their coverage entries
 #: say "not"): a world holding one runs, and says once, at load, what it will not show.
 NOT_SIMULATED = {
-    "Fluid": "fluids are not simulated here (no buoyancy or drag): Solids with immersionProperties move as in air",
     "Charger": "chargers are not simulated here: no battery is recharged",
 }
 
@@ -183,6 +184,7 @@ class Simulation(FrameEdits):
         self._read_world_info()
         self._snapshot = self._snapshot_fields()
         self._build()
+        immersion.install(self)  # buoyancy: a pre-step hook, only where a Solid is immersed in a Fluid
 
     # ------------------------------------------------------------------ world info
 

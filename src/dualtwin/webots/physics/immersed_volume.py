@@ -1,0 +1,166 @@
+"""Volume and centroid of the part of a bounding geometry that lies inside a fluid box (Archimedes' buoyancy).
+
+The fluid box is given as half-spaces ``n·x <= d`` (its six faces, outward normals ``n``). Shapes:
+
+* Box: exact. The box is a convex polyhedron; it is clipped by each half-space in turn (every face polygon
+  clipped Sutherland-Hodgman style, the cut closed by a new face on the plane), and the clipped polyhedron's
+  volume and centroid are integrated exactly as a fan of tetrahedra from an interior point.
+* Sphere: exact for the surface plane only: the spherical cap below the fluid's top face (volume
+  ``π·h²·(3r − h)/3``, centroid ``3·(2r − h)²/(4·(3r − h))`` below the centre). The other faces are not cut:
+  the sphere counts while its centre lies inside the fluid box's footprint and above its bottom face.
+* Cylinder and Capsule: approximated. The shape becomes a convex polyhedron of revolution (``SEGMENTS``
+  sides; a capsule's hemispheres ``RINGS`` latitude bands each) that is clipped exactly as a box is; the volume
+  found is scaled by (true volume / polyhedron volume), so a fully immersed shape has its exact volume and a
+  partly immersed one its polyhedron's share of it (the centroid is the polyhedron's).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+from dualtwin.webots import _math3 as m3
+
+Vec3 = tuple[float, float, float]
+Face = list[Vec3]
+HalfSpace = tuple[Vec3, float]  # (outward unit normal n, offset d): the inside is n·x <= d
+
+SEGMENTS = 48
+RINGS = 8
+
+__all__ = ["RINGS", "SEGMENTS", "box_faces", "clip", "immersed", "polyhedron_volume", "revolution_faces",
+           "sphere_cap"]
+
+
+def box_faces(center: Sequence[float], R: Sequence[float], half: Sequence[float]) -> list[Face]:
+    """The six faces of a box (row-major rotation ``R`` from its frame to the world), vertices in cyclic order."""
+    def corner(sx: float, sy: float, sz: float) -> Vec3:
+        return m3.add(center, m3.mat_vec(R, (sx * half[0], sy * half[1], sz * half[2])))
+
+    faces = []
+    cycle = ((-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0))
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            face = []
+            for a, b in cycle:
+                s = [a, b]
+                s.insert(axis, sign)
+                face.append(corner(*s))
+            faces.append(face)
+    return faces
+
+
+def revolution_faces(
+    center: Sequence[float], R: Sequence[float], profile: Sequence[tuple[float, float]], segments: int = SEGMENTS
+) -> list[Face]:
+    """A convex polyhedron of revolution about the frame's z axis: ``profile`` lists (radius, z) rings from bottom
+    to top; each ring is a regular ``segments``-gon."""
+    rings = []
+    for radius, z in profile:
+        ring = []
+        for k in range(segments):
+            a = 2.0 * math.pi * k / segments
+            ring.append(m3.add(center, m3.mat_vec(R, (radius * math.cos(a), radius * math.sin(a), z))))
+        rings.append(ring)
+    faces: list[Face] = []
+    if profile[0][0] > 0.0:
+        faces.append(list(rings[0]))
+    if profile[-1][0] > 0.0:
+        faces.append(list(rings[-1]))
+    for low, high in zip(rings, rings[1:], strict=False):
+        for k in range(segments):
+            j = (k + 1) % segments
+            faces.append([low[k], low[j], high[j], high[k]])
+    return faces
+
+
+def clip(faces: list[Face], plane: HalfSpace) -> list[Face]:
+    """The convex polyhedron ``faces`` cut by the half-space ``n·x <= d`` (faces of the part inside)."""
+    n, d = plane
+    nx, ny, nz = n
+    signed = [[nx * p[0] + ny * p[1] + nz * p[2] - d for p in face] for face in faces]
+    if all(s <= 0.0 for row in signed for s in row):
+        return faces
+    if all(s >= 0.0 for row in signed for s in row):
+        return []
+    out: list[Face] = []
+    cut: list[Vec3] = []
+    for face, dist in zip(faces, signed, strict=True):
+        poly: Face = []
+        k = len(face)
+        for i in range(k):
+            a, da = face[i], dist[i]
+            b, db = face[(i + 1) % k], dist[(i + 1) % k]
+            if da <= 0.0:
+                poly.append(a)
+                if da == 0.0:
+                    cut.append(a)
+            if (da < 0.0 < db) or (db < 0.0 < da):
+                t = da / (da - db)
+                p = (a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2]))
+                poly.append(p)
+                cut.append(p)
+        if len(poly) >= 3:
+            out.append(poly)
+    if len(cut) >= 3:
+        out.append(_cyclic(cut, n))
+    return out
+
+
+def _cyclic(points: list[Vec3], n: Vec3) -> Face:
+    """Points of one convex polygon lying in a plane of normal ``n``, sorted by angle about their mean."""
+    count = len(points)
+    mean = (sum(p[0] for p in points) / count, sum(p[1] for p in points) / count, sum(p[2] for p in points) / count)
+    helper = (1.0, 0.0, 0.0) if abs(n[0]) < 0.9 else (0.0, 1.0, 0.0)
+    u = m3.normalized(m3.cross(n, helper))
+    w = m3.cross(n, u)
+    return sorted(points, key=lambda p: math.atan2(m3.dot(m3.sub(p, mean), w), m3.dot(m3.sub(p, mean), u)))
+
+
+def polyhedron_volume(faces: list[Face]) -> tuple[float, Vec3]:
+    """Volume and centroid of a convex polyhedron (faces with vertices in cyclic order, either orientation)."""
+    count = sum(len(f) for f in faces)
+    if count == 0:
+        return 0.0, (0.0, 0.0, 0.0)
+    ox = sum(p[0] for f in faces for p in f) / count
+    oy = sum(p[1] for f in faces for p in f) / count
+    oz = sum(p[2] for f in faces for p in f) / count
+    volume = cx = cy = cz = 0.0
+    for face in faces:
+        a = face[0]
+        ax, ay, az = a[0] - ox, a[1] - oy, a[2] - oz
+        for i in range(1, len(face) - 1):
+            b, c = face[i], face[i + 1]
+            bx, by, bz = b[0] - ox, b[1] - oy, b[2] - oz
+            qx, qy, qz = c[0] - ox, c[1] - oy, c[2] - oz
+            v = abs(ax * (by * qz - bz * qy) - ay * (bx * qz - bz * qx) + az * (bx * qy - by * qx)) / 6.0
+            volume += v
+            cx += v * (ax + bx + qx) / 4.0
+            cy += v * (ay + by + qy) / 4.0
+            cz += v * (az + bz + qz) / 4.0
+    if volume <= 0.0:
+        return 0.0, (ox, oy, oz)
+    return volume, (ox + cx / volume, oy + cy / volume, oz + cz / volume)
+
+
+def sphere_cap(center: Sequence[float], radius: float, surface: HalfSpace) -> tuple[float, Vec3]:
+    """Volume and centroid of the part of a sphere below the plane ``n·x = d`` (the inside is ``n·x <= d``)."""
+    n, d = surface
+    above = m3.dot(n, center) - d  # the centre's height above the surface
+    if above >= radius:
+        return 0.0, (float(center[0]), float(center[1]), float(center[2]))
+    if above <= -radius:
+        return 4.0 / 3.0 * math.pi * radius**3, (float(center[0]), float(center[1]), float(center[2]))
+    h = radius - above  # cap height
+    volume = math.pi * h * h * (3.0 * radius - h) / 3.0
+    below = 3.0 * (2.0 * radius - h) ** 2 / (4.0 * (3.0 * radius - h))
+    return volume, m3.sub(center, m3.scale(n, below))
+
+
+def immersed(faces: list[Face], planes: Sequence[HalfSpace]) -> tuple[float, Vec3]:
+    """Volume and centroid of the convex polyhedron ``faces`` inside every half-space of ``planes``."""
+    for plane in planes:
+        faces = clip(faces, plane)
+        if not faces:
+            return 0.0, (0.0, 0.0, 0.0)
+    return polyhedron_volume(faces)

@@ -1,0 +1,287 @@
+"""Buoyancy of Solids immersed in Webots ``Fluid`` nodes (Archimedes), applied before every physics step.
+
+A Solid with a body whose ``immersionProperties`` hold an ``ImmersionProperties`` whose ``fluidName`` is a Fluid's
+``name`` is pushed, each step before ``dWorldStep`` (Webots applies immersion forces in its pre-physics pass,
+§1.6), by ``−ρ_fluid · V · g`` at the centroid of ``V`` (``dBodyAddForceAtPos``), ``V`` being the part of each geom
+of the Solid's boundingObject, in its current pose, that lies inside the Fluid's boundingObject Box (its top face
+is the surface). :mod:`.immersed_volume` computes ``V`` (Box and Sphere exactly, Cylinder and Capsule through a
+polyhedron of revolution). A world without such a pair registers nothing, so its steps are unchanged.
+
+Not simulated (one warning at load names what a world would miss): drag and viscous resistance (the
+ImmersionProperties coefficients, with the Fluid's streamVelocity and viscosity), fluids whose boundingObject is
+not a Box, Fluids inside a Solid, and immersed geoms other than Box/Sphere/Cylinder/Capsule. Fluids are read
+from the scene tree at every step (a supervisor's edit of their pose, size or density counts); the immersed
+Solids are those of the load (a Solid imported at run time floats in no fluid).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from dualtwin.webots import _math3 as m3
+from dualtwin.webots import ode
+from dualtwin.webots._math3 import Pose
+from dualtwin.webots.nodes import Node, World
+from dualtwin.webots.physics.immersed_volume import (
+    RINGS,
+    HalfSpace,
+    box_faces,
+    immersed,
+    polyhedron_volume,
+    revolution_faces,
+    sphere_cap,
+)
+from dualtwin.webots.physics.records import GeomRec, SolidRec, is_solid
+from dualtwin.webots.physics.records import field_or as _f
+
+__all__ = ["Buoyancy", "install"]
+
+_SHAPES = ("Box", "Sphere", "Cylinder", "Capsule")
+_DRAG_FIELDS = ("dragForceCoefficients", "dragTorqueCoefficients", "viscousResistanceForceCoefficient",
+                "viscousResistanceTorqueCoefficient")
+
+
+@dataclass
+class _Fluid:
+    node: Node
+    frames: list[Node]  # the Pose-like nodes above it, outermost first
+
+
+@dataclass
+class _Immersed:
+    solid: SolidRec
+    fluid_names: frozenset[str]
+
+
+def _fluids(world: World, warn: Callable[[str], None]) -> list[_Fluid]:
+    found: list[_Fluid] = []
+    inside_solid = False
+
+    def walk(nodes: Iterable[Node | None], frames: list[Node], in_solid: bool) -> None:
+        nonlocal inside_solid
+        for node in nodes:
+            if node is None:
+                continue
+            if node.type_name == "Fluid":
+                if in_solid:
+                    inside_solid = True
+                else:
+                    found.append(_Fluid(node, frames))
+                continue
+            solid = is_solid(node)
+            if "children" in node.fields:
+                pose_like = "translation" in node.fields and "rotation" in node.fields and not solid
+                walk(node.children(), [*frames, node] if pose_like else frames, in_solid or solid)
+
+    walk(world.nodes, [], False)
+    if inside_solid:
+        warn("the world has a Fluid node inside a Solid: such a fluid is not simulated here (only fluids outside "
+             "Solids push what is immersed in them) (docs/webots-coverage.md)")
+    return found
+
+
+def _fluid_boxes(node: Node, local: Pose, out: list[tuple[Pose, tuple[float, float, float]]]) -> bool:
+    """Boxes of a Fluid's boundingObject (in the Fluid's frame); False if it holds any other geometry."""
+    t = node.type_name
+    if t in ("Pose", "Transform"):
+        sub = local * Pose.from_fields(_f(node, "translation", None), _f(node, "rotation", None))
+        s = _f(node, "scale", (1.0, 1.0, 1.0)) if t == "Transform" else (1.0, 1.0, 1.0)
+        ok = True
+        for child in node.children():
+            inner: list[tuple[Pose, tuple[float, float, float]]] = []
+            ok = _fluid_boxes(child, Pose(), inner) and ok
+            for pose, half in inner:
+                scaled = Pose(pose.R, tuple(v * k for v, k in zip(pose.t, s, strict=True)))
+                out.append((sub * scaled, (half[0] * s[0], half[1] * s[1], half[2] * s[2])))
+        return ok
+    if t == "Group":
+        ok = True
+        for child in node.children():
+            ok = _fluid_boxes(child, local, out) and ok
+        return ok
+    if t == "Shape":
+        geometry = _f(node, "geometry", None)
+        return _fluid_boxes(geometry, local, out) if isinstance(geometry, Node) else True
+    if t == "Box":
+        size = _f(node, "size", (2.0, 2.0, 2.0))
+        out.append((local, (float(size[0]) / 2, float(size[1]) / 2, float(size[2]) / 2)))
+        return True
+    return False
+
+
+def _half_spaces(pose: Pose, half: Sequence[float], up: Sequence[float]) -> tuple[list[HalfSpace], int]:
+    """The six faces of a fluid box as half-spaces, and the index of its top face (the surface)."""
+    planes: list[HalfSpace] = []
+    for axis in range(3):
+        direction = (pose.R[axis], pose.R[3 + axis], pose.R[6 + axis])
+        for sign in (-1.0, 1.0):
+            n = m3.scale(direction, sign)
+            planes.append((n, m3.dot(n, pose.t) + half[axis]))
+    top = max(range(6), key=lambda i: m3.dot(planes[i][0], up))
+    return planes, top
+
+
+class Buoyancy:
+    """The per-step pre-physics hook: Archimedes' force on every immersed Solid's body (see the module)."""
+
+    def __init__(self, lib: Any, gravity: Sequence[float], up: Sequence[float], fluids: list[_Fluid],
+                 immersed_solids: list[_Immersed]) -> None:
+        self._lib = lib
+        self._gravity = tuple(float(v) for v in gravity)
+        self._up = tuple(float(v) for v in up)
+        self._fluids = fluids
+        self._solids = immersed_solids
+        self._length = (ctypes.c_double * 4)()
+        self._radius, self._height = ctypes.c_double(), ctypes.c_double()
+        self._scales: dict[tuple[str, float, float], float] = {}
+        self.last_forces: list[tuple[SolidRec, tuple[float, float, float], tuple[float, float, float]]] = []
+
+    def __call__(self, dt: float) -> None:
+        del dt
+        fluids = []
+        for fluid in self._fluids:
+            pose = Pose()
+            for frame in fluid.frames:
+                pose = pose * Pose.from_fields(_f(frame, "translation", None), _f(frame, "rotation", None))
+            pose = pose * Pose.from_fields(_f(fluid.node, "translation", None), _f(fluid.node, "rotation", None))
+            bo = _f(fluid.node, "boundingObject", None)
+            boxes: list[tuple[Pose, tuple[float, float, float]]] = []
+            if isinstance(bo, Node):
+                _fluid_boxes(bo, Pose(), boxes)
+            name = str(_f(fluid.node, "name", "fluid"))
+            density = float(_f(fluid.node, "density", 1000.0))
+            for local, half in boxes:
+                if min(half) > 0.0:
+                    fluids.append((name, density, _half_spaces(pose * local, half, self._up)))
+        self.last_forces = []
+        add_force = self._lib.dBodyAddForceAtPos
+        for entry in self._solids:
+            body = entry.solid.body
+            if body is None or body.removed:
+                continue
+            for name, density, (planes, top) in fluids:
+                if name not in entry.fluid_names:
+                    continue
+                for geom in entry.solid.geoms:
+                    volume, centroid = self._immersed(geom, planes, top)
+                    if volume <= 0.0:
+                        continue
+                    force = m3.scale(self._gravity, -density * volume)
+                    add_force(body.ptr, *force, *centroid)
+                    self.last_forces.append((entry.solid, force, centroid))
+
+    def _immersed(self, geom: GeomRec, planes: list[HalfSpace], top: int) -> tuple[float, m3.Vec3]:
+        lib = self._lib
+        ptr = geom.ptr
+        kind = geom.kind
+        if kind not in _SHAPES or geom.body is None:
+            return 0.0, m3.ZERO
+        p = ode.vec3(lib.dGeomGetPosition(ptr))
+        r = ode.mat3(lib.dGeomGetRotation(ptr))
+        center = (p[0], p[1], p[2])
+        R = (r[0], r[1], r[2], r[4], r[5], r[6], r[8], r[9], r[10])
+        if kind == "Sphere":
+            radius = float(lib.dGeomSphereGetRadius(ptr))
+            for i, (n, d) in enumerate(planes):
+                if i != top and m3.dot(n, center) > d:
+                    return 0.0, m3.ZERO  # the centre is outside the footprint or below the bottom
+            return sphere_cap(center, radius, planes[top])
+        if kind == "Box":
+            lengths = self._length
+            lib.dGeomBoxGetLengths(ptr, lengths)
+            half = (lengths[0] / 2, lengths[1] / 2, lengths[2] / 2)
+            bound = math.sqrt(half[0] ** 2 + half[1] ** 2 + half[2] ** 2)
+            full = 8.0 * half[0] * half[1] * half[2]
+            state = self._bounds(center, bound, planes)
+            if state != 0:
+                return (full, center) if state > 0 else (0.0, m3.ZERO)
+            return immersed(box_faces(center, R, half), planes)
+        getter = lib.dGeomCapsuleGetParams if kind == "Capsule" else lib.dGeomCylinderGetParams
+        getter(ptr, ctypes.byref(self._radius), ctypes.byref(self._height))
+        radius, height = self._radius.value, self._height.value
+        capsule = kind == "Capsule"
+        full = math.pi * radius * radius * (height + (4.0 / 3.0 * radius if capsule else 0.0))
+        bound = math.hypot(radius, height / 2) + (radius if capsule else 0.0)
+        state = self._bounds(center, bound, planes)
+        if state != 0:
+            return (full, center) if state > 0 else (0.0, m3.ZERO)
+        profile = _profile(radius, height, capsule)
+        key = (kind, radius, height)
+        if key not in self._scales:
+            self._scales[key] = full / polyhedron_volume(revolution_faces((0.0, 0.0, 0.0), m3.IDENTITY, profile))[0]
+        volume, centroid = immersed(revolution_faces(center, R, profile), planes)
+        return volume * self._scales[key], centroid
+
+    @staticmethod
+    def _bounds(center: Sequence[float], bound: float, planes: list[HalfSpace]) -> int:
+        """1: the sphere of radius ``bound`` about ``center`` lies inside every half-space; -1: outside one; 0: cut."""
+        inside = True
+        for n, d in planes:
+            s = m3.dot(n, center) - d
+            if s >= bound:
+                return -1
+            if s > -bound:
+                inside = False
+        return 1 if inside else 0
+
+
+def _profile(radius: float, height: float, capsule: bool) -> list[tuple[float, float]]:
+    if not capsule:
+        return [(radius, -height / 2), (radius, height / 2)]
+    rings = []
+    for j in range(RINGS + 1):  # bottom hemisphere, pole to equator
+        a = -math.pi / 2 + j * (math.pi / 2) / RINGS
+        rings.append((radius * math.cos(a), -height / 2 + radius * math.sin(a)))
+    return rings + [(rr, -z) for rr, z in reversed(rings)]
+
+
+def install(sim: Any) -> Buoyancy | None:
+    """Register the buoyancy hook on ``sim`` (a :class:`~dualtwin.webots.physics.Simulation` after its build) when
+    some Solid with a body is immersed in a Fluid of the world; warn once about what is not simulated."""
+    fluids = _fluids(sim.world, sim.warn)
+    if not fluids:
+        return None
+    names = {str(_f(fluid.node, "name", "fluid")) for fluid in fluids}
+    missing = []
+    if any(not _fluid_boxes(bo, Pose(), []) for bo in (_f(f.node, "boundingObject", None) for f in fluids)
+           if isinstance(bo, Node)):
+        missing.append("fluids whose boundingObject is not a Box (they push nothing)")
+    immersed_solids = []
+    drag = False
+    other_shapes: set[str] = set()
+    for solid in sim.solids:
+        props = [p for p in (_f(solid.node, "immersionProperties", []) or []) if isinstance(p, Node)]
+        matching = frozenset(str(_f(p, "fluidName", "")) for p in props) & names
+        if not matching:
+            continue
+        drag = drag or any(_nonzero(_f(p, field, 0.0)) for p in props for field in _DRAG_FIELDS)
+        other_shapes.update(g.kind for g in solid.geoms if g.kind not in _SHAPES)
+        if solid.body is not None:
+            immersed_solids.append(_Immersed(solid, matching))
+    if drag:
+        missing.append("drag and viscous resistance (dragForceCoefficients, dragTorqueCoefficients, "
+                       "viscousResistance*Coefficient, with the fluid's streamVelocity and viscosity)")
+    if other_shapes:
+        missing.append(f"the immersion of {', '.join(sorted(other_shapes))} bounding objects")
+    if missing:
+        sim.warn("the world has a Fluid node: buoyancy of immersed Box, Sphere, Cylinder and Capsule bounding "
+                 f"objects is simulated, but {'; '.join(missing)} are not simulated here (docs/webots-coverage.md)")
+    if not immersed_solids:
+        return None
+    g = sim.gravity
+    up = m3.normalized(m3.scale(g, -1.0)) if any(g) else ((0.0, 0.0, 1.0) if sim.coordinate_system == "ENU"
+                                                           else (0.0, 1.0, 0.0))
+    hook = Buoyancy(sim._lib, g, up, fluids, immersed_solids)
+    sim.pre_step_hooks.append(hook)
+    sim.extensions["buoyancy"] = hook
+    return hook
+
+
+def _nonzero(value: Any) -> bool:
+    if isinstance(value, (list, tuple)):
+        return any(float(v) != 0.0 for v in value)
+    return float(value) != 0.0
