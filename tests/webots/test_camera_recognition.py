@@ -321,3 +321,45 @@ def test_segmentation_is_drawn_from_the_poses_of_the_recognition_sample(headless
     assert cam.getRecognitionObjects()[0].getPosition()[1] == pytest.approx(-0.5)
     red = (_segmentation(cam)[..., 2] == 255).any(axis=0)
     assert red[36:44].any() and not red[: W // 2].any()
+
+
+CAMERA_CONTROLLER = """
+    from controller import Robot
+    robot = Robot()
+    cam = robot.getDevice("cam")
+    cam.enable(8)
+    cam.recognitionEnable(8)
+    cam.enableRecognitionSegmentation()
+    robot.step(8)
+    print("IMAGE", len(cam.getImage()), len(cam.getRecognitionSegmentationImage()))
+"""
+
+
+def test_a_controllers_renderers_are_freed_in_its_own_thread(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                             headless_gl: None) -> None:
+    """A camera draws with EGL contexts made in its controller's thread (a thread of the run in either mode);
+    they are closed there when the controller ends. Before, they lived on with the run's objects and were freed
+    by a later run or the collector in another thread, where EGL refuses (EGL_BAD_ACCESS): an ignored exception
+    with its traceback on stderr. Runs in both modes, one after the other, as a script or a test session does."""
+    import gc
+    import sys
+
+    from dualtwin.webots.runner import run_world
+
+    world = (HEAD.replace("RECOGNITION", "recognition Recognition { segmentation TRUE }")
+             .replace('controller "<extern>"', 'controller "looker"') + box("BOX", 2.25, 0.5, colours="0 0 1"))
+    (tmp_path / "worlds").mkdir()
+    (tmp_path / "worlds" / "w.wbt").write_text(world)
+    (tmp_path / "controllers" / "looker").mkdir(parents=True)
+    (tmp_path / "controllers" / "looker" / "looker.py").write_text(textwrap.dedent(CAMERA_CONTROLLER))
+    ignored: list[str] = []
+    previous = sys.unraisablehook
+    sys.unraisablehook = lambda failure: ignored.append(f"{failure.exc_type.__name__}: {failure.exc_value}")
+    try:
+        for isolation in ("threads", "process", "threads", "process"):
+            assert run_world(tmp_path / "worlds" / "w.wbt", None, 0.016, isolation=isolation) == 0
+            gc.collect()
+    finally:
+        sys.unraisablehook = previous
+    assert capsys.readouterr().out.count(f"IMAGE {4 * W * H} {4 * W * H}") == 4
+    assert ignored == []

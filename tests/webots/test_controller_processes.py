@@ -119,6 +119,9 @@ class _Fake:
     def _after_reset(self) -> None:
         pass
 
+    def _controller_ended(self) -> None:
+        pass
+
 
 def test_controllers_ending_at_the_same_step_never_deadlock_1000_times() -> None:
     """The runtime's synchronisation exercised directly: 1,000 runs of 5 controllers, two of which end before

@@ -10,6 +10,7 @@ physics plugin's) are printed as ``Warning: ...`` lines, as Webots prints its ow
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import warnings
@@ -19,9 +20,9 @@ import pytest
 
 from dualtwin.webots import load_world_text
 from dualtwin.webots.physics import Simulation
-from tests.test_cli_robust import env
 
 ROOT = Path(__file__).resolve().parents[2]
+ENV = {**os.environ, "PYTHONPATH": str(ROOT / "src") + os.pathsep + os.environ.get("PYTHONPATH", "")}
 
 POOL = """#VRML_SIM R2023b utf8
 WorldInfo {{ basicTimeStep 16 {info} }}
@@ -78,7 +79,7 @@ def test_webots_run_prints_each_warning_as_one_webots_line(tmp_path: Path) -> No
     world = tmp_path / "pool.wbt"
     world.write_text(POOL.format(info='physics "buoyancy_plugin"', extra=FLUID, props=DRAG), encoding="utf-8")
     done = subprocess.run([sys.executable, "-m", "dualtwin.cli", "webots", "run", str(world), "--duration", "0.1"],
-                          capture_output=True, text=True, timeout=120, env=env(), cwd=ROOT, check=False)
+                          capture_output=True, text=True, timeout=120, env=ENV, cwd=ROOT, check=False)
     assert done.returncode == 0, done.stderr
     lines = done.stderr.splitlines()
     assert len([line for line in lines if "physics plugin 'buoyancy_plugin'" in line]) == 1, done.stderr

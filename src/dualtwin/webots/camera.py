@@ -153,6 +153,17 @@ class Camera(SolidSensor):
         pos = np.asarray(pose.t, dtype=float)
         return ResolvedCamera.look(pos, pos + R[:, 0], R[:, 2], m.fovy_degrees())
 
+    def _controller_ended(self) -> None:
+        """Its controller's thread ends: the renderers it drew with are closed in that thread. An EGL context
+        is current in the thread that made it, and Python's collector, freeing one later in another thread,
+        failed (EGL_BAD_ACCESS, printed as an ignored exception with its traceback)."""
+        for name in ("_renderer", "_segmentation_renderer"):
+            renderer = self.__dict__.pop(name, None)
+            if renderer is not None:
+                renderer.close()
+        self.__dict__.pop("_drawn", None)
+        self.__dict__.pop("_segmented", None)
+
     def _render(self) -> np.ndarray:
         from dualtwin.webots.render import FrameRenderer
 

@@ -166,6 +166,13 @@ class RobotLink:
         self._sensors.clear()
         self.inputs.clear()
 
+    def _controller_ended(self) -> None:
+        """Its controller's thread ends (called in that thread): devices let go of what belongs to it."""
+        for device in list(self._devices.values()):
+            ended = getattr(device, "_controller_ended", None)
+            if ended is not None:
+                ended()
+
     def close(self) -> None:
         if self.client.active:
             self._runtime.unregister(self.client)

@@ -48,6 +48,8 @@ class RuntimeRobot(Protocol):
 
     def _release(self) -> None: ...
 
+    def _controller_ended(self) -> None: ...
+
 
 # ------------------------------------------------------------------------------------------ runtime
 
@@ -276,9 +278,11 @@ class Runtime:
     def thread_done(self) -> None:
         """The calling thread's controller ended: release its Robots from the synchronisation."""
         self._start_requested()  # what it asked for in its last step
+        ended: list[RuntimeRobot] = []
         with self._cond:
             controller = getattr(self._thread_controller, "controller", None)
             if controller is not None:
+                ended = [client.robot for client in controller.clients]
                 controller.arrived = True
                 for client in controller.clients:
                     client.active = False
@@ -288,6 +292,8 @@ class Runtime:
                 self._thread_controller.controller = None
             self._maybe_advance()
             self._cond.notify_all()
+        for robot in ended:  # in this thread, which its devices' thread-bound resources belong to
+            robot._controller_ended()
 
     def finish(self) -> None:
         """End the run: every controller's ``step`` returns -1 (now if it waits, else at its next call)."""
