@@ -104,7 +104,7 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("ImmersionProperties", "scene", "partial",
              "fluidName selects the Fluid whose buoyancy acts on the Solid: Box bounding objects exactly, Sphere "
              "exactly below the surface (the fluid's side walls are not cut), Cylinder and Capsule through a "
-             "48-sided polyhedron of revolution scaled to the true volume; drag and viscous resistance "
+             "24-sided polyhedron of revolution (a capsule: 4 latitude bands per hemisphere) scaled to the true volume; drag and viscous resistance "
              "coefficients are not simulated (a non-zero one warns once at load), nor meshes"),
     # -- physics
     Coverage("Physics", "physics", "supported",

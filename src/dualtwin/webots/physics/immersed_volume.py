@@ -4,7 +4,7 @@ The fluid box is given as half-spaces ``n·x <= d`` (its six faces, outward norm
 
 * Box: exact. The box is a convex polyhedron; it is clipped by each half-space in turn (every face polygon
   clipped Sutherland-Hodgman style, the cut closed by a new face on the plane), and the clipped polyhedron's
-  volume and centroid are integrated exactly as a fan of tetrahedra from an interior point.
+  volume and centroid are integrated exactly as tetrahedra from one of its vertices to its faces' triangles.
 * Sphere: exact for the surface plane only: the spherical cap below the fluid's top face (volume
   ``π·h²·(3r − h)/3``, centroid ``3·(2r − h)²/(4·(3r − h))`` below the centre). The other faces are not cut:
   the sphere counts while its centre lies inside the fluid box's footprint and above its bottom face.
@@ -25,11 +25,11 @@ Vec3 = tuple[float, float, float]
 Face = list[Vec3]
 HalfSpace = tuple[Vec3, float]  # (outward unit normal n, offset d): the inside is n·x <= d
 
-SEGMENTS = 48
-RINGS = 8
+SEGMENTS = 24
+RINGS = 4
 
-__all__ = ["RINGS", "SEGMENTS", "box_faces", "clip", "immersed", "polyhedron_volume", "revolution_faces",
-           "sphere_cap"]
+__all__ = ["RINGS", "SEGMENTS", "Mesh", "box_faces", "clip", "immersed", "place", "polyhedron_volume",
+           "revolution_mesh", "sphere_cap"]
 
 
 def box_faces(center: Sequence[float], R: Sequence[float], half: Sequence[float]) -> list[Face]:
@@ -50,19 +50,26 @@ def box_faces(center: Sequence[float], R: Sequence[float], half: Sequence[float]
     return faces
 
 
-def revolution_faces(
-    center: Sequence[float], R: Sequence[float], profile: Sequence[tuple[float, float]], segments: int = SEGMENTS
-) -> list[Face]:
-    """A convex polyhedron of revolution about the frame's z axis: ``profile`` lists (radius, z) rings from bottom
-    to top; each ring is a regular ``segments``-gon."""
-    rings = []
+Mesh = tuple[list[Vec3], list[list[int]]]  # vertices in the shape's frame, faces as vertex indices
+
+
+def revolution_mesh(profile: Sequence[tuple[float, float]], segments: int = SEGMENTS) -> Mesh:
+    """A convex polyhedron of revolution about the z axis: ``profile`` lists (radius, z) rings from bottom to top;
+    each ring is a regular ``segments``-gon (a ring of radius 0 is one point, a pole)."""
+    vertices: list[Vec3] = []
+    rings: list[list[int]] = []
     for radius, z in profile:
+        if radius == 0.0:
+            vertices.append((0.0, 0.0, z))
+            rings.append([len(vertices) - 1] * segments)
+            continue
         ring = []
         for k in range(segments):
             a = 2.0 * math.pi * k / segments
-            ring.append(m3.add(center, m3.mat_vec(R, (radius * math.cos(a), radius * math.sin(a), z))))
+            vertices.append((radius * math.cos(a), radius * math.sin(a), z))
+            ring.append(len(vertices) - 1)
         rings.append(ring)
-    faces: list[Face] = []
+    faces: list[list[int]] = []
     if profile[0][0] > 0.0:
         faces.append(list(rings[0]))
     if profile[-1][0] > 0.0:
@@ -70,8 +77,18 @@ def revolution_faces(
     for low, high in zip(rings, rings[1:], strict=False):
         for k in range(segments):
             j = (k + 1) % segments
-            faces.append([low[k], low[j], high[j], high[k]])
-    return faces
+            face = [low[k], low[j], high[j], high[k]]
+            faces.append([v for i, v in enumerate(face) if v != face[i - 1]])  # a pole's triangle
+    return vertices, faces
+
+
+def place(mesh: Mesh, center: Sequence[float], R: Sequence[float]) -> list[Face]:
+    """The faces of ``mesh`` with its frame at ``center``, turned by the row-major rotation ``R``."""
+    r0, r1, r2, r3, r4, r5, r6, r7, r8 = R
+    cx, cy, cz = center
+    world = [(r0 * x + r1 * y + r2 * z + cx, r3 * x + r4 * y + r5 * z + cy, r6 * x + r7 * y + r8 * z + cz)
+             for x, y, z in mesh[0]]
+    return [[world[i] for i in face] for face in mesh[1]]
 
 
 def clip(faces: list[Face], plane: HalfSpace) -> list[Face]:
@@ -86,6 +103,11 @@ def clip(faces: list[Face], plane: HalfSpace) -> list[Face]:
     out: list[Face] = []
     cut: list[Vec3] = []
     for face, dist in zip(faces, signed, strict=True):
+        if max(dist) < 0.0:
+            out.append(face)
+            continue
+        if min(dist) > 0.0:
+            continue
         poly: Face = []
         k = len(face)
         for i in range(k):
@@ -119,12 +141,11 @@ def _cyclic(points: list[Vec3], n: Vec3) -> Face:
 
 def polyhedron_volume(faces: list[Face]) -> tuple[float, Vec3]:
     """Volume and centroid of a convex polyhedron (faces with vertices in cyclic order, either orientation)."""
-    count = sum(len(f) for f in faces)
-    if count == 0:
+    if not faces:
         return 0.0, (0.0, 0.0, 0.0)
-    ox = sum(p[0] for f in faces for p in f) / count
-    oy = sum(p[1] for f in faces for p in f) / count
-    oz = sum(p[2] for f in faces for p in f) / count
+    # any point of a convex polyhedron sees every face from inside (or in its plane): the tetrahedra from one of
+    # its vertices to the faces' triangles tile it, and their unsigned volumes need no face orientation
+    ox, oy, oz = faces[0][0]
     volume = cx = cy = cz = 0.0
     for face in faces:
         a = face[0]

@@ -5,13 +5,15 @@ A Solid with a body whose ``immersionProperties`` hold an ``ImmersionProperties`
 §1.6), by ``−ρ_fluid · V · g`` at the centroid of ``V`` (``dBodyAddForceAtPos``), ``V`` being the part of each geom
 of the Solid's boundingObject, in its current pose, that lies inside the Fluid's boundingObject Box (its top face
 is the surface). :mod:`.immersed_volume` computes ``V`` (Box and Sphere exactly, Cylinder and Capsule through a
-polyhedron of revolution). A world without such a pair registers nothing, so its steps are unchanged.
+polyhedron of revolution). A world without a Fluid, or without a Solid that has both a body and
+immersionProperties, registers nothing, so its steps are unchanged.
 
 Not simulated (one warning at load names what a world would miss): drag and viscous resistance (the
 ImmersionProperties coefficients, with the Fluid's streamVelocity and viscosity), fluids whose boundingObject is
 not a Box, Fluids inside a Solid, and immersed geoms other than Box/Sphere/Cylinder/Capsule. Fluids are read
 from the scene tree at every step (a supervisor's edit of their pose, size or density counts); the immersed
-Solids are those of the load (a Solid imported at run time floats in no fluid).
+Solids are those of the load with immersionProperties (their fluidName is read at every step; a Solid or a
+Fluid imported at run time takes no part).
 """
 
 from __future__ import annotations
@@ -29,10 +31,12 @@ from dualtwin.webots.nodes import Node, World
 from dualtwin.webots.physics.immersed_volume import (
     RINGS,
     HalfSpace,
+    Mesh,
     box_faces,
     immersed,
+    place,
     polyhedron_volume,
-    revolution_faces,
+    revolution_mesh,
     sphere_cap,
 )
 from dualtwin.webots.physics.records import GeomRec, SolidRec, is_solid
@@ -51,10 +55,6 @@ class _Fluid:
     frames: list[Node]  # the Pose-like nodes above it, outermost first
 
 
-@dataclass
-class _Immersed:
-    solid: SolidRec
-    fluid_names: frozenset[str]
 
 
 def _fluids(world: World, warn: Callable[[str], None]) -> list[_Fluid]:
@@ -129,7 +129,7 @@ class Buoyancy:
     """The per-step pre-physics hook: Archimedes' force on every immersed Solid's body (see the module)."""
 
     def __init__(self, lib: Any, gravity: Sequence[float], up: Sequence[float], fluids: list[_Fluid],
-                 immersed_solids: list[_Immersed]) -> None:
+                 immersed_solids: list[SolidRec]) -> None:
         self._lib = lib
         self._gravity = tuple(float(v) for v in gravity)
         self._up = tuple(float(v) for v in up)
@@ -137,7 +137,7 @@ class Buoyancy:
         self._solids = immersed_solids
         self._length = (ctypes.c_double * 4)()
         self._radius, self._height = ctypes.c_double(), ctypes.c_double()
-        self._scales: dict[tuple[str, float, float], float] = {}
+        self._meshes: dict[tuple[str, float, float], tuple[Mesh, float]] = {}  # and true / polyhedron volume
         self.last_forces: list[tuple[SolidRec, tuple[float, float, float], tuple[float, float, float]]] = []
 
     def __call__(self, dt: float) -> None:
@@ -159,20 +159,21 @@ class Buoyancy:
                     fluids.append((name, density, _half_spaces(pose * local, half, self._up)))
         self.last_forces = []
         add_force = self._lib.dBodyAddForceAtPos
-        for entry in self._solids:
-            body = entry.solid.body
+        for solid in self._solids:
+            body = solid.body
             if body is None or body.removed:
                 continue
+            names = _fluid_names(solid)  # read at every step: a supervisor may rename the fluid a Solid is in
             for name, density, (planes, top) in fluids:
-                if name not in entry.fluid_names:
+                if name not in names:
                     continue
-                for geom in entry.solid.geoms:
+                for geom in solid.geoms:
                     volume, centroid = self._immersed(geom, planes, top)
                     if volume <= 0.0:
                         continue
                     force = m3.scale(self._gravity, -density * volume)
                     add_force(body.ptr, *force, *centroid)
-                    self.last_forces.append((entry.solid, force, centroid))
+                    self.last_forces.append((solid, force, centroid))
 
     def _immersed(self, geom: GeomRec, planes: list[HalfSpace], top: int) -> tuple[float, m3.Vec3]:
         lib = self._lib
@@ -196,37 +197,39 @@ class Buoyancy:
             half = (lengths[0] / 2, lengths[1] / 2, lengths[2] / 2)
             bound = math.sqrt(half[0] ** 2 + half[1] ** 2 + half[2] ** 2)
             full = 8.0 * half[0] * half[1] * half[2]
-            state = self._bounds(center, bound, planes)
-            if state != 0:
-                return (full, center) if state > 0 else (0.0, m3.ZERO)
-            return immersed(box_faces(center, R, half), planes)
+            cutting = self._cutting(center, bound, planes)
+            if cutting is None or not cutting:
+                return (0.0, m3.ZERO) if cutting is None else (full, center)
+            return immersed(box_faces(center, R, half), cutting)
         getter = lib.dGeomCapsuleGetParams if kind == "Capsule" else lib.dGeomCylinderGetParams
         getter(ptr, ctypes.byref(self._radius), ctypes.byref(self._height))
         radius, height = self._radius.value, self._height.value
         capsule = kind == "Capsule"
         full = math.pi * radius * radius * (height + (4.0 / 3.0 * radius if capsule else 0.0))
-        bound = math.hypot(radius, height / 2) + (radius if capsule else 0.0)
-        state = self._bounds(center, bound, planes)
-        if state != 0:
-            return (full, center) if state > 0 else (0.0, m3.ZERO)
-        profile = _profile(radius, height, capsule)
+        bound = height / 2 + radius if capsule else math.hypot(radius, height / 2)
+        cutting = self._cutting(center, bound, planes)
+        if cutting is None or not cutting:
+            return (0.0, m3.ZERO) if cutting is None else (full, center)
         key = (kind, radius, height)
-        if key not in self._scales:
-            self._scales[key] = full / polyhedron_volume(revolution_faces((0.0, 0.0, 0.0), m3.IDENTITY, profile))[0]
-        volume, centroid = immersed(revolution_faces(center, R, profile), planes)
-        return volume * self._scales[key], centroid
+        if key not in self._meshes:
+            mesh = revolution_mesh(_profile(radius, height, capsule))
+            self._meshes[key] = mesh, full / polyhedron_volume(place(mesh, m3.ZERO, m3.IDENTITY))[0]
+        mesh, scale = self._meshes[key]
+        volume, centroid = immersed(place(mesh, center, R), cutting)
+        return volume * scale, centroid
 
     @staticmethod
-    def _bounds(center: Sequence[float], bound: float, planes: list[HalfSpace]) -> int:
-        """1: the sphere of radius ``bound`` about ``center`` lies inside every half-space; -1: outside one; 0: cut."""
-        inside = True
+    def _cutting(center: Sequence[float], bound: float, planes: list[HalfSpace]) -> list[HalfSpace] | None:
+        """The faces that cut the ball of radius ``bound`` about ``center`` (empty: it is inside them all), or None
+        when it lies outside one of them."""
+        cutting = []
         for n, d in planes:
             s = m3.dot(n, center) - d
             if s >= bound:
-                return -1
+                return None
             if s > -bound:
-                inside = False
-        return 1 if inside else 0
+                cutting.append((n, d))
+        return cutting
 
 
 def _profile(radius: float, height: float, capsule: bool) -> list[tuple[float, float]]:
@@ -241,7 +244,8 @@ def _profile(radius: float, height: float, capsule: bool) -> list[tuple[float, f
 
 def install(sim: Any) -> Buoyancy | None:
     """Register the buoyancy hook on ``sim`` (a :class:`~dualtwin.webots.physics.Simulation` after its build) when
-    some Solid with a body is immersed in a Fluid of the world; warn once about what is not simulated."""
+    the world has a Fluid and some Solid with a body has immersionProperties; warn once about what is not
+    simulated."""
     fluids = _fluids(sim.world, sim.warn)
     if not fluids:
         return None
@@ -254,14 +258,13 @@ def install(sim: Any) -> Buoyancy | None:
     drag = False
     other_shapes: set[str] = set()
     for solid in sim.solids:
-        props = [p for p in (_f(solid.node, "immersionProperties", []) or []) if isinstance(p, Node)]
-        matching = frozenset(str(_f(p, "fluidName", "")) for p in props) & names
-        if not matching:
+        props = _properties(solid)
+        if props and solid.body is not None:
+            immersed_solids.append(solid)
+        if not _fluid_names(solid) & names:
             continue
         drag = drag or any(_nonzero(_f(p, field, 0.0)) for p in props for field in _DRAG_FIELDS)
         other_shapes.update(g.kind for g in solid.geoms if g.kind not in _SHAPES)
-        if solid.body is not None:
-            immersed_solids.append(_Immersed(solid, matching))
     if drag:
         missing.append("drag and viscous resistance (dragForceCoefficients, dragTorqueCoefficients, "
                        "viscousResistance*Coefficient, with the fluid's streamVelocity and viscosity)")
@@ -279,6 +282,14 @@ def install(sim: Any) -> Buoyancy | None:
     sim.pre_step_hooks.append(hook)
     sim.extensions["buoyancy"] = hook
     return hook
+
+
+def _properties(solid: SolidRec) -> list[Node]:
+    return [p for p in (_f(solid.node, "immersionProperties", []) or []) if isinstance(p, Node)]
+
+
+def _fluid_names(solid: SolidRec) -> set[str]:
+    return {str(_f(p, "fluidName", "")) for p in _properties(solid)}
 
 
 def _nonzero(value: Any) -> bool:
