@@ -7,6 +7,8 @@ parser produces after default filling.
 from __future__ import annotations
 
 import math
+import textwrap
+from pathlib import Path
 from typing import Any
 
 from dualtwin.webots.nodes import Node, World
@@ -220,3 +222,11 @@ def cart_pole(pole_angle: float = 0.0, time_step: float = 16.0) -> World:
         supervisor=True,
     )
     return world(floor(), robot, basicTimeStep=time_step)
+
+
+def write_controllers(root: Path, scripts: dict[str, str]) -> None:
+    """A Webots project's controllers: each script (dedented) as ``root/controllers/NAME/NAME.py``."""
+    for name, script in scripts.items():
+        folder = root / "controllers" / name
+        folder.mkdir(parents=True)
+        (folder / f"{name}.py").write_text(textwrap.dedent(script))

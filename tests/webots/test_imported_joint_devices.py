@@ -14,7 +14,6 @@ one step takes the spin ω to ω·I/(I + c·h)."""
 from __future__ import annotations
 
 import math
-import textwrap
 from pathlib import Path
 
 import pytest
@@ -23,6 +22,7 @@ from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Supervisor
 from dualtwin.webots.physics import Simulation
 from dualtwin.webots.runner import run_world
+from tests.support.webots_scene import write_controllers
 
 TS = 4
 H = TS / 1000
@@ -157,10 +157,7 @@ SUPERVISOR = """
 
 @pytest.mark.parametrize("isolation", ["process", "threads"])
 def test_a_robot_controller_finds_a_motor_a_supervisor_imported_into_its_joint(tmp_path: Path, isolation: str) -> None:
-    for name, script in (("arm", ARM_CONTROLLER), ("sup", SUPERVISOR)):
-        folder = tmp_path / "controllers" / name
-        folder.mkdir(parents=True)
-        (folder / f"{name}.py").write_text(textwrap.dedent(script))
+    write_controllers(tmp_path, {"arm": ARM_CONTROLLER, "sup": SUPERVISOR})
     (tmp_path / "worlds").mkdir()
     world = tmp_path / "worlds" / "w.wbt"
     world.write_text(f"""#VRML_SIM R2023b utf8

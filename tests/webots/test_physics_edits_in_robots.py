@@ -13,7 +13,6 @@ centred on its hinge: its spin about the axis pushes nothing, so it keeps that s
 from __future__ import annotations
 
 import math
-import textwrap
 from pathlib import Path
 
 import pytest
@@ -22,6 +21,7 @@ from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Supervisor
 from dualtwin.webots.physics import Simulation
 from dualtwin.webots.runner import run_world
+from tests.support.webots_scene import write_controllers
 
 TS = 4
 H = TS / 1000
@@ -192,10 +192,7 @@ SUPERVISOR = """
 
 @pytest.mark.parametrize("isolation", ["process", "threads"])
 def test_a_controller_drives_its_motor_across_a_supervisors_physics_edit(tmp_path: Path, isolation: str) -> None:
-    for name, script in (("arm", ARM_CONTROLLER), ("sup", SUPERVISOR)):
-        folder = tmp_path / "controllers" / name
-        folder.mkdir(parents=True)
-        (folder / f"{name}.py").write_text(textwrap.dedent(script))
+    write_controllers(tmp_path, {"arm": ARM_CONTROLLER, "sup": SUPERVISOR})
     (tmp_path / "worlds").mkdir()
     world = tmp_path / "worlds" / "w.wbt"
     world.write_text(_world(ROBOT.replace("{controller}", 'controller "arm"')
