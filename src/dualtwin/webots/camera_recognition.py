@@ -100,29 +100,22 @@ def _geom_corners(lib: Any, g: GeomRec) -> np.ndarray:
     """World corners of the box around one ODE geom, in the geom's own frame when ODE tells its shape."""
     ptr = g.ptr
     cls = lib.dGeomGetClass(ptr)
-    half: tuple[float, float, float] | None = None
-    if cls == ode.dBoxClass:
-        buf = (ctypes.c_double * 4)()
-        lib.dGeomBoxGetLengths(ptr, buf)
-        half = (buf[0] / 2, buf[1] / 2, buf[2] / 2)
-    elif cls == ode.dSphereClass:
-        radius = float(lib.dGeomSphereGetRadius(ptr))
-        half = (radius, radius, radius)
-    elif cls in (ode.dCapsuleClass, ode.dCylinderClass):
-        cr, ch = ctypes.c_double(), ctypes.c_double()
-        (lib.dGeomCapsuleGetParams if cls == ode.dCapsuleClass else lib.dGeomCylinderGetParams)(
-            ptr, ctypes.byref(cr), ctypes.byref(ch))
-        half = (cr.value, cr.value, ch.value / 2 + (cr.value if cls == ode.dCapsuleClass else 0.0))
-    if half is None:  # a mesh or a height field: ODE's world box around it
+    size = ode.primitive_size(lib, ptr, cls)
+    if size is None:  # a mesh or a height field: ODE's world box around it
         box = (ctypes.c_double * 6)()
         lib.dGeomGetAABB(ptr, box)
         return np.array([(x, y, z) for x in box[0:2] for y in box[2:4] for z in box[4:6]], dtype=float)
-    p = ode.vec3(lib.dGeomGetPosition(ptr))
-    r = ode.mat3(lib.dGeomGetRotation(ptr))
-    R = np.array([[r[0], r[1], r[2]], [r[4], r[5], r[6]], [r[8], r[9], r[10]]], dtype=float)
+    if cls == ode.dBoxClass:
+        half = size
+    elif cls == ode.dSphereClass:
+        half = (size[0], size[0], size[0])
+    else:  # capsule or cylinder along z, a capsule's caps included
+        half = (size[0], size[0], size[1] + (size[0] if cls == ode.dCapsuleClass else 0.0))
+    p, r = ode.geom_pose(lib, ptr)
+    R = np.array(r, dtype=float).reshape(3, 3)
     local = np.array([(x, y, z) for x in (-half[0], half[0]) for y in (-half[1], half[1])
                       for z in (-half[2], half[2])], dtype=float)
-    return local @ R.T + np.array([p[0], p[1], p[2]], dtype=float)
+    return local @ R.T + np.array(p, dtype=float)
 
 
 class _Shapes:

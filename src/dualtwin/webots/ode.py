@@ -467,6 +467,31 @@ def mat3(ptr: int) -> Any:
     return (c_double * 12).from_address(ptr)
 
 
+def primitive_size(lib: Any, geom: Any, cls: int) -> tuple[float, ...] | None:
+    """A primitive geom's dimensions, as the bounding shapes use them: a box's half-extents ``(hx, hy, hz)``, a
+    sphere's ``(radius,)``, a capsule's or cylinder's ``(radius, half length along its z axis)`` (a capsule's
+    caps not counted); None for any other ODE class (``cls``, from ``dGeomGetClass``)."""
+    if cls == dBoxClass:
+        lengths = (c_double * 4)()
+        lib.dGeomBoxGetLengths(geom, lengths)
+        return lengths[0] / 2, lengths[1] / 2, lengths[2] / 2
+    if cls == dSphereClass:
+        return (float(lib.dGeomSphereGetRadius(geom)),)
+    if cls in (dCapsuleClass, dCylinderClass):
+        radius, length = c_double(), c_double()
+        (lib.dGeomCapsuleGetParams if cls == dCapsuleClass else lib.dGeomCylinderGetParams)(
+            geom, ctypes.byref(radius), ctypes.byref(length))
+        return radius.value, length.value / 2
+    return None
+
+
+def geom_pose(lib: Any, geom: Any) -> tuple[tuple[float, float, float], tuple[float, ...]]:
+    """A placeable geom's world position and its row-major 3×3 rotation (9 values), read now."""
+    p = vec3(lib.dGeomGetPosition(geom))
+    r = mat3(lib.dGeomGetRotation(geom))
+    return (p[0], p[1], p[2]), (r[0], r[1], r[2], r[4], r[5], r[6], r[8], r[9], r[10])
+
+
 def matrix3(rows: Any) -> Any:
     """Pack a row-major 3×3 rotation (nested sequences) into a ``dMatrix3``."""
     m = dMatrix3()

@@ -125,18 +125,10 @@ class _Group:
         self.params = np.zeros((m, 3))
         self._pos = [ode.vec3(lib.dGeomGetPosition(p)) for p in self.ptrs] if cls != ode.dPlaneClass else []
         self._rot = [ode.mat3(lib.dGeomGetRotation(p)) for p in self.ptrs] if cls != ode.dPlaneClass else []
-        buf = (ctypes.c_double * 4)()
-        r, h = ctypes.c_double(), ctypes.c_double()
         for k, ptr in enumerate(self.ptrs):
-            if cls == ode.dBoxClass:
-                lib.dGeomBoxGetLengths(ptr, buf)
-                self.params[k] = (buf[0] * 0.5, buf[1] * 0.5, buf[2] * 0.5)
-            elif cls == ode.dSphereClass:
-                self.params[k, 0] = lib.dGeomSphereGetRadius(ptr)
-            elif cls in (ode.dCapsuleClass, ode.dCylinderClass):
-                getter = lib.dGeomCapsuleGetParams if cls == ode.dCapsuleClass else lib.dGeomCylinderGetParams
-                getter(ptr, ctypes.byref(r), ctypes.byref(h))
-                self.params[k, :2] = (r.value, h.value * 0.5)
+            size = ode.primitive_size(lib, ptr, cls)  # box half-extents; sphere radius; (radius, half length)
+            if size is not None:
+                self.params[k, :len(size)] = size
 
     def refresh(self, lib: Any) -> None:
         """Copy the current poses (ODE recomputes a moved geom's pose when asked for it)."""

@@ -18,7 +18,6 @@ Fluid imported at run time takes no part).
 
 from __future__ import annotations
 
-import ctypes
 import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
@@ -44,7 +43,9 @@ from dualtwin.webots.physics.records import field_or as _f
 
 __all__ = ["Buoyancy", "install"]
 
-_SHAPES = ("Box", "Sphere", "Cylinder", "Capsule")
+_CLASSES = {"Box": ode.dBoxClass, "Sphere": ode.dSphereClass, "Cylinder": ode.dCylinderClass,
+            "Capsule": ode.dCapsuleClass}
+_SHAPES = tuple(_CLASSES)
 _DRAG_FIELDS = ("dragForceCoefficients", "dragTorqueCoefficients", "viscousResistanceForceCoefficient",
                 "viscousResistanceTorqueCoefficient")
 
@@ -53,8 +54,6 @@ _DRAG_FIELDS = ("dragForceCoefficients", "dragTorqueCoefficients", "viscousResis
 class _Fluid:
     node: Node
     frames: list[Node]  # the Pose-like nodes above it, outermost first
-
-
 
 
 def _fluids(world: World, warn: Callable[[str], None]) -> list[_Fluid]:
@@ -135,8 +134,6 @@ class Buoyancy:
         self._up = tuple(float(v) for v in up)
         self._fluids = fluids
         self._solids = immersed_solids
-        self._length = (ctypes.c_double * 4)()
-        self._radius, self._height = ctypes.c_double(), ctypes.c_double()
         self._meshes: dict[tuple[str, float, float], tuple[Mesh, float]] = {}  # and true / polyhedron volume
         self.last_forces: list[tuple[SolidRec, tuple[float, float, float], tuple[float, float, float]]] = []
 
@@ -181,29 +178,24 @@ class Buoyancy:
         kind = geom.kind
         if kind not in _SHAPES or geom.body is None:
             return 0.0, m3.ZERO
-        p = ode.vec3(lib.dGeomGetPosition(ptr))
-        r = ode.mat3(lib.dGeomGetRotation(ptr))
-        center = (p[0], p[1], p[2])
-        R = (r[0], r[1], r[2], r[4], r[5], r[6], r[8], r[9], r[10])
+        size = ode.primitive_size(lib, ptr, _CLASSES[kind])
+        if size is None:  # (each of _SHAPES is a primitive: not reached)
+            return 0.0, m3.ZERO
+        center, R = ode.geom_pose(lib, ptr)
         if kind == "Sphere":
-            radius = float(lib.dGeomSphereGetRadius(ptr))
+            radius = size[0]
             for i, (n, d) in enumerate(planes):
                 if i != top and m3.dot(n, center) > d:
                     return 0.0, m3.ZERO  # the centre is outside the footprint or below the bottom
             return sphere_cap(center, radius, planes[top])
         if kind == "Box":
-            lengths = self._length
-            lib.dGeomBoxGetLengths(ptr, lengths)
-            half = (lengths[0] / 2, lengths[1] / 2, lengths[2] / 2)
-            bound = math.sqrt(half[0] ** 2 + half[1] ** 2 + half[2] ** 2)
-            full = 8.0 * half[0] * half[1] * half[2]
+            bound = math.sqrt(size[0] ** 2 + size[1] ** 2 + size[2] ** 2)
+            full = 8.0 * size[0] * size[1] * size[2]
             cutting = self._cutting(center, bound, planes)
             if cutting is None or not cutting:
                 return (0.0, m3.ZERO) if cutting is None else (full, center)
-            return immersed(box_faces(center, R, half), cutting)
-        getter = lib.dGeomCapsuleGetParams if kind == "Capsule" else lib.dGeomCylinderGetParams
-        getter(ptr, ctypes.byref(self._radius), ctypes.byref(self._height))
-        radius, height = self._radius.value, self._height.value
+            return immersed(box_faces(center, R, size), cutting)
+        radius, height = size[0], 2.0 * size[1]
         capsule = kind == "Capsule"
         full = math.pi * radius * radius * (height + (4.0 / 3.0 * radius if capsule else 0.0))
         bound = height / 2 + radius if capsule else math.hypot(radius, height / 2)
