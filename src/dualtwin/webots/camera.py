@@ -153,29 +153,33 @@ class Camera(SolidSensor):
         pos = np.asarray(pose.t, dtype=float)
         return ResolvedCamera.look(pos, pos + R[:, 0], R[:, 2], m.fovy_degrees())
 
+    def _renderer_for(self, purpose: str, scene: Any, supersample: int) -> Any:
+        """The camera's renderer for ``purpose`` (the image, the segmentation) over ``scene``: made at the first
+        frame, and again (the former one closed) when the visual scene was built again."""
+        from dualtwin.webots.render import FrameRenderer
+
+        renderers: dict[str, tuple[Any, Any]] = self.__dict__.setdefault("_renderers", {})
+        held = renderers.get(purpose)
+        if held is not None and held[0] is scene:
+            return held[1]
+        if held is not None:
+            held[1].close()
+        m = self._model()
+        renderer = FrameRenderer(scene.model, m.width, m.height, supersample=supersample)
+        renderers[purpose] = (scene, renderer)
+        return renderer
+
     def _controller_ended(self) -> None:
         """Its controller's thread ends: the renderers it drew with are closed in that thread. An EGL context
         is current in the thread that made it, and Python's collector, freeing one later in another thread,
         failed (EGL_BAD_ACCESS, printed as an ignored exception with its traceback)."""
-        for name in ("_renderer", "_segmentation_renderer"):
-            renderer = self.__dict__.pop(name, None)
-            if renderer is not None:
-                renderer.close()
-        self.__dict__.pop("_drawn", None)
-        self.__dict__.pop("_segmented", None)
+        for _, renderer in self.__dict__.pop("_renderers", {}).values():
+            renderer.close()
 
     def _render(self) -> np.ndarray:
-        from dualtwin.webots.render import FrameRenderer
-
         m = self._model()
         scene = _visual_scene(self._robot)
-        renderer = getattr(self, "_renderer", None)
-        if renderer is None or getattr(self, "_drawn", None) is not scene:  # a first frame, or a scene rebuilt
-            if renderer is not None:
-                renderer.close()
-            renderer = self._renderer = FrameRenderer(scene.model, m.width, m.height,
-                                                      supersample=2 if m.anti_aliasing else 1)
-            self._drawn = scene
+        renderer = self._renderer_for("image", scene, supersample=2 if m.anti_aliasing else 1)
         scene.sync()
         rgb = renderer.render(scene.data, self._view(m), near=m.near, far=m.far if m.far > 0 else None)
         image = bgra_from_rgb(rgb)
@@ -405,17 +409,9 @@ class Camera(SolidSensor):
         return frame
 
     def _render_segmentation(self) -> np.ndarray:
-        from dualtwin.webots.render import FrameRenderer
-
         m = self._model()
         scene = _visual_scene(self._robot)
-        renderer = self.__dict__.get("_segmentation_renderer")
-        if renderer is None or self.__dict__.get("_segmented") is not scene:
-            if renderer is not None:
-                renderer.close()
-            renderer = self.__dict__["_segmentation_renderer"] = FrameRenderer(scene.model, m.width, m.height,
-                                                                               supersample=1)
-            self.__dict__["_segmented"] = scene
+        renderer = self._renderer_for("segmentation", scene, supersample=1)
         kept = self.__dict__.get("_segmentation_poses")
         if kept is not None and kept[0] is scene:
             scene.restore(kept[1])
