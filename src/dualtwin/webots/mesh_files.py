@@ -1,0 +1,260 @@
+"""The triangles of a Webots ``Mesh`` node's file: STL, Wavefront OBJ and COLLADA, as Webots reads them.
+
+Webots (R2023b) loads a ``Mesh`` url through Assimp and merges every mesh of the file into one triangle set:
+it walks the file's node tree, applies each node's accumulated transform to its meshes' vertices, and keeps a
+mesh only if the node's ``name`` field is empty or equals the mesh's name, and ``materialIndex`` is -1 or
+equals the mesh's material index. Polygons are triangulated. ``ccw FALSE`` reverses the winding. The result is
+used as ODE's triangle mesh in a ``boundingObject`` (``dCreateTriMesh``, mass by ``dMassSetTrimesh``) and as
+the drawn shape elsewhere.
+
+What we read, format by format (a file is data from a world we did not write: sizes are capped, and a file
+that cannot be read gives one :class:`MeshFileError` line, never a traceback):
+
+- **STL**, binary or ASCII (an ASCII file starts with ``solid`` and has ``facet`` lines): its triangles; the
+  ASCII ``solid`` name is the mesh's name; material index 0.
+- **OBJ**: ``v`` and ``f`` lines (``v/vt/vn`` forms, negative indices counting back from the last vertex,
+  polygons fan-triangulated); a face's names are its current ``o`` object and ``g`` group names, its material
+  index is the order in which its ``usemtl`` name was first used (our reading of Assimp's numbering; the
+  ``.mtl`` file is not read). Faces before any ``usemtl`` have index 0 and shift the others by one, as
+  Assimp's default material does.
+- **COLLADA** (``.dae``, through pycollada): every geometry instanced in the file's scene, with its node
+  transforms, scaled by the asset's ``unit meter``; a mesh's name is its geometry's ``name`` or ``id``, its
+  material index the position of its material in ``library_materials``. The ``up_axis`` is not applied:
+  coordinates are taken as written (Webots' worlds are Z-up, the usual up axis of the files robots use).
+
+This module only reads files; where a url points is decided by the caller (``Mesh`` urls are confined, see
+:func:`dualtwin.webots.mesh_files.read_mesh`'s callers).
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import re
+import struct
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dualtwin.errors import DualtwinError
+
+__all__ = ["EXTENSIONS", "MAX_FILE_BYTES", "MAX_TRIANGLES", "MeshFileError", "TriangleMesh", "read_mesh"]
+
+#: The extensions read here (lower case); Webots' other Assimp formats are refused with a clear line.
+EXTENSIONS = (".stl", ".obj", ".dae")
+#: A mesh file larger than this is refused: larger than any robot part's mesh, small enough to parse in seconds.
+MAX_FILE_BYTES = 64 * 1024 * 1024
+#: Triangles kept from one file at most (Webots warns above 100,000 vertices per mesh; this is a hard cap).
+MAX_TRIANGLES = 2_000_000
+
+
+class MeshFileError(DualtwinError):
+    """A mesh file that cannot be read (missing, too large, malformed, or of an unsupported format)."""
+
+
+@dataclass(frozen=True)
+class TriangleMesh:
+    """Triangles in the Mesh node's frame (metres): ``vertices`` (n, 3) float64, ``triangles`` (m, 3) int32."""
+
+    vertices: np.ndarray
+    triangles: np.ndarray
+
+    def __post_init__(self) -> None:
+        self.vertices.setflags(write=False)
+        self.triangles.setflags(write=False)
+
+
+@dataclass
+class _Part:
+    """One mesh of a file before selection: its triangles, names and material index."""
+
+    vertices: np.ndarray
+    triangles: np.ndarray
+    names: tuple[str, ...]
+    material: int
+
+
+def read_mesh(path: str | os.PathLike[str], name: str = "", material_index: int = -1, ccw: bool = True) -> TriangleMesh:
+    """The triangles Webots makes of the mesh file ``path`` for a ``Mesh`` node's ``name``, ``materialIndex``
+    and ``ccw`` fields. Read once per file version (size and modification time) and selection.
+
+    Raises:
+        MeshFileError: unreadable, too large, malformed, unsupported format, or nothing selected.
+    """
+    file = Path(path)
+    try:
+        stat = file.stat()
+    except OSError as exc:
+        raise MeshFileError(f"{file}: cannot read the mesh file ({exc.strerror or exc})") from None
+    return _read_cached(str(file), stat.st_size, stat.st_mtime_ns, name, int(material_index), bool(ccw))
+
+
+@functools.lru_cache(maxsize=64)
+def _read_cached(path: str, size: int, mtime_ns: int, name: str, material_index: int, ccw: bool) -> TriangleMesh:
+    del mtime_ns  # part of the cache key only: an edited file is read again
+    file = Path(path)
+    ext = file.suffix.lower()
+    if ext not in EXTENSIONS:
+        raise MeshFileError(f"{file}: mesh format {ext or '(no extension)'!r} is not read here "
+                            f"(supported: {', '.join(EXTENSIONS)})")
+    if size > MAX_FILE_BYTES:
+        raise MeshFileError(f"{file}: mesh file of {size} bytes is larger than the {MAX_FILE_BYTES}-byte limit")
+    try:
+        data = file.read_bytes()
+    except OSError as exc:
+        raise MeshFileError(f"{file}: cannot read the mesh file ({exc.strerror or exc})") from None
+    try:
+        parts = {".stl": _stl, ".obj": _obj, ".dae": _collada}[ext](data)
+    except MeshFileError as exc:
+        raise MeshFileError(f"{file}: {exc}") from None
+    except (ValueError, IndexError, KeyError, TypeError, struct.error, UnicodeDecodeError, AttributeError) as exc:
+        raise MeshFileError(f"{file}: malformed {ext[1:].upper()} file ({type(exc).__name__}: {exc})") from None
+    kept = [p for p in parts if (not name or name in p.names) and (material_index < 0 or p.material == material_index)]
+    if not kept:
+        what = []
+        if name:
+            what.append(f"name {name!r}")
+        if material_index >= 0:
+            what.append(f"materialIndex {material_index}")
+        raise MeshFileError(f"{file}: no triangles" + (f" for {' and '.join(what)}" if what else ""))
+    vertices, triangles, offset = [], [], 0
+    for part in kept:
+        vertices.append(part.vertices)
+        triangles.append(part.triangles + offset)
+        offset += len(part.vertices)
+    v = np.ascontiguousarray(np.concatenate(vertices), dtype=np.float64)
+    t = np.ascontiguousarray(np.concatenate(triangles), dtype=np.int32)
+    if len(t) > MAX_TRIANGLES:
+        raise MeshFileError(f"{file}: {len(t)} triangles, more than the {MAX_TRIANGLES} read at most")
+    if not np.all(np.isfinite(v)):
+        raise MeshFileError(f"{file}: a vertex is not a finite number")
+    if not ccw:
+        t = np.ascontiguousarray(t[:, ::-1])
+    return TriangleMesh(v, t)
+
+
+def _stl(data: bytes) -> list[_Part]:
+    head = data[:512].lstrip().lower()
+    if head.startswith(b"solid") and b"facet" in data[:4096].lower():
+        return _stl_ascii(data.decode("ascii", errors="replace"))
+    if len(data) < 84:
+        raise MeshFileError("STL file shorter than its 84-byte header")
+    (count,) = struct.unpack_from("<I", data, 80)
+    if len(data) < 84 + 50 * count:
+        raise MeshFileError(f"binary STL announces {count} triangles but holds {(len(data) - 84) // 50}")
+    if count > MAX_TRIANGLES:
+        raise MeshFileError(f"{count} triangles, more than the {MAX_TRIANGLES} read at most")
+    records = np.frombuffer(data, dtype=np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")]),
+                            count=count, offset=84)
+    vertices = records["v"].reshape(-1, 3).astype(np.float64)
+    return [_Part(vertices, np.arange(len(vertices), dtype=np.int64).reshape(-1, 3), ("",), 0)]
+
+
+_FLOAT = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_VERTEX = re.compile(rf"^\s*vertex\s+({_FLOAT})\s+({_FLOAT})\s+({_FLOAT})\s*$", re.MULTILINE | re.IGNORECASE)
+
+
+def _stl_ascii(text: str) -> list[_Part]:
+    first = text.lstrip().splitlines()[0] if text.strip() else ""
+    solid = first.split(None, 1)[1].strip() if len(first.split(None, 1)) > 1 else ""
+    coords = np.array(_VERTEX.findall(text), dtype=np.float64).reshape(-1, 3)
+    if len(coords) == 0 or len(coords) % 3:
+        raise MeshFileError(f"ASCII STL with {len(coords)} vertex lines (not a whole number of triangles)")
+    return [_Part(coords, np.arange(len(coords), dtype=np.int64).reshape(-1, 3), (solid,), 0)]
+
+
+def _obj(data: bytes) -> list[_Part]:
+    positions: list[tuple[float, float, float]] = []
+    # faces grouped by (object, group, material index), in first-seen order
+    groups: dict[tuple[str, str, int], list[list[int]]] = {}
+    materials: dict[str, int] = {}
+    obj_name = group_name = ""
+    material = 0
+    untextured_first = False  # faces before any usemtl take index 0 (Assimp's default material)
+    for raw in data.decode("utf-8", errors="replace").splitlines():
+        line = raw.split("#", 1)[0].strip()
+        if not line:
+            continue
+        key, _, rest = line.partition(" ")
+        if key == "v":
+            xyz = rest.split()
+            positions.append((float(xyz[0]), float(xyz[1]), float(xyz[2])))
+        elif key == "f":
+            polygon = []
+            for item in rest.split():
+                index = int(item.split("/", 1)[0])
+                polygon.append(index - 1 if index > 0 else len(positions) + index)
+            if len(polygon) < 3:
+                raise MeshFileError(f"OBJ face with {len(polygon)} vertices: {raw.strip()!r}")
+            if not materials:
+                untextured_first = True
+            groups.setdefault((obj_name, group_name, material), []).append(polygon)
+        elif key == "o":
+            obj_name = rest.strip()
+        elif key == "g":
+            group_name = rest.strip()
+        elif key == "usemtl":
+            label = rest.strip()
+            if label not in materials:
+                materials[label] = len(materials) + (1 if untextured_first else 0)
+            material = materials[label]
+    if not positions:
+        raise MeshFileError("OBJ file without vertices")
+    vertices = np.array(positions, dtype=np.float64)
+    parts = []
+    for (obj, group, mat), polygons in groups.items():
+        triangles = [(p[0], p[i], p[i + 1]) for p in polygons for i in range(1, len(p) - 1)]
+        tri = np.array(triangles, dtype=np.int64)
+        if tri.min() < 0 or tri.max() >= len(vertices):
+            raise MeshFileError("OBJ face refers to a vertex that does not exist")
+        used, local = np.unique(tri, return_inverse=True)
+        parts.append(_Part(vertices[used], local.reshape(-1, 3), (obj, group), mat))
+    if not parts:
+        raise MeshFileError("OBJ file without faces")
+    return parts
+
+
+def _collada(data: bytes) -> list[_Part]:
+    import io
+
+    import collada  # pycollada, only for .dae files
+
+    ignore = [collada.common.DaeUnsupportedError, collada.common.DaeBrokenRefError]
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", PendingDeprecationWarning)  # pycollada's use of numpy.matrix
+            document = collada.Collada(io.BytesIO(data), ignore=ignore)
+    except collada.common.DaeError as exc:
+        raise MeshFileError(f"malformed COLLADA file ({exc})") from None
+    except Exception as exc:  # noqa: BLE001 - the XML parser's own errors (expat, lxml) vary by backend
+        raise MeshFileError(f"malformed COLLADA file ({type(exc).__name__}: {exc})") from None
+    unit = float(document.assetInfo.unitmeter or 1.0) if document.assetInfo is not None else 1.0
+    material_order = {m.id: i for i, m in enumerate(document.materials)}
+    scene = document.scene
+    if scene is None:
+        raise MeshFileError("COLLADA file without a scene")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PendingDeprecationWarning)  # pycollada's use of numpy.matrix
+        return _collada_parts(collada, scene, unit, material_order)
+
+
+def _collada_parts(collada: Any, scene: Any, unit: float, material_order: dict[str, int]) -> list[_Part]:
+    parts = []
+    for bound in scene.objects("geometry"):
+        names = tuple(n for n in (bound.original.name, bound.original.id) if n)
+        for primitive in bound.primitives():
+            if isinstance(primitive, (collada.polylist.BoundPolylist, collada.polygons.BoundPolygons)):
+                primitive = primitive.triangleset()
+            if not isinstance(primitive, collada.triangleset.BoundTriangleSet) or primitive.vertex is None:
+                continue  # lines and points have no triangles
+            index = np.asarray(primitive.vertex_index, dtype=np.int64).reshape(-1, 3)
+            if len(index) == 0:
+                continue
+            material = primitive.material
+            mat_id = str(getattr(material, "id", ""))
+            parts.append(_Part(np.asarray(primitive.vertex, dtype=np.float64) * unit, index, names,
+                               material_order.get(mat_id, 0)))
+    return parts
