@@ -8,7 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dualtwin.webots.mesh_files import MeshFileError, read_mesh
+from dualtwin.webots.mesh_files import MeshFileError, locate_mesh, read_mesh, read_mesh_node
+from dualtwin.webots.nodes import Node
+from dualtwin.webots.protos import load_world_text
 
 TWO_OBJECTS = """\
 # two objects; the first uses two materials
@@ -133,3 +135,39 @@ def test_an_edited_file_is_read_again(tmp_path: Path) -> None:
     assert len(read_mesh(path).triangles) == 1
     binary_stl(path, [((0, 0, 0), (1, 0, 0), (0, 1, 0))] * 3)
     assert len(read_mesh(path).triangles) == 3
+
+
+def mesh_node_of(world: Path, url: str) -> Node:
+    world.write_text(f'#VRML_SIM R2023b utf8\nSolid {{ children [ Shape {{ geometry Mesh {{ url "{url}" name "part" }} }} ] '
+                     f'boundingObject Mesh {{ url "{url}" }} }}\n')
+    loaded = load_world_text(world.read_text(), world)
+    return [n for n in loaded.nodes[0].walk() if n.type_name == "Mesh"][0]
+
+
+def test_a_mesh_url_is_joined_to_its_world_and_confined_to_the_project(tmp_path: Path) -> None:
+    project = tmp_path / "project"
+    (project / "worlds").mkdir(parents=True)
+    (project / "protos" / "meshes").mkdir(parents=True)
+    part = project / "protos" / "meshes" / "part.stl"
+    part.write_text("solid part\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\n"
+                    "endloop\nendfacet\nendsolid part\n")
+    node = mesh_node_of(project / "worlds" / "w.wbt", "../protos/meshes/part.stl")
+    assert locate_mesh(node) == part.resolve()
+    assert read_mesh_node(node).triangles.shape == (1, 3)
+    outside = tmp_path / "secret.stl"
+    outside.write_bytes(part.read_bytes())
+    for url in ("../../secret.stl", str(outside), "file://" + str(outside)):
+        node = mesh_node_of(project / "worlds" / "w.wbt", url)
+        with pytest.raises(MeshFileError, match="outside the project folder|is not read"):
+            locate_mesh(node)
+
+
+def test_a_webots_url_is_read_from_webots_home(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    home = tmp_path / "webots"
+    target = home / "projects" / "meshes" / "m.stl"
+    target.parent.mkdir(parents=True)
+    binary_stl(target, [((0, 0, 0), (1, 0, 0), (0, 1, 0))])
+    monkeypatch.setenv("WEBOTS_HOME", str(home))  # the environment a user sets; the lookup is what is tested
+    (tmp_path / "worlds").mkdir()
+    node = mesh_node_of(tmp_path / "worlds" / "w.wbt", "webots://projects/meshes/m.stl")
+    assert locate_mesh(node) == target

@@ -22,8 +22,15 @@ that cannot be read gives one :class:`MeshFileError` line, never a traceback):
   material index the position of its material in ``library_materials``. The ``up_axis`` is not applied:
   coordinates are taken as written (Webots' worlds are Z-up, the usual up axis of the files robots use).
 
-This module only reads files; where a url points is decided by the caller (``Mesh`` urls are confined, see
-:func:`dualtwin.webots.mesh_files.read_mesh`'s callers).
+Where a ``Mesh`` url points (:func:`locate_mesh`), as Webots resolves it, with one restriction of ours: a world
+is data, so its urls are confined.
+
+- ``http(s)://`` and ``webots://`` urls (and relative urls inside a remote PROTO, joined to its url) are read
+  from ``$WEBOTS_HOME`` for ``webots://`` when it holds the file, else from the PROTO cache, downloaded into it
+  like a PROTO unless downloads are off (``dualtwin webots fetch`` fills the cache beforehand);
+- a relative url is joined to the folder of the file that wrote the node (the world, or a local PROTO file);
+  the result must lie inside that file's project, the folder above the file's own folder (the folder holding
+  ``worlds/`` and ``protos/``); an absolute local path or one that leaves the project is refused.
 """
 
 from __future__ import annotations
@@ -40,8 +47,11 @@ from typing import Any
 import numpy as np
 
 from dualtwin.errors import DualtwinError
+from dualtwin.webots.nodes import Node
+from dualtwin.webots.proto_cache import FetchError, ProtoCache, is_remote, remote_url
 
-__all__ = ["EXTENSIONS", "MAX_FILE_BYTES", "MAX_TRIANGLES", "MeshFileError", "TriangleMesh", "read_mesh"]
+__all__ = ["EXTENSIONS", "MAX_FILE_BYTES", "MAX_TRIANGLES", "MeshFileError", "TriangleMesh", "locate_mesh",
+           "read_mesh", "read_mesh_node"]
 
 #: The extensions read here (lower case); Webots' other Assimp formats are refused with a clear line.
 EXTENSIONS = (".stl", ".obj", ".dae")
@@ -75,6 +85,67 @@ class _Part:
     triangles: np.ndarray
     names: tuple[str, ...]
     material: int
+
+
+def locate_mesh(node: Node, cache: ProtoCache | None = None) -> Path:
+    """The local file of a ``Mesh`` node's first url (see the module's text for the rules).
+
+    ``cache``: where remote urls are looked up (default: the user's PROTO cache, made on first need).
+
+    Raises:
+        MeshFileError: no url, a url outside the project, or a remote file that cannot be had.
+    """
+    where = str(node.location) if node.location is not None else "Mesh"
+    urls = [str(u) for u in (node.fields.get("url") or []) if str(u)]
+    if not urls:
+        raise MeshFileError(f"{where}: Mesh has no url")
+    url = urls[0]
+    origin = node.location.file.removesuffix("[generated]") if node.location is not None else ""
+    try:
+        remote = remote_url(url, origin if is_remote(origin) else None)
+    except FetchError as exc:
+        raise MeshFileError(f"{where}: {exc}") from None
+    if remote is not None:
+        home = os.environ.get("WEBOTS_HOME", "")
+        if url.startswith("webots://") and home:
+            rel = Path(url[len("webots://"):].lstrip("/"))
+            if ".." not in rel.parts and (Path(home) / rel).is_file():
+                return Path(home) / rel
+        try:
+            return (cache if cache is not None else _default_cache()).get(remote, asset=True)
+        except FetchError as exc:
+            raise MeshFileError(f"{where}: mesh {url!r}: {exc}") from None
+    local = Path(url[len("file://"):] if url.startswith("file://") else url)
+    if local.is_absolute() or not origin or origin.startswith("<"):
+        raise MeshFileError(f"{where}: mesh url {url!r} is not read: only urls relative to the world or PROTO "
+                            "file (inside its project folder) and remote urls are")
+    folder = Path(origin).resolve().parent
+    project = folder.parent
+    path = (folder / local).resolve()
+    if not path.is_relative_to(project):
+        raise MeshFileError(f"{where}: mesh url {url!r} leads outside the project folder {project}; not read")
+    return path
+
+
+@functools.lru_cache(maxsize=1)
+def _default_cache() -> ProtoCache:
+    return ProtoCache()
+
+
+def read_mesh_node(node: Node, cache: ProtoCache | None = None) -> TriangleMesh:
+    """The triangles of a ``Mesh`` node: its file located by :func:`locate_mesh`, read by :func:`read_mesh` with
+    the node's ``name``, ``materialIndex`` and ``ccw``.
+
+    Raises:
+        MeshFileError: as both functions (the message names the node's place in its file).
+    """
+    path = locate_mesh(node, cache)
+    try:
+        return read_mesh(path, str(node.fields.get("name", "") or ""), int(node.fields.get("materialIndex", -1)),
+                         bool(node.fields.get("ccw", True)))
+    except MeshFileError as exc:
+        where = str(node.location) if node.location is not None else "Mesh"
+        raise MeshFileError(f"{where}: {exc}") from None
 
 
 def read_mesh(path: str | os.PathLike[str], name: str = "", material_index: int = -1, ccw: bool = True) -> TriangleMesh:
