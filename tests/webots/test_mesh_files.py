@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import struct
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -60,7 +61,7 @@ COLLADA = """\
 """
 
 
-def binary_stl(path: Path, triangles: list[tuple[tuple[float, float, float], ...]]) -> Path:
+def binary_stl(path: Path, triangles: Sequence[Sequence[Sequence[float]]]) -> Path:
     with path.open("wb") as out:
         out.write(b"\0" * 80 + struct.pack("<I", len(triangles)))
         for tri in triangles:
