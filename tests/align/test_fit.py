@@ -53,7 +53,9 @@ def test_lsq_recovers_the_damping_with_an_interval(lsq_fit: AlignResult) -> None
     fit = lsq_fit.knobs[DAMPING]
     # Contacts (the pole on its stops) make the criterion rough at 1/4 of the finite-difference step: the interval
     # is then the profile at the criterion's own bumps (wider than the Jacobian's), and it covers the truth.
-    assert fit.half_width_95 is not None and fit.half_width_95 < 0.1 * TRUE_DAMPING
+    # (0.0060 here: the crossing between the profile's coarse points is interpolated on the rise's square root;
+    # interpolating the rise itself gave 0.0038, short of the crossing.)
+    assert fit.half_width_95 is not None and fit.half_width_95 < 0.15 * TRUE_DAMPING
     assert fit.interval_95 is not None and fit.interval_95[0] < TRUE_DAMPING < fit.interval_95[1]
     assert lsq_fit.condition_number == pytest.approx(1.0) and not lsq_fit.warnings
 

@@ -152,3 +152,24 @@ def test_a_rough_criterion_is_profiled_to_what_its_bumps_allow_and_labelled() ->
     # Control: the same data without the bounce keep a quadratic interval that is not labelled rough.
     smooth = estimate_intervals(Line(SPECS, y), ols_u(problem), 0.03)
     assert smooth.noise["jitter"] < smooth.noise["threshold"] and "rough" not in smooth.methods["a"]
+
+
+@pytest.mark.parametrize("scan", [(0.1, 0.4, 0.9), (0.05, 0.2, 0.45, 0.8), (0.25, 0.5, 0.75, 1.0, 1.5)])
+def test_a_profile_crossing_between_scanned_points_is_exact_for_a_quadratic_rise(scan: tuple[float, ...]) -> None:
+    # A quadratic criterion rises as (k / k_true)² · threshold: the interval ends at k_true on both sides,
+    # wherever the scan's points fall. Interpolating the rise linearly between the points around k_true ends
+    # short of it (too narrow an interval); interpolating its square root is exact.
+    from dualtwin.align.intervals import _crossing, _hull
+
+    threshold, k_true = 2.0, 0.3
+    curve = {sign * k: threshold * (k / k_true) ** 2 for k in scan for sign in (-1.0, 1.0)}
+    curve[0.0] = 0.0
+    for sign in (-1.0, 1.0):
+        for end, reached in (_crossing(curve, sign, threshold), _hull(curve, sign, threshold)):
+            assert reached and end == pytest.approx(sign * k_true, abs=1e-12)
+    # The control: what linear interpolation of the rise gives on this scan is short of k_true.
+    below = max(k for k in scan if k < k_true)
+    above = min(k for k in scan if k > k_true)
+    v0, v1 = curve[below], curve[above]
+    linear = below + (threshold - v0) / (v1 - v0) * (above - below)
+    assert linear < k_true - 0.01

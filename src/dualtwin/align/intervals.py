@@ -325,8 +325,9 @@ def _reach(u: Sequence[float], direction: np.ndarray, sign: float) -> float:
 
 def _hull(curve: dict[float, float], sign: float, threshold: float) -> tuple[float, bool]:
     """The outermost scanned point on one side whose rise stays below ``threshold``, extended to where the next
-    point out crosses it (linear in between); ``reached`` is False when even the last scanned point stays below.
-    A rough criterion's bump then cannot end an interval that a lower point further out would have extended."""
+    point out crosses it; ``reached`` is False when even the last scanned point stays below.
+    A rough criterion's bump then cannot end an interval that a lower point further out would have extended.
+    Between the two points the crossing is interpolated on the rise's square root (:func:`_root_fraction`)."""
     ks = sorted((k for k in curve if k * sign >= 0), key=abs)
     inside = [k for k in ks if curve[k] < threshold]
     last = inside[-1] if inside else 0.0
@@ -334,9 +335,16 @@ def _hull(curve: dict[float, float], sign: float, threshold: float) -> tuple[flo
     if not beyond:
         return ks[-1], False
     nxt = beyond[0]
-    v0, v1 = curve.get(last, 0.0), curve[nxt]
-    frac = (threshold - v0) / (v1 - v0) if v1 > v0 else 1.0
-    return last + min(1.0, max(0.0, frac)) * (nxt - last), True
+    return last + _root_fraction(curve.get(last, 0.0), curve[nxt], threshold) * (nxt - last), True
+
+
+def _root_fraction(v0: float, v1: float, threshold: float) -> float:
+    """Where between two scanned points (0 and 1) the rise reaches ``threshold``, interpolating the square root
+    of the rise: near a minimum the rise grows as the square of the distance, so its root is linear in the knob
+    and the crossing is exact for a quadratic criterion (the profile-t idea). Interpolating the rise itself
+    puts the crossing short of the truth, more so the coarser the scan: a bias toward too narrow intervals."""
+    r0, r1, rt = math.sqrt(max(v0, 0.0)), math.sqrt(max(v1, 0.0)), math.sqrt(max(threshold, 0.0))
+    return min(1.0, max(0.0, (rt - r0) / (r1 - r0))) if r1 > r0 else 1.0
 
 
 def _room(u: Sequence[float], direction: np.ndarray, sign: float) -> float:
@@ -349,14 +357,14 @@ def _along(u: Sequence[float], direction: np.ndarray, k: float) -> list[float]:
 
 
 def _crossing(curve: dict[float, float], sign: float, threshold: float) -> tuple[float, bool]:
-    """Where the criterion's rise first crosses ``threshold`` going out on one side (linear in between)."""
+    """Where the criterion's rise first crosses ``threshold`` going out on one side (interpolated on the rise's
+    square root in between, :func:`_root_fraction`)."""
     ks = sorted((k for k in curve if k * sign >= 0), key=abs)
     prev_k, prev_v = 0.0, 0.0
     for k in ks[1:]:
         v = curve[k]
         if v >= threshold:
-            frac = (threshold - prev_v) / (v - prev_v) if v > prev_v else 1.0
-            return prev_k + frac * (k - prev_k), True
+            return prev_k + _root_fraction(prev_v, v, threshold) * (k - prev_k), True
         prev_k, prev_v = k, max(prev_v, v)
     return ks[-1], False
 
