@@ -7,5 +7,6 @@
 * ``suites``: the paper's published suite, byte for byte;
 * ``webots_scene``: hand-built Webots scene trees for physics tests;
 * ``images``: seeded camera frames;
+* ``mesh_worlds``: STL/OBJ files of boxes and the project folder of a world that reads them;
 * ``align_runs``, ``rl_runs``, ``servers``, ``sync_helpers``: what one test directory's modules share.
 """

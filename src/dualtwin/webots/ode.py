@@ -22,6 +22,8 @@ import threading
 from ctypes import CFUNCTYPE, POINTER, Structure, c_char_p, c_double, c_int, c_uint, c_ulong, c_void_p
 from typing import Any
 
+import numpy as np
+
 from dualtwin.errors import DualtwinError
 
 dReal = c_double
@@ -502,3 +504,17 @@ def matrix3(rows: Any) -> Any:
 
 
 DOUBLE_P = POINTER(c_double)
+
+
+def build_trimesh_data(vertices: Any, triangles: Any) -> tuple[Any, ...]:
+    """ODE triangle-mesh data (``dGeomTriMeshDataBuildDouble``) of ``vertices`` (n, 3) and ``triangles`` (m, 3).
+
+    Returns ``(data, vertex array, index array)``: ODE keeps pointers into the arrays, so the tuple must be kept
+    as long as the data (and any trimesh made from it) lives. ``dGeomTriMeshDataDestroy(data)`` frees it.
+    """
+    verts = np.ascontiguousarray(vertices, dtype=np.float64).reshape(-1, 3)
+    index = np.ascontiguousarray(triangles, dtype=np.uint32).reshape(-1, 3)
+    lib = load()
+    data = lib.dGeomTriMeshDataCreate()
+    lib.dGeomTriMeshDataBuildDouble(data, verts.ctypes.data, 3 * 8, len(verts), index.ctypes.data, index.size, 3 * 4)
+    return data, verts, index

@@ -1,8 +1,14 @@
-"""What a Shape looks like: its colour and, for an IndexedFaceSet, its triangles.
+"""What a Shape looks like: its colour and, for a geometry made of triangles, its triangles.
 
-Pure functions on parsed scene nodes, shared by the Webots runtime's renderer (:mod:`.visual_scene`, which
-draws ``Camera`` images), the converter (``dualtwin.convert``, which re-exports them) and perception, so a
-Shape gets one colour and one triangulation everywhere.
+Functions on parsed scene nodes, shared by the Webots runtime's renderer (:mod:`.visual_scene`, which draws
+``Camera`` images), its visual rays (:mod:`.visual_rays`: Lidar, RangeFinder, infra-red DistanceSensor), the
+converter (``dualtwin.convert``, which re-exports them) and perception, so a Shape gets one colour and one
+triangulation everywhere.
+
+Surfaces made of triangles (:data:`SURFACE_NODES`, read by :func:`surface_triangles`): an ``IndexedFaceSet``
+(its faces), a ``Mesh`` (its file's meshes as :func:`~dualtwin.webots.mesh_files.read_mesh_node` merges them)
+and a ``CadShape``, a Shape-like node whose geometry is every mesh of its file (its ``ccw`` honoured). A
+``CadShape`` is drawn in :data:`CAD_SHAPE_RGBA`: the materials of its file are not read.
 """
 
 from __future__ import annotations
@@ -12,9 +18,16 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from dualtwin.webots.mesh_files import MeshFileError, locate_mesh, read_mesh, read_mesh_node
 from dualtwin.webots.nodes import Node
 
-__all__ = ["appearance_rgba", "indexed_face_set_mesh"]
+__all__ = ["CAD_SHAPE_RGBA", "SURFACE_NODES", "appearance_rgba", "indexed_face_set_mesh", "surface_triangles"]
+
+#: Nodes whose surface is a set of triangles (:func:`surface_triangles`): two geometries and the CadShape.
+SURFACE_NODES = ("IndexedFaceSet", "Mesh", "CadShape")
+#: The colour a CadShape is drawn in: Assimp's default material (grey 0.6), what Webots shows for a file
+#: without materials. The file's own materials (OBJ ``.mtl``, COLLADA effects) are not read.
+CAD_SHAPE_RGBA = (0.6, 0.6, 0.6, 1.0)
 
 
 def appearance_rgba(shape: Any) -> list[float] | None:
@@ -51,3 +64,29 @@ def indexed_face_set_mesh(node: Node, scale: float = 1.0) -> tuple[npt.NDArray[n
     if len(tri) and (tri.max() >= len(points)):
         raise ValueError(f"coordIndex refers to point {int(tri.max())} but coord has {len(points)} points")
     return points, tri
+
+
+def surface_triangles(node: Node) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int64]]:
+    """Vertices (n, 3) in the node's frame, unscaled, and triangles (m, 3) of a node of :data:`SURFACE_NODES`:
+    an IndexedFaceSet's fan-triangulated faces, a Mesh's file by its ``name``, ``materialIndex`` and ``ccw``,
+    or every mesh of a CadShape's file (its ``ccw`` honoured).
+
+    Raises:
+        ValueError: an IndexedFaceSet face refers to a point that does not exist, or the node is of another type.
+        MeshFileError: a Mesh's or CadShape's file cannot be located or read (a one-line message with the node's
+            location; a :class:`ValueError` too).
+    """
+    kind = node.type_name
+    if kind == "IndexedFaceSet":
+        return indexed_face_set_mesh(node)
+    if kind == "Mesh":
+        mesh = read_mesh_node(node)
+    elif kind == "CadShape":
+        path = locate_mesh(node)  # reads the url field only: a CadShape's is a Mesh's
+        try:
+            mesh = read_mesh(path, "", -1, bool(node.get("ccw", True)))
+        except MeshFileError as exc:
+            raise MeshFileError(f"{node.location if node.location is not None else 'CadShape'}: {exc}") from None
+    else:
+        raise ValueError(f"{kind} is not a surface of triangles")
+    return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.triangles, dtype=np.int64)

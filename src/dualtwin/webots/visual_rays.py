@@ -9,8 +9,10 @@ collisions (bounding objects, :mod:`.rays`).
 Headless, every Shape of every Solid (reached through Pose/Transform/Group, not through nested Solids) gets an
 ODE geom of its own, outside the collision space (so it never makes contacts), placed at the Shape's current
 world pose before each cast and intersected by the same ray code as bounding objects. A Plane draws a finite
-``size`` rectangle, so it is a flat box here. A Shape whose appearance is fully transparent is skipped, as
-Webots' infra-red and depth rendering skip it. Shapes of the device's robot that enclose the device's origin
+``size`` rectangle, so it is a flat box here. An IndexedFaceSet, a Mesh (its file's triangles) and a
+CadShape (every mesh of its file) are ODE triangle meshes of :func:`.shapes.surface_triangles`, the triangles
+the camera draws; a mesh file that cannot be read is not seen (one warning). A Shape whose appearance is fully
+transparent is skipped, as Webots' infra-red and depth rendering skip it. Shapes of the device's robot that enclose the device's origin
 (its own housing) are not seen, as a camera inside a Shape does not draw its back faces; the rest of the robot
 is seen. Enclosing is judged against the box around the Shape in the Shape's own frame: a box around it in
 world axes would grow as the robot tilts, and a sensor just outside its robot's body would stop seeing that
@@ -26,11 +28,12 @@ from typing import Any
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots import ode
 from dualtwin.webots._math3 import Pose
-from dualtwin.webots.mass_rules import rot_matrix, trimesh_data
+from dualtwin.webots.mass_rules import rot_matrix
+from dualtwin.webots.mesh_files import MeshFileError
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import GeomRec, Simulation, SolidRec
 from dualtwin.webots.physics.records import is_solid
-from dualtwin.webots.shapes import appearance_rgba
+from dualtwin.webots.shapes import CAD_SHAPE_RGBA, SURFACE_NODES, appearance_rgba, surface_triangles
 
 __all__ = ["VisualGeoms", "infra_red_reflection", "scene_of", "visual_targets"]
 
@@ -78,6 +81,10 @@ class VisualGeoms:
                 made = self._make(geometry, local, scale, solid)
                 if made is not None:
                     self._reflection[made.ptr] = infra_red_reflection(node)
+        elif t == "CadShape":  # a Shape whose geometry is its file
+            made = self._make(node, local, scale, solid)
+            if made is not None:
+                self._reflection[made.ptr] = infra_red_reflection(node)
 
     def _make(self, node: Node, local: Pose, scale: Sequence[float], solid: SolidRec) -> GeomRec | None:
         lib = self.lib
@@ -102,11 +109,17 @@ class VisualGeoms:
             r, h = float(f.get("radius", 1.0)) * uniform, float(f.get("height", 2.0)) * uniform
             if r > 0 and h > 0:
                 ptr = (lib.dCreateCylinder if t == "Cylinder" else lib.dCreateCapsule)(None, r, h)
-        elif t == "IndexedFaceSet":
-            built = trimesh_data(node, scale)
-            if built is not None:
-                ptr = lib.dCreateTriMesh(None, built[0], None, None, None)
-                keep = built
+        elif t in SURFACE_NODES:
+            try:
+                vertices, triangles = surface_triangles(node)
+            except (ValueError, MeshFileError) as exc:
+                message = f"{t} not seen by rays: {exc}"
+                if message not in self.sim.build_warnings:  # once, not at every rebuild of the scene
+                    self.sim.warn(message)
+                return None
+            if len(triangles):
+                keep = ode.build_trimesh_data(vertices * scale, triangles)
+                ptr = lib.dCreateTriMesh(None, keep[0], None, None, None)
         if not ptr:
             return None
         box = (ctypes.c_double * 6)()
@@ -159,6 +172,8 @@ class VisualGeoms:
     def close(self) -> None:
         for g in self.geoms:
             self.lib.dGeomDestroy(g.ptr)
+            if g.keepalive:  # a trimesh's data, freed after its geom
+                self.lib.dGeomTriMeshDataDestroy(g.keepalive[0])
         self.geoms = []
         self._targets.clear()
         self._world.clear()
@@ -167,7 +182,10 @@ class VisualGeoms:
 def infra_red_reflection(shape: Node) -> float:
     """Webots' infra-red reflection factor of a Shape: ``0.2 + 0.8·red·(1 − 0.5·roughness)`` with the red of
     its PBRAppearance ``baseColor`` (and its ``roughness``) or Material ``diffuseColor``; a Shape without
-    appearance counts as white. Textures and occlusion maps are not read (Webots samples them at the hit)."""
+    appearance counts as white, a CadShape as the colour it is drawn in (:data:`.shapes.CAD_SHAPE_RGBA`,
+    roughness 0). Textures and occlusion maps are not read (Webots samples them at the hit)."""
+    if shape.type_name == "CadShape":
+        return 0.2 + 0.8 * CAD_SHAPE_RGBA[0]
     appearance = shape.fields.get("appearance")
     red, roughness = 1.0, 0.0
     if isinstance(appearance, Node):

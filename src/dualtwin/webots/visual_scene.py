@@ -7,7 +7,10 @@ renderer as the MuJoCo twin (:class:`dualtwin.twins.camera.FrameRenderer`):
 
 * every Solid (robot parts, static objects, Solid-derived devices) with visible Shapes becomes one **mocap
   body**; its Shapes (through Pose/Transform/Group, not through nested Solids) become geoms in the Solid's
-  frame with the appearance's colour (PBR ``baseColor`` / Material ``diffuseColor``);
+  frame with the appearance's colour (PBR ``baseColor`` / Material ``diffuseColor``); an IndexedFaceSet, a
+  Mesh and a CadShape are MuJoCo meshes of :func:`~dualtwin.webots.shapes.surface_triangles` (a CadShape in
+  :data:`~dualtwin.webots.shapes.CAD_SHAPE_RGBA`: its file's materials are not read); a mesh file that cannot
+  be read is not drawn (a line in :attr:`WebotsVisualScene.warnings`);
 * DirectionalLight/PointLight/SpotLight become MuJoCo lights; Background is not drawn (MuJoCo's clear
   colour, as in the MJCF twin); MuJoCo's default headlight is kept, as in every MuJoCo model;
 * each frame, :meth:`WebotsVisualScene.sync` copies every Solid's pose read through the supervisor API
@@ -33,12 +36,13 @@ from dualtwin.errors import DualtwinError
 from dualtwin.geometry import mujoco_quat
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots import schema
+from dualtwin.webots.mesh_files import MeshFileError
 from dualtwin.webots.render import ResolvedCamera
-from dualtwin.webots.shapes import appearance_rgba, indexed_face_set_mesh
+from dualtwin.webots.shapes import CAD_SHAPE_RGBA, appearance_rgba, surface_triangles
 
 __all__ = ["VISUAL_GEOMETRY", "WebotsVisualScene"]
 
-VISUAL_GEOMETRY = ("Box", "Sphere", "Cylinder", "Capsule", "Plane", "IndexedFaceSet")
+VISUAL_GEOMETRY = ("Box", "Sphere", "Cylinder", "Capsule", "Plane", "IndexedFaceSet", "Mesh")
 
 
 def rotation_matrix(rotation: Any) -> np.ndarray:
@@ -150,7 +154,7 @@ class WebotsVisualScene:
         node = handle.scene_node
         if schema.is_solid_type(kind):
             self._solid(handle, kind, scale)
-        elif kind == "Shape":
+        elif kind in ("Shape", "CadShape"):
             if geoms is not None:
                 geom = self._shape(node, T, scale)
                 if geom is not None:
@@ -189,16 +193,20 @@ class WebotsVisualScene:
         self._solids.append((handle, name))
 
     def _shape(self, shape: Any, T: np.ndarray, scale: float) -> dict[str, Any] | None:
-        """The MuJoCo geom (keyword arguments) of a Shape at frame T of its Solid, or None if not drawable."""
-        geometry = shape.get("geometry")
+        """The MuJoCo geom (keyword arguments) of a Shape (or CadShape) at frame T of its Solid, or None if not
+        drawable."""
+        if shape.type_name == "CadShape":  # a Shape whose geometry is its own file
+            geometry, rgba = shape, list(CAD_SHAPE_RGBA)
+        else:
+            geometry, rgba = shape.get("geometry"), _rgba(shape)
         if geometry is None:
             return None
         kind = geometry.type_name
-        if kind not in VISUAL_GEOMETRY:
+        if kind not in VISUAL_GEOMETRY and kind != "CadShape":
             self.warnings.append(f"{geometry.location}: visual {kind} not drawn")
             return None
         kwargs: dict[str, Any] = {"pos": [float(v) for v in T[:3, 3]], "quat": [float(v) for v in mujoco_quat(T[:3, :3])],
-                                  "rgba": _rgba(shape), "contype": 0, "conaffinity": 0}
+                                  "rgba": rgba, "contype": 0, "conaffinity": 0}
         if kind == "Box":
             kwargs.update(type=mujoco.mjtGeom.mjGEOM_BOX, size=[float(v) * scale / 2 for v in geometry["size"]])
         elif kind == "Sphere":
@@ -210,7 +218,12 @@ class WebotsVisualScene:
             sx, sy = (float(v) * scale for v in geometry["size"])
             kwargs.update(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[sx / 2, sy / 2, 1.0])
         else:
-            points, faces = indexed_face_set_mesh(geometry, scale)
+            try:
+                points, faces = surface_triangles(geometry)
+            except MeshFileError as exc:
+                self.warnings.append(f"{kind} not drawn: {exc}")
+                return None
+            points = points * scale
             if len(faces) == 0 or len(points) < 4:
                 return None
             self._mesh_count += 1
