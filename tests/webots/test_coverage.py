@@ -28,11 +28,12 @@ GEOMETRY_SAMPLES = {
     "IndexedFaceSet": "IndexedFaceSet { coord Coordinate { point [ 0 0 0, 1 0 0, 0 1 0, 0 0 1 ] } "
                       "coordIndex [ 0 2 1 -1 0 1 3 -1 0 3 2 -1 1 2 3 -1 ] }",
     "ElevationGrid": "ElevationGrid { xDimension 2 yDimension 2 xSpacing 1 ySpacing 1 height [ 0 0 0 0 ] }",
-    "Mesh": 'Mesh { url [ "hull.obj" ] }',
+    "Mesh": 'Mesh { url [ "hull.obj" ] }',  # HULL_OBJ, written beside the world
     "Cone": "Cone { bottomRadius 0.1 height 0.2 }",
     "IndexedLineSet": "IndexedLineSet { coord Coordinate { point [ 0 0 0, 1 0 0 ] } coordIndex [ 0 1 -1 ] }",
     "PointSet": "PointSet { coord Coordinate { point [ 0 0 0 ] } }",
 }
+HULL_OBJ = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
 # parts of other geometries, not geometries of their own
 GEOMETRY_PARTS = {"Coordinate", "Normal", "TextureCoordinate"}
 
@@ -54,11 +55,11 @@ def _status(name: str) -> str:
     return next(c.status for c in REGISTRY if c.name == name)
 
 
-def _sim(body: str) -> Simulation:
+def _sim(body: str, path: Path | None = None) -> Simulation:
     text = f'#VRML_SIM R2023b utf8\nWorldInfo {{ basicTimeStep 8 }}\nDEF GROUND Solid {{ name "ground" }}\n{body}\n'
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return Simulation(load_world_text(text))
+        return Simulation(load_world_text(text) if path is None else load_world_text(text, path))
 
 
 def test_every_node_the_parser_knows_has_one_entry() -> None:
@@ -117,8 +118,10 @@ def test_device_readings_follow_the_registry() -> None:
 
 
 @pytest.mark.parametrize("name", sorted(GEOMETRY_SAMPLES))
-def test_geometry_status_matches_collision_geoms(name: str) -> None:
-    sim = _sim(f"Solid {{ boundingObject {GEOMETRY_SAMPLES[name]} }}")
+def test_geometry_status_matches_collision_geoms(name: str, tmp_path: Path) -> None:
+    (tmp_path / "worlds").mkdir()
+    (tmp_path / "worlds" / "hull.obj").write_text(HULL_OBJ)
+    sim = _sim(f"Solid {{ boundingObject {GEOMETRY_SAMPLES[name]} }}", tmp_path / "worlds" / "w.wbt")
     assert (len(sim.geoms) == 1) == (_status(name) in WORKS), name
     sim.close()
 

@@ -122,14 +122,17 @@ SICK = HEADER + """PROTO SickLms291 [
 }
 """
 
-# A bounding object that needs a mesh, and a texture that physics never needs.
+# Meshes the twin reads (a bounding object's, a drawn Shape's, a CadShape's) and a texture it never needs.
 MESHY = HEADER + """PROTO Meshy [ ]
 {
   Solid {
-    children [ Shape {
-      appearance PBRAppearance { baseColorMap ImageTexture { url [ "textures/skin.png" ] } }
-      geometry Mesh { url [ "meshes/visual.obj" ] }
-    } ]
+    children [
+      Shape {
+        appearance PBRAppearance { baseColorMap ImageTexture { url [ "textures/skin.png" ] } }
+        geometry Mesh { url [ "meshes/visual.obj" ] }
+      }
+      CadShape { url [ "meshes/body.dae" ] }
+    ]
     boundingObject Mesh { url [ "meshes/hull.obj" ] }
   }
 }
@@ -148,6 +151,9 @@ SERVED = {
     "projects/objects/meshy/protos/Meshy.proto": MESHY,
     "projects/objects/meshy/protos/meshes/hull.obj": "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
     "projects/objects/meshy/protos/meshes/visual.obj": "v 0 0 0\n",
+    "projects/objects/meshy/protos/meshes/body.dae": "<COLLADA/>",
+    "projects/objects/meshy/protos/meshes/arm.stl": "solid arm\nendsolid arm\n",
+    "projects/default/worlds/sounds/bump.wav": "not really a sound",
     "projects/objects/meshy/protos/textures/skin.png": "not really a png",
 }
 
@@ -307,16 +313,22 @@ def test_fetch_then_fixture_worlds_load_offline_without_warnings(
     assert not (tmp_path / "fresh-cache").exists()  # a mirror folder is read in place
 
 
-def test_bounding_mesh_fetched_texture_and_visual_mesh_not(tmp_path: Path, online: _Server) -> None:
+def test_every_mesh_and_cad_shape_fetched_textures_and_sounds_not(tmp_path: Path, online: _Server) -> None:
     world = tmp_path / "meshy.wbt"
-    # an official https url written out in the world, as Webots R2023b saves them
-    world.write_text(HEADER + f'EXTERNPROTO "{OFFICIAL}projects/objects/meshy/protos/Meshy.proto"\nMeshy {{ }}\n')
+    # an official https url written out in the world, as Webots R2023b saves them; a webots:// mesh url in a
+    # Shape of the world itself; contact sounds (ContactProperties' default bumpSound is a webots url too)
+    world.write_text(HEADER + f'EXTERNPROTO "{OFFICIAL}projects/objects/meshy/protos/Meshy.proto"\n'
+                     "WorldInfo { contactProperties [ ContactProperties { bumpSound "
+                     '"webots://projects/default/worlds/sounds/bump.wav" } ] }\n'
+                     'Meshy { }\nSolid { name "arm" children [ Shape { geometry Mesh { url '
+                     '"webots://projects/objects/meshy/protos/meshes/arm.stl" } } ] }\n')
     cache = ProtoCache(tmp_path / "cache", progress=None)
     report = fetch_worlds([world], cache)
-    assert report.assets == [OFFICIAL + "projects/objects/meshy/protos/meshes/hull.obj"]
+    meshes = OFFICIAL + "projects/objects/meshy/protos/meshes/"
+    assert sorted(report.assets) == [meshes + name for name in ("arm.stl", "body.dae", "hull.obj", "visual.obj")]
     paths = set(online.requests)
-    assert "/R2023b/projects/objects/meshy/protos/meshes/hull.obj" in paths
-    assert not any("skin.png" in p or "visual.obj" in p for p in paths)
+    assert {"/R2023b/projects/objects/meshy/protos/meshes/" + n for n in ("hull.obj", "visual.obj", "body.dae")} <= paths
+    assert not any("skin.png" in p or ".wav" in p for p in paths)
 
 
 def test_http_errors_and_size_limit_name_the_url(tmp_path: Path, online: _Server) -> None:

@@ -42,7 +42,7 @@ def webots_fetch(
     out: Annotated[Path | None, OutOption("fill this folder (for DUALTWIN_PROTO_MIRROR on an offline "
                                                   "machine) instead of your PROTO cache")] = None,
 ) -> None:
-    """Download every PROTO (and bounding-object mesh) the worlds need, verified, for offline runs."""
+    """Download every PROTO and mesh file (Mesh, CadShape; not textures or sounds) the worlds need, verified."""
     from dualtwin.webots.fetch import fetch_command
 
     report, root = fetch_command(worlds, out, say=lambda line: print(line, file=sys.stderr))

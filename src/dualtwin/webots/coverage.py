@@ -55,7 +55,7 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Solid", "scene", "supported",
              "bodies with mass from Physics/boundingObject, merging and the static basis, kinematic solids "
              "(one that no body or joint carries moves by its linearVelocity/angularVelocity every step, "
-             "sensors and getVelocity seeing it), supervisor pose/velocity edits; Box/Sphere/Cylinder/Capsule/IndexedFaceSet edits (also through "
+             "sensors and getVelocity seeing it), supervisor pose/velocity edits; Box/Sphere/Cylinder/Capsule/IndexedFaceSet/Mesh edits (also through "
              "DEF/USE) resize the ODE geom at the next step, wake bodies around it and reach ray sensors, and "
              "the body's mass, centre of mass and inertia follow the new shape as at load (with a density the "
              "mass follows too, a given mass stays); a "
@@ -135,8 +135,18 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Plane", "geometry", "supported", "static infinite plane (a Plane on a body stays static)"),
     Coverage("IndexedFaceSet", "geometry", "supported", "ODE triangle mesh"),
     Coverage("ElevationGrid", "geometry", "partial", "static height field; on a dynamic body it stays static"),
-    Coverage("Mesh", "geometry", "not",
-             "not yet: no collision geometry (mass 1 kg); meshes of bounding objects are fetched for when it is"),
+    Coverage("Mesh", "geometry", "supported",
+             "ODE triangle mesh of the file's triangles, as an IndexedFaceSet (contacts, ray sensors, touch "
+             "sensors; inside Pose/Transform/Group/Shape, Transform scale per axis); mass by dMassSetTrimesh at "
+             "the Physics density or mass, centre of mass at the volume's centroid. Files: STL (binary, ASCII), "
+             "OBJ, COLLADA (.dae: node transforms and unit applied, up_axis not); every mesh of the file merged, "
+             "filtered by name and materialIndex, ccw FALSE reverses the winding. url: http(s) and webots:// "
+             "(from $WEBOTS_HOME, else the PROTO cache; `dualtwin webots fetch` fills it), or relative to the "
+             "world or PROTO file that writes the node and confined to its project folder (absolute paths and "
+             "urls leaving the project are refused). A file that cannot be read, selects no triangle or encloses "
+             "no volume: no geom and Webots' fallback 1 kg with an identity inertia, with one warning naming the "
+             "node. A supervisor's edit of url, name, materialIndex or ccw builds the geom again at the next "
+             "step and the body's mass follows"),
     Coverage("Cone", "geometry", "visual", "not a bounding geometry in Webots either (ignored with a warning)"),
     Coverage("IndexedLineSet", "geometry", "visual", "lines; no collision in Webots"),
     Coverage("PointSet", "geometry", "visual", "points; no collision in Webots"),

@@ -5,8 +5,9 @@ What is fetched, following what Webots downloads when it loads a world:
 - every ``EXTERNPROTO`` and ``IMPORTABLE EXTERNPROTO`` the world declares with a remote url (``http(s)``, or
   ``webots://`` at the R2023b tag), and, transitively, every remote PROTO those files declare (relative urls
   join the declaring file's url). Local PROTO files are read for their own declarations but not copied;
-- assets only where physics needs them: the ``url`` of a ``Mesh`` inside a ``boundingObject`` of the expanded
-  world. Textures, sounds and visual meshes are never fetched.
+- the mesh files the twin reads: the remote ``url`` of every ``Mesh`` (bounding objects for collisions and
+  mass, Shapes for cameras, lidars and range finders) and every ``CadShape`` of the expanded world. Textures
+  and sounds are never fetched (nothing here draws a texture or plays a sound).
 
 The world is then expanded from the fetched files (offline) to prove it loads; its warnings are returned.
 Errors stop the command at the first url that cannot be fetched, naming it and the declaration.
@@ -34,7 +35,7 @@ from dualtwin.webots.proto_cache import (
     remote_url,
 )
 
-__all__ = ["PROTO_FOLDER_KIND", "FetchReport", "fetch_command", "fetch_worlds"]
+__all__ = ["MESH_NODES", "PROTO_FOLDER_KIND", "FetchReport", "fetch_command", "fetch_worlds"]
 
 PROTO_FOLDER_KIND = "proto-cache"
 
@@ -47,7 +48,7 @@ class FetchReport:
     """What ``fetch_worlds`` made available."""
 
     protos: list[str] = field(default_factory=list)  # remote PROTO urls, in discovery order
-    assets: list[str] = field(default_factory=list)  # remote mesh urls needed by bounding objects
+    assets: list[str] = field(default_factory=list)  # remote mesh urls of the Mesh and CadShape nodes
     warnings: list[str] = field(default_factory=list)  # warnings of loading each world afterwards
 
 
@@ -110,35 +111,36 @@ def fetch_worlds(
         resolver = ProtoResolver(path, proto_paths, cache=cache)
         loaded = expand_world(parsed, path, proto_paths, resolver=resolver)
         report.warnings += loaded.warnings
-        for url, location in _bounding_meshes(loaded.nodes):
+        for url, location, kind in _mesh_urls(loaded.nodes):
             if url in seen:
                 continue
             seen.add(url)
             try:
                 cache.get(url, asset=True)
             except FetchError as exc:
-                raise FetchError(f"{location}: mesh of a bounding object: {exc}") from None
+                raise FetchError(f"{location}: {kind} url: {exc}") from None
             report.assets.append(url)
     return report
 
 
-def _bounding_meshes(nodes: Sequence[Node]) -> list[tuple[str, str]]:
-    """Remote urls of Mesh geometries inside bounding objects, with where each is written."""
-    out: list[tuple[str, str]] = []
+#: The nodes whose ``url`` is a mesh file the twin reads.
+MESH_NODES = ("Mesh", "CadShape")
+
+
+def _mesh_urls(nodes: Sequence[Node]) -> list[tuple[str, str, str]]:
+    """Remote urls of every Mesh and CadShape (in bounding objects, Shapes and children alike), with where each
+    is written and its node type, in scene order."""
+    out: list[tuple[str, str, str]] = []
     for top in nodes:
         for node in top.walk():
-            bounding = node.fields.get("boundingObject")
-            if not isinstance(bounding, Node):
+            if node.type_name not in MESH_NODES:
                 continue
-            for geom in bounding.walk():
-                if geom.type_name != "Mesh":
-                    continue
-                origin = geom.location.file if geom.location is not None else ""
-                origin = origin.removesuffix("[generated]")
-                for entry in geom.fields.get("url", []) or []:
-                    url = remote_url(str(entry), origin if is_remote(origin) else None)
-                    if url is not None:
-                        out.append((url, str(geom.location)))
+            origin = node.location.file if node.location is not None else ""
+            origin = origin.removesuffix("[generated]")
+            for entry in node.fields.get("url", []) or []:
+                url = remote_url(str(entry), origin if is_remote(origin) else None)
+                if url is not None:
+                    out.append((url, str(node.location), node.type_name))
     return out
 
 

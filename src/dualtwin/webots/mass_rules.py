@@ -9,10 +9,11 @@ body's explicit ``inertial``, so a converted body weighs exactly what the twin's
 The rules, as Webots applies them (``WbSolid::updateMass`` and ``WbSolidUtilities::addMass`` in Webots):
 
 * Every primitive of the boundingObject contributes its ODE mass at the reference density 1000 kg/m³
-  (``dMassSetBox``/``Sphere``/``Cylinder``/``Capsule`` along z, ``dMassSetTrimesh`` for an IndexedFaceSet),
-  rotated and translated by the enclosing Pose/Transform nodes; overlaps are counted twice. Plane and
-  ElevationGrid contribute nothing; an invalid primitive (a non-positive size, a mesh enclosing no volume) or a
-  Mesh contributes 1 kg with an identity inertia.
+  (``dMassSetBox``/``Sphere``/``Cylinder``/``Capsule`` along z, ``dMassSetTrimesh`` for an IndexedFaceSet or
+  a Mesh, :mod:`.bounding_mesh`), rotated and translated by the enclosing Pose/Transform nodes; overlaps are
+  counted twice. Plane and ElevationGrid contribute nothing; an invalid primitive (a non-positive size, a mesh
+  without triangles or enclosing no volume, a Mesh whose file cannot be read) contributes 1 kg with an identity
+  inertia.
 * ``mass > 0`` rescales that reference distribution to ``mass`` (a density given too is ignored, with a
   warning); otherwise ``density`` (when it is not 1000) rescales it by ``density / 1000``.
   ``-1`` is the conventional "unset" value of both fields; if neither is positive, 1 kg is used.
@@ -40,6 +41,8 @@ from typing import Any
 
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots import ode
+from dualtwin.webots.bounding_mesh import TRIMESH_TYPES, mesh_warning, trimesh_data
+from dualtwin.webots.mesh_files import MeshFileError
 from dualtwin.webots.nodes import Node
 
 __all__ = [
@@ -87,33 +90,6 @@ def rot_matrix(R: Sequence[float]) -> Any:
         for j in range(3):
             mat[4 * i + j] = R[3 * i + j]
     return mat
-
-
-def trimesh_data(node: Node, scale: Sequence[float] = _UNIT) -> tuple[Any, ...] | None:
-    """An IndexedFaceSet as ODE trimesh data (fan-triangulated faces, vertices scaled per axis).
-
-    Returns ``(data, vertices, indices)`` (the arrays must outlive the data) or None without triangles.
-    """
-    coord = _f(node, "coord", None)
-    points = list(_f(coord, "point", []) or []) if isinstance(coord, Node) else []
-    index = [int(i) for i in (_f(node, "coordIndex", []) or [])]
-    tris: list[int] = []
-    face: list[int] = []
-    for i in [*index, -1]:
-        if i < 0:
-            for k in range(1, len(face) - 1):  # fan triangulation
-                tris.extend((face[0], face[k], face[k + 1]))
-            face = []
-        elif i < len(points):
-            face.append(i)
-    if not points or not tris:
-        return None
-    verts = (ctypes.c_double * (3 * len(points)))(*[float(p[k]) * scale[k] for p in points for k in range(3)])
-    idx = (ctypes.c_uint32 * len(tris))(*tris)
-    lib = ode.load()
-    data = lib.dGeomTriMeshDataCreate()
-    lib.dGeomTriMeshDataBuildDouble(data, verts, 3 * 8, len(points), idx, len(tris), 3 * 4)
-    return (data, verts, idx)
 
 
 def bounding_mass(node: Node, acc: ode.dMass, warn: Warn, scale: Scale = _UNIT) -> float:
@@ -170,20 +146,10 @@ def bounding_mass(node: Node, acc: ode.dMass, warn: Warn, scale: Scale = _UNIT) 
         if ok:
             fn = lib.dMassSetCylinder if t == "Cylinder" else lib.dMassSetCapsule
             fn(byref(m), REFERENCE_DENSITY, 3, r, h)
-    elif t == "IndexedFaceSet":
-        built = trimesh_data(node, scale)
-        ok = built is not None
-        if built is not None:
-            tmp = lib.dCreateTriMesh(None, built[0], None, None, None)
-            lib.dMassSetTrimesh(byref(m), REFERENCE_DENSITY, tmp)
-            lib.dGeomDestroy(tmp)
-            lib.dGeomTriMeshDataDestroy(built[0])
-            ok = m.mass > 0 and math.isfinite(m.mass)
+    elif t in TRIMESH_TYPES:
+        ok = _add_trimesh(node, m, warn, scale)
     elif t in ("Plane", "ElevationGrid"):
         return 0.0  # §3.2: contributes nothing
-    elif t == "Mesh":
-        warn("Mesh boundingObject is not supported (no collision); mass 1 kg")
-        ok = False
     else:
         return 0.0
     if not ok:
@@ -193,6 +159,30 @@ def bounding_mass(node: Node, acc: ode.dMass, warn: Warn, scale: Scale = _UNIT) 
         return 0.0
     lib.dMassAdd(byref(acc), byref(m))
     return m.mass / REFERENCE_DENSITY
+
+
+def _add_trimesh(node: Node, m: ode.dMass, warn: Warn, scale: Scale) -> bool:
+    """``dMassSetTrimesh`` at the reference density into ``m``. False (Webots' 1 kg fallback) for an
+    IndexedFaceSet without triangles, or, with one warning naming the node, a Mesh whose file cannot be read
+    and a mesh whose triangles enclose no volume."""
+    lib = ode.load()
+    try:
+        built = trimesh_data(node, scale)
+    except MeshFileError as exc:
+        warn(mesh_warning(exc))
+        return False
+    if built is None:
+        return False
+    tmp = lib.dCreateTriMesh(None, built[0], None, None, None)
+    lib.dMassSetTrimesh(byref(m), REFERENCE_DENSITY, tmp)
+    lib.dGeomDestroy(tmp)
+    lib.dGeomTriMeshDataDestroy(built[0])
+    if m.mass > 0 and math.isfinite(m.mass):
+        return True
+    where = str(node.location) if node.location is not None else node.type_name
+    warn(f"{where}: {node.type_name} encloses no volume (ODE's trimesh mass at density 1000 is {m.mass:g} kg: "
+         "a flat, open or inside-out mesh); Webots' fallback mass used (1 kg, identity inertia)")
+    return False
 
 
 def solid_mass(solid: Node, name: str, warn: Warn, scale: Scale = _UNIT) -> tuple[ode.dMass, float]:

@@ -12,7 +12,9 @@ from typing import Any
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots import ode
 from dualtwin.webots._math3 import Pose
-from dualtwin.webots.mass_rules import mass_zero, rot_matrix, solid_mass, trimesh_data
+from dualtwin.webots.bounding_mesh import TRIMESH_TYPES, mesh_warning, trimesh_data
+from dualtwin.webots.mass_rules import mass_zero, rot_matrix, solid_mass
+from dualtwin.webots.mesh_files import MeshFileError
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics.core import SimulationCore
 from dualtwin.webots.physics.records import (
@@ -292,7 +294,7 @@ class SceneBuilder(SimulationCore):
 
     def _solid_mass(self, solid: SolidRec) -> tuple[ode.dMass, float]:
         """§3.2: mass of one Solid in its own frame and its boundingObject volume (:mod:`..mass_rules`)."""
-        return solid_mass(solid.node, solid.name, self.warn)
+        return solid_mass(solid.node, solid.name, self.warn_once)
 
     def _merged_mass(self, body: BodyRec) -> tuple[ode.dMass, list[tuple[float, Node | None]]]:
         """§3.3: the masses of the body's Solids summed in its root Solid's frame (CoM not yet moved to the
@@ -497,8 +499,12 @@ class SceneBuilder(SimulationCore):
             gr = GeomRec(ptr=ptr, solid=solid, kind=t, local=local, body=None, is_plane=True, source=node)
             self._register_geom(gr)
             return
-        elif t == "IndexedFaceSet":
-            built = trimesh_data(node, scale)
+        elif t in TRIMESH_TYPES:
+            try:
+                built = trimesh_data(node, scale)
+            except MeshFileError as exc:
+                self.warn_once(mesh_warning(exc))  # the mass rules may have given this line already
+                return
             if built is not None:
                 ptr = lib.dCreateTriMesh(self._space, built[0], None, None, None)
                 keep = built
@@ -513,9 +519,6 @@ class SceneBuilder(SimulationCore):
                 self._register_geom(gr)
                 self._place_static_geom(gr, solid_world)
                 return
-        elif t == "Mesh":
-            self.warn("Mesh boundingObject is not supported; no collision geometry created")
-            return
         else:
             self.warn(f"{t} is not a valid bounding geometry; ignored")
             return

@@ -124,6 +124,12 @@ class SimulationCore:
         self._warnings.append(message)
         warnings.warn(message, stacklevel=3)
 
+    def warn_once(self, message: str) -> None:
+        """:meth:`warn`, unless this very line was given before (a bounding Mesh that cannot be read is met by
+        the mass rules and by the geom build; an edit that sums a body's mass again meets it once more)."""
+        if message not in self._warnings:
+            self.warn(message)
+
     @property
     def build_warnings(self) -> list[str]:
         return list(self._warnings)

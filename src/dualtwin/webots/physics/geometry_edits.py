@@ -1,5 +1,6 @@
 """Supervisor edits of bounding geometry (``Box.size``, ``Sphere.radius``, ``Cylinder``/``Capsule``
-``radius``/``height``, an ``IndexedFaceSet``'s ``Coordinate.point``) reaching the ODE scene.
+``radius``/``height``, an ``IndexedFaceSet``'s ``Coordinate.point``; a ``Mesh``'s file fields, see
+:mod:`.scene_changes`) reaching the ODE scene.
 
 Webots re-applies a geometry field to its ODE geom as soon as the field changes (``WbBox::updateSize`` and
 friends call ``applyToOdeData``), so contacts and ray sensors see the new shape from the next step on, and a
@@ -16,7 +17,7 @@ from __future__ import annotations
 import ctypes
 from typing import Any
 
-from dualtwin.webots.mass_rules import trimesh_data
+from dualtwin.webots.bounding_mesh import trimesh_data
 from dualtwin.webots.nodes import Node, copy_value
 from dualtwin.webots.physics.collision import CollisionPass
 from dualtwin.webots.physics.records import GeomRec, SolidRec
@@ -24,9 +25,11 @@ from dualtwin.webots.physics.records import field_or as _f
 
 __all__ = ["GEOMETRY_TYPES", "GeometryEdits"]
 
-#: Node types whose fields shape a geom (Coordinate: the points of an IndexedFaceSet).
+#: Node types whose fields shape a geom (Coordinate: the points of an IndexedFaceSet; a Mesh's file fields are
+#: applied by rebuilding its Solids' geoms, :meth:`.scene_changes.SceneChanges._apply_geometry`).
 GEOMETRY_TYPES = frozenset(
-    {"Box", "Sphere", "Cylinder", "Capsule", "Plane", "IndexedFaceSet", "Coordinate", "ElevationGrid", "Cone"}
+    {"Box", "Sphere", "Cylinder", "Capsule", "Plane", "IndexedFaceSet", "Coordinate", "ElevationGrid", "Cone",
+     "Mesh"}
 )
 
 _WAKE_MARGIN = 1e-3  # m: bodies whose geoms come this close to a resized geom are woken

@@ -19,7 +19,9 @@ boundingObject imported or removed on its own rebuilds its Solid's geoms and, as
 Physics comes from its boundingObject (§3.2), sums its body's mass again
 (:meth:`SceneChanges.bounding_object_changed`). The same happens when a supervisor moves (or, a Transform,
 scales) a frame inside a boundingObject: Webots moves the geoms to the new offset from the Solid at the next
-step, and on a body the mass distribution follows.
+step, and on a body the mass distribution follows. And when a supervisor edits a bounding ``Mesh``'s ``url``,
+``name``, ``materialIndex`` or ``ccw``: its triangles are read again and the geoms built again from them (a Mesh
+that could not be read at load gets its geom once it can be).
 
 Removed bodies are disabled and detached from every joint rather than destroyed, so the per-body indices and
 the live views into ODE memory that the stepping keeps stay valid; they are skipped by resets.
@@ -30,7 +32,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 
 from dualtwin.webots._math3 import Pose
-from dualtwin.webots.nodes import Node
+from dualtwin.webots.nodes import Node, copy_value
 from dualtwin.webots.physics.geometry_edits import _WAKE_MARGIN
 from dualtwin.webots.physics.joint_changes import JointChanges
 from dualtwin.webots.physics.records import (
@@ -305,6 +307,22 @@ class SceneChanges(JointChanges):
         for solid in bounded:
             self.bounding_object_changed(solid.node)
         return bool(bounded)
+
+    def _apply_geometry(self, node: Node, name: str) -> bool:
+        """A field of a ``Mesh`` changed (its ``url``, ``name``, ``materialIndex`` or ``ccw``, on it or on a
+        DEF/USE copy): the file is read again, so the geoms of every Solid it bounds are built again
+        (:meth:`bounding_object_changed`, the mass summed again), and drawn Meshes follow (the geometry version
+        changes). Other geometries are resized in place (:class:`.mass_edits.MassEdits`)."""
+        if node.type_name != "Mesh":
+            return super()._apply_geometry(node, name)
+        linked = self.linked_nodes(node)
+        value = node.fields.get(name)
+        for other in linked[1:]:
+            other.fields[name] = copy_value(value)
+        for solid in self._bounded_by({id(n) for n in linked}):
+            self.bounding_object_changed(solid.node)
+        self._geoms_changed()
+        return True
 
     def bounding_object_changed(self, solid_node: Node) -> None:
         """``solid_node``'s boundingObject was imported or removed, or a node inside it was: its geoms are built
