@@ -20,7 +20,7 @@ from dualtwin.webots import ode
 from dualtwin.webots.mesh_files import MeshFileError, read_mesh_node
 from dualtwin.webots.nodes import Node
 
-__all__ = ["TRIMESH_TYPES", "bounding_triangles", "mesh_warning", "trimesh_data", "trimesh_from"]
+__all__ = ["TRIMESH_TYPES", "bounding_triangles", "mesh_warning", "trimesh_data"]
 
 #: The bounding geometries that become ODE triangle meshes.
 TRIMESH_TYPES = ("IndexedFaceSet", "Mesh")
@@ -62,19 +62,8 @@ def bounding_triangles(node: Node, scale: Sequence[float] = _UNIT) -> tuple[np.n
     return np.ascontiguousarray(vertices, dtype=np.float64), np.ascontiguousarray(triangles, dtype=np.uint32)
 
 
-def trimesh_from(vertices: np.ndarray, triangles: np.ndarray) -> tuple[Any, ...]:
-    """ODE trimesh data of ``vertices`` (n, 3) and ``triangles`` (m, 3): ``(data, vertices, triangles)``, the
-    arrays kept alive with the data (ODE reads them in place)."""
-    v = np.ascontiguousarray(vertices, dtype=np.float64)
-    t = np.ascontiguousarray(triangles, dtype=np.uint32)
-    lib = ode.load()
-    data = lib.dGeomTriMeshDataCreate()
-    lib.dGeomTriMeshDataBuildDouble(data, v.ctypes.data, 3 * 8, len(v), t.ctypes.data, t.size, 3 * 4)
-    return (data, v, t)
-
-
 def trimesh_data(node: Node, scale: Sequence[float] = _UNIT) -> tuple[Any, ...] | None:
-    """An IndexedFaceSet or Mesh as ODE trimesh data (:func:`bounding_triangles`, :func:`trimesh_from`).
+    """An IndexedFaceSet or Mesh as ODE trimesh data (:func:`bounding_triangles`, :func:`.ode.build_trimesh_data`).
 
     Returns ``(data, vertices, indices)`` (the arrays must outlive the data) or None without triangles.
 
@@ -82,7 +71,7 @@ def trimesh_data(node: Node, scale: Sequence[float] = _UNIT) -> tuple[Any, ...] 
         MeshFileError: a Mesh whose file cannot be read or holds no triangle.
     """
     built = bounding_triangles(node, scale)
-    return None if built is None else trimesh_from(*built)
+    return None if built is None else ode.build_trimesh_data(*built)
 
 
 def mesh_warning(error: MeshFileError) -> str:

@@ -54,7 +54,6 @@ __all__ = [
     "rot_matrix",
     "solid_inertial",
     "solid_mass",
-    "trimesh_data",
 ]
 
 #: ODE's reference density for boundingObject primitives (Webots ``WbSolidUtilities::addMass``).

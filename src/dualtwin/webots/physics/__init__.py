@@ -355,7 +355,7 @@ class Simulation(FrameEdits):
         self._closed = True
         lib = self._lib
         for gr in self.geoms.values():
-            lib.dGeomDestroy(gr.ptr)
+            self._destroy_geom(gr)
         for body in self.bodies:
             for g in body.groups:
                 lib.dJointGroupDestroy(g)

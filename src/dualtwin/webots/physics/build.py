@@ -539,6 +539,16 @@ class SceneBuilder(SimulationCore):
         else:
             self._place_static_geom(gr, solid_world)
 
+    def _destroy_geom(self, gr: GeomRec) -> None:
+        """Destroy a geom and the triangle-mesh or height-field data it was made of (ODE does not own it)."""
+        lib = self._lib
+        lib.dGeomDestroy(gr.ptr)
+        if gr.keepalive and gr.kind in TRIMESH_TYPES:
+            lib.dGeomTriMeshDataDestroy(gr.keepalive[0])
+        elif gr.keepalive and gr.kind == "ElevationGrid":
+            lib.dGeomHeightfieldDataDestroy(gr.keepalive[0])
+        gr.keepalive = ()
+
     def _register_geom(self, gr: GeomRec) -> None:
         cat, col = self._geom_bits(gr.solid, gr.body is not None)
         self._lib.dGeomSetCategoryBits(gr.ptr, cat)

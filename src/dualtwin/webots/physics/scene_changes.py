@@ -208,9 +208,9 @@ class SceneChanges(JointChanges):
             return
         gone_ids = {id(s) for s in gone}
         lib = self._lib
-        dead_geoms = {g.ptr for s in gone for g in s.geoms}
-        for ptr in dead_geoms:
-            lib.dGeomDestroy(ptr)
+        dead_geoms = {g.ptr: g for s in gone for g in s.geoms}
+        for ptr, geom in dead_geoms.items():
+            self._destroy_geom(geom)
             del self.geoms[ptr]
         for s in gone:
             s.geoms.clear()
@@ -346,7 +346,7 @@ class SceneChanges(JointChanges):
 
     def _drop_geoms(self, geoms: list[GeomRec]) -> None:
         for g in list(geoms):
-            self._lib.dGeomDestroy(g.ptr)
+            self._destroy_geom(g)
             del self.geoms[g.ptr]
             g.solid.geoms.remove(g)
         self._plans.clear()  # cached pair plans name the destroyed geoms (ODE may reuse their addresses)
