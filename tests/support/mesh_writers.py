@@ -33,6 +33,12 @@ def binary_stl(path: Path, triangles: Sequence[Sequence[Sequence[float]]]) -> Pa
     return path
 
 
+def ascii_stl(triangles: Sequence[Sequence[Sequence[float]]], name: str = "part") -> str:
+    facets = "".join("facet normal 0 0 0\nouter loop\n" + "".join(f"vertex {x!r} {y!r} {z!r}\n" for x, y, z in tri)
+                     + "endloop\nendfacet\n" for tri in triangles)
+    return f"solid {name}\n{facets}endsolid {name}\n"
+
+
 def box_obj(boxes: Sequence[tuple[str, Sequence[float], Sequence[float]]]) -> str:
     """An OBJ with one object (``o name``) per ``(name, lo, hi)`` box, each face a quad (two triangles)."""
     lines, base = [], 0

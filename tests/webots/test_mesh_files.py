@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dualtwin.webots.mesh_files import MeshFileError, locate_mesh, read_mesh, read_mesh_node
+from dualtwin.webots.mesh_files import MeshFileError, locate_mesh, read_mesh, read_mesh_node, url_extension
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.protos import load_world_text
 
@@ -172,3 +172,14 @@ def test_a_webots_url_is_read_from_webots_home(tmp_path: Path, monkeypatch: pyte
     (tmp_path / "worlds").mkdir()
     node = mesh_node_of(tmp_path / "worlds" / "w.wbt", "webots://projects/meshes/m.stl")
     assert locate_mesh(node) == target
+
+
+def test_a_downloaded_file_is_read_in_the_format_its_url_names(tmp_path: Path) -> None:
+    # the PROTO cache keeps a download under a name without extension: the url's says what the file is
+    cached = binary_stl(tmp_path / "c160414dc0e2969b55d6989c08ca17134232409c", [((0, 0, 0), (1, 0, 0), (0, 1, 0))])
+    with pytest.raises(MeshFileError, match="no extension"):
+        read_mesh(cached)
+    assert read_mesh(cached, extension=".STL").triangles.shape == (1, 3)
+    (tmp_path / "worlds").mkdir()
+    node = mesh_node_of(tmp_path / "worlds" / "w.wbt", "https://example.org/robot/meshes/Base.Link.DAE?raw=1")
+    assert url_extension(node) == ".dae"

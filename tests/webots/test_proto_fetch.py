@@ -24,6 +24,7 @@ import pytest
 
 from dualtwin.webots import load_world
 from dualtwin.webots.fetch import fetch_command, fetch_worlds
+from dualtwin.webots.physics import Simulation
 from dualtwin.webots.proto_cache import (
     OFFICIAL_PREFIX,
     CacheCorruptError,
@@ -34,6 +35,7 @@ from dualtwin.webots.proto_cache import (
 )
 from dualtwin.webots.proto_resolver import ProtoNotFoundError
 from dualtwin.webots.standins import STANDIN_PROTOS
+from tests.support.mesh_writers import ascii_stl, box_triangles
 
 OFFICIAL = OFFICIAL_PREFIX + "R2023b/"
 HEADER = "#VRML_SIM R2023b utf8\n"
@@ -428,3 +430,34 @@ def test_mirror_that_is_neither_folder_nor_url_is_named(
     monkeypatch.setenv("DUALTWIN_PROTO_MIRROR", str(tmp_path / "no-such-folder"))
     with pytest.raises(FetchError, match="DUALTWIN_PROTO_MIRROR .*no-such-folder"):
         load_world(_copy_world(webots_fixtures, tmp_path, "pioneer3at.wbt"))
+
+
+def test_a_fetched_bounding_mesh_weighs_and_collides_offline_from_the_cache_the_environment_names(
+    tmp_path: Path, online: _Server, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``fetch`` fills the cache; the physics then reads the mesh from there with downloads off. Twice in one
+    process, each time with another cache folder and another file at the url: the second world must weigh what
+    its own cache holds (a cache kept from the first environment would serve the first file)."""
+    url = "webots://projects/objects/meshy/protos/meshes/cube.stl"
+    world = tmp_path / "project" / "worlds" / "w.wbt"
+    world.parent.mkdir(parents=True)
+    world.write_text(HEADER + f'WorldInfo {{ basicTimeStep 8 }}\nSolid {{ name "floor" boundingObject Plane {{ }} }}\n'
+                     f'Solid {{ translation 0 0 1 boundingObject Mesh {{ url "{url}" }} physics Physics {{ }} }}\n')
+    served = online.root / "R2023b" / "projects/objects/meshy/protos/meshes/cube.stl"
+    for run, half in enumerate((0.125, 0.25)):
+        monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / f"cache-{run}"))
+        monkeypatch.delenv("DUALTWIN_PROTO_OFFLINE", raising=False)
+        monkeypatch.setenv("DUALTWIN_PROTO_MIRROR", online.base)
+        served.write_text(ascii_stl(box_triangles((-half, -half, -half), (half, half, half))))
+        report = fetch_worlds([world], ProtoCache(progress=None))
+        assert report.assets == [OFFICIAL + "projects/objects/meshy/protos/meshes/cube.stl"]
+        monkeypatch.setenv("DUALTWIN_PROTO_OFFLINE", "1")
+        monkeypatch.delenv("DUALTWIN_PROTO_MIRROR")
+        sim = Simulation(load_world(world))
+        try:
+            (body,) = sim.bodies
+            assert body.mass == pytest.approx(1000 * (2 * half) ** 3, abs=1e-9)
+            sim.step(250)
+            assert body.pose().t[2] == pytest.approx(half, abs=1e-2)  # on the floor (soft contact), not through it
+        finally:
+            sim.close()

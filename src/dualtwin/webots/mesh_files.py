@@ -48,10 +48,17 @@ import numpy as np
 
 from dualtwin.errors import DualtwinError
 from dualtwin.webots.nodes import Node
-from dualtwin.webots.proto_cache import FetchError, ProtoCache, is_remote, remote_url
+from dualtwin.webots.proto_cache import (
+    FetchError,
+    ProtoCache,
+    default_cache_root,
+    is_remote,
+    remote_url,
+    webots_assets_dir,
+)
 
 __all__ = ["EXTENSIONS", "MAX_FILE_BYTES", "MAX_TRIANGLES", "MeshFileError", "TriangleMesh", "locate_mesh",
-           "read_mesh", "read_mesh_node"]
+           "read_mesh", "read_mesh_node", "url_extension"]
 
 #: The extensions read here (lower case); Webots' other Assimp formats are refused with a clear line.
 EXTENSIONS = (".stl", ".obj", ".dae")
@@ -127,9 +134,18 @@ def locate_mesh(node: Node, cache: ProtoCache | None = None) -> Path:
     return path
 
 
-@functools.lru_cache(maxsize=1)
 def _default_cache() -> ProtoCache:
-    return ProtoCache()
+    """The user's PROTO cache as the environment names it now (its folder, mirror and offline switch): one
+    :class:`ProtoCache` per such setting, so a process whose environment changes reads the cache it names."""
+    env = os.environ
+    return _cache_for(str(default_cache_root()), str(webots_assets_dir()), env.get("DUALTWIN_PROTO_MIRROR", ""),
+                      env.get("DUALTWIN_PROTO_OFFLINE", ""))
+
+
+@functools.lru_cache(maxsize=8)
+def _cache_for(root: str, assets: str, mirror: str, offline: str) -> ProtoCache:
+    del assets, mirror, offline  # the key: ProtoCache reads them from the environment
+    return ProtoCache(Path(root))
 
 
 def read_mesh_node(node: Node, cache: ProtoCache | None = None) -> TriangleMesh:
@@ -142,15 +158,26 @@ def read_mesh_node(node: Node, cache: ProtoCache | None = None) -> TriangleMesh:
     path = locate_mesh(node, cache)
     try:
         return read_mesh(path, str(node.fields.get("name", "") or ""), int(node.fields.get("materialIndex", -1)),
-                         bool(node.fields.get("ccw", True)))
+                         bool(node.fields.get("ccw", True)), extension=url_extension(node))
     except MeshFileError as exc:
         where = str(node.location) if node.location is not None else "Mesh"
         raise MeshFileError(f"{where}: {exc}") from None
 
 
-def read_mesh(path: str | os.PathLike[str], name: str = "", material_index: int = -1, ccw: bool = True) -> TriangleMesh:
+def url_extension(node: Node) -> str:
+    """The file extension (lower case, with its dot) of a Mesh's or CadShape's first url, which names its format:
+    a remote file sits in the PROTO cache under a name without one."""
+    urls = [str(u) for u in (node.fields.get("url") or []) if str(u)]
+    if not urls:
+        return ""
+    return Path(urls[0].split("?", 1)[0].split("#", 1)[0]).suffix.lower()
+
+
+def read_mesh(path: str | os.PathLike[str], name: str = "", material_index: int = -1, ccw: bool = True, *,
+              extension: str | None = None) -> TriangleMesh:
     """The triangles Webots makes of the mesh file ``path`` for a ``Mesh`` node's ``name``, ``materialIndex``
-    and ``ccw`` fields. Read once per file version (size and modification time) and selection.
+    and ``ccw`` fields. Read once per file version (size and modification time) and selection. ``extension``
+    names the format when the path's own does not (a cached download: :func:`url_extension`).
 
     Raises:
         MeshFileError: unreadable, too large, malformed, unsupported format, or nothing selected.
@@ -160,14 +187,15 @@ def read_mesh(path: str | os.PathLike[str], name: str = "", material_index: int 
         stat = file.stat()
     except OSError as exc:
         raise MeshFileError(f"{file}: cannot read the mesh file ({exc.strerror or exc})") from None
-    return _read_cached(str(file), stat.st_size, stat.st_mtime_ns, name, int(material_index), bool(ccw))
+    ext = (extension if extension is not None else file.suffix).lower()
+    return _read_cached(str(file), ext, stat.st_size, stat.st_mtime_ns, name, int(material_index), bool(ccw))
 
 
 @functools.lru_cache(maxsize=64)
-def _read_cached(path: str, size: int, mtime_ns: int, name: str, material_index: int, ccw: bool) -> TriangleMesh:
+def _read_cached(path: str, ext: str, size: int, mtime_ns: int, name: str, material_index: int,
+                 ccw: bool) -> TriangleMesh:
     del mtime_ns  # part of the cache key only: an edited file is read again
     file = Path(path)
-    ext = file.suffix.lower()
     if ext not in EXTENSIONS:
         raise MeshFileError(f"{file}: mesh format {ext or '(no extension)'!r} is not read here "
                             f"(supported: {', '.join(EXTENSIONS)})")
