@@ -22,6 +22,7 @@ from dualtwin.webots.physics import Simulation
 from tests.support.mesh_writers import binary_stl, box_collada, box_obj, box_triangles
 
 HEADER = "#VRML_SIM R2023b utf8\nWorldInfo { basicTimeStep 8 }\n"
+WEIGHTLESS = "#VRML_SIM R2023b utf8\nWorldInfo { basicTimeStep 8 gravity 0 }\n"
 FLOOR = "Solid { name \"floor\" boundingObject Plane { size 10 10 } }\n"
 # side 0.25, centred: STL holds single-precision floats and ODE's triangle collider (OPCODE) reads vertices as
 # such, so the sides are exact in single precision for the masses to match a Box's to 1e-9
@@ -30,8 +31,8 @@ SIDE = 0.25
 CUBE_MASS = 1000 * SIDE**3  # 15.625 kg
 
 
-def world_in(tmp_path: Path, body: str, files: dict[str, str | bytes] | None = None) -> Simulation:
-    """A Simulation of ``HEADER + body`` written as tmp_path/worlds/w.wbt, with ``files`` beside it."""
+def world_in(tmp_path: Path, body: str, files: dict[str, str | bytes] | None = None, header: str = HEADER) -> Simulation:
+    """A Simulation of ``header + body`` written as tmp_path/worlds/w.wbt, with ``files`` beside it."""
     folder = tmp_path / "worlds"
     folder.mkdir(exist_ok=True)
     for name, content in (files or {}).items():
@@ -41,7 +42,7 @@ def world_in(tmp_path: Path, body: str, files: dict[str, str | bytes] | None = N
         else:
             target.write_text(content)
     world = folder / "w.wbt"
-    world.write_text(HEADER + body)
+    world.write_text(header + body)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return Simulation(load_world(world))
@@ -225,4 +226,25 @@ def test_a_touch_sensor_bounded_by_a_mesh_is_pressed(tmp_path: Path) -> None:
         sup.step(8)
     assert pressed.getValue() == 1.0
     assert free.getValue() == 0.0  # control: a mesh touching nothing
+    sim.close()
+
+
+@pytest.mark.parametrize("occlusion", ["FALSE", "TRUE"])
+def test_a_radar_sees_a_mesh_target_and_a_mesh_wall_hides_one(tmp_path: Path, occlusion: str) -> None:
+    cube = stl(tmp_path, "cube.stl", CUBE)
+    wall = stl(tmp_path, "wall.stl", box_triangles((-0.025, -0.5, -0.5), (0.025, 0.5, 0.5)))
+    sim = world_in(tmp_path, (
+        'Solid { name "mesh target" translation 2 1 0 radarCrossSection 1 boundingObject Mesh { url "cube.stl" } }\n'
+        'Solid { name "hidden target" translation 3 0 0 radarCrossSection 1 boundingObject Box { size 0.1 0.1 0.1 } }\n'
+        'Solid { name "wall" translation 1.5 0 0 boundingObject Mesh { url "wall.stl" } }\n'
+        f'Robot {{ children [ Radar {{ name "radar" minRange 0.5 maxRange 10 occlusion {occlusion} '
+        "horizontalFieldOfView 1.2 } ] }\n"), {"cube.stl": cube, "wall.stl": wall}, WEIGHTLESS)
+    robot = Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    radar = robot.getDevice("radar")
+    radar.enable(8)
+    robot.step(8)
+    distances = sorted(t.distance for t in radar.getTargets())
+    # the mesh target is seen where its Solid is; the Box behind the mesh wall only without occlusion (control)
+    expected = [pytest.approx(5**0.5, abs=1e-9)] + ([pytest.approx(3.0, abs=1e-9)] if occlusion == "FALSE" else [])
+    assert distances == expected
     sim.close()
