@@ -18,7 +18,6 @@ import numpy.typing as npt
 from dualtwin.geometry import axis_angle_matrix
 from dualtwin.webots.mass_rules import REFERENCE_DENSITY, solid_inertial
 from dualtwin.webots.nodes import Node
-from dualtwin.webots.shapes import indexed_face_set_mesh  # noqa: F401 - re-exported for the converter
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -10,6 +10,7 @@ Bodies and masses
     Masses follow Webots (:mod:`dualtwin.convert.mass`) and are written as an explicit ``inertial``;
     ``compiler inertiafromgeom="false"`` so no geom adds mass. boundingObject geometry becomes collision
     geoms (group 3, ``mass=0``); Shapes become visual geoms (group 2, ``contype=conaffinity=0``, ``density=0``).
+    IndexedFaceSet, Mesh (its file's triangles) and CadShape become MuJoCo meshes (:mod:`dualtwin.convert.surfaces`).
     A root Robot with Physics gets a freejoint, without Physics it is welded to the world (fixed base).
 
 Joints
@@ -75,14 +76,14 @@ from dualtwin.convert.mass import (
     MassProps,
     bounding_primitives,
     combine,
-    indexed_face_set_mesh,
     solid_mass,
 )
+from dualtwin.convert.surfaces import add_surface_mesh
 from dualtwin.geometry import axis_angle_matrix, mujoco_quat
 from dualtwin.webots import schema
 from dualtwin.webots.nodes import Node, World
 from dualtwin.webots.protos import load_world, load_world_text
-from dualtwin.webots.shapes import appearance_rgba
+from dualtwin.webots.shapes import CAD_SHAPE_RGBA, SURFACE_NODES, appearance_rgba
 
 VISUAL_GROUP = 2
 COLLISION_GROUP = 3
@@ -102,7 +103,7 @@ SITE_SENSORS = {
 }
 #: Nodes whose physics has no MuJoCo counterpart we could write by rule: conversion stops with their location.
 UNSUPPORTED = frozenset({"Track", "TrackWheel", "Propeller", "Connector", "VacuumGripper", "Fluid", "Muscle",
-                         "SolidReference", "Cone", "Mesh", "CadShape"})
+                         "SolidReference", "Cone"})
 #: Nodes without physics that are skipped silently.
 IGNORED = frozenset({"PointLight", "SpotLight", "DirectionalLight", "Fog", "Background", "Viewpoint",
                      "WorldInfo", "Billboard", "IndexedLineSet", "PointSet"})
@@ -161,7 +162,6 @@ class _Converter:
         self.robot_bodies: list[str] = []
         self.in_robot = False
         self.self_collision = False
-        self.mesh_count = 0
         self.missing_defs: list[str] = []
         self.stops: list[Stop] = []
 
@@ -226,33 +226,20 @@ class _Converter:
             # Collision planes are infinite in both simulators; a visual plane keeps its drawn size.
             size = [0.0, 0.0, 1.0] if collision else [sx / 2.0, sy / 2.0, 1.0]
             kwargs.update(type=mujoco.mjtGeom.mjGEOM_PLANE, size=size)
-        elif kind == "IndexedFaceSet":
-            try:
-                points, faces = indexed_face_set_mesh(geometry, scale)
-            except ValueError as exc:
-                raise ConversionError(f"{_where(geometry)}: IndexedFaceSet: {exc}") from None
-            if len(faces) == 0 or len(points) < 4:
-                self.warn("IndexedFaceSet with fewer than 4 points or no face: skipped", geometry)
+        elif kind in SURFACE_NODES:  # IndexedFaceSet, Mesh, CadShape: dualtwin.convert.surfaces
+            mesh_name = add_surface_mesh(self.spec, geometry, scale, lambda: self.unique("mesh", f"{name}_mesh"),
+                                         collision=collision, warn=self.warn)
+            if mesh_name is None:
                 return
-            self.mesh_count += 1
-            mesh_name = self.unique("mesh", f"{name}_mesh")
-            mesh = self.spec.add_mesh(name=mesh_name)
-            mesh.uservert = points.reshape(-1).tolist()
-            mesh.userface = faces.reshape(-1).tolist()
-            # Only the mesh frame is needed (masses are explicit); shell inertia accepts open/flat meshes.
-            mesh.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
-            if collision:
-                self.warn("IndexedFaceSet collisions use the mesh's convex hull in MuJoCo (a trimesh in ODE)",
-                          geometry)
             kwargs.update(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh_name)
         elif kind == "ElevationGrid":
             if not static:
                 raise self.unsupported(geometry, "ElevationGrid on a moving body")
             kwargs.update(self.hfield(geometry, name, scale, T))
-        elif kind in ("Cone", "Mesh", "CadShape"):
+        elif kind == "Cone":
             if collision:
                 raise self.unsupported(geometry, "as a boundingObject")
-            self.warn(f"visual {kind} skipped (no MuJoCo primitive; meshes from files are not converted)", geometry)
+            self.warn("visual Cone skipped (no MuJoCo primitive)", geometry)
             return
         else:
             raise self.unsupported(geometry, "as a geometry")
@@ -388,19 +375,18 @@ class _Converter:
                 continue
             if kind in UNSUPPORTED:
                 raise self.unsupported(child)
-            if kind == "Shape":
-                geometry = child.get("geometry")
+            if kind in ("Shape", "CadShape"):  # a CadShape: a Shape whose geometry is its file, in a default colour
+                geometry = child if kind == "CadShape" else child.get("geometry")
                 if geometry is None:
                     continue
-                if geometry.type_name in ("Cone", "Mesh", "CadShape", "IndexedLineSet", "PointSet"):
+                if geometry.type_name in ("Cone", "IndexedLineSet", "PointSet"):
                     self.warn(f"visual {geometry.type_name} skipped", geometry)
                     continue
                 name = self.unique("geom", f"{label}_visual" if shape_index == 0 else f"{label}_visual_{shape_index}")
                 shape_index += 1
-                self.add_geom(body, geometry, T, scale, name, collision=False, rgba=appearance_rgba(child),
-                              material=material, static=static)
-            elif kind == "CadShape":
-                self.warn("visual CadShape skipped", child)
+                rgba = CAD_SHAPE_RGBA if kind == "CadShape" else appearance_rgba(child)
+                self.add_geom(body, geometry, T, scale, name, collision=False, rgba=rgba, material=material,
+                              static=static)
             elif kind == "Group":
                 self.children(child.children(), T, scale, body, label, masses, dynamic=dynamic, static=static,
                               material=material)

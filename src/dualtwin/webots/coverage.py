@@ -93,7 +93,11 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Slot", "scene", "supported",
              "its endPoint is placed as a child; a Slot pair as a joint endPoint passes the joint through"),
     Coverage("Billboard", "scene", "visual", "a view-facing group; no physics"),
-    Coverage("CadShape", "scene", "visual", "visual mesh; no physics"),
+    Coverage("CadShape", "scene", "visual",
+             "its file's meshes (STL, OBJ, COLLADA; ccw) are seen by cameras, their segmentation and recognition "
+             "boxes, and by Lidar, RangeFinder and infra-red rays, drawn in grey 0.6 (Assimp's default material: "
+             "the file's materials and textures are not read); converted to a visual MuJoCo mesh; no physics (not "
+             "a bounding object in Webots either)"),
     Coverage("Charger", "scene", "not", "behaves as a Solid; battery charging is not simulated (a world with one "
              "says so once at load)"),
     Coverage("Fluid", "scene", "partial",
@@ -246,7 +250,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "it is; infra-red rays hit the visual Shapes (own robot included except a Shape enclosing the "
              "sensor, judged in that Shape's own frame; transparent ones skipped), weighted by the reflection "
              "factor of the hit Shape's red (Material diffuseColor or PBR baseColor and roughness; no "
-             "textures) and redColorSensitivity"),
+             "textures; a CadShape's default grey) and redColorSensitivity; a Mesh Shape or CadShape is hit on its "
+             "file's triangles"),
     Coverage("Compass", "device", "supported",
              "north of WorldInfo.coordinateSystem (+y ENU, +x NUE, +z EUN) in the device frame, per-axis "
              "lookupTable and resolution"),
@@ -258,16 +263,20 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Lidar", "device", "partial",
              "fixed lidar as one ray per pixel against the visual Shapes (as Webots renders them): layers, "
              "fov, tilt, cylindrical (Euclidean) or planar (depth) ranges, +inf outside [minRange, maxRange), "
-             "noise, resolution, point cloud; a rotating lidar is cast as a fixed one"),
+             "noise, resolution, point cloud; a rotating lidar is cast as a fixed one; Mesh Shapes and CadShapes "
+             "are hit on their files' triangles"),
     Coverage("RangeFinder", "device", "partial",
              "planar depth image as one ray per pixel against the visual Shapes (as Webots renders them); "
-             "+inf outside [minRange, maxRange), noise, resolution; no lens, motion blur or saveImage"),
+             "+inf outside [minRange, maxRange), noise, resolution; no lens, motion blur or saveImage; Mesh Shapes "
+             "and CadShapes are hit on their files' triangles"),
     Coverage("Camera", "device", "partial",
              "planar BGRA image of the world's Shapes in their flat colours, drawn headless by the MuJoCo "
              "renderer from the camera's frame: width, height, fieldOfView, near, far, noise, antiAliasing, "
              "sampling, getImageArray, imageGet*, saveImage (PNG/JPEG); no textures, Background colour, "
              "exposure, lens, motion blur or spherical/cylindrical projection (drawn planar); the scene is "
-             "drawn again after a supervisor changed it (nodes imported or removed, a Pose moved)"),
+             "drawn again after a supervisor changed it (nodes imported or removed, a Pose moved); a Mesh Shape is "
+             "drawn from its file's triangles in its appearance's colour, a CadShape in grey 0.6 (materials "
+             "of mesh files are not read); a mesh file that cannot be read is not drawn"),
     Coverage("Recognition", "device", "partial",
              "Camera.getRecognitionObjects(): the Solids with recognitionColors in the camera's frustum (near "
              "plane, horizontal fieldOfView, image aspect) within maxRange, nearest first, at most maxObjects, "
