@@ -108,8 +108,10 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("ImmersionProperties", "scene", "partial",
              "fluidName selects the Fluid whose buoyancy acts on the Solid: Box bounding objects exactly, Sphere "
              "exactly below the surface (the fluid's side walls are not cut), Cylinder and Capsule through a "
-             "24-sided polyhedron of revolution (a capsule: 4 latitude bands per hemisphere) scaled to the true volume; drag and viscous resistance "
-             "coefficients are not simulated (a non-zero one warns once at load), nor meshes"),
+             "24-sided polyhedron of revolution (a capsule: 4 latitude bands per hemisphere) scaled to the true volume, "
+             "closed IndexedFaceSet and Mesh bounding objects exactly (any shape, convex or not: signed "
+             "tetrahedra clipped by the fluid box; an open mesh encloses nothing and warns once at load); drag "
+             "and viscous resistance coefficients are not simulated (a non-zero one warns once at load)"),
     # -- physics
     Coverage("Physics", "physics", "supported",
              "density or mass, centerOfMass, inertiaMatrix, damping (volume-weighted over merged solids); a "

@@ -5,12 +5,13 @@ A Solid with a body whose ``immersionProperties`` hold an ``ImmersionProperties`
 §1.6), by ``−ρ_fluid · V · g`` at the centroid of ``V`` (``dBodyAddForceAtPos``), ``V`` being the part of each geom
 of the Solid's boundingObject, in its current pose, that lies inside the Fluid's boundingObject Box (its top face
 is the surface). :mod:`.immersed_volume` computes ``V`` (Box and Sphere exactly, Cylinder and Capsule through a
-polyhedron of revolution). A world without a Fluid, or without a Solid that has both a body and
-immersionProperties, registers nothing, so its steps are unchanged.
+polyhedron of revolution, closed triangle meshes, IndexedFaceSet and Mesh, exactly). A world without a Fluid, or
+without a Solid that has both a body and immersionProperties, registers nothing, so its steps are unchanged.
 
 Not simulated (one warning at load names what a world would miss): drag and viscous resistance (the
 ImmersionProperties coefficients, with the Fluid's streamVelocity and viscosity), fluids whose boundingObject is
-not a Box, Fluids inside a Solid, and immersed geoms other than Box/Sphere/Cylinder/Capsule. Fluids are read
+not a Box, Fluids inside a Solid, open meshes (they enclose no volume), and immersed ElevationGrids and Planes.
+Fluids are read
 from the scene tree at every step (a supervisor's edit of their pose, size or density counts); the immersed
 Solids are those of the load with immersionProperties (their fluidName is read at every step; a Solid or a
 Fluid imported at run time takes no part).
@@ -26,13 +27,17 @@ from typing import Any
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots import ode
 from dualtwin.webots._math3 import Pose
+from dualtwin.webots.bounding_mesh import TRIMESH_TYPES
 from dualtwin.webots.nodes import Node, World
 from dualtwin.webots.physics.immersed_volume import (
     RINGS,
+    ClosedMesh,
     HalfSpace,
     Mesh,
     box_faces,
+    closed_mesh,
     immersed,
+    mesh_immersed,
     place,
     polyhedron_volume,
     revolution_mesh,
@@ -46,6 +51,7 @@ __all__ = ["Buoyancy", "install"]
 _CLASSES = {"Box": ode.dBoxClass, "Sphere": ode.dSphereClass, "Cylinder": ode.dCylinderClass,
             "Capsule": ode.dCapsuleClass}
 _SHAPES = tuple(_CLASSES)
+ClosedMeshes = dict[int, tuple[Any, ClosedMesh | None]]  # by id of the vertex array: (the array, its mesh)
 _DRAG_FIELDS = ("dragForceCoefficients", "dragTorqueCoefficients", "viscousResistanceForceCoefficient",
                 "viscousResistanceTorqueCoefficient")
 
@@ -128,13 +134,14 @@ class Buoyancy:
     """The per-step pre-physics hook: Archimedes' force on every immersed Solid's body (see the module)."""
 
     def __init__(self, lib: Any, gravity: Sequence[float], up: Sequence[float], fluids: list[_Fluid],
-                 immersed_solids: list[SolidRec]) -> None:
+                 immersed_solids: list[SolidRec], closed: ClosedMeshes) -> None:
         self._lib = lib
         self._gravity = tuple(float(v) for v in gravity)
         self._up = tuple(float(v) for v in up)
         self._fluids = fluids
         self._solids = immersed_solids
         self._meshes: dict[tuple[str, float, float], tuple[Mesh, float]] = {}  # and true / polyhedron volume
+        self._closed = closed
         self.last_forces: list[tuple[SolidRec, tuple[float, float, float], tuple[float, float, float]]] = []
 
     def __call__(self, dt: float) -> None:
@@ -176,7 +183,11 @@ class Buoyancy:
         lib = self._lib
         ptr = geom.ptr
         kind = geom.kind
-        if kind not in _SHAPES or geom.body is None:
+        if geom.body is None:
+            return 0.0, m3.ZERO
+        if kind in TRIMESH_TYPES:
+            return self._immersed_mesh(geom, planes, top)
+        if kind not in _SHAPES:
             return 0.0, m3.ZERO
         size = ode.primitive_size(lib, ptr, _CLASSES[kind])
         if size is None:  # (each of _SHAPES is a primitive: not reached)
@@ -209,6 +220,21 @@ class Buoyancy:
         mesh, scale = self._meshes[key]
         volume, centroid = immersed(place(mesh, center, R), cutting)
         return volume * scale, centroid
+
+    def _immersed_mesh(self, geom: GeomRec, planes: list[HalfSpace], top: int) -> tuple[float, m3.Vec3]:
+        mesh = _closed_geom_mesh(geom, self._closed)
+        if mesh is None:
+            return 0.0, m3.ZERO
+        center, R = ode.geom_pose(self._lib, geom.ptr)
+        middle = m3.add(center, m3.mat_vec(R, mesh.center))
+        cutting = self._cutting(middle, mesh.radius, planes)
+        if cutting is None or not cutting:
+            return (0.0, m3.ZERO) if cutting is None else (mesh.volume, m3.add(center, m3.mat_vec(R, mesh.centroid)))
+        origin = middle
+        if planes[top] in cutting:  # on the surface: only the triangles that cross it are clipped
+            n, d = planes[top]
+            origin = m3.sub(middle, m3.scale(n, m3.dot(n, middle) - d))
+        return mesh_immersed(mesh, center, R, cutting, origin)
 
     @staticmethod
     def _cutting(center: Sequence[float], bound: float, planes: list[HalfSpace]) -> list[HalfSpace] | None:
@@ -247,6 +273,7 @@ def install(sim: Any) -> Buoyancy | None:
            if isinstance(bo, Node)):
         missing.append("fluids whose boundingObject is not a Box (they push nothing)")
     immersed_solids = []
+    closed: ClosedMeshes = {}
     drag = False
     other_shapes: set[str] = set()
     for solid in sim.solids:
@@ -256,24 +283,39 @@ def install(sim: Any) -> Buoyancy | None:
         if not _fluid_names(solid) & names:
             continue
         drag = drag or any(_nonzero(_f(p, field, 0.0)) for p in props for field in _DRAG_FIELDS)
-        other_shapes.update(g.kind for g in solid.geoms if g.kind not in _SHAPES)
+        other_shapes.update(g.kind if g.kind not in TRIMESH_TYPES else f"open {g.kind}" for g in solid.geoms
+                            if g.kind not in _SHAPES and (g.kind not in TRIMESH_TYPES or _closed_geom_mesh(g, closed) is None))
     if drag:
         missing.append("drag and viscous resistance (dragForceCoefficients, dragTorqueCoefficients, "
                        "viscousResistance*Coefficient, with the fluid's streamVelocity and viscosity)")
     if other_shapes:
         missing.append(f"the immersion of {', '.join(sorted(other_shapes))} bounding objects")
     if missing:
-        sim.warn("the world has a Fluid node: buoyancy of immersed Box, Sphere, Cylinder and Capsule bounding "
-                 f"objects is simulated, but {'; '.join(missing)} are not simulated here (docs/webots-coverage.md)")
+        sim.warn("the world has a Fluid node: buoyancy of immersed Box, Sphere, Cylinder, Capsule and closed "
+                 f"IndexedFaceSet and Mesh bounding objects is simulated, but {'; '.join(missing)} are not simulated here (docs/webots-coverage.md)")
     if not immersed_solids:
         return None
     g = sim.gravity
     up = m3.normalized(m3.scale(g, -1.0)) if any(g) else ((0.0, 0.0, 1.0) if sim.coordinate_system == "ENU"
                                                            else (0.0, 1.0, 0.0))
-    hook = Buoyancy(sim._lib, g, up, fluids, immersed_solids)
+    hook = Buoyancy(sim._lib, g, up, fluids, immersed_solids, closed)
     sim.pre_step_hooks.append(hook)
     sim.extensions["buoyancy"] = hook
     return hook
+
+
+def _closed_geom_mesh(geom: GeomRec, known: ClosedMeshes) -> ClosedMesh | None:
+    """The closed mesh of a triangle-mesh geom (its vertices as built, Transform scale applied), None when it is
+    open; found once per triangle data in ``known`` (a supervisor's edit builds new data)."""
+    if not geom.keepalive:
+        return None
+    vertices = geom.keepalive[1]
+    found = known.get(id(vertices))
+    if found is None or found[0] is not vertices:
+        if len(known) > 256:  # data of geoms rebuilt many times over
+            known.clear()
+        found = known[id(vertices)] = (vertices, closed_mesh(vertices, geom.keepalive[2]))
+    return found[1]
 
 
 def _properties(solid: SolidRec) -> list[Node]:
