@@ -135,3 +135,25 @@ def test_turning_a_mesh_inside_out_gives_its_body_webots_fallback_mass(tmp_path:
     assert part.mass == pytest.approx(250.0, abs=1e-9)
     assert box.mass == pytest.approx(250.0, abs=1e-9)  # control
     sim.close()
+
+
+def test_a_proto_parameter_that_names_the_mesh_rebuilds_its_geom(tmp_path: Path) -> None:
+    # a local PROTO whose boundingObject Mesh takes its url from a parameter; its relative urls name files
+    # beside the PROTO file (protos/), and the supervisor edits the parameter on the instance
+    mesh_files(tmp_path)
+    protos = tmp_path / "protos"
+    protos.mkdir()
+    for name in ("near.stl", "far.stl"):
+        (protos / name).write_bytes((tmp_path / "worlds" / name).read_bytes())
+    (protos / "MeshWall.proto").write_text(
+        "#VRML_SIM R2023b utf8\nPROTO MeshWall [ field SFVec3f translation 0.5 0 0 field MFString meshUrl "
+        '"near.stl" ]\n{ Solid { translation IS translation boundingObject Mesh { url IS meshUrl } } }\n')
+    sup = enabled(supervisor_in(tmp_path, (
+        'EXTERNPROTO "../protos/MeshWall.proto"\nDEF WALL MeshWall { }\n'
+        "Solid { translation 1.125 3 0 boundingObject Box { size 0.25 1 1 } }\n"
+        f'Robot {{ supervisor TRUE children [ DistanceSensor {{ name "mesh" {TABLE} }} '
+        f'DistanceSensor {{ name "box" translation 0 3 0 {TABLE} }} ] }}\n')))
+    assert readings(sup) == pytest.approx((0.5, 1.0), rel=1e-6)
+    sup.getFromDef("WALL").getField("meshUrl").setMFString(0, "far.stl")
+    assert readings(sup) == pytest.approx((0.75, 1.0), rel=1e-6)
+    sup.simulation.close()
