@@ -248,3 +248,33 @@ def test_a_radar_sees_a_mesh_target_and_a_mesh_wall_hides_one(tmp_path: Path, oc
     expected = [pytest.approx(5**0.5, abs=1e-9)] + ([pytest.approx(3.0, abs=1e-9)] if occlusion == "FALSE" else [])
     assert distances == expected
     sim.close()
+
+
+def ifs_cube(ccw: bool, extra_face: str = "") -> str:
+    """The 0.25 m cube as an IndexedFaceSet: its triangles outward counter-clockwise, or, with ``ccw`` FALSE,
+    written clockwise (each reversed) as that flag declares."""
+    points: list[tuple[float, float, float]] = []
+    index: list[int] = []
+    for tri in CUBE:
+        ordered = tri if ccw else tri[::-1]
+        for p in ordered:
+            index.append(len(points))
+            points.append(tuple(float(c) for c in p))  # type: ignore[arg-type]
+        index.append(-1)
+    coords = ", ".join(" ".join(f"{c:g}" for c in p) for p in points)
+    faces = " ".join(str(i) for i in index) + extra_face
+    return (f"IndexedFaceSet {{ ccw {'TRUE' if ccw else 'FALSE'} coord Coordinate {{ point [ {coords} ] }} "
+            f"coordIndex [ {faces} ] }}")
+
+
+@pytest.mark.parametrize("ccw", [True, False])
+def test_an_indexed_face_set_declared_clockwise_weighs_as_the_cube_it_is(tmp_path: Path, ccw: bool) -> None:
+    # ccw FALSE says the faces are clockwise: the collision mesh and its mass turn them round, as the drawn
+    # shape and the rays do. Ignoring the flag weighed the cube inside out (negative volume: the 1 kg fallback).
+    # A face naming a point that does not exist is left out; the cube's own faces stay.
+    sim = world_in(tmp_path, (
+        f'Solid {{ name "ifs" boundingObject {ifs_cube(ccw, " 0 1 999 -1")} physics Physics {{ density 1000 }} }}\n'))
+    body = next(s for s in sim.solids if s.name == "ifs").body
+    assert body is not None
+    assert body.mass == pytest.approx(CUBE_MASS, rel=1e-9)
+    assert diagonal(body.inertia) == pytest.approx(box_inertia(CUBE_MASS, (SIDE, SIDE, SIDE)), rel=1e-9)

@@ -2,7 +2,8 @@
 both, used by the collision geoms, the mass rules and the supervisor's geometry edits.
 
 Webots makes an ODE triangle mesh (``dCreateTriMesh`` on ``dGeomTriMeshDataBuildDouble`` data) of both: of an
-IndexedFaceSet's ``coordIndex`` polygons (fan-triangulated; an index past the last point is skipped), and of the
+IndexedFaceSet's ``coordIndex`` polygons (:func:`dualtwin.webots.shapes.indexed_face_set_mesh`: fan-triangulated,
+``ccw`` honoured, a polygon naming a point that does not exist left out), and of the
 triangles of a Mesh's file as :mod:`dualtwin.webots.mesh_files` reads them (url, ``name``, ``materialIndex`` and
 ``ccw`` applied). A Transform's ``scale`` above the geometry scales the vertices per axis. A Mesh whose file
 cannot be read, or that selects no triangle, raises :class:`~dualtwin.webots.mesh_files.MeshFileError`: it has
@@ -19,6 +20,7 @@ import numpy as np
 from dualtwin.webots import ode
 from dualtwin.webots.mesh_files import MeshFileError, read_mesh_node
 from dualtwin.webots.nodes import Node
+from dualtwin.webots.shapes import indexed_face_set_mesh
 
 __all__ = ["TRIMESH_TYPES", "bounding_triangles", "mesh_warning", "trimesh_data"]
 
@@ -42,21 +44,9 @@ def bounding_triangles(node: Node, scale: Sequence[float] = _UNIT) -> tuple[np.n
             where = str(node.location) if node.location is not None else "Mesh"
             raise MeshFileError(f"{where}: the mesh has no triangles")
     else:
-        coord = node.fields.get("coord")
-        points = list(coord.fields.get("point") or []) if isinstance(coord, Node) else []
-        tris: list[int] = []
-        face: list[int] = []
-        for i in [*(int(i) for i in (node.fields.get("coordIndex") or [])), -1]:
-            if i < 0:
-                for k in range(1, len(face) - 1):  # fan triangulation
-                    tris.extend((face[0], face[k], face[k + 1]))
-                face = []
-            elif i < len(points):
-                face.append(i)
-        if not points or not tris:
+        vertices, triangles = indexed_face_set_mesh(node)  # the triangles the rays and the camera see
+        if len(vertices) == 0 or len(triangles) == 0:
             return None
-        vertices = np.array([[float(v) for v in p] for p in points], dtype=np.float64).reshape(-1, 3)
-        triangles = np.array(tris, dtype=np.int64).reshape(-1, 3)
     if tuple(scale) != _UNIT:
         vertices = vertices * np.asarray(scale, dtype=np.float64)
     return np.ascontiguousarray(vertices, dtype=np.float64), np.ascontiguousarray(triangles, dtype=np.uint32)

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from dualtwin.webots.mesh_files import MeshFileError, locate_mesh, read_mesh, read_mesh_node
+from dualtwin.webots.mesh_files import MeshFileError, locate_mesh, read_mesh, read_mesh_node, url_extension
 from dualtwin.webots.nodes import Node
 
 __all__ = ["CAD_SHAPE_RGBA", "SURFACE_NODES", "appearance_rgba", "indexed_face_set_mesh", "surface_triangles"]
@@ -46,7 +46,10 @@ def appearance_rgba(shape: Any) -> list[float] | None:
 
 
 def indexed_face_set_mesh(node: Node, scale: float = 1.0) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int64]]:
-    """Vertices and fan-triangulated faces of an IndexedFaceSet (``-1`` ends a polygon; ``ccw FALSE`` flips)."""
+    """Vertices and fan-triangulated faces of an IndexedFaceSet (``-1`` ends a polygon; ``ccw FALSE`` flips).
+
+    A polygon that names a point ``coord`` does not have is left out (the rest of the surface stays), so the
+    collision geometry, the mass, the rays and the drawn shape all see the same triangles."""
     coord = node.get("coord")
     points = np.asarray(coord.get("point", []) if coord is not None else [], dtype=float).reshape(-1, 3) * scale
     faces: list[tuple[int, int, int]] = []
@@ -55,14 +58,13 @@ def indexed_face_set_mesh(node: Node, scale: float = 1.0) -> tuple[npt.NDArray[n
         if index >= 0:
             polygon.append(int(index))
             continue
-        for k in range(1, len(polygon) - 1):
-            faces.append((polygon[0], polygon[k], polygon[k + 1]))
+        if all(i < len(points) for i in polygon):
+            for k in range(1, len(polygon) - 1):
+                faces.append((polygon[0], polygon[k], polygon[k + 1]))
         polygon = []
     tri = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     if not node.get("ccw", True):
         tri = tri[:, ::-1].copy()
-    if len(tri) and (tri.max() >= len(points)):
-        raise ValueError(f"coordIndex refers to point {int(tri.max())} but coord has {len(points)} points")
     return points, tri
 
 
@@ -72,7 +74,7 @@ def surface_triangles(node: Node) -> tuple[npt.NDArray[np.float64], npt.NDArray[
     or every mesh of a CadShape's file (its ``ccw`` honoured).
 
     Raises:
-        ValueError: an IndexedFaceSet face refers to a point that does not exist, or the node is of another type.
+        ValueError: the node is of another type.
         MeshFileError: a Mesh's or CadShape's file cannot be located or read (a one-line message with the node's
             location; a :class:`ValueError` too).
     """
@@ -84,7 +86,8 @@ def surface_triangles(node: Node) -> tuple[npt.NDArray[np.float64], npt.NDArray[
     elif kind == "CadShape":
         path = locate_mesh(node)  # reads the url field only: a CadShape's is a Mesh's
         try:
-            mesh = read_mesh(path, "", -1, bool(node.get("ccw", True)))
+            # the url names the format: a downloaded file sits in the PROTO cache without an extension
+            mesh = read_mesh(path, "", -1, bool(node.get("ccw", True)), extension=url_extension(node))
         except MeshFileError as exc:
             raise MeshFileError(f"{node.location if node.location is not None else 'CadShape'}: {exc}") from None
     else:
