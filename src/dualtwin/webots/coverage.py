@@ -152,7 +152,11 @@ REGISTRY: tuple[Coverage, ...] = (
              "urls leaving the project are refused). A file that cannot be read, selects no triangle or encloses "
              "no volume: no geom and Webots' fallback 1 kg with an identity inertia, with one warning naming the "
              "node. A supervisor's edit of url, name, materialIndex or ccw builds the geom again at the next "
-             "step and the body's mass follows"),
+             "step and the body's mass follows. As a Shape's geometry: drawn by cameras in the Shape's colour "
+             "(image, segmentation, recognition boxes) and hit by Lidar, RangeFinder and infra-red rays. ASCII STL "
+             "and OBJ coordinates are read as doubles where Webots' Assimp reads floats (a relative difference "
+             "below 1e-7). The converter makes MuJoCo meshes of them (a boundingObject collides through its convex "
+             "hull there)"),
     Coverage("Cone", "geometry", "visual", "not a bounding geometry in Webots either (ignored with a warning)"),
     Coverage("IndexedLineSet", "geometry", "visual", "lines; no collision in Webots"),
     Coverage("PointSet", "geometry", "visual", "points; no collision in Webots"),
