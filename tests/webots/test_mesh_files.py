@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import struct
-from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +11,7 @@ import pytest
 from dualtwin.webots.mesh_files import MeshFileError, locate_mesh, read_mesh, read_mesh_node, url_extension
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.protos import load_world_text
+from tests.support.mesh_writers import binary_stl
 
 TWO_OBJECTS = """\
 # two objects; the first uses two materials
@@ -59,17 +59,6 @@ COLLADA = """\
   <scene><instance_visual_scene url="#Scene"/></scene>
 </COLLADA>
 """
-
-
-def binary_stl(path: Path, triangles: Sequence[Sequence[Sequence[float]]]) -> Path:
-    with path.open("wb") as out:
-        out.write(b"\0" * 80 + struct.pack("<I", len(triangles)))
-        for tri in triangles:
-            out.write(struct.pack("<3f", 0, 0, 0))
-            for vertex in tri:
-                out.write(struct.pack("<3f", *vertex))
-            out.write(b"\0\0")
-    return path
 
 
 def test_binary_and_ascii_stl_give_their_triangles(tmp_path: Path) -> None:
