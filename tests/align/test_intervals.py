@@ -3,6 +3,7 @@ unseen knob gets its bounds, and a two-valley fit finds the deeper valley. Close
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -173,3 +174,37 @@ def test_a_profile_crossing_between_scanned_points_is_exact_for_a_quadratic_rise
     v0, v1 = curve[below], curve[above]
     linear = below + (threshold - v0) / (v1 - v0) * (above - below)
     assert linear < k_true - 0.01
+
+
+class CurvedValley(CachedProblem):
+    """``y = a t + noise`` and a second knob tied to the first through a curve, ``b³ = a`` (weight 1000): the
+    valley of the criterion is curved, so a profile of ``a`` must re-fit ``b`` off the straight line of the
+    covariance. Minimising over ``b`` leaves ``|a t - y|²``: the exact profile interval is known."""
+
+    def __init__(self, specs: Sequence[KnobSpec], y: np.ndarray) -> None:
+        super().__init__(specs, budget=100_000)
+        self.y = y
+
+    def evaluate_knobs(self, values: Sequence[Mapping[str, float]]) -> list[Evaluation]:
+        out = []
+        for v in values:
+            r = np.concatenate([v["a"] * T - self.y, [1000.0 * (v["b"] ** 3 - v["a"])]])
+            out.append(Evaluation(float(r @ r), None, r))
+        return out
+
+    def residual_blocks(self) -> list[ResidualBlock]:
+        return [ResidualBlock("s", "y", 0, T.size, "series"), ResidualBlock("s", "tie", T.size, T.size + 1, "scalar")]
+
+
+def test_a_profile_in_a_curved_valley_re_fits_the_other_knob_until_it_settles() -> None:
+    specs = [KnobSpec("a", 1.0, 0.0, 4.0), KnobSpec("b", 1.0, 0.5, 3.0)]
+    y = T + np.random.default_rng(11).normal(0.0, 2.0, T.size)
+    problem = CurvedValley(specs, y)
+    a_hat = float(T @ y / (T @ T))
+    unc = estimate_intervals(problem, unit_from_values(specs, {"a": a_hat, "b": a_hat ** (1 / 3)}), 0.03)
+    assert unc.methods["a"] == "profile"  # the straight line's rise is far from quadratic: the scan ran
+    half = math.sqrt(unc.noise["threshold"] / float(T @ T))  # where |a t - y|² rises by the threshold
+    lo, hi = unc.intervals["a"] or (0.0, 0.0)
+    # Two fixed corrections per point (before) stopped above the valley floor: [0.871, 1.502] for the exact
+    # [0.855, 1.511], too narrow on both sides.
+    assert lo == pytest.approx(a_hat - half, abs=1e-3) and hi == pytest.approx(a_hat + half, abs=1e-3)

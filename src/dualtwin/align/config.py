@@ -85,7 +85,7 @@ class AlignConfig(FrozenModel):
     fd_step: float = Field(default=0.03, gt=0, lt=0.5, description="finite-difference step, normalised units")
     intervals: Intervals = Field(
         default="auto", description="95 % intervals after the fit: profile (the Jacobian with effective samples, "
-        "checked for roughness and profiled where needed: 6 to 70 simulations per knob, not counted in the "
+        "checked for roughness and profiled where needed: 6 to 190 simulations per knob, not counted in the "
         "budget), off (not computed, and the outputs say so), or auto: profile when the budget is at least 6 "
         "simulations per knob plus one, off below that")
     lsq_max_iter: int = Field(default=50, ge=1, description="least-squares iterations per start")

@@ -14,8 +14,8 @@ once reported a damping of 0.0100 ± 0.00007 where the truth was 0.03). Here:
    a problem without a residual layout keeps the i.i.d. interval (``jacobian (iid)``).
 2. **Profile where curvature is not quadratic.** Along each knob's profile direction (the covariance column:
    the knob moves, the others follow as their correlation says, which is the exact profile path when the
-   objective is quadratic; each scanned point then gets one Gauss-Newton correction of the other knobs, as a
-   profile re-fits them) the criterion must rise by ``t²·s²·n/n_eff`` at the quadratic half-width. The points
+   objective is quadratic; each scanned point then gets Gauss-Newton corrections of the other knobs until they gain less
+   than :data:`PROFILE_SETTLED` of the threshold, at most :data:`PROFILE_CORRECTIONS`, as a profile re-fits them) the criterion must rise by ``t²·s²·n/n_eff`` at the quadratic half-width. The points
    ±1 half-width away are simulated (one batch); if the rise there is off by more than the factor
    :data:`QUADRATIC_TOLERANCE` on either side, the direction is scanned (one more batch) and the interval ends
    where the rise crosses the threshold: method ``profile``. A side that never crosses it within the bounds
@@ -31,8 +31,9 @@ once reported a damping of 0.0100 ± 0.00007 where the truth was 0.03). Here:
    rise below the jitter cannot reject a value: every knob is profiled out to its bounds with the threshold
    raised by the jitter, the interval is the hull of every scanned value whose rise stays below it (not the
    first crossing, which a bump gives), and the method says ``profile (rough criterion)``.
-4. **Proportionate to the fit.** The checks above take 6 to 70 simulations per knob (the central Jacobian 2,
-   the roughness probes 4, the quadratic check 2, a scan 18 to 60), not counted in the fit's budget. A fit
+4. **Proportionate to the fit.** The checks above take 6 to 190 simulations per knob (the central Jacobian 2,
+   the roughness probes 4, the quadratic check 2, a scan of 18 to 20 points, each corrected up to 8
+   times: 18 to 180), not counted in the fit's budget. A fit
    with a tiny budget would spend most of its time here: ``AlignConfig.intervals="auto"`` (the default)
    computes them only when the budget is at least :data:`SIMULATIONS_PER_KNOB` per continuous knob plus one
    (:func:`intervals_skipped`); below that, and with ``intervals="off"``, no interval is computed and every
@@ -71,8 +72,12 @@ from dualtwin.align.objective import ResidualBlock
 QUADRATIC_TOLERANCE = 1.2
 #: Quadratic half-widths (unit coordinates) below this are not profiled.
 PROFILE_RESOLUTION = 1e-6
-#: Gauss-Newton corrections of the other knobs at each profile point.
-PROFILE_CORRECTIONS = 2
+#: Gauss-Newton corrections of the other knobs at each profile point, at most. A profile re-fits the others; in
+#: the curved valleys of a trajectory fit (a kick, a logging delay and a damping trading off) a fixed two left
+#: the profile above the valley floor and the intervals too narrow (the CartPole coverage study's kick: 16 of
+#: 20). A point stops being corrected once a correction gains less than PROFILE_SETTLED of the noise threshold.
+PROFILE_CORRECTIONS = 8
+PROFILE_SETTLED = 0.01
 #: Profile scan, in quadratic half-widths from the fit.
 SCAN = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 5.0, 8.0)
 #: Roughness probes: each knob moved by this fraction of the finite-difference step, both ways.
@@ -228,22 +233,31 @@ def estimate_intervals(problem: Problem, u: Sequence[float], step: float, profil
         current = problem.run(points)
         best = [float(pt.residual @ pt.residual) for pt in current]
         # Gauss-Newton corrections of the other knobs at every scan point (the fit's Jacobian, one batch
-        # each): a profile re-fits the others, and a curved valley leaves any straight line.
+        # each): a profile re-fits the others, and a curved valley leaves any straight line. A point is
+        # corrected again until a correction lowers its criterion by less than PROFILE_SETTLED of the noise
+        # threshold (then the crossing cannot move by more than that), at most PROFILE_CORRECTIONS times.
+        active = list(range(len(current)))
         for _ in range(PROFILE_CORRECTIONS):
             corrected = []
-            for j, ((col, _, _, _), _, _) in enumerate(rough):
+            for idx in active:
+                col = rough[idx // len(ks)][0][0]
                 others = [c for c in range(p) if c != col]
-                for pt in current[j * len(ks):(j + 1) * len(ks)]:
-                    q = list(pt.u)
-                    if others:
-                        delta, *_ = np.linalg.lstsq(jac[:, others], -pt.residual, rcond=1e-10)
-                        for c, dv in zip(others, delta, strict=True):
-                            q[cont[c]] = min(1.0, max(0.0, q[cont[c]] + float(dv)))
-                    corrected.append(q)
-            stepped = problem.run(corrected)
-            current = [b if float(b.residual @ b.residual) < float(a.residual @ a.residual) else a
-                       for a, b in zip(current, stepped, strict=True)]
-            best = [float(pt.residual @ pt.residual) for pt in current]
+                q = list(current[idx].u)
+                if others:
+                    delta, *_ = np.linalg.lstsq(jac[:, others], -current[idx].residual, rcond=1e-10)
+                    for c, dv in zip(others, delta, strict=True):
+                        q[cont[c]] = min(1.0, max(0.0, q[cont[c]] + float(dv)))
+                corrected.append(q)
+            still = []
+            for idx, new in zip(active, problem.run(corrected), strict=True):
+                gain = best[idx] - float(new.residual @ new.residual)
+                if gain > 0:
+                    current[idx], best[idx] = new, best[idx] - gain
+                if gain > PROFILE_SETTLED * threshold:
+                    still.append(idx)
+            active = still
+            if not active:
+                break
         values = [v - ssr0 for v in best]
         for j, ((_, i, _, d), _, _) in enumerate(rough):
             curve = dict(zip(scales[j], values[j * len(ks):(j + 1) * len(ks)], strict=True))

@@ -309,7 +309,7 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
                 warnings.append("no knob setting beat the nominal twin; the fitted values are the nominal ones")
             # The budget is the fit's: the interval checks after it are counted apart.
             fit_evaluations = problem.evaluations
-            # Intervals cost 6 to 70 simulations per knob: with a budget too small for that, not computed.
+            # Intervals cost 6 to 190 simulations per knob: with a budget too small for that, not computed.
             skipped = intervals_skipped(config.intervals, config.budget, sum(not s.integer for s in specs))
             uncertainty = (not_computed(specs, skipped) if skipped is not None
                            else estimate_intervals(problem, outcome.u, config.fd_step))
