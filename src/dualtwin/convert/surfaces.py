@@ -46,8 +46,7 @@ def add_surface_mesh(spec: mujoco.MjSpec, geometry: Node, scale: float, name: Ca
     (``warn`` tells why). See the module's text for the rules.
 
     Raises:
-        ConversionError: a CadShape or an unreadable mesh file in a boundingObject, or an IndexedFaceSet face
-            referring to a point that does not exist.
+        ConversionError: a CadShape or an unreadable mesh file in a boundingObject.
     """
     kind = geometry.type_name
     if kind == "CadShape" and collision:
@@ -60,8 +59,6 @@ def add_surface_mesh(spec: mujoco.MjSpec, geometry: Node, scale: float, name: Ca
             raise ConversionError(f"{exc} (a boundingObject)") from None
         warn(f"visual {kind} skipped: {exc}", None)
         return None
-    except ValueError as exc:
-        raise ConversionError(f"{_where(geometry)}: {kind}: {exc}") from None
     points = points * scale
     if len(faces) == 0 or len(points) < 4:
         warn(f"{kind} with fewer than 4 points or no face: skipped", geometry)
