@@ -55,3 +55,15 @@ def test_cma_recovers_two_knobs_and_a_wrong_family_cannot(tmp_path: Path) -> Non
     # The control: fitting only masses cannot explain a damping and a stiffness difference.
     control = fit(tmp_path / "control", ["joint.*.mass"], truth, optimizer="lsq", budget=30)
     assert control.objective_after > 10 * result.objective_after, (control.objective_after, result.objective_after)
+
+
+def test_a_fit_stopped_on_its_budget_moves_to_the_lower_point_its_profile_found(tmp_path: Path) -> None:
+    # Seven simulations stop least squares short of the minimum; the interval checks (outside the budget) then
+    # simulate points below it, so the fit had not converged: it moves there and says so.
+    truth = {"joint.j1.damping": 0.9, "joint.j1.mass": 1.3}
+    result = fit(tmp_path / "short", sorted(truth), truth, optimizer="lsq", global_search="off",
+                 intervals="profile", budget=7)
+    assert result.stop_reason.startswith("budget (7 of 7 evaluations used)")
+    assert "moved to a lower point the intervals' profile found" in result.stop_reason
+    for name, value in truth.items():
+        assert result.fitted[name] == pytest.approx(value, rel=1e-3), (name, result.fitted)

@@ -208,3 +208,19 @@ def test_a_profile_in_a_curved_valley_re_fits_the_other_knob_until_it_settles() 
     # Two fixed corrections per point (before) stopped above the valley floor: [0.871, 1.502] for the exact
     # [0.855, 1.511], too narrow on both sides.
     assert lo == pytest.approx(a_hat - half, abs=1e-3) and hi == pytest.approx(a_hat + half, abs=1e-3)
+
+
+def test_a_profile_point_below_the_fit_is_handed_back_as_a_better_point() -> None:
+    specs = [KnobSpec("a", 1.0, 0.0, 4.0), KnobSpec("b", 1.0, 0.5, 3.0)]
+    y = T + np.random.default_rng(11).normal(0.0, 2.0, T.size)
+    problem = CurvedValley(specs, y)
+    a_hat = float(T @ y / (T @ T))
+    at_minimum = estimate_intervals(problem, unit_from_values(specs, {"a": a_hat, "b": a_hat ** (1 / 3)}), 0.03)
+    assert at_minimum.better is None  # the control: nothing below the minimum
+    short = {"a": a_hat + 0.3, "b": (a_hat + 0.3) ** (1 / 3)}  # a fit that stopped on the valley's slope
+    unc = estimate_intervals(problem, unit_from_values(specs, short), 0.03)
+    assert unc.better is not None
+    stopped = problem.run([unit_from_values(specs, short)])[0]
+    assert unc.better["criterion"] < residual_norm(stopped) - unc.noise["jitter"]
+    moved = values_from_unit(specs, unc.better["u"])["a"]
+    assert abs(moved - a_hat) < 0.5 * abs(short["a"] - a_hat)

@@ -223,6 +223,9 @@ class Uncertainty:
     correlation: dict[str, Any] = field(default_factory=dict)
     correlated: list[dict[str, Any]] = field(default_factory=list)
     noise: dict[str, float] = field(default_factory=dict)
+    #: A point the interval checks simulated whose residual norm is below the fit's by more than the
+    #: criterion's jitter (the fit had not reached the minimum), as ``{"u": [...], "criterion": f}``; else None.
+    better: dict[str, Any] | None = None
 
 
 def fd_jacobian(problem: Problem, u: Sequence[float], step: float, columns: Sequence[int], central: bool = False

@@ -40,7 +40,10 @@ once reported a damping of 0.0100 ± 0.00007 where the truth was 0.03). Here:
    knob's method says so and how to get one (``not computed: ...``) in the terminal, the report and
    ``align_record.json``: a missing interval is never shown as a width. ``intervals="profile"`` always
    computes them.
-5. **Nothing pinned.** A knob along a direction the Jacobian does not see (no effect, or a combination
+5. **A better point.** A profile point whose criterion is below the fit's by more than the jitter shows that
+   the fit had not reached the minimum; it is returned (``Uncertainty.better``) and the caller moves the fit there
+   and computes the intervals again (:func:`dualtwin.align.run.run_align`, least squares).
+6. **Nothing pinned.** A knob along a direction the Jacobian does not see (no effect, or a combination
    of knobs the suite cannot separate) gets its bounds as the interval, no half-width, method ``unpinned``.
 
 The correlation matrix is taken from the pseudo-inverse of ``JᵀJ`` so that exactly interchangeable knobs show
@@ -78,6 +81,10 @@ PROFILE_RESOLUTION = 1e-6
 #: 20). A point stops being corrected once a correction gains less than PROFILE_SETTLED of the noise threshold.
 PROFILE_CORRECTIONS = 8
 PROFILE_SETTLED = 0.01
+#: A profile point this fraction (or the criterion's jitter, if larger) below the fit's residual norm means the
+#: fit had not reached the minimum (:attr:`.core.Uncertainty.better`): as R's ``profile`` says of an ``nls`` fit,
+#: "profiling has found a better solution, so original fit had not converged".
+BETTER_MARGIN = 1e-6
 #: Profile scan, in quadratic half-widths from the fit.
 SCAN = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 5.0, 8.0)
 #: Roughness probes: each knob moved by this fraction of the finite-difference step, both ways.
@@ -208,11 +215,14 @@ def estimate_intervals(problem: Problem, u: Sequence[float], step: float, profil
         # quadratic interval.
         if profile and (rough_criterion or t * sd > PROFILE_RESOLUTION):
             scans.append((col, i, sd, direction))
+    seen: list[Any] = []  # every profile point simulated: a lower one than the fit shows it had not converged
     if scans and rough_criterion:
         rough = [(s, 0.0, 0.0) for s in scans]
     elif scans:
         probes = [_along(u, d, k) for _, _, _, d in scans for k in (-1.0, 1.0)]
-        rises = [float(pt.residual @ pt.residual) - ssr0 for pt in problem.run(probes)]
+        probed = problem.run(probes)
+        seen += probed
+        rises = [float(pt.residual @ pt.residual) - ssr0 for pt in probed]
         rough = [(s, rises[2 * j], rises[2 * j + 1]) for j, s in enumerate(scans)
                  if not all(1 / QUADRATIC_TOLERANCE ** 2 <= rise / threshold <= QUADRATIC_TOLERANCE ** 2
                             for rise in rises[2 * j:2 * j + 2])]
@@ -258,6 +268,7 @@ def estimate_intervals(problem: Problem, u: Sequence[float], step: float, profil
             active = still
             if not active:
                 break
+        seen += current
         values = [v - ssr0 for v in best]
         for j, ((_, i, _, d), _, _) in enumerate(rough):
             curve = dict(zip(scales[j], values[j * len(ks):(j + 1) * len(ks)], strict=True))
@@ -281,8 +292,12 @@ def estimate_intervals(problem: Problem, u: Sequence[float], step: float, profil
     corr = _correlation(pinv)
     noise = {"s2": s2, "samples": float(n), "effective_samples": n_eff, "inflation": inflation, "dof": float(dof),
              "threshold": threshold, "jitter": jitter}
+    lowest = min(seen, key=lambda pt: float(pt.residual @ pt.residual), default=None)
+    better = None
+    if lowest is not None and float(lowest.residual @ lowest.residual) < ssr0 - max(jitter, BETTER_MARGIN * ssr0):
+        better = {"u": [float(x) for x in lowest.u], "criterion": float(lowest.residual @ lowest.residual)}
     return Uncertainty(half, base.condition, base.warnings, intervals, methods,
-                       {"knobs": names, "matrix": corr.tolist()}, correlated_pairs(names, corr), noise)
+                       {"knobs": names, "matrix": corr.tolist()}, correlated_pairs(names, corr), noise, better)
 
 
 def criterion_jitter(problem: Problem, u: Sequence[float], cont: Sequence[int], step: float) -> float:

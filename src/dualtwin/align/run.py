@@ -73,6 +73,9 @@ from dualtwin.twins import TWINS, make_twin
 from dualtwin.twins.base import Twin
 from dualtwin.twins.io import RobotIO
 
+#: How many times a fit moves to a lower point its intervals' profile found (each move computes them again).
+MAX_PROFILE_MOVES = 2
+
 
 def run_align(config: AlignConfig, out_dir: Path, *, resume: bool = False, propose_fn: ProposeFn | None = None,
               callback: Callable[[GenerationInfo], None] | None = None) -> AlignResult:
@@ -313,6 +316,17 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
             skipped = intervals_skipped(config.intervals, config.budget, sum(not s.integer for s in specs))
             uncertainty = (not_computed(specs, skipped) if skipped is not None
                            else estimate_intervals(problem, outcome.u, config.fd_step))
+            # A profile point below the fit (by more than the criterion's jitter) shows the least-squares fit had
+            # not converged: the fit moves there and its intervals are computed again, at most twice.
+            moves: list[str] = []
+            while optimizer == "lsq" and uncertainty.better is not None and len(moves) < MAX_PROFILE_MOVES:
+                moves.append(f"{residual_norm(after):.4g} -> {uncertainty.better['criterion']:.4g}")
+                outcome.u = list(uncertainty.better["u"])
+                after = problem.run([outcome.u])[0]
+                uncertainty = estimate_intervals(problem, outcome.u, config.fd_step)
+            if moves:
+                outcome.stop_reason += (f"; then moved to a lower point the intervals' profile found (residual norm "
+                                        f"{', '.join(moves)}): the fit had not converged")
             fitted, fitted_nuisance = nuisance.split(values_from_unit(specs, outcome.u))
             # The after run uses the fitted initial conditions too, so it shows what the fit matched; time
             # offsets only move the objective's time axis and are not in the run.
