@@ -196,11 +196,15 @@ class CurvedValley(CachedProblem):
         return [ResidualBlock("s", "y", 0, T.size, "series"), ResidualBlock("s", "tie", T.size, T.size + 1, "scalar")]
 
 
-def test_a_profile_in_a_curved_valley_re_fits_the_other_knob_until_it_settles() -> None:
+def curved_valley() -> tuple[list[KnobSpec], CurvedValley, float]:
+    """The knobs, the problem (noise 2.0, seed 11) and the least-squares ``a``."""
     specs = [KnobSpec("a", 1.0, 0.0, 4.0), KnobSpec("b", 1.0, 0.5, 3.0)]
     y = T + np.random.default_rng(11).normal(0.0, 2.0, T.size)
-    problem = CurvedValley(specs, y)
-    a_hat = float(T @ y / (T @ T))
+    return specs, CurvedValley(specs, y), float(T @ y / (T @ T))
+
+
+def test_a_profile_in_a_curved_valley_re_fits_the_other_knob_until_it_settles() -> None:
+    specs, problem, a_hat = curved_valley()
     unc = estimate_intervals(problem, unit_from_values(specs, {"a": a_hat, "b": a_hat ** (1 / 3)}), 0.03)
     assert unc.methods["a"] == "profile"  # the straight line's rise is far from quadratic: the scan ran
     half = math.sqrt(unc.noise["threshold"] / float(T @ T))  # where |a t - y|² rises by the threshold
@@ -211,10 +215,7 @@ def test_a_profile_in_a_curved_valley_re_fits_the_other_knob_until_it_settles() 
 
 
 def test_a_profile_point_below_the_fit_is_handed_back_as_a_better_point() -> None:
-    specs = [KnobSpec("a", 1.0, 0.0, 4.0), KnobSpec("b", 1.0, 0.5, 3.0)]
-    y = T + np.random.default_rng(11).normal(0.0, 2.0, T.size)
-    problem = CurvedValley(specs, y)
-    a_hat = float(T @ y / (T @ T))
+    specs, problem, a_hat = curved_valley()
     at_minimum = estimate_intervals(problem, unit_from_values(specs, {"a": a_hat, "b": a_hat ** (1 / 3)}), 0.03)
     assert at_minimum.better is None  # the control: nothing below the minimum
     short = {"a": a_hat + 0.3, "b": (a_hat + 0.3) ** (1 / 3)}  # a fit that stopped on the valley's slope
