@@ -102,11 +102,10 @@ def locate_mesh(node: Node, cache: ProtoCache | None = None) -> Path:
     Raises:
         MeshFileError: no url, a url outside the project, or a remote file that cannot be had.
     """
-    where = str(node.location) if node.location is not None else "Mesh"
-    urls = [str(u) for u in (node.fields.get("url") or []) if str(u)]
-    if not urls:
-        raise MeshFileError(f"{where}: Mesh has no url")
-    url = urls[0]
+    where = _where(node)
+    url = _first_url(node)
+    if not url:
+        raise MeshFileError(f"{where}: {node.type_name} has no url")
     origin = node.location.file.removesuffix("[generated]") if node.location is not None else ""
     try:
         remote = remote_url(url, origin if is_remote(origin) else None)
@@ -150,7 +149,8 @@ def _cache_for(root: str, assets: str, mirror: str, offline: str) -> ProtoCache:
 
 def read_mesh_node(node: Node, cache: ProtoCache | None = None) -> TriangleMesh:
     """The triangles of a ``Mesh`` node: its file located by :func:`locate_mesh`, read by :func:`read_mesh` with
-    the node's ``name``, ``materialIndex`` and ``ccw``.
+    the node's ``name``, ``materialIndex`` and ``ccw``. A ``CadShape`` (no ``name`` or ``materialIndex``
+    field) gets every mesh of its file.
 
     Raises:
         MeshFileError: as both functions (the message names the node's place in its file).
@@ -160,17 +160,23 @@ def read_mesh_node(node: Node, cache: ProtoCache | None = None) -> TriangleMesh:
         return read_mesh(path, str(node.fields.get("name", "") or ""), int(node.fields.get("materialIndex", -1)),
                          bool(node.fields.get("ccw", True)), extension=url_extension(node))
     except MeshFileError as exc:
-        where = str(node.location) if node.location is not None else "Mesh"
-        raise MeshFileError(f"{where}: {exc}") from None
+        raise MeshFileError(f"{_where(node)}: {exc}") from None
 
 
 def url_extension(node: Node) -> str:
     """The file extension (lower case, with its dot) of a Mesh's or CadShape's first url, which names its format:
     a remote file sits in the PROTO cache under a name without one."""
-    urls = [str(u) for u in (node.fields.get("url") or []) if str(u)]
-    if not urls:
-        return ""
-    return Path(urls[0].split("?", 1)[0].split("#", 1)[0]).suffix.lower()
+    url = _first_url(node)
+    return Path(url.split("?", 1)[0].split("#", 1)[0]).suffix.lower() if url else ""
+
+
+def _first_url(node: Node) -> str:
+    """The first non-empty entry of the node's ``url`` field, the one Webots reads ("" without one)."""
+    return next((str(u) for u in (node.fields.get("url") or []) if str(u)), "")
+
+
+def _where(node: Node) -> str:
+    return str(node.location) if node.location is not None else node.type_name
 
 
 def read_mesh(path: str | os.PathLike[str], name: str = "", material_index: int = -1, ccw: bool = True, *,

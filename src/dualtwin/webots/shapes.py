@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from dualtwin.webots.mesh_files import MeshFileError, locate_mesh, read_mesh, read_mesh_node, url_extension
+from dualtwin.webots.mesh_files import read_mesh_node
 from dualtwin.webots.nodes import Node
 
 __all__ = ["CAD_SHAPE_RGBA", "SURFACE_NODES", "appearance_rgba", "indexed_face_set_mesh", "surface_triangles"]
@@ -81,15 +81,7 @@ def surface_triangles(node: Node) -> tuple[npt.NDArray[np.float64], npt.NDArray[
     kind = node.type_name
     if kind == "IndexedFaceSet":
         return indexed_face_set_mesh(node)
-    if kind == "Mesh":
-        mesh = read_mesh_node(node)
-    elif kind == "CadShape":
-        path = locate_mesh(node)  # reads the url field only: a CadShape's is a Mesh's
-        try:
-            # the url names the format: a downloaded file sits in the PROTO cache without an extension
-            mesh = read_mesh(path, "", -1, bool(node.get("ccw", True)), extension=url_extension(node))
-        except MeshFileError as exc:
-            raise MeshFileError(f"{node.location if node.location is not None else 'CadShape'}: {exc}") from None
-    else:
+    if kind not in ("Mesh", "CadShape"):
         raise ValueError(f"{kind} is not a surface of triangles")
+    mesh = read_mesh_node(node)  # a CadShape's fields are a Mesh's without name and materialIndex: its whole file
     return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.triangles, dtype=np.int64)
