@@ -145,9 +145,12 @@ def test_a_rough_criterion_is_profiled_to_what_its_bumps_allow_and_labelled() ->
     # The fit ends on a bump's low side near the smooth minimum (as a search in a rough valley does).
     grid = [[x, u_b] for x in np.linspace(0.6, 0.65, 801) for u_b in (ols_u(problem)[1],)]
     best = min(problem.run(grid), key=residual_norm)
-    unc = estimate_intervals(problem, best.u, 0.03)
+    # A fresh problem: the search's grid would widen the interval by itself (every simulated point the data
+    # cannot reject is inside it); here the profile alone is tested.
+    unc = estimate_intervals(Bouncy(SPECS, y), best.u, 0.03)
     assert unc.noise["jitter"] > unc.noise["threshold"]
-    assert unc.methods["a"] == "profile (rough criterion)", unc.methods
+    # (the checks' own points count too: the corrected points of b's profile can widen a's)
+    assert unc.methods["a"].startswith("profile (rough criterion"), unc.methods
     lo, hi = unc.intervals["a"] or (0.0, 0.0)
     assert lo < 2.5 < hi and hi - lo > 4e-3  # wider than the bumps' spacing: the data cannot resolve below it
     # Control: the same data without the bounce keep a quadratic interval that is not labelled rough.
@@ -225,3 +228,45 @@ def test_a_profile_point_below_the_fit_is_handed_back_as_a_better_point() -> Non
     assert unc.better["criterion"] < residual_norm(stopped) - unc.noise["jitter"]
     moved = values_from_unit(specs, unc.better["u"])["a"]
     assert abs(moved - a_hat) < 0.5 * abs(short["a"] - a_hat)
+
+
+class Needle(Line):
+    """``y = a t + b``, except in a needle around ``a = 3.2`` (width 1e-4) where the model behaves as ``a = depth``:
+    a second minimum no scan of ``a`` lands in, as the bounces of a rough criterion leave one."""
+
+    def __init__(self, specs: Sequence[KnobSpec], y: np.ndarray, depth: float) -> None:
+        super().__init__(specs, y)
+        self.depth = depth
+
+    def evaluate_knobs(self, values: Sequence[Mapping[str, float]]) -> list[Evaluation]:
+        out = []
+        for v in values:
+            a = self.depth if abs(v["a"] - 3.2) < 1e-4 else v["a"]
+            r = a * T + v["b"] - self.y
+            out.append(Evaluation(float(r @ r), None, r))
+        return out
+
+
+def test_an_interval_holds_every_simulated_point_the_data_cannot_reject() -> None:
+    y = 2.5 * T - 0.7 + np.random.default_rng(5).normal(0.0, 0.01, T.size)
+    u = ols_u(Line(SPECS, y))
+    needle_u = list(u)
+    needle_u[0] = unit_from_values(SPECS, {"a": 3.2, "b": 0.0})[0]
+    # Control: the needle never simulated; the interval is the quadratic one around 2.5, far from 3.2.
+    unseen = Needle(SPECS, y, depth=2.5)
+    plain = estimate_intervals(unseen, u, 0.03)
+    assert plain.methods["a"] == "jacobian (n_eff)" and (plain.intervals["a"] or (0, 9))[1] < 2.6
+    # The fit's search simulated the needle, where the criterion is the minimum's: the data cannot reject a = 3.2.
+    seen = Needle(SPECS, y, depth=2.5)
+    seen.run([needle_u])
+    unc = estimate_intervals(seen, u, 0.03)
+    lo, hi = unc.intervals["a"] or (0.0, 0.0)
+    assert lo == pytest.approx((plain.intervals["a"] or (0, 0))[0]) and hi == pytest.approx(3.2, abs=1e-6)
+    assert unc.methods["a"] == "jacobian (n_eff, widened to 1 simulated point)"
+    assert unc.half_widths["a"] == pytest.approx(hi - values_from_unit(SPECS, u)["a"])
+    assert unc.intervals["b"] == plain.intervals["b"]  # the needle's b is the fit's: nothing to widen
+    # Control: a needle whose criterion rises above the threshold is a value the data reject; no widening.
+    shallow = Needle(SPECS, y, depth=2.6)
+    shallow.run([needle_u])
+    rejected = estimate_intervals(shallow, u, 0.03)
+    assert rejected.intervals["a"] == plain.intervals["a"] and "widened" not in rejected.methods["a"]

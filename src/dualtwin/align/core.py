@@ -133,6 +133,10 @@ class CachedProblem(ABC):
             self.keep(tuple(p), self._cache[tuple(p)], evaluation.simulated)
         return [self._cache[tuple(p)] for p in points]
 
+    def simulated(self) -> list[Point]:
+        """Every point simulated so far (by the fit and by the interval checks), in the order first simulated."""
+        return list(self._cache.values())
+
     def keep(self, key: tuple[float, ...], point: Point, simulated: Any) -> None:
         """Offered what was simulated for each new point (``Evaluation.simulated``); kept by none here."""
         return None

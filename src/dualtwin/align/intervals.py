@@ -43,7 +43,11 @@ once reported a damping of 0.0100 ± 0.00007 where the truth was 0.03). Here:
 5. **A better point.** A profile point whose criterion is below the fit's by more than the jitter shows that
    the fit had not reached the minimum; it is returned (``Uncertainty.better``) and the caller moves the fit there
    and computes the intervals again (:func:`dualtwin.align.run.run_align`, least squares).
-6. **Nothing pinned.** A knob along a direction the Jacobian does not see (no effect, or a combination
+6. **Every simulated point counts.** A profile is a minimisation, and a stalled one overstates the rise. Every
+   point simulated so far (the fit's search, the checks above; :meth:`.core.CachedProblem.simulated`) whose
+   criterion rises less than the threshold (plus the jitter, on a rough criterion) is a setting the data cannot
+   reject: each interval is widened to hold its values, and the method says ``widened to N simulated points``.
+7. **Nothing pinned.** A knob along a direction the Jacobian does not see (no effect, or a combination
    of knobs the suite cannot separate) gets its bounds as the interval, no half-width, method ``unpinned``.
 
 The correlation matrix is taken from the pseudo-inverse of ``JᵀJ`` so that exactly interchangeable knobs show
@@ -289,6 +293,15 @@ def estimate_intervals(problem: Problem, u: Sequence[float], step: float, profil
             notes = ["rough criterion"] if rough_criterion else []
             notes += ["open to the bound"] if open_side else []
             methods[spec.name] = f"profile ({', '.join(notes)})" if notes else "profile"
+    # Every point simulated so far (the fit's search, the checks above) bounds the profile from above: a point
+    # whose rise stays below the threshold is a setting the data cannot reject, so each of its knob values is
+    # inside that knob's interval. On a rough criterion the corrections of a scanned point can stall above a
+    # valley floor that the fit's own search had already visited (the CartPole coverage study's misses were
+    # almost all such fits, within their truth's basin).
+    simulated = getattr(problem, "simulated", None)
+    if callable(simulated):
+        _widen_to_simulated(specs, u, simulated(), ssr0, threshold + jitter if rough_criterion else threshold,
+                            intervals, half, methods)
     corr = _correlation(pinv)
     noise = {"s2": s2, "samples": float(n), "effective_samples": n_eff, "inflation": inflation, "dof": float(dof),
              "threshold": threshold, "jitter": jitter}
@@ -298,6 +311,31 @@ def estimate_intervals(problem: Problem, u: Sequence[float], step: float, profil
         better = {"u": [float(x) for x in lowest.u], "criterion": float(lowest.residual @ lowest.residual)}
     return Uncertainty(half, base.condition, base.warnings, intervals, methods,
                        {"knobs": names, "matrix": corr.tolist()}, correlated_pairs(names, corr), noise, better)
+
+
+def _widen_to_simulated(specs: Sequence[KnobSpec], u: Sequence[float], points: Sequence[Any], ssr0: float,
+                        limit: float, intervals: dict[str, tuple[float, float] | None],
+                        half: dict[str, float | None], methods: dict[str, str]) -> None:
+    """Extend each continuous knob's interval to the values of every simulated point whose criterion rises less
+    than ``limit`` above the fit's (``ssr0``), and say so in its method. Unpinned knobs keep their bounds."""
+    inside = [pt for pt in points if float(pt.residual @ pt.residual) - ssr0 < limit]
+    for i, spec in enumerate(specs):
+        bounds = intervals.get(spec.name)
+        method = methods.get(spec.name, "")
+        if spec.integer or bounds is None or method.startswith("unpinned"):
+            continue
+        lo, hi = bounds
+        values = [spec.from_unit(pt.u[i]) for pt in inside]
+        wider = [v for v in values if v < lo or v > hi]
+        if not wider:
+            continue
+        lo, hi = min(lo, *values), max(hi, *values)
+        intervals[spec.name] = (lo, hi)
+        value = spec.from_unit(u[i])
+        if half.get(spec.name) is not None:
+            half[spec.name] = max(hi - value, value - lo)
+        note = f"widened to {len(wider)} simulated point{'s' if len(wider) > 1 else ''}"
+        methods[spec.name] = (f"{method[:-1]}, {note})" if method.endswith(")") else f"{method} ({note})")
 
 
 def criterion_jitter(problem: Problem, u: Sequence[float], cont: Sequence[int], step: float) -> float:
