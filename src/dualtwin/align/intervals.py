@@ -68,6 +68,7 @@ from dualtwin.align.core import (
     fd_jacobian,
     integer_half_width,
     interval_estimate,
+    residual_norm,
     t_quantile,
 )
 from dualtwin.align.identifiability import correlated_pairs
@@ -226,7 +227,7 @@ def estimate_intervals(problem: Problem, u: Sequence[float], step: float, profil
         probes = [_along(u, d, k) for _, _, _, d in scans for k in (-1.0, 1.0)]
         probed = problem.run(probes)
         seen += probed
-        rises = [float(pt.residual @ pt.residual) - ssr0 for pt in probed]
+        rises = [residual_norm(pt) - ssr0 for pt in probed]
         rough = [(s, rises[2 * j], rises[2 * j + 1]) for j, s in enumerate(scans)
                  if not all(1 / QUADRATIC_TOLERANCE ** 2 <= rise / threshold <= QUADRATIC_TOLERANCE ** 2
                             for rise in rises[2 * j:2 * j + 2])]
@@ -245,7 +246,7 @@ def estimate_intervals(problem: Problem, u: Sequence[float], step: float, profil
         points = [_along(u, d, k) for ((_, _, _, d), _, _), ks in zip(rough, scales, strict=True) for k in ks]
         ks = scales[0]  # every knob's scan has as many points
         current = problem.run(points)
-        best = [float(pt.residual @ pt.residual) for pt in current]
+        best = [residual_norm(pt) for pt in current]
         # Gauss-Newton corrections of the other knobs at every scan point (the fit's Jacobian, one batch
         # each): a profile re-fits the others, and a curved valley leaves any straight line. A point is
         # corrected again until a correction lowers its criterion by less than PROFILE_SETTLED of the noise
@@ -264,7 +265,7 @@ def estimate_intervals(problem: Problem, u: Sequence[float], step: float, profil
                 corrected.append(q)
             still = []
             for idx, new in zip(active, problem.run(corrected), strict=True):
-                gain = best[idx] - float(new.residual @ new.residual)
+                gain = best[idx] - residual_norm(new)
                 if gain > 0:
                     current[idx], best[idx] = new, best[idx] - gain
                 if gain > PROFILE_SETTLED * threshold:
@@ -305,10 +306,10 @@ def estimate_intervals(problem: Problem, u: Sequence[float], step: float, profil
     corr = _correlation(pinv)
     noise = {"s2": s2, "samples": float(n), "effective_samples": n_eff, "inflation": inflation, "dof": float(dof),
              "threshold": threshold, "jitter": jitter}
-    lowest = min(seen, key=lambda pt: float(pt.residual @ pt.residual), default=None)
+    lowest = min(seen, key=residual_norm, default=None)
     better = None
-    if lowest is not None and float(lowest.residual @ lowest.residual) < ssr0 - max(jitter, BETTER_MARGIN * ssr0):
-        better = {"u": [float(x) for x in lowest.u], "criterion": float(lowest.residual @ lowest.residual)}
+    if lowest is not None and residual_norm(lowest) < ssr0 - max(jitter, BETTER_MARGIN * ssr0):
+        better = {"u": [float(x) for x in lowest.u], "criterion": residual_norm(lowest)}
     return Uncertainty(half, base.condition, base.warnings, intervals, methods,
                        {"knobs": names, "matrix": corr.tolist()}, correlated_pairs(names, corr), noise, better)
 
@@ -318,7 +319,7 @@ def _widen_to_simulated(specs: Sequence[KnobSpec], u: Sequence[float], points: S
                         half: dict[str, float | None], methods: dict[str, str]) -> None:
     """Extend each continuous knob's interval to the values of every simulated point whose criterion rises less
     than ``limit`` above the fit's (``ssr0``), and say so in its method. Unpinned knobs keep their bounds."""
-    inside = [pt for pt in points if float(pt.residual @ pt.residual) - ssr0 < limit]
+    inside = [pt for pt in points if residual_norm(pt) - ssr0 < limit]
     for i, spec in enumerate(specs):
         bounds = intervals.get(spec.name)
         method = methods.get(spec.name, "")
@@ -359,7 +360,7 @@ def criterion_jitter(problem: Problem, u: Sequence[float], cont: Sequence[int], 
             probes.append(q)
     if not probes:
         return 0.0
-    values = [float(pt.residual @ pt.residual) for pt in problem.run([list(u), *probes])]
+    values = [residual_norm(pt) for pt in problem.run([list(u), *probes])]
     f0, rest = values[0], values[1:]
     jitter = 0.0
     for j, ks in enumerate(ks_of):
