@@ -317,7 +317,7 @@ def test_interrupt_kills_and_reaps_the_controllers(tmp_path: Path, signum: int) 
     finally:
         proc.kill()
         proc.wait()
-    assert proc.returncode == 130
+    assert proc.returncode == 130, err  # (stderr shown: a rare exit 1 under load was seen without it)
     assert err == "error: interrupted\n"  # one line, no traceback
     assert all(_gone(pid) for pid in pids)
 

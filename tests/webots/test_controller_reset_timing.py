@@ -1,9 +1,10 @@
 """``simulationReset()`` is done at the step of the supervisor that asked for it, as in Webots, where the request
-travels with that supervisor's step message: the step it makes next returns at t = 0. Another controller that
-reaches its own ``step`` first must not carry it out (it used to: that step returned at t = 0 at once, and the
-supervisor's step then ran on to 8 ms, or waited for ever for a controller that had already been answered).
-The order is forced here (the other controller is inside its step before the supervisor steps), so the test
-does not depend on which thread the machine runs first."""
+travels with that supervisor's step message, and applied at the end of that step, once every controller has sent
+its own: every controller's step then returns at t = 0, whichever stepped first. Another controller that reaches
+its own ``step`` first must not carry it out (it used to: that step returned at t = 0 at once, and the
+supervisor's step then ran on to 8 ms, or waited for ever for a controller that had already been answered), and
+one that steps after the supervisor must not miss it. The order is forced here (one controller is inside its step
+before the other steps), so the tests do not depend on which thread the machine runs first."""
 
 from __future__ import annotations
 
@@ -54,9 +55,10 @@ def _reset_step(other_steps_first: bool) -> tuple[list[tuple[int, float]], list[
             sup_thread = _in_thread(sup.step, sup_answers, sim)
         else:
             sup_thread = _in_thread(sup.step, sup_answers, sim)
-            sup_thread.join(5.0)
+            time.sleep(0.3)  # the supervisor is inside its step now
             other_thread = _in_thread(other.step, other_answers, sim)
         sup_thread.join(2.0)
+        other_thread.join(2.0)
         runtime.finish()  # let whoever still waits go
         sup_thread.join(5.0)
         other_thread.join(5.0)
@@ -66,11 +68,14 @@ def _reset_step(other_steps_first: bool) -> tuple[list[tuple[int, float]], list[
 
 
 def test_a_reset_is_done_at_the_requesting_supervisors_step_even_if_another_controller_steps_first() -> None:
-    sup_answers, _ = _reset_step(other_steps_first=True)
+    sup_answers, other_answers = _reset_step(other_steps_first=True)
     assert sup_answers[:1] == [(0, 0.0)]
+    assert other_answers[:1] == [(0, 0.0)]  # the same step: every controller's answer comes after the reset
 
 
 def test_a_reset_when_the_supervisor_steps_first() -> None:
-    # the control: the order in which the old code already did it right
-    sup_answers, _ = _reset_step(other_steps_first=False)
+    # the other order gives the same answers: the reset waits for every controller's step, as in Webots (it
+    # used to be done at once, so a controller stepping after the supervisor went on to 8 ms)
+    sup_answers, other_answers = _reset_step(other_steps_first=False)
     assert sup_answers[:1] == [(0, 0.0)]
+    assert other_answers[:1] == [(0, 0.0)]

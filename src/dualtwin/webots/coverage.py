@@ -311,7 +311,8 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Emitter", "device", "partial",
              "in-process channels: channel filters, range and maxRange, medium type, buffer size, baud rate, "
              "infra-red line of sight and aperture, judged from the poses after the physics step of the "
-             "packet's arrival; simulationReset clears the queues"),
+             "packet's arrival; packets of one step reach a receiver in world order (robot, then device), "
+             "whichever controller sent first; simulationReset clears the queues"),
     Coverage("Receiver", "device", "partial",
              "queue, channel filter, buffer size, signal strength 1/d² with noise, emitter direction with noise; "
              "no physics-plugin copy of channel 0"),

@@ -50,7 +50,7 @@ class DeviceHost(Protocol):
 
 __all__ = [
     "Device", "DeviceBinding", "DeviceHost", "SampledDevice", "Sensor", "SolidSensor", "bind_host", "current_host",
-    "install_sampler", "sample_due",
+    "install_sampler", "sample_due", "world_order",
 ]
 
 
@@ -167,7 +167,13 @@ class Sensor(Device):
         self._last_sample = None
         self._invalidate()
         install_sampler(self._robot)
-        self._robot._sensors[id(self)] = self
+        sensors = self._robot._sensors
+        sensors[id(self)] = self
+        # sampled in the robot's device order (Webots' scene-tree order), whatever order the controller enabled
+        # them in: noise draws come from the simulation's one generator, so the order decides every value
+        ordered = sorted(sensors.items(), key=lambda item: item[1]._tag)
+        sensors.clear()
+        sensors.update(ordered)
         if self._tracks_steps:
             self._start_tracking()
 
@@ -231,25 +237,36 @@ def sample_due(host: DeviceHost, now: float, every: bool = False) -> None:
         sampler(host._sim, devices)
 
 
+_registering = threading.Lock()  # controllers (threads of this process) register their robots concurrently
+
+
 def install_sampler(host: DeviceHost) -> None:
     """Make the simulation sample ``host``'s sensors at the end of every basic step (once per host)."""
     sim = host._sim
-    hosts: list[DeviceHost] | None = sim.extensions.get("sampled_hosts")
-    if hosts is None:
-        hosts = sim.extensions["sampled_hosts"] = []
-        registered = hosts
+    with _registering:
+        hosts: list[DeviceHost] | None = sim.extensions.get("sampled_hosts")
+        if hosts is None:
+            hosts = sim.extensions["sampled_hosts"] = []
+            registered = hosts
 
-        def sample_all() -> None:
-            now = sim.time
-            for h in registered:
-                if h._sensors:
-                    sample_due(h, now)
+            def sample_all() -> None:
+                now = sim.time
+                for h in registered:
+                    if h._sensors:
+                        sample_due(h, now)
 
-        sim.sample_hooks.append(sample_all)
-    if not any(h is host for h in hosts):
-        hosts.append(host)
+            sim.sample_hooks.append(sample_all)
+        if not any(h is host for h in hosts):
+            # robots in world order, not in the order their controllers first enabled a sensor: with one process
+            # (or thread) per controller that order is a race, and the robots share the noise generator
+            hosts[:] = sorted([*hosts, host], key=world_order)
 
 
+def world_order(host: DeviceHost) -> int:
+    """Where ``host``'s robot comes in the world (its Solid's index in the scene tree): the order in which
+    Webots updates robots and their devices, and so the order in which the robots of a world draw noise,
+    exchange packets and are sampled here, however their controllers are scheduled."""
+    return host._rec.solid.index
 
 
 class SolidSensor(Sensor):

@@ -19,7 +19,7 @@ from typing import Protocol
 from dualtwin.webots.api_args import warn
 from dualtwin.webots.keyboard import KeyScript
 from dualtwin.webots.nodes import Node as SceneNode
-from dualtwin.webots.physics import Simulation
+from dualtwin.webots.physics import RobotRec, Simulation
 from dualtwin.webots.scene_api import descendants
 
 __all__ = [
@@ -43,6 +43,9 @@ NO_CONTROLLER = frozenset({"", "<none>", "<generic>", "<extern>", "void"})
 
 class RuntimeRobot(Protocol):
     """What the runtime needs of a controller's Robot (typed structurally so this module needs no Robot)."""
+
+    @property
+    def _rec(self) -> RobotRec: ...  # its robot, whose Solid's index is its place in the world
 
     def _after_reset(self) -> None: ...
 
@@ -136,6 +139,7 @@ class Runtime:
         self._clients: list[_Client] = []
         self._reset_requested = False
         self._reset_by: _Client | None = None
+        self._reset_at: float | None = None  # a reset was asked for at this step's end (run clock, s)
         self.finished = False
         self._thread_controller = threading.local()
         self.error: BaseException | None = None
@@ -413,19 +417,13 @@ class Runtime:
                 return 0  # step(0) exchanges commands without time passing, even paused
             n = max(1, math.ceil(duration_ms / sim.basic_time_step - 1e-9))
             by = self._reset_by
-            if self._reset_requested and (by is None or by is client or not by.active):
-                self._reset_requested = False
-                # Webots simulates the step that carries the request, then resets: the run's clock counts it
-                self.elapsed_before_reset += sim.time + n * sim.basic_time_step / 1000.0
-                sim.reset()
-                for c in self._clients:
-                    c.target = 0.0
-                    c.robot._after_reset()
-                self._end_orphans()  # the reset took the robots a supervisor imported out of the scene
-                if self._removed(client):  # the caller's own robot was one of them
-                    return self._end_removed(client)
-                return self._end(client) if self._limit_reached() else 0
             client.target = sim.time + n * sim.basic_time_step / 1000.0
+            if self._reset_requested and (by is None or by is client or not by.active):
+                # Webots applies the request at the end of the step that carries it, once every controller has
+                # sent its own step: that step counts in the run's clock, then the world is reset and every
+                # controller's step returns at t = 0 (_maybe_advance), however the controllers were scheduled
+                self._reset_requested = False
+                self._reset_at = client.target
             client.waiting = True
             self._maybe_advance()
             while client.waiting and not self.finished and self.error is None:
@@ -437,6 +435,25 @@ class Runtime:
             if client.cut:  # (a step that reached its end before the supervisor's request still counts)
                 return self._end_removed(client)
             return self._end(client) if self.finished or self._limit_reached() else 0
+
+    def _reset_now(self, waiting: list[_Client]) -> None:
+        """The requested simulationReset, every active controller waiting in its step (caller holds the
+        condition): the world goes back to its saved state and every waiting step returns at t = 0."""
+        assert self._reset_at is not None
+        self.elapsed_before_reset += self._reset_at
+        self._reset_at = None
+        self.simulation.reset()
+        # robots in world order (their sensors draw noise from one generator), not in the order the controllers
+        # happened to start
+        for c in sorted(self._clients, key=lambda c: c.robot._rec.solid.index):
+            c.target = 0.0
+            c.robot._after_reset()
+        for c in waiting:
+            c.waiting = False
+        self._end_orphans()  # the reset took the robots a supervisor imported out of the scene
+        for c in waiting:
+            c.cut = c.cut or self._removed(c)  # their step says -1
+        self._cond.notify_all()
 
     def _maybe_advance(self) -> None:
         # caller holds the condition; steps when every active controller is waiting (synchronisation)
@@ -452,6 +469,9 @@ class Runtime:
             for c in active:
                 c.waiting = False
             self._cond.notify_all()
+            return
+        if self._reset_at is not None:
+            self._reset_now(active)
             return
         sim = self.simulation
         target = min(c.target for c in active)
