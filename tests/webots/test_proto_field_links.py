@@ -26,7 +26,7 @@ STEP = 8
 def _supervisor(body: str) -> Supervisor:
     text = (
         '#VRML_SIM R2023b utf8\nEXTERNPROTO "Slab.proto"\nEXTERNPROTO "Wall.proto"\nEXTERNPROTO "Post.proto"\n'
-        'EXTERNPROTO "Bar.proto"\n'
+        'EXTERNPROTO "Bar.proto"\nEXTERNPROTO "Rover.proto"\n'
         f"WorldInfo {{ basicTimeStep {STEP} gravity 0 }}\n{body}"
     )
     with warnings.catch_warnings():
@@ -90,21 +90,47 @@ def test_a_proto_field_linked_to_mass_changes_the_body_response_to_a_force() -> 
     assert b.getVelocity()[0] == pytest.approx(2.0 * dt / 4.0)
 
 
-def test_a_procedural_proto_follows_its_is_links_and_says_a_template_field_is_not_regenerated(
-    capsys: pytest.CaptureFixture[str],
-) -> None:
-    sup = _supervisor('Robot { supervisor TRUE }\nDEF BAR Bar { place 1 0 0 }\n')
+def test_a_procedural_proto_is_regenerated_when_a_template_field_changes(capsys: pytest.CaptureFixture[str]) -> None:
+    """Webots expands the instance again from its fields: the ray sees the new box from the next step, the
+    instance keeps its handle, DEF and id, and stays where physics had moved it."""
+    sup = _supervisor(f"Robot {{ supervisor TRUE children [ {_sensors(0)} ] }}\nDEF BAR Bar {{ place 1 0 0 }}\n")
+    sensor = sup.getDevice("s0")
+    sensor.enable(STEP)
     bar = sup.getFromDef("BAR")
+    ident = bar.getId()
     sup.step(STEP)
+    assert sensor.getValue() == pytest.approx(0.9)
     capsys.readouterr()
-    bar.getField("place").setSFVec3f([0.0, 1.0, 0.0])
+    bar.getField("place").setSFVec3f([1.0, 0.0, 0.0])  # an IS-only field: followed, no regeneration
+    bar.getField("length").setSFFloat(0.5)
     assert capsys.readouterr().err == ""
     sup.step(STEP)
-    assert bar.getPosition() == pytest.approx([0.0, 1.0, 0.0])
-    bar.getField("length").setSFFloat(0.5)
+    assert sensor.getValue() == pytest.approx(0.75)  # 1 - 0.5 / 2: the regenerated box (it was 0.9)
+    assert bar.getField("length").getSFFloat() == 0.5 and bar.getId() == ident
+    again = sup.getFromDef("BAR")
+    assert again.getId() == ident and again.getPosition() == pytest.approx([1.0, 0.0, 0.0])
+    assert "length 0.5" in bar.exportString() and bar.exportString().startswith("DEF BAR Bar {")
+    sup.simulationReset()  # the reset puts the field back, and the node it fed
+    sup.step(STEP)
+    sup.step(STEP)
+    assert sensor.getValue() == pytest.approx(0.9)
+    assert bar.getField("length").getSFFloat() == pytest.approx(0.2)
+
+
+def test_a_procedural_robot_proto_is_not_regenerated_and_says_so(capsys: pytest.CaptureFixture[str]) -> None:
+    # the control: regenerating a Robot would restart its controller; its IS links are still followed
+    sup = _supervisor('Robot { supervisor TRUE }\nDEF ROVER Rover { place 1 0 0 }\n')
+    rover = sup.getFromDef("ROVER")
+    sup.step(STEP)
+    capsys.readouterr()
+    rover.getField("place").setSFVec3f([0.0, 1.0, 0.0])
+    assert capsys.readouterr().err == ""
+    sup.step(STEP)
+    assert rover.getPosition() == pytest.approx([0.0, 1.0, 0.0])
+    rover.getField("length").setSFFloat(0.5)
     err = capsys.readouterr().err
-    assert "'length' is read by the template of procedural PROTO Bar" in err and err.count("\n") == 1
-    assert bar.getField("length").getSFFloat() == 0.5
+    assert "'length' is read by the template of procedural PROTO Rover" in err and err.count("\n") == 1
+    assert rover.getField("length").getSFFloat() == 0.5
 
 
 def test_simulation_reset_restores_a_proto_field_with_the_nodes_it_feeds() -> None:

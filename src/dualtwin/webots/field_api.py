@@ -53,6 +53,8 @@ class FieldOwner(Protocol):
 
     def _removed(self, node: SceneNode) -> None: ...
 
+    def _regenerate(self, node: SceneNode) -> bool: ...
+
     def _controller_changed(self) -> None: ...
 
 
@@ -279,17 +281,24 @@ class Field:
             return
         # a PROTO interface field: Webots propagates the value through the IS links of the PROTO body
         value = self._raw()
-        if self._name in self._node.template_fields:
-            warn(
-                f"Field: '{self._name}' is read by the template of procedural PROTO {self._node.proto_name}; Webots "
-                "regenerates the node, dualtwin only follows the IS links (the template's output is not rebuilt)"
-            )
+        if self._name in self._node.template_fields and self._regenerate(self._node):
+            return  # expanded again with the new value: its body follows from it
         base, interfaces = linked_fields(self._node, self._name)
         for node, name in interfaces:
             assert node.proto_fields is not None
             node.proto_fields[name] = copy_value(value)
         for node, name in base:
             Field(self._owner._handle(node), name)._store(copy_value(value))
+        for node, name in interfaces:  # a nested procedural PROTO that reads it in its template
+            if name in node.template_fields:
+                self._regenerate(node)
+
+    def _regenerate(self, node: SceneNode) -> bool:
+        if self._owner._regenerate(node):
+            return True
+        warn(f"Field: '{self._name}' is read by the template of procedural PROTO {node.proto_name}; Webots "
+             "regenerates the node, dualtwin only follows the IS links here (the node holds a Robot)")
+        return False
 
     def _convert(self, method: str, kind: str, value: Any) -> tuple[bool, Any]:
         """``value`` as a stored SF value of ``kind`` (stderr error and False when it does not fit)."""

@@ -16,13 +16,13 @@ from typing import Any, Protocol
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots.api_args import as_float, as_floats, as_int, finite, warn
 from dualtwin.webots.contacts import contact_points, solids_of, static_balance
-from dualtwin.webots.field_api import Field
+from dualtwin.webots.field_api import Field, parse_nodes
 from dualtwin.webots.node_types import node_type_of
 from dualtwin.webots.nodes import Node as SceneNode
 from dualtwin.webots.nodes import World, copy_value, path_to_node
 from dualtwin.webots.physics import Simulation, SolidRec
 from dualtwin.webots.physics.records import is_robot
-from dualtwin.webots.schema import SOLID_TYPES
+from dualtwin.webots.proto_regeneration import join_physics, regenerate
 from dualtwin.webots.step_hints import step_value
 from dualtwin.webots.writer import write_node
 
@@ -212,7 +212,9 @@ class Node:
         return Node(self._sup, found) if found is not None else None
 
     def exportString(self) -> str:
-        return write_node(self._node)
+        """The node as Webots writes it (a PROTO instance as its name and interface fields), with its current
+        pose: text that ``importMFNodeFromString`` turns into a copy."""
+        return write_node(node_as_saved(self._sim, self._node), protos=True)
 
     DEF = property(lambda self: self.getDef())
     id = property(lambda self: self.getId())
@@ -260,26 +262,10 @@ class Node:
     def _imported(self, nodes: list[SceneNode]) -> None:
         """Number the new nodes and build their physics (Solids fall, collide, are seen by rays from the next
         step), as Webots does for an imported node."""
-        ids, by_id = self._sup._runtime.node_ids()
-        for top in nodes:
-            for node in top.walk():
-                if id(node) not in ids:
-                    ids[id(node)] = max(by_id, default=0) + 1
-                    by_id[ids[id(node)]] = node
+        self._number(nodes)
         imported, _ = _scene_edits(self._sim)
         imported.extend(nodes)
-        outside: list[str] = []
-        for top in nodes:
-            chain = path_to(self._sim, top)
-            ancestors = chain[:-1] if chain is not None else []
-            owner = next((n for n in reversed(ancestors) if n.type_name in SOLID_TYPES), None)
-            bounds = owner.fields.get("boundingObject") if owner is not None else None
-            if owner is not None and isinstance(bounds, SceneNode) and any(n is top for n in bounds.walk()):
-                self._sim.bounding_object_changed(owner)  # its shape changed: its geoms are built again
-            elif chain is not None and self._sim.can_add(ancestors):
-                self._sim.add_nodes(top, ancestors)
-            elif any(n.type_name in SOLID_TYPES for n in top.walk()):
-                outside.append(" > ".join(n.type_name for n in ancestors) or "the scene root")
+        outside = [where for top in nodes if (where := join_physics(self._sim, top)) is not None]
         robots = [n for top in nodes for n in top.walk() if is_robot(n)]
         if robots:
             self._sup._runtime.start_controllers(robots)
@@ -288,6 +274,25 @@ class Node:
             # has no body to join)
             warn(f"a Solid imported under {outside[0]} is in the scene tree (read, saved) but takes no part in the "
                  "physics: nothing there for it to join")
+
+    def _number(self, nodes: list[SceneNode]) -> None:
+        """Give the nodes of these subtrees that have none a unique id (after the existing ones)."""
+        ids, by_id = self._sup._runtime.node_ids()
+        for top in nodes:
+            for node in top.walk():
+                if id(node) not in ids:
+                    ids[id(node)] = max(by_id, default=0) + 1
+                    by_id[ids[id(node)]] = node
+
+    def _regenerate(self, node: SceneNode) -> bool:
+        """Expand a procedural PROTO instance again after a field its template reads changed
+        (:mod:`.proto_regeneration`); False when it is not done (an instance holding a Robot)."""
+        text = write_node(node_as_saved(self._sim, node), protos=True)
+        try:
+            return regenerate(self._sim, node, text, lambda t: parse_nodes(self._sim, t), self._number)
+        except Exception as exc:  # noqa: BLE001 - the template failed on the new value: Webots keeps the node
+            warn(f"PROTO {node.proto_name} could not be regenerated: {exc}")
+            return True
 
     def _removed(self, node: SceneNode) -> None:
         """Take the Solids of a removed subtree out of the physics (no collision, no ray hit, no joint)."""
@@ -558,19 +563,24 @@ def world_as_saved(sim: Simulation) -> World:
     """A copy of the scene tree with every Solid's ``translation``/``rotation`` and every joint's ``position`` at
     their current values, as Webots writes them in ``worldSave`` (its fields follow the physics). A PROTO
     instance's own pose goes to the interface field it is ``IS``-linked to."""
-    tops = [node.copy() for node in sim.world.nodes]
-    for original_top, copy_top in zip(sim.world.nodes, tops, strict=True):
-        for original, copy in zip(original_top.walk(), copy_top.walk(), strict=True):
-            solid = sim.solid_for(original)
-            if solid is not None:
-                pose = sim.solid_local_pose(solid)
-                _save_field(copy, "translation", tuple(pose.t))
-                _save_field(copy, "rotation", tuple(m3.axis_angle_from_mat(pose.R)))
-            joint = sim.joint_for(original)
-            if joint is not None and original.type_name.endswith("Parameters") and original in joint.params:
-                _save_field(copy, "position", float(joint.positions[joint.params.index(original)]))
+    tops = [node_as_saved(sim, node) for node in sim.world.nodes]
     return World(sim.world.path, sim.world.header, tops, list(sim.world.externprotos),
                  list(sim.world.importable_externprotos))
+
+
+def node_as_saved(sim: Simulation, top: SceneNode) -> SceneNode:
+    """A copy of ``top``'s subtree with its poses and joint positions as :func:`world_as_saved` writes them."""
+    copy_top = top.copy()
+    for original, copy in zip(top.walk(), copy_top.walk(), strict=True):
+        solid = sim.solid_for(original)
+        if solid is not None:
+            pose = sim.solid_local_pose(solid)
+            _save_field(copy, "translation", tuple(pose.t))
+            _save_field(copy, "rotation", tuple(m3.axis_angle_from_mat(pose.R)))
+        joint = sim.joint_for(original)
+        if joint is not None and original.type_name.endswith("Parameters") and original in joint.params:
+            _save_field(copy, "position", float(joint.positions[joint.params.index(original)]))
+    return copy_top
 
 
 def _save_field(node: SceneNode, name: str, value: Any) -> None:

@@ -153,9 +153,10 @@ class _Writer:
         return "\n".join(lines)
 
 
-def write_node(node: Node, indent: int = 0, *, defaults: bool = False) -> str:
-    """VRML text of one node (first line not indented, following lines at ``indent`` levels)."""
-    return _Writer(defaults).node(node, indent)
+def write_node(node: Node, indent: int = 0, *, defaults: bool = False, protos: bool = False) -> str:
+    """VRML text of one node (first line not indented, following lines at ``indent`` levels); with ``protos``,
+    PROTO instances as Webots writes them (name and interface fields, see :func:`write_world`)."""
+    return _Writer(defaults, protos).node(node, indent)
 
 
 def format_value(value: Any, indent: int = 0) -> str:
