@@ -117,9 +117,10 @@ def test_a_procedural_proto_is_regenerated_when_a_template_field_changes(capsys:
     assert bar.getField("length").getSFFloat() == pytest.approx(0.2)
 
 
-def test_a_procedural_robot_proto_is_not_regenerated_and_says_so(capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_procedural_proto_holding_or_inside_a_robot_is_not_regenerated_and_says_so(capsys: pytest.CaptureFixture[str]) -> None:
     # the control: regenerating a Robot would restart its controller; its IS links are still followed
-    sup = _supervisor('Robot { supervisor TRUE }\nDEF ROVER Rover { place 1 0 0 }\n')
+    sup = _supervisor('Robot { supervisor TRUE children [ DEF INNER Bar { place 0 0 1 } ] }\n'
+                      'DEF ROVER Rover { place 1 0 0 }\n')
     rover = sup.getFromDef("ROVER")
     sup.step(STEP)
     capsys.readouterr()
@@ -131,6 +132,8 @@ def test_a_procedural_robot_proto_is_not_regenerated_and_says_so(capsys: pytest.
     err = capsys.readouterr().err
     assert "'length' is read by the template of procedural PROTO Rover" in err and err.count("\n") == 1
     assert rover.getField("length").getSFFloat() == 0.5
+    sup.getFromDef("INNER").getField("length").setSFFloat(0.5)  # a part of a robot: its devices would go too
+    assert "'length' is read by the template of procedural PROTO Bar" in capsys.readouterr().err
 
 
 def test_simulation_reset_restores_a_proto_field_with_the_nodes_it_feeds() -> None:

@@ -70,7 +70,7 @@ REGISTRY: tuple[Coverage, ...] = (
              "edits of a PROTO instance's fields follow its IS links (also through nested and derived PROTOs) "
              "to the expanded nodes; a field read by a procedural PROTO's template regenerates the instance (expanded "
              "again from its fields and current pose, same handle, DEF and id; a reset restores it), except one "
-             "holding a Robot, which warns and follows the IS links only"),
+             "holding a Robot or inside one, which warns and follows the IS links only"),
     Coverage("Robot", "scene", "supported",
              "Python controllers run unchanged, each in its own process (runner), supervisor API, selfCollision, "
              "controllerArgs; a Robot a supervisor imports at run time starts its controller in its own "

@@ -297,7 +297,7 @@ class Field:
         if self._owner._regenerate(node):
             return True
         warn(f"Field: '{self._name}' is read by the template of procedural PROTO {node.proto_name}; Webots "
-             "regenerates the node, dualtwin only follows the IS links here (the node holds a Robot)")
+             "regenerates the node, dualtwin only follows the IS links here (the node holds a Robot or is part of one)")
         return False
 
     def _convert(self, method: str, kind: str, value: Any) -> tuple[bool, Any]:

@@ -12,8 +12,8 @@ fields and its current pose and puts the new node in the old one's place (``WbTe
   Webots, where the instance's internal nodes are new;
 * ``simulationReset`` restores the load-time content with the other fields (the reset puts every field back)
   and rebuilds its physics;
-* an instance that holds a Robot is not regenerated (its controller would have to restart with it): the caller
-  says so and follows the ``IS`` links only.
+* an instance that holds a Robot or is part of one is not regenerated (the robot's devices, and in Webots its
+  controller, would have to start again with it): the caller says so and follows the ``IS`` links only.
 """
 
 from __future__ import annotations
@@ -63,10 +63,11 @@ def _inner_nodes(node: SceneNode) -> list[SceneNode]:
 def regenerate(sim: Simulation, node: SceneNode, text: str, parse: Any, number: Any) -> bool:
     """Replace ``node``'s content by the expansion of ``text`` (the instance as saved, with its new field value)
     and rebuild its physics. ``parse`` turns VRML text into scene nodes like an import; ``number`` gives new
-    nodes their unique ids. False, with nothing changed, for an instance holding a Robot or text that does not
-    expand to one node (the caller then warns)."""
-    if any(is_robot(n) for n in node.walk()):
-        return False
+    nodes their unique ids. False, with nothing changed, for an instance that holds a Robot or is part of one, or
+    text that does not expand to one node (the caller then warns)."""
+    chain = path_to_node(sim.world.nodes, node) or [node]
+    if any(is_robot(n) for n in node.walk()) or any(is_robot(n) for n in chain):
+        return False  # a robot's devices (and Webots: its controller) would have to start again with it
     fresh = parse(text)
     if len(fresh) != 1:
         return False

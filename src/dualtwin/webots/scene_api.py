@@ -286,7 +286,7 @@ class Node:
 
     def _regenerate(self, node: SceneNode) -> bool:
         """Expand a procedural PROTO instance again after a field its template reads changed
-        (:mod:`.proto_regeneration`); False when it is not done (an instance holding a Robot)."""
+        (:mod:`.proto_regeneration`); False when it is not done (an instance in or holding a Robot)."""
         text = write_node(node_as_saved(self._sim, node), protos=True)
         try:
             return regenerate(self._sim, node, text, lambda t: parse_nodes(self._sim, t), self._number)
