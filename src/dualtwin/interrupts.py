@@ -56,12 +56,19 @@ def _on_sigint(signum: int, frame: Any) -> None:
 
 
 def enter_native_callbacks() -> None:
-    """A native call that calls back into Python starts: a Ctrl-C is held until :func:`leave_native_callbacks`."""
-    _in_native[0] += 1
+    """A native call that calls back into Python starts: a Ctrl-C is held until :func:`leave_native_callbacks`.
+
+    Only in the main thread, the one signal handlers run in: a native call in another thread (a controller
+    process's serving thread steps the physics) is never interrupted by the handler, and a Ctrl-C held for it
+    would be raised in that thread, where it kills the thread instead of stopping the command."""
+    if threading.current_thread() is threading.main_thread():
+        _in_native[0] += 1
 
 
 def leave_native_callbacks() -> None:
     """The native call returned: a Ctrl-C held meanwhile (with the command ready to stop) is raised now."""
+    if threading.current_thread() is not threading.main_thread():
+        return
     _in_native[0] -= 1
     if not _in_native[0] and _state[0] and _state[1]:
         take_held()
