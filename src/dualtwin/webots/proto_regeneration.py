@@ -104,6 +104,7 @@ def _restore(sim: Simulation) -> None:
     """After ``simulationReset`` restored every field: each regenerated instance gets its load-time content back
     (with the restored field values) and its physics is built from it again."""
     records: dict[int, _Regenerated] = sim.extensions["regenerated_protos"]
+    removed = sim.extensions.get("removed_nodes", [])  # a supervisor removed them: they stay out (scene_api)
     for record in records.values():
         node = record.node
         fields, interface = dict(node.fields), None if node.proto_fields is None else dict(node.proto_fields)
@@ -114,5 +115,6 @@ def _restore(sim: Simulation) -> None:
         if interface is not None and node.proto_fields is not None:
             node.proto_fields.clear()
             node.proto_fields.update(interface)
-        join_physics(sim, node)
+        if not any(node is n for n in removed):
+            join_physics(sim, node)
     records.clear()
