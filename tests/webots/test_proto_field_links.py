@@ -149,3 +149,23 @@ def test_simulation_reset_restores_a_proto_field_with_the_nodes_it_feeds() -> No
     sup.step(STEP)
     assert sensor.getValue() == pytest.approx(0.9)
     assert extent.getSFVec3f() == [0.2, 0.2, 0.2]  # the interface value is reset too, not only the Box
+
+
+def test_a_regenerated_proto_that_a_supervisor_removed_stays_out_after_a_reset() -> None:
+    # inside a parent's children, which the reset restores (the removal's own reset step then takes it out again)
+    sup = _supervisor(f"Robot {{ supervisor TRUE children [ {_sensors(0)} ] }}\n"
+                      "Solid { name \"shelf\" children [ DEF BAR Bar { place 1 0 0 } ] }\n")
+    sensor = sup.getDevice("s0")
+    sensor.enable(STEP)
+    bar = sup.getFromDef("BAR")
+    bar.getField("length").setSFFloat(0.5)
+    sup.step(STEP)
+    assert sensor.getValue() == pytest.approx(0.75)
+    bar.remove()
+    sup.step(STEP)
+    assert sensor.getValue() == pytest.approx(2.0)  # nothing in the ray: the table's far end
+    sup.simulationReset()  # removed nodes stay removed: the reset must not rebuild its body either
+    sup.step(STEP)
+    sup.step(STEP)
+    assert sensor.getValue() == pytest.approx(2.0)
+    assert sup.getFromDef("BAR") is None
