@@ -75,8 +75,10 @@ REGISTRY: tuple[Coverage, ...] = (
              "Python controllers run unchanged, each in its own process (runner), supervisor API, selfCollision, "
              "controllerArgs; a Robot a supervisor imports at run time starts its controller in its own "
              "process, stepping with the others from the next step, and remove() (or a reset, which takes imported nodes "
-             "out) ends it (its step returns -1); C "
-             "controllers do not run; battery drained by cpuConsumption and motor consumptionFactor × |torque| "
+             "out) ends it (its step returns -1); with several controllers the robots are sampled, draw sensor noise "
+             "and exchange packets in world order, and a simulationReset waits for every controller's step (each "
+             "then returns at t = 0), so the same world and seed give the same output however the processes are "
+             "scheduled; C controllers do not run; battery drained by cpuConsumption and motor consumptionFactor × |torque| "
              "(no Charger recharge; an empty battery stops nothing)"),
     Coverage("Group", "scene", "supported", "children expanded"),
     Coverage("Pose", "scene", "supported",
