@@ -26,7 +26,7 @@ STEP = 8
 def _supervisor(body: str) -> Supervisor:
     text = (
         '#VRML_SIM R2023b utf8\nEXTERNPROTO "Slab.proto"\nEXTERNPROTO "Wall.proto"\nEXTERNPROTO "Post.proto"\n'
-        'EXTERNPROTO "Bar.proto"\nEXTERNPROTO "Rover.proto"\n'
+        'EXTERNPROTO "Bar.proto"\nEXTERNPROTO "Rover.proto"\nEXTERNPROTO "Rack.proto"\n'
         f"WorldInfo {{ basicTimeStep {STEP} gravity 0 }}\n{body}"
     )
     with warnings.catch_warnings():
@@ -117,6 +117,18 @@ def test_a_procedural_proto_is_regenerated_when_a_template_field_changes(capsys:
     assert bar.getField("length").getSFFloat() == pytest.approx(0.2)
 
 
+def test_a_field_that_reaches_a_procedural_proto_through_is_regenerates_the_instance() -> None:
+    # Rack is a plain PROTO whose body is a Bar: its 'size' is Bar's 'length', read by Bar's template
+    sup = _supervisor(f"Robot {{ supervisor TRUE children [ {_sensors(0)} ] }}\nDEF RACK Rack {{ at 1 0 0 }}\n")
+    sensor = sup.getDevice("s0")
+    sensor.enable(STEP)
+    sup.step(STEP)
+    assert sensor.getValue() == pytest.approx(0.9)
+    sup.getFromDef("RACK").getField("size").setSFFloat(0.5)
+    sup.step(STEP)
+    assert sensor.getValue() == pytest.approx(0.75)
+
+
 def test_a_procedural_proto_holding_or_inside_a_robot_is_not_regenerated_and_says_so(capsys: pytest.CaptureFixture[str]) -> None:
     # the control: regenerating a Robot would restart its controller; its IS links are still followed
     sup = _supervisor('Robot { supervisor TRUE children [ DEF INNER Bar { place 0 0 1 } ] }\n'
@@ -130,10 +142,10 @@ def test_a_procedural_proto_holding_or_inside_a_robot_is_not_regenerated_and_say
     assert rover.getPosition() == pytest.approx([0.0, 1.0, 0.0])
     rover.getField("length").setSFFloat(0.5)
     err = capsys.readouterr().err
-    assert "'length' is read by the template of procedural PROTO Rover" in err and err.count("\n") == 1
+    assert "'length' is read by the template of a procedural PROTO in Rover" in err and err.count("\n") == 1
     assert rover.getField("length").getSFFloat() == 0.5
     sup.getFromDef("INNER").getField("length").setSFFloat(0.5)  # a part of a robot: its devices would go too
-    assert "'length' is read by the template of procedural PROTO Bar" in capsys.readouterr().err
+    assert "'length' is read by the template of a procedural PROTO in Bar" in capsys.readouterr().err
 
 
 def test_simulation_reset_restores_a_proto_field_with_the_nodes_it_feeds() -> None:

@@ -28,7 +28,7 @@ from dualtwin.webots.nodes import Node as SceneNode
 from dualtwin.webots.nodes import copy_value
 from dualtwin.webots.physics import JointRec, Simulation
 from dualtwin.webots.physics.records import is_robot
-from dualtwin.webots.proto_links import linked_fields
+from dualtwin.webots.proto_links import feeds_template, linked_fields
 
 __all__ = ["FIELD_TYPES", "Field", "FieldOwner", "field_type_name", "parse_nodes"]
 
@@ -281,22 +281,21 @@ class Field:
             return
         # a PROTO interface field: Webots propagates the value through the IS links of the PROTO body
         value = self._raw()
-        if self._name in self._node.template_fields and self._regenerate(self._node):
-            return  # expanded again with the new value: its body follows from it
+        # a template reads it (this PROTO's, or a procedural one's in its body): the instance is expanded again
+        # with the new value, and its whole body follows from it
+        if feeds_template(self._node, self._name) and self._regenerate(self._node):
+            return
         base, interfaces = linked_fields(self._node, self._name)
         for node, name in interfaces:
             assert node.proto_fields is not None
             node.proto_fields[name] = copy_value(value)
         for node, name in base:
             Field(self._owner._handle(node), name)._store(copy_value(value))
-        for node, name in interfaces:  # a nested procedural PROTO that reads it in its template
-            if name in node.template_fields:
-                self._regenerate(node)
 
     def _regenerate(self, node: SceneNode) -> bool:
         if self._owner._regenerate(node):
             return True
-        warn(f"Field: '{self._name}' is read by the template of procedural PROTO {node.proto_name}; Webots "
+        warn(f"Field: '{self._name}' is read by the template of a procedural PROTO in {node.proto_name}; Webots "
              "regenerates the node, dualtwin only follows the IS links here (the node holds a Robot or is part of one)")
         return False
 

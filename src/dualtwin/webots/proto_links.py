@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dualtwin.webots.nodes import Node
 
-__all__ = ["linked_fields"]
+__all__ = ["feeds_template", "linked_fields"]
 
 
 def linked_fields(root: Node, name: str) -> tuple[list[tuple[Node, str]], list[tuple[Node, str]]]:
@@ -35,3 +35,23 @@ def linked_fields(root: Node, name: str) -> tuple[list[tuple[Node, str]], list[t
                         interfaces.append((node, inner_field))
                     pending.append((node, inner, inner_field))
     return base, interfaces
+
+
+def feeds_template(root: Node, name: str) -> bool:
+    """Whether a procedural PROTO's template reads ``root``'s interface field ``name``: its own template, or that
+    of an instance in its body (or the PROTO it derives from) that the field reaches through ``IS`` links. Such
+    an edit makes Webots regenerate the instance."""
+    if root.proto_instance is None:
+        return False
+    if name in root.template_fields:
+        return True
+    pending = [(root, root.proto_instance, name)]
+    while pending:
+        top, instance, field = pending.pop()
+        for node in top.walk():
+            for outer, outer_field, inner, inner_field in node.instance_links:
+                if (outer, outer_field) == (instance, field):
+                    if inner_field in node.template_fields:
+                        return True
+                    pending.append((node, inner, inner_field))
+    return False
