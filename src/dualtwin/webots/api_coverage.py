@@ -53,10 +53,12 @@ API_NOTES: tuple[tuple[str, str, str], ...] = (
      "a Supervisor driven directly (no run_world) starts no controller (one warning at its next step) and a "
      "restarted one keeps running; 'dualtwin webots run' and run_world (processes or threads) start and restart "
      "them as Webots does"),
-    ("not yet", "Supervisor.worldSave",
-     "Solids and joints are written where the physics has them and PROTO instances as PROTO nodes with the "
-     "interface fields that differ from their defaults; the state inside a PROTO instance (its internal Solids' "
-     "poses and joint positions, Webots' 'hidden' fields) is not written"),
+    ("not yet", "Supervisor.worldSave, Node.exportString",
+     "Solids and joints are written where the physics has them, moving bodies with their velocities, and PROTO "
+     "instances as PROTO nodes with the interface fields that differ from their defaults and their internal "
+     "state as Webots' hidden fields (translation_N, rotation_N, linearVelocity_N, angularVelocity_N, "
+     "position_N_M), which load back; not checked against files Webots wrote: it may leave out entries that "
+     "did not change"),
     ("not yet", "Motion", "plays .motion files on the robot's motors (linear interpolation between poses)"),
     ("not yet", "Device(name) built by the user",
      "a second handle on the device keeps its own sampling state (Webots shares one per device)"),

@@ -214,6 +214,29 @@ def _joints_of(solid: Node) -> list[Node]:
     return out
 
 
+def saved_hidden(root: Node) -> dict[str, Any]:
+    """The ``hidden`` fields Webots writes for a PROTO instance's internal state, read from its expanded body's
+    current fields: ``translation_N``/``rotation_N`` of the Solids inside it (N their pre-order index; the root's
+    own, 0, only where no interface field carries it), ``linearVelocity_N``/``angularVelocity_N`` where a Solid
+    moves, and ``position[2|3]_N_M`` of every joint (M its index among Solid N's joints). The inverse of
+    :meth:`_Expander._apply_hidden`, so a saved or regenerated instance comes back in the same state."""
+    hidden: dict[str, Any] = {}
+    for n, solid in enumerate(_solids_preorder(root)):
+        for name in ("translation", "rotation"):
+            if name in solid.fields and (n > 0 or name not in solid.is_links):
+                hidden[f"{name}_{n}"] = solid.fields[name]
+        for name in ("linearVelocity", "angularVelocity"):
+            value = solid.fields.get(name)
+            if value is not None and any(v != 0.0 for v in value):
+                hidden[f"{name}_{n}"] = value
+        for m, joint in enumerate(_joints_of(solid)):
+            for suffix in ("", "2", "3"):
+                params = joint.fields.get("jointParameters" + suffix)
+                if isinstance(params, Node) and "position" in params.fields:
+                    hidden[f"position{suffix}_{n}_{m}"] = params.fields["position"]
+    return hidden
+
+
 # Process-wide, so a node imported at run time never shares an instance number with one already loaded.
 _INSTANCE_NUMBERS = itertools.count(1)
 

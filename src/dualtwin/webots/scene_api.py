@@ -23,6 +23,7 @@ from dualtwin.webots.nodes import World, copy_value, path_to_node
 from dualtwin.webots.physics import Simulation, SolidRec
 from dualtwin.webots.physics.records import is_robot
 from dualtwin.webots.proto_regeneration import join_physics, regenerate
+from dualtwin.webots.protos import saved_hidden
 from dualtwin.webots.step_hints import step_value
 from dualtwin.webots.writer import write_node
 
@@ -287,7 +288,7 @@ class Node:
     def _regenerate(self, node: SceneNode) -> bool:
         """Expand a procedural PROTO instance again after a field its template reads changed
         (:mod:`.proto_regeneration`); False when it is not done (an instance in or holding a Robot)."""
-        text = write_node(node_as_saved(self._sim, node), protos=True)
+        text = write_node(node_as_saved(self._sim, node, state=False), protos=True)
         try:
             return regenerate(self._sim, node, text, lambda t: parse_nodes(self._sim, t), self._number)
         except Exception as exc:  # noqa: BLE001 - the template failed on the new value: Webots keeps the node
@@ -568,8 +569,10 @@ def world_as_saved(sim: Simulation) -> World:
                  list(sim.world.importable_externprotos))
 
 
-def node_as_saved(sim: Simulation, top: SceneNode) -> SceneNode:
-    """A copy of ``top``'s subtree with its poses and joint positions as :func:`world_as_saved` writes them."""
+def node_as_saved(sim: Simulation, top: SceneNode, state: bool = True) -> SceneNode:
+    """A copy of ``top``'s subtree with its poses, velocities and joint positions as :func:`world_as_saved`
+    writes them; a PROTO instance's internal state goes to its ``hidden`` fields, as Webots saves it. Without
+    ``state``, only the poses that fields carry (a regenerated instance's geometry comes from its template)."""
     copy_top = top.copy()
     for original, copy in zip(top.walk(), copy_top.walk(), strict=True):
         solid = sim.solid_for(original)
@@ -577,9 +580,18 @@ def node_as_saved(sim: Simulation, top: SceneNode) -> SceneNode:
             pose = sim.solid_local_pose(solid)
             _save_field(copy, "translation", tuple(pose.t))
             _save_field(copy, "rotation", tuple(m3.axis_angle_from_mat(pose.R)))
+            body = solid.body
+            if state and body is not None and body.root is solid and not body.removed:
+                velocity = sim.solid_velocity(solid)
+                for name, value in (("linearVelocity", velocity[:3]), ("angularVelocity", velocity[3:])):
+                    if any(v != 0.0 for v in value):  # a body at rest keeps the default (nothing written)
+                        copy.fields[name] = tuple(float(v) for v in value)
         joint = sim.joint_for(original)
         if joint is not None and original.type_name.endswith("Parameters") and original in joint.params:
             _save_field(copy, "position", float(joint.positions[joint.params.index(original)]))
+    for node in copy_top.walk():
+        if state and node.proto_name is not None and node.proto_fields is not None:
+            node.hidden = {**node.hidden, **saved_hidden(node)}
     return copy_top
 
 
