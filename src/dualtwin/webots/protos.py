@@ -219,7 +219,7 @@ def saved_hidden(root: Node) -> dict[str, Any]:
     current fields: ``translation_N``/``rotation_N`` of the Solids inside it (N their pre-order index; the root's
     own, 0, only where no interface field carries it), ``linearVelocity_N``/``angularVelocity_N`` where a Solid
     moves, and ``position[2|3]_N_M`` of every joint (M its index among Solid N's joints). The inverse of
-    :meth:`_Expander._apply_hidden`, so a saved or regenerated instance comes back in the same state."""
+    :meth:`_Expander._apply_hidden`, so a saved or exported instance loads back in the same state."""
     hidden: dict[str, Any] = {}
     for n, solid in enumerate(_solids_preorder(root)):
         for name in ("translation", "rotation"):
