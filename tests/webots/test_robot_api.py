@@ -22,6 +22,7 @@ from dualtwin.webots.controller import (
 )
 from dualtwin.webots.node_types import NODE_TYPE_CONSTANTS, node_type_of
 from dualtwin.webots.physics import Simulation
+from dualtwin.webots.robot import link_of
 
 WORLD = """#VRML_SIM R2023b utf8
 WorldInfo { basicTimeStep 8 }
@@ -143,6 +144,23 @@ def test_devices_built_from_a_name_or_tag_as_in_webots() -> None:
     assert Motor(tag).getName() == "m" and sup.getFromDevice(tag).getBaseTypeName() == "RotationalMotor"
     sensor = PositionSensor(sup.devices["s"]._tag)
     assert sensor.getSamplingPeriod() == 0  # a tag-built sensor is not enabled
+
+
+def test_handles_on_one_device_share_its_state_as_in_webots() -> None:
+    """Webots' controller library keeps a device's state per device: enabling it through a handle built by name
+    enables the robot's own handle too, and both read the same values (sampled once per step)."""
+    sup = Supervisor(simulation=_sim())
+    own = sup.devices["ds"]
+    assert own.getSamplingPeriod() == 0
+    by_name = DistanceSensor("ds")
+    assert by_name is not own and own.getSamplingPeriod() == 8
+    sup.step(8)
+    assert math.isfinite(own.getValue()) and own.getValue() == by_name.getValue()
+    by_tag = DistanceSensor(own._tag)  # built from a tag: no enable of its own, the device's state
+    assert by_tag.getSamplingPeriod() == 8 and by_tag.getValue() == own.getValue()
+    by_tag.disable()
+    assert own.getSamplingPeriod() == 0 and by_name.getSamplingPeriod() == 0
+    assert list(link_of(sup)._sensors.values()) == []  # nothing left to sample
 
 
 def test_webots_answers_without_a_gui() -> None:

@@ -60,8 +60,6 @@ API_NOTES: tuple[tuple[str, str, str], ...] = (
      "position_N_M), which load back; not checked against files Webots wrote: it may leave out entries that "
      "did not change"),
     ("not yet", "Motion", "plays .motion files on the robot's motors (linear interpolation between poses)"),
-    ("not yet", "Device(name) built by the user",
-     "a second handle on the device keeps its own sampling state (Webots shares one per device)"),
     ("permissive", "Field.setSFBool/Int32/Float",
      "take any real scalar (Webots' isinstance checks refuse an int for setSFFloat and a NumPy integer for "
      "setSFInt32, with an error line); the SF vector setters take a list only, as Webots does"),

@@ -85,7 +85,13 @@ def current_host() -> DeviceHost:
 
 class Device:
     """Webots ``Device``: a named robot device. ``Cls(name)`` with a device name or tag builds a new handle on
-    that device of this controller's robot (as in Webots); the robot's own handles come from ``getDevice``."""
+    that device of this controller's robot (as in Webots); the robot's own handles come from ``getDevice``.
+
+    As in Webots, where the controller library keeps a device's state per device, every handle of one device
+    shares its state (sampling period, values, queues): a handle built by the user is a new object whose
+    attributes are those of the robot's own handle (``_owner``), so enabling one enables the other."""
+
+    _owner: Any  # the robot's own handle on this device (itself for that one), of its class or a base of it
 
     def __init__(self, name: Any) -> None:
         binding: DeviceBinding | None
@@ -95,8 +101,14 @@ class Device:
             if isinstance(name, bool) or not isinstance(name, (str, int)):
                 raise TypeError(f"{type(self).__name__}() expects a device name (str) or tag (int), got {name!r}")
             binding = current_host()._binding_for(name)
+            if binding is not None:
+                owner = binding.host._device_for(binding.record)
+                if isinstance(self, type(owner)):
+                    self.__dict__ = owner.__dict__  # one device, one state (its _owner stays the robot's handle)
+                    return
         if binding is None:
             raise ValueError(f"{type(self).__name__}(): no device {name!r} on this robot")
+        self._owner = self
         self._robot: DeviceHost = binding.host
         self._name = binding.name
         self._record = binding.record
@@ -149,6 +161,10 @@ class Sensor(Device):
 
     def __init__(self, name: Any, sampling_period: Any = None) -> None:
         super().__init__(name)
+        if self._owner is not self:  # another handle on a device whose state exists: only a name enables it
+            if isinstance(name, str):
+                self.enable(int(self._robot.getBasicTimeStep()) if sampling_period is None else sampling_period)
+            return
         self._period = 0
         self._last_sample: float | None = None
         self._enabled_at = 0.0
@@ -167,8 +183,8 @@ class Sensor(Device):
         self._last_sample = None
         self._invalidate()
         install_sampler(self._robot)
-        sensors = self._robot._sensors
-        sensors[id(self)] = self
+        sensors, owner = self._robot._sensors, self._owner
+        sensors[id(owner)] = owner  # sampled once, whichever handle enabled it
         # sampled in the robot's device order (Webots' scene-tree order), whatever order the controller enabled
         # them in: noise draws come from the simulation's one generator, so the order decides every value
         ordered = sorted(sensors.items(), key=lambda item: item[1]._tag)
@@ -179,7 +195,7 @@ class Sensor(Device):
 
     def disable(self) -> None:
         self._period = 0
-        self._robot._sensors.pop(id(self), None)
+        self._robot._sensors.pop(id(self._owner), None)
 
     @step_value
     def getSamplingPeriod(self) -> int:

@@ -27,8 +27,9 @@ class Speaker(Device):
 
     def __init__(self, name: Any) -> None:
         super().__init__(name)
-        self._engine = "pico"
-        self._language = "en-US"
+        if self._owner is self:  # (another handle on the speaker shares its engine and language)
+            self._engine = "pico"
+            self._language = "en-US"
 
     @staticmethod
     def playSound(left: Speaker, right: Speaker, sound: str, volume: Any, pitch: Any, balance: Any,

@@ -128,15 +128,15 @@ class TouchSensor(SolidSensor):
             hooks = _bumpers(self._robot._sim)
             if self._period > 0:
                 self._touched = False
-                hooks.active[id(self)] = self
+                hooks.active[id(self._owner)] = self._owner
             else:
-                hooks.active.pop(id(self), None)
+                hooks.active.pop(id(self._owner), None)
 
     def disable(self) -> None:
         super().disable()
         hooks = self._robot._sim.extensions.get("bumpers")
         if hooks is not None:
-            hooks.active.pop(id(self), None)
+            hooks.active.pop(id(self._owner), None)
 
     def _invalidate(self) -> None:
         self._values = [math.nan] * 3
