@@ -50,7 +50,7 @@ class DeviceHost(Protocol):
 
 __all__ = [
     "Device", "DeviceBinding", "DeviceHost", "SampledDevice", "Sensor", "SolidSensor", "bind_host", "current_host",
-    "install_sampler", "sample_due", "world_order",
+    "install_sampler", "register_in_world_order", "sample_due", "world_order",
 ]
 
 
@@ -183,13 +183,10 @@ class Sensor(Device):
         self._last_sample = None
         self._invalidate()
         install_sampler(self._robot)
-        sensors, owner = self._robot._sensors, self._owner
-        sensors[id(owner)] = owner  # sampled once, whichever handle enabled it
-        # sampled in the robot's device order (Webots' scene-tree order), whatever order the controller enabled
-        # them in: noise draws come from the simulation's one generator, so the order decides every value
-        ordered = sorted(sensors.items(), key=lambda item: item[1]._tag)
-        sensors.clear()
-        sensors.update(ordered)
+        # sampled once, whichever handle enabled it, and in the robot's device order (Webots' scene-tree order)
+        # whatever order the controller enabled them in: noise draws come from the simulation's one generator,
+        # so the order decides every value
+        register_in_world_order(self._robot._sensors, self._owner)
         if self._tracks_steps:
             self._start_tracking()
 
@@ -253,7 +250,7 @@ def sample_due(host: DeviceHost, now: float, every: bool = False) -> None:
         sampler(host._sim, devices)
 
 
-_registering = threading.Lock()  # controllers (threads of this process) register their robots concurrently
+_registering = threading.Lock()  # controllers (threads of this process) register robots and devices concurrently
 
 
 def install_sampler(host: DeviceHost) -> None:
@@ -278,11 +275,28 @@ def install_sampler(host: DeviceHost) -> None:
             hosts[:] = sorted([*hosts, host], key=world_order)
 
 
-def world_order(host: DeviceHost) -> int:
+class _Placed(Protocol):
+    """Anything bound to one robot of the world (a device host, the runtime's robot of a controller)."""
+
+    @property
+    def _rec(self) -> RobotRec: ...
+
+
+def world_order(host: _Placed) -> int:
     """Where ``host``'s robot comes in the world (its Solid's index in the scene tree): the order in which
     Webots updates robots and their devices, and so the order in which the robots of a world draw noise,
-    exchange packets and are sampled here, however their controllers are scheduled."""
+    exchange packets, are sampled and are reset here, however their controllers are scheduled."""
     return host._rec.solid.index
+
+
+def register_in_world_order(table: dict[int, Any], device: Device) -> None:
+    """Add a device handle to a table keyed by ``id``, keeping the table in world order (robot, then device
+    tag). The table object stays the same: the simulation's hooks iterate it."""
+    with _registering:  # the controllers' threads of this process register their devices concurrently
+        table[id(device)] = device
+        ordered = sorted(table.items(), key=lambda item: (world_order(item[1]._robot), item[1]._tag))
+        table.clear()
+        table.update(ordered)
 
 
 class SolidSensor(Sensor):

@@ -18,6 +18,7 @@ fields and its current pose and puts the new node in the old one's place (``WbTe
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -56,11 +57,8 @@ class _Regenerated:
     inner: list[SceneNode]  # the nodes of its current content below it (their Solids are in the physics)
 
 
-def _inner_nodes(node: SceneNode) -> list[SceneNode]:
-    return [n for n in node.walk() if n is not node]
-
-
-def regenerate(sim: Simulation, node: SceneNode, text: str, parse: Any, number: Any) -> bool:
+def regenerate(sim: Simulation, node: SceneNode, text: str, parse: Callable[[str], list[SceneNode]],
+               number: Callable[[list[SceneNode]], None]) -> bool:
     """Replace ``node``'s content by the expansion of ``text`` (the instance as saved, with its new field value)
     and rebuild its physics. ``parse`` turns VRML text into scene nodes like an import; ``number`` gives new
     nodes their unique ids. False, with nothing changed, for an instance that holds a Robot or is part of one, or
@@ -77,7 +75,7 @@ def regenerate(sim: Simulation, node: SceneNode, text: str, parse: Any, number: 
         record = records[id(node)] = _Regenerated(node, dict(vars(node)), [])
     _remove(sim, node, record)
     vars(node).update(vars(fresh[0]))  # the same object: handles and the parent's field still hold it
-    record.inner = _inner_nodes(node)
+    record.inner = [n for n in node.walk() if n is not node]
     number([node])
     join_physics(sim, node)
     return True

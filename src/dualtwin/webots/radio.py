@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import math
 import struct
-import threading
 from dataclasses import dataclass
 from typing import Any
 
@@ -34,7 +33,7 @@ import numpy as np
 
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots.api_args import as_float, as_int, warn
-from dualtwin.webots.device_base import Device, SolidSensor, world_order
+from dualtwin.webots.device_base import Device, SolidSensor, register_in_world_order
 from dualtwin.webots.physics import Simulation
 from dualtwin.webots.ranging import caster_for
 from dualtwin.webots.rays import candidate_geoms, geom_list
@@ -157,20 +156,6 @@ def _medium(sim: Simulation) -> _Medium:
     return medium
 
 
-def _register(devices: dict[int, Any], device: Emitter | Receiver) -> None:
-    """Add a device handle, keeping the table in world order (robot, then device): packets sent in the same
-    step reach a receiver in that order and draw their noise in it, as in Webots, whichever controller process
-    got its device first."""
-    with _registering:  # the controllers' serving threads get their devices concurrently
-        devices[id(device)] = device
-        ordered = sorted(devices.items(), key=lambda item: (world_order(item[1]._robot), item[1]._tag))
-        devices.clear()
-        devices.update(ordered)
-
-
-_registering = threading.Lock()
-
-
 def _kind(fields: dict[str, Any]) -> str:
     kind = str(fields.get("type", "radio"))
     return kind if kind in ("radio", "serial", "infra-red") else "radio"
@@ -196,7 +181,7 @@ class Emitter(Device):
         self._allowed = [int(c) for c in f.get("allowedChannels", []) or []]
         self._queue: list[_Packet] = []
         self._budget = 0.0
-        _register(_medium(robot._sim).emitters, self)
+        register_in_world_order(_medium(robot._sim).emitters, self)
 
     def _release(self, ms: float) -> list[_Packet]:
         if self._baud < 0:
@@ -278,7 +263,7 @@ class Receiver(SolidSensor):
         self._allowed = [int(c) for c in f.get("allowedChannels", []) or []]
         self._arrived: list[_Packet] = []
         self._queue: list[_Packet] = []
-        _register(_medium(robot._sim).receivers, self)
+        register_in_world_order(_medium(robot._sim).receivers, self)
 
     def _invalidate(self) -> None:
         pass  # the queue survives re-enabling, as in Webots

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Protocol
 
 from dualtwin.webots.api_args import warn
+from dualtwin.webots.device_base import world_order
 from dualtwin.webots.keyboard import KeyScript
 from dualtwin.webots.nodes import Node as SceneNode
 from dualtwin.webots.physics import RobotRec, Simulation
@@ -45,7 +46,7 @@ class RuntimeRobot(Protocol):
     """What the runtime needs of a controller's Robot (typed structurally so this module needs no Robot)."""
 
     @property
-    def _rec(self) -> RobotRec: ...  # its robot, whose Solid's index is its place in the world
+    def _rec(self) -> RobotRec: ...  # its robot (device_base.world_order: its place in the world)
 
     def _after_reset(self) -> None: ...
 
@@ -445,7 +446,7 @@ class Runtime:
         self.simulation.reset()
         # robots in world order (their sensors draw noise from one generator), not in the order the controllers
         # happened to start
-        for c in sorted(self._clients, key=lambda c: c.robot._rec.solid.index):
+        for c in sorted(self._clients, key=lambda c: world_order(c.robot)):
             c.target = 0.0
             c.robot._after_reset()
         for c in waiting:
