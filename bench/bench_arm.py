@@ -27,17 +27,26 @@ Run: ``python bench/bench_arm.py`` (divergence, stepping and alignment; ``--part
   a local two-worker Ray cluster (speed-up over one process, traces compared bit for bit), and a whole CMA-ES
   fit through the pool and through Ray (fitted values compared bit for bit), all with align's MuJoCo batch off;
 * ``batch``: the same 26 candidates one at a time in one process, in the two-worker pool, and as one
-  ``mujoco.batch`` on 2 threads (align's default for a MuJoCo target; goal >= 1.8x one process), wall and
-  CPU seconds, traces compared bit for bit. ``align`` fits twice by default (``--batch both``): today's path
-  (batch off, the process pool) and the batched one, with both wall times and the fitted values compared.
-  The thread-scaling curve is ``bench/bench_batch_scaling.py``.
+  ``mujoco.batch`` on 2 threads (``--batch threads``), and split in two one-thread batches, one per worker of
+  the pool (align's default for a MuJoCo target); goal >= 1.8x one process; wall and CPU seconds, traces
+  compared bit for bit. ``align`` fits three times by default (``--batch all``), with the
+  wall times and the fitted values compared: the path as issue 25 measured it (batch off, the process pool of
+  two, Webots' motor law in Python per physics step, ``DUALTWIN_NATIVE_LAW=0``; run in a child interpreter,
+  since the pool's fork server keeps the environment it started with), the same pool with the law in the
+  plugin (``off``), and the batched fit (``auto``); ``--batch both`` leaves out the first. The issue's goal
+  (>= 2x) is the batched fit against the first. The thread-scaling curve is
+  ``bench/bench_batch_scaling.py``.
 
 Set ``DUALTWIN_BENCH_ARM_OUT`` to keep the runs.
 """
 
 from __future__ import annotations
 
+import json
 import math
+import os
+import subprocess
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -346,6 +355,7 @@ def fit_stages(root: Path, suite: Path, holdout: list[str], channels: list[str],
                optimizer: str, restarts: int, polish: int, batch: str, tag: str = "") -> dict[str, Any]:
     """The arm fit: CMA-ES in stages (then the least-squares polish), simulated with align's ``batch`` setting
     (``auto``: one mujoco.batch on the pool's worker count of threads; ``off``: the executor, today's path)."""
+    label = "issue's path" if tag == "_issue" else f"batch {batch}"
     start, cpu = time.perf_counter(), time.process_time()
     # CMA-ES in stages (restarts = stages - 1): each stage starts at the previous stage's best with a step
     # SIGMA_SHRINK times smaller. One stage of sigma 0.25 spent most of its budget shrinking its step from the
@@ -360,7 +370,7 @@ def fit_stages(root: Path, suite: Path, holdout: list[str], channels: list[str],
                          batch=batch)
         evaluations += result.evaluations
         fitted = result.fitted
-        print(f"  [batch {batch}] stage {stage + 1}/{stages}: sigma0 {sigma:.3g}, {result.evaluations} evaluations, "
+        print(f"  [{label}] stage {stage + 1}/{stages}: sigma0 {sigma:.3g}, {result.evaluations} evaluations, "
               f"objective {result.objective_before:.4g} -> {result.objective_after:.4g}, held out "
               f"{result.holdout_after}, {time.perf_counter() - start:.0f} s so far, stop: {result.stop_reason}",
               flush=True)
@@ -374,11 +384,40 @@ def fit_stages(root: Path, suite: Path, holdout: list[str], channels: list[str],
                          executor=executor, start=dict(fitted), batch=batch)
         evaluations += result.evaluations
         fitted = result.fitted
-        print(f"  [batch {batch}] least-squares polish from the CMA-ES result: {result.evaluations} evaluations, "
+        print(f"  [{label}] least-squares polish from the CMA-ES result: {result.evaluations} evaluations, "
               f"objective -> {result.objective_after:.4g}, held out {result.holdout_after}, "
               f"{time.perf_counter() - start:.0f} s so far, stop: {result.stop_reason}", flush=True)
     return {"result": result, "fitted": fitted, "evaluations": evaluations, "cma_only": cma_only,
             "wall_s": time.perf_counter() - start, "cpu_s": time.process_time() - cpu, "stages": stages}
+
+
+def fit_in_child(root: Path, budget: int, executor: str, optimizer: str, restarts: int, polish: int
+                 ) -> dict[str, Any]:
+    """The fit as issue 25 measured it: the executor, Webots' motor law in Python per physics step. It runs in a
+    child interpreter started with ``DUALTWIN_NATIVE_LAW=0``: the pool's fork server is started once per
+    process and keeps the environment of that moment, so in this process the other fits' workers would get it
+    too (or this fit's the plugin). The child records the same reference (the Webots twin, deterministic) under
+    ``root``; only its fit is timed."""
+    out = root / "fit.json"
+    root.mkdir(parents=True, exist_ok=True)
+    command = [sys.executable, __file__, "--fit-child", str(root), "--budget", str(budget), "--executor", executor,
+               "--optimizer", optimizer, "--restarts", str(restarts), "--polish", str(polish)]
+    print("  [issue's path] fitting in a child interpreter with DUALTWIN_NATIVE_LAW=0", flush=True)
+    subprocess.run(command, check=True, env={**os.environ, "DUALTWIN_NATIVE_LAW": "0"})
+    return json.loads(out.read_text())
+
+
+def child_fit(root: Path, budget: int, executor: str, optimizer: str, restarts: int, polish: int) -> None:
+    """``--fit-child``: :func:`fit_in_child`'s side, figures to ``root/fit.json``."""
+    twin = make_twin("mujoco", resolve_robot("arm_payload"))
+    native = getattr(twin, "native_law", True)
+    twin.close()
+    if native:
+        raise SystemExit("bench_arm: --fit-child wants DUALTWIN_NATIVE_LAW=0 (the Python motor law)")
+    _, suite, holdout, _, channels = reference_setup(root)
+    fit = fit_stages(root, suite, holdout, channels, budget, executor, optimizer, restarts, polish, "off",
+                     tag="_issue")
+    (root / "fit.json").write_text(json.dumps({k: fit[k] for k in ("wall_s", "cpu_s", "fitted", "evaluations")}))
 
 
 def alignment(root: Path, budget: int, executor: str, optimizer: str = "cma", restarts: int = 0,
@@ -386,30 +425,46 @@ def alignment(root: Path, budget: int, executor: str, optimizer: str = "cma", re
     """CMA-ES over 25 knobs of the MuJoCo arm_payload against the Webots stand-in; RMSE before/after per
     scenario, and which knob families and joints carry the divergence (ablation from the fitted values).
 
-    ``batch="both"`` fits twice in this run, today's path (``off``: the executor) then the batched one
-    (``auto``), and compares wall time, CPU time and every fitted value; the report is the batched fit's."""
+    ``batch="all"`` fits three times in this run: the issue's path (``issue``: the executor with the Python
+    motor law, in a child interpreter), the executor with the plugin law (``off``) and the batched fit
+    (``auto``); ``both`` leaves out the first. Wall time, CPU time and every fitted value are compared; the
+    report is the batched fit's."""
     from fnmatch import fnmatch
 
     robot, suite, holdout, fit_ids, channels = reference_setup(root)
-    modes = ["off", "auto"] if batch == "both" else [batch]
-    fits = {mode: fit_stages(root, suite, holdout, channels, budget, executor, optimizer, restarts, polish, mode,
-                             tag=f"_{mode}") for mode in modes}
+    modes = {"all": ["issue", "off", "auto"], "both": ["off", "auto"]}.get(batch, [batch])
+    fits = {mode: fit_in_child(root / "issue_path", budget, executor, optimizer, restarts, polish) if mode == "issue"
+            else fit_stages(root, suite, holdout, channels, budget, executor, optimizer, restarts, polish, mode,
+                            tag=f"_{mode}") for mode in modes}
     fit = fits[modes[-1]]
+    if "result" not in fit:  # --batch issue alone: the child's figures are all there is
+        print(f"== alignment, the issue's path: {fit['wall_s']:.0f} s wall, {fit['evaluations']} evaluations ==")
+        return {"align_issue_wall_s": fit["wall_s"], "fitted": fit["fitted"]}
     result, fitted, evaluations, cma_only, stages = (fit["result"], fit["fitted"], fit["evaluations"],
                                                     fit["cma_only"], fit["stages"])
     wall = fit["wall_s"]
     comparison: dict[str, Any] = {}
-    if len(fits) == 2:
-        off, auto = fits["off"], fits["auto"]
-        same = off["fitted"] == auto["fitted"] and off["evaluations"] == auto["evaluations"]
-        comparison = {"align_off_wall_s": off["wall_s"], "align_off_cpu_s": off["cpu_s"],
-                      "align_batch_wall_s": auto["wall_s"], "align_batch_cpu_s": auto["cpu_s"],
-                      "align_batch_speedup": off["wall_s"] / auto["wall_s"], "align_batch_same": same}
-        print(f"== alignment, batched vs today's path (executor {executor}, workers 2): off {off['wall_s']:.0f} s wall "
-              f"({off['cpu_s']:.0f} CPU-s of this process; the pool's workers are not counted), batched "
-              f"{auto['wall_s']:.0f} s wall ({auto['cpu_s']:.0f} CPU-s, both threads): "
-              f"{off['wall_s'] / auto['wall_s']:.2f}x (goal >= 2x); {evaluations} evaluations each; fitted values "
-              f"{'identical' if same else 'DIFFER'} ==")
+    if "auto" in fits and len(fits) > 1:
+        auto = fits["auto"]
+        labels = {"issue": "the issue's path (pool of 2, Python law)", "off": "pool of 2, plugin law"}
+        print(f"== alignment, batched (align's default: a one-thread batch in each of 2 pool workers, plugin law) "
+              f"against one candidate at a time (executor {executor}, workers 2; CPU-s of the driving process, the "
+              "pool's workers not counted) ==")
+        for mode in [m for m in modes if m != "auto"]:
+            other = fits[mode]
+            same = other["fitted"] == auto["fitted"] and other["evaluations"] == auto["evaluations"]
+            gap = max(abs(other["fitted"][k] - auto["fitted"][k]) / max(abs(auto["fitted"][k]), 1e-12)
+                      for k in auto["fitted"])
+            comparison.update({f"align_{mode}_wall_s": other["wall_s"], f"align_{mode}_cpu_s": other["cpu_s"],
+                               f"align_batch_speedup_over_{mode}": other["wall_s"] / auto["wall_s"],
+                               f"align_batch_same_as_{mode}": same, f"align_fitted_gap_to_{mode}": gap})
+            goal = " (goal >= 2x)" if mode == "issue" else ""
+            print(f"  {labels[mode]:42s} {other['wall_s']:6.0f} s wall {other['cpu_s']:6.0f} CPU-s  "
+                  f"batched {other['wall_s'] / auto['wall_s']:.2f}x faster{goal}; {other['evaluations']} evaluations; "
+                  f"fitted values {'identical' if same else f'differ by at most {gap:.2g} (relative)'}")
+        comparison.update({"align_batch_wall_s": auto["wall_s"], "align_batch_cpu_s": auto["cpu_s"]})
+        print(f"  {'batched, pool of 2':42s} {auto['wall_s']:6.0f} s wall {auto['cpu_s']:6.0f} CPU-s  "
+              f"{evaluations} evaluations")
 
     def run(values: dict[str, float], name: str) -> dict[str, dict[str, float]]:
         twin = make_twin("mujoco", robot)
@@ -488,10 +543,11 @@ BATCH_GOAL = 1.8
 
 def batched_population(root: Path, batch: int = 26, threads: int = 2) -> dict[str, Any]:
     """One population of ``batch`` candidates of the arm fit (its alignment suite) simulated one at a time in one
-    process (today's serial executor), in the two-worker process pool (today's default), and as one mujoco.batch
-    on ``threads`` threads (align's default for a MuJoCo target now): best of three warm passes, wall and CPU
-    seconds (this process's, all threads; the pool's workers are separate processes, so their CPU is not in it),
-    traces compared bit for bit. Goal: the batch >= 1.8x one process on 2 threads."""
+    process (the serial executor), in the two-worker process pool (the issue's default), as one mujoco.batch on
+    ``threads`` threads (``batch="threads"``), and as ``threads`` one-thread batches, one per pool worker
+    (align's default for a MuJoCo target now): best of three warm passes, wall and CPU seconds (this process's,
+    all threads; the pool's workers are separate processes, so their CPU is not in it), traces compared bit for
+    bit. Goal: a batch >= 1.8x one process on 2 threads."""
     from dualtwin.align.simulate import Evaluator, SimJob
 
     robot, suite, holdout, fit_ids, channels = reference_setup(root)
@@ -500,7 +556,8 @@ def batched_population(root: Path, batch: int = 26, threads: int = 2) -> dict[st
     rows: dict[str, tuple[float, float, str]] = {}
     for label, kwargs in (("one process", {"kind": "serial", "batch": "off"}),
                           ("pool of 2", {"kind": "process", "workers": 2, "batch": "off"}),
-                          (f"batch, {threads} thr", {"kind": "process", "workers": threads})):
+                          (f"batch, {threads} thr", {"kind": "process", "workers": threads, "batch": "threads"}),
+                          (f"batch, pool {threads}", {"kind": "process", "workers": threads})):
         with Evaluator(**kwargs) as evaluator:  # type: ignore[arg-type]
             evaluator.map(jobs)  # warm: workers started, twins built
             best = (math.inf, 0.0, "")
@@ -520,7 +577,7 @@ def batched_population(root: Path, batch: int = 26, threads: int = 2) -> dict[st
         goal = f"  (goal >= {BATCH_GOAL}x)" if label.startswith("batch") else ""
         print(f"  {label:14s} {wall:6.2f} s wall {cpu:6.2f} CPU-s  {one / wall:4.2f}x one process{goal}  traces "
               f"{'identical' if same else 'DIFFER'}")
-        key = label.split(",")[0].replace(" ", "_")
+        key = label.replace(",", "").replace(" ", "_")
         out[f"population_{key}_wall_s"], out[f"population_{key}_cpu_s"] = wall, cpu
         out[f"population_{key}_same"] = same
     return out
@@ -623,12 +680,17 @@ def main() -> dict[str, Any]:
                         help="least-squares evaluations that polish the CMA-ES result (0: none)")
     parser.add_argument("--executor-budget", type=int, default=40,
                         help="CMA-ES evaluations of the whole fit run through the pool and through Ray")
-    parser.add_argument("--batch", default="both", choices=["both", "auto", "off"],
-                        help="align part: fit with align's batch setting auto (mujoco.batch), off (the executor) or "
-                        "both, one after the other, compared")
+    parser.add_argument("--batch", default="all", choices=["all", "both", "auto", "off", "issue"],
+                        help="align part: fit with align's batch setting auto (mujoco.batch), off (the executor), "
+                        "issue (the executor with the Python motor law, as issue 25 measured), both (off and "
+                        "auto) or all three, one after the other, compared")
+    parser.add_argument("--fit-child", type=Path, help=argparse.SUPPRESS)
     parser.add_argument("--parts", default="divergence,stepping,align",
                         help=f"comma-separated parts to run, of: {', '.join(PARTS)}")
     args = parser.parse_args()
+    if args.fit_child is not None:
+        child_fit(args.fit_child, args.budget, args.executor, args.optimizer, args.restarts, args.polish)
+        return {}
     parts = set(args.parts.split(","))
     if parts - set(PARTS):
         parser.error(f"unknown part(s) {', '.join(sorted(parts - set(PARTS)))}; use {', '.join(PARTS)}")

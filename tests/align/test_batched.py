@@ -1,4 +1,5 @@
-"""Align's candidates on a MuJoCo target as one mujoco.batch: bit-identical to one job at a time, at 1 and 2 threads.
+"""Align's candidates on a MuJoCo target as mujoco.batch calls: bit-identical to one job at a time, as one batch on
+1 and 2 threads and as one single-thread batch per worker of a pool of 2.
 
 The populations mix knobs that change what a batch must handle per simulation: masses (set_const per model),
 damping and gains (plugin parameters), physics sub-steps (another step, so another group of the batch call),
@@ -76,10 +77,11 @@ def _same(a: list[Traces], b: list[Traces]) -> bool:
     return True
 
 
-def _map(jobs: list[SimJob], **kwargs: Any) -> tuple[list[Traces], bool]:
+def _map(jobs: list[SimJob], chunks: bool = False, **kwargs: Any) -> tuple[list[Traces], Any]:
+    """The traces, and whether they ran as a batch (with ``chunks``: in how many pieces)."""
     with Evaluator(**kwargs) as evaluator:
         out = evaluator.map(jobs)
-        return out, evaluator.batched
+        return out, evaluator.batch_chunks if chunks else evaluator.batched
 
 
 @pytest.mark.parametrize("robot_name", ["cartpole", "arm"])
@@ -91,10 +93,12 @@ def test_population_batched_is_bit_identical(robot_name: str) -> None:
     # The population is not trivial: candidates differ, and on the CartPole one stops at a failure threshold.
     assert not _same(alone[:1], alone[1:2])
     one, batched_one = _map(jobs, kind="serial")  # the batch on one thread
-    two, batched_two = _map(jobs, kind="process", workers=2)  # on two threads
-    assert batched_one and batched_two
+    two, batched_two = _map(jobs, kind="process", workers=2, batch="threads")  # on two threads
+    pooled, chunks = _map(jobs, kind="process", workers=2, chunks=True)  # a one-thread batch per pool worker
+    assert batched_one and batched_two and chunks == 2
     assert _same(one, alone)
     assert _same(two, alone)
+    assert _same(pooled, alone)
 
 
 def test_plain_twins_are_sampled_together_and_noisy_ones_alone() -> None:
@@ -126,13 +130,17 @@ def test_population_with_failure_leaves_batch_early(tmp_path: Path) -> None:
     suite = tmp_path / "suite.json"
     suite.write_text(json.dumps(document))
     job = SimJob(str(robot.path), "mujoco", str(suite), ("00_Step_Response", "04_Impulse"), (), 0)
-    jobs = [job.with_knobs({"joint.pole_hinge.damping": d}) for d in (0.0, 0.3, 1.0)]
+    jobs = [job.with_knobs({"joint.pole_hinge.damping": d}) for d in (0.0, 0.3, 1.0, 0.6)]
     alone, _ = _map(jobs, kind="serial", batch="off")
     ends = [[t.end_time_s for t in traces.values()] for traces in alone]
     statuses = {t.status for traces in alone for t in traces.values()}
     assert {"failed", "completed"} <= statuses and len({tuple(e) for e in ends}) > 1, (statuses, ends)
-    two, batched = _map(jobs, kind="process", workers=2)
+    two, batched = _map(jobs, kind="process", workers=2, batch="threads")
     assert batched and _same(two, alone)
+    pooled, chunks = _map(jobs, kind="process", workers=2, chunks=True)  # a worker ends early, the other late
+    assert chunks == 2 and _same(pooled, alone)
+    few, chunks = _map(jobs[:3], kind="process", workers=2, chunks=True)  # fewer than 2 each: here, one batch
+    assert chunks == 1 and _same(few, alone[:3])
 
 
 @pytest.mark.parametrize("robot_name", ["cartpole", "arm"])
@@ -151,14 +159,15 @@ def test_jacobian_batched_is_bit_identical(robot_name: str) -> None:
     u = unit_from_values(specs, {})
     results = {}
     for name, kwargs in (("alone", {"kind": "serial", "batch": "off"}), ("one", {"kind": "serial"}),
-                         ("two", {"kind": "process", "workers": 2})):
+                         ("two", {"kind": "process", "workers": 2, "batch": "threads"}),
+                         ("pooled", {"kind": "process", "workers": 2})):
         with Evaluator(**kwargs) as evaluator:  # type: ignore[arg-type]
             problem = TrajectoryProblem(specs, job, train, None, evaluator, budget=100)
             results[name] = fd_jacobian(problem, u, 0.03, list(range(len(specs))), central=True)
             assert evaluator.batched == (name != "alone")
     jac, r0 = results["alone"]
     assert np.abs(jac).max() > 0  # the knobs move the residuals
-    for name in ("one", "two"):
+    for name in ("one", "two", "pooled"):
         assert np.array_equal(results[name][0], jac) and np.array_equal(results[name][1], r0)
 
 

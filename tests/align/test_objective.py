@@ -10,6 +10,7 @@ import pytest
 from dualtwin.align.objective import (
     ObjectiveWeights,
     build_spec,
+    channel_terms,
     evaluate,
     event_difference,
     pseudo_huber,
@@ -90,3 +91,20 @@ def test_pseudo_huber_is_quadratic_then_linear() -> None:
     assert pseudo_huber(0.01, 0.1) == pytest.approx(0.01**2 / 0.2, rel=0.01)
     assert pseudo_huber(10.0, 0.1) == pytest.approx(10.0 - 0.1, rel=0.01)
     assert ObjectiveWeights().term_weights()["rmse"] == 0.0
+
+
+def test_a_term_of_weight_zero_is_not_computed_and_the_others_are_unchanged() -> None:
+    """Every weighted term comes out as when all four are computed; the zero-weight ones are left out (DTW was
+    most of a score's time on the arm's fit, whose weights leave it out)."""
+    late = {"a": trace("a", fall(0.05), 0.21 * T), "b": trace("b", -fall(0.12), -0.1 * T)}
+    every = evaluate(build_spec(REF, ["a", "b"], weights=ObjectiveWeights(dtw=1.0, event=1.0, endpoint=0.5, rmse=1.0)),
+                     late)
+    for zero in ("dtw", "event", "endpoint", "rmse"):
+        weights = {"dtw": 1.0, "event": 1.0, "endpoint": 0.5, "rmse": 1.0, zero: 0.0}
+        value = evaluate(build_spec(REF, ["a", "b"], weights=ObjectiveWeights(**weights)), late)
+        assert value.per_term[zero] == 0.0
+        assert {k: v for k, v in value.per_term.items() if k != zero} == {
+            k: v for k, v in every.per_term.items() if k != zero}
+    ref, cand = REF["a"].series["pole_angle_rad"], late["a"].series["pole_angle_rad"]
+    assert set(channel_terms(ref, cand, 1.0, None, 1.5, {"rmse"})) == {"rmse"}
+    assert channel_terms(ref, cand, 1.0, None, 1.5, {"rmse"})["rmse"] == channel_terms(ref, cand, 1.0, None, 1.5)["rmse"]

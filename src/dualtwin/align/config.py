@@ -100,11 +100,13 @@ class AlignConfig(FrozenModel):
     sysid_params: str = Field(default="", description="a mujoco.sysid parameter file (YAML) whose parameters, "
                               "named as knobs, add to --knobs with their bounds", json_schema_extra={"path": True})
     executor: ExecutorKind = Field(default="process", description="where candidates are simulated")
-    workers: int = Field(default=2, ge=1, description="process-pool size, or the threads of the MuJoCo batch")
-    batch: Literal["auto", "off"] = Field(
-        default="auto", description="auto: a MuJoCo target's candidates (populations, Jacobians) run in this "
-        "process as one mujoco.batch on WORKERS threads (one with --executor serial), bit-identical to the "
-        "executor; off: on the executor (Webots targets and --executor ray always are)")
+    workers: int = Field(default=2, ge=1,
+                         description="process-pool size, or the threads of the MuJoCo batch (--batch threads)")
+    batch: Literal["auto", "threads", "off"] = Field(
+        default="auto", description="auto: a MuJoCo target's candidates (populations, Jacobians) run as "
+        "mujoco.batch calls, one single-thread batch per pool worker (in this process with --executor serial), "
+        "bit-identical to the executor; threads: one batch in this process on WORKERS threads; off: one at a "
+        "time on the executor (Webots targets and --executor ray always are)")
     ray_address: str | None = Field(default=None, description="Ray cluster address, with --executor ray")
     weights: ObjectiveWeights = Field(default_factory=ObjectiveWeights,
                                       description="objective weights (TERM=VALUE: dtw, event, endpoint, rmse, "

@@ -24,7 +24,7 @@ end-time difference and a stability residual per scenario.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -208,22 +208,27 @@ def event_difference(ref: Series, cand: Series, threshold: Threshold) -> float:
 
 
 def channel_terms(ref: Series, cand: Series, scale: float, threshold: Threshold | None,
-                  duration_s: float) -> dict[str, float]:
-    """Raw (unweighted) terms of one channel; 1.0 each when fewer than 2 candidate samples overlap."""
+                  duration_s: float, wanted: Collection[str] = TERMS) -> dict[str, float]:
+    """Raw (unweighted) terms of one channel, those named in ``wanted`` (a term of weight 0 costs nothing:
+    DTW was most of a score's time); 1.0 each when fewer than 2 candidate samples overlap."""
     ta, ya = finite_prefix(ref.t, ref.y)
     tb, yb = finite_prefix(cand.t, cand.y)
-    event = abs(event_difference(ref, cand, threshold)) / duration_s if threshold is not None else 0.0
+    event = (abs(event_difference(ref, cand, threshold)) / duration_s
+             if threshold is not None and "event" in wanted else 0.0)
     try:
         common = resample_common(ta, ya, tb, yb)
     except ValueError:
-        return {"dtw": 1.0, "event": event if threshold is not None else 1.0, "endpoint": 1.0, "rmse": 1.0}
+        failed = {"dtw": 1.0, "event": event if threshold is not None else 1.0, "endpoint": 1.0, "rmse": 1.0}
+        return {k: v for k, v in failed.items() if k in wanted}
     a, b = common.a, common.b
-    return {
-        "dtw": dtw_distance(a, b).rms / scale,
-        "event": event,
-        "endpoint": abs(float(b[-1] - a[-1])) / scale,
-        "rmse": rmse_of(a, b) / scale,
-    }
+    terms = {"event": event} if "event" in wanted else {}
+    if "dtw" in wanted:
+        terms["dtw"] = dtw_distance(a, b).rms / scale
+    if "endpoint" in wanted:
+        terms["endpoint"] = abs(float(b[-1] - a[-1])) / scale
+    if "rmse" in wanted:
+        terms["rmse"] = rmse_of(a, b) / scale
+    return terms
 
 
 def _duration(trace: ScenarioTrace) -> float:
@@ -239,16 +244,17 @@ def scenario_value(spec: ObjectiveSpec, sid: str, cand: ScenarioTrace) -> tuple[
         unfinished = max(0.0, duration - cand.end_time_s) / duration
         return w.unstable_penalty * (1.0 + unfinished), {}
     weights = w.term_weights()
+    wanted = {key for key, weight in weights.items() if weight}
     sums = dict.fromkeys(TERMS, 0.0)
     for name in spec.channels:
         ref_series = ref.series[name]
         cand_series = cand.series.get(name)
         if cand_series is None:
             raise DualtwinError(f"scenario {sid!r}: the candidate did not log channel {name!r}")
-        terms = channel_terms(ref_series, cand_series, spec.scales[name], spec.thresholds.get(name), duration)
+        terms = channel_terms(ref_series, cand_series, spec.scales[name], spec.thresholds.get(name), duration,
+                              wanted)
         for key, value in terms.items():
-            if weights[key]:
-                sums[key] += weights[key] * pseudo_huber(value, w.robust_delta)
+            sums[key] += weights[key] * pseudo_huber(value, w.robust_delta)
     per_term = {k: v / len(spec.channels) for k, v in sums.items()}
     if "failed" in (ref.status, cand.status):
         # When a failure threshold stopped a twin, when it stopped is an event too.

@@ -55,12 +55,12 @@ from dualtwin.twins.io import RobotIO
 if TYPE_CHECKING:
     from dualtwin.twins.mujoco_batch import ChannelColumns, TwinBatch
 
-BatchMode = Literal["auto", "off"]
-BATCH_MODES: tuple[str, ...] = ("auto", "off")
+BatchMode = Literal["auto", "threads", "off"]
+BATCH_MODES: tuple[str, ...] = ("auto", "threads", "off")
 
 # Re-exported for callers that import them from here (fit, analyze, prediction).
 __all__ = ["BATCH_MODES", "DEFAULT_WORKERS", "EXECUTORS", "BatchMode", "BatchedSimulator", "Evaluator", "ExecutorKind", "ScenarioTrace", "SimJob", "Traces",
-           "check_executor", "load_traces", "needed_scenarios", "scenario_logs", "simulate", "simulate_on", "simulate_twin"]
+           "check_executor", "load_traces", "needed_scenarios", "scenario_logs", "simulate", "simulate_batch", "simulate_on", "simulate_twin"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -226,6 +226,20 @@ def job_periods(io: RobotIO, suite: Suite, knobs: Mapping[str, float], wanted: S
             traces[sid] = ScenarioTrace(trace.id, trace.status, trace.duration_s,
                                         nuisance.shift_series(trace.series, offset), trace.failure)
     return traces
+
+
+_BATCHES: dict[tuple[str, str, str], BatchedSimulator] = {}
+
+
+def simulate_batch(jobs: Sequence[SimJob]) -> list[Traces]:
+    """Run jobs of one robot, twin and suite as a one-thread batch in this process (the worker entry point of
+    :class:`Evaluator`'s pooled batch; the batch is built once per worker)."""
+    first = jobs[0]
+    key = (first.robot, first.twin, first.suite)
+    simulator = _BATCHES.get(key)
+    if simulator is None:
+        simulator = _BATCHES[key] = BatchedSimulator(*key, nthread=1)
+    return simulator.map(jobs)
 
 
 def simulate(job: SimJob) -> Traces:
@@ -427,13 +441,22 @@ class BatchedSimulator:
 
 
 class Evaluator:
-    """Runs `SimJob` batches as one MuJoCo batch, serially, in a process pool, or on a Ray cluster; counts
+    """Runs `SimJob` batches as MuJoCo batches, serially, in a process pool, or on a Ray cluster; counts
     evaluations.
 
-    ``batch="auto"`` (the default): jobs for a MuJoCo twin whose physics can be batched
-    (`dualtwin.twins.mujoco_batch.batch_reason`) run in this process as one ``mujoco.batch`` on ``workers``
-    threads (one thread with ``kind="serial"``), bit-identical to the other executors; other twins, and every
-    twin with ``kind="ray"`` or ``batch="off"``, run on the executor. :attr:`batched` names what ran the last map.
+    Jobs for a MuJoCo twin whose physics can be batched (`dualtwin.twins.mujoco_batch.batch_reason`) run as
+    ``mujoco.batch`` calls, bit-identical to the other executors:
+
+    * ``batch="auto"`` (the default): split into ``workers`` contiguous chunks, each a one-thread batch in a
+      worker of the process pool (in this process with ``kind="serial"``, or for fewer than two jobs a
+      worker). The Python of every period (inputs, bookkeeping, failure checks) runs in parallel too, which a
+      thread pool cannot do under the GIL: on the arm's fit (2 idle cores) the in-process batch on 2 threads
+      was slower than the pool without batching;
+    * ``batch="threads"``: one batch in this process on ``workers`` threads (the physics in parallel, the
+      Python serial; less memory and no traces to send back);
+    * ``batch="off"``, other twins, and every twin with ``kind="ray"``: one job at a time on the executor.
+
+    :attr:`batched` says whether the last map ran as a batch.
 
     The process pool uses the ``forkserver`` start method (no fork of a threaded parent) and keeps its
     workers for the evaluator's lifetime, so each worker builds its twin once. As with any non-fork start
@@ -451,11 +474,14 @@ class Evaluator:
         self.workers = workers
         self.batch: BatchMode = batch if kind != "ray" else "off"
         self.evaluations = 0
-        #: Whether the last map ran as a MuJoCo batch.
+        #: Whether the last map ran as a MuJoCo batch, and in how many pieces (one per pool worker that got one).
         self.batched = False
+        self.batch_chunks = 0
         self._simulators: dict[tuple[str, str, str], BatchedSimulator | None] = {}
 
     def _simulator(self, jobs: Sequence[SimJob]) -> BatchedSimulator | None:
+        """This process's batch for ``jobs`` (None when they cannot be batched); with the pooled batch it only
+        answers whether they can, and the workers build their own."""
         keys = {(job.robot, job.twin, job.suite) for job in jobs}
         if self.batch == "off" or len(keys) != 1:
             return None
@@ -463,12 +489,20 @@ class Evaluator:
         if key not in self._simulators:
             simulator: BatchedSimulator | None = None
             if key[1] == "mujoco":
-                simulator = BatchedSimulator(*key, nthread=1 if self.kind == "serial" else self.workers)
+                simulator = BatchedSimulator(*key, nthread=self.workers if self._threaded else 1)
                 if simulator.reason is not None:
                     simulator.close()
                     simulator = None
             self._simulators[key] = simulator
         return self._simulators[key]
+
+    @property
+    def _threaded(self) -> bool:
+        return self.batch == "threads" and self.kind != "serial"
+
+    @property
+    def _pooled(self) -> bool:
+        return self.batch == "auto" and self.kind == "process" and self.workers > 1
 
     def map(self, jobs: Sequence[SimJob]) -> list[Traces]:
         """Simulate every job; results come back in job order."""
@@ -476,9 +510,22 @@ class Evaluator:
         self.evaluations += len(jobs)
         simulator = self._simulator(jobs) if jobs else None
         self.batched = simulator is not None
-        if simulator is not None:
+        self.batch_chunks = int(self.batched)
+        if simulator is None:
+            return self._map.map(simulate, jobs)
+        if not self._pooled or len(jobs) < 2 * self.workers:
+            # A handful of candidates (a small fit's first population, a line search) stay here: two or more
+            # each are what pays for a worker's share (and for starting the pool, where none ran yet).
             return simulator.map(jobs)
-        return self._map.map(simulate, jobs)
+        # Contiguous chunks, as even as they come, one per worker: each is a one-thread batch there.
+        self.batch_chunks = self.workers
+        size, extra = divmod(len(jobs), self.batch_chunks)
+        chunks, start = [], 0
+        for k in range(self.batch_chunks):
+            end = start + size + (k < extra)
+            chunks.append(jobs[start:end])
+            start = end
+        return [traces for chunk in self._map.map(simulate_batch, chunks) for traces in chunk]
 
     def close(self) -> None:
         self._map.close()
