@@ -165,6 +165,11 @@ class ParallelMap:
         self._ray: Any = ray_backend(ray_address) if kind == "ray" else None
         self._remote: dict[Callable[..., Any], Any] = {}
 
+    @property
+    def started(self) -> bool:
+        """Whether the process pool's workers are running (started by the first map, kept until close)."""
+        return self._pool is not None
+
     def map(self, fn: Callable[[T], R], items: Sequence[T]) -> list[R]:
         """``[fn(x) for x in items]``, run by this executor."""
         items = list(items)

@@ -94,7 +94,7 @@ def test_population_batched_is_bit_identical(robot_name: str) -> None:
     assert not _same(alone[:1], alone[1:2])
     one, batched_one = _map(jobs, kind="serial")  # the batch on one thread
     two, batched_two = _map(jobs, kind="process", workers=2, batch="threads")  # on two threads
-    pooled, chunks = _map(jobs, kind="process", workers=2, chunks=True)  # a one-thread batch per pool worker
+    pooled, chunks = _map(jobs, kind="process", workers=2, pool_start=2, chunks=True)  # a batch per pool worker
     assert batched_one and batched_two and chunks == 2
     assert _same(one, alone)
     assert _same(two, alone)
@@ -137,9 +137,9 @@ def test_population_with_failure_leaves_batch_early(tmp_path: Path) -> None:
     assert {"failed", "completed"} <= statuses and len({tuple(e) for e in ends}) > 1, (statuses, ends)
     two, batched = _map(jobs, kind="process", workers=2, batch="threads")
     assert batched and _same(two, alone)
-    pooled, chunks = _map(jobs, kind="process", workers=2, chunks=True)  # a worker ends early, the other late
+    pooled, chunks = _map(jobs, kind="process", workers=2, pool_start=2, chunks=True)  # one ends early
     assert chunks == 2 and _same(pooled, alone)
-    few, chunks = _map(jobs[:3], kind="process", workers=2, chunks=True)  # fewer than 2 each: here, one batch
+    few, chunks = _map(jobs[:3], kind="process", workers=2, pool_start=2, chunks=True)  # < 2 each: one batch here
     assert chunks == 1 and _same(few, alone[:3])
 
 
@@ -160,7 +160,7 @@ def test_jacobian_batched_is_bit_identical(robot_name: str) -> None:
     results = {}
     for name, kwargs in (("alone", {"kind": "serial", "batch": "off"}), ("one", {"kind": "serial"}),
                          ("two", {"kind": "process", "workers": 2, "batch": "threads"}),
-                         ("pooled", {"kind": "process", "workers": 2})):
+                         ("pooled", {"kind": "process", "workers": 2, "pool_start": 2})):
         with Evaluator(**kwargs) as evaluator:  # type: ignore[arg-type]
             problem = TrajectoryProblem(specs, job, train, None, evaluator, budget=100)
             results[name] = fd_jacobian(problem, u, 0.03, list(range(len(specs))), central=True)
@@ -228,3 +228,16 @@ def test_batch_setting_is_saved_only_when_not_default() -> None:
     assert AlignConfig(**base, batch="off").saved()["batch"] == "off"
     with pytest.raises(ValueError):
         AlignConfig(**base, batch="maybe")
+
+
+def test_a_small_map_does_not_start_the_pool_and_a_running_pool_takes_two_per_worker() -> None:
+    """The pooled batch starts the pool for ``pool_start`` candidates per worker; then two per worker use it."""
+    job = _job("cartpole")
+    small = [job.with_knobs(values) for values in POPULATIONS["cartpole"]]  # 6 candidates: 3 per worker
+    with Evaluator("process", workers=2, pool_start=4) as evaluator:
+        alone = evaluator.map(small)
+        assert evaluator.batch_chunks == 1  # below 4 per worker: one batch here, the pool not started
+        evaluator.map(small + small[:2])  # 8 candidates: 4 per worker start it
+        assert evaluator.batch_chunks == 2
+        again = evaluator.map(small)
+        assert evaluator.batch_chunks == 2 and _same(again, alone)

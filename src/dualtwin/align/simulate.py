@@ -448,8 +448,9 @@ class Evaluator:
     ``mujoco.batch`` calls, bit-identical to the other executors:
 
     * ``batch="auto"`` (the default): split into ``workers`` contiguous chunks, each a one-thread batch in a
-      worker of the process pool (in this process with ``kind="serial"``, or for fewer than two jobs a
-      worker). The Python of every period (inputs, bookkeeping, failure checks) runs in parallel too, which a
+      worker of the process pool (in this process with ``kind="serial"``; maps of fewer than ``pool_start``
+      jobs a worker while the pool has not started, or of fewer than two once it has, run here as with
+      ``threads``). The Python of every period (inputs, bookkeeping, failure checks) runs in parallel too, which a
       thread pool cannot do under the GIL: on the arm's fit (2 idle cores) the in-process batch on 2 threads
       was slower than the pool without batching;
     * ``batch="threads"``: one batch in this process on ``workers`` threads (the physics in parallel, the
@@ -465,7 +466,10 @@ class Evaluator:
     """
 
     def __init__(self, kind: ExecutorKind = "process", workers: int = DEFAULT_WORKERS,
-                 ray_address: str | None = None, batch: BatchMode = "auto") -> None:
+                 ray_address: str | None = None, batch: BatchMode = "auto", pool_start: int = 12) -> None:
+        """``pool_start``: with the pooled batch, the candidates per worker a map needs to start the pool (a
+        small fit never pays its start-up; the arm's 25-knob Jacobian starts it); once it runs, two per worker
+        use it. Smaller maps run as one batch here on ``workers`` threads."""
         if batch not in BATCH_MODES:
             raise DualtwinError(f"unknown batch mode {batch!r}; use one of {', '.join(BATCH_MODES)}")
         # The generic parallel map lives in `dualtwin.parallel`, shared with suite ensembles.
@@ -477,6 +481,7 @@ class Evaluator:
         #: Whether the last map ran as a MuJoCo batch, and in how many pieces (one per pool worker that got one).
         self.batched = False
         self.batch_chunks = 0
+        self.pool_start = pool_start
         self._simulators: dict[tuple[str, str, str], BatchedSimulator | None] = {}
 
     def _simulator(self, jobs: Sequence[SimJob]) -> BatchedSimulator | None:
@@ -498,7 +503,7 @@ class Evaluator:
 
     @property
     def _threaded(self) -> bool:
-        return self.batch == "threads" and self.kind != "serial"
+        return self.batch in ("threads", "auto") and self.kind == "process"
 
     @property
     def _pooled(self) -> bool:
@@ -513,9 +518,11 @@ class Evaluator:
         self.batch_chunks = int(self.batched)
         if simulator is None:
             return self._map.map(simulate, jobs)
-        if not self._pooled or len(jobs) < 2 * self.workers:
-            # A handful of candidates (a small fit's first population, a line search) stay here: two or more
-            # each are what pays for a worker's share (and for starting the pool, where none ran yet).
+        share = 2 if self._map.started else self.pool_start
+        if not self._pooled or len(jobs) < share * self.workers:
+            # A handful of candidates (a small fit's populations, a line search) stay here, on the threads:
+            # starting the pool costs seconds (a CartPole fit of budget 12 took 14 s when a map of 16 started
+            # it, against 10 s here), and a worker's share must pay for sending its traces back.
             return simulator.map(jobs)
         # Contiguous chunks, as even as they come, one per worker: each is a one-thread batch there.
         self.batch_chunks = self.workers
