@@ -525,13 +525,8 @@ class Evaluator:
             # it, against 10 s here), and a worker's share must pay for sending its traces back.
             return simulator.map(jobs)
         # Contiguous chunks, as even as they come, one per worker: each is a one-thread batch there.
-        self.batch_chunks = self.workers
-        size, extra = divmod(len(jobs), self.batch_chunks)
-        chunks, start = [], 0
-        for k in range(self.batch_chunks):
-            end = start + size + (k < extra)
-            chunks.append(jobs[start:end])
-            start = end
+        self.batch_chunks = k = self.workers
+        chunks = [jobs[i * len(jobs) // k:(i + 1) * len(jobs) // k] for i in range(k)]
         return [traces for chunk in self._map.map(simulate_batch, chunks) for traces in chunk]
 
     def close(self) -> None:

@@ -7,9 +7,27 @@ through nested PROTO instances whose own interface fields are ``IS`` the outer o
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 from dualtwin.webots.nodes import Node
 
 __all__ = ["feeds_template", "linked_fields"]
+
+
+def _reached(root: Node, name: str) -> Iterator[tuple[Node, tuple[int, str], list[tuple[int, str]]]]:
+    """Every node of ``root``'s body that ``root``'s field ``name`` reaches, with the ``(instance, field)`` it
+    is reached as there and the ``(inner instance, inner field)`` of each nested instance's link that carries
+    it further in (followed too). Nothing when ``root`` is not a PROTO instance."""
+    if root.proto_instance is None:
+        return
+    pending = [(root, root.proto_instance, name)]
+    while pending:
+        top, instance, field = pending.pop()
+        for node in top.walk():
+            inward = [(inner, inner_field) for outer, outer_field, inner, inner_field in node.instance_links
+                      if (outer, outer_field) == (instance, field)]
+            yield node, (instance, field), inward
+            pending.extend((node, inner, inner_field) for inner, inner_field in inward)
 
 
 def linked_fields(root: Node, name: str) -> tuple[list[tuple[Node, str]], list[tuple[Node, str]]]:
@@ -22,18 +40,10 @@ def linked_fields(root: Node, name: str) -> tuple[list[tuple[Node, str]], list[t
     """
     base: list[tuple[Node, str]] = []
     interfaces: list[tuple[Node, str]] = []
-    if root.proto_instance is None:
-        return base, interfaces
-    pending = [(root, root.proto_instance, name)]
-    while pending:
-        top, instance, field = pending.pop()
-        for node in top.walk():
-            base.extend((node, f) for f, link in node.is_links.items() if link == (instance, field))
-            for outer, outer_field, inner, inner_field in node.instance_links:
-                if (outer, outer_field) == (instance, field):
-                    if node.proto_instance == inner and node.proto_fields is not None:
-                        interfaces.append((node, inner_field))
-                    pending.append((node, inner, inner_field))
+    for node, link, inward in _reached(root, name):
+        base.extend((node, f) for f, is_link in node.is_links.items() if is_link == link)
+        if node.proto_fields is not None:
+            interfaces.extend((node, inner_field) for inner, inner_field in inward if node.proto_instance == inner)
     return base, interfaces
 
 
@@ -43,15 +53,5 @@ def feeds_template(root: Node, name: str) -> bool:
     an edit makes Webots regenerate the instance."""
     if root.proto_instance is None:
         return False
-    if name in root.template_fields:
-        return True
-    pending = [(root, root.proto_instance, name)]
-    while pending:
-        top, instance, field = pending.pop()
-        for node in top.walk():
-            for outer, outer_field, inner, inner_field in node.instance_links:
-                if (outer, outer_field) == (instance, field):
-                    if inner_field in node.template_fields:
-                        return True
-                    pending.append((node, inner, inner_field))
-    return False
+    return name in root.template_fields or any(
+        inner_field in node.template_fields for node, _, inward in _reached(root, name) for _, inner_field in inward)
