@@ -9,6 +9,9 @@ Run: ``python bench/bench_controller_isolation.py``. Two worlds, each run headle
   threads in steps/s);
 * a 4-robot world (a motor and a position sensor each), one such controller per robot.
 
+Each world also runs with ``DUALTWIN_CONTROLLER_SPIN_US=0`` (``process, no polling``): the channel's two sides
+then sleep in ``read`` until woken, as before the channel polled (the control for what polling buys).
+
 Each controller times its own loop (``steps/s`` below; the slowest controller's). CPU is counted for the
 whole run (this process's threads and the controller processes together) and given per ``STEPS`` steps:
 the CPU of a run of ``STEPS`` steps minus that of a run of ``SHORT`` steps, scaled, so the start-up of the
@@ -32,6 +35,9 @@ from pathlib import Path
 from dualtwin.robots.binding import BUNDLED
 from dualtwin.webots.runner import run_world
 
+SPIN_VARIABLE = "DUALTWIN_CONTROLLER_SPIN_US"
+SLEEPING = "process, no polling"
+MODES = ("threads", "process", SLEEPING)
 STEPS = 3000
 SHORT = 300
 REPEATS = 3
@@ -116,12 +122,22 @@ def _cpu() -> float:
     return time.process_time() + children.ru_utime + children.ru_stime
 
 
-def _run(world: Path, controller: Path | None, isolation: str) -> tuple[float, float, float]:
+def _run(world: Path, controller: Path | None, mode: str) -> tuple[float, float, float]:
     """(slowest controller's loop steps/s, wall seconds of the whole run, CPU seconds of the whole run)."""
+    isolation = "threads" if mode == "threads" else "process"
     out = io.StringIO()
+    saved = os.environ.get(SPIN_VARIABLE)
+    if mode == SLEEPING:  # the channel as it was before polling: each side sleeps in read() until woken
+        os.environ[SPIN_VARIABLE] = "0"
     start, cpu = time.perf_counter(), _cpu()
-    with contextlib.redirect_stdout(out):
-        code = run_world(world, controller, None, isolation=isolation)
+    try:
+        with contextlib.redirect_stdout(out):
+            code = run_world(world, controller, None, isolation=isolation)
+    finally:
+        if saved is None:
+            os.environ.pop(SPIN_VARIABLE, None)
+        else:
+            os.environ[SPIN_VARIABLE] = saved
     wall, cpu = time.perf_counter() - start, _cpu() - cpu
     if code != 0:
         raise SystemExit(f"run failed ({isolation}): exit {code}")
@@ -140,28 +156,31 @@ def main() -> dict[str, float]:
         worlds = (("CartPole", long[0], long[1], short[0], short[1]), ("4 robots", long[2], None, short[2], None))
         for label, world, script, short_world, short_script in worlds:
             inf = float("inf")
-            best = {mode: {"rate": 0.0, "wall": inf, "cpu": inf, "start": inf} for mode in ("process", "threads")}
+            best = {mode: {"rate": 0.0, "wall": inf, "cpu": inf, "start": inf} for mode in MODES}
             for _ in range(REPEATS):
-                for isolation in ("threads", "process"):
-                    rate, wall, cpu = _run(world, script, isolation)
-                    start_cpu = _run(short_world, short_script, isolation)[2]
-                    b = best[isolation]
+                for mode in MODES:
+                    rate, wall, cpu = _run(world, script, mode)
+                    start_cpu = _run(short_world, short_script, mode)[2]
+                    b = best[mode]
                     b["rate"], b["wall"] = max(b["rate"], rate), min(b["wall"], wall)
                     b["cpu"] = min(b["cpu"], (cpu - start_cpu) * STEPS / (STEPS - SHORT))
                     b["start"] = min(b["start"], start_cpu)
-            p, t = best["process"], best["threads"]
+            p, t, s = best["process"], best["threads"], best[SLEEPING]
             ratio, cpu_ratio = p["rate"] / t["rate"], p["cpu"] / t["cpu"]
             goal = f"  (goal >= {GOAL:.2f})" if label == "CartPole" else ""
-            for mode, b in (("threads", t), ("process", p)):
-                print(f"  {label:9s} {mode}: {b['rate']:8.0f} steps/s  run {b['wall']:5.2f} s  "
+            for mode in MODES:
+                b = best[mode]
+                print(f"  {label:9s} {mode + ':':20s} {b['rate']:8.0f} steps/s  run {b['wall']:5.2f} s  "
                       f"CPU {b['cpu']:5.2f} s per {STEPS} steps (+{b['start']:4.2f} s start)")
-            print(f"  {label:9s} ratio process/threads: steps/s {ratio:4.2f}{goal}, CPU {cpu_ratio:4.2f}")
+            print(f"  {label:9s} ratio process/threads: steps/s {ratio:4.2f}{goal}, CPU {cpu_ratio:4.2f}; "
+                  f"without polling: steps/s {s['rate'] / t['rate']:4.2f}, CPU {s['cpu'] / t['cpu']:4.2f}")
             key = label.replace(" ", "_").lower()
             results.update({
                 f"{key}_process_steps_per_s": p["rate"], f"{key}_threads_steps_per_s": t["rate"],
                 f"{key}_ratio": ratio, f"{key}_cpu_ratio": cpu_ratio,
                 f"{key}_process_run_s": p["wall"], f"{key}_threads_run_s": t["wall"],
                 f"{key}_process_cpu_s": p["cpu"], f"{key}_threads_cpu_s": t["cpu"],
+                f"{key}_no_polling_ratio": s["rate"] / t["rate"], f"{key}_no_polling_cpu_ratio": s["cpu"] / t["cpu"],
             })
         results["load_average"] = load
         return results
