@@ -108,3 +108,46 @@ def test_a_term_of_weight_zero_is_not_computed_and_the_others_are_unchanged() ->
     ref, cand = REF["a"].series["pole_angle_rad"], late["a"].series["pole_angle_rad"]
     assert set(channel_terms(ref, cand, 1.0, None, 1.5, {"rmse"})) == {"rmse"}
     assert channel_terms(ref, cand, 1.0, None, 1.5, {"rmse"})["rmse"] == channel_terms(ref, cand, 1.0, None, 1.5)["rmse"]
+
+
+def _terms_through_resample_common(ref: Series, cand: Series, scale: float) -> dict[str, float]:
+    """The terms as the general path computes them: both series cut and put on one grid by resample_common."""
+    from dualtwin.divergence.metrics import dtw_distance, finite_prefix, resample_common, rmse
+
+    common = resample_common(*finite_prefix(ref.t, ref.y), *finite_prefix(cand.t, cand.y))
+    return {"dtw": dtw_distance(common.a, common.b).rms / scale,
+            "endpoint": abs(float(common.b[-1] - common.a[-1])) / scale, "rmse": rmse(common.a, common.b) / scale}
+
+
+def test_the_reference_is_cut_once_and_a_candidate_on_its_grid_scores_as_through_resample_common() -> None:
+    """A fit scores every candidate against one reference: its finite prefix is kept on the spec
+    (``prepared``), and a candidate logged on the reference's own time stamps skips resample_common. Every
+    term equals the general path's, bit for bit, on the same grid, on another grid, and with a NaN tail."""
+    spec = build_spec(REF, ["a", "b"], weights=ObjectiveWeights(dtw=1.0, event=0.0, endpoint=0.5, rmse=1.0))
+    assert spec.prepared is spec.prepared  # computed once
+    assert set(spec.prepared) == {(s, c) for s in ("a", "b") for c in ("pole_angle_rad", "cart_pos_m")}
+    ref = REF["a"].series["pole_angle_rad"]
+    same_grid = Series(T.copy(), fall(0.05))  # equal time stamps, another array
+    shifted = Series(T + 0.004, fall(0.05))  # another grid: interpolated
+    nan_tail = Series(T.copy(), np.where(T > 1.0, np.nan, fall(0.05)))
+    for cand in (same_grid, shifted, nan_tail):
+        fast = channel_terms(ref, cand, 2.0, None, 1.5, {"dtw", "endpoint", "rmse"}, spec.prepared["a", "pole_angle_rad"])
+        assert fast == channel_terms(ref, cand, 2.0, None, 1.5, {"dtw", "endpoint", "rmse"})
+        assert fast == _terms_through_resample_common(ref, cand, 2.0)
+    # a reference whose time stamps resample_common refuses still fails the candidate, prepared or not
+    bad = Series(np.array([0.0, 0.1, 0.1, 0.2]), np.zeros(4))
+    refused = channel_terms(bad, Series(bad.t.copy(), np.ones(4)), 1.0, None, 1.0, {"rmse", "endpoint"},
+                            None)
+    assert refused == {"rmse": 1.0, "endpoint": 1.0}
+
+
+def test_finite_prefix_stops_at_the_first_non_finite_time_or_value() -> None:
+    from dualtwin.divergence.metrics import finite_prefix
+
+    t = np.arange(6, dtype=np.float64)
+    y = np.array([0.0, 1.0, 2.0, np.nan, 4.0, 5.0])
+    assert finite_prefix(t, y)[0].tolist() == [0.0, 1.0, 2.0]
+    assert finite_prefix(np.array([0.0, np.inf, 2.0]), np.zeros(3))[1].tolist() == [0.0]
+    assert finite_prefix(t, t)[0].tolist() == t.tolist()
+    assert finite_prefix(np.zeros(0), np.zeros(0))[0].size == 0
+    assert finite_prefix(np.array([np.nan]), np.array([1.0]))[0].size == 0

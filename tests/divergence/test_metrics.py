@@ -389,3 +389,15 @@ def test_a_resolvable_divergence_scores_as_before() -> None:
     a = 0.5 * np.sin(3 * t)
     b = 0.5 * np.sin(3 * t + 0.4)
     assert compare_channel(t, a, t, b, resolution=1e-3).score == pytest.approx(compare_channel(t, a, t, b).score)
+
+
+def test_dtw_takes_read_only_arrays() -> None:
+    """Arrays from a read-only source (Ray's object store hands them out so) are copied for dtaidistance's C code,
+    which refuses a read-only buffer."""
+    from dualtwin.divergence.metrics import dtw_distance
+
+    a, b = np.linspace(0.0, 1.0, 50), np.linspace(0.0, 1.1, 50)
+    expected = dtw_distance(a, b)
+    a.flags.writeable = False
+    b.flags.writeable = False
+    assert dtw_distance(a, b) == expected

@@ -276,8 +276,8 @@ def finite_prefix(t: npt.ArrayLike, y: npt.ArrayLike) -> tuple[FloatArray, Float
     A twin that blows up logs NaN or inf from then on; the samples before it are still comparable.
     """
     t_arr, y_arr = _as_series(t, y, "")
-    bad = np.flatnonzero(~(np.isfinite(t_arr) & np.isfinite(y_arr)))
-    end = int(bad[0]) if bad.size else t_arr.size
+    finite = np.isfinite(t_arr) & np.isfinite(y_arr)
+    end = t_arr.size if finite.all() else int(np.argmin(finite))  # (the first False)
     return t_arr[:end], y_arr[:end]
 
 
@@ -349,8 +349,10 @@ def dtw_distance(a: npt.ArrayLike, b: npt.ArrayLike, *, window: int | None = Non
     Returns:
         The raw distance and its ``/ sqrt(n)`` normalisation (see the module docstring).
     """
-    s1 = np.ascontiguousarray(a, dtype=np.float64)
-    s2 = np.ascontiguousarray(b, dtype=np.float64)
+    # dtaidistance's C code takes writable buffers only: arrays from a read-only source (a Ray object store, a
+    # memory map) are copied
+    s1 = np.require(a, dtype=np.float64, requirements=("C", "W"))
+    s2 = np.require(b, dtype=np.float64, requirements=("C", "W"))
     if s1.shape != s2.shape or s1.ndim != 1 or s1.size == 0:
         raise ValueError(f"dtw needs two non-empty 1-D series of equal length, got {s1.shape} and {s2.shape}")
     kwargs: dict[str, Any] = {} if window is None else {"window": int(window)}
