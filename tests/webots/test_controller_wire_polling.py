@@ -90,6 +90,23 @@ def test_a_sleeping_wire_spends_no_cpu_waiting() -> None:
     assert spent < 0.01, spent
 
 
+def test_a_wire_on_one_descriptor_never_polls() -> None:
+    """Polling makes the read descriptor non-blocking; on a socket that also carries the writes, a full buffer
+    would then fail a write, so such a wire keeps sleeping reads."""
+    import socket
+
+    left, right = socket.socketpair()
+    try:
+        wire = controller_process.Wire(left.fileno())
+        wire.spin(250)
+        assert os.get_blocking(left.fileno())
+        controller_process.Wire(right.fileno()).send(b"x")
+        assert wire.receive() == b"x"
+    finally:
+        left.close()
+        right.close()
+
+
 def test_the_budget_comes_from_the_cores_or_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("DUALTWIN_CONTROLLER_SPIN_US", raising=False)
     monkeypatch.setattr(controller_host.os, "sched_getaffinity", lambda pid: {0, 1})

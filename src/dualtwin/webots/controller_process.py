@@ -83,8 +83,10 @@ class Wire:
         wake-up, from an idle core, costs more than the turn itself (about 20 us each way on 2 cores). A side
         that polls is awake when the frame lands. It polls only while the waits it measured stay shorter than
         the budget (a slow world or a slow controller: it sleeps at once, no core is burnt), and yields its core
-        between polls, so controllers that outnumber the cores still let the simulation run."""
-        self._spin_s = max(0.0, microseconds) * 1e-6
+        between polls, so controllers that outnumber the cores still let the simulation run.
+
+        A wire that reads and writes one descriptor (a socket) never polls: its writes must stay blocking."""
+        self._spin_s = max(0.0, microseconds) * 1e-6 if self.fd != self.out_fd else 0.0
         if self._spin_s and self._poll is None:
             os.set_blocking(self.fd, False)
             self._poll = select.poll()
@@ -115,7 +117,8 @@ class Wire:
                 moved[:end - start] = buffer[start:end]
                 self._buffer, self._view, self._start, self._end = moved, memoryview(moved), 0, end - start
                 start, end = 0, end - start
-            got = self._read((self._view[end:],)) if self._poll is not None else os.readv(self.fd, (self._view[end:],))
+            view = (self._view[end:],)
+            got = self._read(view) if self._poll is not None else os.readv(self.fd, view)
             if not got:
                 return None
             self._end = end + got
