@@ -7,7 +7,9 @@ Run: ``python bench/bench_controller_isolation.py``. Two worlds, each run headle
 * the bundled CartPole (``robots/cartpole/cartpole.wbt``) with a controller written on the plain Webots API:
   four wheel velocities set and the pole angle and the clock read every basic step (goal: process >= 0.9 x
   threads in steps/s);
-* a 4-robot world (a motor and a position sensor each), one such controller per robot.
+* a 4-robot world (a motor and a position sensor each), one such controller per robot;
+* a supervisor reading a field ten times per step (``10 reads``): each read is a round trip to the simulation's
+  process (a field can change within a step), so this row shows what one API call costs a process.
 
 Each world also runs with ``DUALTWIN_CONTROLLER_SPIN_US=0`` (``process, no polling``): the channel's two sides
 then sleep in ``read`` until woken, as before the channel polled (the control for what polling buys).
@@ -81,6 +83,32 @@ print("rate", steps / (time.perf_counter() - start))
 """
 
 
+SUPERVISOR_CONTROLLER = """
+import time
+from controller import Supervisor
+robot = Supervisor()
+field = robot.getSelf().getField("translation")
+start = time.perf_counter()
+steps = {steps}
+for k in range(steps):
+    robot.step(8)
+    for _ in range(READS):
+        field.getSFVec3f()
+print("rate", steps / (time.perf_counter() - start))
+""".replace("READS", "10")
+
+SUPERVISOR_WORLD = """#VRML_SIM R2023b utf8
+WorldInfo { basicTimeStep 8 }
+Robot {
+  translation 0 0 1
+  boundingObject Sphere { radius 0.05 }
+  physics Physics { density -1 mass 1 }
+  controller "reads"
+  supervisor TRUE
+}
+"""
+
+
 def _arm(i: int) -> str:
     return f"""
 Robot {{
@@ -101,10 +129,14 @@ Robot {{
 }}"""
 
 
-def _projects(root: Path, steps: int) -> tuple[Path, Path, Path]:
-    """(CartPole world, its controller, 4-robot world), controllers looping ``steps`` times."""
+def _projects(root: Path, steps: int) -> tuple[Path, Path, Path, Path]:
+    """(CartPole world, its controller, 4-robot world, supervisor world), controllers looping ``steps`` times."""
     (root / "worlds").mkdir(parents=True)
     (root / "controllers" / "arm").mkdir(parents=True)
+    (root / "controllers" / "reads").mkdir(parents=True)
+    (root / "controllers" / "reads" / "reads.py").write_text(SUPERVISOR_CONTROLLER.format(steps=steps))
+    supervisor = root / "worlds" / "reads.wbt"
+    supervisor.write_text(SUPERVISOR_WORLD)
     cartpole = root / "worlds" / "cartpole.wbt"
     shutil.copy(BUNDLED / "cartpole" / "cartpole.wbt", cartpole)
     controller = root / "controllers" / "cartpole_api" / "cartpole_api.py"
@@ -113,7 +145,7 @@ def _projects(root: Path, steps: int) -> tuple[Path, Path, Path]:
     (root / "controllers" / "arm" / "arm.py").write_text(ARM_CONTROLLER.format(steps=steps))
     arms = root / "worlds" / "arms.wbt"
     arms.write_text("#VRML_SIM R2023b utf8\nWorldInfo { basicTimeStep 8 }\n" + "".join(_arm(i) for i in range(4)))
-    return cartpole, controller, arms
+    return cartpole, controller, arms, supervisor
 
 
 def _cpu() -> float:
@@ -153,7 +185,8 @@ def main() -> dict[str, float]:
         load = os.getloadavg()[0]
         print(f"== Controller isolation: process per controller vs threads ({STEPS} steps, best of {REPEATS}; "
               f"load average {load:.1f} on {os.cpu_count()} CPUs) ==")
-        worlds = (("CartPole", long[0], long[1], short[0], short[1]), ("4 robots", long[2], None, short[2], None))
+        worlds = (("CartPole", long[0], long[1], short[0], short[1]), ("4 robots", long[2], None, short[2], None),
+                  ("10 reads", long[3], None, short[3], None))
         for label, world, script, short_world, short_script in worlds:
             inf = float("inf")
             best = {mode: {"rate": 0.0, "wall": inf, "cpu": inf, "start": inf} for mode in MODES}
