@@ -168,3 +168,49 @@ def test_a_run_prints_the_same_whether_the_channel_polls_or_sleeps(
         outputs.append(capfd.readouterr().out)
     assert len(outputs[0].splitlines()) == 200
     assert outputs[1] == outputs[0]
+
+
+IMPORTING = """
+from controller import Supervisor
+sup = Supervisor()
+children = sup.getRoot().getField("children")
+for i in range(10):
+    sup.step(8)
+    if i == 2:
+        children.importMFNodeFromString(-1, 'Robot { name "new" controller "child" }')
+print("supervisor done", round(sup.getTime(), 3))
+"""
+CHILD = """
+from controller import Robot
+robot = Robot()
+while robot.step(8) != -1:
+    pass
+"""
+
+
+def test_a_controller_imported_beyond_the_cores_stops_the_polling(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capfd: pytest.CaptureFixture[str],
+) -> None:
+    """On 2 cores one controller polls; a supervisor that imports a Robot with a controller makes two, and the
+    simulation's side stops polling on every wire from then on (the new one starts sleeping)."""
+    monkeypatch.delenv("DUALTWIN_CONTROLLER_SPIN_US", raising=False)
+    monkeypatch.setattr(controller_host.os, "sched_getaffinity", lambda pid: {0, 1})
+    budgets: list[float] = []
+    real_spin = controller_process.Wire.spin
+
+    def recording_spin(wire: controller_process.Wire, microseconds: float) -> None:
+        budgets.append(microseconds)
+        real_spin(wire, microseconds)
+
+    monkeypatch.setattr(controller_process.Wire, "spin", recording_spin)
+    (tmp_path / "worlds").mkdir()
+    (tmp_path / "worlds" / "w.wbt").write_text(
+        '#VRML_SIM R2023b utf8\nWorldInfo { basicTimeStep 8 }\nRobot { name "sup" controller "sup" supervisor TRUE }\n')
+    for name, script in (("sup", IMPORTING), ("child", CHILD)):
+        (tmp_path / "controllers" / name).mkdir(parents=True)
+        (tmp_path / "controllers" / name / f"{name}.py").write_text(script)
+    assert run_world(tmp_path / "worlds" / "w.wbt", None, 0.2) == 0
+    assert "supervisor done 0.08" in capfd.readouterr().out
+    # the supervisor's wire at its start, then lowered for every wire when the import made two controllers,
+    # then the new controller's wire at its start
+    assert budgets == [controller_process.SPIN_US, 0.0, 0.0], budgets
