@@ -1,6 +1,6 @@
 """What one process per controller costs: steps/s of controllers run as processes against the former threads.
 
-Run: ``python bench/bench_controller_isolation.py``. Two worlds, each run headless through
+Run: ``python bench/bench_controller_isolation.py``. Three worlds, each run headless through
 :func:`dualtwin.webots.runner.run_world` with ``isolation="process"`` (the default, as Webots) and
 ``isolation="threads"`` (the former runtime, every controller a thread of one process):
 
@@ -92,10 +92,10 @@ start = time.perf_counter()
 steps = {steps}
 for k in range(steps):
     robot.step(8)
-    for _ in range(READS):
+    for _ in range(10):
         field.getSFVec3f()
 print("rate", steps / (time.perf_counter() - start))
-""".replace("READS", "10")
+"""
 
 SUPERVISOR_WORLD = """#VRML_SIM R2023b utf8
 WorldInfo { basicTimeStep 8 }
