@@ -18,7 +18,7 @@ from dualtwin.align.objective import (
     residuals,
 )
 from dualtwin.align.simulate import ScenarioTrace
-from dualtwin.divergence.metrics import Threshold
+from dualtwin.divergence.metrics import Threshold, dtw_distance, finite_prefix, resample_common, rmse
 from dualtwin.divergence.runs import Series
 from dualtwin.errors import DualtwinError
 
@@ -112,8 +112,6 @@ def test_a_term_of_weight_zero_is_not_computed_and_the_others_are_unchanged() ->
 
 def _terms_through_resample_common(ref: Series, cand: Series, scale: float) -> dict[str, float]:
     """The terms as the general path computes them: both series cut and put on one grid by resample_common."""
-    from dualtwin.divergence.metrics import dtw_distance, finite_prefix, resample_common, rmse
-
     common = resample_common(*finite_prefix(ref.t, ref.y), *finite_prefix(cand.t, cand.y))
     return {"dtw": dtw_distance(common.a, common.b).rms / scale,
             "endpoint": abs(float(common.b[-1] - common.a[-1])) / scale, "rmse": rmse(common.a, common.b) / scale}
@@ -140,14 +138,3 @@ def test_the_reference_is_cut_once_and_a_candidate_on_its_grid_scores_as_through
                             None)
     assert refused == {"rmse": 1.0, "endpoint": 1.0}
 
-
-def test_finite_prefix_stops_at_the_first_non_finite_time_or_value() -> None:
-    from dualtwin.divergence.metrics import finite_prefix
-
-    t = np.arange(6, dtype=np.float64)
-    y = np.array([0.0, 1.0, 2.0, np.nan, 4.0, 5.0])
-    assert finite_prefix(t, y)[0].tolist() == [0.0, 1.0, 2.0]
-    assert finite_prefix(np.array([0.0, np.inf, 2.0]), np.zeros(3))[1].tolist() == [0.0]
-    assert finite_prefix(t, t)[0].tolist() == t.tolist()
-    assert finite_prefix(np.zeros(0), np.zeros(0))[0].size == 0
-    assert finite_prefix(np.array([np.nan]), np.array([1.0]))[0].size == 0

@@ -19,6 +19,7 @@ from dualtwin.divergence import (
     compare_runs,
     crossing_time,
     dtw_distance,
+    finite_prefix,
     load_run,
     load_tsv,
     pearson,
@@ -394,10 +395,18 @@ def test_a_resolvable_divergence_scores_as_before() -> None:
 def test_dtw_takes_read_only_arrays() -> None:
     """Arrays from a read-only source (Ray's object store hands them out so) are copied for dtaidistance's C code,
     which refuses a read-only buffer."""
-    from dualtwin.divergence.metrics import dtw_distance
-
     a, b = np.linspace(0.0, 1.0, 50), np.linspace(0.0, 1.1, 50)
     expected = dtw_distance(a, b)
     a.flags.writeable = False
     b.flags.writeable = False
     assert dtw_distance(a, b) == expected
+
+
+def test_finite_prefix_stops_at_the_first_non_finite_time_or_value() -> None:
+    t = np.arange(6, dtype=np.float64)
+    y = np.array([0.0, 1.0, 2.0, np.nan, 4.0, 5.0])
+    assert finite_prefix(t, y)[0].tolist() == [0.0, 1.0, 2.0]
+    assert finite_prefix(np.array([0.0, np.inf, 2.0]), np.zeros(3))[1].tolist() == [0.0]
+    assert finite_prefix(t, t)[0].tolist() == t.tolist()
+    assert finite_prefix(np.zeros(0), np.zeros(0))[0].size == 0
+    assert finite_prefix(np.array([np.nan]), np.array([1.0]))[0].size == 0
