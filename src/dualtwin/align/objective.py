@@ -40,6 +40,7 @@ from dualtwin.divergence.metrics import (
     dtw_distance,
     finite_prefix,
     resample_common,
+    time_stamps_problem,
 )
 from dualtwin.divergence.metrics import rmse as rmse_of
 from dualtwin.divergence.runs import Series
@@ -76,8 +77,7 @@ class ObjectiveSpec:
 
 @dataclass(frozen=True, eq=False)
 class PreparedSeries:
-    """A reference series' finite prefix, and whether its time stamps would pass `resample_common`'s checks
-    (at least two, strictly increasing)."""
+    """A reference series' finite prefix, and whether its time stamps would pass `resample_common`'s checks."""
 
     t: FloatArray
     y: FloatArray
@@ -86,7 +86,7 @@ class PreparedSeries:
     @classmethod
     def of(cls, series: Series) -> PreparedSeries:
         t, y = finite_prefix(series.t, series.y)
-        return cls(t, y, t.size >= 2 and not bool(np.any(np.diff(t) <= 0)))
+        return cls(t, y, time_stamps_problem(t) is None)
 
 
 @dataclass(frozen=True)

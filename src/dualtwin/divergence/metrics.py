@@ -281,13 +281,22 @@ def finite_prefix(t: npt.ArrayLike, y: npt.ArrayLike) -> tuple[FloatArray, Float
     return t_arr[:end], y_arr[:end]
 
 
-def _check_time(t: FloatArray, name: str) -> None:
+def time_stamps_problem(t: FloatArray, name: str = "") -> str | None:
+    """Why ``t`` cannot be a series' time stamps for `resample_common` (fewer than 2, not finite, not strictly
+    increasing), or None when it can."""
     if t.size < 2:
-        raise ValueError(f"series {name} needs at least 2 samples, got {t.size}")
+        return f"series {name} needs at least 2 samples, got {t.size}"
     if not np.all(np.isfinite(t)):
-        raise ValueError(f"series {name} has non-finite time stamps")
+        return f"series {name} has non-finite time stamps"
     if np.any(np.diff(t) <= 0):
-        raise ValueError(f"series {name}: time must be strictly increasing")
+        return f"series {name}: time must be strictly increasing"
+    return None
+
+
+def _check_time(t: FloatArray, name: str) -> None:
+    problem = time_stamps_problem(t, name)
+    if problem is not None:
+        raise ValueError(problem)
 
 
 def resample_common(
