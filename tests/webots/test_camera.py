@@ -215,3 +215,61 @@ def test_near_and_far_clip_the_box(clip: str, visible: bool) -> None:
     cam.enable(8)
     sup.step(8)
     assert bool(_red(_bgra(cam)).any()) == visible
+
+
+BACKGROUND_WORLD = """#VRML_SIM R2023b utf8
+WorldInfo { basicTimeStep 8 }
+BACKGROUND
+DirectionalLight { direction 0 0 -1 }
+Solid {
+  translation 2 0 0
+  children [ Shape { appearance PBRAppearance { baseColor 1 0 0 } geometry Box { size 0.4 0.4 0.4 } } ]
+}
+Robot {
+  children [ Camera { name "cam" width WIDTH height HEIGHT fieldOfView FOV antiAliasing AA } ]
+  controller "<extern>"
+  supervisor TRUE
+}
+"""
+
+
+def _background_image(background: str, anti_aliasing: bool = False) -> tuple[np.ndarray, list[str]]:
+    text = (BACKGROUND_WORLD.replace("BACKGROUND", background).replace("AA", "TRUE" if anti_aliasing else "FALSE")
+            .replace("WIDTH", str(W)).replace("HEIGHT", str(H)).replace("FOV", str(FOV)))
+    sim = Simulation(load_world_text(text))
+    sup = Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    cam = sup.getDevice("cam")
+    assert isinstance(cam, Camera)
+    cam.enable(8)
+    sup.step(8)
+    image = _bgra(cam).copy()
+    return image, list(sim.extensions["visual_scene"].warnings)
+
+
+@pytest.mark.parametrize("anti_aliasing", [False, True])
+def test_the_sky_is_the_backgrounds_first_sky_colour_behind_the_shapes(anti_aliasing: bool) -> None:
+    """Webots draws a Background without cube-map textures in its skyColor (the first colour): every pixel that
+    shows no Shape has it, in bytes rounded to the nearest (0.7 -> 179), and the box in front is unchanged."""
+    image, _ = _background_image("Background { skyColor [ 0.4 0.7 1, 0 1 0 ] }", anti_aliasing)
+    control, _ = _background_image("", anti_aliasing)  # no Background: Webots' default sky, black
+    box = _red(control)
+    assert box[H // 2, W // 2] and box.sum() > 50
+    sky = (control[..., :3] == 0).all(axis=-1)  # no Shape in the pixel (with antiAliasing, in none of its samples)
+    assert sky.sum() > 0.8 * W * H - box.sum(), "without a Background the sky stays black"
+    # BGRA of (0.4, 0.7, 1.0): the first colour of the list, not the second
+    assert (image[sky] == np.array([255, 179, 102, 255], dtype=np.uint8)).all()
+    assert (image[box] == control[box]).all(), "the box is drawn over the sky, unchanged"
+
+
+def test_a_textured_background_shows_its_sky_colour_and_says_its_textures_are_not_drawn(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    image, warnings = _background_image(
+        'Background { skyColor [ 0.2 0.2 0.2 ] backUrl [ "back.jpg" ] topUrl [ "top.jpg" ] }')
+    assert tuple(image[0, 0]) == (51, 51, 51, 255)
+    assert any("Background textures are not drawn" in w for w in warnings), warnings
+    err = capsys.readouterr().err
+    assert err.count("Warning: Camera:") == 1 and "Background textures are not drawn" in err, err
+    # the TexturedBackground PROTO (our stand-in when the file is not on the search path) passes skyColor on
+    image, _ = _background_image('EXTERNPROTO "webots://projects/objects/backgrounds/protos/TexturedBackground.proto"\n'
+                                 "TexturedBackground { skybox FALSE skyColor [ 0 0 1 ] }")
+    assert tuple(image[0, 0]) == (255, 0, 0, 255)

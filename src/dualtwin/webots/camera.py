@@ -26,9 +26,11 @@ What follows Webots (``camera.c`` and ``camera.py`` of its controller library, a
 
 Decisions: an image is rendered lazily, at the first ``getImage`` after a sample became due (a camera that is
 enabled but never read costs nothing); the scene is built at the first frame and again after a supervisor changed the
-scene tree (nodes imported or removed, a Pose among a Solid's children moved, a geometry resized). Not simulated: spherical and cylindrical projections (drawn planar, with a warning),
-exposure, lens distortion, motion blur, bloom, ambient occlusion, textures (a Shape is drawn in its flat
-``baseColor``/``diffuseColor``) and the Background colour (MuJoCo's clear colour).
+scene tree (nodes imported or removed, a Pose among a Solid's children moved, a geometry resized). The sky is the
+world's Background colour (its first ``skyColor``, as Webots shows it where the Background has no cube-map
+texture; textures are not drawn). Not simulated: spherical and cylindrical projections (drawn planar, with a
+warning), exposure, lens distortion, motion blur, bloom, ambient occlusion and textures (a Shape is drawn in its
+flat ``baseColor``/``diffuseColor``, a textured Background in its ``skyColor``).
 
 Recognition (a Recognition node in the ``recognition`` field): ``recognitionEnable(T)`` samples, with the
 sensor protocol and its own period, the Solids with ``recognitionColors`` that the camera sees, as
@@ -120,8 +122,15 @@ def _visual_scene(robot: Any) -> Any:
     if scene is None or scene.geometry_version != sim.geometry_version:
         from dualtwin.webots.visual_scene import WebotsVisualScene
 
-        scene = sim.extensions["visual_scene"] = WebotsVisualScene(_RootView(robot), allow_empty=True)
+        scene = sim.extensions["visual_scene"] = WebotsVisualScene(_RootView(robot), allow_empty=True,
+                                                                   background=True)
         scene.geometry_version = sim.geometry_version
+        # what the images leave out (a mesh file not read, a Background's textures), once per simulation
+        shown: set[str] = sim.extensions.setdefault("visual_scene_warned", set())
+        for line in scene.warnings:
+            if line not in shown:
+                shown.add(line)
+                warn(f"Camera: {line}")
     return scene
 
 
@@ -165,7 +174,8 @@ class Camera(SolidSensor):
         if held is not None:
             held[1].close()
         m = self._model()
-        renderer = FrameRenderer(scene.model, m.width, m.height, supersample=supersample)
+        renderer = FrameRenderer(scene.model, m.width, m.height, supersample=supersample,
+                                 sky=purpose == "image" and scene.sky is not None)
         renderers[purpose] = (scene, renderer)
         return renderer
 

@@ -282,7 +282,8 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Camera", "device", "partial",
              "planar BGRA image of the world's Shapes in their flat colours, drawn headless by the MuJoCo "
              "renderer from the camera's frame: width, height, fieldOfView, near, far, noise, antiAliasing, "
-             "sampling, getImageArray, imageGet*, saveImage (PNG/JPEG); no textures, Background colour, "
+             "sampling, getImageArray, imageGet*, saveImage (PNG/JPEG); the sky in the Background's first "
+             "skyColor; no textures (a textured Background shows its skyColor), "
              "exposure, lens, motion blur or spherical/cylindrical projection (drawn planar); the scene is "
              "drawn again after a supervisor changed it (nodes imported or removed, a Pose moved); a Mesh Shape is "
              "drawn from its file's triangles in its appearance's colour, a CadShape in grey 0.6 (materials "
@@ -352,7 +353,9 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("ImageTexture", "visual", "visual", "not rendered; never downloaded"),
     Coverage("TextureTransform", "visual", "visual", "not rendered"),
     Coverage("Color", "visual", "visual", "not rendered"),
-    Coverage("Background", "visual", "visual", "not rendered"),
+    Coverage("Background", "visual", "visual", "Camera images show its first skyColor behind the Shapes, "
+             "rounded to the nearest byte; its cube-map textures are not drawn (a warning); luminosity is not "
+             "used"),
     Coverage("DirectionalLight", "visual", "visual", "lights Camera images (no shadows)"),
     Coverage("PointLight", "visual", "visual", "lights Camera images (no shadows)"),
     Coverage("SpotLight", "visual", "visual", "lights Camera images (no shadows)"),

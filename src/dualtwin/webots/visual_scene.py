@@ -11,8 +11,13 @@ renderer as the MuJoCo twin (:class:`dualtwin.twins.camera.FrameRenderer`):
   Mesh and a CadShape are MuJoCo meshes of :func:`~dualtwin.webots.shapes.surface_triangles` (a CadShape in
   :data:`~dualtwin.webots.shapes.CAD_SHAPE_RGBA`: its file's materials are not read); a mesh file that cannot
   be read is not drawn (a line in :attr:`WebotsVisualScene.warnings`);
-* DirectionalLight/PointLight/SpotLight become MuJoCo lights; Background is not drawn (MuJoCo's clear
-  colour, as in the MJCF twin); MuJoCo's default headlight is kept, as in every MuJoCo model;
+* DirectionalLight/PointLight/SpotLight become MuJoCo lights; MuJoCo's default headlight is kept, as in every
+  MuJoCo model;
+* the Background: with ``background=True`` (a ``Camera`` device's scene) the sky is the first Background's
+  first ``skyColor``, as Webots draws it where no cube-map texture is set (the TexturedBackground PROTO says so
+  of its ``skyColor``); its textures are not drawn (a line in :attr:`WebotsVisualScene.warnings`). It is a flat
+  MuJoCo skybox, unlit, in bytes rounded to the nearest. Without it (the perception renderer) the background
+  is MuJoCo's clear colour, black, as in the MJCF twin;
 * each frame, :meth:`WebotsVisualScene.sync` copies every Solid's pose read through the supervisor API
   (``Node.getPosition``/``getOrientation``) into ``mocap_pos``/``mocap_quat`` and runs ``mj_forward``.
 
@@ -82,10 +87,11 @@ class WebotsVisualScene:
     """The visual scene of the world a Webots supervisor runs, as a MuJoCo model with one mocap body per Solid.
 
     ``allow_empty``: a world without any visible Shape gives an empty scene (a Camera then sees only the
-    background) instead of an error (perception has nothing to learn from such a world).
+    background) instead of an error (perception has nothing to learn from such a world). ``background``: draw
+    the world's Background colour behind everything (:attr:`sky`; see the module docstring).
     """
 
-    def __init__(self, supervisor: Any, *, allow_empty: bool = False) -> None:
+    def __init__(self, supervisor: Any, *, allow_empty: bool = False, background: bool = False) -> None:
         self.sup = supervisor
         self.spec = mujoco.MjSpec()
         self.spec.compiler.degree = False
@@ -95,6 +101,9 @@ class WebotsVisualScene:
         self._cameras: dict[str, Any] = {}
         self._viewpoint: Any = None
         self._mesh_count = 0
+        self._background: Any = None
+        #: The sky's RGB bytes when the scene draws a Background colour (a skybox), else None (black).
+        self.sky: tuple[int, int, int] | None = None
         self._world_geoms: list[dict[str, Any]] = []
         self._names: set[str] = set()
         root = supervisor.getRoot()
@@ -105,6 +114,8 @@ class WebotsVisualScene:
             self._top(top)
         for geom in self._world_geoms:
             self.spec.worldbody.add_geom(**geom)
+        if background and self._background is not None:
+            self._sky(self._background)
         if not self._solids and not self._world_geoms and not allow_empty:
             raise DualtwinError("the Webots world has no visible Shape in any Solid: nothing to render")
         try:
@@ -137,9 +148,30 @@ class WebotsVisualScene:
                 light.cutoff = math.degrees(float(node.get("cutOffAngle", math.pi / 2)))
         elif kind == "Viewpoint":
             self._viewpoint = handle
+        elif kind == "Background":
+            # Webots uses the first Background of the world
+            self._background = self._background or node
         else:
             # Shapes outside any Solid are static scenery, drawn in the world frame.
             self._walk(handle, np.eye(4), 1.0, self._world_geoms)
+
+    def _sky(self, node: Any) -> None:
+        """The Background's first skyColor as a flat skybox (nothing for black, MuJoCo's clear colour)."""
+        colours = node.get("skyColor", [])
+        textured = [f for f in ("backUrl", "bottomUrl", "frontUrl", "leftUrl", "rightUrl", "topUrl") if node.get(f)]
+        if textured:
+            self.warnings.append(f"{node.location or 'Background'}: Background textures are not drawn; the sky is "
+                                 "its skyColor")
+        if not colours:
+            return
+        rgb = tuple(int(math.floor(min(max(float(c), 0.0), 1.0) * 255.0 + 0.5)) for c in colours[0][:3])
+        if not any(rgb):
+            return
+        self.sky = (rgb[0], rgb[1], rgb[2])
+        # a quarter of a byte above the value: MuJoCo truncates the flat texture's colour to bytes
+        colour = [(b + 0.25) / 255.0 if b < 255 else 1.0 for b in rgb]
+        self.spec.add_texture(name="webots_background", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
+                              builtin=mujoco.mjtBuiltin.mjBUILTIN_FLAT, rgb1=colour, rgb2=colour, width=4, height=4)
 
     def _light(self, kind: Any, pos: Any, direction: Any, diffuse: np.ndarray, ambient: np.ndarray) -> Any:
         d = np.asarray(direction, dtype=float)
