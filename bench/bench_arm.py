@@ -34,14 +34,18 @@ Run: ``python bench/bench_arm.py`` (divergence, stepping and alignment; ``--part
   two, Webots' motor law in Python per physics step, ``DUALTWIN_NATIVE_LAW=0``; run in a child interpreter,
   since the pool's fork server keeps the environment it started with), the same pool with the law in the
   plugin (``off``), and the batched fit (``auto``); ``--batch both`` leaves out the first. The issue's goal
-  (>= 2x) is the batched fit against the first. The thread-scaling curve is
-  ``bench/bench_batch_scaling.py``.
+  (>= 2x) is the batched fit against the first. The CMA-ES stage that the polish starts from computes no
+  intervals (they would be thrown away; the fitted values do not depend on them); the polish's are the fit's.
+  ``--baseline-commit REV`` also runs this part as the bench was at commit ``REV`` (``456335f``: the code issue
+  25 measured, its own fit and intervals), in the same run, and compares wall time and the mean flange RMSE
+  after the fit. The thread-scaling curve is ``bench/bench_batch_scaling.py``.
 
 Set ``DUALTWIN_BENCH_ARM_OUT`` to keep the runs.
 """
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import os
@@ -364,10 +368,14 @@ def fit_stages(root: Path, suite: Path, holdout: list[str], channels: list[str],
     sigma = SIGMA0
     fitted: dict[str, float] = {}
     evaluations = 0
+    polished = polish > 0 and optimizer == "cma"
     for stage in range(stages):
+        # A stage the polish starts from is a start point, not a result: its intervals (profiles of 25 knobs,
+        # most of a stage's time) would be thrown away, so it computes none (the fitted values do not depend on
+        # them: only a least-squares fit moves to a lower point its profile found).
         result = fit_arm(root, f"align{tag}{stage}", suite, holdout, channels, optimizer=optimizer,
                          budget=budget // stages, executor=executor, sigma0=sigma, seed=stage, start=dict(fitted),
-                         batch=batch)
+                         batch=batch, intervals="off" if polished else "auto")
         evaluations += result.evaluations
         fitted = result.fitted
         print(f"  [{label}] stage {stage + 1}/{stages}: sigma0 {sigma:.3g}, {result.evaluations} evaluations, "
@@ -376,7 +384,7 @@ def fit_stages(root: Path, suite: Path, holdout: list[str], channels: list[str],
               flush=True)
         sigma *= SIGMA_SHRINK
     cma_only: dict[str, Any] = {}
-    if polish > 0 and optimizer == "cma":
+    if polished:
         # What CMA-ES alone reached, before the least-squares polish starts from it.
         cma_only = {"wall_s": time.perf_counter() - start, "evaluations": evaluations,
                     "objective": result.objective_after, "fitted": dict(fitted)}
@@ -420,8 +428,41 @@ def child_fit(root: Path, budget: int, executor: str, optimizer: str, restarts: 
     (root / "fit.json").write_text(json.dumps({k: fit[k] for k in ("wall_s", "cpu_s", "fitted", "evaluations")}))
 
 
+def fit_at_commit(commit: str, budget: int, executor: str, optimizer: str, restarts: int, polish: int
+                  ) -> dict[str, Any] | None:
+    """The same ``--parts align`` fit run by this bench as it was at ``commit`` (``git archive`` of the project
+    into a temporary folder, run with its own ``src``): its wall time and mean flange RMSE after the fit, as it
+    printed them. None (with a line saying why) when git or the commit is not at hand. The code of another day
+    fits with its own algorithm, so its result is compared by quality (the flange RMSE), not bit for bit."""
+    import re
+    import tarfile
+    import tempfile
+
+    project = Path(__file__).resolve().parents[1]
+    with tempfile.TemporaryDirectory(prefix="dualtwin-baseline-") as tmp:
+        archive = subprocess.run(["git", "-C", str(project), "archive", commit], capture_output=True)
+        if archive.returncode != 0:
+            print(f"  [{commit}] not measured: git archive failed ({archive.stderr.decode().strip()[:200]})")
+            return None
+        with tarfile.open(fileobj=io.BytesIO(archive.stdout)) as tar:
+            tar.extractall(tmp, filter="data")
+        command = [sys.executable, str(Path(tmp) / "bench" / "bench_arm.py"), "--parts", "align", "--budget",
+                   str(budget), "--executor", executor, "--optimizer", optimizer, "--restarts", str(restarts),
+                   "--polish", str(polish)]
+        env = {k: v for k, v in os.environ.items() if k not in ("DUALTWIN_NATIVE_LAW", "DUALTWIN_BENCH_ARM_OUT")}
+        print(f"  [{commit}] fitting with the code of commit {commit} (its own bench_arm.py --parts align)", flush=True)
+        run = subprocess.run(command, capture_output=True, text=True, env={**env, "PYTHONPATH": str(Path(tmp) / "src")},
+                             cwd=tmp)
+    wall = re.search(r"== alignment: .*? (\d+) s wall", run.stdout)
+    rmse = re.search(r"mean flange RMSE over the fitted scenarios: nominal ([\d.]+) mm, fitted ([\d.]+) mm", run.stdout)
+    if run.returncode != 0 or wall is None or rmse is None:
+        print(f"  [{commit}] not measured: its bench ended with {run.returncode}: {run.stderr.strip()[-300:]}")
+        return None
+    return {"wall_s": float(wall.group(1)), "rmse_fitted_m": float(rmse.group(2)) / 1000}
+
+
 def alignment(root: Path, budget: int, executor: str, optimizer: str = "cma", restarts: int = 0,
-              polish: int = 0, batch: str = "both") -> dict[str, Any]:
+              polish: int = 0, batch: str = "both", baseline_commit: str | None = None) -> dict[str, Any]:
     """CMA-ES over 25 knobs of the MuJoCo arm_payload against the Webots stand-in; RMSE before/after per
     scenario, and which knob families and joints carry the divergence (ablation from the fitted values).
 
@@ -432,6 +473,7 @@ def alignment(root: Path, budget: int, executor: str, optimizer: str = "cma", re
     from fnmatch import fnmatch
 
     robot, suite, holdout, fit_ids, channels = reference_setup(root)
+    then = fit_at_commit(baseline_commit, budget, executor, optimizer, restarts, polish) if baseline_commit else None
     modes = {"all": ["issue", "off", "auto"], "both": ["off", "auto"]}.get(batch, [batch])
     fits = {mode: fit_in_child(root / "issue_path", budget, executor, optimizer, restarts, polish) if mode == "issue"
             else fit_stages(root, suite, holdout, channels, budget, executor, optimizer, restarts, polish, mode,
@@ -465,6 +507,12 @@ def alignment(root: Path, budget: int, executor: str, optimizer: str = "cma", re
         comparison.update({"align_batch_wall_s": auto["wall_s"], "align_batch_cpu_s": auto["cpu_s"]})
         print(f"  {'batched, pool of 2':42s} {auto['wall_s']:6.0f} s wall {auto['cpu_s']:6.0f} CPU-s  "
               f"{evaluations} evaluations")
+    if then is not None:
+        comparison.update({"align_commit_wall_s": then["wall_s"], "align_commit_rmse_fitted_m": then["rmse_fitted_m"],
+                           "align_speedup_over_commit": then["wall_s"] / wall})
+        print(f"  {'the code of ' + str(baseline_commit) + ' (its own fit)':42s} {then['wall_s']:6.0f} s wall"
+              f"{'':16s}today's fit {then['wall_s'] / wall:.2f}x faster; mean flange RMSE of the fitted scenarios "
+              f"after its fit {then['rmse_fitted_m'] * 1000:.3f} mm (today's below)")
 
     def run(values: dict[str, float], name: str) -> dict[str, dict[str, float]]:
         twin = make_twin("mujoco", robot)
@@ -684,6 +732,9 @@ def main() -> dict[str, Any]:
                         help="align part: fit with align's batch setting auto (mujoco.batch), off (the executor), "
                         "issue (the executor with the Python motor law, as issue 25 measured), both (off and "
                         "auto) or all three, one after the other, compared")
+    parser.add_argument("--baseline-commit", default=None,
+                        help="align part: also run this bench's align part as it was at this commit (e.g. 456335f, "
+                        "the code issue 25 measured), in the same run, and compare wall times and fit quality")
     parser.add_argument("--fit-child", type=Path, help=argparse.SUPPRESS)
     parser.add_argument("--parts", default="divergence,stepping,align",
                         help=f"comma-separated parts to run, of: {', '.join(PARTS)}")
@@ -703,7 +754,7 @@ def main() -> dict[str, Any]:
             results.update(mujoco_overhead())
         if "align" in parts and args.budget > 0:
             results.update(alignment(root / "alignment", args.budget, args.executor, args.optimizer, args.restarts,
-                                     args.polish, args.batch))
+                                     args.polish, args.batch, args.baseline_commit))
         if "executors" in parts:
             results.update(executors(root / "executors", args.executor_budget))
         if "batch" in parts:
