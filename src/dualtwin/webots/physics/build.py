@@ -176,14 +176,14 @@ class SceneBuilder(SimulationCore):
         """A joint's axes and anchor in its frame, from its (Hinge)JointParameters nodes (defaults where a
         jointParameters field is empty)."""
         default_axis = (0.0, 0.0, 1.0) if kind == "slider" else (1.0, 0.0, 0.0)
-        axes = [tuple(float(v) for v in _f(params[0], "axis", default_axis))]
+        axes = [self._axis(params[0], default_axis)]
         if kind == "hinge2":
-            axes.append(tuple(float(v) for v in _f(params[1], "axis", (0.0, 0.0, 1.0))))
+            axes.append(self._axis(params[1], (0.0, 0.0, 1.0)))
         elif kind == "ball":
             # §4.4: BallJointParameters has no axis; the first axis is jointParameters2's, the third
             # jointParameters3's, the second their cross product (axis3 × axis1), as in a chain of three hinges
-            a1 = tuple(float(v) for v in _f(params[1], "axis", (1.0, 0.0, 0.0)))
-            a3 = tuple(float(v) for v in _f(params[2], "axis", (0.0, 0.0, 1.0)))
+            a1 = self._axis(params[1], (1.0, 0.0, 0.0))
+            a3 = self._axis(params[2], (0.0, 0.0, 1.0))
             if m3.norm(m3.cross(m3.normalized(a1), m3.normalized(a3))) < 1e-6:
                 # no Euler frame spans them (ODE would abort the process normalising their cross product)
                 self.warn("BallJoint first and third axes are aligned or zero; falling back to x and z")
@@ -193,6 +193,18 @@ class SceneBuilder(SimulationCore):
             axes[0] = m3.normalized(axes[0])  # §4.3: Webots normalises the slider axis
         anchor = tuple(float(v) for v in _f(params[0], "anchor", (0.0, 0.0, 0.0)))
         return axes, anchor  # type: ignore[return-value]
+
+    def _axis(self, params: Node | None, default: m3.Vec3) -> m3.Vec3:
+        """A joint parameters node's ``axis``, or ``default`` (with a warning) where it has no direction: ODE
+        normalises the axes it is given and aborts the process on a zero or non-finite one (Webots, too, will
+        not take a null axis)."""
+        axis = tuple(float(v) for v in _f(params, "axis", default))
+        if not all(math.isfinite(v) for v in axis) or m3.norm(axis) < 1e-12:
+            where = f"{params.location}: " if params is not None and params.location is not None else ""
+            self.warn(f"{where}joint axis {' '.join(f'{v:g}' for v in axis)} has no direction; using the default "
+                      f"{' '.join(f'{v:g}' for v in default)}")
+            return default
+        return axis  # type: ignore[return-value]
 
     def _add_axis_device(
         self, joint: JointRec, axis_index: int, dev: Node
