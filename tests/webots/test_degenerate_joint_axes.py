@@ -80,9 +80,12 @@ def _run(tmp_path: Path, name: str, **axes: str) -> subprocess.CompletedProcess[
 def test_a_joint_axis_without_direction_takes_the_default_with_a_warning(tmp_path: Path, degenerate: str) -> None:
     bad = _run(tmp_path, "bad", hinge=degenerate, slider=degenerate, hinge2=degenerate)
     assert bad.returncode == 0, bad.stderr
-    warnings = [line for line in bad.stderr.splitlines() if "has no direction" in line]
+    # a zero axis is the joint's to judge; nan and inf are caught as the world is read (any field's number)
+    said = "has no direction" if degenerate == "0 0 0" else "holds a non-finite number"
+    warnings = [line for line in bad.stderr.splitlines() if said in line]
     assert len(warnings) == 3 and all(line.startswith("Warning: ") for line in warnings), bad.stderr
-    assert "using the default 1 0 0" in warnings[0] and "using the default 0 0 1" in warnings[1], warnings
+    if degenerate == "0 0 0":
+        assert "using the default 1 0 0" in warnings[0] and "using the default 0 0 1" in warnings[1], warnings
     control = _run(tmp_path, "control", hinge="1 0 0", slider="0 0 1", hinge2="0 0 1")
     assert control.returncode == 0 and "has no direction" not in control.stderr, control.stderr
     assert bad.stdout == control.stdout and bad.stdout.count("BOB") == 3, (bad.stdout, control.stdout)

@@ -421,6 +421,12 @@ def render_markdown() -> str:
         "  images draw at most its flat colour;",
         "- **not**: parsed and kept, without effect yet.",
         "",
+        "Numbers no Webots field takes are not passed to ODE, which aborts the whole process on them (the "
+        "`libode8` package is built with its assertions; Webots' own ODE is not): a `nan` or `inf` in any field "
+        "of a world or PROTO keeps the field's default, and a joint axis of length zero takes the joint's "
+        "default axis, each with a warning naming the place. Finite but extreme magnitudes (a sphere of "
+        "radius 1e300, an anchor at 1e30 m) can still make ODE abort inside its step.",
+        "",
         "Totals: " + ", ".join(f"{counts[s]} {s}" for s in STATUSES) + f" ({len(REGISTRY)} entries).",
         "",
     ]

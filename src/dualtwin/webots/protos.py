@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
 import os
 import re
 import tempfile
@@ -148,6 +149,16 @@ def _hidden_type(name: str) -> str | None:
         if pattern.fullmatch(name):
             return vrml_type
     return None
+
+
+def _finite(value: Any) -> bool:
+    """No NaN or infinity among the numbers of a field value (a number, a vector, or a list of them); nodes,
+    strings and booleans count as finite."""
+    if isinstance(value, float):
+        return math.isfinite(value)
+    if isinstance(value, (tuple, list)):
+        return all(_finite(v) for v in value)
+    return True
 
 
 def _generic_value(raw: Any) -> Any:
@@ -297,7 +308,15 @@ class _Expander:
         fields = spec.defaults()
         locations: dict[str, SourceLocation] = {}
         for name, rf in raw.fields.items():
-            fields[name] = self.field_value(rf, spec.fields[name].type, scope)
+            value = self.field_value(rf, spec.fields[name].type, scope)
+            if not _finite(value):
+                # The tokenizer reads nan and inf (a world written from a diverged simulation holds them), but
+                # no Webots field takes one, and ODE aborts the whole process on a non-finite anchor, centre of
+                # mass or pose: the field keeps its default, and the world says so once.
+                self.warnings.append(f"{rf.location}: {raw.type_name}.{name} holds a non-finite number; using "
+                                     "its default")
+                continue
+            fields[name] = value
             locations[name] = rf.location
         node = Node(raw.type_name, fields, location=raw.location, field_locations=locations)
         node.is_links = self.links_of(raw, scope)
@@ -352,7 +371,11 @@ class _Expander:
             if isinstance(rf.value, IsLink):
                 raise WebotsSyntaxError(rf.location, "a hidden field value", "IS")
             vrml_type = _hidden_type(name)
-            out[name] = _generic_value(rf.value) if vrml_type is None else convert_value(rf.value, vrml_type)
+            value = _generic_value(rf.value) if vrml_type is None else convert_value(rf.value, vrml_type)
+            if not _finite(value):  # (a diverged simulation's saved state: the instance starts as if unsaved)
+                self.warnings.append(f"{rf.location}: hidden field '{name}' holds a non-finite number; ignored")
+                continue
+            out[name] = value
         return out
 
     # -- PROTO instances ---------------------------------------------------------------------
