@@ -18,13 +18,9 @@ gains, the servo stiffness and the law's state. A model compiled with the plugin
 
 from __future__ import annotations
 
-import hashlib
 import math
 import os
-import shutil
-import subprocess
 import sys
-import tempfile
 import threading
 from pathlib import Path
 
@@ -32,6 +28,7 @@ import mujoco
 import numpy as np
 
 from dualtwin.errors import DualtwinError
+from dualtwin.native_build import compile_library, library_path
 from dualtwin.twins.motors import MotorParams, MotorState
 
 PLUGIN = "dualtwin-webots-motor"
@@ -50,14 +47,8 @@ _loaded: Path | None = None
 _failure: str | None = None
 
 
-def _cache_dir() -> Path:
-    root = os.environ.get("DUALTWIN_CACHE") or Path.home() / ".cache" / "dualtwin"
-    return Path(root) / "native"
-
-
 def _library_path() -> Path:
-    digest = hashlib.sha256(SOURCE.read_bytes() + mujoco.__version__.encode()).hexdigest()[:16]
-    return _cache_dir() / f"webots_motor-{digest}.so"
+    return library_path(SOURCE, "webots_motor", mujoco.__version__)
 
 
 def _mujoco_library() -> Path:
@@ -73,23 +64,10 @@ def build(target: Path | None = None) -> Path:
     target = target or _library_path()
     if target.exists():
         return target
-    compiler = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
-    if compiler is None:
-        raise DualtwinError("no C compiler (cc) on PATH: install gcc (Debian: apt-get install gcc libc6-dev)")
     library = _mujoco_library()
     include = Path(mujoco.__file__).parent / "include"
-    target.parent.mkdir(parents=True, exist_ok=True)
-    # Compile to a private name and rename: concurrent first uses never load a half-written library.
-    with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
-        out = Path(tmp) / target.name
-        command = [compiler, "-O2", "-shared", "-fPIC", "-std=c11", "-o", str(out), str(SOURCE),
-                   f"-I{include}", f"-L{library.parent}", f"-l:{library.name}",
-                   f"-Wl,-rpath,{library.parent}", "-lm"]
-        result = subprocess.run(command, capture_output=True, text=True, check=False)
-        if result.returncode != 0:
-            raise DualtwinError(f"building the MuJoCo motor plugin failed: {result.stderr.strip()[:400]}")
-        os.replace(out, target)
-    return target
+    return compile_library(SOURCE, target, [f"-I{include}", f"-L{library.parent}", f"-l:{library.name}",
+                                            f"-Wl,-rpath,{library.parent}", "-lm"], "the MuJoCo motor plugin")
 
 
 def load() -> Path:

@@ -18,13 +18,17 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import os
 import threading
+from collections.abc import Callable
 from ctypes import CFUNCTYPE, POINTER, Structure, c_char_p, c_double, c_int, c_uint, c_ulong, c_void_p
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from dualtwin.errors import DualtwinError
+from dualtwin.native_build import compile_library, library_path
 
 dReal = c_double
 dVector3 = c_double * 4
@@ -442,6 +446,61 @@ def ensure_thread() -> None:
     if not lib.dAllocateODEDataForThread(0xFFFFFFFF):
         raise OdeUnavailableError("dAllocateODEDataForThread failed")
     _THREADS.ready = True
+
+
+GUARD_SOURCE = Path(__file__).with_name("native") / "ode_guard.c"
+_guard_lock = threading.Lock()
+_guard: tuple[Any, int] | None = None
+_guard_failure: str | None = None
+
+
+class OdeStepError(DualtwinError):
+    """ODE stopped inside a guarded world step on an internal error (its message); the world is half stepped."""
+
+
+def guarded_step() -> Callable[[int, float], None] | None:
+    """A world step that raises :class:`OdeStepError` where ODE would abort the process (``native/ode_guard.c``,
+    compiled once with the system C compiler), or None where it cannot be had (:func:`guard_failure` says why;
+    ``DUALTWIN_ODE_GUARD=0`` turns it off): the caller then steps with ``dWorldStep`` as before."""
+    global _guard, _guard_failure
+    with _guard_lock:
+        if _guard is None and _guard_failure is None:
+            if os.environ.get("DUALTWIN_ODE_GUARD", "1") == "0":
+                _guard_failure = "turned off by DUALTWIN_ODE_GUARD=0"
+            else:
+                try:
+                    _guard = _load_guard(load())
+                except (DualtwinError, OSError, AttributeError) as exc:
+                    _guard_failure = str(exc)
+        if _guard is None:
+            return None
+        call, step = _guard
+    message = ctypes.create_string_buffer(512)
+
+    def guarded(world: int, stepsize: float) -> None:
+        if call(step, world, stepsize, message, len(message)) != 0:
+            raise OdeStepError(message.value.decode(errors="replace").strip())
+
+    return guarded
+
+
+def guard_failure() -> str | None:
+    """Why :func:`guarded_step` gave None (None when it has not been asked, or gave a step)."""
+    return _guard_failure
+
+
+def _load_guard(lib: ctypes.CDLL) -> tuple[Any, int]:
+    shim = ctypes.CDLL(str(compile_library(GUARD_SOURCE, library_path(GUARD_SOURCE, "ode_guard"),
+                                           what="the ODE step guard")))
+    raw = ctypes.CDLL(lib._name)  # (the loaded library again) plain function addresses for the shim
+    install = shim.dualtwin_ode_guard_install
+    install.restype, install.argtypes = None, [c_void_p, c_void_p]
+    install(ctypes.cast(raw.dSetDebugHandler, c_void_p), ctypes.cast(raw.dSetErrorHandler, c_void_p))
+    call = shim.dualtwin_guarded_step  # a CDLL call: the GIL is released for the step, as for dWorldStep
+    call.restype, call.argtypes = c_int, [c_void_p, c_void_p, c_double, c_char_p, c_int]
+    address = ctypes.cast(raw.dWorldStep, c_void_p).value
+    assert address is not None
+    return call, address
 
 
 def configuration() -> str:

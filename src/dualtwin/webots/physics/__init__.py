@@ -44,7 +44,11 @@ What differs (and why)
       same robot without selfCollision) so the Python near-callback only sees useful pairs.
     * The Debian ``libode8`` keeps ODE's assertions: a non-finite state inside ``dWorldStep`` aborts the
       process. :class:`SimulationUnstable` is therefore raised on non-finite *or diverging* state
-      (|x| > 1e9 m, |v| > 1e8 m/s) right after the step, before the collision pass would see it.
+      (|x| > 1e9 m, |v| > 1e8 m/s) right after the step, before the collision pass would see it; and the
+      step itself runs through ``webots/native/ode_guard.c`` where a C compiler is at hand (:func:`.ode.guarded_step`),
+      so that an assertion inside it (numbers that overflow within one step) raises
+      :class:`SimulationUnstable` instead of ending the process. Such a world is half stepped: it is never
+      stepped or reset again (load it again).
 
 UNVERIFIED choices (spec gaps, most plausible behaviour picked)
     * "Kinematic solid touches a disabled body" (§2.3 rule 9) covers every body-less geom.
@@ -147,8 +151,10 @@ class Simulation(FrameEdits):
         self._lib = lib = ode.load()
         ode.ensure_thread()
         self._thread = threading.get_ident()
-        # cached ctypes function objects for the per-step paths
-        self._step_fn = lib.dWorldStep
+        # cached ctypes function objects for the per-step paths; the world step returns where ODE would abort
+        # the process on an internal error (webots/native/ode_guard.c), else it is ODE's own
+        self._step_fn = ode.guarded_step() or lib.dWorldStep
+        self._broken: str | None = None  # what ODE said when it stopped inside a step: never stepped again
         self._is_enabled = lib.dBodyIsEnabled
         self._empty_group = lib.dJointGroupEmpty
         self._hinge_angle = lib.dJointGetHingeAngle
@@ -297,7 +303,13 @@ class Simulation(FrameEdits):
     # ------------------------------------------------------------------ reset (§6)
 
     def reset(self) -> None:
-        """``simulationReset``: restore the load state exactly (fields, poses, joints, motors, contacts, RNG)."""
+        """``simulationReset``: restore the load state exactly (fields, poses, joints, motors, contacts, RNG).
+
+        Raises:
+            SimulationUnstable: ODE stopped inside a step of this world (its state is half stepped): load the
+                world again."""
+        if self._broken is not None:
+            raise SimulationUnstable(f"{self._broken}; this world cannot be reset: load it again")
         lib = self._lib
         self._pending.clear()
         self._restore_fields()
@@ -360,7 +372,8 @@ class Simulation(FrameEdits):
             for g in body.groups:
                 lib.dJointGroupDestroy(g)
         lib.dSpaceDestroy(self._space)
-        lib.dWorldDestroy(self._world)
+        if self._broken is None:  # (a world ODE stopped inside a step is left as it is: its memory is lost)
+            lib.dWorldDestroy(self._world)
 
     def __del__(self) -> None:
         try:

@@ -43,6 +43,7 @@ class SimulationCore:
     _lib: Any
     _thread: int
     _step_fn: Any  # cached ctypes function objects for the per-step paths
+    _broken: str | None
     _is_enabled: Any
     _empty_group: Any
     _hinge_angle: Any

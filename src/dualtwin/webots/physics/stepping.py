@@ -79,7 +79,12 @@ class Stepper(SupervisorEdits):
             self._pre_physics()
             for pre_hook in self.pre_step_hooks:
                 pre_hook(self.dt)
-            self._step_fn(self._world, self.dt)
+            try:
+                self._step_fn(self._world, self.dt)
+            except ode.OdeStepError as exc:
+                self._unstable = True
+                self._broken = f"ODE stopped inside the step to t={self.time + self.dt:.3f}s ({exc})"
+                raise SimulationUnstable(f"{self._broken}; the world must be loaded again") from None
             for joint in self._held:
                 self._hold_endpoint(joint)
             self._check_state()
