@@ -31,12 +31,17 @@ Robot {
 """
 
 
-def _camera(noise: float = 0.0) -> tuple[Supervisor, Camera]:
-    text = WORLD % (W, H, FOV)
-    sim = Simulation(load_world_text(text.replace("NOISE", f"noise {noise}" if noise else "")))
+def _camera_in(text: str) -> tuple[Simulation, Supervisor, Camera]:
+    """The world ``text`` loaded, its supervisor robot's camera ``cam``."""
+    sim = Simulation(load_world_text(text))
     sup = Supervisor(simulation=sim, robot_node=sim.robots[0].node)
     cam = sup.getDevice("cam")
     assert isinstance(cam, Camera)
+    return sim, sup, cam
+
+
+def _camera(noise: float = 0.0) -> tuple[Supervisor, Camera]:
+    _, sup, cam = _camera_in((WORLD % (W, H, FOV)).replace("NOISE", f"noise {noise}" if noise else ""))
     return sup, cam
 
 
@@ -208,10 +213,7 @@ def test_near_and_far_clip_the_box(clip: str, visible: bool) -> None:
     if clip.startswith("near"):
         text = text.replace("translation 2 0.5 0", "translation 0.4 0 0").replace("size 0.4 0.4 0.4",
                                                                                   "size 0.2 0.2 0.2")
-    sim = Simulation(load_world_text(text))
-    sup = Supervisor(simulation=sim, robot_node=sim.robots[0].node)
-    cam = sup.getDevice("cam")
-    assert isinstance(cam, Camera)
+    _, sup, cam = _camera_in(text)
     cam.enable(8)
     sup.step(8)
     assert bool(_red(_bgra(cam)).any()) == visible
@@ -236,10 +238,7 @@ Robot {
 def _background_image(background: str, anti_aliasing: bool = False) -> tuple[np.ndarray, list[str]]:
     text = (BACKGROUND_WORLD.replace("BACKGROUND", background).replace("AA", "TRUE" if anti_aliasing else "FALSE")
             .replace("WIDTH", str(W)).replace("HEIGHT", str(H)).replace("FOV", str(FOV)))
-    sim = Simulation(load_world_text(text))
-    sup = Supervisor(simulation=sim, robot_node=sim.robots[0].node)
-    cam = sup.getDevice("cam")
-    assert isinstance(cam, Camera)
+    sim, sup, cam = _camera_in(text)
     cam.enable(8)
     sup.step(8)
     image = _bgra(cam).copy()

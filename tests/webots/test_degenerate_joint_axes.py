@@ -8,15 +8,11 @@ the degenerate one's."""
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
-ENV = {**os.environ, "PYTHONPATH": str(ROOT / "src") + os.pathsep + os.environ.get("PYTHONPATH", "")}
+from tests.support.world_runs import run_world_cli
 
 # A pendulum on each kind of joint, tilted so that gravity swings it about the default axis; the supervisor
 # prints where each bob is after 20 steps.
@@ -66,19 +62,10 @@ for name in ("HINGE_BOB", "SLIDER_BOB", "HINGE2_BOB"):
 """
 
 
-def _run(tmp_path: Path, name: str, **axes: str) -> subprocess.CompletedProcess[str]:
-    world = tmp_path / f"{name}.wbt"
-    world.write_text(WORLD.format(**axes), encoding="utf-8")
-    controller = tmp_path / "report.py"
-    controller.write_text(CONTROLLER, encoding="utf-8")
-    return subprocess.run([sys.executable, "-m", "dualtwin.cli", "webots", "run", str(world), "--controller",
-                           str(controller)], capture_output=True, text=True, timeout=120, env=ENV, cwd=ROOT,
-                          check=False)
-
-
 @pytest.mark.parametrize("degenerate", ["0 0 0", "nan 0 0", "0 inf 0"])
-def test_a_joint_axis_without_direction_takes_the_default_with_a_warning(tmp_path: Path, degenerate: str) -> None:
-    bad = _run(tmp_path, "bad", hinge=degenerate, slider=degenerate, hinge2=degenerate)
+def test_a_joint_axis_without_direction_takes_the_default_with_a_warning(tmp_path: Path,
+                                                                         degenerate: str) -> None:
+    bad = run_world_cli(tmp_path, "bad", WORLD.format(hinge=degenerate, slider=degenerate, hinge2=degenerate), CONTROLLER)
     assert bad.returncode == 0, bad.stderr
     # a zero axis is the joint's to judge; nan and inf are caught as the world is read (any field's number)
     said = "has no direction" if degenerate == "0 0 0" else "holds a non-finite number"
@@ -86,7 +73,7 @@ def test_a_joint_axis_without_direction_takes_the_default_with_a_warning(tmp_pat
     assert len(warnings) == 3 and all(line.startswith("Warning: ") for line in warnings), bad.stderr
     if degenerate == "0 0 0":
         assert "using the default 1 0 0" in warnings[0] and "using the default 0 0 1" in warnings[1], warnings
-    control = _run(tmp_path, "control", hinge="1 0 0", slider="0 0 1", hinge2="0 0 1")
+    control = run_world_cli(tmp_path, "control", WORLD.format(hinge="1 0 0", slider="0 0 1", hinge2="0 0 1"), CONTROLLER)
     assert control.returncode == 0 and "has no direction" not in control.stderr, control.stderr
     assert bad.stdout == control.stdout and bad.stdout.count("BOB") == 3, (bad.stdout, control.stdout)
     # the joints are not stuck: the hinge's bob swung down about x, the slider's fell along z (a Hinge2Joint on a

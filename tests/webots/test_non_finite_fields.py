@@ -7,17 +7,12 @@ pytest. The control is the same world without the bad values: it must move exact
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from dualtwin.webots import load_world_text
-
-ROOT = Path(__file__).resolve().parents[2]
-ENV = {**os.environ, "PYTHONPATH": str(ROOT / "src") + os.pathsep + os.environ.get("PYTHONPATH", "")}
+from tests.support.world_runs import run_world_cli
 
 WORLD = """#VRML_SIM R2023b utf8
 WorldInfo {{ basicTimeStep 8 }}
@@ -49,24 +44,14 @@ print("BOB", " ".join(repr(v) for v in s.getFromDef("BOB").getPosition()))
 """
 
 
-def _run(tmp_path: Path, name: str, values: dict[str, str]) -> subprocess.CompletedProcess[str]:
-    world = tmp_path / f"{name}.wbt"
-    world.write_text(WORLD.format(**values), encoding="utf-8")
-    controller = tmp_path / "report.py"
-    controller.write_text(CONTROLLER, encoding="utf-8")
-    return subprocess.run([sys.executable, "-m", "dualtwin.cli", "webots", "run", str(world), "--controller",
-                           str(controller)], capture_output=True, text=True, timeout=120, env=ENV, cwd=ROOT,
-                          check=False)
-
-
 @pytest.mark.parametrize("field", sorted(BAD))
 def test_a_non_finite_number_keeps_the_fields_default_and_says_where(tmp_path: Path, field: str) -> None:
-    bad = _run(tmp_path, "bad", {k: (BAD[k] if k == field else "") for k in BAD})
+    bad = run_world_cli(tmp_path, "bad", WORLD.format(**{k: (BAD[k] if k == field else "") for k in BAD}), CONTROLLER)
     assert bad.returncode == 0, bad.stderr
     lines = [line for line in bad.stderr.splitlines() if "non-finite number" in line]
     assert len(lines) == 1 and lines[0].startswith("Warning: ") and "bad.wbt:" in lines[0], bad.stderr
     assert "using its default" in lines[0]
-    control = _run(tmp_path, "control", dict.fromkeys(BAD, ""))
+    control = run_world_cli(tmp_path, "control", WORLD.format(**dict.fromkeys(BAD, "")), CONTROLLER)
     assert control.returncode == 0 and "non-finite" not in control.stderr, control.stderr
     assert bad.stdout == control.stdout and bad.stdout.startswith("BOB "), (bad.stdout, control.stdout)
 
