@@ -150,6 +150,8 @@ def beyond_named(out: Path) -> dict[str, str]:
         print(f"   align named {sid}: {why}")
     if not beyond:
         print("   align named no scenario beyond the floor")
+    for sid, why in ((record.get("floor_check") or {}).get("within_resolution") or {}).items():
+        print(f"   align named {sid} above the floor within its channels' resolution: {why}")
     return beyond
 
 

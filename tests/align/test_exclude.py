@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 
 from dualtwin.align import AlignResult
+from dualtwin.align.floor_check import ScenarioFloor, beyond_floor, within_resolution
 from tests.support.fake_twin import fit_fake, registered
 
 #: j2's spring differs in the reference; only j1's damping is fitted, so the j2 scenario stays apart.
@@ -82,3 +83,33 @@ def test_the_cli_takes_exclude_and_reports_it(tmp_path: Path) -> None:
     summary = json.loads(done.stdout)
     assert summary["excluded"]["04_Impulse"].startswith("excluded by the user")
     assert json.loads((out / "align_config.json").read_text())["exclude"] == ["04_Impulse"]
+
+
+def _row(sid: str, channel: str, ratio: float | None, rms: float, resolution: float = 1e-3) -> ScenarioFloor:
+    floor = 0.0 if ratio is None else 0.01
+    return ScenarioFloor(sid, channel, 0.01 * (ratio or 1.0), floor, ratio, 0.5, rms, resolution)
+
+
+def test_a_scenario_above_the_limit_only_within_resolution_is_named_apart() -> None:
+    """Every scenario more than FLOOR_LIMIT x its floor is in the record: beyond it (the twins cannot share it),
+    or above it by differences no log of its channels can show. Below the limit, or with a zero floor and a
+    difference within the resolution, nothing is named."""
+    rows = [_row("a_within", "pole", 3.0, 0.5e-3), _row("b_beyond", "pole", 3.0, 2e-3),
+            _row("c_below_limit", "pole", 1.2, 0.5e-3), _row("d_zero_floor", "pole", None, 0.5e-3),
+            _row("e_both", "pole", 3.0, 0.5e-3), _row("e_both", "cart", 2.0, 5e-3)]
+    assert sorted(beyond_floor(rows)) == ["b_beyond", "e_both"]
+    unseen = within_resolution(rows)
+    assert sorted(unseen) == ["a_within"], unseen
+    assert "3× the target's reproducibility floor" in unseen["a_within"]
+    assert "RMS difference 0.0005 is within the channel's resolution 0.001" in unseen["a_within"]
+    assert rows[0].to_dict()["within_resolution"] and not rows[1].to_dict()["within_resolution"]
+
+
+def test_the_record_and_warnings_carry_the_scenarios_within_resolution(tmp_path: Path) -> None:
+    result = fit(tmp_path / "named")
+    unseen = result.floor_check["within_resolution"]
+    record = json.loads((tmp_path / "named" / "align_record.json").read_text())
+    assert record["result"]["floor_check"]["within_resolution"] == unseen
+    assert not set(unseen) & set(result.floor_check["beyond"])
+    for sid in unseen:
+        assert any(w.startswith(f"scenario {sid} is more than 1.5x its reproducibility floor") for w in result.warnings)

@@ -10,7 +10,8 @@ starts; per scenario and channel, the DTW between the reference and the fitted t
 DTW between the target's shifted members and its unshifted run (its floor), and the first time the members
 spread beyond the channel's resolution is the scenario's **horizon**. A scenario more than
 :data:`FLOOR_LIMIT` × its floor is *named* in the terminal, the report and ``align_record.json``, with the
-ratio and the horizon; it is never dropped without the user's consent. Excluding it is the user's call:
+ratio and the horizon; it is never dropped without the user's consent. A scenario above the limit only by
+differences within its channels' resolution is named apart (:func:`within_resolution`): no log can show them. Excluding it is the user's call:
 ``AlignConfig.exclude`` (``--exclude SCENARIO``) leaves it out of the objective (neither fitted nor held
 out) and the record says so, with the measurement that motivated it.
 
@@ -20,7 +21,7 @@ is judged by ``dualtwin compare``.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -58,15 +59,24 @@ class ScenarioFloor:
             return False
         return self.ratio is None or self.ratio > FLOOR_LIMIT
 
+    @property
+    def within_resolution(self) -> bool:
+        """More than :data:`FLOOR_LIMIT` × a nonzero floor, but no farther from the reference than the channel's
+        resolution: beyond the floor by a difference no log of the channel can show (not :attr:`beyond`)."""
+        return self.dtw_rms <= self.resolution and self.ratio is not None and self.ratio > FLOOR_LIMIT
+
     def why(self) -> str:
         where = (f"the target's members shifted by ±{FLOOR_EPS:g} stop agreeing at t = {self.horizon_s:.3g} s"
                  if self.horizon_s is not None else "the target's shifted members agree within the resolution")
         ratio = f"{self.ratio:.3g}× the target's reproducibility floor" if self.ratio is not None else \
             f"{self.dtw_rms / self.resolution:.3g}× the channel's resolution (no floor)"
+        if self.within_resolution:
+            where = (f"its RMS difference {self.dtw_rms:.3g} is within the channel's resolution {self.resolution:.3g}, "
+                     "so no log of it can show the difference")
         return f"{self.channel} DTW {self.dtw:.4g} after the fit = {ratio}; {where}"
 
     def to_dict(self) -> dict[str, Any]:
-        return {**asdict(self), "beyond": self.beyond}
+        return {**asdict(self), "beyond": self.beyond, "within_resolution": self.within_resolution}
 
 
 def floor_members(binding: RobotBinding) -> list[dict[str, float]]:
@@ -124,9 +134,21 @@ def check_floors(evaluator: Evaluator, job: SimJob, values: Mapping[str, float],
 
 def beyond_floor(rows: Sequence[ScenarioFloor]) -> dict[str, str]:
     """Scenario -> why, for every scenario with a channel beyond the floor (the worst channel's numbers)."""
+    return _worst(rows, lambda r: r.beyond)
+
+
+def within_resolution(rows: Sequence[ScenarioFloor]) -> dict[str, str]:
+    """Scenario -> why, for every scenario more than :data:`FLOOR_LIMIT` × its floor only by differences within
+    its channels' resolution (none :attr:`~ScenarioFloor.beyond`): named too, so that every scenario above the
+    limit is in the record, but not as one the twins cannot share."""
+    beyond = beyond_floor(rows)
+    return {sid: why for sid, why in _worst(rows, lambda r: r.within_resolution).items() if sid not in beyond}
+
+
+def _worst(rows: Sequence[ScenarioFloor], test: Callable[[ScenarioFloor], bool]) -> dict[str, str]:
     out: dict[str, str] = {}
     for sid in dict.fromkeys(r.scenario for r in rows):
-        bad = [r for r in rows if r.scenario == sid and r.beyond]
+        bad = [r for r in rows if r.scenario == sid and test(r)]
         if bad:
             worst = max(bad, key=lambda r: r.ratio if r.ratio is not None else float("inf"))
             out[sid] = worst.why()

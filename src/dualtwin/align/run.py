@@ -26,7 +26,7 @@ from dualtwin.align.config import PREDICTION_FIELDS, AlignConfig
 from dualtwin.align.core import GenerationInfo, Point, fd_jacobian, residual_norm
 from dualtwin.align.dr import ranges_from_intervals, ranges_from_population
 from dualtwin.align.ensemble import EnsembleProblem
-from dualtwin.align.floor_check import FLOOR_EPS, FLOOR_LIMIT, beyond_floor, check_floors
+from dualtwin.align.floor_check import FLOOR_EPS, FLOOR_LIMIT, beyond_floor, check_floors, within_resolution
 from dualtwin.align.identifiability import Identifiability, check, check_skipped
 from dualtwin.align.intervals import estimate_intervals, intervals_skipped, not_computed
 from dualtwin.align.knobs import (
@@ -352,6 +352,10 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
         warnings += [f"scenario {sid} is beyond its reproducibility floor after the fit ({why}); it stays in the "
                      f"objective: to fit without it, exclude it with --exclude {sid} (AlignConfig.exclude)"
                      for sid, why in beyond.items() if sid not in excluded]
+        unseen = within_resolution(floors)
+        warnings += [f"scenario {sid} is more than {FLOOR_LIMIT:g}x its reproducibility floor after the fit, by a "
+                     f"difference within its channels' resolution ({why}); it stays in the objective"
+                     for sid, why in unseen.items() if sid not in excluded]
         excluded_why = {sid: "excluded by the user" + (f"; measured after the fit: {beyond[sid]}" if sid in beyond
                                                         else "") for sid in excluded}
         warnings += [f"scenario {sid} {why}" for sid, why in excluded_why.items()]
@@ -413,7 +417,7 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
             "correlation": uncertainty.correlation, "correlated": uncertainty.correlated,
             "noise": uncertainty.noise, **({"not_computed": skipped} if skipped is not None else {})}},
         advice=advice, excluded=excluded_why,
-        floor_check={"eps": FLOOR_EPS, "limit": FLOOR_LIMIT, "beyond": beyond,
+        floor_check={"eps": FLOOR_EPS, "limit": FLOOR_LIMIT, "beyond": beyond, "within_resolution": unseen,
                      "rows": [r.to_dict() for r in floors]})
     narrative = getattr(propose_fn, "narrative", None)
     if narrative is not None:
