@@ -424,3 +424,26 @@ def test_interrupt_while_the_physics_runs_in_a_serving_thread_stops_with_one_lin
         # (ODE's own solver messages about the pile, if any, are C output, not ours)
         ours = "".join(line for line in err.splitlines(keepends=True) if line.strip() and not line.startswith("ODE "))
         assert (proc.returncode, ours) == (130, "error: interrupted\n"), f"attempt {attempt}: {err[-500:]}"
+
+
+@pytest.mark.parametrize("isolation", ["process", "threads"])
+def test_a_step_after_cleanup_says_the_end_at_once(tmp_path: Path, isolation: str) -> None:
+    """Robot.cleanup takes the controller out of the synchronised stepping. A step after it used to wait forever
+    when no other controller advanced the simulation (nothing advances an inactive one, so not even the run's
+    duration came): it returns -1 at once. (The result goes to a file: the threads' output routing ends with the
+    controller's link.)"""
+    leaver = """
+        from pathlib import Path
+        from controller import Robot
+        robot = Robot()
+        robot.step(8)
+        robot.cleanup()
+        Path("result.txt").write_text(f"after cleanup {robot.step(8)} {robot.step(8)}")
+    """
+    world = _project(tmp_path, [("leaver", [], leaver)])
+    code = f"from dualtwin.webots.runner import run_world; raise SystemExit(run_world({str(world)!r}, None, 1.0, " \
+           f"isolation={isolation!r}))"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60,
+                          env={**os.environ, "PYTHONPATH": str(SRC)})
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "controllers" / "leaver" / "result.txt").read_text() == "after cleanup -1 -1"

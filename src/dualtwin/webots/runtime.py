@@ -410,6 +410,10 @@ class Runtime:
                 if self.stop_after_end:
                     raise ControllerStopped()
                 return -1
+            if not client.active:
+                # it left the stepping (Robot.cleanup): nothing would ever advance it again, so say the end at once
+                # rather than wait forever (Webots allows no API call after wb_robot_cleanup)
+                return -1
             if self._removed(client):
                 return self._end_removed(client)
             if self.finished or self._limit_reached():
