@@ -11,9 +11,9 @@ DTW between the target's shifted members and its unshifted run (its floor), and 
 spread beyond the channel's resolution is the scenario's **horizon**. A scenario more than
 :data:`FLOOR_LIMIT` × its floor is *named* in the terminal, the report and ``align_record.json``, with the
 ratio and the horizon; it is never dropped without the user's consent. A scenario above the limit only by
-differences within its channels' resolution is named apart (:func:`within_resolution`): no log can show them. Excluding it is the user's call:
-``AlignConfig.exclude`` (``--exclude SCENARIO``) leaves it out of the objective (neither fitted nor held
-out) and the record says so, with the measurement that motivated it.
+differences within its channels' resolution is named apart (:func:`within_resolution`): no log can show them.
+Excluding a scenario is the user's call: ``AlignConfig.exclude`` (``--exclude SCENARIO``) leaves it out of the
+objective (neither fitted nor held out) and the record says so, with the measurement that motivated it.
 
 Only the target's floor is measured (a recorded reference has no members); an ensemble reference's own floor
 is judged by ``dualtwin compare``.
