@@ -150,7 +150,8 @@ class WebotsVisualScene:
             self._viewpoint = handle
         elif kind == "Background":
             # Webots uses the first Background of the world
-            self._background = self._background or node
+            if self._background is None:
+                self._background = node
         else:
             # Shapes outside any Solid are static scenery, drawn in the world frame.
             self._walk(handle, np.eye(4), 1.0, self._world_geoms)
@@ -158,8 +159,7 @@ class WebotsVisualScene:
     def _sky(self, node: Any) -> None:
         """The Background's first skyColor as a flat skybox (nothing for black, MuJoCo's clear colour)."""
         colours = node.get("skyColor", [])
-        textured = [f for f in ("backUrl", "bottomUrl", "frontUrl", "leftUrl", "rightUrl", "topUrl") if node.get(f)]
-        if textured:
+        if any(node.get(f"{side}Url") for side in ("back", "bottom", "front", "left", "right", "top")):
             self.warnings.append(f"{node.location or 'Background'}: Background textures are not drawn; the sky is "
                                  "its skyColor")
         if not colours:
