@@ -113,7 +113,7 @@ def test_bad_settings_and_bindings_are_clear_errors() -> None:
         gym.make("dualtwin/Pioneer-DriveToGoal-MuJoCo-v0", render_mode="rgb_array")
     env = gym.make("dualtwin/Pioneer-DriveToGoal-MuJoCo-v0")
     env.reset(seed=0)
-    with pytest.raises(DualtwinError, match="two finite numbers"):
+    with pytest.raises(DualtwinError, match="drive_to_goal .left, right.: the action is 2 numbers, none NaN"):
         env.step(np.array([0.1, 0.2, 0.3], dtype=np.float32))
     env.close()
 

@@ -103,6 +103,6 @@ def test_bad_task_arguments_are_one_line_errors() -> None:
         gym.make(MUJOCO, continuous=False)
     env = gym.make(MUJOCO)
     env.reset(seed=0)
-    with pytest.raises(DualtwinError, match="3 finite numbers"):
+    with pytest.raises(DualtwinError, match="reach: the action is 3 numbers, none NaN"):
         env.step(np.array([np.nan, 0.0, 0.0]))
     env.close()

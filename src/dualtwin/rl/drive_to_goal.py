@@ -17,6 +17,7 @@ from gymnasium import spaces
 
 from dualtwin.errors import DualtwinError
 from dualtwin.geometry import quat_from_matrix
+from dualtwin.rl.actions import box_action
 from dualtwin.rl.env import TASKS, ObservationTerm, Task
 from dualtwin.twins.io import RobotIO
 
@@ -129,9 +130,7 @@ class DriveToGoal(Task):
                 "to_actuator": f"binding actions {self.actions[0]!r} (left) and {self.actions[1]!r} (right)"}
 
     def wheel_speeds(self, action: Any) -> tuple[float, float]:
-        values = np.clip(np.asarray(action, dtype=np.float64).reshape(-1), -1.0, 1.0)
-        if values.shape != (2,) or not np.isfinite(values).all():
-            raise DualtwinError(f"drive_to_goal: the action is two finite numbers (left, right), got {action!r}")
+        values = box_action(action, 2, "drive_to_goal (left, right)")
         return float(values[0]) * self.max_wheel_speed, float(values[1]) * self.max_wheel_speed
 
     def _command(self, left: float, right: float) -> None:

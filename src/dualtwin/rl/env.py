@@ -22,6 +22,7 @@ import numpy as np
 from gymnasium import spaces
 
 from dualtwin.errors import DualtwinError, SimulationUnstable
+from dualtwin.rl.actions import batch_box_actions, batch_discrete_actions, box_action, discrete_action
 from dualtwin.rl.randomize import check_knob_names
 from dualtwin.robots.binding import RobotBinding, resolve_robot
 from dualtwin.twins import make_twin
@@ -259,12 +260,9 @@ class CartPoleBalance(Task):
 
     def cart_speed(self, action: Any) -> float:
         if self.continuous:
-            value = float(np.clip(np.asarray(action, dtype=np.float64).reshape(-1)[0], -1.0, 1.0))
+            value = float(box_action(action, 1, "cartpole_balance")[0])
             return value * self.max_cart_speed
-        index = int(action)
-        if index not in (0, 1):
-            raise DualtwinError(f"cartpole_balance: discrete action must be 0 or 1, got {action!r}")
-        return self.speed_table()[index]
+        return self.speed_table()[discrete_action(action, 2, "cartpole_balance")]
 
     def apply_action(self, action: Any) -> None:
         self._command(self.cart_speed(action))
@@ -322,16 +320,11 @@ class CartPoleBalance(Task):
 
     def batch_wheel_speeds(self, actions: Any) -> np.ndarray:
         """:meth:`apply_action`'s wheel speed (rad/s, every actuator) for each row of ``actions``."""
-        actions = np.asarray(actions)
-        n = actions.shape[0]
+        n = np.asarray(actions).shape[0]
         if self.continuous:
-            value = np.clip(actions.astype(np.float64).reshape(n, -1)[:, 0], -1.0, 1.0)
+            value = batch_box_actions(actions, n, 1, "cartpole_balance")[:, 0]
             return value * self.max_cart_speed / self.wheel_radius
-        index = actions.reshape(n).astype(np.int64)  # int(action), as cart_speed does
-        bad = (index != 0) & (index != 1)
-        if bad.any():
-            raise DualtwinError(f"cartpole_balance: discrete action must be 0 or 1, "
-                                f"got {actions.reshape(n)[bad][0]!r}")
+        index = batch_discrete_actions(actions, n, 2, "cartpole_balance")
         low, high = self.speed_table()
         return np.where(index == 1, high, low) / self.wheel_radius
 

@@ -32,6 +32,7 @@ import numpy as np
 from gymnasium import spaces
 
 from dualtwin.errors import DualtwinError
+from dualtwin.rl.actions import box_action
 from dualtwin.rl.env import TASKS, ObservationTerm, Task
 from dualtwin.twins.io import RobotIO
 
@@ -165,10 +166,7 @@ class ArmReach(Task):
         return low - self.command_margin, high + self.command_margin
 
     def apply_action(self, action: Any) -> None:
-        values = np.asarray(action, dtype=np.float64).reshape(-1)
-        if values.shape != (len(self.joints),) or not np.isfinite(values).all():
-            raise DualtwinError(f"reach: the action is {len(self.joints)} finite numbers, got {action!r}")
-        self._commands = self._commands + np.clip(values, -1.0, 1.0) * self.max_delta
+        self._commands = self._commands + box_action(action, len(self.joints), "reach") * self.max_delta
         for i, key in enumerate(self.joints):
             low, high = self._limits(key)
             self._commands[i] = min(max(self._commands[i], low), high)
