@@ -354,3 +354,17 @@ def test_binding_needs_onboard_sensors(tmp_path: Path) -> None:
         conv.write(tmp_path / "r.xml", tmp_path / "binding.yaml")
     conv.write(tmp_path / "r.xml")
     assert (tmp_path / "r.xml").is_file()
+
+
+def test_hostile_basic_time_step_is_read_as_webots_reads_it() -> None:
+    # Found by fuzzing `dualtwin convert`: basicTimeStep 0 raised ZeroDivisionError and -8 a math domain error
+    # (tracebacks) in the contact equivalences, and 1e-300 made the smoke test step forever.
+    robot = "DEF R Robot { children [ HingeJoint { device [ RotationalMotor { name \"m1\" } ] endPoint Solid { @W } } ] " \
+            "physics Physics { } }".replace("@W", WHEEL)
+    for step in ("0", "-8"):
+        conv = convert(f"WorldInfo {{ basicTimeStep {step} }}\n{robot}")
+        assert conv.control_period_ms == 32.0  # Webots (and our twin) reset a step <= 0 to 32 ms
+        assert any("basicTimeStep" in w and "not positive" in w for w in conv.warnings)
+        assert conv.smoke().ok
+    with pytest.raises(ConversionError, match=r"t\.wbt:2:\d+: WorldInfo\.basicTimeStep 1e-300 ms is below"):
+        convert(f"WorldInfo {{ basicTimeStep 1e-300 }}\n{robot}")

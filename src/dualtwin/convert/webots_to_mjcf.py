@@ -113,6 +113,10 @@ IGNORED = frozenset({"PointLight", "SpotLight", "DirectionalLight", "Fog", "Back
 # small helpers
 
 
+#: The smallest WorldInfo.basicTimeStep (ms) converted: the smoke test then takes 50 000 MuJoCo steps.
+MIN_BASIC_TIME_STEP_MS = 0.01
+
+
 def _where(node: Node) -> str:
     return str(node.location) if node.location is not None else "<unknown location>"
 
@@ -149,7 +153,7 @@ class _Converter:
         self.used: dict[str, set[str]] = {}
         info = world.world_info()
         self.info = info.fields if info is not None else schema.default_fields("WorldInfo")
-        self.basic_ms = float(self.info.get("basicTimeStep", 32.0))
+        self.basic_ms = self._basic_time_step(info)
         self.dt = timestep_for(self.basic_ms)
         self.nue = str(self.info.get("coordinateSystem", "ENU")).upper() == "NUE"
         version = re.search(r"R(\d{4})([ab])", world.header or "")
@@ -164,6 +168,19 @@ class _Converter:
         self.self_collision = False
         self.missing_defs: list[str] = []
         self.stops: list[Stop] = []
+
+    def _basic_time_step(self, info: Node | None) -> float:
+        # Read as Webots and our twin read it (<= 0: reset to 32 ms). A world is untrusted: 0 or less divided by
+        # zero in the contact equivalences, and 1e-300 ms made the smoke test (0.5 s / step) step forever.
+        step = float(self.info.get("basicTimeStep", 32.0))
+        where = str(info.field_locations.get("basicTimeStep") or info.location) if info else self.world_path
+        if step <= 0:
+            self.warn(f"{where}: WorldInfo.basicTimeStep {step:g} is not positive; using 32 ms (as Webots does)")
+            return 32.0
+        if step < MIN_BASIC_TIME_STEP_MS:
+            raise ConversionError(f"{where}: WorldInfo.basicTimeStep {step:g} ms is below the "
+                                  f"{MIN_BASIC_TIME_STEP_MS:g} ms the converter steps at")
+        return step
 
     # -- names
     def unique(self, kind: str, base: str) -> str:
