@@ -115,3 +115,14 @@ def test_an_unreadable_mesh_file_skips_a_visual_and_stops_a_bounding_object(tmp_
         _convert(_project(tmp_path / "bounding", missing))
     with pytest.raises(ConversionError, match=r"unsupported node CadShape \(in a boundingObject\)"):
         _convert(_project(tmp_path / "cad", 'CadShape { url "../meshes/block.obj" }'))
+
+
+@pytest.mark.parametrize("index", ["99999999999999999999999", "-99999999999999999999999", "0"])
+def test_an_obj_face_index_that_cannot_exist_is_one_line_not_a_traceback(tmp_path: Path, index: str) -> None:
+    # Found by fuzzing `dualtwin convert` with hostile mesh files: an index past int64 raised OverflowError
+    # (a traceback) building the triangle array; index 0 (OBJ counts from 1) is no vertex either.
+    project = tmp_path / "p"
+    (project / "meshes").mkdir(parents=True)
+    (project / "meshes" / "bad.obj").write_text(f"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 {index}\nv 1 1 1\n")
+    with pytest.raises(ConversionError, match=rf"bad\.obj: OBJ face refers to vertex {index}, which cannot exist"):
+        _convert(_project(project, POSE % 'Mesh { url "../meshes/bad.obj" }'))

@@ -291,6 +291,10 @@ def _obj(data: bytes) -> list[_Part]:
             polygon = []
             for item in rest.split():
                 index = int(item.split("/", 1)[0])
+                # 1-based, or negative (relative to the last vertex); checked here because an index too large
+                # for int64 (a hostile file) made the triangle array raise OverflowError, a traceback
+                if index == 0 or abs(index) > MAX_FILE_BYTES:
+                    raise MeshFileError(f"OBJ face refers to vertex {index}, which cannot exist: {raw.strip()[:80]!r}")
                 polygon.append(index - 1 if index > 0 else len(positions) + index)
             if len(polygon) < 3:
                 raise MeshFileError(f"OBJ face with {len(polygon)} vertices: {raw.strip()!r}")
