@@ -93,3 +93,20 @@ def test_anthropic_protocol() -> None:
     assert log.requests[0]["messages"] == [{"role": "user", "content": "hi"}]
     # Older anthropic clients send x-api-key, newer ones a bearer token.
     assert log.headers[0].get("x-api-key") == KEY or log.headers[0].get("authorization") == f"Bearer {KEY}"
+
+
+@pytest.mark.parametrize("protocol", ["openai", "anthropic"])
+@pytest.mark.parametrize(("body", "expected"), [
+    (b"<html>502 Bad Gateway</html>", "the reply is not a JSON document"),
+    (b'{"choices": "abc", "content": 5}', "reply has no text content"),
+    (b'{"choices": [{"message": 5}], "content": [5, {"type": "text", "text": 3}]}', "reply has no text content"),
+])
+def test_a_malformed_reply_body_is_one_error_not_a_traceback(protocol: str, body: bytes, expected: str) -> None:
+    # Found by serving hostile bodies to `dualtwin generate --from-text`: a body that is not JSON raised
+    # JSONDecodeError, and `choices`/`content` of the wrong type AttributeError or TypeError (tracebacks; the
+    # client libraries build reply objects without validating them).
+    cls = OpenAIChatClient if protocol == "openai" else AnthropicClient
+    with replay_server([Reply(raw=body)], protocol=protocol) as (base, _):
+        client = cls(LLMConfig(provider=protocol, model="m", base_url=base, api_key=KEY, timeout_s=5, max_retries=0))  # type: ignore[arg-type]
+        with pytest.raises(DualtwinError, match=expected):
+            client.complete([{"role": "user", "content": "hi"}])

@@ -15,11 +15,13 @@ from typing import Any
 
 @dataclass
 class Reply:
-    """One scripted answer: reply text, or an HTTP error status, optionally after a delay."""
+    """One scripted answer: reply text, or an HTTP error status, optionally after a delay; or a hostile one."""
 
     text: str = ""
     status: int = 200
     delay_s: float = 0.0
+    raw: bytes | None = None  # the whole HTTP body, sent as it is (not JSON, the wrong shape...)
+    endless: bool = False  # the headers, then a byte every 50 ms until the client hangs up (a reply that never ends)
 
 
 @dataclass
@@ -60,12 +62,16 @@ def _handler(script: list[Reply], log: ReplayLog, protocol: str) -> type[BaseHTT
                 payload = {"id": "msg_1", "type": "message", "role": "assistant", "model": body.get("model"),
                            "content": [{"type": "text", "text": reply.text}], "stop_reason": "end_turn",
                            "stop_sequence": None, "usage": {"input_tokens": 1, "output_tokens": 1}}
-            data = json.dumps(payload).encode()
+            data = json.dumps(payload).encode() if reply.raw is None else reply.raw
             try:
                 self.send_response(reply.status)
                 self.send_header("Content-Type", "application/json")
-                self.send_header("Content-Length", str(len(data)))
+                self.send_header("Content-Length", str(10**9 if reply.endless else len(data)))
                 self.end_headers()
+                while reply.endless:
+                    self.wfile.write(b" ")
+                    self.wfile.flush()
+                    time.sleep(0.05)
                 self.wfile.write(data)
             except (BrokenPipeError, ConnectionResetError):
                 pass  # the client gave up (timeout test)

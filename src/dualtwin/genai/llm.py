@@ -15,6 +15,7 @@ unreachable provider, an error status or a timeout raises :class:`~dualtwin.erro
 
 from __future__ import annotations
 
+import json
 import os
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
@@ -150,6 +151,12 @@ class LLMClient(ABC):
                                 f"{MAX_RESPONSE_CHARS} limit")
         return text
 
+    def _unreadable(self, exc: json.JSONDecodeError | RecursionError) -> DualtwinError:
+        """A reply body that is not JSON (a proxy's HTML page, a broken or hostile server) or nested too deeply."""
+        why = (f"{exc.msg} at line {exc.lineno} column {exc.colno}" if isinstance(exc, json.JSONDecodeError)
+               else "nested too deeply")
+        return DualtwinError(f"{self.config.where}: the reply is not a JSON document ({why})")
+
     def _error(self, exc: Exception) -> DualtwinError:
         """A user-facing error for a failed call (timeout, connection, HTTP status)."""
         cfg = self.config
@@ -206,9 +213,10 @@ class OpenAIChatClient(LLMClient):
                 response = create(**kwargs)
         except (openai.APIConnectionError, openai.APIStatusError) as exc:
             raise self._error(exc) from None
-        choices = getattr(response, "choices", None) or []
-        content = choices[0].message.content if choices else None
-        if not isinstance(content, str):
+        except (json.JSONDecodeError, RecursionError) as exc:
+            raise self._unreadable(exc) from None
+        content = _chat_content(response)
+        if content is None:
             raise DualtwinError(f"{self.config.where}: reply has no text content")
         return self._check_size(content)
 
@@ -238,11 +246,27 @@ class AnthropicClient(LLMClient):
             response = self._client.messages.create(**kwargs)
         except (anthropic.APIConnectionError, anthropic.APIStatusError) as exc:
             raise self._error(exc) from None
-        parts = [getattr(block, "text", "") for block in getattr(response, "content", []) or []
-                 if getattr(block, "type", "") == "text"]
+        except (json.JSONDecodeError, RecursionError) as exc:
+            raise self._unreadable(exc) from None
+        blocks = getattr(response, "content", None)
+        parts = [text for block in (blocks if isinstance(blocks, list) else [])
+                 if getattr(block, "type", "") == "text" and isinstance(text := getattr(block, "text", None), str)]
         if not parts:
             raise DualtwinError(f"{self.config.where}: reply has no text content")
         return self._check_size("".join(parts))
+
+
+def _chat_content(response: Any) -> str | None:
+    """The first choice's text of a chat completion, or None.
+
+    The client builds its reply objects without validating them, so a broken or hostile server's ``choices``
+    may be a string or hold numbers (an AttributeError, a traceback, before): every level is checked.
+    """
+    choices = getattr(response, "choices", None)
+    if not isinstance(choices, list) or not choices:
+        return None
+    content = getattr(getattr(choices[0], "message", None), "content", None)
+    return content if isinstance(content, str) else None
 
 
 def make_llm(config: LLMConfig | None = None) -> LLMClient:
