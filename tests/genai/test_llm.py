@@ -9,7 +9,14 @@ from pathlib import Path
 import pytest
 
 from dualtwin.errors import DualtwinError
-from dualtwin.genai.llm import AnthropicClient, LLMConfig, OpenAIChatClient, load_llm_config, make_llm
+from dualtwin.genai.llm import (
+    MAX_REPLY_BYTES,
+    AnthropicClient,
+    LLMConfig,
+    OpenAIChatClient,
+    load_llm_config,
+    make_llm,
+)
 from tests.support.llm_replay import Reply, replay_server
 
 KEY = "sk-test-secret-1234"
@@ -108,5 +115,22 @@ def test_a_malformed_reply_body_is_one_error_not_a_traceback(protocol: str, body
     cls = OpenAIChatClient if protocol == "openai" else AnthropicClient
     with replay_server([Reply(raw=body)], protocol=protocol) as (base, _):
         client = cls(LLMConfig(provider=protocol, model="m", base_url=base, api_key=KEY, timeout_s=5, max_retries=0))  # type: ignore[arg-type]
+        with pytest.raises(DualtwinError, match=expected):
+            client.complete([{"role": "user", "content": "hi"}])
+
+
+@pytest.mark.parametrize("protocol", ["openai", "anthropic"])
+@pytest.mark.parametrize(("reply", "expected"), [
+    (Reply(trickle_s=20), "timed out after 0.5 s"),  # a byte every 50 ms: each read is quick, the body never ends
+    (Reply(raw=b" " * (MAX_REPLY_BYTES + 1)), f"reply body larger than {MAX_REPLY_BYTES} bytes"),
+])
+def test_a_reply_that_never_ends_or_is_too_large_is_cut_off(protocol: str, reply: Reply, expected: str) -> None:
+    # Found by serving `dualtwin generate --from-text` a reply that trickles forever: the HTTP timeouts bound each
+    # read, not the body, so generate waited forever (here the server gives up after 20 s, and the client's
+    # error then names a lost connection, not a timeout); an endless fast reply filled the memory.
+    cls = OpenAIChatClient if protocol == "openai" else AnthropicClient
+    with replay_server([reply], protocol=protocol) as (base, _):
+        client = cls(LLMConfig(provider=protocol, model="m", base_url=base, api_key=KEY, timeout_s=0.5,  # type: ignore[arg-type]
+                               max_retries=0))
         with pytest.raises(DualtwinError, match=expected):
             client.complete([{"role": "user", "content": "hi"}])

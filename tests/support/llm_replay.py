@@ -21,7 +21,9 @@ class Reply:
     status: int = 200
     delay_s: float = 0.0
     raw: bytes | None = None  # the whole HTTP body, sent as it is (not JSON, the wrong shape...)
-    endless: bool = False  # the headers, then a byte every 50 ms until the client hangs up (a reply that never ends)
+    # a reply that never ends: the headers, then a byte every 50 ms for this long (until the client hangs up), then
+    # the server hangs up (so that a client that waits for the end fails instead of hanging the test)
+    trickle_s: float = 0.0
 
 
 @dataclass
@@ -66,12 +68,15 @@ def _handler(script: list[Reply], log: ReplayLog, protocol: str) -> type[BaseHTT
             try:
                 self.send_response(reply.status)
                 self.send_header("Content-Type", "application/json")
-                self.send_header("Content-Length", str(10**9 if reply.endless else len(data)))
+                self.send_header("Content-Length", str(10**9 if reply.trickle_s else len(data)))
                 self.end_headers()
-                while reply.endless:
-                    self.wfile.write(b" ")
-                    self.wfile.flush()
-                    time.sleep(0.05)
+                if reply.trickle_s:
+                    end = time.monotonic() + reply.trickle_s
+                    while time.monotonic() < end:
+                        self.wfile.write(b" ")
+                        self.wfile.flush()
+                        time.sleep(0.05)
+                    return
                 self.wfile.write(data)
             except (BrokenPipeError, ConnectionResetError):
                 pass  # the client gave up (timeout test)
