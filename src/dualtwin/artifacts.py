@@ -307,6 +307,22 @@ def check_input_file(path: Path, what: str = "file") -> Path:
     return path
 
 
+def confined_file(folder: Path, name: Any, where: str) -> Path:
+    """``folder / name`` for a file name read from an untrusted document in ``folder`` (a manifest, a contract).
+
+    The name must be a plain relative path that stays inside ``folder`` once resolved: ``..``, an absolute
+    path or a symbolic link leading out of the folder would make the reader open a file the document's author
+    chose anywhere on this machine. A :class:`DualtwinError` names ``where`` (file and field) otherwise.
+    """
+    if not isinstance(name, str) or not name or "\x00" in name:
+        raise DualtwinError(f"{where}: expected a file name inside {folder}, got {name!r}")
+    root = Path(folder).resolve()
+    path = (root / name).resolve()
+    if Path(name).is_absolute() or not path.is_relative_to(root):
+        raise DualtwinError(f"{where}: {name!r} points outside {folder}; refused")
+    return path
+
+
 def read_text_file(path: Path, what: str = "file") -> str:
     """UTF-8 text of a user file; a binary file, a directory or a pipe is one clear error."""
     path = check_input_file(path, what)

@@ -41,9 +41,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
+from pydantic import BaseModel, Field, Strict, model_validator
 
 from dualtwin.artifacts import atomic_open, package_versions, sha256_file, write_json
 from dualtwin.errors import DualtwinError
@@ -69,6 +70,8 @@ COLOUR_JITTER = 0.15
 
 
 KEYS = ("frames", "state", "time_s", "episode", "step", "observation", "action", "masks")
+#: A count or index read from a manifest: a JSON integer (not a bool or a string), not negative.
+_Count = Annotated[int, Strict(), Field(ge=0, le=2**62)]
 
 
 def shard_name(index: int) -> str:
@@ -280,9 +283,9 @@ def _prepare(out: Path, settings: dict[str, Any], resume: bool) -> list[dict[str
             raise DualtwinError(f"{manifest_path}: cannot resume: {', '.join(differ)} differ from the "
                                 "interrupted collection")
         shards = list(manifest.get("shards", []))
-        for shard in shards:
-            path = out / shard["file"]
-            if not path.is_file() or sha256_file(path) != shard["sha256"]:
+        for shard in check_manifest(manifest, manifest_path).shards:
+            path = out / shard.file
+            if not path.is_file() or sha256_file(path) != shard.sha256:
                 raise DualtwinError(f"{path}: missing or modified since it was recorded; cannot resume")
         return shards
     if out.exists() and any(out.iterdir()) and not resume:
@@ -328,6 +331,55 @@ class Dataset:
         return np.unique(self.episode)
 
 
+class ShardRecord(BaseModel):
+    """One finished shard as the manifest lists it (fields added by later versions are ignored)."""
+
+    file: str = Field(min_length=1)
+    episodes: tuple[_Count, _Count]
+    frames: Annotated[int, Strict(), Field(ge=1)]
+    sha256: str
+    episode_ids: list[str] | None = None
+
+    @model_validator(mode="after")
+    def _ordered(self) -> ShardRecord:
+        first, last = self.episodes
+        if last < first:
+            raise ValueError(f"episodes [{first}, {last}]: the last episode comes before the first")
+        if self.episode_ids is not None and len(self.episode_ids) != last - first + 1:
+            raise ValueError(f"{len(self.episode_ids)} episode ids for episodes {first}..{last}")
+        return self
+
+
+class ManifestFields(BaseModel):
+    """The manifest fields readers compute with: a manifest is untrusted input (a shared dataset folder)."""
+
+    env_id: str
+    seed: _Count = 0
+    resolution: tuple[Annotated[int, Strict(), Field(ge=1, le=4096)], Annotated[int, Strict(), Field(ge=1, le=4096)]]
+    observation: list[str] = Field(default_factory=list)
+    shards: list[ShardRecord] = Field(default_factory=list)
+
+
+def check_manifest(manifest: dict[str, Any], path: Path) -> ManifestFields:
+    """The manifest's fields that readers use, validated; every shard file confined to the dataset folder.
+
+    Raises:
+        DualtwinError: naming the manifest and the JSON path of the first bad field.
+    """
+    from pydantic import ValidationError
+
+    from dualtwin.artifacts import confined_file
+    from dualtwin.models import validation_message
+
+    try:
+        fields = ManifestFields.model_validate(manifest)
+    except ValidationError as exc:
+        raise DualtwinError(validation_message(path, exc)) from None
+    for i, shard in enumerate(fields.shards):
+        confined_file(path.parent, shard.file, f"{path}: $.shards[{i}].file")
+    return fields
+
+
 def read_manifest(directory: Path | str) -> dict[str, Any]:
     path = Path(directory) / MANIFEST
     if not path.is_file():
@@ -338,23 +390,89 @@ def read_manifest(directory: Path | str) -> dict[str, Any]:
     if manifest.get("format") != FORMAT or manifest.get("format_version") != FORMAT_VERSION:
         raise DualtwinError(f"{path}: unsupported dataset format {manifest.get('format')!r} "
                             f"v{manifest.get('format_version')} (this version reads {FORMAT} v{FORMAT_VERSION})")
+    check_manifest(manifest, path)
     return manifest
 
 
+#: What every shard holds: dtype and the shape after the row axis (a name is a size fixed per dataset: H and W
+#: by the manifest's resolution, n_obs and n_act by the first shard).
+_ARRAYS: dict[str, tuple[str, tuple[int | str, ...]]] = {
+    "frames": ("uint8", ("H", "W", 3)), "state": ("float32", (len(STATE),)), "time_s": ("float64", ()),
+    "episode": ("int64", ()), "step": ("int64", ()), "observation": ("float32", ("n_obs",)),
+    "action": ("float32", ("n_act",)), "masks": ("uint8", ("H", "W", len(LABEL_BODIES))),
+}
+
+
+def _read_shard(path: Path, record: ShardRecord, sizes: dict[str, int]) -> dict[str, np.ndarray]:
+    """A shard's arrays, checked against the layout and its manifest record before any computation sees them.
+
+    ``sizes`` holds H and W (the manifest's resolution) and learns n_obs and n_act from the first shard, so
+    that every shard concatenates. Rows must be whole episodes in order (step 0, 1, ... within each), as
+    ``collect`` writes them: frame stacks are found by stepping back ``step`` rows.
+    """
+    import zipfile
+    import zlib
+
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            missing = [k for k in KEYS if k not in data.files]
+            if missing:
+                raise DualtwinError(f"{path}: shard lacks the arrays {missing}")
+            arrays = {k: data[k] for k in KEYS}
+    except DualtwinError:
+        raise
+    except (OSError, EOFError, ValueError, KeyError, zipfile.BadZipFile, zlib.error) as exc:
+        # np.load raises ValueError for object (pickled) arrays and for a damaged header; zipfile and zlib for a
+        # truncated or corrupt archive.
+        raise DualtwinError(f"{path}: not a readable dataset shard ({type(exc).__name__}: {exc})") from None
+    rows = len(arrays["frames"]) if arrays["frames"].ndim else -1
+    for key, (dtype, tail) in _ARRAYS.items():
+        array = arrays[key]
+        shape: list[int] = []
+        for size in tail:
+            if isinstance(size, str):
+                size = sizes.setdefault(size, array.shape[len(shape) + 1] if array.ndim == len(tail) + 1 else -1)
+            shape.append(size)
+        if array.dtype != np.dtype(dtype) or list(array.shape) != [rows, *shape]:
+            raise DualtwinError(f"{path}: {key!r} is {array.dtype} {list(array.shape)}, expected {dtype} "
+                                f"{[rows, *shape]} ({rows} frames of {sizes['W']}x{sizes['H']})")
+    if rows != record.frames:
+        raise DualtwinError(f"{path}: {rows} frames, the manifest records {record.frames}")
+    for key in ("state", "time_s", "observation", "action"):
+        if not np.isfinite(arrays[key]).all():
+            raise DualtwinError(f"{path}: {key!r} holds non-finite values")
+    episode, step = arrays["episode"], arrays["step"]
+    first, last = record.episodes
+    starts = np.ones(rows, dtype=bool)
+    starts[1:] = episode[1:] != episode[:-1]
+    expected = np.arange(rows) - np.maximum.accumulate(np.where(starts, np.arange(rows), 0))
+    if episode.min() < first or episode.max() > last or not np.array_equal(step, expected):
+        raise DualtwinError(f"{path}: rows must be whole episodes {first}..{last} in order, each with steps 0, 1, "
+                            "...; the episode and step arrays disagree")
+    return arrays
+
+
 def load_dataset(directory: Path | str, *, verify: bool = True) -> Dataset:
-    """Load every finished shard (checking sha256 when ``verify``); never unpickles anything."""
+    """Load every finished shard (checking sha256 when ``verify``); never unpickles anything.
+
+    Raises:
+        DualtwinError: the manifest or a shard is malformed, a shard file is missing, modified, or not inside
+            the dataset folder.
+    """
     root = Path(directory)
     manifest = read_manifest(root)
+    fields = check_manifest(manifest, root / MANIFEST)
     parts: dict[str, list[np.ndarray]] = {k: [] for k in KEYS}
-    if not manifest.get("shards"):
+    if not fields.shards:
         raise DualtwinError(f"{root}: dataset has no finished shard")
-    for shard in manifest["shards"]:
-        path = root / shard["file"]
+    width, height = fields.resolution
+    sizes = {"H": height, "W": width}
+    for shard in fields.shards:
+        path = root / shard.file
         if not path.is_file():
             raise DualtwinError(f"{path}: shard listed in the manifest is missing")
-        if verify and sha256_file(path) != shard["sha256"]:
+        if verify and sha256_file(path) != shard.sha256:
             raise DualtwinError(f"{path}: sha256 differs from the manifest (modified or corrupt)")
-        with np.load(path, allow_pickle=False) as data:
-            for key in parts:
-                parts[key].append(data[key])
+        for key, array in _read_shard(path, shard, sizes).items():
+            parts[key].append(array)
     return Dataset(manifest, **{k: np.concatenate(v) for k, v in parts.items()})
