@@ -26,12 +26,14 @@ import math
 from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
+from pydantic import BaseModel, Field, Strict, ValidationError, field_validator, model_validator
 
-from dualtwin.artifacts import sha256_file
+from dualtwin.artifacts import confined_file, sha256_file
 from dualtwin.errors import DualtwinError
+from dualtwin.models import validation_message
 from dualtwin.perception.onnx_policy import onnx_session, read_contract
 
 MODEL_FILE = "perception.onnx"
@@ -56,34 +58,33 @@ class StateEstimator:
 
     @staticmethod
     def load(path: Path | str) -> StateEstimator:
+        """A model folder; its contract is validated and its ONNX files must lie inside the folder.
+
+        Raises:
+            DualtwinError: naming the contract's field, or the ONNX file, that is wrong.
+        """
         folder = Path(path)
         contract = read_contract(folder / CONTRACT_FILE, "perception")
-        try:
-            spec = contract["onnx"]["inputs"][0]
-            shape = spec["shape"]
-            if contract.get("kind") != "dualtwin-perception" or spec["dtype"] != "uint8" or len(shape) != 5:
-                raise KeyError("kind/input")
-            _ = contract["frame_period_s"], contract["state"]
-        except (KeyError, IndexError, TypeError) as exc:
-            raise DualtwinError(f"{folder / CONTRACT_FILE}: not a dualtwin perception contract ({exc})") from None
-        model = folder / str(contract["onnx"].get("file", MODEL_FILE))
+        checked = check_contract(contract, folder / CONTRACT_FILE)
+        shape = checked.onnx.inputs[0].shape
+        model = confined_file(folder, checked.onnx.file, f"{folder / CONTRACT_FILE}: $.onnx.file")
         session = onnx_session(model, "perception")
-        expected = contract["onnx"].get("sha256")
+        expected = checked.onnx.sha256
         if expected and sha256_file(model) != expected:
             raise DualtwinError(f"{model}: sha256 differs from {CONTRACT_FILE} (the model was replaced or modified)")
-        inputs = session.get_inputs()
+        inputs, outputs = session.get_inputs(), session.get_outputs()
         if len(inputs) != 1 or inputs[0].type != "tensor(uint8)" or list(inputs[0].shape[1:]) != list(shape[1:]):
             raise DualtwinError(f"{model}: ONNX input {[(i.name, i.type, i.shape) for i in inputs]} does not match "
-                                f"the contract (uint8 {shape})")
-        parts = contract["onnx"].get("parts")
+                                f"the contract (uint8 {list(shape)})")
+        # Every request zips the output with the contract's state names: they must agree here, not per request.
+        if not outputs or outputs[0].shape[-1] != len(checked.state):
+            raise DualtwinError(f"{model}: ONNX output {[(o.name, o.shape) for o in outputs]} does not give the "
+                                f"contract's {len(checked.state)} state quantities")
         loaded = None
-        if parts:
-            try:
-                loaded = tuple(_checked_session(folder / str(parts[key]["file"]), str(parts[key]["sha256"]), key)
-                               for key in ("frame", "head"))
-            except (KeyError, TypeError) as exc:
-                raise DualtwinError(f"{folder / CONTRACT_FILE}: onnx.parts needs 'frame' and 'head' with 'file' "
-                                    f"and 'sha256' ({exc})") from None
+        if checked.onnx.parts is not None:
+            loaded = tuple(_checked_session(confined_file(folder, part.file, f"{folder / CONTRACT_FILE}: "
+                                                          f"$.onnx.parts.{key}.file"), part.sha256, key)
+                           for key, part in (("frame", checked.onnx.parts.frame), ("head", checked.onnx.parts.head)))
         return StateEstimator(folder, contract, session, loaded)  # type: ignore[arg-type]
 
     @property
@@ -154,6 +155,77 @@ class StateEstimator:
             for p, _ in FILTER_PAIRS:
                 self.measurement_std(p)  # fail now, not at the first frame
         return EstimatorSession(self, velocity)
+
+
+# --- the contract, validated where it is read (a model folder is untrusted input once it is shared) ------------
+
+_Size = Annotated[int, Strict(), Field(ge=1, le=4096)]
+_Finite = Annotated[float, Strict(), Field(allow_inf_nan=False)]
+
+
+class _Input(BaseModel):
+    dtype: Literal["uint8"]
+    #: [batch, k frames, height, width, 3 channels]; the batch axis is a name or a number.
+    shape: tuple[Any, Annotated[int, Strict(), Field(ge=1, le=64)], _Size, _Size, Literal[3]]
+
+
+class _Part(BaseModel):
+    file: str
+    sha256: str
+
+
+class _Parts(BaseModel):
+    frame: _Part
+    head: _Part
+
+
+class _Onnx(BaseModel):
+    file: str = MODEL_FILE
+    sha256: str | None = None
+    inputs: list[_Input] = Field(min_length=1)
+    parts: _Parts | None = None
+
+    @field_validator("parts", mode="before")
+    @classmethod
+    def _no_parts(cls, value: Any) -> Any:
+        return value or None  # older exports write no parts, or an empty object
+
+
+class _StateTerm(BaseModel):
+    name: str
+
+
+class _Normalization(BaseModel):
+    mean: list[_Finite]
+    std: list[Annotated[float, Strict(), Field(gt=0, allow_inf_nan=False)]]
+
+
+class PerceptionContract(BaseModel):
+    """The fields of ``perception_contract.json`` the estimator, the server and evaluation compute with (other
+    fields are descriptive and kept as they are)."""
+
+    kind: Literal["dualtwin-perception"]
+    onnx: _Onnx
+    frame_period_s: Annotated[float, Strict(), Field(gt=0, allow_inf_nan=False)]
+    state: list[_StateTerm] = Field(min_length=1)
+    normalization: _Normalization
+    validation: dict[str, Any] | None = None
+    trained_on: dict[str, Any] | None = None
+
+    @model_validator(mode="after")
+    def _one_entry_per_quantity(self) -> PerceptionContract:
+        n = len(self.state)
+        if len(self.normalization.mean) != n or len(self.normalization.std) != n:
+            raise ValueError(f"normalization: mean and std need one entry per state quantity ({n})")
+        return self
+
+
+def check_contract(contract: dict[str, Any], path: Path) -> PerceptionContract:
+    """``contract`` (read from ``path``) validated; a :class:`DualtwinError` naming the file and the field."""
+    try:
+        return PerceptionContract.model_validate(contract)
+    except ValidationError as exc:
+        raise DualtwinError(f"not a dualtwin perception contract: {validation_message(path, exc)}") from None
 
 
 def _checked_session(path: Path, sha256: str, what: str) -> Any:
