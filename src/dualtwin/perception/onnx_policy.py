@@ -7,16 +7,17 @@ period. Normalisation and action scaling are inside the graph.
 
 from __future__ import annotations
 
-import json
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
+from pydantic import BaseModel, Field, Strict, ValidationError, model_validator
 
-from dualtwin.artifacts import sha256_file
+from dualtwin.artifacts import read_json_object, sha256_file
 from dualtwin.errors import DualtwinError
+from dualtwin.models import validation_message
 
 POLICY_FILE = "policy.onnx"
 POLICY_CONTRACT = "policy_contract.json"
@@ -40,15 +41,49 @@ def onnx_session(path: Path, what: str) -> Any:
 
 
 def read_contract(path: Path, what: str) -> dict[str, Any]:
+    """A contract file as a JSON object: strict JSON (no NaN or Infinity tokens, which the server could not send
+    back in /v1/info, no duplicate keys, bounded size and depth), errors naming the file."""
     if not path.is_file():
         raise DualtwinError(f"{path}: {what} contract not found")
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise DualtwinError(f"{path}: {what} contract is not valid JSON ({exc})") from None
-    if not isinstance(data, dict):
-        raise DualtwinError(f"{path}: {what} contract must be a JSON object")
-    return data
+    return read_json_object(path, what=f"{what} contract")
+
+
+_Name = Annotated[str, Strict(), Field(min_length=1)]
+
+
+class _Term(BaseModel):
+    name: _Name
+    source: str
+
+
+class _Action(BaseModel):
+    type: Literal["discrete", "box"]
+    names: list[_Name] = Field(default_factory=lambda: ["command"], min_length=1)
+    unit: str | None = None
+    actuators: list[str] | None = None
+    wheel_radius_m: Annotated[float, Strict(), Field(gt=0, allow_inf_nan=False)] | None = None
+
+
+class _PolicyOnnx(BaseModel):
+    sha256: str | None = None
+
+
+class PolicyContract(BaseModel):
+    """The fields of ``policy_contract.json`` the policy, the server and camera-only deployment compute with
+    (other fields are descriptive and kept as they are)."""
+
+    observation: list[_Term] = Field(min_length=1)
+    action: _Action
+    control_period_s: Annotated[float, Strict(), Field(gt=0, allow_inf_nan=False)]
+    onnx: _PolicyOnnx = Field(default_factory=_PolicyOnnx)
+
+    @model_validator(mode="after")
+    def _unique_names(self) -> PolicyContract:
+        names = [t.name for t in self.observation]
+        if len(set(names)) != len(names):
+            # An observation is assembled by name: a repeated name would leave the policy an input short.
+            raise ValueError(f"observation names must be unique, got {names}")
+        return self
 
 
 @dataclass
@@ -82,22 +117,25 @@ class OnnxPolicy:
         if not folder.is_dir():
             raise DualtwinError(f"{folder}: policy folder not found")
         contract = read_contract(folder / POLICY_CONTRACT, "policy")
-        for key in ("observation", "action", "control_period_s"):
-            if key not in contract:
-                raise DualtwinError(f"{folder / POLICY_CONTRACT}: policy contract has no {key!r}")
-        if not isinstance(contract["observation"], list) or not all(
-                isinstance(t, dict) and "name" in t and "source" in t for t in contract["observation"]):
-            raise DualtwinError(f"{folder / POLICY_CONTRACT}: 'observation' must list terms with 'name' and 'source'")
+        try:
+            checked = PolicyContract.model_validate(contract)
+        except ValidationError as exc:
+            raise DualtwinError(f"not a dualtwin policy contract: "
+                                f"{validation_message(folder / POLICY_CONTRACT, exc)}") from None
         model = folder / POLICY_FILE
         session = onnx_session(model, "policy")
-        expected = contract.get("onnx", {}).get("sha256")
+        expected = checked.onnx.sha256
         if expected and sha256_file(model) != expected:
             raise DualtwinError(f"{model}: sha256 differs from {POLICY_CONTRACT} (the model was replaced or modified)")
-        inputs = session.get_inputs()
-        n = len(contract["observation"])
+        inputs, outputs = session.get_inputs(), session.get_outputs()
+        n = len(checked.observation)
         if len(inputs) != 1 or inputs[0].type != "tensor(float)" or inputs[0].shape[-1] != n:
             raise DualtwinError(f"{model}: ONNX input {[(i.name, i.type, i.shape) for i in inputs]} does not take "
                                 f"the contract's {n} float observations")
+        # The outputs are the action and one command per action name: the server zips them per request.
+        if len(outputs) != 1 + len(checked.action.names):
+            raise DualtwinError(f"{model}: {len(outputs)} ONNX outputs, the contract's action needs the action and "
+                                f"one command per name in {checked.action.names}")
         return OnnxPolicy(folder, contract, session)
 
     @property
