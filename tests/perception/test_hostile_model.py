@@ -1,6 +1,7 @@
 """A perception model folder is untrusted input: a hostile ``perception_contract.json`` is one DualtwinError naming
 it, never a traceback (in the CLI) or a 500 on every request (in the server), and the ONNX files it names must lie
-inside the folder (found by mutating a real model's contract).
+inside the folder; its ``weights.npz``, read to fine-tune (``--init-from``), must be the network's very arrays
+(found by mutating a real model's contract and weights).
 """
 
 from __future__ import annotations
@@ -93,3 +94,33 @@ def test_the_cli_says_one_line(model: Path, tiny_dataset: Path, capsys: pytest.C
     code = main(["perception", "eval", "--model", str(model), "--data", str(tiny_dataset)])
     err = capsys.readouterr().err
     assert code == 2 and len(err.strip().splitlines()) == 1 and CONTRACT_FILE in err, err
+
+
+def _edit_weights(folder: Path, change: Callable[[dict[str, Any]], None]) -> None:
+    import numpy as np
+
+    with np.load(folder / "weights.npz") as data:
+        arrays = {k: data[k] for k in data.files}
+    change(arrays)
+    np.savez(folder / "weights.npz", **arrays)  # type: ignore[arg-type]
+
+
+WEIGHTS: dict[str, Callable[[Path], None]] = {
+    "a parameter missing": lambda m: _edit_weights(m, lambda a: a.pop("head.0.bias")),
+    "an extra array": lambda m: _edit_weights(m, lambda a: a.__setitem__("extra", a["std"])),
+    "a parameter of another shape": lambda m: _edit_weights(m, lambda a: a.__setitem__("std", a["std"][:3])),
+    "zero std": lambda m: _edit_weights(m, lambda a: a.__setitem__("std", a["std"] * 0)),
+    "truncated": lambda m: (m / "weights.npz").write_bytes((m / "weights.npz").read_bytes()[:500]),
+}
+
+
+@pytest.mark.parametrize("name", list(WEIGHTS))
+def test_fine_tuning_from_hostile_weights_is_one_line(model: Path, tiny_dataset: Path, tmp_path: Path, name: str,
+                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    WEIGHTS[name](model)
+    capsys.readouterr()
+    code = main(["perception", "train", "--data", str(tiny_dataset), "--out", str(tmp_path / "more"), "--epochs", "1",
+                 "--init-from", str(model)])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "weights.npz" in err, err
+    assert not (tmp_path / "more").exists()

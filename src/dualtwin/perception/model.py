@@ -325,36 +325,64 @@ def train_perception(dataset_dir: Path | str, out_dir: Path | str, *, epochs: in
 
 def _initial_weights(folder: Path, stack: int, height: int, width: int) -> tuple[dict[str, Any], set[str]]:
     """A model folder's weights (as tensors, no pickle) and the episode identities it trained on."""
-    import torch
-
     from dualtwin.artifacts import read_json_object
+    from dualtwin.perception.estimator import check_contract
 
-    contract = read_json_object(folder / CONTRACT_FILE, ("onnx",), what="perception contract")
-    shape = contract["onnx"]["inputs"][0]["shape"]
+    path = folder / CONTRACT_FILE
+    contract = read_json_object(path, ("onnx",), what="perception contract")
+    shape = check_contract(contract, path).onnx.inputs[0].shape
     if list(shape[1:4]) != [stack, height, width]:
         raise DualtwinError(f"{folder}: the initial model takes {shape[1]} frames of {shape[3]}x{shape[2]}, "
                             f"this training {stack} of {width}x{height}")
-    path = folder / WEIGHTS_FILE
-    if not path.is_file():
-        raise DualtwinError(f"{path}: not found (the initial model needs its weights)")
-    with np.load(path, allow_pickle=False) as arrays:
-        weights = {k: torch.from_numpy(np.array(arrays[k])) for k in arrays.files}
+    weights = read_weights(folder / WEIGHTS_FILE, _build(stack, height, width, np.zeros(len(STATE_NAMES)),
+                                                         np.ones(len(STATE_NAMES))))
     return weights, trained_episode_ids(folder, contract)
+
+
+def read_weights(path: Path, net: Any) -> dict[str, Any]:
+    """``weights.npz`` as tensors for ``net``: exactly its parameter names and shapes, finite floats, no pickle.
+
+    A model folder is untrusted input: checked here, a damaged or foreign file is one error naming it instead of
+    torch's multi-line ``load_state_dict`` failure (or a broadcasting error in the first training step).
+    """
+    import zipfile
+    import zlib
+
+    import torch
+
+    if not path.is_file():
+        raise DualtwinError(f"{path}: not found (the model needs its weights)")
+    try:
+        with np.load(path, allow_pickle=False) as arrays:
+            loaded = {k: np.array(arrays[k]) for k in arrays.files}
+    except (OSError, EOFError, ValueError, zipfile.BadZipFile, zlib.error) as exc:
+        # ValueError: an object (pickled) array or a damaged header; BadZipFile/zlib: a truncated archive.
+        raise DualtwinError(f"{path}: not a readable weights file ({type(exc).__name__}: {exc})") from None
+    expected = {k: tuple(v.shape) for k, v in net.state_dict().items()}
+    if set(loaded) != set(expected):
+        raise DualtwinError(f"{path}: weights for another network (missing {sorted(set(expected) - set(loaded))[:5]}, "
+                            f"unexpected {sorted(set(loaded) - set(expected))[:5]})")
+    for name, array in loaded.items():
+        if array.dtype.kind != "f" or array.shape != expected[name] or not np.isfinite(array).all():
+            raise DualtwinError(f"{path}: {name!r} is {array.dtype} {list(array.shape)}, expected finite floats of "
+                                f"shape {list(expected[name])}")
+    if not (loaded["std"] > 0).all():
+        raise DualtwinError(f"{path}: 'std' must be positive")
+    return {k: torch.from_numpy(v.astype(np.float32)) for k, v in loaded.items()}
 
 
 def load_weights(model_dir: Path | str) -> Any:
     """The trained PyTorch module of a model folder (from ``weights.npz`` and the contract; no pickle)."""
-    import torch
-
     folder = Path(model_dir)
     from dualtwin.artifacts import read_json_object
+    from dualtwin.perception.estimator import check_contract
 
-    contract = read_json_object(folder / CONTRACT_FILE, ("onnx", "normalization"), what="perception contract")
-    _, stack, height, width, _ = contract["onnx"]["inputs"][0]["shape"]
-    norm = contract["normalization"]
-    net = _build(int(stack), int(height), int(width), np.asarray(norm["mean"]), np.asarray(norm["std"]))
-    with np.load(folder / WEIGHTS_FILE, allow_pickle=False) as arrays:
-        net.load_state_dict({k: torch.from_numpy(arrays[k]) for k in arrays.files})
+    path = folder / CONTRACT_FILE
+    checked = check_contract(read_json_object(path, ("onnx", "normalization"), what="perception contract"), path)
+    _, stack, height, width, _ = checked.onnx.inputs[0].shape
+    norm = checked.normalization
+    net = _build(int(stack), int(height), int(width), np.asarray(norm.mean), np.asarray(norm.std))
+    net.load_state_dict(read_weights(folder / WEIGHTS_FILE, net))
     return net.eval()
 
 
