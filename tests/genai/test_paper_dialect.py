@@ -298,6 +298,20 @@ def test_our_schema_refuses_a_welded_robot_that_drives_wheels_and_accepts_a_turn
     assert generate(Source.from_json(path), tmp_path / "ok", dialect="dualtwin").converged
 
 
+def test_a_paper_answer_without_a_root_is_one_error_naming_the_rule(tmp_path: Path) -> None:
+    """A tree with no root (the cart's parent a wheel, a number) reached the mobile-base reading before the tree
+    was checked: ``desc.root`` raised StopIteration, a traceback. Now the tree's own check says what is wrong."""
+    for parent in ("wheel1", 5):
+        data = paper_cartpole()
+        part(data, "cart")["parent"] = parent
+        translation = translate(data)  # (before: StopIteration)
+        assert not any("mobile base" in n for n in translation.notes)
+        path = tmp_path / f"rootless_{parent}.json"
+        path.write_text(json.dumps(data))
+        with pytest.raises(DualtwinError, match=r"exactly one part must have parent null \(the root\)"):
+            generate(Source.from_json(path), tmp_path / f"out_{parent}")
+
+
 def test_a_refused_description_leaves_no_folder(tmp_path: Path) -> None:
     """Bad input is refused before anything is kept: the output folder generate made is gone again."""
     path = tmp_path / "bad.json"

@@ -59,7 +59,7 @@ from pydantic import ValidationError
 from scipy.spatial.transform import Rotation
 
 from dualtwin.errors import DualtwinError
-from dualtwin.genai.primitive import RobotDescription, grounded_wheels, parse_description
+from dualtwin.genai.primitive import RobotDescription, check_tree, grounded_wheels, parse_description
 from dualtwin.geometry import axis_angle_from_rotvec
 
 Dialect = Literal["auto", "dualtwin", "paper"]
@@ -594,7 +594,8 @@ def _mobile_root(t: _Translator, description: dict[str, Any]) -> None:
     joint is dropped and the reading is said."""
     try:
         desc = RobotDescription.model_validate(description)
-    except ValidationError:
+        check_tree(desc)  # (no root, or two: desc.root below would raise StopIteration, a traceback)
+    except (ValidationError, DualtwinError):
         return  # the description's own errors are reported where it is validated
     root = desc.root
     if root.joint is None or root.joint.type != "fixed":
