@@ -177,6 +177,10 @@ def test_extract_json_and_confinement(tmp_path: Path) -> None:
         extract_json("nothing")
     with pytest.raises(ValueError, match="not an object"):
         extract_json("[1, 2]")
+    # nested past Python's recursion limit: before, the RecursionError escaped the repair loop (no repair round,
+    # a generic error naming no input)
+    with pytest.raises(ValueError, match="invalid JSON: nested too deeply"):
+        extract_json('{"robot_name": "x", "parts": ' + "[" * 5000 + "]" * 5000 + "}")
     assert confined(tmp_path, "a/b.stl") == (tmp_path / "a" / "b.stl").resolve()
     for bad in ("/etc/passwd", "../x.stl", "a/../../x", ""):
         with pytest.raises(DualtwinError, match="refusing"):

@@ -168,6 +168,9 @@ def extract_json(text: str) -> Any:
         except json.JSONDecodeError as exc:
             error = f"invalid JSON: {exc.msg} at line {exc.lineno} column {exc.colno}"
             continue
+        except RecursionError:  # a reply is untrusted: thousands of nested brackets are a reply to repair too
+            error = "invalid JSON: nested too deeply to read"
+            continue
         if isinstance(value, dict):
             return value
         error = f"the reply is JSON but a {type(value).__name__}, not an object"
