@@ -170,3 +170,30 @@ def test_mujoco_warnings_go_to_stderr_not_into_the_users_folder(tmp_path) -> Non
             assert "MuJoCo warning: Nan, Inf or huge value in QPOS" in done.stderr
         else:  # the control: MuJoCo on its own writes the file where it runs
             assert (folder / "MUJOCO_LOG.TXT").exists()
+
+
+_UNSTABLE_MANY = """
+import dualtwin
+import mujoco
+m = mujoco.MjModel.from_xml_string('<mujoco><option gravity="0 0 -1e308"/><worldbody><body><freejoint/>'
+                                   '<geom size=".1"/></body></worldbody></mujoco>')
+d = mujoco.MjData(m)
+for _ in range(50):
+    mujoco.mj_step(m, d)
+"""
+
+
+def test_a_warning_mujoco_repeats_every_step_is_printed_a_few_times_then_said_once() -> None:
+    """A hostile model (gravity 1e308) is unstable at every step: MuJoCo warns twice a step (QACC, then QPOS
+    after its reset). Before, 50 steps printed 99 lines; the error line that follows a bad input must not drown."""
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-c", _UNSTABLE_MANY], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    lines = [line for line in done.stderr.splitlines() if line.startswith("MuJoCo warning:")]
+    for kind in ("QACC", "QPOS"):
+        mine = [line for line in lines if f"Nan, Inf or huge value in {kind} at DOF 0" in line]
+        assert len(mine) == 4, done.stderr
+        assert "repeated" not in "".join(mine[:3]) and mine[3].endswith("(repeated; further ones like it are not shown)")
+    assert len(lines) == 8, done.stderr

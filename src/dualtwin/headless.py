@@ -26,6 +26,7 @@ import importlib.abc
 import importlib.machinery
 import json
 import os
+import re
 import subprocess
 import sys
 import types
@@ -173,10 +174,23 @@ def gl_backend() -> GLChoice:
 # ------------------------------------------------------------------------------------------ MuJoCo's log file
 
 
+#: How many MuJoCo warnings of one kind (the message with its numbers left out) are printed per process.
+MUJOCO_WARNINGS_PER_KIND = 3
+_mujoco_warning_counts: dict[str, int] = {}
+_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+
+
 def _mujoco_warning(message: str) -> None:
     # MuJoCo's default handler prints the warning and appends it to MUJOCO_LOG.TXT in the current folder, which
-    # is the user's folder, not ours to write into; the message goes to stderr alone.
-    sys.stderr.write(f"MuJoCo warning: {message}\n")
+    # is the user's folder, not ours to write into; the message goes to stderr alone. MuJoCo warns again at every
+    # step a simulation stays unstable ("... Time = 0.0020."): a model with a hostile number printed hundreds of
+    # lines before the one line that says what is wrong, so each kind is printed a few times, then said once.
+    kind = _NUMBER.sub("#", message)
+    seen = _mujoco_warning_counts[kind] = _mujoco_warning_counts.get(kind, 0) + 1
+    if seen <= MUJOCO_WARNINGS_PER_KIND:
+        sys.stderr.write(f"MuJoCo warning: {message}\n")
+    elif seen == MUJOCO_WARNINGS_PER_KIND + 1:
+        sys.stderr.write(f"MuJoCo warning: {message} (repeated; further ones like it are not shown)\n")
 
 
 def _install_mujoco_warning_handler(module: object) -> None:
