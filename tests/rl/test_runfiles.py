@@ -158,6 +158,35 @@ def test_a_run_whose_record_does_not_describe_the_model_is_refused(discrete_run:
         load_policy(run)
 
 
+@pytest.mark.parametrize("entry, value", [("clip_range_vf", 0), ("clip_range", {}), ("n_steps", "many")])
+def test_plain_values_sb3_rejects_in_the_model_data_are_one_error(discrete_run: Path, tmp_path: Path, entry: str,
+                                                                  value: object) -> None:
+    """The zip's ``data`` entry is JSON anyone can edit; SB3 checks some values with assertions. Before, such a
+    value escaped ``export`` and ``transfer`` as an AssertionError (or TypeError) traceback."""
+    run = _copy(discrete_run, tmp_path)
+    with zipfile.ZipFile(run / "model.zip") as archive:
+        data = json.loads(archive.read("data"))
+    data[entry] = value
+    _rewrite_zip(run / "model.zip", {"data": json.dumps(data).encode()})
+    with pytest.raises(DualtwinError, match=r"model.zip: cannot load the model: \w+Error"):
+        load_policy(run)
+
+
+def test_a_run_record_with_nan_is_refused_before_anything_is_exported(discrete_run: Path, tmp_path: Path) -> None:
+    """Python's json reads NaN; the run record's reader now refuses it (our writer never writes one). Before, a
+    NaN in the I/O contract reached the contract's writer: a traceback, after policy.onnx was written."""
+    run = _copy(discrete_run, tmp_path)
+    text = (run / "run.json").read_text()
+    record = json.loads(text)
+    record["io"]["observation"]["terms"][1]["index"] = float("nan")
+    (run / "run.json").write_text(json.dumps(record))
+    result = subprocess.run([sys.executable, "-m", "dualtwin.cli", "export", "--policy", str(run), "--out",
+                             str(tmp_path / "out")], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2 and "Traceback" not in result.stderr, result.stderr
+    assert result.stderr.count("\n") == 1 and "run.json" in result.stderr and "NaN" in result.stderr
+    assert not (tmp_path / "out").exists()
+
+
 def test_cli_refuses_a_legacy_run_in_one_line_and_trusts_it_on_request(discrete_run: Path, tmp_path: Path) -> None:
     run = _copy(discrete_run, tmp_path)
     load_policy(run).vec_normalize.save(str(run / "vecnormalize.pkl"))  # type: ignore[union-attr]

@@ -5,13 +5,13 @@
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
+from dualtwin.artifacts import read_json
 from dualtwin.errors import DualtwinError
 
 if TYPE_CHECKING:
@@ -68,10 +68,9 @@ def load_policy(run_dir: Path | str, which: Literal["final", "best"] = "final", 
     record_path = run / "run.json"
     if not record_path.is_file():
         raise DualtwinError(f"{run}: not a training run (no run.json)")
-    try:
-        record = json.loads(record_path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise DualtwinError(f"{record_path}: cannot read the run record: {exc}") from None
+    # strict JSON (our writer never writes NaN): a NaN in the I/O contract went on into the exported files,
+    # whose writer refused it with a traceback, after policy.onnx was written
+    record = read_json(record_path, "run record")
     if not isinstance(record, dict) or not isinstance(record.get("env_id"), str):
         raise DualtwinError(f"{record_path}: not a training run record (no env_id)")
     prefix = "" if which == "final" else "best_"

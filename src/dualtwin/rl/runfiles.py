@@ -280,7 +280,9 @@ def load_model(path: Path, record: dict[str, Any], *, env: Any = None, trust_pic
         # torch.load(weights_only=True) met something other than tensors in a .pth entry.
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise DualtwinError(f"{path}: refusing a weights file that is not plain tensors ({first})") from None
-    except (KeyError, RuntimeError, zipfile.BadZipFile) as exc:
+    except (KeyError, RuntimeError, zipfile.BadZipFile, AssertionError, ValueError, TypeError) as exc:
+        # the zip's data entry is plain JSON anyone can edit, and SB3 checks what it reads with assertions
+        # (clip_range_vf 0, a clip_range that is an object...): a traceback, before
         raise DualtwinError(f"{path}: cannot load the model: {type(exc).__name__}: {exc}") from None
 
 
