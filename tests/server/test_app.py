@@ -119,6 +119,8 @@ BAD: dict[str, tuple[dict[str, Any], int, str]] = {
     "non-finite sensor": ({"sensors": {"cart_position": "nan", "pole_angle": 0.0}}, 422, ""),
     "bad session id": ({"session": "a b/c"}, 422, ""),
     "missing frame": ({"frame": None}, 422, ""),
+    "reset as a string": ({"reset": "yes"}, 422, "boolean"),
+    "time as a string": ({"time_s": "1.5"}, 422, "number"),
 }
 
 
@@ -128,6 +130,15 @@ def test_bad_requests_get_clear_4xx_and_others_are_still_served(http: Any, name:
     reply = http.post("/v1/act", json={**request("bad"), **override})
     assert reply.status_code == status, reply.text
     assert words in json.dumps(reply.json()["detail"])
+    good(http)
+
+
+def test_a_non_finite_time_is_refused(http: Any) -> None:
+    """JSON's NaN token, which Python's parser reads (a guard: the model's allow_inf_nan=False refuses it; echoed
+    back it would make a reply no strict JSON reader takes)."""
+    body = json.dumps({**request("bad"), "time_s": 987.125}).replace("987.125", "NaN")
+    reply = http.post("/v1/act", content=body, headers={"content-type": "application/json"})
+    assert reply.status_code == 422 and "finite" in json.dumps(reply.json()["detail"]), reply.text
     good(http)
 
 

@@ -102,8 +102,11 @@ class ActRequest(StrictModel):
     sensors: dict[str, Annotated[float, Strict()]] = Field(
         description="on-board readings named as the policy's onboard observations")
     frame: FramePayload
-    reset: bool = Field(default=False, description="start a new episode: drop this session's history first")
-    time_s: float | None = Field(default=None, description="robot time of the readings (echoed back)")
+    # Strict too: "yes" or "1.5" is a malformed request, not true or 1.5
+    reset: Annotated[bool, Strict()] = Field(default=False,
+                                             description="start a new episode: drop this session's history first")
+    time_s: Annotated[float, Strict()] | None = Field(default=None,
+                                                      description="robot time of the readings (echoed back)")
 
 
 class ActResponse(BaseModel):
