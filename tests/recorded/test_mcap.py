@@ -184,3 +184,73 @@ def test_messages_stored_out_of_log_time_order_are_sorted(tmp_path: Path, cartpo
     run = load_run(import_mcap(_mapping(tmp_path, CARTPOLE_MAPPING), cartpole_suite, "cartpole", tmp_path / "run"))
     series = run.series("03_Step_Response_3")["pole_angle_rad"]
     np.testing.assert_allclose(series.y[series.t <= 1.0], np.sin(series.t[series.t <= 1.0]), atol=1e-4)
+
+
+def _rewrite_bag(source: Path, target: Path, compression: str = "none",
+                 schema_text: dict[str, str] | None = None) -> bytes:
+    """The messages of ``source`` written again with the plain MCAP writer: another compression, or a topic's
+    message definition replaced (the payloads stay those the real definition encoded)."""
+    from mcap.reader import make_reader
+    from mcap.writer import CompressionType, Writer
+
+    with open(source, "rb") as handle:
+        records = [(schema.name, schema.data.decode(), channel.topic, message.log_time, message.data)
+                   for schema, channel, message in make_reader(handle).iter_messages()]
+    with open(target, "wb") as handle:
+        writer = Writer(handle, compression=CompressionType[compression.upper()])
+        writer.start("ros2", "test")
+        channels: dict[str, int] = {}
+        for seq, (name, text, topic, log_time, data) in enumerate(records):
+            if topic not in channels:
+                text = (schema_text or {}).get(topic, text)
+                channels[topic] = writer.register_channel(
+                    topic, "cdr", writer.register_schema(name, "ros2msg", text.encode()))
+            writer.add_message(channels[topic], log_time, data, log_time, seq)
+        writer.finish()
+    return target.read_bytes()
+
+
+def _corrupt_first_frame(data: bytes, magic: bytes) -> bytes:
+    """The bag with bytes of its first compressed chunk's payload overwritten (a disk or copy error)."""
+    at = data.index(magic) + 16
+    return data[:at] + b"\xff" * 16 + data[at + 16:]
+
+
+@pytest.mark.parametrize(("case", "message"), [
+    # The message definition stored in the bag is its own text: mcap_ros2's parser failed on these with
+    # NameError, InvalidFieldDefinition and InvalidResourceName tracebacks.
+    ("definition_type", r"topic /odom: cannot parse its message definition 'nav_msgs/msg/Odometry' \(NameError"),
+    ("definition_line", r"topic /joint_states: cannot parse its message definition 'sensor_msgs/msg/JointState'"),
+    ("definition_section", r"topic /odom: cannot parse its message definition"),
+    # A definition the parser accepts but the decoder cannot read (NotImplementedError for wstring).
+    ("wstring", r"topic /joint_states, message 0: cannot decode it with its definition 'sensor_msgs/msg/JointState'"),
+    # Corrupt compressed chunks: ZstdError and lz4's RuntimeError came out as tracebacks.
+    ("zstd", r"scenario_2.mcap: cannot read the bag \(truncated or corrupt\?"),
+    ("lz4", r"scenario_2.mcap: cannot read the bag \(truncated or corrupt\?"),
+])
+def test_hostile_bag_contents_are_one_clear_error(tmp_path: Path, cartpole_suite: Path, cartpole_bags: Path,
+                                                  case: str, message: str) -> None:
+    _cartpole_bags(tmp_path / "bags", cartpole_bags)
+    bag = tmp_path / "bags" / "scenario_2.mcap"
+    source = tmp_path / "source.mcap"
+    shutil.move(bag, source)
+    from tests.recorded.conftest import JOINT_STATE_DEF, ODOMETRY_DEF
+
+    if case == "definition_type":
+        _rewrite_bag(source, bag, schema_text={"/odom": ODOMETRY_DEF.replace("float64 y\n", "char std_msgs/Header\n", 1)})
+    elif case == "definition_line":
+        _rewrite_bag(source, bag, schema_text={"/joint_states": JOINT_STATE_DEF.replace("float64[] position",
+                                                                                         "float64", 1)})
+    elif case == "definition_section":
+        _rewrite_bag(source, bag, schema_text={"/odom": ODOMETRY_DEF.replace("MSG: geometry_msgs/Point", "MSG: x/y/z/w", 1)})
+    elif case == "wstring":
+        _rewrite_bag(source, bag, schema_text={"/joint_states": JOINT_STATE_DEF.replace("string frame_id",
+                                                                                         "wstring frame_id", 1)})
+    elif case == "zstd":
+        bag.write_bytes(_corrupt_first_frame(_rewrite_bag(source, bag, "zstd"), b"\x28\xb5\x2f\xfd"))
+    elif case == "lz4":
+        bag.write_bytes(_corrupt_first_frame(_rewrite_bag(source, bag, "lz4"), b"\x04\x22\x4d\x18"))
+    source.unlink()
+    with pytest.raises(DualtwinError, match=message):
+        import_mcap(_mapping(tmp_path, CARTPOLE_MAPPING), cartpole_suite, "cartpole", tmp_path / "run")
+    assert not (tmp_path / "run").exists()

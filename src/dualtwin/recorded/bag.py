@@ -218,16 +218,46 @@ def _decoder(schema: Any, channel: Any, topic_reader: _TopicReader) -> tuple[Mes
     """The fast reader when the schema allows it, and ``mcap_ros2``'s decoder as the reference and fallback."""
     from mcap_ros2.decoder import DecoderFactory
 
+    where = f"{topic_reader.path}: topic {topic_reader.topic}"
     if schema is None:
-        raise DualtwinError(f"{topic_reader.path}: topic {topic_reader.topic} has no schema; cannot decode it")
-    reference = DecoderFactory().decoder_for(channel.message_encoding, schema)
-    if reference is None:
-        raise DualtwinError(f"{topic_reader.path}: topic {topic_reader.topic}: messages are "
-                            f"{channel.message_encoding!r} with a {schema.encoding!r} schema, not ROS 2 CDR")
+        raise DualtwinError(f"{where} has no schema; cannot decode it")
+    try:
+        decode = DecoderFactory().decoder_for(channel.message_encoding, schema)
+    except Exception as exc:  # noqa: BLE001  (see _untrusted: the bag's own text, parsed by mcap_ros2)
+        raise _untrusted(f"{where}: cannot parse its message definition {schema.name!r}", exc) from None
+    if decode is None:
+        raise DualtwinError(f"{where}: messages are {channel.message_encoding!r} with a {schema.encoding!r} "
+                            "schema, not ROS 2 CDR")
+
+    def reference(data: bytes) -> Any:
+        try:
+            return decode(data)
+        except Exception as exc:  # noqa: BLE001  (see _untrusted)
+            raise _untrusted(f"{where}, message {len(topic_reader.times)}: cannot decode it with its "
+                             f"definition {schema.name!r}", exc) from None
+
     fast = None
     if schema.encoding == "ros2msg" and channel.message_encoding == "cdr":
         fast = compile_schema(schema.name, schema.data.decode("utf-8", "replace"), topic_reader.needed_fields())
     return fast, reference
+
+
+def _untrusted(what: str, exc: Exception) -> DualtwinError:
+    """A bag's message definition (text inside the bag) and its payloads are untrusted input, and
+    ``mcap_ros2``'s vendored rosidl parser and its decoder fail on bad ones with whatever they hit first
+    (their own InvalidSpecification classes, but also NameError, TypeError, NotImplementedError for
+    wstring...): no narrower set names them all, so any error from those two calls is the bag's."""
+    return DualtwinError(f"{what} ({type(exc).__name__}: {str(exc)[:200] or 'no detail'})")
+
+
+def _codec_errors() -> tuple[type[Exception], ...]:
+    """zstandard's error for a corrupt chunk; mcap reads zstd chunks only when zstandard is installed (without
+    it, it refuses them with an McapError), so it is looked up, not imported unconditionally."""
+    try:
+        from zstandard import ZstdError
+    except ImportError:
+        return ()
+    return (ZstdError,)
 
 
 def read_bag(path: Path, mapping: BagMapping, where: str,
@@ -245,6 +275,8 @@ def read_bag(path: Path, mapping: BagMapping, where: str,
         raise DualtwinError("reading MCAP bags needs the 'recorded' extra: pip install 'dualtwin[recorded]'") from None
 
     path = check_input_file(path, "MCAP bag")
+    corrupt: tuple[type[Exception], ...] = (McapError, ValueError, KeyError, EOFError, OSError, AssertionError,
+                                            struct.error, OverflowError, RuntimeError, *_codec_errors())
     by_topic: dict[str, list[BagChannel]] = {}
     for ch in mapping.channels:
         by_topic.setdefault(ch.topic, []).append(ch)
@@ -286,7 +318,9 @@ def read_bag(path: Path, mapping: BagMapping, where: str,
             tick(total or count)
         except DualtwinError:
             raise
-        except (McapError, ValueError, KeyError, EOFError, OSError, AssertionError, struct.error) as exc:
+        except corrupt as exc:
+            # A corrupt chunk: zstandard raises its ZstdError, lz4 a plain RuntimeError, and a record length
+            # past what a file read takes an OverflowError; all three mean the bytes are bad.
             raise DualtwinError(f"{path}: cannot read the bag (truncated or corrupt? the MCAP CLI's 'mcap recover' "
                                 f"rebuilds a cut bag): {exc or type(exc).__name__}") from None
     for topic, topic_reader in readers.items():
