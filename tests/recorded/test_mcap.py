@@ -115,6 +115,8 @@ def test_time_ranges_in_one_bag_with_yaw_and_joint_names(tmp_path: Path, write_b
     ("directory", r"scenario_2.mcap: is a directory"),
     ("ranges", r"time ranges cut one bag into scenarios, but files gives 6"),
     ("unit", r"unit 'deg' cannot be converted to the binding's 'm'"),
+    # A range end of 1e308 s passed validation, then overflowed turning into integer nanoseconds (traceback).
+    ("range_end", r"bag_mapping.yaml: \$.scenarios\[0\].end_s: Input should be less than or equal to"),
 ])
 def test_bad_bags_are_one_clear_error(tmp_path: Path, cartpole_suite: Path, cartpole_bags: Path,
                                       case: str, message: str) -> None:
@@ -142,6 +144,9 @@ def test_bad_bags_are_one_clear_error(tmp_path: Path, cartpole_suite: Path, cart
         data["scenarios"] = [{"start_s": 0, "end_s": 1}] * 6
     elif case == "unit":
         data["channels"][1]["unit"] = "deg"
+    elif case == "range_end":
+        data["files"] = "bags/scenario_0.mcap"
+        data["scenarios"] = [{"start_s": 0, "end_s": 1e308}] + [{"start_s": 0, "end_s": 1}] * 5
     with pytest.raises(DualtwinError, match=message):
         import_mcap(_mapping(tmp_path, data), cartpole_suite, "cartpole", tmp_path / "run")
     assert not (tmp_path / "run").exists()

@@ -101,6 +101,10 @@ def test_explicit_file_list_and_tsv(tmp_path: Path, cartpole_suite: Path) -> Non
     ({"files": ["../outside.csv"] * 6}, r"'../outside.csv' is outside the data folder"),
     ({"files": ["logs/log_0.csv"]}, r"1 file\(s\) for 6 scenario\(s\)"),
     ({"files": [f"logs/log_{i}.csv" for i in range(5)] + ["logs"]}, r"logs: is a directory"),
+    # A NUL in a file name was a ValueError traceback from the path functions (found by fuzzing the mapping).
+    ({"files": "logs/log_0.csv\x00"}, r"mapping.yaml: \$.files: a file name or pattern cannot hold a NUL"),
+    ({"files": [f"logs/log_{i}.csv" for i in range(5)] + ["logs/\x00"]},
+     r"mapping.yaml: \$.files: a file name or pattern cannot hold a NUL"),
 ])
 def test_bad_mappings_and_files_are_one_clear_error(tmp_path: Path, cartpole_suite: Path, change: dict,
                                                     message: str) -> None:

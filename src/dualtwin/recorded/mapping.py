@@ -39,13 +39,25 @@ import re
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field, ValidationError, model_validator
+from pydantic import Field, ValidationError, field_validator, model_validator
 
 from dualtwin.errors import DualtwinError
 from dualtwin.models import FrozenModel
 
 Source = Literal["ground_truth", "onboard"]
 TimeUnit = Literal["s", "ms", "us", "ns"]  # the time units of dualtwin.recorded.units
+
+#: The largest time in a bag, in seconds: ROS stamps are int64 nanoseconds (about 292 years), and a range is
+#: turned into nanoseconds as an integer; a larger bound could only be a mistake, and 1e300 s overflows that.
+MAX_BAG_TIME_S = 9.2e9
+
+
+def _file_names(files: str | list[str]) -> str | list[str]:
+    # The OS cannot open a path holding NUL (Python raises ValueError deep in the path functions), so it is
+    # refused here, where the mapping's field can be named.
+    if any("\x00" in name for name in ([files] if isinstance(files, str) else files)):
+        raise ValueError("a file name or pattern cannot hold a NUL character")
+    return files
 
 
 class ChannelBase(FrozenModel):
@@ -104,6 +116,8 @@ class TableMapping(FrozenModel):
     time: TimeColumn
     channels: list[TableChannel] = Field(min_length=1)
 
+    _files = field_validator("files")(_file_names)
+
     @model_validator(mode="after")
     def _check(self) -> TableMapping:
         _unique_channels(list(self.channels))
@@ -113,8 +127,8 @@ class TableMapping(FrozenModel):
 class TimeRange(FrozenModel):
     """A scenario's span in a bag, seconds from the bag's first mapped message."""
 
-    start_s: float = Field(ge=0)
-    end_s: float
+    start_s: float = Field(ge=0, le=MAX_BAG_TIME_S)
+    end_s: float = Field(le=MAX_BAG_TIME_S)
 
     @model_validator(mode="after")
     def _ordered(self) -> TimeRange:
@@ -152,6 +166,8 @@ class BagMapping(FrozenModel):
         default="log_time", description="log_time: the bag's record time; header: the message's header.stamp")
     scenarios: list[TimeRange] | None = Field(default=None, description="one time range per scenario")
     channels: list[BagChannel] = Field(min_length=1)
+
+    _files = field_validator("files")(_file_names)
 
     @model_validator(mode="after")
     def _check(self) -> BagMapping:
