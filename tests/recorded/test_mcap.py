@@ -117,6 +117,8 @@ def test_time_ranges_in_one_bag_with_yaw_and_joint_names(tmp_path: Path, write_b
     ("unit", r"unit 'deg' cannot be converted to the binding's 'm'"),
     # A range end of 1e308 s passed validation, then overflowed turning into integer nanoseconds (traceback).
     ("range_end", r"bag_mapping.yaml: \$.scenarios\[0\].end_s: Input should be less than or equal to"),
+    # An index into a field that is a message: a KeyError, reported as a corrupt bag before.
+    ("index_of_message", r"topic /joint_states, message 0: no entry 1 in the field"),
 ])
 def test_bad_bags_are_one_clear_error(tmp_path: Path, cartpole_suite: Path, cartpole_bags: Path,
                                       case: str, message: str) -> None:
@@ -144,6 +146,9 @@ def test_bad_bags_are_one_clear_error(tmp_path: Path, cartpole_suite: Path, cart
         data["scenarios"] = [{"start_s": 0, "end_s": 1}] * 6
     elif case == "unit":
         data["channels"][1]["unit"] = "deg"
+    elif case == "index_of_message":
+        data["channels"][0] = {"name": "pole_angle_rad", "topic": "/joint_states", "field": "header", "index": 1,
+                               "unit": "rad"}
     elif case == "range_end":
         data["files"] = "bags/scenario_0.mcap"
         data["scenarios"] = [{"start_s": 0, "end_s": 1e308}] + [{"start_s": 0, "end_s": 1}] * 5

@@ -105,6 +105,9 @@ def test_explicit_file_list_and_tsv(tmp_path: Path, cartpole_suite: Path) -> Non
     ({"files": "logs/log_0.csv\x00"}, r"mapping.yaml: \$.files: a file name or pattern cannot hold a NUL"),
     ({"files": [f"logs/log_{i}.csv" for i in range(5)] + ["logs/\x00"]},
      r"mapping.yaml: \$.files: a file name or pattern cannot hold a NUL"),
+    # A first sample moved to 1e308 s swallowed the stamps' differences: every sample at one time, imported silently.
+    ({"time": {"column": "stamp_ms", "unit": "ms", "origin": "rebase", "first_sample_s": 1e308}},
+     r"log_0.csv: the mapping's time.first_sample_s 1e\+308 is too large: the stamps moved there no longer increase"),
 ])
 def test_bad_mappings_and_files_are_one_clear_error(tmp_path: Path, cartpole_suite: Path, change: dict,
                                                     message: str) -> None:

@@ -171,7 +171,7 @@ class _TopicReader:
             if index is not None:
                 try:
                     value = value[index]
-                except (IndexError, TypeError):
+                except (IndexError, KeyError, TypeError):  # (a KeyError: the field is a message, not an array)
                     raise self._fail(ch, f"no entry {index} in the field") from None
             if ch.angle is not None:
                 try:

@@ -104,6 +104,10 @@ def _time_axis(table: Table, mapping: TableMapping, period: float) -> tuple[Floa
                             f"(column {col}, {spec.column!r}); scenario time starts at 0 (a log on another "
                             "clock needs origin: rebase)")
     t = stamps - stamps[0] + spec.first_sample_s if rebase else stamps
+    if rebase and t.size > 1 and not (np.diff(t) > 0).all():
+        # a huge first_sample_s (1e308) swallows the differences of stamps: every sample at one time, silently
+        raise DualtwinError(f"{table.path}: the mapping's time.first_sample_s {spec.first_sample_s!r} is too large: "
+                            "the stamps moved there no longer increase")
     timing: dict[str, Any] = {"origin": "rebased" if rebase else "simulation",
                               "first_stamp_s": float(stamps[0]), "first_sample_s": float(t[0]),
                               "samples": int(t.size)}
