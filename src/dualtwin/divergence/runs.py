@@ -13,23 +13,24 @@ holds which channel. This module does the I/O only.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from pydantic import ValidationError
 
 from dualtwin.artifacts import read_json, verify_logs
+from dualtwin.divergence.manifest import RunManifest, ScenarioRecord
 from dualtwin.divergence.metrics import (
     FloatArray,
     default_resolution,
 )
 from dualtwin.errors import DualtwinError
+from dualtwin.models import validation_message
 
 SOURCES = ("onboard", "ground_truth")
-STATUSES = ("completed", "failed", "unstable")
 
 
 @dataclass(frozen=True, eq=False)
@@ -189,30 +190,21 @@ def load_tsv(path: Path) -> tuple[list[str], FloatArray]:
     return header, data
 
 
-def _require(manifest: Mapping[str, Any], key: str, path: Path) -> Any:
-    if key not in manifest:
-        raise DualtwinError(f"{path}: manifest has no {key!r}")
-    return manifest[key]
+def _confined(root: Path, rel: str | None, where: str, source: str) -> str | None:
+    """``rel`` if it names a path inside the run folder: a manifest is data and must not point readers elsewhere."""
+    if rel is not None and not (root / rel).resolve().is_relative_to(root.resolve()):
+        raise DualtwinError(f"{where}: {source} log {rel!r} is outside the run folder")
+    return rel
 
 
-def _members(record: Mapping[str, Any], root: Path, manifest_path: Path) -> tuple[MemberEntry, ...]:
-    """A scenario's ensemble members; their log paths must stay inside the run folder (a manifest is data)."""
+def _members(record: ScenarioRecord, root: Path, manifest_path: Path) -> tuple[MemberEntry, ...]:
+    """A scenario's ensemble members; their log paths must stay inside the run folder."""
     out: list[MemberEntry] = []
-    raw = record.get("members") or []
-    if not isinstance(raw, list):
-        raise DualtwinError(f"{manifest_path}: scenario {record.get('id')!r}: 'members' must be a list")
-    for j, m in enumerate(raw):
-        where = f"{manifest_path}: scenario {record.get('id')!r}: members[{j}]"
-        if not isinstance(m, dict) or not isinstance(m.get("member"), int) or m.get("status") not in STATUSES:
-            raise DualtwinError(f"{where}: needs an integer 'member' and a 'status' in {STATUSES}")
-        logs = {}
-        for source in SOURCES:
-            rel = m.get(source)
-            if rel is not None and (not isinstance(rel, str)
-                                    or not (root / rel).resolve().is_relative_to(root.resolve())):
-                raise DualtwinError(f"{where}: {source} log {rel!r} is outside the run folder")
-            logs[source] = rel
-        out.append(MemberEntry(member=int(m["member"]), status=str(m["status"]), **logs))
+    for j, m in enumerate(record.members or []):
+        where = f"{manifest_path}: scenario {record.id!r}: members[{j}]"
+        out.append(MemberEntry(member=m.member, status=m.status,
+                               onboard=_confined(root, m.onboard, where, "onboard"),
+                               ground_truth=_confined(root, m.ground_truth, where, "ground_truth")))
     return tuple(out)
 
 
@@ -220,51 +212,38 @@ def load_run(path: Path) -> Run:
     """Load and validate ``path/manifest.json``.
 
     Raises:
-        ValueError: If required keys are missing, scenario ids repeat or a channel source is unknown.
+        DualtwinError: If the manifest does not have the shape of `RunManifest` (naming the JSON path), a
+            log path leaves the run folder, scenario ids repeat or a log differs from its record.
     """
     path = Path(path)
     manifest_path = path / "manifest.json"
     if not path.is_dir() or not manifest_path.exists():
         raise DualtwinError(f"{path}: not a run directory (no manifest.json)")
-    manifest = read_json(manifest_path, "run manifest")
-    if not isinstance(manifest, dict):
+    raw = read_json(manifest_path, "run manifest")
+    if not isinstance(raw, dict):
         raise DualtwinError(f"{manifest_path}: a run manifest must be a JSON object")
+    try:
+        manifest = RunManifest.model_validate(raw)
+    except ValidationError as exc:
+        raise DualtwinError(validation_message(manifest_path, exc)) from None
 
-    channels: dict[str, ChannelInfo] = {}
-    for name, spec in dict(_require(manifest, "channels", manifest_path)).items():
-        source = spec.get("source")
-        if source not in SOURCES:
-            raise DualtwinError(
-                f"{manifest_path}: channel {name!r} has source {source!r}, expected one of {SOURCES}"
-            )
-        resolution = spec.get("resolution")
-        if resolution is not None and not (isinstance(resolution, int | float) and not isinstance(resolution, bool)
-                                           and math.isfinite(resolution) and resolution > 0):
-            raise DualtwinError(f"{manifest_path}: channel {name!r}: resolution must be a positive number, "
-                                f"got {resolution!r}")
-        channels[name] = ChannelInfo(name=name, source=source, unit=str(spec.get("unit", "")),
-                                     column=str(spec.get("column", "")),
-                                     resolution=None if resolution is None else float(resolution))
-
+    channels = {name: ChannelInfo(name=name, source=spec.source, unit=spec.unit, column=spec.column,
+                                  resolution=spec.resolution)
+                for name, spec in manifest.channels.items()}
     scenarios: list[ScenarioEntry] = []
-    for i, sc in enumerate(_require(manifest, "scenarios", manifest_path)):
-        if "id" not in sc or "status" not in sc:
-            raise DualtwinError(f"{manifest_path}: scenario #{i} needs 'id' and 'status'")
-        if sc["status"] not in STATUSES:
-            raise DualtwinError(
-                f"{manifest_path}: scenario {sc['id']!r} has status {sc['status']!r}, expected one of {STATUSES}"
-            )
+    for i, sc in enumerate(manifest.scenarios):
+        where = f"{manifest_path}: scenario {sc.id!r}"
         scenarios.append(
             ScenarioEntry(
-                id=str(sc["id"]),
-                index=int(sc.get("index", i)),
-                name=str(sc.get("name", sc["id"])),
-                status=str(sc["status"]),
-                failure=sc.get("failure"),
-                onboard=sc.get("onboard"),
-                ground_truth=sc.get("ground_truth"),
+                id=sc.id,
+                index=i if sc.index is None else sc.index,
+                name=sc.id if sc.name is None else sc.name,
+                status=sc.status,
+                failure=sc.failure,
+                onboard=_confined(path, sc.onboard, where, "onboard"),
+                ground_truth=_confined(path, sc.ground_truth, where, "ground_truth"),
                 members=_members(sc, path, manifest_path),
-                state_notes=tuple(str(part.get("note", "")) for part in (sc.get("state_continuity") or {}).values()
+                state_notes=tuple(str(part.get("note", "")) for part in (sc.state_continuity or {}).values()
                                   if isinstance(part, dict)),
             )
         )
@@ -274,25 +253,22 @@ def load_run(path: Path) -> Run:
         raise DualtwinError(f"{manifest_path}: duplicate scenario ids {dupes}")
     # Logs are verified against the manifest's row counts and hashes (dualtwin.artifacts.log_record) before
     # anything is compared. Runs written before manifests recorded them (no 'logs') load unverified.
-    if "logs" in manifest:
-        verify_logs(path, manifest["logs"], manifest_path)
+    if "logs" in raw:
+        verify_logs(path, raw["logs"], manifest_path)
 
-    period = manifest.get("control_period_s")
-    seed = manifest.get("seed")
-    kind = str(manifest.get("kind", "simulated"))
     # A recorded run was made by no twin of ours: its "twin" is optional and only labels it.
-    twin = manifest.get("twin") or ("recorded" if kind == "recorded" else None)
+    twin = manifest.twin or ("recorded" if manifest.kind == "recorded" else None)
     if twin is None:
         raise DualtwinError(f"{manifest_path}: manifest has no 'twin'")
     return Run(
         path=path,
-        twin=str(twin),
-        kind=kind,
-        robot=str(_require(manifest, "robot", manifest_path)),
-        suite_name=str(manifest.get("suite_name", "")),
-        control_period_s=None if period is None else float(period),
-        seed=None if seed is None else int(seed),
+        twin=twin,
+        kind=manifest.kind,
+        robot=manifest.robot,
+        suite_name=manifest.suite_name,
+        control_period_s=manifest.control_period_s,
+        seed=manifest.seed,
         scenarios=tuple(scenarios),
         channels=channels,
-        tolerances=manifest.get("tolerances") or {},
+        tolerances=manifest.tolerances or {},
     )

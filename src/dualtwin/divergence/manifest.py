@@ -1,0 +1,77 @@
+"""The shape of a run folder's ``manifest.json``, as `dualtwin.divergence.runs.load_run` reads it.
+
+A run folder is untrusted data (someone else's run, a recording's import, a folder edited by hand), so the
+fields that comparison, analysis and alignment use are typed here and checked once, where the manifest is
+read: a wrong type anywhere (a list for the seed, a number for the tolerances, a string for a failure record)
+is one error naming the file and the JSON path, not a traceback deep in the comparison.
+
+Decisions:
+
+* ``extra="allow"`` at every level: the writers (suite runner, recorded import, lockstep) add their own
+  records (inputs, versions, ensemble, state continuity, sources ...) that this reader does not use; only the
+  fields it reads are typed.
+* Log paths are strings here; that they stay inside the run folder is checked by ``load_run``, which knows
+  the folder.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import ConfigDict, Field
+
+from dualtwin.models import StrictModel
+from dualtwin.suite.schema import MAX_SEED
+
+Status = Literal["completed", "failed", "unstable"]
+Source = Literal["onboard", "ground_truth"]
+
+
+class _Record(StrictModel):
+    """Typed fields are checked (finite numbers, no coercion surprises); fields a writer adds are kept."""
+
+    model_config = ConfigDict(extra="allow")
+
+
+class ChannelRecord(_Record):
+    source: Source
+    unit: str = ""
+    column: str = ""
+    resolution: float | None = Field(default=None, gt=0)
+
+
+class MemberRecord(_Record):
+    member: int = Field(strict=True)
+    status: Status
+    onboard: str | None = None
+    ground_truth: str | None = None
+
+
+class ScenarioRecord(_Record):
+    id: str = Field(min_length=1)
+    index: int | None = None
+    name: str | None = None
+    status: Status
+    failure: dict[str, Any] | None = None
+    onboard: str | None = None
+    ground_truth: str | None = None
+    members: list[MemberRecord] | None = None
+    state_continuity: dict[str, Any] | None = None
+
+
+class RunManifest(_Record):
+    robot: str
+    twin: str | None = None
+    kind: str = "simulated"
+    suite_name: str = ""
+    control_period_s: float | None = Field(default=None, gt=0)
+    seed: int | None = Field(default=None, ge=0, le=MAX_SEED)
+    channels: dict[str, ChannelRecord]
+    scenarios: list[ScenarioRecord]
+    #: scenario id -> channel -> metric -> bound (the suite's tolerances, as the runner copied them).
+    tolerances: dict[str, dict[str, dict[str, float]]] | None = None
+    #: relative log path -> record; checked by `dualtwin.artifacts.verify_logs`.
+    logs: dict[str, Any] | None = None
+
+
+__all__ = ["ChannelRecord", "MemberRecord", "RunManifest", "ScenarioRecord"]
