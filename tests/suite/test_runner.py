@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from dualtwin.cli import main
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import resolve_robot
 from dualtwin.suite.runner import SuiteRun
@@ -94,6 +95,37 @@ def test_refuses_to_overwrite_and_resume_checks_inputs(tmp_path: Path) -> None:
             SuiteRun(FAKE_SUITE, fake, robot, out).run()
         with pytest.raises(DualtwinError, match="cannot resume"):
             SuiteRun(FAKE_SUITE, fake, robot, out, seed=3).run(resume=True)
+
+
+SMALL_SUITE = '{"suite_name": "s", "scenarios": [{"name": "a", "duration_s": 0.1, "initial_angle": 0.1}]}'
+
+
+@pytest.mark.parametrize(("scenarios", "expected"), [
+    ('"x"', "$.scenarios"),
+    ("[1]", "$.scenarios[0]"),
+    ('[{"id": ["00_a"], "status": "completed"}]', "$.scenarios[0].id"),
+    ('[{"id": "00_a", "status": "bogus"}]', "$.scenarios[0].status"),
+    ('[{"id": "00_a", "status": "completed", "onboard": "../../../../../etc/passwd", "ground_truth": "x.tsv"}]',
+     "outside the run folder"),
+])
+def test_resume_refuses_a_manifest_of_the_wrong_shape(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], scenarios: str, expected: str,
+) -> None:
+    # The folder to resume is data: found by fuzzing `suite run --resume`, these records were read unchecked
+    # (a traceback) or, with a bogus status, copied into the resumed run's manifest.
+    suite = tmp_path / "suite.json"
+    suite.write_text(SMALL_SUITE)
+    out = tmp_path / "run"
+    args = ["suite", "run", "--twin", "mujoco", "--robot", "cartpole", "--scenarios", str(suite), "-o", str(out)]
+    assert main(args) == 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    manifest["scenarios"] = json.loads(scenarios)
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    capsys.readouterr()
+    assert main([*args, "--resume"]) == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("error:")]
+    assert len(err) == 1 and str(out / "manifest.json") in err[0] and expected in err[0], err
+    assert json.loads((out / "manifest.json").read_text())["scenarios"] == json.loads(scenarios)
 
 
 def test_failure_threshold_stops_the_scenario(tmp_path: Path) -> None:

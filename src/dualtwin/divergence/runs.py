@@ -22,13 +22,13 @@ import numpy as np
 from pydantic import ValidationError
 
 from dualtwin.artifacts import read_json, verify_logs
-from dualtwin.divergence.manifest import RunManifest, ScenarioRecord
 from dualtwin.divergence.metrics import (
     FloatArray,
     default_resolution,
 )
 from dualtwin.errors import DualtwinError
 from dualtwin.models import validation_message
+from dualtwin.suite.manifest import RunManifest, ScenarioRecord
 
 SOURCES = ("onboard", "ground_truth")
 

@@ -19,6 +19,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from pydantic import ValidationError
+
 from dualtwin.artifacts import (
     check_output_dir,
     copy_file,
@@ -30,9 +32,10 @@ from dualtwin.artifacts import (
     write_text,
 )
 from dualtwin.errors import DualtwinError, SimulationUnstable
-from dualtwin.models import json_path
+from dualtwin.models import json_path, validation_message
 from dualtwin.robots.binding import RobotBinding
 from dualtwin.suite.loader import load_suite, read_json
+from dualtwin.suite.manifest import RunManifest
 from dualtwin.suite.physical import check_initial_value, impossible_reason, joint_stops
 from dualtwin.suite.schema import Scenario, Suite
 from dualtwin.suite.signals import Signal
@@ -265,21 +268,33 @@ class SuiteRun:
         # One output policy (dualtwin.artifacts): empty or new, or this command's own earlier run with resume.
         # A run that failed before its first manifest (only config/ written) is resumable too.
         if check_output_dir(out, KIND, resume=resume, resumable=True) and manifest_path.is_file():
-            previous = read_json(manifest_path)
-            same = all(previous.get("inputs", {}).get(k, {}).get("sha256") == v["sha256"] for k, v in inputs.items())
-            if not same or previous.get("seed") != self.seed or previous.get("twin") != self.twin_name:
+            # The folder is data like any other: its manifest is checked before a record of it is trusted (and
+            # copied into the resumed run's manifest).
+            raw = read_json(manifest_path, "run manifest")
+            try:
+                previous = RunManifest.model_validate(raw)
+            except ValidationError as exc:
+                raise DualtwinError(f"cannot resume: {validation_message(manifest_path, exc)}") from None
+            same = all(previous.input_sha256(k) == v["sha256"] for k, v in inputs.items())
+            if not same or previous.seed != self.seed or previous.twin != self.twin_name:
                 raise DualtwinError(f"{manifest_path}: cannot resume: the suite, binding, model, twin or seed "
                                     "differ from the interrupted run")
-            old_logs = previous.get("logs") if isinstance(previous.get("logs"), dict) else {}
-            for s in previous.get("scenarios", []):
-                names = [s.get("onboard"), s.get("ground_truth")]
-                if not all(isinstance(n, str) and (out / n).is_file() for n in names):
+            old_logs = previous.logs or {}
+            for s, previous_record in zip(previous.scenarios, raw["scenarios"], strict=True):
+                if s.onboard is None or s.ground_truth is None:
+                    continue
+                names = [s.onboard, s.ground_truth]
+                outside = [n for n in names if not (out / n).resolve().is_relative_to(out.resolve())]
+                if outside:
+                    raise DualtwinError(f"{manifest_path}: cannot resume: scenario {s.id!r} names a log outside "
+                                        f"the run folder: {outside[0]!r}")
+                if not all((out / n).is_file() for n in names):
                     continue
                 try:  # a finished scenario whose logs changed since is run again
                     verify_logs(out, {n: old_logs[n] for n in names if n in old_logs}, manifest_path)
                 except DualtwinError:
                     continue
-                done[s["id"]] = s
+                done[s.id] = previous_record
                 logs.update({n: old_logs[n] if n in old_logs else log_record(out / n) for n in names})
 
         twin = self._twin or make_twin(self.twin_name, self.robot, self.control_period)

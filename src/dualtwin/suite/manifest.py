@@ -1,8 +1,8 @@
-"""The shape of a run folder's ``manifest.json``, as `dualtwin.divergence.runs.load_run` reads it.
+"""The shape of a run folder's ``manifest.json``, as the readers of a run use it: the suite runner resuming an
+interrupted run (`dualtwin.suite.runner`) and `dualtwin.divergence.runs.load_run` (compare, analyze, align).
 
 A run folder is untrusted data (someone else's run, a recording's import, a folder edited by hand), so the
-fields that comparison, analysis and alignment use are typed here and checked once, where the manifest is
-read: a wrong type anywhere (a list for the seed, a number for the tolerances, a string for a failure record)
+fields those readers use are typed here and checked once, where the manifest is read: a wrong type anywhere (a list for the seed, a number for the tolerances, a string for a failure record)
 is one error naming the file and the JSON path, not a traceback deep in the comparison.
 
 Decisions:
@@ -72,6 +72,13 @@ class RunManifest(_Record):
     tolerances: dict[str, dict[str, dict[str, float]]] | None = None
     #: relative log path -> record; checked by `dualtwin.artifacts.verify_logs`.
     logs: dict[str, Any] | None = None
+    #: input name (suite, binding, model) -> its path and SHA-256; resuming compares the hashes.
+    inputs: dict[str, Any] | None = None
+
+    def input_sha256(self, name: str) -> Any:
+        """The recorded SHA-256 of input ``name`` (None where the manifest has no such record)."""
+        record = (self.inputs or {}).get(name)
+        return record.get("sha256") if isinstance(record, dict) else None
 
 
 __all__ = ["ChannelRecord", "MemberRecord", "RunManifest", "ScenarioRecord"]
