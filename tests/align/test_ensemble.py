@@ -151,3 +151,33 @@ def test_align_fits_member_by_member(tmp_path: Path, robot: RobotBinding, suite3
     # Each member's impacts keep their own roughness (the mean smooths them): the stop is a little wider.
     assert fit_to_ensemble(ensemble_ref, robot, suite3, "members", tmp_path / "out") == pytest.approx(
         TRUE_DAMPING, rel=5e-2)
+
+
+SMALL_SUITE = '{"suite_name": "s", "scenarios": [{"name": "a", "duration_s": 0.1, "initial_angle": 0.1}]}'
+
+
+@pytest.mark.parametrize(("offsets", "expected"), [
+    (5, "$.ensemble.offsets"),
+    ([{"member": 0, "shift": {"initial_angle": "x"}}], "$.ensemble.offsets[0].shift.initial_angle"),
+    ([{"member": "0", "shift": {}}], "$.ensemble.offsets[0].member"),
+])
+def test_hostile_ensemble_offsets_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                               offsets: object, expected: str) -> None:
+    # Found by fuzzing align --ensemble mean with mutated run manifests: a number for the offsets was a traceback.
+    from dualtwin.cli import main
+
+    suite = tmp_path / "suite.json"
+    suite.write_text(SMALL_SUITE)
+    ref = tmp_path / "ref"
+    assert main(["suite", "run", "--twin", "mujoco", "--robot", "cartpole", "--scenarios", str(suite), "-o", str(ref),
+                 "--ensemble", "2", "--perturb", "initial_angle=0.01", "--executor", "serial"]) == 0
+    manifest = json.loads((ref / "manifest.json").read_text())
+    manifest["ensemble"]["offsets"] = offsets
+    (ref / "manifest.json").write_text(json.dumps(manifest))
+    capsys.readouterr()
+    out = tmp_path / "fit"
+    assert main(["align", "--reference-run", str(ref), "--scenarios", str(suite), "--target", "mujoco", "--robot",
+                 "cartpole", "--knobs", "joint.*.damping", "--budget", "2", "--ensemble", "mean", "-o", str(out)]) == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("error:")]
+    assert len(err) == 1 and str(ref / "manifest.json") in err[0] and expected in err[0], err
+    assert not out.exists()

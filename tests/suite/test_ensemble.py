@@ -133,6 +133,27 @@ def test_bad_input_is_one_line(robot: RobotBinding, suite: Path, tmp_path: Path)
     assert not out.exists()
 
 
+@pytest.mark.parametrize(("manifest", "expected"), [
+    ([1], "$: Input should be a valid dictionary"),
+    ({"robot": "cartpole", "twin": "mujoco", "channels": {}, "scenarios": [{"id": "00_a", "status": "completed",
+                                                                           "members": 5}]},
+     "$.scenarios[0].members"),
+])
+def test_resume_refuses_a_manifest_of_the_wrong_shape(robot: RobotBinding, suite: Path, tmp_path: Path,
+                                                      manifest: object, expected: str) -> None:
+    # Found by fuzzing suite run --resume --ensemble: the ensemble read the folder's manifest unchecked (a list
+    # was a traceback) before the base run got to check it.
+    out = tmp_path / "run"
+    spec = make_spec(2, {"initial_angle": 1e-6}, robot, seed=3)
+    SuiteRun(suite, "mujoco", robot, out)  # the suite is valid: what is refused below is the manifest
+    out.mkdir()
+    (out / "manifest.json").write_text(json.dumps({"kind": "suite-run"} | manifest if isinstance(manifest, dict)
+                                                  else manifest))
+    with pytest.raises(DualtwinError, match=r"cannot resume: .*manifest\.json: " + expected.replace("$", r"\$")
+                       .replace("[", r"\[").replace("]", r"\]").replace(".", r"\.")):
+        EnsembleRun(suite, "mujoco", robot, out, spec, executor="serial").run(resume=True)
+
+
 @pytest.mark.skipif(importlib.util.find_spec("ray") is None, reason="Ray is not installed (pip install 'dualtwin[ray]')")
 def test_members_on_ray_match_the_process_pool(robot: RobotBinding, suite: Path) -> None:
     """One option moves the members to a Ray cluster (here a real local one): same members, same values."""

@@ -24,7 +24,6 @@ in different scenarios or at different times; one that ends (finished, failed or
 
 from __future__ import annotations
 
-import math
 from collections.abc import Generator, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,7 +36,8 @@ from dualtwin.divergence.runs import Series, load_run
 from dualtwin.errors import DualtwinError
 from dualtwin.parallel import DEFAULT_WORKERS, EXECUTORS, ExecutorKind, ParallelMap, check_executor
 from dualtwin.robots.binding import RobotBinding, load_binding
-from dualtwin.suite.loader import load_suite, read_json
+from dualtwin.suite.loader import load_suite
+from dualtwin.suite.manifest import read_run_manifest
 from dualtwin.suite.runner import (
     Periods,
     Samples,
@@ -322,23 +322,15 @@ def load_member_traces(run_dir: Path, scenarios: Sequence[str] | None = None) ->
 
 def ensemble_offsets(run_dir: Path) -> list[dict[str, float]]:
     """Each member's initial-condition shifts from an ensemble run's manifest (member 0 first); [] if none."""
-    manifest = read_json(Path(run_dir) / "manifest.json")
-    ensemble = manifest.get("ensemble")
-    if not isinstance(ensemble, dict):
+    manifest_path = Path(run_dir) / "manifest.json"
+    _, manifest = read_run_manifest(manifest_path)  # typed: the offsets are a list of finite shifts
+    if manifest.ensemble is None:
         return []
-    where = f"{Path(run_dir) / 'manifest.json'}: ensemble.offsets"
     offsets: list[dict[str, float]] = []
-    for k, record in enumerate(ensemble.get("offsets") or []):
-        shift = record.get("shift") if isinstance(record, dict) else None
-        if not isinstance(shift, dict) or record.get("member") != k:
-            raise DualtwinError(f"{where}[{k}]: needs 'member': {k} and a 'shift' object")
-        try:
-            values = {str(key): float(v) for key, v in shift.items()}
-        except (TypeError, ValueError):
-            values = {"": math.nan}
-        if not all(math.isfinite(v) for v in values.values()):
-            raise DualtwinError(f"{where}[{k}].shift: values must be finite numbers")
-        offsets.append(values)
+    for k, record in enumerate(manifest.ensemble.offsets or []):
+        if record.member != k:
+            raise DualtwinError(f"{manifest_path}: ensemble.offsets[{k}]: needs 'member': {k}, not {record.member}")
+        offsets.append(dict(record.shift))
     return offsets
 
 

@@ -19,16 +19,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pydantic import ValidationError
 
-from dualtwin.artifacts import read_json, verify_logs
+from dualtwin.artifacts import verify_logs
 from dualtwin.divergence.metrics import (
     FloatArray,
     default_resolution,
 )
 from dualtwin.errors import DualtwinError
-from dualtwin.models import validation_message
-from dualtwin.suite.manifest import RunManifest, ScenarioRecord
+from dualtwin.suite.manifest import ScenarioRecord, read_run_manifest
 
 SOURCES = ("onboard", "ground_truth")
 
@@ -219,13 +217,7 @@ def load_run(path: Path) -> Run:
     manifest_path = path / "manifest.json"
     if not path.is_dir() or not manifest_path.exists():
         raise DualtwinError(f"{path}: not a run directory (no manifest.json)")
-    raw = read_json(manifest_path, "run manifest")
-    if not isinstance(raw, dict):
-        raise DualtwinError(f"{manifest_path}: a run manifest must be a JSON object")
-    try:
-        manifest = RunManifest.model_validate(raw)
-    except ValidationError as exc:
-        raise DualtwinError(validation_message(manifest_path, exc)) from None
+    raw, manifest = read_run_manifest(manifest_path)
 
     channels = {name: ChannelInfo(name=name, source=spec.source, unit=spec.unit, column=spec.column,
                                   resolution=spec.resolution)

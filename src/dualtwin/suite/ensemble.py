@@ -44,7 +44,8 @@ from dualtwin.errors import DualtwinError
 from dualtwin.models import FrozenModel
 from dualtwin.parallel import DEFAULT_WORKERS, ExecutorKind, ParallelMap, check_executor
 from dualtwin.robots.binding import RobotBinding, load_binding
-from dualtwin.suite.loader import load_suite, read_json
+from dualtwin.suite.loader import load_suite
+from dualtwin.suite.manifest import read_run_manifest
 from dualtwin.suite.runner import SuiteRun, check_against_binding, format_rows, run_scenario
 from dualtwin.suite.schema import Suite
 from dualtwin.twins import make_twin
@@ -257,7 +258,8 @@ class EnsembleRun:
         manifest_path = out / "manifest.json"
         previous: dict[str, Any] = {}
         if resume and manifest_path.is_file():
-            previous = read_json(manifest_path)
+            # The folder is data: its manifest must have the shape read below (as the base run checks too).
+            previous, _ = read_run_manifest(manifest_path, "cannot resume: ")
             old = previous.get("ensemble")
             if old is not None and old != self.spec.to_manifest():
                 raise DualtwinError(f"{manifest_path}: cannot resume: the ensemble (--ensemble, --perturb) "
@@ -266,7 +268,7 @@ class EnsembleRun:
         ids = [s["id"] for s in manifest["scenarios"]]
         old_logs: dict[str, Any] = previous["logs"] if isinstance(previous.get("logs"), dict) else {}
         shifts = self.spec.offsets()
-        old_members = {s["id"]: s.get("members", []) for s in previous.get("scenarios", []) if "id" in s}
+        old_members = {s["id"]: s.get("members") or [] for s in previous.get("scenarios", [])}
         # A member already on disk with verified logs (from the interrupted run) is kept.
         done: dict[int, dict[str, dict[str, Any]]] = {}
         logs: dict[str, Any] = {}

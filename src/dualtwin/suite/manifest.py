@@ -16,11 +16,14 @@ Decisions:
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import ConfigDict, Field
+from pydantic import ConfigDict, Field, ValidationError
 
-from dualtwin.models import StrictModel
+from dualtwin.artifacts import read_json
+from dualtwin.errors import DualtwinError
+from dualtwin.models import StrictModel, validation_message
 from dualtwin.suite.schema import MAX_SEED
 
 Status = Literal["completed", "failed", "unstable"]
@@ -59,6 +62,18 @@ class ScenarioRecord(_Record):
     state_continuity: dict[str, Any] | None = None
 
 
+class OffsetRecord(_Record):
+    member: int = Field(strict=True)
+    #: initial-condition key -> shift (finite: the model refuses NaN and infinities)
+    shift: dict[str, float]
+
+
+class EnsembleRecord(_Record):
+    """Written by `dualtwin.suite.ensemble` once every member is done; alignment reads the shifts back."""
+
+    offsets: list[OffsetRecord] | None = None
+
+
 class RunManifest(_Record):
     robot: str
     twin: str | None = None
@@ -72,6 +87,7 @@ class RunManifest(_Record):
     tolerances: dict[str, dict[str, dict[str, float]]] | None = None
     #: relative log path -> record; checked by `dualtwin.artifacts.verify_logs`.
     logs: dict[str, Any] | None = None
+    ensemble: EnsembleRecord | None = None
     #: input name (suite, binding, model) -> its path and SHA-256; resuming compares the hashes.
     inputs: dict[str, Any] | None = None
 
@@ -81,4 +97,18 @@ class RunManifest(_Record):
         return record.get("sha256") if isinstance(record, dict) else None
 
 
-__all__ = ["ChannelRecord", "MemberRecord", "RunManifest", "ScenarioRecord"]
+def read_run_manifest(manifest_path: Path, context: str = "") -> tuple[dict[str, Any], RunManifest]:
+    """The manifest as read (a JSON object, for records to copy as they are) and validated.
+
+    Raises:
+        DualtwinError: ``<context><file>: <JSON path>: <what is wrong>`` for invalid JSON or the wrong shape.
+    """
+    raw = read_json(manifest_path, "run manifest")
+    try:
+        return raw, RunManifest.model_validate(raw)
+    except ValidationError as exc:
+        raise DualtwinError(f"{context}{validation_message(manifest_path, exc)}") from None
+
+
+__all__ = ["ChannelRecord", "EnsembleRecord", "MemberRecord", "OffsetRecord", "RunManifest", "ScenarioRecord",
+           "read_run_manifest"]

@@ -19,8 +19,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from pydantic import ValidationError
-
 from dualtwin.artifacts import (
     check_output_dir,
     copy_file,
@@ -32,10 +30,10 @@ from dualtwin.artifacts import (
     write_text,
 )
 from dualtwin.errors import DualtwinError, SimulationUnstable
-from dualtwin.models import json_path, validation_message
+from dualtwin.models import json_path
 from dualtwin.robots.binding import RobotBinding
-from dualtwin.suite.loader import load_suite, read_json
-from dualtwin.suite.manifest import RunManifest
+from dualtwin.suite.loader import load_suite
+from dualtwin.suite.manifest import read_run_manifest
 from dualtwin.suite.physical import check_initial_value, impossible_reason, joint_stops
 from dualtwin.suite.schema import Scenario, Suite
 from dualtwin.suite.signals import Signal
@@ -270,11 +268,7 @@ class SuiteRun:
         if check_output_dir(out, KIND, resume=resume, resumable=True) and manifest_path.is_file():
             # The folder is data like any other: its manifest is checked before a record of it is trusted (and
             # copied into the resumed run's manifest).
-            raw = read_json(manifest_path, "run manifest")
-            try:
-                previous = RunManifest.model_validate(raw)
-            except ValidationError as exc:
-                raise DualtwinError(f"cannot resume: {validation_message(manifest_path, exc)}") from None
+            raw, previous = read_run_manifest(manifest_path, "cannot resume: ")
             same = all(previous.input_sha256(k) == v["sha256"] for k, v in inputs.items())
             if not same or previous.seed != self.seed or previous.twin != self.twin_name:
                 raise DualtwinError(f"{manifest_path}: cannot resume: the suite, binding, model, twin or seed "
