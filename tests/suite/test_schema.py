@@ -100,3 +100,27 @@ def test_nan_and_infinity_tokens_are_rejected(tmp_path: Path) -> None:
         path.write_text('{"suite_name": "x", "scenarios": [{"name": "a", "duration_s": ' + token + "}]}")
         with pytest.raises(DualtwinError, match="not allowed"):
             load_suite(path)
+
+
+@pytest.mark.parametrize("signal", [
+    {"kind": "sine", "amplitude": 1, "frequency_hz": 1e308},  # 2*pi*f*t overflows: math.sin(inf) raised
+    {"kind": "sine", "amplitude": 1e308, "frequency_hz": 1},
+    {"kind": "step", "at_s": 0.05, "after": 1e308},
+    {"kind": "table", "points": [[0, 1e308], [0.05, -1e308]], "interpolation": "linear"},
+    {"kind": "impulse", "at_s": 1e308, "duration_s": 1e308, "value": 1},
+])
+def test_signal_numbers_keep_the_bounds_of_a_constant(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                      signal: dict[str, object]) -> None:
+    # Found by fuzzing suite run: a constant action beyond ±1e6 was refused but the same number in a signal was
+    # not, and a huge sine frequency was a traceback (ValueError: math domain error) mid-run, leaving config/.
+    from dualtwin.cli import main
+
+    path = tmp_path / "suite.json"
+    path.write_text(json.dumps({"suite_name": "s", "scenarios": [
+        {"name": "a", "duration_s": 0.1, "wheel_velocity": signal}]}))
+    out = tmp_path / "run"
+    capsys.readouterr()
+    code = main(["suite", "run", "--twin", "mujoco", "--robot", "cartpole", "--scenarios", str(path), "-o", str(out)])
+    err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("error:")]
+    assert code == 2 and len(err) == 1 and str(path) in err[0] and "less than or equal" in err[0], err
+    assert not out.exists()

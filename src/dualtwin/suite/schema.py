@@ -17,21 +17,21 @@ from typing import Any, Literal
 from pydantic import ConfigDict, Field, TypeAdapter, field_validator, model_validator
 
 from dualtwin.models import FrozenModel
-from dualtwin.suite.signals import Signal
+from dualtwin.suite.signals import MAX_DURATION_S, MAX_INPUT_MAGNITUDE, Signal
 
 SCENARIO_KEYS = {"name", "duration_s", "type", "description", "seed", "reset", "tolerances"}
 
 # Sane ranges, so a typo cannot start a run that grows memory for hours with no output: a scenario lasts at
-# most one simulated day, a suite asks for at most MAX_SUITE_PERIODS control periods in all (every period is
-# one row in each log; about 9 simulated hours at the paper's 32 ms), and the control period is 0.01 ms-60 s.
-MAX_DURATION_S = 86_400.0
+# most one simulated day (MAX_DURATION_S, from dualtwin.suite.signals), a suite asks for at most
+# MAX_SUITE_PERIODS control periods in all (every period is one row in each log; about 9 simulated hours at the
+# paper's 32 ms), and the control period is 0.01 ms-60 s.
 MAX_SUITE_PERIODS = 1_000_000
 MIN_TIME_STEP_MS, MAX_TIME_STEP_MS = 0.01, 60_000.0
 MAX_SEED = 2**32 - 1
 # A robot-specific number (initial condition or constant action, SI units) beyond this is a typo or an attack,
-# refused without knowing the robot; with the robot, initial conditions get the tighter checks of
-# dualtwin.suite.physical (the joint's stops, ±1e4).
-MAX_INPUT_MAGNITUDE = 1e6
+# refused without knowing the robot (MAX_INPUT_MAGNITUDE, from dualtwin.suite.signals, which bounds a signal's
+# values alike); with the robot, initial conditions get the tighter checks of dualtwin.suite.physical (the
+# joint's stops, ±1e4).
 
 
 class Tolerance(FrozenModel):

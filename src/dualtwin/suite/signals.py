@@ -14,6 +14,20 @@ from pydantic import Field, field_validator, model_validator
 
 from dualtwin.models import FrozenModel
 
+# The bounds a suite's numbers must keep (`dualtwin.suite.schema` applies them to scenarios; they live here so
+# that signals, which the schema imports, use the same ones). A scenario lasts at most one simulated day; a
+# robot-specific number (initial condition or action, SI units) beyond MAX_INPUT_MAGNITUDE is a typo or an
+# attack. A signal's values and times keep the same bounds as a constant's, and its frequency stays far below
+# anything a control period can sample, so 2*pi*f*t stays finite (math.sin(inf) raises) for every t of a run.
+MAX_DURATION_S = 86_400.0
+MAX_INPUT_MAGNITUDE = 1e6
+MAX_FREQUENCY_HZ = 1e6
+
+#: An action value, and a time since the scenario started (a table's may be negative: held before its start).
+Value = Annotated[float, Field(ge=-MAX_INPUT_MAGNITUDE, le=MAX_INPUT_MAGNITUDE)]
+Time = Annotated[float, Field(ge=0, le=MAX_DURATION_S)]
+TableTime = Annotated[float, Field(ge=-MAX_DURATION_S, le=MAX_DURATION_S)]
+
 
 class _Signal(FrozenModel):
     """A suite input signal: a strict, frozen document."""
@@ -21,7 +35,7 @@ class _Signal(FrozenModel):
 
 class Constant(_Signal):
     kind: Literal["constant"]
-    value: float
+    value: Value
 
     def __call__(self, t: float) -> float:
         return self.value
@@ -31,9 +45,9 @@ class Step(_Signal):
     """``before`` until ``at_s``, then ``after``."""
 
     kind: Literal["step"]
-    at_s: float = Field(ge=0)
-    before: float = 0.0
-    after: float
+    at_s: Time
+    before: Value = 0.0
+    after: Value
 
     def __call__(self, t: float) -> float:
         return self.after if t >= self.at_s else self.before
@@ -43,10 +57,10 @@ class Impulse(_Signal):
     """``base`` except for ``duration_s`` starting at ``at_s``, where it is ``value``."""
 
     kind: Literal["impulse"]
-    at_s: float = Field(ge=0)
-    duration_s: float = Field(gt=0)
-    value: float
-    base: float = 0.0
+    at_s: Time
+    duration_s: Time = Field(gt=0)
+    value: Value
+    base: Value = 0.0
 
     def __call__(self, t: float) -> float:
         return self.value if self.at_s <= t < self.at_s + self.duration_s else self.base
@@ -56,10 +70,10 @@ class Ramp(_Signal):
     """Linear from ``start`` at ``start_s`` to ``end`` at ``end_s``; held outside."""
 
     kind: Literal["ramp"]
-    start_s: float = Field(ge=0)
-    end_s: float
-    start: float = 0.0
-    end: float
+    start_s: Time
+    end_s: Time
+    start: Value = 0.0
+    end: Value
 
     @model_validator(mode="after")
     def _ordered(self) -> Ramp:
@@ -79,10 +93,10 @@ class Sine(_Signal):
     """``offset + amplitude * sin(2π f t + phase)``."""
 
     kind: Literal["sine"]
-    amplitude: float
-    frequency_hz: float = Field(gt=0)
-    phase_rad: float = 0.0
-    offset: float = 0.0
+    amplitude: Value
+    frequency_hz: float = Field(gt=0, le=MAX_FREQUENCY_HZ)
+    phase_rad: Value = 0.0
+    offset: Value = 0.0
 
     def __call__(self, t: float) -> float:
         return self.offset + self.amplitude * math.sin(2 * math.pi * self.frequency_hz * t + self.phase_rad)
@@ -92,7 +106,7 @@ class Table(_Signal):
     """Piecewise table of ``[time_s, value]`` points, held (zero-order) or linearly interpolated."""
 
     kind: Literal["table"]
-    points: list[tuple[float, float]] = Field(min_length=1)
+    points: list[tuple[TableTime, Value]] = Field(min_length=1)
     interpolation: Literal["hold", "linear"] = "hold"
 
     @field_validator("points")
