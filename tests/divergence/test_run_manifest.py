@@ -40,6 +40,7 @@ def _set(doc: Any, path: tuple[Any, ...], value: Any) -> None:
     (("scenarios", 0, "state_continuity"), [1], "$.scenarios[0].state_continuity"),
     # a log path must stay inside the run folder, like an ensemble member's
     (("scenarios", 0, "onboard"), "../../../../../../etc/passwd", "outside the run folder"),
+    (("scenarios", 0, "ground_truth"), "/etc/passwd", "outside the run folder"),
 ])
 def test_hostile_manifest_field_is_one_line_naming_it(
     make_run: Callable[..., Path], tmp_path: Path, capsys: pytest.CaptureFixture[str],
