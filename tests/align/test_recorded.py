@@ -9,6 +9,7 @@ in every scenario (the first sample dropped, the clock restarted). Its manifest 
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -135,6 +136,35 @@ def test_nothing_shared_is_one_clear_line(tmp_path: Path, robot: RobotBinding, s
                       tmp_path / f"out_{case}")
         assert f"shares no {case}" in str(err.value) and "\n" not in str(err.value)
         assert not (tmp_path / f"out_{case}").exists()
+
+
+def test_a_reference_the_comparisons_would_refuse_is_refused_before_anything_is_written(
+        tmp_path: Path, robot: RobotBinding, suite3: Path, recording: Path) -> None:
+    """A channel in another unit than the binding's, or declared by the manifest and missing from a fitted
+    scenario's log: before, align wrote its configuration and simulated runs/before, then stopped there."""
+    def broken(case: str) -> Path:
+        bad = tmp_path / case
+        shutil.copytree(recording, bad)
+        manifest = json.loads((bad / "manifest.json").read_text())
+        if case == "unit":
+            manifest["channels"]["pole_angle_rad"]["unit"] = "deg"
+        else:  # the cart position column dropped from the fall's ground-truth log
+            log = bad / "scenarios" / "00_fall" / "ground_truth.tsv"
+            rows = [line.split("\t") for line in log.read_text().splitlines()]
+            keep = [i for i, name in enumerate(rows[0]) if name != "cart_pos_m"]
+            log.write_text("\n".join("\t".join(r[i] for i in keep) for r in rows) + "\n")
+        (bad / "manifest.json").write_text(json.dumps(manifest))
+        return bad
+
+    expected = {"unit": r"reference logs channels in other units than the robot binding: "
+                        r"\[\"pole_angle_rad: 'deg' \(binding 'rad'\)\"\]",
+                "column": r"scenario '00_fall' \(completed\) has no log data for channels \['cart_pos_m'\]"}
+    for case, message in expected.items():
+        out = tmp_path / f"out_{case}"
+        with pytest.raises(DualtwinError, match=message):
+            run_align(AlignConfig(reference=str(broken(case)), target="mujoco", robot=str(robot.path),
+                                  suite=str(suite3), knobs=[DAMPING], executor="serial"), out)
+        assert not out.exists()
 
 
 def test_nuisance_registry_names_bounds_and_application(robot: RobotBinding, suite3: Path) -> None:

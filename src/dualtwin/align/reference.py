@@ -8,11 +8,13 @@ target can be simulated under the same shifts (``align(..., ensemble="mean")``).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from dualtwin.align.simulate import Traces, ensemble_offsets, load_member_traces
+from dualtwin.divergence.runs import load_run
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding
 
@@ -59,6 +61,28 @@ def shared_with_reference(reference: Traces, ids: Sequence[str], channels: Seque
         if c not in channels:
             left["channels"][c] = "not a channel of the robot binding"
     return SharedWithReference(scenarios, shared, {k: v for k, v in left.items() if v})
+
+
+def check_reference_run(path: Path, channel_info: Mapping[str, Mapping[str, Any]], scenarios: Sequence[str]) -> None:
+    """What the comparisons after the fit would refuse in a reference run, refused before the output folder is
+    made: a channel the binding shares in another unit, or one the manifest declares and a fitted scenario's
+    logs lack (before, both stopped align after it had written its configuration and simulated runs/before).
+
+    Raises:
+        DualtwinError: One line naming the reference run and the channels.
+    """
+    run = load_run(path)
+    shared = [c for c in run.channels if c in channel_info]
+    units = sorted(f"{c}: {run.channels[c].unit!r} (binding {channel_info[c].get('unit')!r})" for c in shared
+                   if run.channels[c].unit != channel_info[c].get("unit"))
+    if units:
+        raise DualtwinError(f"{path}: the reference logs channels in other units than the robot binding: {units}")
+    for sid in scenarios:
+        entry = run.scenario(sid)
+        missing = [c for c in shared if c not in run.series(sid)]
+        if missing and entry.status != "unstable":
+            raise DualtwinError(f"{path}: scenario {sid!r} ({entry.status}) has no log data for channels {missing}, "
+                                "which its manifest declares")
 
 
 def ensemble_members_of(reference: str | Path, kind: str, scenarios: Sequence[str],

@@ -40,7 +40,7 @@ from dualtwin.align.knobs import (
 from dualtwin.align.objective import ObjectiveWeights, build_spec, mean_trace
 from dualtwin.align.optimize import fit_cma, fit_lsq
 from dualtwin.align.propose import ProposalOutcome, try_proposals
-from dualtwin.align.reference import ensemble_members_of, shared_with_reference
+from dualtwin.align.reference import check_reference_run, ensemble_members_of, shared_with_reference
 from dualtwin.align.report import write_align_report
 from dualtwin.align.simulate import (
     Evaluator,
@@ -197,7 +197,8 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
     target = make_twin(config.target, binding, period)
     try:
         # Everything checkable is checked before the output folder is touched, so a typo costs nothing.
-        channel_names = list(RobotIO(binding, target).channel_info())
+        channel_info = RobotIO(binding, target).channel_info()
+        channel_names = list(channel_info)
         fitted_ids = [s for s in ids if s not in held and s not in excluded]
         left: dict[str, dict[str, str]] = {}
         if kind == "run":
@@ -216,6 +217,7 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
                     raise DualtwinError(f"channels {absent} are not shared by the reference and the robot binding; "
                                         f"shared: {shared.channels}")
             left = shared.left_out
+            check_reference_run(Path(config.reference), channel_info, shared.scenarios)
         members: list[dict[str, float]] = []
         if config.ensemble != "off":
             members = ensemble_members_of(config.reference, kind, fitted_ids + held, binding)
