@@ -107,14 +107,11 @@ UNSUPPORTED = frozenset({"Track", "TrackWheel", "Propeller", "Connector", "Vacuu
 #: Nodes without physics that are skipped silently.
 IGNORED = frozenset({"PointLight", "SpotLight", "DirectionalLight", "Fog", "Background", "Viewpoint",
                      "WorldInfo", "Billboard", "IndexedLineSet", "PointSet"})
-
+#: The smallest WorldInfo.basicTimeStep (ms) converted: the smoke test then takes 50 000 MuJoCo steps.
+MIN_BASIC_TIME_STEP_MS = 0.01
 
 # ------------------------------------------------------------------------------------------------
 # small helpers
-
-
-#: The smallest WorldInfo.basicTimeStep (ms) converted: the smoke test then takes 50 000 MuJoCo steps.
-MIN_BASIC_TIME_STEP_MS = 0.01
 
 
 def _where(node: Node) -> str:
