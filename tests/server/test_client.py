@@ -7,6 +7,7 @@ import socket
 import subprocess
 import sys
 import threading
+import time
 from collections.abc import Iterator
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
@@ -15,6 +16,7 @@ from typing import Any
 import pytest
 
 from dualtwin.errors import DualtwinError
+from dualtwin.http_bounds import bounded_client, is_reply_limit
 from dualtwin.server.client import check_env_kwargs, deploy
 
 ENV = "dualtwin/CartPole-MuJoCo-Continuous-v0"
@@ -56,8 +58,25 @@ def test_bad_env_kwargs_are_one_line_errors(name: str) -> None:
 
 class _Handler(BaseHTTPRequestHandler):
     info: dict[str, Any] = {}
+    trickle_s = 0.0  # > 0: headers, then one byte of the body every trickle_s seconds (for at most 30 s)
+    body_bytes = 0  # > 0: a body of this many spaces instead
 
     def do_GET(self) -> None:  # noqa: N802 - http.server's name
+        if self.trickle_s or self.body_bytes:
+            self.send_response(200)
+            self.send_header("Content-Type", "application/json")
+            self.send_header("Content-Length", str(self.body_bytes or 1 << 20))
+            self.end_headers()
+            try:
+                if self.body_bytes:
+                    self.wfile.write(b" " * self.body_bytes)
+                for _ in range(int(30 / self.trickle_s) if self.trickle_s else 0):
+                    self.wfile.write(b" ")
+                    self.wfile.flush()
+                    time.sleep(self.trickle_s)
+            except OSError:  # the client hung up
+                pass
+            return
         data = json.dumps(self.info if self.path == "/v1/info" else {"detail": "not found"}).encode()
         self.send_response(200 if self.path == "/v1/info" else 404)
         self.send_header("Content-Type", "application/json")
@@ -96,6 +115,29 @@ def test_deploy_refuses_a_servers_env_kwargs_before_building_the_env(hostile_ser
     handler.info = {"hello": "not a RobotServer"}
     with pytest.raises(DualtwinError, match="policy is missing"):
         deploy(url, ENV, 1)
+
+
+def test_a_server_whose_reply_never_ends_is_one_error_within_the_timeout(hostile_server: Any) -> None:
+    """A byte every 0.2 s keeps every read within the timeout: before, deploy waited for the body forever."""
+    url, handler = hostile_server
+    handler.trickle_s = 0.2
+    start = time.monotonic()
+    with pytest.raises(DualtwinError, match=r"--server .*: no answer within 1 s \(ReadTimeout\)"):
+        deploy(url, ENV, 1, timeout=1.0)
+    assert time.monotonic() - start < 25  # (the server gives up after 30 s)
+
+
+def test_a_reply_larger_than_the_limit_is_cut_off(hostile_server: Any) -> None:
+    import httpx
+
+    url, handler = hostile_server
+    handler.body_bytes = 5000
+    with bounded_client(httpx.Client, reply_s=10, max_bytes=1000, base_url=url) as http, \
+            pytest.raises(httpx.ReadError) as info:
+        http.get("/v1/info")
+    assert is_reply_limit(info.value) and "larger than 1000 bytes" in str(info.value)
+    with bounded_client(httpx.Client, reply_s=10, max_bytes=10_000, base_url=url) as http:  # control
+        assert len(http.get("/v1/info").content) == 5000
 
 
 def closed_port() -> int:

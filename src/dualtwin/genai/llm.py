@@ -15,10 +15,8 @@ unreachable provider, an error status or a timeout raises :class:`~dualtwin.erro
 
 from __future__ import annotations
 
-import importlib
 import json
 import os
-import time
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass, fields, replace
@@ -27,6 +25,7 @@ from typing import Any, Literal, TypedDict
 
 from dualtwin.artifacts import read_yaml
 from dualtwin.errors import DualtwinError
+from dualtwin.http_bounds import bounded_client, is_reply_limit
 
 Provider = Literal["openai", "anthropic"]
 JsonMode = Literal["auto", "json_object", "json_schema", "off"]
@@ -168,7 +167,7 @@ class LLMClient(ABC):
         name = type(exc).__name__
         status = getattr(exc, "status_code", None)
         tries = cfg.max_retries + 1
-        if getattr(exc.__cause__, "dualtwin_reply_limit", False):  # (the clients wrap the HTTP layer's error)
+        if is_reply_limit(exc.__cause__):  # (the clients wrap the HTTP layer's error)
             text = f"{cfg.where}: {exc.__cause__} ({tries} attempt(s))"
         elif "Timeout" in name:
             text = f"{cfg.where}: request timed out after {cfg.timeout_s:g} s ({tries} attempt(s))"
@@ -191,9 +190,9 @@ class OpenAIChatClient(LLMClient):
         except ImportError as exc:  # pragma: no cover - extras not installed
             raise DualtwinError("the 'openai' package is needed: pip install 'dualtwin[llm]'") from exc
         self._openai = openai
+        http = bounded_client(openai.DefaultHttpxClient, reply_s=config.timeout_s, max_bytes=MAX_REPLY_BYTES)
         self._client = openai.OpenAI(api_key=config.api_key or NO_KEY, base_url=config.base_url,
-                                     timeout=config.timeout_s, max_retries=config.max_retries,
-                                     http_client=_bounded_http_client(openai.DefaultHttpxClient, config))
+                                     timeout=config.timeout_s, max_retries=config.max_retries, http_client=http)
         self._json_mode: JsonMode = config.json_mode
 
     def _response_format(self, json_schema: dict[str, Any] | None) -> dict[str, Any] | None:
@@ -239,9 +238,9 @@ class AnthropicClient(LLMClient):
         except ImportError as exc:  # pragma: no cover - extras not installed
             raise DualtwinError("the 'anthropic' package is needed: pip install 'dualtwin[llm]'") from exc
         self._anthropic = anthropic
+        http = bounded_client(anthropic.DefaultHttpxClient, reply_s=config.timeout_s, max_bytes=MAX_REPLY_BYTES)
         self._client = anthropic.Anthropic(api_key=config.api_key or NO_KEY, base_url=config.base_url,
-                                           timeout=config.timeout_s, max_retries=config.max_retries,
-                                           http_client=_bounded_http_client(anthropic.DefaultHttpxClient, config))
+                                           timeout=config.timeout_s, max_retries=config.max_retries, http_client=http)
 
     def complete(self, messages: list[Message], *, json_schema: dict[str, Any] | None = None) -> str:
         anthropic = self._anthropic
@@ -263,45 +262,6 @@ class AnthropicClient(LLMClient):
         if not parts:
             raise DualtwinError(f"{self.config.where}: reply has no text content")
         return self._check_size("".join(parts))
-
-
-def _bounded_http_client(factory: Any, config: LLMConfig) -> Any:
-    """The provider library's default HTTP client (``factory``), whose replies end: the body must arrive within
-    ``timeout_s`` of the headers and within :data:`MAX_REPLY_BYTES`.
-
-    The HTTP layer's timeouts bound each read, not the whole body: a server that sends a byte now and then (a
-    reply that never ends) kept ``dualtwin generate`` waiting forever, and a fast endless one filled the memory.
-    The check runs on each chunk as it arrives; the errors are the HTTP layer's own, so the clients retry and
-    wrap them as theirs (:meth:`LLMClient._error` words them).
-    """
-    # openai and anthropic 2.x build on httpx2, older releases on httpx: the module of the default client's base
-    base = next(c for c in factory.__mro__ if c.__name__ == "Client" and c.__module__ != factory.__module__)
-    http = importlib.import_module(base.__module__.partition(".")[0])
-
-    class ReplyTooLarge(http.ReadError):  # type: ignore[name-defined,misc]
-        dualtwin_reply_limit = True
-
-    class Bounded(http.SyncByteStream):  # type: ignore[name-defined,misc]
-        def __init__(self, inner: Any) -> None:
-            self.inner, self.deadline = inner, time.monotonic() + config.timeout_s
-
-        def __iter__(self) -> Any:
-            size = 0
-            for chunk in self.inner:
-                size += len(chunk)
-                if size > MAX_REPLY_BYTES:
-                    raise ReplyTooLarge(f"reply body larger than {MAX_REPLY_BYTES} bytes")
-                if time.monotonic() > self.deadline:
-                    raise http.ReadTimeout(f"the reply did not end within {config.timeout_s:g} s")
-                yield chunk
-
-        def close(self) -> None:
-            self.inner.close()
-
-    def bound(response: Any) -> None:  # called with the headers, before the body is read
-        response.stream = Bounded(response.stream)
-
-    return factory(event_hooks={"response": [bound]})
 
 
 def _chat_content(response: Any) -> str | None:

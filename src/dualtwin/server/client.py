@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from dualtwin.errors import DualtwinError
+from dualtwin.http_bounds import bounded_client, is_reply_limit
 from dualtwin.perception.onnx_policy import POLICY_CONTRACT, POLICY_FILE, OnnxPolicy
 from dualtwin.reporting import Progress, ProgressCallback
 
@@ -46,12 +47,18 @@ def frame_payload(frame: np.ndarray, fmt: str = "png") -> dict[str, Any]:
     raise DualtwinError(f"unknown frame format {fmt!r} (png or raw)")
 
 
+#: The largest reply the client reads (the served policy's ONNX file is the largest, well under this).
+MAX_REPLY_BYTES = 256 << 20
+
+
 def _client(server_url: str, api_key: str | None, timeout: float) -> Any:
     import httpx
 
     headers = {"X-API-Key": api_key} if api_key else {}
     try:
-        return httpx.Client(base_url=server_url.rstrip("/"), headers=headers, timeout=timeout)
+        # a server is not trusted: each reply must end within the timeout (a trickling one hung deploy forever)
+        return bounded_client(httpx.Client, reply_s=timeout, max_bytes=MAX_REPLY_BYTES, base_url=server_url.rstrip("/"),
+                              headers=headers, timeout=timeout)
     except (httpx.InvalidURL, TypeError, ValueError) as exc:
         raise DualtwinError(f"--server {server_url!r}: not a usable URL ({exc})") from None
 
@@ -216,6 +223,8 @@ def deploy(server_url: str, env_id: str, episodes: int, *, seed: int = 0, api_ke
     except httpx.TimeoutException as exc:
         raise DualtwinError(f"--server {server_url}: no answer within {timeout:g} s ({type(exc).__name__})") from None
     except httpx.TransportError as exc:
+        if is_reply_limit(exc):
+            raise DualtwinError(f"--server {server_url}: {exc}") from None
         raise DualtwinError(f"--server {server_url}: cannot reach the RobotServer ({type(exc).__name__}: "
                             f"{str(exc) or 'connection failed'})") from None
 
