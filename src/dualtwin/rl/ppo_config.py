@@ -10,7 +10,7 @@ from __future__ import annotations
 import re
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import Field, ValidationError, model_validator
 
@@ -30,15 +30,45 @@ class NormalizeConfig(FrozenModel):
     clip_reward: float = Field(default=10.0, gt=0)
 
 
+# Bounds on what a config may ask for. A config is a file from anywhere: every number that sizes memory or work
+# (the rollout buffer, the network, the envs, the epochs) is bounded so that a typo or a hostile file is refused
+# here, in one line, instead of allocating terabytes, building a million environments or never ending; every
+# float that PyTorch turns into float32 is bounded so it cannot overflow (1e308 became 'value cannot be converted
+# to type float without overflow' mid-training). The bounds are far above any published PPO setting (zoo's
+# largest rollouts are ~2^17 steps, its widest nets 1024 units).
+MAX_ENVS = 1024
+MAX_ROLLOUT = 2**22  # n_steps x n_envs: the rollout buffer holds this many observations
+MAX_LAYER_UNITS = 8192
+MAX_LAYERS = 32
+MAX_NET_WEIGHTS = 2**26  # per network, counting only hidden-to-hidden weights (the obs size is not known here)
+MAX_EPOCHS = 1000
+MAX_EVAL_EPISODES = 10_000
+MAX_TIMESTEPS = 10**12
+MAX_COEF = 1e6
+
+
 def _paper_net_arch() -> dict[Literal["pi", "vf"], list[int]]:
     return {"pi": [64, 64], "vf": [64, 64]}
 
 
+Units = Annotated[int, Field(ge=1, le=MAX_LAYER_UNITS)]
+
+
 class PolicyKwargs(FrozenModel):
-    net_arch: dict[Literal["pi", "vf"], list[int]] = Field(default_factory=_paper_net_arch)
+    net_arch: dict[Literal["pi", "vf"], Annotated[list[Units], Field(max_length=MAX_LAYERS)]] = Field(
+        default_factory=_paper_net_arch)
     activation_fn: Literal["relu", "tanh", "elu", "leaky_relu"] = "relu"
     ortho_init: bool = True
-    log_std_init: float = 0.0
+    # the policy's std is exp(log_std): beyond +-20 it is 0 or huge in float32 (NaN actions)
+    log_std_init: float = Field(default=0.0, ge=-20, le=20)
+
+    @model_validator(mode="after")
+    def _bounded_network(self) -> PolicyKwargs:
+        for name, layers in self.net_arch.items():
+            weights = sum(a * b for a, b in zip(layers, layers[1:], strict=False))
+            if weights > MAX_NET_WEIGHTS:
+                raise ValueError(f"net_arch.{name} {layers} has {weights} hidden weights, more than {MAX_NET_WEIGHTS}")
+        return self
 
 
 class PPOConfig(FrozenModel):
@@ -46,25 +76,27 @@ class PPOConfig(FrozenModel):
 
     algo: Literal["ppo"] = "ppo"
     policy: Literal["MlpPolicy"] = "MlpPolicy"
-    n_timesteps: int = Field(default=400_000, gt=0)
-    n_envs: int = Field(default=8, ge=1)
-    n_steps: int = Field(default=512, ge=2)
-    batch_size: int = Field(default=512, ge=2)
-    n_epochs: int = Field(default=10, ge=1)
-    learning_rate: float | str = Field(default=3e-4, description="a number, or zoo's 'lin_<number>' (linear decay)")
+    n_timesteps: int = Field(default=400_000, gt=0, le=MAX_TIMESTEPS)
+    n_envs: int = Field(default=8, ge=1, le=MAX_ENVS)
+    n_steps: int = Field(default=512, ge=2, le=MAX_ROLLOUT)
+    batch_size: int = Field(default=512, ge=2, le=MAX_ROLLOUT)
+    n_epochs: int = Field(default=10, ge=1, le=MAX_EPOCHS)
+    learning_rate: float | str = Field(default=3e-4, description="a number in (0, 1], or zoo's 'lin_<number>' "
+                                       "(linear decay from that number)")
     gamma: float = Field(default=0.99, gt=0, le=1)
     gae_lambda: float = Field(default=0.95, gt=0, le=1)
-    clip_range: float = Field(default=0.2, gt=0)
-    ent_coef: float = 0.0
-    vf_coef: float = 0.5
-    max_grad_norm: float = 0.5
+    clip_range: float = Field(default=0.2, gt=0, le=MAX_COEF)
+    ent_coef: float = Field(default=0.0, ge=-MAX_COEF, le=MAX_COEF)
+    vf_coef: float = Field(default=0.5, ge=0, le=MAX_COEF)
+    # SB3 scales gradients by max_grad_norm / norm: zero or less would stop or reverse learning
+    max_grad_norm: float = Field(default=0.5, gt=0, le=MAX_COEF)
     use_sde: bool = Field(default=False, description="generalised state-dependent exploration (Box actions only)")
-    sde_sample_freq: int = -1
+    sde_sample_freq: int = Field(default=-1, ge=-1, description="-1: the noise is drawn once per rollout")
     normalize: NormalizeConfig | bool = Field(default_factory=NormalizeConfig)
     policy_kwargs: PolicyKwargs = Field(default_factory=PolicyKwargs)
     env_kwargs: dict[str, Any] = Field(default_factory=dict, description="extra gym.make arguments")
     eval_freq: int = Field(default=20_480, ge=0, description="0 disables evaluation")
-    eval_episodes: int = Field(default=5, ge=1)
+    eval_episodes: int = Field(default=5, ge=1, le=MAX_EVAL_EPISODES)
     checkpoint_freq: int = Field(default=40_960, ge=0, description="0 disables checkpoints (and resume)")
     stop_reward: float | None = None
     stop_episode_length: float | None = Field(
@@ -72,15 +104,23 @@ class PPOConfig(FrozenModel):
         "(the rolling mean the paper's Figure 10 plots)")
     max_wall_seconds: float | None = Field(default=None, gt=0, description="stop after this much training time")
     vec_env: Literal["dummy", "subproc"] = "dummy"
-    torch_threads: int = Field(default=1, ge=1)
+    torch_threads: int = Field(default=1, ge=1, le=1024)
 
     @model_validator(mode="after")
     def _consistent(self) -> PPOConfig:
         rollout = self.n_steps * self.n_envs
+        if rollout > MAX_ROLLOUT:
+            raise ValueError(f"n_steps x n_envs ({rollout}) is more than {MAX_ROLLOUT} steps per rollout")
         if rollout % self.batch_size:
             raise ValueError(f"n_steps x n_envs ({rollout}) must be a multiple of batch_size ({self.batch_size})")
-        if isinstance(self.learning_rate, str):
-            learning_rate_schedule(self.learning_rate)
+        start = self.learning_rate
+        if isinstance(start, str):
+            learning_rate_schedule(start)
+            start = float(start.strip()[len("lin_"):])
+        # SB3's Adam refuses a negative rate only once training starts (a traceback after the run folder was
+        # made); lin_1e999 parses to inf
+        if not 0 < start <= 1:
+            raise ValueError(f"learning_rate {self.learning_rate!r}: the (initial) rate must be in (0, 1]")
         return self
 
     @property

@@ -1,0 +1,76 @@
+"""A PPO config is untrusted input: every number that sizes memory or work, or that PyTorch turns into float32,
+is bounded where the config is read, so a hostile or mistyped one is one line and exit 2 before any run folder.
+
+Found by fuzzing ``dualtwin train --config``: n_steps 1e12 tried to allocate 14.6 TiB, n_envs 1e6 built
+environments until memory ran out, net_arch [1e9] allocated 16 GB, n_epochs 1e9 never ended, learning_rate -1
+and clip_range 1e308 were tracebacks after training had started, each leaving a run folder behind.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+from tests.support.rl_runs import TINY
+
+from dualtwin.errors import DualtwinError
+from dualtwin.rl.ppo_config import load_config
+
+HOSTILE = [
+    ({"n_steps": 10**12}, "n_steps"),
+    ({"n_steps": 2**21, "n_envs": 4, "batch_size": 64}, "n_steps x n_envs"),
+    ({"n_envs": 10**6}, "n_envs"),
+    ({"n_epochs": 10**9}, "n_epochs"),
+    ({"eval_episodes": 10**9}, "eval_episodes"),
+    ({"learning_rate": -1}, "learning_rate"),
+    ({"learning_rate": 0}, "learning_rate"),
+    ({"learning_rate": "lin_-1"}, "learning_rate"),
+    ({"learning_rate": "lin_1e999"}, "learning_rate"),
+    ({"clip_range": 1e308}, "clip_range"),
+    ({"ent_coef": 1e308}, "ent_coef"),
+    ({"vf_coef": -1e308}, "vf_coef"),
+    ({"max_grad_norm": -1}, "max_grad_norm"),
+    ({"sde_sample_freq": -5}, "sde_sample_freq"),
+    ({"torch_threads": 10**6}, "torch_threads"),
+    ({"policy_kwargs": {"net_arch": {"pi": [10**9], "vf": [64]}}}, "net_arch"),
+    ({"policy_kwargs": {"net_arch": {"pi": [-5], "vf": [64]}}}, "net_arch"),
+    ({"policy_kwargs": {"net_arch": {"pi": [0], "vf": [64]}}}, "net_arch"),
+    ({"policy_kwargs": {"net_arch": {"pi": [64] * 10_000, "vf": [64]}}}, "net_arch"),
+    ({"policy_kwargs": {"net_arch": {"pi": [8192, 8192, 8192], "vf": [64]}}}, "hidden weights"),
+    ({"policy_kwargs": {"log_std_init": 800}}, "log_std_init"),
+]
+
+
+@pytest.mark.parametrize(("change", "named"), HOSTILE, ids=[str(c)[:40] for c, _ in HOSTILE])
+def test_hostile_numbers_are_refused_where_the_config_is_read(tmp_path: Path, change: dict[str, object],
+                                                              named: str) -> None:
+    path = tmp_path / "config.yaml"
+    path.write_text(yaml.safe_dump({**TINY, **change}))
+    with pytest.raises(DualtwinError, match="invalid PPO config") as info:
+        load_config(path)
+    assert named in str(info.value) and str(path) in str(info.value)
+
+
+def test_bundled_configs_are_within_the_bounds() -> None:
+    from dualtwin.rl.ppo_config import bundled_configs
+
+    for name in bundled_configs():
+        load_config(name)
+
+
+def test_cli_refuses_before_the_run_folder(tmp_path: Path) -> None:
+    # learning_rate -1 used to pass validation and fail in SB3's Adam once training had started: exit 1, a
+    # traceback, and a run folder left behind
+    path = tmp_path / "config.yaml"
+    path.write_text(yaml.safe_dump({**TINY, "learning_rate": -1}))
+    out = tmp_path / "run"
+    done = subprocess.run([sys.executable, "-m", "dualtwin.cli", "train", "--env", "dualtwin/CartPole-MuJoCo-v0",
+                           "--out", str(out), "--config", str(path), "--steps", "32"],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 2, done.stderr
+    lines = [line for line in done.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and "learning_rate" in lines[0] and str(path) in lines[0], done.stderr
+    assert not out.exists()
