@@ -33,6 +33,7 @@ from dualtwin.webots.proto_cache import (
     default_cache_root,
     is_remote,
     remote_url,
+    shown_url,
 )
 
 __all__ = ["MESH_NODES", "PROTO_FOLDER_KIND", "FetchReport", "fetch_command", "fetch_worlds"]
@@ -84,7 +85,10 @@ def fetch_worlds(
         queue = _declarations(parsed.externprotos, None, path.parent, str(path))
         while queue:
             ext, parent_url, local_dir, where = queue.pop(0)
-            url = remote_url(ext.url, parent_url)
+            try:
+                url = remote_url(ext.url, parent_url)
+            except FetchError as exc:
+                raise FetchError(f"{ext.location}: EXTERNPROTO {shown_url(ext.url)}: {exc}") from None
             if url is None:  # a local file: follow its declarations, nothing to fetch
                 local = Path(ext.url[len("file://") :] if ext.url.startswith("file://") else ext.url)
                 if not local.is_absolute() and local_dir is not None:
@@ -104,7 +108,7 @@ def fetch_worlds(
             try:
                 text = cache.read_text(url)
             except FetchError as exc:
-                raise FetchError(f"{ext.location}: EXTERNPROTO \"{ext.url}\": {exc}") from None
+                raise FetchError(f"{ext.location}: EXTERNPROTO {shown_url(ext.url)}: {exc}") from None
             report.protos.append(url)
             proto = parse_proto(text, url)
             queue += _declarations(proto.externprotos, url, None, url)
@@ -138,7 +142,10 @@ def _mesh_urls(nodes: Sequence[Node]) -> list[tuple[str, str, str]]:
             origin = node.location.file if node.location is not None else ""
             origin = origin.removesuffix("[generated]")
             for entry in node.fields.get("url", []) or []:
-                url = remote_url(str(entry), origin if is_remote(origin) else None)
+                try:
+                    url = remote_url(str(entry), origin if is_remote(origin) else None)
+                except FetchError as exc:
+                    raise FetchError(f"{node.location}: {node.type_name} url: {exc}") from None
                 if url is not None:
                     out.append((url, str(node.location), node.type_name))
     return out

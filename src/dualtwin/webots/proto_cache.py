@@ -52,6 +52,7 @@ __all__ = [
     "default_cache_root",
     "is_remote",
     "remote_url",
+    "shown_url",
     "webots_assets_dir",
 ]
 
@@ -62,6 +63,8 @@ OFFICIAL_PREFIX = "https://raw.githubusercontent.com/cyberbotics/webots/"
 LAYOUT = "v1"
 PROTO_MAX_BYTES = 16 * 1024 * 1024
 ASSET_MAX_BYTES = 128 * 1024 * 1024
+#: Longer urls are refused where they are declared (httpx's own limit is 65536; no real url comes near this).
+MAX_URL_LENGTH = 4096
 _OFFICIAL = re.compile(r"https://raw\.githubusercontent\.com/cyberbotics/webots/([A-Za-z0-9_+-]+)/(.+)")
 _TRUE = {"1", "true", "yes", "on"}
 
@@ -86,23 +89,48 @@ def remote_url(url: str, parent: str | None = None, version: str = WEBOTS_VERSIO
     for non-official remote parents (a known Webots limitation); we resolve them the obvious way.
 
     Raises:
-        FetchError: a remote file declares a url that is neither relative nor ``http(s)``/``webots``.
+        FetchError: a remote file declares a url that is neither relative nor ``http(s)``/``webots``, or the url
+            is not one that can be downloaded (malformed, control characters, too long).
     """
     if is_remote(url):
-        return url
+        return _checked_url(url)
     if url.startswith("webots://"):
         tag = version
         if parent is not None:
             m = _OFFICIAL.match(parent)
             if m:
                 tag = m.group(1)
-        return f"{OFFICIAL_PREFIX}{tag}/{url[len('webots://'):].lstrip('/')}"
+        return _checked_url(f"{OFFICIAL_PREFIX}{tag}/{url[len('webots://'):].lstrip('/')}")
     if parent is not None and is_remote(parent):
-        joined = urljoin(parent, url)
+        try:
+            joined = urljoin(parent, url)
+        except ValueError as exc:  # "Invalid IPv6 URL"
+            raise FetchError(f"{shown_url(parent)}: declares {shown_url(url)}, not a valid url ({exc})") from None
         if not is_remote(joined):
-            raise FetchError(f"{parent}: declares {url!r}; a remote file may only refer to http(s) urls")
-        return joined
+            raise FetchError(f"{shown_url(parent)}: declares {shown_url(url)}; a remote file may only refer to "
+                             "http(s) urls")
+        return _checked_url(joined)
     return None
+
+
+def shown_url(url: str) -> str:
+    """``url`` for a one-line message: quoted with control characters escaped, long ones shortened."""
+    return repr(url if len(url) <= 200 else url[:200] + "...")
+
+
+def _checked_url(url: str) -> str:
+    """``url`` if the downloader can request it. A url comes from an untrusted world or PROTO: one httpx cannot
+    parse (a NUL, a newline, ``http://[::1``, a malformed IDNA host, 70k characters) was a traceback at the
+    download, so it is refused here, where it is declared, by the same parser the download uses."""
+    import httpx
+
+    if len(url) > MAX_URL_LENGTH:
+        raise FetchError(f"{shown_url(url)}: a url of {len(url)} characters; at most {MAX_URL_LENGTH}")
+    try:
+        _ = httpx.URL(url).host  # .host decodes an IDNA host (xn--...), which can fail too
+    except (httpx.InvalidURL, ValueError) as exc:  # idna's errors are UnicodeErrors
+        raise FetchError(f"{shown_url(url)}: not a valid url ({exc})") from None
+    return url
 
 
 def cache_key(url: str) -> str:
@@ -311,7 +339,9 @@ class ProtoCache:
                     buf += chunk
                     if len(buf) > limit:
                         raise FetchError(f"cannot download {where}: more than the {limit}-byte limit")
-        except httpx.HTTPError as exc:
+        # a redirect's Location is the server's: httpx reports a bad one as InvalidURL or (its IDNA host) as a
+        # UnicodeError, neither an HTTPError
+        except (httpx.HTTPError, httpx.InvalidURL, ValueError) as exc:
             raise FetchError(f"cannot download {where}: {type(exc).__name__}: {exc}") from None
         return bytes(buf)
 
