@@ -97,3 +97,10 @@ def test_bad_urls_inside_a_served_proto_and_its_redirects_are_refused(tmp_path: 
     with pytest.raises(FetchError, match="bad-host-redirect.proto.*cannot download"):
         fetch_worlds([_world(tmp_path, f"{hostile}/bad-host-redirect.proto")], cache)
 
+
+def test_a_download_that_never_finishes_is_given_up(tmp_path: Path, hostile: str) -> None:
+    cache = ProtoCache(tmp_path / "cache", progress=None, offline=False, use_env=False, deadline=0.5)
+    with pytest.raises(FetchError, match=r"drip.proto.*not complete after 0.5 s"):
+        fetch_worlds([_world(tmp_path, f"{hostile}/drip.proto")], cache)
+    cache.close()
+    assert not list((tmp_path / "cache").rglob("*.proto*"))  # a failed download stores nothing

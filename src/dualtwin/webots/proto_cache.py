@@ -19,8 +19,9 @@ Decisions, and why:
   ``http(s)`` base url, it stands for ``https://raw.githubusercontent.com/cyberbotics/webots/`` (so the mirror
   serves ``<base>/R2023b/projects/...``) and official urls are downloaded from it, still cached under their
   official url. ``DUALTWIN_PROTO_OFFLINE=1`` forbids the network altogether.
-- **Downloads** go through httpx with connect/read timeouts, ``http``/``https`` only, at most 5 redirects and a
-  size limit (16 MiB for a PROTO, 128 MiB for a mesh). Failed downloads store nothing.
+- **Downloads** go through httpx with connect/read timeouts, a deadline on each whole download (300 s),
+  ``http``/``https`` only, at most 5 redirects and a size limit (16 MiB for a PROTO, 128 MiB for a mesh). Failed
+  downloads store nothing.
 - **Nothing fetched is executed.** A PROTO is parsed as data; only its own JavaScript template runs, in QuickJS
   with time and memory limits and no module loading (:mod:`dualtwin.webots.protos`).
 """
@@ -32,6 +33,7 @@ import json
 import os
 import re
 import sys
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -63,6 +65,10 @@ OFFICIAL_PREFIX = "https://raw.githubusercontent.com/cyberbotics/webots/"
 LAYOUT = "v1"
 PROTO_MAX_BYTES = 16 * 1024 * 1024
 ASSET_MAX_BYTES = 128 * 1024 * 1024
+#: Seconds one download may take in all: a 128 MiB mesh at under 0.5 MiB/s. httpx's timeouts are per read, so a
+#: server sending one byte every few seconds kept ``webots fetch`` waiting forever (found by fuzzing with a hostile
+#: loopback server).
+DOWNLOAD_DEADLINE_S = 300.0
 #: Longer urls are refused where they are declared (httpx's own limit is 65536; no real url comes near this).
 MAX_URL_LENGTH = 4096
 _OFFICIAL = re.compile(r"https://raw\.githubusercontent\.com/cyberbotics/webots/([A-Za-z0-9_+-]+)/(.+)")
@@ -173,6 +179,8 @@ class ProtoCache:
             runtime reading a mirror folder does not).
         progress: called with one line per download or import (default: print on stderr).
         timeout: seconds allowed to connect and between received bytes.
+        deadline: seconds one download may take in all (a server that sends a byte now and then, within
+            ``timeout``, never ends otherwise).
         use_env: read the environment for unset arguments.
     """
 
@@ -187,6 +195,7 @@ class ProtoCache:
         copy_sources: bool = False,
         progress: Callable[[str], None] | None = _say,
         timeout: float = 20.0,
+        deadline: float = DOWNLOAD_DEADLINE_S,
         use_env: bool = True,
     ) -> None:
         env = os.environ if use_env else {}
@@ -214,6 +223,7 @@ class ProtoCache:
         self.copy_sources = copy_sources
         self.progress = progress
         self.timeout = timeout
+        self.deadline = deadline
         self._client: Any = None
         self._verified: dict[str, Path] = {}
 
@@ -335,10 +345,14 @@ class ProtoCache:
                 if declared is not None and declared.isdigit() and int(declared) > limit:
                     raise FetchError(f"cannot download {where}: {declared} bytes exceeds the {limit}-byte limit")
                 buf = bytearray()
+                give_up = time.monotonic() + self.deadline
                 for chunk in response.iter_bytes():
                     buf += chunk
                     if len(buf) > limit:
                         raise FetchError(f"cannot download {where}: more than the {limit}-byte limit")
+                    if time.monotonic() > give_up:
+                        raise FetchError(f"cannot download {where}: not complete after {self.deadline:g} s "
+                                         f"({len(buf)} bytes so far)")
         # a redirect's Location is the server's: httpx reports a bad one as InvalidURL or (its IDNA host) as a
         # UnicodeError, neither an HTTPError
         except (httpx.HTTPError, httpx.InvalidURL, ValueError) as exc:
