@@ -54,6 +54,38 @@ def test_hostile_numbers_are_refused_where_the_config_is_read(tmp_path: Path, ch
     assert named in str(info.value) and str(path) in str(info.value)
 
 
+ENV_KWARGS = [
+    ({"bogus": 1}, "env_kwargs.bogus"),  # TypeError from TwinEnv.__init__, a traceback
+    ({"max_episode_steps": 0}, "env_kwargs.max_episode_steps"),  # gymnasium's ValueError
+    ({"max_episode_steps": -1}, "env_kwargs.max_episode_steps"),  # accepted: episodes never truncated
+    ({"render_mode": "human"}, "env_kwargs.render_mode"),  # gymnasium asked for pygame
+    ({"knobs": "../../etc/passwd"}, "env_kwargs.knobs"),  # ValueError: dictionary update sequence
+    ({"task_kwargs": "x"}, "env_kwargs.task_kwargs"),  # "argument after ** must be a mapping", after the folder
+    ({"task_kwargs": {"balance_angle": float("nan")}}, "must be finite"),  # JSON error writing run.json
+    ({"control_period": "0.032"}, "env_kwargs.control_period"),
+]
+
+
+@pytest.mark.parametrize(("env_kwargs", "named"), ENV_KWARGS, ids=[str(c)[:40] for c, _ in ENV_KWARGS])
+def test_env_kwargs_are_checked_where_the_config_is_read(tmp_path: Path, env_kwargs: dict[str, object],
+                                                         named: str) -> None:
+    path = tmp_path / "config.yaml"
+    path.write_text(yaml.safe_dump({**TINY, "env_kwargs": env_kwargs}))
+    with pytest.raises(DualtwinError, match="invalid PPO config") as info:
+        load_config(path)
+    assert named in str(info.value) and "\n" not in str(info.value)
+
+
+def test_env_options_are_gym_makes_and_twin_envs() -> None:
+    import inspect
+
+    from dualtwin.rl.env import TwinEnv
+    from dualtwin.rl.ppo_config import EnvOptions
+
+    declared = {name for name in inspect.signature(TwinEnv.__init__).parameters if name != "self"}
+    assert set(EnvOptions.model_fields) == declared | {"max_episode_steps", "disable_env_checker"}
+
+
 def test_bundled_configs_are_within_the_bounds() -> None:
     from dualtwin.rl.ppo_config import bundled_configs
 
@@ -73,4 +105,18 @@ def test_cli_refuses_before_the_run_folder(tmp_path: Path) -> None:
     assert done.returncode == 2, done.stderr
     lines = [line for line in done.stderr.splitlines() if line.strip()]
     assert len(lines) == 1 and "learning_rate" in lines[0] and str(path) in lines[0], done.stderr
+    assert not out.exists()
+
+
+def test_cli_refuses_an_unknown_env_option_before_the_run_folder(tmp_path: Path) -> None:
+    # was "TypeError: TwinEnv.__init__() got an unexpected keyword argument" once the envs were built: exit 1
+    path = tmp_path / "config.yaml"
+    path.write_text(yaml.safe_dump({**TINY, "env_kwargs": {"model_path": "/etc/passwd"}}))
+    out = tmp_path / "run"
+    done = subprocess.run([sys.executable, "-m", "dualtwin.cli", "train", "--env", "dualtwin/CartPole-MuJoCo-v0",
+                           "--out", str(out), "--config", str(path), "--steps", "32"],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 2, done.stderr
+    lines = [line for line in done.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and "env_kwargs.model_path" in lines[0], done.stderr
     assert not out.exists()

@@ -7,12 +7,13 @@ the ``config`` in ``run.json`` without unpickling anything.
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import Field, ValidationError, model_validator
+from pydantic import ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from dualtwin.errors import DualtwinError
 from dualtwin.models import FrozenModel
@@ -71,6 +72,49 @@ class PolicyKwargs(FrozenModel):
         return self
 
 
+Positive = Annotated[int, Field(ge=1, le=8192)]
+
+
+class EnvOptions(FrozenModel):
+    """What ``env_kwargs`` may hold: ``gym.make``'s own options and ``TwinEnv``'s keyword arguments (every
+    dualtwin id's entry point; tests/rl/test_ppo_config_bounds.py keeps the two lists in step).
+
+    Checked where the config is read because these go to ``gym.make`` only once the envs are built: an unknown
+    key was a TypeError traceback, ``max_episode_steps: 0`` a ValueError, ``render_mode: human`` a missing-pygame
+    error and a NaN in ``task_kwargs`` a JSON error writing the run record, each after the run folder was made.
+    Strict: a number written as text is a mistake in a config, not something to coerce. The task's own options
+    (``task_kwargs``) are checked by the task when the env is built.
+    """
+
+    model_config = ConfigDict(strict=True)
+
+    max_episode_steps: int = Field(default=1000, ge=1, le=10**9)
+    disable_env_checker: bool = False
+    twin: str = "mujoco"
+    robot: str = "cartpole"
+    task: str = "cartpole_balance"
+    continuous: bool = False
+    control_period: float = Field(default=0.032, gt=0, le=60)
+    knobs: dict[str, float] = Field(default_factory=dict)
+    render_mode: Literal["rgb_array"] | None = None
+    camera: str = "side"
+    render_size: list[Positive] = Field(default_factory=lambda: [480, 640], min_length=2, max_length=2)
+    task_kwargs: dict[str, Any] = Field(default_factory=dict)
+
+    @field_validator("task_kwargs")
+    @classmethod
+    def _finite(cls, value: dict[str, Any]) -> dict[str, Any]:
+        def check(where: str, item: Any) -> None:
+            if isinstance(item, float) and not math.isfinite(item):
+                raise ValueError(f"{where} must be finite, got {item!r}")
+            children = item.items() if isinstance(item, dict) else enumerate(item) if isinstance(item, list) else ()
+            for key, child in children:
+                check(f"{where}.{key}", child)
+
+        check("task_kwargs", value)
+        return value
+
+
 class PPOConfig(FrozenModel):
     """PPO hyperparameters plus the run's evaluation and checkpoint cadence. Step counts are env steps."""
 
@@ -105,6 +149,12 @@ class PPOConfig(FrozenModel):
     max_wall_seconds: float | None = Field(default=None, gt=0, description="stop after this much training time")
     vec_env: Literal["dummy", "subproc"] = "dummy"
     torch_threads: int = Field(default=1, ge=1, le=1024)
+
+    @field_validator("env_kwargs")
+    @classmethod
+    def _env_options(cls, value: dict[str, Any]) -> dict[str, Any]:
+        EnvOptions.model_validate(value)
+        return value  # as written: it is recorded in run.json and passed on to gym.make unchanged
 
     @model_validator(mode="after")
     def _consistent(self) -> PPOConfig:
