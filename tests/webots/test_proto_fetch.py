@@ -285,6 +285,11 @@ def test_corrupt_or_changed_cache_file_is_an_error_naming_the_url(
     cached.write_bytes(b"\x00" * 10)  # truncated
     with pytest.raises(CacheCorruptError, match="SickLms291.proto"):
         load_world(world)
+    # a record whose size overflows an integer (1e999 reads as infinity): an OverflowError traceback before
+    record = cached.with_name(cached.name + ".json")
+    record.write_text(record.read_text().replace('"size": ', '"size": 1e999, "was": '))
+    with pytest.raises(CacheCorruptError, match=r"SickLms291.proto: the cache record .* is unreadable"):
+        load_world(world)
 
 
 def test_fetch_then_fixture_worlds_load_offline_without_warnings(

@@ -104,3 +104,13 @@ def test_a_download_that_never_finishes_is_given_up(tmp_path: Path, hostile: str
         fetch_worlds([_world(tmp_path, f"{hostile}/drip.proto")], cache)
     cache.close()
     assert not list((tmp_path / "cache").rglob("*.proto*"))  # a failed download stores nothing
+
+
+@pytest.mark.skipif(not Path("/proc/self/mem").is_file(), reason="needs Linux's /proc")
+def test_a_local_externproto_that_cannot_be_read_is_named(tmp_path: Path) -> None:
+    """Before, only the OS's words came out ("error: Input/output error"), naming no file."""
+    from dualtwin.errors import DualtwinError
+
+    cache = ProtoCache(tmp_path / "cache", progress=None, offline=True, use_env=False)
+    with pytest.raises(DualtwinError, match=r"w.wbt:2:1: EXTERNPROTO /proc/self/mem: cannot read it: "):
+        fetch_worlds([_world(tmp_path, "/proc/self/mem")], cache)

@@ -97,7 +97,12 @@ def fetch_worlds(
                 if key in seen or not local.is_file():
                     continue  # a missing local file is reported when the world loads
                 seen.add(key)
-                proto = parse_proto(decode_source(local.read_bytes(), str(local)), str(local))
+                try:
+                    source = local.read_bytes()
+                except OSError as exc:  # (a special file: /proc/self/mem said only "Input/output error")
+                    raise DualtwinError(f"{ext.location}: EXTERNPROTO {local}: cannot read it: "
+                                        f"{exc.strerror or exc}") from None
+                proto = parse_proto(decode_source(source, str(local)), str(local))
                 queue += _declarations(proto.externprotos, None, local.parent, str(local))
                 continue
             if url in seen:

@@ -238,7 +238,7 @@ class ProtoCache:
         try:
             meta = json.loads(meta_path.read_text(encoding="utf-8"))
             recorded_url, size, digest = meta["url"], int(meta["size"]), str(meta["sha256"])
-        except (OSError, ValueError, KeyError, TypeError) as exc:
+        except (OSError, ValueError, KeyError, TypeError, OverflowError) as exc:  # ("size": 1e999 overflows int())
             raise CacheCorruptError(
                 f"{url}: the cache record {meta_path} is unreadable ({exc}); delete it and {data} to fetch again"
             ) from None
