@@ -68,3 +68,50 @@ def test_the_warnings_defaults_and_a_non_finite_hidden_field() -> None:
     hidden = load_world_text("#VRML_SIM R2023b utf8\nSolid { hidden translation_1 nan 0 1 hidden position_0_0 0.5 }")
     assert hidden.nodes[0].hidden == {"position_0_0": 0.5}
     assert [w for w in hidden.warnings if "hidden field 'translation_1' holds a non-finite number" in w]
+
+
+EDITS = {
+    "rotation axis inf": "box.getField('rotation').setSFRotation([inf, 0, 0, 1])",  # was SIGABRT in dxOrthogonalizeR
+    "rotation axis overflow": "box.getField('rotation').setSFRotation([1e308, 1e308, 1e308, 1])",
+    "rotation angle inf": "box.getField('rotation').setSFRotation([0, 0, 1, inf])",  # was 'math domain error'
+    "translation inf": "box.getField('translation').setSFVec3f([inf, 0, 0])",  # was SimulationUnstable
+    "anchor inf": "s.getFromDef('HJ').getField('jointParameters').getSFNode().getField('anchor')"
+                  ".setSFVec3f([0, -inf, 0])",
+    "joint position inf": "s.getFromDef('HJ').getField('jointParameters').getSFNode().getField('position')"
+                          ".setSFFloat(inf)",
+}
+
+EDIT_WORLD = WORLD.format(rotation="", anchor="", torque="", com="").replace(
+    "    HingeJoint {", "    DEF HJ HingeJoint {") + """DEF BOX Solid {
+  translation 1 0 0.5
+  children [ Shape { geometry DEF B Box { size 0.1 0.1 0.1 } } ]
+  boundingObject USE B physics Physics { }
+}
+"""
+
+EDIT_CONTROLLER = """from controller import Supervisor
+inf = float("inf")
+s = Supervisor()
+box = s.getFromDef("BOX")
+s.step(8)
+EDIT
+for _ in range(20):
+    s.step(8)
+print("BOB", " ".join(repr(v) for v in s.getFromDef("BOB").getPosition()))
+print("BOX", " ".join(repr(v) for v in box.getPosition()), box.getField("rotation").getSFRotation())
+"""
+
+
+@pytest.mark.parametrize("edit", sorted(EDITS))
+def test_a_supervisor_setting_an_infinite_field_value_is_refused(tmp_path: Path, edit: str) -> None:
+    """A Field setter given ±inf (or an axis whose length overflows) prints one warning and keeps the field, as
+    for NaN: the run goes on exactly like the control run without the edit. Before, the value reached ODE:
+    an infinite rotation axis aborted the whole process (SIGABRT), an infinite angle raised 'math domain
+    error' at the call and an infinite translation made the next step raise SimulationUnstable."""
+    bad = run_world_cli(tmp_path, "bad", EDIT_WORLD, EDIT_CONTROLLER.replace("EDIT", EDITS[edit]))
+    assert bad.returncode == 0, bad.stderr
+    lines = [line for line in bad.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and "wrong type or length" in lines[0] and "ignored" in lines[0], bad.stderr
+    control = run_world_cli(tmp_path, "control", EDIT_WORLD, EDIT_CONTROLLER.replace("EDIT", "pass"))
+    assert control.returncode == 0 and not control.stderr.strip(), control.stderr
+    assert bad.stdout == control.stdout and bad.stdout.startswith("BOB "), (bad.stdout, control.stdout)

@@ -306,16 +306,20 @@ class Field:
                 return True, bool(value)
             if kind == "SFInt32":
                 return True, as_int(value, f"Field.{method}")
+            # a float must be finite (±inf refused like NaN): no Webots field holds one (a world's inf keeps the
+            # field's default, see protos.py), and ODE aborts the whole process on an infinite rotation axis
+            # (dxOrthogonalizeR) while an infinite angle or translation breaks the next step
             if kind == "SFFloat":
                 v = as_float(value, f"Field.{method}")
-                return (True, v) if v == v else (False, None)
+                return (True, v) if math.isfinite(v) else (False, None)
             if kind == "SFString":
                 return (True, value) if isinstance(value, str) else (False, None)
             size = schema.VECTOR_SIZES[kind]
             values = as_floats(value, f"Field.{method}")
-            if len(values) != size or any(v != v for v in values):
+            if len(values) != size or not all(math.isfinite(v) for v in values):
                 return False, None
-            if kind == "SFRotation" and m3.norm(values[:3]) == 0.0:
+            # an axis whose length overflows (1e308 components) normalises to zero, as bad as a zero axis
+            if kind == "SFRotation" and not 0.0 < m3.norm(values[:3]) < math.inf:
                 return False, None
             return True, tuple(float(v) for v in values)
         except TypeError:
