@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import itertools
+import os
 import struct
+import subprocess
+import sys
 import warnings
 import zlib
 from pathlib import Path
@@ -13,6 +17,8 @@ import pytest
 from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Display, Supervisor
 from dualtwin.webots.physics import Simulation
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture()
@@ -121,3 +127,66 @@ def test_images_copy_paste_and_save_png(display: Display, tmp_path: Path) -> Non
     loaded = display.imageLoad(str(path))
     assert (loaded.pixels == display.pixels).all()
     display.imageDelete(loaded)
+
+
+def _bresenham(x1: int, y1: int, x2: int, y2: int) -> list[tuple[int, int]]:
+    """The whole segment, walked by the error-term loop (the reference for the pixels a line lights)."""
+    points, dx, dy = [], abs(x2 - x1), -abs(y2 - y1)
+    sx, sy, err, x, y = (1 if x1 < x2 else -1), (1 if y1 < y2 else -1), dx + dy, x1, y1
+    while True:
+        points.append((x, y))
+        if (x, y) == (x2, y2):
+            return points
+        e2 = 2 * err
+        if e2 >= dy:
+            err, x = err + dy, x + sx
+        if e2 <= dx:
+            err, y = err + dx, y + sy
+
+
+def test_lines_light_the_pixels_of_the_whole_segment(display: Display) -> None:
+    """Lines starting, ending or passing off the 16 x 8 display light exactly the on-display pixels of the
+    whole segment, though only the visible steps are computed."""
+    ends = [-40, -3, 0, 5, 7, 15, 16, 33, 1000]
+    for x1, y1, x2, y2 in itertools.product(ends, ends[::2], ends[1::2], ends):
+        display.pixels[:] = 0
+        display.drawLine(x1, y1, x2, y2)
+        want = {(x, y) for x, y in _bresenham(x1, y1, x2, y2) if 0 <= x < 16 and 0 <= y < 8}
+        got = {(int(x), int(y)) for y, x in zip(*np.nonzero(display.pixels[:, :, 3]), strict=True)}
+        assert got == want, (x1, y1, x2, y2)
+
+
+HUGE_LINES = """
+import resource, warnings
+from dualtwin.webots import load_world_text
+from dualtwin.webots.controller import Supervisor
+from dualtwin.webots.physics import Simulation
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")
+    sim = Simulation(load_world_text('#VRML_SIM R2023b utf8\\nRobot { supervisor TRUE children [ Display { name "d" '
+                                     'width 16 height 8 } ] }'))
+d = Supervisor(simulation=sim, robot_node=sim.robots[0].node).getDevice("d")
+size = int(open("/proc/self/status").read().split("VmSize:")[1].split()[0]) * 1024
+resource.setrlimit(resource.RLIMIT_AS, (size + (256 << 20), resource.RLIM_INFINITY))
+big = 2**31 - 1
+d.setColor(0xFFFFFF)
+d.drawLine(0, 0, big, big)
+d.drawRectangle(2, -big, big, big + 7)
+d.drawPolygon([-big, big, big], [3, 3, big])
+print(sorted((int(x), int(y)) for y, x in zip(*d.pixels[:, :, 3].nonzero())))
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/status")
+def test_lines_with_huge_coordinates_cost_only_their_visible_part() -> None:
+    """drawLine / drawRectangle / drawPolygon with coordinates near 2**31 (a controller's overflowed numbers)
+    used to walk the whole segment point by point: the simulation hung and ate the memory. Run in a child whose
+    address space may grow by 256 MiB only, so the old behaviour fails with MemoryError instead of a hang."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
+    out = subprocess.run([sys.executable, "-c", HUGE_LINES], capture_output=True, text=True, env=env, cwd=ROOT,
+                         timeout=120, check=False)
+    assert out.returncode == 0, out.stderr[-2000:]
+    diagonal = {(i, i) for i in range(8)}
+    rectangle = {(2, y) for y in range(7)} | {(x, 6) for x in range(2, 16)}  # its left and bottom edges
+    polygon = {(x, 3) for x in range(16)}  # its horizontal edge
+    assert out.stdout.strip() == str(sorted(diagonal | rectangle | polygon)), out.stdout

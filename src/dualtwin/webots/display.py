@@ -144,24 +144,21 @@ class Display(Device):
                 mask[y, x] = True
         self._paint(mask)
 
-    @staticmethod
-    def _line(x1: int, y1: int, x2: int, y2: int) -> list[tuple[int, int]]:
-        points = []
-        dx, dy = abs(x2 - x1), -abs(y2 - y1)
+    def _line(self, x1: int, y1: int, x2: int, y2: int) -> list[tuple[int, int]]:
+        """The pixels of the segment that can be on the display: those of the error-term Bresenham loop (the
+        one stepping x when 2*err >= dy and y when 2*err <= dx), computed in closed form for the steps whose
+        major coordinate is on the display only. Walking the whole segment instead made a line to (2**31-1,
+        2**31-1) build two billion points: the simulation hung and ran out of memory."""
+        dx, dy = abs(x2 - x1), abs(y2 - y1)
         sx, sy = (1 if x1 < x2 else -1), (1 if y1 < y2 else -1)
-        err = dx + dy
-        x, y = x1, y1
-        while True:
-            points.append((x, y))
-            if x == x2 and y == y2:
-                return points
-            e2 = 2 * err
-            if e2 >= dy:
-                err += dy
-                x += sx
-            if e2 <= dx:
-                err += dx
-                y += sy
+        n = max(dx, dy)
+        # at step k the major coordinate has moved k times and the minor one floor((2*minor*k + major) /
+        # (2*major)) times: the loop's ties (2*err == dy or dx) step both, which the floor reproduces
+        if dx >= dy:
+            lo, hi = _visible_steps(x1, sx, n, self._w)
+            return [(x1 + sx * k, y1 + sy * ((2 * dy * k + dx) // (2 * dx) if dx else 0)) for k in range(lo, hi)]
+        lo, hi = _visible_steps(y1, sy, n, self._h)
+        return [(x1 + sx * ((2 * dx * k + dy) // (2 * dy)), y1 + sy * k) for k in range(lo, hi)]
 
     def drawPixel(self, x: Any, y: Any) -> None:
         self._points([(int(x), int(y))])
@@ -309,3 +306,9 @@ class Display(Device):
     alpha = property(fset=lambda self, alpha: self.setAlpha(alpha))
     color = property(fset=lambda self, color: self.setColor(color))
     opacity = property(fset=lambda self, opacity: self.setOpacity(opacity))
+
+
+def _visible_steps(start: int, step: int, n: int, size: int) -> tuple[int, int]:
+    """The steps ``k`` of ``[0, n]`` where ``0 <= start + step * k < size`` (``step`` is ±1), as ``range(lo, hi)``."""
+    lo, hi = (-start, size - start) if step > 0 else (start - size + 1, start + 1)
+    return max(lo, 0), min(hi, n + 1)
