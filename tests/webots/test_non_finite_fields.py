@@ -115,3 +115,27 @@ def test_a_supervisor_setting_an_infinite_field_value_is_refused(tmp_path: Path,
     control = run_world_cli(tmp_path, "control", EDIT_WORLD, EDIT_CONTROLLER.replace("EDIT", "pass"))
     assert control.returncode == 0 and not control.stderr.strip(), control.stderr
     assert bad.stdout == control.stdout and bad.stdout.startswith("BOB "), (bad.stdout, control.stdout)
+
+
+def test_an_image_size_beyond_a_render_target_keeps_the_fields_default() -> None:
+    """A device's image buffer is allocated from its width and height (a Lidar's from its resolution and
+    layers): a world's ``Display { width 200000 height 200000 }`` asked for 149 GiB (MemoryError in the
+    controller, or the machine out of memory). Beyond 16384 (OpenGL's usual texture limit, the most a Webots
+    render target can be) the field keeps its default, with one warning naming where it is; 16384 itself is
+    kept."""
+    world = load_world_text("""#VRML_SIM R2023b utf8
+Robot { children [
+  Display { name "d" width 200000 height 200000 }
+  Camera { name "c" width 16385 height 16384 }
+  RangeFinder { name "r" width 20 height 1000000 }
+  Lidar { name "l" horizontalResolution 100000000 numberOfLayers 100000 }
+] }
+""")
+    display, camera, finder, lidar = (node.fields for node in world.nodes[0].fields["children"])
+    assert (display["width"], display["height"]) == (64, 64)
+    assert (camera["width"], camera["height"]) == (64, 16384)
+    assert (finder["width"], finder["height"]) == (20, 64)
+    assert (lidar["horizontalResolution"], lidar["numberOfLayers"]) == (512, 4)
+    lines = [w for w in world.warnings if "is larger than 16384; using its default" in w]
+    assert len(lines) == 6 and len(world.warnings) == 6, world.warnings
+    assert any(":3:" in w and "Display.width 200000" in w for w in lines), lines

@@ -151,6 +151,19 @@ def _hidden_type(name: str) -> str | None:
     return None
 
 
+#: The image dimensions of the devices that hold an image buffer (pixels, depths, points), which are allocated
+#: from them; and the most each may be. 16384 is OpenGL's usual GL_MAX_TEXTURE_SIZE, the most a Webots render
+#: target can have; beyond it a world's ``width 200000`` asked for a buffer of hundreds of GiB (MemoryError, or
+#: the machine out of memory once the buffer is written).
+IMAGE_SIZE_FIELDS: dict[str, tuple[str, ...]] = {
+    "Camera": ("width", "height"),
+    "RangeFinder": ("width", "height"),
+    "Display": ("width", "height"),
+    "Lidar": ("horizontalResolution", "numberOfLayers"),
+}
+MAX_IMAGE_SIDE = 16384
+
+
 def _finite(value: Any) -> bool:
     """No NaN or infinity among the numbers of a field value (a number, a vector, or a list of them); nodes,
     strings and booleans count as finite."""
@@ -315,6 +328,10 @@ class _Expander:
                 # mass or pose: the field keeps its default, and the world says so once.
                 self.warnings.append(f"{rf.location}: {raw.type_name}.{name} holds a non-finite number; using "
                                      "its default")
+                continue
+            if name in IMAGE_SIZE_FIELDS.get(raw.type_name, ()) and value > MAX_IMAGE_SIDE:
+                self.warnings.append(f"{rf.location}: {raw.type_name}.{name} {value} is larger than "
+                                     f"{MAX_IMAGE_SIDE}; using its default")
                 continue
             fields[name] = value
             locations[name] = rf.location
