@@ -22,6 +22,7 @@ from dualtwin.webots import load_world_text
 from dualtwin.webots.physics import Simulation
 from dualtwin.webots.runner import run_world
 from dualtwin.webots.runtime import Runtime
+from tests.support.world_runs import run_world_cli
 
 SRC = Path(__file__).resolve().parents[2] / "src"
 
@@ -447,3 +448,35 @@ def test_a_step_after_cleanup_says_the_end_at_once(tmp_path: Path, isolation: st
                           env={**os.environ, "PYTHONPATH": str(SRC)})
     assert done.returncode == 0, done.stderr
     assert (tmp_path / "controllers" / "leaver" / "result.txt").read_text() == "after cleanup -1 -1"
+
+
+def test_a_controller_can_catch_the_simulation_unstable_it_is_raised(tmp_path: Path) -> None:
+    """``SimulationUnstable`` (a dualtwin export: what ``step`` raises once the physics diverged, e.g. after a
+    supervisor moved a body 1e10 m away) is, in a controller process, the class of the error ``step`` raises,
+    and a RuntimeError like the parent's. Before, ``from controller import SimulationUnstable`` gave a proxy
+    class, so ``except SimulationUnstable`` raised 'TypeError: catching classes that do not inherit from
+    BaseException' and the controller died with a traceback instead of resetting."""
+    world = """#VRML_SIM R2023b utf8
+WorldInfo { basicTimeStep 8 }
+DEF BOX Solid {
+  translation 0 0 1
+  children [ Shape { geometry DEF B Box { size 0.1 0.1 0.1 } } ]
+  boundingObject USE B physics Physics { }
+}
+Robot { controller "<extern>" supervisor TRUE }
+"""
+    controller = """from controller import SimulationUnstable, Supervisor
+s = Supervisor()
+s.step(8)
+s.getFromDef("BOX").getField("translation").setSFVec3f([1e10, 0, 0])
+try:
+    s.step(8)
+except SimulationUnstable as e:
+    print("caught", type(e).__name__, isinstance(e, RuntimeError), "diverging" in str(e))
+s.simulationReset()
+s.step(8)
+print("after reset", s.getFromDef("BOX").getPosition()[0])
+"""
+    out = run_world_cli(tmp_path, "w", world, controller)
+    assert out.returncode == 0 and "Traceback" not in out.stderr, out.stderr
+    assert out.stdout.splitlines() == ["caught SimulationUnstable True True", "after reset 0.0"], out.stdout

@@ -295,10 +295,21 @@ class _Channel:
             return SystemExit(code)
         cls = getattr(builtins, name, None)
         if not (isinstance(cls, type) and issubclass(cls, BaseException)):
-            cls = self.errors.get(name)
-            if cls is None:
-                cls = self.errors[name] = type(name, (_RemoteError,), {"__module__": "controller"})
+            cls = self.error_class(name)
         return cls(message)
+
+    def error_class(self, name: str) -> type[BaseException]:
+        """The one class here for the parent's exception class ``name``: the one a raised error has and, for an
+        exported one (``SimulationUnstable``), the one ``from controller import`` gives, so that the script can
+        catch it (a proxy class there made ``except SimulationUnstable`` itself raise TypeError)."""
+        cls = self.errors.get(name)
+        if cls is None:
+            base = getattr(builtins, self.descriptions.get(name, {}).get("builtin_base") or "", None)
+            bases: tuple[type, ...] = (_RemoteError,)
+            if isinstance(base, type) and issubclass(base, Exception) and base is not Exception:
+                bases = (_RemoteError, base)
+            cls = self.errors[name] = type(name, bases, {"__module__": "controller"})
+        return cls
 
     def _persistent_load(self, pid: Any) -> Any:
         kind = pid[0]
@@ -387,6 +398,8 @@ class _Channel:
         cls = self.classes.get(name)
         if cls is None:
             description = self.descriptions[name]
+            if description["role"] == "exception":
+                return self.error_class(name)
             bases = tuple(self.proxy_class(b) for b in description["bases"]) or (_Proxy,)
             cls = _build_class(self, description, bases)
             self.classes[name] = cls

@@ -100,6 +100,9 @@ def describe_class(cls: type, exported: dict[str, type], role: str) -> dict[str,
         "members": members,
         "constructible": role != "value" and exported.get(cls.__name__) is cls,
         "init": _signature(init) if inspect.isfunction(init) else None,
+        # an exception class becomes a real exception class in the child: the name of the built-in class it
+        # derives from (RuntimeError for SimulationUnstable), so ``except RuntimeError`` catches it there too
+        "builtin_base": next((b.__name__ for b in cls.__mro__ if b.__module__ == "builtins"), None),
     }
 
 
@@ -149,6 +152,8 @@ class HandleTable:
         self._new: list[dict[str, Any]] = []
 
     def role(self, cls: type) -> str:
+        if issubclass(cls, BaseException):
+            return "exception"
         if is_value_class(cls):
             return "value"
         for base, role in self.roles.items():
