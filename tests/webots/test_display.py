@@ -129,6 +129,23 @@ def test_images_copy_paste_and_save_png(display: Display, tmp_path: Path) -> Non
     display.imageDelete(loaded)
 
 
+def test_an_image_that_cannot_be_made_is_none_with_an_error(display: Display, tmp_path: Path,
+                                                             capsys: pytest.CaptureFixture[str]) -> None:
+    """Webots' library prints an error and returns NULL; before, a negative size was a NumPy reshape error, a huge
+    copy 'array is too big' and an unreadable file PIL's UnidentifiedImageError (tracebacks in the controller)."""
+    not_an_image = tmp_path / "notes.png"
+    not_an_image.write_text("not a picture")
+    made = [display.imageNew(b"\0" * 12, Display.RGB, -2, -2), display.imageCopy(-5, -5, 2**31 - 1, 2**31 - 1),
+            display.imageCopy(0, 0, 0, 3), display.imageLoad(str(not_an_image)),
+            display.imageLoad(str(tmp_path / "missing.png"))]
+    assert made == [None] * 5
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 5 and all(line.startswith("Warning: Display.image") for line in err), err
+    assert "-2 x -2 pixels cannot be made" in err[0] and "notes.png" in err[3]
+    # control: a copy reaching past the display is made, black where the display is not
+    assert display.imageCopy(14, 6, 4, 4).pixels.shape == (4, 4, 4)
+
+
 def _bresenham(x1: int, y1: int, x2: int, y2: int) -> list[tuple[int, int]]:
     """The whole segment, walked by the error-term loop (the reference for the pixels a line lights)."""
     points, dx, dy = [], abs(x2 - x1), -abs(y2 - y1)

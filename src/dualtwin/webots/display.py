@@ -29,6 +29,7 @@ from dualtwin.artifacts import write_bytes
 from dualtwin.errors import DualtwinError
 from dualtwin.webots.api_args import as_float, as_int, warn
 from dualtwin.webots.device_base import Device
+from dualtwin.webots.protos import MAX_IMAGE_SIDE  # (the world loader's cap on a Display's own size)
 
 __all__ = ["Display", "ImageRef", "png_bytes"]
 
@@ -61,6 +62,16 @@ class ImageRef:
     def __init__(self, display: Display, pixels: np.ndarray) -> None:
         self._display = display
         self.pixels = pixels
+
+
+def _image_size_ok(width: int, height: int, method: str) -> bool:
+    """Webots' library prints an error and returns NULL for an image it cannot make; so do we (a negative or
+    huge size was a NumPy error, or gigabytes allocated)."""
+    if 0 < width <= MAX_IMAGE_SIDE and 0 < height <= MAX_IMAGE_SIDE:
+        return True
+    warn(f"{method}: an image of {width} x {height} pixels cannot be made (each side 1 to {MAX_IMAGE_SIDE}); "
+         "no image made")
+    return False
 
 
 class Display(Device):
@@ -237,12 +248,14 @@ class Display(Device):
         self._images[id(ref)] = ref
         return ref
 
-    def imageNew(self, data: Any, format: Any, width: Any, height: Any) -> ImageRef:  # noqa: A002
+    def imageNew(self, data: Any, format: Any, width: Any, height: Any) -> ImageRef | None:  # noqa: A002
         fmt = as_int(format, "Display.imageNew")
         w, h = int(width), int(height)
         channels = 3 if fmt == self.RGB else 4
         if fmt not in (self.RGB, self.RGBA, self.ARGB, self.BGRA, self.ABGR):
             raise ValueError(f"Display.imageNew(): unknown format {fmt}")
+        if not _image_size_ok(w, h, "Display.imageNew()"):
+            return None
         raw = np.frombuffer(bytes(data) if not isinstance(data, np.ndarray) else data.astype(np.uint8).tobytes(),
                             dtype=np.uint8)  # fmt: skip
         if raw.size != w * h * channels:
@@ -260,17 +273,25 @@ class Display(Device):
             rgba = img[:, :, order[fmt]]
         return self._ref(np.ascontiguousarray(rgba))
 
-    def imageLoad(self, filename: str) -> ImageRef:
+    def imageLoad(self, filename: str) -> ImageRef | None:
         try:
             from PIL import Image
         except ImportError as exc:  # pragma: no cover - Pillow is installed with the server extra
             raise DualtwinError("Display.imageLoad needs Pillow (pip install pillow)") from exc
-        with Image.open(Path(filename), formats=["PNG", "JPEG"]) as img:
-            return self._ref(np.array(img.convert("RGBA"), dtype=np.uint8))
+        try:
+            with Image.open(Path(filename), formats=["PNG", "JPEG"]) as img:
+                if not _image_size_ok(img.width, img.height, "Display.imageLoad()"):
+                    return None
+                return self._ref(np.array(img.convert("RGBA"), dtype=np.uint8))
+        except (OSError, ValueError, Image.DecompressionBombError) as exc:  # (UnidentifiedImageError is an OSError)
+            warn(f"Display.imageLoad(): cannot load {filename!r} as a PNG or JPEG image ({exc}); no image made")
+            return None
 
-    def imageCopy(self, x: Any, y: Any, width: Any, height: Any) -> ImageRef:
+    def imageCopy(self, x: Any, y: Any, width: Any, height: Any) -> ImageRef | None:
         x, y, w, h = int(x), int(y), int(width), int(height)
-        out = np.zeros((max(h, 0), max(w, 0), 4), dtype=np.uint8)
+        if not _image_size_ok(w, h, "Display.imageCopy()"):
+            return None
+        out = np.zeros((h, w, 4), dtype=np.uint8)
         x0, y0 = max(x, 0), max(y, 0)
         x1, y1 = min(x + w, self._w), min(y + h, self._h)
         if x1 > x0 and y1 > y0:
