@@ -264,10 +264,15 @@ class SupervisorEdits(MassEdits):
             self._surfaces.pop(id(node), None)
             return True
         if node.type_name == "WorldInfo" and name in ("ERP", "CFM"):
-            if name == "ERP":
-                lib.dWorldSetERP(self._world, float(value))
-            else:
-                lib.dWorldSetCFM(self._world, float(value))
+            # Checked as at load and as Webots' WorldInfo does, which resets a value out of range to its default:
+            # an ERP of -1e308 written at run time stopped ODE inside its step (found by fuzzing the API)
+            number = float(value)
+            if name == "ERP" and not 0.0 <= number <= 1.0 or name == "CFM" and not number > 0.0:
+                default = 0.2 if name == "ERP" else 0.00001
+                self.warn(f"WorldInfo.{name} {number:g} is out of range ({'[0, 1]' if name == 'ERP' else '> 0'}); "
+                          f"reset to {default:g}")
+                number = node.fields[name] = default
+            (lib.dWorldSetERP if name == "ERP" else lib.dWorldSetCFM)(self._world, number)
             return True
         return False
 
