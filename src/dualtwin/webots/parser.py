@@ -24,6 +24,7 @@ from dualtwin.webots.nodes import SourceLocation
 
 __all__ = [
     "MAX_DEPTH",
+    "MAX_NODES",
     "ExternProto",
     "IsLink",
     "ListValue",
@@ -45,6 +46,10 @@ __all__ = [
 
 #: Deepest node nesting accepted; real worlds stay far below, and it keeps recursion bounded.
 MAX_DEPTH = 100
+#: Most nodes a world may hold, counted in each parsed file and again in the expanded world (where each USE
+#: and IS is a copy, so nested DEF/USE or PROTOs multiply: ten levels of ten USEs are 10**10 nodes). Large
+#: real worlds hold tens of thousands; past this, parsing or expanding would run for minutes and gigabytes.
+MAX_NODES = 200_000
 
 _KEYWORDS = frozenset(
     {"DEF", "USE", "IS", "NULL", "TRUE", "FALSE", "PROTO", "EXTERNPROTO", "IMPORTABLE", "hidden"}
@@ -339,6 +344,7 @@ class _Parser:
         self.in_proto = in_proto  # IS links are legal only inside a PROTO body
         self.warnings: list[str] = []
         self._last_end = 0  # end offset of the last value parsed, for RawField/RawNode spans
+        self._nodes = 0  # nodes parsed so far (MAX_NODES)
 
     # -- helpers -----------------------------------------------------------------------------
     def error(self, tok: Token, expected: str) -> WebotsSyntaxError:
@@ -419,6 +425,9 @@ class _Parser:
             tok = self.lex.next()
         if tok.kind != "ident" or tok.text in _KEYWORDS or tok.text in schema.VRML_TYPES:
             raise self.error(tok, "a node type name")
+        self._nodes += 1
+        if self._nodes > MAX_NODES:
+            raise self.src.error(tok.start, f"at most {MAX_NODES} nodes in a file", "more")
         self.expect("{", f"'{{' after node type {tok.text}")
         node = RawNode(tok.text, def_name, self.src.loc(tok.start), start=start)
         node.body_start = self.lex.resume_offset()

@@ -31,6 +31,7 @@ from dualtwin.webots.js_template import JS_MODULES, VEC_KEYS, js_number, strip_i
 from dualtwin.webots.lexer import WebotsSyntaxError
 from dualtwin.webots.nodes import Node, SourceLocation, World, copy_value, values_equal
 from dualtwin.webots.parser import (
+    MAX_NODES,
     ExternProto,
     IsLink,
     ListValue,
@@ -203,6 +204,10 @@ def _node_items(value: Any) -> Iterator[Node]:
         yield from (v for v in value if isinstance(v, Node))
 
 
+def _count_nodes(value: Any) -> int:
+    return sum(1 for item in _node_items(value) for _ in item.walk())
+
+
 _NON_SCENE_FIELDS = frozenset({"boundingObject", "physics"})
 
 
@@ -275,6 +280,21 @@ class _Expander:
         self._by_name: dict[str, ParsedProto] = {}
         self._undeclared_warned: set[tuple[str, str]] = set()
         self._tmpdir: str | None = None
+        self._nodes = 0  # nodes of the expanded world so far (MAX_NODES)
+
+    def _grow(self, count: int, location: SourceLocation) -> None:
+        """Count ``count`` more nodes of the expanded world (a new node, or a USE or IS copy) against MAX_NODES.
+
+        Counted before a copy is made, so a world whose DEF/USE or PROTO nesting multiplies its nodes stops at
+        the limit instead of copying for minutes (a copied subtree was counted already, so it is smaller).
+        """
+        self._nodes += count
+        if self._nodes > MAX_NODES:
+            raise WebotsSyntaxError(
+                location,
+                f"a world of at most {MAX_NODES} nodes once its USEs, IS fields and PROTOs are expanded",
+                "more (nested DEF/USE or PROTO instances multiply them)",
+            )
 
     # -- nodes -------------------------------------------------------------------------------
     def expand_ref(self, raw: RawNode | RawUse, scope: _Scope) -> Node | None:
@@ -291,6 +311,7 @@ class _Expander:
                     "joint-parameters nodes)",
                     f"USE of {what} '{raw.name}'",
                 )
+            self._grow(_count_nodes(src), raw.location)
             copy = src.copy()
             for inner in copy.walk():
                 if inner.def_name is not None or inner.proto_def_name is not None:
@@ -318,6 +339,7 @@ class _Expander:
 
     def expand_base(self, raw: RawNode, scope: _Scope) -> Node:
         spec = schema.BASE_NODES[raw.type_name]
+        self._grow(1, raw.location)
         fields = spec.defaults()
         locations: dict[str, SourceLocation] = {}
         for name, rf in raw.fields.items():
@@ -380,6 +402,7 @@ class _Expander:
             raise WebotsSyntaxError(
                 link.location, f"IS to a field of type {vrml_type}", f"'{link.name}' of type {decl.type}"
             )
+        self._grow(_count_nodes(values[link.name]), link.location)
         return copy_value(values[link.name])
 
     def hidden_values(self, raw: RawNode) -> dict[str, Any]:

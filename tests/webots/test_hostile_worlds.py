@@ -1,0 +1,66 @@
+"""Worlds and PROTOs that are well-formed but hostile: their size, once USE, IS and PROTOs are expanded, is bounded
+(``MAX_NODES``), so loading one is a one-line error instead of minutes of copying and gigabytes of memory."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+from dualtwin.cli import main
+from dualtwin.webots import WebotsSyntaxError, load_world, load_world_text
+from dualtwin.webots.parser import MAX_NODES
+
+HEADER = "#VRML_SIM R2023b utf8\n"
+FAN_OUT = 12
+# Levels of FAN_OUT-fold copies whose expansion just passes MAX_NODES: small enough that the code without the
+# bound finishes (so this test fails there instead of hanging), one level more than the bound allows.
+LEVELS = math.ceil(math.log(MAX_NODES, FAN_OUT))
+
+
+@pytest.fixture(autouse=True)
+def _clean_env(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("DUALTWIN_PROTO_PATH", raising=False)
+    monkeypatch.delenv("WEBOTS_HOME", raising=False)
+
+
+def nested_uses(levels: int = LEVELS) -> str:
+    """The 'billion laughs' of VRML: each DEF holds FAN_OUT USEs of the previous one."""
+    lines = [HEADER.rstrip(), "WorldInfo { basicTimeStep 8 }", "DEF L0 Group { }"]
+    for i in range(1, levels + 1):
+        lines.append(f"DEF L{i} Group {{ children [ " + f"USE L{i - 1} " * FAN_OUT + "] }")
+    return "\n".join(lines) + "\n"
+
+
+def test_nested_use_copies_are_bounded(tmp_path: Path) -> None:
+    world = tmp_path / "laughs.wbt"
+    world.write_text(nested_uses())
+    with pytest.raises(WebotsSyntaxError, match=rf"laughs\.wbt:{LEVELS + 3}:\d+: expected a world of at most {MAX_NODES} nodes"):
+        load_world(world)
+
+
+def test_nested_is_copies_are_bounded(tmp_path: Path) -> None:
+    # A PROTO pasting its MFNode field FAN_OUT times, nested in its own field: each level multiplies.
+    body = " ".join(["Group { children IS kids }"] * FAN_OUT)
+    (tmp_path / "Fan.proto").write_text(f"{HEADER}PROTO Fan [ field MFNode kids [ ] ]\n{{\n  Group {{ children [ {body} ] }}\n}}\n")
+    nested = "Group { }"
+    for _ in range(LEVELS):
+        nested = f"Fan {{ kids [ {nested} ] }}"
+    with pytest.raises(WebotsSyntaxError, match=rf"expected a world of at most {MAX_NODES} nodes"):
+        load_world_text(f'{HEADER}EXTERNPROTO "Fan.proto"\n{nested}\n', tmp_path / "w.wbt")
+
+
+def test_a_file_of_too_many_nodes_is_refused(tmp_path: Path) -> None:
+    with pytest.raises(WebotsSyntaxError, match=rf"w\.wbt:2:\d+: expected at most {MAX_NODES} nodes in a file"):
+        load_world_text(HEADER + "Group { } " * (MAX_NODES + 1), tmp_path / "w.wbt")
+
+
+def test_cli_refuses_nested_uses_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    world = tmp_path / "laughs.wbt"
+    world.write_text(nested_uses())
+    out = tmp_path / "laughs.xml"
+    assert main(["convert", str(world), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "laughs.wbt" in err[0] and f"at most {MAX_NODES} nodes" in err[0], err
+    assert not out.exists()
