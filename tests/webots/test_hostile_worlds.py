@@ -5,8 +5,11 @@ strings, comments and lines cost memory and time linear in their length."""
 from __future__ import annotations
 
 import math
+import signal
 import tracemalloc
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -82,3 +85,34 @@ def test_long_strings_and_comments_tokenize_in_linear_memory() -> None:
     assert [t.kind for t in tokens] == ["ident", "{", "ident", "string", "}", "eof"]
     assert peak < 10 * len(text), f"{peak / 1e6:.0f} MB to tokenize {len(text) / 1e6:.0f} MB"
 
+
+@pytest.fixture
+def hang_guard() -> Iterator[None]:
+    """Turns a hang into a failure: each load below takes milliseconds, it took hours before the fix."""
+
+    def fire(signum: int, frame: Any) -> None:
+        raise TimeoutError("still loading after 60 s: a regex is quadratic in the input again")
+
+    previous = signal.signal(signal.SIGALRM, fire)
+    signal.alarm(60)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+@pytest.mark.parametrize(
+    "proto",
+    [
+        # a long PROTO header comment line (the '# tags: ...' metadata regex)
+        "#VRML_SIM R2023b utf8\n# a" + " " * 1_000_000 + "b\nPROTO Long [ ]\n{\n  Group { }\n}\n",
+        # a template with many blank lines (the regex that binds 'import' lines)
+        "#VRML_SIM R2023b utf8\nPROTO Long [ ]\n{\n%< " + "\n" * 1_000_000 + " >%\n  Group { }\n}\n",
+    ],
+    ids=["header-comment", "template-blank-lines"],
+)
+def test_long_proto_lines_load_in_linear_time(tmp_path: Path, proto: str, hang_guard: None) -> None:
+    (tmp_path / "Long.proto").write_text(proto)
+    world = load_world_text(f'{HEADER}EXTERNPROTO "Long.proto"\nLong {{ }}\n', tmp_path / "w.wbt")
+    assert [n.type_name for n in world.nodes] == ["Group"]

@@ -155,8 +155,10 @@ var wbutility = __wbmodules.wbutility, wbvector2 = __wbmodules.wbvector2,
   wbgeometry = __wbmodules.wbgeometry, wbrandom = __wbmodules.wbrandom;
 """
 
-_IMPORT_STAR = re.compile(r"""^\s*import\s+\*\s+as\s+(\w+)\s+from\s+['"]([^'"]+)['"]\s*;?""", re.M)
-_IMPORT_NAMED = re.compile(r"""^\s*import\s+\{([^}]*)\}\s+from\s+['"]([^'"]+)['"]\s*;?""", re.M)
+# `^[ \t]*` rather than `^\s*`: a `\s*` after `^` (re.M) runs over the following blank lines from every line
+# start, so a template of many blank lines was quadratic (300 000 newlines hung the load).
+_IMPORT_STAR = re.compile(r"""^[ \t]*+import\s+\*\s+as\s+(\w+)\s+from\s+['"]([^'"]+)['"]\s*;?""", re.M)
+_IMPORT_NAMED = re.compile(r"""^[ \t]*+import\s+\{([^}]*)\}\s+from\s+['"]([^'"]+)['"]\s*;?""", re.M)
 
 
 def _module_name(spec: str) -> str:

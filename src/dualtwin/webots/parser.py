@@ -60,7 +60,9 @@ _FIELD_KEYWORDS = frozenset(
 
 _WBT_HEADER = re.compile(r"#VRML_SIM \S+ utf8[ \t]*")
 _PROTO_HEADER = re.compile(r"(?:#VRML_(?:SIM|OBJ) \S+ utf8|#VRML V2\.0 utf8)[ \t]*")
-_META = re.compile(r"#\s*([A-Za-z][A-Za-z ]*?)\s*:\s*(.*?)\s*$")
+# Possessive, and no lazy group before `\s*`: spaces that two parts may both take made a long header comment
+# line quadratic (a 300 kB '# a   ...   b' line hung the load). The line is stripped before matching.
+_META = re.compile(r"#\s*+([A-Za-z][A-Za-z ]*+)\s*+:\s*+(.*)")
 
 
 # --------------------------------------------------------------------------------------------
