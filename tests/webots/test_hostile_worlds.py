@@ -16,7 +16,9 @@ import pytest
 from dualtwin.cli import main
 from dualtwin.webots import WebotsSyntaxError, load_world, load_world_text
 from dualtwin.webots.lexer import tokenize
-from dualtwin.webots.parser import MAX_NODES
+from dualtwin.webots.parser import MAX_NODES, parse_world
+from dualtwin.webots.proto_resolver import ProtoError
+from dualtwin.webots.protos import expand_world
 
 HEADER = "#VRML_SIM R2023b utf8\n"
 FAN_OUT = 12
@@ -116,3 +118,15 @@ def test_long_proto_lines_load_in_linear_time(tmp_path: Path, proto: str, hang_g
     (tmp_path / "Long.proto").write_text(proto)
     world = load_world_text(f'{HEADER}EXTERNPROTO "Long.proto"\nLong {{ }}\n', tmp_path / "w.wbt")
     assert [n.type_name for n in world.nodes] == ["Group"]
+
+
+def test_templates_of_one_world_share_one_time_budget(tmp_path: Path) -> None:
+    # Each template stays under its own limit (1 s of a 10 s one); together they pass the world's budget. Before,
+    # only the per-template limit existed, so N instances of a 9 s template ran for N * 9 s.
+    (tmp_path / "Slow.proto").write_text(
+        f"{HEADER}PROTO Slow [ ]\n{{\n%< const t0 = Date.now(); while (Date.now() - t0 < 1000) {{}} >%\n  Group {{ }}\n}}\n"
+    )
+    world = tmp_path / "w.wbt"
+    world.write_text(f'{HEADER}EXTERNPROTO "Slow.proto"\n' + "Slow { }\n" * 3)
+    with pytest.raises(ProtoError, match=r"w\.wbt:\d+:1: template of PROTO Slow .* ran longer than 2 s in total$"):
+        expand_world(parse_world(world.read_text(), str(world)), world, template_seconds=2)

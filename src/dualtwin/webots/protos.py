@@ -19,6 +19,7 @@ import math
 import os
 import re
 import tempfile
+import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -53,6 +54,7 @@ from dualtwin.webots.proto_resolver import ProtoError, ProtoNotFoundError, Proto
 from dualtwin.webots.standins import STANDIN_PREFIX
 
 __all__ = [
+    "TEMPLATE_SECONDS",
     "VISUAL_ONLY_PROTOS",
     "expand_world",
     "load_world",
@@ -63,6 +65,9 @@ __all__ = [
 MAX_PROTO_DEPTH = 32
 # A template is arbitrary code: bound it so a bad PROTO fails with a message instead of hanging.
 _JS_TIME_LIMIT = 10  # s of CPU
+#: Seconds (wall clock) all the templates of one world may run together: each template's own limit alone let a
+#: world of many instances of a 9 s template run for hours.
+TEMPLATE_SECONDS = 60.0
 _JS_MEMORY_LIMIT = 256 * 1024 * 1024
 
 #: PROTOs that carry no physics, skipped (with a warning) when they cannot be found. Appearances are
@@ -271,8 +276,12 @@ _INSTANCE_NUMBERS = itertools.count(1)
 
 
 class _Expander:
-    def __init__(self, resolver: ProtoResolver, world_path: str, warnings: list[str]) -> None:
+    def __init__(
+        self, resolver: ProtoResolver, world_path: str, warnings: list[str], template_seconds: float = TEMPLATE_SECONDS
+    ) -> None:
         self.resolver = resolver
+        self.template_seconds = template_seconds
+        self._template_spent = 0.0  # s the templates have run so far (template_seconds)
         self.world_path = world_path
         self.warnings = warnings
         self._stack: list[str] = []
@@ -591,19 +600,33 @@ class _Expander:
                 "})()",
             ]
         )
+        over_budget = ProtoError(
+            f"{raw.location}: template of PROTO {proto.name} ({proto.path}) failed: the templates of this world "
+            f"ran longer than {self.template_seconds:g} s in total"
+        )
+        left = self.template_seconds - self._template_spent
+        if left <= 0:
+            raise over_budget
         ctx = quickjs.Context()
         ctx.set_memory_limit(_JS_MEMORY_LIMIT)
-        ctx.set_time_limit(_JS_TIME_LIMIT)
+        ctx.set_time_limit(min(_JS_TIME_LIMIT, left))  # (CPU seconds: at most the wall-clock time left)
+        started = time.monotonic()
         try:
             text = ctx.eval(program)
         except Exception as exc:  # JSException, StackOverflow, interruption: all template failures
             # The JS stack points into our generated program, not the PROTO file: keep the message only.
             message = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
             if "interrupted" in message:
+                if left < _JS_TIME_LIMIT:
+                    raise over_budget from None
                 message += f" (the template ran longer than {_JS_TIME_LIMIT} s)"
             raise ProtoError(
                 f"{raw.location}: template of PROTO {proto.name} ({proto.path}) failed: {message}"
             ) from None
+        finally:
+            self._template_spent += time.monotonic() - started
+        if self._template_spent > self.template_seconds:
+            raise over_budget
         if not isinstance(text, str):
             raise ProtoError(f"{raw.location}: template of PROTO {proto.name} produced no VRML text")
         return parse_proto_body(text, f"{proto.path}[generated]")
@@ -673,8 +696,11 @@ def expand_world(
     proto_paths: Sequence[str | os.PathLike[str]] = (),
     *,
     resolver: ProtoResolver | None = None,
+    template_seconds: float = TEMPLATE_SECONDS,
 ) -> World:
     """Expand every PROTO instance of a parsed world; the result holds base nodes only.
+
+    ``template_seconds`` bounds the time all its JavaScript templates may run together.
 
     Raises:
         WebotsSyntaxError: a malformed value, unknown field or forbidden USE.
@@ -685,7 +711,7 @@ def expand_world(
     if resolver is None:
         resolver = ProtoResolver(path, proto_paths)
     warnings = list(parsed.warnings)
-    expander = _Expander(resolver, str(path) if path is not None else parsed.path, warnings)
+    expander = _Expander(resolver, str(path) if path is not None else parsed.path, warnings, template_seconds)
     scope = _Scope(
         parsed.path,
         path.parent if path is not None else None,
