@@ -130,3 +130,18 @@ def test_templates_of_one_world_share_one_time_budget(tmp_path: Path) -> None:
     world.write_text(f'{HEADER}EXTERNPROTO "Slow.proto"\n' + "Slow { }\n" * 3)
     with pytest.raises(ProtoError, match=r"w\.wbt:\d+:1: template of PROTO Slow .* ran longer than 2 s in total$"):
         expand_world(parse_world(world.read_text(), str(world)), world, template_seconds=2)
+
+
+@pytest.mark.parametrize("url", ["../../../../../../../../etc/passwd", "file:///etc/hostname"])
+def test_an_externproto_that_is_not_a_proto_file_is_not_read(tmp_path: Path, url: str) -> None:
+    """Before, the file was read as a PROTO, and its first line quoted in the parse error (root:x:0:0:...)."""
+    from dualtwin.errors import DualtwinError
+
+    name = url.rsplit("/", 1)[-1]
+    world = tmp_path / "w.wbt"
+    world.write_text(f'#VRML_SIM R2023b utf8\nEXTERNPROTO "{url}"\nWorldInfo {{ }}\n{name} {{ }}\n')
+    with pytest.raises(DualtwinError) as info:
+        load_world(world)
+    message = str(info.value)
+    assert f"PROTO '{name}'" in message and "(not a .proto file: not read)" in message, message
+    assert "root:" not in message and "found '" not in message

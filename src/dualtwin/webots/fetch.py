@@ -94,8 +94,8 @@ def fetch_worlds(
                 if not local.is_absolute() and local_dir is not None:
                     local = local_dir / local
                 key = str(local.resolve())
-                if key in seen or not local.is_file():
-                    continue  # a missing local file is reported when the world loads
+                if key in seen or not local.is_file() or not local.name.endswith(".proto"):
+                    continue  # a missing (or not a .proto) local file is reported when the world loads
                 seen.add(key)
                 try:
                     source = local.read_bytes()

@@ -140,9 +140,14 @@ class ProtoResolver:
             local = Path(url[len("file://") :] if url.startswith("file://") else url)
             if not local.is_absolute() and declaring_dir is not None:
                 local = declaring_dir / local
-            tried.append(str(local))
-            if local.is_file():
-                return FoundProto(str(local)), tried
+            if not local.name.endswith(".proto"):
+                # a world is data: a declaration of /etc/passwd read that file (and quoted its first line in the
+                # parse error); Webots' PROTOs are .proto files, whatever folder they are in
+                tried.append(f"{local} (not a .proto file: not read)")
+            else:
+                tried.append(str(local))
+                if local.is_file():
+                    return FoundProto(str(local)), tried
         elif url is None and declaring_dir is not None and declaring_url is None:
             local = declaring_dir / f"{name}.proto"
             tried.append(str(local))
