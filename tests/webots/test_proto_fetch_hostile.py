@@ -112,5 +112,6 @@ def test_a_local_externproto_that_cannot_be_read_is_named(tmp_path: Path) -> Non
     from dualtwin.errors import DualtwinError
 
     cache = ProtoCache(tmp_path / "cache", progress=None, offline=True, use_env=False)
-    with pytest.raises(DualtwinError, match=r"w.wbt:2:1: EXTERNPROTO /proc/self/mem: cannot read it: "):
-        fetch_worlds([_world(tmp_path, "/proc/self/mem")], cache)
+    (tmp_path / "Mem.proto").symlink_to("/proc/self/mem")  # a file that exists and cannot be read, even by root
+    with pytest.raises(DualtwinError, match=r"w.wbt:2:1: EXTERNPROTO .*Mem.proto: cannot read it: "):
+        fetch_worlds([_world(tmp_path, str(tmp_path / "Mem.proto"))], cache)
