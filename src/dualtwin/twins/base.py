@@ -395,6 +395,32 @@ def check_state_names(state: MechanicalState, bodies: list[str], joints: list[st
         raise SyncError(f"{where}: the state has non-finite values: {', '.join(bad[:6])}", "nonfinite")
 
 
+#: Physics steps per control period, at most: 1 µs steps in a 10 ms period (the bundled robots take 4 to 16).
+#: Beyond it a run is a hang in all but name (and mj_step's step count is a C int).
+MAX_SUBSTEPS = 10_000
+
+
+def control_substeps(control_period: float, step: float, origin: str, what: str) -> int:
+    """The whole number of physics steps of ``step`` seconds (``what``, from the model) in one control period.
+
+    The model is untrusted, and its step is not checked where it is compiled: MuJoCo takes timestep="0",
+    "nan" or "1e-300", and a world's basicTimeStep may be infinite or far longer than the period (a ratio
+    that rounds to zero steps). Each would divide by zero, round a NaN, overflow the step count or step
+    through infinite time; one error naming the model instead.
+    """
+    if not (math.isfinite(step) and step > 0):
+        raise DualtwinError(f"{origin}: {what} must be a positive number of seconds, got {step:g} s")
+    ratio = control_period / step
+    steps = round(ratio) if math.isfinite(ratio) else 0
+    if steps < 1 or abs(ratio - steps) > 1e-6:
+        raise DualtwinError(f"{origin}: control period {control_period:g} s is not a whole number of physics "
+                            f"steps of {step:g} s ({what})")
+    if steps > MAX_SUBSTEPS:
+        raise DualtwinError(f"{origin}: control period {control_period:g} s takes more than {MAX_SUBSTEPS} "
+                            f"physics steps of {step:g} s ({what}), the most allowed")
+    return steps
+
+
 def unknown_name(kind: str, name: str, known: list[str], where: str) -> DualtwinError:
     listing = ", ".join(sorted(known)) or "none"
     return DualtwinError(f"{where}: no {kind} named {name!r} (known: {listing})")

@@ -38,6 +38,7 @@ from dualtwin.errors import DualtwinError, SimulationUnstable
 from dualtwin.geometry import canonical_quat, matrix_from_quat
 from dualtwin.twins import motor_plugin
 from dualtwin.twins.base import (
+    MAX_SUBSTEPS,
     ControlMode,
     Knob,
     MechanicalState,
@@ -45,6 +46,7 @@ from dualtwin.twins.base import (
     SyncError,
     Twin,
     check_state_names,
+    control_substeps,
     unknown_name,
 )
 from dualtwin.twins.knob_table import BoundKnob
@@ -127,11 +129,7 @@ class MuJoCoTwin(Twin):
         self._origin = origin
         self._aliases = aliases or {}
         dt = self.model.opt.timestep
-        substeps = control_period / dt
-        if abs(substeps - round(substeps)) > 1e-6 or round(substeps) < 1:
-            raise DualtwinError(f"{origin}: control period {control_period} s is not a whole number of "
-                                f"physics steps of {dt} s")
-        self._substeps = int(round(substeps))
+        self._substeps = control_substeps(control_period, dt, origin, "<option timestep>")
         self._nominal_substeps: int = self._substeps
         self._nominal_timestep: float = float(dt)
         self._control_period = control_period
@@ -747,8 +745,8 @@ class MuJoCoTwin(Twin):
 
     def _set_substeps(self, substeps: int) -> None:
         """Integrate each control period in ``substeps`` steps; servo stiffness follows the step (kv ∝ 1/dt)."""
-        if substeps < 1:
-            raise DualtwinError(f"{self._origin}: physics.substeps must be at least 1, got {substeps}")
+        if not 1 <= substeps <= MAX_SUBSTEPS:
+            raise DualtwinError(f"{self._origin}: physics.substeps must be from 1 to {MAX_SUBSTEPS}, got {substeps}")
         # The nominal step exactly as compiled (the division may differ in the last bit).
         nominal = substeps == self._nominal_substeps
         self.model.opt.timestep = self._nominal_timestep if nominal else self._control_period / substeps

@@ -26,6 +26,7 @@ from dualtwin.twins.base import (
     SyncError,
     Twin,
     check_state_names,
+    control_substeps,
     unknown_name,
 )
 from dualtwin.twins.webots_knobs import WEBOTS_KNOBS
@@ -55,9 +56,7 @@ class WebotsTwin(Twin):
         self._aliases = aliases or {}
         self._basic_ms = float(supervisor.getBasicTimeStep())
         period_ms = control_period * 1000.0
-        if abs(period_ms / self._basic_ms - round(period_ms / self._basic_ms)) > 1e-6:
-            raise DualtwinError(f"{origin}: control period {period_ms:g} ms is not a multiple of "
-                                f"basicTimeStep {self._basic_ms:g} ms")
+        control_substeps(control_period, self._basic_ms / 1000.0, origin, "WorldInfo.basicTimeStep")
         self._period_ms = period_ms
         self._control_period = control_period
         self._t0 = float(supervisor.getTime())

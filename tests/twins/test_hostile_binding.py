@@ -1,0 +1,54 @@
+"""A robot binding and the models it names are untrusted (a downloaded robot): a hostile physics step in the model
+is one error naming the file, exit 2, and no run folder left behind."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from dualtwin.cli import main
+from dualtwin.robots.binding import BUNDLED
+
+SUITE = {"suite_name": "s", "global_settings": {"TIME_STEP": 32},
+         "scenarios": [{"name": "a", "duration_s": 0.1, "initial_angle": 0.1, "wheel_velocity": 1.0}]}
+
+
+def robot_folder(tmp_path: Path) -> Path:
+    """A copy of the bundled CartPole (binding, MJCF, world) that a test may edit."""
+    folder = tmp_path / "robot"
+    shutil.copytree(BUNDLED / "cartpole", folder)
+    (folder / "suite.json").write_text(json.dumps(SUITE))
+    return folder
+
+
+def suite_run(folder: Path, twin: str, capsys: pytest.CaptureFixture[str]) -> tuple[int, list[str], Path]:
+    out = folder / "run"
+    capsys.readouterr()
+    code = main(["suite", "run", "--twin", twin, "--robot", str(folder / "binding.yaml"),
+                 "--scenarios", str(folder / "suite.json"), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    # MuJoCo's own warnings (a NaN in the XML) may precede it; the error is one line.
+    return code, [line for line in err.splitlines() if not line.startswith("MuJoCo warning:")], out
+
+
+@pytest.mark.parametrize(("model", "old", "new", "message"), [
+    ("cartpole.xml", 'timestep="0.002"', 'timestep="0"', "<option timestep> must be a positive number"),
+    ("cartpole.xml", 'timestep="0.002"', 'timestep="nan"', "<option timestep> must be a positive number"),
+    ("cartpole.xml", 'timestep="0.002"', 'timestep="1e-300"', "the most allowed"),
+    ("cartpole.wbt", "basicTimeStep 8", "basicTimeStep 1e308", "not a whole number of physics steps"),
+    ("cartpole.wbt", "basicTimeStep 8", "basicTimeStep 0.0001", "the most allowed"),
+])
+def test_a_hostile_physics_step_in_the_model_is_one_error(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                          model: str, old: str, new: str, message: str) -> None:
+    folder = robot_folder(tmp_path)
+    text = (folder / model).read_text()
+    assert old in text
+    (folder / model).write_text(text.replace(old, new))
+    code, err, out = suite_run(folder, "mujoco" if model.endswith(".xml") else "webots", capsys)
+    assert code == 2
+    assert len(err) == 1 and str(folder / model) in err[0] and message in err[0], err
+    assert not out.exists()
