@@ -1,5 +1,5 @@
-"""A robot binding and the models it names are untrusted (a downloaded robot): a hostile physics step in the model
-is one error naming the file, exit 2, and no run folder left behind."""
+"""A robot binding and the models it names are untrusted (a downloaded robot): a wrong name in the binding or a
+hostile physics step in the model is one error naming the file, exit 2, and no run folder left behind."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ import shutil
 from pathlib import Path
 
 import pytest
+import yaml
 
 from dualtwin.cli import main
 from dualtwin.robots.binding import BUNDLED
@@ -33,6 +34,33 @@ def suite_run(folder: Path, twin: str, capsys: pytest.CaptureFixture[str]) -> tu
     assert "Traceback" not in err
     # MuJoCo's own warnings (a NaN in the XML) may precede it; the error is one line.
     return code, [line for line in err.splitlines() if not line.startswith("MuJoCo warning:")], out
+
+
+@pytest.mark.parametrize(("field", "value"), [
+    (("ground_truth", "pole_angle_rad", "joint"), "no_such_joint"),
+    (("ground_truth", "cart_pos_m", "body"), ""),
+    (("onboard", "pole_angle_rad", "sensors", 0), "cart"),
+    (("actions", "wheel_velocity", "actuators", 2), "cartpole.xml"),
+    (("initial_conditions", "initial_cart_position", "body"), "no such body"),
+])
+@pytest.mark.parametrize("twin", ["mujoco", "webots"])
+def test_a_binding_naming_what_the_model_lacks_is_refused_before_the_run_folder(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], twin: str, field: tuple[str | int, ...],
+        value: str) -> None:
+    folder = robot_folder(tmp_path)
+    binding = yaml.safe_load((folder / "binding.yaml").read_text())
+    node = binding
+    for key in field[:-1]:
+        node = node[key]
+    node[field[-1]] = value
+    (folder / "binding.yaml").write_text(yaml.safe_dump(binding))
+    code, err, out = suite_run(folder, twin, capsys)
+    assert code == 2, (err, binding)
+    assert len(err) == 1, err
+    path = ".".join(str(k) for k in field[:-1]) + (f"[{field[-1]}]" if isinstance(field[-1], int) else
+                                                   f".{field[-1]}")
+    assert str(folder / "binding.yaml") in err[0] and f"$.{path}" in err[0] and repr(value) in err[0], err
+    assert not out.exists()
 
 
 @pytest.mark.parametrize(("model", "old", "new", "message"), [

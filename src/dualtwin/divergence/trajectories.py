@@ -28,7 +28,7 @@ from dualtwin.artifacts import atomic_open
 from dualtwin.errors import DualtwinError, SimulationUnstable
 from dualtwin.robots.binding import RobotBinding
 from dualtwin.suite.schema import Suite
-from dualtwin.twins.base import ControlMode, Knob, MechanicalState, StateLayout, Twin
+from dualtwin.twins.base import ControlMode, Knob, MechanicalState, NameKind, StateLayout, Twin
 from dualtwin.twins.io import RobotIO
 
 TRAJECTORIES_SCHEMA = "dualtwin.trajectories/1"
@@ -65,6 +65,9 @@ class CommandTap(Twin):
     def command(self, actuator: str, mode: ControlMode, value: float) -> None:
         self.inner.command(actuator, mode, value)
         self.active[actuator] = (mode, float(value))
+
+    def check_name(self, kind: NameKind, name: str) -> None:
+        self.inner.check_name(kind, name)
 
     def step(self) -> None:
         self.inner.step()

@@ -52,6 +52,8 @@ from dualtwin.errors import DualtwinError
 from dualtwin.geometry import matrix_from_quat, rotation_vector
 
 ControlMode = Literal["velocity", "position", "torque"]
+#: The kinds of names a binding gives a twin (see :meth:`Twin.check_name`).
+NameKind = Literal["joint", "body", "sensor", "motor"]
 
 #: Per-body values of a state vector, in order (see :meth:`MechanicalState.layout`).
 BODY_FIELDS = ("x", "y", "z", "qw", "qx", "qy", "qz", "vx", "vy", "vz", "wx", "wy", "wz")
@@ -294,6 +296,14 @@ class Twin(ABC):
     @abstractmethod
     def command(self, actuator: str, mode: ControlMode, value: float) -> None:
         """Set an actuator target; it acts from the next :meth:`step` on."""
+
+    def check_name(self, kind: NameKind, name: str) -> None:  # noqa: B027 - optional hook
+        """Raise the :class:`DualtwinError` the first use of an unknown ``name`` would raise, now.
+
+        A binding names joints, bodies, sensors and motors; checking them all when the twin is bound (see
+        :class:`~dualtwin.twins.io.RobotIO`) refuses a wrong name before any output is written, instead of in
+        the middle of a run. The default checks nothing (a twin without a cheap lookup fails on first use).
+        """
 
     @abstractmethod
     def step(self) -> None:

@@ -9,9 +9,10 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+from dualtwin.errors import DualtwinError
 from dualtwin.geometry import rpy_from_matrix
 from dualtwin.robots.binding import Channel, RobotBinding
-from dualtwin.twins.base import ControlMode, Twin
+from dualtwin.twins.base import ControlMode, NameKind, Twin
 
 AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -50,6 +51,40 @@ def channel_reader(twin: Twin, channel: Channel) -> Callable[[], float]:
     return lambda: float(twin.body_velocity(body)[axis]) * scale
 
 
+def binding_names(robot: RobotBinding) -> list[tuple[str, NameKind, str]]:
+    """Every twin entity the binding names: (the binding field naming it, its kind, the name)."""
+    spec = robot.spec
+    out: list[tuple[str, NameKind, str]] = []
+    for key, ic in spec.initial_conditions.items():
+        if ic.joint is not None:
+            out.append((f"initial_conditions.{key}.joint", "joint", ic.joint))
+        if ic.body is not None:
+            out.append((f"initial_conditions.{key}.body", "body", ic.body))
+    for key, action in spec.actions.items():
+        out.extend((f"actions.{key}.actuators[{i}]", "motor", name) for i, name in enumerate(action.actuators))
+    for log, channels in (("onboard", spec.onboard), ("ground_truth", spec.ground_truth)):
+        for key, channel in channels.items():
+            out.extend((f"{log}.{key}.sensors[{i}]", "sensor", name) for i, name in enumerate(channel.sensors))
+            if channel.joint is not None:
+                out.append((f"{log}.{key}.joint", "joint", channel.joint))
+            if channel.body is not None:
+                out.append((f"{log}.{key}.body", "body", channel.body))
+    return out
+
+
+def check_binding_names(robot: RobotBinding, twin: Twin) -> None:
+    """Refuse a binding naming an entity ``twin`` lacks, naming the binding file and field.
+
+    A binding may come from someone else: a wrong name must stop a command before it writes anything, not
+    when the first sample or command reaches it (after the run folder exists).
+    """
+    for where, kind, name in binding_names(robot):
+        try:
+            twin.check_name(kind, name)
+        except DualtwinError as exc:
+            raise DualtwinError(f"{robot.path}: $.{where}: {exc}") from None
+
+
 class RobotIO:
     """Applies initial conditions and actions, and samples the two logs, through a binding."""
 
@@ -57,6 +92,7 @@ class RobotIO:
         self.robot = robot
         self.twin = twin
         spec = robot.spec
+        check_binding_names(robot, twin)
         self.onboard_names = list(spec.onboard)
         self.ground_truth_names = list(spec.ground_truth)
         self._onboard = [channel_reader(twin, c) for c in spec.onboard.values()]

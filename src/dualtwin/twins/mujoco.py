@@ -42,6 +42,7 @@ from dualtwin.twins.base import (
     ControlMode,
     Knob,
     MechanicalState,
+    NameKind,
     StateLayout,
     SyncError,
     Twin,
@@ -107,6 +108,10 @@ def load_spec(path: Path) -> mujoco.MjSpec:
     except ValueError as exc:
         message = " ".join(str(exc).split())
         raise DualtwinError(f"{path}: MJCF does not parse: {message}") from None
+
+
+_NAME_KINDS = {"joint": mujoco.mjtObj.mjOBJ_JOINT, "body": mujoco.mjtObj.mjOBJ_BODY,
+               "sensor": mujoco.mjtObj.mjOBJ_SENSOR}
 
 
 class MuJoCoTwin(Twin):
@@ -493,6 +498,13 @@ class MuJoCoTwin(Twin):
             self._bad_state = warnings
             raise SimulationUnstable(f"MuJoCo twin became numerically unstable (MuJoCo warning: "
                                      f"bad qpos, qvel or qacc) within the period ending near t = {d.time:.3f} s")
+
+    def check_name(self, kind: NameKind, name: str) -> None:
+        if kind == "motor":
+            if name not in self._command_index:
+                raise unknown_name("motor", self._aliases.get(name, name), list(self._motor_by_name), self._origin)
+            return
+        self._id(_NAME_KINDS[kind], name, kind)
 
     def joint_position(self, joint: str) -> float:
         j = self._id(mujoco.mjtObj.mjOBJ_JOINT, joint, "joint")

@@ -22,6 +22,7 @@ from dualtwin.twins.base import (
     ControlMode,
     Knob,
     MechanicalState,
+    NameKind,
     StateLayout,
     SyncError,
     Twin,
@@ -85,6 +86,8 @@ class WebotsTwin(Twin):
         """A node by DEF inside this robot first (DEFs may repeat across robots), then by its ``name``
         field inside the robot, then anywhere in the world (static bodies)."""
         name = self._resolve(name)
+        if not name:  # no node has an empty DEF: "" would match the first node without one (the robot itself)
+            return None
         nodes = list(self._walk())
 
         def ok(node: Any) -> bool:
@@ -137,6 +140,20 @@ class WebotsTwin(Twin):
             device.enable(int(self._basic_ms))
             sensor = self._sensors[name] = device
         return sensor
+
+    def check_name(self, kind: NameKind, name: str) -> None:
+        if kind == "joint":
+            self._joint(name)
+        elif kind == "body":
+            self._body(name)
+        else:
+            # Through the device list, not getDevice(): that prints Webots' "not found" warning, a second line.
+            resolved = self._resolve(name)
+            devices = (self.sup.getDeviceByIndex(i) for i in range(self.sup.getNumberOfDevices()))
+            device = next((d for d in devices if d is not None and d.getName() == resolved), None)
+            if device is None or not hasattr(device, "setVelocity" if kind == "motor" else "enable"):
+                known = self._device_names(MOTOR_TYPES if kind == "motor" else None)
+                raise unknown_name(kind, resolved, known, self._origin)
 
     def _walk(self) -> Iterator[Any]:
         """Every node of the robot's subtree (children, joint endPoints and devices, parameters)."""
