@@ -14,7 +14,8 @@ from dualtwin.cli import main
 from dualtwin.robots.binding import BUNDLED
 
 SUITE = {"suite_name": "s", "global_settings": {"TIME_STEP": 32},
-         "scenarios": [{"name": "a", "duration_s": 0.1, "initial_angle": 0.1, "wheel_velocity": 1.0}]}
+         "scenarios": [{"name": "a", "duration_s": 0.1, "initial_angle": 0.1, "initial_cart_position": 0.0,
+                        "wheel_velocity": 1.0}]}
 
 
 def robot_folder(tmp_path: Path) -> Path:
@@ -42,6 +43,8 @@ def suite_run(folder: Path, twin: str, capsys: pytest.CaptureFixture[str]) -> tu
     (("onboard", "pole_angle_rad", "sensors", 0), "cart"),
     (("actions", "wheel_velocity", "actuators", 2), "cartpole.xml"),
     (("initial_conditions", "initial_cart_position", "body"), "no such body"),
+    (("initial_conditions", "initial_cart_position", "body"), "pole"),  # exists, cannot be teleported
+    (("initial_conditions", "initial_cart_position", "body"), "pole_hinge"),  # webots: a joint's DEF
 ])
 @pytest.mark.parametrize("twin", ["mujoco", "webots"])
 def test_a_binding_naming_what_the_model_lacks_is_refused_before_the_run_folder(

@@ -52,8 +52,9 @@ from dualtwin.errors import DualtwinError
 from dualtwin.geometry import matrix_from_quat, rotation_vector
 
 ControlMode = Literal["velocity", "position", "torque"]
-#: The kinds of names a binding gives a twin (see :meth:`Twin.check_name`).
-NameKind = Literal["joint", "body", "sensor", "motor"]
+#: The kinds of names a binding gives a twin (see :meth:`Twin.check_name`); a "free body" is one that
+#: :meth:`Twin.set_body_position` can teleport (an initial condition's body).
+NameKind = Literal["joint", "body", "free body", "sensor", "motor"]
 
 #: Per-body values of a state vector, in order (see :meth:`MechanicalState.layout`).
 BODY_FIELDS = ("x", "y", "z", "qw", "qx", "qy", "qz", "vx", "vy", "vz", "wx", "wy", "wz")

@@ -59,7 +59,7 @@ def binding_names(robot: RobotBinding) -> list[tuple[str, NameKind, str]]:
         if ic.joint is not None:
             out.append((f"initial_conditions.{key}.joint", "joint", ic.joint))
         if ic.body is not None:
-            out.append((f"initial_conditions.{key}.body", "body", ic.body))
+            out.append((f"initial_conditions.{key}.body", "free body", ic.body))
     for key, action in spec.actions.items():
         out.extend((f"actions.{key}.actuators[{i}]", "motor", name) for i, name in enumerate(action.actuators))
     for log, channels in (("onboard", spec.onboard), ("ground_truth", spec.ground_truth)):

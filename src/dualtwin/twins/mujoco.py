@@ -110,8 +110,7 @@ def load_spec(path: Path) -> mujoco.MjSpec:
         raise DualtwinError(f"{path}: MJCF does not parse: {message}") from None
 
 
-_NAME_KINDS = {"joint": mujoco.mjtObj.mjOBJ_JOINT, "body": mujoco.mjtObj.mjOBJ_BODY,
-               "sensor": mujoco.mjtObj.mjOBJ_SENSOR}
+_NAME_KINDS = {"joint": mujoco.mjtObj.mjOBJ_JOINT, "body": mujoco.mjtObj.mjOBJ_BODY, "sensor": mujoco.mjtObj.mjOBJ_SENSOR}
 
 
 class MuJoCoTwin(Twin):
@@ -272,14 +271,16 @@ class MuJoCoTwin(Twin):
             body = int(self.model.body_parentid[body])
         return root == 0
 
-    def set_body_position(self, body: str, axis: int, value: float) -> None:
-        b = self._id(mujoco.mjtObj.mjOBJ_BODY, body, "body")
+    def _free_joint(self, body: str) -> int:
         m = self.model
-        joint = m.body_jntadr[b]
+        joint = m.body_jntadr[self._id(mujoco.mjtObj.mjOBJ_BODY, body, "body")]
         if joint < 0 or m.jnt_type[joint] != mujoco.mjtJoint.mjJNT_FREE:
             raise DualtwinError(f"{self._origin}: body {body!r} has no free joint to teleport")
-        self.data.qpos[m.jnt_qposadr[joint] + axis] = value
-        mujoco.mj_forward(m, self.data)
+        return int(joint)
+
+    def set_body_position(self, body: str, axis: int, value: float) -> None:
+        self.data.qpos[self.model.jnt_qposadr[self._free_joint(body)] + axis] = value
+        mujoco.mj_forward(self.model, self.data)
 
     def command(self, actuator: str, mode: ControlMode, value: float) -> None:
         motor = self._command_index.get(actuator)
@@ -500,11 +501,12 @@ class MuJoCoTwin(Twin):
                                      f"bad qpos, qvel or qacc) within the period ending near t = {d.time:.3f} s")
 
     def check_name(self, kind: NameKind, name: str) -> None:
-        if kind == "motor":
-            if name not in self._command_index:
-                raise unknown_name("motor", self._aliases.get(name, name), list(self._motor_by_name), self._origin)
-            return
-        self._id(_NAME_KINDS[kind], name, kind)
+        if kind == "motor" and name not in self._command_index:
+            raise unknown_name("motor", self._aliases.get(name, name), list(self._motor_by_name), self._origin)
+        if kind == "free body":
+            self._free_joint(name)
+        elif kind != "motor":
+            self._id(_NAME_KINDS[kind], name, kind)
 
     def joint_position(self, joint: str) -> float:
         j = self._id(mujoco.mjtObj.mjOBJ_JOINT, joint, "joint")

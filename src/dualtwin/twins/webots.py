@@ -146,6 +146,8 @@ class WebotsTwin(Twin):
             self._joint(name)
         elif kind == "body":
             self._body(name)
+        elif kind == "free body":
+            self._translation(name)
         else:
             # Through the device list, not getDevice(): that prints Webots' "not found" warning, a second line.
             resolved = self._resolve(name)
@@ -229,13 +231,19 @@ class WebotsTwin(Twin):
                 linear = cross(omega, com - anchor)
                 j.child.setVelocity([*linear, *omega])
 
-    def set_body_position(self, body: str, axis: int, value: float) -> None:
+    def _translation(self, body: str) -> Any:
+        """The translation field that teleports ``body``: a top-level Solid's (a node found by DEF may be a
+        joint, which has none)."""
         node = self._body(body)
         field = base_field(node, "translation")
-        translation = list(field.getSFVec3f())
         parent = node.getParentNode()
-        if parent is not None and parent.getTypeName() not in ("Group", ""):
+        if field is None or (parent is not None and parent.getTypeName() not in ("Group", "")):
             raise DualtwinError(f"{self._origin}: body {body!r} is not a top-level Solid; cannot teleport it")
+        return field
+
+    def set_body_position(self, body: str, axis: int, value: float) -> None:
+        field = self._translation(body)
+        translation = list(field.getSFVec3f())
         translation[axis] = float(value)
         field.setSFVec3f(translation)
         self._written = None
