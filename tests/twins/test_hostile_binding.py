@@ -83,3 +83,16 @@ def test_a_hostile_physics_step_in_the_model_is_one_error(tmp_path: Path, capsys
     assert code == 2
     assert len(err) == 1 and str(folder / model) in err[0] and message in err[0], err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("model", ["cartpole.xml\x00", ""])
+def test_a_model_path_the_os_cannot_take_is_one_error_naming_the_field(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], model: str) -> None:
+    folder = robot_folder(tmp_path)
+    binding = yaml.safe_load((folder / "binding.yaml").read_text())
+    binding["twins"]["mujoco"]["model"] = model
+    (folder / "binding.yaml").write_text(yaml.safe_dump(binding))
+    code, err, out = suite_run(folder, "mujoco", capsys)
+    assert code == 2
+    assert len(err) == 1 and "$.twins.mujoco.model" in err[0], err
+    assert not out.exists()

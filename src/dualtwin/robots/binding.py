@@ -17,7 +17,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field, ValidationError, model_validator
+from pydantic import Field, ValidationError, field_validator, model_validator
 
 from dualtwin.errors import DualtwinError
 from dualtwin.models import FrozenModel
@@ -29,9 +29,17 @@ Quantity = Literal["position", "velocity"]
 class TwinModel(FrozenModel):
     """Where one twin's model lives, relative to the binding file."""
 
-    model: str = Field(description="MJCF file (mujoco) or .wbt world (webots)")
+    model: str = Field(min_length=1, description="MJCF file (mujoco) or .wbt world (webots)")
     robot: str | None = Field(default=None, description="webots: DEF name of the robot node")
     aliases: dict[str, str] = Field(default_factory=dict)
+
+    @field_validator("model")
+    @classmethod
+    def _a_path(cls, value: str) -> str:
+        # The OS functions resolving it raise ValueError ("embedded null byte") on a NUL, past the validation.
+        if "\x00" in value:
+            raise ValueError("a file path cannot contain a NUL character")
+        return value
 
 
 class InitialCondition(FrozenModel):
