@@ -72,6 +72,7 @@ PREDICT_SATURATION = 1.0 + SERVO_STIFFNESS
 #: bad state, not the millimetres of a resting soft contact.
 MAX_PENETRATION = 0.02
 _AUTORESET_OFF = int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
+_NAME_KINDS = {"joint": mujoco.mjtObj.mjOBJ_JOINT, "body": mujoco.mjtObj.mjOBJ_BODY, "sensor": mujoco.mjtObj.mjOBJ_SENSOR}
 # plugin_state slots a command writes (literals in command and _apply_command: they run per command and motor)
 assert [motor_plugin.SLOT[k] for k in ("torque_mode", "target_position", "target_velocity", "torque")] == [0, 1, 2, 3]
 assert motor_plugin.SLOT["saturated"] == 14
@@ -108,9 +109,6 @@ def load_spec(path: Path) -> mujoco.MjSpec:
     except ValueError as exc:
         message = " ".join(str(exc).split())
         raise DualtwinError(f"{path}: MJCF does not parse: {message}") from None
-
-
-_NAME_KINDS = {"joint": mujoco.mjtObj.mjOBJ_JOINT, "body": mujoco.mjtObj.mjOBJ_BODY, "sensor": mujoco.mjtObj.mjOBJ_SENSOR}
 
 
 class MuJoCoTwin(Twin):
