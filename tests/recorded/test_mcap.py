@@ -16,6 +16,7 @@ import dualtwin.robots as robots_pkg
 from dualtwin.divergence.runs import load_run
 from dualtwin.errors import DualtwinError
 from dualtwin.recorded import import_mcap
+from tests.support.ros_messages import JOINT_STATE_DEF, ODOMETRY_DEF
 
 PIONEER_SUITE = Path(robots_pkg.__file__).parent / "pioneer3at" / "suite.json"
 WHEELS = ["front_left_wheel", "front_right_wheel", "back_left_wheel", "back_right_wheel"]
@@ -244,8 +245,6 @@ def test_hostile_bag_contents_are_one_clear_error(tmp_path: Path, cartpole_suite
     bag = tmp_path / "bags" / "scenario_2.mcap"
     source = tmp_path / "source.mcap"
     shutil.move(bag, source)
-    from tests.recorded.conftest import JOINT_STATE_DEF, ODOMETRY_DEF
-
     if case == "definition_type":
         _rewrite_bag(source, bag, schema_text={"/odom": ODOMETRY_DEF.replace("float64 y\n", "char std_msgs/Header\n", 1)})
     elif case == "definition_line":
