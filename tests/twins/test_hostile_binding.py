@@ -96,3 +96,25 @@ def test_a_model_path_the_os_cannot_take_is_one_error_naming_the_field(
     assert code == 2
     assert len(err) == 1 and "$.twins.mujoco.model" in err[0], err
     assert not out.exists()
+
+
+@pytest.mark.parametrize(("insert", "message"), [
+    ('<size nuser_body="1000000000"/>', "size nuser_body = 1e+09"),
+    ('<asset><hfield name="ground" nrow="100000" ncol="100000" size="1 1 1 1"/></asset>',
+     "<hfield name=\"ground\" nrow=\"100000\" ncol=\"100000\" size=\"1 1 1 1\"/> = 1e+10 samples"),
+    ('<asset><texture name="sky" type="skybox" builtin="gradient" width="100000" height="100000"/></asset>',
+     "texture 'sky' width x height = 6e+10"),
+])
+def test_a_model_asking_for_more_memory_than_a_machine_has_is_refused_before_mujoco_compiles_it(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], insert: str, message: str) -> None:
+    """Before, MuJoCo tried to allocate it all when it compiled the model: the process hung (or, under a memory
+    limit, ended in "Caught an unknown exception!", a traceback), for --twin webots too (the suite's checks
+    compile the MJCF)."""
+    folder = robot_folder(tmp_path)
+    text = (folder / "cartpole.xml").read_text()
+    head = text.index(">", text.index("<mujoco")) + 1
+    (folder / "cartpole.xml").write_text(text[:head] + insert + text[head:])
+    code, err, out = suite_run(folder, "mujoco", capsys)
+    assert code == 2
+    assert len(err) == 1 and str(folder / "cartpole.xml") in err[0] and message in err[0], err
+    assert "more than the" in err[0] and not out.exists()

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
+from pathlib import Path
 
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding
@@ -57,9 +58,11 @@ def joint_stops(robot: RobotBinding) -> dict[str, tuple[float, float]]:
 def _model_stops(model: str) -> dict[str, tuple[float, float]]:
     import mujoco
 
+    from dualtwin.twins.mjcf_files import compile_spec, load_spec
+
     try:
-        compiled = mujoco.MjModel.from_xml_path(model)
-    except (ValueError, OSError):
+        compiled = compile_spec(load_spec(Path(model)), model)
+    except DualtwinError:
         return {}  # the run itself reports an unreadable model, naming it
     out = {}
     for j in range(compiled.njnt):

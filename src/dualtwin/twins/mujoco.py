@@ -51,6 +51,7 @@ from dualtwin.twins.base import (
     unknown_name,
 )
 from dualtwin.twins.knob_table import BoundKnob
+from dualtwin.twins.mjcf_files import compile_spec, load_spec
 from dualtwin.twins.motors import MotorState, servo_steps
 from dualtwin.twins.mujoco_knobs import MAX_DELAY_PERIODS, MUJOCO_KNOBS, KnobPass, KnobTarget, nominal_values
 from dualtwin.twins.mujoco_state import StatePlan, scale_contact_depths
@@ -91,24 +92,6 @@ class _Motor:
         self.state = state
         self.saturated = 0.0  # 0 = servo; ±1 = applying ±max torque
         self.plugin = plugin  # with the native law: the motor's first slot in plugin_state, else -1
-
-
-def compile_spec(spec: mujoco.MjSpec, origin: str) -> mujoco.MjModel:
-    try:
-        return spec.compile()
-    except ValueError as exc:
-        message = " ".join(str(exc).split())
-        raise DualtwinError(f"{origin}: MJCF does not compile: {message}") from None
-
-
-def load_spec(path: Path) -> mujoco.MjSpec:
-    if not Path(path).is_file():
-        raise DualtwinError(f"{path}: model file not found")
-    try:
-        return mujoco.MjSpec.from_file(str(path))
-    except ValueError as exc:
-        message = " ".join(str(exc).split())
-        raise DualtwinError(f"{path}: MJCF does not parse: {message}") from None
 
 
 class MuJoCoTwin(Twin):
