@@ -181,7 +181,9 @@ def test_blow_up_is_an_unstable_scenario_and_the_next_one_recovers(tmp_path: Pat
     twin = make_twin(twin_name, robot, 0.032)
     # An absurd physics knob makes the first scenario diverge (an absurd initial state is refused before any
     # run now); it is put back once that scenario ends, so the next one shows what the reset recovers.
-    knob, absurd = ("joint.pole_hinge.damping", -1e9) if twin_name == "mujoco" else ("world.cfm", -0.1)
+    # (Webots resets a WorldInfo CFM <= 0 to its default, so the Webots twin's absurd knob is a bounce of 1e9)
+    knob, absurd = ("joint.pole_hinge.damping", -1e9) if twin_name == "mujoco" else ("contact.default:default.bounce",
+                                                                                     1e9)
     nominal = twin.knobs()[knob].nominal
     twin.set_knobs({knob: absurd})
     manifest = SuiteRun(suite, twin_name, robot, tmp_path / "run", twin=twin).run(
