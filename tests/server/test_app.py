@@ -167,6 +167,32 @@ def test_oversized_body_gets_413(http: Any) -> None:
     good(http)
 
 
+def test_an_oversized_upload_still_in_flight_gets_its_413(server: Any, http: Any) -> None:
+    """The client is still sending when the server decides: before, the server answered and closed at once, and
+    the client's next bytes met a reset that could discard the answer (a flaky ReadError under load). Sent here
+    in slow pieces on a raw socket, so the old behaviour fails every time."""
+    import socket
+    import time
+    from urllib.parse import urlsplit
+
+    url = urlsplit(server.url)
+    body = b"x" * (200 * 1024)
+    with socket.create_connection((url.hostname, url.port), timeout=10) as sock:
+        sock.sendall(b"POST /v1/act HTTP/1.1\r\nHost: test\r\nContent-Type: application/json\r\n"
+                     b"X-API-Key: " + KEY.encode() + b"\r\nContent-Length: " + str(len(body)).encode() + b"\r\n\r\n")
+        for start in range(0, len(body), 20 * 1024):
+            time.sleep(0.03)
+            sock.sendall(body[start:start + 20 * 1024])
+        reply = b""
+        while b"\r\n\r\n" not in reply or not reply.rstrip().endswith(b"}"):
+            chunk = sock.recv(65536)
+            if not chunk:
+                break
+            reply += chunk
+    assert reply.startswith(b"HTTP/1.1 413") and b"exceeds the limit" in reply, reply[:200]
+    good(http)
+
+
 def test_malformed_json_and_wrong_methods(http: Any) -> None:
     reply = http.post("/v1/act", content=b"{not json", headers={"Content-Type": "application/json"})
     assert reply.status_code == 422

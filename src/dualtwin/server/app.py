@@ -268,6 +268,8 @@ class _BodyLimit:
                 await _plain(send, 400, "invalid Content-Length header")
                 return
             if declared > self.limit:
+                if declared <= DRAIN_BYTES:
+                    await _drain(receive)
                 await _plain(send, 413, f"request body of {declared} bytes exceeds the limit of {self.limit} bytes")
                 return
         # Read (at most limit + 1 bytes of) the body now, so a chunked upload cannot exceed the limit either.
@@ -279,6 +281,8 @@ class _BodyLimit:
             chunk = message.get("body", b"")
             size += len(chunk)
             if size > self.limit:
+                if message.get("more_body", False):
+                    await _drain(receive, DRAIN_BYTES - size)
                 await _plain(send, 413, f"request body exceeds the limit of {self.limit} bytes")
                 return
             chunks.append(chunk)
@@ -294,6 +298,20 @@ class _BodyLimit:
             return await receive()
 
         await self.app(scope, replay, send)
+
+
+#: An oversized body up to this size is read (and dropped) before the 413 is sent: a server that answers and
+#: closes while the client is still uploading resets the connection, and the client may see the reset instead
+#: of the answer (a flaky 'ReadError' under load). A larger one is answered at once.
+DRAIN_BYTES = 16 << 20
+
+
+async def _drain(receive: Receive, budget: int = DRAIN_BYTES) -> None:
+    while budget > 0:
+        message = await receive()
+        if message["type"] == "http.disconnect" or not message.get("more_body", False):
+            return
+        budget -= len(message.get("body", b""))
 
 
 async def _plain(send: Send, status: int, detail: str) -> None:
