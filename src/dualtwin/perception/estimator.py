@@ -34,6 +34,7 @@ from pydantic import BaseModel, Field, Strict, ValidationError, field_validator,
 from dualtwin.artifacts import confined_file, sha256_file
 from dualtwin.errors import DualtwinError
 from dualtwin.models import validation_message
+from dualtwin.onnx_models import run_session
 from dualtwin.perception.onnx_policy import onnx_session, read_contract
 
 MODEL_FILE = "perception.onnx"
@@ -127,7 +128,8 @@ class StateEstimator:
     def predict_stacks(self, stacks: np.ndarray, batch: int = 256) -> np.ndarray:
         """Frame stacks uint8 [B, k, H, W, 3] -> state [B, n] (no filtering)."""
         name = self.onnx.get_inputs()[0].name
-        out = [self.onnx.run(None, {name: np.ascontiguousarray(stacks[i:i + batch], dtype=np.uint8)})[0]
+        model = str(self.directory / self.contract["onnx"]["file"])
+        out = [run_session(self.onnx, {name: np.ascontiguousarray(stacks[i:i + batch], dtype=np.uint8)}, model)[0]
                for i in range(0, len(stacks), batch)]
         return np.concatenate(out).astype(np.float32)
 
@@ -140,12 +142,14 @@ class StateEstimator:
     def moments(self, frames: np.ndarray) -> np.ndarray:
         """Frames uint8 [n, H, W, 3] -> per-frame mask moments [n, m] (models exported with parts)."""
         assert self.parts is not None
-        return self.parts[0].run(None, {"frames": np.ascontiguousarray(frames, dtype=np.uint8)})[0]  # type: ignore[no-any-return]
+        model = str(self.directory / self.contract["onnx"]["parts"]["frame"]["file"])
+        return run_session(self.parts[0], {"frames": np.ascontiguousarray(frames, dtype=np.uint8)}, model)[0]  # type: ignore[no-any-return]
 
     def head(self, moments: np.ndarray) -> np.ndarray:
         """Moments [B, k, m] of k frames, oldest first -> state [B, n] (models exported with parts)."""
         assert self.parts is not None
-        out = self.parts[1].run(None, {"features": np.ascontiguousarray(moments, dtype=np.float32)})[0]
+        model = str(self.directory / self.contract["onnx"]["parts"]["head"]["file"])
+        out = run_session(self.parts[1], {"features": np.ascontiguousarray(moments, dtype=np.float32)}, model)[0]
         return np.asarray(out, dtype=np.float32)
 
     def session(self, velocity: str = DEFAULT_VELOCITY) -> EstimatorSession:

@@ -18,6 +18,7 @@ from pydantic import BaseModel, Field, Strict, ValidationError, model_validator
 from dualtwin.artifacts import read_json_object, sha256_file
 from dualtwin.errors import DualtwinError
 from dualtwin.models import validation_message
+from dualtwin.onnx_models import RUN_LIMIT_S, open_session, run_session
 
 POLICY_FILE = "policy.onnx"
 POLICY_CONTRACT = "policy_contract.json"
@@ -25,19 +26,7 @@ POLICY_CONTRACT = "policy_contract.json"
 
 def onnx_session(path: Path, what: str) -> Any:
     """An ONNX Runtime CPU session, or a :class:`DualtwinError` saying the file is not a usable ONNX model."""
-    import onnxruntime as ort
-
-    if not path.is_file():
-        raise DualtwinError(f"{path}: {what} model file not found")
-    options = ort.SessionOptions()
-    # Small models, many concurrent requests: one intra-op thread per run, concurrency across requests.
-    options.intra_op_num_threads = 1
-    options.inter_op_num_threads = 1
-    try:
-        return ort.InferenceSession(str(path), sess_options=options, providers=["CPUExecutionProvider"])
-    except Exception as exc:  # noqa: BLE001 - onnxruntime raises several private exception types
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise DualtwinError(f"{path}: not a valid ONNX {what} model ({first[:200]})") from None
+    return open_session(path, what)
 
 
 def read_contract(path: Path, what: str) -> dict[str, Any]:
@@ -93,6 +82,8 @@ class OnnxPolicy:
     directory: Path
     contract: dict[str, Any]
     session: Any
+    #: Seconds one inference may take before it is stopped (:func:`dualtwin.onnx_models.run_session`).
+    run_limit_s: float = RUN_LIMIT_S
 
     @staticmethod
     def load(path: Path | str) -> OnnxPolicy:
@@ -165,7 +156,8 @@ class OnnxPolicy:
     def run(self, observation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Raw observations [batch, n] -> (env actions, physical commands [batch, one per contract name])."""
         obs = np.asarray(observation, dtype=np.float32).reshape(-1, len(self.terms))
-        action, *commands = self.session.run(None, {self.session.get_inputs()[0].name: obs})
+        action, *commands = run_session(self.session, {self.session.get_inputs()[0].name: obs},
+                                        str(self.directory / POLICY_FILE), self.run_limit_s)
         return np.asarray(action), np.stack([np.asarray(c) for c in commands], axis=-1)
 
     def action(self, observation: np.ndarray) -> Any:

@@ -15,6 +15,7 @@ import numpy as np
 
 from dualtwin.artifacts import sha256_file
 from dualtwin.errors import DualtwinError
+from dualtwin.onnx_models import RUN_LIMIT_S, open_session, run_session
 
 
 @dataclass
@@ -28,12 +29,18 @@ class LockstepPolicy:
     contract: dict[str, Any] = field(default_factory=dict)
     _session: Any = None
     _loaded: Any = None
+    #: Seconds one inference may take before it is stopped (:func:`dualtwin.onnx_models.run_session`).
+    run_limit_s: float = RUN_LIMIT_S
 
     def act(self, observation: np.ndarray) -> Any:
         obs = np.asarray(observation, dtype=np.float32).reshape(1, -1)
         if self.kind == "onnx":
-            action = self._session.run(None, {self._session.get_inputs()[0].name: obs})[0]
-            action = np.asarray(action)
+            model = str(self.path / "policy.onnx")
+            action = np.asarray(run_session(self._session, {self._session.get_inputs()[0].name: obs}, model,
+                                            self.run_limit_s)[0])
+            if action.size == 0 or not np.issubdtype(action.dtype, np.number):
+                raise DualtwinError(f"{model}: the ONNX model's action is {action.dtype} {list(action.shape)}, "
+                                    "not a number per observation")
             discrete = self.contract.get("action", {}).get("type") == "discrete"
             return int(action.reshape(-1)[0]) if discrete else action.reshape(-1).astype(np.float32)
         return self._loaded.predict(obs[0])
@@ -57,22 +64,19 @@ def load_policy(path: Path | str) -> LockstepPolicy:
     """An exported folder (``policy.onnx`` + ``policy_contract.json``) or a training run (``run.json``)."""
     folder = Path(path)
     if (folder / "policy.onnx").is_file():
-        import onnxruntime as ort
-
         contract_path = folder / "policy_contract.json"
         if not contract_path.is_file():
             raise DualtwinError(f"{folder}: policy.onnx without policy_contract.json")
         from dualtwin.artifacts import read_json_object
 
         contract = read_json_object(contract_path, what="policy contract")  # names file, line and column
-        options = ort.SessionOptions()
-        options.intra_op_num_threads = 1
-        try:
-            session = ort.InferenceSession(str(folder / "policy.onnx"), sess_options=options,
-                                           providers=["CPUExecutionProvider"])
-        except Exception as exc:  # noqa: BLE001 - onnxruntime raises several private exception types
-            first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
-            raise DualtwinError(f"{folder / 'policy.onnx'}: not a valid ONNX policy ({first[:200]})") from None
+        model = folder / "policy.onnx"
+        session = open_session(model, "policy")
+        inputs = session.get_inputs()
+        # Each step feeds one float32 row to the first input: another count or type would fail in ORT mid-run.
+        if len(inputs) != 1 or inputs[0].type != "tensor(float)" or len(inputs[0].shape or []) != 2:
+            raise DualtwinError(f"{model}: ONNX input {[(i.name, i.type, i.shape) for i in inputs]} is not one "
+                                "float32 [batch, observations] tensor")
         return LockstepPolicy(folder, "onnx", str(contract.get("env_id", "")), dict(contract.get("env_kwargs") or {}),
                               contract, _session=session)
     if (folder / "run.json").is_file():

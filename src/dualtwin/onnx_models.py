@@ -1,0 +1,74 @@
+"""ONNX models from folders (exported policies, perception models) opened and run as untrusted data.
+
+A model file is a graph ONNX Runtime executes, so a downloaded one can be hostile. What ORT 1.2x already
+refuses at load (checked by fuzzing: external data outside the model's folder, absolute or through a symlink;
+initializers whose declared shape exceeds their data; unknown operator domains; unreleased opsets) arrives here
+as an exception and leaves as one :class:`DualtwinError` naming the file. What it does not refuse is handled
+here:
+
+* ORT's own logger writes coloured multi-line records to stderr when a model fails to load or an initializer
+  is unused; the sessions log fatal records only, since every failure also reaches the caller as an exception.
+* A graph can run forever (a ``Loop`` with 2**62 iterations or an always-true condition) or fail while running
+  (an allocation of terabytes, an input of another type): :func:`run_session` ends a run after
+  :data:`RUN_LIMIT_S` seconds with ``RunOptions.terminate``, which ORT checks between nodes and between loop
+  iterations, and reports either as a :class:`DualtwinError`. A single huge kernel (one enormous MatMul) is
+  not interrupted by the flag; its size is bounded by the memory ORT can allocate, which fails as an error.
+"""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+from typing import Any
+
+from dualtwin.errors import DualtwinError
+
+#: Seconds one inference may take. The project's models (a small MLP, a small CNN on a batch of frames) run in
+#: milliseconds; the limit only ends graphs that would never finish. The server runs each request in a pool
+#: thread, so a hostile model costs one thread this long and then a 422, not a hung worker.
+RUN_LIMIT_S = 30.0
+
+#: ORT's log severity for sessions: 4 is FATAL, so its ERROR and WARNING records stay off stderr.
+_QUIET = 4
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return (text.splitlines()[0] if text else type(exc).__name__)[:300]
+
+
+def open_session(path: Path, what: str) -> Any:
+    """An ONNX Runtime CPU session for the file, or a :class:`DualtwinError` saying it is not a usable model."""
+    import onnxruntime as ort
+
+    if not path.is_file():
+        raise DualtwinError(f"{path}: {what} model file not found")
+    options = ort.SessionOptions()
+    options.log_severity_level = _QUIET
+    # Small models, many concurrent requests: one intra-op thread per run, concurrency across requests.
+    options.intra_op_num_threads = 1
+    options.inter_op_num_threads = 1
+    try:
+        return ort.InferenceSession(str(path), sess_options=options, providers=["CPUExecutionProvider"])
+    except Exception as exc:  # noqa: BLE001 - onnxruntime raises several private exception types
+        raise DualtwinError(f"{path}: not a valid ONNX {what} model ({_first_line(exc)})") from None
+
+
+def run_session(session: Any, feeds: dict[str, Any], what: str, limit_s: float = RUN_LIMIT_S) -> list[Any]:
+    """``session.run(None, feeds)``, ended after ``limit_s`` seconds; a failure is a :class:`DualtwinError`."""
+    import onnxruntime as ort
+
+    options = ort.RunOptions()
+    options.log_severity_level = _QUIET
+    timer = threading.Timer(limit_s, setattr, (options, "terminate", True))
+    timer.daemon = True
+    timer.start()
+    try:
+        return list(session.run(None, feeds, options))
+    except Exception as exc:  # noqa: BLE001 - onnxruntime raises several private exception types
+        if options.terminate:
+            raise DualtwinError(f"{what}: the ONNX model ran longer than {limit_s:g} s and was stopped "
+                                "(a graph that does not end)") from None
+        raise DualtwinError(f"{what}: the ONNX model failed to run ({_first_line(exc)})") from None
+    finally:
+        timer.cancel()
