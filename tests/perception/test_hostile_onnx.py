@@ -87,6 +87,22 @@ def double_input(folder: Path) -> Path:
     return _policy(folder, [cast, *nodes], [doubles], outputs, inits)
 
 
+def _with_command(folder: Path, node: Any, kind: int, shape: list[Any]) -> Path:
+    nodes, outputs, inits = _linear()
+    command = helper.make_tensor_value_info(node.output[0], kind, shape)
+    return _policy(folder, [*nodes, node], [OBS], [outputs[0], command], [*inits, _array("reps", [1, 1000], np.int64)])
+
+
+def text_command(folder: Path) -> Path:
+    return _with_command(folder, helper.make_node("Cast", ["cart_velocity"], ["text"], to=TensorProto.STRING),
+                         TensorProto.STRING, ["batch"])
+
+
+def thousand_commands(folder: Path) -> Path:
+    return _with_command(folder, helper.make_node("Tile", ["action", "reps"], ["wide"]), TensorProto.FLOAT,
+                         ["batch", 1000])
+
+
 def test_a_graph_that_never_ends_is_stopped(tmp_path: Path) -> None:
     policy = OnnxPolicy.load_exported(endless_loop(tmp_path / "p"))
     policy.run_limit_s = 0.5
@@ -94,11 +110,16 @@ def test_a_graph_that_never_ends_is_stopped(tmp_path: Path) -> None:
         policy.run(np.zeros((1, 4)))
 
 
-@pytest.mark.parametrize("make", [terabyte_constant])
+@pytest.mark.parametrize("make", [terabyte_constant, text_command, thousand_commands])
 def test_a_graph_failing_or_answering_off_contract_is_one_error(tmp_path: Path, make: Any) -> None:
     policy = OnnxPolicy.load_exported(make(tmp_path / "p"))
     with pytest.raises(DualtwinError, match=POLICY_FILE):
         policy.run(np.zeros((1, 4)))
+
+
+def test_a_scalar_input_is_refused_at_load(tmp_path: Path) -> None:
+    with pytest.raises(DualtwinError, match="does not take the contract's 4 float observations"):
+        OnnxPolicy.load_exported(scalar_input(tmp_path / "p"))
 
 
 def test_no_external_data_is_read_from_outside_the_folder(tmp_path: Path) -> None:
@@ -116,7 +137,7 @@ def test_no_external_data_is_read_from_outside_the_folder(tmp_path: Path) -> Non
         OnnxPolicy.load_exported(folder)
 
 
-@pytest.mark.parametrize("make", [double_input, terabyte_constant])
+@pytest.mark.parametrize("make", [double_input, terabyte_constant, scalar_input])
 def test_lockstep_says_one_line(tmp_path: Path, make: Any, capfd: pytest.CaptureFixture[str]) -> None:
     # capfd, not capsys: ORT's logger writes to file descriptor 2 from C++.
     folder = make(tmp_path / "p")

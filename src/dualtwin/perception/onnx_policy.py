@@ -120,7 +120,9 @@ class OnnxPolicy:
             raise DualtwinError(f"{model}: sha256 differs from {POLICY_CONTRACT} (the model was replaced or modified)")
         inputs, outputs = session.get_inputs(), session.get_outputs()
         n = len(checked.observation)
-        if len(inputs) != 1 or inputs[0].type != "tensor(float)" or inputs[0].shape[-1] != n:
+        # A scalar or rank-less input has no shape to index: it is refused as not [batch, n], not an IndexError.
+        shape = list(inputs[0].shape or []) if inputs else []
+        if len(inputs) != 1 or inputs[0].type != "tensor(float)" or len(shape) != 2 or shape[-1] != n:
             raise DualtwinError(f"{model}: ONNX input {[(i.name, i.type, i.shape) for i in inputs]} does not take "
                                 f"the contract's {n} float observations")
         # The outputs are the action and one command per action name: the server zips them per request.
@@ -158,7 +160,15 @@ class OnnxPolicy:
         obs = np.asarray(observation, dtype=np.float32).reshape(-1, len(self.terms))
         action, *commands = run_session(self.session, {self.session.get_inputs()[0].name: obs},
                                         str(self.directory / POLICY_FILE), self.run_limit_s)
-        return np.asarray(action), np.stack([np.asarray(c) for c in commands], axis=-1)
+        action, commands = np.asarray(action), [np.asarray(c) for c in commands]
+        # The graph is untrusted: its outputs are checked against the contract before anyone zips or indexes them.
+        rows = obs.shape[0]
+        wrong = [a for a in (action, *commands) if not np.issubdtype(a.dtype, np.number) or a.shape[:1] != (rows,)]
+        if wrong or any(c.shape != (rows,) for c in commands):
+            got = [f"{a.dtype} {list(a.shape)}" for a in (action, *commands)]
+            raise DualtwinError(f"{self.directory / POLICY_FILE}: the ONNX outputs are {got} for {rows} observation(s); "
+                                f"the contract needs a numeric action and one number per command per observation")
+        return action, np.stack(commands, axis=-1)
 
     def action(self, observation: np.ndarray) -> Any:
         """The env action for one raw observation (int for discrete policies, float32 [1] for continuous)."""
