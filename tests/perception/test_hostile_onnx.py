@@ -147,3 +147,60 @@ def test_lockstep_says_one_line(tmp_path: Path, make: Any, capfd: pytest.Capture
     err = capfd.readouterr().err
     assert code == 2 and len(err.strip().splitlines()) == 1 and POLICY_FILE in err, err
     assert not (tmp_path / "out").exists()
+
+
+def _perception_part(path: Path, out: list[Any], nodes: list[Any], inputs: list[Any], inits: list[Any]) -> None:
+    graph = helper.make_graph(nodes, "hostile", inputs, out, inits)
+    onnx.save(helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)], ir_version=9), str(path))
+
+
+def _rehash(folder: Path) -> None:
+    """The contract records each file's sha256: a hostile folder records its own files' hashes."""
+    import hashlib
+
+    from dualtwin.perception.estimator import CONTRACT_FILE
+
+    contract = json.loads((folder / CONTRACT_FILE).read_text())
+    onnx_entry = contract["onnx"]
+    for entry in (onnx_entry, *onnx_entry.get("parts", {}).values()):
+        entry["sha256"] = hashlib.sha256((folder / entry["file"]).read_bytes()).hexdigest()
+    (folder / CONTRACT_FILE).write_text(json.dumps(contract))
+
+
+@pytest.fixture
+def perception_model(tiny_model: Path, tmp_path: Path) -> Path:
+    import shutil
+
+    return Path(shutil.copytree(tiny_model, tmp_path / "model"))
+
+
+def test_a_perception_model_with_a_scalar_output_is_refused_at_load(perception_model: Path) -> None:
+    from dualtwin.perception.estimator import StateEstimator
+
+    contract = json.loads((perception_model / "perception_contract.json").read_text())
+    frames = helper.make_tensor_value_info("frames", TensorProto.UINT8, contract["onnx"]["inputs"][0]["shape"])
+    _perception_part(perception_model / contract["onnx"]["file"],
+                     [helper.make_tensor_value_info("state", TensorProto.FLOAT, [])],
+                     [helper.make_node("Cast", ["frames"], ["f"], to=TensorProto.FLOAT),
+                      helper.make_node("ReduceSum", ["f"], ["state"], keepdims=0)], [frames], [])
+    _rehash(perception_model)
+    with pytest.raises(DualtwinError, match="does not give the contract's 4 state quantities"):
+        StateEstimator.load(perception_model)
+
+
+def test_a_perception_head_answering_off_contract_is_one_line(perception_model: Path, tiny_dataset: Path,
+                                                               capfd: pytest.CaptureFixture[str]) -> None:
+    # The head part's output is 7 numbers per frame stack where the contract names 4: the filter broadcast failed.
+    contract = json.loads((perception_model / "perception_contract.json").read_text())
+    head = perception_model / contract["onnx"]["parts"]["head"]["file"]
+    features = onnx.load(str(head)).graph.input[0]
+    width = int(np.prod([d.dim_value for d in features.type.tensor_type.shape.dim[1:]]))
+    _perception_part(head, [helper.make_tensor_value_info("state", TensorProto.FLOAT, ["batch", 4])],
+                     [helper.make_node("Flatten", ["features"], ["flat"]), helper.make_node("MatMul", ["flat", "w"],
+                                                                                            ["state"])],
+                     [features], [_array("w", np.ones((width, 7)) * 0.01)])
+    _rehash(perception_model)
+    capfd.readouterr()
+    code = main(["perception", "eval", "--model", str(perception_model), "--data", str(tiny_dataset)])
+    err = capfd.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and head.name in err, err

@@ -78,7 +78,8 @@ class StateEstimator:
             raise DualtwinError(f"{model}: ONNX input {[(i.name, i.type, i.shape) for i in inputs]} does not match "
                                 f"the contract (uint8 {list(shape)})")
         # Every request zips the output with the contract's state names: they must agree here, not per request.
-        if not outputs or outputs[0].shape[-1] != len(checked.state):
+        # A scalar or rank-less output has no last axis to compare: refused here, not an IndexError.
+        if not outputs or len(outputs[0].shape or []) != 2 or outputs[0].shape[-1] != len(checked.state):
             raise DualtwinError(f"{model}: ONNX output {[(o.name, o.shape) for o in outputs]} does not give the "
                                 f"contract's {len(checked.state)} state quantities")
         loaded = None
@@ -129,8 +130,9 @@ class StateEstimator:
         """Frame stacks uint8 [B, k, H, W, 3] -> state [B, n] (no filtering)."""
         name = self.onnx.get_inputs()[0].name
         model = str(self.directory / self.contract["onnx"]["file"])
-        out = [run_session(self.onnx, {name: np.ascontiguousarray(stacks[i:i + batch], dtype=np.uint8)}, model)[0]
-               for i in range(0, len(stacks), batch)]
+        out = [_checked_rows(run_session(self.onnx, {name: np.ascontiguousarray(part, dtype=np.uint8)}, model)[0],
+                             len(part), len(self.names), model)
+               for part in (stacks[i:i + batch] for i in range(0, len(stacks), batch))]
         return np.concatenate(out).astype(np.float32)
 
     def predict_single(self, frames: np.ndarray) -> np.ndarray:
@@ -143,14 +145,15 @@ class StateEstimator:
         """Frames uint8 [n, H, W, 3] -> per-frame mask moments [n, m] (models exported with parts)."""
         assert self.parts is not None
         model = str(self.directory / self.contract["onnx"]["parts"]["frame"]["file"])
-        return run_session(self.parts[0], {"frames": np.ascontiguousarray(frames, dtype=np.uint8)}, model)[0]  # type: ignore[no-any-return]
+        out = run_session(self.parts[0], {"frames": np.ascontiguousarray(frames, dtype=np.uint8)}, model)[0]
+        return _checked_rows(out, len(frames), None, model)
 
     def head(self, moments: np.ndarray) -> np.ndarray:
         """Moments [B, k, m] of k frames, oldest first -> state [B, n] (models exported with parts)."""
         assert self.parts is not None
         model = str(self.directory / self.contract["onnx"]["parts"]["head"]["file"])
         out = run_session(self.parts[1], {"features": np.ascontiguousarray(moments, dtype=np.float32)}, model)[0]
-        return np.asarray(out, dtype=np.float32)
+        return _checked_rows(out, len(moments), len(self.names), model)
 
     def session(self, velocity: str = DEFAULT_VELOCITY) -> EstimatorSession:
         if velocity not in VELOCITY_MODES:
@@ -230,6 +233,17 @@ def check_contract(contract: dict[str, Any], path: Path) -> PerceptionContract:
         return PerceptionContract.model_validate(contract)
     except ValidationError as exc:
         raise DualtwinError(f"not a dualtwin perception contract: {validation_message(path, exc)}") from None
+
+
+def _checked_rows(out: Any, rows: int, cols: int | None, model: str) -> np.ndarray:
+    """An ONNX output as float32 [rows, cols]: the graph is untrusted and its declared shapes are not enforced by
+    ORT, so another shape or type is one error here rather than a broadcast error in the filter."""
+    array = np.asarray(out)
+    if (not np.issubdtype(array.dtype, np.number) or array.ndim != 2 or array.shape[0] != rows
+            or (cols is not None and array.shape[1] != cols)):
+        raise DualtwinError(f"{model}: the ONNX output is {array.dtype} {list(array.shape)} for {rows} input(s), not "
+                            f"float32 [{rows}, {cols if cols is not None else 'features'}]")
+    return array.astype(np.float32)
 
 
 def _checked_session(path: Path, sha256: str, what: str) -> Any:
