@@ -7,14 +7,17 @@ episode start) is rebuilt from them and bound to each twin. Imports of ONNX Runt
 
 from __future__ import annotations
 
+import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
 
 from dualtwin.artifacts import sha256_file
 from dualtwin.errors import DualtwinError
+from dualtwin.models import json_path, validation_message
 from dualtwin.onnx_models import RUN_LIMIT_S, open_session, run_session
 
 
@@ -60,6 +63,41 @@ class LockstepPolicy:
         return sha256_file(model) if model.is_file() else ""
 
 
+class _Contract(BaseModel):
+    """The fields of ``policy_contract.json`` a lockstep run computes with (the others are descriptive)."""
+
+    model_config = ConfigDict(extra="allow")
+    env_id: str = ""
+    env_kwargs: dict[str, Any] = Field(default_factory=dict)
+    action: dict[str, Any] = Field(default_factory=dict)
+
+
+def check_task_arguments(policy: LockstepPolicy, origin: Path) -> None:
+    """The task the policy's env arguments build, checked against its constructor's signature and types: they come
+    from a file (``policy_contract.json`` or ``run.json``), and a wrong one was a TypeError mid-run."""
+    from dualtwin.rl.env import TASKS
+
+    args = policy.task_arguments()
+    name = args.get("task", "cartpole_balance")
+    if not isinstance(name, str) or name not in TASKS:
+        raise DualtwinError(f"{origin}: $.env_kwargs.task: unknown task {name!r} (known: {sorted(TASKS)})")
+    factory = TASKS[name]
+    hints = typing.get_type_hints(factory.__init__ if isinstance(factory, type) else factory)  # type: ignore[misc]
+    hints.pop("return", None)
+    fields: dict[str, Any] = {key: (hint, None) for key, hint in hints.items()}
+    # Forbid unknown names and non-finite floats: the task computes limits and speeds with them.
+    model = create_model("TaskArguments", __config__=ConfigDict(extra="forbid", allow_inf_nan=False), **fields)
+    kwargs = args.get("task_kwargs") or {}
+    if not isinstance(kwargs, dict):
+        raise DualtwinError(f"{origin}: $.env_kwargs.task_kwargs: expected an object, got {type(kwargs).__name__}")
+    try:
+        model.model_validate({"continuous": args.get("continuous", False), **kwargs})
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        where = ("env_kwargs",) if first["loc"][:1] == ("continuous",) else ("env_kwargs", "task_kwargs")
+        raise DualtwinError(f"{origin}: {json_path((*where, *first['loc']))}: {first['msg']} (task {name!r})") from None
+
+
 def load_policy(path: Path | str) -> LockstepPolicy:
     """An exported folder (``policy.onnx`` + ``policy_contract.json``) or a training run (``run.json``)."""
     folder = Path(path)
@@ -77,12 +115,19 @@ def load_policy(path: Path | str) -> LockstepPolicy:
         if len(inputs) != 1 or inputs[0].type != "tensor(float)" or len(inputs[0].shape or []) != 2:
             raise DualtwinError(f"{model}: ONNX input {[(i.name, i.type, i.shape) for i in inputs]} is not one "
                                 "float32 [batch, observations] tensor")
-        return LockstepPolicy(folder, "onnx", str(contract.get("env_id", "")), dict(contract.get("env_kwargs") or {}),
-                              contract, _session=session)
+        try:
+            checked = _Contract.model_validate(contract)
+        except ValidationError as exc:
+            raise DualtwinError(f"not a dualtwin policy contract: {validation_message(contract_path, exc)}") from None
+        policy = LockstepPolicy(folder, "onnx", checked.env_id, checked.env_kwargs, contract, _session=session)
+        check_task_arguments(policy, contract_path)
+        return policy
     if (folder / "run.json").is_file():
         from dualtwin.rl.policy import load_policy as load_run
 
         loaded = load_run(folder)
-        return LockstepPolicy(folder, "run", loaded.env_id, dict(loaded.env_kwargs), dict(loaded.contract),
-                              _loaded=loaded)
+        policy = LockstepPolicy(folder, "run", loaded.env_id, dict(loaded.env_kwargs), dict(loaded.contract),
+                                _loaded=loaded)
+        check_task_arguments(policy, folder / "run.json")
+        return policy
     raise DualtwinError(f"{folder}: not a policy (no policy.onnx) and not a training run (no run.json)")
