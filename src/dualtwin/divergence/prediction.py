@@ -202,7 +202,7 @@ def plot_prediction(series: Sequence[tuple[str, Mapping[str, Any]]], path: Path,
 
     from dualtwin.artifacts import write_bytes
     from dualtwin.divergence.channels import channel_unit
-    from dualtwin.reporting import plot_unit_groups
+    from dualtwin.reporting import literal_legend, plot_unit_groups
     from dualtwin.reporting import png_bytes as _png_bytes
 
     if not series:
@@ -226,11 +226,11 @@ def plot_prediction(series: Sequence[tuple[str, Mapping[str, Any]]], path: Path,
     left.set_xlabel("horizon [control periods]")
     left.set_ylabel("normalised RMS prediction error [1 = one scale unit]")
     left.grid(True, which="both", alpha=0.3)
-    left.legend(fontsize=8)
+    literal_legend(left.legend(fontsize=8))
     right = fig.add_subfigure(grid[0, 1:])
     plot_unit_groups(right, {c: (hs, [max(main["by_horizon"][str(h)]["rms"][c], 1e-16) for h in hs]) for c in chosen},
                      channel_unit, quantity="RMS error", xlabel="horizon [control periods]", log=True)
-    right.suptitle(series[0][0], fontsize=9)
+    right.suptitle(series[0][0], fontsize=9, parse_math=False)
     write_bytes(path, _png_bytes(fig))
     return path
 

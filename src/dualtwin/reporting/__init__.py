@@ -25,9 +25,9 @@ from dualtwin.reporting.progress import Progress, ProgressCallback, ProgressEven
 from dualtwin.reporting.tables import Column, configure_console, emit_json, print_table
 
 if TYPE_CHECKING:
-    from dualtwin.reporting.plots import Trace, plot_overlay, plot_unit_groups
+    from dualtwin.reporting.plots import Trace, literal_legend, plot_overlay, plot_unit_groups
 
-_PLOT_NAMES = ("Trace", "plot_overlay", "plot_unit_groups")
+_PLOT_NAMES = ("Trace", "literal_legend", "plot_overlay", "plot_unit_groups")
 
 
 def __getattr__(name: str) -> Any:
@@ -52,6 +52,7 @@ __all__ = [
     "fmt",
     "html_table",
     "img_html",
+    "literal_legend",
     "page_head",
     "plot_overlay",
     "plot_unit_groups",

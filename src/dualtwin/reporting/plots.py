@@ -2,6 +2,10 @@
 
 Rule: one unit per axis. Traces of different units go on separate axes (`plot_unit_groups`), and every
 axis label carries its unit.
+
+Labels, titles and legend entries are drawn as literal text (no mathtext): they hold names read from run
+folders and recordings, which are data, and matplotlib parses any text with two ``$`` as TeX, so a channel or
+scenario named ``$x^$`` would end the whole report in a parse error (``$a$`` would silently lose its dollars).
 """
 
 from __future__ import annotations
@@ -13,6 +17,7 @@ import numpy as np
 import numpy.typing as npt
 from matplotlib.axes import Axes
 from matplotlib.figure import FigureBase
+from matplotlib.legend import Legend
 from matplotlib.lines import Line2D
 
 from dualtwin.reporting.svg import MAX_POINTS, envelope
@@ -20,7 +25,15 @@ from dualtwin.reporting.svg import MAX_POINTS, envelope
 #: A trace for `plot_overlay`: ``(label, t, y)``.
 Trace = tuple[str, npt.ArrayLike, npt.ArrayLike]
 
-__all__ = ["MAX_POINTS", "Trace", "envelope", "plot_overlay", "plot_unit_groups"]
+__all__ = ["MAX_POINTS", "Trace", "envelope", "literal_legend", "plot_overlay", "plot_unit_groups"]
+
+
+def literal_legend(legend: Legend | None) -> Legend | None:
+    """``legend`` with its entries drawn as literal text: labels are names from data, never mathtext."""
+    if legend is not None:
+        for text in legend.get_texts():
+            text.set_parse_math(False)
+    return legend
 
 
 def plot_overlay(
@@ -62,14 +75,14 @@ def plot_overlay(
         if when is not None:
             ax.axvline(when, color=line.get_color(), linestyle=":", linewidth=1.2)
             ax.plot([when], [0.0], marker="v", color=line.get_color(), markersize=6, clip_on=False)
-    ax.set_xlabel(xlabel)
+    ax.set_xlabel(xlabel, parse_math=False)
     if ylabel:
-        ax.set_ylabel(ylabel)
+        ax.set_ylabel(ylabel, parse_math=False)
     if title:
-        ax.set_title(title, fontsize=10)
+        ax.set_title(title, fontsize=10, parse_math=False)
     ax.grid(True, alpha=0.3)
     if traces:
-        ax.legend(loc="best", fontsize=8)
+        literal_legend(ax.legend(loc="best", fontsize=8))
     return lines
 
 
@@ -92,8 +105,8 @@ def plot_unit_groups(fig: FigureBase, series: Mapping[str, tuple[npt.ArrayLike, 
         if log:
             ax.set_xscale("log")
             ax.set_yscale("log")
-        ax.set_xlabel(xlabel)
-        ax.set_ylabel(f"{quantity} [{unit}]")
+        ax.set_xlabel(xlabel, parse_math=False)
+        ax.set_ylabel(f"{quantity} [{unit}]", parse_math=False)
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
+        literal_legend(ax.legend(fontsize=7))
     return axes
