@@ -13,6 +13,12 @@ Decisions:
   ``"0.3"`` for a number is a mistake to report) add ``strict=True`` themselves.
 * :class:`FrozenModel` for configs saved next to artifacts: a config is hashed (resume checks it), so it
   must not change after validation.
+* :data:`Name` for a name a document gives (a scenario id, a channel, a unit, a twin or robot name): reports,
+  plot titles, file names and the terminal show it, so it is one printable line of at most `MAX_NAME_LENGTH`
+  characters. A control character (an ANSI escape sequence clearing the user's terminal, a newline splitting a
+  table row or a one-line error in two, a NUL) or a bidi override (U+202E, which makes ``gnp.exe`` read as
+  ``exe.png``) is refused where the document is read, rather than escaped by each of the many places that
+  show names; a 1 MB name hung matplotlib's layout.
 * :func:`validation_message` turns a :class:`pydantic.ValidationError` into the one line a user sees (file,
   JSON path, what was expected); bindings, suites and mappings all report through it, so it sits here,
   below every package that validates documents.
@@ -21,9 +27,12 @@ Decisions:
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import AfterValidator, BaseModel, ConfigDict, StringConstraints, ValidationError
+
+#: The longest `Name`: far above any real scenario, channel or robot name.
+MAX_NAME_LENGTH = 256
 
 
 class StrictModel(BaseModel):
@@ -38,11 +47,31 @@ class FrozenModel(StrictModel):
     model_config = ConfigDict(frozen=True)
 
 
+def _printable(value: str) -> str:
+    bad = next((c for c in value if not c.isprintable()), None)
+    if bad is not None:
+        raise ValueError(f"names are one line of printable text; this one holds {bad!r} at {value.index(bad)}")
+    return value
+
+
+#: A name from a document, shown by reports and the terminal: printable (no control, format or bidi
+#: characters; spaces and any script are fine) and at most `MAX_NAME_LENGTH` characters.
+Name = Annotated[str, StringConstraints(max_length=MAX_NAME_LENGTH), AfterValidator(_printable)]
+
+
+def _key(part: str) -> str:
+    # A dict key comes from the document: one with odd characters or of any length is shown quoted and cut, so
+    # the error stays one printable line.
+    if part.isprintable() and len(part) <= 80 and "'" not in part:
+        return part
+    return repr(part[:80]) + ("…" if len(part) > 80 else "")
+
+
 def json_path(loc: tuple[Any, ...]) -> str:
     """``('scenarios', 2, 'duration_s')`` → ``$.scenarios[2].duration_s``."""
     out = "$"
     for part in loc:
-        out += f"[{part}]" if isinstance(part, int) else f".{part}"
+        out += f"[{part}]" if isinstance(part, int) else f".{_key(str(part))}"
     return out
 
 
@@ -60,4 +89,4 @@ def validation_message(path: Path, exc: ValidationError) -> str:
     return f"{path}: {json_path(loc)}: {msg}{extra}"
 
 
-__all__ = ["FrozenModel", "StrictModel", "json_path", "validation_message"]
+__all__ = ["MAX_NAME_LENGTH", "FrozenModel", "Name", "StrictModel", "json_path", "validation_message"]

@@ -7,10 +7,13 @@ the user's terminal as it was; a 1 MB name hung the plot layout.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+import pytest
 
 from dualtwin.cli import main
 
@@ -28,3 +31,46 @@ def test_names_with_dollar_signs_are_plotted_as_text(make_run: Callable[..., Pat
     assert main(["compare", "--reference-run", str(a), "--target-run", str(b), "-o", str(out)]) == 0
     assert (out / "report.html").is_file()
     assert len(list((out / "plots").glob("*.png"))) == 1
+
+
+def _set(manifest: dict[str, Any], field: str, value: str) -> None:
+    if field == "channel":
+        spec = manifest["channels"].pop("pole_angle_rad")
+        manifest["channels"][value] = {**spec, "column": "pole_angle_rad"}
+    elif field == "unit":
+        manifest["channels"]["pole_angle_rad"]["unit"] = value
+    elif field == "id":
+        manifest["scenarios"][0]["id"] = value
+    else:
+        manifest[field] = value
+
+
+@pytest.mark.parametrize(("field", "value", "shown"), [
+    ("id", "00_a\x1b[2J", "$.scenarios[0].id"),
+    ("twin", "mujoco\u202egnp.exe", "$.twin"),
+    ("robot", "cart\npole", "$.robot"),
+    ("unit", "rad\x00", "$.channels.pole_angle_rad.unit"),
+    ("channel", "\x1b[31mangle", "$.channels.'\\x1b[31mangle'"),
+    ("suite_name", "x" * 1_000_000, "$.suite_name"),
+    ("channel", "y" * 1_000_000, "$.channels.'yyyy"),
+])
+def test_name_with_control_characters_or_too_long_is_one_error_line(
+    make_run: Callable[..., Path], tmp_path: Path, capsys: pytest.CaptureFixture[str],
+    field: str, value: str, shown: str,
+) -> None:
+    data = {"00_a": {"pole_angle_rad": (T, np.sin(T))}}
+    good = make_run("good", data)
+    bad = make_run("bad", data)
+    manifest = json.loads((bad / "manifest.json").read_text())
+    _set(manifest, field, value)
+    (bad / "manifest.json").write_text(json.dumps(manifest))
+    capsys.readouterr()
+    code = main(["compare", "--reference-run", str(good), "--target-run", str(bad), "-o", str(tmp_path / "out")])
+    captured = capsys.readouterr()
+    err = captured.err.splitlines()
+    assert code == 2
+    assert len([line for line in err if line.startswith("error:")]) == 1, err
+    assert str(bad / "manifest.json") in captured.err and shown in captured.err, captured.err
+    assert len(captured.err) < 2000  # the name is cut in the message, not repeated whole
+    assert not any(c in captured.err + captured.out for c in "\x1b\u202e\x00")
+    assert not (tmp_path / "out").exists()

@@ -10,6 +10,8 @@ Decisions:
 * ``extra="allow"`` at every level: the writers (suite runner, recorded import, lockstep) add their own
   records (inputs, versions, ensemble, state continuity, sources ...) that this reader does not use; only the
   fields it reads are typed.
+* Names (scenario ids, channels, units, twin, robot, suite) are `dualtwin.models.Name`: reports, plots and
+  the terminal show them, so a control character or a megabyte name is refused here.
 * Log paths are strings here; that they stay inside the run folder is checked by ``load_run``, which knows
   the folder.
 """
@@ -23,7 +25,7 @@ from pydantic import ConfigDict, Field, ValidationError
 
 from dualtwin.artifacts import read_json
 from dualtwin.errors import DualtwinError
-from dualtwin.models import StrictModel, validation_message
+from dualtwin.models import Name, StrictModel, validation_message
 from dualtwin.suite.schema import MAX_SEED
 
 Status = Literal["completed", "failed", "unstable"]
@@ -38,8 +40,8 @@ class _Record(StrictModel):
 
 class ChannelRecord(_Record):
     source: Source
-    unit: str = ""
-    column: str = ""
+    unit: Name = ""
+    column: Name = ""
     resolution: float | None = Field(default=None, gt=0)
 
 
@@ -51,9 +53,9 @@ class MemberRecord(_Record):
 
 
 class ScenarioRecord(_Record):
-    id: str = Field(min_length=1)
+    id: Name = Field(min_length=1)
     index: int | None = None
-    name: str | None = None
+    name: Name | None = None
     status: Status
     failure: dict[str, Any] | None = None
     onboard: str | None = None
@@ -75,16 +77,16 @@ class EnsembleRecord(_Record):
 
 
 class RunManifest(_Record):
-    robot: str
-    twin: str | None = None
-    kind: str = "simulated"
-    suite_name: str = ""
+    robot: Name
+    twin: Name | None = None
+    kind: Name = "simulated"
+    suite_name: Name = ""
     control_period_s: float | None = Field(default=None, gt=0)
     seed: int | None = Field(default=None, ge=0, le=MAX_SEED)
-    channels: dict[str, ChannelRecord]
+    channels: dict[Name, ChannelRecord]
     scenarios: list[ScenarioRecord]
     #: scenario id -> channel -> metric -> bound (the suite's tolerances, as the runner copied them).
-    tolerances: dict[str, dict[str, dict[str, float]]] | None = None
+    tolerances: dict[Name, dict[Name, dict[Name, float]]] | None = None
     #: relative log path -> record; checked by `dualtwin.artifacts.verify_logs`.
     logs: dict[str, Any] | None = None
     ensemble: EnsembleRecord | None = None
