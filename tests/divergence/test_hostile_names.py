@@ -33,6 +33,19 @@ def test_names_with_dollar_signs_are_plotted_as_text(make_run: Callable[..., Pat
     assert len(list((out / "plots").glob("*.png"))) == 1
 
 
+@pytest.mark.parametrize("value", [1e308, -1e308])
+def test_values_near_the_float_limit_are_plotted(make_run: Callable[..., Path], tmp_path: Path, value: float) -> None:
+    """A run that blew up logs numbers near 1e308: the overlay is still drawn (matplotlib's tick arithmetic
+    overflowed on them: 'arange: cannot compute length')."""
+    channels = {"pole_velocity_rad_s": {"source": "ground_truth", "unit": "rad/s"}}
+    data = {"00_a": {"pole_velocity_rad_s": (T, np.full_like(T, value))}}  # both sides: the metrics are finite
+    a = make_run("a", data, channels=channels)
+    b = make_run("b", data, channels=channels)
+    out = tmp_path / "out"
+    assert main(["compare", "--reference-run", str(a), "--target-run", str(b), "-o", str(out)]) == 0
+    assert len(list((out / "plots").glob("*.png"))) == 1
+
+
 def _set(manifest: dict[str, Any], field: str, value: str) -> None:
     if field == "channel":
         spec = manifest["channels"].pop("pole_angle_rad")

@@ -25,7 +25,19 @@ from dualtwin.reporting.svg import MAX_POINTS, envelope
 #: A trace for `plot_overlay`: ``(label, t, y)``.
 Trace = tuple[str, npt.ArrayLike, npt.ArrayLike]
 
-__all__ = ["MAX_POINTS", "Trace", "envelope", "literal_legend", "plot_overlay", "plot_unit_groups"]
+__all__ = ["MAX_DRAWN", "MAX_POINTS", "Trace", "envelope", "literal_legend", "plot_overlay", "plot_unit_groups"]
+
+
+#: Values are drawn clipped to ±this: a run that blew up logs numbers near 1e308, and matplotlib's view margins
+#: and tick steps (a few times the data range) then overflow to infinity and the figure cannot be drawn
+#: ("arange: cannot compute length"). Beyond 1e300 a trace is off any readable scale anyway.
+MAX_DRAWN = 1e300
+
+
+def _drawable(values: npt.ArrayLike) -> np.ndarray:
+    """``values`` as floats, finite ones clipped to ±`MAX_DRAWN` (NaN and infinities stay gaps)."""
+    v = np.asarray(values, dtype=float)
+    return np.where(np.isfinite(v), np.clip(v, -MAX_DRAWN, MAX_DRAWN), v)
 
 
 def literal_legend(legend: Legend | None) -> Legend | None:
@@ -65,7 +77,7 @@ def plot_overlay(
         raise ValueError(f"{len(crossings)} crossing times for {len(traces)} traces")
     lines: list[Line2D] = []
     for label, t, y in traces:
-        (line,) = ax.plot(*envelope(t, y), label=label, linewidth=1.4)
+        (line,) = ax.plot(*envelope(_drawable(t), _drawable(y)), label=label, linewidth=1.4)
         lines.append(line)
     if threshold is not None:
         levels = [threshold.value, -threshold.value] if threshold.mode == "abs" else [threshold.value]
@@ -101,7 +113,7 @@ def plot_unit_groups(fig: FigureBase, series: Mapping[str, tuple[npt.ArrayLike, 
     for ax, (unit, names) in zip(axes, chosen, strict=False):
         for name in names:
             x, y = series[name]
-            ax.plot(np.asarray(x, dtype=float), np.asarray(y, dtype=float), marker=".", label=name)
+            ax.plot(_drawable(x), _drawable(y), marker=".", label=name)
         if log:
             ax.set_xscale("log")
             ax.set_yscale("log")
