@@ -46,6 +46,21 @@ def test_values_near_the_float_limit_are_plotted(make_run: Callable[..., Path], 
     assert len(list((out / "plots").glob("*.png"))) == 1
 
 
+def test_long_scenario_and_channel_names_give_short_plot_file_names(make_run: Callable[..., Path],
+                                                                   tmp_path: Path) -> None:
+    """Two names of 250 characters (each allowed) made a plot file name beyond the file system's 255 bytes:
+    exit 2 with metrics.json left behind."""
+    sid, channel = "S" * 250, "C" * 250
+    channels = {channel: {"source": "ground_truth", "unit": "rad"}}
+    data = {sid: {channel: (T, np.sin(T))}}
+    a = make_run("a", data, channels=channels, twin="webots")
+    b = make_run("b", data, channels=channels)
+    out = tmp_path / "out"
+    assert main(["compare", "--reference-run", str(a), "--target-run", str(b), "-o", str(out)]) == 0
+    (png,) = (out / "plots").glob("*.png")
+    assert len(png.name) <= 255 and png.name.startswith("SSSS")
+
+
 def _set(manifest: dict[str, Any], field: str, value: str) -> None:
     if field == "channel":
         spec = manifest["channels"].pop("pole_angle_rad")

@@ -9,6 +9,7 @@ scrolls inside the page instead of running off it.
 from __future__ import annotations
 
 import base64
+import hashlib
 import html
 import io
 import math
@@ -66,9 +67,22 @@ def png_bytes(fig: Figure, *, palette: bool = True) -> bytes:
     return buf.getvalue()
 
 
+#: The longest `slug`: a plot's file name joins two (scenario and channel), and a file system allows 255 bytes.
+MAX_SLUG = 100
+
+
 def slug(text: str) -> str:
-    """A file-name and HTML-id safe form of ``text`` (never empty)."""
-    return re.sub(r"[^A-Za-z0-9._-]+", "_", text).strip("_") or "x"
+    """A file-name and HTML-id safe form of ``text`` (never empty, at most `MAX_SLUG` characters).
+
+    A longer one keeps its start and ends in a hash of the whole text, so distinct names stay distinct: names
+    come from run folders (data), and a 250-character scenario id and channel made a plot file name the file
+    system refused, after ``metrics.json`` was already written.
+    """
+    out = re.sub(r"[^A-Za-z0-9._-]+", "_", text).strip("_") or "x"
+    if len(out) <= MAX_SLUG:
+        return out
+    digest = hashlib.sha256(text.encode("utf-8", "surrogatepass")).hexdigest()[:12]
+    return f"{out[:MAX_SLUG - 13]}-{digest}"
 
 
 def fmt(value: Any, spec: str = ".4g", missing: str = "–") -> str:
