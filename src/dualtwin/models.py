@@ -33,6 +33,7 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, StringConstraints, V
 
 #: The longest `Name`: far above any real scenario, channel or robot name.
 MAX_NAME_LENGTH = 256
+MAX_NOTE_LENGTH = 4000
 
 
 class StrictModel(BaseModel):
@@ -57,6 +58,9 @@ def _printable(value: str) -> str:
 #: A name from a document, shown by reports and the terminal: printable (no control, format or bidi
 #: characters; spaces and any script are fine) and at most `MAX_NAME_LENGTH` characters.
 Name = Annotated[str, StringConstraints(max_length=MAX_NAME_LENGTH), AfterValidator(_printable)]
+#: A note from a document that the terminal prints (a sentence a writer of ours composed): printable like a
+#: name, at most `MAX_NOTE_LENGTH` characters.
+Note = Annotated[str, StringConstraints(max_length=MAX_NOTE_LENGTH), AfterValidator(_printable)]
 
 
 def _key(part: str) -> str:
@@ -89,4 +93,5 @@ def validation_message(path: Path, exc: ValidationError) -> str:
     return f"{path}: {json_path(loc)}: {msg}{extra}"
 
 
-__all__ = ["MAX_NAME_LENGTH", "FrozenModel", "Name", "StrictModel", "json_path", "validation_message"]
+__all__ = ["MAX_NAME_LENGTH", "MAX_NOTE_LENGTH", "FrozenModel", "Name", "Note", "StrictModel", "json_path",
+           "validation_message"]

@@ -69,6 +69,8 @@ def _set(manifest: dict[str, Any], field: str, value: str) -> None:
         manifest["channels"]["pole_angle_rad"]["unit"] = value
     elif field == "id":
         manifest["scenarios"][0]["id"] = value
+    elif field == "note":  # an importer's finding, printed by analyze (before: raw to the terminal)
+        manifest["scenarios"][0]["state_continuity"] = {"carried_over": {"note": value}}
     else:
         manifest[field] = value
 
@@ -81,6 +83,7 @@ def _set(manifest: dict[str, Any], field: str, value: str) -> None:
     ("channel", "\x1b[31mangle", "$.channels.'\\x1b[31mangle'"),
     ("suite_name", "x" * 1_000_000, "$.suite_name"),
     ("channel", "y" * 1_000_000, "$.channels.'yyyy"),
+    ("note", "carried over\x1b[2J", "$.scenarios[0].state_continuity.carried_over.note"),
 ])
 def test_name_with_control_characters_or_too_long_is_one_error_line(
     make_run: Callable[..., Path], tmp_path: Path, capsys: pytest.CaptureFixture[str],

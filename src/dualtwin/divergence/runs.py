@@ -235,8 +235,7 @@ def load_run(path: Path) -> Run:
                 onboard=_confined(path, sc.onboard, where, "onboard"),
                 ground_truth=_confined(path, sc.ground_truth, where, "ground_truth"),
                 members=_members(sc, path, manifest_path),
-                state_notes=tuple(str(part.get("note", "")) for part in (sc.state_continuity or {}).values()
-                                  if isinstance(part, dict)),
+                state_notes=tuple(part.note for part in (sc.state_continuity or {}).values()),
             )
         )
     ids = [s.id for s in scenarios]

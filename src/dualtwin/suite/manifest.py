@@ -25,7 +25,7 @@ from pydantic import ConfigDict, Field, ValidationError
 
 from dualtwin.artifacts import read_json
 from dualtwin.errors import DualtwinError
-from dualtwin.models import Name, StrictModel, validation_message
+from dualtwin.models import Name, Note, StrictModel, validation_message
 from dualtwin.suite.schema import MAX_SEED
 
 Status = Literal["completed", "failed", "unstable"]
@@ -52,6 +52,12 @@ class MemberRecord(_Record):
     ground_truth: str | None = None
 
 
+class ContinuityRecord(_Record):
+    """One part of a scenario's state continuity (the importer's finding); its note reaches the terminal."""
+
+    note: Note = ""
+
+
 class ScenarioRecord(_Record):
     id: Name = Field(min_length=1)
     index: int | None = None
@@ -61,7 +67,7 @@ class ScenarioRecord(_Record):
     onboard: str | None = None
     ground_truth: str | None = None
     members: list[MemberRecord] | None = None
-    state_continuity: dict[str, Any] | None = None
+    state_continuity: dict[Name, ContinuityRecord] | None = None
 
 
 class OffsetRecord(_Record):
