@@ -71,6 +71,9 @@ def test_extensions_load(tmp_path: Path) -> None:
     ({"suite_name": "x", "global_settings": {"TIME_STEP": 0}, "scenarios": [{"name": "a", "duration_s": 1}]},
      "$.global_settings.TIME_STEP"),
     ({"suite_name": "x", "scenarios": [{"name": "a", "duration_s": 1, "reset": "continue"}]}, "$.scenarios"),
+    # names reach reports, plot titles and the terminal: one printable line, at most 256 characters (before, any)
+    ({"suite_name": "x\x1b[2J", "scenarios": [{"name": "a", "duration_s": 1}]}, "$.suite_name: names are one line of printable text"),
+    ({"suite_name": "x", "scenarios": [{"name": "a" * 300, "duration_s": 1}]}, "$.scenarios[0].name"),
 ])
 def test_validation_errors_name_file_and_path(tmp_path: Path, data: object, expected: str) -> None:
     path = write(tmp_path, data)

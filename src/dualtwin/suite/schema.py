@@ -16,7 +16,7 @@ from typing import Any, Literal
 
 from pydantic import ConfigDict, Field, TypeAdapter, field_validator, model_validator
 
-from dualtwin.models import FrozenModel
+from dualtwin.models import FrozenModel, Name
 from dualtwin.suite.signals import MAX_DURATION_S, MAX_INPUT_MAGNITUDE, Signal
 
 SCENARIO_KEYS = {"name", "duration_s", "type", "description", "seed", "reset", "tolerances"}
@@ -74,7 +74,7 @@ _signal_adapter: TypeAdapter[Any] = TypeAdapter(Signal)
 
 class Scenario(FrozenModel):
     model_config = ConfigDict(extra="allow")
-    name: str = Field(min_length=1)
+    name: Name = Field(min_length=1)  # (reports, plots and the terminal show it: one printable line)
     duration_s: float = Field(gt=0, le=MAX_DURATION_S)
     type: str | None = None
     description: str | None = None
@@ -109,7 +109,7 @@ class Scenario(FrozenModel):
 
 
 class Suite(FrozenModel):
-    suite_name: str = Field(min_length=1)
+    suite_name: Name = Field(min_length=1)
     global_settings: GlobalSettings = Field(default_factory=GlobalSettings)
     scenarios: list[Scenario] = Field(min_length=1)
 
