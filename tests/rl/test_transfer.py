@@ -89,6 +89,24 @@ def test_a_policy_for_another_robot_is_named_not_a_type_error(continuous_run: Pa
         transfer(continuous_run, "dualtwin/Pioneer-DriveToGoal-MuJoCo-v0", episodes=1, max_episode_steps=10)
 
 
+@pytest.mark.parametrize(("field", "value", "message"), [
+    ("env_id", "abc", "unknown env id 'abc'"),
+    ("env_kwargs", "abc", "env_kwargs must be a JSON object"),
+    ("env_kwargs", {"task_kwargs": [], "control_period": "x"}, r"env_kwargs\.control_period: .*valid number \(1 more\)"),
+    ("io", [1], "io must be a JSON object"),
+    ("max_episode_steps", "abc", "max_episode_steps must be a whole number"),
+])
+def test_a_hostile_run_record_is_named(discrete_run: Path, tmp_path: Path, field: str, value: object,
+                                       message: str) -> None:
+    """run.json is untrusted: these were Gymnasium, TypeError or ValueError tracebacks (found by fuzzing)."""
+    run = Path(shutil.copytree(discrete_run, tmp_path / "run"))
+    record = json.loads((run / "run.json").read_text())
+    (run / "run.json").write_text(json.dumps({**record, field: value}))
+    with pytest.raises(DualtwinError, match=f"run.json: {message}"):
+        transfer(run, "dualtwin/CartPole-MuJoCo-v0", episodes=1, out_dir=tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+
+
 def test_unknown_target(discrete_run: Path) -> None:
     with pytest.raises(DualtwinError, match="registered dualtwin ids"):
         transfer(discrete_run, "dualtwin/CartPole-Gazebo-v0", episodes=1)

@@ -145,3 +145,22 @@ def test_one_twin_at_a_time_gives_the_interleaved_results(tmp_path: Path, cartpo
     interleaved, _ = load_trajectories(tmp_path / "interleaved" / "trajectories.npz")
     assert all(np.array_equal(x.states, y.states) and np.array_equal(x.commands, y.commands, equal_nan=True)
                for x, y in zip(blocked, interleaved, strict=True))
+
+
+@pytest.mark.parametrize(("field", "value", "message"), [
+    ("env_kwargs", "abc", "env_kwargs must be a JSON object"),
+    ("env_kwargs", {"control_period": "x"}, r"env_kwargs\.control_period: Input should be a valid number"),
+    ("env_kwargs", {"task": []}, r"env_kwargs\.task: Input should be a valid string"),
+    ("action", 5, "action must be an object"),
+    ("env_id", 7, "env_id must be a string"),
+])
+def test_a_hostile_policy_contract_is_named_before_the_twins_run(tmp_path: Path, cartpole: RobotBinding, field: str,
+                                                                  value: object, message: str) -> None:
+    """The contract is untrusted: each of these was a TypeError/ValueError/AttributeError traceback (fuzzing)."""
+    policy = sign_policy(tmp_path / "policy")
+    contract = json.loads((policy / "policy_contract.json").read_text())
+    (policy / "policy_contract.json").write_text(json.dumps({**contract, field: value}))
+    with pytest.raises(DualtwinError, match=f"policy_contract.json: {message}"):
+        run_lockstep("mujoco", "mujoco", cartpole, policy=policy, out_dir=tmp_path / "ls", episodes=1,
+                     episode_steps=5)
+    assert not (tmp_path / "ls").exists()

@@ -73,6 +73,7 @@ def load_policy(run_dir: Path | str, which: Literal["final", "best"] = "final", 
     record = read_json(record_path, "run record")
     if not isinstance(record, dict) or not isinstance(record.get("env_id"), str):
         raise DualtwinError(f"{record_path}: not a training run record (no env_id)")
+    env_kwargs, io = _checked_record(record, record_path)
     prefix = "" if which == "final" else "best_"
     model_path = run / f"{prefix}model.zip"
     if not model_path.is_file():
@@ -89,8 +90,29 @@ def load_policy(run_dir: Path | str, which: Literal["final", "best"] = "final", 
         raise DualtwinError(f"{run}: {prefix}vecnormalize.json is missing; the policy needs its normalisation "
                             "statistics")
     model = load_model(model_path, record, trust_pickles=trust_pickles)
-    return LoadedPolicy(run, model, stats, record["env_id"], dict(record.get("env_kwargs") or {}),
-                        dict(record.get("io") or {}), record.get("max_episode_steps"))
+    return LoadedPolicy(run, model, stats, record["env_id"], env_kwargs, io, record.get("max_episode_steps"))
+
+
+def _checked_record(record: dict[str, Any], path: Path) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The env arguments and I/O contract of a run record, checked before anything is built from them: a run
+    folder is untrusted data, and an unregistered ``env_id`` was a Gymnasium traceback, ``env_kwargs: "abc"``
+    a TypeError in ``dict()`` (found by fuzzing ``dualtwin transfer`` and ``dualtwin lockstep``)."""
+    from dualtwin.rl import check_env_id
+    from dualtwin.rl.ppo_config import check_env_kwargs
+
+    try:
+        check_env_id(record["env_id"])
+    except DualtwinError as exc:
+        raise DualtwinError(f"{path}: {exc}") from None
+    env_kwargs = check_env_kwargs(record.get("env_kwargs"), str(path))
+    io = record.get("io") or {}
+    if not isinstance(io, dict):
+        raise DualtwinError(f"{path}: io must be a JSON object, got {type(io).__name__}")
+    steps = record.get("max_episode_steps")
+    # the time limit the training env had (EnvOptions' bounds): each transfer episode runs up to it
+    if steps is not None and (type(steps) is not int or not 1 <= steps <= 10**9):
+        raise DualtwinError(f"{path}: max_episode_steps must be a whole number from 1 to {10**9}, got {steps!r}")
+    return env_kwargs, io
 
 
 def _signature(contract: dict[str, Any]) -> dict[str, Any]:

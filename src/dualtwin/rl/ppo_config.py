@@ -16,7 +16,7 @@ from typing import Annotated, Any, Literal
 from pydantic import ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from dualtwin.errors import DualtwinError
-from dualtwin.models import FrozenModel
+from dualtwin.models import FrozenModel, json_path
 
 CONFIGS = Path(__file__).parent / "configs"
 DEFAULT_CONFIG = CONFIGS / "ppo_cartpole.yaml"
@@ -113,6 +113,28 @@ class EnvOptions(FrozenModel):
 
         check("task_kwargs", value)
         return value
+
+
+def check_env_kwargs(value: Any, where: str) -> dict[str, Any]:
+    """``env_kwargs`` read back from a file (a run's ``run.json``, an export's ``policy_contract.json``), checked
+    as a config's are (:class:`EnvOptions`).
+
+    Those files are untrusted data: ``env_kwargs: "abc"`` was a TypeError in ``dict()``, ``control_period: "x"``
+    a ValueError in ``float()`` and ``task: []`` an unhashable-type error, each a traceback (found by fuzzing
+    ``dualtwin lockstep --policy`` and ``dualtwin transfer``).
+    """
+    if value is None:
+        return {}
+    if not isinstance(value, dict):
+        raise DualtwinError(f"{where}: env_kwargs must be a JSON object, got {type(value).__name__}")
+    try:
+        EnvOptions.model_validate(value)
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        more = f" ({exc.error_count() - 1} more)" if exc.error_count() > 1 else ""
+        raise DualtwinError(f"{where}: env_kwargs{json_path(first['loc'])[1:]}: "
+                            f"{first['msg'].removeprefix('Value error, ')}{more}") from None
+    return dict(value)
 
 
 class PPOConfig(FrozenModel):

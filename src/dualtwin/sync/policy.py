@@ -98,6 +98,21 @@ def check_task_arguments(policy: LockstepPolicy, origin: Path) -> None:
         raise DualtwinError(f"{origin}: {json_path((*where, *first['loc']))}: {first['msg']} (task {name!r})") from None
 
 
+def _checked_contract(contract: dict[str, Any], path: Path) -> tuple[str, dict[str, Any]]:
+    """The env id and ``env_kwargs`` of an export's contract, checked before the twins are built: the contract
+    is untrusted data, and ``env_kwargs: "abc"``, ``action: 5`` or ``env_kwargs.control_period: "x"`` were
+    tracebacks in ``dict()``, :meth:`LockstepPolicy.act` and ``float()`` (found by fuzzing ``dualtwin lockstep``)."""
+    from dualtwin.rl.ppo_config import check_env_kwargs
+
+    env_id = contract.get("env_id", "")
+    if not isinstance(env_id, str):
+        raise DualtwinError(f"{path}: env_id must be a string, got {type(env_id).__name__}")
+    action = contract.get("action", {})
+    if not isinstance(action, dict) or action.get("type", "box") not in ("discrete", "box"):
+        raise DualtwinError(f"{path}: action must be an object whose type is 'discrete' or 'box'")
+    return env_id, check_env_kwargs(contract.get("env_kwargs"), str(path))
+
+
 def load_policy(path: Path | str) -> LockstepPolicy:
     """An exported folder (``policy.onnx`` + ``policy_contract.json``) or a training run (``run.json``)."""
     folder = Path(path)
@@ -119,7 +134,8 @@ def load_policy(path: Path | str) -> LockstepPolicy:
             checked = _Contract.model_validate(contract)
         except ValidationError as exc:
             raise DualtwinError(f"not a dualtwin policy contract: {validation_message(contract_path, exc)}") from None
-        policy = LockstepPolicy(folder, "onnx", checked.env_id, checked.env_kwargs, contract, _session=session)
+        env_id, env_kwargs = _checked_contract(checked.model_dump(), contract_path)
+        policy = LockstepPolicy(folder, "onnx", env_id, env_kwargs, contract, _session=session)
         check_task_arguments(policy, contract_path)
         return policy
     if (folder / "run.json").is_file():
