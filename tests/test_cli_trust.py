@@ -349,16 +349,31 @@ def test_train_that_fails_building_its_envs_leaves_a_folder_resume_accepts(tmp_p
 
     config = yaml.safe_load(DEFAULT_CONFIG.read_text())
     config.update(vec_env="dummy", n_envs=1, n_steps=64, batch_size=64, eval_freq=0)
-    bad = dict(config, env_kwargs={"task_kwargs": {"no_such_option": 1}})  # valid YAML, fails building the env
+    # valid YAML, fails building the env (a task option the task lacks is refused before the folder is made)
+    bad = dict(config, env_kwargs={"robot": "no_such_robot"})
     (tmp_path / "bad.yaml").write_text(yaml.safe_dump(bad))
     (tmp_path / "good.yaml").write_text(yaml.safe_dump(config))
     out = tmp_path / "train"
     argv = ["train", "--env", "dualtwin/CartPole-MuJoCo-Continuous-v0", "--out", str(out), "--steps", "64"]
     code, err = run_cli([*argv, "--config", str(tmp_path / "bad.yaml")], capsys)
-    assert code == 2 and "no_such_option" in err
+    assert code == 2 and "no_such_robot" in err
     assert json.loads((out / "run.json").read_text())["status"] == "starting"  # failed after starting
     code, err = run_cli([*argv, "--config", str(tmp_path / "good.yaml")], capsys)
     assert code == 2 and "--resume" in err  # a plain re-run still refuses a folder it did not finish
     code, err = run_cli([*argv, "--config", str(tmp_path / "good.yaml"), "--resume"], capsys)
     assert code == 0, err
     assert (out / "run.json").is_file() and (out / "model.zip").is_file()
+
+
+def test_train_refuses_hostile_task_options_before_making_the_run_folder(tmp_path: Path,
+                                                                         capsys: pytest.CaptureFixture[str]) -> None:
+    """pole_joint: null reached MuJoCo's mj_name2id when the envs were built, after the run folder was made,
+    and killed the process with SIGSEGV (found by fuzzing task_kwargs)."""
+    import yaml
+
+    (tmp_path / "bad.yaml").write_text(yaml.safe_dump({"env_kwargs": {"task_kwargs": {"pole_joint": None}}}))
+    out = tmp_path / "train"
+    code, err = run_cli(["train", "--env", "dualtwin/CartPole-MuJoCo-v0", "--out", str(out), "--steps", "64",
+                         "--config", str(tmp_path / "bad.yaml")], capsys)
+    assert code == 2 and "bad.yaml: env_kwargs.task_kwargs (task 'cartpole_balance').pole_joint" in err
+    assert len(err.strip().splitlines()) == 1 and not out.exists()

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import re
+import subprocess
+import sys
 import warnings
 
 import gymnasium as gym
@@ -276,3 +279,24 @@ def test_integer_knobs_draw_every_value_alike() -> None:
     assert values.tolist() == [0.0, 1.0, 2.0] and np.all(np.abs(counts / 3000 - 1 / 3) < 0.04)
     with pytest.raises(DualtwinError, match="no integer"):
         load_ranges({"knobs": {"control.delay_periods": {"low": 0.2, "high": 0.8, "integer": True}}})
+
+
+@pytest.mark.parametrize(("options", "message"), [
+    ({"pole_joint": None}, r"task_kwargs\.pole_joint: Input should be a valid string"),
+    ({"observation_ranges": "abc"}, r"task_kwargs\.observation_ranges: Input should be a valid list"),
+    ({"action_key": []}, r"task_kwargs\.action_key: Input should be a valid string"),
+    ({"x_limit": float("nan")}, r"task_kwargs\.x_limit: Input should be a finite number"),
+    ({"initial_angle": 1e308}, "initial_angle from 0 to pi"),
+    ({"continuous": True}, r"task 'cartpole_balance': task_kwargs\.continuous: not an option of this task"),
+])
+def test_hostile_task_options_are_named(options: dict[str, object], message: str) -> None:
+    """Checked against the task's annotations: pole_joint None killed the process (SIGSEGV in mj_name2id), the
+    next two were tracebacks, NaN was accepted and 1e308 overflowed numpy's uniform draw at reset (fuzzing).
+    In a child process, so that the SIGSEGV the old code died of fails this test rather than the test run."""
+    code = ("import gymnasium as gym, dualtwin.rl\n"
+            f"env = gym.make('dualtwin/CartPole-MuJoCo-Continuous-v0', task_kwargs={options!r})\n"
+            "env.reset(seed=0)\n")
+    done = subprocess.run([sys.executable, "-c", code.replace("nan", "float('nan')")], capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 1, done.stderr
+    assert re.search(f"DualtwinError: .*{message}", done.stderr.strip().splitlines()[-1]), done.stderr

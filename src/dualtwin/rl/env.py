@@ -127,9 +127,10 @@ class CartPoleBalance(Task):
                  cart_velocity: Literal["ground_truth", "odometry"] = "odometry",
                  upright_angle: float = 0.5, terminate_on_fall: bool = False,
                  max_wheel_speed: float | None = None, observation_ranges: list[float] | None = None) -> None:
-        if min(max_cart_speed, x_limit, balance_angle, upright_angle) <= 0 or initial_angle < 0:
+        # initial_angle is the half-width of a uniform draw: 1e308 overflowed numpy's uniform() (a traceback)
+        if min(max_cart_speed, x_limit, balance_angle, upright_angle) <= 0 or not 0 <= initial_angle <= math.pi:
             raise DualtwinError("CartPoleBalance: max_cart_speed, x_limit, balance_angle and upright_angle must "
-                                "be > 0, initial_angle >= 0")
+                                "be > 0, initial_angle from 0 to pi")
         # The paper's published controller (and Gymnasium's CartPole) end the episode when the pole leaves the
         # band. Without it a fallen pole rests on its stiff stops at +-1 rad for the rest of the 1000 steps: most
         # of every early rollout is zero-reward samples from states the policy can never recover from.
@@ -356,6 +357,40 @@ class CartPoleBalance(Task):
 TASKS: dict[str, Callable[..., Task]] = {"cartpole_balance": CartPoleBalance}
 
 
+def check_task_kwargs(task: str, kwargs: Any, where: str | None = None) -> dict[str, Any]:
+    """``kwargs`` checked against the task constructor's annotated parameters (strict, finite numbers).
+
+    Task arguments come from files (a PPO config, a run's ``run.json``, an export's contract) and go to the
+    constructor and on to the physics engine unchecked otherwise: ``pole_joint: null`` reached MuJoCo's
+    ``mj_name2id`` and killed the process with SIGSEGV, ``observation_ranges: "abc"`` and ``action_key: []``
+    were tracebacks and ``x_limit: NaN`` was silently accepted (found by fuzzing ``gym.make``'s task_kwargs).
+    """
+    import inspect
+    import typing
+
+    from pydantic import ConfigDict, TypeAdapter, ValidationError
+
+    where = where or f"task {task!r}: task_kwargs"
+    if kwargs is None:
+        return {}
+    if not isinstance(kwargs, dict):
+        raise DualtwinError(f"{where}: expected an object of task {task!r}'s options, got {type(kwargs).__name__}")
+    factory = TASKS[task]
+    function = factory.__init__ if inspect.isclass(factory) else factory
+    hints = typing.get_type_hints(function)
+    options = [name for name, p in inspect.signature(function).parameters.items()
+               if name not in ("self", "continuous") and p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)]
+    for name, value in kwargs.items():
+        if name not in options:
+            raise DualtwinError(f"{where}.{name}: not an option of this task (options: {', '.join(options)})")
+        try:
+            TypeAdapter(hints.get(name, Any), config=ConfigDict(allow_inf_nan=False)).validate_python(value,
+                                                                                                    strict=True)
+        except ValidationError as exc:
+            raise DualtwinError(f"{where}.{name}: {exc.errors()[0]['msg']} (got {value!r:.80})") from None
+    return dict(kwargs)
+
+
 class TwinEnv(gym.Env[np.ndarray, Any]):
     """A Gymnasium env: one twin (``mujoco``, ``webots``) running one task.
 
@@ -379,6 +414,7 @@ class TwinEnv(gym.Env[np.ndarray, Any]):
                  task_kwargs: dict[str, Any] | None = None) -> None:
         if task not in TASKS:
             raise DualtwinError(f"unknown task {task!r} (available: {', '.join(sorted(TASKS))})")
+        checked_kwargs = check_task_kwargs(task, task_kwargs)
         self.robot: RobotBinding = resolve_robot(robot)
         self.twin_name = twin
         self.robot_name = robot
@@ -386,7 +422,7 @@ class TwinEnv(gym.Env[np.ndarray, Any]):
         self.twin: Twin = make_twin(twin, self.robot, control_period)
         self.io = RobotIO(self.robot, self.twin)
         try:
-            self.task = TASKS[task](continuous=continuous, **(task_kwargs or {}))
+            self.task = TASKS[task](continuous=continuous, **checked_kwargs)
         except TypeError as exc:  # an argument the task does not take
             raise DualtwinError(f"task {task!r}: {exc}") from None
         self.task.bind(self.io)
@@ -475,4 +511,4 @@ class TwinEnv(gym.Env[np.ndarray, Any]):
         }
 
 
-__all__ = ["TASKS", "CartPoleBalance", "ObservationTerm", "Task", "TwinEnv"]
+__all__ = ["TASKS", "CartPoleBalance", "ObservationTerm", "Task", "TwinEnv", "check_task_kwargs"]

@@ -75,6 +75,17 @@ def _latest_checkpoint(out: Path, final_steps: int | None) -> tuple[Path, Path, 
     return model, stats, steps
 
 
+def _check_task_options(env_id: str, env_kwargs: dict[str, Any], origin: str) -> None:
+    """The config's ``task_kwargs`` against the task this env id runs, before the run folder is made (the envs
+    are built after it; ``pole_joint: null`` killed the process there with SIGSEGV, rl.env.check_task_kwargs)."""
+    from dualtwin.registration import ENV_IDS
+    from dualtwin.rl.env import TASKS, check_task_kwargs
+
+    task = env_kwargs.get("task", ENV_IDS.get(env_id, {}).get("task", "cartpole_balance"))
+    if task in TASKS:  # an unknown task is named when the env is built
+        check_task_kwargs(task, env_kwargs.get("task_kwargs"), f"{origin}env_kwargs.task_kwargs (task {task!r})")
+
+
 def _make_env_fn(env_id: str, env_kwargs: dict[str, Any], dr: dict[str, Any] | None
                  ) -> Callable[[], gym.Env[Any, Any]]:
     def build() -> gym.Env[Any, Any]:
@@ -126,6 +137,8 @@ def train(env_id: str, config_path: Path | str | Mapping[str, Any] | PPOConfig |
 
     check_env_id(env_id)
     config = load_config(config_path)
+    _check_task_options(env_id, config.env_kwargs,
+                        f"{config_path}: " if isinstance(config_path, str | Path) else "")
     aligned_record = _aligned_record(env_id, config, aligned) if aligned is not None else None
     init_record = _init_record(env_id, init_from) if init_from is not None else None
     if init_record is not None and (init_record["vecnormalize"] is None) != (config.normalize_config is None):

@@ -684,13 +684,13 @@ def _episodes(a: _Side, b: _Side, binding: RobotBinding, suite: Any, lockstep_po
 
 def _policy_episodes(a: _Side, b: _Side, lockstep_policy: Any, seed: int, n_episodes: int | None,
                      episode_steps: int | None) -> list[_Episode]:
-    from dualtwin.rl.env import TASKS
+    from dualtwin.rl.env import TASKS, check_task_kwargs
 
     args = lockstep_policy.task_arguments()
     task_name = args.get("task", "cartpole_balance")
     if task_name not in TASKS:
         raise DualtwinError(f"policy {lockstep_policy.path}: unknown task {task_name!r}")
-    task_kwargs = dict(args.get("task_kwargs") or {})
+    task_kwargs = check_task_kwargs(task_name, args.get("task_kwargs"), f"policy {lockstep_policy.path}: task_kwargs")
     tasks = {}
     for side in (a, b):
         task = TASKS[task_name](continuous=bool(args.get("continuous", False)), **task_kwargs)

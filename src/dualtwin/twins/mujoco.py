@@ -175,6 +175,9 @@ class MuJoCoTwin(Twin):
         if known_id is not None:
             return known_id
         resolved = self._aliases.get(name, name)
+        if not isinstance(resolved, str):
+            # mj_name2id(None) dereferences a null pointer: the process dies with SIGSEGV (a task's pole_joint: null)
+            raise DualtwinError(f"{self._origin}: {label} name must be a string, got {resolved!r:.80}")
         index = mujoco.mj_name2id(self.model, kind, resolved)
         if index < 0:
             count = {mujoco.mjtObj.mjOBJ_JOINT: self.model.njnt, mujoco.mjtObj.mjOBJ_BODY: self.model.nbody,
