@@ -94,6 +94,8 @@ def test_a_policy_for_another_robot_is_named_not_a_type_error(continuous_run: Pa
     ("env_kwargs", "abc", "env_kwargs must be a JSON object"),
     ("env_kwargs", {"task_kwargs": [], "control_period": "x"}, r"env_kwargs\.control_period: .*valid number \(1 more\)"),
     ("io", [1], "io must be a JSON object"),
+    ("io", {"observation": 5}, "io.observation must be an object"),
+    ("io", {"observation": {"shape": 4}}, "io.observation must be an object"),
     ("max_episode_steps", "abc", "max_episode_steps must be a whole number"),
 ])
 def test_a_hostile_run_record_is_named(discrete_run: Path, tmp_path: Path, field: str, value: object,

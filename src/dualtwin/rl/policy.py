@@ -108,6 +108,17 @@ def _checked_record(record: dict[str, Any], path: Path) -> tuple[dict[str, Any],
     io = record.get("io") or {}
     if not isinstance(io, dict):
         raise DualtwinError(f"{path}: io must be a JSON object, got {type(io).__name__}")
+    # the observation's shape sizes the normalisation and its terms are compared with the target env's by
+    # name (_signature): io.observation: 5 was an AttributeError there
+    observation, action = io.get("observation", {}), io.get("action", {})
+    shape = observation.get("shape") or [] if isinstance(observation, dict) else None
+    terms = observation.get("terms") or [] if isinstance(observation, dict) else None
+    if not (isinstance(shape, list) and all(type(n) is int and n >= 0 for n in shape)
+            and isinstance(terms, list) and all(isinstance(t, dict) for t in terms)):
+        raise DualtwinError(f"{path}: io.observation must be an object with a shape (a list of whole numbers) "
+                            "and terms (a list of objects)")
+    if not isinstance(action, dict):
+        raise DualtwinError(f"{path}: io.action must be a JSON object, got {type(action).__name__}")
     steps = record.get("max_episode_steps")
     # the time limit the training env had (EnvOptions' bounds): each transfer episode runs up to it
     if steps is not None and (type(steps) is not int or not 1 <= steps <= 10**9):
