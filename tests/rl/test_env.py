@@ -300,3 +300,23 @@ def test_hostile_task_options_are_named(options: dict[str, object], message: str
                           text=True, timeout=120)
     assert done.returncode == 1, done.stderr
     assert re.search(f"DualtwinError: .*{message}", done.stderr.strip().splitlines()[-1]), done.stderr
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [
+    ({"knobs": "abc"}, "knobs must be a mapping"),
+    ({"knobs": {"body.pole.mass": "abc"}}, "knob 'body.pole.mass' must be a finite number"),
+    ({"knobs": {"body.pole.mass": float("nan")}}, "knob 'body.pole.mass' must be a finite number"),
+    ({"control_period": "abc"}, r"control_period must be a number of seconds in \(0, 60\]"),
+    ({"control_period": None}, r"control_period must be a number of seconds in \(0, 60\]"),
+])
+def test_hostile_env_arguments_are_named(kwargs: dict[str, object], message: str) -> None:
+    """The first, second and last two were ValueError/TypeError tracebacks, NaN went into the model (fuzzing)."""
+    with pytest.raises(DualtwinError, match=message):
+        gym.make("dualtwin/CartPole-MuJoCo-v0", **kwargs).reset(seed=0)
+
+
+def test_hostile_reset_knobs_are_named() -> None:
+    env = gym.make("dualtwin/CartPole-MuJoCo-v0")
+    with pytest.raises(DualtwinError, match=r"reset options\["):
+        env.reset(seed=0, options={"knobs": ["body.pole.mass"]})
+    env.close()

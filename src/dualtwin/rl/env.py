@@ -12,6 +12,7 @@ Time limits come from the Gymnasium registry (``TimeLimit``), as for every Gymna
 from __future__ import annotations
 
 import math
+import numbers
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
@@ -391,6 +392,19 @@ def check_task_kwargs(task: str, kwargs: Any, where: str | None = None) -> dict[
     return dict(kwargs)
 
 
+def _knob_values(values: Any, where: str) -> dict[str, float]:
+    """Knob values given to an env, as a dict of finite numbers: knobs="abc" was a ValueError in dict() and a
+    value "abc" one in the twin's float(), NaN went into the model (found by fuzzing gym.make's knobs)."""
+    if values is None:
+        return {}
+    if not isinstance(values, dict):
+        raise DualtwinError(f"{where} must be a mapping of knob name to value, got {type(values).__name__}")
+    for name, value in values.items():
+        if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+            raise DualtwinError(f"{where}: knob {name!r} must be a finite number, got {value!r:.80}")
+    return dict(values)
+
+
 class TwinEnv(gym.Env[np.ndarray, Any]):
     """A Gymnasium env: one twin (``mujoco``, ``webots``) running one task.
 
@@ -415,6 +429,11 @@ class TwinEnv(gym.Env[np.ndarray, Any]):
         if task not in TASKS:
             raise DualtwinError(f"unknown task {task!r} (available: {', '.join(sorted(TASKS))})")
         checked_kwargs = check_task_kwargs(task, task_kwargs)
+        # Before the twin is built: control_period "abc" was a TypeError inside make_twin (found by fuzzing).
+        period: Any = control_period  # typed float, but from untrusted config or caller: checked as it comes
+        if isinstance(period, bool) or not isinstance(period, numbers.Real) or not 0 < float(period) <= 60:
+            raise DualtwinError(f"control_period must be a number of seconds in (0, 60], got {control_period!r:.80}")
+        knobs = _knob_values(knobs, "knobs")
         self.robot: RobotBinding = resolve_robot(robot)
         self.twin_name = twin
         self.robot_name = robot
@@ -426,7 +445,7 @@ class TwinEnv(gym.Env[np.ndarray, Any]):
         except TypeError as exc:  # an argument the task does not take
             raise DualtwinError(f"task {task!r}: {exc}") from None
         self.task.bind(self.io)
-        self.base_knobs = dict(knobs or {})
+        self.base_knobs = knobs
         self._check_knobs(self.base_knobs)
         # The camera must be declared in the binding so that every twin renders the same view.
         can_render = type(self.twin).render is not Twin.render and camera in self.robot.spec.cameras
@@ -454,7 +473,7 @@ class TwinEnv(gym.Env[np.ndarray, Any]):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
               ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
-        overrides = dict((options or {}).get("knobs") or {})
+        overrides = _knob_values((options or {}).get("knobs"), 'reset options["knobs"]')
         knobs = {**self.base_knobs, **overrides}
         if overrides:
             self._check_knobs(overrides)
