@@ -91,8 +91,9 @@ def test_a_policy_for_another_robot_is_named_not_a_type_error(continuous_run: Pa
 
 @pytest.mark.parametrize(("field", "value", "message"), [
     ("env_id", "abc", "unknown env id 'abc'"),
-    ("env_kwargs", "abc", "env_kwargs must be a JSON object"),
-    ("env_kwargs", {"task_kwargs": [], "control_period": "x"}, r"env_kwargs\.control_period: .*valid number \(1 more\)"),
+    ("env_kwargs", "abc", r"\$\.env_kwargs must be a JSON object"),
+    ("env_kwargs", {"task_kwargs": [], "control_period": "x"},
+     r"\$\.env_kwargs\.control_period: .*valid number \(1 more\)"),
     ("io", [1], "io must be a JSON object"),
     ("io", {"observation": 5}, "io.observation must be an object"),
     ("io", {"observation": {"shape": 4}}, "io.observation must be an object"),

@@ -148,11 +148,11 @@ def test_one_twin_at_a_time_gives_the_interleaved_results(tmp_path: Path, cartpo
 
 
 @pytest.mark.parametrize(("field", "value", "message"), [
-    ("env_kwargs", "abc", "env_kwargs must be a JSON object"),
-    ("env_kwargs", {"control_period": "x"}, r"env_kwargs\.control_period: Input should be a valid number"),
-    ("env_kwargs", {"task": []}, r"env_kwargs\.task: Input should be a valid string"),
-    ("action", 5, "action must be an object"),
-    ("env_id", 7, "env_id must be a string"),
+    ("env_kwargs", "abc", r"\$\.env_kwargs must be a JSON object"),
+    ("env_kwargs", {"control_period": "x"}, r"\$\.env_kwargs\.control_period: Input should be a valid number"),
+    ("env_kwargs", {"task": []}, r"\$\.env_kwargs\.task: Input should be a valid string"),
+    ("action", 5, r"\$\.action must be an object"),
+    ("env_id", 7, r"\$\.env_id must be a string"),
 ])
 def test_a_hostile_policy_contract_is_named_before_the_twins_run(tmp_path: Path, cartpole: RobotBinding, field: str,
                                                                   value: object, message: str) -> None:

@@ -126,13 +126,13 @@ def check_env_kwargs(value: Any, where: str) -> dict[str, Any]:
     if value is None:
         return {}
     if not isinstance(value, dict):
-        raise DualtwinError(f"{where}: env_kwargs must be a JSON object, got {type(value).__name__}")
+        raise DualtwinError(f"{where}: $.env_kwargs must be a JSON object, got {type(value).__name__}")
     try:
         EnvOptions.model_validate(value)
     except ValidationError as exc:
         first = exc.errors()[0]
         more = f" ({exc.error_count() - 1} more)" if exc.error_count() > 1 else ""
-        raise DualtwinError(f"{where}: env_kwargs{json_path(first['loc'])[1:]}: "
+        raise DualtwinError(f"{where}: $.env_kwargs{json_path(first['loc'])[1:]}: "
                             f"{first['msg'].removeprefix('Value error, ')}{more}") from None
     return dict(value)
 

@@ -106,10 +106,10 @@ def _checked_contract(contract: dict[str, Any], path: Path) -> tuple[str, dict[s
 
     env_id = contract.get("env_id", "")
     if not isinstance(env_id, str):
-        raise DualtwinError(f"{path}: env_id must be a string, got {type(env_id).__name__}")
+        raise DualtwinError(f"{path}: $.env_id must be a string, got {type(env_id).__name__}")
     action = contract.get("action", {})
     if not isinstance(action, dict) or action.get("type", "box") not in ("discrete", "box"):
-        raise DualtwinError(f"{path}: action must be an object whose type is 'discrete' or 'box'")
+        raise DualtwinError(f"{path}: $.action must be an object whose type is 'discrete' or 'box'")
     return env_id, check_env_kwargs(contract.get("env_kwargs"), str(path))
 
 
@@ -130,11 +130,11 @@ def load_policy(path: Path | str) -> LockstepPolicy:
         if len(inputs) != 1 or inputs[0].type != "tensor(float)" or len(inputs[0].shape or []) != 2:
             raise DualtwinError(f"{model}: ONNX input {[(i.name, i.type, i.shape) for i in inputs]} is not one "
                                 "float32 [batch, observations] tensor")
+        env_id, env_kwargs = _checked_contract(contract, contract_path)
         try:
-            checked = _Contract.model_validate(contract)
+            _Contract.model_validate(contract)
         except ValidationError as exc:
             raise DualtwinError(f"not a dualtwin policy contract: {validation_message(contract_path, exc)}") from None
-        env_id, env_kwargs = _checked_contract(checked.model_dump(), contract_path)
         policy = LockstepPolicy(folder, "onnx", env_id, env_kwargs, contract, _session=session)
         check_task_arguments(policy, contract_path)
         return policy
