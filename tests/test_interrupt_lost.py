@@ -1,0 +1,43 @@
+"""A Ctrl-C whose handler runs inside a weakref callback (or a __del__) is not lost.
+
+Python ignores an exception raised there: it prints "Exception ignored ... Traceback" and goes on, so the user's
+stop was swallowed (a full test run caught `compare` finishing with exit 0 after a Ctrl-C that landed in a
+WeakKeyDictionary callback). The handler's exception is delivered again outside the callback."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+SCRIPT = """
+import os, signal, time, weakref
+from dualtwin import interrupts
+interrupts.stop_on_interrupt()
+interrupts.ready()
+class A:
+    pass
+def callback(ref):
+    os.kill(os.getpid(), signal.SIGINT)
+    for _ in range(10000):
+        pass  # the handler runs here, inside the callback
+a = A()
+r = weakref.ref(a, callback)
+try:
+    del a  # the callback runs now
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        pass
+    print("lost")
+except interrupts.Interrupted:
+    print("interrupted")
+"""
+
+
+def test_a_ctrl_c_in_a_weakref_callback_still_stops_the_command() -> None:
+    done = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True, timeout=60, cwd=ROOT,
+                          env={"PYTHONPATH": str(ROOT / "src"), "PATH": "/usr/bin:/bin"}, check=False)
+    assert done.stdout.strip() == "interrupted", (done.stdout, done.stderr)
+    assert "Traceback" not in done.stderr and "Exception ignored" not in done.stderr, done.stderr
