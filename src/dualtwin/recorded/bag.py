@@ -247,7 +247,8 @@ def _untrusted(what: str, exc: Exception) -> DualtwinError:
     ``mcap_ros2``'s vendored rosidl parser and its decoder fail on bad ones with whatever they hit first
     (their own InvalidSpecification classes, but also NameError, TypeError, NotImplementedError for
     wstring...): no narrower set names them all, so any error from those two calls is the bag's."""
-    return DualtwinError(f"{what} ({type(exc).__name__}: {str(exc)[:200] or 'no detail'})")
+    detail = " ".join(str(exc).split())[:200]  # (one line: the parsers quote the offending definition line)
+    return DualtwinError(f"{what} ({type(exc).__name__}: {detail or 'no detail'})")
 
 
 def _codec_errors() -> tuple[type[Exception], ...]:
