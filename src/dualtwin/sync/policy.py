@@ -7,17 +7,14 @@ episode start) is rebuilt from them and bound to each twin. Imports of ONNX Runt
 
 from __future__ import annotations
 
-import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
 
 from dualtwin.artifacts import sha256_file
 from dualtwin.errors import DualtwinError
-from dualtwin.models import json_path, validation_message
 from dualtwin.onnx_models import RUN_LIMIT_S, open_session, run_session
 
 
@@ -63,39 +60,19 @@ class LockstepPolicy:
         return sha256_file(model) if model.is_file() else ""
 
 
-class _Contract(BaseModel):
-    """The fields of ``policy_contract.json`` a lockstep run computes with (the others are descriptive)."""
-
-    model_config = ConfigDict(extra="allow")
-    env_id: str = ""
-    env_kwargs: dict[str, Any] = Field(default_factory=dict)
-    action: dict[str, Any] = Field(default_factory=dict)
-
-
 def check_task_arguments(policy: LockstepPolicy, origin: Path) -> None:
-    """The task the policy's env arguments build, checked against its constructor's signature and types: they come
-    from a file (``policy_contract.json`` or ``run.json``), and a wrong one was a TypeError mid-run."""
-    from dualtwin.rl.env import TASKS
+    """The task the policy's env arguments build, checked as every env's are (:func:`dualtwin.rl.env.check_task_kwargs`:
+    the task constructor's options, strict types, finite numbers): they come from a file (``policy_contract.json``
+    or ``run.json``), and a wrong one was a TypeError mid-run."""
+    from dualtwin.rl.env import TASKS, check_task_kwargs
 
     args = policy.task_arguments()
     name = args.get("task", "cartpole_balance")
     if not isinstance(name, str) or name not in TASKS:
         raise DualtwinError(f"{origin}: $.env_kwargs.task: unknown task {name!r} (known: {sorted(TASKS)})")
-    factory = TASKS[name]
-    hints = typing.get_type_hints(factory.__init__ if isinstance(factory, type) else factory)  # type: ignore[misc]
-    hints.pop("return", None)
-    fields: dict[str, Any] = {key: (hint, None) for key, hint in hints.items()}
-    # Forbid unknown names and non-finite floats: the task computes limits and speeds with them.
-    model = create_model("TaskArguments", __config__=ConfigDict(extra="forbid", allow_inf_nan=False), **fields)
-    kwargs = args.get("task_kwargs") or {}
-    if not isinstance(kwargs, dict):
-        raise DualtwinError(f"{origin}: $.env_kwargs.task_kwargs: expected an object, got {type(kwargs).__name__}")
-    try:
-        model.model_validate({"continuous": args.get("continuous", False), **kwargs})
-    except ValidationError as exc:
-        first = exc.errors()[0]
-        where = ("env_kwargs",) if first["loc"][:1] == ("continuous",) else ("env_kwargs", "task_kwargs")
-        raise DualtwinError(f"{origin}: {json_path((*where, *first['loc']))}: {first['msg']} (task {name!r})") from None
+    if not isinstance(args.get("continuous", False), bool):
+        raise DualtwinError(f"{origin}: $.env_kwargs.continuous: Input should be a valid boolean (task {name!r})")
+    check_task_kwargs(name, args.get("task_kwargs"), f"{origin}: $.env_kwargs.task_kwargs")
 
 
 def _checked_contract(contract: dict[str, Any], path: Path) -> tuple[str, dict[str, Any]]:
@@ -131,10 +108,6 @@ def load_policy(path: Path | str) -> LockstepPolicy:
             raise DualtwinError(f"{model}: ONNX input {[(i.name, i.type, i.shape) for i in inputs]} is not one "
                                 "float32 [batch, observations] tensor")
         env_id, env_kwargs = _checked_contract(contract, contract_path)
-        try:
-            _Contract.model_validate(contract)
-        except ValidationError as exc:
-            raise DualtwinError(f"not a dualtwin policy contract: {validation_message(contract_path, exc)}") from None
         policy = LockstepPolicy(folder, "onnx", env_id, env_kwargs, contract, _session=session)
         check_task_arguments(policy, contract_path)
         return policy
