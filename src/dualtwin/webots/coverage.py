@@ -78,8 +78,9 @@ REGISTRY: tuple[Coverage, ...] = (
              "out) ends it (its step returns -1); with several controllers the robots are sampled, draw sensor noise "
              "and exchange packets in world order, and a simulationReset waits for every controller's step (each "
              "then returns at t = 0), so the same world and seed give the same output however the processes are "
-             "scheduled; C controllers do not run; battery drained by cpuConsumption and motor consumptionFactor × |torque| "
-             "(no Charger recharge; an empty battery stops nothing)"),
+             "scheduled; C controllers do not run; battery drained by cpuConsumption and motor consumptionFactor × |torque|; "
+             "when it runs out the controller's step returns -1 (it ends) and the motors hold velocity 0 with their "
+             "full torque (our reading of Webots' 'stops all motion'); recharged at a Charger"),
     Coverage("Group", "scene", "supported", "children expanded"),
     Coverage("Pose", "scene", "supported",
              "frames of children and bounding objects; a supervisor's translation/rotation edit of one inside "
@@ -102,8 +103,11 @@ REGISTRY: tuple[Coverage, ...] = (
              "boxes, and by Lidar, RangeFinder and infra-red rays, drawn in grey 0.6 (Assimp's default material: "
              "the file's materials and textures are not read); converted to a visual MuJoCo mesh; no physics (not "
              "a bounding object in Webots either)"),
-    Coverage("Charger", "scene", "not", "behaves as a Solid; battery charging is not simulated (a world with one "
-             "says so once at load)"),
+    Coverage("Charger", "scene", "partial",
+             "a Solid and a battery: its energy grows by its charging speed up to its maximum, and it gives the first "
+             "robot (world order) whose origin is within radius that robot's recharge speed, at most what it holds "
+             "and what the robot's battery lacks (one robot at a time and the order within a step are our reading); "
+             "the emissiveColor/gradual colour change is not drawn headless"),
     Coverage("Fluid", "scene", "partial",
              "buoyancy (Archimedes: density x immersed volume x gravity, at the immersed volume's centroid, "
              "before each physics step) on the bodies of Solids whose immersionProperties name it; its "

@@ -67,7 +67,8 @@ class RobotLink:
         install_tracks(self._sim)
         install_connectors(self._sim)  # docking and suction run in the physics even if no controller asks
         install_vacuum_grippers(self._sim)
-        install_batteries(self._sim)
+        # a robot whose battery runs out ends its controller (the runtime's, whichever thread steps)
+        install_batteries(self._sim).power_off_listeners[id(runtime)] = runtime.power_off
         self._devices: dict[int, Device] = {}
         self._sensors: dict[int, Sensor] = {}
         #: objects stepped with the robot that are not sensors (keyboards, mice, joysticks)

@@ -251,6 +251,18 @@ class Runtime:
             self._gone_nodes.update(nodes)  # a controller not started yet never starts
             self._end_controllers_of(set(nodes), gone=True)
 
+    def power_off(self, robot_node: SceneNode) -> None:
+        """``robot_node``'s battery ran out (called by the battery hook during a physics step): its controller's
+        step returns -1 and it leaves the synchronisation, as Webots terminates that controller. Robots nested in
+        it keep theirs (each robot has its own battery)."""
+        with self._cond:
+            self._end_controllers_of({id(robot_node)}, gone=True, advance=False)
+            for client in self._clients:  # a Robot made by a script using the API directly (no controller)
+                if client.controller is None and client.active and client.robot._rec.node is robot_node:
+                    client.active = False
+                    client.cut = client.waiting
+                    client.waiting = False
+
     def _end_controllers_of(self, robots: set[int], *, gone: bool, advance: bool = True) -> None:
         """Tell the controllers of these robot nodes -1 at their step and take them out of the synchronisation;
         a restart (``gone`` False) also stops their sensors, so the next controller finds none enabled."""

@@ -106,12 +106,6 @@ from dualtwin.webots.physics.records import (
 )
 from dualtwin.webots.physics.records import field_or as _f
 
-#: Nodes that change what Webots simulates but that this runtime keeps without effect (their coverage entries
-#: say "not"): a world holding one runs, and says once, at load, what it will not show.
-NOT_SIMULATED = {
-    "Charger": "chargers are not simulated here: no battery is recharged",
-}
-
 __all__ = [
     "Simulation",
     "SimulationUnstable",
@@ -225,10 +219,6 @@ class Simulation(FrameEdits):
         if plugin not in ("", "<none>"):
             self.warn(f"WorldInfo.physics names the physics plugin '{plugin}': physics plugins are not run here, "
                       "the world is simulated without it")
-        present = {node.type_name for top in self.world.nodes for node in top.walk()}
-        for type_name, missing in NOT_SIMULATED.items():
-            if type_name in present:
-                self.warn(f"the world has a {type_name} node: {missing} (docs/webots-coverage.md)")
         self.random_seed = int(_f(info, "randomSeed", 0))
         self.contact_properties = [
             cp for cp in (_f(info, "contactProperties", []) or []) if isinstance(cp, Node)
