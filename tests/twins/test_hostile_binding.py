@@ -118,3 +118,24 @@ def test_a_model_asking_for_more_memory_than_a_machine_has_is_refused_before_muj
     assert code == 2
     assert len(err) == 1 and str(folder / "cartpole.xml") in err[0] and message in err[0], err
     assert "more than the" in err[0] and not out.exists()
+
+
+def test_a_huge_height_field_in_an_included_file_is_refused_before_mujoco_parses_it(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """MuJoCo's parser allocates a height field's samples as it reads the element, so the check reads the text:
+    before, only the model file's own <hfield> elements were read, and one in a file it <include>s (here two
+    levels down, in a sub-folder, named relative to the file that includes it, one way MuJoCo finds it) went
+    through."""
+    folder = robot_folder(tmp_path)
+    (folder / "parts").mkdir()
+    (folder / "parts" / "outer.xml").write_text('<mujoco><include file="ground.xml"/></mujoco>')
+    # 10 001 x 10 001 samples: just past the limit (a regression would allocate 400 MB, not tens of GB)
+    (folder / "parts" / "ground.xml").write_text(
+        '<mujoco><asset><hfield name="ground" nrow="10001" ncol="10001" size="1 1 1 1"/></asset></mujoco>')
+    text = (folder / "cartpole.xml").read_text()
+    head = text.index(">", text.index("<mujoco")) + 1
+    (folder / "cartpole.xml").write_text(text[:head] + '<include file="parts/outer.xml"/>' + text[head:])
+    code, err, out = suite_run(folder, "mujoco", capsys)
+    assert code == 2
+    assert len(err) == 1 and str(folder / "parts" / "ground.xml") in err[0] and "1.0002e+08 samples" in err[0], err
+    assert not out.exists()

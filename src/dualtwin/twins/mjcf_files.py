@@ -61,11 +61,18 @@ def compile_spec(spec: mujoco.MjSpec, origin: str) -> mujoco.MjModel:
 
 _HFIELD = re.compile(r"<hfield\b[^>]*>")
 _ATTRIBUTE = re.compile(r"""\b(nrow|ncol)\s*=\s*["']\s*([^"']*)["']""")
+_INCLUDE = re.compile(r"""<include\b[^>]*?\bfile\s*=\s*["']([^"']*)["']""")
+#: Most files one model may include (directly or through included files) that the height-field check reads.
+MAX_INCLUDED_FILES = 1000
 
 
-def _check_hfields(path: Path) -> None:
-    # MuJoCo's parser itself allocates a height field's samples (11 GB for 100 000 x 100 000, before any compile):
-    # the file's own <hfield> elements are read first (those of an <include>d file are not)
+def _check_hfields(path: Path, folder: Path | None = None, seen: set[Path] | None = None) -> None:
+    # MuJoCo's parser itself allocates a height field's samples (11 GB for 100 000 x 100 000, before any compile),
+    # so the <hfield> elements are read from the text first: the model file's own and those of the files it
+    # <include>s, at any depth (MuJoCo finds an included file beside the file that includes it or in the main
+    # model's folder: both are read)
+    folder = path.parent if folder is None else folder
+    seen = {path.resolve()} if seen is None else seen
     try:
         text = path.read_text(encoding="utf-8", errors="replace")
     except OSError:
@@ -79,6 +86,16 @@ def _check_hfields(path: Path) -> None:
         if samples > MAX_HFIELD_SAMPLES:
             raise DualtwinError(f"{path}: the model asks for {tag[:80]} = {samples:g} samples, more than the "
                                 f"{MAX_HFIELD_SAMPLES:g} dualtwin compiles (MuJoCo would allocate it all)")
+    for name in _INCLUDE.findall(text):
+        for base in (path.parent, folder):
+            try:
+                included = (base / name).resolve()
+            except (OSError, ValueError):
+                continue  # (a NUL, a loop of links) MuJoCo's parser reports it
+            if included in seen or len(seen) >= MAX_INCLUDED_FILES:
+                continue  # (an include cycle is MuJoCo's error to report)
+            seen.add(included)
+            _check_hfields(included, folder, seen)
 
 
 def load_spec(path: Path) -> mujoco.MjSpec:
