@@ -93,6 +93,21 @@ class _Watchdog:
 _WATCHDOG = _Watchdog()
 
 
+def check_float_input(session: Any, path: Path, refusal: str, width: int | None = None) -> None:
+    """Refuse a session that does not take one float32 ``[batch, n]`` input (``n == width`` when given).
+
+    Callers feed one float32 row per observation to the first input; another count, type or rank would fail
+    inside ORT mid-run (or as an IndexError on a rank-less input), so it is refused at load as
+    ``"{path}: ONNX input [...] {refusal}"``, the refusal phrased for the caller's contract.
+    """
+    inputs = session.get_inputs()
+    # A scalar or rank-less input has no shape to index: it is refused as not [batch, n], not an IndexError.
+    shape = list(inputs[0].shape or []) if inputs else []
+    if (len(inputs) != 1 or inputs[0].type != "tensor(float)" or len(shape) != 2
+            or (width is not None and shape[-1] != width)):
+        raise DualtwinError(f"{path}: ONNX input {[(i.name, i.type, i.shape) for i in inputs]} {refusal}")
+
+
 def run_session(session: Any, feeds: dict[str, Any], what: str, limit_s: float = RUN_LIMIT_S) -> list[Any]:
     """``session.run(None, feeds)``, ended after ``limit_s`` seconds; a failure is a :class:`DualtwinError`."""
     import onnxruntime as ort

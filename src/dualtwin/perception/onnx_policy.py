@@ -18,7 +18,7 @@ from pydantic import BaseModel, Field, Strict, ValidationError, model_validator
 from dualtwin.artifacts import read_json_object, sha256_file
 from dualtwin.errors import DualtwinError
 from dualtwin.models import validation_message
-from dualtwin.onnx_models import RUN_LIMIT_S, open_session, run_session
+from dualtwin.onnx_models import RUN_LIMIT_S, check_float_input, open_session, run_session
 
 POLICY_FILE = "policy.onnx"
 POLICY_CONTRACT = "policy_contract.json"
@@ -118,13 +118,9 @@ class OnnxPolicy:
         expected = checked.onnx.sha256
         if expected and sha256_file(model) != expected:
             raise DualtwinError(f"{model}: sha256 differs from {POLICY_CONTRACT} (the model was replaced or modified)")
-        inputs, outputs = session.get_inputs(), session.get_outputs()
         n = len(checked.observation)
-        # A scalar or rank-less input has no shape to index: it is refused as not [batch, n], not an IndexError.
-        shape = list(inputs[0].shape or []) if inputs else []
-        if len(inputs) != 1 or inputs[0].type != "tensor(float)" or len(shape) != 2 or shape[-1] != n:
-            raise DualtwinError(f"{model}: ONNX input {[(i.name, i.type, i.shape) for i in inputs]} does not take "
-                                f"the contract's {n} float observations")
+        check_float_input(session, model, f"does not take the contract's {n} float observations", width=n)
+        outputs = session.get_outputs()
         # The outputs are the action and one command per action name: the server zips them per request.
         if len(outputs) != 1 + len(checked.action.names):
             raise DualtwinError(f"{model}: {len(outputs)} ONNX outputs, the contract's action needs the action and "

@@ -15,7 +15,7 @@ import numpy as np
 
 from dualtwin.artifacts import sha256_file
 from dualtwin.errors import DualtwinError
-from dualtwin.onnx_models import RUN_LIMIT_S, open_session, run_session
+from dualtwin.onnx_models import RUN_LIMIT_S, check_float_input, open_session, run_session
 
 
 @dataclass
@@ -102,11 +102,7 @@ def load_policy(path: Path | str) -> LockstepPolicy:
         contract = read_json_object(contract_path, what="policy contract")  # names file, line and column
         model = folder / "policy.onnx"
         session = open_session(model, "policy")
-        inputs = session.get_inputs()
-        # Each step feeds one float32 row to the first input: another count or type would fail in ORT mid-run.
-        if len(inputs) != 1 or inputs[0].type != "tensor(float)" or len(inputs[0].shape or []) != 2:
-            raise DualtwinError(f"{model}: ONNX input {[(i.name, i.type, i.shape) for i in inputs]} is not one "
-                                "float32 [batch, observations] tensor")
+        check_float_input(session, model, "is not one float32 [batch, observations] tensor")
         env_id, env_kwargs = _checked_contract(contract, contract_path)
         policy = LockstepPolicy(folder, "onnx", env_id, env_kwargs, contract, _session=session)
         check_task_arguments(policy, contract_path)
