@@ -17,6 +17,7 @@ import pytest
 
 from dualtwin.errors import DualtwinError
 from dualtwin.http_bounds import bounded_client, is_reply_limit
+from dualtwin.rl.env import check_task_kwargs
 from dualtwin.server.client import check_env_kwargs, deploy
 
 ENV = "dualtwin/CartPole-MuJoCo-Continuous-v0"
@@ -54,6 +55,23 @@ def test_bad_env_kwargs_are_one_line_errors(name: str) -> None:
     with pytest.raises(DualtwinError, match="policy.env_kwargs") as info:
         check_env_kwargs(ENV, kwargs)
     assert words in str(info.value) and "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("options", [{"x_limit": float("nan")}, {"pole_joint": None}, {"reward_fn": "lambda: 0"}])
+def test_served_task_options_get_the_envs_own_check(options: dict[str, Any]) -> None:
+    """One check of task options: the client refuses a served one with rl.env.check_task_kwargs's reason under its
+    JSON path (it had a copy of that check, whose wording and NaN handling differed)."""
+    with pytest.raises(DualtwinError) as client:
+        check_env_kwargs(ENV, {"task_kwargs": options})
+    with pytest.raises(DualtwinError) as env:
+        check_task_kwargs("cartpole_balance", options, "WHERE")
+    assert str(client.value) == str(env.value).replace("WHERE", "/v1/info policy.env_kwargs.task_kwargs", 1)
+
+
+def test_served_task_options_null_is_refused() -> None:
+    # The env takes None as no options; a server sends the object it recorded, so null is refused, as before.
+    with pytest.raises(DualtwinError, match=r"policy\.env_kwargs\.task_kwargs: expected an object, got NoneType"):
+        check_env_kwargs(ENV, {"task_kwargs": None})
 
 
 class _Handler(BaseHTTPRequestHandler):

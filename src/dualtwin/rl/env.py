@@ -358,37 +358,71 @@ class CartPoleBalance(Task):
 TASKS: dict[str, Callable[..., Task]] = {"cartpole_balance": CartPoleBalance}
 
 
+def declared_options(factory: Any) -> dict[str, Any]:
+    """The keyword parameters of ``factory`` (a class's ``__init__`` or a function) with their annotated types
+    (``Any`` where a parameter has none)."""
+    import inspect
+    import typing
+
+    function = factory.__init__ if inspect.isclass(factory) else factory
+    hints = typing.get_type_hints(function)
+    return {name: hints.get(name, Any) for name, p in inspect.signature(function).parameters.items()
+            if name != "self" and p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)}
+
+
+def check_option(where: str, value: Any, hint: Any) -> Any:
+    """``value`` checked against the annotation ``hint``: strict (a JSON string is not a number, 1 is not True)
+    and finite (NaN and infinities refused, also inside lists and objects the annotation leaves open).
+
+    Raises:
+        DualtwinError: ``"{where}: <reason> (got <value>)"``, one line.
+    """
+    from pydantic import ConfigDict, TypeAdapter, ValidationError
+
+    try:
+        adapter = TypeAdapter(hint, config=ConfigDict(allow_inf_nan=False))
+    except Exception:  # noqa: BLE001 - an annotation pydantic cannot check: accept plain JSON scalars only
+        if value is None or isinstance(value, bool | int | float | str) and _all_finite(where, value):
+            return value
+        raise DualtwinError(f"{where}: expected a plain value, got {type(value).__name__}") from None
+    try:
+        checked = adapter.validate_python(value, strict=True)
+    except ValidationError as exc:
+        raise DualtwinError(f"{where}: {exc.errors()[0]['msg']} (got {value!r:.80})") from None
+    _all_finite(where, checked)
+    return checked
+
+
+def _all_finite(where: str, value: Any) -> bool:
+    """True, or a DualtwinError naming the first NaN or infinity inside ``value`` (an ``Any`` annotation lets
+    them through pydantic, and they poison physics and JSON records alike)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        raise DualtwinError(f"{where}: must be finite, got {value!r}")
+    items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list | tuple) else ()
+    for key, item in items:
+        _all_finite(f"{where}.{key}", item)
+    return True
+
+
 def check_task_kwargs(task: str, kwargs: Any, where: str | None = None) -> dict[str, Any]:
-    """``kwargs`` checked against the task constructor's annotated parameters (strict, finite numbers).
+    """``kwargs`` checked against the task constructor's annotated parameters (:func:`check_option`: strict,
+    finite numbers).
 
     Task arguments come from files (a PPO config, a run's ``run.json``, an export's contract) and go to the
     constructor and on to the physics engine unchecked otherwise: ``pole_joint: null`` reached MuJoCo's
     ``mj_name2id`` and killed the process with SIGSEGV, ``observation_ranges: "abc"`` and ``action_key: []``
     were tracebacks and ``x_limit: NaN`` was silently accepted (found by fuzzing ``gym.make``'s task_kwargs).
     """
-    import inspect
-    import typing
-
-    from pydantic import ConfigDict, TypeAdapter, ValidationError
-
     where = where or f"task {task!r}: task_kwargs"
     if kwargs is None:
         return {}
     if not isinstance(kwargs, dict):
         raise DualtwinError(f"{where}: expected an object of task {task!r}'s options, got {type(kwargs).__name__}")
-    factory = TASKS[task]
-    function = factory.__init__ if inspect.isclass(factory) else factory
-    hints = typing.get_type_hints(function)
-    options = [name for name, p in inspect.signature(function).parameters.items()
-               if name not in ("self", "continuous") and p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)]
+    options = {name: hint for name, hint in declared_options(TASKS[task]).items() if name != "continuous"}
     for name, value in kwargs.items():
         if name not in options:
             raise DualtwinError(f"{where}.{name}: not an option of this task (options: {', '.join(options)})")
-        try:
-            TypeAdapter(hints.get(name, Any), config=ConfigDict(allow_inf_nan=False)).validate_python(value,
-                                                                                                    strict=True)
-        except ValidationError as exc:
-            raise DualtwinError(f"{where}.{name}: {exc.errors()[0]['msg']} (got {value!r:.80})") from None
+        check_option(f"{where}.{name}", value, options[name])
     return dict(kwargs)
 
 
@@ -530,4 +564,5 @@ class TwinEnv(gym.Env[np.ndarray, Any]):
         }
 
 
-__all__ = ["TASKS", "CartPoleBalance", "ObservationTerm", "Task", "TwinEnv", "check_task_kwargs"]
+__all__ = ["TASKS", "CartPoleBalance", "ObservationTerm", "Task", "TwinEnv", "check_option", "check_task_kwargs",
+           "declared_options"]

@@ -15,7 +15,6 @@ import base64
 import hashlib
 import io
 import json
-import math
 import tempfile
 import time
 from pathlib import Path
@@ -69,42 +68,6 @@ def _client(server_url: str, api_key: str | None, timeout: float) -> Any:
 SERVER_ENV_OPTIONS = ("continuous", "control_period", "knobs", "task_kwargs")
 
 
-def _declared_options(factory: Any) -> dict[str, Any]:
-    """Keyword parameters of ``factory`` (a class or function) with their annotated types."""
-    import inspect
-    import typing
-
-    function = factory.__init__ if inspect.isclass(factory) else factory
-    hints = typing.get_type_hints(function)
-    return {name: hints.get(name, Any) for name, p in inspect.signature(function).parameters.items()
-            if name != "self" and p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)}
-
-
-def _check_value(where: str, value: Any, hint: Any) -> Any:
-    from pydantic import TypeAdapter, ValidationError
-
-    try:
-        # Strict: a JSON string is not a number and 1 is not True.
-        checked = TypeAdapter(hint).validate_python(value, strict=True)
-    except ValidationError as exc:
-        first = exc.errors(include_url=False)[0]
-        raise DualtwinError(f"{where}: {first['msg'].lower()} (got {value!r})") from None
-    except Exception:  # noqa: BLE001 - an annotation pydantic cannot check: accept plain JSON scalars only
-        if value is None or isinstance(value, bool | int | float | str):
-            return value
-        raise DualtwinError(f"{where}: expected a plain value, got {type(value).__name__}") from None
-    _check_finite(where, checked)
-    return checked
-
-
-def _check_finite(where: str, value: Any) -> None:
-    if isinstance(value, float) and not math.isfinite(value):
-        raise DualtwinError(f"{where}: must be finite, got {value!r}")
-    items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list | tuple) else ()
-    for key, item in items:
-        _check_finite(f"{where}.{key}", item)
-
-
 def check_env_kwargs(env_id: str, env_kwargs: Any, where: str = "/v1/info policy.env_kwargs") -> dict[str, Any]:
     """The server-supplied env options, checked against the env's declared options (names and types).
 
@@ -117,7 +80,7 @@ def check_env_kwargs(env_id: str, env_kwargs: Any, where: str = "/v1/info policy
     import gymnasium as gym
 
     from dualtwin.rl import check_env_id
-    from dualtwin.rl.env import TASKS
+    from dualtwin.rl.env import check_option, check_task_kwargs, declared_options
 
     if env_kwargs is None:
         return {}
@@ -126,7 +89,7 @@ def check_env_kwargs(env_id: str, env_kwargs: Any, where: str = "/v1/info policy
     spec = gym.spec(check_env_id(env_id))
     factory = gym.envs.registration.load_env_creator(spec.entry_point) if isinstance(spec.entry_point, str) \
         else spec.entry_point
-    declared = _declared_options(factory)
+    declared = declared_options(factory)
     checked: dict[str, Any] = {}
     for key, value in env_kwargs.items():
         if key not in SERVER_ENV_OPTIONS or key not in declared:
@@ -134,18 +97,14 @@ def check_env_kwargs(env_id: str, env_kwargs: Any, where: str = "/v1/info policy
             raise DualtwinError(f"{where}.{key}: not an option a server may set for {env_id} "
                                 f"(allowed: {', '.join(allowed)})")
         if key == "task_kwargs":
+            # null is refused too (the env would take it as no options): a server sends the object it recorded.
             if not isinstance(value, dict):
                 raise DualtwinError(f"{where}.task_kwargs: expected an object, got {type(value).__name__}")
-            task = str(spec.kwargs.get("task", "cartpole_balance"))
-            options = {k: v for k, v in _declared_options(TASKS[task]).items() if k != "continuous"}
-            for name, item in value.items():
-                if name not in options:
-                    raise DualtwinError(f"{where}.task_kwargs.{name}: not an option of task {task!r} "
-                                        f"(options: {', '.join(options)})")
-                _check_value(f"{where}.task_kwargs.{name}", item, options[name])
-            checked[key] = dict(value)
+            # The check every env, training run and lockstep policy uses, against the env's task.
+            checked[key] = check_task_kwargs(str(spec.kwargs.get("task", "cartpole_balance")), value,
+                                             f"{where}.task_kwargs")
         else:
-            checked[key] = _check_value(f"{where}.{key}", value, declared[key])
+            checked[key] = check_option(f"{where}.{key}", value, declared[key])
             if key == "control_period" and checked[key] <= 0:
                 raise DualtwinError(f"{where}.control_period: must be > 0, got {value!r}")
     return checked
