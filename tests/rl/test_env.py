@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 from tests.support.rl_runs import ALL_IDS, can_render
+from tests.support.tracked_twin import NAME, tracked
 
 import dualtwin.rl as rl
 from dualtwin.errors import DualtwinError
@@ -336,3 +337,22 @@ def test_check_option_is_strict_and_finite(value: Any, hint: Any, message: str) 
     with pytest.raises(DualtwinError, match=message):
         check_option("$.o", value, hint)
     assert check_option("$.o", {"a": [1.0, 2]}, dict[str, Any]) == {"a": [1.0, 2]}
+
+
+@pytest.mark.parametrize(("arguments", "message"), [
+    ({"knobs": {"no.such.knob": 1.0}}, "no.such.knob"),
+    ({"render_mode": "human"}, "render_mode 'human' is not supported"),
+    ({"task_kwargs": {"action_key": "no_such_action"}}, "needs a velocity action .no_such_action."),
+])
+def test_a_refusal_after_the_twin_is_built_closes_it(arguments: dict[str, Any], message: str) -> None:
+    """These arguments are refused only once the twin exists (knob names, render modes and the task's binding
+    names): the env closes the twin it built, where it was left open until the process ended (a Webots twin
+    keeps its ODE world)."""
+    with tracked() as built:
+        with pytest.raises(DualtwinError, match=message):
+            rl.TwinEnv(NAME, "cartpole", "cartpole_balance", **arguments)
+        assert len(built) == 1 and built[0].closed
+        env = rl.TwinEnv(NAME, "cartpole", "cartpole_balance")  # accepted arguments: the twin stays open
+        assert len(built) == 2 and not built[1].closed
+        env.close()
+        assert built[1].closed

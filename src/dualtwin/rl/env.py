@@ -473,33 +473,39 @@ class TwinEnv(gym.Env[np.ndarray, Any]):
         self.robot_name = robot
         self.task_name = task
         self.twin: Twin = make_twin(twin, self.robot, control_period)
-        self.io = RobotIO(self.robot, self.twin)
+        # A check below can still refuse the arguments: the twin is closed then, not left to the process's end (a
+        # Webots twin keeps its ODE world until then; nobody holds the half-built env to close it).
         try:
-            self.task = TASKS[task](continuous=continuous, **checked_kwargs)
-        except TypeError as exc:  # an argument the task does not take
-            raise DualtwinError(f"task {task!r}: {exc}") from None
-        self.task.bind(self.io)
-        self.base_knobs = knobs
-        self._check_knobs(self.base_knobs)
-        # The camera must be declared in the binding so that every twin renders the same view.
-        can_render = type(self.twin).render is not Twin.render and camera in self.robot.spec.cameras
-        # Per instance: the frame rate follows the control period and only rendering twins offer rgb_array.
-        self.metadata = {"render_modes": ["rgb_array"] if can_render else [],
-                         "render_fps": int(round(1.0 / control_period))}
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise DualtwinError(f"render_mode {render_mode!r} is not supported by twin {twin!r} with robot "
-                                f"{robot!r} and camera {camera!r} (supported: "
-                                f"{self.metadata['render_modes'] or 'none'}; cameras in the binding: "
-                                f"{', '.join(sorted(self.robot.spec.cameras)) or 'none'})")
-        self.render_mode = render_mode
-        self.camera = camera
-        self.render_size = render_size
-        self._frames: Any = None
-        self.control_period = control_period
-        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(len(self.task.observation_terms),),
-                                            dtype=np.float32)
-        self.action_space = self.task.action_space()
-        self.knob_values: dict[str, float] = {}
+            self.io = RobotIO(self.robot, self.twin)
+            try:
+                self.task = TASKS[task](continuous=continuous, **checked_kwargs)
+            except TypeError as exc:  # an argument the task does not take
+                raise DualtwinError(f"task {task!r}: {exc}") from None
+            self.task.bind(self.io)
+            self.base_knobs = knobs
+            self._check_knobs(self.base_knobs)
+            # The camera must be declared in the binding so that every twin renders the same view.
+            can_render = type(self.twin).render is not Twin.render and camera in self.robot.spec.cameras
+            # Per instance: the frame rate follows the control period and only rendering twins offer rgb_array.
+            self.metadata = {"render_modes": ["rgb_array"] if can_render else [],
+                             "render_fps": int(round(1.0 / control_period))}
+            if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+                raise DualtwinError(f"render_mode {render_mode!r} is not supported by twin {twin!r} with robot "
+                                    f"{robot!r} and camera {camera!r} (supported: "
+                                    f"{self.metadata['render_modes'] or 'none'}; cameras in the binding: "
+                                    f"{', '.join(sorted(self.robot.spec.cameras)) or 'none'})")
+            self.render_mode = render_mode
+            self.camera = camera
+            self.render_size = render_size
+            self._frames: Any = None
+            self.control_period = control_period
+            self.observation_space = spaces.Box(-np.inf, np.inf, shape=(len(self.task.observation_terms),),
+                                                dtype=np.float32)
+            self.action_space = self.task.action_space()
+            self.knob_values: dict[str, float] = {}
+        except BaseException:
+            self.twin.close()
+            raise
 
     def _check_knobs(self, values: dict[str, float]) -> None:
         check_knob_names(list(values), self.twin.knobs(), f"twin {self.twin_name!r}")
