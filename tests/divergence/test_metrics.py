@@ -26,7 +26,9 @@ from dualtwin.divergence import (
     regression,
     resample_common,
     rmse,
+    runs,
 )
+from dualtwin.errors import DualtwinError
 from tests.support.rundirs import cartpole_like
 
 DT = 0.032
@@ -257,6 +259,20 @@ def test_load_tsv_reads_repr_floats_and_drops_truncated_tail(tmp_path: Path) -> 
     path.write_text("time_s\tx\n0.0\t0.1\n0.032\n0.064\t1\n", encoding="utf-8")
     with pytest.raises(ValueError, match=":3: expected 2 columns"):
         load_tsv(path)
+
+
+def test_load_tsv_refuses_a_log_over_the_cap_before_reading(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A log is read whole into Python floats: one over runs.MAX_LOG_BYTES is one line naming the file and the limit
+    (it was read whatever its size). The cap is set small here; the check reads it at call time."""
+    path = tmp_path / "log.tsv"
+    path.write_text("time_s\tx\n0.0\t0.1\n", encoding="utf-8")
+    size = path.stat().st_size
+    monkeypatch.setattr(runs, "MAX_LOG_BYTES", size)
+    assert load_tsv(path)[1].shape == (1, 2)  # at the cap: read
+    monkeypatch.setattr(runs, "MAX_LOG_BYTES", size - 1)
+    with pytest.raises(DualtwinError) as err:
+        load_tsv(path)
+    assert str(err.value) == f"{path}: run log is {size} bytes; at most {size - 1} are read"
 
 
 def test_compare_runs_matches_scenarios_and_channels(make_run: Callable[..., Path]) -> None:

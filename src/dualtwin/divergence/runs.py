@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from dualtwin.artifacts import verify_logs
+from dualtwin.artifacts import check_size, verify_logs
 from dualtwin.divergence.metrics import (
     FloatArray,
     default_resolution,
@@ -147,6 +147,13 @@ class Run:
         return out
 
 
+#: The largest run log read (bytes). A log is read whole and parsed into Python floats (several times its size
+#: in memory), so a larger file is refused before reading rather than exhausting memory. The longest log the
+#: project writes has dualtwin.suite.schema.MAX_SUITE_PERIODS (10**6) rows; the widest bundled robot's rows are
+#: about 400 bytes (the arm's ground truth), so this leaves room for rows of 1 KiB.
+MAX_LOG_BYTES = 1 << 30
+
+
 def load_tsv(path: Path) -> tuple[list[str], FloatArray]:
     """Read a run log.
 
@@ -155,9 +162,11 @@ def load_tsv(path: Path) -> tuple[list[str], FloatArray]:
         when the log holds only a header.
 
     Raises:
-        ValueError: On a missing ``time_s`` column, a malformed row or an unparsable value. A short
-            last row without a trailing newline is dropped: a run that crashed mid-write leaves one.
+        DualtwinError: On a file larger than :data:`MAX_LOG_BYTES`, a missing ``time_s`` column, a malformed
+            row or an unparsable value. A short last row without a trailing newline is dropped: a run that
+            crashed mid-write leaves one.
     """
+    check_size(path, "run log", MAX_LOG_BYTES)
     text = Path(path).read_text(encoding="utf-8")
     lines = text.splitlines()
     if not lines or not lines[0].strip():
