@@ -22,6 +22,7 @@ from pathlib import Path
 
 import pytest
 
+from dualtwin.errors import DualtwinError
 from dualtwin.webots import load_world
 from dualtwin.webots.fetch import fetch_command, fetch_worlds
 from dualtwin.webots.physics import Simulation
@@ -415,6 +416,43 @@ def test_interrupted_fetch_into_a_folder_resumes(tmp_path: Path, online: _Server
     report, _ = fetch_command([world], out, say=None)  # the same folder: continued, not refused
     manifest = json.loads((out / "manifest.json").read_text())
     assert len(manifest["files"]) == 2 and manifest["complete"] is True and report.warnings == []
+
+
+@pytest.mark.parametrize("linked", ["v1", "manifest.json", "v1 file"])
+def test_a_symbolic_link_in_the_out_folder_is_refused_before_writing(
+    tmp_path: Path, online: _Server, linked: str
+) -> None:
+    """A fetch folder is continued, so a link in it was followed: files were written through a ``v1`` link into
+    wherever it pointed (a linked file or manifest was read as the fetch's own). Refused with one line, and
+    nothing is written, here or where the link points."""
+    world = tmp_path / "one.wbt"
+    world.write_text(HEADER + 'EXTERNPROTO "webots://projects/appearances/protos/TireRubber.proto"\n'
+                     + "Solid { children [ Shape { appearance TireRubber { } } ] }\n")
+    out = tmp_path / "folder"
+    fetch_command([world], out, say=None)
+    target = {"v1": out / "v1", "manifest.json": out / "manifest.json",
+              "v1 file": next(p for p in (out / "v1").iterdir() if p.suffix != ".json")}[linked]
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    moved = elsewhere / target.name
+    shutil.move(target, moved)
+    target.symlink_to(moved)
+    # a second world needs one more file: the fetch would store it (and rewrite the manifest)
+    world.write_text(HEADER + 'EXTERNPROTO "webots://projects/appearances/protos/TireRubber.proto"\n'
+                     + 'EXTERNPROTO "webots://projects/appearances/protos/SandyGround.proto"\n'
+                     + "Solid { children [ Shape { appearance TireRubber { } } Shape { appearance SandyGround { } } ] }\n")
+
+    def snapshot() -> dict[str, bytes]:
+        return {str(p.relative_to(tmp_path)): p.read_bytes() for root in (out, elsewhere)
+                for p in sorted(root.rglob("*")) if p.is_file() and not p.is_symlink()}
+
+    before = snapshot()
+    with pytest.raises(DualtwinError) as info:
+        fetch_command([world], out, say=None)
+    message = str(info.value)
+    assert message == (f"--out {out}: {target} is a symbolic link; a fetch folder holds only the files fetch "
+                       "wrote there (a link would be written through or read as a fetched copy)")
+    assert snapshot() == before and target.is_symlink()
 
 
 def test_a_fetch_that_fetched_nothing_leaves_nothing(tmp_path: Path, online: _Server) -> None:

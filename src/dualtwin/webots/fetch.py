@@ -179,6 +179,7 @@ def fetch_command(
         root = Path(out)
         existed = root.exists()
         fresh = not check_output_dir(root, PROTO_FOLDER_KIND, resume=True, resumable=True)  # absent or empty
+        _refuse_links(root)
         # a folder for an offline machine must hold every file, wherever it was found here
         cache = ProtoCache(root, sources=[default_cache_root()], copy_sources=True, progress=say)
         # first, so an interrupted fetch leaves a folder the next one continues; "complete" says it is not done
@@ -198,6 +199,22 @@ def fetch_command(
     if out is not None:
         _write_manifest(cache, complete=True)
     return report, cache.root
+
+
+def _refuse_links(root: Path) -> None:
+    """Refuse a fetch folder in which the cache folder (``v1``), the manifest or a cached file is a symbolic link.
+
+    A folder from an earlier fetch is continued, so what it holds is followed: files were written through a
+    ``v1`` link into wherever it pointed, a linked cached file was read as a fetched copy, and a linked manifest
+    decided what kind of folder this is. The folder is refused before anything is written (a link is the user's
+    to remove; nothing here deletes it)."""
+    folder = root / LAYOUT
+    links = [path for path in (folder, root / "manifest.json") if path.is_symlink()]
+    if not links and folder.is_dir():
+        links = sorted(path for path in folder.iterdir() if path.is_symlink())
+    if links:
+        raise DualtwinError(f"--out {root}: {links[0]} is a symbolic link; a fetch folder holds only the files "
+                            "fetch wrote there (a link would be written through or read as a fetched copy)")
 
 
 def _write_manifest(cache: ProtoCache, *, complete: bool, error: str | None = None) -> None:
