@@ -435,7 +435,6 @@ FRESH = {"Robot.step", "Robot.stepBegin", "Robot.stepEnd", "Supervisor.worldSave
 
 #: (class, method) -> why the item is expected to fail
 XFAIL: dict[str, str] = {
-    **{f"Receiver.{m}": "a list; Webots returns struct.unpack's tuple" for m in ("getFloats", "getInts", "getBools")},
     "Camera.imageGetGray": "an int (floor division); Webots' wrapper divides with /",
     **{f"Display.{m}": "an ImageRef object; Webots returns the image pointer as an int"
        for m in ("imageNew", "imageLoad", "imageCopy")},
@@ -534,7 +533,6 @@ Robot {
 """
 
 
-@pytest.mark.xfail(strict=True, reason="Receiver.getFloats is a list")
 def test_types_cross_a_controller_process(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     (tmp_path / "worlds").mkdir()
     world = tmp_path / "worlds" / "w.wbt"

@@ -47,9 +47,9 @@ def test_packet_arrives_after_one_step_with_strength_and_direction() -> None:
     assert rx.getSignalStrength() == pytest.approx(1 / 4)
     assert rx.getEmitterDirection() == pytest.approx([0.0, 1.0, 0.0], abs=1e-5)
     rx.nextPacket()
-    assert rx.getFloats() == [1.5, -2.0]
+    assert rx.getFloats() == (1.5, -2.0)
     rx.nextPacket()
-    assert rx.getInts() == [3, 4, 1]
+    assert rx.getInts() == (3, 4, 1)
     rx.nextPacket()
     assert rx.getQueueLength() == 0 and rx.getDataSize() == -1
 

@@ -306,25 +306,18 @@ class Receiver(SolidSensor):
         head = self._head("getDataSize")
         return len(head.data) if head is not None else -1
 
-    def getFloats(self) -> list[float]:
+    # getFloats/getInts/getBools: tuples, as Webots' wrapper returns what struct.unpack gives
+    def getFloats(self) -> tuple[float, ...]:
         head = self._head("getFloats")
-        return (
-            list(struct.unpack(f"{len(head.data) // 8}d", head.data[: len(head.data) // 8 * 8]))
-            if head
-            else []
-        )
+        return struct.unpack(f"{len(head.data) // 8}d", head.data[: len(head.data) // 8 * 8]) if head else ()
 
-    def getInts(self) -> list[int]:
+    def getInts(self) -> tuple[int, ...]:
         head = self._head("getInts")
-        return (
-            list(struct.unpack(f"{len(head.data) // 4}i", head.data[: len(head.data) // 4 * 4]))
-            if head
-            else []
-        )
+        return struct.unpack(f"{len(head.data) // 4}i", head.data[: len(head.data) // 4 * 4]) if head else ()
 
-    def getBools(self) -> list[bool]:
+    def getBools(self) -> tuple[bool, ...]:
         head = self._head("getBools")
-        return [bool(b) for b in head.data] if head is not None else []
+        return tuple(bool(b) for b in head.data) if head is not None else ()
 
     def getSignalStrength(self) -> float:
         head = self._head("getSignalStrength")
