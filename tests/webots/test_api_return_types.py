@@ -435,7 +435,6 @@ FRESH = {"Robot.step", "Robot.stepBegin", "Robot.stepEnd", "Supervisor.worldSave
 
 #: (class, method) -> why the item is expected to fail
 XFAIL: dict[str, str] = {
-    "Camera.imageGetGray": "an int (floor division); Webots' wrapper divides with /",
     **{f"Display.{m}": "an ImageRef object; Webots returns the image pointer as an int"
        for m in ("imageNew", "imageLoad", "imageCopy")},
     **{f"Robot.{m}": "a Speaker node's device is an UnsupportedSensor" for m in ("getDevice", "getDeviceByIndex")},

@@ -145,7 +145,7 @@ def test_image_helpers_array_and_png(tmp_path: Path) -> None:
     for x, y in ((0, 0), (15, 24), (W - 1, H - 1), (20, 30)):
         r, g, b = Camera.imageGetRed(raw, W, x, y), Camera.imageGetGreen(raw, W, x, y), Camera.imageGetBlue(raw, W, x, y)
         assert [r, g, b] == array[x][y] == image[y, x, 2::-1].tolist()
-        assert Camera.imageGetGray(raw, W, x, y) == (r + g + b) // 3
+        assert Camera.imageGetGray(raw, W, x, y) == (r + g + b) / 3
     png = tmp_path / "frame.png"
     assert cam.saveImage(str(png), 100) == 0
     from PIL import Image

@@ -17,8 +17,8 @@ What follows Webots (``camera.c`` and ``camera.py`` of its controller library, a
   when the C library returns a NULL image (our reading of its code, not observed); an enabled camera before
   its first sample returns a black image (Webots' buffer before the first frame is not documented);
 * ``getImageArray()`` is indexed ``[x][y]`` and holds ``[r, g, b]`` lists, as Webots' Python documents it;
-  ``imageGetRed/Green/Blue`` read bytes +2/+1/+0 at ``4·(y·width + x)``; ``imageGetGray`` is their integer
-  mean;
+  ``imageGetRed/Green/Blue`` read bytes +2/+1/+0 at ``4·(y·width + x)``; ``imageGetGray`` is their mean, a
+  float (Webots' Python wrapper divides with ``/``);
 * ``saveImage(filename, quality)`` writes a real PNG (or a JPEG through Pillow when the name ends in
   ``.jpg``/``.jpeg``) and returns 0, or -1 on failure;
 * ``near`` sets the near clipping plane, ``far`` (when > 0) the far one; ``antiAliasing TRUE`` renders at twice
@@ -236,9 +236,9 @@ class Camera(SolidSensor):
         return int(image[4 * (y * width + x)])
 
     @staticmethod
-    def imageGetGray(image: bytes, width: int, x: int, y: int) -> int:
+    def imageGetGray(image: bytes, width: int, x: int, y: int) -> float:
         i = 4 * (y * width + x)
-        return (int(image[i]) + int(image[i + 1]) + int(image[i + 2])) // 3
+        return (int(image[i]) + int(image[i + 1]) + int(image[i + 2])) / 3  # a float: Webots' wrapper divides with /
 
     imageGetGrey = imageGetGray
 
