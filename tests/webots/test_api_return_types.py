@@ -435,8 +435,6 @@ FRESH = {"Robot.step", "Robot.stepBegin", "Robot.stepEnd", "Supervisor.worldSave
 
 #: (class, method) -> why the item is expected to fail
 XFAIL: dict[str, str] = {
-    **{f"Display.{m}": "an ImageRef object; Webots returns the image pointer as an int"
-       for m in ("imageNew", "imageLoad", "imageCopy")},
     **{f"Robot.{m}": "a Speaker node's device is an UnsupportedSensor" for m in ("getDevice", "getDeviceByIndex")},
     **{f"Speaker.{m}": "getDevice gives an UnsupportedSensor, not a Speaker" for m in (
         "playSound", "stop", "isSoundPlaying", "speak", "isSpeaking", "setEngine", "setLanguage", "getEngine",
@@ -517,6 +515,7 @@ PROCESS_CALLS = {
     "getPosition": ("robot.getSelf().getPosition()", "list"),
     "getPosition[0]": ("robot.getSelf().getPosition()[0]", "float"),
     "getRangeImage[0]": ("robot.getDevice('lidar').getRangeImage()[0]", "float"),
+    "imageCopy": ("robot.getDevice('display').imageCopy(0, 0, 1, 1)", "int"),
 }
 
 PROCESS_WORLD = """#VRML_SIM R2023b utf8
@@ -525,7 +524,8 @@ Robot { name "talker" translation 0 2 0 children [ Emitter { name "tx" } ] contr
 Robot {
   name "probe"
   children [ GPS { name "gps" } Connector { name "con" } Camera { name "cam" width 4 height 3 }
-             Receiver { name "rx" } Lidar { name "lidar" horizontalResolution 4 fieldOfView 1 } ]
+             Receiver { name "rx" } Lidar { name "lidar" horizontalResolution 4 fieldOfView 1 }
+             Display { name "display" width 2 height 2 } ]
   controller "probe"
   supervisor TRUE
 }

@@ -125,8 +125,25 @@ def test_images_copy_paste_and_save_png(display: Display, tmp_path: Path) -> Non
     with pil.open(path) as decoded:  # and a well-kept reader agrees
         assert (np.array(decoded.convert("RGBA")) == display.pixels).all()
     loaded = display.imageLoad(str(path))
-    assert (loaded.pixels == display.pixels).all()
+    assert type(loaded) is int  # an opaque reference, as Webots' wrapper returns the image pointer
+    display.imageSave(loaded, str(tmp_path / "loaded.png"))
+    assert (_read_png(tmp_path / "loaded.png") == display.pixels).all()
     display.imageDelete(loaded)
+
+
+def test_an_image_reference_the_display_did_not_make_is_an_error_line(
+    display: Display, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    deleted = display.imageCopy(0, 0, 2, 2)
+    display.imageDelete(deleted)
+    before = display.pixels.copy()
+    display.imagePaste(deleted, 0, 0, False)
+    display.imageSave(12345, str(tmp_path / "none.png"))
+    display.imageDelete(None)
+    err = capsys.readouterr().err.splitlines()
+    assert [line.split("(")[0] for line in err] == [
+        "Warning: Display.imagePaste", "Warning: Display.imageSave", "Warning: Display.imageDelete"]
+    assert (display.pixels == before).all() and not (tmp_path / "none.png").exists()
 
 
 def test_an_image_that_cannot_be_made_is_none_with_an_error(display: Display, tmp_path: Path,
@@ -143,7 +160,8 @@ def test_an_image_that_cannot_be_made_is_none_with_an_error(display: Display, tm
     assert len(err) == 5 and all(line.startswith("Warning: Display.image") for line in err), err
     assert "-2 x -2 pixels cannot be made" in err[0] and "notes.png" in err[3]
     # control: a copy reaching past the display is made, black where the display is not
-    assert display.imageCopy(14, 6, 4, 4).pixels.shape == (4, 4, 4)
+    display.imageSave(display.imageCopy(14, 6, 4, 4), str(tmp_path / "edge.png"))
+    assert _read_png(tmp_path / "edge.png").shape == (4, 4, 4)
 
 
 def _bresenham(x1: int, y1: int, x2: int, y2: int) -> list[tuple[int, int]]:

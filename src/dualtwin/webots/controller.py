@@ -35,7 +35,7 @@ from dualtwin.webots.compass import Compass
 from dualtwin.webots.connector import Connector
 from dualtwin.webots.device_base import Device, Sensor
 from dualtwin.webots.devices import GPS, Accelerometer, Brake, Gyro, InertialUnit, Motor, PositionSensor
-from dualtwin.webots.display import Display, ImageRef
+from dualtwin.webots.display import Display
 from dualtwin.webots.field_api import Field
 from dualtwin.webots.gui_devices import Skin, Speaker
 from dualtwin.webots.joystick import Joystick
@@ -76,7 +76,6 @@ __all__ = [
     "Emitter",
     "Field",
     "Gyro",
-    "ImageRef",
     "InertialUnit",
     "Joystick",
     "Keyboard",

@@ -14,10 +14,13 @@ files; ``drawText`` and ``setFont`` only check their arguments), and ``attachCam
 Images: ``imageNew`` (RGB, RGBA, ARGB, BGRA or ABGR bytes), ``imageCopy`` of a display region, ``imagePaste``
 (with ``blend``: alpha compositing, else a plain copy), ``imageSave`` (a real PNG: RGBA, 8 bit, zlib, written
 atomically; ``None`` saves the whole display), ``imageLoad`` (PNG through Pillow, when installed), ``imageDelete``.
+An image is referred to by an opaque ``int``, as Webots' Python wrapper returns the C library's image pointer as an
+``int`` (unique in the process: 1, 2, ...); a reference this display did not make is an error line, and ignored.
 """
 
 from __future__ import annotations
 
+import itertools
 import struct
 import zlib
 from pathlib import Path
@@ -31,7 +34,9 @@ from dualtwin.webots.api_args import as_float, as_int, warn
 from dualtwin.webots.device_base import Device
 from dualtwin.webots.protos import MAX_IMAGE_SIDE  # (the world loader's cap on a Display's own size)
 
-__all__ = ["Display", "ImageRef", "png_bytes"]
+__all__ = ["Display", "png_bytes"]
+
+_IMAGE_REFS = itertools.count(1)  # image references, unique in the process as Webots' image pointers are
 
 
 def png_bytes(rgba: np.ndarray) -> bytes:
@@ -54,14 +59,6 @@ def png_bytes(rgba: np.ndarray) -> bytes:
         + chunk(b"IDAT", zlib.compress(raw, 9))
         + chunk(b"IEND", b"")
     )
-
-
-class ImageRef:
-    """A client-side image handle (Webots numbers them 1, 2, ...)."""
-
-    def __init__(self, display: Display, pixels: np.ndarray) -> None:
-        self._display = display
-        self.pixels = pixels
 
 
 def _image_size_ok(width: int, height: int, method: str) -> bool:
@@ -92,7 +89,7 @@ class Display(Device):
         self._color = (255, 255, 255)
         self._alpha = 1.0
         self._opacity = 1.0
-        self._images: dict[int, ImageRef] = {}
+        self._images: dict[int, np.ndarray] = {}  # image reference -> RGBA pixels
         robot._sim.reset_hooks.append(self._clear)
 
     def _clear(self) -> None:
@@ -243,12 +240,19 @@ class Display(Device):
 
     # -- images
 
-    def _ref(self, pixels: np.ndarray) -> ImageRef:
-        ref = ImageRef(self, pixels)
-        self._images[id(ref)] = ref
+    def _ref(self, pixels: np.ndarray) -> int:
+        ref = next(_IMAGE_REFS)
+        self._images[ref] = pixels
         return ref
 
-    def imageNew(self, data: Any, format: Any, width: Any, height: Any) -> ImageRef | None:  # noqa: A002
+    def _pixels(self, image: Any, method: str) -> np.ndarray | None:
+        pixels = self._images.get(image) if isinstance(image, int) else None
+        if pixels is None:
+            warn(f"Display.{method}(): {image!r} is not an image of this display (see imageNew, imageCopy, "
+                 "imageLoad); ignored")
+        return pixels
+
+    def imageNew(self, data: Any, format: Any, width: Any, height: Any) -> int | None:  # noqa: A002
         fmt = as_int(format, "Display.imageNew")
         w, h = int(width), int(height)
         channels = 3 if fmt == self.RGB else 4
@@ -273,7 +277,7 @@ class Display(Device):
             rgba = img[:, :, order[fmt]]
         return self._ref(np.ascontiguousarray(rgba))
 
-    def imageLoad(self, filename: str) -> ImageRef | None:
+    def imageLoad(self, filename: str) -> int | None:
         try:
             from PIL import Image
         except ImportError as exc:  # pragma: no cover - Pillow is installed with the server extra
@@ -287,7 +291,7 @@ class Display(Device):
             warn(f"Display.imageLoad(): cannot load {filename!r} as a PNG or JPEG image ({exc}); no image made")
             return None
 
-    def imageCopy(self, x: Any, y: Any, width: Any, height: Any) -> ImageRef | None:
+    def imageCopy(self, x: Any, y: Any, width: Any, height: Any) -> int | None:
         x, y, w, h = int(x), int(y), int(width), int(height)
         if not _image_size_ok(w, h, "Display.imageCopy()"):
             return None
@@ -298,9 +302,11 @@ class Display(Device):
             out[y0 - y : y1 - y, x0 - x : x1 - x] = self.pixels[y0:y1, x0:x1]
         return self._ref(out)
 
-    def imagePaste(self, image: ImageRef, x: Any, y: Any, blend: bool) -> None:
+    def imagePaste(self, image: int, x: Any, y: Any, blend: bool) -> None:
         x, y = int(x), int(y)
-        src = image.pixels
+        src = self._pixels(image, "imagePaste")
+        if src is None:
+            return
         h, w = src.shape[:2]
         x0, y0 = max(x, 0), max(y, 0)
         x1, y1 = min(x + w, self._w), min(y + h, self._h)
@@ -315,12 +321,14 @@ class Display(Device):
             part = np.concatenate([rgb, alpha], axis=2)
         self.pixels[y0:y1, x0:x1] = np.clip(np.rint(part), 0, 255).astype(np.uint8)
 
-    def imageSave(self, image: ImageRef | None, filename: str) -> None:
-        pixels = self.pixels if image is None else image.pixels
-        write_bytes(Path(filename), png_bytes(pixels))
+    def imageSave(self, image: int | None, filename: str) -> None:
+        pixels = self.pixels if image is None else self._pixels(image, "imageSave")
+        if pixels is not None:
+            write_bytes(Path(filename), png_bytes(pixels))
 
-    def imageDelete(self, image: ImageRef) -> None:
-        self._images.pop(id(image), None)
+    def imageDelete(self, image: int) -> None:
+        if self._pixels(image, "imageDelete") is not None:
+            del self._images[image]
 
     width = property(lambda self: self.getWidth())
     height = property(lambda self: self.getHeight())
