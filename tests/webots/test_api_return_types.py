@@ -434,12 +434,7 @@ FRESH = {"Robot.step", "Robot.stepBegin", "Robot.stepEnd", "Supervisor.worldSave
     f"Motion.{m}" for m in RETURNS["Motion"]}
 
 #: (class, method) -> why the item is expected to fail
-XFAIL: dict[str, str] = {
-    **{f"Robot.{m}": "a Speaker node's device is an UnsupportedSensor" for m in ("getDevice", "getDeviceByIndex")},
-    **{f"Speaker.{m}": "getDevice gives an UnsupportedSensor, not a Speaker" for m in (
-        "playSound", "stop", "isSoundPlaying", "speak", "isSpeaking", "setEngine", "setLanguage", "getEngine",
-        "getLanguage")},
-}
+XFAIL: dict[str, str] = {}
 
 
 def _items() -> Iterator[Any]:

@@ -16,6 +16,7 @@ from dualtwin.webots.battery import install as install_batteries
 from dualtwin.webots.connector import install as install_connectors
 from dualtwin.webots.device_base import Device, DeviceBinding, Sensor, bind_host, sample_due
 from dualtwin.webots.devices import SOLID_DEVICE_CLASSES, Brake, Motor, PositionSensor, UnsupportedSensor
+from dualtwin.webots.gui_devices import Speaker
 from dualtwin.webots.nodes import Node as SceneNode
 from dualtwin.webots.physics import BrakeRec, DeviceRec, MotorRec, PositionSensorRec, RobotRec, Simulation
 from dualtwin.webots.propeller import install as install_propellers
@@ -25,6 +26,9 @@ from dualtwin.webots.track import install as install_tracks
 from dualtwin.webots.vacuum_gripper import install as install_vacuum_grippers
 
 __all__ = ["RobotLink"]
+
+#: device nodes the twin does not simulate but whose Webots class answers headless (getDevice returns that class)
+_HEADLESS_DEVICE_CLASSES: dict[str, type[Device]] = {"Speaker": Speaker}
 
 
 class RobotLink:
@@ -128,7 +132,8 @@ class RobotLink:
             elif isinstance(rec, BrakeRec):
                 dev = Brake(binding)
             elif isinstance(rec, DeviceRec):
-                dev = SOLID_DEVICE_CLASSES.get(rec.type_name, UnsupportedSensor)(binding)
+                cls = SOLID_DEVICE_CLASSES.get(rec.type_name) or _HEADLESS_DEVICE_CLASSES.get(rec.type_name)
+                dev = (cls or UnsupportedSensor)(binding)
                 if isinstance(dev, Sensor):
                     dev._invalidate()
             elif hasattr(rec, "api_class"):  # devices simulated by their own module (propeller motors)
