@@ -1,4 +1,4 @@
-"""What Webots R2023b's Python controller API returns, call by call: the type of every result (issue: return types).
+"""What Webots R2023b's Python controller API returns, call by call: the exact type of every result.
 
 ``RETURNS`` below is our own encoding of the return types Webots' Python ``controller`` package documents (its
 wrapper over libController, R2023b): per class, method -> type. Results are plain Python values, never NumPy; a C
