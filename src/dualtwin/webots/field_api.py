@@ -6,10 +6,10 @@ simulation (``Simulation.field_changed``), which applies what ODE must follow (j
 A Solid's ``translation``/``rotation`` and a joint's ``position`` are read from the running physics and written as
 queued teleports, applied at the next step as in Webots.
 
-Argument checks: Webots' setters accept a list of the right length (a tuple or NumPy array is refused there with an
-error line); ours also take tuples and arrays, so code written for Webots behaves the same and code that passes a
-tuple still works. A float where an int is expected (and the reverse) goes through :mod:`.api_args`. A value of the
-wrong kind or length, or an index out of range, prints an error on stderr and changes nothing, as in Webots.
+Argument checks: the SF vector setters take a list of the right length, as Webots' (a tuple or NumPy array is refused
+with Webots' error line). The scalar setters are more permissive than Webots' isinstance checks: a float where an int
+is expected (and the reverse) goes through :mod:`.api_args`. A value of the wrong kind or length, or an index out of
+range, prints an error on stderr and changes nothing, as in Webots.
 
 Node handles (``getSFNode``, ``getMFNode``) are built by the owner handle's own class, so this module does not
 import the Node class (which imports it).
