@@ -17,6 +17,7 @@ import pytest
 from dualtwin.webots import load_world
 from dualtwin.webots.controller import ContactPoint, Field, Node, Supervisor
 from dualtwin.webots.physics import Simulation
+from dualtwin.webots.runner import run_world
 
 PROTO = """#VRML_SIM R2023b utf8
 PROTO Crate [
@@ -282,6 +283,42 @@ def test_set_joint_position_teleports_the_joint(tmp_path: Path) -> None:
     assert tip[:2] == pytest.approx([0.0, -3.0 + 0.3], abs=1e-6)
     position = _field(_field(_def(sup, "HINGE"), "jointParameters").getSFNode(), "position")
     assert position.getSFFloat() == pytest.approx(math.pi / 2, abs=1e-6)
+
+
+def test_removing_its_own_node_takes_effect_at_the_end_of_the_step(tmp_path: Path) -> None:
+    # api.md 155: remove() deletes the node (self-removal at end of step)
+    sup = _supervisor(tmp_path)
+    tip = _def(sup, "TIP")
+    sup.getSelf().remove()
+    assert sup.getFromDef("ARM") is not None  # still in the tree and in the physics until the step
+    assert not any(math.isnan(v) for v in tip.getPosition())
+    sup.step(TS)
+    assert sup.getFromDef("ARM") is None and sup.getTime() == pytest.approx(TS / 1000)
+
+
+SELF_REMOVAL = """
+from controller import Supervisor
+sup = Supervisor()
+sup.step(8)
+sup.getSelf().remove()
+print("before the step:", sup.getFromDef("ME") is not None, flush=True)
+print("step:", sup.step(8), round(sup.getTime(), 3), flush=True)
+"""
+
+
+@pytest.mark.parametrize("isolation", ["process", "threads"])
+def test_a_controller_removing_its_robot_ends_after_that_step(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                               isolation: str) -> None:
+    # api.md 155: self-removal at end of step; devices.md 409-410: step returns -1 when Webots is about to
+    # terminate the controller
+    (tmp_path / "worlds").mkdir()
+    (tmp_path / "controllers" / "ctl").mkdir(parents=True)
+    (tmp_path / "controllers" / "ctl" / "ctl.py").write_text(SELF_REMOVAL)
+    world = tmp_path / "worlds" / "w.wbt"
+    world.write_text('#VRML_SIM R2023b utf8\nWorldInfo { basicTimeStep 8 }\n'
+                     'DEF ME Robot { controller "ctl" supervisor TRUE }\n')
+    assert run_world(world, None, 1.0, isolation=isolation) == 0
+    assert capsys.readouterr().out.splitlines() == ["before the step: True", "step: -1 0.016"]
 
 
 def test_contact_point_attributes_are_plain(tmp_path: Path) -> None:

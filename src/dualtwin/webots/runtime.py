@@ -243,13 +243,14 @@ class Runtime:
             self._maybe_advance()
             self._cond.notify_all()
 
-    def end_controllers(self, top: SceneNode) -> None:
+    def end_controllers(self, top: SceneNode, *, advance: bool = True) -> None:
         """A supervisor removed ``top``: the controllers of the robots in it are told -1 at their step (now if
-        they wait in it) and leave the synchronisation, as Webots ends a deleted robot's controller."""
+        they wait in it) and leave the synchronisation, as Webots ends a deleted robot's controller. Not
+        ``advance``: called during a physics step (a self-removal at the step's end), nothing else is stepped."""
         nodes = {id(n): n for n in top.walk()}
         with self._cond:
             self._gone_nodes.update(nodes)  # a controller not started yet never starts
-            self._end_controllers_of(set(nodes), gone=True)
+            self._end_controllers_of(set(nodes), gone=True, advance=advance)
 
     def power_off(self, robot_node: SceneNode) -> None:
         """``robot_node``'s battery ran out (called by the battery hook during a physics step): its controller's

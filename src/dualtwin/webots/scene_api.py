@@ -21,7 +21,7 @@ from dualtwin.webots.node_types import node_type_of
 from dualtwin.webots.nodes import Node as SceneNode
 from dualtwin.webots.nodes import World, copy_value, path_to_node
 from dualtwin.webots.physics import Simulation, SolidRec
-from dualtwin.webots.physics.records import is_robot
+from dualtwin.webots.physics.records import RobotRec, is_robot
 from dualtwin.webots.proto_regeneration import join_physics, regenerate
 from dualtwin.webots.protos import saved_hidden
 from dualtwin.webots.step_hints import step_value
@@ -36,7 +36,7 @@ class NodeIndex(Protocol):
 
     def start_controllers(self, robots: list[SceneNode]) -> None: ...
 
-    def end_controllers(self, top: SceneNode) -> None: ...
+    def end_controllers(self, top: SceneNode, *, advance: bool = True) -> None: ...
 
     def restart_controller(self, robot_node: SceneNode) -> None: ...
 
@@ -50,6 +50,9 @@ class SceneHost(Protocol):
 
     @property
     def _runtime(self) -> NodeIndex: ...
+
+    @property
+    def _rec(self) -> RobotRec: ...
 
     def getFromId(self, id: Any) -> Node | None: ...  # noqa: A002, N802 - Webots' names
 
@@ -295,24 +298,43 @@ class Node:
             warn(f"PROTO {node.proto_name} could not be regenerated: {exc}")
             return True
 
-    def _removed(self, node: SceneNode) -> None:
+    def _removed(self, node: SceneNode, advance: bool = True) -> None:
         """Take the Solids of a removed subtree out of the physics (no collision, no ray hit, no joint)."""
         _, removed = _scene_edits(self._sim)
         imported = self._sim.extensions["imported_nodes"]
         if not any(node is n for n in imported):
             removed.append(node)
         self._sim.remove_nodes(node)
-        self._sup._runtime.end_controllers(node)
+        self._sup._runtime.end_controllers(node, advance=advance)
 
     def remove(self) -> None:
-        """Delete this node from the scene tree (and its Solids from the physics)."""
+        """Delete this node from the scene tree (and its Solids from the physics). A supervisor removing its own
+        Robot (or a node holding it) removes it at the end of the step, as Webots does (api.md: self-removal)."""
         if self._is_root:
             warn("Node.remove(): the root node cannot be removed")
             return
         if path_to(self._sim, self._node) is None:
             return
+        own = self._sup._rec.node
+        if any(n is own for n in self._node.walk()):
+            pending = self._sim.extensions.get("self_removals")
+            if pending is None:  # one hook per simulation, registered between steps
+                pending = self._sim.extensions["self_removals"] = []
+                self._sim.step_hooks.append(functools.partial(self._remove_pending, pending))
+            if not any(n is self._node for n in pending):
+                pending.append(self._node)
+            return
         _detach(self._sim, self._node)
         self._removed(self._node)
+
+    def _remove_pending(self, pending: list[SceneNode]) -> None:
+        """The step hook of a self-removal: at the end of the step, the nodes leave the tree and the physics and
+        their controllers' step returns -1 (the simulation is advancing: nothing more is stepped from here)."""
+        while pending:
+            node = pending.pop(0)
+            if path_to(self._sim, node) is not None:
+                _detach(self._sim, node)
+                self._removed(node, advance=False)
 
     # -- pose and physics
 
