@@ -185,9 +185,10 @@ def test_a_regenerated_proto_that_a_supervisor_removed_stays_out_after_a_reset()
 
 def test_an_exported_proto_instance_carries_its_internal_state_to_its_copy() -> None:
     """Webots writes a PROTO instance's internal Solids, joints and velocities as ``hidden`` fields (worldSave,
-    exportString), so importing the text of a swinging pendulum gives one in the same state, swinging alike."""
+    exportString), so importing the text of a swinging pendulum gives one in the same state, swinging alike. (The
+    world declares the PROTO IMPORTABLE: Webots imports no PROTO that is not, test_importable_protos.py.)"""
     text = (
-        '#VRML_SIM R2023b utf8\nEXTERNPROTO "Pendulum.proto"\nWorldInfo { basicTimeStep 8 }\n'
+        '#VRML_SIM R2023b utf8\nIMPORTABLE EXTERNPROTO "Pendulum.proto"\nWorldInfo { basicTimeStep 8 }\n'
         "Robot { supervisor TRUE }\nDEF P Pendulum { place 0 0 1 }\n"
     )
     with warnings.catch_warnings():

@@ -97,6 +97,21 @@ def parse_nodes(sim: Simulation, text: str) -> list[SceneNode]:
     return load_world_text(source, world.path if world.path else "<string>").nodes
 
 
+def undeclared_protos(sim: Simulation, text: str) -> list[str]:
+    """The PROTOs ``text`` names (a node type that is not a base node: a word followed by ``{``) that the world
+    does not declare ``IMPORTABLE EXTERNPROTO``. Webots imports a PROTO only when so declared: a plain EXTERNPROTO,
+    even of a PROTO the world already uses, is not enough (PROTOs used inside the imported PROTO's own body come
+    from its declarations and are not named here)."""
+    from dualtwin.webots.lexer import tokenize
+
+    importable = {url.replace("\\", "/").rsplit("/", 1)[-1].removesuffix(".proto")
+                  for url in sim.world.importable_externprotos}
+    tokens = tokenize(text)
+    named = [word.text for word, after in zip(tokens, tokens[1:], strict=False)
+             if word.kind == "ident" and after.kind == "{"]
+    return [name for name in dict.fromkeys(named) if not schema.is_base_node(name) and name not in importable]
+
+
 class Field:
     """Webots ``Field`` (from ``Node.getField``/``getProtoField``): never built by controllers."""
 
@@ -488,6 +503,17 @@ class Field:
             self._owner._removed(item)
             self._changed()
 
+    def _not_importable(self, method: str, text: str) -> bool:
+        """Webots' refusal of a PROTO the world does not declare IMPORTABLE (its error line; nothing imported)."""
+        try:
+            missing = undeclared_protos(self._sim, text)
+        except Exception:  # noqa: BLE001 - a string that does not tokenize is parse_nodes' error to report
+            return False
+        for name in missing[:1]:
+            print(f"Error: Field.{method}(): In order to import the PROTO '{name}', first it must be declared in "
+                  "the IMPORTABLE EXTERNPROTO list.", file=sys.stderr)
+        return bool(missing)
+
     def importMFNodeFromString(self, position: Any, nodeString: str) -> None:
         """Parse VRML text into nodes inserted at ``position`` (-1 = append) of this MFNode field."""
         if not self._check("importMFNodeFromString", "MFNode"):
@@ -500,6 +526,8 @@ class Field:
         n = len(items)
         if not -(n + 1) <= i <= n:
             warn(f"Field.importMFNodeFromString(): position {i} out of range for '{self._name}' ({n} items)")
+            return
+        if self._not_importable("importMFNodeFromString", str(nodeString)):
             return
         try:
             nodes = parse_nodes(self._sim, str(nodeString))
@@ -517,6 +545,8 @@ class Field:
             return
         if self._raw() is not None:
             warn(f"Field.importSFNodeFromString(): '{self._name}' is not empty; remove its node first")
+            return
+        if self._not_importable("importSFNodeFromString", str(nodeString)):
             return
         try:
             nodes = parse_nodes(self._sim, str(nodeString))
