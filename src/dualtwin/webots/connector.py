@@ -296,7 +296,9 @@ class Connector(Device):
         self._docking()[2].disable()
 
     def getPresence(self) -> int:
-        return int(self._docking()[2].value)
+        presence = self._docking()[2]
+        presence._check_enabled("wb_connector_get_presence", "wb_connector_enable_presence")
+        return int(presence.value)
 
     def getPresenceSamplingPeriod(self) -> int:
         return self._docking()[2].getSamplingPeriod()

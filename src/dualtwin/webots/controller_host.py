@@ -319,7 +319,7 @@ class _Host:
             if link.deferred is not None:
                 error, link.deferred = link.deferred, None
                 raise error
-            fresh = None
+            fresh: tuple[list[Any], list[int]] | bool | None = None
             if op == "call":
                 handle, name, args, kwargs = body
                 target = table.objects[handle]
@@ -338,7 +338,11 @@ class _Host:
                     value = getattr(target, name)(*args, **kwargs)
             elif op == "read":
                 handle, name = body
+                printed = len(link.out)
                 value = getattr(table.objects[handle], name)()
+                if len(link.out) != printed:
+                    fresh = False  # it printed (a disabled sensor's error): the child must not keep the value
+                    # for this step's later reads, which print again as in a thread
             elif op == "new":
                 key, args, kwargs = body
                 cls = self.exports[key]

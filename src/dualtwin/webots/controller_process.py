@@ -356,10 +356,11 @@ class _Channel:
                 self.subscribed[key] = echo
                 self.subscribed_echoes = self.subscribed_keys = None
                 self.new_subscriptions.append(key)
-            value = self.request(("read", handle, name))
-            self.values[key] = value
-            if echo:
-                self.echoes.append(key)
+            value, printed = self._exchange(("read", handle, name))
+            if printed is not False:  # False: the read printed (an error): each read asks again, as each prints
+                self.values[key] = value
+                if echo:
+                    self.echoes.append(key)
         return value.copy() if type(value) is list else value  # a fresh list per call, as the parent gives
 
     def advance(self, proxy: Any, name: str, args: tuple[Any, ...], kwargs: dict[str, Any]) -> Any:

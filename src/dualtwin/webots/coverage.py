@@ -223,7 +223,9 @@ REGISTRY: tuple[Coverage, ...] = (
              "modes); on a kinematic joint (endPoint without Physics) the motor moves the endPoint itself, its "
              "speed ramping by the acceleration or, when that is -1 or larger, by the available torque (Webots' "
              "kinematic controller); coupled motors ('name::suffix') relay setPosition/setVelocity/setForce with their "
-             "multipliers and their limits are harmonised at load to the first motor's; torque/force feedback "
+             "multipliers and their limits are harmonised at load to the first motor's; as in libController, a "
+             "negative velocity in position control and a negative acceleration other than -1 are refused with "
+             "an error; torque/force feedback "
              "from ODE's joint feedback: what the joint applies to the endPoint about the anchor along the "
              "axis, in the sense setTorque/setForce would command (hinge, both Hinge2 axes, slider, also on a "
              "static base; the "
@@ -231,7 +233,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "these are not confirmed against Webots)"),
     Coverage("LinearMotor", "device", "partial", "as RotationalMotor"),
     Coverage("PositionSensor", "device", "supported",
-             "sampled joint position with noise and resolution; a motor, position sensor or brake a supervisor "
+             "sampled joint position with noise and resolution (a read while disabled prints Webots' error and "
+             "returns the last sample, as every sensor's); a motor, position sensor or brake a supervisor "
              "imports into a joint's device field joins its robot's devices (getDevice, getNumberOfDevices, in "
              "scene-tree order for getDeviceByIndex) and acts on the axis from the next step (a motor holding the "
              "joint where it is, §5.1), also for controllers in their own processes; removed, it leaves the "

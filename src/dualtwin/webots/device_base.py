@@ -7,6 +7,7 @@ without importing the runtime; :mod:`.controller` re-exports them.
 from __future__ import annotations
 
 import math
+import sys
 import threading
 import weakref
 from typing import Any, NamedTuple, Protocol
@@ -175,7 +176,11 @@ class Sensor(Device):
 
     def enable(self, p: Any) -> None:
         period = as_int(p, f"{type(self).__name__}.enable")
-        if period <= 0:
+        if period < 0:  # Webots: an error, and the sensor keeps its period (webots-devices.md §0.2)
+            print(f"Error: {type(self).__name__}.enable() called with a negative sampling period {period}.",
+                  file=sys.stderr)
+            return
+        if period == 0:
             self.disable()
             return
         self._period = period
@@ -197,6 +202,12 @@ class Sensor(Device):
     @step_value
     def getSamplingPeriod(self) -> int:
         return self._period
+
+    def _check_enabled(self, function: str, enable: str) -> None:
+        """Webots' error for a read of a disabled sensor (``function``, the C name); the read goes on and returns
+        the last sampled value (NaN if none), as Webots' libController does (webots-devices.md §0.2)."""
+        if self._period <= 0:
+            print(f"Error: {function}() called for a disabled device! Please use: {enable}().", file=sys.stderr)
 
     @property
     def sampling_period(self) -> int:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import ctypes
 import math
+import sys
 from typing import Any
 
 from dualtwin.webots import _math3 as m3
@@ -44,6 +45,7 @@ class PositionSensor(_Sampled):
 
     @step_value
     def getValue(self) -> float:
+        self._check_enabled("wb_position_sensor_get_value", "wb_position_sensor_enable")
         return getattr(self, "_value", math.nan)
 
     def getType(self) -> int:
@@ -215,6 +217,10 @@ class Motor(Device):
         if not _finite(velocity):
             _warn(f"Motor.setVelocity() called with an invalid value (NaN) on '{self._name}'")
             return
+        if velocity < 0 and math.isfinite(self._record.target_position):
+            print(f"Error: wb_motor_set_velocity() called with a negative velocity on '{self._name}', which is in "
+                  "position control: use setPosition(float('inf')) for velocity control", file=sys.stderr)
+            return
         for motor in self._coupled():
             motor._set_velocity(velocity)
 
@@ -230,8 +236,13 @@ class Motor(Device):
     @buffered()
     def setAcceleration(self, acceleration: Any) -> None:
         acceleration = as_float(acceleration, "Motor.setAcceleration")
-        if _finite(acceleration):
-            self._record.acceleration = float(acceleration)
+        if not _finite(acceleration):
+            return
+        if acceleration < 0 and acceleration != -1:
+            print(f"Error: wb_motor_set_acceleration() called with a negative acceleration {acceleration} on "
+                  f"'{self._name}' (-1 means unlimited)", file=sys.stderr)
+            return
+        self._record.acceleration = float(acceleration)
 
     @buffered()
     def setAvailableForce(self, force: Any) -> None:
@@ -345,7 +356,9 @@ class Motor(Device):
 
     @step_value
     def getForceFeedback(self) -> float:
-        return float(self._feedback()._value)
+        feedback = self._feedback()
+        feedback._check_enabled("wb_motor_get_force_feedback", "wb_motor_enable_force_feedback")
+        return float(feedback._value)
 
     def enableTorqueFeedback(self, sampling_period: Any) -> None:
         self._feedback().enable(sampling_period)
@@ -358,7 +371,9 @@ class Motor(Device):
 
     @step_value
     def getTorqueFeedback(self) -> float:
-        return float(self._feedback()._value)
+        feedback = self._feedback()
+        feedback._check_enabled("wb_motor_get_torque_feedback", "wb_motor_enable_torque_feedback")
+        return float(feedback._value)
 
     # -- Webots' properties
 

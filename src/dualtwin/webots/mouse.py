@@ -8,9 +8,9 @@ settings, as they do in Webots; reading a disabled mouse prints Webots' error on
 from __future__ import annotations
 
 import math
+import sys
 from typing import Any
 
-from dualtwin.webots.api_args import warn
 from dualtwin.webots.device_base import current_host
 from dualtwin.webots.polled_input import PolledInput
 
@@ -58,5 +58,6 @@ class Mouse(PolledInput):
 
     def getState(self) -> MouseState:
         if self._period == 0:
-            warn("wb_mouse_get_state() called for a disabled device! Please use: wb_mouse_enable().")
+            print("Error: wb_mouse_get_state() called for a disabled device! Please use: wb_mouse_enable().",
+                  file=sys.stderr)
         return MouseState(math.nan, math.nan, math.nan, math.nan, math.nan, False, False, False)

@@ -226,7 +226,9 @@ class Robot:
 
     def batterySensorGetValue(self) -> float:
         """The battery's energy (J) at the last sample (:mod:`.battery`); NaN before it or without a battery."""
-        return float(battery_sensor(self.__link).value)
+        sensor = battery_sensor(self.__link)
+        sensor._check_enabled("wb_robot_battery_sensor_get_value", "wb_robot_battery_sensor_enable")
+        return float(sensor.value)
 
     # -- devices
 

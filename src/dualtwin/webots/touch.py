@@ -170,6 +170,7 @@ class TouchSensor(SolidSensor):
 
     @step_value
     def getValue(self) -> float:
+        self._check_enabled("wb_touch_sensor_get_value", "wb_touch_sensor_enable")
         if self._kind() == self.FORCE3D:
             warn("TouchSensor.getValue() cannot be used with a 'force-3d' sensor: use getValues()")
             return math.nan
@@ -177,6 +178,7 @@ class TouchSensor(SolidSensor):
 
     @step_value
     def getValues(self) -> list[float]:
+        self._check_enabled("wb_touch_sensor_get_values", "wb_touch_sensor_enable")
         if self._kind() != self.FORCE3D:
             warn("TouchSensor.getValues() can only be used with a 'force-3d' sensor: use getValue()")
             return [math.nan] * 3

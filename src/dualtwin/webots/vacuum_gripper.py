@@ -157,7 +157,9 @@ class VacuumGripper(Device):
         self._gripper()[1].disable()
 
     def getPresence(self) -> bool:
-        return bool(self._gripper()[1].value)
+        presence = self._gripper()[1]
+        presence._check_enabled("wb_vacuum_gripper_get_presence", "wb_vacuum_gripper_enable_presence")
+        return bool(presence.value)
 
     def getPresenceSamplingPeriod(self) -> int:
         return self._gripper()[1].getSamplingPeriod()
