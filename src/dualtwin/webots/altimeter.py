@@ -33,6 +33,7 @@ class Altimeter(SolidSensor):
 
     @step_value
     def getValue(self) -> float:
+        self._check_enabled("wb_altimeter_get_value")
         return self._value
 
     value = property(getValue)

@@ -50,6 +50,7 @@ class Compass(SolidSensor):
 
     @step_value
     def getValues(self) -> list[float]:
+        self._check_enabled("wb_compass_get_values")
         return list(self._values)
 
     def getLookupTable(self) -> list[float]:

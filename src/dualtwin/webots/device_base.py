@@ -177,7 +177,7 @@ class Sensor(Device):
     def enable(self, p: Any) -> None:
         period = as_int(p, f"{type(self).__name__}.enable")
         if period < 0:  # Webots: an error, and the sensor keeps its period (webots-devices.md §0.2)
-            print(f"Error: {type(self).__name__}.enable() called with a negative sampling period {period}.",
+            print(f"Error: {type(self).__name__}.enable() called with a negative sampling period ({period}).",
                   file=sys.stderr)
             return
         if period == 0:
@@ -203,10 +203,12 @@ class Sensor(Device):
     def getSamplingPeriod(self) -> int:
         return self._period
 
-    def _check_enabled(self, function: str, enable: str) -> None:
-        """Webots' error for a read of a disabled sensor (``function``, the C name); the read goes on and returns
-        the last sampled value (NaN if none), as Webots' libController does (webots-devices.md §0.2)."""
+    def _check_enabled(self, function: str, enable: str | None = None) -> None:
+        """Webots' libController when a disabled sensor is read through the C ``function``: an error line on
+        stderr naming the ``enable`` function (by default ``function``'s device prefix + ``_enable``); the caller
+        still returns its cached value (NaN until the first sample), never raises (webots-devices.md §0.2)."""
         if self._period <= 0:
+            enable = enable or function.split("_get_")[0] + "_enable"
             print(f"Error: {function}() called for a disabled device! Please use: {enable}().", file=sys.stderr)
 
     @property

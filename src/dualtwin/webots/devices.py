@@ -74,6 +74,8 @@ def _lut_axes(device: _TableSensor, vector: Sequence[float]) -> list[float]:
 class _TableSensor(_SolidSensor):
     """A sensor with a ``lookupTable`` field (empty: the identity, without noise)."""
 
+    _c_values = ""  # the C getter of ``getValues`` (named in the error line of a disabled read)
+
     def _table(self) -> Table:
         table = getattr(self, "_table_cache", None)
         if table is None:
@@ -89,6 +91,7 @@ class _TableSensor(_SolidSensor):
 
     @step_value
     def getValues(self) -> list[float]:
+        self._check_enabled(self._c_values)
         return list(self._values)
 
     @property
@@ -146,6 +149,7 @@ class GPS(_SolidSensor):
 
     @step_value
     def getValues(self) -> list[float]:
+        self._check_enabled("wb_gps_get_values")
         return list(self._values)
 
     @property
@@ -154,6 +158,7 @@ class GPS(_SolidSensor):
 
     @step_value
     def getSpeed(self) -> float:
+        self._check_enabled("wb_gps_get_speed")
         return m3.norm(self._speed_vector) if all(math.isfinite(v) for v in self._speed_vector) else math.nan
 
     @property
@@ -162,6 +167,7 @@ class GPS(_SolidSensor):
 
     @step_value
     def getSpeedVector(self) -> list[float]:
+        self._check_enabled("wb_gps_get_speed_vector")
         return list(self._speed_vector)
 
     @property
@@ -183,6 +189,8 @@ class Gyro(_TableSensor):
     """Angular velocity of the body carrying the device, in the device's frame (rad/s), per axis through the
     lookup table and resolution; NaN for a disabled axis."""
 
+    _c_values = "wb_gyro_get_values"
+
     def _read(self) -> None:
         sim = self._robot._sim
         w = sim.angular_velocity(self._record.solid)
@@ -199,6 +207,7 @@ class Accelerometer(_TableSensor):
     mounted. Then lookup table and resolution per axis; NaN for a disabled axis."""
 
     _tracks_steps = True
+    _c_values = "wb_accelerometer_get_values"
 
     def _invalidate(self) -> None:
         self._values = [math.nan] * 3
@@ -241,6 +250,7 @@ class InertialUnit(_SolidSensor):
 
     @step_value
     def getRollPitchYaw(self) -> list[float]:
+        self._check_enabled("wb_inertial_unit_get_roll_pitch_yaw")
         if self._angles is None:
             return [math.nan] * 3
         fields = self._record.node.fields
@@ -256,6 +266,7 @@ class InertialUnit(_SolidSensor):
 
     @step_value
     def getQuaternion(self) -> list[float]:
+        self._check_enabled("wb_inertial_unit_get_quaternion")
         if self._angles is None:
             return [math.nan] * 4
         roll, pitch, yaw = self._angles

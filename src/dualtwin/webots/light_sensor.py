@@ -134,6 +134,7 @@ class LightSensor(SolidSensor):
 
     @step_value
     def getValue(self) -> float:
+        self._check_enabled("wb_light_sensor_get_value")
         return self._value
 
     def getLookupTable(self) -> list[float]:

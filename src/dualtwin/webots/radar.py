@@ -191,9 +191,11 @@ class Radar(SolidSensor):
         return float(self._record.node.fields.get(name, default))
 
     def getTargets(self) -> list[RadarTarget]:
+        self._check_enabled("wb_radar_get_targets")
         return [RadarTarget(t.distance, t.receiver_power, t.speed, t.azimuth) for t in self._targets]
 
     def getNumberOfTargets(self) -> int:
+        self._check_enabled("wb_radar_get_number_of_targets")
         return len(self._targets)
 
     def getMinRange(self) -> float:

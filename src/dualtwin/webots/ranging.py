@@ -369,6 +369,7 @@ class DistanceSensor(SolidSensor):
 
     @step_value
     def getValue(self) -> float:
+        self._check_enabled("wb_distance_sensor_get_value")
         return getattr(self, "_value", math.nan)
 
     def getMaxValue(self) -> float:
@@ -572,15 +573,18 @@ class Lidar(_DepthDevice):
         return self._model().grid
 
     def getRangeImage(self) -> list[float]:
+        self._check_enabled("wb_lidar_get_range_image")
         return [float(v) for v in self._flat()]
 
     def getRangeImageArray(self) -> list[list[float]]:
+        self._check_enabled("wb_lidar_get_range_image")
         m = self._model()
         return self._flat().reshape(m.layers, m.width).tolist()
 
     def getLayerRangeImage(self, layer: Any) -> list[float] | None:
         m = self._model()
         i = as_int(layer, "Lidar.getLayerRangeImage")
+        self._check_enabled("wb_lidar_get_layer_range_image")
         if not 0 <= i < m.layers:
             warn(f"Lidar.getLayerRangeImage(): layer {i} out of range [0, {m.layers - 1}]")
             return None
@@ -722,10 +726,12 @@ class RangeFinder(_DepthDevice):
         return self._model()[3]
 
     def getRangeImage(self, data_type: str = "list") -> Any:
+        self._check_enabled("wb_range_finder_get_range_image")
         flat = self._flat()
         return flat.copy() if data_type == "array" else flat.tolist()
 
     def getRangeImageArray(self) -> list[list[float]]:
+        self._check_enabled("wb_range_finder_get_range_image")
         w, h, _, _ = self._model()
         return self._flat().reshape(h, w).tolist()
 
