@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -17,6 +18,7 @@ import pytest
 from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import GPS, DistanceSensor, Supervisor
 from dualtwin.webots.physics import Simulation
+from dualtwin.webots.runner import run_world
 
 DISABLED = "called for a disabled device"  # devices.md:33, Webots' "Error: ... called for a disabled device! ..."
 
@@ -81,6 +83,25 @@ def test_reading_a_disabled_sensor_returns_its_last_sample_with_an_error(
     sup.step(8)
     assert getattr(dev, getter)() == sampled  # devices.md:33: the stale last value, never 0
     assert DISABLED in capfd.readouterr().err
+
+
+def test_a_controller_process_gets_one_error_line_per_read_of_a_disabled_sensor(
+        tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
+    # api.md:39-40 in a real controller process: the read after disable() returns the last sample (the GPS at
+    # its translation) with one error line; the steps in between print nothing
+    world = tmp_path / "worlds" / "w.wbt"
+    script = tmp_path / "controllers" / "probe" / "probe.py"
+    world.parent.mkdir(parents=True)
+    script.parent.mkdir(parents=True)
+    world.write_text("#VRML_SIM R2023b utf8\nWorldInfo { basicTimeStep 16 }\n"
+                     'Robot { translation 1 2 3 children [ GPS { name "gps" } ] controller "probe" }\n')
+    script.write_text("from controller import Robot\nr = Robot()\ngps = r.getDevice('gps')\ngps.enable(16)\n"
+                      "r.step(16)\nprint('FIRST', gps.getValues())\ngps.disable()\n"
+                      "for _ in range(3):\n    r.step(16)\nprint('STALE', gps.getValues())\n")
+    assert run_world(world, None, 0.08) == 0
+    out = capfd.readouterr()
+    assert "FIRST [1.0, 2.0, 3.0]" in out.out and "STALE [1.0, 2.0, 3.0]" in out.out, out.err[-2000:]
+    assert out.err.count("wb_gps_get_values() called for a disabled device") == 1
 
 
 @pytest.mark.parametrize("node", ['Lidar { name "d" horizontalResolution 8 fieldOfView 0.4 numberOfLayers 2 }',
