@@ -174,7 +174,10 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("TextureCoordinate", "geometry", "visual", "texture mapping"),
     # -- joints and mechanisms
     Coverage("HingeJoint", "joint", "partial",
-             "position, stops, springs, dampers, static friction; no suspension (an ODE-fork-only API)"),
+             "position, stops (stopERP/stopCFM edited at run time reach ODE; at load ODE's world defaults), springs, "
+             "dampers, static friction; no suspension (an ODE-fork-only API); a stop at ±π (maxStop or -minStop of "
+             "π or more, clamped) does not hold a driven joint: upstream ODE wraps the angle there, only the fork "
+             "unwraps it"),
     Coverage("SliderJoint", "joint", "supported", "stops; springs emulated with an equivalent LMotor row"),
     Coverage("Hinge2Joint", "joint", "partial",
              "both axes' motors, sensors (continuous multi-turn positions on both axes, read with ODE's own "

@@ -215,7 +215,8 @@ class SupervisorEdits(MassEdits):
         """Apply a supervisor's edit of ``node.fields[name]`` to the running ODE scene, as Webots does.
 
         Webots reacts to field edits at run time (WbJoint/WbMotor/WbPhysics/WbContactProperties update
-        their ODE objects). Supported: joint ``dampingConstant``/``springConstant``/``staticFriction``,
+        their ODE objects). Supported: joint ``dampingConstant``/``springConstant``/``staticFriction``/``stopERP``/
+        ``stopCFM``,
         motor ``maxVelocity``/``maxTorque``/``maxForce``, ``Physics`` ``mass``/``density``/``centerOfMass``/
         ``inertiaMatrix`` (the body's mass properties summed again as at load, :mod:`.mass_edits`), a
         ``Damping`` node's ``linear``/``angular`` (bodies and, for ``WorldInfo.defaultDamping``, the world),
@@ -244,6 +245,8 @@ class SupervisorEdits(MassEdits):
             if name in ("dampingConstant", "springConstant"):
                 self.rebuild_springs(joint)  # physics/joints.py: every axis, stepping lists refreshed
                 return True
+            if name in ("stopERP", "stopCFM"):
+                return self._set_stop_softness(joint, i, name)
             return False
         motor = next((m for m in self.motors if m.node is node), None)
         if motor is not None:

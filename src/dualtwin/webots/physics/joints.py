@@ -251,6 +251,19 @@ class JointBuilder(SceneBuilder):
         setp(joint.ptr, group + ode.dParamLoStop, lo)
         setp(joint.ptr, group + ode.dParamHiStop, hi)
 
+    def _set_stop_softness(self, joint: JointRec, i: int, name: str) -> bool:
+        """A run-time edit of a HingeJointParameters' ``stopERP`` or ``stopCFM`` (−1: the world's current value):
+        passed to the joint's stop rows through dParamStopERP/CFM (§4.2; at creation ODE's defaults, the world's,
+        apply). Hinges and a Hinge2's first axis have these fields."""
+        if joint.kind not in ("hinge", "hinge2") or i != 0 or not joint.ptr:
+            return False
+        value = float(_f(joint.params[i], name, -1.0))
+        if value == -1.0:
+            value = (self._lib.dWorldGetERP if name == "stopERP" else self._lib.dWorldGetCFM)(self._world)
+        param = ode.dParamStopERP if name == "stopERP" else ode.dParamStopCFM
+        self._param_setter(joint)(joint.ptr, param, value)
+        return True
+
     def _set_hinge2_second_stops(self, joint: JointRec, lo: float, hi: float) -> None:
         """Upstream ODE's hinge2 never limits its second axis (Webots' fork does, §4.4): a one-axis user AMotor
         on that axis (turning with body 2) carries the stops instead. Its angle, set before every step, is
