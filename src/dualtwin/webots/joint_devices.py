@@ -168,6 +168,9 @@ class Motor(Device):
     LINEAR = 1
 
     _record: MotorRec
+    #: (the simulation's target, the value this motor was given) of its last own setPosition / setVelocity
+    _echo_position: tuple[float, float] | None = None
+    _echo_velocity: tuple[float, float] | None = None
 
     def _changed(self) -> None:
         self._robot._sim.wake(self._record.joint)
@@ -198,6 +201,8 @@ class Motor(Device):
             return
         for motor in self._coupled():
             motor._set_position(position)
+            # libController's cache: the raw value for this motor, the multiplied one for its siblings (§9)
+            motor._echo_position = (motor._record.target_position, position) if motor is self else None
 
     def _set_position(self, position: float) -> None:
         rec = self._record
@@ -223,6 +228,7 @@ class Motor(Device):
             return
         for motor in self._coupled():
             motor._set_velocity(velocity)
+            motor._echo_velocity = (motor._record.target_velocity, velocity) if motor is self else None
 
     def _set_velocity(self, velocity: float) -> None:
         rec = self._record
@@ -291,9 +297,18 @@ class Motor(Device):
         rec.integral = 0.0
         rec.prev_error = 0.0
 
+    def _echo(self, value: float, echo: tuple[float, float] | None) -> float:
+        """What Webots' libController caches for a target this motor was last given: the raw, unmultiplied
+        value (§9), in its own units when its limits clipped it; the simulation's target otherwise (a sibling's
+        relayed command, the initial state, a reset)."""
+        if echo is None or echo[0] != value:
+            return value
+        rec = self._record
+        return echo[1] if echo[1] * rec.multiplier == value else value / rec.multiplier
+
     @command_value
     def getTargetPosition(self) -> float:
-        return self._record.target_position
+        return self._echo(self._record.target_position, self._echo_position)
 
     def getMinPosition(self) -> float:
         return self._record.min_position
@@ -303,7 +318,7 @@ class Motor(Device):
 
     @command_value
     def getVelocity(self) -> float:
-        return self._record.target_velocity
+        return self._echo(self._record.target_velocity, self._echo_velocity)
 
     def getMaxVelocity(self) -> float:
         return self._record.max_velocity
