@@ -353,7 +353,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "turnOn/turnOff, isOn at load, grasps a body touching its boundingObject with >= contactPoints "
              "points (fixed joint), tensile/shear breaking, presence"),
     Coverage("Keyboard", "device", "supported",
-             "headless getKey() is -1; 'webots run --keys FILE' replays scripted presses", node=False),
+             "headless getKey() is -1 (and an error line at each read while disabled); 'webots run --keys FILE' "
+             "replays scripted presses", node=False),
     Coverage("Mouse", "device", "not", "not yet: no pointer headless", node=False),
     Coverage("Joystick", "device", "not", "not yet", node=False),
     # -- appearance, lights and view

@@ -161,7 +161,6 @@ class Keyboard:
         self._period = 0
         self._since: float | None = None
         self._keys: list[int] = []
-        self._warned = False
         host.inputs.append(self)
         if sampling_period is None:
             self.enable(int(host.getBasicTimeStep()))
@@ -192,11 +191,9 @@ class Keyboard:
         self.enable(0 if p is None else p)
 
     def getKey(self) -> int:
-        if self._period == 0:
-            if not self._warned:
-                self._warned = True
-                print("Error: Keyboard.getKey() called on a disabled keyboard; call Keyboard.enable() first",
-                      file=sys.stderr)
+        if self._period == 0:  # an error at every read, as for any disabled device
+            print("Error: Keyboard.getKey() called on a disabled keyboard; call Keyboard.enable() first",
+                  file=sys.stderr)
             return -1
         return self._keys.pop(0) if self._keys else -1
 

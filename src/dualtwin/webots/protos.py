@@ -128,6 +128,20 @@ def template_to_js(template: str, proto: ParsedProto) -> str:
 # expansion
 
 
+def _declared(externs: list[ExternProto], warnings: list[str]) -> dict[str, ExternProto]:
+    """A file's EXTERNPROTO declarations by PROTO name; a name declared by two urls is ambiguous and the first
+    declaration wins, as in Webots (a warning says so, once per file)."""
+    out: dict[str, ExternProto] = {}
+    for e in externs:
+        first = out.setdefault(e.name, e)
+        if first is not e and first.url != e.url:
+            message = (f"{e.location}: PROTO '{e.name}' is ambiguous: declared as \"{first.url}\" and "
+                       f"\"{e.url}\"; the first is used")
+            if message not in warnings:
+                warnings.append(message)
+    return out
+
+
 @dataclass
 class _Scope:
     """Where raw nodes come from: the file (DEF scope) and, in a PROTO body, the instance values."""
@@ -460,7 +474,7 @@ class _Expander:
     def _proto_scope(self, proto: ParsedProto) -> _Scope:
         remote_or_standin = proto.path.startswith(STANDIN_PREFIX) or is_remote(proto.path)
         directory = None if remote_or_standin else Path(proto.path).parent
-        return _Scope(proto.path, directory, {e.name: e for e in proto.externprotos})
+        return _Scope(proto.path, directory, _declared(proto.externprotos, self.warnings))
 
     def default_value(self, decl: ProtoFieldDecl, proto: ParsedProto) -> Any:
         if decl.type in ("SFNode", "MFNode"):
@@ -715,7 +729,7 @@ def expand_world(
     scope = _Scope(
         parsed.path,
         path.parent if path is not None else None,
-        {e.name: e for e in parsed.externprotos},
+        _declared(parsed.externprotos, warnings),
         in_world=True,
     )
     nodes: list[Node] = []
