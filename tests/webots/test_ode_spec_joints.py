@@ -10,34 +10,12 @@ not repeated here.
 from __future__ import annotations
 
 import math
-import warnings
 
 import pytest
 
-from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Supervisor
 from dualtwin.webots.physics import Simulation
-
-TS = 4  # ms
-DT = TS / 1000.0
-G = 9.81
-# a 1 kg sphere (r 0.05) 0.5 m from a hinge: I = 0.5² + 0.4·0.05² (hand computation)
-INERTIA = 0.25 + 0.4 * 0.05 * 0.05
-
-
-def _load(body: str, gravity: float = 0.0) -> tuple[Simulation, Supervisor]:
-    text = (
-        "#VRML_SIM R2023b utf8\n"
-        f"WorldInfo {{ basicTimeStep {TS} gravity {gravity} physicsDisableTime 0 }}\n"
-        f'Robot {{ name "arm" supervisor TRUE translation 0 0 1 children [ {body} ] }}\n'
-    )
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        sim = Simulation(load_world_text(text))
-    return sim, Supervisor(simulation=sim, robot_node=sim.robots[0].node)
-
-
-BOB = 'Solid {{ translation {t} name "bob" boundingObject Sphere {{ radius 0.05 }} physics Physics {{ density -1 mass 1 }} }}'
+from tests.support.hinge_arm import BOB, DT, TS, G, load_arm
 
 
 def _hinge(params: str = "axis 0 1 0", devices: str = "", bob_at: str = "0.5 0 0", extra: str = "") -> str:
@@ -74,7 +52,7 @@ def test_joint_axis_is_expressed_in_the_closest_upper_pose() -> None:
         + _hinge("axis 1 0 0", 'RotationalMotor { name "m" maxTorque 1000 }', bob_at="0 0 0.5")
         + " ] }"
     )
-    sim, sup = _load(body)
+    sim, sup = load_arm(body)
     m = sup.getDevice("m")
     m.setPosition(math.inf)
     m.setVelocity(1.0)
@@ -84,7 +62,7 @@ def test_joint_axis_is_expressed_in_the_closest_upper_pose() -> None:
 
 def test_hinge_without_joint_parameters_turns_about_x() -> None:
     # S l.333: without jointParameters the hinge axis is 1 0 0
-    sim, sup = _load(
+    sim, sup = load_arm(
         'HingeJoint { device [ RotationalMotor { name "m" maxTorque 1000 } ] endPoint ' + BOB.format(t="0 0 0.5") + " }"
     )
     m = sup.getDevice("m")
@@ -96,13 +74,13 @@ def test_hinge_without_joint_parameters_turns_about_x() -> None:
 
 def test_endpoint_without_physics_makes_a_kinematic_joint() -> None:
     # S l.315: the ODE joint is created only if the endPoint has Physics and a body
-    sim, _ = _load('HingeJoint { endPoint Solid { translation 0.5 0 0 name "bob" } }')
+    sim, _ = load_arm('HingeJoint { endPoint Solid { translation 0.5 0 0 name "bob" } }')
     assert sim.joints[0].kinematic and not sim.joints[0].ptr
 
 
 def test_hidden_position_field_is_the_offset_without_joint_parameters() -> None:
     # S l.321: the offset is the hidden `position` field when jointParameters is NULL
-    sim, sup = _load(_hinge(None, bob_at="0 0 0.5", extra="position 0.4"))  # type: ignore[arg-type]
+    sim, sup = load_arm(_hinge(None, bob_at="0 0 0.5", extra="position 0.4"))  # type: ignore[arg-type]
     s = _sensor(sup)
     _steps(sup, 1)
     assert s.getValue() == pytest.approx(0.4, abs=1e-9)
@@ -110,7 +88,7 @@ def test_hidden_position_field_is_the_offset_without_joint_parameters() -> None:
 
 def test_position_field_is_the_initial_sensor_value() -> None:
     # S l.321/l.466: Webots position = ODE measure + offset, the offset being the `position` field at creation
-    _, sup = _load(_hinge("axis 0 1 0 position 0.7"))
+    _, sup = load_arm(_hinge("axis 0 1 0 position 0.7"))
     s = _sensor(sup)
     _steps(sup, 1)
     assert s.getValue() == pytest.approx(0.7, abs=1e-9)
@@ -119,7 +97,7 @@ def test_position_field_is_the_initial_sensor_value() -> None:
 def test_setting_position_at_run_time_keeps_the_motor_target() -> None:
     # S l.327: changing `position` teleports the endPoint; the motor target is not changed once the controller
     # is configured, so a position-controlled motor pulls the joint back to its previous target (0 here)
-    _, sup = _load(_hinge("axis 0 1 0", 'RotationalMotor { name "m" maxTorque 100 }'))
+    _, sup = load_arm(_hinge("axis 0 1 0", 'RotationalMotor { name "m" maxTorque 100 }'))
     s = _sensor(sup)
     sup.getDevice("m").setPosition(0.0)
     _steps(sup, 1)
@@ -137,7 +115,7 @@ def test_setting_position_at_run_time_keeps_the_motor_target() -> None:
 
 def test_hinge_axis_length_is_normalised_by_ode() -> None:
     # S l.337: Webots does not normalise the hinge axis, ODE does: axis 0 3 0 turns at the commanded rate
-    sim, sup = _load(_hinge("axis 0 3 0", 'RotationalMotor { name "m" maxTorque 1000 }'))
+    sim, sup = load_arm(_hinge("axis 0 3 0", 'RotationalMotor { name "m" maxTorque 1000 }'))
     m = sup.getDevice("m")
     m.setPosition(math.inf)
     m.setVelocity(2.0)
@@ -155,7 +133,7 @@ def test_hinge_position_is_continuous_over_several_turns(static_parent: bool) ->
         'Solid { name "base" boundingObject Box { size 0.1 0.1 0.1 } physics Physics { density -1 mass 1000 } '
         f"children [ {hinge} ] }}"
     )
-    _, sup = _load(body)
+    _, sup = load_arm(body)
     m = sup.getDevice("m")
     m.setPosition(math.inf)
     m.setVelocity(8.0)
@@ -166,7 +144,7 @@ def test_hinge_position_is_continuous_over_several_turns(static_parent: bool) ->
 
 def test_equal_min_and_max_stops_set_no_stop() -> None:
     # S l.346: stops only when minStop ≠ maxStop; gravity (torque +m·g·0.5 about +y) swings the bob past 0.5
-    _, sup = _load(_hinge("axis 0 1 0 minStop 0.5 maxStop 0.5"), gravity=G)
+    _, sup = load_arm(_hinge("axis 0 1 0 minStop 0.5 maxStop 0.5"), gravity=G)
     s = _sensor(sup)
     _steps(sup, 150)
     assert s.getValue() > 0.8
@@ -182,14 +160,14 @@ def test_hinge_stops_are_webots_positions_with_an_offset(static_parent: bool) ->
         'Solid { name "base" boundingObject Box { size 0.1 0.1 0.1 } physics Physics { density -1 mass 1000 } '
         f"children [ {hinge} ] }}"
     )
-    _, sup = _load(body, gravity=G)
+    _, sup = load_arm(body, gravity=G)
     s = _sensor(sup)
     _steps(sup, 500)
     assert s.getValue() == pytest.approx(0.3, abs=0.01)
 
 
 def _driven_to_stop(max_stop: float) -> float:
-    _, sup = _load(_hinge(f"axis 0 1 0 minStop -1 maxStop {max_stop}", 'RotationalMotor { name "m" maxTorque 1 }'))
+    _, sup = load_arm(_hinge(f"axis 0 1 0 minStop -1 maxStop {max_stop}", 'RotationalMotor { name "m" maxTorque 1 }'))
     m = sup.getDevice("m")
     m.setPosition(math.inf)
     m.setVelocity(1.0)
@@ -224,7 +202,7 @@ def _slider(params: str | None, devices: str = "", bob_at: str = "0 0 0") -> str
 
 def test_slider_without_joint_parameters_slides_along_z() -> None:
     # S l.359: JointParameters axis default 0 0 1
-    sim, sup = _load(_slider(None, 'LinearMotor { name "m" maxForce 1000 }'))
+    sim, sup = load_arm(_slider(None, 'LinearMotor { name "m" maxForce 1000 }'))
     m = sup.getDevice("m")
     m.setPosition(math.inf)
     m.setVelocity(0.1)
@@ -234,7 +212,7 @@ def test_slider_without_joint_parameters_slides_along_z() -> None:
 
 def test_slider_axis_is_normalised() -> None:
     # S l.359: the slider axis is normalised by Webots: axis 0 0 5 moves 0.1 m/s, positions in metres
-    sim, sup = _load(_slider("axis 0 0 5", 'LinearMotor { name "m" maxForce 1000 }'))
+    sim, sup = load_arm(_slider("axis 0 0 5", 'LinearMotor { name "m" maxForce 1000 }'))
     m = sup.getDevice("m")
     m.setPosition(math.inf)
     m.setVelocity(0.1)
@@ -246,7 +224,7 @@ def test_slider_axis_is_normalised() -> None:
 
 def test_slider_position_field_is_the_offset() -> None:
     # S l.361: position = dJointGetSliderPosition + offset
-    _, sup = _load(_slider("axis 0 0 1 position 0.25", bob_at="0 0 0.25"))
+    _, sup = load_arm(_slider("axis 0 0 1 position 0.25", bob_at="0 0 0.25"))
     s = _sensor(sup)
     _steps(sup, 1)
     assert s.getValue() == pytest.approx(0.25, abs=1e-9)
@@ -255,7 +233,7 @@ def test_slider_position_field_is_the_offset() -> None:
 def test_slider_stops_are_webots_positions_with_an_offset() -> None:
     # S l.362: LoStop = minStop − offset, HiStop = maxStop − offset: gravity pulls the slider (axis +z) down
     # onto minStop −0.2 even though it starts at position 0.1
-    _, sup = _load(_slider("axis 0 0 1 position 0.1 minStop -0.2 maxStop 0.3", bob_at="0 0 0.1"), gravity=G)
+    _, sup = load_arm(_slider("axis 0 0 1 position 0.1 minStop -0.2 maxStop 0.3", bob_at="0 0 0.1"), gravity=G)
     s = _sensor(sup)
     _steps(sup, 500)
     assert s.getValue() == pytest.approx(-0.2, abs=0.005)
@@ -263,7 +241,7 @@ def test_slider_stops_are_webots_positions_with_an_offset() -> None:
 
 def test_slider_force_pushes_along_the_axis() -> None:
     # S l.364: force control dJointAddSliderForce(+force): F = 1 N on 1 kg, x = ½·a·t² up to O(h)
-    _, sup = _load(_slider("axis 1 0 0", 'LinearMotor { name "m" }'))
+    _, sup = load_arm(_slider("axis 1 0 0", 'LinearMotor { name "m" }'))
     m = sup.getDevice("m")
     s = _sensor(sup)
     m.setForce(1.0)
@@ -283,7 +261,7 @@ def test_hinge2_second_axis_default_is_z() -> None:
         'jointParameters2 JointParameters { } device2 [ RotationalMotor { name "m2" maxTorque 1000 } ] '
         f"endPoint {BOB.format(t='0 0 0')} }} ] }}"
     )
-    sim, sup = _load(body)
+    sim, sup = load_arm(body)
     m = sup.getDevice("m2")
     m.setPosition(math.inf)
     m.setVelocity(1.0)
@@ -301,7 +279,7 @@ def test_ball_joint_first_axis_default_is_x() -> None:
         'device [ RotationalMotor { name "m1" maxTorque 1000 } ] '
         f"endPoint {BOB.format(t='0 0 -0.5')} }}"
     )
-    sim, sup = _load(body)
+    sim, sup = load_arm(body)
     m = sup.getDevice("m1")
     m.setPosition(math.inf)
     m.setVelocity(1.0)
@@ -316,7 +294,7 @@ def test_ball_joint_third_axis_default_is_z() -> None:
         'device3 [ RotationalMotor { name "m3" maxTorque 1000 } ] '
         f"endPoint {BOB.format(t='0 0 -0.5')} }}"
     )
-    sim, sup = _load(body)
+    sim, sup = load_arm(body)
     m = sup.getDevice("m3")
     m.setPosition(math.inf)
     m.setVelocity(1.0)
@@ -329,7 +307,7 @@ def test_ball_joint_third_axis_default_is_z() -> None:
 
 def test_damper_alone_gives_terminal_velocity_torque_over_damping() -> None:
     # S l.387-388: K = 0, B = 2 ⇒ ERP 0, CFM 1/B: the row's force is −B·ω, so a 1 N·m torque ends at 0.5 rad/s
-    sim, sup = _load(_hinge("axis 0 1 0 dampingConstant 2", 'RotationalMotor { name "m" }'))
+    sim, sup = load_arm(_hinge("axis 0 1 0 dampingConstant 2", 'RotationalMotor { name "m" }'))
     sup.getDevice("m").setTorque(1.0)
     _steps(sup, 1000)
     assert _bob_avel(sim)[1] == pytest.approx(0.5, rel=1e-4)
@@ -337,7 +315,7 @@ def test_damper_alone_gives_terminal_velocity_torque_over_damping() -> None:
 
 def test_hinge_spring_equilibrium_under_a_constant_torque() -> None:
     # S l.387-394: ERP/CFM from K: at rest the row's force is K·(rest − position); 1 N·m against K = 10 ⇒ 0.1
-    _, sup = _load(_hinge("axis 0 1 0 springConstant 10 dampingConstant 2", 'RotationalMotor { name "m" }'))
+    _, sup = load_arm(_hinge("axis 0 1 0 springConstant 10 dampingConstant 2", 'RotationalMotor { name "m" }'))
     s = _sensor(sup)
     sup.getDevice("m").setTorque(1.0)
     _steps(sup, 1500)
@@ -346,7 +324,7 @@ def test_hinge_spring_equilibrium_under_a_constant_torque() -> None:
 
 def test_hinge_spring_rests_at_the_zero_position_not_the_initial_one() -> None:
     # S l.394: spring rest = the joint's zero position; the joint starts at position 0.3 and returns to 0
-    _, sup = _load(_hinge("axis 0 1 0 position 0.3 springConstant 10 dampingConstant 3",
+    _, sup = load_arm(_hinge("axis 0 1 0 position 0.3 springConstant 10 dampingConstant 3",
                           bob_at=f"{0.5 * math.cos(0.3)} 0 {-0.5 * math.sin(0.3)}"))
     s = _sensor(sup)
     _steps(sup, 1)
@@ -357,7 +335,7 @@ def test_hinge_spring_rests_at_the_zero_position_not_the_initial_one() -> None:
 
 def test_slider_spring_rests_at_the_zero_position_not_the_initial_one() -> None:
     # S l.395: LoStop = HiStop = −offset: the slider returns to position 0 from its initial 0.2
-    _, sup = _load(_slider("axis 1 0 0 position 0.2 springConstant 50 dampingConstant 10", bob_at="0.2 0 0"))
+    _, sup = load_arm(_slider("axis 1 0 0 position 0.2 springConstant 50 dampingConstant 10", bob_at="0.2 0 0"))
     s = _sensor(sup)
     _steps(sup, 1)
     assert s.getValue() == pytest.approx(0.2, abs=0.01)
@@ -367,7 +345,7 @@ def test_slider_spring_rests_at_the_zero_position_not_the_initial_one() -> None:
 
 def test_static_friction_holds_when_available_torque_is_zero() -> None:
     # S l.397-399 and l.448: available torque 0 ⇒ u = 0 and FMax = max(staticFriction, 0) = 10 > m·g·0.5 = 4.9
-    _, sup = _load(_hinge("axis 0 1 0 staticFriction 10", 'RotationalMotor { name "m" }'), gravity=G)
+    _, sup = load_arm(_hinge("axis 0 1 0 staticFriction 10", 'RotationalMotor { name "m" }'), gravity=G)
     s = _sensor(sup)
     sup.getDevice("m").setAvailableTorque(0.0)
     _steps(sup, 250)
@@ -378,7 +356,7 @@ def test_static_friction_is_the_motor_force_limit_when_larger() -> None:
     # S l.397: FMax = max(staticFriction, available torque): maxTorque 1 alone sags under 4.9 N·m, but with
     # staticFriction 10 the position servo holds
     for friction, held in ((0.0, False), (10.0, True)):
-        _, sup = _load(_hinge(f"axis 0 1 0 staticFriction {friction}", 'RotationalMotor { name "m" maxTorque 1 }'),
+        _, sup = load_arm(_hinge(f"axis 0 1 0 staticFriction {friction}", 'RotationalMotor { name "m" maxTorque 1 }'),
                        gravity=G)
         s = _sensor(sup)
         _steps(sup, 250)
@@ -388,7 +366,7 @@ def test_static_friction_is_the_motor_force_limit_when_larger() -> None:
 def test_static_friction_still_acts_in_torque_mode() -> None:
     # S l.400-401: in torque mode the motor row keeps Vel 0 / FMax staticFriction: a zero torque holds the arm
     for friction, held in ((0.0, False), (10.0, True)):
-        _, sup = _load(_hinge(f"axis 0 1 0 staticFriction {friction}", 'RotationalMotor { name "m" }'), gravity=G)
+        _, sup = load_arm(_hinge(f"axis 0 1 0 staticFriction {friction}", 'RotationalMotor { name "m" }'), gravity=G)
         s = _sensor(sup)
         sup.getDevice("m").setTorque(0.0)
         _steps(sup, 250)
@@ -399,7 +377,7 @@ def test_static_friction_still_acts_in_torque_mode() -> None:
 
 
 def _resting_on_max_stop() -> tuple[Supervisor, object, object]:
-    _, sup = _load(_hinge("axis 0 1 0 minStop -0.3 maxStop 0.3"), gravity=G)
+    _, sup = load_arm(_hinge("axis 0 1 0 minStop -0.3 maxStop 0.3"), gravity=G)
     s = _sensor(sup)
     _steps(sup, 500)
     params = sup.getSelf().getField("children").getMFNode(0).getField("jointParameters").getSFNode()

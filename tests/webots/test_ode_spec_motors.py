@@ -14,28 +14,8 @@ import warnings
 
 import pytest
 
-from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Supervisor
-from dualtwin.webots.physics import Simulation
-
-TS = 4  # ms
-DT = TS / 1000.0
-G = 9.81
-# a 1 kg sphere (r 0.05) 0.5 m from a hinge: I = 0.5² + 0.4·0.05² (hand computation)
-INERTIA = 0.25 + 0.4 * 0.05 * 0.05
-BOB = 'Solid {{ translation {t} name "bob" boundingObject Sphere {{ radius 0.05 }} physics Physics {{ density -1 mass 1 }} }}'
-
-
-def _load(body: str, gravity: float = 0.0) -> tuple[Simulation, Supervisor]:
-    text = (
-        "#VRML_SIM R2023b utf8\n"
-        f"WorldInfo {{ basicTimeStep {TS} gravity {gravity} physicsDisableTime 0 }}\n"
-        f'Robot {{ name "arm" supervisor TRUE translation 0 0 1 children [ {body} ] }}\n'
-    )
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        sim = Simulation(load_world_text(text))
-    return sim, Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+from tests.support.hinge_arm import BOB, DT, INERTIA, TS, G, load_arm
 
 
 def _hinge(motor: str = 'RotationalMotor { name "m" }', params: str = "axis 0 1 0", bob_at: str = "0.5 0 0",
@@ -78,7 +58,7 @@ def _sensor(sup: Supervisor):  # type: ignore[no-untyped-def]
 def test_rotational_motor_defaults() -> None:
     # S l.411-419: maxVelocity 10, maxTorque 10, acceleration −1, controlPID 10 0 0, min/maxPosition 0,
     # multiplier 1, consumptionFactor 10
-    _, sup = _load(_hinge("RotationalMotor { }"))
+    _, sup = load_arm(_hinge("RotationalMotor { }"))
     m = sup.getDevice("rotational motor")
     assert (m.getMaxVelocity(), m.getMaxTorque(), m.getAcceleration()) == (10.0, 10.0, -1.0)
     assert (m.getMinPosition(), m.getMaxPosition(), m.getMultiplier()) == (0.0, 0.0, 1.0)
@@ -89,7 +69,7 @@ def test_rotational_motor_defaults() -> None:
 
 def test_linear_motor_defaults() -> None:
     # S l.411-419: maxVelocity 10 m/s, maxForce 10 N, acceleration −1, controlPID 10 0 0, no soft limits
-    _, sup = _load(_slider("LinearMotor { }"))
+    _, sup = load_arm(_slider("LinearMotor { }"))
     m = sup.getDevice("linear motor")
     assert (m.getMaxVelocity(), m.getMaxForce(), m.getAcceleration()) == (10.0, 10.0, -1.0)
     assert (m.getMinPosition(), m.getMaxPosition(), m.getMultiplier()) == (0.0, 0.0, 1.0)
@@ -100,7 +80,7 @@ def test_linear_motor_defaults() -> None:
 
 def test_position_sensor_defaults() -> None:
     # S l.421: noise 0, resolution −1; §6 l.488: default name "position sensor"
-    _, sup = _load("HingeJoint { device [ PositionSensor { } ] endPoint " + BOB.format(t="0.5 0 0") + " }")
+    _, sup = load_arm("HingeJoint { device [ PositionSensor { } ] endPoint " + BOB.format(t="0.5 0 0") + " }")
     s = sup.getDevice("position sensor")
     assert s is not None
     node = sup.getSelf().getField("children").getMFNode(0).getField("device").getMFNode(0)
@@ -111,7 +91,7 @@ def test_position_sensor_defaults() -> None:
 def test_initial_targets_are_current_position_max_velocity_and_max_torque() -> None:
     # S l.423-425: target position = current joint position (its `position` field), target velocity = maxVelocity,
     # available torque = maxTorque
-    _, sup = _load(_hinge('RotationalMotor { name "m" maxVelocity 3 maxTorque 7 }', params="axis 0 1 0 position 0.4",
+    _, sup = load_arm(_hinge('RotationalMotor { name "m" maxVelocity 3 maxTorque 7 }', params="axis 0 1 0 position 0.4",
                           bob_at=f"{0.5 * math.cos(0.4)} 0 {-0.5 * math.sin(0.4)}"))
     m = sup.getDevice("m")
     assert m.getTargetPosition() == pytest.approx(0.4)
@@ -124,7 +104,7 @@ def test_initial_targets_are_current_position_max_velocity_and_max_torque() -> N
 
 def test_set_position_is_multiplied_by_the_multiplier() -> None:
     # S l.430: target = p·multiplier: setPosition(0.25) with multiplier 2 servoes the joint to 0.5
-    _, sup = _load(_hinge('RotationalMotor { name "m" multiplier 2 maxTorque 100 }'))
+    _, sup = load_arm(_hinge('RotationalMotor { name "m" multiplier 2 maxTorque 100 }'))
     s = _sensor(sup)
     sup.getDevice("m").setPosition(0.25)
     _steps(sup, 500)
@@ -133,7 +113,7 @@ def test_set_position_is_multiplied_by_the_multiplier() -> None:
 
 def test_set_position_is_clamped_to_the_soft_limits() -> None:
     # S l.430-431: with minPosition ≠ maxPosition a finite target is clamped into [minPosition, maxPosition]
-    _, sup = _load(_hinge('RotationalMotor { name "m" minPosition -0.5 maxPosition 0.5 maxTorque 100 }'))
+    _, sup = load_arm(_hinge('RotationalMotor { name "m" minPosition -0.5 maxPosition 0.5 maxTorque 100 }'))
     s = _sensor(sup)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -144,7 +124,7 @@ def test_set_position_is_clamped_to_the_soft_limits() -> None:
 
 def test_infinite_target_is_kept_despite_soft_limits() -> None:
     # S l.430: ±inf is kept (only a finite p is clamped): velocity control runs past maxPosition 0.5
-    _, sup = _load(_hinge('RotationalMotor { name "m" minPosition -0.5 maxPosition 0.5 maxTorque 100 }'))
+    _, sup = load_arm(_hinge('RotationalMotor { name "m" minPosition -0.5 maxPosition 0.5 maxTorque 100 }'))
     s = _sensor(sup)
     m = sup.getDevice("m")
     m.setPosition(math.inf)
@@ -156,7 +136,7 @@ def test_infinite_target_is_kept_despite_soft_limits() -> None:
 
 def test_set_position_leaves_torque_mode() -> None:
     # S l.431: setPosition leaves torque mode: after a torque push, setPosition(0) brings the joint back
-    _, sup = _load(_hinge('RotationalMotor { name "m" maxTorque 100 }'))
+    _, sup = load_arm(_hinge('RotationalMotor { name "m" maxTorque 100 }'))
     s = _sensor(sup)
     m = sup.getDevice("m")
     m.setTorque(5.0)
@@ -169,7 +149,7 @@ def test_set_position_leaves_torque_mode() -> None:
 
 def test_set_velocity_is_clamped_to_max_velocity() -> None:
     # S l.432: target velocity = v·multiplier clamped to ±maxVelocity
-    _, sup = _load(_hinge('RotationalMotor { name "m" maxVelocity 2 maxTorque 1000 }'))
+    _, sup = load_arm(_hinge('RotationalMotor { name "m" maxVelocity 2 maxTorque 1000 }'))
     s = _sensor(sup)
     m = sup.getDevice("m")
     m.setPosition(math.inf)
@@ -183,7 +163,7 @@ def test_set_velocity_is_clamped_to_max_velocity() -> None:
 
 def test_set_velocity_is_multiplied_by_the_multiplier() -> None:
     # S l.432: target velocity = v·multiplier: 1 rad/s with multiplier 2 turns at 2 rad/s
-    _, sup = _load(_hinge('RotationalMotor { name "m" multiplier 2 maxTorque 1000 }'))
+    _, sup = load_arm(_hinge('RotationalMotor { name "m" multiplier 2 maxTorque 1000 }'))
     s = _sensor(sup)
     m = sup.getDevice("m")
     m.setPosition(math.inf)
@@ -194,7 +174,7 @@ def test_set_velocity_is_multiplied_by_the_multiplier() -> None:
 
 def test_set_acceleration_replaces_the_field() -> None:
     # S l.433: setAcceleration replaces `acceleration` (−1 = unlimited)
-    _, sup = _load(_hinge('RotationalMotor { name "m" acceleration 3 }'))
+    _, sup = load_arm(_hinge('RotationalMotor { name "m" acceleration 3 }'))
     m = sup.getDevice("m")
     assert m.getAcceleration() == 3.0
     m.setAcceleration(-1)
@@ -203,7 +183,7 @@ def test_set_acceleration_replaces_the_field() -> None:
 
 def test_available_torque_is_capped_at_max_torque() -> None:
     # S l.434: available = min(f, maxTorque)
-    _, sup = _load(_hinge('RotationalMotor { name "m" maxTorque 7 }'))
+    _, sup = load_arm(_hinge('RotationalMotor { name "m" maxTorque 7 }'))
     m = sup.getDevice("m")
     m.setAvailableTorque(20.0)
     assert m.getAvailableTorque() == 7.0
@@ -213,7 +193,7 @@ def test_available_torque_is_capped_at_max_torque() -> None:
 
 def test_zero_available_torque_releases_the_joint() -> None:
     # S l.434-435 and l.448: available 0 ⇒ no control: a held arm falls under gravity (torque 4.9 N·m about +y)
-    _, sup = _load(_hinge(), gravity=G)
+    _, sup = load_arm(_hinge(), gravity=G)
     s = _sensor(sup)
     _steps(sup, 50)
     assert abs(s.getValue()) < 0.01  # initially servoed
@@ -226,7 +206,7 @@ def test_zero_available_torque_releases_the_joint() -> None:
 def test_torque_is_clamped_to_the_available_torque(static_parent: bool) -> None:
     # S l.436-437: raw input = τ·multiplier clamped to ±available: 5 N·m asked with 1 available gives
     # ω = (1/I)·t (hand computation, I = 0.2510; base 1000 kg, its recoil neglected at 0.1 %)
-    sim, sup = _load(_hinge(static_parent=static_parent))
+    sim, sup = load_arm(_hinge(static_parent=static_parent))
     m = sup.getDevice("m")
     m.setAvailableTorque(1.0)
     m.setTorque(5.0)
@@ -237,7 +217,7 @@ def test_torque_is_clamped_to_the_available_torque(static_parent: bool) -> None:
 
 def test_torque_is_multiplied_by_the_multiplier() -> None:
     # S l.437: raw input = τ·multiplier: 0.5 N·m with multiplier 2 is 1 N·m
-    sim, sup = _load(_hinge('RotationalMotor { name "m" multiplier 2 }'))
+    sim, sup = load_arm(_hinge('RotationalMotor { name "m" multiplier 2 }'))
     sup.getDevice("m").setTorque(0.5)
     _steps(sup, 100)
     assert sim.bodies[0].avel[1] == pytest.approx(100 * DT / INERTIA, rel=1e-3)  # joint rows' CFM
@@ -245,7 +225,7 @@ def test_torque_is_multiplied_by_the_multiplier() -> None:
 
 def test_set_control_pid_resets_integral_and_previous_error() -> None:
     # S l.438: setControlPID replaces the gains and resets the integral and the previous error
-    sim, sup = _load(_hinge('RotationalMotor { name "m" controlPID 10 5 0 }'))
+    sim, sup = load_arm(_hinge('RotationalMotor { name "m" controlPID 10 5 0 }'))
     m = sup.getDevice("m")
     m.setPosition(0.3)
     _steps(sup, 5)
@@ -262,7 +242,7 @@ def test_set_control_pid_resets_integral_and_previous_error() -> None:
 def test_position_control_is_the_p_law_step_by_step() -> None:
     # S l.451-454: unloaded (gravity 0, enough torque), u = Kp·e each step and the joint moves u·ts, so
     # e_n = e_0·(1 − Kp·ts)^n (hand computation), here 0.1·0.96^n
-    _, sup = _load(_hinge('RotationalMotor { name "m" maxTorque 1e5 }'))
+    _, sup = load_arm(_hinge('RotationalMotor { name "m" maxTorque 1e5 }'))
     s = _sensor(sup)
     sup.getDevice("m").setPosition(0.1)
     for n in range(1, 11):
@@ -272,7 +252,7 @@ def test_position_control_is_the_p_law_step_by_step() -> None:
 
 def test_position_control_output_is_clamped_to_the_target_velocity() -> None:
     # S l.454: |out| ≥ |Vt| ⇒ u = sign(out)·|Vt|: a far target (Kp·e = 100) moves at Vt = 1 rad/s
-    _, sup = _load(_hinge('RotationalMotor { name "m" maxTorque 1000 }'))
+    _, sup = load_arm(_hinge('RotationalMotor { name "m" maxTorque 1000 }'))
     s = _sensor(sup)
     m = sup.getDevice("m")
     m.setVelocity(1.0)
@@ -284,7 +264,7 @@ def test_position_control_output_is_clamped_to_the_target_velocity() -> None:
 @pytest.mark.parametrize("static_parent", [True, False])
 def test_slider_position_control_converges(static_parent: bool) -> None:
     # S l.458-459: slider dParamVel = +u (Webots sign): the P law drives it onto its target from either parent
-    _, sup = _load(_slider('LinearMotor { name "m" maxForce 100 }', static_parent=static_parent))
+    _, sup = load_arm(_slider('LinearMotor { name "m" maxForce 100 }', static_parent=static_parent))
     s = _sensor(sup)
     sup.getDevice("m").setPosition(0.05)
     _steps(sup, 500)
@@ -294,7 +274,7 @@ def test_slider_position_control_converges(static_parent: bool) -> None:
 @pytest.mark.parametrize("static_parent", [True, False])
 def test_slider_velocity_control_sign(static_parent: bool) -> None:
     # S l.458-459 and l.448: velocity control u = Vt, positive along +axis
-    _, sup = _load(_slider('LinearMotor { name "m" maxForce 1000 }', static_parent=static_parent))
+    _, sup = load_arm(_slider('LinearMotor { name "m" maxForce 1000 }', static_parent=static_parent))
     s = _sensor(sup)
     m = sup.getDevice("m")
     m.setPosition(math.inf)
@@ -309,7 +289,7 @@ def test_slider_velocity_control_sign(static_parent: bool) -> None:
 def test_position_sensor_reads_after_the_physics_step() -> None:
     # S l.471-472 and §6 l.483: a command issued before step k acts in step k and the sample taken at the end of
     # step k sees it: one step of 1 rad/s velocity control reads 1·ts (to the motor row's CFM lag)
-    _, sup = _load(_hinge('RotationalMotor { name "m" maxTorque 1e5 }'))
+    _, sup = load_arm(_hinge('RotationalMotor { name "m" maxTorque 1e5 }'))
     s = _sensor(sup)
     m = sup.getDevice("m")
     m.setPosition(math.inf)
@@ -320,7 +300,7 @@ def test_position_sensor_reads_after_the_physics_step() -> None:
 
 def test_position_sensor_includes_the_initial_offset_over_turns() -> None:
     # S l.466-467: continuous, multi-turn, includes the initial `position` offset: 1 + 8 rad/s · 2 s = 17 rad
-    _, sup = _load(_hinge('RotationalMotor { name "m" maxTorque 1000 }', params="axis 0 1 0 position 1",
+    _, sup = load_arm(_hinge('RotationalMotor { name "m" maxTorque 1000 }', params="axis 0 1 0 position 1",
                           bob_at=f"{0.5 * math.cos(1)} 0 {-0.5 * math.sin(1)}"))
     s = _sensor(sup)
     m = sup.getDevice("m")
