@@ -137,8 +137,8 @@ class JointBuilder(SceneBuilder):
         for b in (pb, cb):
             if b is not None:
                 b.joints.append(joint)
-        if cb is None and pb is not None:
-            pb.attached_to_world = True  # §2.3 rule 6, as for any body jointed to the static environment
+        if (pb is None) != (cb is None):  # §2.3 rule 6, as for any body jointed to the static environment
+            (cb if pb is None else pb).attached_to_world = True  # type: ignore[union-attr]
         self._anchor_joint(joint)
         for i in range(len(joint.params)):
             self._set_stops(joint, i)

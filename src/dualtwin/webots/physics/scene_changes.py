@@ -274,7 +274,8 @@ class SceneChanges(JointChanges):
         for end in (joint.parent_body, joint.child_body):
             if end is not None:
                 self._wake_body(end.index)  # (a body held still may have fallen asleep)
-        body = joint.parent_body if joint.child_body is None else None  # jointed to the static environment
+        body = joint.parent_body if joint.child_body is None else None  # jointed to the static environment...
+        body = joint.child_body if joint.parent_body is None else body  # ...at either end
         self._detach_joint(joint)
         self._without_endpoint(joint)
         if body is not None:  # §2.3 rule 6 holds while another joint or a fixed joint holds it to the world
