@@ -117,7 +117,8 @@ def test_stops_are_stiff_limits_from_world_erp_and_cfm() -> None:
     assert own.compile().jnt_solref[j] == pytest.approx(m.jnt_solref[j])
     assert any("stopERP/stopCFM" in w for w in own.warnings)
     hard = convert("WorldInfo { basicTimeStep 8 CFM 0 }\n" + HINGE).compile()
-    assert hard.jnt_solimp[j][:2] == pytest.approx([0.9999, 0.9999])  # a hard stop, within MuJoCo's range
+    # CFM 0 is reset to 1e-5 (§1.1), a stop as hard as MuJoCo's range allows here
+    assert hard.jnt_solimp[j][:2] == pytest.approx([0.9999, 0.9999])
     # One MuJoCo step of the mapped limit: b = 1/h removes the approach velocity, h k = ERP/H pushes out.
     timeconst, dampratio, _ = stop_solref(0.2, 1e-5, 0.008, 0.1, 0.002)
     b, k = 2 / timeconst, 1 / (timeconst * dampratio) ** 2

@@ -36,7 +36,7 @@ Stops, contacts, cameras, world
     Stops become stiff MuJoCo limits and ContactProperties each collision geom's ``friction``, ``solref`` and
     ``solimp`` (a second pass once the model is whole, :mod:`dualtwin.convert.contacts`); FLU cameras turn into
     MuJoCo's camera frame with a vertical ``fovy``; the world gets a ``timestep`` dividing ``basicTimeStep``,
-    gravity (0, 0, -g), ``integrator="implicitfast"``, ``cone="pyramidal"`` (ODE's friction pyramid) and
+    gravity (0, 0, -g) (ENU) or (0, -g, 0) (NUE, EUN), ``integrator="implicitfast"``, ``cone="pyramidal"`` (ODE's friction pyramid) and
     ``compiler angle="radian"``. Robot parts never collide with each other unless ``selfCollision``; ``bounce``
     has no MuJoCo equivalent (noted in the warnings).
 
@@ -152,7 +152,12 @@ class _Converter:
         self.info = info.fields if info is not None else schema.default_fields("WorldInfo")
         self.basic_ms = self._basic_time_step(info)
         self.dt = timestep_for(self.basic_ms)
-        self.nue = str(self.info.get("coordinateSystem", "ENU")).upper() == "NUE"
+        # §1.1: NUE and EUN worlds fall along -y; the converter keeps the file's coordinates, so gravity follows.
+        self.y_down = str(self.info.get("coordinateSystem", "ENU")).upper() in ("NUE", "EUN")
+        # §1.1: Webots resets an ERP outside [0, 1] to 0.2 and a CFM <= 0 to 1e-5 before ODE (and the stops) see them.
+        erp, cfm = float(self.info.get("ERP", 0.2)), float(self.info.get("CFM", 1e-5))
+        self.erp = erp if 0.0 <= erp <= 1.0 else 0.2
+        self.cfm = cfm if cfm > 0.0 else 1e-5
         version = re.search(r"R(\d{4})([ab])", world.header or "")
         self.old_cameras = version is not None and (int(version.group(1)), version.group(2)) < (2022, "a")
         self.geoms: list[ContactGeom] = []
@@ -210,9 +215,13 @@ class _Converter:
         spec.option.timestep = self.dt
         spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
         spec.option.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
-        spec.option.gravity = [0.0, 0.0, -float(self.info.get("gravity", 9.81))]
-        if self.nue:
-            self.warn("WorldInfo coordinateSystem is NUE: converted as written (no NUE -> ENU rotation)")
+        g = float(self.info.get("gravity", 9.81))
+        spec.option.gravity = [0.0, -g, 0.0] if self.y_down else [0.0, 0.0, -g]
+        if self.y_down:
+            self.warn(f"WorldInfo coordinateSystem is {str(self.info['coordinateSystem']).upper()}: converted as "
+                      "written (no rotation to ENU), gravity along -y")
+        if self.info.get("defaultDamping") is not None:
+            self.warn("WorldInfo defaultDamping is not converted (MuJoCo has no per-body velocity damping)")
         self.spec.worldbody.add_light(name=self.unique("light", "sun"), pos=[0, 0, 10], dir=[0, 0, -1],
                                       type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL)
 
@@ -311,6 +320,9 @@ class _Converter:
             raise self.unsupported(solid)
         material = str(solid.get("contactMaterial", "default"))
         props, mass_warnings = solid_mass(solid, scale=scale)
+        physics = solid.get("physics")
+        if physics is not None and physics.get("damping") is not None:
+            self.warn(f"{label}: Physics damping is not converted (MuJoCo has no per-body velocity damping)", solid)
         for w in mass_warnings:
             self.warn(f"{label}: {w}", solid)
         if props is not None:
@@ -565,7 +577,7 @@ class _Converter:
             self.warn("stopERP/stopCFM reach ODE only when changed at run time "
                       "(docs/reference/webots-on-ode.md §4.2, unverified); "
                       "the stops are converted with WorldInfo ERP/CFM, which ODE gives them at creation", where)
-        self.stops.append((j, float(self.info.get("ERP", 0.2)), float(self.info.get("CFM", 1e-5))))
+        self.stops.append((j, self.erp, self.cfm))
         return True
 
     def set_dynamics(self, j: Any, params: dict[str, Any], position: float, where: Node) -> None:
