@@ -85,7 +85,7 @@ def test_hinge_ref_axis_anchor_and_dynamics() -> None:
     assert m.jnt_limited[j.id]
     assert m.dof_damping[m.jnt_dofadr[j.id]] == pytest.approx(0.7)
     assert m.jnt_stiffness[j.id] == pytest.approx(2)
-    assert m.qpos_spring[m.jnt_qposadr[j.id]] == pytest.approx(0.3)  # spring rests at the initial position
+    assert m.qpos_spring[m.jnt_qposadr[j.id]] == pytest.approx(0.0)  # spring rests at the zero position (§4.5)
     assert m.dof_frictionloss[m.jnt_dofadr[j.id]] == pytest.approx(0.05)
     # At qpos0 the child is where the file puts it; anchor and axis are where the file says (root frame = world).
     d = forward(m)

@@ -21,7 +21,7 @@ import pytest
 from dualtwin.convert import convert_world, convert_world_text
 from dualtwin.convert.conversion import Conversion
 from dualtwin.geometry import axis_angle_matrix
-from dualtwin.webots import load_world_text
+from dualtwin.webots import load_world_text, ode
 from dualtwin.webots.physics import Simulation
 
 HEADER = "#VRML_SIM R2023b utf8\n"
@@ -246,11 +246,54 @@ def test_slider_stops_are_a_range_in_metres_not_clamped_to_pi() -> None:
     assert m.jnt_range[m.joint("S").id] == pytest.approx([-4, 5])
 
 
+def test_hinge_stops_are_clamped_to_pi_about_the_initial_position() -> None:
+    # S l.344-345: ODE's stops are -maxStop + offset and -minStop + offset, clamped into [-π, π]; with offset
+    # = position = 1, minStop -3 gives an ODE stop π, so the joint stops at position 1 - π, not at -3
+    text = hinge_world("position 1 minStop -3 maxStop 3")
+    m = convert(text).compile()
+    assert m.jnt_range[m.joint("J").id] == pytest.approx([1 - math.pi, 3])
+    # cross-check: the Webots twin's ODE stops (Webots position = offset - ODE angle). Driving the twin onto
+    # the stop would not do: upstream ODE does not unwrap its angle at ±π where Webots' fork does (S l.635)
+    sim = twin(text)
+    lib = ode.load()
+    lo, hi = (lib.dJointGetHingeParam(sim.joints[0].ptr, p) for p in (ode.dParamLoStop, ode.dParamHiStop))
+    assert [1 - hi, 1 - lo] == pytest.approx([1 - math.pi, 3])
+    # control: no position, the stops within ±π pass as they are
+    plain = convert(hinge_world("minStop -3 maxStop 3")).compile()
+    assert plain.jnt_range[plain.joint("J").id] == pytest.approx([-3, 3])
+
+
 def test_hidden_position_without_joint_parameters_is_the_reference() -> None:
     # S l.321: without jointParameters the offset is the hidden `position` field; the file pose is the pose there
     text = f"DEF R Robot {{ children [ DEF J HingeJoint {{ position 0.4 endPoint DEF BOB Solid {{ {BALL} }} }} ] }}"
     m = convert(text).compile()
     assert m.qpos0[m.jnt_qposadr[m.joint("J").id]] == pytest.approx(0.4)
+
+
+@pytest.mark.parametrize("kind", ["hinge", "slider"])
+def test_a_spring_rests_at_the_joint_zero_position(kind: str) -> None:
+    # S l.385-393 (docs/reference §4.5): the spring's rest point is the joint's zero position, T = -K·position
+    # - B·velocity, whatever the file's initial `position`; MuJoCo's spring rests at springref
+    if kind == "hinge":
+        text = hinge_world("position 0.3 springConstant 10 dampingConstant 5")
+    else:
+        text = ("WorldInfo { basicTimeStep 4 gravity 0 physicsDisableTime 0 }\nDEF R Robot { children [ DEF J "
+                "SliderJoint { jointParameters JointParameters { axis 1 0 0 position 0.1 springConstant 40 "
+                f"dampingConstant 20 }} endPoint DEF BOB Solid {{ translation 0.1 0 0 {BALL} }} }} ] }}")
+    m = convert(text).compile()
+    j = m.joint("J").id
+    assert m.qpos_spring[m.jnt_qposadr[j]] == pytest.approx(0.0)
+    assert m.dof_damping[m.jnt_dofadr[j]] == pytest.approx(5 if kind == "hinge" else 20)
+    # both twins, left alone for 4 s (overdamped: slowest decay e^-2.25t for the hinge, e^-2.76t for the
+    # slider), come to rest at 0
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    while d.time < 4.0:
+        mujoco.mj_step(m, d)
+    assert d.qpos[m.jnt_qposadr[j]] == pytest.approx(0.0, abs=1e-3)
+    sim = twin(text)
+    sim.step(1000)
+    assert sim.joints[0].positions[0] == pytest.approx(0.0, abs=1e-3)
 
 
 # ------------------------------------------------------------------------------------------ §2 contacts

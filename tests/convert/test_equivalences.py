@@ -24,9 +24,11 @@ from dualtwin.convert.equivalences import (
 from dualtwin.geometry import axis_angle_matrix
 
 
-def test_hinge_stops_are_clamped_into_plus_minus_pi() -> None:
+def test_hinge_stops_are_clamped_into_plus_minus_pi_about_the_offset() -> None:
     assert hinge_stop_range(-4.0, 5.0) == (-math.pi, math.pi)
     assert hinge_stop_range(-1.0, 2.0) == (-1.0, 2.0)  # control: stops inside pass unchanged
+    # ODE clamps -maxStop + offset and -minStop + offset: about the initial position, not about 0 (§4.2)
+    assert hinge_stop_range(-3.0, 3.0, 1.0) == (1.0 - math.pi, 3.0)
 
 
 def test_coulomb_friction_first_value_and_infinite() -> None:
@@ -78,17 +80,16 @@ def _joint() -> mujoco.MjsJoint:
     return body.add_joint(name="j", type=mujoco.mjtJoint.mjJNT_HINGE)
 
 
-def test_joint_dynamics_damping_spring_at_initial_position_and_friction() -> None:
+def test_joint_dynamics_damping_spring_at_zero_position_and_friction() -> None:
     j = _joint()
     params = {"dampingConstant": 0.3, "springConstant": 4.0, "staticFriction": 0.2}
-    assert apply_joint_dynamics(j, params, 0.5) is False
+    assert apply_joint_dynamics(j, params) is False
     assert np.ravel(j.damping)[0] == pytest.approx(0.3)
     assert np.ravel(j.stiffness)[0] == pytest.approx(4.0)
-    assert (j.springref, j.frictionloss) == (0.5, 0.2)
-    # control: no spring leaves springref at MuJoCo's default; a suspension is reported
+    assert (j.springref, j.frictionloss) == (0.0, 0.2)  # the spring rests at the zero position (§4.5)
+    # control: a suspension is reported
     k = _joint()
-    assert apply_joint_dynamics(k, {"suspensionSpringConstant": 10.0}, 0.5) is True
-    assert k.springref == 0.0
+    assert apply_joint_dynamics(k, {"suspensionSpringConstant": 10.0}) is True
 
 
 def test_convert_package_has_no_import_cycle() -> None:

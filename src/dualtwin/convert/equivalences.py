@@ -6,14 +6,16 @@ Section numbers (§) refer to the Webots-on-ODE specification in ``docs/referenc
 
 Overview (one line each; details in the functions):
 
-* world step: :func:`timestep_for` (a MuJoCo step that divides ``basicTimeStep``), gravity ``(0, 0, -g)``,
+* world step: :func:`timestep_for` (a MuJoCo step that divides ``basicTimeStep``), gravity :func:`world_gravity`,
+  ERP/CFM as Webots resets them :func:`world_erp_cfm`,
   ``implicitfast`` integrator, ``pyramidal`` cone (ODE's friction pyramid);
 * contact softness ``softERP``/``softCFM`` -> ``solref``/``solimp``: :func:`contact_solref`, per material pair
   :func:`contact_pair`;
 * friction ``coulombFriction`` -> ``friction``: :func:`coulomb_friction`;
 * joint stops (ODE hard limits with the world ERP/CFM) -> ``solreflimit``/``solimplimit``: :func:`stop_solref`,
-  ranges :func:`hinge_stop_range`;
-* joint damping, springs and static friction -> ``damping``, ``stiffness``/``springref``, ``frictionloss``:
+  ranges :func:`hinge_stop_range` (ODE's ±pi clamp about the initial position);
+* joint damping, springs (resting at the joint's zero position) and static friction -> ``damping``,
+  ``stiffness``, ``frictionloss``:
   :func:`apply_joint_dynamics`;
 * motors (velocity/position control through Webots' PID, torque limits) -> ``general`` actuator limits plus a
   ``webots_motor.*`` numeric the MuJoCo twin reads: :func:`motor_numeric`;
@@ -54,6 +56,8 @@ __all__ = [
     "set_scalar",
     "stop_solref",
     "timestep_for",
+    "world_erp_cfm",
+    "world_gravity",
 ]
 
 MAX_TIMESTEP_MS = 2.0
@@ -80,6 +84,23 @@ def timestep_for(basic_time_step_ms: float) -> float:
             return h / 1000.0
     k = max(1, math.ceil(basic_time_step_ms / MAX_TIMESTEP_MS))
     return basic_time_step_ms / k / 1000.0
+
+
+def world_gravity(world_info: Mapping[str, Any]) -> list[float]:
+    """WorldInfo ``gravity`` (a magnitude) along the world's down axis (§1.1): -z in ENU, -y in NUE and EUN.
+
+    The converter keeps the file's coordinates (no rotation to ENU), so gravity is written in them.
+    """
+    g = float(world_info.get("gravity", 9.81))
+    y_down = str(world_info.get("coordinateSystem", "ENU")).upper() in ("NUE", "EUN")
+    return [0.0, -g, 0.0] if y_down else [0.0, 0.0, -g]
+
+
+def world_erp_cfm(world_info: Mapping[str, Any]) -> tuple[float, float]:
+    """WorldInfo ERP and CFM as Webots hands them to ODE (§1.1): an ERP outside [0, 1] is reset to 0.2, a CFM
+    <= 0 to 1e-5. The joint stops get these (:func:`stop_solref`)."""
+    erp, cfm = float(world_info.get("ERP", 0.2)), float(world_info.get("CFM", 1e-5))
+    return (erp if 0.0 <= erp <= 1.0 else 0.2), (cfm if cfm > 0.0 else 1e-5)
 
 
 def camera_fovy_degrees(field_of_view: float, width: int, height: int) -> float:
@@ -205,12 +226,15 @@ def stop_solref(stop_erp: float, stop_cfm: float, step_s: float, inertia: float,
     return timeconst, dampratio, min(max(d, 0.5), 0.9999)
 
 
-def hinge_stop_range(lo: float, hi: float) -> tuple[float, float]:
-    """Hinge ``minStop``/``maxStop`` as ODE applies them: clamped into [-pi, pi] (§4.2).
+def hinge_stop_range(lo: float, hi: float, offset: float = 0.0) -> tuple[float, float]:
+    """Hinge ``minStop``/``maxStop`` as ODE applies them (§4.2), in Webots positions.
 
-    (The caller limits a joint only when the stops differ; equal stops mean "no stop" in Webots.)
+    ODE's stops are -maxStop + offset and -minStop + offset (offset = the joint's initial ``position``), each
+    clamped into [-pi, pi] on ODE's angle; on Webots' position (offset - ODE angle) that is a clamp into
+    [offset - pi, offset + pi]. (The caller limits a joint only when the stops differ; equal stops mean "no stop"
+    in Webots.)
     """
-    return max(lo, -math.pi), min(hi, math.pi)
+    return max(lo, offset - math.pi), min(hi, offset + math.pi)
 
 
 def set_scalar(element: Any, attr: str, value: float) -> None:
@@ -223,12 +247,14 @@ def set_scalar(element: Any, attr: str, value: float) -> None:
         setattr(element, attr, value)
 
 
-def apply_joint_dynamics(joint: Any, params: Mapping[str, Any], position: float) -> bool:
+def apply_joint_dynamics(joint: Any, params: Mapping[str, Any]) -> bool:
     """Joint parameters -> MuJoCo joint dynamics; returns True when a suspension could not be converted.
 
     * ``dampingConstant`` -> ``damping`` (both a viscous torque -c q', per joint);
-    * ``springConstant`` -> ``stiffness`` with ``springref`` = the initial position: Webots' spring rests at
-      the position the joint had when the world loaded, MuJoCo's at ``springref`` (default 0);
+    * ``springConstant`` -> ``stiffness``, resting at MuJoCo's default ``springref`` 0: Webots' spring AMotor
+      (LMotor) holds ODE's angle at the offset, i.e. the joint at its **zero position** whatever the file's
+      initial ``position`` (§4.5, T = -K position - B velocity), and the converted joint's qpos is Webots'
+      position (``ref`` = ``position``);
     * ``staticFriction`` -> ``frictionloss`` (a dry friction torque opposing motion in both);
     * the hinge suspension of Webots' ODE fork has no MuJoCo counterpart.
     """
@@ -238,7 +264,7 @@ def apply_joint_dynamics(joint: Any, params: Mapping[str, Any], position: float)
     set_scalar(joint, "damping", damping)
     if spring:
         set_scalar(joint, "stiffness", spring)
-        joint.springref = position
+        joint.springref = 0.0
     if friction:
         joint.frictionloss = friction
     return bool(float(params.get("suspensionSpringConstant", 0.0))

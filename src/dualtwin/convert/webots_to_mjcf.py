@@ -17,12 +17,12 @@ Joints
     HingeJoint -> hinge, SliderJoint -> slide, BallJoint -> ball, Hinge2Joint -> two hinges in the child
     body (MuJoCo composes a body's joints in order, so axis 2 turns with hinge 1 as in ODE). ``axis`` and
     ``anchor`` are in the frame of the joint's parent Pose and are re-expressed in the child body frame.
-    Webots stores the endPoint *at* ``position``, so ``position`` becomes ``ref`` (and ``springref``):
-    ``qpos0 = position`` and the XML pose is the pose at ``qpos0``.
-    Signs: a Webots hinge/slider position grows with a right-handed rotation about / a translation along
-    ``axis``, which is MuJoCo's convention too (ODE's internal slider axis reversal, §4.3, is undone by Webots).
-    ``minStop``/``maxStop`` -> ``range`` (limited only if they differ), ``dampingConstant`` -> ``damping``,
-    ``springConstant`` -> ``stiffness``, ``staticFriction`` -> ``frictionloss``.
+    Webots stores the endPoint *at* ``position``, so ``position`` becomes ``ref``: ``qpos0 = position`` and the
+    XML pose is the pose at ``qpos0``. Signs: a Webots hinge/slider position grows with a right-handed rotation
+    about / a translation along ``axis``, as in MuJoCo (ODE's slider axis reversal, §4.3, is undone by Webots).
+    ``minStop``/``maxStop`` -> ``range`` (if they differ; a hinge's within ±pi of ``position``, ODE's clamp),
+    ``dampingConstant`` -> ``damping``, ``springConstant`` -> ``stiffness`` (resting at position 0),
+    ``staticFriction`` -> ``frictionloss``.
 
 Devices
     RotationalMotor/LinearMotor -> ``general`` actuator named by the device, on its joint, ``forcerange`` and
@@ -36,9 +36,9 @@ Stops, contacts, cameras, world
     Stops become stiff MuJoCo limits and ContactProperties each collision geom's ``friction``, ``solref`` and
     ``solimp`` (a second pass once the model is whole, :mod:`dualtwin.convert.contacts`); FLU cameras turn into
     MuJoCo's camera frame with a vertical ``fovy``; the world gets a ``timestep`` dividing ``basicTimeStep``,
-    gravity (0, 0, -g) (ENU) or (0, -g, 0) (NUE, EUN), ``integrator="implicitfast"``, ``cone="pyramidal"`` (ODE's friction pyramid) and
-    ``compiler angle="radian"``. Robot parts never collide with each other unless ``selfCollision``; ``bounce``
-    has no MuJoCo equivalent (noted in the warnings).
+    gravity (0, 0, -g) (ENU) or (0, -g, 0) (NUE, EUN), ``integrator="implicitfast"``, ``cone="pyramidal"``
+    (ODE's friction pyramid) and ``compiler angle="radian"``. Robot parts never collide with each other unless
+    ``selfCollision``; ``bounce`` has no MuJoCo equivalent and Damping nodes no per-body one (both reported).
 
 Every ODE -> MuJoCo equivalence, with its reasoning, is a function in :mod:`dualtwin.convert.equivalences`;
 this module walks the world and writes the MjSpec; the result types are in :mod:`dualtwin.convert.conversion`.
@@ -70,6 +70,8 @@ from dualtwin.convert.equivalences import (
     motor_numeric,
     rangefinder_rotation,
     timestep_for,
+    world_erp_cfm,
+    world_gravity,
 )
 from dualtwin.convert.mass import (
     FloatArray,
@@ -152,12 +154,7 @@ class _Converter:
         self.info = info.fields if info is not None else schema.default_fields("WorldInfo")
         self.basic_ms = self._basic_time_step(info)
         self.dt = timestep_for(self.basic_ms)
-        # §1.1: NUE and EUN worlds fall along -y; the converter keeps the file's coordinates, so gravity follows.
-        self.y_down = str(self.info.get("coordinateSystem", "ENU")).upper() in ("NUE", "EUN")
-        # §1.1: Webots resets an ERP outside [0, 1] to 0.2 and a CFM <= 0 to 1e-5 before ODE (and the stops) see them.
-        erp, cfm = float(self.info.get("ERP", 0.2)), float(self.info.get("CFM", 1e-5))
-        self.erp = erp if 0.0 <= erp <= 1.0 else 0.2
-        self.cfm = cfm if cfm > 0.0 else 1e-5
+        self.erp, self.cfm = world_erp_cfm(self.info)
         version = re.search(r"R(\d{4})([ab])", world.header or "")
         self.old_cameras = version is not None and (int(version.group(1)), version.group(2)) < (2022, "a")
         self.geoms: list[ContactGeom] = []
@@ -215,11 +212,9 @@ class _Converter:
         spec.option.timestep = self.dt
         spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
         spec.option.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
-        g = float(self.info.get("gravity", 9.81))
-        spec.option.gravity = [0.0, -g, 0.0] if self.y_down else [0.0, 0.0, -g]
-        if self.y_down:
-            self.warn(f"WorldInfo coordinateSystem is {str(self.info['coordinateSystem']).upper()}: converted as "
-                      "written (no rotation to ENU), gravity along -y")
+        spec.option.gravity = world_gravity(self.info)
+        if str(self.info.get("coordinateSystem", "ENU")).upper() in ("NUE", "EUN"):
+            self.warn("WorldInfo coordinateSystem is NUE or EUN: converted as written (no rotation to ENU)")
         if self.info.get("defaultDamping") is not None:
             self.warn("WorldInfo defaultDamping is not converted (MuJoCo has no per-body velocity damping)")
         self.spec.worldbody.add_light(name=self.unique("light", "sun"), pos=[0, 0, 10], dir=[0, 0, -1],
@@ -320,14 +315,11 @@ class _Converter:
             raise self.unsupported(solid)
         material = str(solid.get("contactMaterial", "default"))
         props, mass_warnings = solid_mass(solid, scale=scale)
-        physics = solid.get("physics")
-        if physics is not None and physics.get("damping") is not None:
+        if solid.get("physics") is not None and solid["physics"].get("damping") is not None:
             self.warn(f"{label}: Physics damping is not converted (MuJoCo has no per-body velocity damping)", solid)
         for w in mass_warnings:
             self.warn(f"{label}: {w}", solid)
         if props is not None:
-            if not dynamic and not static:
-                pass
             masses.append(props.transformed(T[:3, :3], T[:3, 3]))
         for i, prim in enumerate(bounding_primitives(solid.get("boundingObject"), scale=scale)):
             if prim.geometry.type_name in UNSUPPORTED:
@@ -536,7 +528,7 @@ class _Converter:
                 name = self.joint_name(jnode, devices)
                 j = body.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_BALL,
                                    pos=point_in_child(params.get("anchor", (0.0, 0.0, 0.0))))
-                self.set_dynamics(j, params, 0.0, where)
+                self.set_dynamics(j, params, where)
                 if devices or jnode.get("device2") or jnode.get("device3"):
                     self.warn("BallJoint devices (motors/sensors) are not converted", jnode)
                 if position:
@@ -553,15 +545,15 @@ class _Converter:
                 j = body.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=in_child(axis), pos=[0, 0, 0])
                 jkind = "slide"
             j.ref = position
-            limited = self.set_limits(j, params, jkind, where)
-            self.set_dynamics(j, params, position, where)
+            limited = self.set_limits(j, params, jkind, where, position)
+            self.set_dynamics(j, params, where)
             info = JointInfo(name, jkind, body_name, limited=limited)
             self.joint_devices(devices, info, linear=jkind == "slide")
             self.joints.append(info)
 
         self.build_body(parent, end, child_T, scale, static=False, add_joint=add)
 
-    def set_limits(self, j: Any, params: dict[str, Any], kind: str, where: Node) -> bool:
+    def set_limits(self, j: Any, params: dict[str, Any], kind: str, where: Node, position: float) -> bool:
         lo, hi = float(params.get("minStop", 0.0)), float(params.get("maxStop", 0.0))
         if lo == hi:
             return False
@@ -570,7 +562,7 @@ class _Converter:
                 self.findings.append(Finding("error", "stop-in-degrees",
                                              f"hinge stops [{lo:g}, {hi:g}] exceed 2*pi: degrees written as radians?",
                                              _where(where)))
-            lo, hi = hinge_stop_range(lo, hi)
+            lo, hi = hinge_stop_range(lo, hi, position)
         j.range = sorted([lo, hi])
         j.limited = mujoco.mjtLimited.mjLIMITED_TRUE
         if float(params.get("stopERP", -1.0)) >= 0 or float(params.get("stopCFM", -1.0)) >= 0:
@@ -580,8 +572,8 @@ class _Converter:
         self.stops.append((j, self.erp, self.cfm))
         return True
 
-    def set_dynamics(self, j: Any, params: dict[str, Any], position: float, where: Node) -> None:
-        if apply_joint_dynamics(j, params, position):
+    def set_dynamics(self, j: Any, params: dict[str, Any], where: Node) -> None:
+        if apply_joint_dynamics(j, params):
             self.warn("hinge suspension (Webots' ODE fork) is not converted", where)
 
     def joint_devices(self, devices: list[Node], info: JointInfo, *, linear: bool) -> None:
@@ -635,8 +627,8 @@ class _Converter:
             name1 = self.joint_name(jnode, devices1)
             j1 = body.add_joint(name=name1, type=mujoco.mjtJoint.mjJNT_HINGE, axis=in_child(axis1), pos=anchor)
             j1.ref = pos1
-            limited1 = self.set_limits(j1, p1, "hinge", p1_node or jnode)
-            self.set_dynamics(j1, p1, pos1, p1_node or jnode)
+            limited1 = self.set_limits(j1, p1, "hinge", p1_node or jnode, pos1)
+            self.set_dynamics(j1, p1, p1_node or jnode)
             info1 = JointInfo(name1, "hinge", body_name, limited=limited1)
             self.joint_devices(devices1, info1, linear=False)
             self.joints.append(info1)
@@ -644,8 +636,8 @@ class _Converter:
                 "joint", f"{name1}2")
             j2 = body.add_joint(name=name2, type=mujoco.mjtJoint.mjJNT_HINGE, axis=in_child(axis2), pos=anchor)
             j2.ref = pos2
-            limited2 = self.set_limits(j2, p2, "hinge", p2_node or jnode)
-            self.set_dynamics(j2, p2, pos2, p2_node or jnode)
+            limited2 = self.set_limits(j2, p2, "hinge", p2_node or jnode, pos2)
+            self.set_dynamics(j2, p2, p2_node or jnode)
             info2 = JointInfo(name2, "hinge", body_name, limited=limited2)
             self.joint_devices(devices2, info2, linear=False)
             self.joints.append(info2)
