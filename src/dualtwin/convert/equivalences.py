@@ -86,6 +86,17 @@ def timestep_for(basic_time_step_ms: float) -> float:
     return basic_time_step_ms / k / 1000.0
 
 
+def world_notes(info: dict[str, Any]) -> list[str]:
+    """What of a WorldInfo the MJCF cannot carry: a coordinate system other than ENU is converted as written (the
+    gravity follows it, the model is not rotated), and ``defaultDamping`` has no per-body MuJoCo equivalent."""
+    notes = []
+    if str(info.get("coordinateSystem", "ENU")).upper() in ("NUE", "EUN"):
+        notes.append("WorldInfo coordinateSystem is NUE or EUN: converted as written (no rotation to ENU)")
+    if info.get("defaultDamping") is not None:
+        notes.append("WorldInfo defaultDamping is not converted (MuJoCo has no per-body velocity damping)")
+    return notes
+
+
 def world_gravity(world_info: Mapping[str, Any]) -> list[float]:
     """WorldInfo ``gravity`` (a magnitude) along the world's down axis (§1.1): -z in ENU, -y in NUE and EUN.
 

@@ -17,12 +17,11 @@ Joints
     HingeJoint -> hinge, SliderJoint -> slide, BallJoint -> ball, Hinge2Joint -> two hinges in the child
     body (MuJoCo composes a body's joints in order, so axis 2 turns with hinge 1 as in ODE). ``axis`` and
     ``anchor`` are in the frame of the joint's parent Pose and are re-expressed in the child body frame.
-    Webots stores the endPoint *at* ``position``, so ``position`` becomes ``ref``: ``qpos0 = position`` and the
-    XML pose is the pose at ``qpos0``. Signs: a Webots hinge/slider position grows with a right-handed rotation
-    about / a translation along ``axis``, as in MuJoCo (ODE's slider axis reversal, §4.3, is undone by Webots).
-    ``minStop``/``maxStop`` -> ``range`` (if they differ; a hinge's within ±pi of ``position``, ODE's clamp),
-    ``dampingConstant`` -> ``damping``, ``springConstant`` -> ``stiffness`` (resting at position 0),
-    ``staticFriction`` -> ``frictionloss``.
+    Webots stores the endPoint *at* ``position``, so ``position`` becomes ``ref`` (``qpos0``; the XML pose is the
+    pose there). Positions grow with a right-handed rotation about / a translation along ``axis``, as in MuJoCo
+    (§4.3). ``minStop``/``maxStop`` -> ``range`` (if they differ; a hinge's within ±pi of ``position``),
+    ``dampingConstant`` -> ``damping``, ``springConstant`` -> ``stiffness`` (rest at 0), ``staticFriction`` ->
+    ``frictionloss``.
 
 Devices
     RotationalMotor/LinearMotor -> ``general`` actuator named by the device, on its joint, ``forcerange`` and
@@ -36,9 +35,9 @@ Stops, contacts, cameras, world
     Stops become stiff MuJoCo limits and ContactProperties each collision geom's ``friction``, ``solref`` and
     ``solimp`` (a second pass once the model is whole, :mod:`dualtwin.convert.contacts`); FLU cameras turn into
     MuJoCo's camera frame with a vertical ``fovy``; the world gets a ``timestep`` dividing ``basicTimeStep``,
-    gravity (0, 0, -g) (ENU) or (0, -g, 0) (NUE, EUN), ``integrator="implicitfast"``, ``cone="pyramidal"``
-    (ODE's friction pyramid) and ``compiler angle="radian"``. Robot parts never collide with each other unless
-    ``selfCollision``; ``bounce`` has no MuJoCo equivalent and Damping nodes no per-body one (both reported).
+    gravity (0, 0, -g) (ENU) or (0, -g, 0) (NUE, EUN), ``implicitfast``, ``cone="pyramidal"`` (ODE's friction
+    pyramid), ``angle="radian"``. Robot parts collide only with ``selfCollision``; ``bounce`` and Damping nodes have
+    no MuJoCo equivalent (reported).
 
 Every ODE -> MuJoCo equivalence, with its reasoning, is a function in :mod:`dualtwin.convert.equivalences`;
 this module walks the world and writes the MjSpec; the result types are in :mod:`dualtwin.convert.conversion`.
@@ -72,6 +71,7 @@ from dualtwin.convert.equivalences import (
     timestep_for,
     world_erp_cfm,
     world_gravity,
+    world_notes,
 )
 from dualtwin.convert.mass import (
     FloatArray,
@@ -213,10 +213,8 @@ class _Converter:
         spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
         spec.option.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
         spec.option.gravity = world_gravity(self.info)
-        if str(self.info.get("coordinateSystem", "ENU")).upper() in ("NUE", "EUN"):
-            self.warn("WorldInfo coordinateSystem is NUE or EUN: converted as written (no rotation to ENU)")
-        if self.info.get("defaultDamping") is not None:
-            self.warn("WorldInfo defaultDamping is not converted (MuJoCo has no per-body velocity damping)")
+        for note in world_notes(self.info):
+            self.warn(note)
         self.spec.worldbody.add_light(name=self.unique("light", "sun"), pos=[0, 0, 10], dir=[0, 0, -1],
                                       type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL)
 
@@ -315,7 +313,7 @@ class _Converter:
             raise self.unsupported(solid)
         material = str(solid.get("contactMaterial", "default"))
         props, mass_warnings = solid_mass(solid, scale=scale)
-        if solid.get("physics") is not None and solid["physics"].get("damping") is not None:
+        if (solid.get("physics") or {}).get("damping") is not None:
             self.warn(f"{label}: Physics damping is not converted (MuJoCo has no per-body velocity damping)", solid)
         for w in mass_warnings:
             self.warn(f"{label}: {w}", solid)
@@ -566,9 +564,8 @@ class _Converter:
         j.range = sorted([lo, hi])
         j.limited = mujoco.mjtLimited.mjLIMITED_TRUE
         if float(params.get("stopERP", -1.0)) >= 0 or float(params.get("stopCFM", -1.0)) >= 0:
-            self.warn("stopERP/stopCFM reach ODE only when changed at run time "
-                      "(docs/reference/webots-on-ode.md §4.2, unverified); "
-                      "the stops are converted with WorldInfo ERP/CFM, which ODE gives them at creation", where)
+            self.warn("stopERP/stopCFM reach ODE only when changed at run time (docs/reference/webots-on-ode.md "
+                      "§4.2, unverified); the stops are converted with WorldInfo ERP/CFM, as ODE creates them", where)
         self.stops.append((j, self.erp, self.cfm))
         return True
 
