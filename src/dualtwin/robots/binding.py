@@ -191,12 +191,21 @@ def bundled_robots() -> list[str]:
 
 
 def resolve_robot(name_or_path: str) -> RobotBinding:
-    """``cartpole`` names a bundled robot; anything else is a path to a user's binding file."""
-    candidate = BUNDLED / name_or_path / "binding.yaml"
-    if "/" not in name_or_path and candidate.is_file():
-        return load_binding(candidate)
-    path = Path(name_or_path)
+    """``cartpole`` names a bundled robot; anything else is a path to a user's binding file.
+
+    As for suites (:func:`dualtwin.suite.loader.resolve_suite`), a bare word (no folder separator, no suffix) is
+    always a bundled name, even when a file of that name exists in the working folder; write ``./mybot`` to mean
+    such a file. A bare word that names no bundled robot is an error listing the bundled names.
+    """
+    text = str(name_or_path)
+    if not ("/" in text or "\\" in text or Path(text).suffix or text in ("", ".", "..")):
+        candidate = BUNDLED / text / "binding.yaml"
+        if candidate.is_file():
+            return load_binding(candidate)
+        raise DualtwinError(f"unknown robot {text!r}: not a bundled robot ({', '.join(bundled_robots())}); "
+                            f"to use a binding file of that name, write ./{text}")
+    path = Path(text)
     if path.is_file():
         return load_binding(path)
-    raise DualtwinError(f"unknown robot {name_or_path!r}: not a bundled robot ({', '.join(bundled_robots())}) "
+    raise DualtwinError(f"unknown robot {text!r}: not a bundled robot ({', '.join(bundled_robots())}) "
                         "and not a binding file")
