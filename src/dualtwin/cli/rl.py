@@ -28,7 +28,7 @@ def train(
     out: Annotated[Path, OutOption("run folder")],
     config: Annotated[Path | None, typer.Option(
         help="PPO config YAML, or a bundled config's name (ppo_cartpole, ppo_cartpole_text, ppo_cartpole_code, "
-        "ppo_cartpole_continuous; default ppo_cartpole)")] = None,
+        "ppo_cartpole_continuous, ppo_pioneer, ppo_arm_reach; default ppo_cartpole)")] = None,
     seed: Annotated[int, typer.Option(help="seed")] = 0,
     steps: Annotated[int | None, typer.Option(help="total timesteps (overrides the config)")] = None,
     resume: Annotated[bool, typer.Option(help="continue an interrupted run from its last checkpoint")] = False,

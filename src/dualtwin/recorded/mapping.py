@@ -95,7 +95,7 @@ class TimeColumn(FrozenModel):
         default="auto",
         description="simulation: stamps already count simulation time from the scenario's start; rebase: "
                     "they are wall-clock (or any clock), so the first sample is moved to first_sample_s; "
-                    "auto: rebase when a file's first stamp is at or past the scenario's duration",
+                    "auto: rebase when a file's first stamp is later than 10 control periods",
     )
     first_sample_s: float = Field(default=0.0, ge=0,
                                   description="simulation time of a re-based file's first sample")
