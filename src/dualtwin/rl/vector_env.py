@@ -166,6 +166,7 @@ class TwinVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         self._timestep = np.ones(n)
         self._odometry = np.zeros(n)
         self._obs = np.zeros(self._obs_shape, dtype=np.float32)  # the last observation (an unstable period's)
+        self._last_obs = np.zeros(self._obs_shape, dtype=np.float32)
         self._info: dict[str, np.ndarray] = {}
         # Acceleration-stage sensors (touch, force...) are what the last substep computed: copied from the
         # batch into a twin that steps through the batch, as mj_step leaves them in its data.
@@ -199,17 +200,28 @@ class TwinVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
 
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None
               ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Reset every env, or with ``options={"reset_mask": mask}`` only those where ``mask`` (bool, one per
+        env) is True, as ``SyncVectorEnv`` does: the others keep their episode and their last observation."""
         seeds = [None if seed is None else seed + i for i in range(self.num_envs)] if not isinstance(seed, list) \
             else seed
         if len(seeds) != self.num_envs:
             raise DualtwinError(f"reset: {len(seeds)} seeds for {self.num_envs} envs")
-        obs = np.empty(self._obs_shape, dtype=np.float32)
+        mask = np.ones(self.num_envs, dtype=bool)
+        if options is not None and "reset_mask" in options:
+            options = dict(options)
+            mask = options.pop("reset_mask")
+            if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_ or mask.shape != (self.num_envs,) \
+                    or not mask.any():
+                raise DualtwinError(f"reset: options['reset_mask'] must be a bool array of shape ({self.num_envs},) "
+                                    f"with at least one True, got {mask!r:.80}")
+        obs = self._last_obs.copy()
         infos: dict[str, Any] = {}
-        for i, s in enumerate(seeds):
-            obs[i], info = self._reset_env(i, s, options)
+        for i in np.flatnonzero(mask).tolist():
+            obs[i], info = self._reset_env(i, seeds[i], options)
             infos = self._add_info(infos, info, i)
-        self._autoreset[:] = False
+        self._autoreset[mask] = False
         self._set_models()
+        self._last_obs = obs.copy()
         return obs, infos
 
     # ------------------------------------------------------------------ steps
@@ -249,6 +261,7 @@ class TwinVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         if self.max_episode_steps is not None:
             truncated[stepping] = self._elapsed[stepping] >= self.max_episode_steps
         self._autoreset = terminated | truncated
+        self._last_obs = obs.copy()  # what a masked reset returns for the envs it leaves alone
         return obs, rewards, terminated, truncated, infos
 
     def _command(self, arrays: np.ndarray, actions: Any) -> None:
