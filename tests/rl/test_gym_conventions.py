@@ -123,6 +123,47 @@ def test_stable_baselines3_check_env_passes(env_id: str) -> None:
     env.close()
 
 
+@pytest.mark.parametrize("own_seed", [None, 11])
+def test_domain_randomization_passes_check_env_and_reseeds_at_every_seeded_reset(own_seed: int | None) -> None:
+    """Gymnasium's reset contract through the DR wrapper: ``reset(seed=s)`` twice gives the same draw and the
+    same episode (only the first seeded reset used to seed the draws)."""
+    from gymnasium.utils.env_checker import check_env
+
+    from dualtwin.rl.randomize import DomainRandomization
+
+    ranges = {"knobs": {"body.pole.mass": {"low": 0.15, "high": 0.35}}}
+    env = DomainRandomization(gym.make("dualtwin/CartPole-MuJoCo-v0"), ranges, seed=own_seed)
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*Box observation space (minimum|maximum) value is")
+        warnings.filterwarnings("ignore", message=".*is different from the unwrapped version")  # on purpose
+        check_env(env)
+    runs = []
+    for _ in range(2):
+        obs, info = env.reset(seed=5)
+        runs.append((info["dr"], obs, [env.step(1)[0] for _ in range(5)], env.reset()[1]["dr"]))
+    assert data_equivalence(runs[0], runs[1], exact=True)
+    assert runs[0][0] != runs[0][3]  # unseeded resets still draw afresh
+    env.close()
+
+
+def test_knob_wrappers_are_recorded_in_the_spec(tmp_path: Path) -> None:
+    """``gym.make(env.spec)`` rebuilds the wrapper stack (Gymnasium's wrappers record their arguments)."""
+    from dualtwin.rl.randomize import DomainRandomization, FixedKnobs
+
+    ranges = tmp_path / "dr_ranges.json"
+    ranges.write_text(json.dumps({"knobs": {"body.pole.mass": {"low": 0.15, "high": 0.35}}}))
+    base = gym.make("dualtwin/CartPole-MuJoCo-v0")
+    env = DomainRandomization(FixedKnobs(base, {"joint.pole_hinge.damping": 0.01}), ranges)
+    spec = env.spec
+    assert spec is not None and [w.name for w in spec.additional_wrappers] == ["FixedKnobs", "DomainRandomization"]
+    again = gym.make(spec)
+    assert isinstance(again, DomainRandomization) and isinstance(again.env, FixedKnobs)
+    assert data_equivalence(env.reset(seed=2), again.reset(seed=2), exact=True)
+    assert again.reset(seed=2)[1]["knobs"] == {"joint.pole_hinge.damping": 0.01}
+    env.close()
+    again.close()
+
+
 # ------------------------------------------------------------------ rendering
 @pytest.mark.skipif(not can_render(), reason="set MUJOCO_GL=egl or osmesa for offscreen rendering")
 @pytest.mark.parametrize("env_id", [env_param("dualtwin/CartPole-MuJoCo-v0"), env_param("dualtwin/CartPole-Webots-v0")])

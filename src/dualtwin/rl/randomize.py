@@ -155,15 +155,19 @@ def draw_knobs(ranges: Mapping[str, KnobRange], nominal: Mapping[str, float],
     return values
 
 
-class DomainRandomization(gym.Wrapper[Any, Any, Any, Any]):
+class DomainRandomization(gym.Wrapper[Any, Any, Any, Any], gym.utils.RecordConstructorArgs):
     """Fresh knob values at every reset, from nominal, logged in ``info["dr"]``.
 
-    With ``seed=None`` the draws are seeded from the first ``reset(seed=...)``, so a seeded env is reproducible
-    with or without this wrapper's own seed. Leave it off evaluation envs.
+    Every ``reset(seed=...)`` restarts the draws, as Gymnasium's ``reset`` contract asks (the same seed gives
+    the same episode): from this wrapper's own ``seed`` if given, else from the reset's seed, so a seeded env is
+    reproducible with or without it. Leave it off evaluation envs.
     """
 
     def __init__(self, env: gym.Env[Any, Any], ranges: Path | str | Mapping[str, Any], seed: int | None = None
                  ) -> None:
+        # Recorded in env.spec, so gym.make(env.spec) rebuilds the wrapped env (Gymnasium's wrappers do the same).
+        gym.utils.RecordConstructorArgs.__init__(self, ranges=str(ranges) if isinstance(ranges, Path) else ranges,
+                                                 seed=seed)
         super().__init__(env)
         if isinstance(ranges, Mapping) and ranges and all(isinstance(v, KnobRange) for v in ranges.values()):
             self.ranges: dict[str, KnobRange] = dict(ranges)
@@ -178,16 +182,16 @@ class DomainRandomization(gym.Wrapper[Any, Any, Any, Any]):
             if min(lo, hi) < knob.lower or max(lo, hi) > knob.upper:
                 raise DualtwinError(f"domain randomisation: range of {name!r} [{lo:g}, {hi:g}] leaves the knob's "
                                     f"bounds [{knob.lower:g}, {knob.upper:g}]")
-        self._seeded = seed is not None
+        self._own_seed = seed
         self._rng = np.random.default_rng(seed)
         self.last_draw: dict[str, float] = {}
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
               ) -> tuple[Any, dict[str, Any]]:
-        if seed is not None and not self._seeded:
-            # A distinct stream from the env's own (same seed, different spawn key).
-            self._rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(0xD1,)))
-            self._seeded = True
+        if seed is not None:
+            # A distinct stream from the env's own (same seed, different spawn key); restarted at every seed.
+            self._rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(0xD1,))) \
+                if self._own_seed is None else np.random.default_rng(self._own_seed)
         values = draw_knobs(self.ranges, self.nominal, self._rng)
         self.last_draw = values
         options = dict(options or {})
@@ -196,10 +200,11 @@ class DomainRandomization(gym.Wrapper[Any, Any, Any, Any]):
         return obs, {**info, "dr": dict(values)}
 
 
-class FixedKnobs(gym.Wrapper[Any, Any, Any, Any]):
+class FixedKnobs(gym.Wrapper[Any, Any, Any, Any], gym.utils.RecordConstructorArgs):
     """The same knob values (aligned parameters, say) at every reset, from nominal; logged in ``info["knobs"]``."""
 
     def __init__(self, env: gym.Env[Any, Any], values: Mapping[str, float]) -> None:
+        gym.utils.RecordConstructorArgs.__init__(self, values=dict(values))
         super().__init__(env)
         self.values = {k: float(v) for k, v in values.items()}
         known = _twin_knobs(env)
