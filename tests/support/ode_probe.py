@@ -4,13 +4,40 @@ set up: the tests of the specification's world set-up, contacts and bodies read 
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
+import warnings
+from collections.abc import Callable, Iterator
 from ctypes import POINTER, c_double, c_int, c_void_p
 from typing import Any
 
-from dualtwin.webots import ode
+from dualtwin.webots import load_world_text, ode
+from dualtwin.webots.physics import Simulation
 
-__all__ = ["contact_joints", "probe"]
+__all__ = ["contact_joints", "probe", "simulations"]
+
+
+@contextlib.contextmanager
+def simulations(default_info: str = "", *, quiet: bool = False) -> Iterator[Callable[..., Simulation]]:
+    """``build(scene, info=default_info)``: a Simulation of ``scene`` (world nodes as text) under
+    ``WorldInfo { info }``, closed when the block ends; ``quiet`` silences build warnings (read them from
+    ``build_warnings``)."""
+    sims: list[Simulation] = []
+
+    def build(scene: str, info: str = default_info) -> Simulation:
+        text = f"#VRML_SIM R2023b utf8\nWorldInfo {{ {info} }}\n{scene}\n"
+        with warnings.catch_warnings():
+            if quiet:
+                warnings.simplefilter("ignore")
+            sim = Simulation(load_world_text(text, "t.wbt"))
+        sims.append(sim)
+        return sim
+
+    try:
+        yield build
+    finally:
+        for sim in sims:
+            sim.close()
 
 P, D, N = c_void_p, c_double, c_int
 _SIGNATURES: dict[str, tuple[Any, list[Any]]] = {

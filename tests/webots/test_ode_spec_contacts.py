@@ -14,7 +14,7 @@ import pytest
 from dualtwin.webots import load_world_text, ode
 from dualtwin.webots.controller import Supervisor
 from dualtwin.webots.physics import Simulation
-from tests.support.ode_probe import contact_joints
+from tests.support.ode_probe import contact_joints, simulations
 
 Make = Callable[..., Simulation]
 CUBE = "boundingObject Box {{ size {s} {s} {s} }} physics Physics {{ }}"
@@ -25,16 +25,8 @@ BASE_MODE = ode.dContactApprox1 | ode.dContactSoftCFM | ode.dContactSoftERP
 @pytest.fixture
 def make() -> Iterator[Make]:
     """``make(scene, info="")``: a Simulation of ``scene`` (world nodes as text) under ``WorldInfo { info }``."""
-    sims: list[Simulation] = []
-
-    def build(scene: str, info: str = "") -> Simulation:
-        sim = Simulation(load_world_text(f"#VRML_SIM R2023b utf8\nWorldInfo {{ {info} }}\n{scene}\n", "t.wbt"))
-        sims.append(sim)
-        return sim
-
-    yield build
-    for sim in sims:
-        sim.close()
+    with simulations() as build:
+        yield build
 
 
 def _cube(s: float = 0.1) -> str:

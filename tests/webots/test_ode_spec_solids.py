@@ -8,16 +8,15 @@ from __future__ import annotations
 
 import ctypes
 import math
-import warnings
 from collections.abc import Callable, Iterator
 
 import pytest
 
 from dualtwin.webots import _math3 as m3
-from dualtwin.webots import load_world_text, ode
+from dualtwin.webots import ode
 from dualtwin.webots.controller import Supervisor
 from dualtwin.webots.physics import Simulation
-from tests.support.ode_probe import probe
+from tests.support.ode_probe import probe, simulations
 
 Make = Callable[..., Simulation]
 RHO = 1000.0  # §3.2: reference density of boundingObject primitives
@@ -25,20 +24,10 @@ RHO = 1000.0  # §3.2: reference density of boundingObject primitives
 
 @pytest.fixture
 def make() -> Iterator[Make]:
-    """``make(scene, info="")``: a Simulation of ``scene`` (world nodes as text) under ``WorldInfo { info }``;
-    build warnings are silenced (read them from ``build_warnings``)."""
-    sims: list[Simulation] = []
-
-    def build(scene: str, info: str = "gravity 0") -> Simulation:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            sim = Simulation(load_world_text(f"#VRML_SIM R2023b utf8\nWorldInfo {{ {info} }}\n{scene}\n", "t.wbt"))
-        sims.append(sim)
-        return sim
-
-    yield build
-    for sim in sims:
-        sim.close()
+    """``make(scene, info="gravity 0")``: a Simulation of ``scene`` (world nodes as text) under
+    ``WorldInfo { info }``; build warnings are silenced (read them from ``build_warnings``)."""
+    with simulations("gravity 0", quiet=True) as build:
+        yield build
 
 
 def _one_body(sim: Simulation):  # type: ignore[no-untyped-def]

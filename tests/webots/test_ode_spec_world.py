@@ -12,10 +12,10 @@ from collections.abc import Callable, Iterator
 
 import pytest
 
-from dualtwin.webots import load_world_text, ode
+from dualtwin.webots import ode
 from dualtwin.webots.controller import Supervisor
 from dualtwin.webots.physics import Simulation
-from tests.support.ode_probe import contact_joints, probe
+from tests.support.ode_probe import contact_joints, probe, simulations
 
 BOX = ("DEF BOX Solid {{ translation 0 0 {z} boundingObject Box {{ size 0.1 0.1 0.1 }} "
        "physics Physics {{ {phys} }} {extra} }}")
@@ -27,16 +27,8 @@ Make = Callable[..., Simulation]
 @pytest.fixture
 def make() -> Iterator[Make]:
     """``make(scene, info="")``: a Simulation of ``scene`` (world nodes as text) under ``WorldInfo { info }``."""
-    sims: list[Simulation] = []
-
-    def build(scene: str, info: str = "") -> Simulation:
-        sim = Simulation(load_world_text(f"#VRML_SIM R2023b utf8\nWorldInfo {{ {info} }}\n{scene}\n", "t.wbt"))
-        sims.append(sim)
-        return sim
-
-    yield build
-    for sim in sims:
-        sim.close()
+    with simulations() as build:
+        yield build
 
 
 def _box(z: float = 1.0, phys: str = "", extra: str = "") -> str:
