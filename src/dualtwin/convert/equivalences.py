@@ -7,7 +7,7 @@ Section numbers (§) refer to the Webots-on-ODE specification in ``docs/referenc
 Overview (one line each; details in the functions):
 
 * world step: :func:`timestep_for` (a MuJoCo step that divides ``basicTimeStep``), gravity :func:`world_gravity`,
-  ERP/CFM as Webots resets them :func:`world_erp_cfm`,
+  ERP/CFM as Webots resets them :func:`world_erp_cfm`, what the MJCF cannot carry :func:`world_notes`,
   ``implicitfast`` integrator, ``pyramidal`` cone (ODE's friction pyramid);
 * contact softness ``softERP``/``softCFM`` -> ``solref``/``solimp``: :func:`contact_solref`, per material pair
   :func:`contact_pair`;
@@ -58,6 +58,7 @@ __all__ = [
     "timestep_for",
     "world_erp_cfm",
     "world_gravity",
+    "world_notes",
 ]
 
 MAX_TIMESTEP_MS = 2.0
