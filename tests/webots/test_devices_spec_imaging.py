@@ -9,37 +9,18 @@ x = 0.5 m. Noise is made deterministic by a generator whose Gaussian draw is alw
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 import pytest
 
-from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Supervisor
-from dualtwin.webots.physics import Simulation
+from tests.support.sensor_worlds import sensor_world, unit_noise
 
 WALL = "Solid { translation 0.55 0 0.1 children [ Shape { geometry DEF WB Box { size 0.1 4 4 } } ] }"
 
 
-class _UnitGauss:
-    """A noise generator whose every Gaussian draw is +1."""
-
-    def gauss(self, mu: float, sigma: float) -> float:
-        return mu + sigma
-
-    def getrandbits(self, k: int) -> int:
-        return 1
-
-
 def _world(devices: str, wall: str = WALL, head: str = "") -> Supervisor:
-    text = (
-        f"#VRML_SIM R2023b utf8\nWorldInfo {{ basicTimeStep 8 }}\n{head}\n{wall}\n"
-        f"Robot {{ translation 0 0 0.1 supervisor TRUE children [ {devices} ] }}\n"
-    )
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        sim = Simulation(load_world_text(text))
-    return Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    return sensor_world(devices, wall, head=head)
 
 
 def _image(sup: Supervisor, name: str) -> np.ndarray:
@@ -73,7 +54,7 @@ def test_a_range_equal_to_max_range_is_inf_and_one_equal_to_min_range_is_kept() 
 def test_range_noise_is_additive_with_sigma_noise_times_max_range() -> None:
     # devices.md:166: additive σ·N(0,1), σ = noise·maxRange: 0.5 + 0.01·2·1 = 0.52
     sup = _world('RangeFinder { name "rf" width 2 height 2 maxRange 2 noise 0.01 }')
-    sup.simulation._rng = _UnitGauss()  # type: ignore[assignment]
+    unit_noise(sup)
     assert _image(sup, "rf") == pytest.approx(np.full((2, 2), 0.52), rel=1e-12)
 
 

@@ -18,33 +18,13 @@ from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Supervisor
 from dualtwin.webots.physics import Simulation
 from dualtwin.webots.ranging import distance_ray_directions, distance_ray_layout
+from tests.support.sensor_worlds import sensor_world, unit_noise
 
 WALL = "Solid { translation 0.55 0 0.1 children [ Shape { geometry DEF WB Box { size 0.1 4 4 } } ] boundingObject USE WB }"
 
 
-class _UnitGauss:
-    """A noise generator whose every Gaussian draw is +1 (so ``v·(1 + n)`` exactly); counts its draws."""
-
-    def __init__(self) -> None:
-        self.draws = 0
-
-    def gauss(self, mu: float, sigma: float) -> float:
-        self.draws += 1
-        return mu + sigma
-
-    def getrandbits(self, k: int) -> int:
-        return 1
-
-
 def _world(devices: str, wall: str = WALL, robot_extra: str = "", step: int = 8) -> Supervisor:
-    text = (
-        f"#VRML_SIM R2023b utf8\nWorldInfo {{ basicTimeStep {step} }}\n{wall}\n"
-        f"Robot {{ translation 0 0 0.1 supervisor TRUE {robot_extra} children [ {devices} ] }}\n"
-    )
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        sim = Simulation(load_world_text(text))
-    return Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    return sensor_world(devices, wall, robot_extra=robot_extra, step=step)
 
 
 def _read(sup: Supervisor, name: str, steps: int = 1, step: int = 8) -> float:
@@ -55,10 +35,6 @@ def _read(sup: Supervisor, name: str, steps: int = 1, step: int = 8) -> float:
     return dev.getValue()
 
 
-def _unit_noise(sup: Supervisor) -> _UnitGauss:
-    stub = _UnitGauss()
-    sup.simulation._rng = stub  # type: ignore[assignment]
-    return stub
 
 
 # ------------------------------------------------------------------------------------------ §0 sampling, LUT
@@ -88,14 +64,14 @@ def test_lookup_noise_is_interpolated_between_rows_like_the_output() -> None:
     # devices.md:34-36: output and noise interpolated between bracketing rows; y = v·(1 + n·N(0,1))
     # at 0.5 m: v = 500, n = (0 + 0.2)/2 = 0.1, N = 1 -> 550
     sup = _world('DistanceSensor { name "ds" lookupTable [ 0 0 0, 1 1000 0.2 ] }')
-    _unit_noise(sup)
+    unit_noise(sup)
     assert _read(sup, "ds") == pytest.approx(550.0, rel=1e-12)
 
 
 def test_no_random_draw_where_the_rows_noise_is_zero() -> None:
     # devices.md:36: no draw when n == 0 (the generator is not advanced)
     sup = _world('DistanceSensor { name "ds" lookupTable [ 0 0 0, 1 1000 0 ] }')
-    stub = _unit_noise(sup)
+    stub = unit_noise(sup)
     assert _read(sup, "ds", steps=3) == pytest.approx(500.0)
     assert stub.draws == 0
 
@@ -103,14 +79,14 @@ def test_no_random_draw_where_the_rows_noise_is_zero() -> None:
 def test_no_hit_reads_the_last_output_with_the_last_rows_noise() -> None:
     # devices.md:99: no hit ⇒ d = D ⇒ the LUT last output, with the last row's noise: 1000·(1 + 0.1)
     sup = _world('DistanceSensor { name "ds" lookupTable [ 0 0 0.5, 0.3 1000 0.1 ] }')
-    _unit_noise(sup)
+    unit_noise(sup)
     assert _read(sup, "ds") == pytest.approx(1100.0, rel=1e-12)
 
 
 def test_resolution_applies_after_lookup_and_noise() -> None:
     # devices.md:43-44 and :98: value = discretize(lookup(d) with noise, r); 500·1.1 = 550 -> int(550/60+.5)·60 = 540
     sup = _world('DistanceSensor { name "ds" resolution 60 lookupTable [ 0 0 0.1, 1 1000 0.1 ] }')
-    _unit_noise(sup)
+    unit_noise(sup)
     assert _read(sup, "ds") == pytest.approx(540.0, rel=1e-12)
 
 
