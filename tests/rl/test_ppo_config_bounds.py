@@ -93,30 +93,29 @@ def test_bundled_configs_are_within_the_bounds() -> None:
         load_config(name)
 
 
-def test_cli_refuses_before_the_run_folder(tmp_path: Path) -> None:
-    # learning_rate -1 used to pass validation and fail in SB3's Adam once training had started: exit 1, a
-    # traceback, and a run folder left behind
+def _train_refused(tmp_path: Path, config: dict[str, object]) -> tuple[Path, list[str], Path]:
+    """``dualtwin train`` with ``config`` written to a file: (the file, the non-empty stderr lines, the run folder);
+    the command must exit 2."""
     path = tmp_path / "config.yaml"
-    path.write_text(yaml.safe_dump({**TINY, "learning_rate": -1}))
+    path.write_text(yaml.safe_dump(config))
     out = tmp_path / "run"
     done = subprocess.run([sys.executable, "-m", "dualtwin.cli", "train", "--env", "dualtwin/CartPole-MuJoCo-v0",
                            "--out", str(out), "--config", str(path), "--steps", "32"],
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 2, done.stderr
-    lines = [line for line in done.stderr.splitlines() if line.strip()]
-    assert len(lines) == 1 and "learning_rate" in lines[0] and str(path) in lines[0], done.stderr
+    return path, [line for line in done.stderr.splitlines() if line.strip()], out
+
+
+def test_cli_refuses_before_the_run_folder(tmp_path: Path) -> None:
+    # learning_rate -1 used to pass validation and fail in SB3's Adam once training had started: exit 1, a
+    # traceback, and a run folder left behind
+    path, lines, out = _train_refused(tmp_path, {**TINY, "learning_rate": -1})
+    assert len(lines) == 1 and "learning_rate" in lines[0] and str(path) in lines[0], lines
     assert not out.exists()
 
 
 def test_cli_refuses_an_unknown_env_option_before_the_run_folder(tmp_path: Path) -> None:
     # was "TypeError: TwinEnv.__init__() got an unexpected keyword argument" once the envs were built: exit 1
-    path = tmp_path / "config.yaml"
-    path.write_text(yaml.safe_dump({**TINY, "env_kwargs": {"model_path": "/etc/passwd"}}))
-    out = tmp_path / "run"
-    done = subprocess.run([sys.executable, "-m", "dualtwin.cli", "train", "--env", "dualtwin/CartPole-MuJoCo-v0",
-                           "--out", str(out), "--config", str(path), "--steps", "32"],
-                          capture_output=True, text=True, timeout=300)
-    assert done.returncode == 2, done.stderr
-    lines = [line for line in done.stderr.splitlines() if line.strip()]
-    assert len(lines) == 1 and "env_kwargs.model_path" in lines[0], done.stderr
+    _, lines, out = _train_refused(tmp_path, {**TINY, "env_kwargs": {"model_path": "/etc/passwd"}})
+    assert len(lines) == 1 and "env_kwargs.model_path" in lines[0], lines
     assert not out.exists()
