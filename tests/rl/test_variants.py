@@ -25,9 +25,11 @@ def test_bundled_configs_are_found_by_name_from_any_folder(tmp_path: Path, monke
     assert set(PAPER_VARIANTS) | {"ppo_cartpole"} <= set(bundled_configs())
     for name in bundled_configs():
         assert load_config(name) == load_config(Path(__file__).parents[2] / "src/dualtwin/rl/configs" / f"{name}.yaml")
+    # A bare word is a bundled name even beside a file of that name (as --robot and --scenarios); ./ means the file.
     (tmp_path / "ppo_cartpole").write_text("n_envs: 2\nn_steps: 64\nbatch_size: 64\n")
-    assert load_config("ppo_cartpole").n_envs == 2  # a file the user names wins over a bundled name
-    with pytest.raises(DualtwinError, match="no bundled config of that name.*ppo_cartpole_text"):
+    assert load_config("ppo_cartpole").n_envs == load_config(None).n_envs != 2
+    assert load_config("./ppo_cartpole").n_envs == 2
+    with pytest.raises(DualtwinError, match="not a bundled config.*ppo_cartpole_text.*write ./ppo_cartpol$"):
         load_config("ppo_cartpol")
 
 

@@ -219,12 +219,15 @@ def load_config(source: Path | str | Mapping[str, Any] | PPOConfig | None = None
     origin = "<config dict>"
     if source is None or not isinstance(source, Mapping):
         path = Path(source) if source is not None else DEFAULT_CONFIG
-        if not path.is_file() and re.fullmatch(r"[A-Za-z0-9_]+", str(source)):
-            # A bundled config by name (``--config ppo_cartpole``), as ``--robot cartpole`` names a bundled robot.
-            path = CONFIGS / f"{source}.yaml"
+        text = str(source)
+        if source is not None and not ("/" in text or "\\" in text or path.suffix or text in ("", ".", "..")):
+            # A bare word is always a bundled config's name (``--config ppo_cartpole``), even when a file of that
+            # name exists in the working folder, as ``--robot cartpole`` and ``--scenarios cartpole`` are; write
+            # ``./name`` to mean such a file.
+            path = CONFIGS / f"{text}.yaml"
             if not path.is_file():
-                raise DualtwinError(f"--config {source}: no such file and no bundled config of that name "
-                                    f"(bundled: {', '.join(bundled_configs())})")
+                raise DualtwinError(f"--config {text}: not a bundled config ({', '.join(bundled_configs())}); "
+                                    f"to use a file of that name, write ./{text}")
         if not path.is_file():
             raise DualtwinError(f"{path}: config file not found")
         origin = str(path)
