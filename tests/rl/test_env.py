@@ -90,6 +90,30 @@ def test_make_vec_sync(env_id: str) -> None:
     envs.close()
 
 
+@pytest.mark.parametrize("env_id", ALL_IDS)
+def test_make_vec_async_matches_sync(env_id: str) -> None:
+    """Gymnasium's async vector env (one process per env) steps each env as the sync one does: same seed and
+    actions, the same observations and rewards."""
+    actions = None
+    results = []
+    for mode in ("sync", "async"):
+        envs = gym.make_vec(env_id, num_envs=2, vectorization_mode=mode)
+        try:
+            if actions is None:
+                envs.action_space.seed(5)
+                actions = [envs.action_space.sample() for _ in range(3)]
+            trace = [envs.reset(seed=3)[0]]
+            for action in actions:
+                obs, reward, *_ = envs.step(action)
+                trace += [obs, reward]
+            results.append(trace)
+        finally:
+            envs.close()
+    sync, asynchronous = results
+    assert all(np.array_equal(a, b) for a, b in zip(sync, asynchronous, strict=True))
+    assert not np.array_equal(sync[0][0], sync[0][1])  # the two envs were seeded apart
+
+
 def test_reward_counts_balanced_steps_and_never_ends_on_the_pole() -> None:
     env = gym.make("dualtwin/CartPole-MuJoCo-v0", max_episode_steps=2000)
     assert env.spec is not None and env.spec.max_episode_steps == 2000
