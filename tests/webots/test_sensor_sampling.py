@@ -107,3 +107,36 @@ DEF STILL Solid { translation 0 0 1 }""")
     assert robot.getVelocity() == pytest.approx([0.5, -0.25, 1, 0, 0, 1], abs=1e-12)
     assert robot.getField("translation").getSFVec3f() == pytest.approx(robot.getPosition(), abs=1e-12)
     assert sup.getFromDef("STILL").getPosition() == [0.0, 0.0, 1.0]
+
+
+def test_enable_keeps_the_last_sample_until_the_next_one(capfd: pytest.CaptureFixture[str]) -> None:
+    """Webots' controller library caches each sensor's last values and ``enable`` leaves that cache alone
+    (webots-devices.md §0.2: a disabled device returns its cached value, NaN only if never sampled): a sensor
+    re-enabled, or given a new period, reads its last sample until its next one falls due, never NaN.
+    Control: the runtime before cleared the values on every enable, so these reads were NaN."""
+    sup = _supervisor(
+        f"Robot {{ supervisor TRUE translation 0 0 {Z0} physics Physics {{ density -1 mass 1 }} "
+        'boundingObject Sphere { radius 0.1 } children [ GPS { name "gps" } DistanceSensor { name "ds" '
+        "lookupTable [ 0 0 0, 20 20 0 ] rotation 0 1 0 1.5707963 } ] }\n"  # the ray points down at the floor: it reads the height
+        "Solid { boundingObject Plane { size 100 100 } }"
+    )
+    gps, ds = sup.getDevice("gps"), sup.getDevice("ds")
+    assert math.isnan(gps.getValues()[2])  # never sampled (a disabled read: the error line, the cached NaN)
+    for sensor in (gps, ds):
+        sensor.enable(32)
+    sup.step(32)
+    z1, d1 = gps.getValues()[2], ds.getValue()
+    assert z1 == pytest.approx(_height(1), abs=1e-12) and d1 == pytest.approx(_height(1), abs=1e-9)
+    for sensor in (gps, ds):
+        sensor.disable()
+    sup.step(64)
+    assert gps.getValues()[2] == z1 and ds.getValue() == d1  # disabled: the cached (stale) values
+    for sensor in (gps, ds):
+        sensor.enable(64)  # a new period: due 64 ms from now
+    assert gps.getValues()[2] == z1 and ds.getValue() == d1
+    sup.step(32)
+    assert gps.getValues()[2] == z1 and ds.getValue() == d1  # not due yet: still the sample of 32 ms
+    sup.step(32)
+    assert gps.getValues()[2] == pytest.approx(_height(5), abs=1e-12)  # sampled at 160 ms
+    assert ds.getValue() == pytest.approx(_height(5), abs=1e-9)
+    assert "called for a disabled device" in capfd.readouterr().err

@@ -159,6 +159,7 @@ class Sensor(Device):
 
     _tracks_steps = False
     _batch_sampler: Any = None
+    _sampled = False  # a sample reached the controller's cache (see enable)
 
     def __init__(self, name: Any, sampling_period: Any = None) -> None:
         super().__init__(name)
@@ -186,7 +187,11 @@ class Sensor(Device):
         self._period = period
         self._enabled_at = self._robot.getTime()
         self._last_sample = None
-        self._invalidate()
+        if not self._sampled:
+            # Webots' libController caches the last values it received and enable() does not touch that cache
+            # (webots-devices.md §0.2): a sensor re-enabled, or given a new period, reads its last sample until
+            # the next one, never NaN again.
+            self._invalidate()
         install_sampler(self._robot)
         # sampled once, whichever handle enabled it, and in the robot's device order (Webots' scene-tree order)
         # whatever order the controller enabled them in: noise draws come from the simulation's one generator,
@@ -225,6 +230,7 @@ class Sensor(Device):
 
     def _sample(self, now: float) -> None:
         self._last_sample = now
+        self._sampled = True
         self._read()
 
     def _invalidate(self) -> None:
@@ -258,6 +264,7 @@ def sample_due(host: DeviceHost, now: float, every: bool = False) -> None:
             sensor._sample(now)
         else:
             sensor._last_sample = now
+            sensor._sampled = True
             batches.setdefault(sensor._batch_sampler, []).append(sensor)
     for sampler, devices in batches.items():
         sampler(host._sim, devices)

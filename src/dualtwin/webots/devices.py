@@ -114,6 +114,9 @@ class GPS(_SolidSensor):
     def _invalidate(self) -> None:
         self._values = [math.nan] * 3
         self._speed_vector = [math.nan] * 3
+        self._start_tracking()
+
+    def _start_tracking(self) -> None:
         self._position_now = self._pose().t
         self._position_before = self._position_now
 
@@ -211,6 +214,9 @@ class Accelerometer(_TableSensor):
 
     def _invalidate(self) -> None:
         self._values = [math.nan] * 3
+        self._start_tracking()
+
+    def _start_tracking(self) -> None:
         self._velocity_now = self._robot._sim.point_velocity(self._record.solid)
         self._velocity_before = self._velocity_now
 
