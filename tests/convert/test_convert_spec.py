@@ -325,10 +325,12 @@ def test_motor_defaults_give_ten_newton_metres_or_newtons() -> None:
         assert m.actuator_forcerange[m.actuator(name).id] == pytest.approx([-10, 10])
 
 
-def test_a_motor_multiplier_is_reported_not_dropped_silently() -> None:
-    # S l.429: setPosition(p) targets p·multiplier; the converter does not convert it and must say so
+def test_a_motor_multiplier_is_carried_to_the_twin_not_dropped() -> None:
+    # S l.429: setPosition(p) targets p·multiplier; the motor's numeric carries it (after minPosition/maxPosition,
+    # written as 0 0 = no limits) for the MuJoCo twin (tests/convert/test_coupled_motors.py runs it)
     conv = convert(hinge_world("", devices='RotationalMotor { name "m" multiplier 2 }'))
-    assert any("multiplier" in w for w in conv.warnings)
+    assert list(conv.compile().numeric("webots_motor.m").data) == [10, 10, 0, 0, -1, 0, 0, 2]
+    assert not any("multiplier" in w for w in conv.warnings)
 
 
 def test_position_sensor_reads_the_webots_position_including_its_offset() -> None:

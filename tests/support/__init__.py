@@ -8,5 +8,6 @@
 * ``webots_scene``: hand-built Webots scene trees for physics tests;
 * ``images``: seeded camera frames;
 * ``mesh_worlds``: STL/OBJ files of boxes and the project folder of a world that reads them;
+* ``converted_twins``: a world converted, with both twins built from its binding (the converter's fidelity tests);
 * ``align_runs``, ``rl_runs``, ``servers``, ``sync_helpers``: what one test directory's modules share.
 """

@@ -286,7 +286,9 @@ def apply_joint_dynamics(joint: Any, params: Mapping[str, Any]) -> bool:
 def motor_numeric(motor: Any) -> list[float]:
     """A RotationalMotor/LinearMotor's control semantics as ``webots_motor.<actuator>`` numeric data.
 
-    ``[maxVelocity, Kp, Ki, Kd, acceleration]`` plus ``[minPosition, maxPosition]`` when they differ. MuJoCo has
+    ``[maxVelocity, Kp, Ki, Kd, acceleration]`` plus ``[minPosition, maxPosition]`` when they differ, plus
+    ``multiplier`` when it is not 1 (after ``[minPosition, maxPosition]``, written then even when equal; 0 is
+    Webots' 1, §5.2 and webots-devices §9): Webots scales every setPosition/setVelocity/setTorque by it. MuJoCo has
     no actuator that behaves like a Webots motor (position control through Webots' PID giving a velocity,
     clamped to maxVelocity and tracked within maxTorque), so the converter writes a ``general`` actuator whose
     force and control ranges are ±maxTorque (±maxForce) and stores the rest here for the MuJoCo twin
@@ -296,8 +298,11 @@ def motor_numeric(motor: Any) -> list[float]:
     kp, ki, kd = (float(v) for v in motor.get("controlPID", (10.0, 0.0, 0.0)))
     data = [float(motor.get("maxVelocity", 10.0)), kp, ki, kd, float(motor.get("acceleration", -1.0))]
     lo, hi = float(motor.get("minPosition", 0.0)), float(motor.get("maxPosition", 0.0))
-    if lo != hi:
+    multiplier = float(motor.get("multiplier", 1.0)) or 1.0
+    if lo != hi or multiplier != 1.0:
         data += [lo, hi]
+    if multiplier != 1.0:
+        data.append(multiplier)
     return data
 
 

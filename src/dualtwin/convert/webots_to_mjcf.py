@@ -20,16 +20,15 @@ Joints
     Webots stores the endPoint *at* ``position``, so ``position`` becomes ``ref`` (``qpos0``; the XML pose is the
     pose there). Positions grow with a right-handed rotation about / a translation along ``axis``, as in MuJoCo
     (§4.3). ``minStop``/``maxStop`` -> ``range`` (if they differ; a hinge's within ±pi of ``position``),
-    ``dampingConstant`` -> ``damping``, ``springConstant`` -> ``stiffness`` (rest at 0), ``staticFriction`` ->
-    ``frictionloss``.
+    ``dampingConstant`` -> ``damping``, ``springConstant`` -> ``stiffness`` (rest at 0), ``staticFriction`` -> ``frictionloss``.
 
 Devices
-    RotationalMotor/LinearMotor -> ``general`` actuator named by the device, on its joint, ``forcerange`` and
-    ``ctrlrange`` ±maxTorque/maxForce, plus ``<numeric name="webots_motor.NAME" data="maxVelocity Kp Ki Kd
-    acceleration [minPosition maxPosition]"/>`` (what :mod:`dualtwin.twins.mujoco` reads).
-    PositionSensor -> jointpos; InertialUnit -> framequat, Gyro -> gyro, Accelerometer -> accelerometer,
-    GPS -> framepos, Compass -> magnetometer, DistanceSensor -> rangefinder, TouchSensor -> touch, each at a
-    site at the device pose named by the device.
+    Motor -> ``general`` actuator on its joint, ``forcerange``/``ctrlrange`` ±maxTorque/maxForce, and a numeric
+    ``webots_motor.NAME`` = maxVelocity Kp Ki Kd acceleration [minPosition maxPosition [multiplier]] for
+    :mod:`dualtwin.twins.mujoco` (``a::b`` motors harmonised, :mod:`dualtwin.convert.coupled`). PositionSensor ->
+    jointpos (+ numeric ``webots_sensor.NAME`` = resolution); InertialUnit -> framequat, Gyro -> gyro,
+    Accelerometer -> accelerometer, GPS -> framepos, Compass -> magnetometer, DistanceSensor -> rangefinder,
+    TouchSensor -> touch, each at a site at the device pose named by the device.
 
 Stops, contacts, cameras, world
     Stops become stiff MuJoCo limits and ContactProperties each collision geom's ``friction``, ``solref`` and
@@ -37,7 +36,8 @@ Stops, contacts, cameras, world
     MuJoCo's camera frame with a vertical ``fovy``; the world gets a ``timestep`` dividing ``basicTimeStep``,
     gravity (0, 0, -g) (ENU) or (0, -g, 0) (NUE, EUN), ``implicitfast``, ``cone="pyramidal"`` (ODE's friction
     pyramid), ``angle="radian"``. Robot parts collide only with ``selfCollision``; ``bounce`` and Damping nodes have
-    no MuJoCo equivalent (reported).
+    no MuJoCo equivalent (reported). Solids' initial velocities -> the ``webots_initial`` keyframe
+    (:mod:`dualtwin.convert.initial_state`).
 
 Every ODE -> MuJoCo equivalence, with its reasoning, is a function in :mod:`dualtwin.convert.equivalences`;
 this module walks the world and writes the MjSpec; the result types are in :mod:`dualtwin.convert.conversion`.
@@ -59,6 +59,7 @@ from dualtwin.convert.bindings import key
 from dualtwin.convert.checks import Finding, lint_spec, lint_world_rotations
 from dualtwin.convert.contacts import ContactGeom, Stop, apply_contacts, apply_stops
 from dualtwin.convert.conversion import Conversion, ConversionError, JointInfo, MotorInfo
+from dualtwin.convert.coupled import harmonise_coupled_motors
 from dualtwin.convert.equivalences import (
     KINEMATIC_MASS,
     apply_joint_dynamics,
@@ -73,13 +74,8 @@ from dualtwin.convert.equivalences import (
     world_gravity,
     world_notes,
 )
-from dualtwin.convert.mass import (
-    FloatArray,
-    MassProps,
-    bounding_primitives,
-    combine,
-    solid_mass,
-)
+from dualtwin.convert.initial_state import add_initial_keyframe
+from dualtwin.convert.mass import FloatArray, MassProps, bounding_primitives, combine, solid_mass
 from dualtwin.convert.surfaces import add_surface_mesh
 from dualtwin.geometry import axis_angle_matrix, mujoco_quat
 from dualtwin.webots import schema
@@ -107,8 +103,7 @@ SITE_SENSORS = {
 UNSUPPORTED = frozenset({"Track", "TrackWheel", "Propeller", "Connector", "VacuumGripper", "Fluid", "Muscle",
                          "SolidReference", "Cone"})
 #: Nodes without physics that are skipped silently.
-IGNORED = frozenset({"PointLight", "SpotLight", "DirectionalLight", "Fog", "Background", "Viewpoint",
-                     "WorldInfo", "Billboard", "IndexedLineSet", "PointSet"})
+IGNORED = frozenset({"PointLight", "SpotLight", "DirectionalLight", "Fog", "Background", "Viewpoint", "WorldInfo", "Billboard", "IndexedLineSet", "PointSet"})
 #: The smallest WorldInfo.basicTimeStep (ms) converted: the smoke test then takes 50 000 MuJoCo steps.
 MIN_BASIC_TIME_STEP_MS = 0.01
 
@@ -133,8 +128,7 @@ def _pose(node: Node, scale: float = 1.0) -> FloatArray:
 
 def _inv(T: FloatArray) -> FloatArray:
     out = np.eye(4)
-    out[:3, :3] = T[:3, :3].T
-    out[:3, 3] = -T[:3, :3].T @ T[:3, 3]
+    out[:3, :3], out[:3, 3] = T[:3, :3].T, -T[:3, :3].T @ T[:3, 3]
     return out
 
 
@@ -163,6 +157,7 @@ class _Converter:
         self.sensors: dict[str, str] = {}
         self.body_mass: dict[str, float] = {}
         self.robot_bodies: list[str] = []
+        self.body_solids: list[tuple[str, Node]] = []  # (body, the Solid it was built from): initial velocities
         self.in_robot = False
         self.self_collision = False
         self.missing_defs: list[str] = []
@@ -459,6 +454,7 @@ class _Converter:
                    add_joint: Any = None) -> tuple[Any, str]:
         """A MuJoCo body for ``solid`` at pose T in ``parent``; ``add_joint(body)`` adds its joint(s)."""
         body, name = self.make_body(parent, solid, T, scale, static=static)
+        self.body_solids.append((name, solid))
         if add_joint is not None:
             add_joint(body, name)
         masses: list[MassProps] = []
@@ -588,8 +584,8 @@ class _Converter:
                 act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
                 act.ctrlrange = [-limit, limit]
                 self.spec.add_numeric(name=f"webots_motor.{act_name}", data=motor_numeric(d))
-                if float(d.get("multiplier", 1.0)) != 1.0:
-                    self.warn(f"motor {name!r}: multiplier {d.get('multiplier')} is not converted", d)
+                if float(d.get("multiplier", 1.0)) == 0.0:
+                    self.warn(f"motor {name!r}: multiplier 0 is not allowed; using 1 (as Webots does)", d)
                 info.motors.append(act_name)
                 self.motors.append(MotorInfo(act_name, info.name, kind == "LinearMotor", limit,
                                              float(d.get("maxVelocity", 10.0))))
@@ -599,6 +595,8 @@ class _Converter:
                                               objtype=mujoco.mjtObj.mjOBJ_JOINT, objname=info.name)
                 if float(d.get("noise", 0.0)) > 0:
                     sensor.noise = float(d["noise"])
+                if float(d.get("resolution", -1.0)) > 0:  # Webots' -1 (or any value <= 0): no quantisation
+                    self.spec.add_numeric(name=f"webots_sensor.{sensor_name}", data=[float(d["resolution"])])
                 info.sensors.append(sensor_name)
                 self.sensors[sensor_name] = kind
             elif kind == "Brake":
@@ -681,7 +679,9 @@ class _Converter:
         model = None
         try:
             apply_stops(self.spec, self.stops, basic_ms=self.basic_ms, mujoco_step_s=self.dt)
+            harmonise_coupled_motors(self.spec, self.warn)
             model = self.spec.compile()
+            add_initial_keyframe(self.spec, model, self.body_solids, self.world, self.warn)
         except ValueError as exc:
             raise ConversionError(f"{self.world_path}: converted model does not compile: "
                                   f"{' '.join(str(exc).split())}") from None

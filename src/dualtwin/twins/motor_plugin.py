@@ -100,10 +100,13 @@ def available() -> str | None:
 
 
 def config(max_velocity: float, max_torque: float, kp: float, ki: float, kd: float, acceleration: float,
-           min_position: float, max_position: float, ctrl: str = "none") -> dict[str, str]:
-    """The plugin instance's config from a Webots motor's fields (``ctrl``: how it reads ``ctrl``)."""
+           min_position: float, max_position: float, ctrl: str = "none", multiplier: float = 1.0) -> dict[str, str]:
+    """The plugin instance's config from a Webots motor's fields (``ctrl``: how it reads ``ctrl``; ``multiplier``
+    scales it, as Webots scales a motor's commands, written only when it is not 1)."""
     values = {"maxVelocity": max_velocity, "maxTorque": max_torque, "Kp": kp, "Ki": ki, "Kd": kd,
               "acceleration": acceleration, "minPosition": min_position, "maxPosition": max_position}
+    if multiplier != 1.0:
+        values["multiplier"] = multiplier
     out = {key: repr(float(value)) for key, value in values.items()}
     out["ctrl"] = ctrl
     return out
@@ -176,11 +179,11 @@ def standalone_spec(spec: mujoco.MjSpec, ctrl: str = "position") -> mujoco.MjSpe
     for actuator in out.actuators:
         if actuator.trntype != mujoco.mjtTrn.mjTRN_JOINT or actuator.plugin.active:
             continue
-        fields = numerics.get(f"webots_motor.{actuator.name}", []) + [math.nan] * 7
-        defaults = (10.0, 10.0, 0.0, 0.0, -1.0, 0.0, 0.0)
-        v = [d if math.isnan(f) else f for f, d in zip(fields[:7], defaults, strict=True)]
+        fields = numerics.get(f"webots_motor.{actuator.name}", []) + [math.nan] * 8
+        defaults = (10.0, 10.0, 0.0, 0.0, -1.0, 0.0, 0.0, 1.0)
+        v = [d if math.isnan(f) else f for f, d in zip(fields[:8], defaults, strict=True)]
         torque = abs(float(actuator.forcerange[1])) if actuator.forcerange[1] else 10.0
-        attach(out, [actuator], config(v[0], torque, v[1], v[2], v[3], v[4], v[5], v[6], ctrl),
+        attach(out, [actuator], config(v[0], torque, v[1], v[2], v[3], v[4], v[5], v[6], ctrl, v[7] or 1.0),
                f"webots_motor:{actuator.name or len(out.plugins)}")
         # Webots clamps the torque and the command itself; MuJoCo's clamps would cut the servo.
         actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_FALSE
@@ -189,7 +192,7 @@ def standalone_spec(spec: mujoco.MjSpec, ctrl: str = "position") -> mujoco.MjSpe
 
 
 ATTRIBUTES = ("maxVelocity", "maxTorque", "Kp", "Ki", "Kd", "acceleration", "minPosition", "maxPosition",
-              "stiffness", "predict", "ctrl")  # the plugin's config keys, in its order (kAttributes in the C file)
+              "stiffness", "predict", "ctrl", "multiplier")  # the plugin's config keys, in its order (kAttributes in the C file)
 
 
 def max_torque(model: mujoco.MjModel, actuator: int, default: float) -> float:
@@ -208,12 +211,12 @@ def max_torque(model: mujoco.MjModel, actuator: int, default: float) -> float:
 
 def motor_params(model: mujoco.MjModel, name: str, actuator: int) -> MotorParams:
     """A joint actuator's Webots motor fields: its ``webots_motor.NAME`` numeric (maxVelocity Kp Ki Kd
-    acceleration [minPosition maxPosition]; Webots' defaults for those missing) and :func:`max_torque`."""
+    acceleration [minPosition maxPosition [multiplier]]; Webots' defaults for those missing) and :func:`max_torque`."""
     params = MotorParams()
     numeric = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_NUMERIC, f"webots_motor.{name}")
     if numeric >= 0:
         adr, size = model.numeric_adr[numeric], model.numeric_size[numeric]
-        fields = ("max_velocity", "kp", "ki", "kd", "acceleration", "min_position", "max_position")
+        fields = ("max_velocity", "kp", "ki", "kd", "acceleration", "min_position", "max_position", "multiplier")
         values = list(model.numeric_data[adr:adr + size]) + [math.nan] * len(fields)
         for attr, value in zip(fields, values[:len(fields)], strict=True):
             if not math.isnan(value):

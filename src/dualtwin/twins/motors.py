@@ -28,6 +28,8 @@ class MotorParams:
     #: Webots' minPosition/maxPosition: position targets are clamped into them when they differ.
     min_position: float = 0.0
     max_position: float = 0.0
+    #: Webots' multiplier: every setPosition/setVelocity/setTorque is scaled by it (webots-devices §9).
+    multiplier: float = 1.0
 
 
 @dataclass(slots=True)
@@ -58,9 +60,13 @@ class MotorState:
         self.current_velocity = 0.0
 
     def set_velocity(self, velocity: float) -> None:
-        """Velocity control: ``setPosition(inf)`` + ``setVelocity(v)``, clamped to max velocity."""
+        """Velocity control: ``setPosition(inf)`` + ``setVelocity(v)``, clamped to max velocity (then, with a
+        multiplier, times it and clamped again, as the Webots twin's command and Webots' motor do)."""
         v = velocity * self.gain
         limit = self.params.max_velocity
+        if self.params.multiplier != 1.0:
+            self.relay("velocity", max(-limit, min(limit, v)), limit)
+            return
         # max(-limit, min(limit, v)) without the calls (a command per motor and period): the comparisons pick
         # exactly what min and max pick, NaN and signed zeros included (min keeps its first argument unless the
         # second is smaller, max unless it is larger).
@@ -72,6 +78,9 @@ class MotorState:
     def set_position(self, position: float) -> None:
         # MuJoCoTwin.command inlines this for native-law motors (twins/mujoco.py): a change here goes there too.
         p = self.params
+        if p.multiplier != 1.0:
+            self.relay("position", position * self.gain, p.max_velocity)
+            return
         target = position * self.gain
         low, high = p.min_position, p.max_position
         # min(max(target, low), high) for finite targets, without the calls (a command per motor and period).
@@ -84,11 +93,38 @@ class MotorState:
 
     def set_torque(self, torque: float) -> None:
         available, most = self.available_torque, self.params.max_torque
+        if self.params.multiplier != 1.0:
+            self.relay("torque", max(-most, min(most, torque * self.gain)), 0.0)
+            return
         limit = most if most < available else available  # min(available, most), as in set_velocity
         t = torque * self.gain
         t = t if t < limit else limit
         self.torque = t if t > -limit else -limit  # max(-limit, min(limit, t))
         self.torque_mode = True
+
+    def relay(self, mode: str, value: float, max_velocity: float) -> None:
+        """A command as Webots' coupled motors relay it (webots-devices §9), in the Webots twin's order: ``value``
+        is what the commanded motor was given (its gain applied; a velocity clamped to its max velocity, a
+        torque to its max torque), ``max_velocity`` its max velocity (the target velocity a position command
+        sets first). This motor applies its own multiplier and limits."""
+        p = self.params
+        m = p.multiplier
+        if mode == "torque":
+            limit = min(self.available_torque, p.max_torque)
+            self.torque = max(-limit, min(limit, value * m))
+            self.torque_mode = True
+            return
+        if mode == "velocity":
+            self.target_position = math.copysign(math.inf, m)  # setPosition(inf), multiplied
+            velocity = value * m
+        else:
+            velocity = max_velocity * m  # setVelocity(max velocity), multiplied
+            target = value * m
+            if p.min_position != p.max_position and math.isfinite(target):
+                target = min(max(target, p.min_position), p.max_position)
+            self.target_position = target
+        self.target_velocity = math.copysign(p.max_velocity, velocity) if abs(velocity) > p.max_velocity else velocity
+        self.torque_mode = False
 
     @property
     def needs_feedback(self) -> bool:
@@ -200,3 +236,52 @@ def servo_steps(servos: Sequence[ServoMotor], steps: int, dt: float, qpos: memor
         for const, state in rows:
             st = const[0].state
             st.integral, st.previous_error, st.current_velocity = state[0], state[1], state[2]
+
+
+def relay_value(state: MotorState, mode: str, value: float) -> tuple[float, float]:
+    """(value, max velocity) a command on ``state``'s motor relays to its coupled motors
+    (:meth:`MotorState.relay`), as the Webots twin sends it: the gain applied, a velocity clamped to this motor's
+    max velocity, a torque to its max torque."""
+    p = state.params
+    v = value * state.gain
+    if mode == "velocity":
+        v = max(-p.max_velocity, min(p.max_velocity, v))
+    elif mode == "torque":
+        v = max(-p.max_torque, min(p.max_torque, v))
+    return v, p.max_velocity
+
+
+class _Grouped(Protocol):
+    name: str
+    state: MotorState
+    group: Any
+
+
+def assign_groups(motors: Sequence[_Grouped]) -> None:
+    """Set each motor's ``group``: the motors a command on it reaches, through :meth:`MotorState.relay` (itself
+    first, then its coupled motors), when it is coupled or has a multiplier; None (a plain command) otherwise."""
+    by_name = {mo.name: mo for mo in motors}
+    groups = coupled_names(list(by_name))
+    for mo in motors:
+        if mo.name in groups or mo.state.params.multiplier != 1.0:
+            mo.group = tuple(by_name[n] for n in groups.get(mo.name, [mo.name]))
+
+
+def relay_command(motor: _Grouped, mode: str, value: float) -> Any:
+    """Apply a command on ``motor`` to its group (:func:`assign_groups`) as Webots relays it; returns the group."""
+    relayed, max_velocity = relay_value(motor.state, mode, value)
+    for mo in motor.group:
+        mo.state.relay(mode, relayed, max_velocity)
+    return motor.group
+
+
+def coupled_names(names: Sequence[str]) -> dict[str, list[str]]:
+    """Each motor's coupled group (itself first, then the others in order): Webots couples the motors named
+    ``prefix::suffix`` (exactly two parts) that share ``prefix`` (webots-devices §9)."""
+    groups: dict[str, list[str]] = {}
+    for name in names:
+        parts = name.split("::")
+        if len(parts) == 2:
+            groups.setdefault(parts[0], []).append(name)
+    return {name: [name, *(n for n in group if n != name)] for group in groups.values() if len(group) > 1
+            for name in group}

@@ -36,7 +36,7 @@ import numpy as np
 
 from dualtwin.errors import DualtwinError, SimulationUnstable
 from dualtwin.geometry import canonical_quat, matrix_from_quat
-from dualtwin.twins import motor_plugin
+from dualtwin.twins import motor_plugin, mujoco_state
 from dualtwin.twins.base import (
     MAX_SUBSTEPS,
     ControlMode,
@@ -52,10 +52,11 @@ from dualtwin.twins.base import (
 )
 from dualtwin.twins.knob_table import BoundKnob
 from dualtwin.twins.mjcf_files import compile_spec, load_spec
-from dualtwin.twins.motors import MotorState, servo_steps
+from dualtwin.twins.motors import MotorState, assign_groups, relay_command, servo_steps
 from dualtwin.twins.mujoco_knobs import MAX_DELAY_PERIODS, MUJOCO_KNOBS, KnobPass, KnobTarget, nominal_values
 from dualtwin.twins.mujoco_state import StatePlan, scale_contact_depths
 from dualtwin.twins.ode_friction import FrictionBox, contact_semantics
+from dualtwin.webots.lut import discretize
 
 if TYPE_CHECKING:
     from dualtwin.robots.binding import RobotBinding
@@ -80,7 +81,7 @@ assert motor_plugin.SLOT["saturated"] == 14
 
 
 class _Motor:
-    __slots__ = ("name", "index", "qpos", "dof", "kv", "state", "saturated", "plugin")
+    __slots__ = ("name", "index", "qpos", "dof", "kv", "state", "saturated", "plugin", "group")
 
     def __init__(self, name: str, index: int, qpos: int, dof: int, kv: float, state: MotorState,
                  plugin: int = -1) -> None:
@@ -92,6 +93,7 @@ class _Motor:
         self.state = state
         self.saturated = 0.0  # 0 = servo; ±1 = applying ±max torque
         self.plugin = plugin  # with the native law: the motor's first slot in plugin_state, else -1
+        self.group: tuple[_Motor, ...] | None = None  # see motors.assign_groups
 
 
 class MuJoCoTwin(Twin):
@@ -128,6 +130,7 @@ class MuJoCoTwin(Twin):
         self._knob_index: dict[str, BoundKnob[KnobTarget]] | None = None
         self._motors = self._build_motors()
         self._motor_by_name = {m.name: m for m in self._motors}
+        assign_groups(self._motors)
         # command()'s lookup: motor names and the aliases that resolve to one (an alias wins, as in _id).
         self._command_index = {name: self._motor_by_name[self._aliases.get(name, name)]
                                for name in {*self._motor_by_name, *self._aliases}
@@ -166,7 +169,9 @@ class MuJoCoTwin(Twin):
         self._opt = self.model.opt  # a live view of the model's options (each model.opt costs a lookup)
         self._ids: dict[tuple[mujoco.mjtObj, str], int] = {}  # see _id
         self._sensor_adr: list[int] = self.model.sensor_adr.tolist()
-        self._sensor_models = bool(self._noise.any())  # any bias, delay, noise or resolution (see sensor())
+        self._resolution = mujoco_state.sensor_resolutions(self.model)  # Webots' sensor resolution (the converted model's)
+        self._sensor_models = bool(self._noise.any() or self._resolution.any())  # bias, delay, noise, resolution
+        self._keyframe = mujoco_state.initial_keyframe(self.model)  # Webots' initial velocities (dualtwin.convert.initial_state)
         self.reset()
 
     def _id(self, kind: mujoco.mjtObj, name: str, label: str) -> int:
@@ -218,7 +223,7 @@ class MuJoCoTwin(Twin):
         return float(self.data.time)
 
     def reset(self, seed: int | None = None) -> None:
-        mujoco.mj_resetData(self.model, self.data)
+        mujoco_state.reset_data(self.model, self.data, self._keyframe)
         mujoco.mj_forward(self.model, self.data)
         self._rng = np.random.default_rng(seed)
         self._pending.clear()
@@ -276,7 +281,7 @@ class MuJoCoTwin(Twin):
             self._pending.append((self._periods() + self._delay, motor, mode, value))
             return
         adr = motor.plugin
-        if adr >= 0 and mode == "position":
+        if adr >= 0 and mode == "position" and motor.group is None:
             # Fast path of the commonest command, a native-law motor's position (each motor and period on the
             # arm, where six were ~7 % of a period): _apply_command and MotorState.set_position inlined, the same
             # operations in the same order, ~30 % cheaper. Keep the three in step (test_command_fast_path.py).
@@ -317,12 +322,20 @@ class MuJoCoTwin(Twin):
     def _apply_command(self, motor: _Motor, mode: ControlMode, value: float) -> None:
         # command() inlines the position branch for native-law motors: a change here goes there too.
         st = motor.state
+        if motor.group is not None:  # Webots' multipliers, and its relay to coupled motors
+            for mo in relay_command(motor, mode, value):
+                self._push_command(mo)
+            return
         if mode == "position":
             st.set_position(value)
         elif mode == "velocity":
             st.set_velocity(value)
         else:
             st.set_torque(value)
+        self._push_command(motor)
+
+    def _push_command(self, motor: _Motor) -> None:  # a command's targets (torque) to the plugin or the servo
+        st = motor.state
         adr = motor.plugin
         if adr >= 0:
             # The native law: only what a command changes goes to plugin_state, not the model: the torque, or the
@@ -558,6 +571,7 @@ class MuJoCoTwin(Twin):
         value += float(self._sensor_bias[s])
         if self._noise[s] > 0:
             value += float(self._rng.normal(0.0, self._noise[s]))
+        value = discretize(value, float(self._resolution[s]))  # Webots' resolution (0: none), after its noise
         if self._sensor_quant[s] > 0:
             # Webots' sensor `resolution`: readings are rounded to a multiple of it.
             value = float(np.round(value / self._sensor_quant[s]) * self._sensor_quant[s])
@@ -738,7 +752,7 @@ class MuJoCoTwin(Twin):
                 self._write_plugin(mo)
         self._delayed_sensors = bool(self._sensor_delay.any())
         self._sensor_models = bool(self._delayed_sensors or self._noise.any() or self._sensor_bias.any()
-                                   or self._sensor_quant.any())
+                                   or self._sensor_quant.any() or self._resolution.any())
         self._knob_values = dict(values)
 
     def _set_substeps(self, substeps: int) -> None:

@@ -113,3 +113,34 @@ def scale_contact_depths(m: mujoco.MjModel, d: mujoco.MjData, ratio: float) -> N
     step[free] = delta
     mujoco.mj_integratePos(m, d.qpos, step, 1.0)
     mujoco.mj_forward(m, d)
+
+
+#: The keyframe a converted model starts from (Webots' initial velocities, dualtwin.convert.initial_state): the
+#: twin resets to it when the model has one.
+INITIAL_KEYFRAME = "webots_initial"
+#: Per-sensor numerics a converted model carries (``webots_sensor.<sensor>`` = [resolution]).
+SENSOR_NUMERIC = "webots_sensor."
+
+
+def initial_keyframe(m: mujoco.MjModel) -> int:
+    """The id of the model's :data:`INITIAL_KEYFRAME` (-1 without one)."""
+    return int(mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, INITIAL_KEYFRAME))
+
+
+def reset_data(m: mujoco.MjModel, d: mujoco.MjData, keyframe: int) -> None:
+    """``mj_resetData``, or ``mj_resetDataKeyframe`` to ``keyframe`` when it is one (:func:`initial_keyframe`)."""
+    if keyframe >= 0:
+        mujoco.mj_resetDataKeyframe(m, d, keyframe)
+    else:
+        mujoco.mj_resetData(m, d)
+
+
+def sensor_resolutions(m: mujoco.MjModel) -> np.ndarray:
+    """Each sensor's Webots ``resolution`` from its ``webots_sensor.<name>`` numeric (0 = none)."""
+    out = np.zeros(m.nsensor)
+    for s in range(m.nsensor):
+        numeric = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_NUMERIC, SENSOR_NUMERIC + (mujoco.mj_id2name(
+            m, mujoco.mjtObj.mjOBJ_SENSOR, s) or ""))
+        if numeric >= 0 and m.numeric_size[numeric] >= 1:
+            out[s] = max(float(m.numeric_data[m.numeric_adr[numeric]]), 0.0)
+    return out

@@ -77,7 +77,7 @@ enum {
 };
 
 static const char* kAttributes[] = {"maxVelocity", "maxTorque", "Kp", "Ki", "Kd", "acceleration",
-                                    "minPosition", "maxPosition", "stiffness", "predict", "ctrl"};
+                                    "minPosition", "maxPosition", "stiffness", "predict", "ctrl", "multiplier"};
 static int kSlot = -1;
 
 static mjtNum config_number(const mjModel* m, int instance, const char* key, mjtNum fallback) {
@@ -134,7 +134,7 @@ static void reset_block(const mjModel* m, mjtNum* state, int instance, int actua
   state[S_PREDICT] = config_number(m, instance, "predict", 1.0 + stiffness);
   // The servo stiffness is sized for the joint's inertia (armature included): dt kv = stiffness x M0.
   state[S_KV] = stiffness * m->dof_M0[dof] / m->opt.timestep;
-  state[S_GAIN] = 1.0;
+  state[S_GAIN] = config_number(m, instance, "multiplier", 1.0);  // Webots' multiplier scales ctrl
   // Webots' initial state: hold the current (reference) position at up to max velocity.
   state[S_TARGET_POSITION] = m->qpos0[qpos];
   state[S_TARGET_VELOCITY] = state[S_MAX_VELOCITY];
