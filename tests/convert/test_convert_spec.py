@@ -325,6 +325,14 @@ def test_motor_defaults_give_ten_newton_metres_or_newtons() -> None:
         assert m.actuator_forcerange[m.actuator(name).id] == pytest.approx([-10, 10])
 
 
+def test_the_damping_report_says_why_mujoco_cannot_carry_it() -> None:
+    # S l.82-92: ODE scales each body's own velocities by (1 - d)^h a step; MuJoCo's joint damping acts on joint
+    # rates (one coefficient for a free joint's six dofs), so the report says that rather than "no damping"
+    conv = convert("DEF R Robot { physics Physics { damping Damping { linear 0.5 } } boundingObject Box { } }")
+    (note,) = [w for w in conv.warnings if "damping" in w.lower()]
+    assert "(1 - d)^h" in note and "joint rates" in note and "six dofs" in note
+
+
 def test_a_motor_multiplier_is_carried_to_the_twin_not_dropped() -> None:
     # S l.429: setPosition(p) targets p·multiplier; the motor's numeric carries it (after minPosition/maxPosition,
     # written as 0 0 = no limits) for the MuJoCo twin (tests/convert/test_coupled_motors.py runs it)

@@ -39,6 +39,7 @@ FloatArray = npt.NDArray[np.float64]
 
 __all__ = [
     "CONTACT_FRICTION_TAIL",
+    "DAMPING_NOTE",
     "KINEMATIC_MASS",
     "MAX_TIMESTEP_MS",
     "apply_joint_dynamics",
@@ -68,6 +69,16 @@ KINEMATIC_MASS = 1e-3
 #: MuJoCo's torsional and rolling friction of converted geoms (ODE has neither; Webots' rollingFriction is
 #: reported, not converted): MuJoCo's defaults.
 CONTACT_FRICTION_TAIL = (0.005, 0.0001)
+#: Why a Damping node (Physics.damping, WorldInfo.defaultDamping) is not converted. ODE (§1.4) multiplies each
+#: body's own world-frame velocities, the centre of mass's linear one and the angular one, by (1 - d)^h every
+#: step, whatever joints hold the body. MuJoCo's joint ``damping`` acts on joint rates instead: relative to the
+#: parent body below a joint, on the frame origin's velocity for a free joint, and with one coefficient for all
+#: six dofs of a free joint (mass and inertia would need two, and an anisotropic inertia one per axis); its
+#: ``viscosity`` is a medium's drag on the geoms' shapes. So no MJCF attribute gives ODE's decay, not even
+#: for a free body, and the converter reports the node instead of writing an approximation.
+DAMPING_NOTE = ("is not converted: ODE scales each body's own centre-of-mass and angular velocity by (1 - d)^h "
+                "every step, MuJoCo's joint damping acts on joint rates (one coefficient for a free joint's six "
+                "dofs) and its viscosity on geom shapes, so no MJCF attribute reproduces it")
 #: Webots' coulombFriction -1 means infinite friction; MuJoCo needs a number.
 INFINITE_FRICTION = 100.0
 
@@ -89,12 +100,13 @@ def timestep_for(basic_time_step_ms: float) -> float:
 
 def world_notes(info: dict[str, Any]) -> list[str]:
     """What of a WorldInfo the MJCF cannot carry: a coordinate system other than ENU is converted as written (the
-    gravity follows it, the model is not rotated), and ``defaultDamping`` has no per-body MuJoCo equivalent."""
+    gravity follows it, the model is not rotated), and ``defaultDamping`` has no MuJoCo equivalent
+    (:data:`DAMPING_NOTE` says why)."""
     notes = []
     if str(info.get("coordinateSystem", "ENU")).upper() in ("NUE", "EUN"):
         notes.append("WorldInfo coordinateSystem is NUE or EUN: converted as written (no rotation to ENU)")
     if info.get("defaultDamping") is not None:
-        notes.append("WorldInfo defaultDamping is not converted (MuJoCo has no per-body velocity damping)")
+        notes.append(f"WorldInfo defaultDamping {DAMPING_NOTE}")
     return notes
 
 

@@ -36,8 +36,7 @@ Stops, contacts, cameras, world
     MuJoCo's camera frame with a vertical ``fovy``; the world gets a ``timestep`` dividing ``basicTimeStep``,
     gravity (0, 0, -g) (ENU) or (0, -g, 0) (NUE, EUN), ``implicitfast``, ``cone="pyramidal"`` (ODE's friction
     pyramid), ``angle="radian"``. Robot parts collide only with ``selfCollision``; ``bounce`` and Damping nodes have
-    no MuJoCo equivalent (reported). Solids' initial velocities -> the ``webots_initial`` keyframe
-    (:mod:`dualtwin.convert.initial_state`).
+    no MuJoCo equivalent (reported); initial velocities -> keyframe (:mod:`dualtwin.convert.initial_state`).
 
 Every ODE -> MuJoCo equivalence, with its reasoning, is a function in :mod:`dualtwin.convert.equivalences`;
 this module walks the world and writes the MjSpec; the result types are in :mod:`dualtwin.convert.conversion`.
@@ -61,6 +60,7 @@ from dualtwin.convert.contacts import ContactGeom, Stop, apply_contacts, apply_s
 from dualtwin.convert.conversion import Conversion, ConversionError, JointInfo, MotorInfo
 from dualtwin.convert.coupled import harmonise_coupled_motors
 from dualtwin.convert.equivalences import (
+    DAMPING_NOTE,
     KINEMATIC_MASS,
     apply_joint_dynamics,
     camera_fovy_degrees,
@@ -309,7 +309,7 @@ class _Converter:
         material = str(solid.get("contactMaterial", "default"))
         props, mass_warnings = solid_mass(solid, scale=scale)
         if (solid.get("physics") or {}).get("damping") is not None:
-            self.warn(f"{label}: Physics damping is not converted (MuJoCo has no per-body velocity damping)", solid)
+            self.warn(f"{label}: Physics damping {DAMPING_NOTE}", solid)
         for w in mass_warnings:
             self.warn(f"{label}: {w}", solid)
         if props is not None:
