@@ -26,7 +26,7 @@ Devices
     Motor -> ``general`` actuator on its joint, ``forcerange``/``ctrlrange`` ±maxTorque/maxForce, and a numeric
     ``webots_motor.NAME`` = maxVelocity Kp Ki Kd acceleration [minPosition maxPosition [multiplier]] for
     :mod:`dualtwin.twins.mujoco` (``a::b`` motors harmonised, :mod:`dualtwin.convert.coupled`). PositionSensor ->
-    jointpos (+ numeric ``webots_sensor.NAME`` = resolution); InertialUnit -> framequat, Gyro -> gyro,
+    jointpos (resolution: :mod:`dualtwin.convert.sensor_models`); InertialUnit -> framequat, Gyro -> gyro,
     Accelerometer -> accelerometer, GPS -> framepos, Compass -> magnetometer, DistanceSensor -> rangefinder,
     TouchSensor -> touch, each at a site at the device pose named by the device.
 
@@ -76,6 +76,7 @@ from dualtwin.convert.equivalences import (
 )
 from dualtwin.convert.initial_state import add_initial_keyframe
 from dualtwin.convert.mass import FloatArray, MassProps, bounding_primitives, combine, solid_mass
+from dualtwin.convert.sensor_models import add_resolution
 from dualtwin.convert.surfaces import add_surface_mesh
 from dualtwin.geometry import axis_angle_matrix, mujoco_quat
 from dualtwin.webots import schema
@@ -91,12 +92,9 @@ ENV_CONTYPE, ENV_CONAFFINITY = 1, 3
 
 #: Solid-derived devices that become a site (and a sensor where MuJoCo has one).
 SITE_SENSORS = {
-    "InertialUnit": mujoco.mjtSensor.mjSENS_FRAMEQUAT,
-    "Gyro": mujoco.mjtSensor.mjSENS_GYRO,
-    "Accelerometer": mujoco.mjtSensor.mjSENS_ACCELEROMETER,
-    "GPS": mujoco.mjtSensor.mjSENS_FRAMEPOS,
-    "Compass": mujoco.mjtSensor.mjSENS_MAGNETOMETER,
-    "DistanceSensor": mujoco.mjtSensor.mjSENS_RANGEFINDER,
+    "InertialUnit": mujoco.mjtSensor.mjSENS_FRAMEQUAT, "Gyro": mujoco.mjtSensor.mjSENS_GYRO,
+    "Accelerometer": mujoco.mjtSensor.mjSENS_ACCELEROMETER, "GPS": mujoco.mjtSensor.mjSENS_FRAMEPOS,
+    "Compass": mujoco.mjtSensor.mjSENS_MAGNETOMETER, "DistanceSensor": mujoco.mjtSensor.mjSENS_RANGEFINDER,
     "TouchSensor": mujoco.mjtSensor.mjSENS_TOUCH,
 }
 #: Nodes whose physics has no MuJoCo counterpart we could write by rule: conversion stops with their location.
@@ -361,6 +359,7 @@ class _Converter:
             self.warn(f"{kind} {device_name!r} outside the robot", solid)
         sensor = self.spec.add_sensor(name=self.unique("sensor", device_name), type=sensor_type,
                                       objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site_name)
+        add_resolution(self.spec, sensor.name, solid)
         if kind == "DistanceSensor" and len(sensor.intprm) and int(sensor.intprm[0]) == 0:
             sensor.intprm[0] = 1  # MuJoCo >= 3.4 rangefinder data spec: distance only (the XML default)
         noise = float(solid.get("noise", 0.0) or 0.0)
@@ -595,8 +594,7 @@ class _Converter:
                                               objtype=mujoco.mjtObj.mjOBJ_JOINT, objname=info.name)
                 if float(d.get("noise", 0.0)) > 0:
                     sensor.noise = float(d["noise"])
-                if float(d.get("resolution", -1.0)) > 0:  # Webots' -1 (or any value <= 0): no quantisation
-                    self.spec.add_numeric(name=f"webots_sensor.{sensor_name}", data=[float(d["resolution"])])
+                add_resolution(self.spec, sensor_name, d)
                 info.sensors.append(sensor_name)
                 self.sensors[sensor_name] = kind
             elif kind == "Brake":
