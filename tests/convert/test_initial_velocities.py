@@ -153,3 +153,25 @@ def test_velocities_the_joints_cannot_follow_are_projected_as_ode_s_first_step_d
         mujoco_twin.step()
         assert mujoco_twin.joint_velocity("SPIN") == pytest.approx(webots.joint_velocity("SPIN"), abs=2e-3)
         assert mujoco_twin.body_velocity("R") == pytest.approx(webots.body_velocity("R"), abs=2e-3)
+
+
+def test_proto_hidden_joint_position_and_endpoint_spin(tmp_path: Path) -> None:
+    # A saved PROTO robot: hidden position_0_0 (its hinge, already the joint's ref before this change) and the
+    # hidden velocities of the hinge's endPoint (Solid 1 in pre-order), turning about the hinge at 2 rad/s: its
+    # centre 0.2 m from the axis moves at w x r = (0, 0, 2) x (0.2, 0, 0) = (0, 0.4, 0). By hand the hinge rate
+    # is 2; without the linear velocity the joints cannot follow both, and the projection keeps the angular
+    # momentum about the axis: 2 I / (I + m r^2) = 2 x (1/600) / (1/600 + 0.04) = 0.08 (1 kg box of 0.1 m).
+    (tmp_path / "Arm.proto").write_text(
+        "#VRML_SIM R2023b utf8\nPROTO Arm [ ] {\n  Robot { children [ HingeJoint {\n"
+        "    jointParameters HingeJointParameters { axis 0 0 1 }\n"
+        '    device [ PositionSensor { name "arm sensor" } ]\n'
+        "    endPoint Solid { translation 0.2 0 0 physics Physics { } boundingObject Box { size 0.1 0.1 0.1 } }\n"
+        "  } ] }\n}\n")
+    from dualtwin.convert import convert_world
+
+    for linear, rate in (("hidden linearVelocity_1 0 0.4 0", 2.0), ("", 0.08)):
+        scene = f'EXTERNPROTO "Arm.proto"\nDEF ARM Arm {{ hidden position_0_0 0.4 hidden angularVelocity_1 0 0 2 {linear} }}'
+        (tmp_path / "w.wbt").write_text(world_text(scene, "gravity 0"), encoding="utf-8")
+        model = convert_world(tmp_path / "w.wbt").compile()
+        assert model.qpos0 == pytest.approx([0.4])
+        assert model.key("webots_initial").qvel == pytest.approx([rate], abs=1e-12)
