@@ -17,11 +17,14 @@ Overview (one line each; details in the functions):
 * joint damping, springs (resting at the joint's zero position) and static friction -> ``damping``,
   ``stiffness``, ``frictionloss``:
   :func:`apply_joint_dynamics`;
-* motors (velocity/position control through Webots' PID, torque limits) -> ``general`` actuator limits plus a
-  ``webots_motor.*`` numeric the MuJoCo twin reads: :func:`motor_numeric`;
+* motors (velocity/position control through Webots' PID, torque limits, multiplier) -> ``general`` actuator
+  limits plus a ``webots_motor.*`` numeric the MuJoCo twin reads: :func:`motor_numeric`;
 * cameras (FLU device frame, horizontal field of view) -> MuJoCo camera frame and ``fovy``:
   :func:`camera_rotation`, :func:`camera_fovy_degrees`; distance sensors: :func:`rangefinder_rotation`;
-* a moving body without Physics (kinematic in Webots) -> :data:`KINEMATIC_MASS`.
+* a moving body without Physics (kinematic in Webots) -> :data:`KINEMATIC_MASS`;
+* Damping nodes: not converted, :data:`DAMPING_NOTE` says why. Walked with the model, in their own modules:
+  initial velocities -> keyframe (:mod:`dualtwin.convert.initial_state`), coupled motors' limits
+  (:mod:`dualtwin.convert.coupled`), sensor resolution (:mod:`dualtwin.convert.sensor_models`).
 """
 
 from __future__ import annotations
