@@ -61,8 +61,7 @@ def test_a_gps_resolution_quantises_both_twins_alike(tmp_path: Path, x: float, r
     with converted_twins(text, tmp_path, PERIOD) as (conv, webots, mujoco_twin):
         assert [float(v) for v in conv.compile().numeric("webots_sensor.gps").data] == [0.05]
         for twin in (webots, mujoco_twin):
-            twin.sensor("gps")  # the Webots twin enables a GPS at its first read (NaN until its first sample)
-            twin.step()
+            twin.step()  # the Webots twin enabled the GPS when it was made, so this first read is a sample
             assert twin.sensor("gps") == pytest.approx(reading, abs=1e-12), twin.name
 
 

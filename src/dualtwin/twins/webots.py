@@ -44,6 +44,10 @@ if TYPE_CHECKING:
     from dualtwin.robots.binding import RobotBinding
     from dualtwin.twins.camera import CameraSpec
 
+#: Devices besides the ``*Sensor`` nodes whose reading ``sensor()`` takes (the first component of a vector): each is
+#: enabled when the twin is made, as a MuJoCo sensor reads from the first step.
+SCALAR_READ_TYPES = ("GPS", "Gyro", "Accelerometer", "Compass", "Altimeter")
+
 
 class WebotsTwin(Twin):
     """A Webots robot driven by a supervisor controller, in control periods of simulation time."""
@@ -135,7 +139,8 @@ class WebotsTwin(Twin):
         sensor = self._sensors.get(name)
         if sensor is None:
             device = self.sup.getDevice(self._resolve(name))
-            if device is None or not hasattr(device, "enable"):
+            if device is None or not (hasattr(device, "getValue") or hasattr(device, "getValues")):
+                # a Camera, Lidar or InertialUnit has no value a scalar read could take the first component of
                 raise unknown_name("sensor", self._resolve(name), self._device_names(None), self._origin)
             device.enable(int(self._basic_ms))
             sensor = self._sensors[name] = device
@@ -182,7 +187,7 @@ class WebotsTwin(Twin):
             kind = node.getTypeName()
             name_field = base_field(node, "name")
             is_device = base_field(node, "device") is None and name_field is not None and kind != "Robot"
-            wanted = kind.endswith("Sensor") if types is None else kind in types
+            wanted = (kind.endswith("Sensor") or kind in SCALAR_READ_TYPES) if types is None else kind in types
             if is_device and wanted:
                 out.append(name_field.getSFString())
         return out

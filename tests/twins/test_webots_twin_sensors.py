@@ -1,0 +1,37 @@
+"""The Webots twin reads every scalar sensor from its first step, as the MuJoCo twin does: GPS, Gyro,
+Accelerometer, Compass and Altimeter are enabled when the twin is made (a Webots sensor reads NaN until its first
+sample after ``enable``; before, only the ``*Sensor`` nodes were enabled at start, the others at their first read,
+which was NaN). A device with no value to read (an InertialUnit) is refused in one line, not with a traceback."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+from dualtwin.errors import DualtwinError
+from tests.support.converted_twins import converted_twins, world_text
+
+X = 0.25  # the robot stands welded at x = X, still: its GPS x is exactly X, its gyro 0, its accelerometer x 0
+DEVICES = ('GPS { name "gps" } Gyro { name "gyro" } Accelerometer { name "acc" } Compass { name "compass" } '
+           'Altimeter { name "alt" } InertialUnit { name "imu" }')
+
+
+def test_the_first_read_after_one_step_is_a_sample_in_both_twins(tmp_path: Path) -> None:
+    text = world_text(
+        f'Robot {{ translation {X} 0 0 controller "<extern>" children [ {DEVICES} DEF H HingeJoint {{\n'
+        '  jointParameters HingeJointParameters { axis 0 0 1 }\n'
+        '  device [ PositionSensor { name "s" } RotationalMotor { name "m" } ]\n'
+        "  endPoint DEF E Solid { physics Physics { } boundingObject Box { size 0.1 0.1 0.1 } } } ] }",
+        "basicTimeStep 8 gravity 0")
+    with converted_twins(text, tmp_path, 0.008) as (_, webots, mujoco_twin):
+        webots.step()
+        mujoco_twin.step()
+        for name in ("gps", "gyro", "acc", "compass", "alt"):
+            assert math.isfinite(webots.sensor(name)), name
+        assert webots.sensor("gps") == pytest.approx(X, abs=1e-12) == mujoco_twin.sensor("gps")
+        assert webots.sensor("gyro") == 0.0 and webots.sensor("acc") == pytest.approx(0.0, abs=1e-9)
+        with pytest.raises(DualtwinError, match="no sensor named 'imu'") as refused:
+            webots.sensor("imu")
+        assert "\n" not in str(refused.value) and "known: acc, alt, compass, gps, gyro, s" in str(refused.value)
