@@ -22,8 +22,10 @@ PERIOD = 0.016
 def _trajectory(robot: str, native: bool, kp_scale: float = 1.0) -> tuple[np.ndarray, int]:
     """80 control periods of position, velocity and torque commands (random, seeded; large enough to
     saturate), with a rotor-inertia and a gain knob, a PID with I and D terms and an acceleration limit on
-    the first motors; rows of qpos, qvel and actuator forces, and how many periods ended saturated."""
-    twin = MuJoCoTwin(resolve_robot(robot).model_path("mujoco"), PERIOD, native_law=native)
+    the first motors; rows of qpos, qvel and actuator forces, and how many periods ended saturated.
+    ``robot`` is a bundled robot's name or an MJCF text."""
+    model = mujoco.MjSpec.from_string(robot) if robot.startswith("<") else resolve_robot(robot).model_path("mujoco")
+    twin = MuJoCoTwin(model, PERIOD, native_law=native)
     assert twin.native_law is native
     motors = twin._motors
     registry = twin.knobs()
@@ -60,6 +62,29 @@ def test_native_law_is_bit_identical_to_the_python_law(robot: str) -> None:
     assert native.tobytes() == python.tobytes()
     # control: the comparison sees a gain change
     assert _trajectory(robot, True, kp_scale=1.1)[0].tobytes() != native.tobytes()
+
+
+# One joint on the world: MuJoCo calls these dofs "simple" and reads their mass-matrix diagonal from dof_M0, not from
+# dof_armature, so the Python law's servo armature (and the rotor knob) must reach dof_M0 too. Before, the Python
+# law's stiff servo diverged here (a 1 rad/s command ran the hinge at hundreds of rad/s) while the plugin's held.
+SIMPLE_DOFS = {
+    joint: f"""<mujoco><option timestep="0.002" gravity="0 0 -9.81"/><worldbody><body name="b" pos="0 0 1">
+      <joint name="j" type="{joint}" axis="0 1 0"/><geom type="box" size="0.05 0.05 0.05" mass="{mass}"/>
+      </body></worldbody><actuator><general name="m" joint="j" forcelimited="true" forcerange="-{limit} {limit}"/>
+      </actuator><custom><numeric name="webots_motor.m" data="10 10 0 0 -1"/></custom></mujoco>"""
+    for joint, mass, limit in (("hinge", 1.0, 1), ("slide", 0.05, 2))
+}
+
+
+@pytest.mark.parametrize("joint", sorted(SIMPLE_DOFS))
+def test_native_law_is_bit_identical_to_the_python_law_on_a_simple_dof(joint: str) -> None:
+    probe = mujoco.MjModel.from_xml_string(SIMPLE_DOFS[joint])
+    assert probe.dof_simplenum[0] > 0  # the case this test is about
+    native, saturated = _trajectory(SIMPLE_DOFS[joint], True)
+    python, python_saturated = _trajectory(SIMPLE_DOFS[joint], False)
+    assert saturated > 0 and saturated == python_saturated
+    assert np.isfinite(native).all() and np.abs(native[:, 1]).max() < 100.0  # qvel: the servo held
+    assert native.tobytes() == python.tobytes()
 
 
 def test_the_twin_drives_all_its_motors_from_one_plugin_instance() -> None:

@@ -51,6 +51,7 @@ from dualtwin.twins.base import (
     unknown_name,
 )
 from dualtwin.twins.knob_table import BoundKnob
+from dualtwin.twins.mass_constants import MassConstants
 from dualtwin.twins.mjcf_files import compile_spec, load_spec
 from dualtwin.twins.motors import MotorState, assign_groups, relay_command, servo_steps
 from dualtwin.twins.mujoco_knobs import MAX_DELAY_PERIODS, MUJOCO_KNOBS, KnobPass, KnobTarget, nominal_values
@@ -198,6 +199,7 @@ class MuJoCoTwin(Twin):
         motors = []
         # Webots clamps torque itself; MuJoCo's clamp would disable the implicit servo derivative.
         mujoco.mj_setConst(m, self.data)
+        self._masses = MassConstants(m, self._armature)
         for i in range(m.nu):
             if m.actuator_trntype[i] != mujoco.mjtTrn.mjTRN_JOINT:
                 continue
@@ -360,7 +362,7 @@ class MuJoCoTwin(Twin):
         values = motor_plugin.slot_values(motor.state, motor.kv, float(self._armature[motor.dof]),
                                           PREDICT_SATURATION, motor.saturated if law else None)
         # The plugin adds the rotor inertia with the servo's (see native/webots_motor.c): not the model too.
-        self.model.dof_armature[motor.dof] = 0.0
+        self._masses.write(self.model, motor.dof, 0.0)
         state = self.data.plugin_state
         for slot, value in values:
             state[motor.plugin + slot] = value
@@ -377,7 +379,8 @@ class MuJoCoTwin(Twin):
         m.actuator_gainprm[motor.index, 0] = 1.0
         m.actuator_biastype[motor.index] = mujoco.mjtBias.mjBIAS_NONE
         m.actuator_biasprm[motor.index, :3] = 0.0
-        m.dof_armature[motor.dof] = self._armature[motor.dof] + (motor.kv * m.opt.timestep if torque is None else 0.0)
+        servo = motor.kv * m.opt.timestep if torque is None else 0.0
+        self._masses.write(m, motor.dof, self._armature[motor.dof] + servo)
         if torque is not None:
             self.data.ctrl[motor.index] = torque
 
@@ -728,23 +731,12 @@ class MuJoCoTwin(Twin):
                 factor = m.body_mass[b] / nominal["body_mass"][b] * inertia_scale.get(b, 1.0)
                 m.body_inertia[b] = nominal["body_inertia"][b] * factor
         if changed_inertia or self._inertia_changed:
-            # Constraint regularisation and derived masses depend on the mass distribution; recompute them as
-            # a compiled model with these values would (so a patched MJCF reproduces the knobs exactly). A
-            # compiled model has no servo armature (_set_servo), so that is left out while they are computed.
-            m.dof_armature[:] = self._armature
-            mujoco.mj_setConst(m, self._scratch)
-            # The compiler's statistics (they scale solver tolerances), which mj_setConst leaves alone.
-            scratch = self._scratch
-            scratch.qpos[:] = m.qpos0
-            mujoco.mj_forward(m, scratch)
-            full = np.zeros((m.nv, m.nv))
-            mujoco.mj_fullM(m, scratch, full)
-            m.stat.meaninertia = float(np.trace(full)) / max(m.nv, 1)
-            m.stat.meanmass = float(np.mean(m.body_mass[1:])) if m.nbody > 1 else 0.0
+            # Recompute what a compiled model with these masses would derive (see mass_constants).
+            self._masses.recompute(m, self._scratch)
             self._inertia_changed = changed_inertia
         # Rotor inertia everywhere, then each servo's stiffness (sized for the joint's inertia, armature
         # included) and its implicit term on top while it is active.
-        m.dof_armature[:] = self._armature
+        self._masses.restore(m)
         self._update_servos()
         for mo in self._motors:
             mo.state.available_torque = mo.state.params.max_torque
