@@ -21,6 +21,7 @@ from dualtwin.webots.physics.records import (
     JointRec,
     PendingOp,
     SolidRec,
+    field_or,
 )
 
 
@@ -239,16 +240,7 @@ class SupervisorEdits(MassEdits):
         joint = next((j for j in self.joints if node in j.params), None)
         if joint is not None:
             i = joint.params.index(node)
-            if name == "staticFriction":
-                joint.static_friction[i] = float(value)
-                self._set_static_friction(joint, i)
-                return True
-            if name in ("dampingConstant", "springConstant"):
-                self.rebuild_springs(joint)  # physics/joints.py: every axis, stepping lists refreshed
-                return True
-            if name in ("stopERP", "stopCFM"):
-                return self._set_stop_softness(joint, i, name)
-            return False
+            return self._apply_joint_field(joint, i, name)
         motor = next((m for m in self.motors if m.node is node), None)
         if motor is not None:
             if name == "maxVelocity":
@@ -277,6 +269,24 @@ class SupervisorEdits(MassEdits):
                           f"reset to {default:g}")
                 number = node.fields[name] = default
             (lib.dWorldSetERP if name == "ERP" else lib.dWorldSetCFM)(self._world, number)
+            return True
+        return False
+
+    def _apply_joint_field(self, joint: JointRec, i: int, name: str) -> bool:
+        """An edit of a field of ``joint``'s parameters of axis ``i`` (``position`` is a teleport, queued by the
+        Field API). A kinematic joint (no ODE joint) has nothing in ODE to change."""
+        if name == "staticFriction":
+            joint.static_friction[i] = float(field_or(joint.params[i], name, 0.0))
+            self._set_static_friction(joint, i)
+            return True
+        if name in ("dampingConstant", "springConstant"):
+            self.rebuild_springs(joint)  # physics/joints.py: every axis, stepping lists refreshed
+            return True
+        if name in ("stopERP", "stopCFM"):
+            return self._set_stop_softness(joint, i, name)
+        if name in ("minStop", "maxStop"):
+            self._set_stops_again(joint, i)
+            self.wake(joint)
             return True
         return False
 

@@ -46,7 +46,6 @@ DEVICE_FIELDS = ("device", "device2", "device3")
 PARAMETER_FIELDS = ("jointParameters", "jointParameters2", "jointParameters3")
 
 _AxisDevice = MotorRec | PositionSensorRec | BrakeRec
-_STOP_GROUPS = (0, ode.dParamGroup2, ode.dParamGroup3)
 
 
 class JointChanges(Stepper):
@@ -170,18 +169,6 @@ class JointChanges(Stepper):
                 self._set_static_friction(joint, i)
         if joint.kind == "hinge2":
             self._set_hinge2_suspension(joint)
-
-    def _free_stops(self, joint: JointRec, i: int) -> None:
-        """No stop on axis ``i`` (before the parameters' own stops, if any, are set)."""
-        if joint.kind == "hinge2" and i == 1:
-            if joint.stop2:
-                self._lib.dJointSetAMotorParam(joint.stop2, ode.dParamHiStop, ode.dInfinity)
-                self._lib.dJointSetAMotorParam(joint.stop2, ode.dParamLoStop, -ode.dInfinity)
-            return
-        setp = self._param_setter(joint)
-        group = _STOP_GROUPS[joint.ode_axis(i)]
-        setp(joint.ptr, group + ode.dParamHiStop, ode.dInfinity)
-        setp(joint.ptr, group + ode.dParamLoStop, -ode.dInfinity)
 
     def _set_hinge2_suspension(self, joint: JointRec) -> None:
         """The suspension of the new parameters, or ODE's default (the world's ERP and CFM) without one."""

@@ -251,6 +251,34 @@ class JointBuilder(SceneBuilder):
         setp(joint.ptr, group + ode.dParamLoStop, lo)
         setp(joint.ptr, group + ode.dParamHiStop, hi)
 
+    def _free_stops(self, joint: JointRec, i: int) -> None:
+        """No stop on axis ``i`` (before the parameters' own stops, if any, are set)."""
+        if joint.kind == "hinge2" and i == 1:
+            if joint.stop2:
+                self._lib.dJointSetAMotorParam(joint.stop2, ode.dParamHiStop, ode.dInfinity)
+                self._lib.dJointSetAMotorParam(joint.stop2, ode.dParamLoStop, -ode.dInfinity)
+            return
+        setp = self._param_setter(joint)
+        group = _GROUPS[joint.ode_axis(i)]
+        # Upstream ODE's hinge tests its limit only while a stop lies within [−π, π] and does not clear the test's
+        # last result otherwise: a hinge resting on a stop whose stops become ±∞ kept its "at the limit" flag, and
+        # the next step wrote a stop row it had not counted (ODE stopped inside the step on an LCP assertion). Its
+        # angle is in [−π, π) (checked), so a high stop at π keeps the test running and never engages.
+        setp(joint.ptr, group + ode.dParamHiStop, math.pi if joint.kind == "hinge" else ode.dInfinity)
+        setp(joint.ptr, group + ode.dParamLoStop, -ode.dInfinity)
+
+    def _set_stops_again(self, joint: JointRec, i: int) -> None:
+        """A run-time edit of ``minStop`` or ``maxStop`` on axis ``i`` (Webots: WbJointParameters'
+        minStopChanged/maxStopChanged, the joint's stops applied to ODE again): the stops are mapped as at load
+        (§4.2/§4.3: sign, the current offset, clamped into [−π, π] on rotational axes) from the next step, and
+        equal stops take the axis' stops away. A Hinge2's second axis may get its stop AMotor now: it joins the
+        AMotors whose angle is set before every step."""
+        if not joint.ptr:
+            return  # a kinematic joint has no ODE stop, at load either
+        self._free_stops(joint, i)
+        self._set_stops(joint, i)
+        self._springs = [j for j in self.joints if j.spring or j.spring2 or j.stop2]
+
     def _set_stop_softness(self, joint: JointRec, i: int, name: str) -> bool:
         """A run-time edit of a HingeJointParameters' ``stopERP`` or ``stopCFM`` (−1: the world's current value):
         passed to the joint's stop rows through dParamStopERP/CFM (§4.2; at creation ODE's defaults, the world's,
