@@ -1,5 +1,5 @@
-"""A supervisor's edit of a joint's ``minStop``/``maxStop`` acts on ODE from the next step, as in Webots, on every
-joint type and axis.
+"""A supervisor's edit of a joint's ``minStop``/``maxStop`` or ``staticFriction`` acts on ODE from the next step, as
+in Webots, on every joint type and axis.
 
 S = /work/shared/reference/webots-on-ode.md. Webots applies edited stops to ODE again (WbJointParameters'
 minStopChanged/maxStopChanged, the joint's updateMinAndMaxStop) with the mapping of the load: S §4.2 (hinge and
@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -19,6 +20,7 @@ from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Supervisor
 from dualtwin.webots.physics import Simulation
 from tests.support.hinge_arm import BOB, TS, G, load_arm
+from tests.support.world_runs import run_world_cli
 
 HEAVY_BASE = 'Solid { name "base" boundingObject Box { size 0.1 0.1 0.1 } physics Physics { density -1 mass 1000 } '
 
@@ -235,3 +237,55 @@ def test_ball_stops_set_at_run_time_hold_each_axis(parent: str, axis: int, veloc
     params.getField("maxStop").setSFFloat(0.5)
     _steps(sup, 250)
     assert s.getValue() == pytest.approx(0.5 if velocity > 0 else -0.2, abs=3e-3)
+
+
+# ------------------------------------------------------------------------------------------ static friction
+
+
+def test_static_friction_edited_to_zero_lets_the_arm_fall() -> None:
+    # S §4.5: without a motor, static friction is a velocity-0 motor limited to staticFriction. 6 N·m holds the
+    # arm (gravity's torque m·g·r = 4.9 N·m); edited to 0 the arm falls: from rest at horizontal it passes
+    # 1 rad within 0.4 s (α = 4.9/0.251 = 19.5 rad/s² at first, hand computation)
+    sup, s = _arm("staticFriction 6")
+    _steps(sup, 100)
+    assert abs(s.getValue()) < 1e-3  # control: held
+    _params(sup, True).getField("staticFriction").setSFFloat(0.0)
+    _steps(sup, 100)
+    assert s.getValue() > 1.0
+
+
+def test_static_friction_edited_up_at_run_time_brakes_the_arm() -> None:
+    # 6 N·m set on a free arm at rest: it is held as if loaded with it (gravity's 4.9 N·m is less); this worked
+    # before, kept beside the edit to 0 as the way up
+    sup, s = _arm("")
+    _params(sup, True).getField("staticFriction").setSFFloat(6.0)
+    _steps(sup, 100)
+    assert abs(s.getValue()) < 1e-3
+
+
+KINEMATIC = """#VRML_SIM R2023b utf8
+WorldInfo { basicTimeStep 8 }
+Robot { controller "<extern>" supervisor TRUE children [ HingeJoint {
+  jointParameters DEF P HingeJointParameters { axis 0 1 0 staticFriction 1 minStop -1 maxStop 1 }
+  endPoint DEF TIP Solid { translation 0.5 0 0 } } ] }
+"""
+KINEMATIC_EDITS = """from controller import Supervisor
+s = Supervisor()
+s.step(8)
+params = s.getFromDef("P")
+for name, value in (("staticFriction", 0.0), ("staticFriction", 2.0), ("minStop", -0.5), ("maxStop", 0.5),
+                    ("springConstant", 3.0), ("stopERP", 0.5)):
+    params.getField(name).setSFFloat(value)
+    s.step(8)
+print("TIP", " ".join(repr(v) for v in s.getFromDef("TIP").getPosition()))
+"""
+
+
+def test_parameter_edits_on_a_kinematic_joint_leave_it_as_it_is(tmp_path: Path) -> None:
+    # S §4.1: an endPoint without Physics makes a kinematic joint, with no ODE joint: its parameters' friction,
+    # stops, spring and stop softness have nothing in ODE to act on (edited, friction was passed to ODE on a null
+    # joint, which aborted the process: the run goes through a child process). The endPoint stays where it is.
+    run = run_world_cli(tmp_path, "kinematic", KINEMATIC, KINEMATIC_EDITS)
+    assert run.returncode == 0, run.stderr
+    tip = next(line for line in run.stdout.splitlines() if line.startswith("TIP "))
+    assert [float(v) for v in tip.split()[1:]] == pytest.approx([0.5, 0.0, 0.0], abs=1e-12)

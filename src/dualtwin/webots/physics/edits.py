@@ -277,7 +277,11 @@ class SupervisorEdits(MassEdits):
         Field API). A kinematic joint (no ODE joint) has nothing in ODE to change."""
         if name == "staticFriction":
             joint.static_friction[i] = float(field_or(joint.params[i], name, 0.0))
-            self._set_static_friction(joint, i)
+            if joint.ptr and joint.motors[i] is None:
+                # §4.5: without a motor the axis' motor row is velocity 0 limited to staticFriction; set even
+                # when it is 0 now, which lets the axis go (a friction edited to 0 held the joint as before)
+                self._set_motor_row(joint, i, 0.0, joint.static_friction[i])
+                self.wake(joint)
             return True
         if name in ("dampingConstant", "springConstant"):
             self.rebuild_springs(joint)  # physics/joints.py: every axis, stepping lists refreshed
