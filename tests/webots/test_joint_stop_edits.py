@@ -1,5 +1,5 @@
-"""A supervisor's edit of a joint's ``minStop``/``maxStop`` or ``staticFriction`` acts on ODE from the next step, as
-in Webots, on every joint type and axis.
+"""A supervisor's edit of a joint's ``minStop``/``maxStop``, ``staticFriction`` or (Hinge2) suspension constants
+acts on ODE from the next step, as in Webots, on every joint type and axis that has the field.
 
 S = /work/shared/reference/webots-on-ode.md. Webots applies edited stops to ODE again (WbJointParameters'
 minStopChanged/maxStopChanged, the joint's updateMinAndMaxStop) with the mapping of the load: S §4.2 (hinge and
@@ -289,3 +289,31 @@ def test_parameter_edits_on_a_kinematic_joint_leave_it_as_it_is(tmp_path: Path) 
     assert run.returncode == 0, run.stderr
     tip = next(line for line in run.stdout.splitlines() if line.startswith("TIP "))
     assert [float(v) for v in tip.split()[1:]] == pytest.approx([0.5, 0.0, 0.0], abs=1e-12)
+
+
+# ------------------------------------------------------------------------------------------ Hinge2 suspension
+
+
+def _sag(sup: Supervisor, n: int = 500) -> float:
+    """How far the wheel hangs below its anchor (the base's origin; the base, fixed to the world, sags too)."""
+    _steps(sup, n)
+    return sup.getFromDef("BASE").getPosition()[2] - sup.getFromDef("WHEEL").getPosition()[2]
+
+
+def test_hinge2_suspension_edited_at_run_time_reaches_ode() -> None:
+    # S §4.4/§4.5: suspension ERP = hK/(hK + B), CFM = 1/(hK + B); at rest the row's force ERP·err/(h·CFM) is then
+    # K·err, so a 1 kg wheel hanging on a vertical first axis sags m·g/K (hand computation). With both constants 0
+    # ODE keeps the world's ERP 0.2 / CFM 1e-5: a sag of m·g·h·CFM/ERP = 2e-6 m
+    sup = _world(HINGE2.format(axis1="0 0 1", axis2="1 0 0"), gravity=G)
+    world_sag = G * TS / 1000 * 1e-5 / 0.2
+    assert _sag(sup) == pytest.approx(world_sag, abs=1e-6)  # control
+    params = sup.getFromDef("P1")
+    params.getField("suspensionSpringConstant").setSFFloat(1000.0)
+    params.getField("suspensionDampingConstant").setSFFloat(60.0)
+    assert _sag(sup) == pytest.approx(G / 1000.0, rel=1e-3)
+    params.getField("suspensionSpringConstant").setSFFloat(2000.0)
+    assert _sag(sup) == pytest.approx(G / 2000.0, rel=1e-3)
+    params.getField("suspensionSpringConstant").setSFFloat(0.0)
+    params.getField("suspensionDampingConstant").setSFFloat(0.0)
+    assert _sag(sup) == pytest.approx(world_sag, abs=1e-6)
+

@@ -292,6 +292,12 @@ class SupervisorEdits(MassEdits):
             self._set_stops_again(joint, i)
             self.wake(joint)
             return True
+        if name in ("suspensionSpringConstant", "suspensionDampingConstant") and joint.kind == "hinge2" and i == 0:
+            # §4.4: ODE's own hinge2 suspension, set as at load (a HingeJoint's suspension is fork-only, §4.2)
+            if joint.ptr:
+                self._set_hinge2_suspension(joint)
+                self.wake(joint)
+            return True
         return False
 
     def joint_velocity(self, joint: JointRec, axis_index: int = 0) -> float:

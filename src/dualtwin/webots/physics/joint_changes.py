@@ -28,7 +28,6 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-from dualtwin.webots import ode
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics.records import (
     BrakeRec,
@@ -169,9 +168,3 @@ class JointChanges(Stepper):
                 self._set_static_friction(joint, i)
         if joint.kind == "hinge2":
             self._set_hinge2_suspension(joint)
-
-    def _set_hinge2_suspension(self, joint: JointRec) -> None:
-        """The suspension of the new parameters, or ODE's default (the world's ERP and CFM) without one."""
-        self._lib.dJointSetHinge2Param(joint.ptr, ode.dParamSuspensionERP, self.erp)
-        self._lib.dJointSetHinge2Param(joint.ptr, ode.dParamSuspensionCFM, self.cfm)
-        self._set_suspension(joint)

@@ -86,6 +86,15 @@ class JointBuilder(SceneBuilder):
         self._lib.dJointSetHinge2Param(joint.ptr, ode.dParamSuspensionERP, min(h * k / (h * k + b), 1.0))
         self._lib.dJointSetHinge2Param(joint.ptr, ode.dParamSuspensionCFM, 1.0 / (h * k + b))
 
+    def _set_hinge2_suspension(self, joint: JointRec) -> None:
+        """A Hinge2's suspension set again (its parameters' suspension constants edited, or the parameters node
+        imported or removed at run time): ODE's default first, the world's current ERP and CFM (what Webots sets
+        with both constants 0), then the parameters' own suspension, if any."""
+        lib = self._lib
+        lib.dJointSetHinge2Param(joint.ptr, ode.dParamSuspensionERP, lib.dWorldGetERP(self._world))
+        lib.dJointSetHinge2Param(joint.ptr, ode.dParamSuspensionCFM, lib.dWorldGetCFM(self._world))
+        self._set_suspension(joint)
+
     def _referenced_solid(self, joint: JointRec, name: str) -> SolidRec | None:
         """§10: depth-first search by name from the joint's topmost Solid ancestor, skipping its upper Solid."""
         top = joint.parent
