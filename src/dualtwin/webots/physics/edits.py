@@ -187,21 +187,26 @@ class SupervisorEdits(MassEdits):
             lib.dJointSetAMotorParam(joint.spring, ode.dParamHiStop, stop)
 
     def _teleport_joint(self, joint: JointRec, axis_index: int, position: float) -> None:
-        """§4.1: move the endPoint to zero-pose ⊕ position, reset its subtree's physics."""
+        """§4.1: move the endPoint to zero-pose ⊕ position, reset its subtree's physics. On a Hinge2Joint or a
+        BallJoint the other axes keep their current positions and the rotations compose as in a chain of hinges
+        (§4.4: the first axis carries the second, which carries the third): zero-pose ⊕ R(axis1, p1)·R(axis2,
+        p2)(·R(axis3, p3)), the zero pose being the load pose undone by the load positions in the same chain.
+        ODE's zero and the offsets stay: the positions are read on from ODE."""
         p = joint.params[axis_index]
         if p is not None:
             p.fields["position"] = float(position)
         child = joint.child
-        if child is None or joint.kind in ("ball",) or (joint.kind == "hinge2" and axis_index == 1):
-            joint.positions[axis_index] = float(position)
-            return
-        if joint.kinematic:
+        if child is None or joint.kinematic:
             joint.positions[axis_index] = float(position)
             return
         old_world = self.solid_world_pose(child)
         parent_world = self.solid_world_pose(joint.parent) if joint.parent is not None else Pose()
-        delta = float(position) - joint.initial_positions[axis_index]
-        new_rel = self._joint_motion(joint, delta) * child.load_rel if delta else child.load_rel
+        if joint.kind in ("ball", "hinge2"):
+            joint.positions[axis_index] = float(position)
+            new_rel = self._chain_motion(joint) * child.load_rel
+        else:
+            delta = float(position) - joint.initial_positions[axis_index]
+            new_rel = self._joint_motion(joint, delta) * child.load_rel if delta else child.load_rel
         new_world = parent_world * new_rel
         self._move_subtree(child, new_world * old_world.inverse(), reset_velocity=True)
         moved = {id(s) for s in child.subtree()}

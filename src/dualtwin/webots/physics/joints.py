@@ -528,10 +528,10 @@ class JointBuilder(SceneBuilder):
         elif kind == "slider":
             joint.positions[0] = self._slider_pos(j) + joint.offsets[0]
         elif kind == "ball":
-            angles = self._ball_angles(joint)
-            for i, a in enumerate(angles):
-                pos = a + joint.offsets[i]
-                joint.positions[i] = m3.normalize_angle(pos, joint.positions[i]) if predict else pos
+            # unwrapped to within ±π of the last positions, also without prediction: after a teleport (§4.1) these
+            # are the positions set (a first axis teleported to 4 rad reads 4, not ODE's Euler angle 4 − 2π)
+            for i, a in enumerate(self._ball_angles(joint)):
+                joint.positions[i] = m3.normalize_angle(a + joint.offsets[i], joint.positions[i])
         elif kind == "hinge2":
             a1 = lib.dJointGetHinge2Angle1(j)
             a2 = lib.dJointGetHinge2Angle2(j)
