@@ -181,11 +181,10 @@ def test_hinge_stop_below_pi_holds_a_driven_joint() -> None:
     assert _driven_to_stop(3.0) == pytest.approx(3.0, abs=0.02)
 
 
-@pytest.mark.xfail(strict=True, reason="S l.347-348 and Appendix A.3: the stops are clamped to ±π (done), but only "
-                   "Webots' ODE fork unwraps the angle across ±π when it tests the limit; upstream ODE's hinge angle "
-                   "wraps at ±π, so a stop clamped to π does not hold a driven joint (a documented fork difference)")
 def test_hinge_stop_beyond_pi_is_clamped_to_pi() -> None:
-    # S l.347: both stops are clamped into [−π, π]: a motor driving toward maxStop 4 stops at π
+    # S l.347: both stops are clamped into [−π, π]: a motor driving toward maxStop 4 stops at π. Webots' ODE fork
+    # unwraps the angle across ±π when it tests the limit (S l.350, Appendix A.3); upstream ODE's hinge angle wraps
+    # there, so ODE's zero follows the joint instead (physics/joints.py _rebase_hinge)
     assert _driven_to_stop(4.0) == pytest.approx(math.pi, abs=0.02)
 
 

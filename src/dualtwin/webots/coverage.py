@@ -176,8 +176,9 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("HingeJoint", "joint", "partial",
              "position, stops (stopERP/stopCFM edited at run time reach ODE; at load ODE's world defaults), springs, "
              "dampers, static friction; no suspension (an ODE-fork-only API); a stop at ±π (maxStop or -minStop of "
-             "π or more, clamped) does not hold a driven joint: upstream ODE wraps the angle there, only the fork "
-             "unwraps it"),
+             "π or more, clamped) holds a driven joint as with the fork, which unwraps the angle where upstream ODE "
+             "wraps it: ODE's zero follows a hinge with stops (set again on its own axis when it has turned π/2 "
+             "from it), its stops and spring rest shifted by as much"),
     Coverage("SliderJoint", "joint", "supported", "stops; springs emulated with an equivalent LMotor row"),
     Coverage("Hinge2Joint", "joint", "partial",
              "both axes' motors, sensors (continuous multi-turn positions on both axes, read with ODE's own "

@@ -185,6 +185,7 @@ class JointBuilder(SceneBuilder):
             lib.dJointSetBallAnchor(j, *anchor)
             self._set_euler_axes(joint, frame)
         joint.offsets = list(joint.positions)
+        joint.stop_shift = 0.0  # Webots' own offset: the stops are mapped from it
         self._read_joint(joint, predict=False)
 
     def _attach_euler(self, amotor: int, joint: JointRec) -> None:
@@ -244,7 +245,8 @@ class JointBuilder(SceneBuilder):
         lo_w, hi_w = float(_f(p, "minStop", 0.0)), float(_f(p, "maxStop", 0.0))
         if lo_w == hi_w:
             return
-        off = joint.offsets[i]
+        shift = joint.stop_shift if joint.kind == "hinge" else 0.0
+        off = joint.offsets[i] - shift  # Webots' offset (ODE's zero has moved by shift since, _rebase_hinge)
         if joint.kind == "slider":
             lo, hi = lo_w - off, hi_w - off  # §4.3
         else:
@@ -252,6 +254,8 @@ class JointBuilder(SceneBuilder):
             hi = max(-math.pi, min(math.pi, -lo_w + off))
         if lo > hi:
             lo, hi = hi, lo
+        lo, hi = lo + shift, hi + shift
+        joint.rebase = joint.kind == "hinge"
         if joint.kind == "hinge2" and i == 1:
             self._set_hinge2_second_stops(joint, lo, hi)
             return
@@ -275,6 +279,7 @@ class JointBuilder(SceneBuilder):
         # angle is in [−π, π) (checked), so a high stop at π keeps the test running and never engages.
         setp(joint.ptr, group + ode.dParamHiStop, math.pi if joint.kind == "hinge" else ode.dInfinity)
         setp(joint.ptr, group + ode.dParamLoStop, -ode.dInfinity)
+        joint.rebase = False
 
     def _set_stops_again(self, joint: JointRec, i: int) -> None:
         """A run-time edit of ``minStop`` or ``maxStop`` on axis ``i`` (Webots: WbJointParameters'
@@ -287,6 +292,33 @@ class JointBuilder(SceneBuilder):
         self._free_stops(joint, i)
         self._set_stops(joint, i)
         self._springs = [j for j in self.joints if j.spring or j.spring2 or j.stop2]
+
+    def _hinge_spring_rest(self, joint: JointRec) -> float:
+        """The stop of a hinge's spring AMotor, whose angle is ODE's hinge angle (§4.5: normalizeAngle(offset)),
+        Webots' offset taken where ODE's zero has moved since (:meth:`_rebase_hinge`)."""
+        return m3.normalize_angle(joint.offsets[0] - joint.stop_shift) + joint.stop_shift
+
+    def _rebase_hinge(self, joint: JointRec) -> None:
+        """§4.2 fork difference (Appendix A.3): Webots' ODE unwraps a hinge's angle across ±π when it tests the
+        stops; upstream ODE's angle wraps there, so a stop clamped to ±π never held. A hinge with stops turned
+        more than π/2 from ODE's zero gets its zero here (dJointSetHingeAxis on its own axis: ODE's angle restarts
+        at 0; the rows stay, the endPoint's axis re-taken along the parent's, as any re-anchoring does), its offset
+        the current position, and its stops (and its spring's rest) shifted by as much: they are the stops Webots
+        maps from its own offset (§4.2), and the angle ODE tests them against stays within about π/2 of 0, never
+        wrapped."""
+        lib = self._lib
+        position = joint.positions[0]
+        joint.stop_shift += position - joint.offsets[0]
+        joint.offsets[0] = position
+        axis = (ctypes.c_double * 4)()
+        lib.dJointGetHingeAxis(joint.ptr, axis)
+        lib.dJointSetHingeAxis(joint.ptr, axis[0], axis[1], axis[2])
+        joint.raw_angles[0] = 0.0
+        self._set_stops(joint, 0)
+        if joint.spring:
+            rest = self._hinge_spring_rest(joint)
+            lib.dJointSetAMotorParam(joint.spring, ode.dParamLoStop, rest)
+            lib.dJointSetAMotorParam(joint.spring, ode.dParamHiStop, rest)
 
     def _set_stop_softness(self, joint: JointRec, i: int, name: str) -> bool:
         """A run-time edit of a HingeJointParameters' ``stopERP`` or ``stopCFM`` (−1: the world's current value):
@@ -372,7 +404,7 @@ class JointBuilder(SceneBuilder):
         rel = 0 if joint.reverse else 1
         if joint.kind == "hinge":
             ax = m3.scale(axis, -1.0) if joint.reverse else axis
-            am = self._stop_amotor(joint, ax, rel, m3.normalize_angle(joint.offsets[0]), k, b)
+            am = self._stop_amotor(joint, ax, rel, self._hinge_spring_rest(joint), k, b)
         else:
             am = lib.dJointCreateLMotor(self._world, None)
             lib.dJointAttach(am, pb, joint.child_body.ptr)

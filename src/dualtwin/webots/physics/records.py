@@ -315,6 +315,10 @@ class JointRec(_ShortRepr):
     spring: int = 0  # AMotor/LMotor implementing spring and damper
     spring2: int = 0  # Hinge2: the AMotor of the second axis
     stop2: int = 0  # Hinge2: a user AMotor holding the second axis' stops (upstream ODE's hinge2 has none there)
+    # a hinge with stops: ODE's zero follows the joint (physics/joints.py _rebase_hinge); stop_shift is how far
+    # it moved since Webots set it (the offset minus the offset the stops are mapped from, §4.2)
+    rebase: bool = False
+    stop_shift: float = 0.0
     spring_erp: float = 0.0
     spring_cfm: float = 0.0
     motors: list[MotorRec | None] = field(default_factory=lambda: [None])

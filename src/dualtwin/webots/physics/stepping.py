@@ -21,6 +21,7 @@ from dualtwin.webots.physics.records import (
 _FMAX = ode.dParamFMax
 _VEL = ode.dParamVel
 _PI = math.pi
+_HALF_PI = math.pi / 2
 
 
 class Stepper(SupervisorEdits):
@@ -236,6 +237,8 @@ class Stepper(SupervisorEdits):
             # already within (pred - π, pred + π]: normalize_angle would return it unchanged (both comparisons
             # are its loops' conditions; they also fail for NaN or infinite values, which take the slow path)
             positions[0] = pos if pred - _PI < pos <= pred + _PI else m3.normalize_angle(pos, pred)
+            if joint.rebase and not -_HALF_PI <= a <= _HALF_PI:
+                self._rebase_hinge(joint)  # its stops tested on an angle that does not wrap (physics/joints.py)
         if self._accel_cur:
             for index in self._accel_cur:
                 b = self.bodies[index]
