@@ -183,8 +183,9 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Hinge2Joint", "joint", "partial",
              "both axes' motors, sensors (continuous multi-turn positions on both axes, read with ODE's own "
              "sign per axis), springs and dampers (a stop AMotor per axis; run-time edits reach ODE), "
-             "suspension along the first axis (ODE's hinge2 suspension ERP/CFM); stops on both axes (upstream "
-             "ODE never limits the second, so a stop AMotor holds it); a Hinge2Joint whose parent has no body gets "
+             "suspension along the first axis (ODE's hinge2 suspension ERP/CFM, also edited at run time); stops on "
+             "both axes (upstream ODE never limits the second, so a stop AMotor holds it); a position edited on "
+             "either axis teleports the endPoint, the second axis turned by the first; a Hinge2Joint whose parent has no body gets "
              "no ODE joint and is kinematic: its motors turn the endPoint, body included, which is held on the "
              "joint's pose at rest after every step (what gravity or contacts do to it in Webots is not "
              "documented)"),
@@ -193,15 +194,20 @@ REGISTRY: tuple[Coverage, ...] = (
              "cross product; first and third aligned or zero: x and z, with a warning) with motors, position sensors, brakes, stops and friction on an Euler AMotor; "
              "springs, dampers and brakes on a second Euler AMotor; on a static parent both AMotors hang on the "
              "endPoint alone (ODE's first and third axes swapped), so motors, stops, torques and springs act on "
-             "each axis as with a body as parent; kinematic when the endPoint has no Physics"),
+             "each axis as with a body as parent; a position edited on any axis teleports the endPoint (the three "
+             "rotations in chain, the other axes kept); kinematic when the endPoint has no Physics"),
     Coverage("JointParameters", "joint", "supported",
-             "slider axis, position, stops, spring, damping, friction; imported by a supervisor into a joint's empty "
+             "slider axis, position, stops, spring, damping, friction; edited by a supervisor, position teleports "
+             "the endPoint (its subtree's physics reset, motor targets kept) and minStop/maxStop, springConstant, "
+             "dampingConstant and staticFriction act from the next step, on every joint and axis (an axis edit is "
+             "not applied); imported by a supervisor into a joint's empty "
              "jointParameters field (any axis) they act from the next step, the joint set again where its Solids "
              "are (nothing moves, the current configuration reads the node's position); removed, the joint goes "
              "back to the defaults where it is, its position read on without a jump; a reset puts the joint back "
              "as at load"),
     Coverage("HingeJointParameters", "joint", "supported",
-             "axis, anchor and the JointParameters fields (also imported or removed at run time, as JointParameters)"),
+             "axis, anchor and the JointParameters fields (also imported or removed at run time, as JointParameters; "
+             "edits of axis, anchor and suspensionAxis are not applied at run time)"),
     Coverage("BallJointParameters", "joint", "supported", "anchor"),
     Coverage("SolidReference", "joint", "partial",
              "closed loops: an ODE joint from the upper body to the named Solid (searched in the joint's "
