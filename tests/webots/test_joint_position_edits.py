@@ -156,3 +156,32 @@ def test_ball_first_axis_teleported_past_pi_reads_the_position_set() -> None:
     _steps(sup, 1)
     assert _positions(sup, 3) == pytest.approx([4.0, 0.0, 0.0], abs=1e-9)
     assert sup.getFromDef("END").getOrientation() == pytest.approx(list(_chain(((1, 0, 0), 4.0))), abs=1e-9)
+
+
+def test_set_joint_position_teleports_a_hinge2s_second_axis_without_parameters() -> None:
+    # Node.setJointPosition(position, 2) on a Hinge2Joint without jointParameters2 (the hidden position2 field is
+    # its position): the same teleport as the parameters' position. Its axis is then z here, JointParameters'
+    # default (S §4.4 leaves the value Webots uses unverified; physics/build.py _joint_axes)
+    sup = _world(HINGE2.replace("    jointParameters2 DEF P2 JointParameters { axis 0 0 1 }\n", "").replace(
+        "children [ Hinge2Joint {", "children [ DEF H2 Hinge2Joint {"))
+    _steps(sup, 1)
+    sup.getFromDef("H2").setJointPosition(0.7, 2)
+    _steps(sup, 1)
+    assert _positions(sup, 2) == pytest.approx([0.0, 0.7], abs=1e-9)
+    assert sup.getFromDef("END").getOrientation() == pytest.approx(list(_chain(((0, 0, 1), 0.7))), abs=1e-9)
+
+
+def test_slider_position_edited_teleports_the_endpoint_along_the_axis() -> None:
+    # S §4.1 on a SliderJoint: zero-pose ⊕ position is a translation by position along the axis (here x, from
+    # position 0.1 at load where the endPoint is at x = 0.1)
+    sup = _world("""Robot { supervisor TRUE children [ SliderJoint {
+      jointParameters DEF P1 JointParameters { axis 1 0 0 position 0.1 }
+      device [ PositionSensor { name "s1" } ]
+      endPoint DEF END Solid { translation 0.1 0 0 linearVelocity 1 0 0 boundingObject Sphere { radius 0.1 }
+                               physics Physics { density -1 mass 1 } } } ] }""")
+    _steps(sup, 1)
+    _set(sup, 1, 0.4)
+    _steps(sup, 1)
+    assert _positions(sup, 1) == pytest.approx([0.4], abs=1e-9)
+    assert sup.getFromDef("END").getPosition() == pytest.approx([0.4, 0.0, 0.0], abs=1e-9)
+    assert sup.getFromDef("END").getVelocity() == pytest.approx([0.0] * 6, abs=1e-9)

@@ -208,6 +208,21 @@ def test_hinge2_stops_set_at_run_time_hold_each_axis(axis: int, velocity: float)
     assert s.getValue() * velocity > 1.0
 
 
+
+def test_hinge2_first_axis_stop_cfm_edited_at_run_time_reaches_ode() -> None:
+    # S §4.2/§4.4: a Hinge2's HingeJointParameters stopCFM reaches its first axis' stop row when edited. Driven
+    # onto maxStop 0.5 by 1 N·m, the row's force ERP·err/(h·CFM) balances it: err = 1·h·CFM/ERP = 0.002 rad with
+    # CFM 0.1 and the world's ERP 0.2 (hand computation; 2e-7 rad with the world's CFM 1e-5)
+    sup = _world(HINGE2.format(axis1="1 0 0", axis2="0 0 1"))
+    s = _driven(sup, 1, 1.0)
+    params = sup.getFromDef("P1")
+    params.getField("maxStop").setSFFloat(0.5)
+    _steps(sup, 250)
+    assert s.getValue() == pytest.approx(0.5, abs=1e-5)  # control
+    params.getField("stopCFM").setSFFloat(0.1)
+    _steps(sup, 250)
+    assert s.getValue() == pytest.approx(0.5 + 1.0 * TS / 1000 * 0.1 / 0.2, abs=1e-4)
+
 # ------------------------------------------------------------------------------------------ BallJoint stops
 
 BALL = """Robot {{ supervisor TRUE {parent} children [ BallJoint {{
