@@ -16,7 +16,7 @@ from dualtwin.webots import _math3 as m3
 from dualtwin.webots.api_args import as_int
 from dualtwin.webots.node_types import node_type_of
 from dualtwin.webots.physics import DeviceRec, RobotRec, Simulation
-from dualtwin.webots.step_hints import buffered, command_value, step_value
+from dualtwin.webots.step_hints import step_value
 
 
 class DeviceHost(Protocol):
@@ -327,52 +327,3 @@ class SolidSensor(Sensor):
 
     def _pose(self) -> m3.Pose:
         return self._robot._sim.solid_world_pose(self._record.solid)
-
-
-class KinematicMotor(Device):
-    """Webots' Motor API for a motor that drives a kinematic state (a propeller's spin, a track's belt) instead
-    of an ODE joint row. The state (``_state()``) holds ``multiplier``, ``max_velocity``, ``target_position``,
-    ``target_velocity`` and ``acceleration``; velocities are multiplied and clipped as Webots clips them."""
-
-    def _state(self) -> Any:
-        return self._record
-
-    @buffered()
-    def setVelocity(self, velocity: Any) -> None:
-        from dualtwin.webots.api_args import as_float, finite, warn
-
-        state = self._state()
-        v = as_float(velocity, "Motor.setVelocity")
-        if not finite(v):
-            return
-        v *= state.multiplier
-        if abs(v) > state.max_velocity:
-            warn(f"'{self._name}': requested velocity {v} exceeds maxVelocity {state.max_velocity}")
-            v = math.copysign(state.max_velocity, v)
-        state.target_velocity = v
-
-    @buffered()
-    def setAcceleration(self, acceleration: Any) -> None:
-        from dualtwin.webots.api_args import as_float, finite
-
-        a = as_float(acceleration, "Motor.setAcceleration")
-        if finite(a):
-            self._state().acceleration = a
-
-    @command_value
-    def getTargetPosition(self) -> float:
-        return float(self._state().target_position)
-
-    @command_value
-    def getVelocity(self) -> float:
-        return float(self._state().target_velocity)
-
-    def getMaxVelocity(self) -> float:
-        return float(self._state().max_velocity)
-
-    @command_value
-    def getAcceleration(self) -> float:
-        return float(self._state().acceleration)
-
-    def getMultiplier(self) -> float:
-        return float(self._state().multiplier)

@@ -9,11 +9,10 @@ from __future__ import annotations
 
 import ctypes
 import math
-import sys
 from typing import Any
 
 from dualtwin.webots import _math3 as m3
-from dualtwin.webots import ode
+from dualtwin.webots import motor_api, ode
 from dualtwin.webots.api_args import as_float, finite, warn
 from dualtwin.webots.device_base import Device, SampledDevice
 from dualtwin.webots.physics import BrakeRec, MotorRec, PositionSensorRec
@@ -196,8 +195,7 @@ class Motor(Device):
     @buffered()
     def setPosition(self, position: Any) -> None:
         position = as_float(position, "Motor.setPosition")
-        if not _finite(position):
-            _warn(f"Motor.setPosition() called with an invalid value (NaN) on '{self._name}'")
+        if motor_api.refuse_nan("setPosition", self._name, position):
             return
         for motor in self._coupled():
             motor._set_position(position)
@@ -206,25 +204,17 @@ class Motor(Device):
 
     def _set_position(self, position: float) -> None:
         rec = self._record
-        p = position * rec.multiplier
-        if rec.min_position != rec.max_position and math.isfinite(p):
-            clamped = min(max(p, rec.min_position), rec.max_position)
-            if clamped != p:
-                _warn(f"'{self._name}': requested position {p} outside [minPosition, maxPosition]")
-            p = clamped
-        rec.target_position = p
+        rec.target_position = motor_api.clamp_position(self._name, position * rec.multiplier, rec.min_position,
+                                                       rec.max_position)
         rec.torque_mode = False
         self._changed()
 
     @buffered()
     def setVelocity(self, velocity: Any) -> None:
         velocity = as_float(velocity, "Motor.setVelocity")
-        if not _finite(velocity):
-            _warn(f"Motor.setVelocity() called with an invalid value (NaN) on '{self._name}'")
+        if motor_api.refuse_nan("setVelocity", self._name, velocity):
             return
-        if velocity < 0 and math.isfinite(self._record.target_position):
-            print(f"Error: wb_motor_set_velocity() called with a negative velocity on '{self._name}', which is in "
-                  "position control: use setPosition(float('inf')) for velocity control", file=sys.stderr)
+        if motor_api.refuse_velocity(self._name, velocity, self._record.target_position):
             return
         for motor in self._coupled():
             motor._set_velocity(velocity)
@@ -232,21 +222,13 @@ class Motor(Device):
 
     def _set_velocity(self, velocity: float) -> None:
         rec = self._record
-        v = velocity * rec.multiplier
-        if abs(v) > rec.max_velocity:
-            _warn(f"'{self._name}': requested velocity {v} exceeds maxVelocity {rec.max_velocity}")
-            v = math.copysign(rec.max_velocity, v)
-        rec.target_velocity = v
+        rec.target_velocity = motor_api.clamp_velocity(self._name, velocity * rec.multiplier, rec.max_velocity)
         self._changed()
 
     @buffered()
     def setAcceleration(self, acceleration: Any) -> None:
         acceleration = as_float(acceleration, "Motor.setAcceleration")
-        if not _finite(acceleration):
-            return
-        if acceleration < 0 and acceleration != -1:
-            print(f"Error: wb_motor_set_acceleration() called with a negative acceleration {acceleration} on "
-                  f"'{self._name}' (-1 means unlimited)", file=sys.stderr)
+        if not _finite(acceleration) or motor_api.refuse_acceleration(self._name, acceleration):
             return
         self._record.acceleration = float(acceleration)
 
@@ -254,8 +236,7 @@ class Motor(Device):
     def setAvailableForce(self, force: Any) -> None:
         rec = self._record
         force = as_float(force, "Motor.setAvailableForce")
-        if not _finite(force) or force < 0:
-            _warn(f"'{self._name}': invalid available force/torque {force}")
+        if motor_api.refuse_available(self._name, force):
             return
         rec.available = min(float(force), rec.max_force)
         self._changed()
@@ -267,8 +248,7 @@ class Motor(Device):
     @buffered()
     def setForce(self, force: Any) -> None:
         force = as_float(force, "Motor.setForce")
-        if not _finite(force):
-            _warn(f"Motor.setForce()/setTorque() called with an invalid value (NaN) on '{self._name}'")
+        if motor_api.refuse_nan("setForce()/setTorque", self._name, force):
             return
         for motor in self._coupled():
             motor._set_force(force)
@@ -301,10 +281,7 @@ class Motor(Device):
         """What Webots' libController caches for a target this motor was last given: the raw, unmultiplied
         value (§9), in its own units when its limits clipped it; the simulation's target otherwise (a sibling's
         relayed command, the initial state, a reset)."""
-        if echo is None or echo[0] != value:
-            return value
-        rec = self._record
-        return echo[1] if echo[1] * rec.multiplier == value else value / rec.multiplier
+        return motor_api.echo(value, echo, self._record.multiplier)
 
     @command_value
     def getTargetPosition(self) -> float:

@@ -2,8 +2,8 @@
 
 Webots (``WbPropeller``) does not simulate the propeller as a body: its RotationalMotor runs a kinematic
 controller every step. In velocity mode (``setPosition(inf)``) the speed ω ramps toward the target with the
-motor's ``acceleration``, or with ``maxTorque`` (read as rad/s²) when the acceleration is -1 or larger than
-``maxTorque``; in position mode the angle moves toward the target at a speed ramping the same way toward
+motor's ``acceleration``, or with the available torque (``maxTorque`` unless ``setAvailableTorque`` lowered it;
+read as rad/s²) when the acceleration is -1 or larger than that; in position mode the angle moves toward the target at a speed ramping the same way toward
 ``|velocity|`` (ω ≥ 0 there), and ω is 0 once it is reached (the same controller as kinematic joints'). Each step with ω ≠ 0, with ``V`` the velocity of the centre of thrust along the shaft axis,
 
     T = t1·ω·|ω| − t2·|ω|·V        Q = q1·ω·|ω| − q2·|ω|·V   (Q clamped to ±maxTorque)
@@ -21,8 +21,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from dualtwin.webots import _math3 as m3
-from dualtwin.webots.api_args import as_float, finite, warn
-from dualtwin.webots.device_base import KinematicMotor
+from dualtwin.webots.api_args import warn
+from dualtwin.webots.motor_api import KinematicMotor
 from dualtwin.webots.motor_law import kinematic_motion
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import AttachmentRec, Simulation
@@ -51,12 +51,30 @@ class PropellerRec:
     max_torque: float
     acceleration: float
     multiplier: float
+    min_position: float = 0.0
+    max_position: float = 0.0
+    available: float = 0.0  # the available torque (setAvailableTorque), at most maxTorque
     target_position: float = 0.0
     target_velocity: float = 0.0
     omega: float = 0.0  # current speed (rad/s)
     angle: float = 0.0
     thrust: float = 0.0  # last applied values, for inspection
     torque: float = 0.0
+
+    def __post_init__(self) -> None:
+        self.initial()
+
+    def initial(self) -> None:
+        """Webots' motor state at load and reset (webots-on-ode.md §5.1): holding the current angle with target
+        velocity maxVelocity and available torque maxTorque; at rest."""
+        self.omega = self.angle = self.target_position = 0.0
+        self.target_velocity = self.max_velocity
+        self.available = self.max_torque
+
+    @property
+    def max_force(self) -> float:
+        """maxTorque, under the name the Motor API code shares with linear motors."""
+        return self.max_torque
 
     @property
     def api_class(self) -> type[PropellerMotor]:
@@ -67,7 +85,7 @@ class PropellerRec:
         position mode, as in Webots)."""
         self.angle, omega = kinematic_motion(
             position=self.angle, current_velocity=self.omega, target_position=self.target_position,
-            target_velocity=self.target_velocity, available=self.max_torque, acceleration=self.acceleration, dt=dt)
+            target_velocity=self.target_velocity, available=self.available, acceleration=self.acceleration, dt=dt)
         self.omega = omega if math.isinf(self.target_position) else abs(omega)
 
 
@@ -89,6 +107,7 @@ def _make(site: AttachmentRec) -> PropellerRec:
         t1=t1, t2=t2, q1=q1, q2=q2,
         max_velocity=float(mf.get("maxVelocity", 10.0)), max_torque=float(mf.get("maxTorque", 10.0)),
         acceleration=float(mf.get("acceleration", -1.0)), multiplier=multiplier,
+        min_position=float(mf.get("minPosition", 0.0)), max_position=float(mf.get("maxPosition", 0.0)),
     )  # fmt: skip
 
 
@@ -107,7 +126,7 @@ class _Propellers:
 
     def reset(self) -> None:
         for rec in self.recs:
-            rec.omega = rec.angle = rec.target_position = rec.target_velocity = 0.0
+            rec.initial()
 
     def apply(self, dt: float) -> None:
         sim = self.sim
@@ -153,21 +172,8 @@ class PropellerMotor(KinematicMotor):
     ROTATIONAL = 0
     _record: PropellerRec
 
-    def setPosition(self, position: Any) -> None:
-        p = as_float(position, "Motor.setPosition")
-        if finite(p):
-            self._record.target_position = p * self._record.multiplier
-
-    def setAvailableTorque(self, torque: Any) -> None:
-        t = as_float(torque, "Motor.setAvailableTorque")
-        if finite(t) and t >= 0:
-            self._record.max_torque = t
-
     def setTorque(self, torque: Any) -> None:
         warn(f"'{self._name}': a propeller motor is speed-controlled; setTorque is ignored")
-
-    def getMaxTorque(self) -> float:
-        return self._record.max_torque
 
     def getType(self) -> int:
         return self.ROTATIONAL

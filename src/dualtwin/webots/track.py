@@ -24,12 +24,13 @@ from typing import Any
 
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots import ode
-from dualtwin.webots.api_args import as_float, finite
-from dualtwin.webots.device_base import Device, KinematicMotor, SampledDevice
+from dualtwin.webots.api_args import as_float
+from dualtwin.webots.device_base import Device, SampledDevice
+from dualtwin.webots.motor_api import KinematicMotor, refuse_nan
 from dualtwin.webots.motor_law import motor_velocity
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import Simulation, SolidRec
-from dualtwin.webots.step_hints import step_value
+from dualtwin.webots.step_hints import buffered, step_value
 
 __all__ = ["TrackMotor", "TrackPositionSensor", "TrackRec", "install"]
 
@@ -196,34 +197,16 @@ class TrackMotor(KinematicMotor):
     def _state(self) -> TrackRec:
         return self._record.track
 
-    def setPosition(self, position: Any) -> None:
-        p = as_float(position, "Motor.setPosition")
-        if not finite(p):
-            return
-        t = self._state()
-        p *= t.multiplier
-        if t.min_position != t.max_position and math.isfinite(p):
-            p = min(max(p, t.min_position), t.max_position)
-        t.target_position = p
-        t.force_mode = False
+    def _position_set(self) -> None:
+        self._state().force_mode = False
 
-    def setAvailableForce(self, force: Any) -> None:
-        f = as_float(force, "Motor.setAvailableForce")
-        if finite(f) and f >= 0:
-            self._state().available = min(f, self._state().max_force)
-
+    @buffered()
     def setForce(self, force: Any) -> None:
         f = as_float(force, "Motor.setForce")
-        if finite(f):
+        if not refuse_nan("setForce()/setTorque", self._name, f):
             t = self._state()
             t.force = max(-t.available, min(t.available, f * t.multiplier))
             t.force_mode = True
-
-    def getMaxForce(self) -> float:
-        return self._state().max_force
-
-    def getAvailableForce(self) -> float:
-        return self._state().available
 
     def getType(self) -> int:
         return self.LINEAR

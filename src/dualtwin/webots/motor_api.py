@@ -1,0 +1,177 @@
+"""The checks and echoes of Webots' Motor API, shared by every kind of motor (joint motors, a Track's LinearMotor, a
+Propeller's RotationalMotor), so that they all refuse the same arguments with the same lines.
+
+libController checks the arguments before anything is sent (webots-devices.md §9, "Controller-side checks"):
+NaN targets are refused, a negative velocity is refused while the motor is in position control, a negative
+acceleration other than -1 and a negative available force/torque are refused. What it caches for
+``getTargetPosition``/``getVelocity`` is the raw value the controller passed, not the one Webots multiplied by
+the motor's ``multiplier`` (§9).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from typing import Any
+
+from dualtwin.webots.api_args import as_float, finite, warn
+from dualtwin.webots.device_base import Device
+from dualtwin.webots.step_hints import buffered, command_value
+
+__all__ = ["KinematicMotor", "clamp_position", "clamp_velocity", "echo", "refuse_acceleration", "refuse_available", "refuse_nan",
+           "refuse_velocity"]
+
+
+def refuse_nan(method: str, name: str, *values: float) -> bool:
+    """True (after a warning) when one of ``values`` is NaN: the command is ignored."""
+    if all(v == v for v in values):
+        return False
+    warn(f"Motor.{method}() called with an invalid value (NaN) on '{name}'")
+    return True
+
+
+def refuse_velocity(name: str, velocity: float, target_position: float) -> bool:
+    """True (after libController's error line) for a negative velocity while the motor is in position control
+    (a finite target position)."""
+    if velocity < 0 and math.isfinite(target_position):
+        print(f"Error: wb_motor_set_velocity() called with a negative velocity on '{name}', which is in "
+              "position control: use setPosition(float('inf')) for velocity control", file=sys.stderr)
+        return True
+    return False
+
+
+def refuse_acceleration(name: str, acceleration: float) -> bool:
+    """True (after libController's error line) for a negative acceleration other than -1 (unlimited)."""
+    if acceleration < 0 and acceleration != -1:
+        print(f"Error: wb_motor_set_acceleration() called with a negative acceleration {acceleration} on "
+              f"'{name}' (-1 means unlimited)", file=sys.stderr)
+        return True
+    return False
+
+
+def refuse_available(name: str, force: float) -> bool:
+    """True (after a warning) for a NaN or negative available force/torque."""
+    if force == force and force >= 0:
+        return False
+    warn(f"'{name}': invalid available force/torque {force}")
+    return True
+
+
+def clamp_position(name: str, position: float, min_position: float, max_position: float) -> float:
+    """A multiplied target position clipped into [minPosition, maxPosition] (with a warning) when the motor has
+    limits (min ≠ max) and the target is finite (webots-on-ode.md §5.2)."""
+    if min_position != max_position and math.isfinite(position):
+        clamped = min(max(position, min_position), max_position)
+        if clamped != position:
+            warn(f"'{name}': requested position {position} outside [minPosition, maxPosition]")
+        return clamped
+    return position
+
+
+def clamp_velocity(name: str, velocity: float, max_velocity: float) -> float:
+    """A multiplied target velocity clipped to ±maxVelocity, with a warning (webots-on-ode.md §5.2)."""
+    if abs(velocity) > max_velocity:
+        warn(f"'{name}': requested velocity {velocity} exceeds maxVelocity {max_velocity}")
+        return math.copysign(max_velocity, velocity)
+    return velocity
+
+
+def echo(value: float, given: tuple[float, float] | None, multiplier: float) -> float:
+    """What libController caches for a target a motor was last given: the raw, unmultiplied value (§9), in its
+    own units when the motor's limits clipped it; the simulation's target ``value`` otherwise (a sibling's relayed
+    command, the initial state, a reset). ``given`` is (the simulation's target, the value the controller gave)
+    as recorded by the motor's own last command."""
+    if given is None or given[0] != value:
+        return value
+    return given[1] if given[1] * multiplier == value else value / multiplier
+
+
+class KinematicMotor(Device):
+    """Webots' Motor API for a motor that drives a kinematic state (a Propeller's spin, a Track's belt) instead of
+    an ODE joint row, with the same checks, clipping and echoes as a joint motor. The state (``_state()``) holds
+    ``multiplier``, ``min_position``, ``max_position``, ``max_velocity``, ``max_force`` (maxForce or maxTorque),
+    ``available``, ``target_position``, ``target_velocity`` and ``acceleration``."""
+
+    #: (the state's target, the value this motor was given) of its last setPosition / setVelocity
+    _echo_position: tuple[float, float] | None = None
+    _echo_velocity: tuple[float, float] | None = None
+
+    def _state(self) -> Any:
+        return self._record
+
+    def _position_set(self) -> None:
+        """What else a setPosition changes (a Track leaves force control)."""
+
+    @buffered()
+    def setPosition(self, position: Any) -> None:
+        p = as_float(position, "Motor.setPosition")
+        if refuse_nan("setPosition", self._name, p):
+            return
+        state = self._state()
+        state.target_position = clamp_position(self._name, p * state.multiplier, state.min_position,
+                                               state.max_position)
+        self._echo_position = (state.target_position, p)
+        self._position_set()
+
+    @buffered()
+    def setVelocity(self, velocity: Any) -> None:
+        state = self._state()
+        v = as_float(velocity, "Motor.setVelocity")
+        if refuse_nan("setVelocity", self._name, v) or refuse_velocity(self._name, v, state.target_position):
+            return
+        state.target_velocity = clamp_velocity(self._name, v * state.multiplier, state.max_velocity)
+        self._echo_velocity = (state.target_velocity, v)
+
+    @buffered()
+    def setAcceleration(self, acceleration: Any) -> None:
+        a = as_float(acceleration, "Motor.setAcceleration")
+        if finite(a) and not refuse_acceleration(self._name, a):
+            self._state().acceleration = a
+
+    @buffered()
+    def setAvailableForce(self, force: Any) -> None:
+        f = as_float(force, "Motor.setAvailableForce")
+        if not refuse_available(self._name, f):
+            state = self._state()
+            state.available = min(f, state.max_force)
+
+    @buffered()
+    def setAvailableTorque(self, torque: Any) -> None:
+        self.setAvailableForce(torque)
+
+    @command_value
+    def getTargetPosition(self) -> float:
+        state = self._state()
+        return float(echo(state.target_position, self._echo_position, state.multiplier))
+
+    @command_value
+    def getVelocity(self) -> float:
+        state = self._state()
+        return float(echo(state.target_velocity, self._echo_velocity, state.multiplier))
+
+    def getMinPosition(self) -> float:
+        return float(self._state().min_position)
+
+    def getMaxPosition(self) -> float:
+        return float(self._state().max_position)
+
+    def getMaxVelocity(self) -> float:
+        return float(self._state().max_velocity)
+
+    @command_value
+    def getAcceleration(self) -> float:
+        return float(self._state().acceleration)
+
+    @command_value
+    def getAvailableForce(self) -> float:
+        return float(self._state().available)
+
+    getAvailableTorque = getAvailableForce
+
+    def getMaxForce(self) -> float:
+        return float(self._state().max_force)
+
+    getMaxTorque = getMaxForce
+
+    def getMultiplier(self) -> float:
+        return float(self._state().multiplier)
