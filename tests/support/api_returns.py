@@ -86,7 +86,7 @@ DEF ROBOT Robot {
     Gyro { name "gyro" }
     InertialUnit { name "imu" }
     LED { name "led" }
-    Lidar { name "lidar" horizontalResolution 8 fieldOfView 1 numberOfLayers 2 verticalFieldOfView 0.2 }
+    Lidar { name "lidar" horizontalResolution 8 fieldOfView 1 numberOfLayers 2 verticalFieldOfView 0.25 }
     LightSensor { name "light" }
     Radar { name "radar" minRange 0.1 maxRange 10 }
     RangeFinder { name "range" width 8 height 6 }

@@ -155,7 +155,8 @@ def test_sampling_period_decides_when_rays_are_cast() -> None:
 
 
 def test_cylindrical_lidar_euclidean_and_point_cloud() -> None:
-    fov, vfov, width, layers = 1.0, 0.2, 9, 3
+    # 3 layers need verticalFieldOfView·horizontalResolution/fieldOfView ≥ 3 (webots-devices.md §3.1): 0.4·9/1
+    fov, vfov, width, layers = 1.0, 0.4, 9, 3
     sup = _world(
         f'Lidar {{ name "lidar" horizontalResolution {width} fieldOfView {fov} verticalFieldOfView {vfov} '
         f'numberOfLayers {layers} maxRange 0.54 projection "cylindrical" }}'

@@ -295,7 +295,9 @@ REGISTRY: tuple[Coverage, ...] = (
              "fixed lidar as one ray per pixel against the visual Shapes (as Webots renders them): layers, "
              "fov, tilt, cylindrical (Euclidean) or planar (depth) ranges, +inf outside [minRange, maxRange), "
              "noise, resolution, point cloud; a rotating lidar is cast as a fixed one; Mesh Shapes and CadShapes "
-             "are hit on their files' triangles"),
+             "are hit on their files' triangles; Webots' load-time layer check (numberOfLayers at most "
+             "verticalFieldOfView·horizontalResolution/fieldOfView, 2π for a rotating one: else rewritten, with "
+             "a warning)"),
     Coverage("RangeFinder", "device", "partial",
              "planar depth image as one ray per pixel against the visual Shapes (as Webots renders them); "
              "+inf outside [minRange, maxRange), noise, resolution; no lens, motion blur or saveImage; Mesh Shapes "

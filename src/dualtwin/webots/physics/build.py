@@ -619,9 +619,28 @@ class SceneBuilder(SimulationCore):
                 )
                 robot.devices.setdefault(dev.name, dev)
                 self.devices.append(dev)
+                if node.type_name == "Lidar":
+                    self._check_lidar_layers(node, dev.name)
         for robot in self.robots if robots is None else robots:
             self._order_devices(robot)
             self._harmonise_coupled_motors(robot)
+
+    def _check_lidar_layers(self, node: Node, name: str) -> None:
+        """Webots' load-time check of a Lidar (webots-devices.md §3.1): ``numberOfLayers ≤ verticalFieldOfView ·
+        horizontalResolution / fieldOfView`` (2π instead of the field of view for a rotating lidar), else the field
+        is rewritten, here to the largest whole number of layers that fits (at least 1), with a warning."""
+        layers = int(_f(node, "numberOfLayers", 4))
+        rotating = str(_f(node, "type", "fixed")) == "rotating"
+        fov = 2 * math.pi if rotating else float(_f(node, "fieldOfView", 1.5708))
+        if fov <= 0:
+            return
+        bound = float(_f(node, "verticalFieldOfView", 0.2)) * int(_f(node, "horizontalResolution", 512)) / fov
+        fitted = max(1, int(bound))
+        if layers > bound and fitted != layers:
+            self.warn(f"Lidar '{name}': numberOfLayers {layers} is more than verticalFieldOfView * "
+                      f"horizontalResolution / {'2π' if rotating else 'fieldOfView'} = {bound:g}; numberOfLayers "
+                      f"set to {fitted}")
+            node.fields["numberOfLayers"] = fitted
 
     def _harmonise_coupled_motors(self, robot: RobotRec) -> None:
         """Coupled motors (``prefix::suffix``, same robot) take their limits from the group's first motor in
