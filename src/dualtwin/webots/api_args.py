@@ -17,12 +17,17 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["as_float", "as_floats", "as_int", "finite", "warn"]
+__all__ = ["as_float", "as_floats", "as_int", "error", "finite", "warn"]
 
 
 def warn(message: str) -> None:
     """A warning for the controller's user, on stderr as Webots prints them in its console."""
     print(f"Warning: {message}", file=sys.stderr)
+
+
+def error(message: str) -> None:
+    """An error for the controller's user (a refused call), on stderr as libController prints them."""
+    print(f"Error: {message}", file=sys.stderr)
 
 
 def finite(*values: float) -> bool:

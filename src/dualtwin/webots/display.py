@@ -30,7 +30,7 @@ import numpy as np
 
 from dualtwin.artifacts import write_bytes
 from dualtwin.errors import DualtwinError
-from dualtwin.webots.api_args import as_float, as_int, warn
+from dualtwin.webots.api_args import as_float, as_int, error, warn
 from dualtwin.webots.device_base import Device
 from dualtwin.webots.protos import MAX_IMAGE_SIDE  # (the world loader's cap on a Display's own size)
 
@@ -107,7 +107,7 @@ class Display(Device):
     def setColor(self, color: Any) -> None:
         c = as_int(color, "Display.setColor")
         if not 0 <= c <= 0xFFFFFF:
-            warn(f"Display.setColor(): color {c:#x} out of range [0, 0xFFFFFF]")
+            error(f"Display.setColor(): color {c:#x} out of range [0, 0xFFFFFF]")
             return
         self._color = ((c >> 16) & 0xFF, (c >> 8) & 0xFF, c & 0xFF)
 

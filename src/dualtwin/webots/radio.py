@@ -26,13 +26,14 @@ from __future__ import annotations
 
 import math
 import struct
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from dualtwin.webots import _math3 as m3
-from dualtwin.webots.api_args import as_float, as_int, warn
+from dualtwin.webots.api_args import as_float, as_int, error, warn
 from dualtwin.webots.device_base import Device, SolidSensor, register_in_world_order
 from dualtwin.webots.physics import Simulation
 from dualtwin.webots.ranging import caster_for
@@ -223,7 +224,7 @@ class Emitter(Device):
     def setChannel(self, channel: Any) -> None:
         c = as_int(channel, "Emitter.setChannel")
         if c < CHANNEL_BROADCAST or (self._allowed and c not in self._allowed):
-            warn(f"Emitter.setChannel(): channel {c} is not allowed")
+            error(f"Emitter.setChannel(): channel {c} is not allowed")
             return
         self._channel = c
 
@@ -286,9 +287,9 @@ class Receiver(SolidSensor):
         if self._queue:
             self._queue.pop(0)
 
-    def _head(self, method: str) -> _Packet | None:
+    def _head(self, method: str, report: Callable[[str], None] = warn) -> _Packet | None:
         if not self._queue:
-            warn(f"Receiver.{method}(): the receiver queue is empty")
+            report(f"Receiver.{method}(): the receiver queue is empty")
             return None
         return self._queue[0]
 
@@ -303,7 +304,7 @@ class Receiver(SolidSensor):
     getData = getString
 
     def getDataSize(self) -> int:
-        head = self._head("getDataSize")
+        head = self._head("getDataSize", error)  # webots-devices.md §5.3: "-1 + error if empty"
         return len(head.data) if head is not None else -1
 
     # getFloats/getInts/getBools: tuples, as Webots' wrapper returns what struct.unpack gives

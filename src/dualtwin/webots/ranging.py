@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 
 from dualtwin.artifacts import write_bytes
-from dualtwin.webots.api_args import as_float, as_int, warn
+from dualtwin.webots.api_args import as_float, as_int, error, warn
 from dualtwin.webots.device_base import SolidSensor
 from dualtwin.webots.display import png_bytes
 from dualtwin.webots.lut import Table, discretize, lookup, table_from_field
@@ -634,7 +634,7 @@ class Lidar(_DepthDevice):
     def getNumberOfPoints(self) -> int:
         m = self._model()
         if not self._cloud or self._period == 0:
-            warn("Lidar.getNumberOfPoints(): the point cloud (or the lidar) is not enabled")
+            error("Lidar.getNumberOfPoints(): the point cloud (or the lidar) is not enabled")
             return 0
         return m.width * m.layers
 
@@ -647,7 +647,7 @@ class Lidar(_DepthDevice):
         m = self._model()
         f = as_float(frequency, "Lidar.setFrequency")
         if not m.min_frequency <= f <= m.max_frequency:
-            warn(f"Lidar.setFrequency(): {f} is outside [{m.min_frequency}, {m.max_frequency}]")
+            error(f"Lidar.setFrequency(): {f} is outside [{m.min_frequency}, {m.max_frequency}]")
             return
         m.frequency = f
 

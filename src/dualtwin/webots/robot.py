@@ -22,7 +22,7 @@ import sys
 from pathlib import Path
 from typing import Any, ClassVar
 
-from dualtwin.webots.api_args import as_float, as_int, warn
+from dualtwin.webots.api_args import as_float, as_int, error, warn
 from dualtwin.webots.battery import battery_sensor
 from dualtwin.webots.device_base import Device, bind_host
 from dualtwin.webots.joystick import Joystick
@@ -236,7 +236,7 @@ class Robot:
         link = self.__link
         rec = link._rec.devices.get(name)
         if rec is None:
-            warn(f'Device "{name}" was not found on robot "{link._rec.name}".')
+            error(f'Device "{name}" was not found on robot "{link._rec.name}".')
             return None
         return link._device_for(rec)
 

@@ -30,7 +30,7 @@ from typing import Any
 
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots import ode
-from dualtwin.webots.api_args import warn
+from dualtwin.webots.api_args import error, warn
 from dualtwin.webots.device_base import SolidSensor
 from dualtwin.webots.lut import discretize, lookup, table_from_field
 from dualtwin.webots.physics import GeomRec, Simulation, SolidRec
@@ -172,7 +172,7 @@ class TouchSensor(SolidSensor):
     def getValue(self) -> float:
         self._check_enabled("wb_touch_sensor_get_value", "wb_touch_sensor_enable")
         if self._kind() == self.FORCE3D:
-            warn("TouchSensor.getValue() cannot be used with a 'force-3d' sensor: use getValues()")
+            error("TouchSensor.getValue() cannot be used with a 'force-3d' sensor: use getValues()")
             return math.nan
         return self._value
 
