@@ -14,7 +14,7 @@ import warnings
 import pytest
 
 from dualtwin.webots import load_world_text
-from dualtwin.webots.controller import Supervisor
+from dualtwin.webots.controller import Motor, Supervisor
 from dualtwin.webots.physics import Simulation
 
 TS = 4
@@ -146,3 +146,122 @@ def test_propeller_starts_with_target_velocity_max_velocity() -> None:
     v0 = drone.getVelocity()
     _steps(sup, 125)
     assert drone.getVelocity()[2] - v0[2] == pytest.approx(0.5, rel=1e-3)
+
+
+# ------------------------------------------------------------------------------------------ one Motor class
+
+
+@pytest.mark.parametrize("name", ["belt", "prop"])
+def test_track_and_propeller_motors_are_motors(name: str) -> None:
+    # R (webots-python-api.md, Shared semantics): "Robot() builds one object per device (both motor node types
+    # become Motor)"; R Motor: the properties mirror the getters
+    motor = _sup().getDevice(name)
+    assert isinstance(motor, Motor)
+    assert motor.max_velocity == motor.getMaxVelocity() == 10.0
+    motor.target_velocity = 4.0  # a settable property: setVelocity
+    assert motor.getVelocity() == 4.0 and motor.target_velocity == 4.0
+
+
+def test_a_motor_built_by_name_is_the_track_motor() -> None:
+    # R Motor: __init__(name); one device, one state whichever handle commands it
+    sup = _sup()
+    built = Motor("belt")
+    built.setVelocity(3.0)
+    assert sup.getDevice("belt").getVelocity() == 3.0 and built.getMaxForce() == 10.0
+
+
+def test_track_devices_link_to_each_other() -> None:
+    # D §7.1: a Track's device field holds its LinearMotor, a PositionSensor and a Brake; R Motor getBrake/
+    # getPositionSensor, PositionSensor getMotor/getBrake, Brake getMotor/getPositionSensor: the sibling devices
+    sup = _belt("Brake { name \"belt brake\" }")
+    motor = sup.getDevice("belt")
+    assert motor.getPositionSensor().getName() == "belt sensor" and motor.getBrake().getName() == "belt brake"
+    sensor, brake = sup.getDevice("belt sensor"), sup.getDevice("belt brake")
+    assert sensor.getMotor().getName() == "belt" and sensor.getBrake().getName() == "belt brake"
+    assert brake.getMotor().getName() == "belt" and brake.getPositionSensor().getName() == "belt sensor"
+    assert sensor.getType() == brake.getType() == motor.getType() == 1  # LINEAR
+    prop = _sup().getDevice("prop")
+    assert prop.getBrake() is None and prop.getPositionSensor() is None
+
+
+# ------------------------------------------------------------------------------------------ §7 Track facts
+
+
+def _belt(extra: str = "", physics: bool = True, robot: str = "") -> Supervisor:
+    """A robot without Physics holding a 5 kg Track (its own body), or a Track without Physics."""
+    phys = "physics Physics { mass 5 }" if physics else ""
+    text = (f"#VRML_SIM R2023b utf8\nWorldInfo {{ basicTimeStep {TS} gravity 0 }}\n"
+            f"Robot {{ supervisor TRUE {robot} children [ Track {{ translation 0 0 0.2 boundingObject Box {{ size 2 0.4 "
+            f'0.1 }} {phys} device [ LinearMotor {{ name "belt" }} PositionSensor {{ name "belt sensor" }} '
+            f"{extra} ] }} ] }}\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sim = Simulation(load_world_text(text))
+    return Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+
+
+def test_track_without_a_body_does_not_move_its_belt() -> None:
+    # D §7.2: "no motor (or no body) ⇒ v = 0"; the same command on a 5 kg Track moves it 0.25·0.2 = 0.05 m
+    for physics, travel in ((False, 0.0), (True, 0.05)):
+        sup = _belt(physics=physics)
+        sensor, motor = sup.getDevice("belt sensor"), sup.getDevice("belt")
+        sensor.enable(TS)
+        motor.setPosition(math.inf)
+        motor.setVelocity(0.25)
+        _steps(sup, 50)
+        assert sensor.getValue() == pytest.approx(travel, abs=1e-12)
+
+
+def _force_travel(damping: float | None, steps: int) -> float:
+    sup = _belt('Brake { name "belt brake" }')
+    sensor, motor = sup.getDevice("belt sensor"), sup.getDevice("belt")
+    sensor.enable(TS)
+    if damping is not None:
+        sup.getDevice("belt brake").setDampingConstant(damping)
+    motor.setForce(10.0)
+    _steps(sup, steps)
+    return float(sensor.getValue())
+
+
+def test_track_brake_damps_the_belt_in_force_control() -> None:
+    # D §7.2: force control "v = (F − brakeDamping·v_prev)·dt / m_body" (not integrated) and trackPos += v·dt.
+    # F = 10 N (= maxForce), m = 5 kg, dt = 0.004 s; by hand: without damping v = 0.008 m/s every step
+    assert _force_travel(None, 50) == pytest.approx(50 * 0.008 * 0.004, rel=1e-9)
+    v = travel = 0.0
+    for _ in range(50):
+        v = (10.0 - 100.0 * v) * 0.004 / 5.0
+        travel += v * 0.004
+    assert travel < 50 * 0.008 * 0.004
+    assert _force_travel(100.0, 50) == pytest.approx(travel, rel=1e-9)
+
+
+def test_track_motor_force_feedback_is_not_available(capfd: pytest.CaptureFixture[str]) -> None:
+    # D §7.2: "Force feedback is not available for Track motors": the Motor API's feedback calls exist (R Motor)
+    # but give no value (NaN: what libController holds before any sample, D §0.2)
+    sup = _belt()
+    motor = sup.getDevice("belt")
+    capfd.readouterr()
+    motor.enableForceFeedback(TS)
+    assert capfd.readouterr().err != ""  # a warning that there is none
+    assert motor.getForceFeedbackSamplingPeriod() == TS
+    motor.setForce(5.0)
+    _steps(sup, 5)
+    assert math.isnan(motor.getForceFeedback())
+
+
+def test_track_motor_consumes_no_energy() -> None:
+    # D §7.2: "energy consumption 0": a robot's battery [100 100 0] with cpuConsumption 10 W loses only
+    # 10·0.2 = 2 J in 0.2 s while its Track motor pushes with its full 10 N
+    sup = _belt(robot="battery [ 100 100 0 ] cpuConsumption 10")
+    sup.batterySensorEnable(TS)
+    sup.getDevice("belt").setForce(10.0)
+    _steps(sup, 50)
+    assert sup.batterySensorGetValue() == pytest.approx(98.0, rel=1e-9)
+
+
+def test_track_position_sensor_read_while_disabled_is_an_error(capfd: pytest.CaptureFixture[str]) -> None:
+    # D §0.2: reading a disabled device prints "Error: ... called for a disabled device!" and returns the cache
+    sensor = _belt().getDevice("belt sensor")
+    capfd.readouterr()
+    assert math.isnan(sensor.getValue())
+    assert capfd.readouterr().err.startswith("Error: ")

@@ -216,13 +216,15 @@ REGISTRY: tuple[Coverage, ...] = (
              "for Hinge2Joint, and a referenced Solid without Physics is ignored"),
     Coverage("Track", "joint", "partial",
              "belt motion through ODE contact surface velocity (Webots' per-contact sign rule), its LinearMotor "
-             "(position/velocity/force control, with the Motor API's checks, clipping and raw echoes of a joint "
-             "motor) and PositionSensor are devices; no Brake, no texture or geometry animation"),
+             "(a Motor: position/velocity/force control, with the Motor API's checks, clipping and raw echoes of a "
+             "joint motor; no force feedback, no energy use), PositionSensor and Brake (damping the belt in force "
+             "control) are devices; a Track without a body does not move; no texture or geometry animation"),
     Coverage("TrackWheel", "joint", "visual", "wheels of a Track are turned only visually in Webots"),
     Coverage("Propeller", "joint", "partial",
              "thrust and torque from its constants and the motor's kinematic speed, applied to the parent body "
-             "at the centre of thrust; its motor is a device with the Motor API's checks, clipping and raw "
-             "echoes of a joint motor (available torque at most maxTorque); the helices are not simulated and a "
+             "at the centre of thrust; its motor is a device (a Motor) with the Motor API's checks, clipping and "
+             "raw echoes of a joint motor (available torque at most maxTorque; no torque feedback); the helices "
+             "are not simulated and a "
              "PositionSensor on it is not exposed"),
     Coverage("Muscle", "joint", "visual", "a visual muscle shape"),
     # -- devices

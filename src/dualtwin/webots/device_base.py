@@ -104,7 +104,10 @@ class Device:
             binding = current_host()._binding_for(name)
             if binding is not None:
                 owner = binding.host._device_for(binding.record)
-                if isinstance(self, type(owner)):
+                if isinstance(self, type(owner)) or isinstance(owner, type(self)):
+                    if not isinstance(self, type(owner)):
+                        # Motor("belt") on a Track's motor: a handle of the device's own class (a Motor subclass)
+                        self.__class__ = type(owner)
                     self.__dict__ = owner.__dict__  # one device, one state (its _owner stays the robot's handle)
                     return
         if binding is None:

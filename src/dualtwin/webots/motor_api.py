@@ -12,13 +12,10 @@ from __future__ import annotations
 
 import math
 import sys
-from typing import Any
 
-from dualtwin.webots.api_args import as_float, finite, warn
-from dualtwin.webots.device_base import Device
-from dualtwin.webots.step_hints import buffered, command_value
+from dualtwin.webots.api_args import warn
 
-__all__ = ["KinematicMotor", "clamp_position", "clamp_velocity", "echo", "refuse_acceleration", "refuse_available", "refuse_nan",
+__all__ = ["clamp_position", "clamp_velocity", "echo", "refuse_acceleration", "refuse_available", "refuse_nan",
            "refuse_velocity"]
 
 
@@ -85,93 +82,3 @@ def echo(value: float, given: tuple[float, float] | None, multiplier: float) -> 
         return value
     return given[1] if given[1] * multiplier == value else value / multiplier
 
-
-class KinematicMotor(Device):
-    """Webots' Motor API for a motor that drives a kinematic state (a Propeller's spin, a Track's belt) instead of
-    an ODE joint row, with the same checks, clipping and echoes as a joint motor. The state (``_state()``) holds
-    ``multiplier``, ``min_position``, ``max_position``, ``max_velocity``, ``max_force`` (maxForce or maxTorque),
-    ``available``, ``target_position``, ``target_velocity`` and ``acceleration``."""
-
-    #: (the state's target, the value this motor was given) of its last setPosition / setVelocity
-    _echo_position: tuple[float, float] | None = None
-    _echo_velocity: tuple[float, float] | None = None
-
-    def _state(self) -> Any:
-        return self._record
-
-    def _position_set(self) -> None:
-        """What else a setPosition changes (a Track leaves force control)."""
-
-    @buffered()
-    def setPosition(self, position: Any) -> None:
-        p = as_float(position, "Motor.setPosition")
-        if refuse_nan("setPosition", self._name, p):
-            return
-        state = self._state()
-        state.target_position = clamp_position(self._name, p * state.multiplier, state.min_position,
-                                               state.max_position)
-        self._echo_position = (state.target_position, p)
-        self._position_set()
-
-    @buffered()
-    def setVelocity(self, velocity: Any) -> None:
-        state = self._state()
-        v = as_float(velocity, "Motor.setVelocity")
-        if refuse_nan("setVelocity", self._name, v) or refuse_velocity(self._name, v, state.target_position):
-            return
-        state.target_velocity = clamp_velocity(self._name, v * state.multiplier, state.max_velocity)
-        self._echo_velocity = (state.target_velocity, v)
-
-    @buffered()
-    def setAcceleration(self, acceleration: Any) -> None:
-        a = as_float(acceleration, "Motor.setAcceleration")
-        if finite(a) and not refuse_acceleration(self._name, a):
-            self._state().acceleration = a
-
-    @buffered()
-    def setAvailableForce(self, force: Any) -> None:
-        f = as_float(force, "Motor.setAvailableForce")
-        if not refuse_available(self._name, f):
-            state = self._state()
-            state.available = min(f, state.max_force)
-
-    @buffered()
-    def setAvailableTorque(self, torque: Any) -> None:
-        self.setAvailableForce(torque)
-
-    @command_value
-    def getTargetPosition(self) -> float:
-        state = self._state()
-        return float(echo(state.target_position, self._echo_position, state.multiplier))
-
-    @command_value
-    def getVelocity(self) -> float:
-        state = self._state()
-        return float(echo(state.target_velocity, self._echo_velocity, state.multiplier))
-
-    def getMinPosition(self) -> float:
-        return float(self._state().min_position)
-
-    def getMaxPosition(self) -> float:
-        return float(self._state().max_position)
-
-    def getMaxVelocity(self) -> float:
-        return float(self._state().max_velocity)
-
-    @command_value
-    def getAcceleration(self) -> float:
-        return float(self._state().acceleration)
-
-    @command_value
-    def getAvailableForce(self) -> float:
-        return float(self._state().available)
-
-    getAvailableTorque = getAvailableForce
-
-    def getMaxForce(self) -> float:
-        return float(self._state().max_force)
-
-    getMaxTorque = getMaxForce
-
-    def getMultiplier(self) -> float:
-        return float(self._state().multiplier)

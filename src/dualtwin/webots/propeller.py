@@ -22,7 +22,7 @@ from typing import Any
 
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots.api_args import warn
-from dualtwin.webots.motor_api import KinematicMotor
+from dualtwin.webots.kinematic_motor import KinematicMotor
 from dualtwin.webots.motor_law import kinematic_motion
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import AttachmentRec, Simulation
@@ -171,9 +171,6 @@ class PropellerMotor(KinematicMotor):
 
     ROTATIONAL = 0
     _record: PropellerRec
-
-    def setTorque(self, torque: Any) -> None:
-        warn(f"'{self._name}': a propeller motor is speed-controlled; setTorque is ignored")
 
     def getType(self) -> int:
         return self.ROTATIONAL

@@ -5,8 +5,9 @@ involving a Track geom gets a surface velocity (``dContactMotion1``). Per step, 
 
 * position or velocity control: the belt speed ``v`` comes from the motor's usual law (PID on the belt position,
   velocity and acceleration limits, the same as for joint motors), so ``v`` follows the commanded speed;
-* force control (``setForce``): ``v = F·dt / m`` with ``m`` the mass of the Track's body (Webots' formula, which
-  does not integrate; a Brake's damping is not modelled here);
+* force control (``setForce``): ``v = (F − c·v_prev)·dt / m`` with ``m`` the mass of the Track's body and ``c``
+  the damping constant of the Brake in its ``device`` field (Webots' formula, which does not integrate);
+* no motor, or no body (a Track without Physics): the belt does not move;
 * the belt position (what the PositionSensor reads) integrates ``v``.
 
 In the collision pass, for each contact point (normal ``n`` negated when the Track is the pair's second geom):
@@ -24,15 +25,17 @@ from typing import Any
 
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots import ode
-from dualtwin.webots.api_args import as_float
-from dualtwin.webots.device_base import Device, SampledDevice
-from dualtwin.webots.motor_api import KinematicMotor, refuse_nan
+from dualtwin.webots.api_args import as_float, finite, warn
+from dualtwin.webots.device_base import Device
+from dualtwin.webots.joint_devices import Brake, PositionSensor
+from dualtwin.webots.kinematic_motor import KinematicMotor
+from dualtwin.webots.motor_api import refuse_nan
 from dualtwin.webots.motor_law import motor_velocity
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import Simulation, SolidRec
-from dualtwin.webots.step_hints import buffered, step_value
+from dualtwin.webots.step_hints import buffered
 
-__all__ = ["TrackMotor", "TrackPositionSensor", "TrackRec", "install"]
+__all__ = ["TrackBrake", "TrackMotor", "TrackPositionSensor", "TrackRec", "install"]
 
 
 @dataclass(eq=False)
@@ -42,6 +45,8 @@ class TrackRec:
     solid: SolidRec
     motor: Node | None
     sensor: Node | None
+    brake: Node | None = None
+    damping: float = 0.0  # the Brake's damping constant (N·s/m), set by Brake.setDampingConstant
     max_velocity: float = 10.0
     max_force: float = 10.0
     acceleration: float = -1.0
@@ -64,12 +69,13 @@ class TrackRec:
     devices: dict[str, Any] = field(default_factory=dict)
 
     def control(self, dt: float) -> None:
-        if self.motor is None:
+        body = self.solid.body
+        if self.motor is None or body is None:  # §7.2: no motor or no body: the belt does not move
             self.velocity = 0.0
             return
         if self.force_mode:
-            body = self.solid.body
-            self.velocity = self.force * dt / body.mass if body is not None and body.mass > 0 else 0.0
+            # §7.2: v = (F − brakeDamping·v_prev)·dt / m (Webots' formula: it does not integrate)
+            self.velocity = (self.force - self.damping * self.velocity) * dt / body.mass if body.mass > 0 else 0.0
         else:
             u, self.integral, self.prev_error = motor_velocity(
                 target_position=self.target_position, target_velocity=self.target_velocity,
@@ -83,14 +89,12 @@ class TrackRec:
 
 
 def _make(solid: SolidRec) -> TrackRec:
-    motor = sensor = None
+    found: dict[str, Node] = {}
     for dev in solid.node.fields.get("device", []) or []:
-        if isinstance(dev, Node):
-            if dev.type_name == "LinearMotor" and motor is None:
-                motor = dev
-            elif dev.type_name == "PositionSensor" and sensor is None:
-                sensor = dev
-    rec = TrackRec(solid=solid, motor=motor, sensor=sensor)
+        if isinstance(dev, Node) and dev.type_name in ("LinearMotor", "PositionSensor", "Brake"):
+            found.setdefault(dev.type_name, dev)
+    motor = found.get("LinearMotor")
+    rec = TrackRec(solid=solid, motor=motor, sensor=found.get("PositionSensor"), brake=found.get("Brake"))
     if motor is not None:
         f = motor.fields
         pid = tuple(f.get("controlPID", (10.0, 0.0, 0.0)))
@@ -112,12 +116,12 @@ class _Tracks:
         for rec in self.recs:
             robot = rec.solid.robot
             if robot is not None:
-                if rec.motor is not None:
-                    name = str(rec.motor.fields.get("name", "linear motor"))
-                    robot.devices.setdefault(name, _Handle(rec, name, TrackMotor))
-                if rec.sensor is not None:
-                    name = str(rec.sensor.fields.get("name", "position sensor"))
-                    robot.devices.setdefault(name, _Handle(rec, name, TrackPositionSensor))
+                for node, default, api in ((rec.motor, "linear motor", TrackMotor),
+                                           (rec.sensor, "position sensor", TrackPositionSensor),
+                                           (rec.brake, "brake", TrackBrake)):
+                    if node is not None:
+                        name = str(node.fields.get("name", default))
+                        rec.devices[node.type_name] = robot.devices.setdefault(name, _Handle(rec, name, api, node))
             sim.set_contact_modifier(rec.solid, self._modifier(rec))
         sim.pre_step_hooks.append(self.control)
         sim.reset_hooks.append(self.reset)
@@ -173,11 +177,17 @@ class _Tracks:
 class _Handle:
     """A Track device as listed among its robot's devices."""
 
-    def __init__(self, track: TrackRec, name: str, api: type[Device]) -> None:
+    def __init__(self, track: TrackRec, name: str, api: type[Device], node: Node) -> None:
         self.track = track
         self.name = name
         self.api_class = api
-        self.node = track.motor if api is TrackMotor else track.sensor
+        self.node = node
+
+
+def _sibling(device: Device, type_name: str) -> Any:
+    """The handle of another device of the same Track (its motor, position sensor or brake), or None."""
+    handle = device._record.track.devices.get(type_name)
+    return device._robot._device_for(handle) if handle is not None else None
 
 
 def install(sim: Simulation) -> list[TrackRec]:
@@ -191,7 +201,6 @@ def install(sim: Simulation) -> list[TrackRec]:
 class TrackMotor(KinematicMotor):
     """The LinearMotor of a Track: Webots' Motor API driving the belt."""
 
-    LINEAR = 1
     _record: _Handle
 
     def _state(self) -> TrackRec:
@@ -199,6 +208,9 @@ class TrackMotor(KinematicMotor):
 
     def _position_set(self) -> None:
         self._state().force_mode = False
+
+    def _sibling(self, kind: str) -> Any:
+        return _sibling(self, kind)
 
     @buffered()
     def setForce(self, force: Any) -> None:
@@ -208,28 +220,63 @@ class TrackMotor(KinematicMotor):
             t.force = max(-t.available, min(t.available, f * t.multiplier))
             t.force_mode = True
 
+    @buffered()
+    def setTorque(self, torque: Any) -> None:
+        self.setForce(torque)
+
     def getType(self) -> int:
         return self.LINEAR
 
 
-class TrackPositionSensor(SampledDevice):
-    """The PositionSensor of a Track: the belt travel (m), with its noise and resolution."""
+class TrackPositionSensor(PositionSensor):
+    """The PositionSensor of a Track: the belt travel (m), with its noise and resolution (§7.2)."""
 
-    LINEAR = 1
-    _record: _Handle
-
-    def _invalidate(self) -> None:
-        self._value = math.nan
+    _record: _Handle  # type: ignore[assignment]
 
     def _read(self) -> None:
         node = self._record.node
-        noise = float(node.fields.get("noise", 0.0)) if node is not None else 0.0
-        resolution = float(node.fields.get("resolution", -1.0)) if node is not None else -1.0
+        noise = float(node.fields.get("noise", 0.0))
+        resolution = float(node.fields.get("resolution", -1.0))
         self._value = self._robot._sim.sensor_noise(self._record.track.position, noise, resolution)
-
-    @step_value
-    def getValue(self) -> float:
-        return getattr(self, "_value", math.nan)
 
     def getType(self) -> int:
         return self.LINEAR
+
+    def getMotor(self) -> Any:
+        return _sibling(self, "LinearMotor")
+
+    def getBrake(self) -> Any:
+        return _sibling(self, "Brake")
+
+    brake = property(getBrake)
+    motor = property(getMotor)
+    type = property(getType)
+
+
+class TrackBrake(Brake):
+    """The Brake of a Track: its damping constant slows the belt in force control,
+    ``v = (F − c·v_prev)·dt / m`` (§7.2)."""
+
+    _record: _Handle  # type: ignore[assignment]
+
+    @buffered()
+    def setDampingConstant(self, c: Any) -> None:
+        value = as_float(c, "Brake.setDampingConstant")
+        if not finite(value) or value < 0:
+            warn(f"'{self._name}': invalid damping constant {value}")
+            return
+        self._record.track.damping = value
+
+    def getType(self) -> int:
+        return self.LINEAR
+
+    def getMotor(self) -> Any:
+        return _sibling(self, "LinearMotor")
+
+    def getPositionSensor(self) -> Any:
+        return _sibling(self, "PositionSensor")
+
+    motor = property(getMotor)
+    position_sensor = property(getPositionSensor)
+    type = property(getType)
+    dampingConstant = property(fset=setDampingConstant)
