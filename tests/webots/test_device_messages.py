@@ -107,3 +107,37 @@ def test_unknown_touch_sensor_type_stays_a_warning(capfd: pytest.CaptureFixture[
     assert sup.getDevice("t").getType() == 0
     lines = _lines(capfd)
     assert len(lines) == 1 and lines[0].startswith("Warning: ")
+
+
+# ------------------------------------------------------------------------------------------ §9 force clipping
+
+
+def _arm(motor: str, y: float) -> str:
+    return (f"HingeJoint {{ jointParameters HingeJointParameters {{ axis 0 0 1 anchor 0 {y} 0 }} device [ "
+            f"RotationalMotor {{ {motor} maxTorque 5 }} ] endPoint Solid {{ translation 0.2 {y} 0 name \"arm{y}\" "
+            "boundingObject Sphere { radius 0.05 } physics Physics { mass 1 } } }")
+
+
+def test_a_force_beyond_the_available_force_is_clipped_with_a_warning(capfd: pytest.CaptureFixture[str]) -> None:
+    # D §9: setForce/setTorque: Webots computes f·m "clipped to ±available force/torque; warning suppressed for
+    # coupled motors"
+    sup = sensor_world(_arm('name "m"', 0) + _arm('name "g::a"', 1) + _arm('name "g::b"', 2), "")
+    capfd.readouterr()
+    sup.getDevice("m").setTorque(2.0)
+    assert _lines(capfd) == []
+    sup.getDevice("m").setTorque(100.0)
+    lines = _lines(capfd)
+    assert len(lines) == 1 and lines[0].startswith("Warning: ")
+    sup.getDevice("g::a").setTorque(100.0)  # coupled: clipped silently
+    assert _lines(capfd) == []
+
+
+def test_a_track_force_beyond_its_available_force_is_clipped_with_a_warning(
+        capfd: pytest.CaptureFixture[str]) -> None:
+    # D §9 as above, for the LinearMotor of a Track (maxForce 10, D §7.1)
+    sup = sensor_world('Track { boundingObject Box { size 2 0.4 0.1 } physics Physics { mass 5 } '
+                       'device [ LinearMotor { name "belt" } ] }', "")
+    capfd.readouterr()
+    sup.getDevice("belt").setForce(50.0)
+    lines = _lines(capfd)
+    assert len(lines) == 1 and lines[0].startswith("Warning: ")

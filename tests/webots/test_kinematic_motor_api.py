@@ -265,3 +265,22 @@ def test_track_position_sensor_read_while_disabled_is_an_error(capfd: pytest.Cap
     capfd.readouterr()
     assert math.isnan(sensor.getValue())
     assert capfd.readouterr().err.startswith("Error: ")
+
+
+# ------------------------------------------------------------------------------------------ §8 Propeller facts
+
+
+def _propeller_warnings(robot_physics: str) -> list[str]:
+    text = (f"#VRML_SIM R2023b utf8\nWorldInfo {{ basicTimeStep {TS} gravity 0 }}\n"
+            f"Robot {{ supervisor TRUE {robot_physics} children [ {PROPELLER.format(motor='')} ] }}\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sim = Simulation(load_world_text(text))
+        Supervisor(simulation=sim, robot_node=sim.robots[0].node)  # the propellers are installed with it
+    return [w for w in sim.build_warnings if "Propeller" in w]
+
+
+def test_propeller_without_physics_upstream_warns() -> None:
+    # D §8: "No Physics upstream ⇒ warning, no effect"; with a body above it, no such warning
+    assert len(_propeller_warnings("")) == 1
+    assert _propeller_warnings("boundingObject Box { size 0.1 0.1 0.1 } physics Physics { mass 1 }") == []

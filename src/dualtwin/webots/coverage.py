@@ -223,7 +223,8 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Propeller", "joint", "partial",
              "thrust and torque from its constants and the motor's kinematic speed, applied to the parent body "
              "at the centre of thrust; its motor is a device (a Motor) with the Motor API's checks, clipping and "
-             "raw echoes of a joint motor (available torque at most maxTorque; no torque feedback); the helices "
+             "raw echoes of a joint motor (available torque at most maxTorque; no torque feedback); without "
+             "Physics above it, a warning and no effect; the helices "
              "are not simulated and a "
              "PositionSensor on it is not exposed"),
     Coverage("Muscle", "joint", "visual", "a visual muscle shape"),
@@ -240,7 +241,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "getVelocity echo the raw value given to the motor itself, the multiplied one for its siblings, as "
              "libController caches them); as in libController, a "
              "negative velocity in position control and a negative acceleration other than -1 are refused with "
-             "an error; torque/force feedback "
+             "an error, and a force/torque beyond the available one is clipped with a warning (silently for "
+             "coupled motors); torque/force feedback "
              "from ODE's joint feedback: what the joint applies to the endPoint about the anchor along the "
              "axis, in the sense setTorque/setForce would command (hinge, both Hinge2 axes, slider, also on a "
              "static base; the "

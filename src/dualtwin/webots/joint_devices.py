@@ -250,13 +250,13 @@ class Motor(Device):
         force = as_float(force, "Motor.setForce")
         if motor_api.refuse_nan("setForce()/setTorque", self._name, force):
             return
-        for motor in self._coupled():
-            motor._set_force(force)
+        group = self._coupled()
+        for motor in group:
+            motor._set_force(force, report=len(group) == 1)
 
-    def _set_force(self, force: float) -> None:
+    def _set_force(self, force: float, report: bool = True) -> None:
         rec = self._record
-        f = force * rec.multiplier
-        rec.raw_torque = max(-rec.available, min(rec.available, f))
+        rec.raw_torque = motor_api.clamp_force(self._name, force * rec.multiplier, rec.available, report)
         if not rec.torque_mode:
             rec.torque_mode = True
             rec.torque_params_set = False

@@ -15,7 +15,7 @@ import sys
 
 from dualtwin.webots.api_args import warn
 
-__all__ = ["clamp_position", "clamp_velocity", "echo", "refuse_acceleration", "refuse_available", "refuse_nan",
+__all__ = ["clamp_force", "clamp_position", "clamp_velocity", "echo", "refuse_acceleration", "refuse_available", "refuse_nan",
            "refuse_velocity"]
 
 
@@ -71,6 +71,17 @@ def clamp_velocity(name: str, velocity: float, max_velocity: float) -> float:
         warn(f"'{name}': requested velocity {velocity} exceeds maxVelocity {max_velocity}")
         return math.copysign(max_velocity, velocity)
     return velocity
+
+
+def clamp_force(name: str, force: float, available: float, report: bool = True) -> float:
+    """A multiplied force/torque command clipped to ±the available force/torque, with a warning unless the motor
+    is coupled (webots-devices.md §9: "clipped to ±available force/torque; warning suppressed for coupled
+    motors")."""
+    if abs(force) > available:
+        if report:
+            warn(f"'{name}': requested force/torque {force} exceeds the available force/torque {available}")
+        return math.copysign(available, force)
+    return force
 
 
 def echo(value: float, given: tuple[float, float] | None, multiplier: float) -> float:

@@ -11,7 +11,7 @@ read as rad/s²) when the acceleration is -1 or larger than that; in position mo
 the force ``T·a`` is applied at the centre of thrust and the torque ``−Q·a`` to the body (``a`` = the shaft axis
 in the world), which is woken up. Webots projects V on the shaft axis expressed in the propeller's *parent
 frame* (not rotated to the world), a quirk reproduced here. The helix Solids are visual and not simulated.
-Without a body upstream there is no effect.
+Without a body upstream there is no effect (and a build warning, as in Webots).
 """
 
 from __future__ import annotations
@@ -121,6 +121,11 @@ class _Propellers:
             robot = rec.site.robot
             if rec.motor is not None and robot is not None:
                 robot.devices.setdefault(rec.name, rec)
+            upper = rec.site.solid
+            while upper is not None and upper.body is None:
+                upper = upper.parent
+            if upper is None:  # webots-devices.md §8: "No Physics upstream ⇒ warning, no effect"
+                sim.warn(f"Propeller '{rec.name}': no Solid with Physics above it; it has no effect")
         sim.pre_step_hooks.append(self.apply)
         sim.reset_hooks.append(self.reset)
 

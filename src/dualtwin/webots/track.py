@@ -29,7 +29,7 @@ from dualtwin.webots.api_args import as_float, finite, warn
 from dualtwin.webots.device_base import Device
 from dualtwin.webots.joint_devices import Brake, PositionSensor
 from dualtwin.webots.kinematic_motor import KinematicMotor
-from dualtwin.webots.motor_api import refuse_nan
+from dualtwin.webots.motor_api import clamp_force, refuse_nan
 from dualtwin.webots.motor_law import motor_velocity
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import Simulation, SolidRec
@@ -217,7 +217,7 @@ class TrackMotor(KinematicMotor):
         f = as_float(force, "Motor.setForce")
         if not refuse_nan("setForce()/setTorque", self._name, f):
             t = self._state()
-            t.force = max(-t.available, min(t.available, f * t.multiplier))
+            t.force = clamp_force(self._name, f * t.multiplier, t.available)
             t.force_mode = True
 
     @buffered()
