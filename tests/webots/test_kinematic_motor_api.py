@@ -284,3 +284,17 @@ def test_propeller_without_physics_upstream_warns() -> None:
     # D §8: "No Physics upstream ⇒ warning, no effect"; with a body above it, no such warning
     assert len(_propeller_warnings("")) == 1
     assert _propeller_warnings("boundingObject Box { size 0.1 0.1 0.1 } physics Physics { mass 1 }") == []
+
+
+@pytest.mark.parametrize("name", ["belt", "prop"])
+def test_multiplier_zero_is_reset_to_one_with_a_warning(name: str) -> None:
+    # D §9: "multiplier (default 1; 0 → reset to 1 with warning)"
+    text = (f"#VRML_SIM R2023b utf8\nWorldInfo {{ basicTimeStep {TS} gravity 0 }}\n"
+            "Robot { supervisor TRUE boundingObject Box { size 0.1 0.1 0.1 } physics Physics { mass 1 } "
+            f"children [ {TRACK.format(motor='multiplier 0')} {PROPELLER.format(motor='multiplier 0')} ] }}\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sim = Simulation(load_world_text(text))
+        sup = Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    assert sup.getDevice(name).getMultiplier() == 1.0
+    assert sum(f"'{name}'" in w and "multiplier" in w for w in sim.build_warnings) == 1

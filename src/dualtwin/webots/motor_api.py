@@ -15,8 +15,12 @@ import sys
 
 from dualtwin.webots.api_args import warn
 
-__all__ = ["clamp_force", "clamp_position", "clamp_velocity", "echo", "refuse_acceleration", "refuse_available", "refuse_nan",
+__all__ = ["MULTIPLIER_ZERO", "clamp_force", "clamp_position", "clamp_velocity", "echo", "refuse_acceleration", "refuse_available", "refuse_nan",
            "refuse_velocity"]
+
+
+#: the load warning of a motor whose multiplier is 0 (webots-devices.md §9: "0 → reset to 1 with warning")
+MULTIPLIER_ZERO = "motor '{name}': multiplier 0 is not allowed; using 1"
 
 
 def refuse_nan(method: str, name: str, *values: float) -> bool:

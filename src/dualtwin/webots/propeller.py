@@ -23,6 +23,7 @@ from typing import Any
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots.api_args import warn
 from dualtwin.webots.kinematic_motor import KinematicMotor
+from dualtwin.webots.motor_api import MULTIPLIER_ZERO
 from dualtwin.webots.motor_law import kinematic_motion
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import AttachmentRec, Simulation
@@ -118,6 +119,8 @@ class _Propellers:
         self.sim = sim
         self.recs = [_make(site) for site in sim.attachments if site.node.type_name == "Propeller"]
         for rec in self.recs:
+            if rec.motor is not None and float(rec.motor.fields.get("multiplier", 1.0)) == 0.0:
+                sim.warn(MULTIPLIER_ZERO.format(name=rec.name))
             robot = rec.site.robot
             if rec.motor is not None and robot is not None:
                 robot.devices.setdefault(rec.name, rec)

@@ -29,7 +29,7 @@ from dualtwin.webots.api_args import as_float, finite, warn
 from dualtwin.webots.device_base import Device
 from dualtwin.webots.joint_devices import Brake, PositionSensor
 from dualtwin.webots.kinematic_motor import KinematicMotor
-from dualtwin.webots.motor_api import clamp_force, refuse_nan
+from dualtwin.webots.motor_api import MULTIPLIER_ZERO, clamp_force, refuse_nan
 from dualtwin.webots.motor_law import motor_velocity
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import Simulation, SolidRec
@@ -114,6 +114,8 @@ class _Tracks:
         self.sim = sim
         self.recs = [_make(s) for s in sim.solids if s.node.type_name == "Track"]
         for rec in self.recs:
+            if rec.motor is not None and float(rec.motor.fields.get("multiplier", 1.0)) == 0.0:
+                sim.warn(MULTIPLIER_ZERO.format(name=rec.motor.fields.get("name", "linear motor")))
             robot = rec.solid.robot
             if robot is not None:
                 for node, default, api in ((rec.motor, "linear motor", TrackMotor),

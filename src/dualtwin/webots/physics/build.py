@@ -15,6 +15,7 @@ from dualtwin.webots._math3 import Pose
 from dualtwin.webots.bounding_mesh import TRIMESH_TYPES, mesh_warning, trimesh_data
 from dualtwin.webots.mass_rules import mass_zero, rot_matrix, solid_mass
 from dualtwin.webots.mesh_files import MeshFileError
+from dualtwin.webots.motor_api import MULTIPLIER_ZERO
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics.core import SimulationCore
 from dualtwin.webots.physics.records import (
@@ -262,7 +263,7 @@ class SceneBuilder(SimulationCore):
             multiplier=float(_f(dev, "multiplier", 1.0)),
         )
         if motor.multiplier == 0.0:
-            self.warn(f"motor '{motor.name}': multiplier 0 is not allowed; using 1")
+            self.warn(MULTIPLIER_ZERO.format(name=motor.name))
             motor.multiplier = 1.0
         # a joint that starts outside its motor's position limits widens them to its position, as Webots does
         position = joint.positions[axis_index]
