@@ -219,7 +219,9 @@ REGISTRY: tuple[Coverage, ...] = (
              "(a Motor: position/velocity/force control, with the Motor API's checks, clipping and raw echoes of a "
              "joint motor; no force feedback, no energy use), PositionSensor and Brake (damping the belt in force "
              "control) are devices; a Track without a body does not move; no texture or geometry animation"),
-    Coverage("TrackWheel", "joint", "visual", "wheels of a Track are turned only visually in Webots"),
+    Coverage("TrackWheel", "joint", "visual",
+             "wheels of a Track are turned only visually in Webots; its children are placed at (position.x, 0, "
+             "position.y) in the Track's frame (so cameras and range sensors see them there), not turned"),
     Coverage("Propeller", "joint", "partial",
              "thrust and torque from its constants and the motor's kinematic speed, applied to the parent body "
              "at the centre of thrust; its motor is a device (a Motor) with the Motor API's checks, clipping and "

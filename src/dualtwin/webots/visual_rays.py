@@ -60,7 +60,7 @@ class VisualGeoms:
         if is_solid(node):
             return  # a nested Solid draws its own Shapes in its own frame
         t = node.type_name
-        if t in ("Pose", "Transform"):
+        if t in ("Pose", "Transform", "TrackWheel"):  # a TrackWheel is a Pose at (position.x, 0, position.y)
             translation = node.fields.get("translation")
             if translation is not None:
                 translation = tuple(float(v) * k for v, k in zip(translation, scale, strict=True))

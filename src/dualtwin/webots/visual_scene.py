@@ -191,7 +191,7 @@ class WebotsVisualScene:
                 geom = self._shape(node, T, scale)
                 if geom is not None:
                     geoms.append(geom)
-        elif kind in ("Pose", "Transform"):
+        elif kind in ("Pose", "Transform", "TrackWheel"):  # a TrackWheel: a Pose at (position.x, 0, position.y)
             sx = float(node.get("scale", (1.0, 1.0, 1.0))[0]) if kind == "Transform" else 1.0
             inner = T @ _pose(node.fields, scale)
             for child in _children(handle, "children"):

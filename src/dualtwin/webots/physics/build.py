@@ -68,6 +68,11 @@ class SceneBuilder(SimulationCore):
             elif child.type_name in ATTACHMENT_TYPES:
                 self.attachments.append(AttachmentRec(child, frame_rel, parent, robot))
             elif "translation" in child.fields and "rotation" in child.fields and "children" in child.fields:
+                if child.type_name == "TrackWheel":
+                    # webots-devices.md §7.1: Webots places a TrackWheel's children at (position.x, 0, position.y)
+                    # in the Track's frame (its hidden translation)
+                    x, z = (float(v) for v in _f(child, "position", (0.0, 0.0)))
+                    child.fields["translation"] = (x, 0.0, z)
                 local = Pose.from_fields(_f(child, "translation", None), _f(child, "rotation", None))
                 scale = _f(child, "scale", (1.0, 1.0, 1.0))
                 if tuple(scale) != (1.0, 1.0, 1.0):
