@@ -14,7 +14,7 @@ import warnings
 import pytest
 
 from dualtwin.webots import load_world_text
-from dualtwin.webots.controller import Motor, Supervisor
+from dualtwin.webots.controller import Motor, PositionSensor, Supervisor
 from dualtwin.webots.physics import Simulation
 
 TS = 4
@@ -168,6 +168,9 @@ def test_a_motor_built_by_name_is_the_track_motor() -> None:
     built = Motor("belt")
     built.setVelocity(3.0)
     assert sup.getDevice("belt").getVelocity() == 3.0 and built.getMaxForce() == 10.0
+    # R Sensor __init__: built from a name string it enables itself (at the basic time step)
+    sensor = PositionSensor("belt sensor")
+    assert sensor.getType() == 1 and sup.getDevice("belt sensor").getSamplingPeriod() == TS
 
 
 def test_track_devices_link_to_each_other() -> None:

@@ -93,6 +93,9 @@ class Device:
     attributes are those of the robot's own handle (``_owner``), so enabling one enables the other."""
 
     _owner: Any  # the robot's own handle on this device (itself for that one), of its class or a base of it
+    #: the Webots API class a simulation-specific subclass stands for (a Track's motor is a ``Motor``), so that
+    #: ``Motor(name)`` on such a device gives a handle of the subclass
+    _webots_class: type[Device] | None = None
 
     def __init__(self, name: Any) -> None:
         binding: DeviceBinding | None
@@ -104,9 +107,9 @@ class Device:
             binding = current_host()._binding_for(name)
             if binding is not None:
                 owner = binding.host._device_for(binding.record)
-                if isinstance(self, type(owner)) or isinstance(owner, type(self)):
-                    if not isinstance(self, type(owner)):
-                        # Motor("belt") on a Track's motor: a handle of the device's own class (a Motor subclass)
+                upgrade = getattr(type(owner), "_webots_class", None) is type(self)
+                if isinstance(self, type(owner)) or upgrade:
+                    if upgrade:  # Motor("belt") on a Track's motor: a handle of the device's own class
                         self.__class__ = type(owner)
                     self.__dict__ = owner.__dict__  # one device, one state (its _owner stays the robot's handle)
                     return

@@ -35,6 +35,7 @@ class KinematicMotor(Motor):
     ``acceleration`` and ``kp``, ``ki``, ``kd``."""
 
     _record: Any  # type: ignore[assignment]  # the module's own record, not a joint's MotorRec
+    _webots_class = Motor
     _feedback_period = 0
 
     def _state(self) -> Any:

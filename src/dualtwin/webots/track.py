@@ -234,6 +234,7 @@ class TrackPositionSensor(PositionSensor):
     """The PositionSensor of a Track: the belt travel (m), with its noise and resolution (§7.2)."""
 
     _record: _Handle  # type: ignore[assignment]
+    _webots_class = PositionSensor
 
     def _read(self) -> None:
         node = self._record.node
@@ -260,6 +261,7 @@ class TrackBrake(Brake):
     ``v = (F − c·v_prev)·dt / m`` (§7.2)."""
 
     _record: _Handle  # type: ignore[assignment]
+    _webots_class = Brake
 
     @buffered()
     def setDampingConstant(self, c: Any) -> None:
