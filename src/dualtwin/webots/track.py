@@ -123,7 +123,9 @@ class _Tracks:
                                            (rec.brake, "brake", TrackBrake)):
                     if node is not None:
                         name = str(node.fields.get("name", default))
-                        rec.devices[node.type_name] = robot.devices.setdefault(name, _Handle(rec, name, api, node))
+                        handle = _Handle(rec, name, api, node)
+                        if robot.devices.setdefault(name, handle) is handle:  # a name taken stays the first's
+                            rec.devices[node.type_name] = handle
             sim.set_contact_modifier(rec.solid, self._modifier(rec))
         sim.pre_step_hooks.append(self.control)
         sim.reset_hooks.append(self.reset)
