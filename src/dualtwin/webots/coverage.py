@@ -362,9 +362,10 @@ REGISTRY: tuple[Coverage, ...] = (
              "autoLock, isLocked at load, ODE fixed joint, snap (the carrying body moves), tensile/shear "
              "breaking with the locked sides' strengths summed; in Webots' connector_detach test the pair "
              "separates at 0.448 s instead of 0.736 s: the fixed joint carries a third of the pull (the floor "
-             "contacts the rest), then ODE's cylinder-plane collider drops from 4 contact points to 1 once the "
-             "pulled robot tilts by about 1e-3 rad, the robot tips at a 1.1 N pull and the joint force turns "
-             "erratic (every strength rule tried gives 0.448 or 0.608 s)"),
+             "contacts the rest), then ODE's cylinder-plane collider (double precision) drops from 4 contact points "
+             "to 1 once the pulled robot tilts by 4.5e-4 rad (1 - cos(tilt) > 1e-7), at a pull of about 1 N; the 32 ms "
+             "step then tips the light robot about 0.3 rad in one step and the joint force turns erratic (every "
+             "strength rule tried gives 0.448 or 0.608 s; with the pull split we measure, no rule gives 0.736 s)"),
     Coverage("VacuumGripper", "device", "supported",
              "turnOn/turnOff, isOn at load, grasps a body touching its boundingObject with >= contactPoints "
              "points (fixed joint), tensile/shear breaking, presence"),
