@@ -104,6 +104,28 @@ def test_control_with_energy_left_the_controller_runs_and_the_wheel_turns() -> N
     assert _wheel_speed(robot) == pytest.approx(5.0, abs=0.01)
 
 
+# a robot on the ground with a Propeller and a Track, both driven in velocity control (their motors draw nothing)
+DRIVES = """Propeller { shaftAxis 0 0 1 thrustConstants 1e-4 0 torqueConstants 0 0
+  device RotationalMotor { name "prop" maxVelocity 100 consumptionFactor 0 } }
+Track { boundingObject Box { size 0.4 0.2 0.05 } physics Physics { mass 1 }
+  device [ LinearMotor { name "belt" consumptionFactor 0 } ] }"""
+
+
+@pytest.mark.parametrize(("battery", "stopped"), [("0.5 1 0", True), ("100 100 0", False)])
+def test_out_of_power_the_tracks_and_propellers_stop_too(battery: str, stopped: bool) -> None:
+    robot = _robot(battery, DRIVES)  # 0.5 J: the fourth step empties it (10 W of CPU); 100 J: the control
+    for name, speed in (("prop", 50.0), ("belt", 0.5)):
+        robot.getDevice(name).setPosition(math.inf)
+        robot.getDevice(name).setVelocity(speed)
+    for _ in range(6):
+        robot.step(TS)
+    sim = robot._Robot__link._sim  # type: ignore[attr-defined]
+    sim.step(100)  # the world goes on without the controller (it ended at -1): 1.7 s in all
+    spin, belt = sim.extensions["propellers"].recs[0].omega, sim.extensions["tracks"].recs[0].velocity
+    # with power the propeller spins up at 10 rad/s² (maxTorque 10, webots-devices.md §8): 17 rad/s after 1.7 s
+    assert (spin, belt) == ((0.0, 0.0) if stopped else (pytest.approx(10 * 106 * TS / 1000), pytest.approx(0.5)))
+
+
 CONTROLLER = """
 from controller import Robot
 robot = Robot()

@@ -9,8 +9,8 @@ level never goes below 0, and the first value of the ``battery`` field is update
 When the level reaches 0 the robot is out of power. Webots' Robot documentation: "when the current energy
 value reaches zero, the corresponding controller process terminates and the simulated robot stops all motion".
 Here the controller's ``step`` returns -1 (it then ends as after any -1, within Webots' 1 s grace) and every
-motor of the robot holds velocity 0 with its full torque from that step on (our reading of "stops all
-motion": Webots' wording does not say whether the motors brake or go limp).
+motor of the robot (its Track belts' and Propellers' too) holds velocity 0 with its full torque from that step on
+(our reading of "stops all motion": Webots' wording does not say whether the motors brake or go limp).
 
 A ``Charger`` is itself a battery: its ``battery`` field ``[current J, maximum J, charging W]`` gains
 ``charging · dt`` per step up to its maximum, as Webots documents ("it accumulates energy with time"). A robot
@@ -157,6 +157,7 @@ class Batteries:
                     self._power_off(battery)
                 _stop_motors(battery.motors)  # at every step without energy: what the ended controller sent last
                 # (a command between its -1 and its exit) does not move the robot
+                _stop_kinematic_motors(sim, battery.robot)
         chargers = self._chargers()
         if chargers:
             self._charge(chargers, charged, dt)
@@ -208,6 +209,20 @@ def _stop_motors(motors: list[MotorRec]) -> None:
         motor.available = motor.max_force
         motor.torque_mode = False
         motor.raw_torque = 0.0
+
+
+def _stop_kinematic_motors(sim: Simulation, robot: RobotRec) -> None:
+    """The robot's Track belts and Propellers stop too ("stops all motion"): their motors' controllers (their
+    modules' records, found through the simulation's hooks) get velocity 0 with the full force or torque."""
+    for key in ("tracks", "propellers"):
+        for rec in getattr(sim.extensions.get(key), "recs", ()):
+            place = rec.solid if key == "tracks" else rec.site
+            if rec.motor is None or place.robot is not robot:
+                continue
+            rec.target_position, rec.target_velocity = math.inf, 0.0
+            rec.available = rec.max_force if key == "tracks" else rec.max_torque
+            if key == "tracks":
+                rec.force_mode, rec.force = False, 0.0
 
 
 def install(sim: Simulation) -> Batteries:

@@ -80,7 +80,7 @@ REGISTRY: tuple[Coverage, ...] = (
              "and exchange packets in world order, and a simulationReset waits for every controller's step (each "
              "then returns at t = 0), so the same world and seed give the same output however the processes are "
              "scheduled; C controllers do not run; battery drained by cpuConsumption and motor consumptionFactor × |torque|; "
-             "when it runs out the controller's step returns -1 (it ends) and the motors hold velocity 0 with their "
+             "when it runs out the controller's step returns -1 (it ends) and the motors (Track belts and Propellers too) hold velocity 0 with their "
              "full torque (our reading of Webots' 'stops all motion'); recharged at a Charger"),
     Coverage("Group", "scene", "supported", "children expanded"),
     Coverage("Pose", "scene", "supported",
