@@ -35,3 +35,26 @@ def test_the_first_read_after_one_step_is_a_sample_in_both_twins(tmp_path: Path)
         with pytest.raises(DualtwinError, match="no sensor named 'imu'") as refused:
             webots.sensor("imu")
         assert "\n" not in str(refused.value) and "known: acc, alt, compass, gps, gyro, s" in str(refused.value)
+
+
+def test_a_hinge2_second_axis_sensor_and_motor_are_the_twins_from_the_first_step(tmp_path: Path) -> None:
+    # A Hinge2Joint's device2 (its second axis) holds a PositionSensor and a motor like device does: the Webots
+    # twin enables that sensor when it is made too (before, its walk skipped device2, so the first read was NaN
+    # and its motor was missing from the known names). The robot has Physics and no gravity, so the Hinge2
+    # joins two bodies (an ODE hinge2, not the kinematic static-parent case) and nothing moves: both twins read
+    # the second axis' initial position 0.2 exactly (MuJoCo's ref, ODE's offset at a zero angle).
+    text = world_text(
+        'Robot { controller "<extern>" physics Physics { } boundingObject Box { size 0.1 0.1 0.1 } children [\n'
+        '  DEF H Hinge2Joint { jointParameters HingeJointParameters { axis 1 0 0 }\n'
+        '  jointParameters2 JointParameters { axis 0 1 0 position 0.2 }\n'
+        '  device [ PositionSensor { name "s1" } ] device2 [ PositionSensor { name "s2" } RotationalMotor { name "m2" } ]\n'
+        "  endPoint DEF E Solid { translation 0 0 -0.3 physics Physics { } boundingObject Box { size 0.1 0.1 0.1 } }"
+        " } ] }", "basicTimeStep 8 gravity 0")
+    with converted_twins(text, tmp_path, 0.008) as (_, webots, mujoco_twin):
+        webots.step()
+        mujoco_twin.step()
+        for twin in (webots, mujoco_twin):
+            assert twin.sensor("s2") == pytest.approx(0.2, abs=1e-9), twin.name
+            assert twin.sensor("s1") == pytest.approx(0.0, abs=1e-9), twin.name
+        with pytest.raises(DualtwinError, match="known: m2"):
+            webots.command("nope", "velocity", 1.0)

@@ -163,12 +163,12 @@ class WebotsTwin(Twin):
                 raise unknown_name(kind, resolved, known, self._origin)
 
     def _walk(self) -> Iterator[Any]:
-        """Every node of the robot's subtree (children, joint endPoints and devices, parameters)."""
+        """Every node of the robot's subtree (children, joint endPoints and devices of every axis, parameters)."""
         stack = [self.sup.getSelf()]
         while stack:
             node = stack.pop()
             yield node
-            for field in ("children", "device"):
+            for field in ("children", "device", "device2", "device3"):  # a Hinge2Joint's, a BallJoint's other axes
                 handle = base_field(node, field)
                 if handle is not None and handle.getCount() > 0:
                     stack.extend(n for n in (handle.getMFNode(i) for i in range(handle.getCount())) if n)
