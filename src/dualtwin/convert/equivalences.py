@@ -54,6 +54,7 @@ __all__ = [
     "coulomb_friction",
     "hinge2_second_axis",
     "hinge_stop_range",
+    "kinematic_joint_notes",
     "limit_solimp",
     "motor_numeric",
     "rangefinder_rotation",
@@ -332,3 +333,24 @@ def hinge2_second_axis(axis1: Sequence[float] | FloatArray, position1: float,
     R = axis_angle_matrix((*(float(v) for v in axis1), position1))
     result: FloatArray = R @ np.asarray(axis2, dtype=float)
     return result
+
+
+def kinematic_joint_notes(kind: str, end: Any, parent: Any, body_solids: Sequence[tuple[str, Any]]) -> list[str]:
+    """Warnings for a joint that Webots moves kinematically (no ODE joint) where MuJoCo has a dynamic joint.
+
+    Webots builds no ODE joint for an endPoint without Physics (on-ODE §4.1), nor for a Hinge2Joint whose parent
+    has no body (§4.4: a hinge2 needs both bodies): the nearest Solid above the joint with Physics, through the
+    MuJoCo bodies the converter built (``parent`` up to the world, each body's Solid in ``body_solids``).
+    """
+    if end.get("physics") is None:
+        return [f"{kind} endPoint has no Physics: Webots moves it kinematically, MuJoCo dynamically"]
+    if kind != "Hinge2Joint":
+        return []
+    solids = dict(body_solids)
+    body = parent
+    while body is not None and body.name in solids:
+        if solids[body.name].get("physics") is not None:
+            return []
+        body = body.parent
+    return ["Hinge2Joint has no Physics above it (a static parent): Webots builds no ODE joint and moves its "
+            "endPoint kinematically, MuJoCo dynamically"]

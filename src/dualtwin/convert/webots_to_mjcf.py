@@ -67,6 +67,7 @@ from dualtwin.convert.equivalences import (
     camera_rotation,
     hinge2_second_axis,
     hinge_stop_range,
+    kinematic_joint_notes,
     motor_numeric,
     rangefinder_rotation,
     timestep_for,
@@ -484,8 +485,8 @@ class _Converter:
             raise self.unsupported(end, "closed kinematic loops")
         if not schema.is_solid_type(end.type_name):
             raise self.unsupported(end, "as a joint endPoint")
-        if end.get("physics") is None:
-            self.warn(f"{kind} endPoint has no Physics: Webots moves it kinematically, MuJoCo dynamically", jnode)
+        for note in kinematic_joint_notes(kind, end, parent, self.body_solids):
+            self.warn(note, jnode)
         if self.in_robot:
             if not jnode.def_name:
                 self.missing_defs.append(f"{kind} at {_where(jnode)}")
