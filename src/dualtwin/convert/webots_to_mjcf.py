@@ -28,7 +28,8 @@ Devices
     :mod:`dualtwin.twins.mujoco` (``a::b`` motors harmonised, :mod:`dualtwin.convert.coupled`). PositionSensor ->
     jointpos (resolution: :mod:`dualtwin.convert.sensor_models`); InertialUnit -> framequat, Gyro -> gyro,
     Accelerometer -> accelerometer, GPS -> framepos, Compass -> magnetometer, DistanceSensor -> rangefinder,
-    TouchSensor -> touch, each at a site at the device pose named by the device.
+    TouchSensor -> touch (its site covers the boundingObject: :mod:`dualtwin.convert.touch_sites`), each at a site
+    at the device pose named by the device.
 
 Stops, contacts, cameras, world
     Stops become stiff MuJoCo limits and ContactProperties each collision geom's ``friction``, ``solref`` and
@@ -79,6 +80,7 @@ from dualtwin.convert.initial_state import add_initial_keyframe
 from dualtwin.convert.mass import FloatArray, MassProps, bounding_primitives, combine, solid_mass
 from dualtwin.convert.sensor_models import add_resolution
 from dualtwin.convert.surfaces import add_surface_mesh
+from dualtwin.convert.touch_sites import touch_site_volume
 from dualtwin.geometry import axis_angle_matrix, mujoco_quat
 from dualtwin.webots import schema
 from dualtwin.webots.nodes import Node, World
@@ -321,11 +323,11 @@ class _Converter:
             name = self.unique("geom", label if i == 0 else f"{label}_{i}")
             self.add_geom(body, prim.geometry, T @ local, prim.scale, name, collision=True, rgba=None,
                           material=material, static=static)
-        self.device(solid, T, body, label)
+        self.device(solid, T, body, label, scale)
         self.children(solid.children(), T, scale, body, label, masses, dynamic=dynamic, static=static,
                       material=material)
 
-    def device(self, solid: Node, T: FloatArray, body: Any, label: str) -> None:
+    def device(self, solid: Node, T: FloatArray, body: Any, label: str, scale: float = 1.0) -> None:
         kind = solid.type_name
         if kind in ("Solid", "Robot"):
             return
@@ -349,9 +351,8 @@ class _Converter:
         site_name = self.unique("site", device_name)
         site = body.add_site(name=site_name, pos=[float(v) for v in T[:3, 3]], quat=_quat(site_R))
         site.group = 4
-        if kind == "TouchSensor":
-            site.type = mujoco.mjtGeom.mjGEOM_SPHERE
-            site.size = [0.02, 0, 0]
+        if kind == "TouchSensor" and (note := touch_site_volume(site, solid, scale)) is not None:
+            self.warn(note, solid)
         sensor_type = SITE_SENSORS.get(kind)
         if sensor_type is None:
             self.warn(f"{kind} {device_name!r} has no MuJoCo sensor: only a site is written", solid)
