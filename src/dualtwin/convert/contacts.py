@@ -1,7 +1,8 @@
-"""The converter's second pass: contact and joint-stop softness, written once every geom and joint exists.
+"""The converter's second pass: contact, joint-stop and joint-friction softness, written once every geom and joint
+exists.
 
 Both need the whole model first: a contact's spring uses the robot's mass shared by its touching bodies
-(:func:`dualtwin.convert.equivalences.contact_effective_mass`), and a stop's impedance uses the joint's
+(:func:`dualtwin.convert.equivalences.contact_effective_mass`), and a stop's or a friction's impedance uses the joint's
 effective inertia from the compiled model. The mappings themselves are in :mod:`dualtwin.convert.equivalences`.
 
 Contacts: the ContactProperties matching a robot geom's and the environment's ``contactMaterial`` (default
@@ -22,6 +23,7 @@ from dualtwin.convert.equivalences import (
     CONTACT_FRICTION_TAIL,
     contact_effective_mass,
     contact_pair,
+    friction_solref,
     limit_solimp,
     stop_solref,
 )
@@ -105,14 +107,24 @@ def apply_contacts(spec: mujoco.MjSpec, geoms: Sequence[ContactGeom], world_info
         geom.solimp = env[2]
 
 
-def apply_stops(spec: mujoco.MjSpec, stops: Sequence[Stop], *, basic_ms: float, mujoco_step_s: float) -> None:
-    """Hard Webots stops as stiff MuJoCo limits (:func:`~dualtwin.convert.equivalences.stop_solref`).
+def apply_stops(spec: mujoco.MjSpec, stops: Sequence[Stop], *, basic_ms: float, mujoco_step_s: float,
+                cfm: float | None = None) -> None:
+    """Hard Webots stops as stiff MuJoCo limits (:func:`~dualtwin.convert.equivalences.stop_solref`), and with the
+    world ``cfm`` every joint's ``frictionloss`` (``staticFriction``) as ODE's stiff friction row
+    (:func:`~dualtwin.convert.equivalences.friction_solref`).
 
     The impedance needs each joint's effective inertia (1/``dof_invweight0``), so the spec is compiled first.
     """
-    if not stops:
+    frictions = [j for j in spec.joints if j.frictionloss > 0] if cfm is not None else []
+    if not stops and not frictions:
         return
     model = spec.compile()
+    for j in frictions:
+        dof = int(model.jnt_dofadr[model.joint(j.name).id])
+        timeconst, dampratio, d = friction_solref(cfm or 0.0, 1.0 / max(float(model.dof_invweight0[dof]), 1e-12),
+                                                  mujoco_step_s)
+        j.solref_friction = [timeconst, dampratio]
+        j.solimp_friction = limit_solimp(d)
     for j, erp, cfm in stops:
         dof = int(model.jnt_dofadr[model.joint(j.name).id])
         inertia = 1.0 / max(float(model.dof_invweight0[dof]), 1e-12)

@@ -52,6 +52,7 @@ __all__ = [
     "contact_pair",
     "contact_solref",
     "coulomb_friction",
+    "friction_solref",
     "hinge2_second_axis",
     "hinge_stop_range",
     "kinematic_joint_notes",
@@ -252,6 +253,21 @@ def stop_solref(stop_erp: float, stop_cfm: float, step_s: float, inertia: float,
     dampratio = math.sqrt(step_s / (4.0 * mujoco_step_s * erp))
     d = 1.0 / (1.0 + max(stop_cfm, 0.0) * max(inertia, 1e-9) / mujoco_step_s)
     return timeconst, dampratio, min(max(d, 0.5), 0.9999)
+
+
+def friction_solref(cfm: float, inertia: float, mujoco_step_s: float) -> tuple[float, float, float]:
+    """A joint's ``staticFriction`` row, ODE's velocity-0 motor row at the world CFM, as MuJoCo's ``frictionloss``
+    softness: ``solreffriction`` (timeconst, dampratio) and solimp ``d``.
+
+    Webots' static friction is a joint motor with target velocity 0 and force limit ``staticFriction`` (on-ODE
+    §4.5), a row with the world CFM (§5.3), so below its limit it holds the joint still within one step. MuJoCo's
+    default friction softness (solref 0.02 s, impedance 0.9) lets a loaded joint creep at about
+    ``load (1 - d) / (d m b)``: a 1 kg pendulum 0.3 m long on a 5 N·m friction slid at 0.034 rad/s where ODE holds
+    it. As for a stop (:func:`stop_solref`): b = 1/h (timeconst 2h; a friction row has no position, so the damping
+    ratio plays no part and is 1) and d = 1/(1 + CFM m / h).
+    """
+    d = 1.0 / (1.0 + max(cfm, 0.0) * max(inertia, 1e-9) / mujoco_step_s)
+    return 2.0 * mujoco_step_s, 1.0, min(max(d, 0.5), 0.9999)
 
 
 def hinge_stop_range(lo: float, hi: float, offset: float = 0.0) -> tuple[float, float]:

@@ -678,7 +678,7 @@ class _Converter:
         self.spec.modelname = model_name
         model = None
         try:
-            apply_stops(self.spec, self.stops, basic_ms=self.basic_ms, mujoco_step_s=self.dt)
+            apply_stops(self.spec, self.stops, basic_ms=self.basic_ms, mujoco_step_s=self.dt, cfm=self.cfm)
             harmonise_coupled_motors(self.spec, self.warn)
             model = self.spec.compile()
             add_initial_keyframe(self.spec, model, self.body_solids, self.world, self.warn)
