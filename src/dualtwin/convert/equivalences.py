@@ -30,13 +30,13 @@ Overview (one line each; details in the functions):
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from dualtwin.geometry import axis_angle_matrix
+from dualtwin.geometry import axis_angle_matrix, matrix_from_quat
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -53,6 +53,7 @@ __all__ = [
     "contact_solref",
     "coulomb_friction",
     "friction_solref",
+    "hinge2_axes",
     "hinge2_second_axis",
     "hinge_stop_range",
     "kinematic_joint_notes",
@@ -370,3 +371,30 @@ def kinematic_joint_notes(kind: str, end: Any, parent: Any, body_solids: Sequenc
         body = body.parent
     return ["Hinge2Joint has no Physics above it (a static parent): Webots builds no ODE joint and moves its "
             "endPoint kinematically, MuJoCo dynamically"]
+
+
+#: Webots' warning for a Hinge2Joint whose axes are aligned (on-ODE §4.4), and the converter's.
+HINGE2_ALIGNED = "Hinge2Joint axes are aligned: Webots falls back to the world's x and z axes, and so does the conversion"
+
+
+def hinge2_axes(axis1: Sequence[float], position1: float, axis2: Sequence[float], parent: Any, frame: FloatArray,
+                warn: Callable[[str], None]) -> tuple[FloatArray, FloatArray]:
+    """A Hinge2Joint's two axes in its frame (``frame``: the joint's upper Pose in the MuJoCo body ``parent``).
+
+    Axis 2 is turned by ``position1`` (:func:`hinge2_second_axis`). When the two are aligned, ODE's hinge-2 would
+    have one axis twice (in MuJoCo two hinges about one axis in one body: a singular mass matrix, NaN from the
+    first step), and Webots sets the world's x and z axes instead, with a warning (on-ODE §4.4; the Webots twin
+    does the same): the converter does too, expressed in ``frame`` through the bodies' rotations up to the world.
+    """
+    a1 = np.asarray(axis1, dtype=float)
+    a2 = hinge2_second_axis(a1, position1, axis2)
+    n1, n2 = float(np.linalg.norm(a1)), float(np.linalg.norm(a2))
+    if n1 == 0.0 or n2 == 0.0 or float(np.linalg.norm(np.cross(a1 / n1, a2 / n2))) >= 1e-6:
+        return a1, a2  # a zero axis is refused by the converter with its own message
+    warn(HINGE2_ALIGNED)
+    rotation = np.asarray(frame, dtype=float)[:3, :3]
+    body = parent
+    while body is not None and body.parent is not None:  # the world body has no parent
+        rotation = matrix_from_quat(np.asarray(body.quat, dtype=float)) @ rotation
+        body = body.parent
+    return rotation.T @ np.array([1.0, 0.0, 0.0]), rotation.T @ np.array([0.0, 0.0, 1.0])

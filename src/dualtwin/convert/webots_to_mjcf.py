@@ -66,7 +66,7 @@ from dualtwin.convert.equivalences import (
     apply_joint_dynamics,
     camera_fovy_degrees,
     camera_rotation,
-    hinge2_second_axis,
+    hinge2_axes,
     hinge_stop_range,
     kinematic_joint_notes,
     motor_numeric,
@@ -612,8 +612,8 @@ class _Converter:
         p2 = p2_node.fields if p2_node is not None else schema.default_fields("JointParameters")
         pos1 = float(p1.get("position", 0.0)) if p1_node is not None else float(jnode.get("position", 0.0))
         pos2 = float(p2.get("position", 0.0)) if p2_node is not None else float(jnode.get("position2", 0.0))
-        axis1 = np.asarray(p1.get("axis", (1.0, 0.0, 0.0)), dtype=float)
-        axis2 = hinge2_second_axis(axis1, pos1, p2.get("axis", (0.0, 0.0, 1.0)))
+        axis1, axis2 = hinge2_axes(p1.get("axis", (1.0, 0.0, 0.0)), pos1, p2.get("axis", (0.0, 0.0, 1.0)), parent, T,
+                                   lambda message: self.warn(message, jnode))
         anchor = point_in_child(p1.get("anchor", (0.0, 0.0, 0.0)))
         devices1 = [d for d in jnode.get("device", []) if d is not None]
         devices2 = [d for d in jnode.get("device2", []) if d is not None]
