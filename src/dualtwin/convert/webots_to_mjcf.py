@@ -78,7 +78,7 @@ from dualtwin.convert.equivalences import (
 )
 from dualtwin.convert.initial_state import add_initial_keyframe
 from dualtwin.convert.mass import FloatArray, MassProps, bounding_primitives, combine, solid_mass
-from dualtwin.convert.sensor_models import add_resolution
+from dualtwin.convert.sensor_models import add_sensor_model
 from dualtwin.convert.surfaces import add_surface_mesh
 from dualtwin.convert.touch_sites import touch_site_volume
 from dualtwin.geometry import axis_angle_matrix, mujoco_quat
@@ -361,7 +361,7 @@ class _Converter:
             self.warn(f"{kind} {device_name!r} outside the robot", solid)
         sensor = self.spec.add_sensor(name=self.unique("sensor", device_name), type=sensor_type,
                                       objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site_name)
-        add_resolution(self.spec, sensor.name, solid)
+        add_sensor_model(self.spec, sensor.name, solid, self.info)
         if kind == "DistanceSensor" and len(sensor.intprm) and int(sensor.intprm[0]) == 0:
             sensor.intprm[0] = 1  # MuJoCo >= 3.4 rangefinder data spec: distance only (the XML default)
         noise = float(solid.get("noise", 0.0) or 0.0)
@@ -596,7 +596,7 @@ class _Converter:
                                               objtype=mujoco.mjtObj.mjOBJ_JOINT, objname=info.name)
                 if float(d.get("noise", 0.0)) > 0:
                     sensor.noise = float(d["noise"])
-                add_resolution(self.spec, sensor_name, d)
+                add_sensor_model(self.spec, sensor_name, d, self.info)
                 info.sensors.append(sensor_name)
                 self.sensors[sensor_name] = kind
             elif kind == "Brake":
