@@ -26,10 +26,10 @@ Devices
     Motor -> ``general`` actuator on its joint, ``forcerange``/``ctrlrange`` ±maxTorque/maxForce, and a numeric
     ``webots_motor.NAME`` = maxVelocity Kp Ki Kd acceleration [minPosition maxPosition [multiplier]] for
     :mod:`dualtwin.twins.mujoco` (``a::b`` motors harmonised, :mod:`dualtwin.convert.coupled`). PositionSensor ->
-    jointpos (resolution: :mod:`dualtwin.convert.sensor_models`); InertialUnit -> framequat, Gyro -> gyro,
-    Accelerometer -> accelerometer, GPS -> framepos, Compass -> magnetometer, DistanceSensor -> rangefinder,
-    TouchSensor -> touch (its site covers the boundingObject: :mod:`dualtwin.convert.touch_sites`), each at a site
-    at the device pose named by the device.
+    jointpos; InertialUnit -> framequat, Gyro -> gyro, Accelerometer -> accelerometer, GPS -> framepos, Compass ->
+    magnetometer, DistanceSensor -> rangefinder (one ray), TouchSensor -> touch (its site covers the boundingObject:
+    :mod:`dualtwin.convert.touch_sites`), each at a site at the device pose named by the device; resolution and
+    lookupTable as numerics the MuJoCo twin applies (:mod:`dualtwin.convert.sensor_models`).
 
 Stops, contacts, cameras, world
     Stops become stiff MuJoCo limits and ContactProperties each collision geom's ``friction``, ``solref`` and
@@ -78,7 +78,7 @@ from dualtwin.convert.equivalences import (
 )
 from dualtwin.convert.initial_state import add_initial_keyframe
 from dualtwin.convert.mass import FloatArray, MassProps, bounding_primitives, combine, solid_mass
-from dualtwin.convert.sensor_models import add_sensor_model
+from dualtwin.convert.sensor_models import TABLED, add_sensor_model, distance_notes
 from dualtwin.convert.surfaces import add_surface_mesh
 from dualtwin.convert.touch_sites import touch_site_volume
 from dualtwin.geometry import axis_angle_matrix, mujoco_quat
@@ -346,8 +346,8 @@ class _Converter:
         site_R = T[:3, :3]
         if kind == "DistanceSensor":
             site_R = rangefinder_rotation(site_R)
-            self.warn(f"distance sensor {device_name!r}: MuJoCo rangefinder returns metres along one ray "
-                      "(Webots' lookupTable and aperture are not converted)", solid)
+            for remark in distance_notes(solid):
+                self.warn(f"distance sensor {device_name!r}: {remark}", solid)
         site_name = self.unique("site", device_name)
         site = body.add_site(name=site_name, pos=[float(v) for v in T[:3, 3]], quat=_quat(site_R))
         site.group = 4
@@ -361,7 +361,7 @@ class _Converter:
             self.warn(f"{kind} {device_name!r} outside the robot", solid)
         sensor = self.spec.add_sensor(name=self.unique("sensor", device_name), type=sensor_type,
                                       objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site_name)
-        add_sensor_model(self.spec, sensor.name, solid, self.info)
+        add_sensor_model(self.spec, sensor, solid, self.info)
         if kind == "DistanceSensor" and len(sensor.intprm) and int(sensor.intprm[0]) == 0:
             sensor.intprm[0] = 1  # MuJoCo >= 3.4 rangefinder data spec: distance only (the XML default)
         noise = float(solid.get("noise", 0.0) or 0.0)
@@ -371,7 +371,7 @@ class _Converter:
             accuracy = float(solid.get("accuracy", 0.0))
             if accuracy > 0:
                 sensor.noise = accuracy
-        if solid.get("lookupTable"):
+        if solid.get("lookupTable") and kind not in TABLED:
             self.warn(f"{kind} {device_name!r}: lookupTable not converted (MuJoCo reports raw values)", solid)
         if kind == "InertialUnit":
             self.warn(f"inertial unit {device_name!r}: MuJoCo framequat gives a quaternion, Webots roll/pitch/yaw",
@@ -596,7 +596,7 @@ class _Converter:
                                               objtype=mujoco.mjtObj.mjOBJ_JOINT, objname=info.name)
                 if float(d.get("noise", 0.0)) > 0:
                     sensor.noise = float(d["noise"])
-                add_sensor_model(self.spec, sensor_name, d, self.info)
+                add_sensor_model(self.spec, sensor, d, self.info)
                 info.sensors.append(sensor_name)
                 self.sensors[sensor_name] = kind
             elif kind == "Brake":

@@ -36,7 +36,7 @@ import numpy as np
 
 from dualtwin.errors import DualtwinError, SimulationUnstable
 from dualtwin.geometry import canonical_quat, matrix_from_quat
-from dualtwin.twins import motor_plugin, mujoco_state
+from dualtwin.twins import motor_plugin, mujoco_state, sensor_tables
 from dualtwin.twins.base import (
     MAX_SUBSTEPS,
     ControlMode,
@@ -171,7 +171,9 @@ class MuJoCoTwin(Twin):
         self._ids: dict[tuple[mujoco.mjtObj, str], int] = {}  # see _id
         self._sensor_adr: list[int] = self.model.sensor_adr.tolist()
         self._resolution = mujoco_state.sensor_resolutions(self.model)  # Webots' sensor resolution (the converted model's)
-        self._sensor_models = bool(self._noise.any() or self._resolution.any())  # bias, delay, noise, resolution
+        self._tables = sensor_tables.read_tables(self.model)  # Webots' lookup tables (the converted model's)
+        # bias, delay, noise, resolution, lookup tables
+        self._sensor_models = bool(self._noise.any() or self._resolution.any() or self._tables)
         self._keyframe = mujoco_state.initial_keyframe(self.model)  # Webots' initial velocities (dualtwin.convert.initial_state)
         self.reset()
 
@@ -554,8 +556,8 @@ class MuJoCoTwin(Twin):
 
     @property
     def plain_sensor_reads(self) -> bool:
-        """True when :meth:`sensor` returns MuJoCo's reading as it is (+ 0.0): no noise, bias, resolution or
-        delay applies (a batch may then read every twin's sensors at once, `dualtwin.twins.mujoco_batch`)."""
+        """True when :meth:`sensor` returns MuJoCo's reading as it is (+ 0.0): no noise, bias, resolution, lookup
+        table or delay applies (a batch may then read every twin's sensors at once, `dualtwin.twins.mujoco_batch`)."""
         return not self._sensor_models
 
     def sensor(self, name: str) -> float:
@@ -571,6 +573,8 @@ class MuJoCoTwin(Twin):
         else:
             self.refresh()
             value = float(self.data.sensordata[adr])
+        if (table := self._tables.get(s)) is not None:  # Webots' lookupTable of the physical value, then the rest
+            value = sensor_tables.table_value(*table, value, self._rng)
         value += float(self._sensor_bias[s])
         if self._noise[s] > 0:
             value += float(self._rng.normal(0.0, self._noise[s]))
@@ -744,7 +748,7 @@ class MuJoCoTwin(Twin):
                 self._write_plugin(mo)
         self._delayed_sensors = bool(self._sensor_delay.any())
         self._sensor_models = bool(self._delayed_sensors or self._noise.any() or self._sensor_bias.any()
-                                   or self._sensor_quant.any() or self._resolution.any())
+                                   or self._sensor_quant.any() or self._resolution.any() or self._tables)
         self._knob_values = dict(values)
 
     def _set_substeps(self, substeps: int) -> None:

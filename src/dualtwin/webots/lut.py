@@ -12,12 +12,18 @@ values round differently from ``floor``; ``-1`` (or any value ≤ 0) disables it
 from __future__ import annotations
 
 import math
-import random
 from collections.abc import Sequence
+from typing import Protocol
 
-__all__ = ["Table", "discretize", "lookup", "table_from_field"]
+__all__ = ["Gauss", "Table", "discretize", "lookup", "table_from_field"]
 
 Table = list[tuple[float, float, float]]
+
+
+class Gauss(Protocol):
+    """A source of Gaussian draws (``random.Random``; the MuJoCo twin adapts its NumPy generator)."""
+
+    def gauss(self, mu: float, sigma: float) -> float: ...
 
 
 def table_from_field(value: object) -> Table:
@@ -45,7 +51,7 @@ def _interpolate(table: Sequence[tuple[float, float, float]], x: float) -> tuple
     return table[-1][1], table[-1][2]
 
 
-def lookup(table: Sequence[tuple[float, float, float]], x: float, rng: random.Random | None) -> float:
+def lookup(table: Sequence[tuple[float, float, float]], x: float, rng: Gauss | None) -> float:
     """Output of the table at ``x``, with its multiplicative Gaussian noise drawn from ``rng``."""
     if not table:
         return x
