@@ -19,7 +19,9 @@ goes through it. A DistanceSensor always has one (Webots' default is ``[0 0 0, 0
 ``lookup(D)``. An empty DistanceSensor table reads 0 in Webots (§1.4), written as the one row ``0 0 0``. The
 rangefinder is one ray along the sensor's axis: exact for a laser and for one-ray generic and sonar sensors
 (except a sonar's π/8 echo angle, which MuJoCo does not check); several rays over an ``aperture`` and infra-red's
-reflection factor are approximated by that ray, with a warning (:func:`distance_notes`).
+reflection factor are approximated by that ray, with a warning (:func:`distance_notes`). MuJoCo's ray excludes
+only the sensor's own body: it also hits visual geoms and the robot's other bodies, which Webots' generic, sonar
+and laser rays do not (they hit boundingObjects outside the robot unless ``selfCollision``).
 
 A Compass reads the world's north (the axis ``WorldInfo.coordinateSystem`` names N: +y in ENU, +x in NUE, +z in
 EUN) as a unit vector in its frame (the Webots twin's ``webots.compass``); MuJoCo's ``magnetometer`` reads the
