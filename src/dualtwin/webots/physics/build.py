@@ -42,6 +42,12 @@ from dualtwin.webots.physics.records import (
     field_or as _f,
 )
 
+#: joint parameters fields that must not be negative (webots-on-ode.md §4.5: staticFriction ≥ 0); Webots' field checks
+#: reset a negative one to 0 with a warning. Negative constants also let h·K + B be 0 in the spring's and the
+#: suspension's CFM = 1/(h·K + B) (a ZeroDivisionError inside the step, found by fuzzing the edits)
+NON_NEGATIVE_JOINT_FIELDS = ("springConstant", "dampingConstant", "staticFriction", "suspensionSpringConstant",
+                             "suspensionDampingConstant")
+
 
 class SceneBuilder(SimulationCore):
     """Records, bodies, masses and geoms (see the module docstring)."""
@@ -115,6 +121,15 @@ class SceneBuilder(SimulationCore):
         self._walk_children(node.children(), Pose(), solid, robot)
         return solid
 
+    def check_joint_parameters(self, node: Node, names: Iterable[str] = NON_NEGATIVE_JOINT_FIELDS) -> None:
+        """A negative spring, damping, static friction or suspension constant among ``names`` of a joint
+        parameters node is reset to 0 in the node, with a warning (at load, on import and on a run-time edit)."""
+        for name in names:
+            value = node.fields.get(name)
+            if name in NON_NEGATIVE_JOINT_FIELDS and isinstance(value, int | float) and value < 0:
+                self.warn(f"{node.type_name}.{name} {value:g} is negative; reset to 0")
+                node.fields[name] = 0.0
+
     def _add_joint(
         self, node: Node, frame_rel: Pose, parent: SolidRec | None, robot: RobotRec | None
     ) -> None:
@@ -127,6 +142,8 @@ class SceneBuilder(SimulationCore):
         for fname in param_fields:
             p = _f(node, fname, None)
             params.append(p if isinstance(p, Node) else None)
+            if isinstance(p, Node):
+                self.check_joint_parameters(p)
         axes, anchor = self._joint_axes(kind, params)
         positions = []
         for i, p in enumerate(params):

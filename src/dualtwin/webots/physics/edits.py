@@ -280,6 +280,9 @@ class SupervisorEdits(MassEdits):
     def _apply_joint_field(self, joint: JointRec, i: int, name: str) -> bool:
         """An edit of a field of ``joint``'s parameters of axis ``i`` (``position`` is a teleport, queued by the
         Field API). A kinematic joint (no ODE joint) has nothing in ODE to change."""
+        params = joint.params[i]
+        if params is not None:
+            self.check_joint_parameters(params, (name,))
         if name == "staticFriction":
             joint.static_friction[i] = float(field_or(joint.params[i], name, 0.0))
             if joint.ptr and joint.motors[i] is None:

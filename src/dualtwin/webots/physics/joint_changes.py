@@ -146,6 +146,7 @@ class JointChanges(Stepper):
         kinematic_pose = self._kinematic_rel(child) if child is not None and joint.kinematic else None
         joint.params[axis] = node
         if node is not None:
+            self.check_joint_parameters(node)
             self._joint_by_node[id(node)] = joint
             joint.positions[axis] = float(field_or(node, "position", joint.positions[axis]))
         axes, anchor = self._joint_axes(joint.kind, joint.params)

@@ -1,0 +1,105 @@
+"""Hostile values in joint parameters, written in the world or by a supervisor at run time: the simulation goes on
+(Webots' field checks reset the value, with a warning), no exception comes out of a step, no ODE assertion ends
+the process (those cases run in a child process).
+
+S = /work/shared/reference/webots-on-ode.md. S §4.5: the spring and damper rows take CFM = 1/(h·K + B) and
+ERP = h·K/(h·K + B), and staticFriction is ≥ 0; Webots resets a negative springConstant, dampingConstant,
+staticFriction or suspension constant to 0 with a warning (its joint parameters' field checks), which also keeps
+h·K + B from being 0 (it was: a ZeroDivisionError out of the load or of the step after the edit)."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from dualtwin.webots.controller import Supervisor
+from tests.support.hinge_arm import BOB, TS, G, load_arm
+from tests.support.world_runs import run_world_cli
+
+# h·K + B = 0.004·(−250) + 1 = 0 at a 4 ms step (hand computation)
+K_ZERO_SUM = -250.0
+
+JOINTS = {
+    "hinge": "HingeJoint {{ jointParameters DEF P HingeJointParameters {{ axis 0 1 0 {p} }} endPoint {end} }}",
+    "slider": "SliderJoint {{ jointParameters DEF P JointParameters {{ axis 1 0 0 {p} }} endPoint {end} }}",
+    "hinge2": "Hinge2Joint {{ jointParameters DEF P HingeJointParameters {{ axis 0 1 0 {p} }} endPoint {end} }}",
+    "ball": "BallJoint {{ jointParameters DEF P BallJointParameters {{ {p} }} endPoint {end} }}",
+}
+
+
+def _sup(kind: str, params: str) -> tuple[Supervisor, list[str]]:
+    """The arm with a ``kind`` joint whose parameters node (DEF P) holds ``params``, and the load's warnings."""
+    sim, sup = load_arm(JOINTS[kind].format(p=params, end=BOB.format(t="0.5 0 0.1")), gravity=G)
+    return sup, sim.build_warnings
+
+
+def _edit(sup: Supervisor, name: str, value: float) -> list[str]:
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        sup.getFromDef("P").getField(name).setSFFloat(value)
+        for _ in range(10):
+            assert sup.step(TS) != -1
+    return [str(w.message) for w in caught]
+
+
+CASES = [("hinge", "springConstant", "dampingConstant 1"), ("hinge", "dampingConstant", "springConstant 250"),
+         ("slider", "springConstant", "dampingConstant 1"), ("hinge2", "springConstant", "dampingConstant 1"),
+         ("ball", "springConstant", "dampingConstant 1"),
+         ("hinge2", "suspensionSpringConstant", "suspensionDampingConstant 1")]
+
+
+@pytest.mark.parametrize(("kind", "name", "other"), CASES)
+def test_a_negative_constant_edited_at_run_time_is_reset_to_zero(kind: str, name: str, other: str) -> None:
+    sup, _ = _sup(kind, other)
+    assert sup.step(TS) != -1
+    value = K_ZERO_SUM if "Spring" in name or name == "springConstant" else -1.0
+    messages = _edit(sup, name, value)
+    assert sup.getFromDef("P").getField(name).getSFFloat() == 0.0
+    assert any(f"{name} {value:g} is negative; reset to 0" in m for m in messages), messages
+
+
+@pytest.mark.parametrize(("kind", "name", "other"), CASES)
+def test_a_negative_constant_in_the_world_is_reset_to_zero(kind: str, name: str, other: str) -> None:
+    value = K_ZERO_SUM if "Spring" in name or name == "springConstant" else -1.0
+    sup, messages = _sup(kind, f"{other} {name} {value:g}")
+    assert any(f"{name} {value:g} is negative; reset to 0" in m for m in messages), messages
+    assert sup.getFromDef("P").getField(name).getSFFloat() == 0.0
+    for _ in range(10):
+        assert sup.step(TS) != -1
+
+
+def test_a_negative_static_friction_is_reset_to_zero() -> None:
+    # S §4.5: staticFriction ≥ 0 (a negative one was passed to ODE as the motor row's force limit)
+    sup, messages = _sup("hinge", "staticFriction -3")
+    assert any("staticFriction -3 is negative; reset to 0" in m for m in messages), messages
+    assert any("staticFriction -2 is negative" in m for m in _edit(sup, "staticFriction", -2.0))
+    assert sup.getFromDef("P").getField("staticFriction").getSFFloat() == 0.0
+
+
+def test_imported_parameters_with_a_negative_constant_are_reset_to_zero() -> None:
+    # a parameters node imported into an empty field is checked as at load
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        _, sup = load_arm("HingeJoint { endPoint " + BOB.format(t="0.5 0 0") + " }", gravity=G)
+    joint: Any = sup.getSelf().getField("children").getMFNode(0)
+    assert sup.step(TS) != -1
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        joint.getField("jointParameters").importSFNodeFromString(
+            "HingeJointParameters { axis 0 1 0 springConstant -250 dampingConstant 1 }")
+        for _ in range(10):
+            assert sup.step(TS) != -1
+    assert any("springConstant -250 is negative" in str(w.message) for w in caught)
+
+
+def test_cli_runs_a_world_with_a_negative_spring(tmp_path: Path) -> None:
+    world = ("#VRML_SIM R2023b utf8\nWorldInfo { basicTimeStep 4 }\n"
+             'Robot { controller "<extern>" children [ HingeJoint { jointParameters HingeJointParameters { '
+             "axis 0 1 0 springConstant -250 dampingConstant 1 } endPoint " + BOB.format(t="0.5 0 0") + " } ] }\n")
+    controller = "from controller import Robot\nr = Robot()\nfor _ in range(20):\n    r.step(4)\nprint('DONE')\n"
+    run = run_world_cli(tmp_path, "spring", world, controller)
+    assert run.returncode == 0 and "Traceback" not in run.stderr, run.stderr
+    assert "DONE" in run.stdout and "springConstant -250 is negative; reset to 0" in run.stderr
