@@ -10,6 +10,7 @@ the physics step, far from its cause.
 
 from __future__ import annotations
 
+import math
 import numbers
 import sys
 from collections.abc import Sequence
@@ -18,6 +19,9 @@ from typing import Any
 import numpy as np
 
 __all__ = ["as_float", "as_floats", "as_int", "error", "finite", "warn"]
+
+
+C_INT_MIN, C_INT_MAX = -(2**31), 2**31 - 1
 
 
 def warn(message: str) -> None:
@@ -38,7 +42,11 @@ def finite(*values: float) -> bool:
 def _describe(value: Any) -> str:
     if isinstance(value, np.ndarray):
         return f"a NumPy array of shape {value.shape} and dtype {value.dtype}"
-    return f"{type(value).__name__} {value!r}"[:120]
+    try:
+        text = repr(value)
+    except ValueError:  # an int of more digits than Python converts to text
+        text = f"<{value.bit_length()} bits>"
+    return f"{type(value).__name__} {text}"[:120]
 
 
 def as_float(value: Any, method: str) -> float:
@@ -61,15 +69,26 @@ def as_float(value: Any, method: str) -> float:
 def as_int(value: Any, method: str) -> int:
     """``value`` as an int: a whole number given as any scalar or one-element array ``as_float`` accepts.
 
+    The C functions take a C ``int``: a number outside its range is refused at the call too (Webots' ctypes
+    passes a Python ``int`` raw: one beyond a C long raises, one within it is cut to its low 32 bits), instead of
+    being stored (a sampling period of 10**400 broke the next step, found by fuzzing).
+
     Raises:
-        TypeError: not a number, or not a whole number, naming ``method``.
+        TypeError: not a number, not a whole number, or not within a C int, naming ``method``.
     """
     if isinstance(value, int | np.integer) and not isinstance(value, bool):
-        return int(value)
-    number = as_float(value, method)
-    if not number.is_integer():
-        raise TypeError(f"{method}() expects a whole number, got {number!r}")
-    return int(number)
+        whole = int(value)
+    else:
+        try:
+            number = as_float(value, method)
+        except OverflowError:  # a Python int subclass too large for a float
+            number = math.inf
+        if not number.is_integer():
+            raise TypeError(f"{method}() expects a whole number, got {number!r}")
+        whole = int(number)
+    if not C_INT_MIN <= whole <= C_INT_MAX:
+        raise TypeError(f"{method}() expects a whole number within a C int [{C_INT_MIN}, {C_INT_MAX}], got {_describe(value)}")
+    return whole
 
 
 def as_floats(values: Any, method: str, count: int | None = None) -> list[float]:
