@@ -19,6 +19,7 @@ from dualtwin.webots.controller import Supervisor
 from tests.support.hinge_arm import BOB, TS, G, load_arm
 from tests.support.world_runs import run_world_cli
 
+HEAVY = "boundingObject Box { size 0.1 0.1 0.1 } physics Physics { density -1 mass 100 }"
 # h·K + B = 0.004·(−250) + 1 = 0 at a 4 ms step (hand computation)
 K_ZERO_SUM = -250.0
 
@@ -103,3 +104,21 @@ def test_cli_runs_a_world_with_a_negative_spring(tmp_path: Path) -> None:
     run = run_world_cli(tmp_path, "spring", world, controller)
     assert run.returncode == 0 and "Traceback" not in run.stderr, run.stderr
     assert "DONE" in run.stdout and "springConstant -250 is negative; reset to 0" in run.stderr
+
+
+@pytest.mark.parametrize("joint", [
+    "HingeJoint { jointParameters HingeJointParameters { axis 0 1 0 position 1e308 } device [ RotationalMotor { } ]",
+    "Hinge2Joint { jointParameters2 JointParameters { position -1e308 } device2 [ RotationalMotor { } ]",  # (2 bodies)
+    "BallJoint { jointParameters BallJointParameters { position 1e308 }",
+])
+def test_a_joint_loaded_at_a_huge_position_runs(tmp_path: Path, joint: str) -> None:
+    # Unwrapping the read angle about the last position (§4.2) looped for ever: about 1e308, center ± π is the
+    # centre itself. Whole turns cannot be counted at such a position: the angle is read as it is. (A child
+    # process: the old code hung; its timeout is only a hang guard.)
+    world = ("#VRML_SIM R2023b utf8\nWorldInfo { basicTimeStep 4 }\n"
+             f'Robot {{ controller "<extern>" {HEAVY} children [ {joint} endPoint ' + BOB.format(t="0.5 0 0")
+             + " } ] }\n")
+    controller = "from controller import Robot\nr = Robot()\nfor _ in range(20):\n    r.step(4)\nprint('DONE')\n"
+    run = run_world_cli(tmp_path, "huge", world, controller)
+    assert run.returncode == 0 and "Traceback" not in run.stderr, run.stderr
+    assert "DONE" in run.stdout

@@ -192,6 +192,10 @@ def normalize_angle(angle: float, center: float = 0.0) -> float:
         # The loop below would never end (inf) or take ~1e299 turns (1e300): such an angle has lost every digit
         # of its remainder; NaN lets the physics report the state as unstable instead of hanging.
         return math.nan
+    if abs(center) > 1e15:
+        # whole turns are below the resolution of so large a centre (1e308: center ± π is center, and the loops
+        # below never ended, found by fuzzing a joint loaded at position 1e308): nothing to unwrap
+        return angle
     while angle > center + math.pi:
         angle -= two_pi
     while angle <= center - math.pi:
