@@ -12,15 +12,30 @@ from __future__ import annotations
 
 import math
 import sys
+from collections.abc import Callable
+from typing import Any
 
 from dualtwin.webots.api_args import warn
 
-__all__ = ["MULTIPLIER_ZERO", "clamp_force", "clamp_position", "clamp_velocity", "echo", "refuse_acceleration", "refuse_available", "refuse_nan",
+__all__ = ["MULTIPLIER_ZERO", "check_maxima", "clamp_force", "clamp_position", "clamp_velocity", "echo", "refuse_acceleration", "refuse_available", "refuse_nan",
            "refuse_velocity"]
 
 
 #: the load warning of a motor whose multiplier is 0 (webots-devices.md §9: "0 → reset to 1 with warning")
 MULTIPLIER_ZERO = "motor '{name}': multiplier 0 is not allowed; using 1"
+
+
+def check_maxima(motor: Any, report: Callable[[str], None]) -> None:
+    """A motor node's negative ``maxVelocity``, ``maxTorque`` or ``maxForce`` is made positive, with a ``report``ed
+    warning, before any motor reads it (joint motors, a Track's, a Propeller's). Webots' motor field checks reset a
+    negative one (to its opposite); here a Propeller with maxTorque -1e308 clamped its torque to +1e308 and ODE
+    stopped inside the step (found by fuzzing)."""
+    fields = motor.fields
+    for name in ("maxVelocity", "maxTorque", "maxForce"):
+        value = fields.get(name)
+        if isinstance(value, int | float) and value < 0:
+            report(f"{motor.type_name} '{fields.get('name', '')}': {name} {value:g} is negative; using {-value:g}")
+            fields[name] = -value
 
 
 def refuse_nan(method: str, name: str, *values: float) -> bool:

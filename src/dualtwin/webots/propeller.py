@@ -23,7 +23,7 @@ from typing import Any
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots.api_args import warn
 from dualtwin.webots.kinematic_motor import KinematicMotor
-from dualtwin.webots.motor_api import MULTIPLIER_ZERO
+from dualtwin.webots.motor_api import MULTIPLIER_ZERO, check_maxima
 from dualtwin.webots.motor_law import kinematic_motion
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import AttachmentRec, Simulation
@@ -90,7 +90,7 @@ class PropellerRec:
         self.omega = omega if math.isinf(self.target_position) else abs(omega)
 
 
-def _make(site: AttachmentRec) -> PropellerRec:
+def _make(site: AttachmentRec, sim: Simulation) -> PropellerRec:
     f = site.node.fields
     axis = _vec(f.get("shaftAxis"), (1.0, 0.0, 0.0))
     if m3.norm(axis) == 0.0:
@@ -98,6 +98,8 @@ def _make(site: AttachmentRec) -> PropellerRec:
         axis = (0.0, 1.0, 0.0)
     motor = f.get("device")
     motor = motor if isinstance(motor, Node) and motor.type_name == "RotationalMotor" else None
+    if motor is not None:
+        check_maxima(motor, sim.warn)
     mf = motor.fields if motor is not None else {}
     t1, t2 = _vec(f.get("thrustConstants"), (1.0, 0.0))
     q1, q2 = _vec(f.get("torqueConstants"), (1.0, 0.0))
@@ -117,7 +119,7 @@ class _Propellers:
 
     def __init__(self, sim: Simulation) -> None:
         self.sim = sim
-        self.recs = [_make(site) for site in sim.attachments if site.node.type_name == "Propeller"]
+        self.recs = [_make(site, sim) for site in sim.attachments if site.node.type_name == "Propeller"]
         for rec in self.recs:
             if rec.motor is not None and float(rec.motor.fields.get("multiplier", 1.0)) == 0.0:
                 sim.warn(MULTIPLIER_ZERO.format(name=rec.name))

@@ -29,7 +29,7 @@ from dualtwin.webots.api_args import as_float, finite, warn
 from dualtwin.webots.device_base import Device
 from dualtwin.webots.joint_devices import Brake, PositionSensor
 from dualtwin.webots.kinematic_motor import KinematicMotor
-from dualtwin.webots.motor_api import MULTIPLIER_ZERO, clamp_force, refuse_nan
+from dualtwin.webots.motor_api import MULTIPLIER_ZERO, check_maxima, clamp_force, refuse_nan
 from dualtwin.webots.motor_law import motor_velocity
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import Simulation, SolidRec
@@ -88,7 +88,7 @@ class TrackRec:
         self.position += self.velocity * dt
 
 
-def _make(solid: SolidRec) -> TrackRec:
+def _make(solid: SolidRec, sim: Simulation) -> TrackRec:
     found: dict[str, Node] = {}
     for dev in solid.node.fields.get("device", []) or []:
         if isinstance(dev, Node) and dev.type_name in ("LinearMotor", "PositionSensor", "Brake"):
@@ -96,6 +96,7 @@ def _make(solid: SolidRec) -> TrackRec:
     motor = found.get("LinearMotor")
     rec = TrackRec(solid=solid, motor=motor, sensor=found.get("PositionSensor"), brake=found.get("Brake"))
     if motor is not None:
+        check_maxima(motor, sim.warn)
         f = motor.fields
         pid = tuple(f.get("controlPID", (10.0, 0.0, 0.0)))
         rec.max_velocity = float(f.get("maxVelocity", 10.0))
@@ -112,7 +113,7 @@ def _make(solid: SolidRec) -> TrackRec:
 class _Tracks:
     def __init__(self, sim: Simulation) -> None:
         self.sim = sim
-        self.recs = [_make(s) for s in sim.solids if s.node.type_name == "Track"]
+        self.recs = [_make(s, sim) for s in sim.solids if s.node.type_name == "Track"]
         for rec in self.recs:
             if rec.motor is not None and float(rec.motor.fields.get("multiplier", 1.0)) == 0.0:
                 sim.warn(MULTIPLIER_ZERO.format(name=rec.motor.fields.get("name", "linear motor")))

@@ -15,7 +15,7 @@ from dualtwin.webots._math3 import Pose
 from dualtwin.webots.bounding_mesh import TRIMESH_TYPES, mesh_warning, trimesh_data
 from dualtwin.webots.mass_rules import mass_zero, rot_matrix, solid_mass
 from dualtwin.webots.mesh_files import MeshFileError
-from dualtwin.webots.motor_api import MULTIPLIER_ZERO
+from dualtwin.webots.motor_api import MULTIPLIER_ZERO, check_maxima
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics.core import SimulationCore
 from dualtwin.webots.physics.records import (
@@ -47,6 +47,9 @@ from dualtwin.webots.physics.records import (
 #: suspension's CFM = 1/(h·K + B) (a ZeroDivisionError inside the step, found by fuzzing the edits)
 NON_NEGATIVE_JOINT_FIELDS = ("springConstant", "dampingConstant", "staticFriction", "suspensionSpringConstant",
                              "suspensionDampingConstant")
+
+#: the most rays a Lidar or RangeFinder casts per sample (2048 x 2048; a 64-layer lidar of 4500 columns is 288000)
+MAX_DEPTH_RAYS = 2**22
 
 
 class SceneBuilder(SimulationCore):
@@ -267,6 +270,7 @@ class SceneBuilder(SimulationCore):
 
     def _make_motor(self, dev: Node, joint: JointRec, axis_index: int) -> MotorRec:
         rotational = dev.type_name == "RotationalMotor"
+        check_maxima(dev, self.warn)
         pid = tuple(_f(dev, "controlPID", (10.0, 0.0, 0.0)))
         motor = MotorRec(
             node=dev,
@@ -644,6 +648,8 @@ class SceneBuilder(SimulationCore):
                 self.devices.append(dev)
                 if node.type_name == "Lidar":
                     self._check_lidar_layers(node, dev.name)
+                if node.type_name in ("Lidar", "RangeFinder"):
+                    self._check_ray_count(node, dev.name)
         for robot in self.robots if robots is None else robots:
             self._order_devices(robot)
             self._harmonise_coupled_motors(robot)
@@ -664,6 +670,22 @@ class SceneBuilder(SimulationCore):
                       f"horizontalResolution / {'2π' if rotating else 'fieldOfView'} = {bound:g}; numberOfLayers "
                       f"set to {fitted}")
             node.fields["numberOfLayers"] = fitted
+
+    def _check_ray_count(self, node: Node, name: str) -> None:
+        """A Lidar or RangeFinder casts one ray per pixel of its image: beyond ``MAX_DEPTH_RAYS`` (each side is
+        at most 16384, protos.MAX_IMAGE_SIDE, but 16384 x 16384 rays took tens of GB before the first sample,
+        found by fuzzing) its numberOfLayers (Lidar) or height (RangeFinder) is cut to the most that fit, with a
+        warning."""
+        lidar = node.type_name == "Lidar"
+        width_field, rows_field = ("horizontalResolution", "numberOfLayers") if lidar else ("width", "height")
+        width = max(1, int(_f(node, width_field, 512 if lidar else 64)))
+        rows = int(_f(node, rows_field, 4 if lidar else 64))
+        if width * rows <= MAX_DEPTH_RAYS:
+            return
+        fitted = max(1, MAX_DEPTH_RAYS // width)
+        self.warn(f"{node.type_name} '{name}': {width_field} * {rows_field} = {width} * {rows} rays is more than "
+                  f"dualtwin casts ({MAX_DEPTH_RAYS}); {rows_field} set to {fitted}")
+        node.fields[rows_field] = fitted
 
     def _harmonise_coupled_motors(self, robot: RobotRec) -> None:
         """Coupled motors (``prefix::suffix``, same robot) take their limits from the group's first motor in

@@ -13,6 +13,7 @@ from dualtwin.webots import ode
 from dualtwin.webots._math3 import Pose
 from dualtwin.webots.lut import discretize
 from dualtwin.webots.mass_rules import rot_matrix
+from dualtwin.webots.motor_api import check_maxima
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics.geometry_edits import GEOMETRY_TYPES
 from dualtwin.webots.physics.mass_edits import MASS_FIELDS, MassEdits
@@ -248,6 +249,8 @@ class SupervisorEdits(MassEdits):
             return self._apply_joint_field(joint, i, name)
         motor = next((m for m in self.motors if m.node is node), None)
         if motor is not None:
+            check_maxima(node, self.warn)  # a negative maximum, as at load
+            value = node.fields.get(name)
             if name == "maxVelocity":
                 motor.max_velocity = float(value)
                 motor.target_velocity = max(-motor.max_velocity, min(motor.max_velocity, motor.target_velocity))
