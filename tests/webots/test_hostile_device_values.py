@@ -99,3 +99,16 @@ def test_a_negative_motor_maximum_edited_at_run_time_is_made_positive() -> None:
         assert sup.step(TS) != -1
     assert node.getField("maxTorque").getSFFloat() == 5.0
     assert any("maxTorque -5 is negative; using 5" in str(w.message) for w in caught)
+
+
+@pytest.mark.parametrize(("device", "template"), [("prop", PROPELLER), ("belt", TRACK), ("hinge", HINGE)])
+def test_a_negative_acceleration_in_the_world_is_unlimited(device: str, template: str) -> None:
+    # O §5.1: acceleration -1 is unlimited; a Propeller spun up by -1e308 rad/s² a step stopped ODE in the step
+    sup = _sup(template.format(motor="acceleration -1e308"))
+    assert any("acceleration -1e+308 is negative; using -1 (unlimited)" in w for w in sup.simulation.build_warnings)
+    motor = sup.getDevice(device)
+    assert motor.getAcceleration() == -1.0
+    motor.setPosition(math.inf)
+    motor.setVelocity(1.0)
+    for _ in range(20):
+        assert sup.step(TS) != -1

@@ -26,16 +26,23 @@ MULTIPLIER_ZERO = "motor '{name}': multiplier 0 is not allowed; using 1"
 
 
 def check_maxima(motor: Any, report: Callable[[str], None]) -> None:
-    """A motor node's negative ``maxVelocity``, ``maxTorque`` or ``maxForce`` is made positive, with a ``report``ed
-    warning, before any motor reads it (joint motors, a Track's, a Propeller's). Webots' motor field checks reset a
-    negative one (to its opposite); here a Propeller with maxTorque -1e308 clamped its torque to +1e308 and ODE
-    stopped inside the step (found by fuzzing)."""
+    """A motor node's negative ``maxVelocity``, ``maxTorque`` or ``maxForce`` is made positive, and a negative
+    ``acceleration`` other than -1 becomes -1 (unlimited), with a ``report``ed warning, before any motor reads them
+    (joint motors, a Track's, a Propeller's), as Webots' motor field checks reset them. Here a Propeller with
+    maxTorque -1e308 clamped its torque to +1e308, or with acceleration -1e308 spun up by as much, and ODE stopped
+    inside the step (found by fuzzing)."""
     fields = motor.fields
     for name in ("maxVelocity", "maxTorque", "maxForce"):
         value = fields.get(name)
         if isinstance(value, int | float) and value < 0:
             report(f"{motor.type_name} '{fields.get('name', '')}': {name} {value:g} is negative; using {-value:g}")
             fields[name] = -value
+    acceleration = fields.get("acceleration")
+    if isinstance(acceleration, int | float) and acceleration < 0 and acceleration != -1:
+        # -1 is "unlimited"; another negative one (a Propeller spun up by -1e308 rad/s² a step) is reset to it
+        report(f"{motor.type_name} '{fields.get('name', '')}': acceleration {acceleration:g} is negative; using -1 "
+               "(unlimited)")
+        fields["acceleration"] = -1.0
 
 
 def refuse_nan(method: str, name: str, *values: float) -> bool:
