@@ -122,3 +122,28 @@ def test_a_joint_loaded_at_a_huge_position_runs(tmp_path: Path, joint: str) -> N
     run = run_world_cli(tmp_path, "huge", world, controller)
     assert run.returncode == 0 and "Traceback" not in run.stderr, run.stderr
     assert "DONE" in run.stdout
+
+
+SLIDER_IMPORT = """from controller import Supervisor
+s = Supervisor()
+s.step(4)
+s.getFromDef("J").getField("jointParameters").importSFNodeFromString("JointParameters { axis 1e308 1e308 -1e308 }")
+for _ in range(20):
+    s.step(4)
+print("DONE", " ".join(repr(v) for v in s.getFromDef("END").getPosition()))
+"""
+
+
+@pytest.mark.parametrize("params", ["jointParameters JointParameters { axis 1e308 1e308 0 }", ""])
+def test_a_slider_axis_of_huge_components_keeps_its_direction(tmp_path: Path, params: str) -> None:
+    # S §4.3: Webots normalises the slider axis; the length of (1e308, 1e308, 0) overflows, and the axis came out
+    # zero, on which ODE aborted the whole process (the world is run in a child process). The direction is kept:
+    # in zero gravity nothing moves the endPoint, loaded (1st case) or with the parameters imported (2nd).
+    world = ("#VRML_SIM R2023b utf8\nWorldInfo { basicTimeStep 4 gravity 0 }\n"
+             f'Robot {{ controller "<extern>" supervisor TRUE {HEAVY} children [ DEF J SliderJoint {{ {params} '
+             "endPoint DEF END " + BOB.format(t="0.5 0 0") + " } ] }\n")
+    run = run_world_cli(tmp_path, "slider", world, SLIDER_IMPORT if not params else SLIDER_IMPORT.replace(
+        's.getFromDef("J").getField("jointParameters").importSFNodeFromString', "print"))
+    assert run.returncode == 0 and "Traceback" not in run.stderr, run.stderr
+    done = next(line for line in run.stdout.splitlines() if line.startswith("DONE"))
+    assert [float(v) for v in done.split()[1:]] == pytest.approx([0.5, 0.0, 0.0], abs=1e-9)

@@ -230,6 +230,12 @@ class SceneBuilder(SimulationCore):
             self.warn(f"{where}joint axis {' '.join(f'{v:g}' for v in axis)} has no direction; using the default "
                       f"{' '.join(f'{v:g}' for v in default)}")
             return default
+        if not math.isfinite(m3.norm(axis)):
+            # components as large as 1e308: their length overflows, and the slider's normalised axis (or a rotated
+            # hinge axis) came out zero or infinite, on which ODE aborted the process (found by fuzzing); the same
+            # direction, scaled down
+            largest = max(abs(v) for v in axis)
+            axis = tuple(v / largest for v in axis)
         return axis  # type: ignore[return-value]
 
     def _add_axis_device(
