@@ -46,6 +46,32 @@ def test_a_lidar_within_the_ray_bound_is_kept() -> None:
     assert not any("rays is more" in w for w in sup.simulation.build_warnings)
 
 
+@pytest.mark.parametrize(("device", "field", "value", "default"), [
+    ('Lidar { name "d" verticalFieldOfView 1e308 }', "verticalFieldOfView", 1e308, 0.2),
+    ('Lidar { name "d" verticalFieldOfView -1 }', "verticalFieldOfView", -1.0, 0.2),
+    ('Lidar { name "d" fieldOfView 1e308 }', "fieldOfView", 1e308, 1.5708),
+    ('Lidar { name "d" projection "planar" fieldOfView 4 }', "fieldOfView", 4.0, 1.5708),
+    ('Lidar { name "d" tiltAngle -1e308 }', "tiltAngle", -1e308, 0.0),
+    ('RangeFinder { name "d" fieldOfView 1e308 }', "fieldOfView", 1e308, 0.7854),
+])
+def test_a_depth_device_angle_out_of_range_takes_its_default(device: str, field: str, value: float,
+                                                              default: float) -> None:
+    # D §3.1: verticalFieldOfView in (0, π], fieldOfView ≤ π if planar, tiltAngle in [−π/2, π/2]. A vertical
+    # field of view of 1e308 raised OverflowError out of the load (the layer check's bound was infinite); a field
+    # of view of 1e308 gave NaN ray directions and a point cloud that raised ValueError
+    sup = sensor_world(device, "")
+    assert any(f"{field} {value:g} is out of range; using {default:g}" in w for w in sup.simulation.build_warnings)
+    d = sup.getDevice("d")
+    d.enable(TS)
+    if hasattr(d, "enablePointCloud"):
+        d.enablePointCloud()
+    assert sup.step(TS) != -1
+    image = d.getRangeImage()
+    assert not any(math.isnan(r) for r in image)
+    if hasattr(d, "getPointCloud"):
+        assert len(d.getPointCloud()) == len(image)
+
+
 # ------------------------------------------------------------------------------------------ motor maxima
 
 ROBOT = ("Robot {{ supervisor TRUE translation 0 0 1 boundingObject Box {{ size 0.1 0.1 0.1 }} "

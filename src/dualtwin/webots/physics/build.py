@@ -48,6 +48,13 @@ from dualtwin.webots.physics.records import (
 NON_NEGATIVE_JOINT_FIELDS = ("springConstant", "dampingConstant", "staticFriction", "suspensionSpringConstant",
                              "suspensionDampingConstant")
 
+#: (field, low bound (excluded but for tiltAngle's −π/2), high bound, default) of the angles of a Lidar and a
+#: RangeFinder (webots-devices.md §3.1; a planar projection's fieldOfView is at most π)
+ANGLE_RANGES = {
+    "Lidar": (("fieldOfView", 0.0, 2 * math.pi, 1.5708), ("verticalFieldOfView", 0.0, math.pi, 0.2),
+              ("tiltAngle", -math.pi / 2, math.pi / 2, 0.0)),
+    "RangeFinder": (("fieldOfView", 0.0, math.pi, 0.7854),),
+}
 #: the most rays a Lidar or RangeFinder casts per sample (2048 x 2048; a 64-layer lidar of 4500 columns is 288000)
 MAX_DEPTH_RAYS = 2**22
 
@@ -652,6 +659,8 @@ class SceneBuilder(SimulationCore):
                 )
                 robot.devices.setdefault(dev.name, dev)
                 self.devices.append(dev)
+                if node.type_name in ANGLE_RANGES:
+                    self._check_angles(node, dev.name)
                 if node.type_name == "Lidar":
                     self._check_lidar_layers(node, dev.name)
                 if node.type_name in ("Lidar", "RangeFinder"):
@@ -659,6 +668,20 @@ class SceneBuilder(SimulationCore):
         for robot in self.robots if robots is None else robots:
             self._order_devices(robot)
             self._harmonise_coupled_motors(robot)
+
+    def _check_angles(self, node: Node, name: str) -> None:
+        """A Lidar's or RangeFinder's angles out of their range (webots-devices.md §3.1: fieldOfView ≤ π if planar,
+        verticalFieldOfView in (0, π], tiltAngle in [−π/2, π/2]) take their default, with a warning: a
+        verticalFieldOfView of 1e308 raised OverflowError out of the load, a fieldOfView of 1e308 gave NaN ray
+        directions and a point cloud that raised ValueError (found by fuzzing)."""
+        planar = str(_f(node, "projection", "planar" if node.type_name == "RangeFinder" else "")) == "planar"
+        for field, low, high, default in ANGLE_RANGES[node.type_name]:
+            if field == "fieldOfView" and planar:
+                high = math.pi
+            value = node.fields.get(field)
+            if isinstance(value, int | float) and not (low < value <= high or value == low == -math.pi / 2):
+                self.warn(f"{node.type_name} '{name}': {field} {value:g} is out of range; using {default:g}")
+                node.fields[field] = default
 
     def _check_lidar_layers(self, node: Node, name: str) -> None:
         """Webots' load-time check of a Lidar (webots-devices.md §3.1): ``numberOfLayers ≤ verticalFieldOfView ·
