@@ -618,6 +618,12 @@ def _main(argv: list[str]) -> None:
             print(code, file=sys.stderr)
             status[0] = 1
     except BaseException as exc:
+        if type(exc).__name__ == "SimulationUnstable" and type(exc).__module__ == "controller":
+            # the physics blew up (a step raised it, and the script let it through): the run ends on one line,
+            # not on a traceback of the script (a supervisor teleporting a slider to 1e308 m, found by fuzzing)
+            print(f"Error: {exc}", file=sys.stderr)
+            status[0] = 1
+            sys.exit(status[0])
         import traceback
 
         tb = exc.__traceback__  # from the script's first frame on: how it was started is no business of it
