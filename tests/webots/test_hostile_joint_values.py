@@ -16,6 +16,7 @@ from typing import Any
 import pytest
 
 from dualtwin.webots.controller import Supervisor
+from dualtwin.webots.runner import run_world
 from tests.support.hinge_arm import BOB, TS, G, load_arm
 from tests.support.world_runs import run_world_cli
 
@@ -149,16 +150,27 @@ def test_a_slider_axis_of_huge_components_keeps_its_direction(tmp_path: Path, pa
     assert [float(v) for v in done.split()[1:]] == pytest.approx([0.5, 0.0, 0.0], abs=1e-9)
 
 
+BLOW_WORLD = ("#VRML_SIM R2023b utf8\nWorldInfo { basicTimeStep 4 }\n"
+              'Robot { controller "<extern>" supervisor TRUE children [ SliderJoint { jointParameters DEF P '
+              "JointParameters { axis 1 0 0 } endPoint " + BOB.format(t="0 0 0") + " } ] }\n")
+BLOW_CONTROLLER = ("from controller import Supervisor\ns = Supervisor()\ns.step(4)\n"
+                   's.getFromDef("P").getField("position").setSFFloat(1e308)\nwhile s.step(4) != -1:\n    pass\n')
+BLOW_LINE = "Error: non-finite or diverging body state at t=0.008s; reset() to recover"
+
+
 def test_a_run_whose_physics_blows_up_ends_on_one_line(tmp_path: Path) -> None:
     # S §4.1: a slider's position edited to 1e308 teleports its endPoint 1e308 m away, and the next step reports
     # the state diverged: step() raises SimulationUnstable in the controller, which can catch it (see
     # test_controller_processes.py); let through, the run ends with its message on one line, not a traceback
-    world = ("#VRML_SIM R2023b utf8\nWorldInfo { basicTimeStep 4 }\n"
-             'Robot { controller "<extern>" supervisor TRUE children [ SliderJoint { jointParameters DEF P '
-             "JointParameters { axis 1 0 0 } endPoint " + BOB.format(t="0 0 0") + " } ] }\n")
-    controller = ("from controller import Supervisor\ns = Supervisor()\ns.step(4)\n"
-                  's.getFromDef("P").getField("position").setSFFloat(1e308)\nwhile s.step(4) != -1:\n    pass\n')
-    run = run_world_cli(tmp_path, "blow", world, controller)
+    run = run_world_cli(tmp_path, "blow", BLOW_WORLD, BLOW_CONTROLLER)
     assert run.returncode == 1
-    assert run.stderr.strip().splitlines() == ["Error: non-finite or diverging body state at t=0.008s; reset() to "
-                                               "recover"], run.stderr
+    assert run.stderr.strip().splitlines() == [BLOW_LINE], run.stderr
+
+
+def test_a_run_whose_physics_blows_up_ends_on_one_line_in_threads(tmp_path: Path,
+                                                                 capfd: pytest.CaptureFixture[str]) -> None:
+    # the same in the threads isolation (no ODE abort here: the divergence is found after the step)
+    (tmp_path / "blow.wbt").write_text(BLOW_WORLD)
+    (tmp_path / "blow.py").write_text(BLOW_CONTROLLER)
+    assert run_world(tmp_path / "blow.wbt", tmp_path / "blow.py", isolation="threads") == 1
+    assert capfd.readouterr().err.strip().splitlines() == [BLOW_LINE]

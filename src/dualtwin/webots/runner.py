@@ -21,7 +21,8 @@ field names starts, with the clock going on and none of its devices enabled.
 0), and one still running 1 s of real time after its -1 is killed with a warning (Webots' "Forced
 termination"). Unlike Webots, a controller that does not call ``step`` for ``step_timeout_s`` seconds of real
 time is stopped (exit code 2), so a run always ends. A script that raises has its traceback printed on stderr
-and makes the exit code 1 (the other controllers keep running). ``keys`` names a key script replayed by
+and makes the exit code 1 (the other controllers keep running); a ``SimulationUnstable`` it lets through (the
+physics blew up in its step) prints its message on one line instead. ``keys`` names a key script replayed by
 ``Keyboard`` (:mod:`dualtwin.webots.keyboard`). Ctrl-C or SIGTERM: the children are killed, ``error: interrupted``,
 exit code 130.
 
@@ -234,6 +235,9 @@ def _run_script(runtime: api.Runtime, spec: ControllerSpec, result: _ScriptResul
             result.code = code if isinstance(code, int) else 1
             if not isinstance(code, int):
                 print(code, file=sys.stderr)
+    except SimulationUnstable as exc:  # the physics blew up: one line, as from a controller process
+        print(f"Error: {exc}", file=sys.stderr)
+        result.code = 1
     except BaseException:  # the controller's own error is its output, like in the Webots console
         traceback.print_exc(file=sys.stderr)
         result.code = 1
