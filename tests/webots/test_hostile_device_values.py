@@ -138,3 +138,11 @@ def test_a_negative_acceleration_in_the_world_is_unlimited(device: str, template
     motor.setVelocity(1.0)
     for _ in range(20):
         assert sup.step(TS) != -1
+
+
+def test_get_from_device_answers_a_propeller_motor_node() -> None:
+    # R (Supervisor.getFromDevice): the device's node; for a Propeller's motor it answered None
+    sup = _sup(PROPELLER.format(motor=""))
+    node = sup.getFromDevice(sup.getDevice("prop")._tag)
+    assert node is not None and node.getTypeName() == "RotationalMotor"
+    assert node.getField("name").getSFString() == "prop"

@@ -137,7 +137,9 @@ class Supervisor(Robot):
         """The node of the device with this tag (``device._tag``)."""
         link = link_of(self)
         binding = link._binding_for(as_int(tag, "Supervisor.getFromDevice"))
-        node = getattr(binding.record, "node", None) if binding is not None else None
+        record = binding.record if binding is not None else None
+        # a Propeller's motor is recorded on its Propeller (its ``motor`` node): Webots answers the motor's node
+        node = getattr(record, "node", None) or getattr(record, "motor", None)
         return Node(link, node) if node is not None else None
 
     def getSelected(self) -> Node | None:
