@@ -108,7 +108,11 @@ def describe_class(cls: type, exported: dict[str, type], role: str) -> dict[str,
 
 def _marked(cls: type, accessor: Any) -> tuple[str, tuple[Any, ...]] | None:
     """(method name, mark) of a property's getter or setter that is a marked method of ``cls`` (``value =
-    property(getValue)``), so the child serves the property as it serves the method."""
+    property(getValue)``, or ``api_property("getValue")``: the method of that name on ``cls``), so the child serves
+    the property as it serves the method."""
+    by_name = getattr(accessor, "__api_method__", None)
+    if by_name is not None:
+        accessor = getattr(cls, by_name, None)
     hint = hint_of(accessor)
     name = getattr(accessor, "__name__", "")
     if hint is None or name.startswith("_") or getattr(cls, name, None) is not accessor:

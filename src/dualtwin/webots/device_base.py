@@ -50,9 +50,25 @@ class DeviceHost(Protocol):
 
 
 __all__ = [
-    "Device", "DeviceBinding", "DeviceHost", "SampledDevice", "Sensor", "SolidSensor", "bind_host", "current_host",
-    "install_sampler", "register_in_world_order", "sample_due", "world_order",
+    "Device", "DeviceBinding", "DeviceHost", "SampledDevice", "Sensor", "SolidSensor", "api_property", "bind_host",
+    "current_host", "install_sampler", "register_in_world_order", "sample_due", "world_order",
 ]
+
+
+def api_property(getter: str | None, setter: str | None = None) -> property:
+    """A Webots property (``motor.max_velocity``) that calls its getter and setter *by name*, so a subclass that
+    overrides the method (a Track's motor, sensor or brake) serves the property too: ``property(getX)`` would keep
+    the base class's function, and every subclass would have to declare its properties again."""
+    def fget(self: Any) -> Any:
+        return getattr(self, str(getter))()
+
+    def fset(self: Any, value: Any) -> None:
+        getattr(self, str(setter))(value)
+
+    # the controller process serves the property as it serves the method of that name (controller_wire._marked)
+    fget.__api_method__ = getter  # type: ignore[attr-defined]
+    fset.__api_method__ = setter  # type: ignore[attr-defined]
+    return property(fget if getter else None, fset if setter else None)
 
 
 class DeviceBinding(NamedTuple):

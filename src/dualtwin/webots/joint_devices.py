@@ -14,7 +14,7 @@ from typing import Any
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots import motor_api, ode
 from dualtwin.webots.api_args import as_float, finite, warn
-from dualtwin.webots.device_base import Device, SampledDevice
+from dualtwin.webots.device_base import Device, SampledDevice, api_property
 from dualtwin.webots.physics import BrakeRec, MotorRec, PositionSensorRec
 from dualtwin.webots.step_hints import buffered, command_value, step_value
 
@@ -60,10 +60,10 @@ class PositionSensor(_Sampled):
         brake = rec.joint.brakes[rec.axis_index]
         return self._robot._device_for(brake) if brake is not None else None  # type: ignore[return-value]
 
-    brake = property(getBrake)
-    motor = property(getMotor)
-    value = property(getValue)
-    type = property(getType)
+    brake = api_property("getBrake")
+    motor = api_property("getMotor")
+    value = api_property("getValue")
+    type = api_property("getType")
 
 
 class Brake(Device):
@@ -100,10 +100,10 @@ class Brake(Device):
         sensor = rec.joint.sensors[rec.axis_index]
         return self._robot._device_for(sensor) if sensor is not None else None  # type: ignore[return-value]
 
-    motor = property(getMotor)
-    position_sensor = property(getPositionSensor)
-    type = property(getType)
-    dampingConstant = property(fset=setDampingConstant)
+    motor = api_property("getMotor")
+    position_sensor = api_property("getPositionSensor")
+    type = api_property("getType")
+    dampingConstant = api_property(None, "setDampingConstant")
 
 
 class _Feedback(_Sampled):
@@ -369,23 +369,23 @@ class Motor(Device):
 
     # -- Webots' properties
 
-    brake = property(getBrake)
-    position_sensor = property(getPositionSensor)
-    max_position = property(getMaxPosition)
-    min_position = property(getMinPosition)
-    max_velocity = property(getMaxVelocity)
-    max_force = property(getMaxForce)
-    max_torque = property(getMaxTorque)
-    multiplier = property(getMultiplier)
-    force_feedback = property(getForceFeedback)
-    torque_feedback = property(getTorqueFeedback)
-    type = property(getType)
-    force_feedback_sampling_period = property(getForceFeedbackSamplingPeriod, enableForceFeedback)
-    torque_feedback_sampling_period = property(getTorqueFeedbackSamplingPeriod, enableTorqueFeedback)
-    target_position = property(getTargetPosition, setPosition)
-    target_velocity = property(getVelocity, setVelocity)
-    target_acceleration = property(getAcceleration, setAcceleration)
-    available_force = property(getAvailableForce, setAvailableForce)
-    available_torque = property(getAvailableTorque, setAvailableTorque)
-    force = property(fset=setForce)
-    torque = property(fset=setTorque)
+    brake = api_property("getBrake")
+    position_sensor = api_property("getPositionSensor")
+    max_position = api_property("getMaxPosition")
+    min_position = api_property("getMinPosition")
+    max_velocity = api_property("getMaxVelocity")
+    max_force = api_property("getMaxForce")
+    max_torque = api_property("getMaxTorque")
+    multiplier = api_property("getMultiplier")
+    force_feedback = api_property("getForceFeedback")
+    torque_feedback = api_property("getTorqueFeedback")
+    type = api_property("getType")
+    force_feedback_sampling_period = api_property("getForceFeedbackSamplingPeriod", "enableForceFeedback")
+    torque_feedback_sampling_period = api_property("getTorqueFeedbackSamplingPeriod", "enableTorqueFeedback")
+    target_position = api_property("getTargetPosition", "setPosition")
+    target_velocity = api_property("getVelocity", "setVelocity")
+    target_acceleration = api_property("getAcceleration", "setAcceleration")
+    available_force = api_property("getAvailableForce", "setAvailableForce")
+    available_torque = api_property("getAvailableTorque", "setAvailableTorque")
+    force = api_property(None, "setForce")
+    torque = api_property(None, "setTorque")

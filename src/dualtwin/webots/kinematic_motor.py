@@ -190,26 +190,3 @@ class KinematicMotor(Motor):
             error("wb_motor_get_torque_feedback() called for a disabled device! Please use: "
                   "wb_motor_enable_torque_feedback().")
         return math.nan
-
-    # -- Webots' properties, bound to these methods (Motor's are bound to its own)
-
-    brake = property(getBrake)
-    position_sensor = property(getPositionSensor)
-    max_position = property(getMaxPosition)
-    min_position = property(getMinPosition)
-    max_velocity = property(getMaxVelocity)
-    max_force = property(getMaxForce)
-    max_torque = property(getMaxTorque)
-    multiplier = property(getMultiplier)
-    force_feedback = property(getForceFeedback)
-    torque_feedback = property(getTorqueFeedback)
-    force_feedback_sampling_period = property(getForceFeedbackSamplingPeriod, enableForceFeedback)
-    torque_feedback_sampling_period = property(getTorqueFeedbackSamplingPeriod, enableTorqueFeedback)
-    target_position = property(getTargetPosition, setPosition)
-    target_velocity = property(getVelocity, setVelocity)
-    target_acceleration = property(getAcceleration, setAcceleration)
-    available_force = property(getAvailableForce, setAvailableForce)
-    available_torque = property(getAvailableTorque, setAvailableTorque)
-    force = property(fset=lambda self, value: self.setForce(value))
-    torque = property(fset=lambda self, value: self.setTorque(value))
-    type = property(lambda self: self.getType())

@@ -254,10 +254,6 @@ class TrackPositionSensor(PositionSensor):
     def getBrake(self) -> Any:
         return _sibling(self, "Brake")
 
-    brake = property(getBrake)
-    motor = property(getMotor)
-    type = property(getType)
-
 
 class TrackBrake(Brake):
     """The Brake of a Track: its damping constant slows the belt in force control,
@@ -283,7 +279,3 @@ class TrackBrake(Brake):
     def getPositionSensor(self) -> Any:
         return _sibling(self, "PositionSensor")
 
-    motor = property(getMotor)
-    position_sensor = property(getPositionSensor)
-    type = property(getType)
-    dampingConstant = property(fset=setDampingConstant)
