@@ -188,12 +188,9 @@ def _driven(sup: Supervisor, axis: int, velocity: float) -> Any:
     return s
 
 
-@pytest.mark.parametrize("velocity", [1.0, -1.0])
-@pytest.mark.parametrize("axis", [1, 2])
-def test_hinge2_stops_set_at_run_time_hold_each_axis(axis: int, velocity: float) -> None:
-    # S §4.4: stops on both axes like the hinge. Driven at ±1 rad/s (1 N·m) for 0.1 s, then given minStop −0.2 /
-    # maxStop 0.5: 1 s later it rests on the stop (it would be at ±1.1 rad without it, hand computation)
-    sup = _world(HINGE2.format(axis1="1 0 0", axis2="0 0 1"))
+def _rests_on_new_stops(sup: Supervisor, axis: int, velocity: float) -> tuple[Any, Any]:
+    """Drive ``axis`` at ``velocity`` for 0.1 s (no stop yet: the control), give it minStop −0.2 / maxStop 0.5,
+    and check it rests on the stop it runs into 1 s later; (its sensor, its parameters node)."""
     s = _driven(sup, axis, velocity)
     _steps(sup, 25)
     assert s.getValue() == pytest.approx(0.1 * velocity, abs=0.005)  # control: no stop yet
@@ -202,11 +199,20 @@ def test_hinge2_stops_set_at_run_time_hold_each_axis(axis: int, velocity: float)
     params.getField("maxStop").setSFFloat(0.5)
     _steps(sup, 250)
     assert s.getValue() == pytest.approx(0.5 if velocity > 0 else -0.2, abs=3e-3)
+    return s, params
+
+
+@pytest.mark.parametrize("velocity", [1.0, -1.0])
+@pytest.mark.parametrize("axis", [1, 2])
+def test_hinge2_stops_set_at_run_time_hold_each_axis(axis: int, velocity: float) -> None:
+    # S §4.4: stops on both axes like the hinge. Driven at ±1 rad/s (1 N·m) for 0.1 s, then given minStop −0.2 /
+    # maxStop 0.5: 1 s later it rests on the stop (it would be at ±1.1 rad without it, hand computation)
+    sup = _world(HINGE2.format(axis1="1 0 0", axis2="0 0 1"))
+    s, params = _rests_on_new_stops(sup, axis, velocity)
     # equal stops take them away: the motor turns the axis on at 1 rad/s
     params.getField("minStop").setSFFloat(0.5)
     _steps(sup, 250)
     assert s.getValue() * velocity > 1.0
-
 
 
 def test_hinge2_first_axis_stop_cfm_edited_at_run_time_reaches_ode() -> None:
@@ -244,14 +250,7 @@ def test_ball_stops_set_at_run_time_hold_each_axis(parent: str, axis: int, veloc
     # the BallJoint's stops, on its Euler AMotor, act as at load: a sphere centred on the anchor driven at ±1 rad/s
     # for 0.1 s, then given minStop −0.2 / maxStop 0.5, rests on the stop 1 s later (hand computation)
     sup = _world(BALL.format(parent=HEAVY_ROBOT if parent == "body" else ""))
-    s = _driven(sup, axis, velocity)
-    _steps(sup, 25)
-    assert s.getValue() == pytest.approx(0.1 * velocity, abs=0.005)  # control: no stop yet
-    params = sup.getFromDef(f"P{axis}")
-    params.getField("minStop").setSFFloat(-0.2)
-    params.getField("maxStop").setSFFloat(0.5)
-    _steps(sup, 250)
-    assert s.getValue() == pytest.approx(0.5 if velocity > 0 else -0.2, abs=3e-3)
+    _rests_on_new_stops(sup, axis, velocity)
 
 
 # ------------------------------------------------------------------------------------------ static friction
