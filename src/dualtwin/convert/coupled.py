@@ -16,19 +16,11 @@ from collections.abc import Callable
 
 import mujoco
 
-__all__ = ["PREFIX", "coupled_groups", "harmonise_coupled_motors"]
+from dualtwin.webots.motor_api import coupled_groups
+
+__all__ = ["PREFIX", "harmonise_coupled_motors"]
 
 PREFIX = "webots_motor."
-
-
-def coupled_groups(names: list[str]) -> dict[str, list[str]]:
-    """Coupled motors by their shared first part, in the given order (groups of one included)."""
-    groups: dict[str, list[str]] = {}
-    for name in names:
-        parts = name.split("::")
-        if len(parts) == 2:
-            groups.setdefault(parts[0], []).append(name)
-    return groups
 
 
 def _fields(data: list[float]) -> tuple[float, float, float, float]:

@@ -12,6 +12,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+from dualtwin.webots.motor_api import coupled_groups
 from dualtwin.webots.motor_law import motor_velocity
 
 
@@ -278,10 +279,5 @@ def relay_command(motor: _Grouped, mode: str, value: float) -> Any:
 def coupled_names(names: Sequence[str]) -> dict[str, list[str]]:
     """Each motor's coupled group (itself first, then the others in order): Webots couples the motors named
     ``prefix::suffix`` (exactly two parts) that share ``prefix`` (webots-devices §9)."""
-    groups: dict[str, list[str]] = {}
-    for name in names:
-        parts = name.split("::")
-        if len(parts) == 2:
-            groups.setdefault(parts[0], []).append(name)
-    return {name: [name, *(n for n in group if n != name)] for group in groups.values() if len(group) > 1
-            for name in group}
+    return {name: [name, *(n for n in group if n != name)] for group in coupled_groups(names).values()
+            if len(group) > 1 for name in group}

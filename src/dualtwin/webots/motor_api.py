@@ -12,14 +12,15 @@ from __future__ import annotations
 
 import math
 import sys
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Iterable
+from typing import Any, TypeVar
 
 from dualtwin.webots.api_args import warn
 
-__all__ = ["MULTIPLIER_ZERO", "check_maxima", "clamp_force", "clamp_position", "clamp_velocity", "echo", "refuse_acceleration", "refuse_available", "refuse_nan",
-           "refuse_velocity"]
+__all__ = ["MULTIPLIER_ZERO", "check_maxima", "clamp_force", "clamp_position", "clamp_velocity", "coupled_groups",
+           "echo", "refuse_acceleration", "refuse_available", "refuse_nan", "refuse_velocity"]
 
+T = TypeVar("T")
 
 #: the load warning of a motor whose multiplier is 0 (webots-devices.md §9: "0 → reset to 1 with warning")
 MULTIPLIER_ZERO = "motor '{name}': multiplier 0 is not allowed; using 1"
@@ -43,6 +44,18 @@ def check_maxima(motor: Any, report: Callable[[str], None]) -> None:
         report(f"{motor.type_name} '{fields.get('name', '')}': acceleration {acceleration:g} is negative; using -1 "
                "(unlimited)")
         fields["acceleration"] = -1.0
+
+
+def coupled_groups(motors: Iterable[T], name: Callable[[T], str] = str) -> dict[str, list[T]]:
+    """Webots' coupled motors: the motors named ``prefix::suffix`` (exactly two parts; ``name`` gives a motor's
+    name), grouped by ``prefix`` in the given order (groups of one included: Webots warns that nothing is coupled)
+    (webots-devices.md §9)."""
+    groups: dict[str, list[T]] = {}
+    for motor in motors:
+        parts = name(motor).split("::")
+        if len(parts) == 2:
+            groups.setdefault(parts[0], []).append(motor)
+    return groups
 
 
 def refuse_nan(method: str, name: str, *values: float) -> bool:

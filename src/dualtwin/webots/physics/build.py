@@ -15,7 +15,7 @@ from dualtwin.webots._math3 import Pose
 from dualtwin.webots.bounding_mesh import TRIMESH_TYPES, mesh_warning, trimesh_data
 from dualtwin.webots.mass_rules import mass_zero, rot_matrix, solid_mass
 from dualtwin.webots.mesh_files import MeshFileError
-from dualtwin.webots.motor_api import MULTIPLIER_ZERO, check_maxima
+from dualtwin.webots.motor_api import MULTIPLIER_ZERO, check_maxima, coupled_groups
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics.core import SimulationCore
 from dualtwin.webots.physics.records import (
@@ -721,13 +721,8 @@ class SceneBuilder(SimulationCore):
         device order, scaled by the multiplier ratio r = multiplier / first multiplier: maxVelocity = |r|·first's,
         [minPosition, maxPosition] = r·first's (swapped when r < 0; unlimited stays unlimited), as Webots
         adjusts them at load."""
-        groups: dict[str, list[MotorRec]] = {}
-        for rec in robot.devices.values():
-            if isinstance(rec, MotorRec):
-                parts = rec.name.split("::")
-                if len(parts) == 2:
-                    groups.setdefault(parts[0], []).append(rec)
-        for motors in groups.values():
+        recs = [rec for rec in robot.devices.values() if isinstance(rec, MotorRec)]
+        for motors in coupled_groups(recs, lambda rec: rec.name).values():
             first = motors[0]
             for motor in motors[1:]:
                 if first.multiplier == 0.0:
