@@ -135,12 +135,23 @@ def reset_data(m: mujoco.MjModel, d: mujoco.MjData, keyframe: int) -> None:
         mujoco.mj_resetData(m, d)
 
 
+def sensor_numerics(m: mujoco.MjModel, prefix: str) -> dict[int, list[float]]:
+    """Sensor id -> the data of its ``<prefix><sensor name>`` numeric, for each named sensor that has one (the
+    per-sensor Webots value models a converted model carries)."""
+    out: dict[int, list[float]] = {}
+    for s in range(m.nsensor):
+        name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_SENSOR, s)
+        numeric = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_NUMERIC, prefix + name) if name else -1
+        if numeric >= 0:
+            adr, size = int(m.numeric_adr[numeric]), int(m.numeric_size[numeric])
+            out[s] = [float(v) for v in m.numeric_data[adr:adr + size]]
+    return out
+
+
 def sensor_resolutions(m: mujoco.MjModel) -> np.ndarray:
     """Each sensor's Webots ``resolution`` from its ``webots_sensor.<name>`` numeric (0 = none)."""
     out = np.zeros(m.nsensor)
-    for s in range(m.nsensor):
-        numeric = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_NUMERIC, SENSOR_NUMERIC + (mujoco.mj_id2name(
-            m, mujoco.mjtObj.mjOBJ_SENSOR, s) or ""))
-        if numeric >= 0 and m.numeric_size[numeric] >= 1:
-            out[s] = max(float(m.numeric_data[m.numeric_adr[numeric]]), 0.0)
+    for s, data in sensor_numerics(m, SENSOR_NUMERIC).items():
+        if data:
+            out[s] = max(data[0], 0.0)
     return out

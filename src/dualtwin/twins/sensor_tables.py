@@ -18,6 +18,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from dualtwin.twins.mujoco_state import sensor_numerics
 from dualtwin.webots.lut import Table, lookup
 
 __all__ = ["LUT_NUMERIC", "NumpyGauss", "read_tables", "table_value"]
@@ -40,15 +41,10 @@ def read_tables(m: mujoco.MjModel) -> dict[int, tuple[Table, bool]]:
     """Sensor id -> (its table's rows, whether it is a rangefinder) for each sensor with a
     ``webots_sensor_lut.<name>`` numeric of whole rows (others have none: their reading is the MuJoCo value)."""
     out: dict[int, tuple[Table, bool]] = {}
-    for s in range(m.nsensor):
-        name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_SENSOR, s)
-        numeric = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_NUMERIC, LUT_NUMERIC + (name or "")) if name else -1
-        if numeric < 0:
-            continue
-        adr, size = int(m.numeric_adr[numeric]), int(m.numeric_size[numeric])
+    for s, data in sensor_numerics(m, LUT_NUMERIC).items():
+        size = len(data)
         if size < 3 or size % 3:
             continue
-        data = [float(v) for v in m.numeric_data[adr:adr + size]]
         rows = [(data[i], data[i + 1], data[i + 2]) for i in range(0, size, 3)]
         out[s] = (rows, int(m.sensor_type[s]) == mujoco.mjtSensor.mjSENS_RANGEFINDER)
     return out
