@@ -220,7 +220,7 @@ def _stop_kinematic_motors(sim: Simulation, robot: RobotRec) -> None:
             if rec.motor is None or place.robot is not robot:
                 continue
             rec.target_position, rec.target_velocity = math.inf, 0.0
-            rec.available = rec.max_force if key == "tracks" else rec.max_torque
+            rec.available = rec.max_force  # a Propeller's maxTorque under the Motor API's shared name
             if key == "tracks":
                 rec.force_mode, rec.force = False, 0.0
 

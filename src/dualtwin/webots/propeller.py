@@ -22,6 +22,7 @@ from typing import Any
 
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots.api_args import warn
+from dualtwin.webots.fixed_link import body_of
 from dualtwin.webots.kinematic_motor import KinematicMotor
 from dualtwin.webots.motor_api import MULTIPLIER_ZERO, check_maxima
 from dualtwin.webots.motor_law import kinematic_motion
@@ -126,10 +127,7 @@ class _Propellers:
             robot = rec.site.robot
             if rec.motor is not None and robot is not None:
                 robot.devices.setdefault(rec.name, rec)
-            upper = rec.site.solid
-            while upper is not None and upper.body is None:
-                upper = upper.parent
-            if upper is None:  # webots-devices.md §8: "No Physics upstream ⇒ warning, no effect"
+            if body_of(rec.site.solid) is None:  # webots-devices.md §8: "No Physics upstream ⇒ warning, no effect"
                 sim.warn(f"Propeller '{rec.name}': no Solid with Physics above it; it has no effect")
         sim.pre_step_hooks.append(self.apply)
         sim.reset_hooks.append(self.reset)
