@@ -4,11 +4,8 @@ exactly ``v·(1 + noise)``)."""
 
 from __future__ import annotations
 
-import warnings
-
-from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Supervisor
-from dualtwin.webots.physics import Simulation
+from tests.support.quiet_worlds import quiet_supervisor
 
 
 class UnitGauss:
@@ -31,10 +28,7 @@ def sensor_world(devices: str, wall: str, *, head: str = "", robot_extra: str = 
         f"#VRML_SIM R2023b utf8\nWorldInfo {{ basicTimeStep {step} }}\n{head}\n{wall}\n"
         f"Robot {{ translation 0 0 0.1 supervisor TRUE {robot_extra} children [ {devices} ] }}\n"
     )
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        sim = Simulation(load_world_text(text))
-    return Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    return quiet_supervisor(text)
 
 
 def unit_noise(sup: Supervisor) -> UnitGauss:

@@ -15,16 +15,13 @@ import pytest
 from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Supervisor
 from dualtwin.webots.physics import Simulation
+from tests.support.quiet_worlds import quiet_supervisor
 
 TS = 4
 
 
 def _sup(body: str, info: str = "gravity 0") -> Supervisor:
-    text = f"#VRML_SIM R2023b utf8\nWorldInfo {{ basicTimeStep {TS} {info} }}\n{body}\n"
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        sim = Simulation(load_world_text(text))
-    return Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    return quiet_supervisor(f"#VRML_SIM R2023b utf8\nWorldInfo {{ basicTimeStep {TS} {info} }}\n{body}\n")
 
 
 def _steps(sup: Supervisor, n: int) -> None:

@@ -16,6 +16,7 @@ import pytest
 from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Motor, PositionSensor, Supervisor
 from dualtwin.webots.physics import Simulation
+from tests.support.quiet_worlds import quiet_supervisor
 
 TS = 4
 
@@ -31,10 +32,7 @@ def _sup(track: str | None = "", propeller: str = "") -> Supervisor:
     text = (f"#VRML_SIM R2023b utf8\nWorldInfo {{ basicTimeStep {TS} gravity 0 }}\n"
             "DEF DRONE Robot { supervisor TRUE boundingObject Box { size 0.1 0.1 0.1 } physics Physics { mass 1 } "
             f"children [ {belt} {PROPELLER.format(motor=propeller)} ] }}\n")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        sim = Simulation(load_world_text(text))
-    return Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    return quiet_supervisor(text)
 
 
 def _steps(sup: Supervisor, n: int) -> None:

@@ -1,0 +1,20 @@
+"""A world given as text, built with its build warnings silenced (the tests that use it check something else),
+and a Supervisor on its first robot."""
+
+from __future__ import annotations
+
+import warnings
+
+from dualtwin.webots import load_world_text
+from dualtwin.webots.controller import Supervisor
+from dualtwin.webots.physics import Simulation
+
+__all__ = ["quiet_supervisor"]
+
+
+def quiet_supervisor(text: str) -> Supervisor:
+    """The Supervisor of the first robot of the world ``text`` (a whole ``.wbt``), built quietly."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sim = Simulation(load_world_text(text))
+    return Supervisor(simulation=sim, robot_node=sim.robots[0].node)
