@@ -139,3 +139,14 @@ def test_physics_substeps_change_the_fall_and_patch_into_the_timestep(robot: Rob
         for name, series in a[sid].series.items():
             assert np.max(np.abs(series.y - b[sid].series[name].y)) < 1e-9, (sid, name)
     assert "physics.substeps" in patch_mjcf(robot.model_path("mujoco"), {"physics.substeps": 4}).not_applied
+
+
+def test_quantization_knob_follows_webots_resolution_rule(twin: MuJoCoTwin) -> None:
+    # webots-devices.md §0.4: discretize(v, r) = (int)(v/r + 0.5)·r, truncation toward zero, so negatives are not
+    # rounded to the nearest multiple. With r = 0.1 rad: -0.17 rad is -1.7 steps, int(-1.2) = -1 -> -0.1 rad
+    # (rounding would give -0.2); +0.17 rad is int(2.2) = 2 -> 0.2 rad.
+    twin.set_knobs({"sensor.pole sensor.quantization": 0.1})
+    for angle, expected in ((-0.17, -0.1), (0.17, 0.2), (-0.04, 0.0)):
+        twin.reset(0)
+        twin.set_joint_state("pole_hinge", position=angle)
+        assert twin.sensor("pole sensor") == pytest.approx(expected, abs=1e-12), angle

@@ -27,7 +27,7 @@ knob                               unit       MuJoCo twin                       
 ``sensor.<s>.noise``               unit of s  Gaussian σ added in ``sensor()``       –  (sensor ``noise``)
 ``sensor.<s>.bias``                unit of s  offset added in ``sensor()``           –
 ``sensor.<s>.delay``               periods    readings k control periods old         –
-``sensor.<s>.quantization``        unit of s  rounded to a multiple (0 = off)        –  (sensor ``resolution``)
+``sensor.<s>.quantization``        unit of s  Webots' resolution rule (0 = off)      –  (sensor ``resolution``)
 contact friction                   –          ``geom.<g>.friction`` (per geom,       ``contact.<p>.friction`` (per material
                                               ``geom_friction[0]``)                  pair, ContactProperties ``coulombFriction``)
 contact restitution                –          ``geom.<g>.restitution``: solref       ``contact.<p>.bounce``

@@ -579,10 +579,10 @@ class MuJoCoTwin(Twin):
         if self._noise[s] > 0:
             value += float(self._rng.normal(0.0, self._noise[s]))
         value = discretize(value, float(self._resolution[s]))  # Webots' resolution (0: none), after its noise
-        if self._sensor_quant[s] > 0:
-            # Webots' sensor `resolution`: readings are rounded to a multiple of it.
-            value = float(np.round(value / self._sensor_quant[s]) * self._sensor_quant[s])
-        return value
+        # The quantization knob stands for a `resolution` the model does not carry, so it follows Webots' rule too:
+        # int(v/r + 0.5) truncates toward zero, and a negative reading is not rounded to the nearest multiple
+        # (-0.7 steps read 0, -1.5 steps -1).
+        return discretize(value, float(self._sensor_quant[s]))
 
     # ---------------------------------------------------------------- state transfer
     def _state_plan(self) -> StatePlan:

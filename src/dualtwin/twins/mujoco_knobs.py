@@ -364,9 +364,9 @@ SENSOR_KINDS: tuple[KnobKind[KnobTarget], ...] = (
     KnobKind("sensor.<s>.delay", "periods", f"0 .. {MAX_DELAY_PERIODS}", "readings k control periods old",
              lambda tw, s: 0.0, lambda tw, s, n: (0.0, MAX_DELAY_PERIODS), _set_sensor("_sensor_delay", integer=True),
              "readings are this many control periods old (integer)"),
-    KnobKind("sensor.<s>.quantization", "", "0 .. 0.1", "readings rounded to a multiple (0 = off)",
+    KnobKind("sensor.<s>.quantization", "", "0 .. 0.1", "readings discretised as Webots' resolution (0 = off)",
              lambda tw, s: 0.0, lambda tw, s, n: (0.0, 0.1), _set_sensor("_sensor_quant"),
-             "readings are rounded to a multiple of this (Webots resolution; 0 = off)"),
+             "readings are discretised to this step by Webots' resolution rule, int(v/r + 0.5)·r (0 = off)"),
 )
 
 
