@@ -368,6 +368,24 @@ def test_a_second_robot_instance_is_the_first_one(tmp_path: Path, capsys: pytest
     assert "only one Robot instance" in captured.err
 
 
+def test_robot_created_names_the_processs_first_robot(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """webots-python-api.md, Robot: ``created`` is a class attribute holding the process's first Robot instance
+    (None before it; a Supervisor or a user subclass is that instance too, read through any of the classes)."""
+    first = """
+        from controller import Robot, Supervisor
+
+        class Mine(Supervisor):
+            pass
+
+        before = Robot.created
+        robot = Mine()
+        print(before is None, Robot.created is robot, Supervisor.created is robot, Mine.created is robot)
+    """
+    world = _project(tmp_path, [("first", [], first)])
+    assert run_world(world, None, 0.02) == 0
+    assert capsys.readouterr().out == "True True True True\n"
+
+
 def test_a_controller_finishes_its_interpreter_shutdown(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """What a controller does while its interpreter shuts down (finalizers, files left open) still happens: the
     child is not killed as soon as it said it exits."""

@@ -547,6 +547,11 @@ def _remote_init(channel: _Channel, signature: inspect.Signature | None) -> Any:
         channel.proxies[handle] = self
         for key, value in attrs.items():
             setattr(self, key, value)
+        # Webots' Robot.__init__ records the process's first Robot in the class attribute ``created`` (a Supervisor
+        # or a user subclass included); the parent keeps it for its own class, this process needs its own copy.
+        robot = next((c for c in type(self).__mro__ if c.__dict__.get("_dualtwin_real") == "Robot"), None)
+        if robot is not None and robot.__dict__.get("created") is None:
+            robot.created = self
 
     if signature is not None:
         __init__.__signature__ = signature  # type: ignore[attr-defined]

@@ -76,8 +76,12 @@ def _signature(function: Any) -> inspect.Signature | None:
 def describe_class(cls: type, exported: dict[str, type], role: str) -> dict[str, Any]:
     """The shape of ``cls`` for the child: its own public members (its bases are described apart)."""
     members: dict[str, tuple[str, Any]] = {}
+    per_process = vars(cls).get("_per_process_attributes", ())
     for name, member in vars(cls).items():
         if name.startswith("_"):
+            continue
+        if name in per_process:  # the child's own, starting empty: not what this process's class holds now
+            members[name] = ("constant", None)
             continue
         if isinstance(member, property):
             members[name] = ("property", (member.fset is not None, _marked(cls, member.fget), _marked(cls, member.fset)))

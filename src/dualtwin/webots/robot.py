@@ -84,6 +84,9 @@ class Robot:
 
     #: the first Robot of this process (Webots' class attribute)
     created: ClassVar[Robot | None] = None
+    #: class attributes a controller process keeps for itself (None there until its first Robot), not this
+    #: process's values: see controller_wire.describe_class
+    _per_process_attributes: ClassVar[tuple[str, ...]] = ("created",)
     devices: dict[str, Device]
     keyboard: Keyboard
     mouse: Mouse
