@@ -317,6 +317,9 @@ class Simulation(FrameEdits):
             self._set_auto_disable(body)
         for joint in self.joints:
             joint.positions = list(joint.initial_positions)
+            # the load axes and anchor (edited ones are applied to ODE again below, with the load values)
+            joint.axis_local[:] = joint.zero_axes[:] = joint.load_axes
+            joint.anchor_local = joint.zero_anchor = joint.load_anchor
             if joint.ptr:
                 self._anchor_joint(joint)
                 for i in range(len(joint.params)):

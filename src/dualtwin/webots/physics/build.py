@@ -169,6 +169,10 @@ class SceneBuilder(SimulationCore):
             params=params,
             axis_local=axes,  # type: ignore[arg-type]
             anchor_local=anchor,  # type: ignore[arg-type]
+            load_axes=list(axes),
+            load_anchor=anchor,
+            zero_axes=list(axes),
+            zero_anchor=anchor,
             initial_positions=list(positions),
             positions=list(positions),
             offsets=list(positions),

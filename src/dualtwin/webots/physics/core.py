@@ -163,39 +163,23 @@ class SimulationCore:
         joint = solid.joint
         if joint is None or not joint.kinematic:
             return solid.rel
-        if joint.kind in ("ball", "hinge2"):
+        return self._endpoint_motion(joint) * solid.rel
+
+    @staticmethod
+    def _endpoint_motion(joint: JointRec) -> Pose:
+        """The endPoint's motion, in the parent Solid frame, from its load pose to the joint's current positions
+        (§4.1): the load pose undone by the initial positions about the axes and anchor the zero pose is taken
+        about, then moved by the current positions about the current axes through the current anchor. A Hinge2's
+        and a BallJoint's axes turn in chain (§4.4: axis 1 carries axis 2, which carries axis 3). While the axes
+        and anchor are those of the zero pose this is the move by (position − initial position) alone."""
+        if joint.axis_local == joint.zero_axes and joint.anchor_local == joint.zero_anchor:
             if joint.positions == joint.initial_positions:
-                return solid.rel
-            return self._chain_motion(joint) * solid.rel
-        delta = joint.positions[0] - joint.initial_positions[0]
-        if delta == 0.0:
-            return solid.rel
-        return self._joint_motion(joint, delta) * solid.rel
-
-    @staticmethod
-    def _chain_motion(joint: JointRec) -> Pose:
-        """Kinematic Hinge2/BallJoint: its axes turn in chain (axis 1 carries axis 2, which carries axis 3) about
-        the anchor; the motion from the initial positions to the current ones, in the parent Solid frame."""
-
-        def chain(positions: list[float]) -> m3.Mat3:
-            R = m3.IDENTITY
-            for axis, p in zip(joint.axis_local, positions, strict=False):
-                R = m3.mat_mul(R, m3.rot_axis_angle((*m3.normalized(joint.frame_rel.rotate(axis)), p)))
-            return R
-
-        R = m3.mat_mul(chain(joint.positions), m3.mat_t(chain(joint.initial_positions)))
-        anchor = joint.frame_rel.apply(joint.anchor_local)
-        return Pose(R, m3.sub(anchor, m3.mat_vec(R, anchor)))
-
-    @staticmethod
-    def _joint_motion(joint: JointRec, delta: float) -> Pose:
-        """Transform (in the parent Solid frame) moving an endPoint by ``delta`` along/about the axis."""
-        axis = joint.frame_rel.rotate(joint.axis_local[0])
-        if joint.kind == "slider":
-            return Pose(m3.IDENTITY, m3.scale(m3.normalized(axis), delta))
-        R = m3.rot_axis_angle((*axis, delta))
-        anchor = joint.frame_rel.apply(joint.anchor_local)
-        return Pose(R, m3.sub(anchor, m3.mat_vec(R, anchor)))
+                return Pose()
+            if joint.kind in ("hinge", "slider"):
+                return _axis_move(joint, joint.axis_local, joint.anchor_local,
+                                  [joint.positions[0] - joint.initial_positions[0]])
+        now = _axis_move(joint, joint.axis_local, joint.anchor_local, joint.positions)
+        return now * _axis_move(joint, joint.zero_axes, joint.zero_anchor, joint.initial_positions).inverse()
 
     def _check_state(self) -> None:
         isfinite = math.isfinite
@@ -212,3 +196,19 @@ class SimulationCore:
                 raise SimulationUnstable(
                     f"non-finite or diverging body state at t={self.time + self.dt:.3f}s; reset() to recover"
                 )
+
+
+def _axis_move(joint: JointRec, axes: list[m3.Vec3], anchor: m3.Vec3, positions: list[float]) -> Pose:
+    """The move, in the parent Solid frame, by ``positions`` along a slider's axis or about ``axes`` in chain
+    through ``anchor`` (axes and anchor in the joint's frame)."""
+    frame = joint.frame_rel
+    if joint.kind == "slider":
+        return Pose(m3.IDENTITY, m3.scale(m3.normalized(frame.rotate(axes[0])), positions[0]))
+    if joint.kind == "hinge":
+        R = m3.rot_axis_angle((*frame.rotate(axes[0]), positions[0]))
+    else:
+        R = m3.IDENTITY
+        for axis, p in zip(axes, positions, strict=False):
+            R = m3.mat_mul(R, m3.rot_axis_angle((*m3.normalized(frame.rotate(axis)), p)))
+    pivot = frame.apply(anchor)
+    return Pose(R, m3.sub(pivot, m3.mat_vec(R, pivot)))

@@ -137,10 +137,7 @@ class SupervisorEdits(MassEdits):
         joint = solid.joint
         if joint is None or not joint.kinematic:
             return Pose()
-        if joint.kind in ("ball", "hinge2"):
-            return self._chain_motion(joint)
-        delta = joint.positions[0] - joint.initial_positions[0]
-        return self._joint_motion(joint, delta) if delta else Pose()
+        return self._endpoint_motion(joint)
 
     def _move_subtree(self, solid: SolidRec, T: Pose, reset_velocity: bool) -> None:
         """Apply a rigid world transform ``T`` to every body and static geom in a Solid subtree."""
@@ -200,22 +197,24 @@ class SupervisorEdits(MassEdits):
         if child is None or joint.kinematic:
             joint.positions[axis_index] = float(position)
             return
+        joint.positions[axis_index] = float(position)
+        self._place_endpoint(joint)
+        self._read_joint(joint, predict=False)
+
+    def _place_endpoint(self, joint: JointRec) -> None:
+        """Teleport a dynamic joint's endPoint to its zero pose moved by the joint's current positions about its
+        current axes (§4.1, :meth:`_endpoint_motion`), its subtree's physics reset (velocities and the motors'
+        current velocity zeroed)."""
+        child = joint.child
+        assert child is not None
         old_world = self.solid_world_pose(child)
         parent_world = self.solid_world_pose(joint.parent) if joint.parent is not None else Pose()
-        if joint.kind in ("ball", "hinge2"):
-            joint.positions[axis_index] = float(position)
-            new_rel = self._chain_motion(joint) * child.load_rel
-        else:
-            delta = float(position) - joint.initial_positions[axis_index]
-            new_rel = self._joint_motion(joint, delta) * child.load_rel if delta else child.load_rel
-        new_world = parent_world * new_rel
+        new_world = parent_world * self._endpoint_motion(joint) * child.load_rel
         self._move_subtree(child, new_world * old_world.inverse(), reset_velocity=True)
         moved = {id(s) for s in child.subtree()}
         for motor in self.motors:
             if motor.joint.child is not None and id(motor.joint.child) in moved:
                 motor.current_velocity = 0.0
-        joint.positions[axis_index] = float(position)
-        self._read_joint(joint, predict=False)
 
     # ------------------------------------------------------------------ live field edits
 

@@ -152,6 +152,8 @@ class JointChanges(Stepper):
         axes, anchor = self._joint_axes(joint.kind, joint.params)
         joint.axis_local[:] = axes
         joint.anchor_local = anchor
+        joint.zero_axes[:] = axes  # a later position teleport moves the endPoint about these
+        joint.zero_anchor = anchor
         joint.static_friction[axis] = float(field_or(node, "staticFriction", 0.0))
         if kinematic_pose is not None and child is not None:
             # no ODE joint: the endPoint stays where it is, its frame re-based on the new axes and position

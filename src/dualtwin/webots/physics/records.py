@@ -329,6 +329,13 @@ class JointRec(_ShortRepr):
     amotor: int = 0  # BallJoint: the Euler AMotor carrying the three axes' motors and stops
     euler_ref: tuple[Any, ...] = ()  # BallJoint: (parent R, child R, axes basis) when the axes were set
     reference: Node | None = None  # the SolidReference endPoint of a joint closing a loop (§10)
+    # the axes and anchor of the load (a reset gives them back) and those the endPoint's zero pose is taken about
+    # (§4.1: its load pose undone by the load positions): the load ones, or an imported parameters node's; a
+    # run-time edit of an axis or anchor keeps the zero pose (physics/axis_edits.py)
+    load_axes: list[m3.Vec3] = field(default_factory=list)
+    load_anchor: m3.Vec3 = m3.ZERO
+    zero_axes: list[m3.Vec3] = field(default_factory=list)
+    zero_anchor: m3.Vec3 = m3.ZERO
 
     @property
     def kinematic(self) -> bool:

@@ -189,7 +189,7 @@ class Stepper(SupervisorEdits):
         child = joint.child
         assert child is not None and child.body is not None
         parent = Pose() if joint.parent is None else self.solid_world_pose(joint.parent)
-        target = parent * self._chain_motion(joint) * child.rel
+        target = parent * self._endpoint_motion(joint) * child.rel
         self._move_subtree(child, target * self.solid_world_pose(child).inverse(), reset_velocity=True)
 
     def _swap_and_collide(self) -> None:
