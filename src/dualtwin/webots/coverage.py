@@ -199,16 +199,21 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("JointParameters", "joint", "supported",
              "slider axis, position, stops, spring, damping, friction; edited by a supervisor, position teleports "
              "the endPoint (its subtree's physics reset, motor targets kept) and minStop/maxStop, springConstant, "
-             "dampingConstant and staticFriction act from the next step, on every joint and axis (an axis edit is "
-             "not applied); imported by a supervisor into a joint's empty "
+             "dampingConstant, staticFriction and axis act from the next step, on every joint and axis (an axis edit "
+             "places the endPoint at its position about the new axis, the joint set again there with its position "
+             "read on, stops, springs and motor about the new axis; a zero axis is refused with a warning); "
+             "imported by a supervisor into a joint's empty "
              "jointParameters field (any axis) they act from the next step, the joint set again where its Solids "
              "are (nothing moves, the current configuration reads the node's position); removed, the joint goes "
              "back to the defaults where it is, its position read on without a jump; a reset puts the joint back "
              "as at load"),
     Coverage("HingeJointParameters", "joint", "supported",
              "axis, anchor and the JointParameters fields (also imported or removed at run time, as JointParameters; "
-             "edits of axis, anchor and suspensionAxis are not applied at run time)"),
-    Coverage("BallJointParameters", "joint", "supported", "anchor"),
+             "axis and anchor edited at run time act from the next step, the endPoint placed at its position about "
+             "the new axis through the new anchor, as JointParameters' axis; suspensionAxis acts on nothing: the "
+             "HingeJoint's suspension is not modelled and the Hinge2Joint's lies along its first axis)"),
+    Coverage("BallJointParameters", "joint", "supported",
+             "anchor (edited at run time: the endPoint turned about the new anchor, the joint set again there)"),
     Coverage("SolidReference", "joint", "partial",
              "closed loops: an ODE joint from the upper body to the named Solid (searched in the joint's "
              "robot, as Webots does) or to the static environment, built after the other joints; one a "

@@ -11,7 +11,7 @@ from dualtwin.webots import _math3 as m3
 from dualtwin.webots import ode
 from dualtwin.webots._math3 import Pose
 from dualtwin.webots.motor_law import kinematic_motion
-from dualtwin.webots.physics.edits import SupervisorEdits
+from dualtwin.webots.physics.axis_edits import JointAxisEdits
 from dualtwin.webots.physics.records import (
     JointRec,
     MotorRec,
@@ -24,7 +24,7 @@ _PI = math.pi
 _HALF_PI = math.pi / 2
 
 
-class Stepper(SupervisorEdits):
+class Stepper(JointAxisEdits):
     """The per-step loop (see the module docstring)."""
 
     def _prepare_step_lists(self) -> None:
