@@ -494,8 +494,8 @@ def _static_method(channel: _Channel, class_name: str, name: str, signature: ins
     return function
 
 
-def _remote_property(channel: _Channel, name: str, extra: tuple[bool, Any, Any]) -> property:
-    settable, getter, setter = extra
+def _remote_property(channel: _Channel, name: str, extra: tuple[bool, Any, Any, bool]) -> property:
+    settable, getter, setter, readable = extra
 
     def fget(self: Any) -> Any:
         return channel.request(("get", self._dualtwin_handle, name))
@@ -518,7 +518,7 @@ def _remote_property(channel: _Channel, name: str, extra: tuple[bool, Any, Any])
             else:
                 channel.request(("set", self._dualtwin_handle, name, value))
 
-    return property(fget, fset if settable else None)
+    return property(fget if readable else None, fset if settable else None)
 
 
 def _value_method(name: str, extra: tuple[inspect.Signature | None, Any]) -> Any:

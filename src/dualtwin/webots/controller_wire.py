@@ -84,7 +84,9 @@ def describe_class(cls: type, exported: dict[str, type], role: str) -> dict[str,
             members[name] = ("constant", None)
             continue
         if isinstance(member, property):
-            members[name] = ("property", (member.fset is not None, _marked(cls, member.fget), _marked(cls, member.fset)))
+            # (settable, getter's mark, setter's mark, readable): a write-only property (Motor.torque) stays one
+            members[name] = ("property", (member.fset is not None, _marked(cls, member.fget), _marked(cls, member.fset),
+                                          member.fget is not None))
         elif isinstance(member, (staticmethod, classmethod)):
             members[name] = ("static", _signature(getattr(cls, name)))
         elif inspect.isfunction(member):
