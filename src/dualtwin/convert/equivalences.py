@@ -177,8 +177,13 @@ def contact_solref(soft_erp: float, soft_cfm: float, step_s: float, mass: float,
     ODE's contact constraint is a spring-damper with k = ERP/(h CFM), b = (1-ERP)/CFM (h = basicTimeStep).
     For an effective mass m this is ω = sqrt(k/m), ζ = b / (2 sqrt(k m)); MuJoCo's (timeconst, dampratio)
     spring has ω = 1/(timeconst ζ), hence timeconst = 2 m / b and dampratio = ζ. m is chosen by
-    :func:`contact_effective_mass`; timeconst is clamped to 2 MuJoCo steps (MuJoCo's own minimum). solimp
-    d = 1/(1 + CFM m / h) plays the role of ODE's regularisation.
+    :func:`contact_effective_mass`. solimp d = 1/(1 + CFM m / h) plays the role of ODE's regularisation.
+
+    timeconst is at least 2 h'/d (h' the MuJoCo step). MuJoCo damps a contact with b' = 2/(d timeconst) in its
+    reference acceleration, applied through an impedance that reaches 1 when several rows push one body (each
+    row's regulariser sees only its own diagonal); h' b' > 1 then reverses the approach velocity every step and
+    a stiff contact (small softCFM, so small d) bounces back faster than it hit, where ODE without ``bounce``
+    only pushes the penetration out at softERP (§2.2). With d = 1 this is MuJoCo's own 2-step minimum.
 
     This matches the response shape, not ODE's per-point stiffness or static sink: a MuJoCo row gives
     f = (a_ref - a)/R, a_ref = -B v - K d r, R = (1-d)/d Â, with Â = 2 mu^2 (1 + mu^2) (w1 + w2)/impratio on
@@ -194,9 +199,9 @@ def contact_solref(soft_erp: float, soft_cfm: float, step_s: float, mass: float,
     b = max((1.0 - erp) / cfm, 1e-9)
     m = max(mass, 1e-6)
     dampratio = b / (2.0 * math.sqrt(k * m))
-    timeconst = max(2.0 * m / b, 2.0 * mujoco_step_s)
-    d = 1.0 / (1.0 + cfm * m / step_s)
-    return timeconst, min(dampratio, 1e3), min(max(d, 0.5), 0.9999)
+    d = min(max(1.0 / (1.0 + cfm * m / step_s), 0.5), 0.9999)
+    timeconst = max(2.0 * m / b, 2.0 * mujoco_step_s / d)
+    return timeconst, min(dampratio, 1e3), d
 
 
 def contact_effective_mass(robot_mass: float, contact_bodies: int) -> float:
