@@ -113,4 +113,14 @@ def solid_mass(solid: Node, *, scale: float = 1.0) -> tuple[MassProps | None, li
     if inertial is None:
         return None, warnings
     inertia = np.array(inertial.inertia, dtype=float).reshape(3, 3)
+    moments = np.linalg.eigvalsh(inertia)  # ascending principal moments
+    if moments[0] + moments[1] < moments[2]:
+        # Webots takes any positive-definite inertiaMatrix (on-ODE §3.2) and ODE simulates it; MuJoCo refuses
+        # principal moments that break A + B >= C (no rigid body has them). Only a custom matrix can: bounding-
+        # object masses and sums of them are physical. MuJoCo's own repair (balanceinertia) sets them to the mean.
+        mean = float(moments.mean())
+        warnings.append(f"{name}: inertiaMatrix principal moments {moments[0]:g} {moments[1]:g} {moments[2]:g} break "
+                        f"A + B >= C, which MuJoCo requires: converted as {mean:g} about every axis (MuJoCo's "
+                        "balanceinertia); Webots (ODE) uses the matrix as given")
+        inertia = np.eye(3) * mean
     return MassProps(inertial.mass, np.array(inertial.com, dtype=float), inertia), warnings
