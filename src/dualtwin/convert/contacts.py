@@ -87,7 +87,8 @@ def apply_contacts(spec: mujoco.MjSpec, geoms: Sequence[ContactGeom], world_info
             if current is None or params[0] < current[0]:
                 env_params[env_material] = params
             key = (g.material, env_material)
-            if key not in noted:
+            # Robot geoms touch only the environment: without one, no pair meets and nothing is lost.
+            if env_geoms and key not in noted:
                 noted.add(key)
                 cp = contact_properties(world_info, *key)
                 if float(cp.get("bounce", 0.0)) > 0:
