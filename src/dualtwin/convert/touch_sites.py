@@ -8,6 +8,11 @@ the box enclosing the boundingObject's primitives in the sensor's frame, grown b
 side (a contact point is the middle of the penetration, just outside either surface). A TouchSensor without a
 boundingObject keeps a 2 cm sphere at its origin (it touches nothing in Webots either); one with a geometry whose
 extent is not computed here (a mesh, an elevation grid) too, with a warning.
+
+What MuJoCo's ``touch`` reads is the sum of those normal forces, in newtons, whatever their direction; the
+conversion notes how each Webots ``type`` differs (§2.3): a bumper reads 1 while touched, ``force`` reads only the
+push along the sensor's −x that its fixed joint passes on to its parent (0 for a push along any other axis, and
+without the sensor body's own weight), ``force-3d`` that joint force as a vector in the sensor frame.
 """
 
 from __future__ import annotations
@@ -20,7 +25,7 @@ import numpy as np
 from dualtwin.convert.mass import bounding_primitives
 from dualtwin.webots.nodes import Node
 
-__all__ = ["TOUCH_MARGIN", "touch_site_volume"]
+__all__ = ["TOUCH_MARGIN", "touch_site_notes", "touch_site_volume"]
 
 #: Metres added on every side of the enclosing box (contact points sit up to half a penetration outside).
 TOUCH_MARGIN = 0.005
@@ -64,3 +69,24 @@ def touch_site_volume(site: Any, solid: Node, scale: float) -> str | None:
     site.type = mujoco.mjtGeom.mjGEOM_BOX
     site.size = [float(v) for v in (high - low) / 2.0 + TOUCH_MARGIN]
     return None
+
+
+#: What a TouchSensor ``type`` reads in Webots (webots-devices §2.3) where MuJoCo's touch reads the normal force.
+_TYPE_NOTES = {
+    "bumper": "a Webots bumper reads 1 while touched and 0 otherwise",
+    "force": ("a Webots force sensor reads only the push along its -x that its fixed joint passes on to its parent "
+              "(0 for pushes along its other axes; its own body's weight not included)"),
+    "force-3d": "a Webots force-3d sensor reads its fixed joint's force on its parent as a vector in its own frame",
+}
+
+
+def touch_site_notes(site: Any, solid: Node, scale: float) -> list[str]:
+    """Shape the TouchSensor's site (:func:`touch_site_volume`) and say what of its reading MuJoCo's touch differs in.
+
+    An unknown ``type`` is a bumper, as in Webots.
+    """
+    notes = [note] if (note := touch_site_volume(site, solid, scale)) is not None else []
+    kind = str(solid.get("type", "bumper"))
+    notes.append(f"touch sensor {solid.get('name')!r}: MuJoCo's touch reads the total normal force (N) of the "
+                 f"contacts in its site, {_TYPE_NOTES.get(kind, _TYPE_NOTES['bumper'])}")
+    return notes

@@ -80,7 +80,7 @@ from dualtwin.convert.initial_state import add_initial_keyframe
 from dualtwin.convert.mass import FloatArray, MassProps, bounding_primitives, combine, solid_mass
 from dualtwin.convert.sensor_models import TABLED, add_sensor_model, distance_notes
 from dualtwin.convert.surfaces import add_surface_mesh
-from dualtwin.convert.touch_sites import touch_site_volume
+from dualtwin.convert.touch_sites import touch_site_notes
 from dualtwin.geometry import axis_angle_matrix, mujoco_quat
 from dualtwin.webots import schema
 from dualtwin.webots.nodes import Node, World
@@ -351,7 +351,7 @@ class _Converter:
         site_name = self.unique("site", device_name)
         site = body.add_site(name=site_name, pos=[float(v) for v in T[:3, 3]], quat=_quat(site_R))
         site.group = 4
-        if kind == "TouchSensor" and (note := touch_site_volume(site, solid, scale)) is not None:
+        for note in touch_site_notes(site, solid, scale) if kind == "TouchSensor" else []:
             self.warn(note, solid)
         sensor_type = SITE_SENSORS.get(kind)
         if sensor_type is None:
