@@ -21,6 +21,7 @@ from pathlib import Path
 import pytest
 
 from dualtwin.convert import contact_solref, convert_world_text
+from dualtwin.twins import Twin
 from dualtwin.twins.mujoco import MuJoCoTwin
 from tests.support.converted_twins import converted_twins, world_text
 
@@ -40,13 +41,13 @@ def _world(friction: float) -> str:
         "softCFM 0.0001 } ]")
 
 
-def _drop(twin: MuJoCoTwin | object) -> tuple[float, float]:
+def _drop(twin: Twin) -> tuple[float, float]:
     """(fastest upward speed, height after 1.5 s) of the dropped box, stepped every 1 ms."""
     fastest = 0.0
     for _ in range(1500):
-        twin.step()  # type: ignore[attr-defined]
-        fastest = max(fastest, float(twin.body_velocity("R")[2]))  # type: ignore[attr-defined]
-    return fastest, float(twin.body_position("R")[2])  # type: ignore[attr-defined]
+        twin.step()
+        fastest = max(fastest, float(twin.body_velocity("R")[2]))
+    return fastest, float(twin.body_position("R")[2])
 
 
 @pytest.mark.parametrize("friction", [0.3, 1.0])

@@ -14,14 +14,14 @@ from __future__ import annotations
 
 import pytest
 
-from dualtwin.convert import convert_world_text
+from dualtwin.convert import Conversion, convert_world_text
 from tests.support.converted_twins import world_text
 
 ROBOT = ('DEF R Robot {{ controller "<extern>" children [ GPS {{ name "gps" }} ] boundingObject Sphere {{ radius 0.1 }} '
          "physics Physics {{ density -1 mass 2 centerOfMass [ 0 0 0 ] inertiaMatrix [ {inertia} ] }} }}")
 
 
-def _convert(inertia: str):  # type: ignore[no-untyped-def]
+def _convert(inertia: str) -> Conversion:
     return convert_world_text(world_text(ROBOT.format(inertia=inertia), "gravity 0"), "inertia.wbt")
 
 
