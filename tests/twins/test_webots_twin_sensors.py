@@ -58,3 +58,22 @@ def test_a_hinge2_second_axis_sensor_and_motor_are_the_twins_from_the_first_step
             assert twin.sensor("s1") == pytest.approx(0.0, abs=1e-9), twin.name
         with pytest.raises(DualtwinError, match="known: m2"):
             webots.command("nope", "velocity", 1.0)
+
+
+def test_a_sub_millisecond_basic_step_still_samples(tmp_path: Path) -> None:
+    # Found by the dual-twin fuzz: with basicTimeStep 0.5 the twin enabled every sensor with int(0.5) = 0 ms,
+    # which is Webots' disable() (webots-devices §0.2: enable(0) ≡ disable()), so every read was NaN. Webots'
+    # enable() takes whole milliseconds and samples when now − lastUpdate ≥ period (§0.1): 1 ms, the shortest,
+    # samples every other 0.5 ms step, so each 2 ms control period ends on a sample. Hand values: nothing moves
+    # (gravity 0), so the GPS reads the robot's x and the PositionSensor the hinge's initial position 0.3.
+    text = world_text(
+        f'Robot {{ translation {X} 0 0 controller "<extern>" children [ GPS {{ name "gps" }} DEF H HingeJoint {{\n'
+        "  jointParameters HingeJointParameters { axis 0 0 1 position 0.3 }\n"
+        '  device [ PositionSensor { name "s" } ]\n'
+        "  endPoint DEF E Solid { rotation 0 0 1 0.3 physics Physics { } boundingObject Box { size 0.1 0.1 0.1 } } }"
+        " ] }", "basicTimeStep 0.5 gravity 0")
+    with converted_twins(text, tmp_path, 0.002) as (_, webots, mujoco_twin):
+        for twin in (webots, mujoco_twin):
+            twin.step()
+            assert twin.sensor("gps") == pytest.approx(X, abs=1e-12), twin.name
+            assert twin.sensor("s") == pytest.approx(0.3, abs=1e-9), twin.name

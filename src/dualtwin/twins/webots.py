@@ -142,7 +142,9 @@ class WebotsTwin(Twin):
             if device is None or not (hasattr(device, "getValue") or hasattr(device, "getValues")):
                 # a Camera, Lidar or InertialUnit has no value a scalar read could take the first component of
                 raise unknown_name("sensor", self._resolve(name), self._device_names(None), self._origin)
-            device.enable(int(self._basic_ms))
+            # Webots' enable() takes whole milliseconds (0 disables) and samples once a period has elapsed: the
+            # basic step rounded down samples every step, 1 ms as often as it can below a 1 ms step.
+            device.enable(max(1, int(self._basic_ms)))
             sensor = self._sensors[name] = device
         return sensor
 
