@@ -22,7 +22,8 @@ PERIOD = 0.016
 def _trajectory(robot: str, native: bool, kp_scale: float = 1.0) -> tuple[np.ndarray, int]:
     """80 control periods of position, velocity and torque commands (random, seeded; large enough to
     saturate), with a rotor-inertia and a gain knob, a PID with I and D terms and an acceleration limit on
-    the first motors; rows of qpos, qvel and actuator forces, and how many periods ended saturated.
+    the first motors; rows of qpos, qvel and actuator forces, and how many periods ended with a servo at its
+    torque bound.
     ``robot`` is a bundled robot's name or an MJCF text."""
     model = mujoco.MjSpec.from_string(robot) if robot.startswith("<") else resolve_robot(robot).model_path("mujoco")
     twin = MuJoCoTwin(model, PERIOD, native_law=native)
@@ -46,9 +47,9 @@ def _trajectory(robot: str, native: bool, kp_scale: float = 1.0) -> tuple[np.nda
         twin.step()
         d = twin.data
         rows.append(np.concatenate([d.qpos, d.qvel, d.actuator_force]))
-        states = ([d.plugin_state[mo.plugin + motor_plugin.SLOT["saturated"]] for mo in motors] if native
-                  else [mo.saturated for mo in motors])
-        saturated += any(states)
+        # A servo at its torque bound: actuator_force is the torque it applied over the last step.
+        saturated += any(not mo.state.torque_mode and abs(d.actuator_force[mo.index]) > 0.99 * mo.state.available_torque
+                         for mo in motors)
     twin.close()
     return np.array(rows), saturated
 

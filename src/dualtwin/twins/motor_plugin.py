@@ -36,9 +36,11 @@ SOURCE = Path(__file__).with_name("native") / "webots_motor.c"
 
 # plugin_state slots per instance (the enum in native/webots_motor.c, in its order).
 SLOTS = ("torque_mode", "target_position", "target_velocity", "torque", "available", "kp", "ki", "kd",
-         "acceleration", "kv", "predict", "integral", "previous_error", "u", "saturated", "next_integral",
-         "next_previous_error", "next_u", "next_saturated", "ctrl_mode", "last_ctrl", "max_velocity",
-         "max_torque", "min_position", "max_position", "gain", "actuator", "dof", "qpos", "last", "armature")
+         "acceleration", "kv", "inertia", "integral", "previous_error", "u", "residual", "saturated",
+         "next_integral", "next_previous_error", "next_u", "next_saturated", "step_velocity", "step_smooth",
+         "ctrl_mode", "last_ctrl", "max_velocity", "max_torque", "min_position", "max_position", "gain", "actuator",
+         "dof", "qpos", "last", "armature", "step_stiffness",
+         "step_torque")
 SLOT = {name: index for index, name in enumerate(SLOTS)}
 NSTATE = len(SLOTS)
 
@@ -192,7 +194,7 @@ def standalone_spec(spec: mujoco.MjSpec, ctrl: str = "position") -> mujoco.MjSpe
 
 
 ATTRIBUTES = ("maxVelocity", "maxTorque", "Kp", "Ki", "Kd", "acceleration", "minPosition", "maxPosition",
-              "stiffness", "predict", "ctrl", "multiplier")  # the plugin's config keys, in its order (kAttributes in the C file)
+              "stiffness", "ctrl", "multiplier")  # the plugin's config keys, in its order (kAttributes in the C file)
 
 
 def max_torque(model: mujoco.MjModel, actuator: int, default: float) -> float:
@@ -225,21 +227,21 @@ def motor_params(model: mujoco.MjModel, name: str, actuator: int) -> MotorParams
     return params
 
 
-def slot_values(state: MotorState, kv: float, armature: float, predict: float,
-                saturated: float | None = None) -> list[tuple[int, float]]:
+def slot_values(state: MotorState, kv: float, armature: float, inertia: float,
+                law: tuple[float, float] | None = None) -> list[tuple[int, float]]:
     """(slot, value) for one motor's plugin_state from the twin's motor state: targets, limits, gains, servo
-    stiffness ``kv``, rotor ``armature`` and saturation bound ``predict``; with ``saturated`` (not None) its
-    law state too (integral, previous error, last u, saturation)."""
+    stiffness ``kv``, rotor ``armature`` and the ``inertia`` kv was sized for; with ``law`` (saturation,
+    residual load; not None) its law state too (integral, previous error, last u and those)."""
     p = state.params
     values = {"torque_mode": 1.0 if state.torque_mode else 0.0, "target_position": state.target_position,
               "target_velocity": state.target_velocity, "torque": state.torque, "available": state.available_torque,
-              "kp": p.kp, "ki": p.ki, "kd": p.kd, "acceleration": p.acceleration, "kv": kv, "predict": predict,
+              "kp": p.kp, "ki": p.ki, "kd": p.kd, "acceleration": p.acceleration, "kv": kv, "inertia": inertia,
               "ctrl_mode": 0.0, "max_velocity": p.max_velocity, "max_torque": p.max_torque,
               "min_position": p.min_position, "max_position": p.max_position, "gain": state.gain,
               "armature": armature}
-    if saturated is not None:
+    if law is not None:
         values.update(integral=state.integral, previous_error=state.previous_error, u=state.current_velocity,
-                      saturated=saturated)
+                      saturated=law[0], residual=law[1])
     return [(SLOT[key], float(value)) for key, value in values.items()]
 
 

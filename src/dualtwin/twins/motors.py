@@ -151,21 +151,51 @@ class ServoMotor(Protocol):
     index: int  # actuator (ctrl) index
     qpos: int
     dof: int
-    kv: float  # servo stiffness: torque = kv (u - qdot)
-    saturated: float  # 0 = servo; ±1 = applying ±available torque
+    kv: float  # servo stiffness: torque = kv (w - qdot)
+    saturated: float  # 0 = servo; ±1 = saturated: u lies beyond what ±available torque reaches
+    stiffness: float  # the servo stiffness its joint's inertia holds now (dt x it, see servo_steps)
+    residual: float  # last step's force on the joint besides the motor and the smooth forces (see servo_steps)
 
 
 def servo_steps(servos: Sequence[ServoMotor], steps: int, dt: float, qpos: memoryview[float],
-                qvel: memoryview[float], ctrl: memoryview[float], physics_step: Callable[[], None],
-                saturate: Callable[[Any, float], None], release: Callable[[Any], None],
-                predict_bound: float) -> None:
+                qvel: memoryview[float], ctrl: memoryview[float], force: memoryview[float],
+                forces: tuple[memoryview[Any], memoryview[Any], memoryview[Any]],
+                physics_step: tuple[Callable[[], None], Callable[[], None]], servo: Callable[[Any, float], None],
+                stiffness: float) -> None:
     """``steps`` physics steps of Webots' motor law (:func:`~dualtwin.webots.motor_law.motor_velocity`) for
-    every servo, with the saturation state machine of a velocity servo clamped at the available torque.
+    every motor (``servos``: those in torque control apply their torque), each bounded like ODE's motor row.
 
-    Per physics step and motor, in motor order: ``u`` from the law at the current position; a saturated motor
-    leaves saturation (``release``) once full torque would carry it past ``u`` this step, else applies it; a
-    servo whose torque ``kv (u - qdot)`` exceeds ``predict_bound`` times the limit saturates before the step
-    (``saturate``). After ``physics_step``, a servo whose backward-Euler torque exceeded the limit saturates.
+    ODE enforces Webots' ``u`` with a bounded velocity row (webots-on-ode §5: ``dParamVel = u``, ``dParamFMax``
+    = the available torque ``A``, solved with the other constraints): the joint reaches ``u`` when ``A``
+    allows, else the motor applies exactly ``A`` and the joint stays short of ``u``; the motor never carries it
+    past ``u``. MuJoCo has no such row. Here a motor is, per step, either a stiff velocity servo towards ``u``
+    (torque ``kv (u - qdot')`` at the step's end velocity, made implicit by ``dt·kv`` of inertia that the
+    constraint solver sees, like ODE's row) or, saturated, an explicit torque within ``±A`` without that
+    inertia; ``servo(motor, k)`` puts ``dt·k`` of inertia on the joint (``k`` = ``kv`` or 0).
+
+    ``physics_step`` is the step in two halves (``mj_step1``, ``mj_step2``); between them ``forces``
+    (qfrc_passive, qfrc_bias, qfrc_applied) hold this step's smooth force ``S`` on each joint. The load ``L``
+    is ``S`` plus what else moved the joint last step (contacts, coupled joints: the residual ``m (qdot' - qdot)
+    / dt - torque - S``, ``m`` the inertia the servo is sized for, ``dt·kv = stiffness·m``). The servo applies
+    ``±A`` at ``u = qdot + (L ± A)·dt/m ± A/kv``:
+
+    * within that reach, the servo: it reaches ``u`` (to its ``1 / (1 + stiffness)`` lag) with at most ``A``;
+    * beyond it, saturated: explicitly the torque that takes the joint to ``u`` under ``S`` alone, ``m (u - qdot)
+      / dt - S``, clamped to ``±A``. Exactly ``A`` while the load holds the joint back (and for any smooth load
+      such as gravity), and never past ``u`` should the load let go within the step. A motor saturates when
+      ``u`` lies beyond the reach under ``S`` (before the step), or after a step whose servo applied more than
+      ``A`` (a load it did not foresee); it leaves once ``u`` is within the reach under ``L``.
+
+    What this cannot do is ODE's simultaneous solve: a load that is not smooth (a contact, a coupled body) is
+    known only from the last step. A servo step whose load grew applies more than ``A``, and a saturated motor
+    whose load is inertial (it pushes back as hard as the motor pushes: a coupled flywheel, a wheel driving a
+    heavy robot through its grip) alternates between the two. Decision: never past ``u`` over exactly ``A``
+    there, since overshooting wheels cost a two-wheel robot a fifth of its travel (a fuzz against the Webots
+    twin). A step whose inertia changes runs ``mj_step1`` again. Entering saturation reads only ``S`` (exact for
+    the step), leaving it the whole load: coupled joints' residuals swing with each other's switches, and a
+    rule that both entered and left on them chattered on the arm. After each step ``force`` (actuator_force)
+    holds the torque the motor applied over it. The native law (native/webots_motor.c) computes the same, bit
+    for bit.
 
     Decision: this is the law inlined, not a call to ``motor_velocity`` per motor and step. On the arm that
     call (keyword arguments, a tuple back, MotorState attributes) cost more than MuJoCo's physics step itself.
@@ -173,29 +203,37 @@ def servo_steps(servos: Sequence[ServoMotor], steps: int, dt: float, qpos: memor
     what a period cannot change (which branch of the law, targets, gains, limits) is read once per call, and
     the law's state (integral, previous error, last ``u``) lives in locals and is written back at the end.
     """
+    passive, bias, applied = forces
+    step1, step2 = physics_step
     # Per motor: what the period cannot change (a tuple), and the state that steps change (a list: the law's
-    # integral, previous error and last u, and the saturation sign). kind: 0 no control (no available
-    # torque), 1 velocity control (infinite target position), 2 position control (the PID).
+    # integral, previous error and last u, the residual, the step's qdot and servo stiffness, the saturation
+    # sign, the stiffness in the joint's inertia, the step's smooth force and explicit torque). kind: 0 no
+    # control (no available torque), 1 velocity control (infinite target position), 2 position control (the
+    # PID), 3 torque control.
     rows = []
     for mo in servos:
         st = mo.state
         p = st.params
-        kind = 0 if st.available_torque == 0.0 else 1 if math.isinf(st.target_position) else 2
+        kind = 3 if st.torque_mode else 0 if st.available_torque == 0.0 else 1 if math.isinf(st.target_position) else 2
+        inertia = servo_inertia(mo.kv, dt, stiffness)
+        limit = st.available_torque
+        reach = dt / inertia
+        margin = limit / mo.kv
         const = (mo, kind, st.target_position, st.target_velocity, abs(st.target_velocity), p.kp, p.ki, p.kd,
-                 p.acceleration >= 0, p.acceleration * dt, mo.qpos, mo.dof, mo.index, mo.kv, st.available_torque,
-                 predict_bound * st.available_torque)
-        rows.append((const, [st.integral, st.previous_error, st.current_velocity, mo.saturated]))
+                 p.acceleration >= 0, p.acceleration * dt, mo.qpos, mo.dof, mo.index, mo.kv, limit, reach, margin,
+                 inertia, st.torque)
+        rows.append((const, [st.integral, st.previous_error, st.current_velocity, mo.residual, 0.0, 0.0,
+                             mo.saturated, mo.stiffness, 0.0, 0.0]))
     try:
-        for k in range(steps):
+        for _ in range(steps):
+            step1()
+            switched = False
             for const, state in rows:
-                mo, kind, target, target_velocity, vlimit, kp, ki, kd, slew, slew_step, iq, iv, ic, kv, limit, bound = const
-                saturated = state[3]
-                if k and not saturated:
-                    # The previous step's check, here rather than in a loop of its own: it touches this motor only.
-                    torque = kv * (state[2] - qvel[iv])
-                    if abs(torque) > limit:
-                        saturate(mo, torque)
-                        saturated = state[3] = mo.saturated
+                mo, kind, target, target_velocity, vlimit, kp, ki, kd, slew, slew_step, iq, iv, ic, kv, limit, reach, margin, inertia, _ = const
+                qdot = state[4] = qvel[iv]
+                smooth = state[8] = passive[iv] - bias[iv] + applied[iv]
+                if kind == 3:
+                    continue  # ctrl holds the commanded torque
                 # Webots' law (motor_law.motor_velocity), inlined.
                 if kind == 2:
                     error = target - qpos[iq]
@@ -212,31 +250,59 @@ def servo_steps(servos: Sequence[ServoMotor], steps: int, dt: float, qpos: memor
                     current = state[2]
                     u = max(current - slew_step, min(current + slew_step, u))
                 state[2] = u
-                if saturated:
-                    if (u - qvel[iv]) * saturated <= 0.0 or limit <= 0.0:
-                        release(mo)
-                        state[3] = 0.0
-                        ctrl[ic] = kv * (u - qvel[iv])
-                    else:
-                        ctrl[ic] = saturated * limit
-                else:
-                    torque = kv * (u - qvel[iv])
-                    if abs(torque) > bound:
-                        saturate(mo, torque)
-                        state[3] = mo.saturated
-                    else:
-                        ctrl[ic] = torque
-            physics_step()
-        for const, state in rows:
-            if steps and not state[3]:
-                # The backward-Euler servo torque actually applied in the last step.
-                torque = const[13] * (state[2] - qvel[const[11]])
-                if abs(torque) > const[14]:
-                    saturate(const[0], torque)
+                # The bounded row (the native law's arithmetic): a servo to u, stiff or saturated.
+                sign = state[6]
+                load = smooth + state[3]
+                if not sign:
+                    # Beyond what the torque reaches under the smooth force: saturated before the step.
+                    if u > qdot + ((smooth + limit) * reach + margin):
+                        sign = 1.0
+                    elif u < qdot + ((smooth - limit) * reach - margin):
+                        sign = -1.0
+                if sign and not (u > qdot + ((load + limit) * reach + margin) if sign > 0.0
+                                 else u < qdot + ((load - limit) * reach - margin)):
+                    sign = 0.0  # within reach under the whole load: the servo reaches u
+                state[6] = sign
+                stiffness, torque = kv, 0.0
+                if sign:
+                    # Saturated: no servo, explicitly the torque that takes the joint to u under the smooth
+                    # force alone, within ±limit (never past u should the load let go within the step).
+                    stiffness = 0.0
+                    torque = inertia * (u - qdot) / dt - smooth
+                    torque = torque if torque < limit else limit
+                    torque = torque if torque > -limit else -limit
+                state[5] = stiffness
+                state[9] = torque
+                if stiffness != state[7]:
+                    servo(mo, stiffness)
+                    state[7] = stiffness
+                    switched = True
+                ctrl[ic] = stiffness * (u - qdot) + torque
+            if switched:
+                step1()  # the inertia matrix again, with the servo inertia the switches changed
+            step2()
+            for const, state in rows:
+                # The torque the motor applied (the servo's at the step's end velocity), and the residual load.
+                qdot = qvel[const[11]]
+                kind, limit = const[1], const[14]
+                torque = const[18] if kind == 3 else state[5] * (state[2] - qdot) + state[9]
+                force[const[12]] = torque
+                state[3] = const[17] * (qdot - state[4]) / dt - torque - state[8]
+                if kind != 3 and not state[6] and (torque > limit or -torque > limit):
+                    # The servo needed more than the limit (a load it did not foresee): saturated from the next
+                    # step until u is within reach again.
+                    state[6] = 1.0 if torque > 0.0 else -1.0
     finally:
         for const, state in rows:
-            st = const[0].state
+            mo = const[0]
+            st = mo.state
             st.integral, st.previous_error, st.current_velocity = state[0], state[1], state[2]
+            mo.residual, mo.saturated, mo.stiffness = state[3], state[6], state[7]
+
+
+def servo_inertia(kv: float, dt: float, stiffness: float) -> float:
+    """The inertia a servo's stiffness was sized for: ``dt·kv = stiffness·inertia``."""
+    return kv * dt / stiffness
 
 
 def relay_value(state: MotorState, mode: str, value: float) -> tuple[float, float]:

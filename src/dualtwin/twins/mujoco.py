@@ -2,10 +2,12 @@
 
 Motors mean what a Webots motor means (see :mod:`dualtwin.twins.base`). ODE's joint motor is a velocity
 constraint that reaches the commanded velocity within one step unless that needs more than the maximum
-torque. MuJoCo has no such constraint, so each motor is a ``general`` actuator switched between:
+torque. MuJoCo has no such constraint, so each motor is a ``general`` actuator switched, per step, from the
+torque the step needs (:func:`~dualtwin.twins.motors.servo_steps`) between:
 
-* a stiff velocity servo (torque ``kv (u - qdot)``) while the torque it needs stays within the limit, and
-* a saturated torque of ``±max_torque`` once it does not, until the velocity reaches ``u`` again.
+* a stiff velocity servo (torque ``kv (u - qdot)``) while the maximum torque reaches ``u``, and
+* once it does not, saturated: explicitly the torque that takes the joint to ``u`` under the smooth forces,
+  clamped to ``±max_torque``.
 
 The servo is integrated implicitly (backward Euler, so any ``kv`` is stable), but not with MuJoCo's implicit
 actuator damping: ``implicitfast`` adds ``dt·kv`` to the joint's inertia only *after* the constraint solver
@@ -14,7 +16,8 @@ resists, and skid-steer turning came out 2.5x too slow against ODE, whose motor 
 the contacts. Instead the servo torque is applied explicitly from the velocity at the start of the step and
 ``dt·kv`` is added to the joint's ``armature`` while the servo is active: for the joint alone that is the
 same backward-Euler update, and the constraint solver sees the motor's stiffness. MuJoCo's own
-``forcerange`` clamp is not used: a clamped stiff servo chatters. Webots motor fields are read from
+``forcerange`` clamp is not used: it clamps the explicit torque, not the implicit one, and a clamped stiff
+servo chatters. Webots motor fields are read from
 ``<custom><numeric name="webots_motor.NAME" data="maxVelocity Kp Ki Kd acceleration [minPosition
 maxPosition]"/>``, and the maximum torque from the actuator's ``forcerange``.
 
@@ -53,7 +56,7 @@ from dualtwin.twins.base import (
 from dualtwin.twins.knob_table import BoundKnob
 from dualtwin.twins.mass_constants import MassConstants
 from dualtwin.twins.mjcf_files import compile_spec, load_spec
-from dualtwin.twins.motors import MotorState, assign_groups, relay_command, servo_steps
+from dualtwin.twins.motors import MotorState, assign_groups, relay_command, servo_inertia, servo_steps
 from dualtwin.twins.mujoco_knobs import MAX_DELAY_PERIODS, MUJOCO_KNOBS, KnobPass, KnobTarget, nominal_values
 from dualtwin.twins.mujoco_state import StatePlan, scale_contact_depths
 from dualtwin.twins.ode_friction import FrictionBox, contact_semantics
@@ -67,10 +70,6 @@ if TYPE_CHECKING:
 # The solver sees it as armature, so it also sets how hard a wheel resists contact friction: at 10 (91 %)
 # the Pioneer turned in place 18 % slower than in ODE, at 100 3 %.
 SERVO_STIFFNESS = 100.0
-# On a free joint the servo applies 1/(1 + SERVO_STIFFNESS) of its explicit torque ``kv (u - qdot)`` (the
-# armature takes the rest): a torque above the limit times this factor saturates before the step, as ODE's
-# bounded motor row would, instead of overshooting for one step.
-PREDICT_SATURATION = 1.0 + SERVO_STIFFNESS
 #: set_state refuses states whose contacts overlap deeper than this (m): that is a geometry mismatch or a
 #: bad state, not the millimetres of a resting soft contact.
 MAX_PENETRATION = 0.02
@@ -78,11 +77,12 @@ _AUTORESET_OFF = int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
 _NAME_KINDS = {"joint": mujoco.mjtObj.mjOBJ_JOINT, "body": mujoco.mjtObj.mjOBJ_BODY, "sensor": mujoco.mjtObj.mjOBJ_SENSOR}
 # plugin_state slots a command writes (literals in command and _apply_command: they run per command and motor)
 assert [motor_plugin.SLOT[k] for k in ("torque_mode", "target_position", "target_velocity", "torque")] == [0, 1, 2, 3]
-assert motor_plugin.SLOT["saturated"] == 14
+assert motor_plugin.SLOT["saturated"] == 15
 
 
 class _Motor:
-    __slots__ = ("name", "index", "qpos", "dof", "kv", "state", "saturated", "plugin", "group")
+    __slots__ = ("name", "index", "qpos", "dof", "kv", "state", "saturated", "stiffness", "residual", "plugin",
+                 "group")
 
     def __init__(self, name: str, index: int, qpos: int, dof: int, kv: float, state: MotorState,
                  plugin: int = -1) -> None:
@@ -92,7 +92,9 @@ class _Motor:
         self.dof = dof
         self.kv = kv
         self.state = state
-        self.saturated = 0.0  # 0 = servo; ±1 = applying ±max torque
+        self.saturated = 0.0  # 0 = servo; ±1 = saturated (see motors.servo_steps)
+        self.stiffness = 0.0  # the servo stiffness in the joint's armature (Python law, see servo_steps)
+        self.residual = 0.0  # last step's load besides the smooth forces (motors.servo_steps)
         self.plugin = plugin  # with the native law: the motor's first slot in plugin_state, else -1
         self.group: tuple[_Motor, ...] | None = None  # see motors.assign_groups
 
@@ -235,7 +237,7 @@ class MuJoCoTwin(Twin):
         self._commanded.clear()
         for motor in self._motors:
             motor.state.reset(float(self.data.qpos[motor.qpos]))
-            motor.saturated = 0.0
+            motor.saturated = motor.residual = 0.0
             self._set_servo(motor)
             if motor.plugin >= 0:
                 self._write_plugin(motor, law=True)
@@ -302,7 +304,7 @@ class MuJoCoTwin(Twin):
             ps = self._plugin_slots
             ps[adr + 1] = target
             ps[adr + 2] = velocity
-            ps[adr] = motor.saturated = ps[adr + 14] = 0.0
+            ps[adr] = motor.saturated = ps[adr + 15] = 0.0
             return
         self._apply_command(motor, mode, value)
 
@@ -343,7 +345,7 @@ class MuJoCoTwin(Twin):
         adr = motor.plugin
         if adr >= 0:
             # The native law: only what a command changes goes to plugin_state, not the model: the torque, or the
-            # targets and leaving saturation (slots 0-3 and 14, see motor_plugin).
+            # targets and leaving saturation (slots 0-3 and 15, see motor_plugin).
             ps = self._plugin_slots
             if st.torque_mode:
                 ps[adr + 3] = st.torque
@@ -351,7 +353,7 @@ class MuJoCoTwin(Twin):
             else:
                 ps[adr + 1] = st.target_position
                 ps[adr + 2] = st.target_velocity
-                ps[adr] = motor.saturated = ps[adr + 14] = 0.0
+                ps[adr] = motor.saturated = ps[adr + 15] = 0.0
         elif st.torque_mode:
             self._set_torque(motor, st.torque)
         else:
@@ -360,9 +362,10 @@ class MuJoCoTwin(Twin):
 
     def _write_plugin(self, motor: _Motor, law: bool = False) -> None:
         """The motor's targets, limits, gains and servo stiffness into its plugin_state slots, and with
-        ``law`` its law state (integral, previous error, last u, saturation) too."""
-        values = motor_plugin.slot_values(motor.state, motor.kv, float(self._armature[motor.dof]),
-                                          PREDICT_SATURATION, motor.saturated if law else None)
+        ``law`` its law state (integral, previous error, last u, saturation, residual load) too."""
+        inertia = servo_inertia(motor.kv, self.model.opt.timestep, SERVO_STIFFNESS)
+        values = motor_plugin.slot_values(motor.state, motor.kv, float(self._armature[motor.dof]), inertia,
+                                          (motor.saturated, motor.residual) if law else None)
         # The plugin adds the rotor inertia with the servo's (see native/webots_motor.c): not the model too.
         self._masses.write(self.model, motor.dof, 0.0)
         state = self.data.plugin_state
@@ -374,6 +377,10 @@ class MuJoCoTwin(Twin):
         (the native law adds it inside the step: nothing to do)."""
         self._set_torque(motor, None)
 
+    def _set_stiffness(self, motor: _Motor, stiffness: float) -> None:  # kv or 0, saturated (servo_steps)
+        motor.stiffness = stiffness
+        self._masses.write(self.model, motor.dof, self._armature[motor.dof] + stiffness * self.model.opt.timestep)
+
     def _set_torque(self, motor: _Motor, torque: float | None) -> None:  # None: servo mode (see _set_servo)
         m = self.model
         if motor.plugin >= 0:
@@ -381,8 +388,8 @@ class MuJoCoTwin(Twin):
         m.actuator_gainprm[motor.index, 0] = 1.0
         m.actuator_biastype[motor.index] = mujoco.mjtBias.mjBIAS_NONE
         m.actuator_biasprm[motor.index, :3] = 0.0
-        servo = motor.kv * m.opt.timestep if torque is None else 0.0
-        self._masses.write(m, motor.dof, self._armature[motor.dof] + servo)
+        motor.stiffness = motor.kv if torque is None else 0.0
+        self._masses.write(m, motor.dof, self._armature[motor.dof] + motor.stiffness * m.opt.timestep)
         if torque is not None:
             self.data.ctrl[motor.index] = torque
 
@@ -415,65 +422,25 @@ class MuJoCoTwin(Twin):
                 self._check_stable()  # not on time (or no autoreset): the full check
             return
         self.start_period()
-        servos = [] if self.native_law else [mo for mo in self._motors if not mo.state.torque_mode]
-        if not servos:
+        # The Python law: every motor, torque-controlled ones too (the law follows their joint's load).
+        if self.native_law or not self._motors:
             if self._friction_box is None:
-                # The Python law with every motor in torque control, plain contacts: one mj_step call.
-                mujoco.mj_step(m, d, self._substeps)
+                mujoco.mj_step(m, d, self._substeps)  # no motor (the native law has its own branch above)
             else:
                 for _ in range(self._substeps):
                     self._mj_step(m, d)
-        elif any(mo.saturated or mo.state.needs_feedback for mo in servos):
-            self._servo_steps(servos, self._substeps)
         else:
-            # Plain velocity control: u is constant over the period, so only saturation needs watching.
-            # Memoryviews read and write plain floats: cheaper than NumPy scalars in this per-sub-step loop.
-            qvel = memoryview(d.qvel)
-            dt = m.opt.timestep
-            ctrl: memoryview[float] = memoryview(d.ctrl)
-            checks = []
-            for mo in servos:
-                u = mo.state.velocity_command(0.0, dt)
-                checks.append((mo, u, mo.index, mo.dof, mo.kv, mo.state.available_torque))
-            for mo, u, index, dof, kv, limit in checks:
-                torque = ctrl[index] = kv * (u - qvel[dof])
-                if torque > PREDICT_SATURATION * limit or -torque > PREDICT_SATURATION * limit:
-                    self._saturate(mo, torque)
-                    self._servo_steps(servos, self._substeps)
-                    self._check_stable()
-                    return
-            mj_step = self._mj_step
-            for k in range(self._substeps):
-                mj_step(m, d)
-                saturated = False
-                for mo, u, index, dof, kv, limit in checks:
-                    # kv (u - qdot) is both the torque the implicit servo applied over this step (see the module
-                    # docstring) and the explicit torque of the next one. Above the limit it saturates; the
-                    # looser PREDICT_SATURATION bound on the next step's torque then never binds. Every motor
-                    # is checked after every step, as servo_steps does (and the native law).
-                    torque = ctrl[index] = kv * (u - qvel[dof])
-                    if torque > limit or -torque > limit:
-                        self._saturate(mo, torque)
-                        saturated = True
-                if saturated:
-                    self._servo_steps(servos, self._substeps - k - 1)
-                    self._check_stable()
-                    return
+            self._servo_steps(self._motors, self._substeps)
         self._check_stable()
 
-    def _saturate(self, mo: _Motor, torque: float) -> None:
-        mo.saturated = math.copysign(1.0, torque)
-        self._set_torque(mo, mo.saturated * mo.state.available_torque)
-
-    def _release(self, mo: _Motor) -> None:
-        mo.saturated = 0.0
-        self._set_servo(mo)
-
     def _servo_steps(self, servos: list[_Motor], steps: int) -> None:
-        """Physics steps with the Webots PID and the saturation state machine for every servo motor."""
+        """Physics steps with the Webots PID and the bounded servo for every servo motor."""
         m, d = self.model, self.data
+        step1 = self._friction_box.step1 if self._friction_box else mujoco.mj_step1
+        forces = (memoryview(d.qfrc_passive), memoryview(d.qfrc_bias), memoryview(d.qfrc_applied))
         servo_steps(servos, steps, m.opt.timestep, memoryview(d.qpos), memoryview(d.qvel), memoryview(d.ctrl),
-                    lambda: self._mj_step(m, d), self._saturate, self._release, PREDICT_SATURATION)
+                    memoryview(d.actuator_force), forces, (lambda: step1(m, d), lambda: mujoco.mj_step2(m, d)),
+                    self._set_stiffness, SERVO_STIFFNESS)
 
     def _bad_state_warnings(self) -> int:
         """MuJoCo resets mjData itself after bad qpos/qvel/qacc; its warning counters are the trace left."""
@@ -688,6 +655,7 @@ class MuJoCoTwin(Twin):
                 motor.state.reset(float(self.data.qpos[motor.qpos]))
                 motor.state.target_position = holds.get(motor.qpos, motor.state.target_position)
             motor.state.current_velocity = 0.0
+            motor.residual = 0.0
             if not motor.state.torque_mode:
                 motor.saturated = 0.0
                 self._set_servo(motor)
@@ -770,7 +738,7 @@ class MuJoCoTwin(Twin):
             added = float(self._armature[mo.dof] - nominal_armature[mo.dof])
             # The factor first: at nominal armature it is exactly 1, so kv is exactly the nominal kv.
             mo.kv = self._nominal_kv[mo.name] * ratio * ((inertia + added) / inertia)
-            if not mo.state.torque_mode and not mo.saturated:
+            if not mo.state.torque_mode:
                 self._set_servo(mo)
             if mo.plugin >= 0:
                 self._write_plugin(mo)

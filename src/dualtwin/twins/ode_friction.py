@@ -110,8 +110,12 @@ class FrictionBox:
         contact.friction[:, :2] *= _SQRT2
 
     def step(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
+        self.step1(m, d)
+        mujoco.mj_step2(m, d)
+
+    def step1(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
+        """The step's first half (``mj_step1``) with the square friction limit; ``mj_step2`` finishes it."""
         mujoco.mj_step1(m, d)
         if d.ncon:
             self.apply(d)
             rebuild_constraints(m, d)
-        mujoco.mj_step2(m, d)

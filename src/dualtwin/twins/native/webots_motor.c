@@ -11,11 +11,17 @@
 //   * u, the velocity the motor tracks: 0 without available torque; the target velocity under velocity
 //     control; Webots' PID on the position error, clamped to the target velocity, under position control;
 //     then the acceleration limit slews u from the previous step's value;
-//   * a stiff velocity servo, torque kv (u - qdot), made implicit by adding dt kv to the joint's diagonal of
-//     the inertia matrix (backward Euler that the constraint solver sees, like ODE's motor row), until the
-//     torque it needs exceeds the available torque: then a saturated torque of +-available, released once
-//     full torque would carry the joint past u;
+//   * the bounded motor row (ODE's dParamVel u, dParamFMax available): a stiff velocity servo, torque
+//     kv (u - qdot), made implicit by adding dt kv to the joint's diagonal of the inertia matrix (backward Euler
+//     that the constraint solver sees, like ODE's motor row), while the available torque reaches u under the
+//     joint's load (the step's smooth force plus last step's residual); else, saturated, explicitly the torque
+//     that takes the joint to u under the smooth force alone, clamped to +-available (exactly the available
+//     torque while the load holds, never past u should it let go within the step);
 //   * torque control: the commanded torque.
+//
+// The load is the step's smooth force on the joint (passive - bias + applied, computed before the actuators)
+// plus the residual of the last step (contacts, coupled joints), from its velocity change. After the step,
+// actuator_force holds the torque the motor applied over it.
 //
 // Why the inertia matrix and not the model's dof_armature (what the Python twin edits between steps): a
 // plugin gets a const model and runs on models shared between simulations (mujoco.batch), so it adds the
@@ -52,15 +58,18 @@ enum {
   S_KD,
   S_ACCELERATION,     // < 0: unlimited
   S_KV,               // servo stiffness (N m s / rad)
-  S_PREDICT,          // a servo torque above PREDICT x available saturates before the step
+  S_INERTIA,          // the inertia kv was sized for: dt kv = stiffness x inertia
   S_INTEGRAL,         // committed law state
   S_PREVIOUS_ERROR,
   S_U,
+  S_RESIDUAL,         // last step's force on the joint besides the motor and the smooth forces
   S_SATURATED,        // 0 servo, +-1 saturated
   S_NEXT_INTEGRAL,    // this step's decisions, committed by advance()
   S_NEXT_PREVIOUS_ERROR,
   S_NEXT_U,
   S_NEXT_SATURATED,
+  S_STEP_VELOCITY,    // qdot when the step's servo torque was computed
+  S_STEP_SMOOTH,      // the step's smooth force on the joint (passive - bias + applied)
   S_CTRL_MODE,        // 0 none, 1 position, 2 velocity, 3 torque
   S_LAST_CTRL,        // the ctrl value last applied as a command (NaN: none yet)
   S_MAX_VELOCITY,
@@ -73,11 +82,13 @@ enum {
   S_QPOS,
   S_LAST,             // 1: the last block of the last instance of this plugin, which refactorises M
   S_ARMATURE,         // rotor inertia added here rather than by the model (see below)
+  S_STEP_STIFFNESS,   // the step's servo stiffness: kv, 0 when saturated
+  S_STEP_TORQUE,      // the step's explicit torque when saturated (else 0)
   S_SIZE
 };
 
 static const char* kAttributes[] = {"maxVelocity", "maxTorque", "Kp", "Ki", "Kd", "acceleration",
-                                    "minPosition", "maxPosition", "stiffness", "predict", "ctrl", "multiplier"};
+                                    "minPosition", "maxPosition", "stiffness", "ctrl", "multiplier"};
 static int kSlot = -1;
 
 static mjtNum config_number(const mjModel* m, int instance, const char* key, mjtNum fallback) {
@@ -131,8 +142,8 @@ static void reset_block(const mjModel* m, mjtNum* state, int instance, int actua
   state[S_ACCELERATION] = config_number(m, instance, "acceleration", -1.0);
   state[S_MIN_POSITION] = config_number(m, instance, "minPosition", 0.0);
   state[S_MAX_POSITION] = config_number(m, instance, "maxPosition", 0.0);
-  state[S_PREDICT] = config_number(m, instance, "predict", 1.0 + stiffness);
   // The servo stiffness is sized for the joint's inertia (armature included): dt kv = stiffness x M0.
+  state[S_INERTIA] = m->dof_M0[dof];
   state[S_KV] = stiffness * m->dof_M0[dof] / m->opt.timestep;
   state[S_GAIN] = config_number(m, instance, "multiplier", 1.0);  // Webots' multiplier scales ctrl
   // Webots' initial state: hold the current (reference) position at up to max velocity.
@@ -201,16 +212,18 @@ static void compute_block(const mjModel* m, mjData* d, mjtNum* s) {
   apply_ctrl(s, d->ctrl[actuator]);
   mjtNum force;
   mjtNum* diagonal = d->M + m->M_rowadr[dof] + m->M_rownnz[dof] - 1;  // the last entry of the row
-  mjtNum integral = s[S_INTEGRAL], previous_error = s[S_PREVIOUS_ERROR], saturated = s[S_SATURATED];
+  mjtNum integral = s[S_INTEGRAL], previous_error = s[S_PREVIOUS_ERROR];
   mjtNum u = s[S_U];
+  mjtNum qdot = d->qvel[dof];
+  mjtNum smooth = d->qfrc_passive[dof] - d->qfrc_bias[dof] + d->qfrc_applied[dof];
+  s[S_STEP_VELOCITY] = qdot;
+  s[S_STEP_SMOOTH] = smooth;
   if (s[S_TORQUE_MODE] != 0) {
     force = s[S_TORQUE];
-    saturated = 0;
     *diagonal += s[S_ARMATURE];
   } else {
     // Webots' law (dualtwin.webots.motor_law.motor_velocity), operation for operation.
     mjtNum available = s[S_AVAILABLE], target = s[S_TARGET_POSITION];
-    mjtNum qdot = d->qvel[dof];
     mjtNum next;
     if (available == 0.0) {
       next = 0.0;
@@ -229,30 +242,41 @@ static void compute_block(const mjModel* m, mjData* d, mjtNum* s) {
       next = mju_max(u - step, mju_min(u + step, next));
     }
     u = next;
-    mjtNum kv = s[S_KV];
-    if (saturated != 0) {
-      if ((u - qdot) * saturated <= 0.0 || available <= 0.0) {
-        saturated = 0;
-        force = kv * (u - qdot);
-      } else {
-        force = saturated * available;
-      }
-    } else {
-      mjtNum torque = kv * (u - qdot);
-      if (fabs(torque) > s[S_PREDICT] * available) {
-        saturated = copysign(1.0, torque);
-        force = saturated * available;
-      } else {
-        force = torque;
+    // The bounded row, as dualtwin.twins.motors.servo_steps computes it: a servo to u, stiff or saturated.
+    mjtNum kv = s[S_KV], inertia = s[S_INERTIA];
+    mjtNum reach = dt / inertia, margin = available / kv;
+    mjtNum sign = s[S_SATURATED];
+    mjtNum load = smooth + s[S_RESIDUAL];
+    if (sign == 0) {
+      // Beyond what the torque reaches under the smooth force: saturated before the step.
+      if (u > qdot + ((smooth + available) * reach + margin)) {
+        sign = 1.0;
+      } else if (u < qdot + ((smooth - available) * reach - margin)) {
+        sign = -1.0;
       }
     }
-    // The implicit servo: dt kv on the joint's diagonal while it is active.
-    *diagonal += saturated == 0 ? s[S_ARMATURE] + kv * dt : s[S_ARMATURE];
+    if (sign != 0 && !(sign > 0.0 ? u > qdot + ((load + available) * reach + margin)
+                                  : u < qdot + ((load - available) * reach - margin))) {
+      sign = 0.0;  // within reach under the whole load: the servo reaches u
+    }
+    s[S_NEXT_SATURATED] = sign;
+    mjtNum stiffness = kv, torque = 0.0;
+    if (sign != 0) {
+      // Saturated: no servo, explicitly the torque that takes the joint to u under the smooth force alone,
+      // within +-available (never past u should the load let go within the step).
+      stiffness = 0.0;
+      torque = inertia * (u - qdot) / dt - smooth;
+      torque = torque < available ? torque : available;
+      torque = torque > -available ? torque : -available;
+    }
+    s[S_STEP_STIFFNESS] = stiffness;
+    s[S_STEP_TORQUE] = torque;
+    force = stiffness * (u - qdot) + torque;
+    *diagonal += s[S_ARMATURE] + stiffness * dt;  // the implicit servo (none when saturated)
   }
   s[S_NEXT_INTEGRAL] = integral;
   s[S_NEXT_PREVIOUS_ERROR] = previous_error;
   s[S_NEXT_U] = u;
-  s[S_NEXT_SATURATED] = saturated;
   d->actuator_force[actuator] = force;
 }
 
@@ -268,18 +292,28 @@ static void motor_compute(const mjModel* m, mjData* d, int instance, int capabil
   }
 }
 
-// Commit one actuator's step.
+// Commit one actuator's step: the law's state, the torque the motor applied and the load it met.
 static void advance_block(const mjModel* m, mjData* d, mjtNum* s) {
-  if (s[S_TORQUE_MODE] != 0) return;
-  s[S_INTEGRAL] = s[S_NEXT_INTEGRAL];
-  s[S_PREVIOUS_ERROR] = s[S_NEXT_PREVIOUS_ERROR];
-  s[S_U] = s[S_NEXT_U];
-  s[S_SATURATED] = s[S_NEXT_SATURATED];
-  if (s[S_SATURATED] == 0) {
-    // The backward-Euler servo torque this step applied; above the limit the motor saturates.
-    mjtNum torque = s[S_KV] * (s[S_U] - d->qvel[(int)s[S_DOF]]);
-    if (fabs(torque) > s[S_AVAILABLE]) s[S_SATURATED] = copysign(1.0, torque);
+  mjtNum qdot = d->qvel[(int)s[S_DOF]], dt = m->opt.timestep;
+  mjtNum torque;
+  if (s[S_TORQUE_MODE] != 0) {
+    torque = s[S_TORQUE];
+  } else {
+    s[S_INTEGRAL] = s[S_NEXT_INTEGRAL];
+    s[S_PREVIOUS_ERROR] = s[S_NEXT_PREVIOUS_ERROR];
+    s[S_U] = s[S_NEXT_U];
+    // Saturated: the available torque; else the backward-Euler servo torque at the step's end velocity.
+    mjtNum sign = s[S_SATURATED] = s[S_NEXT_SATURATED], limit = s[S_AVAILABLE];
+    // The backward-Euler servo torque at the step's end velocity.
+    torque = s[S_STEP_STIFFNESS] * (s[S_U] - qdot) + s[S_STEP_TORQUE];
+    if (sign == 0 && (torque > limit || -torque > limit)) {
+      // The stiff servo needed more than the limit (a load it did not foresee): saturated from the next step
+      // until u is within reach again.
+      s[S_SATURATED] = torque > 0.0 ? 1.0 : -1.0;
+    }
   }
+  d->actuator_force[(int)s[S_ACTUATOR]] = torque;
+  s[S_RESIDUAL] = s[S_INERTIA] * (qdot - s[S_STEP_VELOCITY]) / dt - torque - s[S_STEP_SMOOTH];
 }
 
 static void motor_advance(const mjModel* m, mjData* d, int instance) {
