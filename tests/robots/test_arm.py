@@ -310,7 +310,7 @@ def _per_motor_law_steps(twin: MuJoCoTwin, servos: list[Any], steps: int) -> Non
             mo.saturated = sign
             stiffness, torque = mo.kv, 0.0
             if sign:  # saturated: no servo, the torque to u under the smooth force alone, within the limit
-                stiffness, torque = 0.0, inertia * (u - qdot) / dt - smooth
+                stiffness, torque = 0.0, inertia * (u - qdot) / dt - (load if mo.dof in twin._constrained_dofs() else smooth)
                 torque = torque if torque < limit else limit  # min(torque, limit), as servo_steps picks it
                 torque = torque if torque > -limit else -limit
             if stiffness != mo.stiffness:

@@ -8,7 +8,7 @@ and clamps it to the target velocity, and an acceleration limit slews the result
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Container, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -161,7 +161,7 @@ def servo_steps(servos: Sequence[ServoMotor], steps: int, dt: float, qpos: memor
                 qvel: memoryview[float], ctrl: memoryview[float], force: memoryview[float],
                 forces: tuple[memoryview[Any], memoryview[Any], memoryview[Any]],
                 physics_step: tuple[Callable[[], None], Callable[[], None]], servo: Callable[[Any, float], None],
-                stiffness: float) -> None:
+                constrained: Callable[[], Container[int]], stiffness: float) -> None:
     """``steps`` physics steps of Webots' motor law (:func:`~dualtwin.webots.motor_law.motor_velocity`) for
     every motor (``servos``: those in torque control apply their torque), each bounded like ODE's motor row.
 
@@ -180,22 +180,23 @@ def servo_steps(servos: Sequence[ServoMotor], steps: int, dt: float, qpos: memor
     ``±A`` at ``u = qdot + (L ± A)·dt/m ± A/kv``:
 
     * within that reach, the servo: it reaches ``u`` (to its ``1 / (1 + stiffness)`` lag) with at most ``A``;
-    * beyond it, saturated: explicitly the torque that takes the joint to ``u`` under ``S`` alone, ``m (u - qdot)
-      / dt - S``, clamped to ``±A``. Exactly ``A`` while the load holds the joint back (and for any smooth load
-      such as gravity), and never past ``u`` should the load let go within the step. A motor saturates when
-      ``u`` lies beyond the reach under ``S`` (before the step), or after a step whose servo applied more than
-      ``A`` (a load it did not foresee); it leaves once ``u`` is within the reach under ``L``.
+    * beyond it, saturated: explicitly the torque that takes the joint to ``u`` under its load, clamped to
+      ``±A``: exactly ``A`` while the load holds the joint back. The load counts the residual only while a
+      constraint row of this step still acts on the joint (``constrained()``, the dofs of this step's
+      contacts, equalities, limits and friction loss, known after ``mj_step1``): a wheel in the air, a
+      released coupling, is driven to ``u`` under ``S`` alone and no further, where the full torque threw it
+      far past ``u`` (and past maxVelocity). A motor saturates when ``u`` lies beyond the reach under ``S``
+      (before the step), or after a step whose servo applied more than ``A`` (a load it did not foresee); it
+      leaves once ``u`` is within the reach under ``L``.
 
-    What this cannot do is ODE's simultaneous solve: a load that is not smooth (a contact, a coupled body) is
-    known only from the last step. A servo step whose load grew applies more than ``A``, and a saturated motor
-    whose load is inertial (it pushes back as hard as the motor pushes: a coupled flywheel, a wheel driving a
-    heavy robot through its grip) alternates between the two. Decision: never past ``u`` over exactly ``A``
-    there, since overshooting wheels cost a two-wheel robot a fifth of its travel (a fuzz against the Webots
-    twin). A step whose inertia changes runs ``mj_step1`` again. Entering saturation reads only ``S`` (exact for
-    the step), leaving it the whole load: coupled joints' residuals swing with each other's switches, and a
-    rule that both entered and left on them chattered on the arm. After each step ``force`` (actuator_force)
-    holds the torque the motor applied over it. The native law (native/webots_motor.c) computes the same, bit
-    for bit.
+    What this cannot do is ODE's simultaneous solve: a constraint's load is known only from the last step. A
+    servo step whose load grew applies more than ``A``; a saturated step whose constraint lets go within the
+    step (a contact separating) can still carry the joint past ``u``, by what that residual would have held.
+    A step whose inertia changes runs ``mj_step1`` again. Decision: entering saturation reads only ``S``
+    (exact for the step), leaving it the whole load: coupled joints' residuals swing with each other's
+    switches, and a rule that both entered and left on them chattered on the arm. After each step ``force``
+    (actuator_force) holds the torque the motor applied over it. The native law (native/webots_motor.c)
+    computes the same, bit for bit.
 
     Decision: this is the law inlined, not a call to ``motor_velocity`` per motor and step. On the arm that
     call (keyword arguments, a tuple back, MotorState attributes) cost more than MuJoCo's physics step itself.
@@ -227,6 +228,7 @@ def servo_steps(servos: Sequence[ServoMotor], steps: int, dt: float, qpos: memor
     try:
         for _ in range(steps):
             step1()
+            held = constrained()
             switched = False
             for const, state in rows:
                 mo, kind, target, target_velocity, vlimit, kp, ki, kd, slew, slew_step, iq, iv, ic, kv, limit, reach, margin, inertia, _ = const
@@ -265,10 +267,11 @@ def servo_steps(servos: Sequence[ServoMotor], steps: int, dt: float, qpos: memor
                 state[6] = sign
                 stiffness, torque = kv, 0.0
                 if sign:
-                    # Saturated: no servo, explicitly the torque that takes the joint to u under the smooth
-                    # force alone, within ±limit (never past u should the load let go within the step).
+                    # Saturated: no servo, explicitly the torque that takes the joint to u under its load,
+                    # within ±limit: the smooth force, and last step's residual while a constraint still acts
+                    # on the joint (a contact that is gone, a released coupling no longer hold it back).
                     stiffness = 0.0
-                    torque = inertia * (u - qdot) / dt - smooth
+                    torque = inertia * (u - qdot) / dt - (load if iv in held else smooth)
                     torque = torque if torque < limit else limit
                     torque = torque if torque > -limit else -limit
                 state[5] = stiffness

@@ -6,8 +6,8 @@ torque. MuJoCo has no such constraint, so each motor is a ``general`` actuator s
 torque the step needs (:func:`~dualtwin.twins.motors.servo_steps`) between:
 
 * a stiff velocity servo (torque ``kv (u - qdot)``) while the maximum torque reaches ``u``, and
-* once it does not, saturated: explicitly the torque that takes the joint to ``u`` under the smooth forces,
-  clamped to ``±max_torque``.
+* once it does not, saturated: explicitly the torque that takes the joint to ``u`` under its load, clamped
+  to ``±max_torque``.
 
 The servo is integrated implicitly (backward Euler, so any ``kv`` is stable), but not with MuJoCo's implicit
 actuator damping: ``implicitfast`` adds ``dt·kv`` to the joint's inertia only *after* the constraint solver
@@ -440,7 +440,19 @@ class MuJoCoTwin(Twin):
         forces = (memoryview(d.qfrc_passive), memoryview(d.qfrc_bias), memoryview(d.qfrc_applied))
         servo_steps(servos, steps, m.opt.timestep, memoryview(d.qpos), memoryview(d.qvel), memoryview(d.ctrl),
                     memoryview(d.actuator_force), forces, (lambda: step1(m, d), lambda: mujoco.mj_step2(m, d)),
-                    self._set_stiffness, SERVO_STIFFNESS)
+                    self._set_stiffness, self._constrained_dofs, SERVO_STIFFNESS)
+
+    def _constrained_dofs(self) -> frozenset[int]:
+        """The dofs a constraint row of this step acts on (as native/webots_motor.c's constrained())."""
+        m, d = self.model, self.data
+        rows = d.nefc
+        if not rows:
+            return frozenset()
+        if mujoco.mj_isSparse(m):
+            colind, rowadr, rownnz = d.efc_J_colind, d.efc_J_rowadr, d.efc_J_rownnz
+            return frozenset(int(c) for r in range(rows) for c in colind[rowadr[r]:rowadr[r] + rownnz[r]])
+        jac = d.efc_J[:rows * m.nv].reshape(rows, m.nv)
+        return frozenset(np.flatnonzero((jac != 0).any(axis=0)).tolist())
 
     def _bad_state_warnings(self) -> int:
         """MuJoCo resets mjData itself after bad qpos/qvel/qacc; its warning counters are the trace left."""

@@ -15,8 +15,8 @@
 //     kv (u - qdot), made implicit by adding dt kv to the joint's diagonal of the inertia matrix (backward Euler
 //     that the constraint solver sees, like ODE's motor row), while the available torque reaches u under the
 //     joint's load (the step's smooth force plus last step's residual); else, saturated, explicitly the torque
-//     that takes the joint to u under the smooth force alone, clamped to +-available (exactly the available
-//     torque while the load holds, never past u should it let go within the step);
+//     that takes the joint to u under its load (the residual only while a constraint still acts on the
+//     joint), clamped to +-available: exactly the available torque while the load holds;
 //   * torque control: the commanded torque.
 //
 // The load is the step's smooth force on the joint (passive - bias + applied, computed before the actuators)
@@ -177,6 +177,23 @@ static void motor_reset(const mjModel* m, mjtNum* state, void* plugin_data, int 
   }
 }
 
+// Whether a constraint row of this step (contact, equality, limit, friction loss) acts on the dof.
+static int constrained(const mjModel* m, const mjData* d, int dof) {
+  if (mj_isSparse(m)) {
+    for (int r = 0; r < d->nefc; r++) {
+      const int* column = d->efc_J_colind + d->efc_J_rowadr[r];
+      for (int k = 0; k < d->efc_J_rownnz[r]; k++) {
+        if (column[k] == dof) return 1;
+      }
+    }
+    return 0;
+  }
+  for (int r = 0; r < d->nefc; r++) {
+    if (d->efc_J[r * m->nv + dof] != 0) return 1;
+  }
+  return 0;
+}
+
 static mjtNum clamp(mjtNum x, mjtNum lo, mjtNum hi) { return x < lo ? lo : (x > hi ? hi : x); }
 
 // Webots' setPosition/setVelocity/setTorque from ctrl, when the config asks for it (as MotorState does).
@@ -262,10 +279,11 @@ static void compute_block(const mjModel* m, mjData* d, mjtNum* s) {
     s[S_NEXT_SATURATED] = sign;
     mjtNum stiffness = kv, torque = 0.0;
     if (sign != 0) {
-      // Saturated: no servo, explicitly the torque that takes the joint to u under the smooth force alone,
-      // within +-available (never past u should the load let go within the step).
+      // Saturated: no servo, explicitly the torque that takes the joint to u under its load, within
+      // +-available: the smooth force, and last step's residual while a constraint still acts on the joint (a
+      // contact that is gone, a released coupling no longer hold it back).
       stiffness = 0.0;
-      torque = inertia * (u - qdot) / dt - smooth;
+      torque = inertia * (u - qdot) / dt - (constrained(m, d, dof) ? load : smooth);
       torque = torque < available ? torque : available;
       torque = torque > -available ? torque : -available;
     }
