@@ -46,6 +46,21 @@ def plain(value: Any, depth: int = 0) -> bool:
     return False
 
 
+def _crosses(value: Any, depth: int = 0) -> bool:
+    """Whether an instance attribute can be copied to the child: plain data, an API object (a handle), or a
+    container of those (``Robot.devices``, name -> device: the child's dict then holds the proxies
+    ``getDevice`` returns, as Webots' dict holds the objects it returns)."""
+    if plain(value) or type(value).__module__.startswith("dualtwin."):
+        return True
+    if depth > 2:
+        return False
+    if isinstance(value, (list, tuple)):
+        return all(_crosses(v, depth + 1) for v in value)
+    if isinstance(value, dict):
+        return all(plain(k) and _crosses(v, depth + 1) for k, v in value.items())
+    return False
+
+
 def is_value_class(cls: type) -> bool:
     return (
         cls.__name__ in VALUE_CLASSES
@@ -202,10 +217,7 @@ class HandleTable:
             isinstance(obj, c) for c in self.exported.values()
         ):
             return {}
-        return {
-            k: v for k, v in vars(obj).items()
-            if not k.startswith("_") and (plain(v) or type(v).__module__.startswith("dualtwin."))
-        }
+        return {k: v for k, v in vars(obj).items() if not k.startswith("_") and _crosses(v)}
 
     def persistent_id(self, obj: Any) -> Any:
         cls = type(obj)
