@@ -40,3 +40,41 @@ def test_robot_devices_is_the_name_to_device_dict_of_getdevice(tmp_path: Path) -
     expected = "['gps', 'ps', 'rm']\nTrue\nMotor gps\n"
     assert runs["threads"] == (expected, "", 0)
     assert runs["process"] == runs["threads"]
+
+
+CONTACT_WORLD = """#VRML_SIM R2023b utf8
+WorldInfo { basicTimeStep 8 }
+DEF FLOOR Solid { name "floor" boundingObject Plane { } }
+DEF BALL Solid {
+  translation 0 0 0.049
+  boundingObject Sphere { radius 0.05 }
+  physics Physics { }
+}
+Robot { supervisor TRUE controller "probe" }
+"""
+
+
+def test_a_value_getter_called_with_arguments_raises_pythons_type_error(tmp_path: Path) -> None:
+    """ContactPoint.getPoint takes no argument (webots-python-api.md, ContactPoint: ``getPoint ()``): calling it
+    with one is Python's own TypeError for the method. A controller process raised NotImplementedError ('not
+    available in a controller process') instead."""
+    script = """
+        from controller import Supervisor
+        sup = Supervisor()
+        ball = sup.getFromDef("BALL")
+        ball.enableContactPointsTracking(8)
+        sup.step(8)
+        sup.step(8)
+        point = ball.getContactPoints()[0]
+        for args in ((), (1,)):
+            try:
+                point.getNodeId(*args)
+                print("ok")
+            except Exception as exc:
+                print(type(exc).__name__, exc)
+    """
+    runs = run_in_both_modes(tmp_path, CONTACT_WORLD, script, 0.032)
+    # Python's words for a one-parameter method (self) given a second positional argument
+    expected = "ok\nTypeError ContactPoint.getNodeId() takes 1 positional argument but 2 were given\n"
+    assert runs["threads"] == (expected, "", 0)
+    assert runs["process"] == runs["threads"]

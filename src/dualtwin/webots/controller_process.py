@@ -436,7 +436,7 @@ def _build_class(channel: _Channel, description: dict[str, Any], bases: tuple[ty
         elif kind == "property":
             ns[attr] = _value_property(attr) if value_class else _remote_property(channel, attr, extra)
         elif kind == "method":
-            ns[attr] = _value_method(attr, extra) if value_class else _remote_method(channel, attr, extra)
+            ns[attr] = _value_method(name, attr, extra) if value_class else _remote_method(channel, attr, extra)
         elif kind == "static":
             ns[attr] = staticmethod(_static_method(channel, description["key"], attr, extra))
     if description.get("constructible"):
@@ -521,16 +521,25 @@ def _remote_property(channel: _Channel, name: str, extra: tuple[bool, Any, Any, 
     return property(fget if readable else None, fset if settable else None)
 
 
-def _value_method(name: str, extra: tuple[inspect.Signature | None, Any]) -> Any:
+def _value_method(class_name: str, name: str, extra: tuple[inspect.Signature | None, Any]) -> Any:
     signature = extra[0]
+    if signature is not None and len(signature.parameters) == 1:
+        # a getter (its result came with the object): called with arguments, Python's own TypeError, worded as
+        # for the real method ("ContactPoint.getPoint() takes 1 positional argument but 2 were given")
 
-    def method(self: Any, *args: Any, **kwargs: Any) -> Any:
-        results = self._dualtwin_results
-        if args or kwargs or name not in results:
+        def method(self: Any) -> Any:  # type: ignore[misc]
+            results = self._dualtwin_results
+            if name not in results:
+                raise NotImplementedError(f"{type(self).__name__}.{name}() is not available in a controller process")
+            return results[name]
+
+    else:
+
+        def method(self: Any, *args: Any, **kwargs: Any) -> Any:
             raise NotImplementedError(f"{type(self).__name__}.{name}() is not available in a controller process")
-        return results[name]
 
-    method.__name__ = method.__qualname__ = name
+    method.__name__ = name
+    method.__qualname__ = f"{class_name}.{name}"
     if signature is not None:
         method.__signature__ = signature  # type: ignore[attr-defined]
     return method
