@@ -78,3 +78,58 @@ def test_a_value_getter_called_with_arguments_raises_pythons_type_error(tmp_path
     expected = "ok\nTypeError ContactPoint.getNodeId() takes 1 positional argument but 2 were given\n"
     assert runs["threads"] == (expected, "", 0)
     assert runs["process"] == runs["threads"]
+
+
+def test_two_handles_of_one_node_are_equal_and_print_the_node(tmp_path: Path) -> None:
+    """Two Node handles of one scene node compare equal and hash alike (a set of them has one element), and a Node
+    prints as the API's Node class writes it. In a controller process each call's handle was a proxy compared by
+    identity (``getSelf() == getFromDef("ME")`` was False) and printed '<Node (controller proxy)>'."""
+    script = """
+        from controller import Supervisor
+        sup = Supervisor()
+        me, again = sup.getSelf(), sup.getFromDef("ME")
+        print(me == again, me != again, len({me, again, sup.getFromId(me.getId())}), me == sup.getRoot())
+        print(me, repr(again))
+        print(sup.getRoot().getField("children") == sup.getRoot().getField("children"))
+    """
+    runs = run_in_both_modes(tmp_path, WORLD, script, 0.016)
+    # the Robot node DEF ME, three handles of it; a Field (no __eq__ of its own in Webots' class) is equal to itself
+    # only, and each getField call gives a new one
+    expected = "True False 1 False\n<Node Robot 'ME'> <Node Robot 'ME'>\nFalse\n"
+    assert runs["threads"] == (expected, "", 0)
+    assert runs["process"] == runs["threads"]
+
+
+LIDAR_WORLD = """#VRML_SIM R2023b utf8
+WorldInfo { basicTimeStep 8 }
+Solid { translation 1 0 0 children [ Shape { geometry DEF WALL Box { size 0.1 10 10 } } ] boundingObject USE WALL }
+Robot {
+  controller "probe"
+  children [ Lidar { name "lidar" horizontalResolution 4 fieldOfView 1 numberOfLayers 1 maxRange 5 } ]
+}
+"""
+
+
+def test_value_objects_compare_and_print_as_the_api_classes(tmp_path: Path) -> None:
+    """A LidarPoint compares (and hashes) by its data, and value objects print as the API classes write them
+    (``LidarPoint(x=..., y=..., z=..., layer=..., time=...)``, the plain attributes of webots-python-api.md,
+    LidarPoint). In a controller process two equal points compared by identity and every value object printed
+    '<LidarPoint (controller proxy)>'."""
+    script = """
+        from controller import Robot
+        robot = Robot()
+        lidar = robot.getDevice("lidar")
+        lidar.enable(8)
+        lidar.enablePointCloud()
+        robot.step(8)
+        first, second = lidar.getPointCloud(), lidar.getPointCloud()
+        print(first[0] == second[0], first[0] != second[0], len(set(first) | set(second)), first[0] == first[1])
+        p = first[0]
+        print(repr(p) == str(p) == f"LidarPoint(x={p.x}, y={p.y}, z={p.z}, layer={p.layer}, time={p.time})")
+    """
+    runs = run_in_both_modes(tmp_path, LIDAR_WORLD, script, 0.016)
+    # every one of the 4 rays hits the wall 1 m ahead (fov 1 rad: rays within 0.5 rad of the axis), each at its
+    # own point: the two reads of one step give 4 distinct points, equal ray by ray
+    expected = "True False 4 False\nTrue\n"
+    assert runs["threads"] == (expected, "", 0)
+    assert runs["process"] == runs["threads"]

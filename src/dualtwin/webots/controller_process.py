@@ -314,12 +314,14 @@ class _Channel:
     def _persistent_load(self, pid: Any) -> Any:
         kind = pid[0]
         if kind == "h":
-            _, handle, class_name, attrs = pid
+            _, handle, class_name, attrs, equal = pid
             proxy = self.proxies.get(handle)
             if proxy is None:
                 cls = self.proxy_class(class_name)
                 proxy = object.__new__(cls)
                 object.__setattr__(proxy, "_dualtwin_handle", handle)
+                if equal is not None:  # the handle of the first object equal to it (see _build_class)
+                    object.__setattr__(proxy, "_dualtwin_equal", equal)
                 self.proxies[handle] = proxy
             if attrs:
                 for key, value in attrs.items():
@@ -414,14 +416,18 @@ class _HandleNeeded(Exception):
 class _Proxy:
     """Base of every generated class: an object that lives in the parent, named by a handle."""
 
+    # what the channel keeps on a proxy, out of its ``__dict__``: ``vars(obj)`` shows the real object's attributes
+    __slots__ = ("_dualtwin_handle", "_dualtwin_results", "_dualtwin_equal", "__weakref__")
     _dualtwin_role = "other"
     _dualtwin_real = ""
 
     def __reduce_ex__(self, protocol: Any) -> Any:
         raise _HandleNeeded
 
-    def __repr__(self) -> str:
-        return f"<{type(self).__name__} (controller proxy)>"
+    _dualtwin_qualified = "controller.object"
+
+    def __repr__(self) -> str:  # as ``object.__repr__`` writes an object of the real class
+        return f"<{self._dualtwin_qualified} object at {id(self):#x}>"
 
 
 def _build_class(channel: _Channel, description: dict[str, Any], bases: tuple[type, ...]) -> type:
@@ -441,7 +447,52 @@ def _build_class(channel: _Channel, description: dict[str, Any], bases: tuple[ty
             ns[attr] = staticmethod(_static_method(channel, description["key"], attr, extra))
     if description.get("constructible"):
         ns["__init__"] = _remote_init(channel, description.get("init"))
+    ns["_dualtwin_qualified"] = description.get("qualified", name)
+    dunders = description.get("dunders", ())
+    if description.get("unhashable"):
+        ns["__hash__"] = None
+    if value_class:
+        _value_dunders(ns, dunders)
+    else:
+        _remote_dunders(channel, ns, dunders)
     return type(name, bases, ns)
+
+
+def _remote_dunders(channel: _Channel, ns: dict[str, Any], dunders: Any) -> None:
+    """An API object's own text comes from the object; its own ``__eq__`` (a Node: the same scene node) is the
+    parent's: equal objects were given the same first handle, ``_dualtwin_equal``."""
+    for special in ("__repr__", "__str__"):
+        if special in dunders:
+            def text(self: Any, special: str = special) -> Any:
+                return channel.request(("call", self._dualtwin_handle, special, (), {}))
+
+            ns[special] = text
+    if "__eq__" in dunders:
+        def __eq__(self: Any, other: Any) -> Any:
+            mine = getattr(self, "_dualtwin_equal", None)
+            if mine is None or not isinstance(other, _Proxy):
+                return NotImplemented if mine is None else False
+            return mine == getattr(other, "_dualtwin_equal", None)
+
+        def __hash__(self: Any) -> int:
+            return hash(getattr(self, "_dualtwin_equal", id(self)))
+
+        ns["__eq__"] = __eq__
+        ns.setdefault("__hash__", __hash__)
+
+
+def _value_dunders(ns: dict[str, Any], dunders: Any) -> None:
+    """A value object's own text and hash are the parent's, taken with it; its own ``__eq__`` compares the data."""
+    for special in ("__repr__", "__str__", "__hash__"):
+        if special in dunders:
+            ns[special] = lambda self, special=special: self._dualtwin_results[special]
+    if "__eq__" in dunders:
+        def __eq__(self: Any, other: Any) -> Any:
+            if type(other) is not type(self):
+                return NotImplemented
+            return vars(self) == vars(other)
+
+        ns["__eq__"] = __eq__
 
 
 def _remote_method(channel: _Channel, name: str, extra: tuple[inspect.Signature | None, Any]) -> Any:

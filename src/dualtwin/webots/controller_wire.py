@@ -17,6 +17,7 @@ command buffered until the next message, the step itself), so the child knows wh
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import inspect
 import io
@@ -27,6 +28,8 @@ from dualtwin.webots.step_hints import hint_of
 
 __all__ = ["VALUE_CLASSES", "HandleTable", "class_key", "describe_class", "is_value_class", "plain"]
 
+#: Special methods of an API class that its proxies in a child follow (:func:`describe_class`).
+_DUNDERS = ("__repr__", "__str__", "__eq__", "__hash__")
 #: API classes whose instances are plain data (Webots builds them from C structs on the controller side).
 VALUE_CLASSES = frozenset({"ContactPoint", "LidarPoint"})
 _PLAIN_SCALARS = (type(None), bool, int, float, complex, str, bytes)
@@ -121,6 +124,12 @@ def describe_class(cls: type, exported: dict[str, type], role: str) -> dict[str,
         "members": members,
         "constructible": role != "value" and exported.get(cls.__name__) is cls,
         "init": _signature(init) if inspect.isfunction(init) else None,
+        # the real class's own comparison and text: a proxy compares as it does (two handles of one scene node are
+        # equal Nodes), prints what it prints, and else looks like a plain object of the real class
+        # (``__hash__`` None: Python's mark of a class that defines ``__eq__`` alone, unhashable)
+        "dunders": sorted(name for name in _DUNDERS if vars(cls).get(name) is not None),
+        "unhashable": "__hash__" in vars(cls) and vars(cls)["__hash__"] is None,
+        "qualified": f"{cls.__module__}.{cls.__qualname__}",
         # an exception class becomes a real exception class in the child: the name of the built-in class it
         # derives from (RuntimeError for SimulationUnstable), so ``except RuntimeError`` catches it there too
         "builtin_base": next((b.__name__ for b in cls.__mro__ if b.__module__ == "builtins"), None),
@@ -162,6 +171,10 @@ def _value_state(obj: Any) -> tuple[dict[str, Any], dict[str, Any]]:
                     results[name] = getattr(obj, name)()
             except Exception:  # a getter that fails here fails in the child when called
                 continue
+    for name in _DUNDERS:  # what the object's own special methods give (the child serves them from here)
+        if name != "__eq__" and any(name in vars(klass) for klass in type(obj).__mro__[:-1]):
+            with contextlib.suppress(Exception):
+                results[name] = getattr(obj, name)()
     return attrs, results
 
 
@@ -174,6 +187,9 @@ class HandleTable:
         self.objects: dict[int, Any] = {}
         self._handles: dict[int, int] = {}
         self.described: set[type] = set()
+        #: the first handle of each object of a class with its own ``__eq__``, by the object itself (so by that
+        #: ``__eq__`` and ``__hash__``): a proxy compares and hashes by it, as the real objects do
+        self._equal: dict[Any, int] = {}
         self._new: list[dict[str, Any]] = []
 
     def role(self, cls: type) -> str:
@@ -231,7 +247,12 @@ class HandleTable:
             attrs, results = _value_state(obj)
             return ("v", key, attrs, results)
         handle, first = self.handle(obj)
-        return ("h", handle, key, self.public_attrs(obj) if first else None)
+        if not first:
+            return ("h", handle, key, None, None)
+        equal = None
+        if cls.__eq__ is not object.__eq__ and cls.__hash__ is not None:
+            equal = self._equal.setdefault(obj, handle)
+        return ("h", handle, key, self.public_attrs(obj), equal)
 
     def persistent_load(self, pid: Any) -> Any:
         if pid[0] == "h":
