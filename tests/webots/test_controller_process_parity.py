@@ -133,3 +133,35 @@ def test_value_objects_compare_and_print_as_the_api_classes(tmp_path: Path) -> N
     expected = "True False 4 False\nTrue\n"
     assert runs["threads"] == (expected, "", 0)
     assert runs["process"] == runs["threads"]
+
+
+LED_WORLD = """#VRML_SIM R2023b utf8
+WorldInfo { basicTimeStep 8 }
+Robot { controller "probe" children [ LED { name "led" color [ 1 0 0 ] } ] }
+"""
+
+
+def test_a_command_given_a_whole_number_beyond_a_c_int_raises_at_the_call(tmp_path: Path) -> None:
+    """LED.set takes a C int (webots-python-api.md, shared semantics: integers go to C unchanged; ctypes refuses
+    one beyond its range): ``led.value = 10**20`` raises TypeError at that line and the controller goes on. In a
+    controller process the command was queued (an int is a type it buffers) and its error came out of the next
+    call, the step: the script died there instead."""
+    script = """
+        from controller import Robot
+        robot = Robot()
+        led = robot.getDevice("led")
+        for value in (10**20, -2**31 - 1):
+            try:
+                led.value = value
+                print("set")
+            except TypeError as exc:
+                print("TypeError at the call")
+        print("step", robot.step(8), led.get())
+        led.set(1)
+        print("step", robot.step(8), led.get())
+    """
+    runs = run_in_both_modes(tmp_path, LED_WORLD, script, 0.1)
+    # both beyond [-2**31, 2**31 - 1]; then 1, within the LED's one colour, is taken
+    expected = "TypeError at the call\nTypeError at the call\nstep 0 0\nstep 0 1\n"
+    assert runs["threads"] == (expected, "", 0)
+    assert runs["process"] == runs["threads"]

@@ -55,6 +55,9 @@ RECEIVE_BUFFER = 1 << 16
 #: A waiting side that expects its answer sooner than this polls for it (microseconds; see :meth:`Wire.spin`).
 SPIN_US = 250
 _MISSING = object()
+#: An int argument of a buffered command is queued only within a C int: beyond, a command that takes a whole number
+#: raises (LED.set(10**20): Webots' ctypes cannot pass it), and the error must come at the call, as in a thread.
+_C_INT_MIN, _C_INT_MAX = -(1 << 31), (1 << 31) - 1
 
 
 class Wire:
@@ -504,7 +507,7 @@ def _remote_method(channel: _Channel, name: str, extra: tuple[inspect.Signature 
         def method(self: Any, *args: Any, **kwargs: Any) -> Any:
             if not kwargs and len(args) == arity:
                 for arg in args:
-                    if type(arg) not in accepted:
+                    if type(arg) not in accepted or type(arg) is int and not _C_INT_MIN <= arg <= _C_INT_MAX:
                         break
                 else:
                     channel.buffer(self._dualtwin_handle, name, args)
@@ -564,7 +567,7 @@ def _remote_property(channel: _Channel, name: str, extra: tuple[bool, Any, Any, 
         command, accepted = setter[0], frozenset(setter[1][2])
 
         def fset(self: Any, value: Any) -> None:  # noqa: F811 - the buffered variant
-            if type(value) in accepted:
+            if type(value) in accepted and (type(value) is not int or _C_INT_MIN <= value <= _C_INT_MAX):
                 channel.buffer(self._dualtwin_handle, command, (value,))
             else:
                 channel.request(("set", self._dualtwin_handle, name, value))

@@ -13,8 +13,8 @@ for the methods marked here; the marks travel with the class descriptions (:mod:
   buffered command of the same controller drops it too (a coupled motor's target moves with its sibling's).
 * :func:`buffered`: a command that never raises for ``arity`` arguments of the given exact types (it warns
   on a bad value instead, as Webots does): such a call is queued and sent, in order, with the next message.
-  Any other call of it (other types, keyword arguments, another arity) goes at once, so errors surface at
-  the call.
+  Any other call of it (other types, an int beyond a C int, keyword arguments, another arity) goes at once,
+  so errors surface at the call.
 * :func:`advances`: a method that runs the simulation (``step``): its answer carries the fresh values.
 
 A marked getter must be a pure read of what the last step sampled (no random draw, no change of state): the
