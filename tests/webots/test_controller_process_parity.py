@@ -165,3 +165,21 @@ def test_a_command_given_a_whole_number_beyond_a_c_int_raises_at_the_call(tmp_pa
     expected = "TypeError at the call\nTypeError at the call\nstep 0 0\nstep 0 1\n"
     assert runs["threads"] == (expected, "", 0)
     assert runs["process"] == runs["threads"]
+
+
+def test_controller_stopped_is_a_system_exit_in_a_controller_process(tmp_path: Path) -> None:
+    """``ControllerStopped`` (a dualtwin export: how the run ends a controller, as Webots' library ends the
+    process) is a SystemExit, not an Exception: raised by the script, the controller ends quietly with status 0.
+    In a controller process it was a plain Exception there: ``except Exception`` caught it, and raised it ended
+    the controller with a traceback and status 1."""
+    script = """
+        from controller import ControllerStopped, Robot
+        robot = Robot()
+        robot.step(8)
+        print(issubclass(ControllerStopped, SystemExit), issubclass(ControllerStopped, Exception))
+        raise ControllerStopped
+    """
+    runs = run_in_both_modes(tmp_path, WORLD, script, 0.1)
+    expected = "True False\n"
+    assert runs["threads"] == (expected, "", 0)
+    assert runs["process"] == runs["threads"]

@@ -20,8 +20,6 @@ BY_DESIGN = {
     # value objects: these are fields each instance carries (Webots' ctypes structure fields); the thread class
     # shows its dataclass defaults
     ("CameraRecognitionObject", "id"), ("CameraRecognitionObject", "number_of_colors"),
-    # SystemExit's own slot; the child's exception class is built on SystemExit too
-    ("ControllerStopped", "code"),
     # Webots' "first Robot of this process": each process has its own (test_controller_processes checks it)
     ("Robot", "created"), ("Supervisor", "created"),
     # the in-process handle on the simulation (not Webots API): a controller process has none

@@ -294,8 +294,8 @@ class _Channel:
         raise self._error(*value)
 
     def _error(self, kind: str, name: str, message: str, code: Any = None) -> BaseException:
-        if kind == "exit":
-            return SystemExit(code)
+        if kind == "exit":  # ControllerStopped: the parent's own class, caught by ``except ControllerStopped`` too
+            return (self.error_class(name) if name in self.descriptions else SystemExit)(code)
         cls = getattr(builtins, name, None)
         if not (isinstance(cls, type) and issubclass(cls, BaseException)):
             cls = self.error_class(name)
@@ -311,6 +311,8 @@ class _Channel:
             bases: tuple[type, ...] = (_RemoteError,)
             if isinstance(base, type) and issubclass(base, Exception) and base is not Exception:
                 bases = (_RemoteError, base)
+            elif isinstance(base, type) and issubclass(base, BaseException) and base is not BaseException:
+                bases = (base,)  # ControllerStopped, a SystemExit: ``except Exception`` must not catch it
             cls = self.errors[name] = type(name, bases, {"__module__": "controller"})
         return cls
 
