@@ -183,3 +183,19 @@ def test_controller_stopped_is_a_system_exit_in_a_controller_process(tmp_path: P
     expected = "True False\n"
     assert runs["threads"] == (expected, "", 0)
     assert runs["process"] == runs["threads"]
+
+
+def test_an_error_escaping_the_script_prints_the_scripts_own_traceback(tmp_path: Path) -> None:
+    """An exception the script lets through prints Python's traceback from the script's first frame, as
+    ``python probe.py`` prints it where Webots starts the controller, and the controller's status is 1. A
+    controller thread printed the runner's own frames (runner.py, runpy) first."""
+    script = """from controller import Robot
+robot = Robot()
+robot.step(8)
+raise ValueError("boom")
+"""
+    runs = run_in_both_modes(tmp_path, WORLD, script, 0.1)
+    expected = ('Traceback (most recent call last):\n  File "<project>/controllers/probe/probe.py", line 4, in <module>\n'
+                '    raise ValueError("boom")\nValueError: boom\n')
+    assert runs["process"] == ("", expected, 1)
+    assert runs["threads"] == runs["process"]

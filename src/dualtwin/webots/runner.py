@@ -48,6 +48,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from types import TracebackType
 
 from dualtwin.errors import DualtwinError
 from dualtwin.webots import controller as api
@@ -238,12 +239,21 @@ def _run_script(runtime: api.Runtime, spec: ControllerSpec, result: _ScriptResul
     except SimulationUnstable as exc:  # the physics blew up: one line, as from a controller process
         print(f"Error: {exc}", file=sys.stderr)
         result.code = 1
-    except BaseException:  # the controller's own error is its output, like in the Webots console
-        traceback.print_exc(file=sys.stderr)
+    except BaseException as exc:  # the controller's own error is its output, like in the Webots console
+        traceback.print_exception(type(exc), exc, _script_frames(exc.__traceback__), file=sys.stderr)
         result.code = 1
     finally:
         sys.argv = saved_argv
         runtime.thread_done()
+
+
+def _script_frames(tb: TracebackType | None) -> TracebackType | None:
+    """The traceback from the script's first frame on, as Python prints it for ``python NAME.py`` (and as a
+    controller process prints it): how this thread started the script is no business of it."""
+    while tb is not None and (tb.tb_frame.f_code.co_filename == __file__
+                              or tb.tb_frame.f_code.co_filename.startswith("<frozen ")):
+        tb = tb.tb_next
+    return tb
 
 
 def check_duration(duration_s: float | None) -> None:
