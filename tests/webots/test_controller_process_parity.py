@@ -199,3 +199,25 @@ raise ValueError("boom")
                 '    raise ValueError("boom")\nValueError: boom\n')
     assert runs["process"] == ("", expected, 1)
     assert runs["threads"] == runs["process"]
+
+
+def test_the_scripts_streams_are_the_interpreters_own_kind(tmp_path: Path) -> None:
+    """A controller's ``sys.stdout``/``sys.stderr`` are text streams as the interpreter makes them (Webots starts
+    ``python probe.py`` with its output on a pipe): a name, a descriptor, a byte layer (``buffer``), and they are
+    ``sys.__stdout__``/``sys.__stderr__``. A controller process had a bare text object: no ``name``, no ``buffer``
+    (``sys.stdout.buffer.write`` raised AttributeError), ``fileno()`` unsupported, and ``sys.__stdout__`` was the
+    interpreter's first stream, whose output bypassed the ordered channel."""
+    script = """
+        import sys
+        from controller import Robot
+        robot = Robot()
+        print(sys.stdout.name, sys.stderr.name, sys.stdout.fileno(), sys.stderr.fileno(),
+              sys.__stdout__ is sys.stdout, sys.__stderr__ is sys.stderr, flush=True)
+        sys.stdout.buffer.write("bytes \\u00e9\\n".encode(sys.stdout.encoding))
+        sys.stdout.buffer.flush()
+        print("to the original stderr", file=sys.__stderr__)
+    """
+    runs = run_in_both_modes(tmp_path, WORLD, script, 0.1)
+    expected = "<stdout> <stderr> 1 2 True True\nbytes \u00e9\n"
+    assert runs["threads"] == (expected, "to the original stderr\n", 0)
+    assert runs["process"] == runs["threads"]

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import atexit
 import builtins
+import codecs
 import contextlib
 import inspect
 import io
@@ -170,32 +171,49 @@ class Wire:
 # ------------------------------------------------------------------------------------------ child side
 
 
-class _Stream(io.TextIOBase):
-    """``sys.stdout``/``sys.stderr`` of a controller: text sent to the parent with the next message."""
+class _ChannelOutput(io.RawIOBase):
+    """The bytes under a controller's ``sys.stdout``/``sys.stderr``: text sent to the parent with the next message
+    (decoded as the text layer encoded it: the parent writes it to its own stream)."""
 
-    def __init__(self, channel: _Channel, fd: int) -> None:
+    def __init__(self, channel: _Channel, fd: int, encoding: str, errors: str) -> None:
         self._channel = channel
         self._fd = fd
+        self._decoder = codecs.getincrementaldecoder(encoding)(errors)
+
+    @property
+    def name(self) -> str:
+        return "<stdout>" if self._fd == 1 else "<stderr>"
+
+    @property
+    def mode(self) -> str:
+        return "wb"
 
     def writable(self) -> bool:
         return True
 
-    @property
-    def encoding(self) -> str:  # type: ignore[override]
-        return "utf-8"
+    def fileno(self) -> int:  # the descriptor this process inherited, as the script's own stream has
+        return self._fd
 
-    def write(self, text: str) -> int:
-        if not isinstance(text, str):
-            raise TypeError(f"write() argument must be str, not {type(text).__name__}")
+    def write(self, data: Any) -> int:
+        text = self._decoder.decode(bytes(data))
         if text:
             self._channel.output(self._fd, text)
-        return len(text)
+        return len(data)
 
     def flush(self) -> None:
         self._channel.flush_output()
 
-    def isatty(self) -> bool:
-        return False
+
+def _stream(channel: _Channel, fd: int, original: Any) -> io.TextIOWrapper:
+    """A text stream like the one this interpreter made (encoding, errors, line buffering) whose output goes to
+    the parent, in order with the controller's calls: ``sys.stdout.buffer``, ``fileno()``, ``name`` as usual."""
+    encoding = getattr(original, "encoding", None) or "utf-8"
+    errors = getattr(original, "errors", None) or "strict"
+    raw = _ChannelOutput(channel, fd, encoding, errors)
+    stream = io.TextIOWrapper(raw, encoding=encoding, errors=errors,
+                              line_buffering=bool(getattr(original, "line_buffering", False)), write_through=True)
+    stream.mode = "w"  # type: ignore[misc]  # (as the interpreter's own streams say)
+    return stream
 
 
 class _RemoteError(Exception):
@@ -663,8 +681,8 @@ def _main(argv: list[str]) -> None:
     script = start["script"]
     sys.argv = [script, *start["args"]]
     sys.path[0] = os.path.dirname(script)  # the controller's folder, as when Webots runs ``python NAME.py``
-    sys.stdout = _Stream(channel, 1)
-    sys.stderr = _Stream(channel, 2)
+    sys.stdout = sys.__stdout__ = _stream(channel, 1, sys.stdout)
+    sys.stderr = sys.__stderr__ = _stream(channel, 2, sys.stderr)
     status: list[Any] = [0]
 
     def finish() -> None:  # registered first, so it runs last of the exit handlers
