@@ -221,3 +221,26 @@ def test_the_scripts_streams_are_the_interpreters_own_kind(tmp_path: Path) -> No
     expected = "<stdout> <stderr> 1 2 True True\nbytes \u00e9\n"
     assert runs["threads"] == (expected, "to the original stderr\n", 0)
     assert runs["process"] == runs["threads"]
+
+
+def test_api_classes_introspect_as_the_real_ones(tmp_path: Path) -> None:
+    """What introspection reads of an API class in a controller process is what the real class says: its module,
+    its methods' qualified names and annotated signatures, an instance's default text. A controller process said
+    module 'controller', 'step' for ``Robot.step.__qualname__``, dropped the annotations, and printed a Field as
+    '<Field (controller proxy)>'."""
+    script = """
+        import inspect
+        from controller import Robot
+        robot = Robot()
+        motor = robot.getDevice("rm")
+        print(Robot.__module__, type(motor).__module__, Robot.step.__qualname__, type(motor).setPosition.__qualname__)
+        print(inspect.signature(Robot.step), inspect.signature(motor.setPosition))
+        print(repr(robot))
+    """
+    runs = run_in_both_modes(tmp_path, WORLD, script, 0.1)
+    # the API's modules (dualtwin.webots.robot: Robot; joint_devices: Motor) and its annotations, as written there
+    expected = ("dualtwin.webots.robot dualtwin.webots.joint_devices Robot.step Motor.setPosition\n"
+                "(self, time_step: 'Any' = None) -> 'int' (position: 'Any') -> 'None'\n"
+                "<dualtwin.webots.robot.Robot object at 0x?>\n")
+    assert runs["threads"] == (expected, "", 0)
+    assert runs["process"] == runs["threads"]

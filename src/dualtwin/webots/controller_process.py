@@ -447,15 +447,15 @@ class _Proxy:
     def __reduce_ex__(self, protocol: Any) -> Any:
         raise _HandleNeeded
 
-    _dualtwin_qualified = "controller.object"
-
     def __repr__(self) -> str:  # as ``object.__repr__`` writes an object of the real class
-        return f"<{self._dualtwin_qualified} object at {id(self):#x}>"
+        return f"<{type(self).__module__}.{type(self).__qualname__} object at {id(self):#x}>"
 
 
 def _build_class(channel: _Channel, description: dict[str, Any], bases: tuple[type, ...]) -> type:
     name = description["name"]
-    ns: dict[str, Any] = {"__module__": "controller", "__doc__": description.get("doc")}
+    qualified = description.get("qualified", f"controller.{name}")
+    # the real class's module and, below, its methods' qualified names: what introspection of it reads
+    ns: dict[str, Any] = {"__module__": qualified.rpartition(".")[0], "__doc__": description.get("doc")}
     ns["_dualtwin_role"] = description["role"]
     ns["_dualtwin_real"] = description["key"]
     value_class = description["role"] == "value"
@@ -470,7 +470,10 @@ def _build_class(channel: _Channel, description: dict[str, Any], bases: tuple[ty
             ns[attr] = staticmethod(_static_method(channel, description["key"], attr, extra))
     if description.get("constructible"):
         ns["__init__"] = _remote_init(channel, description.get("init"))
-    ns["_dualtwin_qualified"] = description.get("qualified", name)
+    for member in ns.values():
+        function = member.__func__ if isinstance(member, staticmethod) else member
+        if inspect.isfunction(function):
+            function.__qualname__ = f"{name}.{function.__name__}"
     dunders = description.get("dunders", ())
     if description.get("unhashable"):
         ns["__hash__"] = None

@@ -83,12 +83,15 @@ def _signature(function: Any) -> inspect.Signature | None:
         signature = inspect.signature(function)
     except (TypeError, ValueError):
         return None
+    # annotations cross as the text they are (this package postpones them): one that is an object stays here
     parameters = [
-        p.replace(annotation=inspect.Parameter.empty,
+        p.replace(annotation=p.annotation if isinstance(p.annotation, str) else inspect.Parameter.empty,
                   default=p.default if p.default is inspect.Parameter.empty or plain(p.default) else None)
         for p in signature.parameters.values()
     ]
-    return signature.replace(parameters=parameters, return_annotation=inspect.Signature.empty)
+    returns = signature.return_annotation
+    return signature.replace(parameters=parameters,
+                             return_annotation=returns if isinstance(returns, str) else inspect.Signature.empty)
 
 
 def describe_class(cls: type, exported: dict[str, type], role: str) -> dict[str, Any]:
