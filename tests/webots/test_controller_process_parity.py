@@ -244,3 +244,39 @@ def test_api_classes_introspect_as_the_real_ones(tmp_path: Path) -> None:
                 "<dualtwin.webots.robot.Robot object at 0x?>\n")
     assert runs["threads"] == (expected, "", 0)
     assert runs["process"] == runs["threads"]
+
+
+def test_an_argument_of_the_scripts_own_class_is_refused_by_the_api_not_the_channel(tmp_path: Path) -> None:
+    """An argument the API does not take (an object of a class the script defines, a generator) is refused by the
+    API in its own words, a TypeError at the call, and the controller goes on; a subclass of a plain type (an
+    IntEnum) is its value. In a controller process an object of the script's class crashed the parent's serving
+    thread ('Can't get attribute 'Angle' on <module '__main__'>'): the controller ended with status 1 and printed
+    nothing more; a generator raised 'cannot pickle' instead of the API's TypeError."""
+    script = """
+        import enum
+        from controller import Robot
+
+        class Angle:
+            def __repr__(self):
+                return "Angle(0.5)"
+
+        class Period(enum.IntEnum):
+            BASIC = 8
+
+        robot = Robot()
+        motor, gps = robot.getDevice("rm"), robot.getDevice("gps")
+        for value in (Angle(), (x for x in [1])):
+            try:
+                motor.setPosition(value)
+            except TypeError as exc:
+                print(exc)
+        gps.enable(Period.BASIC)
+        print(robot.step(8), gps.getSamplingPeriod(), motor.getTargetPosition())
+    """
+    runs = run_in_both_modes(tmp_path, WORLD, script, 0.1)
+    # the API's words for a value that is not a number (api_args.as_float): the type's name and the value's text
+    refusal = "Motor.setPosition() expects a number (a Python or NumPy scalar or a one-element array), got "
+    expected = (f"{refusal}Angle Angle(0.5)\n{refusal}generator <generator object <genexpr> at 0x?>\n"
+                "0 8 0.0\n")
+    assert runs["threads"] == (expected, "", 0)
+    assert runs["process"] == runs["threads"]

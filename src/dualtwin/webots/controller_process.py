@@ -279,6 +279,8 @@ class _Channel:
         self.wire.send(data)
 
     def _persistent_id(self, obj: Any) -> Any:
+        if isinstance(obj, _Foreign):
+            return ("f", *obj.described)
         handle = getattr(obj, "_dualtwin_handle", None) if isinstance(obj, _Proxy) else None
         return ("h", handle) if handle is not None else None
 
@@ -288,6 +290,7 @@ class _Channel:
         if message[0] != "read":
             self.values = {}
             self.echoes = []
+            message = _crossing(message)
         return self._exchange(message)[0]
 
     def _exchange(self, message: tuple[Any, ...]) -> tuple[Any, Any]:
@@ -430,6 +433,53 @@ class _Channel:
             cls = _build_class(self, description, bases)
             self.classes[name] = cls
         return cls
+
+
+_PLAIN = frozenset({int, float, complex, str, bytes, bool, type(None)})
+
+
+class _Foreign:
+    """An argument the parent could not rebuild (an object of the script's own class, a generator, an open file):
+    it reaches the API as a stand-in of the same class name and text, so the API refuses it in its own words
+    ("expects a number ..., got Angle Angle(0.5)"), as it refuses the object itself in a thread."""
+
+    def __init__(self, value: Any) -> None:
+        cls = type(value)
+        try:
+            text = repr(value)
+        except Exception:
+            text = object.__repr__(value)
+        self.described = (cls.__module__, cls.__qualname__, text)
+
+    def __reduce_ex__(self, protocol: Any) -> Any:
+        raise _HandleNeeded
+
+
+def _crossing(value: Any, depth: int = 0) -> Any:
+    """``value`` as the parent can rebuild it: plain data, NumPy values and API objects as they are; an instance of
+    a subclass of a plain type (an IntEnum, a float subclass) as that type's value; a standard library object
+    that pickles (a Decimal, a Fraction) as it is; anything else a :class:`_Foreign`."""
+    cls = type(value)
+    if cls in _PLAIN or isinstance(value, _Proxy) or depth > 32:
+        return value
+    if cls is tuple or cls is list:
+        items = [_crossing(v, depth + 1) for v in value]
+        return tuple(items) if cls is tuple else items
+    if cls is dict:
+        return {_crossing(k, depth + 1): _crossing(v, depth + 1) for k, v in value.items()}
+    top = cls.__module__.partition(".")[0]
+    if top == "numpy":
+        return value
+    for base in (bool, int, float, complex, str, bytes, tuple, list, dict):
+        if isinstance(value, base):
+            return _crossing(base(value), depth)
+    if top in sys.stdlib_module_names and top != "__main__":
+        try:
+            pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
+        except Exception:
+            return _Foreign(value)
+        return value
+    return _Foreign(value)
 
 
 class _HandleNeeded(Exception):

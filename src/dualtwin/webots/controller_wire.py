@@ -260,6 +260,10 @@ class HandleTable:
     def persistent_load(self, pid: Any) -> Any:
         if pid[0] == "h":
             return self.objects[pid[1]]
+        if pid[0] == "f":  # an object of the child this process cannot rebuild: a stand-in of its class and text
+            module, qualname, text = pid[1:]
+            return type(qualname.rpartition(".")[2], (), {"__module__": module, "__qualname__": qualname,
+                                                          "__repr__": lambda self: text})()
         raise pickle.UnpicklingError(f"unknown object reference {pid!r}")
 
     def dumps(self, status: str, value: Any, fresh: Any = None) -> bytes:
