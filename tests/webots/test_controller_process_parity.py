@@ -280,3 +280,30 @@ def test_an_argument_of_the_scripts_own_class_is_refused_by_the_api_not_the_chan
                 "0 8 0.0\n")
     assert runs["threads"] == (expected, "", 0)
     assert runs["process"] == runs["threads"]
+
+
+CAMERA_WORLD = """#VRML_SIM R2023b utf8
+WorldInfo { basicTimeStep 8 }
+Robot { controller "probe" children [ Camera { name "cam" width 4 height 2 } ] }
+"""
+
+
+def test_an_error_of_a_class_the_script_does_not_know_is_still_its_built_in_kind(tmp_path: Path) -> None:
+    """An error the API lets through from a library (here NumPy's UFuncTypeError, a TypeError, from
+    ``Camera.imageGetGray`` given a NumPy width and text for a coordinate) is caught by ``except TypeError`` in a controller
+    process as in a thread. The process made a class of that name derived from Exception only: ``except
+    TypeError`` let it through and the controller died."""
+    script = """
+        import numpy as np
+        from controller import Camera, Robot
+        robot = Robot()
+        image = bytes(4 * 4 * 2)
+        try:
+            Camera.imageGetGray(image, np.array([4]), "abc", 0)
+            print("accepted")
+        except TypeError as exc:
+            print("TypeError", type(exc).__name__)
+    """
+    runs = run_in_both_modes(tmp_path, CAMERA_WORLD, script, 0.1)
+    assert runs["threads"].code == 0 and runs["threads"].out.startswith("TypeError"), runs["threads"]
+    assert runs["process"] == runs["threads"]

@@ -374,8 +374,9 @@ class _Host:
         except SystemExit as exc:  # ControllerStopped: Webots' library ends the controller here
             link.last_active = time.monotonic()
             return table.dumps("err", ("exit", type(exc).__name__, "", exc.code))
-        except Exception as exc:
-            return table.dumps("err", ("error", type(exc).__name__, str(exc)))
+        except Exception as exc:  # with the built-in class it derives from: the child's class derives from it too
+            builtin = next(b.__name__ for b in type(exc).__mro__ if b.__module__ == "builtins")
+            return table.dumps("err", ("error", type(exc).__name__, str(exc), None, builtin))
 
     def _subscribe(self, link: _Link, keys: list[tuple[int, str]], dropped: list[tuple[int, str]]) -> None:
         for key in dropped:

@@ -314,21 +314,24 @@ class _Channel:
             return value, fresh
         raise self._error(*value)
 
-    def _error(self, kind: str, name: str, message: str, code: Any = None) -> BaseException:
+    def _error(self, kind: str, name: str, message: str, code: Any = None, builtin: str | None = None
+               ) -> BaseException:
         if kind == "exit":  # ControllerStopped: the parent's own class, caught by ``except ControllerStopped`` too
             return (self.error_class(name) if name in self.descriptions else SystemExit)(code)
         cls = getattr(builtins, name, None)
         if not (isinstance(cls, type) and issubclass(cls, BaseException)):
-            cls = self.error_class(name)
+            cls = self.error_class(name, builtin)
         return cls(message)
 
-    def error_class(self, name: str) -> type[BaseException]:
+    def error_class(self, name: str, builtin: str | None = None) -> type[BaseException]:
         """The one class here for the parent's exception class ``name``: the one a raised error has and, for an
         exported one (``SimulationUnstable``), the one ``from controller import`` gives, so that the script can
-        catch it (a proxy class there made ``except SimulationUnstable`` itself raise TypeError)."""
+        catch it (a proxy class there made ``except SimulationUnstable`` itself raise TypeError). It derives from
+        the built-in class the parent's derives from (``builtin``, or the description's), so ``except TypeError``
+        catches NumPy's UFuncTypeError here too."""
         cls = self.errors.get(name)
         if cls is None:
-            base = getattr(builtins, self.descriptions.get(name, {}).get("builtin_base") or "", None)
+            base = getattr(builtins, self.descriptions.get(name, {}).get("builtin_base") or builtin or "", None)
             bases: tuple[type, ...] = (_RemoteError,)
             if isinstance(base, type) and issubclass(base, Exception) and base is not Exception:
                 bases = (_RemoteError, base)
