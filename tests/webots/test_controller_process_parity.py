@@ -307,3 +307,36 @@ def test_an_error_of_a_class_the_script_does_not_know_is_still_its_built_in_kind
     runs = run_in_both_modes(tmp_path, CAMERA_WORLD, script, 0.1)
     assert runs["threads"].code == 0 and runs["threads"].out.startswith("TypeError"), runs["threads"]
     assert runs["process"] == runs["threads"]
+
+
+def test_value_objects_copy_pickle_and_go_back_to_the_api(tmp_path: Path) -> None:
+    """Point-cloud points are plain data (webots-python-api.md, LidarPoint: plain attributes): a script may copy
+    them, pickle them (to send them through an Emitter, to save them) and hand one back to an API call, which
+    refuses it in its own words. In a controller process each of these raised the channel's internal
+    '_HandleNeeded'."""
+    script = """
+        import copy, pickle
+        from controller import Robot
+        robot = Robot()
+        lidar = robot.getDevice("lidar")
+        lidar.enable(8)
+        lidar.enablePointCloud()
+        robot.step(8)
+        cloud = lidar.getPointCloud()
+        again = pickle.loads(pickle.dumps(cloud))
+        print(again == cloud, copy.deepcopy(cloud[1]) == cloud[1], copy.copy(cloud[2]).x == cloud[2].x)
+        print(type(again[0]).__name__, [round(p.x, 6) for p in again] == [round(p.x, 6) for p in cloud])
+        try:
+            lidar.enable(cloud[0])
+        except TypeError as exc:
+            print(exc)
+    """
+    runs = run_in_both_modes(tmp_path, LIDAR_WORLD, script, 0.1)
+    # the copies are equal to the points (LidarPoint compares by its data); a point is not a sampling period: the
+    # API's words (api_args.as_int), with the point's class and text
+    refusal = "Lidar.enable() expects a number (a Python or NumPy scalar or a one-element array), got "
+    point = runs["threads"].out.splitlines()[-1][len(refusal):]
+    assert point.startswith("LidarPoint LidarPoint(x=") and point.endswith(")"), point
+    expected = f"True True True\nLidarPoint True\n{refusal}{point}\n"
+    assert runs["threads"] == (expected, "", 0)
+    assert runs["process"] == runs["threads"]

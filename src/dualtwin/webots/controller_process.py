@@ -268,6 +268,8 @@ class _Channel:
             self.new_subscriptions = []
         if self.dropped:
             self.dropped = []
+        global _SENDING
+        _SENDING = True
         try:  # plain data (the usual case) pickles in C; an API object in it needs its handle
             data = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
         except _HandleNeeded:
@@ -276,11 +278,15 @@ class _Channel:
             pickler.persistent_id = self._persistent_id  # type: ignore[method-assign]
             pickler.dump(message)
             data = pickle.dumps(("H", buf.getvalue()), protocol=pickle.HIGHEST_PROTOCOL)
+        finally:
+            _SENDING = False
         self.wire.send(data)
 
     def _persistent_id(self, obj: Any) -> Any:
         if isinstance(obj, _Foreign):
             return ("f", *obj.described)
+        if isinstance(obj, _Proxy) and type(obj)._dualtwin_role == "value":  # its data: the parent rebuilds it
+            return ("v", type(obj)._dualtwin_real, dict(vars(obj)))
         handle = getattr(obj, "_dualtwin_handle", None) if isinstance(obj, _Proxy) else None
         return ("h", handle) if handle is not None else None
 
@@ -357,11 +363,7 @@ class _Channel:
                     object.__setattr__(proxy, key, value)
             return proxy
         _, class_name, attrs, results = pid  # a value object: its data and the results of its getters
-        cls = self.proxy_class(class_name)
-        value = object.__new__(cls)
-        value.__dict__.update(attrs)
-        object.__setattr__(value, "_dualtwin_results", results)
-        return value
+        return _rebuild_value(class_name, attrs, results)
 
     # -- API calls
 
@@ -489,6 +491,21 @@ class _HandleNeeded(Exception):
     """Raised when an API object is pickled without the channel's persistent ids (then they are used)."""
 
 
+_SENDING = False  # a message to the parent is being pickled (see _Proxy.__reduce_ex__)
+_CHANNEL: list[_Channel] = []  # this process's channel, for _rebuild_value
+
+
+def _rebuild_value(key: str, attrs: dict[str, Any], results: dict[str, Any]) -> Any:
+    value = object.__new__(_CHANNEL[0].proxy_class(key))
+    value.__dict__.update(attrs)
+    object.__setattr__(value, "_dualtwin_results", results)
+    return value
+
+
+_rebuild_value.__module__ = "controller"
+_rebuild_value.__qualname__ = _rebuild_value.__name__ = "_dualtwin_value"
+
+
 class _Proxy:
     """Base of every generated class: an object that lives in the parent, named by a handle."""
 
@@ -498,7 +515,13 @@ class _Proxy:
     _dualtwin_real = ""
 
     def __reduce_ex__(self, protocol: Any) -> Any:
-        raise _HandleNeeded
+        if _SENDING:  # to the parent: as a handle, or a value object's data (``_Channel._persistent_id``)
+            raise _HandleNeeded
+        if type(self)._dualtwin_role == "value":  # the script's own pickle or copy of a LidarPoint, a RadarTarget:
+            # rebuilt from its data by ``controller._dualtwin_value`` (any controller process has it)
+            state = dict(vars(self)), getattr(self, "_dualtwin_results", {})
+            return _rebuild_value, (type(self)._dualtwin_real, *state)
+        raise TypeError(f"cannot pickle {type(self).__name__!r} object")  # an object of the simulation's process
 
     def __repr__(self) -> str:  # as ``object.__repr__`` writes an object of the real class
         return f"<{type(self).__module__}.{type(self).__qualname__} object at {id(self):#x}>"
@@ -733,6 +756,8 @@ def _main(argv: list[str]) -> None:
 
     module.__getattr__ = exported  # type: ignore[method-assign]
     module.__all__ = list(start["exports"])  # type: ignore[attr-defined]
+    module._dualtwin_value = _rebuild_value  # type: ignore[attr-defined]
+    _CHANNEL.append(channel)
     sys.modules["controller"] = module
     script = start["script"]
     sys.argv = [script, *start["args"]]

@@ -260,11 +260,20 @@ class HandleTable:
     def persistent_load(self, pid: Any) -> Any:
         if pid[0] == "h":
             return self.objects[pid[1]]
+        if pid[0] == "v":  # a value object the child was given (a ContactPoint): one of the real class, its data
+            cls = self._class(pid[1])
+            value = object.__new__(cls)
+            vars(value).update(pid[2])
+            return value
         if pid[0] == "f":  # an object of the child this process cannot rebuild: a stand-in of its class and text
             module, qualname, text = pid[1:]
             return type(qualname.rpartition(".")[2], (), {"__module__": module, "__qualname__": qualname,
                                                           "__repr__": lambda self: text})()
         raise pickle.UnpicklingError(f"unknown object reference {pid!r}")
+
+    def _class(self, key: str) -> type:
+        """The class the child knows by ``key`` (:func:`class_key`): one described to it."""
+        return next(cls for cls in self.described if class_key(cls, self.exported) == key)
 
     def dumps(self, status: str, value: Any, fresh: Any = None) -> bytes:
         """A reply frame: ``(status, value, fresh)``, one pickle made in C, when the value is plain data (most
