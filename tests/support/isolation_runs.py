@@ -37,9 +37,10 @@ def run_in_both_modes(folder: Path, world: str, script: str, duration_s: float |
         env = {**os.environ, "PYTHONPATH": str(ROOT / "src") + os.pathsep + os.environ.get("PYTHONPATH", "")}
         done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=env,
                               cwd=project, check=False)
-
-        def same_addresses(text: str) -> str:
-            return re.sub(r"0x[0-9a-fA-F]+", "0x?", text.replace(str(project), "<project>"))
-
-        results[isolation] = Outcome(same_addresses(done.stdout), same_addresses(done.stderr), done.returncode)
+        results[isolation] = Outcome(_same_addresses(done.stdout, project), _same_addresses(done.stderr, project),
+                                     done.returncode)
     return results
+
+
+def _same_addresses(text: str, project: Path) -> str:
+    return re.sub(r"0x[0-9a-fA-F]+", "0x?", text.replace(str(project), "<project>"))

@@ -175,18 +175,13 @@ class _ChannelOutput(io.RawIOBase):
     """The bytes under a controller's ``sys.stdout``/``sys.stderr``: text sent to the parent with the next message
     (decoded as the text layer encoded it: the parent writes it to its own stream)."""
 
+    mode = "wb"
+
     def __init__(self, channel: _Channel, fd: int, encoding: str, errors: str) -> None:
         self._channel = channel
         self._fd = fd
         self._decoder = codecs.getincrementaldecoder(encoding)(errors)
-
-    @property
-    def name(self) -> str:
-        return "<stdout>" if self._fd == 1 else "<stderr>"
-
-    @property
-    def mode(self) -> str:
-        return "wb"
+        self.name = "<stdout>" if fd == 1 else "<stderr>"
 
     def writable(self) -> bool:
         return True
@@ -441,6 +436,7 @@ class _Channel:
 
 
 _PLAIN = frozenset({int, float, complex, str, bytes, bool, type(None)})
+_PLAIN_BASES: tuple[Any, ...] = (bool, int, float, complex, str, bytes, tuple, list, dict)
 
 
 class _Foreign:
@@ -449,12 +445,7 @@ class _Foreign:
     ("expects a number ..., got Angle Angle(0.5)"), as it refuses the object itself in a thread."""
 
     def __init__(self, value: Any) -> None:
-        cls = type(value)
-        try:
-            text = repr(value)
-        except Exception:
-            text = object.__repr__(value)
-        self.described = (cls.__module__, cls.__qualname__, text)
+        self.described = (type(value).__module__, type(value).__qualname__, repr(value))
 
     def __reduce_ex__(self, protocol: Any) -> Any:
         raise _HandleNeeded
@@ -475,7 +466,7 @@ def _crossing(value: Any, depth: int = 0) -> Any:
     top = cls.__module__.partition(".")[0]
     if top == "numpy":
         return value
-    for base in (bool, int, float, complex, str, bytes, tuple, list, dict):
+    for base in _PLAIN_BASES:
         if isinstance(value, base):
             return _crossing(base(value), depth)
     if top in sys.stdlib_module_names and top != "__main__":
@@ -680,7 +671,7 @@ def _value_method(class_name: str, name: str, extra: tuple[inspect.Signature | N
         # a getter (its result came with the object): called with arguments, Python's own TypeError, worded as
         # for the real method ("ContactPoint.getPoint() takes 1 positional argument but 2 were given")
 
-        def method(self: Any) -> Any:  # type: ignore[misc]
+        def method(self: Any) -> Any:
             results = self._dualtwin_results
             if name not in results:
                 raise NotImplementedError(f"{type(self).__name__}.{name}() is not available in a controller process")
@@ -688,7 +679,7 @@ def _value_method(class_name: str, name: str, extra: tuple[inspect.Signature | N
 
     else:
 
-        def method(self: Any, *args: Any, **kwargs: Any) -> Any:
+        def method(self: Any, *args: Any, **kwargs: Any) -> Any:  # type: ignore[misc]
             raise NotImplementedError(f"{type(self).__name__}.{name}() is not available in a controller process")
 
     method.__name__ = name
@@ -713,7 +704,7 @@ def _remote_init(channel: _Channel, signature: inspect.Signature | None) -> Any:
         # or a user subclass included); the parent keeps it for its own class, this process needs its own copy.
         robot = next((c for c in type(self).__mro__ if c.__dict__.get("_dualtwin_real") == "Robot"), None)
         if robot is not None and robot.__dict__.get("created") is None:
-            robot.created = self
+            robot.created = self  # type: ignore[attr-defined]
 
     if signature is not None:
         __init__.__signature__ = signature  # type: ignore[attr-defined]
@@ -762,8 +753,8 @@ def _main(argv: list[str]) -> None:
     script = start["script"]
     sys.argv = [script, *start["args"]]
     sys.path[0] = os.path.dirname(script)  # the controller's folder, as when Webots runs ``python NAME.py``
-    sys.stdout = sys.__stdout__ = _stream(channel, 1, sys.stdout)
-    sys.stderr = sys.__stderr__ = _stream(channel, 2, sys.stderr)
+    sys.stdout = sys.__stdout__ = _stream(channel, 1, sys.stdout)  # type: ignore[misc]
+    sys.stderr = sys.__stderr__ = _stream(channel, 2, sys.stderr)  # type: ignore[misc]
     status: list[Any] = [0]
 
     def finish() -> None:  # registered first, so it runs last of the exit handlers

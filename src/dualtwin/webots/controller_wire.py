@@ -262,7 +262,7 @@ class HandleTable:
             return self.objects[pid[1]]
         if pid[0] == "v":  # a value object the child was given (a ContactPoint): one of the real class, its data
             cls = self._class(pid[1])
-            value = object.__new__(cls)
+            value: Any = object.__new__(cls)
             vars(value).update(pid[2])
             return value
         if pid[0] == "f":  # an object of the child this process cannot rebuild: a stand-in of its class and text
