@@ -340,3 +340,22 @@ def test_value_objects_copy_pickle_and_go_back_to_the_api(tmp_path: Path) -> Non
     expected = f"True True True\nLidarPoint True\n{refusal}{point}\n"
     assert runs["threads"] == (expected, "", 0)
     assert runs["process"] == runs["threads"]
+
+
+def test_an_error_crosses_with_its_arguments(tmp_path: Path) -> None:
+    """An error the API raises keeps its ``args`` in a controller process: a KeyError (here from
+    ``RangeFinder.rangeImageGetDepth`` given a dict for an image, indexed by the text the other arguments make)
+    says its key as in a thread. The process raised KeyError with the key's text as the key ("'wx'" quoted twice)."""
+    script = """
+        from controller import RangeFinder, Robot
+        robot = Robot()
+        try:
+            RangeFinder.rangeImageGetDepth({}, "w", "x", 1)
+        except KeyError as exc:
+            print(repr(exc), exc.args, exc)
+    """
+    runs = run_in_both_modes(tmp_path, WORLD, script, 0.1)
+    # index y * width + x = 1 * "w" + "x" = "wx", not a key of the empty dict
+    expected = "KeyError('wx') ('wx',) 'wx'\n"
+    assert runs["threads"] == (expected, "", 0)
+    assert runs["process"] == runs["threads"]

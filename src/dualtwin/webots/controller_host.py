@@ -375,8 +375,7 @@ class _Host:
             link.last_active = time.monotonic()
             return table.dumps("err", ("exit", type(exc).__name__, "", exc.code))
         except Exception as exc:  # with the built-in class it derives from: the child's class derives from it too
-            builtin = next(b.__name__ for b in type(exc).__mro__ if b.__module__ == "builtins")
-            return table.dumps("err", ("error", type(exc).__name__, str(exc), None, builtin))
+            return table.dumps("err", ("error", type(exc).__name__, str(exc), None, *_error_details(exc)))
 
     def _subscribe(self, link: _Link, keys: list[tuple[int, str]], dropped: list[tuple[int, str]]) -> None:
         for key in dropped:
@@ -489,6 +488,20 @@ class _Host:
             if code:
                 return code
         return 0
+
+
+def _error_details(exc: BaseException) -> tuple[str, tuple[Any, ...] | None]:
+    """The built-in class ``exc`` derives from, and its arguments where they are plain data that the built-in class
+    words as ``exc`` is worded (a KeyError's key): the child raises it with the same ``args``; else None, and the
+    child raises it with its text."""
+    builtin = next(b for b in type(exc).__mro__ if b.__module__ == "builtins")
+    args: tuple[Any, ...] | None = exc.args
+    try:
+        if not plain(args) or str(builtin(*args)) != str(exc):
+            args = None
+    except Exception:
+        args = None
+    return builtin.__name__, args
 
 
 @contextmanager

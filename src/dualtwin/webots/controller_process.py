@@ -315,14 +315,14 @@ class _Channel:
             return value, fresh
         raise self._error(*value)
 
-    def _error(self, kind: str, name: str, message: str, code: Any = None, builtin: str | None = None
-               ) -> BaseException:
+    def _error(self, kind: str, name: str, message: str, code: Any = None, builtin: str | None = None,
+               args: tuple[Any, ...] | None = None) -> BaseException:
         if kind == "exit":  # ControllerStopped: the parent's own class, caught by ``except ControllerStopped`` too
             return (self.error_class(name) if name in self.descriptions else SystemExit)(code)
         cls = getattr(builtins, name, None)
         if not (isinstance(cls, type) and issubclass(cls, BaseException)):
             cls = self.error_class(name, builtin)
-        return cls(message)
+        return cls(*args) if args is not None else cls(message)  # (the same ``args`` where they could cross)
 
     def error_class(self, name: str, builtin: str | None = None) -> type[BaseException]:
         """The one class here for the parent's exception class ``name``: the one a raised error has and, for an
