@@ -359,3 +359,23 @@ def test_an_error_crosses_with_its_arguments(tmp_path: Path) -> None:
     expected = "KeyError('wx') ('wx',) 'wx'\n"
     assert runs["threads"] == (expected, "", 0)
     assert runs["process"] == runs["threads"]
+
+
+def test_a_scripts_own_warning_prints_as_python_prints_it(tmp_path: Path) -> None:
+    """A warning the script raises prints as its interpreter prints it where Webots starts ``python probe.py``
+    (``file:line: Category: text`` and the source line), and an unclosed file's ResourceWarning stays silent (the
+    interpreter's default filters), while the simulation's own warnings stay one ``Warning: ...`` line. A
+    controller thread printed the script's warning as 'Warning: slow' and showed the ResourceWarning."""
+    script = """import warnings
+from controller import Supervisor
+robot = Supervisor()
+open(__file__)
+warnings.warn("slow")
+robot.getSelf().getField("translation").setSFVec3f([1, 2])
+"""
+    runs = run_in_both_modes(tmp_path, WORLD, script, 0.1)
+    # Python's format for line 5 of the script; the Field's own refusal of a 2-vector for an SFVec3f
+    expected = ('<project>/controllers/probe/probe.py:5: UserWarning: slow\n  warnings.warn("slow")\n'
+                "Warning: Field.setSFVec3f(): new field value has wrong type or length ('translation'): ignored\n")
+    assert runs["process"] == ("", expected, 0)
+    assert runs["threads"] == runs["process"]

@@ -36,6 +36,7 @@ keep the initial hold (docs/reference/webots-on-ode.md §5.1).
 from __future__ import annotations
 
 import ctypes
+import linecache
 import math
 import os
 import runpy
@@ -331,10 +332,18 @@ def _warnings_as_lines() -> Iterator[None]:
 
     def show(message: Warning | str, category: type[Warning], filename: str, lineno: int,
              file: object = None, line: str | None = None) -> None:
-        print(f"Warning: {message}", file=sys.stderr)
+        if filename.startswith(_PACKAGE):
+            print(f"Warning: {message}", file=sys.stderr)
+            return
+        # a controller thread's own warning: as its interpreter prints it where Webots starts it (and a controller
+        # process does), ``file:line: Category: text`` and the source line
+        source = (line if line is not None else linecache.getline(filename, lineno)).strip()
+        sys.stderr.write(f"{filename}:{lineno}: {category.__name__}: {message}\n" + (f"  {source}\n" if source else ""))
 
     with warnings.catch_warnings():
-        warnings.simplefilter("default")
+        # this package's warnings once per place; a script's (and its libraries') under the interpreter's filters,
+        # as in a process of its own (a ResourceWarning, a library's DeprecationWarning stay silent)
+        warnings.filterwarnings("default", module=r"dualtwin\.")
         warnings.showwarning = show
         yield
 
@@ -376,6 +385,9 @@ def _run_loaded(world: World, path: Path, proto_paths: tuple[str | os.PathLike[s
             return 1
     print(f"Error: worldLoad: {MAX_WORLD_LOADS} worlds loaded in one run; stopped", file=sys.stderr)
     return 1
+
+
+_PACKAGE = str(Path(__file__).resolve().parents[1])  # the dualtwin package's folder
 
 
 def _watch(runtime: api.Runtime, results: list[_ScriptResult], stop: threading.Event) -> None:
