@@ -291,7 +291,8 @@ class _Channel:
         if message[0] != "read":
             self.values = {}
             self.echoes = []
-            message = _crossing(message)
+            if message[0] != "call":  # (a call's arguments are made crossable by ``call``)
+                message = _crossing(message)
         return self._exchange(message)[0]
 
     def _exchange(self, message: tuple[Any, ...]) -> tuple[Any, Any]:
@@ -363,7 +364,11 @@ class _Channel:
     # -- API calls
 
     def call(self, proxy: Any, name: str, args: tuple[Any, ...], kwargs: dict[str, Any]) -> Any:
-        return self.request(("call", proxy._dualtwin_handle, name, args, kwargs))
+        for arg in args:  # plain arguments (the usual case) as they are, at the cost of this check only
+            if type(arg) not in _PLAIN:
+                args = _crossing(args)
+                break
+        return self.request(("call", proxy._dualtwin_handle, name, args, _crossing(kwargs) if kwargs else kwargs))
 
     def buffer(self, handle: int, name: str, args: tuple[Any, ...]) -> None:
         """Queue a command for the next message; the values that echo commands are no longer known."""
@@ -452,9 +457,8 @@ class _Foreign:
 
 
 def _crossing(value: Any, depth: int = 0) -> Any:
-    """``value`` as the parent can rebuild it: plain data, NumPy values and API objects as they are; an instance of
-    a subclass of a plain type (an IntEnum, a float subclass) as that type's value; a standard library object
-    that pickles (a Decimal, a Fraction) as it is; anything else a :class:`_Foreign`."""
+    """``value`` as the parent can rebuild it: an instance of a subclass of a plain type (an IntEnum) as that type's
+    value, anything but plain data, NumPy, API objects and standard objects that pickle as a :class:`_Foreign`."""
     cls = type(value)
     if cls in _PLAIN or isinstance(value, _Proxy) or depth > 32:
         return value
@@ -483,7 +487,7 @@ class _HandleNeeded(Exception):
 
 
 _SENDING = False  # a message to the parent is being pickled (see _Proxy.__reduce_ex__)
-_CHANNEL: list[_Channel] = []  # this process's channel, for _rebuild_value
+_CHANNEL: list[_Channel] = []  # this process's channel, for _rebuild_value (controller._dualtwin_value)
 
 
 def _rebuild_value(key: str, attrs: dict[str, Any], results: dict[str, Any]) -> Any:
@@ -491,7 +495,6 @@ def _rebuild_value(key: str, attrs: dict[str, Any], results: dict[str, Any]) -> 
     value.__dict__.update(attrs)
     object.__setattr__(value, "_dualtwin_results", results)
     return value
-
 
 _rebuild_value.__module__ = "controller"
 _rebuild_value.__qualname__ = _rebuild_value.__name__ = "_dualtwin_value"
@@ -552,8 +555,7 @@ def _build_class(channel: _Channel, description: dict[str, Any], bases: tuple[ty
 
 
 def _remote_dunders(channel: _Channel, ns: dict[str, Any], dunders: Any) -> None:
-    """An API object's own text comes from the object; its own ``__eq__`` (a Node: the same scene node) is the
-    parent's: equal objects were given the same first handle, ``_dualtwin_equal``."""
+    """Own text from the object; own ``__eq__`` (a Node's: one scene node) by the first handle of equal objects."""
     for special in ("__repr__", "__str__"):
         if special in dunders:
             def text(self: Any, special: str = special) -> Any:
@@ -668,8 +670,7 @@ def _remote_property(channel: _Channel, name: str, extra: tuple[bool, Any, Any, 
 def _value_method(class_name: str, name: str, extra: tuple[inspect.Signature | None, Any]) -> Any:
     signature = extra[0]
     if signature is not None and len(signature.parameters) == 1:
-        # a getter (its result came with the object): called with arguments, Python's own TypeError, worded as
-        # for the real method ("ContactPoint.getPoint() takes 1 positional argument but 2 were given")
+        # a getter (its result came with the object): given arguments, Python's own TypeError for the real method
 
         def method(self: Any) -> Any:
             results = self._dualtwin_results
