@@ -379,3 +379,25 @@ robot.getSelf().getField("translation").setSFVec3f([1, 2])
                 "Warning: Field.setSFVec3f(): new field value has wrong type or length ('translation'): ignored\n")
     assert runs["process"] == ("", expected, 0)
     assert runs["threads"] == runs["process"]
+
+
+def test_a_numpy_object_that_does_not_pickle_is_refused_by_the_api(tmp_path: Path) -> None:
+    """A NumPy object that is not data (an array's ``flat`` iterator) given where a number is expected is refused by
+    the API in its own words, as in a thread; a NumPy scalar stays one (its type is named in the refusal). In a
+    controller process the iterator raised 'cannot pickle 'numpy.flatiter' object'."""
+    script = """
+        import numpy as np
+        from controller import Robot
+        robot = Robot()
+        motor = robot.getDevice("rm")
+        for value in (np.arange(3).flat, np.str_("a")):
+            try:
+                motor.setPosition(value)
+            except TypeError as exc:
+                print(exc)
+    """
+    runs = run_in_both_modes(tmp_path, WORLD, script, 0.1)
+    refusal = "Motor.setPosition() expects a number (a Python or NumPy scalar or a one-element array), got "
+    expected = f"{refusal}flatiter <numpy.flatiter object at 0x?>\n{refusal}str_ np.str_('a')\n"
+    assert runs["threads"] == (expected, "", 0)
+    assert runs["process"] == runs["threads"]

@@ -172,8 +172,7 @@ class Wire:
 
 
 class _ChannelOutput(io.RawIOBase):
-    """The bytes under a controller's ``sys.stdout``/``sys.stderr``: text sent to the parent with the next message
-    (decoded as the text layer encoded it: the parent writes it to its own stream)."""
+    """The bytes under a controller's ``sys.stdout``/``sys.stderr``, decoded: text for the parent's own stream."""
 
     mode = "wb"
 
@@ -468,12 +467,13 @@ def _crossing(value: Any, depth: int = 0) -> Any:
     if cls is dict:
         return {_crossing(k, depth + 1): _crossing(v, depth + 1) for k, v in value.items()}
     top = cls.__module__.partition(".")[0]
-    if top == "numpy":
+    if top == "numpy" and cls.__name__ == "ndarray" and value.dtype.kind != "O":
         return value
-    for base in _PLAIN_BASES:
-        if isinstance(value, base):
-            return _crossing(base(value), depth)
-    if top in sys.stdlib_module_names and top != "__main__":
+    if top != "numpy":  # (a NumPy float64 is a float, and stays a float64)
+        for base in _PLAIN_BASES:
+            if isinstance(value, base):
+                return _crossing(base(value), depth)
+    if top == "numpy" or top in sys.stdlib_module_names and top != "__main__":
         try:
             pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
         except Exception:
