@@ -495,13 +495,12 @@ def _error_details(exc: BaseException) -> tuple[str, tuple[Any, ...] | None]:
     words as ``exc`` is worded (a KeyError's key): the child raises it with the same ``args``; else None, and the
     child raises it with its text."""
     builtin = next(b for b in type(exc).__mro__ if b.__module__ == "builtins")
-    args: tuple[Any, ...] | None = exc.args
     try:
-        if not plain(args) or str(builtin(*args)) != str(exc):
-            args = None
-    except Exception:
-        args = None
-    return builtin.__name__, args
+        if plain(exc.args) and str(builtin(*exc.args)) == str(exc):
+            return builtin.__name__, exc.args
+    except Exception:  # the built-in class does not take these arguments
+        pass
+    return builtin.__name__, None
 
 
 @contextmanager
