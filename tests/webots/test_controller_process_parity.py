@@ -401,3 +401,25 @@ def test_a_numpy_object_that_does_not_pickle_is_refused_by_the_api(tmp_path: Pat
     expected = f"{refusal}flatiter <numpy.flatiter object at 0x?>\n{refusal}str_ np.str_('a')\n"
     assert runs["threads"] == (expected, "", 0)
     assert runs["process"] == runs["threads"]
+
+
+def test_a_step_given_an_object_of_the_scripts_class_is_refused_at_the_call(tmp_path: Path) -> None:
+    """``step`` too refuses, in the API's words, an argument the parent cannot rebuild (the step goes its own way to
+    the parent): in a controller process an object of the script's class crashed the parent's serving thread."""
+    script = """
+        from controller import Robot
+
+        class Period:
+            def __repr__(self):
+                return "Period()"
+
+        robot = Robot()
+        try:
+            robot.step(Period())
+        except TypeError as exc:
+            print(exc)
+        print(robot.step(8))
+    """
+    runs = run_in_both_modes(tmp_path, WORLD, script, 0.1)
+    assert runs["threads"].code == 0 and runs["threads"].out.endswith("Period Period()\n0\n"), runs["threads"]
+    assert runs["process"] == runs["threads"]

@@ -328,8 +328,7 @@ class _Channel:
         """The one class here for the parent's exception class ``name``: the one a raised error has and, for an
         exported one (``SimulationUnstable``), the one ``from controller import`` gives, so that the script can
         catch it (a proxy class there made ``except SimulationUnstable`` itself raise TypeError). It derives from
-        the built-in class the parent's derives from (``builtin``, or the description's), so ``except TypeError``
-        catches NumPy's UFuncTypeError here too."""
+        the parent's class's built-in base (``except TypeError`` catches NumPy's UFuncTypeError here too)."""
         cls = self.errors.get(name)
         if cls is None:
             base = getattr(builtins, self.descriptions.get(name, {}).get("builtin_base") or builtin or "", None)
@@ -363,11 +362,7 @@ class _Channel:
     # -- API calls
 
     def call(self, proxy: Any, name: str, args: tuple[Any, ...], kwargs: dict[str, Any]) -> Any:
-        for arg in args:  # plain arguments (the usual case) as they are, at the cost of this check only
-            if type(arg) not in _PLAIN:
-                args = _crossing(args)
-                break
-        return self.request(("call", proxy._dualtwin_handle, name, args, _crossing(kwargs) if kwargs else kwargs))
+        return self.request(("call", proxy._dualtwin_handle, name, *_arguments(args, kwargs)))
 
     def buffer(self, handle: int, name: str, args: tuple[Any, ...]) -> None:
         """Queue a command for the next message; the values that echo commands are no longer known."""
@@ -403,7 +398,7 @@ class _Channel:
         self.steps += 1
         if self.steps % SWEEP_STEPS == 0:
             self._sweep()
-        result, fresh = self._exchange(("call", proxy._dualtwin_handle, name, args, kwargs))
+        result, fresh = self._exchange(("call", proxy._dualtwin_handle, name, *_arguments(args, kwargs)))
         if fresh is not None:
             values, missing = fresh
             keys = self.subscribed_keys
@@ -444,15 +439,21 @@ _PLAIN_BASES: tuple[Any, ...] = (bool, int, float, complex, str, bytes, tuple, l
 
 
 class _Foreign:
-    """An argument the parent could not rebuild (an object of the script's own class, a generator, an open file):
-    it reaches the API as a stand-in of the same class name and text, so the API refuses it in its own words
-    ("expects a number ..., got Angle Angle(0.5)"), as it refuses the object itself in a thread."""
+    """An argument the parent could not rebuild (an object of the script's own class, a generator): it reaches the
+    API as a stand-in of its class name and text, refused in the API's own words, as the object is in a thread."""
 
     def __init__(self, value: Any) -> None:
         self.described = (type(value).__module__, type(value).__qualname__, repr(value))
 
     def __reduce_ex__(self, protocol: Any) -> Any:
         raise _HandleNeeded
+
+
+def _arguments(args: tuple[Any, ...], kwargs: dict[str, Any]) -> tuple[Any, ...]:  # (see _crossing)
+    for arg in args:  # plain arguments (the usual case) as they are, at the cost of this check only
+        if type(arg) not in _PLAIN:
+            return _crossing(args), _crossing(kwargs)
+    return args, _crossing(kwargs) if kwargs else kwargs
 
 
 def _crossing(value: Any, depth: int = 0) -> Any:
@@ -501,9 +502,8 @@ _rebuild_value.__qualname__ = _rebuild_value.__name__ = "_dualtwin_value"
 
 
 class _Proxy:
-    """Base of every generated class: an object that lives in the parent, named by a handle."""
-
-    # what the channel keeps on a proxy, out of its ``__dict__``: ``vars(obj)`` shows the real object's attributes
+    """Base of every generated class: an object that lives in the parent, named by a handle (the channel's own
+    fields are slots, out of its ``__dict__``: ``vars(obj)`` shows the real object's attributes)."""
     __slots__ = ("_dualtwin_handle", "_dualtwin_results", "_dualtwin_equal", "__weakref__")
     _dualtwin_role = "other"
     _dualtwin_real = ""
