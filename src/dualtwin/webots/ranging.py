@@ -44,6 +44,7 @@ from dualtwin.artifacts import write_bytes
 from dualtwin.webots.api_args import as_float, as_int, error, warn
 from dualtwin.webots.device_base import SolidSensor
 from dualtwin.webots.display import png_bytes
+from dualtwin.webots.lidar_point import LidarPoint
 from dualtwin.webots.lut import Table, discretize, lookup, table_from_field
 from dualtwin.webots.physics import GeomRec, RobotRec, Simulation
 from dualtwin.webots.rays import RayCaster, RayHits, candidate_geoms
@@ -492,38 +493,6 @@ class LidarModel:
         fmin, fmax = float(fields.get("minFrequency", 1.0)), float(fields.get("maxFrequency", 25.0))
         return cls(width, layers, fov, vfov, tilt, planar, grid, az, el + tilt, fmin, fmax,
                    float(fields.get("defaultFrequency", 10.0)))  # fmt: skip
-
-
-class LidarPoint:
-    """One point of a lidar point cloud (lidar frame: x forward, y left, z up), with Webots' plain attributes
-    ``x``, ``y``, ``z``, ``layer`` and ``time``. Webots builds it from the C struct array and an offset
-    (``LidarPoint(data, offset)``); here ``data`` is a sequence of ``(x, y, z, layer, time)`` records."""
-
-    x: float
-    y: float
-    z: float
-    layer: int
-    time: float
-
-    def __init__(self, data: Any, offset: Any) -> None:
-        x, y, z, layer, time = data[int(offset)]
-        self.x, self.y, self.z = float(x), float(y), float(z)
-        self.layer, self.time = int(layer), float(time)
-
-    # ``layer_id`` is the C field name
-    @property
-    def layer_id(self) -> int:
-        return self.layer
-
-    def __eq__(self, other: object) -> bool:
-        return isinstance(other, LidarPoint) and (self.x, self.y, self.z, self.layer, self.time) == (
-            other.x, other.y, other.z, other.layer, other.time)  # fmt: skip
-
-    def __hash__(self) -> int:
-        return hash((self.x, self.y, self.z, self.layer, self.time))
-
-    def __repr__(self) -> str:
-        return f"LidarPoint(x={self.x}, y={self.y}, z={self.z}, layer={self.layer}, time={self.time})"
 
 
 class _DepthDevice(SolidSensor):
