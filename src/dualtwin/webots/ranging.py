@@ -13,7 +13,7 @@ DistanceSensor (Webots ``WbDistanceSensor``)
     the Shapes' geometry, and the distance is weighted by the reflection factor of what each ray hit (from
     its colour's red, :func:`.visual_rays.infra_red_reflection`): ``d̄ + (d̄/f̄ − d̄)·redColorSensitivity``.
 
-Lidar (fixed) and RangeFinder
+Lidar and RangeFinder
     Webots renders depth on the GPU from the visual scene. Here one ray per pixel is cast against the visual
     Shapes (:mod:`.visual_rays`): Lidar column ``j`` at azimuth ``fov/2 - (j+½)·fov/W``, layer ``i`` at elevation
     ``vfov/2 - i·vfov/(L-1) + tilt`` (``tilt`` for one layer); cylindrical projection reads the Euclidean
@@ -21,7 +21,8 @@ Lidar (fixed) and RangeFinder
     planar ``width × height`` depth image, vertical field of view ``2·atan(tan(fov/2)·height/width)``, row-major
     from the top-left pixel. Outside ``[minRange, maxRange)`` and where nothing is hit, the value is +inf. Noise is
     additive, ``σ = noise·maxRange``, then the resolution ``floor(r/res + ½)·res`` (Webots' order of the two is
-    unknown; this one is a guess). A rotating lidar is cast as a fixed one (with a build warning).
+    unknown; this one is a guess). A rotating lidar's image is the fixed one's with fov = 2π (cylindrical), filled
+    column by column as its head turns (:mod:`.lidar_head`).
     Before the first sample the images read 0.0 (Webots zero-fills its shared buffer; UNVERIFIED).
     ``getLayerRangeImage(layer)`` returns that layer (Webots' Python wrapper returns layer 0 for every layer,
     a bug that is not reproduced).
@@ -44,6 +45,7 @@ from dualtwin.artifacts import write_bytes
 from dualtwin.webots.api_args import as_float, as_int, error, warn
 from dualtwin.webots.device_base import SolidSensor
 from dualtwin.webots.display import png_bytes
+from dualtwin.webots.lidar_head import RotatingScan, frequencies
 from dualtwin.webots.lidar_point import LidarPoint
 from dualtwin.webots.lut import Table, discretize, lookup, table_from_field
 from dualtwin.webots.physics import GeomRec, RobotRec, Simulation
@@ -113,6 +115,7 @@ class _Batch:
     directions: np.ndarray
     lengths: np.ndarray
     slices: list[tuple[int, int]]
+    specs: list[tuple[np.ndarray, np.ndarray]]
 
 
 def _build_batch(devices: list[Any], specs: list[tuple[np.ndarray, np.ndarray]]) -> _Batch:
@@ -149,6 +152,7 @@ def _build_batch(devices: list[Any], specs: list[tuple[np.ndarray, np.ndarray]])
         np.concatenate(dirs),
         np.concatenate(lengths),
         slices,
+        specs,
     )
 
 
@@ -177,8 +181,8 @@ def sample_ray_sensors(sim: Simulation, sensors: Sequence[Any]) -> None:
         key = tuple(id(d) for d in devices)
         batch = cache.get(key)
         if batch is None or any(
-            _anchor(d._record.solid)[1] is not stamp
-            for d, stamp in zip(batch.devices, batch.stamps, strict=True)
+            _anchor(d._record.solid)[1] is not stamp or spec[0] is not old[0]  # moved, or other rays (rotating lidar)
+            for d, stamp, spec, old in zip(batch.devices, batch.stamps, specs, batch.specs, strict=True)
         ):
             batch = cache[key] = _build_batch(devices, specs)
         origins = np.empty_like(batch.origins)
@@ -418,8 +422,9 @@ class _Grid:
     def __post_init__(self) -> None:
         self.lengths = self.max_range / self.to_range
 
-    def finish(self, sim: Simulation, hits: RayHits) -> np.ndarray:
-        r = hits.distance * self.to_range
+    def finish(self, sim: Simulation, hits: RayHits, rays: np.ndarray | None = None) -> np.ndarray:
+        """The range values of ``hits``, the hits of all the grid's rays or of those indexed by ``rays``."""
+        r = hits.distance * (self.to_range if rays is None else self.to_range[rays])
         r = np.where((r >= self.min_range) & (r < self.max_range), r, np.inf)
         if self.noise > 0:
             finite = np.isfinite(r)
@@ -460,17 +465,18 @@ class LidarModel:
     min_frequency: float
     max_frequency: float
     frequency: float
+    rotating: bool
 
     @classmethod
     def from_node(cls, fields: dict[str, Any]) -> LidarModel:
         width = max(1, int(fields.get("horizontalResolution", 512)))
         layers = max(1, int(fields.get("numberOfLayers", 4)))
-        fov = float(fields.get("fieldOfView", 1.5708))
+        rotating = str(fields.get("type", "fixed")) == "rotating"
+        # a rotating lidar's image spans the whole turn (webots-devices.md §3.1: 2π in its layer check)
+        fov = 2 * math.pi if rotating else float(fields.get("fieldOfView", 1.5708))
         vfov = float(fields.get("verticalFieldOfView", 0.2))
         tilt = float(fields.get("tiltAngle", 0.0))
-        planar = str(fields.get("projection", "cylindrical")) == "planar"
-        if str(fields.get("type", "fixed")) == "rotating":
-            warn("Lidar: a rotating lidar is cast as a fixed one (its head does not turn)")
+        planar = str(fields.get("projection", "cylindrical")) == "planar" and not rotating  # no flat plane spans 2π
         lo, hi = _range_limits(fields)
         az = fov / 2 - (np.arange(width) + 0.5) * fov / width
         el = vfov / 2 - np.arange(layers) * vfov / (layers - 1) if layers > 1 else np.zeros(1)
@@ -490,9 +496,8 @@ class LidarModel:
         grid = _Grid(
             dirs, factor, lo, hi, float(fields.get("noise", 0.0)), float(fields.get("resolution", -1.0))
         )
-        fmin, fmax = float(fields.get("minFrequency", 1.0)), float(fields.get("maxFrequency", 25.0))
-        return cls(width, layers, fov, vfov, tilt, planar, grid, az, el + tilt, fmin, fmax,
-                   float(fields.get("defaultFrequency", 10.0)))  # fmt: skip
+        fmin, fmax, f = frequencies(fields, warn)
+        return cls(width, layers, fov, vfov, tilt, planar, grid, az, el + tilt, fmin, fmax, f, rotating)
 
 
 class _DepthDevice(SolidSensor):
@@ -524,7 +529,7 @@ class _DepthDevice(SolidSensor):
 
 
 class Lidar(_DepthDevice):
-    """Webots ``Lidar`` (fixed); see the module docstring."""
+    """Webots ``Lidar``, fixed or rotating (:mod:`.lidar_head`); see the module docstring."""
 
     def _model(self) -> LidarModel:
         model = getattr(self, "_model_cache", None)
@@ -532,7 +537,41 @@ class Lidar(_DepthDevice):
             model = self._model_cache = LidarModel.from_node(self._record.node.fields)
             self._cloud = False
             self._sampled_at = 0.0
+            self._scan = RotatingScan(self._robot._sim, self._record, model.width, model.layers) if model.rotating \
+                else None  # fmt: skip
         return model
+
+    def _rotating(self) -> RotatingScan | None:
+        self._model()
+        return self._scan
+
+    def enable(self, p: Any) -> None:
+        super().enable(p)
+        scan = self._rotating()
+        if scan is not None and self._period > 0:
+            scan.start(self._owner)
+
+    def disable(self) -> None:
+        super().disable()
+        scan = self._rotating()
+        if scan is not None:
+            scan.stop()
+
+    def _due(self, now: float) -> bool:
+        # a rotating lidar's "sampling period [is] forced to basicTimeStep" (webots-devices.md §3.2)
+        return True if self._rotating() is not None else super()._due(now)
+
+    def _ray_spec(self) -> tuple[np.ndarray, np.ndarray] | None:
+        scan = self._rotating()
+        return super()._ray_spec() if scan is None else scan.spec(*self._grid().spec())
+
+    def _ray_result(self, hits: RayHits, dirs: np.ndarray) -> None:
+        scan = self._rotating()
+        if scan is None:
+            super()._ray_result(hits, dirs)
+            return
+        ranges = self._grid().finish(self._robot._sim, hits, scan.rays)
+        self._image = scan.fill(getattr(self, "_image", None), ranges, self._robot.getTime())
 
     def _size(self) -> int:
         m = self._model()
@@ -580,6 +619,9 @@ class Lidar(_DepthDevice):
             return []
         r = self._flat().reshape(m.layers, m.width)
         dt = (self._period / 1000.0) / m.width
+        scan = self._rotating()
+        # a rotating lidar's point is stamped when its column was cast (lidar_head)
+        times = [self._sampled_at - j * dt for j in range(m.width)] if scan is None else scan.times.tolist()
         out = []
         for i in layers:
             phi = float(m.elevations[i])
@@ -588,7 +630,7 @@ class Lidar(_DepthDevice):
                 x = rr * math.cos(theta) * math.cos(phi) if rr else 0.0
                 y = rr * math.sin(theta) * math.cos(phi) if rr else 0.0
                 z = rr * math.sin(phi) if rr else 0.0
-                out.append(LidarPoint(((x, y, z, i, self._sampled_at - j * dt),), 0))
+                out.append(LidarPoint(((x, y, z, i, times[j]),), 0))
         return out
 
     def getPointCloud(self) -> list[LidarPoint]:

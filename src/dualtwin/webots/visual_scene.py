@@ -211,6 +211,9 @@ class WebotsVisualScene:
         geoms: list[dict[str, Any]] = []
         for child in _children(handle, "children"):
             self._walk(child, np.eye(4), scale, geoms)
+        if kind == "Lidar":  # its rotatingHead Solid (webots-devices.md §3.1), a body of its own that the lidar turns
+            for head in _children(handle, "rotatingHead"):
+                self._walk(head, np.eye(4), scale, None)
         if not geoms:  # nothing visible: no body to pose each frame
             return
         # Bodies are named after the Solid's DEF (else its name field), as the binding names bodies.

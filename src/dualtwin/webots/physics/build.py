@@ -129,6 +129,10 @@ class SceneBuilder(SimulationCore):
             solid.robot = robot
             self.robots.append(robot)
         self._walk_children(node.children(), Pose(), solid, robot)
+        if node.type_name == "Lidar":
+            # webots-devices.md §3.1: a Lidar's rotatingHead Solid sits in the lidar's frame; a rotating lidar turns
+            # it at run time (dualtwin.webots.lidar_head), and it is drawn and seen as any Solid below the lidar
+            self._walk_children([_f(node, "rotatingHead", None)], Pose(), solid, robot)
         return solid
 
     def check_joint_parameters(self, node: Node, names: Iterable[str] = NON_NEGATIVE_JOINT_FIELDS) -> None:

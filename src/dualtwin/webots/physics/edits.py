@@ -133,6 +133,12 @@ class SupervisorEdits(MassEdits):
         self._move_subtree(solid, new_world * old_world.inverse(), reset_velocity=False)
         self._reanchor_boundary(solid)
 
+    def turn_solid(self, solid: SolidRec, rotation: Sequence[float]) -> None:
+        """Set the ``rotation`` field of a Solid without a body of its own and move it with its subtree *now*,
+        within the current step (a supervisor edit waits for the next one): a rotating Lidar's head, turned
+        after each step's physics so that the step's rays and readings see it turned."""
+        self._teleport_solid(solid, None, rotation)
+
     def _kinematic_extra(self, solid: SolidRec) -> Pose:
         joint = solid.joint
         if joint is None or not joint.kinematic:
