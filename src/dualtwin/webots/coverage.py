@@ -303,9 +303,12 @@ REGISTRY: tuple[Coverage, ...] = (
              "bumper from contacts of its bounding object in any step since the last sample; force and "
              "force-3d from the feedback of the fixed joint to its own body, with lookup table and resolution"),
     Coverage("Lidar", "device", "partial",
-             "fixed lidar as one ray per pixel against the visual Shapes (as Webots renders them): layers, "
-             "fov, tilt, cylindrical (Euclidean) or planar (depth) ranges, +inf outside [minRange, maxRange), "
-             "noise, resolution, point cloud; a rotating lidar is cast as a fixed one; Mesh Shapes and CadShapes "
+             "one ray per pixel against the visual Shapes (as Webots renders them): layers, fov, tilt, "
+             "cylindrical (Euclidean) or planar (depth) ranges, +inf outside [minRange, maxRange), noise, "
+             "resolution, point cloud; a rotating lidar's image spans 2π and is filled column by column as its "
+             "head turns by −2π·frequency·dt per basic step (sampled every basic step, setFrequency within "
+             "[minFrequency, maxFrequency]), its rotatingHead Solid turned about its z axis (seen by cameras and "
+             "rays, put back by a reset); Mesh Shapes and CadShapes "
              "are hit on their files' triangles; Webots' load-time layer check (numberOfLayers at most "
              "verticalFieldOfView·horizontalResolution/fieldOfView, 2π for a rotating one: else rewritten, with "
              "a warning)"),
