@@ -246,37 +246,33 @@ def test_a_driven_slider_moves_along_its_edited_axis() -> None:
 # ------------------------------------------------------------------------------------------ Hinge2Joint, BallJoint
 
 
-def test_a_hinge2_second_axis_edit_turns_the_wheel_about_the_new_axis() -> None:
-    # S §4.4: axis 2 carried by axis 1 (at position 0 here): the wheel turns at 1 rad/s about y, then about x
-    joint = ('Hinge2Joint { jointParameters HingeJointParameters { axis 0 0 1 } '
-             'jointParameters2 DEF P2 JointParameters { axis 0 1 0 } '
-             f'device2 [ {MOTOR} ] endPoint DEF END Solid {{ {END} }} }}')
-    sup, _, s = _world(joint, HEAVY)
-    _steps(sup, 50)
-    assert _spin(sup) == pytest.approx([0.0, 1.0, 0.0], abs=1e-3)  # control
-    before = s.getValue()
-    _set_axis(sup, [1.0, 0.0, 0.0], "P2")
-    _steps(sup, 1)
-    assert _spin(sup) == pytest.approx([1.0, 0.0, 0.0], abs=1e-3)
-    assert s.getValue() == pytest.approx(before + DT, abs=1e-4)
-    assert _orientation(sup) == pytest.approx(_turn((1.0, 0.0, 0.0), s.getValue()), abs=1e-3)
+SECOND_AXES = {
+    # S §4.4: a Hinge2's axis 2 is carried by axis 1 (at position 0 here): the wheel turns about y, then about x
+    "hinge2 second axis": ('Hinge2Joint { jointParameters HingeJointParameters { axis 0 0 1 } '
+                           'jointParameters2 DEF P2 JointParameters { axis 0 1 0 } '
+                           f'device2 [ {MOTOR} ] endPoint DEF END Solid {{ {END} }} }}',
+                           (0.0, 1.0, 0.0), (1.0, 0.0, 0.0)),
+    # S §4.4: a BallJoint's first axis is its jointParameters2's (the third jointParameters3's, z): from x to y
+    "ball first axis": ('BallJoint { jointParameters BallJointParameters { } '
+                        'jointParameters2 DEF P2 JointParameters { axis 1 0 0 } '
+                        'jointParameters3 JointParameters { axis 0 0 1 } '
+                        f'device [ {MOTOR} ] endPoint DEF END Solid {{ translation 0.2 0 0 {END} }} }}',
+                        (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)),
+}
 
 
-def test_a_ball_joint_first_axis_edit_turns_the_endpoint_about_the_new_axis() -> None:
-    # S §4.4: the first axis is jointParameters2's (the third jointParameters3's, z): from x to y
-    joint = ('BallJoint { jointParameters BallJointParameters { } '
-             'jointParameters2 DEF P2 JointParameters { axis 1 0 0 } '
-             'jointParameters3 JointParameters { axis 0 0 1 } '
-             f'device [ {MOTOR} ] endPoint DEF END Solid {{ translation 0.2 0 0 {END} }} }}')
+@pytest.mark.parametrize("case", sorted(SECOND_AXES))
+def test_an_edit_of_a_jointparameters2_axis_turns_the_endpoint_about_the_new_axis(case: str) -> None:
+    joint, before_axis, after_axis = SECOND_AXES[case]
     sup, _, s = _world(joint, HEAVY)
     _steps(sup, 50)
-    assert _spin(sup) == pytest.approx([1.0, 0.0, 0.0], abs=1e-3)  # control
+    assert _spin(sup) == pytest.approx(list(before_axis), abs=1e-3)  # control: 1 rad/s about the load axis
     before = s.getValue()
-    _set_axis(sup, [0.0, 1.0, 0.0], "P2")
+    _set_axis(sup, list(after_axis), "P2")
     _steps(sup, 1)
-    assert _spin(sup) == pytest.approx([0.0, 1.0, 0.0], abs=1e-3)
+    assert _spin(sup) == pytest.approx(list(after_axis), abs=1e-3)
     assert s.getValue() == pytest.approx(before + DT, abs=1e-4)
-    assert _orientation(sup) == pytest.approx(_turn((0.0, 1.0, 0.0), s.getValue()), abs=1e-3)
+    assert _orientation(sup) == pytest.approx(_turn(after_axis, s.getValue()), abs=1e-3)
 
 
 def test_a_hinge2_first_axis_edit_moves_its_suspension_along_the_new_axis() -> None:
