@@ -302,15 +302,18 @@ def _per_motor_law_steps(twin: MuJoCoTwin, servos: list[Any], steps: int) -> Non
                 edge = qdot + ((load + sign * limit) * reach + sign * margin)
                 return u > edge if sign > 0 else u < edge
 
-            sign, load = mo.saturated, smooth + mo.residual
+            sign = mo.saturated
             if not sign:
                 sign = 1.0 if beyond(1.0, smooth) else -1.0 if beyond(-1.0, smooth) else 0.0
+            # A constraint's reaction pushing the way the saturated motor pushes does none of its work.
+            held = mo.dof in twin._constrained_dofs()
+            load = smooth + (0.0 if sign * mo.residual > 0.0 and held else mo.residual)
             if sign and not beyond(sign, load):
                 sign = 0.0
             mo.saturated = sign
             stiffness, torque = mo.kv, 0.0
             if sign:  # saturated: no servo, the torque to u under the smooth force alone, within the limit
-                stiffness, torque = 0.0, inertia * (u - qdot) / dt - (load if mo.dof in twin._constrained_dofs() else smooth)
+                stiffness, torque = 0.0, inertia * (u - qdot) / dt - (load if held else smooth)
                 torque = torque if torque < limit else limit  # min(torque, limit), as servo_steps picks it
                 torque = torque if torque > -limit else -limit
             if stiffness != mo.stiffness:

@@ -156,3 +156,42 @@ def test_a_landing_two_wheel_robot_never_spins_its_wheels_past_the_command_in_ei
             travelled.append(float(twin.body_position("R")[0] - start[0]))
     assert travelled[0] > 0.3  # it rolled (control)
     assert travelled[1] == pytest.approx(travelled[0], rel=0.05)
+
+
+
+# A 0.584 kg carriage on a vertical slider with stops at ±0.1 m, and a LinearMotor (maxForce 2.864 N, maxVelocity
+# 0.2 m/s) told to hold it 6.85 mm above its start. Its weight, 0.584 x 9.81 = 5.73 N, is twice the motor's force:
+# it sinks at (5.73 - 2.864) / 0.584 = 4.9 m/s^2 (the motor saturated, its u the 0.2 m/s up), reaches the lower stop
+# after sqrt(2 x 0.1 / 4.9) = 0.2 s at about 1 m/s, and stays there: ODE solves the stop row with the motor row
+# (webots-on-ode §4.3, §5.3), the motor pushes up with its 2.864 N and the stop holds the other 2.86 N; nothing
+# lifts the carriage off it. basicTimeStep 1 ms, one physics step per control period.
+ON_STOP = world_text(
+    'DEF R Robot { translation 0 0 1 controller "<extern>" children [ DEF J SliderJoint { jointParameters '
+    'JointParameters { axis 0 0 1 minStop -0.1 maxStop 0.1 } device [ LinearMotor { name "m" maxVelocity 0.2 '
+    'maxForce 2.86394 } PositionSensor { name "s" } ] endPoint DEF E Solid { children [ Shape { geometry DEF B '
+    'Box { size 0.1 0.1 0.1 } } ] boundingObject USE B physics Physics { density -1 mass 0.583882 } } } ] }',
+    "basicTimeStep 1")
+
+
+@pytest.mark.parametrize("native", LAWS, ids=lambda n: "native" if n else "python")
+def test_a_joint_a_load_drives_onto_its_stop_rests_there_like_in_the_webots_twin(tmp_path: Path, native: bool) -> None:
+    """The impact on the stop is, for one step, a large reaction in the direction the saturated motor pushes.
+    Counted as a load doing the motor's work, it took the motor out of saturation: the stiff servo then lifted
+    the carriage with far more than its 2.864 N, it fell back, and it kept hopping up to 4 mm off the stop,
+    where the Webots twin rests on it. Tolerance: 0.05 mm (the stops' softness: both twins rest 0.14 µm in)."""
+    heights = []
+    with converted_twins(ON_STOP, tmp_path, 0.001) as (_, webots, _):
+        mujoco_twin = MuJoCoTwin(tmp_path / "model.xml", 0.001, native_law=native)
+        for twin in (webots, mujoco_twin):
+            twin.reset(0)
+            twin.command("m", "position", 0.00685)
+            heights.append([])
+            for _ in range(1200):  # 1.2 s: sinking (0.2 s), the impact, then on the stop
+                twin.step()
+                heights[-1].append(twin.joint_position("J"))
+        mujoco_twin.close()
+    for name, z in zip(("webots", "mujoco"), np.array(heights), strict=True):
+        landed = int(np.argmax(z < -0.099))
+        assert landed * 0.001 == pytest.approx(0.2, abs=0.01), name  # it sank as computed (control)
+        assert np.abs(z[-500:] + 0.1).max() < 5e-5, name  # the last 0.5 s: on the stop
+

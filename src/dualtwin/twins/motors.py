@@ -187,7 +187,13 @@ def servo_steps(servos: Sequence[ServoMotor], steps: int, dt: float, qpos: memor
       released coupling, is driven to ``u`` under ``S`` alone and no further, where the full torque threw it
       far past ``u`` (and past maxVelocity). A motor saturates when ``u`` lies beyond the reach under ``S``
       (before the step), or after a step whose servo applied more than ``A`` (a load it did not foresee); it
-      leaves once ``u`` is within the reach under ``L``.
+      leaves once ``u`` is within the reach under ``L``. While saturated and while a constraint row acts on
+      the joint, a residual pushing the joint the way the motor pushes does not count: a stop or contact the
+      joint was driven into (an impact's impulse above all) holds it only as hard as needed, since ODE solves
+      it with the motor row, and does none of the motor's work; counted, it took the motor out of saturation
+      and its servo lifted the joint off its stop. Without a constraint such a residual is the other joints'
+      pull through the chain, which does help (dropping it too moved the arm's fast lift 6x further from the
+      Webots twin).
 
     What this cannot do is ODE's simultaneous solve: a constraint's load is known only from the last step. A
     servo step whose load grew applies more than ``A``; a saturated step whose constraint lets go within the
@@ -254,13 +260,20 @@ def servo_steps(servos: Sequence[ServoMotor], steps: int, dt: float, qpos: memor
                 state[2] = u
                 # The bounded row (the native law's arithmetic): a servo to u, stiff or saturated.
                 sign = state[6]
-                load = smooth + state[3]
                 if not sign:
                     # Beyond what the torque reaches under the smooth force: saturated before the step.
                     if u > qdot + ((smooth + limit) * reach + margin):
                         sign = 1.0
                     elif u < qdot + ((smooth - limit) * reach - margin):
                         sign = -1.0
+                residual = state[3]
+                if (residual > 0.0 if sign > 0.0 else (sign < 0.0 and residual < 0.0)) and iv in held:
+                    # A constraint's reaction pushing the joint the way the saturated motor pushes (a stop or
+                    # contact it was driven into, an impact's impulse) holds the joint only as hard as needed:
+                    # ODE solves it with the motor row, so more motor torque would relieve it, not move the
+                    # joint. It does none of the motor's work: only what holds the joint back counts.
+                    residual = 0.0
+                load = smooth + residual
                 if sign and not (u > qdot + ((load + limit) * reach + margin) if sign > 0.0
                                  else u < qdot + ((load - limit) * reach - margin)):
                     sign = 0.0  # within reach under the whole load: the servo reaches u

@@ -20,7 +20,8 @@
 //   * torque control: the commanded torque.
 //
 // The load is the step's smooth force on the joint (passive - bias + applied, computed before the actuators)
-// plus the residual of the last step (contacts, coupled joints), from its velocity change. After the step,
+// plus the residual of the last step (contacts, coupled joints), from its velocity change; while saturated and
+// constrained, not a residual pushing the way the motor pushes (a reaction, see servo_steps). After the step,
 // actuator_force holds the torque the motor applied over it.
 //
 // Why the inertia matrix and not the model's dof_armature (what the Python twin edits between steps): a
@@ -263,7 +264,6 @@ static void compute_block(const mjModel* m, mjData* d, mjtNum* s) {
     mjtNum kv = s[S_KV], inertia = s[S_INERTIA];
     mjtNum reach = dt / inertia, margin = available / kv;
     mjtNum sign = s[S_SATURATED];
-    mjtNum load = smooth + s[S_RESIDUAL];
     if (sign == 0) {
       // Beyond what the torque reaches under the smooth force: saturated before the step.
       if (u > qdot + ((smooth + available) * reach + margin)) {
@@ -272,6 +272,15 @@ static void compute_block(const mjModel* m, mjData* d, mjtNum* s) {
         sign = -1.0;
       }
     }
+    mjtNum residual = s[S_RESIDUAL];
+    int held = sign != 0 && constrained(m, d, dof);  // only a saturated motor reads it
+    if ((sign > 0.0 ? residual > 0.0 : (sign < 0.0 && residual < 0.0)) && held) {
+      // A constraint's reaction pushing the joint the way the saturated motor pushes (a stop or contact it was
+      // driven into, an impact's impulse) holds it only as hard as needed (ODE solves it with the motor row): it
+      // does none of the motor's work, only what holds the joint back counts (as servo_steps).
+      residual = 0.0;
+    }
+    mjtNum load = smooth + residual;
     if (sign != 0 && !(sign > 0.0 ? u > qdot + ((load + available) * reach + margin)
                                   : u < qdot + ((load - available) * reach - margin))) {
       sign = 0.0;  // within reach under the whole load: the servo reaches u
@@ -283,7 +292,7 @@ static void compute_block(const mjModel* m, mjData* d, mjtNum* s) {
       // +-available: the smooth force, and last step's residual while a constraint still acts on the joint (a
       // contact that is gone, a released coupling no longer hold it back).
       stiffness = 0.0;
-      torque = inertia * (u - qdot) / dt - (constrained(m, d, dof) ? load : smooth);
+      torque = inertia * (u - qdot) / dt - (held ? load : smooth);
       torque = torque < available ? torque : available;
       torque = torque > -available ? torque : -available;
     }
