@@ -330,7 +330,9 @@ def _per_motor_law_steps(twin: MuJoCoTwin, servos: list[Any], steps: int) -> Non
             after = float(d.qvel[mo.dof])
             torque = mo.state.torque if mo.state.torque_mode else stiffness * (mo.state.current_velocity - after) + explicit
             d.actuator_force[mo.index] = torque
-            mo.residual = servo_inertia(mo.kv, dt, SERVO_STIFFNESS) * (after - qdot) / dt - torque - smooth
+            change = after - qdot
+            mo.residual = (servo_inertia(mo.kv, dt, SERVO_STIFFNESS) * change / dt + float(m.dof_damping[mo.dof]) * change
+                           - torque - smooth)
             if not mo.state.torque_mode and not mo.saturated and abs(torque) > limit:
                 mo.saturated = math.copysign(1.0, torque)
 

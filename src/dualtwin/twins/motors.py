@@ -161,7 +161,7 @@ def servo_steps(servos: Sequence[ServoMotor], steps: int, dt: float, qpos: memor
                 qvel: memoryview[float], ctrl: memoryview[float], force: memoryview[float],
                 forces: tuple[memoryview[Any], memoryview[Any], memoryview[Any]],
                 physics_step: tuple[Callable[[], None], Callable[[], None]], servo: Callable[[Any, float], None],
-                constrained: Callable[[], Container[int]], stiffness: float) -> None:
+                constrained: Callable[[], Container[int]], stiffness: float, damping: memoryview[float]) -> None:
     """``steps`` physics steps of Webots' motor law (:func:`~dualtwin.webots.motor_law.motor_velocity`) for
     every motor (``servos``: those in torque control apply their torque), each bounded like ODE's motor row.
 
@@ -176,7 +176,11 @@ def servo_steps(servos: Sequence[ServoMotor], steps: int, dt: float, qpos: memor
     ``physics_step`` is the step in two halves (``mj_step1``, ``mj_step2``); between them ``forces``
     (qfrc_passive, qfrc_bias, qfrc_applied) hold this step's smooth force ``S`` on each joint. The load ``L``
     is ``S`` plus what else moved the joint last step (contacts, coupled joints: the residual ``m (qdot' - qdot)
-    / dt - torque - S``, ``m`` the inertia the servo is sized for, ``dt·kv = stiffness·m``). The servo applies
+    / dt + b (qdot' - qdot) - torque - S``, ``m`` the inertia the servo is sized for, ``dt·kv = stiffness·m``,
+    ``b`` the joint's ``damping`` (dof_damping): ``implicitfast`` integrates it at the step's end velocity, so
+    ``S``, which has it at the start velocity, is off by ``b (qdot' - qdot)``; left in the residual, that
+    difference flipped with each velocity change and a damped joint's motor chattered between servo and
+    saturation). The servo applies
     ``±A`` at ``u = qdot + (L ± A)·dt/m ± A/kv``:
 
     * within that reach, the servo: it reaches ``u`` (to its ``1 / (1 + stiffness)`` lag) with at most ``A``;
@@ -303,7 +307,8 @@ def servo_steps(servos: Sequence[ServoMotor], steps: int, dt: float, qpos: memor
                 kind, limit = const[1], const[14]
                 torque = const[18] if kind == 3 else state[5] * (state[2] - qdot) + state[9]
                 force[const[12]] = torque
-                state[3] = const[17] * (qdot - state[4]) / dt - torque - state[8]
+                change = qdot - state[4]
+                state[3] = const[17] * change / dt + damping[const[11]] * change - torque - state[8]
                 if kind != 3 and not state[6] and (torque > limit or -torque > limit):
                     # The servo needed more than the limit (a load it did not foresee): saturated from the next
                     # step until u is within reach again.

@@ -440,7 +440,7 @@ class MuJoCoTwin(Twin):
         forces = (memoryview(d.qfrc_passive), memoryview(d.qfrc_bias), memoryview(d.qfrc_applied))
         servo_steps(servos, steps, m.opt.timestep, memoryview(d.qpos), memoryview(d.qvel), memoryview(d.ctrl),
                     memoryview(d.actuator_force), forces, (lambda: step1(m, d), lambda: mujoco.mj_step2(m, d)),
-                    self._set_stiffness, self._constrained_dofs, SERVO_STIFFNESS)
+                    self._set_stiffness, self._constrained_dofs, SERVO_STIFFNESS, memoryview(m.dof_damping))
 
     def _constrained_dofs(self) -> frozenset[int]:
         """The dofs a constraint row of this step acts on (as native/webots_motor.c's constrained())."""

@@ -340,7 +340,9 @@ static void advance_block(const mjModel* m, mjData* d, mjtNum* s) {
     }
   }
   d->actuator_force[(int)s[S_ACTUATOR]] = torque;
-  s[S_RESIDUAL] = s[S_INERTIA] * (qdot - s[S_STEP_VELOCITY]) / dt - torque - s[S_STEP_SMOOTH];
+  // The joint's damping counts at the step's end velocity (implicitfast), the smooth force had it at the start.
+  mjtNum change = qdot - s[S_STEP_VELOCITY];
+  s[S_RESIDUAL] = s[S_INERTIA] * change / dt + m->dof_damping[(int)s[S_DOF]] * change - torque - s[S_STEP_SMOOTH];
 }
 
 static void motor_advance(const mjModel* m, mjData* d, int instance) {
