@@ -306,14 +306,13 @@ def _per_motor_law_steps(twin: MuJoCoTwin, servos: list[Any], steps: int) -> Non
             if not sign:
                 sign = 1.0 if beyond(1.0, smooth) else -1.0 if beyond(-1.0, smooth) else 0.0
             # A constraint's reaction pushing the way the saturated motor pushes does none of its work.
-            held = mo.dof in twin._constrained_dofs()
-            load = smooth + (0.0 if sign * mo.residual > 0.0 and held else mo.residual)
+            load = smooth + (mo.residual - mo.reaction if sign * mo.reaction > 0.0 else mo.residual)
             if sign and not beyond(sign, load):
                 sign = 0.0
             mo.saturated = sign
             stiffness, torque = mo.kv, 0.0
             if sign:  # saturated: no servo, the torque to u under the smooth force alone, within the limit
-                stiffness, torque = 0.0, inertia * (u - qdot) / dt - (load if held else smooth)
+                stiffness, torque = 0.0, inertia * (u - qdot) / dt - (load if mo.dof in twin._constrained_dofs() else smooth)
                 torque = torque if torque < limit else limit  # min(torque, limit), as servo_steps picks it
                 torque = torque if torque > -limit else -limit
             if stiffness != mo.stiffness:
@@ -333,6 +332,7 @@ def _per_motor_law_steps(twin: MuJoCoTwin, servos: list[Any], steps: int) -> Non
             change = after - qdot
             mo.residual = (servo_inertia(mo.kv, dt, SERVO_STIFFNESS) * change / dt + float(m.dof_damping[mo.dof]) * change
                            - torque - smooth)
+            mo.reaction = float(d.qfrc_constraint[mo.dof])
             if not mo.state.torque_mode and not mo.saturated and abs(torque) > limit:
                 mo.saturated = math.copysign(1.0, torque)
 

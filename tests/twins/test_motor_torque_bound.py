@@ -232,3 +232,60 @@ def test_a_damped_joint_its_motor_cannot_speed_up_turns_steadily_at_the_damping_
         mujoco_twin.close()
     for name, v in zip(("webots", "mujoco"), np.array(speeds), strict=True):
         assert np.abs(v[-400:] - 0.15).max() < 0.003, name  # the last 0.8 s, every step
+
+
+# A four-link arm (the dual-twin fuzz's world 43): its first hinge has staticFriction 0.5 (a MuJoCo friction-loss
+# row on the joint every step) and a 5.28 N m motor; the smooth force on it, 6.24 N m of gravity, exceeds that, but
+# the chain below it (its other motors holding or moving their links) carries part of the load, and the motor holds
+# the joint nearly still in the Webots twin (|velocity| under 1e-4 rad/s; the MuJoCo twin's first step 8e-3).
+FRICTION_ARM = world_text(
+    'DEF R Robot { translation 0 0 1 controller "<extern>" children [ DEF J0 HingeJoint { jointParameters '
+    'HingeJointParameters { axis -0.143243 -0.426571 -1.11469 anchor 0 0 0 minStop -1.31239 maxStop 0.95969 '
+    'staticFriction 0.5 } device [ RotationalMotor { name "m0" maxVelocity 2 maxTorque 5.27834 acceleration 0.5'
+    ' } PositionSensor { name "s0" } ] endPoint DEF E0 Solid { name "e0" children [ Pose { translation 0.077276'
+    ' 0 0 rotation 0 1 0 1.5708 children [ Shape { geometry Capsule { radius 0.0357377 height 0.154552 } } ] } '
+    'Pose { translation 0.154552 0 0 children [ DEF J1 HingeJoint { jointParameters HingeJointParameters { axis'
+    ' -0.797183 -1.35993 1.40555 anchor 0 0 0  } device [ RotationalMotor { name "m1" maxVelocity 5 maxTorque '
+    '31.801 acceleration 20 controlPID 5 1 0 } PositionSensor { name "s1" } ] endPoint DEF E1 Solid { name "e1"'
+    ' children [ Pose { translation 0.0595297 0 0 rotation 0 1 0 1.5708 children [ Shape { geometry Capsule { '
+    'radius 0.021407 height 0.119059 } } ] } Pose { translation 0.119059 0 0 children [ DEF J2 HingeJoint { '
+    'jointParameters HingeJointParameters { axis 0 1 0 anchor 0 0 0 minStop -1.45652 maxStop 0.98242 '
+    'springConstant 1 } device [ RotationalMotor { name "m2" maxVelocity 1 maxTorque 9.20768 acceleration 5 } '
+    'PositionSensor { name "s2" } ] endPoint DEF E2 Solid { name "e2" children [ Pose { translation 0.13689 0 0'
+    ' rotation 0 1 0 1.5708 children [ Shape { geometry Capsule { radius 0.0346224 height 0.27378 } } ] } Pose '
+    '{ translation 0.27378 0 0 children [ DEF J3 HingeJoint { jointParameters HingeJointParameters { axis 1 0 0'
+    ' anchor 0 0 0 minStop -0.203275 maxStop 1.37459 dampingConstant 2 staticFriction 0.5 } device [ '
+    'RotationalMotor { name "m3" maxVelocity 5 maxTorque 0.947344 acceleration 100 controlPID 30 0 0 } '
+    'PositionSensor { name "s3" } ] endPoint DEF E3 Solid { name "e3" children [ Pose { translation 0.0779929 0'
+    ' 0 rotation 0 1 0 1.5708 children [ Shape { geometry Capsule { radius 0.0223708 height 0.155986 } } ] }  ]'
+    ' boundingObject Pose { translation 0.0779929 0 0 rotation 0 1 0 1.5708 children [ Capsule { radius '
+    '0.0223708 height 0.155986 } ] } physics Physics { density -1 mass 0.825453 } } } ] } ] boundingObject Pose'
+    ' { translation 0.13689 0 0 rotation 0 1 0 1.5708 children [ Capsule { radius 0.0346224 height 0.27378 } ] '
+    '} physics Physics { density -1 mass 2.44986 } } } ] } ] boundingObject Pose { translation 0.0595297 0 0 '
+    'rotation 0 1 0 1.5708 children [ Capsule { radius 0.021407 height 0.119059 } ] } physics Physics { density'
+    ' -1 mass 1.08976 } } } ] } ] boundingObject Pose { translation 0.077276 0 0 rotation 0 1 0 1.5708 children'
+    ' [ Capsule { radius 0.0357377 height 0.154552 } ] } physics Physics { density -1 mass 0.49602 } } } ] }',
+    "basicTimeStep 2")
+
+
+@pytest.mark.parametrize("native", LAWS, ids=lambda n: "native" if n else "python")
+def test_a_held_joint_with_static_friction_does_not_chatter_in_a_chain(tmp_path: Path, native: bool) -> None:
+    """Dropping every residual that pushed the joint the motor's way whenever a constraint row acted on it (the
+    friction loss does, every step) also dropped the links' real help: the motor left saturation and re-entered it
+    every step, the joint's velocity alternating 0.008 and 0 rad/s. Only the constraint force itself (qfrc_constraint)
+    is a reaction. Tolerance: no step-to-step reversal of the joint velocity change above 1e-3 rad/s
+    (the chatter's 8e-3; the Webots twin has none)."""
+    with converted_twins(FRICTION_ARM, tmp_path, 0.002) as (_, webots, _):
+        mujoco_twin = MuJoCoTwin(tmp_path / "model.xml", 0.002, native_law=native)
+        for twin in (webots, mujoco_twin):
+            twin.reset(0)
+            for motor, target in (("m1", 2.6194296630756844), ("m2", 2.4747225702017106), ("m3", 1.9642035300025258)):
+                twin.command(motor, "position", target)
+            speeds = []
+            for _ in range(100):  # 0.2 s
+                twin.step()
+                speeds.append(twin.joint_velocity("J0"))
+            change = np.diff(speeds)
+            reversals = (change[1:] * change[:-1] < 0) & (np.abs(change[1:]) > 1e-3)
+            assert not reversals.any(), type(twin).__name__
+        mujoco_twin.close()

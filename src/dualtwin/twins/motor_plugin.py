@@ -40,7 +40,7 @@ SLOTS = ("torque_mode", "target_position", "target_velocity", "torque", "availab
          "next_integral", "next_previous_error", "next_u", "next_saturated", "step_velocity", "step_smooth",
          "ctrl_mode", "last_ctrl", "max_velocity", "max_torque", "min_position", "max_position", "gain", "actuator",
          "dof", "qpos", "last", "armature", "step_stiffness",
-         "step_torque")
+         "step_torque", "reaction")
 SLOT = {name: index for index, name in enumerate(SLOTS)}
 NSTATE = len(SLOTS)
 
@@ -228,7 +228,7 @@ def motor_params(model: mujoco.MjModel, name: str, actuator: int) -> MotorParams
 
 
 def slot_values(state: MotorState, kv: float, armature: float, inertia: float,
-                law: tuple[float, float] | None = None) -> list[tuple[int, float]]:
+                law: tuple[float, float, float] | None = None) -> list[tuple[int, float]]:
     """(slot, value) for one motor's plugin_state from the twin's motor state: targets, limits, gains, servo
     stiffness ``kv``, rotor ``armature`` and the ``inertia`` kv was sized for; with ``law`` (saturation,
     residual load; not None) its law state too (integral, previous error, last u and those)."""
@@ -241,7 +241,7 @@ def slot_values(state: MotorState, kv: float, armature: float, inertia: float,
               "armature": armature}
     if law is not None:
         values.update(integral=state.integral, previous_error=state.previous_error, u=state.current_velocity,
-                      saturated=law[0], residual=law[1])
+                      saturated=law[0], residual=law[1], reaction=law[2])
     return [(SLOT[key], float(value)) for key, value in values.items()]
 
 

@@ -155,11 +155,12 @@ class ServoMotor(Protocol):
     saturated: float  # 0 = servo; ±1 = saturated: u lies beyond what ±available torque reaches
     stiffness: float  # the servo stiffness its joint's inertia holds now (dt x it, see servo_steps)
     residual: float  # last step's force on the joint besides the motor and the smooth forces (see servo_steps)
+    reaction: float  # the constraint force in it (qfrc_constraint)
 
 
 def servo_steps(servos: Sequence[ServoMotor], steps: int, dt: float, qpos: memoryview[float],
                 qvel: memoryview[float], ctrl: memoryview[float], force: memoryview[float],
-                forces: tuple[memoryview[Any], memoryview[Any], memoryview[Any]],
+                forces: tuple[memoryview[Any], memoryview[Any], memoryview[Any], memoryview[Any]],
                 physics_step: tuple[Callable[[], None], Callable[[], None]], servo: Callable[[Any, float], None],
                 constrained: Callable[[], Container[int]], stiffness: float, damping: memoryview[float]) -> None:
     """``steps`` physics steps of Webots' motor law (:func:`~dualtwin.webots.motor_law.motor_velocity`) for
@@ -191,13 +192,14 @@ def servo_steps(servos: Sequence[ServoMotor], steps: int, dt: float, qpos: memor
       released coupling, is driven to ``u`` under ``S`` alone and no further, where the full torque threw it
       far past ``u`` (and past maxVelocity). A motor saturates when ``u`` lies beyond the reach under ``S``
       (before the step), or after a step whose servo applied more than ``A`` (a load it did not foresee); it
-      leaves once ``u`` is within the reach under ``L``. While saturated and while a constraint row acts on
-      the joint, a residual pushing the joint the way the motor pushes does not count: a stop or contact the
-      joint was driven into (an impact's impulse above all) holds it only as hard as needed, since ODE solves
-      it with the motor row, and does none of the motor's work; counted, it took the motor out of saturation
-      and its servo lifted the joint off its stop. Without a constraint such a residual is the other joints'
-      pull through the chain, which does help (dropping it too moved the arm's fast lift 6x further from the
-      Webots twin).
+      leaves once ``u`` is within the reach under ``L``. While saturated, the constraint force in the residual
+      (last step's qfrc_constraint) does not count when it pushed the joint the way the motor pushes: a stop or
+      contact the joint was driven into (an impact's impulse above all) holds it only as hard as needed, since
+      ODE solves it with the motor row, and does none of the motor's work; counted, it took the motor out of
+      saturation and its servo lifted the joint off its stop. The rest of the residual, the other joints' pull
+      through the chain, does help and still counts (dropping the whole residual moved the arm's fast lift 6x
+      further from the Webots twin; dropping it wherever a constraint acted, a joint with static friction
+      included, made a held arm joint chatter).
 
     What this cannot do is ODE's simultaneous solve: a constraint's load is known only from the last step. A
     servo step whose load grew applies more than ``A``; a saturated step whose constraint lets go within the
@@ -214,11 +216,12 @@ def servo_steps(servos: Sequence[ServoMotor], steps: int, dt: float, qpos: memor
     what a period cannot change (which branch of the law, targets, gains, limits) is read once per call, and
     the law's state (integral, previous error, last ``u``) lives in locals and is written back at the end.
     """
-    passive, bias, applied = forces
+    passive, bias, applied, constraint = forces
     step1, step2 = physics_step
     # Per motor: what the period cannot change (a tuple), and the state that steps change (a list: the law's
     # integral, previous error and last u, the residual, the step's qdot and servo stiffness, the saturation
-    # sign, the stiffness in the joint's inertia, the step's smooth force and explicit torque). kind: 0 no
+    # sign, the stiffness in the joint's inertia, the step's smooth force and explicit torque, the constraint force
+    # in the residual). kind: 0 no
     # control (no available torque), 1 velocity control (infinite target position), 2 position control (the
     # PID), 3 torque control.
     rows = []
@@ -234,7 +237,7 @@ def servo_steps(servos: Sequence[ServoMotor], steps: int, dt: float, qpos: memor
                  p.acceleration >= 0, p.acceleration * dt, mo.qpos, mo.dof, mo.index, mo.kv, limit, reach, margin,
                  inertia, st.torque)
         rows.append((const, [st.integral, st.previous_error, st.current_velocity, mo.residual, 0.0, 0.0,
-                             mo.saturated, mo.stiffness, 0.0, 0.0]))
+                             mo.saturated, mo.stiffness, 0.0, 0.0, mo.reaction]))
     try:
         for _ in range(steps):
             step1()
@@ -270,13 +273,13 @@ def servo_steps(servos: Sequence[ServoMotor], steps: int, dt: float, qpos: memor
                         sign = 1.0
                     elif u < qdot + ((smooth - limit) * reach - margin):
                         sign = -1.0
-                residual = state[3]
-                if (residual > 0.0 if sign > 0.0 else (sign < 0.0 and residual < 0.0)) and iv in held:
+                residual, reaction = state[3], state[10]
+                if reaction > 0.0 if sign > 0.0 else (sign < 0.0 and reaction < 0.0):
                     # A constraint's reaction pushing the joint the way the saturated motor pushes (a stop or
                     # contact it was driven into, an impact's impulse) holds the joint only as hard as needed:
                     # ODE solves it with the motor row, so more motor torque would relieve it, not move the
                     # joint. It does none of the motor's work: only what holds the joint back counts.
-                    residual = 0.0
+                    residual = residual - reaction
                 load = smooth + residual
                 if sign and not (u > qdot + ((load + limit) * reach + margin) if sign > 0.0
                                  else u < qdot + ((load - limit) * reach - margin)):
@@ -309,6 +312,7 @@ def servo_steps(servos: Sequence[ServoMotor], steps: int, dt: float, qpos: memor
                 force[const[12]] = torque
                 change = qdot - state[4]
                 state[3] = const[17] * change / dt + damping[const[11]] * change - torque - state[8]
+                state[10] = constraint[const[11]]
                 if kind != 3 and not state[6] and (torque > limit or -torque > limit):
                     # The servo needed more than the limit (a load it did not foresee): saturated from the next
                     # step until u is within reach again.
@@ -318,7 +322,7 @@ def servo_steps(servos: Sequence[ServoMotor], steps: int, dt: float, qpos: memor
             mo = const[0]
             st = mo.state
             st.integral, st.previous_error, st.current_velocity = state[0], state[1], state[2]
-            mo.residual, mo.saturated, mo.stiffness = state[3], state[6], state[7]
+            mo.residual, mo.saturated, mo.stiffness, mo.reaction = state[3], state[6], state[7], state[10]
 
 
 def servo_inertia(kv: float, dt: float, stiffness: float) -> float:

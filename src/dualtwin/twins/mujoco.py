@@ -81,8 +81,8 @@ assert motor_plugin.SLOT["saturated"] == 15
 
 
 class _Motor:
-    __slots__ = ("name", "index", "qpos", "dof", "kv", "state", "saturated", "stiffness", "residual", "plugin",
-                 "group")
+    __slots__ = ("name", "index", "qpos", "dof", "kv", "state", "saturated", "stiffness", "residual", "reaction",
+                 "plugin", "group")
 
     def __init__(self, name: str, index: int, qpos: int, dof: int, kv: float, state: MotorState,
                  plugin: int = -1) -> None:
@@ -95,6 +95,7 @@ class _Motor:
         self.saturated = 0.0  # 0 = servo; ±1 = saturated (see motors.servo_steps)
         self.stiffness = 0.0  # the servo stiffness in the joint's armature (Python law, see servo_steps)
         self.residual = 0.0  # last step's load besides the smooth forces (motors.servo_steps)
+        self.reaction = 0.0  # the constraint force in it (qfrc_constraint)
         self.plugin = plugin  # with the native law: the motor's first slot in plugin_state, else -1
         self.group: tuple[_Motor, ...] | None = None  # see motors.assign_groups
 
@@ -237,7 +238,7 @@ class MuJoCoTwin(Twin):
         self._commanded.clear()
         for motor in self._motors:
             motor.state.reset(float(self.data.qpos[motor.qpos]))
-            motor.saturated = motor.residual = 0.0
+            motor.saturated = motor.residual = motor.reaction = 0.0
             self._set_servo(motor)
             if motor.plugin >= 0:
                 self._write_plugin(motor, law=True)
@@ -365,7 +366,7 @@ class MuJoCoTwin(Twin):
         ``law`` its law state (integral, previous error, last u, saturation, residual load) too."""
         inertia = servo_inertia(motor.kv, self.model.opt.timestep, SERVO_STIFFNESS)
         values = motor_plugin.slot_values(motor.state, motor.kv, float(self._armature[motor.dof]), inertia,
-                                          (motor.saturated, motor.residual) if law else None)
+                                          (motor.saturated, motor.residual, motor.reaction) if law else None)
         # The plugin adds the rotor inertia with the servo's (see native/webots_motor.c): not the model too.
         self._masses.write(self.model, motor.dof, 0.0)
         state = self.data.plugin_state
@@ -437,7 +438,8 @@ class MuJoCoTwin(Twin):
         """Physics steps with the Webots PID and the bounded servo for every servo motor."""
         m, d = self.model, self.data
         step1 = self._friction_box.step1 if self._friction_box else mujoco.mj_step1
-        forces = (memoryview(d.qfrc_passive), memoryview(d.qfrc_bias), memoryview(d.qfrc_applied))
+        forces = (memoryview(d.qfrc_passive), memoryview(d.qfrc_bias), memoryview(d.qfrc_applied),
+                  memoryview(d.qfrc_constraint))
         servo_steps(servos, steps, m.opt.timestep, memoryview(d.qpos), memoryview(d.qvel), memoryview(d.ctrl),
                     memoryview(d.actuator_force), forces, (lambda: step1(m, d), lambda: mujoco.mj_step2(m, d)),
                     self._set_stiffness, self._constrained_dofs, SERVO_STIFFNESS, memoryview(m.dof_damping))
@@ -667,7 +669,7 @@ class MuJoCoTwin(Twin):
                 motor.state.reset(float(self.data.qpos[motor.qpos]))
                 motor.state.target_position = holds.get(motor.qpos, motor.state.target_position)
             motor.state.current_velocity = 0.0
-            motor.residual = 0.0
+            motor.residual = motor.reaction = 0.0
             if not motor.state.torque_mode:
                 motor.saturated = 0.0
                 self._set_servo(motor)

@@ -20,8 +20,8 @@
 //   * torque control: the commanded torque.
 //
 // The load is the step's smooth force on the joint (passive - bias + applied, computed before the actuators)
-// plus the residual of the last step (contacts, coupled joints), from its velocity change; while saturated and
-// constrained, not a residual pushing the way the motor pushes (a reaction, see servo_steps). After the step,
+// plus the residual of the last step (contacts, coupled joints), from its velocity change; while saturated, less
+// a constraint force that pushed the joint the way the motor pushes (a reaction, see servo_steps). After the step,
 // actuator_force holds the torque the motor applied over it.
 //
 // Why the inertia matrix and not the model's dof_armature (what the Python twin edits between steps): a
@@ -85,6 +85,7 @@ enum {
   S_ARMATURE,         // rotor inertia added here rather than by the model (see below)
   S_STEP_STIFFNESS,   // the step's servo stiffness: kv, 0 when saturated
   S_STEP_TORQUE,      // the step's explicit torque when saturated (else 0)
+  S_REACTION,         // last step's constraint force on the joint (qfrc_constraint), part of the residual
   S_SIZE
 };
 
@@ -272,13 +273,12 @@ static void compute_block(const mjModel* m, mjData* d, mjtNum* s) {
         sign = -1.0;
       }
     }
-    mjtNum residual = s[S_RESIDUAL];
-    int held = sign != 0 && constrained(m, d, dof);  // only a saturated motor reads it
-    if ((sign > 0.0 ? residual > 0.0 : (sign < 0.0 && residual < 0.0)) && held) {
+    mjtNum residual = s[S_RESIDUAL], reaction = s[S_REACTION];
+    if (sign > 0.0 ? reaction > 0.0 : (sign < 0.0 && reaction < 0.0)) {
       // A constraint's reaction pushing the joint the way the saturated motor pushes (a stop or contact it was
       // driven into, an impact's impulse) holds it only as hard as needed (ODE solves it with the motor row): it
       // does none of the motor's work, only what holds the joint back counts (as servo_steps).
-      residual = 0.0;
+      residual = residual - reaction;
     }
     mjtNum load = smooth + residual;
     if (sign != 0 && !(sign > 0.0 ? u > qdot + ((load + available) * reach + margin)
@@ -292,7 +292,7 @@ static void compute_block(const mjModel* m, mjData* d, mjtNum* s) {
       // +-available: the smooth force, and last step's residual while a constraint still acts on the joint (a
       // contact that is gone, a released coupling no longer hold it back).
       stiffness = 0.0;
-      torque = inertia * (u - qdot) / dt - (held ? load : smooth);
+      torque = inertia * (u - qdot) / dt - (constrained(m, d, dof) ? load : smooth);
       torque = torque < available ? torque : available;
       torque = torque > -available ? torque : -available;
     }
@@ -343,6 +343,7 @@ static void advance_block(const mjModel* m, mjData* d, mjtNum* s) {
   // The joint's damping counts at the step's end velocity (implicitfast), the smooth force had it at the start.
   mjtNum change = qdot - s[S_STEP_VELOCITY];
   s[S_RESIDUAL] = s[S_INERTIA] * change / dt + m->dof_damping[(int)s[S_DOF]] * change - torque - s[S_STEP_SMOOTH];
+  s[S_REACTION] = d->qfrc_constraint[(int)s[S_DOF]];
 }
 
 static void motor_advance(const mjModel* m, mjData* d, int instance) {
