@@ -423,3 +423,35 @@ def test_a_step_given_an_object_of_the_scripts_class_is_refused_at_the_call(tmp_
     runs = run_in_both_modes(tmp_path, WORLD, script, 0.1)
     assert runs["threads"].code == 0 and runs["threads"].out.endswith("Period Period()\n0\n"), runs["threads"]
     assert runs["process"] == runs["threads"]
+
+
+def test_a_container_holding_an_object_of_the_scripts_class_is_refused_by_the_api(tmp_path: Path) -> None:
+    """A container other than a tuple, list or dict (a set, a deque, a NumPy array of objects) holding an object of
+    the script's own class is refused by the API in its own words, as in a thread. In a controller process such an
+    argument pickled in the child (by reference to the script's class) and crashed the parent's serving thread
+    ("Can't get attribute 'Angle' on <module '__main__'>"): the controller ended with status 1, its output lost."""
+    script = """
+        import collections
+        import numpy as np
+        from controller import Robot
+
+        class Angle:
+            def __repr__(self):
+                return "Angle(0.5)"
+
+        robot = Robot()
+        motor = robot.getDevice("rm")
+        for value in ({Angle()}, collections.deque([Angle()]), np.array([Angle()], dtype=object)):
+            try:
+                motor.setPosition(value)
+            except TypeError as exc:
+                print(exc)
+        print(robot.step(8))
+    """
+    runs = run_in_both_modes(tmp_path, WORLD, script, 0.1)
+    # the API's words (api_args.as_float): the type's name and the value's text; an array by its shape and dtype
+    refusal = "Motor.setPosition() expects a number (a Python or NumPy scalar or a one-element array), got "
+    expected = (f"{refusal}set {{Angle(0.5)}}\n{refusal}deque deque([Angle(0.5)])\n"
+                f"{refusal}a NumPy array of shape (1,) and dtype object\n0\n")
+    assert runs["threads"] == (expected, "", 0)
+    assert runs["process"] == runs["threads"]

@@ -468,19 +468,41 @@ def _crossing(value: Any, depth: int = 0) -> Any:
     if cls is dict:
         return {_crossing(k, depth + 1): _crossing(v, depth + 1) for k, v in value.items()}
     top = cls.__module__.partition(".")[0]
-    if top == "numpy" and cls.__name__ == "ndarray" and value.dtype.kind != "O":
-        return value
+    if top == "numpy" and cls.__name__ == "ndarray":
+        if not value.dtype.hasobject:
+            return value
+        if value.dtype.kind == "O":  # an array of objects: each as the parent can rebuild it, in an array still
+            out = value.copy()
+            flat = out.reshape(-1)  # (a view: the copy is contiguous)
+            for i, item in enumerate(value.flat):
+                flat[i] = _crossing(item, depth + 1)
+            return out
     if top != "numpy":  # (a NumPy float64 is a float, and stays a float64)
         for base in _PLAIN_BASES:
             if isinstance(value, base):
                 return _crossing(base(value), depth)
-    if top == "numpy" or top in sys.stdlib_module_names and top != "__main__":
-        try:
-            pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
+    if _rebuilt_by_parent(cls.__module__):
+        try:  # every object the pickle holds, not only the value's class (a set holding one of the script's)
+            _ParentPickler(io.BytesIO(), protocol=pickle.HIGHEST_PROTOCOL).dump(value)
         except Exception:
             return _Foreign(value)
         return value
     return _Foreign(value)
+
+
+def _rebuilt_by_parent(module: str) -> bool:  # the parent has NumPy and the standard library, not the script
+    top = module.partition(".")[0]
+    return top == "numpy" or top in sys.stdlib_module_names and top != "__main__"
+
+
+class _ParentPickler(pickle.Pickler):
+    """Pickles only what the parent can rebuild: it raises on an object, class or function of another module."""
+
+    def persistent_id(self, obj: Any) -> None:
+        named = obj if isinstance(obj, type | types.FunctionType) else type(obj)
+        if not _rebuilt_by_parent(getattr(named, "__module__", None) or ""):
+            raise pickle.PicklingError(f"the parent cannot rebuild {named!r}")
+
 
 
 class _HandleNeeded(Exception):
