@@ -202,6 +202,26 @@ def test_point_cloud_times_are_the_times_the_columns_were_cast() -> None:
     assert [p.y for p in points[28:32]] == pytest.approx([-0.8] * 4, rel=1e-9)  # the box's face
 
 
+def test_after_a_reset_the_point_cloud_has_no_times_from_before_it() -> None:
+    # webots-devices.md §11.3: simulationReset puts the Lidar head back and time back to 0; the reset's own sample
+    # sweeps nothing (the head has not turned since), so every column reads 0.0 at time 0, as before the first
+    # sweep (module docstring of dualtwin.webots.lidar_head), not the times of the casts before the reset
+    sup = _world()
+    lidar = sup.getDevice("lidar")
+    lidar.enable(STEP)
+    lidar.enablePointCloud()
+    sup.step(3 * STEP)  # columns 20..31 cast at 0.01..0.03 s (test above)
+    sup.simulationReset()
+    sup.step(STEP)  # the reset applies at the end of this step
+    assert sup.getTime() == 0.0
+    assert _image(lidar).tolist() == [0.0] * W
+    assert [p.time for p in lidar.getPointCloud()] == [0.0] * W
+    sup.step(STEP)  # the head turns again from its load rotation: step 1's columns 20..23 at t = 0.01 s
+    times = [p.time for p in lidar.getPointCloud()]
+    assert times[20:24] == pytest.approx([0.01] * 4, abs=1e-12)
+    assert times[:20] + times[24:] == [0.0] * (W - 4)
+
+
 def test_a_camera_sees_the_head_turn() -> None:
     # A camera 2 m above the lidar looks down (rotation 0 1 0 π/2: its x axis along −z, its image up along +x,
     # left along +y), 64×64 pixels, fov 1. The head's red arm (top face at z = 0.05, depth 1.95, centre 0.6 m

@@ -193,11 +193,15 @@ class RotatingScan:
         self.rays = (np.arange(self.layers)[:, None] * self.width + self.columns[None, :]).ravel()
         return directions[self.rays], lengths[self.rays]
 
+    def clear(self) -> None:
+        """The image was cleared (simulationReset, a first enable): every column was cast at time 0."""
+        self.times[:] = 0.0
+
     def fill(self, image: np.ndarray | None, ranges: np.ndarray, now: float) -> np.ndarray:
         """The image with the cast columns' ``ranges`` (in the order of :meth:`spec`'s rays) written at ``now``."""
         if image is None:  # nothing sampled yet, or the image was cleared (simulationReset): zeros and time 0
             image = np.zeros(self.width * self.layers)
-            self.times[:] = 0.0
+            self.clear()
         out = image
         out[self.rays] = ranges
         self.times[self.columns] = now

@@ -545,6 +545,12 @@ class Lidar(_DepthDevice):
         self._model()
         return self._scan
 
+    def _invalidate(self) -> None:
+        super()._invalidate()
+        scan = getattr(self, "_scan", None)
+        if scan is not None:  # a reset clears the image before any column is cast again: their times too
+            scan.clear()
+
     def enable(self, p: Any) -> None:
         super().enable(p)
         scan = self._rotating()
