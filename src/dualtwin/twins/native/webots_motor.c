@@ -329,9 +329,8 @@ static void advance_block(const mjModel* m, mjData* d, mjtNum* s) {
     s[S_INTEGRAL] = s[S_NEXT_INTEGRAL];
     s[S_PREVIOUS_ERROR] = s[S_NEXT_PREVIOUS_ERROR];
     s[S_U] = s[S_NEXT_U];
-    // Saturated: the available torque; else the backward-Euler servo torque at the step's end velocity.
     mjtNum sign = s[S_SATURATED] = s[S_NEXT_SATURATED], limit = s[S_AVAILABLE];
-    // The backward-Euler servo torque at the step's end velocity.
+    // Saturated: the step's explicit torque; else the backward-Euler servo torque at the step's end velocity.
     torque = s[S_STEP_STIFFNESS] * (s[S_U] - qdot) + s[S_STEP_TORQUE];
     if (sign == 0 && (torque > limit || -torque > limit)) {
       // The stiff servo needed more than the limit (a load it did not foresee): saturated from the next step
