@@ -24,15 +24,12 @@ ODE's own, along its first axis, which an ``axis`` edit moves.
 
 from __future__ import annotations
 
-import math
-
 from dualtwin.webots import _math3 as m3
+from dualtwin.webots.physics.build import aligned, overflow_free
 from dualtwin.webots.physics.edits import SupervisorEdits
 from dualtwin.webots.physics.records import JointRec, field_or
 
 __all__ = ["JointAxisEdits"]
-
-_ALIGNED = 1e-6  # |a × b| of unit axes below which no frame spans them (the load's test, SceneBuilder._joint_axes)
 
 
 class JointAxisEdits(SupervisorEdits):
@@ -57,13 +54,10 @@ class JointAxisEdits(SupervisorEdits):
         if node is None or joint.kind == "ball" and i == 0:
             return None
         axis = tuple(float(v) for v in field_or(node, "axis", (0.0, 0.0, 0.0)))
-        length = m3.norm(axis)
-        if length < 1e-12:
+        if m3.norm(axis) < 1e-12:
             self.warn(f"{node.type_name}: 'axis' must be non zero; the edit is ignored")
             return None
-        if not math.isfinite(length):  # components near 1e308 (the Field API refuses non-finite ones)
-            largest = max(abs(v) for v in axis)
-            axis = tuple(v / largest for v in axis)
+        axis = overflow_free(axis)  # components near 1e308, as at load (the Field API refuses non-finite ones)
         axes = list(joint.axis_local)
         if joint.kind == "slider":
             axes[0] = m3.normalized(axis)  # type: ignore[arg-type]  # §4.3: Webots normalises the slider axis
@@ -75,7 +69,7 @@ class JointAxisEdits(SupervisorEdits):
             axes[i] = axis  # type: ignore[assignment]
         if joint.kind in ("hinge2", "ball"):
             first, other = axes[0], axes[2] if joint.kind == "ball" else axes[1]
-            if m3.norm(m3.cross(m3.normalized(first), m3.normalized(other))) < _ALIGNED:
+            if aligned(first, other):  # no frame spans them, as the load's test (SceneBuilder._joint_axes)
                 self.warn(f"{joint.node.type_name}: the edited axis is aligned with the joint's other axis; "
                           "the edit is ignored")
                 return None

@@ -57,6 +57,23 @@ ANGLE_RANGES = {
 }
 #: the most rays a Lidar or RangeFinder casts per sample (2048 x 2048; a 64-layer lidar of 4500 columns is 288000)
 MAX_DEPTH_RAYS = 2**22
+#: |a × b| of two unit axes below which no frame spans them (ODE aborts the process normalising their cross product)
+ALIGNED_AXES = 1e-6
+
+
+def overflow_free(axis: Sequence[float]) -> m3.Vec3:
+    """``axis`` with the same direction and a finite length: components as large as 1e308 overflow its length, and
+    the slider's normalised axis (or a rotated hinge axis) came out zero or infinite, on which ODE aborted the
+    process (found by fuzzing); such an axis is scaled down by its largest component."""
+    if math.isfinite(m3.norm(axis)):
+        return tuple(axis)  # type: ignore[return-value]
+    largest = max(abs(v) for v in axis)
+    return tuple(v / largest for v in axis)  # type: ignore[return-value]
+
+
+def aligned(a: m3.Vec3, b: m3.Vec3) -> bool:
+    """Whether two axes are too close to parallel for a frame to span them (see :data:`ALIGNED_AXES`)."""
+    return m3.norm(m3.cross(m3.normalized(a), m3.normalized(b))) < ALIGNED_AXES
 
 
 class SceneBuilder(SimulationCore):
@@ -225,8 +242,7 @@ class SceneBuilder(SimulationCore):
             # jointParameters3's, the second their cross product (axis3 × axis1), as in a chain of three hinges
             a1 = self._axis(params[1], (1.0, 0.0, 0.0))
             a3 = self._axis(params[2], (0.0, 0.0, 1.0))
-            if m3.norm(m3.cross(m3.normalized(a1), m3.normalized(a3))) < 1e-6:
-                # no Euler frame spans them (ODE would abort the process normalising their cross product)
+            if aligned(a1, a3):  # no Euler frame spans them
                 self.warn("BallJoint first and third axes are aligned or zero; falling back to x and z")
                 a1, a3 = (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)
             axes = [a1, m3.cross(a3, a1), a3]
@@ -245,13 +261,7 @@ class SceneBuilder(SimulationCore):
             self.warn(f"{where}joint axis {' '.join(f'{v:g}' for v in axis)} has no direction; using the default "
                       f"{' '.join(f'{v:g}' for v in default)}")
             return default
-        if not math.isfinite(m3.norm(axis)):
-            # components as large as 1e308: their length overflows, and the slider's normalised axis (or a rotated
-            # hinge axis) came out zero or infinite, on which ODE aborted the process (found by fuzzing); the same
-            # direction, scaled down
-            largest = max(abs(v) for v in axis)
-            axis = tuple(v / largest for v in axis)
-        return axis  # type: ignore[return-value]
+        return overflow_free(axis)
 
     def _add_axis_device(
         self, joint: JointRec, axis_index: int, dev: Node
