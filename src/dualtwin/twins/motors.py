@@ -220,10 +220,9 @@ def servo_steps(servos: Sequence[ServoMotor], steps: int, dt: float, qpos: memor
     step1, step2 = physics_step
     # Per motor: what the period cannot change (a tuple), and the state that steps change (a list: the law's
     # integral, previous error and last u, the residual, the step's qdot and servo stiffness, the saturation
-    # sign, the stiffness in the joint's inertia, the step's smooth force and explicit torque, the constraint force
-    # in the residual). kind: 0 no
-    # control (no available torque), 1 velocity control (infinite target position), 2 position control (the
-    # PID), 3 torque control.
+    # sign, the stiffness in the joint's inertia, the step's smooth force and explicit torque, the constraint
+    # force in the residual). kind: 0 no control (no available torque), 1 velocity control (infinite target
+    # position), 2 position control (the PID), 3 torque control.
     rows = []
     for mo in servos:
         st = mo.state
@@ -241,7 +240,7 @@ def servo_steps(servos: Sequence[ServoMotor], steps: int, dt: float, qpos: memor
     try:
         for _ in range(steps):
             step1()
-            held = constrained()
+            held: Container[int] | None = None  # the constrained dofs, asked for only by a saturated motor (as the C law)
             switched = False
             for const, state in rows:
                 mo, kind, target, target_velocity, vlimit, kp, ki, kd, slew, slew_step, iq, iv, ic, kv, limit, reach, margin, inertia, _ = const
@@ -291,6 +290,8 @@ def servo_steps(servos: Sequence[ServoMotor], steps: int, dt: float, qpos: memor
                     # within ±limit: the smooth force, and last step's residual while a constraint still acts
                     # on the joint (a contact that is gone, a released coupling no longer hold it back).
                     stiffness = 0.0
+                    if held is None:
+                        held = constrained()
                     torque = inertia * (u - qdot) / dt - (load if iv in held else smooth)
                     torque = torque if torque < limit else limit
                     torque = torque if torque > -limit else -limit
