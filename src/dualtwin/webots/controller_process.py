@@ -504,7 +504,6 @@ class _ParentPickler(pickle.Pickler):
             raise pickle.PicklingError(f"the parent cannot rebuild {named!r}")
 
 
-
 class _HandleNeeded(Exception):
     """Raised when an API object is pickled without the channel's persistent ids (then they are used)."""
 
@@ -518,6 +517,7 @@ def _rebuild_value(key: str, attrs: dict[str, Any], results: dict[str, Any]) -> 
     value.__dict__.update(attrs)
     object.__setattr__(value, "_dualtwin_results", results)
     return value
+
 
 _rebuild_value.__module__ = "controller"
 _rebuild_value.__qualname__ = _rebuild_value.__name__ = "_dualtwin_value"
