@@ -13,8 +13,9 @@ __all__ = ["quiet_supervisor"]
 
 
 def quiet_supervisor(text: str) -> Supervisor:
-    """The Supervisor of the first robot of the world ``text`` (a whole ``.wbt``), built quietly."""
+    """The Supervisor of the first robot of the world ``text`` (a whole ``.wbt``), built quietly (the Supervisor
+    too: a robot's Tracks and Propellers are built with it)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         sim = Simulation(load_world_text(text))
-    return Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+        return Supervisor(simulation=sim, robot_node=sim.robots[0].node)

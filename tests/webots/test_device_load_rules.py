@@ -7,13 +7,10 @@ from those texts or from hand computation, never from running this code.
 
 from __future__ import annotations
 
-import warnings
-
 import pytest
 
-from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Camera, Supervisor
-from dualtwin.webots.physics import Simulation
+from tests.support.quiet_worlds import quiet_supervisor
 from tests.support.sensor_worlds import sensor_world
 
 NO_WALL = ""
@@ -67,10 +64,7 @@ def _tank(eye: str) -> Supervisor:
     text = ("#VRML_SIM R2023b utf8\nWorldInfo { basicTimeStep 8 gravity 0 }\nDirectionalLight { direction 1 0 0 }\n"
             f'Robot {{ name "eye" supervisor TRUE translation -1 0 0.2 children [ {eye} ] }}\n'
             f'Robot {{ name "tank" children [ Track {{ children [ {wheel} ] device [ LinearMotor {{ }} ] }} ] }}\n')
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        sim = Simulation(load_world_text(text))
-    return Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    return quiet_supervisor(text)
 
 
 def test_track_wheel_children_sit_at_its_position() -> None:

@@ -7,14 +7,12 @@ R = /work/shared/reference/webots-python-api.md ("Arguments": integers go to C u
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 import pytest
 
-from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Supervisor
-from dualtwin.webots.physics import Simulation
+from tests.support.quiet_worlds import quiet_supervisor
 
 TS = 4
 WORLD = f"""#VRML_SIM R2023b utf8
@@ -29,10 +27,7 @@ Robot {{ supervisor TRUE children [
 
 
 def _sup() -> Supervisor:
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        sim = Simulation(load_world_text(WORLD))
-    return Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    return quiet_supervisor(WORLD)
 
 
 HUGE = [10**400, 2**31, -(2**31) - 1, np.int64(2**40)]

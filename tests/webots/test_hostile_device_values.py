@@ -10,9 +10,8 @@ import warnings
 
 import pytest
 
-from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Supervisor
-from dualtwin.webots.physics import Simulation
+from tests.support.quiet_worlds import quiet_supervisor
 from tests.support.sensor_worlds import sensor_world
 
 TS = 8
@@ -87,10 +86,7 @@ HINGE = ('HingeJoint {{ jointParameters HingeJointParameters {{ axis 0 1 0 }} de
 
 def _sup(children: str) -> Supervisor:
     text = f"#VRML_SIM R2023b utf8\nWorldInfo {{ basicTimeStep {TS} gravity 0 }}\n{ROBOT.format(children=children)}\n"
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        sim = Simulation(load_world_text(text))
-        return Supervisor(simulation=sim, robot_node=sim.robots[0].node)  # (Tracks and Propellers built here)
+    return quiet_supervisor(text)
 
 
 @pytest.mark.parametrize(("device", "template", "field", "getter"), [

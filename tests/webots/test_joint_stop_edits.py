@@ -10,16 +10,14 @@ minStop − offset, maxStop − offset), stops only when minStop ≠ maxStop. Ex
 from __future__ import annotations
 
 import math
-import warnings
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Supervisor
-from dualtwin.webots.physics import Simulation
 from tests.support.hinge_arm import BOB, TS, G, load_arm
+from tests.support.quiet_worlds import quiet_supervisor
 from tests.support.world_runs import run_world_cli
 
 HEAVY_BASE = 'Solid { name "base" boundingObject Box { size 0.1 0.1 0.1 } physics Physics { density -1 mass 1000 } '
@@ -173,10 +171,7 @@ HINGE2 = """Robot {{ supervisor TRUE children [ Solid {{ children [ DEF BASE Sol
 
 def _world(scene: str, gravity: float = 0.0) -> Supervisor:
     text = f"#VRML_SIM R2023b utf8\nWorldInfo {{ basicTimeStep {TS} gravity {gravity} physicsDisableTime 0 }}\n{scene}\n"
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        sim = Simulation(load_world_text(text))
-    return Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    return quiet_supervisor(text)
 
 
 def _driven(sup: Supervisor, axis: int, velocity: float) -> Any:

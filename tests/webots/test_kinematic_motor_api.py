@@ -195,10 +195,7 @@ def _belt(extra: str = "", physics: bool = True, robot: str = "") -> Supervisor:
             f"Robot {{ supervisor TRUE {robot} children [ Track {{ translation 0 0 0.2 boundingObject Box {{ size 2 0.4 "
             f'0.1 }} {phys} device [ LinearMotor {{ name "belt" }} PositionSensor {{ name "belt sensor" }} '
             f"{extra} ] }} ] }}\n")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        sim = Simulation(load_world_text(text))
-    return Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    return quiet_supervisor(text)
 
 
 def test_track_without_a_body_does_not_move_its_belt() -> None:
