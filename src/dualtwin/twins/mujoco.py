@@ -389,8 +389,7 @@ class MuJoCoTwin(Twin):
         m.actuator_gainprm[motor.index, 0] = 1.0
         m.actuator_biastype[motor.index] = mujoco.mjtBias.mjBIAS_NONE
         m.actuator_biasprm[motor.index, :3] = 0.0
-        motor.stiffness = motor.kv if torque is None else 0.0
-        self._masses.write(m, motor.dof, self._armature[motor.dof] + motor.stiffness * m.opt.timestep)
+        self._set_stiffness(motor, motor.kv if torque is None else 0.0)
         if torque is not None:
             self.data.ctrl[motor.index] = torque
 
