@@ -85,8 +85,5 @@ class JointAxisEdits(SupervisorEdits):
         child = joint.child
         if moved and child is not None and child.joint is joint and joint.child_body is not None:
             self._place_endpoint(joint)
-        for i in range(len(joint.params)):
-            self._free_stops(joint, i)
-        self._reanchor(joint)  # axes and anchor, ODE's zero here, offsets = positions, stops, spring rest
-        self.rebuild_springs(joint)
+        self._set_joint_again(joint)
         self.wake(joint)

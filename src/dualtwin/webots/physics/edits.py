@@ -183,6 +183,15 @@ class SupervisorEdits(MassEdits):
             self._set_stops(joint, i)
         self._respring(joint)
 
+    def _set_joint_again(self, joint: JointRec) -> None:
+        """Set the ODE joint again on its current parameters (edited axes or anchor, an imported or removed
+        parameters node): every axis' stops freed before :meth:`_reanchor` sets the parameters' own, and the spring
+        and damper rows rebuilt about the current axes."""
+        for i in range(len(joint.params)):
+            self._free_stops(joint, i)
+        self._reanchor(joint)  # anchor, axes, ODE's zero here, offsets = positions, stops, spring rest
+        self.rebuild_springs(joint)
+
     def _respring(self, joint: JointRec) -> None:
         if joint.spring and joint.kind == "hinge":
             lib = self._lib

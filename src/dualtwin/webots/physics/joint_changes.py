@@ -161,10 +161,7 @@ class JointChanges(Stepper):
             child.rel = motion.inverse() * kinematic_pose
         if not joint.ptr:
             return
-        for i in range(len(joint.params)):
-            self._free_stops(joint, i)
-        self._reanchor(joint)  # anchor, axes, ODE's zero here, offsets = positions, stops, spring rest
-        self.rebuild_springs(joint)
+        self._set_joint_again(joint)
         for i, motor in enumerate(joint.motors):
             if motor is None:
                 self._set_motor_row(joint, i, 0.0, 0.0)
