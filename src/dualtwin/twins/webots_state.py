@@ -58,6 +58,33 @@ def pose_of(node: Any) -> tuple[np.ndarray, np.ndarray]:
             np.array(node.getPosition(), dtype=float))
 
 
+class JointAxis:
+    """A joint parameters' ``axis`` as the joint uses it now, a unit vector in the closest upper Pose's frame.
+
+    Read from the field on every use: a supervisor may edit it at run time, and Webots turns the joint about the
+    new axis from the next step (reference webots-on-ode.md §4.1, §4.2-4.4; our runtime:
+    ``webots/physics/axis_edits.py``). Reading a field is a dictionary look-up here and the state is read every
+    control period, so the normalisation is redone only when the value read differs from the last. A zero axis is
+    refused by Webots (a warning; the joint keeps its axis), so this keeps the last non-zero one.
+    """
+
+    __slots__ = ("_field", "_given", "unit")
+
+    def __init__(self, params: Any) -> None:
+        self._field = base_field(params, "axis")
+        self._given: list[float] | None = None
+        self.unit: tuple[float, float, float] = (math.nan, math.nan, math.nan)
+
+    def now(self) -> tuple[float, float, float]:
+        given = self._field.getSFVec3f()
+        if given != self._given:
+            self._given = given
+            norm = math.sqrt(given[0] * given[0] + given[1] * given[1] + given[2] * given[2])
+            if norm > 1e-12 and math.isfinite(norm):
+                self.unit = (given[0] / norm, given[1] / norm, given[2] / norm)
+        return self.unit
+
+
 class Joint:
     """A joint node with the handles ground truth needs."""
 
@@ -68,10 +95,14 @@ class Joint:
         if self.params is None:
             raise DualtwinError(f"joint {node.getDef()!r} has no jointParameters; give it one to use it by name")
         self.position = base_field(self.params, "position")
-        self.axis = np.array(base_field(self.params, "axis").getSFVec3f(), dtype=float)
-        self.axis /= np.linalg.norm(self.axis)
+        self.joint_axis = JointAxis(self.params)
         self.child = base_field(node, "endPoint").getSFNode()
         self.parent = node.getParentNode()
+
+    @property
+    def axis(self) -> np.ndarray:
+        """The unit axis now, in the closest upper Pose's frame (see :class:`JointAxis`)."""
+        return np.array(self.joint_axis.now(), dtype=float)
 
 
 class Hinge2:
@@ -87,16 +118,15 @@ class Hinge2:
                                 "for its state to be read and written")
         self.params, self.params2 = params
         self.position, self.position2 = (base_field(p, "position") for p in params)
-        self.axis, self.axis2 = (np.array(base_field(p, "axis").getSFVec3f(), dtype=float) for p in params)
-        self.axis /= np.linalg.norm(self.axis)
-        self.axis2 /= np.linalg.norm(self.axis2)
+        self.joint_axes = (JointAxis(self.params), JointAxis(self.params2))
         self.child = base_field(node, "endPoint").getSFNode()
         self.parent = node.getParentNode()
 
     def world_axes(self, q1: float) -> tuple[np.ndarray, np.ndarray]:
         """World axes now: axis 2 is given for axis 1 at zero and turns with it (as ODE's hinge-2 axis 2)."""
         rotation = np.array(self.parent.getOrientation(), dtype=float).reshape(3, 3)
-        return rotation @ self.axis, rotation @ (rotation_about(self.axis, q1) @ self.axis2)
+        axis, axis2 = (np.array(a.now(), dtype=float) for a in self.joint_axes)
+        return rotation @ axis, rotation @ (rotation_about(axis, q1) @ axis2)
 
 
 class StateStructure:
@@ -161,7 +191,7 @@ class StateStructure:
         self._ball_of: dict[int, str] = {end.getId(): n for n, (_, end) in self.balls.items()}
         self._slider = any(j.kind == "SliderJoint" for j in self.joints.values())
         self._plan: tuple[list[tuple[int, Any]], list[tuple[int, Any]],
-                          list[tuple[int, int, int, tuple[float, ...], bool]]] | None = None
+                          list[tuple[int, int, int, JointAxis, bool]]] | None = None
         for name in self.joints:
             self.parent_solid(self.joints[name].node)
 
@@ -318,7 +348,8 @@ class StateStructure:
         velocities = [known_velocities.get(key) or node.getVelocity() for key, node in solids]
         coms = [node.getCenterOfMass() for _, node in solids] if self._slider else []
         out = []
-        for frame, child, parent, (ax, ay, az), slider in rows:
+        for frame, child, parent, joint_axis, slider in rows:
+            ax, ay, az = joint_axis.now()
             r = rotations[frame]
             axis = (r[0] * ax + r[1] * ay + r[2] * az, r[3] * ax + r[4] * ay + r[5] * az,
                     r[6] * ax + r[7] * ay + r[8] * az)
@@ -336,7 +367,7 @@ class StateStructure:
         return out
 
     def _rate_plan(self) -> tuple[list[tuple[int, Any]], list[tuple[int, Any]],
-                                  list[tuple[int, int, int, tuple[float, ...], bool]]]:
+                                  list[tuple[int, int, int, JointAxis, bool]]]:
         frames: list[tuple[int, Any]] = []
         solids: list[tuple[int, Any]] = []
 
@@ -353,7 +384,7 @@ class StateStructure:
             parent = self.parent_solid(joint.node)
             rows.append((index(frames, joint.parent), index(solids, joint.child),
                          index(solids, parent) if parent is not None else -1,
-                         tuple(float(v) for v in joint.axis), joint.kind == "SliderJoint"))
+                         joint.joint_axis, joint.kind == "SliderJoint"))
         return frames, solids, rows
 
     @staticmethod
