@@ -307,8 +307,9 @@ REGISTRY: tuple[Coverage, ...] = (
              "cylindrical (Euclidean) or planar (depth) ranges, +inf outside [minRange, maxRange), noise, "
              "resolution, point cloud; a rotating lidar's image spans 2π and is filled column by column as its "
              "head turns by −2π·frequency·dt per basic step (sampled every basic step, setFrequency within "
-             "[minFrequency, maxFrequency]), its rotatingHead Solid turned about its z axis (seen by cameras and "
-             "rays, put back by a reset); Mesh Shapes and CadShapes "
+             "[minFrequency, maxFrequency]), its rotatingHead Solid turned about its z axis while the lidar is "
+             "enabled (seen by cameras and rays, put back by a reset, still after a controller restart until the "
+             "new controller enables the lidar); Mesh Shapes and CadShapes "
              "are hit on their files' triangles; Webots' load-time layer check (numberOfLayers at most "
              "verticalFieldOfView·horizontalResolution/fieldOfView, 2π for a rotating one: else rewritten, with "
              "a warning)"),

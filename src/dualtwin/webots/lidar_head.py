@@ -10,7 +10,8 @@ Sweep
     ``f·dt`` (f the lidar's frequency in Hz, dt the basic step in s): the head points at azimuth ``−2π·s`` in the
     lidar's frame, clockwise seen from +z. A disabled lidar's head stands still (the reference is silent; our
     reading, UNVERIFIED: Webots turns the head in the per-step work that fills the image, done for an enabled
-    lidar only).
+    lidar only), and so does the head of a robot whose controller was restarted, until the new controller
+    enables the lidar: a restarted controller finds its devices disabled (``RobotLink._release``).
 
 Image
     ``horizontalResolution`` (W) columns per layer over the whole turn, in the lidar's frame (the image does not

@@ -168,7 +168,11 @@ class RobotLink:
 
     def _release(self) -> None:
         """Its controller was restarted: its sensors and inputs are no longer sampled (the next controller's
-        devices start disabled, as a fresh controller's do)."""
+        devices start disabled, as a fresh controller's do). Each sensor is disabled, not only forgotten: some
+        drive the simulation while enabled (a rotating Lidar turns its head, a bumper TouchSensor watches its
+        contacts), which the ended controller's handle must no longer do."""
+        for sensor in list(self._sensors.values()):
+            sensor.disable()
         self._sensors.clear()
         self.inputs.clear()
 
