@@ -39,6 +39,7 @@ from dualtwin.twins.webots_state import (
     base_field,
     cross,
 )
+from dualtwin.webots.motor_api import coupled_groups
 
 if TYPE_CHECKING:
     from dualtwin.robots.binding import RobotBinding
@@ -70,6 +71,7 @@ class WebotsTwin(Twin):
         self._motors: dict[str, Any] = {}
         self._sensors: dict[str, Any] = {}
         self._gains: dict[str, float] = {}
+        self._coupled: dict[str, list[Any]] = {}  # motor name as commanded -> it and its coupled siblings
         self._knob_values: dict[str, float] = {}
         # State transfer: motors commanded since reset (the others hold their position), the state written
         # and not yet stepped from (the supervisor shows it only after the next step), the resolved structure.
@@ -134,6 +136,36 @@ class WebotsTwin(Twin):
                 raise unknown_name("motor", self._resolve(name), self._device_names(MOTOR_TYPES), self._origin)
             motor = self._motors[name] = device
         return motor
+
+    def _position_velocity(self, name: str, motor: Any) -> float:
+        """The velocity a position command gives first, so that a former velocity command does not slow the
+        move: the motor's maxVelocity, lowered to the largest value that neither its multiplier nor a coupled
+        sibling's takes past that motor's own maxVelocity. Webots clips ``setVelocity(v)``'s ``v·multiplier`` to
+        ±maxVelocity with a warning, for each motor the command is relayed to (webots-devices.md §9,
+        webots-on-ode.md §5.2), while a position command is ``setPosition`` alone there, which warns about no
+        velocity: given maxVelocity itself, a motor with |multiplier| > 1 warned here where Webots does not. Each
+        motor's target velocity is what the clipping gave before, to the last bit at most (the velocity is
+        stepped down until every product is within its limit)."""
+        group = self._coupled.get(name)
+        if group is None:
+            group = self._coupled[name] = self._coupled_with(motor)
+        velocity = float(motor.getMaxVelocity())
+        for member in group:
+            factor = abs(float(member.getMultiplier())) if hasattr(member, "getMultiplier") else 1.0
+            limit = float(member.getMaxVelocity())
+            if velocity * factor > limit:
+                velocity = limit / factor
+                while velocity * factor > limit:
+                    velocity = math.nextafter(velocity, 0.0)
+        return velocity
+
+    def _coupled_with(self, motor: Any) -> list[Any]:
+        """``motor`` and the motors coupled with it (the robot's motors named ``prefix::suffix`` with its prefix,
+        exactly two parts: webots-devices.md §9), to which Webots relays its commands."""
+        name = motor.getName()
+        group = coupled_groups(self._device_names(MOTOR_TYPES)).get(name.split("::")[0], []) if "::" in name else []
+        siblings = [self.sup.getDevice(n) for n in group if n != name]
+        return [motor, *(s for s in siblings if s is not None)]
 
     def _sensor(self, name: str) -> Any:
         sensor = self._sensors.get(name)
@@ -263,7 +295,7 @@ class WebotsTwin(Twin):
             motor.setPosition(math.inf)
             motor.setVelocity(float(max(-motor.getMaxVelocity(), min(motor.getMaxVelocity(), value))))
         elif mode == "position":
-            motor.setVelocity(motor.getMaxVelocity())
+            motor.setVelocity(self._position_velocity(actuator, motor))
             motor.setPosition(float(value))
         else:
             limit = motor.getMaxTorque() if hasattr(motor, "getMaxTorque") else motor.getMaxForce()
