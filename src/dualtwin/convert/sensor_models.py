@@ -16,12 +16,21 @@ resolution (:mod:`dualtwin.twins.sensor_tables`). A Gyro, Accelerometer or Compa
 is not empty (an empty table is Webots' identity: nothing is written and the model is as before); each component
 goes through it. A DistanceSensor always has one (Webots' default is ``[0 0 0, 0.1 1000 0]``); its rangefinder's
 ``cutoff`` is the last input D, Webots' ray length, and the twin reads ``lookup(min(d, D))``, a miss reading
-``lookup(D)``. An empty DistanceSensor table reads 0 in Webots (§1.4), written as the one row ``0 0 0``. The
-rangefinder is one ray along the sensor's axis: exact for a laser and for one-ray generic and sonar sensors
-(except a sonar's π/8 echo angle, which MuJoCo does not check); several rays over an ``aperture`` and infra-red's
-reflection factor are approximated by that ray, with a warning (:func:`distance_notes`). MuJoCo's ray excludes
-only the sensor's own body: it also hits visual geoms and the robot's other bodies, which Webots' generic, sonar
-and laser rays do not (they hit boundingObjects outside the robot unless ``selfCollision``).
+``lookup(D)``. An empty DistanceSensor table reads 0 in Webots (§1.4), written as the one row ``0 0 0``.
+
+Rays: the rangefinder is one ray along the sensor's axis that also hits visual geoms and the robot's other
+bodies (MuJoCo's ray excludes only the sensor's own body and invisible geoms, and the rangefinder has no geom
+filter). For a generic, sonar or laser DistanceSensor the converter therefore also writes what Webots casts,
+``<numeric name="webots_distance.<sensor>" data="type group blind D rays aperture gaussianWidth">``
+(:func:`add_distance_rays`, read by :mod:`dualtwin.twins.mujoco_rays`): the collision geoms' group (Webots' rays
+hit boundingObjects only, §1.3), whether the sensor is blind to its robot (it is unless ``selfCollision``), the
+ray length D and the fields that give Webots' ray layout and Gaussian weights (§1.2), normalised as Webots does
+at load (the layout itself is not written: the MJCF file keeps 6 significant digits, the twin computes it
+exactly from these fields, as the Webots twin does). The MuJoCo
+twin reads such a sensor from those rays (generic: the weighted mean, a miss counting D; sonar: the nearest hit
+whose surface faces the ray within π/8; laser: its ray) and plain MuJoCo programs still have the rangefinder.
+Infra-red is not written: Webots intersects its rays with the visual Shapes and weights the distance by the
+hit colour's red (§1.4), so it keeps the one rangefinder ray, with a warning (:func:`distance_notes`).
 
 A Compass reads the world's north (the axis ``WorldInfo.coordinateSystem`` names N: +y in ENU, +x in NUE, +z in
 EUN) as a unit vector in its frame (the Webots twin's ``webots.compass``); MuJoCo's ``magnetometer`` reads the
@@ -36,11 +45,13 @@ from typing import Any
 
 import mujoco
 
+from dualtwin.twins.mujoco_rays import GENERIC, LASER, RAYS_NUMERIC, SONAR
 from dualtwin.twins.mujoco_state import SENSOR_NUMERIC
 from dualtwin.twins.sensor_tables import LUT_NUMERIC
 from dualtwin.webots.lut import table_from_field
 
-__all__ = ["QUANTISED", "TABLED", "add_lookup_table", "add_resolution", "add_sensor_model", "distance_notes", "north"]
+__all__ = ["QUANTISED", "TABLED", "RayTargets", "add_distance_rays", "add_lookup_table", "add_resolution",
+           "add_sensor_model", "distance_notes", "north"]
 
 #: The devices whose ``resolution`` the converter writes (see the module docstring).
 QUANTISED = frozenset({"PositionSensor", "GPS", "Gyro", "Accelerometer", "Compass", "DistanceSensor"})
@@ -81,26 +92,59 @@ def add_lookup_table(spec: mujoco.MjSpec, sensor: Any, device: Any) -> None:
 
 
 def distance_notes(device: Any) -> list[str]:
-    """What of a DistanceSensor's value model the one converted ray does not reproduce (empty: nothing)."""
+    """What of a DistanceSensor's value model the converted model does not reproduce (empty: nothing)."""
     kind = DISTANCE_TYPES.get(str(device.get("type", "generic")).lower(), "sonar")
+    if kind != "infra-red":
+        return []  # generic, sonar, laser: Webots' rays (add_distance_rays)
     rays, aperture = int(device.get("numberOfRays", 1)), abs(float(device.get("aperture", 1.5708)))
     notes = []
-    if kind != "laser" and rays > 1 and aperture > 0:
+    if rays > 1 and aperture > 0:
         notes.append(f"its {rays} rays over aperture {aperture:g} are converted as one ray along its axis "
                      "(Webots combines the rays' distances before its lookupTable)")
-    if kind == "infra-red":
-        notes.append("infra-red is converted as a ray against all geoms: the hit's red colour and "
-                     "redColorSensitivity are not")
-    if kind == "sonar":
-        notes.append("MuJoCo's ray reads any hit: Webots' sonar ignores echoes more than pi/8 off the surface normal")
+    notes.append("infra-red is converted as one MuJoCo ray against all visible geoms except its own body's: "
+                 "Webots' rays hit the visual Shapes (its own Solid's excepted) and weight the distance by the "
+                 "hit's red colour and redColorSensitivity")
     return notes
 
 
-def add_sensor_model(spec: mujoco.MjSpec, sensor: Any, device: Any, world_info: Mapping[str, Any]) -> None:
+class RayTargets:
+    """What a converted DistanceSensor's rays may hit: geoms of ``group`` (the boundingObject geoms), and the
+    sensor's own robot only when ``blind`` is False (the robot has ``selfCollision``)."""
+
+    def __init__(self, group: int, *, blind: bool) -> None:
+        self.group, self.blind = group, blind
+
+
+def add_distance_rays(spec: mujoco.MjSpec, sensor: str, device: Any, targets: RayTargets) -> None:
+    """Write Webots' rays of the generic, sonar or laser DistanceSensor ``device`` for the MuJoCo rangefinder
+    ``sensor`` (module docstring); nothing for infra-red or an empty lookup table (which reads 0, no ray)."""
+    kind = DISTANCE_TYPES.get(str(device.get("type", "generic")).lower(), "sonar")
+    rows = table_from_field(device.get("lookupTable"))
+    if kind == "infra-red" or not rows or rows[-1][0] <= 0:
+        return
+    # Webots' load-time normalisation (webots-devices §1.1): at least one ray, a laser one, one if no aperture.
+    rays = max(int(device.get("numberOfRays", 1)), 1)
+    aperture = abs(float(device.get("aperture", 1.5708)))
+    width = float(device.get("gaussianWidth", 1.0))
+    rays = 1 if kind == "laser" or aperture == 0.0 else rays
+    code = {"generic": GENERIC, "sonar": SONAR, "laser": LASER}[kind]
+    spec.add_numeric(name=RAYS_NUMERIC + sensor, data=[float(code), float(targets.group), float(targets.blind),
+                                                      float(rows[-1][0]), float(rays), aperture,
+                                                      width if width > 0 else 1.0])
+
+
+def add_sensor_model(spec: mujoco.MjSpec, sensor: Any, device: Any, world_info: Mapping[str, Any],
+                     targets: RayTargets | None = None) -> None:
     """What the MuJoCo sensor ``sensor`` (an ``MjsSensor``) of the Webots ``device`` needs besides itself: its
-    lookup table (:func:`add_lookup_table`), its resolution (:func:`add_resolution`) and, for a Compass, the
-    model's magnetic field set to the world's north."""
+    lookup table (:func:`add_lookup_table`), its resolution (:func:`add_resolution`), a DistanceSensor's rays
+    (:func:`add_distance_rays`, hitting ``targets``) and, for a Compass, the model's magnetic field set to the
+    world's north."""
     add_lookup_table(spec, sensor, device)
     add_resolution(spec, sensor.name, device)
+    if device.type_name == "DistanceSensor":
+        if len(sensor.intprm) and int(sensor.intprm[0]) == 0:
+            sensor.intprm[0] = 1  # MuJoCo >= 3.4 rangefinder data spec: distance only (the XML default)
+        if targets is not None:
+            add_distance_rays(spec, sensor.name, device, targets)
     if device.type_name == "Compass":
         spec.option.magnetic = north(world_info)

@@ -27,7 +27,7 @@ Devices
     ``webots_motor.NAME`` = maxVelocity Kp Ki Kd acceleration [minPosition maxPosition [multiplier]] for
     :mod:`dualtwin.twins.mujoco` (``a::b`` motors harmonised, :mod:`dualtwin.convert.coupled`). PositionSensor ->
     jointpos; InertialUnit -> framequat, Gyro -> gyro, Accelerometer -> accelerometer, GPS -> framepos, Compass ->
-    magnetometer, DistanceSensor -> rangefinder (one ray), TouchSensor -> touch (its site covers the boundingObject:
+    magnetometer, DistanceSensor -> rangefinder (+ Webots' rays), TouchSensor -> touch (its site covers the boundingObject:
     :mod:`dualtwin.convert.touch_sites`), each at a site at the device pose named by the device; resolution and
     lookupTable as numerics the MuJoCo twin applies (:mod:`dualtwin.convert.sensor_models`).
 
@@ -78,7 +78,7 @@ from dualtwin.convert.equivalences import (
 )
 from dualtwin.convert.initial_state import add_initial_keyframe
 from dualtwin.convert.mass import FloatArray, MassProps, bounding_primitives, combine, solid_mass
-from dualtwin.convert.sensor_models import TABLED, add_sensor_model, distance_notes
+from dualtwin.convert.sensor_models import TABLED, RayTargets, add_sensor_model, distance_notes
 from dualtwin.convert.surfaces import add_surface_mesh
 from dualtwin.convert.touch_sites import touch_site_notes
 from dualtwin.geometry import axis_angle_matrix, mujoco_quat
@@ -361,9 +361,8 @@ class _Converter:
             self.warn(f"{kind} {device_name!r} outside the robot", solid)
         sensor = self.spec.add_sensor(name=self.unique("sensor", device_name), type=sensor_type,
                                       objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site_name)
-        add_sensor_model(self.spec, sensor, solid, self.info)
-        if kind == "DistanceSensor" and len(sensor.intprm) and int(sensor.intprm[0]) == 0:
-            sensor.intprm[0] = 1  # MuJoCo >= 3.4 rangefinder data spec: distance only (the XML default)
+        add_sensor_model(self.spec, sensor, solid, self.info,
+                         RayTargets(COLLISION_GROUP, blind=self.in_robot and not self.self_collision))
         noise = float(solid.get("noise", 0.0) or 0.0)
         if noise > 0:
             sensor.noise = noise

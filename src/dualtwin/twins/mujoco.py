@@ -39,7 +39,7 @@ import numpy as np
 
 from dualtwin.errors import DualtwinError, SimulationUnstable
 from dualtwin.geometry import canonical_quat, matrix_from_quat
-from dualtwin.twins import motor_plugin, mujoco_state, sensor_tables
+from dualtwin.twins import motor_plugin, mujoco_rays, mujoco_state, sensor_tables
 from dualtwin.twins.base import (
     MAX_SUBSTEPS,
     ControlMode,
@@ -175,8 +175,9 @@ class MuJoCoTwin(Twin):
         self._sensor_adr: list[int] = self.model.sensor_adr.tolist()
         self._resolution = mujoco_state.sensor_resolutions(self.model)  # Webots' sensor resolution (the converted model's)
         self._tables = sensor_tables.read_tables(self.model)  # Webots' lookup tables (the converted model's)
-        # bias, delay, noise, resolution, lookup tables
-        self._sensor_models = bool(self._noise.any() or self._resolution.any() or self._tables)
+        self._rays = mujoco_rays.read_rays(self.model)  # Webots' DistanceSensor rays (the converted model's)
+        # bias, delay, noise, resolution, lookup tables, rays
+        self._sensor_models = bool(self._noise.any() or self._resolution.any() or self._tables or self._rays)
         self._keyframe = mujoco_state.initial_keyframe(self.model)  # Webots' initial velocities (dualtwin.convert.initial_state)
         self.reset()
 
@@ -323,7 +324,7 @@ class MuJoCoTwin(Twin):
                 self._apply_command(motor, mode, value)
         if self._sensor_delay.any():
             self.refresh()
-            self._history.append(self.data.sensordata.copy())
+            self._history.append(mujoco_rays.sensor_snapshot(self.model, self.data, self._rays))
             del self._history[:-MAX_DELAY_PERIODS - 1]
 
     def _apply_command(self, motor: _Motor, mode: ControlMode, value: float) -> None:
@@ -552,7 +553,8 @@ class MuJoCoTwin(Twin):
             value = float(self._history[max(0, len(self._history) - delay)][adr])
         else:
             self.refresh()
-            value = float(self.data.sensordata[adr])
+            rays = self._rays.get(s)  # Webots' rays where the model has them, else MuJoCo's reading
+            value = float(self.data.sensordata[adr]) if rays is None else rays.distance(self.model, self.data)
         if (table := self._tables.get(s)) is not None:  # Webots' lookupTable of the physical value, then the rest
             value = sensor_tables.table_value(*table, value, self._rng)
         value += float(self._sensor_bias[s])
@@ -729,7 +731,7 @@ class MuJoCoTwin(Twin):
                 self._write_plugin(mo)
         self._delayed_sensors = bool(self._sensor_delay.any())
         self._sensor_models = bool(self._delayed_sensors or self._noise.any() or self._sensor_bias.any()
-                                   or self._sensor_quant.any() or self._resolution.any() or self._tables)
+                                   or self._sensor_quant.any() or self._resolution.any() or self._tables or self._rays)
         self._knob_values = dict(values)
 
     def _set_substeps(self, substeps: int) -> None:

@@ -1,0 +1,158 @@
+"""Webots' DistanceSensor rays in the MuJoCo twin: ``<numeric name="webots_distance.<sensor>" data="...">``.
+
+A converted DistanceSensor keeps its MuJoCo ``rangefinder`` (one ray along the sensor's axis, for any MuJoCo
+program), and the converter writes what Webots casts (:mod:`dualtwin.convert.sensor_models`) as this numeric::
+
+    type group blind length rays aperture gaussianWidth
+
+``type`` is Webots' ``getType()`` code (0 generic, 2 sonar, 3 laser; infra-red is not written), ``group`` the
+geom group of the boundingObject (collision) geoms, ``blind`` 1 when the sensor does not see its own robot,
+``length`` the ray length D (the lookup table's last input), then the sensor's ``numberOfRays``, ``aperture`` and
+``gaussianWidth`` as Webots normalises them at load. The rays are Webots' layout and Gaussian weights of those
+fields (``docs/reference/webots-devices.md`` §1.2, :mod:`dualtwin.webots.ray_layout`, as the Webots twin casts
+them), turned from the device frame (axis +x) into the site's (axis +z).
+
+The twin reads such a sensor as Webots computes it (§1.3, §1.4) instead of reading the rangefinder:
+
+* The rays start at the site and hit only geoms of ``group``: a Shape without boundingObject is not seen, as
+  Webots' ODE rays collide with bounding objects only. MuJoCo's ``mj_multiRay`` casts them all at once.
+* A blind sensor does not see its robot (Webots' near callback ignores same-robot pairs unless
+  ``selfCollision``): the robot is the converted robot's kinematic tree, the bodies under the site body's
+  root. ``mj_multiRay`` excludes only one body (the site's); a ray whose nearest hit is another body of the
+  robot is cast again from that hit, that body excluded, until it hits something else or nothing.
+* generic: Σ wᵢ·dᵢ, a miss counting as D; laser: its one ray's distance or D; sonar: the nearest hit whose
+  surface faces the ray within π/8, else D (weights ignored). MuJoCo reports the surface's outward normal;
+  ODE's (Webots' and the Webots twin's) faces the ray's side, so the incidence is taken from ``|ray·normal|``.
+
+The result is the distance Webots feeds to its lookup table (always in [0, D]); the twin then applies the table
+and the resolution as for the rangefinder (:mod:`dualtwin.twins.sensor_tables`). Rays are cast only when such a
+sensor is read (or, with a sensor-delay knob, once per control period for the delay's history).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from dualtwin.twins.mujoco_state import sensor_numerics
+from dualtwin.webots.ray_layout import distance_ray_directions, distance_ray_weights
+
+__all__ = ["GENERIC", "LASER", "RAYS_NUMERIC", "SONAR", "DistanceRays", "read_rays", "sensor_snapshot"]
+
+#: The numeric prefix of a DistanceSensor's rays in a converted model.
+RAYS_NUMERIC = "webots_distance."
+#: Webots' DistanceSensor type codes (``DistanceSensor.getType()``) the rays are written for.
+GENERIC, SONAR, LASER = 0, 2, 3
+#: A sonar echo returns only from a surface within this angle of facing the ray (webots-devices §1.4).
+SONAR_MAX_INCIDENCE = math.pi / 8
+#: Hits on the robot's own bodies passed through per ray before the ray counts as a miss (a guard: each pass
+#: moves along the ray past one body, so a real robot needs a handful).
+MAX_PASSES = 64
+_FIELDS = 7
+
+
+@dataclass
+class DistanceRays:
+    """One converted DistanceSensor's rays (see the module docstring)."""
+
+    adr: int  # the sensor's sensordata address
+    site: int
+    kind: int
+    length: float
+    directions: np.ndarray  # (n, 3) unit, site frame
+    weights: np.ndarray  # (n,)
+    groups: np.ndarray  # mj_ray's geomgroup mask: the collision group only
+    exclude: int  # the body the first cast excludes (the site's, for a blind sensor), else -1
+    robot: np.ndarray | None  # per body: True for the robot's bodies a blind sensor passes through
+    _geom: np.ndarray = field(init=False)
+    _dist: np.ndarray = field(init=False)
+    _normal: np.ndarray = field(init=False)
+
+    def __post_init__(self) -> None:
+        n = len(self.directions)
+        self._geom = np.zeros(n, dtype=np.int32)
+        self._dist = np.zeros(n)
+        self._normal = np.zeros(3 * n)
+
+    def distance(self, m: mujoco.MjModel, d: mujoco.MjData) -> float:
+        """The distance Webots feeds to the sensor's lookup table, from the poses in ``d``."""
+        n, full = len(self.directions), self.length
+        origin = d.site_xpos[self.site].copy()
+        world = self.directions @ d.site_xmat[self.site].reshape(3, 3).T
+        mujoco.mj_multiRay(m, d, origin, world.ravel(), self.groups, 1, self.exclude, self._geom, self._dist,
+                           self._normal, n, full)
+        dist = np.where((self._geom >= 0) & (self._dist >= 0), self._dist, np.inf)
+        normal = self._normal.reshape(n, 3).copy()
+        if self.robot is not None:
+            for i in range(n):
+                if self._geom[i] >= 0 and self.robot[m.geom_bodyid[self._geom[i]]]:
+                    dist[i], normal[i] = self._past_robot(m, d, origin, world[i], float(dist[i]), int(self._geom[i]))
+        dist = np.where(dist < full, dist, np.inf)  # beyond the ray's length: no hit (Webots' ray is D long)
+        if self.kind == LASER:
+            return float(min(dist[0], full))
+        if self.kind == SONAR:
+            for i in np.argsort(dist).tolist():
+                if not dist[i] < full:
+                    break
+                cos_incidence = abs(float(np.dot(world[i], normal[i])))
+                if math.acos(min(1.0, cos_incidence)) < SONAR_MAX_INCIDENCE:
+                    return float(dist[i])
+            return full
+        return float(np.dot(self.weights, np.minimum(dist, full)))
+
+    def _past_robot(self, m: mujoco.MjModel, d: mujoco.MjData, origin: np.ndarray, direction: np.ndarray,
+                    dist: float, geom: int) -> tuple[float, np.ndarray]:
+        """The nearest hit along the ray that is not the robot's, cast again from each robot hit on (inf: none)."""
+        assert self.robot is not None
+        hit = np.zeros(1, dtype=np.int32)
+        normal = np.zeros(3)
+        for _ in range(MAX_PASSES):
+            if dist >= self.length:
+                break
+            start = origin + dist * direction
+            step = mujoco.mj_ray(m, d, start, direction, self.groups, 1, int(m.geom_bodyid[geom]), hit, normal)
+            geom = int(hit[0])
+            if geom < 0 or step < 0:
+                break
+            dist += step
+            if not self.robot[m.geom_bodyid[geom]]:
+                return dist, normal.copy()
+        return math.inf, np.zeros(3)
+
+
+def read_rays(m: mujoco.MjModel) -> dict[int, DistanceRays]:
+    """Sensor id -> its rays, for each sensor at a site with a well-formed ``webots_distance.<name>`` numeric."""
+    out: dict[int, DistanceRays] = {}
+    for s, data in sensor_numerics(m, RAYS_NUMERIC).items():
+        if len(data) != _FIELDS or int(m.sensor_objtype[s]) != mujoco.mjtObj.mjOBJ_SITE:
+            continue
+        kind, group, blind, length = int(data[0]), int(data[1]), bool(data[2]), float(data[3])
+        rays, aperture, width = int(data[4]), float(data[5]), float(data[6])
+        if kind not in (GENERIC, SONAR, LASER) or not 0 <= group < mujoco.mjNGROUP or length <= 0 or rays < 1:
+            continue
+        rays = 1 if aperture <= 0 else rays
+        device = distance_ray_directions(rays, aperture)
+        # the device casts along +x, the site along +z (the converter turns the device frame by +pi/2 about y,
+        # dualtwin.convert.equivalences.rangefinder_rotation): (x, y, z) in the device frame is (-z, y, x) here
+        directions = np.stack([-device[:, 2], device[:, 1], device[:, 0]], axis=1)
+        weights = distance_ray_weights(device, aperture, width if width > 0 else 1.0)
+        groups = np.zeros(mujoco.mjNGROUP, dtype=np.uint8)
+        groups[group] = 1
+        site = int(m.sensor_objid[s])
+        body = int(m.site_bodyid[site])
+        root = int(m.body_rootid[body])
+        robot = np.asarray(m.body_rootid == root) if blind and root > 0 else None
+        out[s] = DistanceRays(int(m.sensor_adr[s]), site, kind, length, directions, weights, groups,
+                              body if robot is not None else -1, robot)
+    return out
+
+
+def sensor_snapshot(m: mujoco.MjModel, d: mujoco.MjData, rays: dict[int, DistanceRays]) -> np.ndarray:
+    """``sensordata`` with each DistanceSensor's entry replaced by Webots' distance (a delayed sensor's history)."""
+    out: np.ndarray = d.sensordata.copy()
+    for r in rays.values():
+        out[r.adr] = r.distance(m, d)
+    return out
