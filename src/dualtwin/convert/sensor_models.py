@@ -136,9 +136,14 @@ def add_distance_rays(spec: mujoco.MjSpec, sensor: str, device: Any, targets: Ra
 def add_sensor_model(spec: mujoco.MjSpec, sensor: Any, device: Any, world_info: Mapping[str, Any],
                      targets: RayTargets | None = None) -> None:
     """What the MuJoCo sensor ``sensor`` (an ``MjsSensor``) of the Webots ``device`` needs besides itself: its
-    lookup table (:func:`add_lookup_table`), its resolution (:func:`add_resolution`), a DistanceSensor's rays
-    (:func:`add_distance_rays`, hitting ``targets``) and, for a Compass, the model's magnetic field set to the
-    world's north."""
+    ``noise`` (a GPS's ``accuracy``) as MuJoCo's sensor noise, its lookup table (:func:`add_lookup_table`), its
+    resolution (:func:`add_resolution`), a DistanceSensor's rays (:func:`add_distance_rays`, hitting ``targets``)
+    and, for a Compass, the model's magnetic field set to the world's north."""
+    noise = float(device.get("noise", 0.0) or 0.0)
+    if noise > 0:
+        sensor.noise = noise
+    if device.type_name == "GPS" and float(device.get("accuracy", 0.0)) > 0:
+        sensor.noise = float(device["accuracy"])
     add_lookup_table(spec, sensor, device)
     add_resolution(spec, sensor.name, device)
     if device.type_name == "DistanceSensor":

@@ -363,13 +363,6 @@ class _Converter:
                                       objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site_name)
         add_sensor_model(self.spec, sensor, solid, self.info,
                          RayTargets(COLLISION_GROUP, blind=self.in_robot and not self.self_collision))
-        noise = float(solid.get("noise", 0.0) or 0.0)
-        if noise > 0:
-            sensor.noise = noise
-        if kind == "GPS":
-            accuracy = float(solid.get("accuracy", 0.0))
-            if accuracy > 0:
-                sensor.noise = accuracy
         if solid.get("lookupTable") and kind not in TABLED:
             self.warn(f"{kind} {device_name!r}: lookupTable not converted (MuJoCo reports raw values)", solid)
         if kind == "InertialUnit":
@@ -593,8 +586,6 @@ class _Converter:
                 sensor_name = self.unique("sensor", name)
                 sensor = self.spec.add_sensor(name=sensor_name, type=mujoco.mjtSensor.mjSENS_JOINTPOS,
                                               objtype=mujoco.mjtObj.mjOBJ_JOINT, objname=info.name)
-                if float(d.get("noise", 0.0)) > 0:
-                    sensor.noise = float(d["noise"])
                 add_sensor_model(self.spec, sensor, d, self.info)
                 info.sensors.append(sensor_name)
                 self.sensors[sensor_name] = kind
