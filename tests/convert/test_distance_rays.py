@@ -130,13 +130,17 @@ def test_a_sonar_hears_only_surfaces_facing_it_within_pi_over_8(tmp_path: Path, 
 
 
 def test_the_rays_are_in_the_converted_model() -> None:
-    # type group blind D rays aperture gaussianWidth: a generic sensor (0) hitting collision geoms (group 3), blind
-    # to its robot, 1 m long, Webots' default one ray over aperture 1.5708 (gaussianWidth 1).
+    # type group own D rays aperture gaussianWidth redColorSensitivity: a generic sensor (0) hitting collision geoms
+    # (group 3), blind to its robot, 1 m long, Webots' default one ray over aperture 1.5708, gaussianWidth 1 and
+    # redColorSensitivity 1.
     m = convert_world_text(_world(METRES), "t.wbt").compile()
-    assert np.asarray(m.numeric("webots_distance.ds").data).tolist() == [0, 3, 1, 1, 1, 1.5708, 1]
+    assert np.asarray(m.numeric("webots_distance.ds").data).tolist() == [0, 3, 1, 1, 1, 1.5708, 1, 1]
     # A laser of 3 rays (Webots: one, §1.1) on a selfCollision robot: type 3, not blind, one ray.
     laser = convert_world_text(_world(f'type "laser" numberOfRays 3 {METRES}', self_collision=True), "t.wbt")
     assert np.asarray(laser.compile().numeric("webots_distance.ds").data)[[0, 2, 4]].tolist() == [3, 0, 1]
+    # Infra-red hits the visual geoms (group 2) and hides its robot's Shapes enclosing it even with selfCollision.
+    ir = convert_world_text(_world(f'type "infra-red" {METRES}', self_collision=True), "t.wbt").compile()
+    assert np.asarray(ir.numeric("webots_distance.ds").data)[:3].tolist() == [1, 2, 1]
 
 
 def test_the_rangefinder_stays_for_plain_mujoco() -> None:
@@ -146,11 +150,42 @@ def test_the_rangefinder_stays_for_plain_mujoco() -> None:
     assert float(twin.data.sensordata[twin.model.sensor("ds").adr[0]]) == pytest.approx(0.15, abs=1e-9)
 
 
-def test_infra_red_keeps_the_one_ray_and_its_warning() -> None:
-    # Infra-red rays hit visual Shapes weighted by their red (§1.4), not written: no rays, still reported.
-    conv = convert_world_text(_world(f'type "infra-red" {METRES}'), "t.wbt")
-    m = conv.compile()
-    names = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_NUMERIC, i) for i in range(m.nnumeric)]
-    assert [n for n in names if n.endswith(".ds")] == ["webots_sensor_lut.ds"]
-    assert any("'ds'" in w and "infra-red" in w for w in conv.warnings), conv.warnings
+RED_WALL = ('Solid { name "red wall" translation 0.51 0 0 children [ Shape { '
+            "appearance PBRAppearance { baseColor 0.5 0 0 } geometry Box { size 0.02 2 2 } } ] }")
+HOUSING = "Shape { geometry Box { size 0.1 0.1 0.1 } }"  # the robot's body drawn around the sensor
 
+
+def test_an_infra_red_sensor_reads_the_shapes_and_their_red(tmp_path: Path) -> None:
+    # Infra-red rays hit Shapes (§1.4), not bounding objects: the robot's housing drawn around the sensor is not
+    # seen (the Webots twin's rule for a Shape enclosing the sensor), a boundingObject-only box at 0.2 is not seen,
+    # the wall's Shape is: each of the 3 rays (0.3 rad off the axis, equal weights) at d = 0.5/cos 0.3, its red 0.5
+    # and roughness 0 (PBRAppearance's default) reflecting f = 0.2 + 0.8·0.5 = 0.6. Distance
+    # d̄ + (d̄/f̄ − d̄)·redColorSensitivity with d̄ = 0.5/cos 0.3, f̄ = 0.6, sensitivity 1: d̄/0.6 = 0.8724...
+    # (the rangefinder read the bounding box at 0.15).
+    bounds_only = 'Solid { name "bounds" translation 0.2 0 0 boundingObject Box { size 0.1 0.1 0.1 } }'
+    text = _world(f'type "infra-red" numberOfRays 3 aperture 0.6 {METRES}', f"{bounds_only}\n{RED_WALL}")
+    text = text.replace('children [ GPS', f"children [ {HOUSING} GPS")
+    _both(tmp_path, text, 0.5 / math.cos(0.3) / 0.6)
+
+
+def test_an_infra_red_sensor_sees_its_robots_other_shapes(tmp_path: Path) -> None:
+    # Webots' infra-red rays see the sensor's own robot (§1.4): the hinged part's Shape, near face at 0.15, drawn in
+    # a Material of diffuseColor red 0.25: f = 0.2 + 0.8·0.25 = 0.4; one ray, redColorSensitivity 0.5:
+    # 0.15 + (0.15/0.4 - 0.15)·0.5 = 0.2625.
+    part = ("Shape { appearance Appearance { material Material { diffuseColor 0.25 1 1 } } "
+            "geometry Box { size 0.1 0.1 0.1 } }")
+    text = _world(f'type "infra-red" redColorSensitivity 0.5 {METRES}', RED_WALL.replace("0.51", "0.81"),
+                  part="0.2 0 0")
+    text = text.replace("physics Physics { } boundingObject", f"children [ {part} ] physics Physics {{ }} boundingObject")
+    _both(tmp_path, text, 0.2625)
+
+
+def test_infra_red_reflection_is_written_only_with_an_infra_red_sensor() -> None:
+    # The red wall's visual geom gets its factor 0.6 (above) in a world with an infra-red sensor, nothing otherwise.
+    def reflections(sensor: str) -> list[list[float]]:
+        m = convert_world_text(_world(sensor, RED_WALL), "t.wbt").compile()
+        names = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_NUMERIC, i) for i in range(m.nnumeric)]
+        return [np.asarray(m.numeric(n).data).tolist() for n in names if n.startswith("webots_reflection.")]
+
+    assert reflections(f'type "infra-red" {METRES}') == [[pytest.approx(0.6)]]
+    assert reflections(METRES) == []

@@ -162,9 +162,9 @@ def rangefinder_rotation(device_R: FloatArray) -> FloatArray:
     """Site frame of a DistanceSensor: Webots rays leave along the device's +x, MuJoCo's rangefinder along +z.
 
     Only the ray direction is mapped here: MuJoCo's rangefinder casts one ray along the site's +z. The MuJoCo twin
-    casts Webots' rays of a generic, sonar or laser sensor from this site, each device-frame direction (x, y, z)
-    being (-z, y, x) in the site frame (:mod:`dualtwin.twins.mujoco_rays`); infra-red reads the one ray, reported.
-    Either distance goes through Webots' lookupTable in the twin (:mod:`dualtwin.convert.sensor_models`).
+    casts the sensor's Webots rays from this site, each device-frame direction (x, y, z) being (-z, y, x) in the
+    site frame (:mod:`dualtwin.twins.mujoco_rays`), and their distance goes through Webots' lookupTable
+    (:mod:`dualtwin.convert.sensor_models`).
     """
     result: FloatArray = device_R @ axis_angle_matrix((0.0, 1.0, 0.0, math.pi / 2))
     return result

@@ -20,17 +20,20 @@ goes through it. A DistanceSensor always has one (Webots' default is ``[0 0 0, 0
 
 Rays: the rangefinder is one ray along the sensor's axis that also hits visual geoms and the robot's other
 bodies (MuJoCo's ray excludes only the sensor's own body and invisible geoms, and the rangefinder has no geom
-filter). For a generic, sonar or laser DistanceSensor the converter therefore also writes what Webots casts,
-``<numeric name="webots_distance.<sensor>" data="type group blind D rays aperture gaussianWidth">``
-(:func:`add_distance_rays`, read by :mod:`dualtwin.twins.mujoco_rays`): the collision geoms' group (Webots' rays
-hit boundingObjects only, §1.3), whether the sensor is blind to its robot (it is unless ``selfCollision``), the
-ray length D and the fields that give Webots' ray layout and Gaussian weights (§1.2), normalised as Webots does
-at load (the layout itself is not written: the MJCF file keeps 6 significant digits, the twin computes it
-exactly from these fields, as the Webots twin does). The MuJoCo
-twin reads such a sensor from those rays (generic: the weighted mean, a miss counting D; sonar: the nearest hit
-whose surface faces the ray within π/8; laser: its ray) and plain MuJoCo programs still have the rangefinder.
-Infra-red is not written: Webots intersects its rays with the visual Shapes and weights the distance by the
-hit colour's red (§1.4), so it keeps the one rangefinder ray, with a warning (:func:`distance_notes`).
+filter). The converter therefore also writes what Webots casts,
+``<numeric name="webots_distance.<sensor>" data="type group own D rays aperture gaussianWidth redColorSensitivity">``
+(:func:`add_distance_rays`, read by :mod:`dualtwin.twins.mujoco_rays`): the geom group the rays hit (generic, sonar
+and laser: the collision geoms, as Webots' ODE rays hit boundingObjects only, §1.3; infra-red: the visual geoms,
+as Webots intersects its rays with the Shapes, §1.4), whether the sensor's robot is hidden from it (generic, sonar,
+laser: all of it unless ``selfCollision``; infra-red: its Shapes that enclose the sensor), the ray length D and the
+fields that give Webots' ray layout and Gaussian weights (§1.2), normalised as Webots does at load (the layout
+itself is not written: the MJCF file keeps 6 significant digits, the twin computes it exactly from these fields,
+as the Webots twin does). The MuJoCo twin reads such a sensor from those rays (generic: the weighted mean, a miss
+counting D; sonar: the nearest hit whose surface faces the ray within π/8; laser: its ray; infra-red: the weighted
+mean corrected by the weighted reflection factor) and plain MuJoCo programs still have the rangefinder. A world
+with an infra-red sensor also gets each Shape's reflection factor, ``0.2 + 0.8·red·(1 − 0.5·roughness)`` of its
+appearance (:func:`dualtwin.webots.visual_rays.infra_red_reflection`), as
+``<numeric name="webots_reflection.<visual geom>" data="f">`` (:func:`add_reflections`).
 
 A Compass reads the world's north (the axis ``WorldInfo.coordinateSystem`` names N: +y in ENU, +x in NUE, +z in
 EUN) as a unit vector in its frame (the Webots twin's ``webots.compass``); MuJoCo's ``magnetometer`` reads the
@@ -45,13 +48,14 @@ from typing import Any
 
 import mujoco
 
-from dualtwin.twins.mujoco_rays import GENERIC, LASER, RAYS_NUMERIC, SONAR
+from dualtwin.twins.mujoco_rays import GENERIC, INFRA_RED, LASER, RAYS_NUMERIC, REFLECTION_NUMERIC, SONAR
 from dualtwin.twins.mujoco_state import SENSOR_NUMERIC
 from dualtwin.twins.sensor_tables import LUT_NUMERIC
 from dualtwin.webots.lut import table_from_field
+from dualtwin.webots.visual_rays import infra_red_reflection
 
-__all__ = ["QUANTISED", "TABLED", "RayTargets", "add_distance_rays", "add_lookup_table", "add_resolution",
-           "add_sensor_model", "distance_notes", "north"]
+__all__ = ["QUANTISED", "TABLED", "RayTargets", "add_distance_rays", "add_lookup_table", "add_reflections",
+           "add_resolution", "add_sensor_model", "distance_notes", "north"]
 
 #: The devices whose ``resolution`` the converter writes (see the module docstring).
 QUANTISED = frozenset({"PositionSensor", "GPS", "Gyro", "Accelerometer", "Compass", "DistanceSensor"})
@@ -93,44 +97,49 @@ def add_lookup_table(spec: mujoco.MjSpec, sensor: Any, device: Any) -> None:
 
 def distance_notes(device: Any) -> list[str]:
     """What of a DistanceSensor's value model the converted model does not reproduce (empty: nothing)."""
-    kind = DISTANCE_TYPES.get(str(device.get("type", "generic")).lower(), "sonar")
-    if kind != "infra-red":
-        return []  # generic, sonar, laser: Webots' rays (add_distance_rays)
-    rays, aperture = int(device.get("numberOfRays", 1)), abs(float(device.get("aperture", 1.5708)))
-    notes = []
-    if rays > 1 and aperture > 0:
-        notes.append(f"its {rays} rays over aperture {aperture:g} are converted as one ray along its axis "
-                     "(Webots combines the rays' distances before its lookupTable)")
-    notes.append("infra-red is converted as one MuJoCo ray against all visible geoms except its own body's: "
-                 "Webots' rays hit the visual Shapes (its own Solid's excepted) and weight the distance by the "
-                 "hit's red colour and redColorSensitivity")
-    return notes
+    if DISTANCE_TYPES.get(str(device.get("type", "generic")).lower(), "sonar") != "infra-red":
+        return []
+    return ["infra-red reflection is read from each Shape's colour and roughness: textures, occlusion maps and "
+            "Pen paint at the hit point are not (as in the Webots twin)"]
 
 
 class RayTargets:
-    """What a converted DistanceSensor's rays may hit: geoms of ``group`` (the boundingObject geoms), and the
-    sensor's own robot only when ``blind`` is False (the robot has ``selfCollision``)."""
+    """What a converted DistanceSensor's rays may hit: the ``collision`` group's geoms (generic, sonar, laser) or
+    the ``visual`` group's (infra-red), the sensor being on the converted ``robot`` or not, which has
+    ``self_collision`` or not."""
 
-    def __init__(self, group: int, *, blind: bool) -> None:
-        self.group, self.blind = group, blind
+    def __init__(self, collision: int, visual: int, *, robot: bool, self_collision: bool) -> None:
+        self.collision, self.visual, self.robot, self.self_collision = collision, visual, robot, self_collision
 
 
 def add_distance_rays(spec: mujoco.MjSpec, sensor: str, device: Any, targets: RayTargets) -> None:
-    """Write Webots' rays of the generic, sonar or laser DistanceSensor ``device`` for the MuJoCo rangefinder
-    ``sensor`` (module docstring); nothing for infra-red or an empty lookup table (which reads 0, no ray)."""
+    """Write Webots' rays of the DistanceSensor ``device`` for the MuJoCo rangefinder ``sensor`` (module
+    docstring); nothing for an empty lookup table (which reads 0, no ray)."""
     kind = DISTANCE_TYPES.get(str(device.get("type", "generic")).lower(), "sonar")
     rows = table_from_field(device.get("lookupTable"))
-    if kind == "infra-red" or not rows or rows[-1][0] <= 0:
+    if not rows or rows[-1][0] <= 0:
         return
     # Webots' load-time normalisation (webots-devices §1.1): at least one ray, a laser one, one if no aperture.
     rays = max(int(device.get("numberOfRays", 1)), 1)
     aperture = abs(float(device.get("aperture", 1.5708)))
     width = float(device.get("gaussianWidth", 1.0))
     rays = 1 if kind == "laser" or aperture == 0.0 else rays
-    code = {"generic": GENERIC, "sonar": SONAR, "laser": LASER}[kind]
-    spec.add_numeric(name=RAYS_NUMERIC + sensor, data=[float(code), float(targets.group), float(targets.blind),
-                                                      float(rows[-1][0]), float(rays), aperture,
-                                                      width if width > 0 else 1.0])
+    code = {"generic": GENERIC, "infra-red": INFRA_RED, "sonar": SONAR, "laser": LASER}[kind]
+    if kind == "infra-red":  # the Shapes, its robot's too except those enclosing it (§1.4)
+        group, own = targets.visual, targets.robot
+    else:  # boundingObjects, not its robot's unless selfCollision (§1.3)
+        group, own = targets.collision, targets.robot and not targets.self_collision
+    spec.add_numeric(name=RAYS_NUMERIC + sensor, data=[
+        float(code), float(group), float(own), float(rows[-1][0]), float(rays), aperture,
+        width if width > 0 else 1.0, abs(float(device.get("redColorSensitivity", 1.0)))])
+
+
+def add_reflections(spec: mujoco.MjSpec, shapes: Mapping[str, Any]) -> None:
+    """Write the infra-red reflection factor of each visual geom's Shape (``shapes``: geom name -> Shape) when the
+    model has an infra-red DistanceSensor (module docstring); nothing otherwise."""
+    if any(n.name.startswith(RAYS_NUMERIC) and int(n.data[0]) == INFRA_RED for n in spec.numerics):
+        for geom, shape in shapes.items():
+            spec.add_numeric(name=REFLECTION_NUMERIC + geom, data=[infra_red_reflection(shape)])
 
 
 def add_sensor_model(spec: mujoco.MjSpec, sensor: Any, device: Any, world_info: Mapping[str, Any],

@@ -55,6 +55,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from dualtwin.convert import sensor_models
 from dualtwin.convert.bindings import key
 from dualtwin.convert.checks import Finding, lint_spec, lint_world_rotations
 from dualtwin.convert.contacts import ContactGeom, Stop, apply_contacts, apply_stops
@@ -153,6 +154,7 @@ class _Converter:
         version = re.search(r"R(\d{4})([ab])", world.header or "")
         self.old_cameras = version is not None and (int(version.group(1)), version.group(2)) < (2022, "a")
         self.geoms: list[ContactGeom] = []
+        self.shapes: dict[str, Node] = {}  # visual geom -> the Shape it draws
         self.joints: list[JointInfo] = []
         self.motors: list[MotorInfo] = []
         self.sensors: dict[str, str] = {}
@@ -216,7 +218,7 @@ class _Converter:
 
     # -- geometry
     def add_geom(self, body: Any, geometry: Node, T: FloatArray, scale: float, name: str, *, collision: bool,
-                 rgba: Sequence[float] | None, material: str, static: bool) -> None:
+                 shape: Node | None, material: str, static: bool) -> None:
         kind = geometry.type_name
         R, t = T[:3, :3], T[:3, 3]
         kwargs: dict[str, Any] = {"pos": [float(v) for v in t], "quat": _quat(R)}
@@ -271,8 +273,11 @@ class _Converter:
             geom.group = VISUAL_GROUP
             geom.density = 0.0
             geom.mass = 0.0
-            if rgba is not None:
-                geom.rgba = list(rgba)
+            if shape is not None:  # the Shape drawn: its colour, and (infra-red rays) its reflection
+                rgba = CAD_SHAPE_RGBA if shape.type_name == "CadShape" else appearance_rgba(shape)
+                if rgba is not None:
+                    geom.rgba = list(rgba)
+                self.shapes[name] = shape
 
     def hfield(self, grid: Node, name: str, scale: float, T: FloatArray) -> dict[str, Any]:
         nx, ny = int(grid["xDimension"]), int(grid["yDimension"])
@@ -321,7 +326,7 @@ class _Converter:
             local = np.eye(4)
             local[:3, :3], local[:3, 3] = prim.rotation, prim.translation
             name = self.unique("geom", label if i == 0 else f"{label}_{i}")
-            self.add_geom(body, prim.geometry, T @ local, prim.scale, name, collision=True, rgba=None,
+            self.add_geom(body, prim.geometry, T @ local, prim.scale, name, collision=True, shape=None,
                           material=material, static=static)
         self.device(solid, T, body, label, scale)
         self.children(solid.children(), T, scale, body, label, masses, dynamic=dynamic, static=static,
@@ -361,8 +366,8 @@ class _Converter:
             self.warn(f"{kind} {device_name!r} outside the robot", solid)
         sensor = self.spec.add_sensor(name=self.unique("sensor", device_name), type=sensor_type,
                                       objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site_name)
-        add_sensor_model(self.spec, sensor, solid, self.info,
-                         RayTargets(COLLISION_GROUP, blind=self.in_robot and not self.self_collision))
+        add_sensor_model(self.spec, sensor, solid, self.info, RayTargets(
+            COLLISION_GROUP, VISUAL_GROUP, robot=self.in_robot, self_collision=self.self_collision))
         if solid.get("lookupTable") and kind not in TABLED:
             self.warn(f"{kind} {device_name!r}: lookupTable not converted (MuJoCo reports raw values)", solid)
         if kind == "InertialUnit":
@@ -388,8 +393,7 @@ class _Converter:
                     continue
                 name = self.unique("geom", f"{label}_visual" if shape_index == 0 else f"{label}_visual_{shape_index}")
                 shape_index += 1
-                rgba = CAD_SHAPE_RGBA if kind == "CadShape" else appearance_rgba(child)
-                self.add_geom(body, geometry, T, scale, name, collision=False, rgba=rgba, material=material,
+                self.add_geom(body, geometry, T, scale, name, collision=False, shape=child, material=material,
                               static=static)
             elif kind == "Group":
                 self.children(child.children(), T, scale, body, label, masses, dynamic=dynamic, static=static,
@@ -661,6 +665,7 @@ class _Converter:
             self.warn(f"{len(self.missing_defs)} joint(s)/endPoint(s) have no DEF (first: {self.missing_defs[0]}); "
                       "the Webots twin finds joints and bodies by DEF, so give them DEFs "
                       "in the world file (e.g. DEF wheel1_hinge HingeJoint { ... endPoint DEF wheel1 Solid { ... } })")
+        sensor_models.add_reflections(self.spec, self.shapes)  # (a world with infra-red sensors)
         robot_mass = sum(self.body_mass.get(b, 0.0) for b in self.robot_bodies)
         apply_contacts(self.spec, self.geoms, self.info, robot_mass, basic_ms=self.basic_ms, mujoco_step_s=self.dt,
                        warn=self.warn)
@@ -701,7 +706,7 @@ class _Converter:
             geometry = node.get("geometry")
             if geometry is not None:
                 self.add_geom(self.spec.worldbody, geometry, T, scale, self.unique("geom", "shape_visual"),
-                              collision=False, rgba=appearance_rgba(node), material="default", static=True)
+                              collision=False, shape=node, material="default", static=True)
             return
         if schema.is_solid_type(kind):
             frame = T @ _pose(node, scale)
