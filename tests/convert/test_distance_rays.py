@@ -1,8 +1,10 @@
 """A converted DistanceSensor reads in the MuJoCo twin what Webots' DistanceSensor reads (webots-devices §1):
-Webots' rays over the aperture with their Gaussian weights (§1.2), only boundingObjects outside the sensor's robot
-hit unless ``selfCollision`` (§1.3), a sonar's π/8 echo angle (§1.4). The MuJoCo rangefinder of the same sensor
-is one ray that also hits visual geoms and the robot's other bodies and reads any echo, so each world below read
-otherwise before the rays were written (``webots_distance.<sensor>``, :mod:`dualtwin.twins.mujoco_rays`).
+Webots' rays over the aperture with their Gaussian weights (§1.2); generic, sonar and laser rays hitting only
+boundingObjects outside the sensor's robot unless ``selfCollision`` (§1.3), a sonar's π/8 echo angle (§1.4);
+infra-red rays hitting the Shapes, its robot's too, weighted by their reflection factor (§1.4). The MuJoCo
+rangefinder of the same sensor is one ray that also hits visual geoms and the robot's other bodies and reads any
+echo, so each world below that tests one of these rules read otherwise before the rays were written
+(``webots_distance.<sensor>``, :mod:`dualtwin.twins.mujoco_rays`); the tests named "control" read the same.
 
 Expected values are hand computations of those rules; each world is also read by the Webots twin (our ODE runtime,
 the project's reference for Webots' behaviour). Tables are the identity in metres (``0 0 0, 1 1 0``: D = 1 m), so
@@ -107,7 +109,7 @@ def test_a_delayed_sensor_reads_the_rays_of_its_period(tmp_path: Path) -> None:
         assert mujoco_twin.sensor("ds") == pytest.approx(0.5, abs=1e-9)
 
 
-def test_with_self_collision_the_robot_is_seen(tmp_path: Path) -> None:
+def test_control_with_self_collision_the_robot_is_seen(tmp_path: Path) -> None:
     # Control: selfCollision TRUE keeps same-robot pairs (§1.3): the part's near face at 0.15.
     _both(tmp_path, _world(METRES, _wall(0.51), part="0.2 0 0", self_collision=True), 0.15)
 
@@ -121,7 +123,7 @@ def test_a_shape_without_bounding_object_is_not_seen(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(("yaw", "expected"), [
     (0.5, 1.0),  # 0.5 rad > π/8 (0.3927) off the wall's normal: no echo, the distance is D
-    (0.3, 0.5 - 0.01 / math.cos(0.3)),  # within π/8: the echo from the near face, 0.01 before the centre plane
+    (0.3, 0.5 - 0.01 / math.cos(0.3)),  # control, within π/8: the echo from the near face
 ])
 def test_a_sonar_hears_only_surfaces_facing_it_within_pi_over_8(tmp_path: Path, yaw: float, expected: float) -> None:
     # The wall (centre x = 0.5) turned by ``yaw``: the ray meets its near face at incidence ``yaw``, at
@@ -143,7 +145,7 @@ def test_the_rays_are_in_the_converted_model() -> None:
     assert np.asarray(ir.numeric("webots_distance.ds").data)[:3].tolist() == [1, 2, 1]
 
 
-def test_the_rangefinder_stays_for_plain_mujoco() -> None:
+def test_control_the_rangefinder_stays_for_plain_mujoco() -> None:
     # The converted model keeps its one-ray rangefinder (other MuJoCo programs read it): it still hits the part.
     twin = MuJoCoTwin(convert_world_text(_world(METRES, _wall(0.51), part="0.2 0 0"), "t.wbt").spec, PERIOD)
     twin.refresh()
