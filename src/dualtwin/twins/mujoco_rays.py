@@ -95,9 +95,16 @@ class DistanceRays:
         self._geom = np.zeros(n, dtype=np.int32)
         self._dist = np.zeros(n)
         self._normal = np.zeros(3 * n)
+        # one ray (most sensors): its direction in the site frame and the buffers of :meth:`_one_ray`
+        self._axis = np.ascontiguousarray(self.directions[0], dtype=np.float64)
+        self._vec = np.zeros(3)
+        self._hit_normal = np.zeros(3)
+        self._housing = frozenset(self.housing.tolist()) if self.housing is not None else frozenset()
 
     def distance(self, m: mujoco.MjModel, d: mujoco.MjData) -> float:
         """The distance Webots feeds to the sensor's lookup table, from the poses in ``d``."""
+        if len(self.directions) == 1:
+            return self._one_ray(m, d)
         n, full = len(self.directions), self.length
         origin = d.site_xpos[self.site].copy()
         world = self.directions @ d.site_xmat[self.site].reshape(3, 3).T
@@ -132,6 +139,35 @@ class DistanceRays:
             return mean
         factor = float(np.dot(self.weights, np.where(hit, self.reflection[np.maximum(geom, 0)], 1.0)))
         return mean + (mean / factor - mean) * self.red_sensitivity
+
+    def _one_ray(self, m: mujoco.MjModel, d: mujoco.MjData) -> float:
+        """:meth:`distance` of a one-ray sensor with ``mj_ray`` and scalars: the same rules, at a fraction of the
+        array work (a robot reads a dozen such sensors every control period). Its weight is 1."""
+        full = self.length
+        origin = d.site_xpos[self.site]
+        vec = self._vec
+        np.matmul(d.site_xmat[self.site].reshape(3, 3), self._axis, out=vec)
+        hit = self._geom[:1]
+        dist = mujoco.mj_ray(m, d, origin, vec, self.groups, 1, self.exclude, hit, self._hit_normal)
+        geom = int(hit[0])
+        if geom < 0 or dist < 0:
+            dist, geom = math.inf, -1
+        normal = self._hit_normal
+        if geom in self._housing:
+            hidden = self._enclosing(m, d, origin)
+            if geom in hidden:
+                dist, geom = self._past_housing(m, d, origin, vec, dist, hidden)
+        elif self.robot is not None and geom >= 0 and self.robot[m.geom_bodyid[geom]]:
+            dist, normal = self._past_robot(m, d, origin, vec, dist, geom)
+        if not dist < full:  # beyond the ray's length: no hit (Webots' ray is D long)
+            return full
+        if self.kind == SONAR:
+            cos_incidence = abs(float(vec[0] * normal[0] + vec[1] * normal[1] + vec[2] * normal[2]))
+            return dist if math.acos(min(1.0, cos_incidence)) < SONAR_MAX_INCIDENCE else full
+        if self.kind != INFRA_RED or self.reflection is None:
+            return dist
+        factor = float(self.reflection[geom])
+        return dist + (dist / factor - dist) * self.red_sensitivity
 
     def _enclosing(self, m: mujoco.MjModel, d: mujoco.MjData, origin: np.ndarray) -> set[int]:
         """The robot's visual geoms whose box, in the geom's own frame, holds ``origin``."""
