@@ -242,8 +242,8 @@ class SupervisorEdits(MassEdits):
         motor ``maxVelocity``/``maxTorque``/``maxForce``, ``Physics`` ``mass``/``density``/``centerOfMass``/
         ``inertiaMatrix`` (the body's mass properties summed again as at load, :mod:`.mass_edits`), a
         ``Damping`` node's ``linear``/``angular`` (bodies and, for ``WorldInfo.defaultDamping``, the world),
-        ``ContactProperties`` friction/bounce/soft ERP/CFM, ``WorldInfo`` ERP/CFM, and the dimensions of
-        bounding geometries (:mod:`.geometry_edits`; the mass properties of a body they bound follow).
+        ``ContactProperties`` friction/bounce/soft ERP/CFM, a Solid's ``contactMaterial``, ``WorldInfo`` ERP/CFM, and
+        the dimensions of bounding geometries (:mod:`.geometry_edits`; the mass properties of a body they bound follow).
         Returns False for fields whose edit has no physics effect here.
         """
         applied = self._apply_field(node, name)
@@ -279,7 +279,13 @@ class SupervisorEdits(MassEdits):
         if node.type_name == "Damping" and name in ("linear", "angular"):
             return self._apply_damping(node, name)
         if node.type_name == "ContactProperties":
+            # §2.3 step 10: each collision pass fills its contacts from the properties of that moment; the pairs'
+            # cached plans hold the surface they were made with, and which node matches may have changed
             self._surfaces.pop(id(node), None)
+            self._plans.clear()
+            return True
+        if name == "contactMaterial" and self.solid_for(node) is not None:
+            self._plans.clear()  # §2.1: the Solid's pairs match their ContactProperties again, by the new material
             return True
         if node.type_name == "WorldInfo" and name in ("ERP", "CFM"):
             # Checked as at load and as Webots' WorldInfo does, which resets a value out of range to its default:
