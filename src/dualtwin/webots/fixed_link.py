@@ -1,10 +1,10 @@
 """A fixed joint created at run time between two bodies (a locked Connector pair, a vacuum gripper's hold).
 
 The joint keeps the bodies' relative pose at creation, reports the force it carries (ODE joint feedback) and
-declares the two bodies jointed, so their geoms stop colliding with each other as any jointed pair. Its
-strength test is Webots' for Connector and VacuumGripper: the force on the first body is split into a tensile
-part along a given axis (pulling the two apart) and a shear part perpendicular to it; either part above its
-strength (-1 = unbreakable) breaks the link.
+declares the two bodies jointed, so their geoms stop colliding with each other as any jointed pair (a body jointed
+to the static world stops colliding with static geoms, §2.3 rule 6). Its strength test is Webots' for Connector
+and VacuumGripper: the force on the first body is split into a tensile part along a given axis (pulling the two
+apart) and a shear part perpendicular to it; either part above its strength (-1 = unbreakable) breaks the link.
 """
 
 from __future__ import annotations
@@ -40,8 +40,7 @@ class FixedLink:
         lib.dJointSetFixed(self.joint)
         self.feedback = ode.dJointFeedback()
         lib.dJointSetFeedback(self.joint, ctypes.byref(self.feedback))
-        if second is not None:
-            sim.link_bodies(first, second, True)
+        sim.link_bodies(first, second, True)
 
     def force(self) -> m3.Vec3:
         """The force the joint applied to the first body during the last step (N, world frame)."""
@@ -58,8 +57,7 @@ class FixedLink:
     def destroy(self) -> None:
         lib = self.sim._lib
         lib.dJointDestroy(self.joint)
-        if self.second is not None:
-            self.sim.link_bodies(self.first, self.second, False)
+        self.sim.link_bodies(self.first, self.second, False)
         for body in (self.first, self.second):
             if body is not None:
                 lib.dBodyEnable(body.ptr)

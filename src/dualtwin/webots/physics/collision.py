@@ -29,6 +29,10 @@ from dualtwin.webots.physics.records import (
 )
 
 
+#: the static environment's place in a run-time link's pair of body indices (:meth:`CollisionPass.link_bodies`)
+WORLD_INDEX = -1
+
+
 class CollisionPass(JointBuilder):
     """Contact surfaces, pair filters and the near callback (see the module docstring)."""
 
@@ -170,10 +174,12 @@ class CollisionPass(JointBuilder):
             surface = self._surfaces[id(cp)] = self._make_surface(cp)
         return surface
 
-    def link_bodies(self, b1: BodyRec, b2: BodyRec, linked: bool) -> None:
+    def link_bodies(self, b1: BodyRec, b2: BodyRec | None, linked: bool) -> None:
         """Declare (or undo) a joint created at run time between two bodies (a locked Connector, a vacuum
-        gripper's hold): like any jointed pair, their geoms then stop colliding."""
-        key = frozenset((b1.index, b2.index))
+        gripper's hold): like any jointed pair, their geoms then stop colliding. ``b2`` None is the static
+        environment: while so jointed, ``b1`` collides with no static geom (§2.3 rule 6, as a body jointed to the
+        world at load)."""
+        key = frozenset((b1.index, WORLD_INDEX if b2 is None else b2.index))
         if linked:
             self._run_time_links.add(key)
         else:
@@ -229,7 +235,8 @@ class CollisionPass(JointBuilder):
         else:
             b = b1 if b1 is not None else b2
             assert b is not None
-            if b.attached_to_world:
+            if b.attached_to_world or (
+                    self._run_time_links and frozenset((b.index, WORLD_INDEX)) in self._run_time_links):
                 return False  # rule 6: a body jointed to the static environment ignores static geoms
         surface = self._surface_for(g1.solid.material, g2.solid.material)
         owner = b1 if b1 is not None else b2
