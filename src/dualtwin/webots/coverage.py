@@ -55,7 +55,8 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Solid", "scene", "supported",
              "bodies with mass from Physics/boundingObject, merging and the static basis, kinematic solids "
              "(one that no body or joint carries moves by its linearVelocity/angularVelocity every step, "
-             "sensors and getVelocity seeing it), supervisor pose/velocity edits; Box/Sphere/Cylinder/Capsule/IndexedFaceSet/Mesh edits (also through "
+             "sensors and getVelocity seeing it), supervisor pose/velocity edits (a merged Solid moved takes its new "
+             "place in its body, whose mass follows, the root Solid staying put); Box/Sphere/Cylinder/Capsule/IndexedFaceSet/Mesh edits (also through "
              "DEF/USE) resize the ODE geom at the next step, wake bodies around it and reach ray sensors, and "
              "the body's mass, centre of mass and inertia follow the new shape as at load (with a density the "
              "mass follows too, a given mass stays); a "

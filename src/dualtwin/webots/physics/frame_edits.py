@@ -27,8 +27,9 @@ so the Solids below a scaled Transform are placed without it here too.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 
+from dualtwin.webots import _math3 as m3
 from dualtwin.webots._math3 import Pose
 from dualtwin.webots.mass_rules import rot_matrix
 from dualtwin.webots.nodes import Node, copy_value
@@ -59,7 +60,21 @@ class FrameEdits(PhysicsChanges):
                 other.fields[name] = copy_value(value)
             bounded = self._bounding_frame_changed(linked)  # the frame may sit in boundingObjects (scene_changes)
             return self._children_frame_changed(linked) or bounded
+        if name in ("translation", "rotation") and is_solid(node):
+            solid = self._solid_by_node.get(id(node))
+            if solid is not None and self._is_merged(solid):
+                # a reset restored the fields of a merged Solid a supervisor moved: back to its load place
+                solid.rel = solid.pre * Pose.from_fields(field_or(node, "translation", None),
+                                                         field_or(node, "rotation", None))
+                self._rebody(solid, solid.body)  # type: ignore[arg-type]
+                return True
         return super()._apply_field(node, name)
+
+    @staticmethod
+    def _is_merged(solid: SolidRec) -> bool:
+        """Whether ``solid`` is merged into the body of a Solid above it (§3.3)."""
+        body = solid.body
+        return body is not None and body.root is not solid and not body.removed
 
     def _children_frame_changed(self, linked: list[Node]) -> bool:
         """A Pose or Transform moved, ``linked`` being it and its DEF/USE copies: every record below one of them
@@ -158,6 +173,25 @@ class FrameEdits(PhysicsChanges):
             parent_world = self.solid_world_pose(solid.parent) if solid.parent is not None else Pose()
             new_world = parent_world * self._kinematic_extra(solid) * frame * local
         self._carry(solid, new_world * old_world.inverse(), None)
+
+    def _teleport_solid(
+        self, solid: SolidRec, translation: Sequence[float] | None, rotation: Sequence[float] | None
+    ) -> None:
+        """A supervisor's move of a Solid (§6); one merged into its parent's body (§3.3) stays merged and takes its
+        new place in that body, as when a Pose above it moves (:meth:`_rebody`)."""
+        body = solid.body
+        if body is None or not self._is_merged(solid):
+            super()._teleport_solid(solid, translation, rotation)
+            return
+        node = solid.node
+        current = solid.pre.inverse() * solid.rel
+        t = tuple(float(v) for v in translation) if translation is not None else current.t
+        R = m3.rot_axis_angle(rotation) if rotation is not None else current.R
+        node.fields["translation"] = t
+        node.fields["rotation"] = tuple(rotation) if rotation is not None else m3.axis_angle_from_mat(R)
+        solid.rel = solid.pre * Pose(R, t)
+        self._rebody(solid, body)
+        self._edited[(id(node), "translation")] = node  # simulationReset puts it back (_apply_field)
 
     def _unmoved_rel(self, solid: SolidRec) -> Pose:
         """The current pose of a Solid with its own body in its parent Solid's frame (its joint's motion in)."""
