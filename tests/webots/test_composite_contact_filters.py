@@ -57,3 +57,43 @@ def test_a_body_docked_to_a_static_connector_no_longer_collides_with_static_geom
     sup.step(TS)
     sup.step(TS)
     assert _floor_contacts(sim) > 0
+
+
+def _arms(self_collision: str) -> tuple[Supervisor, Simulation]:
+    """A robot without Physics holding two spheres (radius 0.05 m) on hinges of its own, 0.07 m apart: 3 cm deep in
+    each other, not jointed to each other (each hinge joins its sphere to the static robot) and with different
+    anchors (§2.3 rules 6 and 7 do not apply to the pair)."""
+    text = f"""#VRML_SIM R2023b utf8
+WorldInfo {{ basicTimeStep {TS} gravity 0 }}
+DEF BOT Robot {{ supervisor TRUE selfCollision {self_collision} children [
+  HingeJoint {{ jointParameters HingeJointParameters {{ axis 0 0 1 anchor 0 0 0 }}
+    endPoint Solid {{ translation 0.05 0 0 name "a" boundingObject Sphere {{ radius 0.05 }} physics Physics {{ }} }} }}
+  HingeJoint {{ jointParameters HingeJointParameters {{ axis 0 0 1 anchor 0.2 0 0 }}
+    endPoint Solid {{ translation 0.12 0 0 name "b" boundingObject Sphere {{ radius 0.05 }} physics Physics {{ }} }} }}
+] }}
+"""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sim = Simulation(load_world_text(text))
+        return Supervisor(simulation=sim, robot_node=sim.robots[0].node), sim
+
+
+def _sphere_contacts(sim: Simulation) -> int:
+    """The contact joints between the two spheres' bodies, held for the next step."""
+    a, b = sim.bodies
+    return sum(1 for pair in contact_joints(a.ptr) if set(pair) == {a.ptr, b.ptr})
+
+
+def test_self_collision_set_by_a_supervisor_governs_the_robots_contacts_from_the_next_collision_pass() -> None:
+    # §2.3 rule 4 is a test of the near callback, made at every collision pass on the robot's selfCollision field
+    control, control_sim = _arms("TRUE")
+    assert _sphere_contacts(control_sim) > 0  # the pass at load: the spheres touch
+    sup, sim = _arms("FALSE")
+    assert _sphere_contacts(sim) == 0  # rule 4: two Solids of one robot
+    sup.getSelf().getField("selfCollision").setSFBool(True)
+    sup.step(TS)
+    assert _sphere_contacts(sim) > 0
+    sup.getSelf().getField("selfCollision").setSFBool(False)
+    sup.step(TS)
+    sup.step(TS)  # (the contacts of the pass before the edit act in the step after it, §1.6)
+    assert _sphere_contacts(sim) == 0

@@ -73,7 +73,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "reaches through IS) regenerates the instance (expanded again from its fields and current pose, same handle, DEF and id; a reset restores it), except one "
              "holding a Robot or inside one, which warns and follows the IS links only"),
     Coverage("Robot", "scene", "supported",
-             "Python controllers run unchanged, each in its own process (runner), supervisor API, selfCollision, "
+             "Python controllers run unchanged, each in its own process (runner), supervisor API, selfCollision "
+             "(a supervisor's edit governs the next collision pass), "
              "controllerArgs; a Robot a supervisor imports at run time starts its controller in its own "
              "process, stepping with the others from the next step, and remove() (or a reset, which takes imported nodes "
              "out) ends it (its step returns -1; a supervisor's remove() of its own Robot acts at the end of its next step, as "
@@ -142,7 +143,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "the angle between both solids' directions; the directions per face are our reading of Webots' "
              "texture mapping); asymmetric slip uses its first value; rollingFriction (rho, rho2, rhoN: ODE's rolling rows; "
              "mu2 stays 0 as Webots leaves it, so rho2/rhoN make the second friction direction frictionless) and "
-             "forceDependentSlip as Webots fills ODE's contact"),
+             "forceDependentSlip as Webots fills ODE's contact; a supervisor's edit of a ContactProperties field or of a "
+             "Solid's contactMaterial governs the contacts of the next collision pass"),
     # -- geometry
     Coverage("Box", "geometry", "supported", "ODE box"),
     Coverage("Sphere", "geometry", "supported", "ODE sphere"),

@@ -21,6 +21,7 @@ from dualtwin.webots.physics.records import (
     BodyRec,
     JointRec,
     PendingOp,
+    RobotRec,
     SolidRec,
     field_or,
 )
@@ -242,8 +243,8 @@ class SupervisorEdits(MassEdits):
         motor ``maxVelocity``/``maxTorque``/``maxForce``, ``Physics`` ``mass``/``density``/``centerOfMass``/
         ``inertiaMatrix`` (the body's mass properties summed again as at load, :mod:`.mass_edits`), a
         ``Damping`` node's ``linear``/``angular`` (bodies and, for ``WorldInfo.defaultDamping``, the world),
-        ``ContactProperties`` friction/bounce/soft ERP/CFM, a Solid's ``contactMaterial``, ``WorldInfo`` ERP/CFM, and
-        the dimensions of bounding geometries (:mod:`.geometry_edits`; the mass properties of a body they bound follow).
+        ``ContactProperties`` friction/bounce/soft ERP/CFM, a Solid's ``contactMaterial``, a Robot's
+        ``selfCollision``, ``WorldInfo`` ERP/CFM, and the dimensions of bounding geometries (:mod:`.geometry_edits`; the mass properties of a body they bound follow).
         Returns False for fields whose edit has no physics effect here.
         """
         applied = self._apply_field(node, name)
@@ -287,6 +288,11 @@ class SupervisorEdits(MassEdits):
         if name == "contactMaterial" and self.solid_for(node) is not None:
             self._plans.clear()  # §2.1: the Solid's pairs match their ContactProperties again, by the new material
             return True
+        if name == "selfCollision":
+            robot = next((r for r in self.robots if r.node is node), None)
+            if robot is not None:
+                self._set_self_collision(robot, bool(value))
+                return True
         if node.type_name == "WorldInfo" and name in ("ERP", "CFM"):
             # Checked as at load and as Webots' WorldInfo does, which resets a value out of range to its default:
             # an ERP of -1e308 written at run time stopped ODE inside its step (found by fuzzing the API)
@@ -299,6 +305,20 @@ class SupervisorEdits(MassEdits):
             (lib.dWorldSetERP if name == "ERP" else lib.dWorldSetCFM)(self._world, number)
             return True
         return False
+
+    def _set_self_collision(self, robot: RobotRec, self_collision: bool) -> None:
+        """§2.3 rule 4 is a test of the near callback on the robot's ``selfCollision`` at each collision pass: the
+        robot leaves the category bits that pre-filter its pairs (build._categories) for the callback's own test,
+        which reads the new value, and the pairs are planned again."""
+        robot.self_collision = self_collision
+        robot.category = 0
+        lib = self._lib
+        for gr in self.geoms.values():
+            if gr.solid.robot is robot:
+                category, collide = self._geom_bits(gr.solid, gr.body is not None)
+                lib.dGeomSetCategoryBits(gr.ptr, category)
+                lib.dGeomSetCollideBits(gr.ptr, collide)
+        self._plans.clear()
 
     def _apply_joint_field(self, joint: JointRec, i: int, name: str) -> bool:
         """An edit of a field of ``joint``'s parameters of axis ``i`` (``position`` is a teleport, queued by the
