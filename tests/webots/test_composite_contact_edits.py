@@ -53,3 +53,31 @@ def test_a_solid_whose_contact_material_is_edited_takes_the_contact_properties_o
     sup.step(TS)
     sup.getFromDef("BOX").getField("contactMaterial").setSFString("ice")
     assert _speed_after(sup, 20) > 0.7
+
+
+def _contact_properties_field(sup: Supervisor):  # type: ignore[no-untyped-def]
+    info = sup.getRoot().getField("children").getMFNode(0)
+    assert info.getTypeName() == "WorldInfo"
+    return info.getField("contactProperties")
+
+
+def test_a_contact_properties_node_imported_first_into_world_info_matches_from_the_next_collision_pass() -> None:
+    # §2.1: the first node of WorldInfo.contactProperties whose materials match wins
+    sup = _world("ContactProperties { coulombFriction 1 bounce 0 }")
+    sup.step(TS)
+    _contact_properties_field(sup).importMFNodeFromString(0, "ContactProperties { coulombFriction 0 bounce 0 }")
+    assert _speed_after(sup, 20) > 0.7
+    sup.simulationReset()  # §6: imported nodes are taken out: µ = 1 again
+    assert _speed_after(sup, 21) < 0.05
+
+
+def test_removing_the_matching_contact_properties_hands_the_pairs_to_the_next_matching_node() -> None:
+    properties = "ContactProperties { coulombFriction 0 bounce 0 } ContactProperties { coulombFriction 1 bounce 0 }"
+    control = _world(properties)
+    assert _speed_after(control, 21) > 0.7  # the first node (µ 0) matches
+    sup = _world(properties)
+    sup.step(TS)
+    _contact_properties_field(sup).removeMF(0)
+    assert _speed_after(sup, 20) < 0.05
+    sup.simulationReset()  # §6: every field back to its load value, the removed node too
+    assert _speed_after(sup, 21) > 0.7

@@ -144,7 +144,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "texture mapping); asymmetric slip uses its first value; rollingFriction (rho, rho2, rhoN: ODE's rolling rows; "
              "mu2 stays 0 as Webots leaves it, so rho2/rhoN make the second friction direction frictionless) and "
              "forceDependentSlip as Webots fills ODE's contact; a supervisor's edit of a ContactProperties field or of a "
-             "Solid's contactMaterial governs the contacts of the next collision pass"),
+             "Solid's contactMaterial, and a ContactProperties node imported into or removed from WorldInfo's list, "
+             "govern the contacts of the next collision pass"),
     # -- geometry
     Coverage("Box", "geometry", "supported", "ODE box"),
     Coverage("Sphere", "geometry", "supported", "ODE sphere"),

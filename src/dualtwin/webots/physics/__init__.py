@@ -304,6 +304,7 @@ class Simulation(FrameEdits):
         lib = self._lib
         self._pending.clear()
         self._restore_fields()
+        self.contact_properties_changed()  # (a supervisor may have imported or removed some)
         for body in self.bodies:
             for g in body.groups:
                 lib.dJointGroupEmpty(g)

@@ -157,6 +157,15 @@ class CollisionPass(JointBuilder):
             arr[i].surface = s
         return arr
 
+    def contact_properties_changed(self) -> None:
+        """``WorldInfo.contactProperties`` gained or lost a node (a supervisor's import or removal, a reset): the
+        collision passes from now on match the list as it is (§2.1: the first matching node wins)."""
+        info = self.world.world_info()
+        listed = _f(info, "contactProperties", []) or []
+        self.contact_properties = [cp for cp in listed if isinstance(cp, Node)]
+        self._surfaces.clear()
+        self._plans.clear()  # the pairs' plans hold the surface they were first matched with
+
     def contact_properties_for(self, material1: str, material2: str) -> Node | None:
         """§2.1: the first ContactProperties matching the two materials in either order."""
         for cp in self.contact_properties:

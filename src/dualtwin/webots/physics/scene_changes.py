@@ -108,6 +108,9 @@ class SceneChanges(JointChanges):
         if top.type_name == "Damping":  # into a Physics node's or WorldInfo's damping field
             self._apply_damping(top, "")
             return []
+        if top.type_name == "ContactProperties":  # into WorldInfo's contactProperties
+            self.contact_properties_changed()
+            return []
         if top.type_name == "Physics" and chain and chain[-1] is not None and is_solid(chain[-1]):
             self.physics_changed(chain[-1])  # a Physics imported into a Solid's empty physics field
             return []
@@ -187,6 +190,9 @@ class SceneChanges(JointChanges):
         """Take every Solid of the subtree ``top`` out of the physics (no-op for nodes that have none)."""
         if top.type_name == "Damping":  # out of a Physics node's or WorldInfo's damping field
             self._apply_damping(top, "")
+            return
+        if top.type_name == "ContactProperties":  # out of WorldInfo's contactProperties
+            self.contact_properties_changed()
             return
         if top.type_name == "Physics":  # taken out of a Solid's physics field: that Solid has a body still
             for solid in [s for s in self.solids if s.body is not None and s in s.body.members
