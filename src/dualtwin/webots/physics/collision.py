@@ -28,7 +28,6 @@ from dualtwin.webots.physics.records import (
     field_or as _f,
 )
 
-
 #: the static environment's place in a run-time link's pair of body indices (:meth:`CollisionPass.link_bodies`)
 WORLD_INDEX = -1
 
