@@ -12,7 +12,7 @@ friction is gone, and is at rest (< 0.05 m/s) after 21 steps when it is not."""
 
 from __future__ import annotations
 
-from dualtwin.webots.controller import Supervisor
+from dualtwin.webots.controller import Field, Supervisor
 from tests.support.quiet_worlds import quiet_supervisor
 
 TS = 10
@@ -55,10 +55,14 @@ def test_a_solid_whose_contact_material_is_edited_takes_the_contact_properties_o
     assert _speed_after(sup, 20) > 0.7
 
 
-def _contact_properties_field(sup: Supervisor):  # type: ignore[no-untyped-def]
-    info = sup.getRoot().getField("children").getMFNode(0)
-    assert info.getTypeName() == "WorldInfo"
-    return info.getField("contactProperties")
+def _contact_properties_field(sup: Supervisor) -> Field:
+    children = sup.getRoot().getField("children")
+    assert children is not None
+    info = children.getMFNode(0)
+    assert info is not None and info.getTypeName() == "WorldInfo"
+    field = info.getField("contactProperties")
+    assert field is not None
+    return field
 
 
 def test_a_contact_properties_node_imported_first_into_world_info_matches_from_the_next_collision_pass() -> None:
