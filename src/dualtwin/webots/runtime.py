@@ -157,6 +157,8 @@ class Runtime:
         #: (robot, restart) a supervisor asked for since the last step: started when it next steps (or ends)
         self._to_start: list[tuple[SceneNode, bool]] = []
         self._gone_nodes: dict[int, SceneNode] = {}  # removed robots' subtrees (kept, so their ids stay theirs)
+        # the simulation executes the supervisors' queued writes of a step in their scene-tree order (§6)
+        simulation.extensions["request_order"] = self._request_order
 
     @property
     def mode(self) -> int:
@@ -332,6 +334,14 @@ class Runtime:
             self._controllers.append(controller)
         self._thread_controller.controller = controller
         return controller
+
+    def _request_order(self) -> int:
+        """The scene-tree place (robot Solid index) of the robot whose controller runs in the calling thread; 0 for
+        a thread bound to no controller (a script using the API directly)."""
+        controller = getattr(self._thread_controller, "controller", None)
+        node = controller.robot_node if controller is not None else None
+        solid = self.simulation.solid_for(node) if node is not None else None
+        return solid.index if solid is not None else 0
 
     def robot_node_for_thread(self) -> SceneNode:
         controller = getattr(self._thread_controller, "controller", None)

@@ -82,11 +82,11 @@ class SupervisorEdits(MassEdits):
         self, solid: SolidRec, translation: Sequence[float] | None, rotation: Sequence[float] | None
     ) -> None:
         """Queue a teleport (translation/rotation field set), applied before the next physics step."""
-        self._pending.append(PendingOp("pose", solid, (translation, rotation)))
+        self._pending.append(PendingOp("pose", solid, (translation, rotation), self._request_order()))
 
     def queue_set_joint_position(self, joint: JointRec, axis_index: int, position: float) -> None:
         """Queue a joint ``position`` field set (§4.1), applied before the next physics step."""
-        self._pending.append(PendingOp("joint", joint, (axis_index, position)))
+        self._pending.append(PendingOp("joint", joint, (axis_index, position), self._request_order()))
 
     def apply_pending(self) -> None:
         """Execute the queued supervisor requests now, without a physics step (dualtwin extension, no Webots
@@ -95,8 +95,16 @@ class SupervisorEdits(MassEdits):
             ode.ensure_thread()
         self._apply_pending()
 
+    def _request_order(self) -> int:
+        """The scene-tree place of the supervisor making the current request: the ``request_order`` extension (set
+        by the runtime that runs the controllers, which knows the calling thread's robot), else 0."""
+        order_of = self.extensions.get("request_order")
+        return int(order_of()) if order_of is not None else 0
+
     def _apply_pending(self) -> None:
         ops, self._pending = self._pending, []
+        # §6: in scene-tree order of supervisors, each one's requests in the order it made them
+        ops.sort(key=lambda op: op.order)
         for op in ops:
             if op.kind == "pose":
                 translation, rotation = op.value
@@ -380,7 +388,7 @@ class SupervisorEdits(MassEdits):
         if body is None:
             return
         if self._pending and self._teleport_pending_for(body):
-            self._pending.append(PendingOp("velocity", solid, tuple(float(v) for v in velocity)))
+            self._pending.append(PendingOp("velocity", solid, tuple(float(v) for v in velocity), self._request_order()))
             return
         self._set_body_velocity_now(solid, velocity)
 

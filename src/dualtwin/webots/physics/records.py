@@ -369,3 +369,6 @@ class PendingOp:
     kind: str
     target: Any
     value: Any
+    #: the issuing supervisor's place in the scene tree (its robot's Solid index; 0 when unknown): Webots executes
+    #: the queued writes of a step in scene-tree order of supervisors (§6), whoever made the call first
+    order: int = 0
