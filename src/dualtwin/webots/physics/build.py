@@ -579,7 +579,7 @@ class SceneBuilder(SimulationCore):
                 ptr = lib.dCreateTriMesh(self._space, built[0], None, None, None)
                 keep = built
         elif t == "ElevationGrid":
-            built_hf = self._heightfield(node)
+            built_hf = self._heightfield(node, scale)
             if built_hf is not None:
                 ptr, keep, extra = built_hf
                 local = local * extra
@@ -636,10 +636,14 @@ class SceneBuilder(SimulationCore):
         lib.dGeomSetPosition(gr.ptr, *world.t)
         lib.dGeomSetRotation(gr.ptr, rot_matrix(world.R))
 
-    def _heightfield(self, node: Node) -> tuple[int, tuple[Any, ...], Pose] | None:
+    def _heightfield(
+        self, node: Node, scale: Sequence[float] = (1.0, 1.0, 1.0)
+    ) -> tuple[int, tuple[Any, ...], Pose] | None:
+        """An ODE heightfield for an ElevationGrid, in a Transform ``scale``d frame (§3.4): spacings scaled by the
+        scale's x and y, heights and thickness by its z (per axis, as a Box's sizes)."""
         nx, ny = int(_f(node, "xDimension", 0)), int(_f(node, "yDimension", 0))
-        sx, sy = float(_f(node, "xSpacing", 1.0)), float(_f(node, "ySpacing", 1.0))
-        heights = [float(h) for h in (_f(node, "height", []) or [])]
+        sx, sy = float(_f(node, "xSpacing", 1.0)) * scale[0], float(_f(node, "ySpacing", 1.0)) * scale[1]
+        heights = [float(h) * scale[2] for h in (_f(node, "height", []) or [])]
         if nx < 2 or ny < 2 or len(heights) < nx * ny:
             self.warn("ElevationGrid with fewer than 2×2 heights: ignored")
             return None
@@ -653,7 +657,7 @@ class SceneBuilder(SimulationCore):
             j = ny - 1 - k
             data_vals.extend(heights[j * nx : (j + 1) * nx])
         arr = (ctypes.c_double * len(data_vals))(*data_vals)
-        thickness = float(_f(node, "thickness", 1.0))
+        thickness = float(_f(node, "thickness", 1.0)) * scale[2]
         data = lib.dGeomHeightfieldDataCreate()
         lib.dGeomHeightfieldDataBuildDouble(
             data, arr, 1, width, depth, nx, ny, 1.0, 0.0, max(thickness, 1e-6), 0
