@@ -12,9 +12,10 @@ involving a Track geom gets a surface velocity (``dContactMotion1``). Per step, 
 
 In the collision pass, for each contact point (normal ``n`` negated when the Track is the pair's second geom):
 ``c = n·ẑ_track``; the surface speed is ``v·s·|acos(c) − π/2|/(π/2)`` with the sign ``s`` chosen from the raw
-normal's vertical component and the sign of ``c`` as Webots does (gravity along −z), so contacts on the belt's
-top and bottom faces move in opposite directions and side contacts not at all. When the Track geom has a body,
-the friction direction is the Track's x axis (negated under the belt). Without a motor the belt does not move.
+normal's component along the dominant gravity axis (z in ENU, y in NUE/EUN) and the sign of ``c`` as Webots
+does, so contacts on the belt's top and bottom faces move in opposite directions and side contacts not at all.
+When the Track geom has a body, the friction direction is the Track's x axis (negated under the belt). Without a
+motor the belt does not move.
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import Simulation, SolidRec
 from dualtwin.webots.step_hints import buffered
 
-__all__ = ["TrackBrake", "TrackMotor", "TrackPositionSensor", "TrackRec", "install"]
+__all__ = ["TrackBrake", "TrackMotor", "TrackPositionSensor", "TrackRec", "gravity_axis", "install"]
 
 
 @dataclass(eq=False)
@@ -147,15 +148,12 @@ class _Tracks:
     def _modifier(self, rec: TrackRec) -> Any:
         sim = self.sim
         own = {g.ptr for g in rec.solid.geoms}
-        g = sim.gravity
-        g_norm = m3.norm(g)
-        # Webots picks the dominant gravity axis; ENU worlds use z
-        g_z = g[2] / g_norm if g_norm > 0 else -1.0
 
         def modify(contacts: Any, indices: list[int], o1: int) -> None:
             v = rec.velocity
             if v == 0.0:
                 return
+            up, g_up = gravity_axis(sim.gravity)
             track_first = o1 in own
             pose = sim.solid_world_pose(rec.solid)
             z_axis = pose.rotate((0.0, 0.0, 1.0))
@@ -167,7 +165,7 @@ class _Tracks:
                 n = raw if track_first else m3.scale(raw, -1.0)
                 cos = max(-1.0, min(1.0, m3.dot(n, z_axis)))
                 inv = cos < 0
-                sign = -g_z if (raw[2] < 0) == inv else g_z
+                sign = -g_up if (raw[up] < 0) == inv else g_up
                 sign *= abs(math.acos(cos) - math.pi / 2) / (math.pi / 2)
                 c.surface.mode |= ode.dContactMotion1
                 c.surface.motion1 = v * sign
@@ -177,6 +175,18 @@ class _Tracks:
                     c.fdir1[0], c.fdir1[1], c.fdir1[2] = d
 
         return modify
+
+
+def gravity_axis(gravity: m3.Vec3) -> tuple[int, float]:
+    """The world axis along which gravity mostly points and the unit gravity vector's component on it: the
+    axis whose normal component and gravity sign Webots' belt rule reads (§7.2, "the dominant gravity axis is
+    used"), so a NUE or EUN world (gravity along −y) moves its belts as an ENU one does. Without gravity: z
+    pointing down, as in an ENU world (the reference does not say; a belt still moves what lies on it)."""
+    g_norm = m3.norm(gravity)
+    if g_norm == 0.0:
+        return 2, -1.0
+    axis = max(range(3), key=lambda i: abs(gravity[i]))
+    return axis, gravity[axis] / g_norm
 
 
 class _Handle:
