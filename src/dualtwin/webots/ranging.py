@@ -78,7 +78,8 @@ def caster_for(sim: Simulation) -> RayCaster:
 
 def _targets(sim: Simulation, robot: RobotRec | None) -> list[GeomRec]:
     cache = sim.extensions.setdefault("ray_targets", {})
-    key = (id(robot), len(sim.geoms))
+    # the robot's selfCollision now, not at load: a supervisor may turn it on or off (§1.3's same-robot rule)
+    key = (id(robot), len(sim.geoms), robot is not None and robot.self_collision)
     geoms = cache.get(key)
     if geoms is None:
         geoms = cache[key] = candidate_geoms(sim, robot)

@@ -32,7 +32,7 @@ import numpy as np
 from dualtwin.webots import ode
 from dualtwin.webots.physics import GeomRec, RobotRec, Simulation
 
-__all__ = ["RayCaster", "RayHits", "cast_ode", "candidate_geoms", "geom_list"]
+__all__ = ["RayCaster", "RayHits", "cast_ode", "candidate_geoms", "geom_list", "self_collision_flags"]
 
 _PRIMITIVES = {ode.dBoxClass, ode.dSphereClass, ode.dCapsuleClass, ode.dCylinderClass, ode.dPlaneClass}
 
@@ -59,13 +59,20 @@ def candidate_geoms(sim: Simulation, robot: RobotRec | None) -> list[GeomRec]:
     return [g for g in sim.geoms.values() if g.solid.robot is not robot]
 
 
+def self_collision_flags(sim: Simulation) -> tuple[bool, ...]:
+    """Every robot's ``selfCollision`` now: what decides, with the geoms, which of them a robot's rays see."""
+    return tuple(robot.self_collision for robot in sim.robots)
+
+
 def geom_list(sim: Simulation, key: Hashable, build: Callable[[], list[GeomRec]]) -> list[GeomRec]:
-    """The geoms a kind of ray may hit (``build()``), kept under ``key`` until the scene's geoms change.
+    """The geoms a kind of ray may hit (``build()``), kept under ``key`` until the scene's geoms change or a
+    robot's ``selfCollision`` does (the same-robot rule is the near callback's, read at every pass: a supervisor
+    that turns it on makes the robot's sensors see its own parts from the next sample).
 
     :class:`RayCaster` groups the geoms of each list it is given once and keys that work by the list itself, so
     a device that built a fresh list at every sample would be regrouped every time and leave one grouping
     behind per sample. Light sensors, radars and infra-red links ask here instead."""
-    stamp = (sim.geometry_version, len(sim.geoms))
+    stamp = (sim.geometry_version, len(sim.geoms), self_collision_flags(sim))
     cached: tuple[tuple[int, int], dict[Hashable, list[GeomRec]]] | None = sim.extensions.get("ray_geom_lists")
     if cached is None or cached[0] != stamp:
         cached = sim.extensions["ray_geom_lists"] = (stamp, {})

@@ -1,0 +1,52 @@
+"""DistanceSensor × a supervisor's edit of ``Robot.selfCollision`` (webots-devices.md §1.3 with webots-on-ode.md
+§2.3): a sensor's rays get their hits from the ordinary near callback, where "same-robot pairs [are] ignored unless
+Robot.selfCollision" (D:79-80); the callback tests the robot's field at every collision pass (O:185, rule 4), so
+once a supervisor turns ``selfCollision`` on, the robot's sensors see its own parts from the next sample, and no
+longer once it turns it off.
+
+Hand computation: the sensor sits at the robot's origin looking along +x (one ray, D:72); a 0.1 m Box of the
+same robot is centred 0.5 m ahead, so its near face is at 0.45 m. Lookup table ``[0 0 0, 1 1000 0]``: a hit at
+0.45 m reads 450; no hit reads the last output, 1000 (D:107, "No hit ⇒ d = D ⇒ value = LUT last output").
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from dualtwin.webots.controller import Supervisor
+from tests.support.quiet_worlds import quiet_supervisor
+
+TS = 8
+
+
+def _robot(self_collision: bool) -> Supervisor:
+    return quiet_supervisor(f"""#VRML_SIM R2023b utf8
+WorldInfo {{ basicTimeStep {TS} gravity 0 }}
+DEF ME Robot {{ supervisor TRUE selfCollision {'TRUE' if self_collision else 'FALSE'} children [
+  DistanceSensor {{ name "ds" lookupTable [ 0 0 0, 1 1000 0 ] }}
+  Solid {{ translation 0.5 0 0 boundingObject Box {{ size 0.1 0.1 0.1 }} }}
+] }}
+""")
+
+
+def _reading_after_edit(sup: Supervisor, self_collision: bool) -> tuple[float, float]:
+    sensor = sup.getDevice("ds")
+    sensor.enable(TS)
+    sup.step(TS)
+    before = sensor.getValue()
+    sup.getFromDef("ME").getField("selfCollision").setSFBool(self_collision)
+    sup.step(TS)
+    sup.step(TS)
+    return before, sensor.getValue()
+
+
+def test_turning_self_collision_on_lets_a_sensor_see_its_own_robot() -> None:
+    before, after = _reading_after_edit(_robot(False), True)
+    assert before == 1000.0
+    assert after == pytest.approx(450.0, abs=1e-9)
+
+
+def test_turning_self_collision_off_hides_the_robot_from_its_own_sensor() -> None:
+    before, after = _reading_after_edit(_robot(True), False)
+    assert before == pytest.approx(450.0, abs=1e-9)
+    assert after == 1000.0
