@@ -37,7 +37,7 @@ from dualtwin.webots.api_args import as_float, as_int, error, warn
 from dualtwin.webots.device_base import Device, SolidSensor, register_in_world_order
 from dualtwin.webots.physics import Simulation
 from dualtwin.webots.ranging import caster_for
-from dualtwin.webots.rays import candidate_geoms, geom_list
+from dualtwin.webots.rays import geom_list
 
 __all__ = ["Emitter", "Receiver"]
 
@@ -137,12 +137,14 @@ class _Medium:
             return False
         if d == 0.0:
             return True
-        # a ray from emitter to receiver: any Solid of another robot than the two ends blocks the beam
-        e_robot, r_robot = emitter._record.solid.robot, receiver._record.solid.robot
+        # a ray from emitter to receiver: any Solid not of the emitting robot blocks the beam, whatever that
+        # robot's selfCollision (§5.2 step 4: the emitter's own body, around its origin, never blocks it), nor
+        # of the receiving robot (kept out as before: whether its selfCollision lets it block is not settled)
+        ends = (emitter._record.solid.robot, receiver._record.solid.robot)
         geoms = geom_list(
             self.sim,
-            ("infra-red", id(e_robot), id(r_robot)),
-            lambda: [g for g in candidate_geoms(self.sim, e_robot) if g.solid.robot is not r_robot or r_robot is None],
+            ("infra-red", *map(id, ends)),
+            lambda: [g for g in self.sim.geoms.values() if g.solid.robot not in ends],
         )
         origin = np.array([e_pose.t])
         direction = np.array([m3.scale(m3.sub(r_pose.t, e_pose.t), 1.0 / d)])
