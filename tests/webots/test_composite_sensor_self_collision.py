@@ -1,5 +1,7 @@
-"""Sensors × ``Robot.selfCollision``. DistanceSensor × a supervisor's edit of ``Robot.selfCollision`` (webots-devices.md §1.3 with webots-on-ode.md
-§2.3): a sensor's rays get their hits from the ordinary near callback, where "same-robot pairs [are] ignored unless
+"""Sensors × ``Robot.selfCollision``.
+
+DistanceSensor × a supervisor's edit of the field (webots-devices.md §1.3 with webots-on-ode.md §2.3): a sensor's
+rays get their hits from the ordinary near callback, where "same-robot pairs [are] ignored unless
 Robot.selfCollision" (D:79-80); the callback tests the robot's field at every collision pass (O:185, rule 4), so
 once a supervisor turns ``selfCollision`` on, the robot's sensors see its own parts from the next sample, and no
 longer once it turns it off.
