@@ -41,11 +41,25 @@ __all__ = ["TouchSensor", "bumper_touches"]
 _TYPES = {"bumper": 0, "force": 1, "force-3d": 2}
 
 
+def _sensor_solids(solid: SolidRec) -> list[SolidRec]:
+    """The TouchSensor Solid and the Solids merged into it: its subtree, less what hangs from a joint. A joint's
+    endPoint is another Solid with its own body, and only "one of the sensor's geoms" touching something sets
+    the flag (webots-devices.md §2.3), so a wheel or finger jointed below a bumper does not make it touch."""
+    out, stack = [], [solid]
+    while stack:
+        s = stack.pop()
+        out.append(s)
+        stack.extend(c for c in s.children if c.joint is None)
+    return out
+
+
 def bumper_touches(sim: Simulation, solid: SolidRec) -> bool:
     """Whether the TouchSensor Solid's geoms touch another Solid's geoms now (Webots' bumper pair rules)."""
-    mine = [g for s in solid.subtree() for g in s.geoms]
+    mine = [g for s in _sensor_solids(solid) for g in s.geoms]
     if not mine:
         return False
+    # what hangs below the sensor is never the "other" Solid either: whether its joint excludes the pair, as it
+    # excludes contacts, is not settled (webots-devices.md §2.3 is silent)
     own = {id(s) for s in solid.subtree()}
     robot = solid.robot
     others: list[GeomRec] = [
