@@ -73,7 +73,9 @@ def geom_list(sim: Simulation, key: Hashable, build: Callable[[], list[GeomRec]]
     a device that built a fresh list at every sample would be regrouped every time and leave one grouping
     behind per sample. Light sensors, radars and infra-red links ask here instead."""
     stamp = (sim.geometry_version, len(sim.geoms), self_collision_flags(sim))
-    cached: tuple[tuple[int, int], dict[Hashable, list[GeomRec]]] | None = sim.extensions.get("ray_geom_lists")
+    cached: tuple[tuple[int, int, tuple[bool, ...]], dict[Hashable, list[GeomRec]]] | None = sim.extensions.get(
+        "ray_geom_lists"
+    )
     if cached is None or cached[0] != stamp:
         cached = sim.extensions["ray_geom_lists"] = (stamp, {})
     lists = cached[1]
