@@ -83,7 +83,7 @@ from typing import Any
 
 from dualtwin.errors import SimulationUnstable
 from dualtwin.webots import _math3 as m3
-from dualtwin.webots import ode
+from dualtwin.webots import ode, world_frame
 from dualtwin.webots.nodes import Node, World
 from dualtwin.webots.physics import immersion
 from dualtwin.webots.physics.frame_edits import FrameEdits
@@ -197,9 +197,11 @@ class Simulation(FrameEdits):
         self.basic_time_step = step_ms
         self.dt = step_ms * 0.001
         g = float(_f(info, "gravity", 9.81))
-        cs = str(_f(info, "coordinateSystem", "ENU"))
-        self.coordinate_system = cs
-        self.gravity = (0.0, 0.0, -g) if cs == "ENU" else (0.0, -g, 0.0)
+        # one reading for gravity and every device (the Compass's): ENU, NUE or EUN in any case, else ENU
+        cs = str(_f(info, "coordinateSystem", "ENU")).upper()
+        self.coordinate_system = cs = cs if cs in ("ENU", "NUE", "EUN") else "ENU"
+        up = world_frame.axes(cs).up  # gravity along the system's down
+        self.gravity = (-g * up[0] if up[0] else 0.0, -g * up[1] if up[1] else 0.0, -g * up[2] if up[2] else 0.0)
         erp = float(_f(info, "ERP", 0.2))
         cfm = float(_f(info, "CFM", 0.00001))
         self.erp = erp if 0.0 <= erp <= 1.0 else 0.2
