@@ -344,6 +344,9 @@ class Simulation(FrameEdits):
         self._edited.clear()
         for motor in self.motors:
             motor.reset_state()
+            # §5.2: setAcceleration replaced the motor's acceleration field, which a reset restores (§6; the
+            # motors' acceleration is among what webots-devices.md §11.3 lists as reset)
+            motor.acceleration = motor.load_acceleration
         self._enabled[:] = [not b.removed for b in self.bodies]
         self._accel_prev.clear()
         for index in self._accel_cur:

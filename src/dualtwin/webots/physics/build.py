@@ -319,6 +319,7 @@ class SceneBuilder(SimulationCore):
             max_position=float(_f(dev, "maxPosition", 0.0)),
             multiplier=float(_f(dev, "multiplier", 1.0)),
         )
+        motor.load_acceleration = motor.acceleration
         if motor.multiplier == 0.0:
             self.warn(MULTIPLIER_ZERO.format(name=motor.name))
             motor.multiplier = 1.0

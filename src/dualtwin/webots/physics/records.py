@@ -220,6 +220,8 @@ class MotorRec(_ShortRepr):
     prev_error: float = 0.0
     current_velocity: float = 0.0  # Webots sign
     torque_params_set: bool = False
+    #: the ``acceleration`` field as loaded (setAcceleration replaces the field; simulationReset restores it)
+    load_acceleration: float = -1.0
     sensor: PositionSensorRec | None = None
     brake: BrakeRec | None = None
 

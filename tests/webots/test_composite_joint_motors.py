@@ -1,0 +1,54 @@
+"""Joints × motors × supervisor compositions (webots-on-ode.md §4–§6, webots-devices.md §9–§11): a motor's state
+across a supervisor's simulationReset, and coupled motors whose limits disagree at load.
+
+Worlds: the one-link arm of tests/support/hinge_arm.py (a 1 kg bob 0.5 m from a hinge about y, no gravity, 4 ms
+steps); its inertia about the hinge is I = 0.25 + 0.4·0.05² ≈ 0.251 kg·m²."""
+
+from __future__ import annotations
+
+import pytest
+
+from dualtwin.webots.controller import Supervisor
+from tests.support.hinge_arm import BOB, DT, TS, load_arm
+
+
+def _steps(sup: Supervisor, n: int) -> None:
+    for _ in range(n):
+        assert sup.step(TS) != -1
+
+
+def _ramp(acceleration: float, velocity: float, n: int) -> float:
+    """Hand computation of §5.3 step 2: the commanded velocity grows by acceleration·dt a step up to ``velocity``;
+    each step the joint turns by that velocity times dt (the motor's maxTorque 1000 N·m is more than the
+    I·(1 rad/s)/dt ≈ 63 N·m that reaching 1 rad/s within one step needs, so the motor row reaches it)."""
+    total, u = 0.0, 0.0
+    for _ in range(n):
+        u = min(velocity, u + acceleration * DT)
+        total += u * DT
+    return total
+
+
+def test_simulation_reset_restores_the_acceleration_a_controller_changed() -> None:
+    # §5.2: setAcceleration replaces the motor's `acceleration` field; §6: simulationReset restores the fields to
+    # their load state and webots-devices.md §11.3 lists the motors' "position, velocity, acceleration, available
+    # force" among what it resets. So after a reset the motor ramps at the file's 2 rad/s² again: 25 steps of
+    # velocity control at 1 rad/s turn the joint by Σ 0.008·k·0.004 (k = 1..25) = 0.0104 rad, not the 25·0.004 =
+    # 0.1 rad of an unlimited motor.
+    _, sup = load_arm(f'HingeJoint {{ jointParameters HingeJointParameters {{ axis 0 1 0 }} '
+                      f'device [ RotationalMotor {{ name "m" acceleration 2 maxTorque 1000 }} PositionSensor {{ name "s" }} ] '
+                      f'endPoint {BOB.format(t="0.5 0 0")} }}')
+    m, s = sup.getDevice("m"), sup.getDevice("s")
+    s.enable(TS)
+    m.setAcceleration(-1)
+    m.setPosition(float("inf"))
+    m.setVelocity(1.0)
+    _steps(sup, 5)
+    assert s.getValue() == pytest.approx(_ramp(1e9, 1.0, 5), rel=1e-3)  # unlimited: 1 rad/s from the first step
+    sup.simulationReset()
+    _steps(sup, 1)
+    assert m.getAcceleration() == 2.0
+    m.setPosition(float("inf"))
+    m.setVelocity(1.0)
+    start = s.getValue()
+    _steps(sup, 25)
+    assert s.getValue() - start == pytest.approx(_ramp(2.0, 1.0, 25), rel=1e-3)
