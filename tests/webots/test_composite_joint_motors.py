@@ -10,6 +10,7 @@ import pytest
 
 from dualtwin.webots.controller import Supervisor
 from tests.support.hinge_arm import BOB, DT, TS, load_arm
+from tests.support.quiet_worlds import quiet_supervisor
 
 
 def _steps(sup: Supervisor, n: int) -> None:
@@ -52,3 +53,40 @@ def test_simulation_reset_restores_the_acceleration_a_controller_changed() -> No
     start = s.getValue()
     _steps(sup, 25)
     assert s.getValue() - start == pytest.approx(_ramp(2.0, 1.0, 25), rel=1e-3)
+
+
+def _kinematic_arm() -> Supervisor:
+    """A robot without Physics whose hinge (about z) carries an endPoint without Physics: a kinematic joint (§4.1),
+    its motor moving the joint itself (§5.3), at 10 ms steps."""
+    return quiet_supervisor("""#VRML_SIM R2023b utf8
+WorldInfo { basicTimeStep 10 gravity 0 }
+DEF ROBOT Robot { supervisor TRUE children [
+  HingeJoint { jointParameters HingeJointParameters { axis 0 0 1 }
+    device [ RotationalMotor { name "m" acceleration 1 } PositionSensor { name "s" } ]
+    endPoint Solid { translation 0.5 0 0 } } ] }
+""")
+
+
+def test_reset_physics_of_a_kinematic_robot_restarts_its_motors_ramp() -> None:
+    # §6: resetting a Solid's physics zeroes the joint motors' current velocity (WbSolid.resetSingleSolidPhysics,
+    # run for each Solid of the subtree, webots-python-api.md: "the Solid and descendants"), a kinematic joint's
+    # too: its motor then ramps up again from rest (§5.3: "acceleration limited by min(acceleration, available
+    # torque)"). Hand computation, 10 ms steps, acceleration 1 rad/s², velocity control at 1 rad/s: after 100 steps
+    # the motor turns at 1 rad/s; from rest, the next 10 steps turn the joint by Σ 0.01·k·0.01 (k = 1..10) =
+    # 0.0055 rad, where a motor still at 1 rad/s turns it by 10·0.01 = 0.1 rad.
+    sup = _kinematic_arm()
+    m, s = sup.getDevice("m"), sup.getDevice("s")
+    s.enable(10)
+    m.setPosition(float("inf"))
+    m.setVelocity(1.0)
+    for _ in range(101):
+        assert sup.step(10) != -1
+    before = s.getValue()
+    for _ in range(10):
+        assert sup.step(10) != -1
+    assert s.getValue() - before == pytest.approx(0.1, rel=1e-9)  # at full speed
+    sup.getFromDef("ROBOT").resetPhysics()
+    before = s.getValue()
+    for _ in range(10):
+        assert sup.step(10) != -1
+    assert s.getValue() - before == pytest.approx(0.0055, rel=1e-9)

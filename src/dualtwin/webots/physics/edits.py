@@ -42,8 +42,13 @@ class SupervisorEdits(MassEdits):
             lib.dBodySetTorque(body.ptr, 0.0, 0.0, 0.0)
             lib.dBodyEnable(body.ptr)
         ids = {b.index for b in bodies}
+        # Webots resets each Solid of the subtree, with the motor of the joint it is the endPoint of: a kinematic
+        # joint's (no body) too, whose motor then ramps up from rest again (§5.3)
+        endpoints = set() if solid is None else {id(s) for s in solid.subtree()}
         for motor in self.motors:
-            if solid is None or (motor.joint.child_body is not None and motor.joint.child_body.index in ids):
+            joint = motor.joint
+            if (solid is None or (joint.child_body is not None and joint.child_body.index in ids)
+                    or (joint.child is not None and id(joint.child) in endpoints)):
                 motor.current_velocity = 0.0
 
     def _bodies_in_subtree(self, solid: SolidRec) -> list[BodyRec]:
