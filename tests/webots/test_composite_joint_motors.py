@@ -61,7 +61,7 @@ def _kinematic_arm() -> Supervisor:
     return quiet_supervisor("""#VRML_SIM R2023b utf8
 WorldInfo { basicTimeStep 10 gravity 0 }
 DEF ROBOT Robot { supervisor TRUE children [
-  HingeJoint { jointParameters HingeJointParameters { axis 0 0 1 }
+  HingeJoint { jointParameters DEF PARAMS HingeJointParameters { axis 0 0 1 }
     device [ RotationalMotor { name "m" acceleration 1 } PositionSensor { name "s" } ]
     endPoint Solid { translation 0.5 0 0 } } ] }
 """)
@@ -90,3 +90,21 @@ def test_reset_physics_of_a_kinematic_robot_restarts_its_motors_ramp() -> None:
     for _ in range(10):
         assert sup.step(10) != -1
     assert s.getValue() - before == pytest.approx(0.0055, rel=1e-9)
+
+
+def test_a_position_edit_of_a_kinematic_joint_restarts_its_motors_ramp() -> None:
+    # §4.1: a supervisor's write of a joint's `position` teleports its endPoint and resets its subtree's physics,
+    # the motor's current velocity zeroed (WbJoint.resetPhysics), a kinematic joint's as a dynamic one's; in
+    # velocity control the motor then carries the joint on from the new position, ramping up from rest (§5.3).
+    # Hand computation as in the test above: 0.0055 rad in the 10 steps after the edit, not 0.1 rad.
+    sup = _kinematic_arm()
+    m, s = sup.getDevice("m"), sup.getDevice("s")
+    s.enable(10)
+    m.setPosition(float("inf"))
+    m.setVelocity(1.0)
+    for _ in range(101):
+        assert sup.step(10) != -1
+    sup.getFromDef("PARAMS").getField("position").setSFFloat(2.0)
+    for _ in range(10):
+        assert sup.step(10) != -1
+    assert s.getValue() - 2.0 == pytest.approx(0.0055, rel=1e-9)

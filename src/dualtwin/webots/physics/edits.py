@@ -42,13 +42,20 @@ class SupervisorEdits(MassEdits):
             lib.dBodySetTorque(body.ptr, 0.0, 0.0, 0.0)
             lib.dBodyEnable(body.ptr)
         ids = {b.index for b in bodies}
-        # Webots resets each Solid of the subtree, with the motor of the joint it is the endPoint of: a kinematic
-        # joint's (no body) too, whose motor then ramps up from rest again (§5.3)
-        endpoints = set() if solid is None else {id(s) for s in solid.subtree()}
         for motor in self.motors:
-            joint = motor.joint
-            if (solid is None or (joint.child_body is not None and joint.child_body.index in ids)
-                    or (joint.child is not None and id(joint.child) in endpoints)):
+            if solid is None or (motor.joint.child_body is not None and motor.joint.child_body.index in ids):
+                motor.current_velocity = 0.0
+        if solid is not None:
+            self._rest_motors(solid)
+
+    def _rest_motors(self, solid: SolidRec) -> None:
+        """Zero the current velocity of the motors of the joints whose endPoint is ``solid`` or below it: Webots
+        resets each Solid of a subtree with the motor of the joint it is the endPoint of (§6,
+        WbSolid.resetSingleSolidPhysics; §4.1, WbJoint.resetPhysics), a kinematic joint's (no body) too, whose
+        motor then ramps up from rest again (§5.3)."""
+        endpoints = {id(s) for s in solid.subtree()}
+        for motor in self.motors:
+            if motor.joint.child is not None and id(motor.joint.child) in endpoints:
                 motor.current_velocity = 0.0
 
     def _bodies_in_subtree(self, solid: SolidRec) -> list[BodyRec]:
@@ -225,6 +232,8 @@ class SupervisorEdits(MassEdits):
         child = joint.child
         if child is None or joint.kinematic:
             joint.positions[axis_index] = float(position)
+            if child is not None:
+                self._rest_motors(child)  # §4.1: its subtree's physics reset, as a dynamic endPoint's
             return
         joint.positions[axis_index] = float(position)
         self._place_endpoint(joint)
@@ -240,10 +249,7 @@ class SupervisorEdits(MassEdits):
         parent_world = self.solid_world_pose(joint.parent) if joint.parent is not None else Pose()
         new_world = parent_world * self._endpoint_motion(joint) * child.load_rel
         self._move_subtree(child, new_world * old_world.inverse(), reset_velocity=True)
-        moved = {id(s) for s in child.subtree()}
-        for motor in self.motors:
-            if motor.joint.child is not None and id(motor.joint.child) in moved:
-                motor.current_velocity = 0.0
+        self._rest_motors(child)
 
     # ------------------------------------------------------------------ live field edits
 
