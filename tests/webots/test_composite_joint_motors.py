@@ -108,3 +108,19 @@ def test_a_position_edit_of_a_kinematic_joint_restarts_its_motors_ramp() -> None
     for _ in range(10):
         assert sup.step(10) != -1
     assert s.getValue() - 2.0 == pytest.approx(0.0055, rel=1e-9)
+
+
+def test_a_supervisor_write_of_a_motors_acceleration_field_limits_its_ramp() -> None:
+    # §5.2: the motor's `acceleration` field is its acceleration (setAcceleration replaces the field), so a
+    # supervisor's write of the field acts as the call would. Unlimited at load, 2 rad/s² once written: 25 steps
+    # of velocity control at 1 rad/s then turn the joint by 0.0104 rad (hand computation in _ramp), not 0.1 rad.
+    _, sup = load_arm(f'HingeJoint {{ jointParameters HingeJointParameters {{ axis 0 1 0 }} '
+                      f'device [ DEF MOTOR RotationalMotor {{ name "m" maxTorque 1000 }} PositionSensor {{ name "s" }} ] '
+                      f'endPoint {BOB.format(t="0.5 0 0")} }}')
+    m, s = sup.getDevice("m"), sup.getDevice("s")
+    s.enable(TS)
+    sup.getFromDef("MOTOR").getField("acceleration").setSFFloat(2.0)
+    m.setPosition(float("inf"))
+    m.setVelocity(1.0)
+    _steps(sup, 25)
+    assert s.getValue() == pytest.approx(_ramp(2.0, 1.0, 25), rel=1e-3)

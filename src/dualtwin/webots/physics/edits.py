@@ -259,7 +259,7 @@ class SupervisorEdits(MassEdits):
         Webots reacts to field edits at run time (WbJoint/WbMotor/WbPhysics/WbContactProperties update
         their ODE objects). Supported: joint ``dampingConstant``/``springConstant``/``staticFriction``/``stopERP``/
         ``stopCFM``,
-        motor ``maxVelocity``/``maxTorque``/``maxForce``, ``Physics`` ``mass``/``density``/``centerOfMass``/
+        motor ``maxVelocity``/``maxTorque``/``maxForce``/``acceleration``, ``Physics`` ``mass``/``density``/``centerOfMass``/
         ``inertiaMatrix`` (the body's mass properties summed again as at load, :mod:`.mass_edits`), a
         ``Damping`` node's ``linear``/``angular`` (bodies and, for ``WorldInfo.defaultDamping``, the world),
         ``ContactProperties`` friction/bounce/soft ERP/CFM, a Solid's ``contactMaterial``, a Robot's
@@ -292,6 +292,10 @@ class SupervisorEdits(MassEdits):
             if name in ("maxTorque", "maxForce"):
                 motor.max_force = float(value)
                 motor.available = motor.max_force
+                return True
+            if name == "acceleration":
+                # §5.2: the field is the motor's acceleration (setAcceleration replaces it), -1 unlimited
+                motor.acceleration = float(value)
                 return True
             return False
         if node.type_name == "Physics" and name in MASS_FIELDS:
