@@ -124,3 +124,28 @@ def test_a_supervisor_write_of_a_motors_acceleration_field_limits_its_ramp() -> 
     m.setVelocity(1.0)
     _steps(sup, 25)
     assert s.getValue() == pytest.approx(_ramp(2.0, 1.0, 25), rel=1e-3)
+
+
+def test_a_position_edit_across_a_hinges_range_keeps_its_stops() -> None:
+    # §4.1 with §4.2: a hinge with stops [−2.5, 3] driven onto its low stop, then a supervisor writes its
+    # `position` 2.0 (4.5 rad away, within the stops). Webots' stops are hard limits tested on an unwrapped angle
+    # (§4.2, fork difference), so the joint stays between them: teleported to 2.0 at rest (§4.1: velocities and
+    # the motor's current velocity zeroed), the motor (velocity control, −3 rad/s, 20 N·m) accelerates it at
+    # 20/I ≈ 79.7 rad/s², so one step later it is at 2.0 − 79.7·0.004² ≈ 1.99873 rad (hand computation); driven
+    # up at +3 rad/s it rests on the high stop at 3.
+    _, sup = load_arm(f'HingeJoint {{ jointParameters DEF PARAMS HingeJointParameters {{ axis 0 1 0 minStop -2.5 '
+                      f'maxStop 3 }} device [ RotationalMotor {{ name "m" maxTorque 20 }} PositionSensor {{ name "s" }} ] '
+                      f'endPoint {BOB.format(t="0.5 0 0")} }}')
+    m, s = sup.getDevice("m"), sup.getDevice("s")
+    s.enable(TS)
+    m.setPosition(float("inf"))
+    m.setVelocity(-3.0)
+    _steps(sup, 300)
+    assert s.getValue() == pytest.approx(-2.5, abs=1e-3)
+    sup.getFromDef("PARAMS").getField("position").setSFFloat(2.0)
+    _steps(sup, 1)
+    inertia = 0.25 + 0.4 * 0.05 * 0.05
+    assert s.getValue() == pytest.approx(2.0 - 20.0 / inertia * DT * DT, abs=1e-5)
+    m.setVelocity(3.0)
+    _steps(sup, 300)
+    assert s.getValue() == pytest.approx(3.0, abs=1e-3)

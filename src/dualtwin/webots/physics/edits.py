@@ -225,7 +225,8 @@ class SupervisorEdits(MassEdits):
         BallJoint the other axes keep their current positions and the rotations compose as in a chain of hinges
         (§4.4: the first axis carries the second, which carries the third): zero-pose ⊕ R(axis1, p1)·R(axis2,
         p2)(·R(axis3, p3)), the zero pose being the load pose undone by the load positions in the same chain.
-        ODE's zero and the offsets stay: the positions are read on from ODE."""
+        ODE's zero and the offsets stay (but for a hinge with stops, which takes its zero at the new pose): the
+        positions are read on from ODE."""
         p = joint.params[axis_index]
         if p is not None:
             p.fields["position"] = float(position)
@@ -238,6 +239,11 @@ class SupervisorEdits(MassEdits):
         joint.positions[axis_index] = float(position)
         self._place_endpoint(joint)
         self._read_joint(joint, predict=False)
+        if joint.rebase:
+            # a hinge with stops: ODE tests them on its wrapped angle, which after a jump of more than π from ODE's
+            # zero reads the joint beyond a stop (it was thrown onto the other one); its zero is taken here, as
+            # while it turns (physics/joints.py _rebase_hinge), so the stops hold where Webots puts them (§4.2)
+            self._rebase_hinge(joint)
 
     def _place_endpoint(self, joint: JointRec) -> None:
         """Teleport a dynamic joint's endPoint to its zero pose moved by the joint's current positions about its
