@@ -1,15 +1,16 @@
-"""Joints × motors × supervisor compositions (webots-on-ode.md §4–§6, webots-devices.md §9–§11): a motor's state
-across a supervisor's simulationReset, and coupled motors whose limits disagree at load.
+"""Joints × motors × supervisor compositions (webots-on-ode.md §4–§6, webots-devices.md §11): a motor's acceleration
+across a simulationReset and a supervisor's write of its field, a kinematic motor's speed across resetPhysics and a
+joint position write, and a hinge's stops across a position write.
 
 Worlds: the one-link arm of tests/support/hinge_arm.py (a 1 kg bob 0.5 m from a hinge about y, no gravity, 4 ms
-steps); its inertia about the hinge is I = 0.25 + 0.4·0.05² ≈ 0.251 kg·m²."""
+steps; its inertia about the hinge is I = 0.25 + 0.4·0.05² ≈ 0.251 kg·m²), or a kinematic arm (no Physics)."""
 
 from __future__ import annotations
 
 import pytest
 
 from dualtwin.webots.controller import Supervisor
-from tests.support.hinge_arm import BOB, DT, TS, load_arm
+from tests.support.hinge_arm import BOB, DT, INERTIA, TS, load_arm
 from tests.support.quiet_worlds import quiet_supervisor
 
 
@@ -144,8 +145,7 @@ def test_a_position_edit_across_a_hinges_range_keeps_its_stops() -> None:
     assert s.getValue() == pytest.approx(-2.5, abs=1e-3)
     sup.getFromDef("PARAMS").getField("position").setSFFloat(2.0)
     _steps(sup, 1)
-    inertia = 0.25 + 0.4 * 0.05 * 0.05
-    assert s.getValue() == pytest.approx(2.0 - 20.0 / inertia * DT * DT, abs=1e-5)
+    assert s.getValue() == pytest.approx(2.0 - 20.0 / INERTIA * DT * DT, abs=1e-5)
     m.setVelocity(3.0)
     _steps(sup, 300)
     assert s.getValue() == pytest.approx(3.0, abs=1e-3)
