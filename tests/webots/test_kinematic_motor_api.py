@@ -296,3 +296,26 @@ def test_multiplier_zero_is_reset_to_one_with_a_warning(name: str) -> None:
         sup = Supervisor(simulation=sim, robot_node=sim.robots[0].node)
     assert sup.getDevice(name).getMultiplier() == 1.0
     assert sum(f"'{name}'" in w and "multiplier" in w for w in sim.build_warnings) == 1
+
+
+@pytest.mark.parametrize("name, sensor_reading", [("belt", "belt sensor"), ("prop", None)])
+def test_simulation_reset_restores_the_acceleration_field(name: str, sensor_reading: str | None) -> None:
+    # O §5.2: setAcceleration replaces the motor's acceleration field; D §11.3 lists the motors' acceleration among
+    # what simulationReset resets, as for a joint's motor. Loaded unlimited (-1): after the reset a velocity command
+    # is reached in one step again. With the 0.5 m/s² (rad/s²) set before the reset kept, the first step would
+    # reach only 0.5·0.004 = 0.002.
+    sup = _sup()
+    motor = sup.getDevice(name)
+    motor.setAcceleration(0.5)
+    sup.simulationReset()
+    sup.step(TS)
+    assert motor.getAcceleration() == -1.0
+    motor.setPosition(math.inf)
+    motor.setVelocity(2.0)
+    if sensor_reading is not None:  # the belt travels v·dt in its first step: 2·0.004
+        sensor = sup.getDevice(sensor_reading)
+        sensor.enable(TS)
+        sup.step(TS)
+        before = sensor.getValue()
+        sup.step(TS)
+        assert sensor.getValue() - before == pytest.approx(2.0 * TS / 1000.0, abs=1e-12)

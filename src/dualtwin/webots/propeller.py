@@ -17,7 +17,7 @@ Without a body upstream there is no effect (and a build warning, as in Webots).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from dualtwin.webots import _math3 as m3
@@ -62,8 +62,10 @@ class PropellerRec:
     angle: float = 0.0
     thrust: float = 0.0  # last applied values, for inspection
     torque: float = 0.0
+    load_acceleration: float = field(init=False, default=-1.0)  # the acceleration field as loaded
 
     def __post_init__(self) -> None:
+        self.load_acceleration = self.acceleration  # the motor's acceleration field as loaded
         self.initial()
 
     def initial(self) -> None:
@@ -134,6 +136,9 @@ class _Propellers:
 
     def reset(self) -> None:
         for rec in self.recs:
+            # setAcceleration replaced the motor's acceleration field, which a reset restores (webots-on-ode.md
+            # §5.2, webots-devices.md §11.3), as for joint motors
+            rec.acceleration = rec.load_acceleration
             rec.initial()
 
     def apply(self, dt: float) -> None:

@@ -51,6 +51,7 @@ class TrackRec:
     max_velocity: float = 10.0
     max_force: float = 10.0
     acceleration: float = -1.0
+    load_acceleration: float = -1.0  # the motor's acceleration field as loaded (a reset restores it)
     kp: float = 10.0
     ki: float = 0.0
     kd: float = 0.0
@@ -102,7 +103,7 @@ def _make(solid: SolidRec, sim: Simulation) -> TrackRec:
         pid = tuple(f.get("controlPID", (10.0, 0.0, 0.0)))
         rec.max_velocity = float(f.get("maxVelocity", 10.0))
         rec.max_force = rec.available = float(f.get("maxForce", 10.0))
-        rec.acceleration = float(f.get("acceleration", -1.0))
+        rec.acceleration = rec.load_acceleration = float(f.get("acceleration", -1.0))
         rec.kp, rec.ki, rec.kd = (float(v) for v in pid)
         rec.multiplier = float(f.get("multiplier", 1.0)) or 1.0
         rec.min_position = float(f.get("minPosition", 0.0))
@@ -140,6 +141,10 @@ class _Tracks:
             rec.target_velocity = rec.max_velocity
             rec.available = rec.max_force
             rec.force_mode = False
+            rec.force = 0.0
+            # setAcceleration replaced the motor's acceleration field, which a reset restores (webots-on-ode.md
+            # §5.2; the motors' acceleration is among what webots-devices.md §11.3 lists as reset), as for joints
+            rec.acceleration = rec.load_acceleration
 
     def control(self, dt: float) -> None:
         for rec in self.recs:
