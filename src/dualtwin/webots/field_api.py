@@ -28,7 +28,12 @@ from dualtwin.webots.nodes import Node as SceneNode
 from dualtwin.webots.nodes import copy_value
 from dualtwin.webots.physics import JointRec, Simulation
 from dualtwin.webots.physics.records import is_robot
-from dualtwin.webots.proto_links import feeds_template, linked_fields
+from dualtwin.webots.proto_links import (
+    feeds_template,
+    insert_linked_nodes,
+    linked_fields,
+    remove_linked_nodes,
+)
 
 __all__ = ["FIELD_TYPES", "Field", "FieldOwner", "field_type_name", "parse_nodes"]
 
@@ -48,6 +53,8 @@ class FieldOwner(Protocol):
     _sup: Any
 
     def _imported(self, nodes: list[SceneNode]) -> None: ...
+
+    def _number(self, nodes: list[SceneNode]) -> None: ...
 
     def _handle(self, node: SceneNode) -> Any: ...
 
@@ -487,10 +494,12 @@ class Field:
         if not -len(items) <= i < len(items):
             warn(f"Field.removeMF(): index {i} out of range for '{self._name}' ({len(items)} items)")
             return
-        item = items.pop(i)
+        at = i if i >= 0 else len(items) + i
+        item = items.pop(at)
         if isinstance(item, SceneNode):
-            self._owner._removed(item)
-        self._changed()
+            self._nodes_removed(item, at)
+        else:
+            self._changed()
 
     def removeSF(self) -> None:
         """Empty an SFNode field."""
@@ -500,8 +509,33 @@ class Field:
             return
         if isinstance(item, SceneNode):
             self._values[self._name] = None
+            self._nodes_removed(item, None)
+
+    def _nodes_added(self, nodes: list[SceneNode], at: int | None) -> None:
+        """Nodes just put at ``at`` of this node field (None: SFNode) join the scene. A PROTO interface field's
+        nodes are the instance's parameters: the scene tree holds the copies its ``IS`` links give the body (a
+        Solid added to an extension slot moves with, and is merged into or jointed to, the PROTO's Solids), so
+        those copies join the physics, as the nodes of a base field do."""
+        if self._is_base():
+            self._owner._imported(nodes)
+            self._changed()
+            return
+        self._owner._number(nodes)  # the parameter nodes have ids too (getMFNode handles)
+        if feeds_template(self._node, self._name) and self._regenerate(self._node):
+            return  # the instance is expanded again from its fields, the new nodes with them
+        self._owner._imported(insert_linked_nodes(self._node, self._name, at, nodes))
+
+    def _nodes_removed(self, item: SceneNode, at: int | None) -> None:
+        """A node just taken from ``at`` of this node field (None: SFNode) leaves the scene; for a PROTO interface
+        field, the copies its ``IS`` links gave the body leave the scene tree and the physics with it."""
+        if self._is_base():
             self._owner._removed(item)
             self._changed()
+            return
+        if feeds_template(self._node, self._name) and self._regenerate(self._node):
+            return
+        for copy in remove_linked_nodes(self._node, self._name, at):
+            self._owner._removed(copy)
 
     def _not_importable(self, method: str, text: str) -> bool:
         """Webots' refusal of a PROTO the world does not declare IMPORTABLE (its error line; nothing imported)."""
@@ -536,8 +570,7 @@ class Field:
             return
         at = i if i >= 0 else n + 1 + i
         items[at:at] = nodes
-        self._owner._imported(nodes)
-        self._changed()
+        self._nodes_added(nodes, at)
 
     def importSFNodeFromString(self, nodeString: str) -> None:
         """Parse VRML text into the node of this (empty) SFNode field."""
@@ -555,5 +588,4 @@ class Field:
             return
         if nodes:
             self._values[self._name] = nodes[0]
-            self._owner._imported(nodes[:1])
-            self._changed()
+            self._nodes_added(nodes[:1], None)

@@ -8,10 +8,11 @@ through nested PROTO instances whose own interface fields are ``IS`` the outer o
 from __future__ import annotations
 
 from collections.abc import Iterator
+from typing import Any
 
 from dualtwin.webots.nodes import Node
 
-__all__ = ["feeds_template", "linked_fields"]
+__all__ = ["feeds_template", "insert_linked_nodes", "linked_fields", "remove_linked_nodes"]
 
 
 def _reached(root: Node, name: str) -> Iterator[tuple[Node, tuple[int, str], list[tuple[int, str]]]]:
@@ -55,3 +56,52 @@ def feeds_template(root: Node, name: str) -> bool:
         return False
     return name in root.template_fields or any(
         inner_field in node.template_fields for node, _, inward in _reached(root, name) for _, inner_field in inward)
+
+
+def insert_linked_nodes(root: Node, name: str, at: int | None, nodes: list[Node]) -> list[Node]:
+    """Put copies of ``nodes``, just added at index ``at`` of ``root``'s node-valued interface field ``name``
+    (``at`` None: an SFNode field), at the same place of every field ``IS`` that field, as Webots' IS link gives
+    the PROTO body its own copy of the value. Returns the copies now in the scene tree (the base nodes' fields):
+    they, not the interface's nodes, are what the physics must take in."""
+    base, interfaces = linked_fields(root, name)
+    for node, field in interfaces:
+        assert node.proto_fields is not None
+        _insert(node.proto_fields, field, at, [n.copy() for n in nodes])
+    placed: list[Node] = []
+    for node, field in base:
+        copies = [n.copy() for n in nodes]
+        _insert(node.fields, field, at, copies)
+        placed.extend(copies)
+    return placed
+
+
+def remove_linked_nodes(root: Node, name: str, at: int | None) -> list[Node]:
+    """Take the node at index ``at`` (None: the node of an SFNode field) out of every field ``IS`` ``root``'s
+    interface field ``name``, which holds a copy of it in the same place. Returns those removed from the scene
+    tree (the base nodes' fields): the physics must let them go."""
+    base, interfaces = linked_fields(root, name)
+    for node, field in interfaces:
+        assert node.proto_fields is not None
+        _pop(node.proto_fields, field, at)
+    return [n for node, field in base if (n := _pop(node.fields, field, at)) is not None]
+
+
+def _insert(values: dict[str, Any], field: str, at: int | None, nodes: list[Node]) -> None:
+    if at is None:
+        values[field] = nodes[0] if nodes else None
+        return
+    items = values.get(field)
+    if not isinstance(items, list):
+        items = values[field] = []
+    items[at:at] = nodes
+
+
+def _pop(values: dict[str, Any], field: str, at: int | None) -> Node | None:
+    if at is None:
+        item, values[field] = values.get(field), None
+        return item if isinstance(item, Node) else None
+    items = values.get(field)
+    if not isinstance(items, list) or not 0 <= at < len(items):
+        return None
+    item = items.pop(at)
+    return item if isinstance(item, Node) else None
