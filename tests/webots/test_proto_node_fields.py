@@ -7,7 +7,7 @@ Adding a Solid to a PROTO robot's extension slot this way is the common use. Bef
 changed but the body did not follow in the physics: an imported Solid was copied into the body without joining the
 physics (with a warning that it was "under the scene root"), and a removed one stayed, with its mass and geoms.
 
-``Cradle.proto``: a Solid (1 kg, inertia 0.01) whose ``children IS extras`` and ``boundingObject IS bounds``.
+``Cradle.proto``: a Solid (1 kg at its origin, inertia 0.01) whose ``children IS extras`` and ``boundingObject IS bounds``.
 """
 
 from __future__ import annotations
@@ -21,8 +21,8 @@ from tests.support.quiet_worlds import quiet_supervisor
 
 HERE = Path(__file__).parent / "proto_links"
 STEP = 8
-# 1 kg, inertia given so that no boundingObject is needed for the mass
-PART = "Solid { translation 0 0 0.1 physics Physics { density -1 mass 1 inertiaMatrix [ 0.01 0.01 0.01, 0 0 0 ] } }"
+# 1 kg at its origin, its inertia given (§3.2 CUSTOM_INERTIA_MATRIX: no boundingObject needed for the mass)
+PART = "Solid { translation 0 0 0.1 physics Physics { density -1 mass 1 centerOfMass [ 0 0 0 ] inertiaMatrix [ 0.01 0.01 0.01, 0 0 0 ] } }"
 
 
 def _supervisor(body: str) -> Supervisor:
