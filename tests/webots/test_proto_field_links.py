@@ -26,7 +26,7 @@ STEP = 8
 def _supervisor(body: str) -> Supervisor:
     text = (
         '#VRML_SIM R2023b utf8\nEXTERNPROTO "Slab.proto"\nEXTERNPROTO "Wall.proto"\nEXTERNPROTO "Post.proto"\n'
-        'EXTERNPROTO "Bar.proto"\nEXTERNPROTO "Rover.proto"\nEXTERNPROTO "Rack.proto"\n'
+        'EXTERNPROTO "Bar.proto"\nEXTERNPROTO "Rover.proto"\nEXTERNPROTO "Rack.proto"\nEXTERNPROTO "Swing.proto"\n'
         f"WorldInfo {{ basicTimeStep {STEP} gravity 0 }}\n{body}"
     )
     with warnings.catch_warnings():
@@ -207,3 +207,32 @@ def test_an_exported_proto_instance_carries_its_internal_state_to_its_copy() -> 
         sup.step(STEP)
         # alike, not bit for bit (3e-4 rad apart after 10 steps here); a copy at rest would be about 1.4 rad off
         assert hinges[1].positions[0] == pytest.approx(hinges[0].positions[0], abs=0.01)
+
+
+def test_a_proto_field_bound_to_a_solid_translation_reads_where_the_physics_has_the_solid() -> None:
+    """§7.1: ``IS`` binds the interface field to the Solid's field, which follows the physics (§6), so a supervisor
+    reading a PROTO's ``translation``-bound field (``robot.getField("translation")`` on a PROTO robot) reads the
+    current pose, through a derived PROTO too. It read the load-time value while the body moved."""
+    sup = _supervisor("Robot { supervisor TRUE }\nDEF SLAB Slab { place 0 0 1 }\nDEF WALL Wall { at 0 2 1 }\n")
+    slab, wall = sup.getFromDef("SLAB"), sup.getFromDef("WALL")
+    for node in (slab, wall):
+        node.setVelocity([1.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    for _ in range(10):
+        sup.step(STEP)
+    # no gravity, no damping: 1 m/s for 10 steps of 8 ms = 0.08 m along x
+    assert slab.getField("place").getSFVec3f() == pytest.approx([0.08, 0.0, 1.0])
+    assert wall.getField("at").getSFVec3f() == pytest.approx([0.08, 2.0, 1.0])
+    # a write is read back at once (it reaches the body at the next step, §6)
+    slab.getField("place").setSFVec3f([0.0, 0.0, 2.0])
+    assert slab.getField("place").getSFVec3f() == [0.0, 0.0, 2.0]
+
+
+def test_a_proto_field_bound_to_a_joint_position_reads_the_joint_angle() -> None:
+    """The same binding for a joint's ``position`` (§4.1: the field is the joint's current position)."""
+    sup = _supervisor("Robot { supervisor TRUE }\nDEF SWING Swing { }\n")
+    swing = sup.getFromDef("SWING")
+    # the bob turning at 1 rad/s about the hinge's y axis: v = ω × r = (0, 1, 0) × (0.2, 0, 0) = (0, 0, -0.2)
+    swing.getFromProtoDef("BOB").setVelocity([0.0, 0.0, -0.2, 0.0, 1.0, 0.0])
+    for _ in range(10):
+        sup.step(STEP)
+    assert swing.getField("angle").getSFFloat() == pytest.approx(0.08, abs=1e-4)  # 1 rad/s × 10 × 8 ms

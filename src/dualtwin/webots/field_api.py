@@ -152,6 +152,19 @@ class Field:
     def _joint(self) -> JointRec | None:
         return self._sim.joint_for(self._node) if self._name == "position" and self._is_base() else None
 
+    def _live(self) -> Field | None:
+        """For a PROTO interface field, the base field it is ``IS``-bound to whose value follows the physics (a
+        Solid's ``translation``/``rotation``, a joint's ``position``), read through its own getter: the binding
+        makes them one value (§7.1), and Webots' base field follows the physics, so ``translation IS
+        translation`` of a PROTO robot reads where the robot is now. None for a base field or no such link."""
+        if self._is_base():
+            return None
+        for node, name in linked_fields(self._node, self._name)[0]:
+            bound = Field(self._owner._handle(node), name)
+            if (name in ("translation", "rotation") and self._sim.solid_for(node) is not None) or bound._joint():
+                return bound
+        return None
+
     def getName(self) -> str:
         return self._name
 
@@ -193,6 +206,9 @@ class Field:
     def getSFFloat(self) -> float:
         if not self._check("getSFFloat", "SFFloat"):
             return math.nan
+        live = self._live()
+        if live is not None and live._vrml == "SFFloat":
+            return live.getSFFloat()
         joint = self._joint()
         if joint is not None:
             params = joint.params
@@ -206,6 +222,9 @@ class Field:
     def getSFVec3f(self) -> list[float]:
         if not self._check("getSFVec3f", "SFVec3f"):
             return [math.nan] * 3
+        live = self._live()
+        if live is not None and live._vrml == "SFVec3f":
+            return live.getSFVec3f()
         solid = self._sim.solid_for(self._node)
         if solid is not None and self._name == "translation" and not self._sim.has_pending(solid):
             return list(self._sim.solid_local_pose(solid).t)
@@ -214,6 +233,9 @@ class Field:
     def getSFRotation(self) -> list[float]:
         if not self._check("getSFRotation", "SFRotation"):
             return [math.nan] * 4
+        live = self._live()
+        if live is not None and live._vrml == "SFRotation":
+            return live.getSFRotation()
         solid = self._sim.solid_for(self._node)
         if solid is not None and self._name == "rotation" and not self._sim.has_pending(solid):
             return list(m3.axis_angle_from_mat(self._sim.solid_local_pose(solid).R))
