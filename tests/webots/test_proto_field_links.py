@@ -236,3 +236,16 @@ def test_a_proto_field_bound_to_a_joint_position_reads_the_joint_angle() -> None
     for _ in range(10):
         sup.step(STEP)
     assert swing.getField("angle").getSFFloat() == pytest.approx(0.08, abs=1e-4)  # 1 rad/s × 10 × 8 ms
+
+
+def test_a_derived_proto_is_saved_where_the_physics_has_it() -> None:
+    """exportString/worldSave write a PROTO instance's interface fields with the values of the fields ``IS`` binds
+    them to (§7.1); a derived PROTO's position reaches its Solid through two links (Wall.at -> Slab.place ->
+    translation) and was written as loaded, so the saved world put the moved body back where it started."""
+    sup = _supervisor("Robot { supervisor TRUE }\nDEF WALL Wall { at 0 2 1 }\n")
+    wall = sup.getFromDef("WALL")
+    wall.setVelocity([1.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    for _ in range(10):
+        sup.step(STEP)
+    line = next(line.split() for line in wall.exportString().splitlines() if line.strip().startswith("at "))
+    assert [float(v) for v in line[1:]] == pytest.approx([0.08, 2.0, 1.0])  # 1 m/s × 10 × 8 ms along x

@@ -22,6 +22,7 @@ from dualtwin.webots.nodes import Node as SceneNode
 from dualtwin.webots.nodes import World, copy_value, path_to_node
 from dualtwin.webots.physics import Simulation, SolidRec
 from dualtwin.webots.physics.records import RobotRec, is_robot
+from dualtwin.webots.proto_links import linked_fields
 from dualtwin.webots.proto_regeneration import join_physics, regenerate
 from dualtwin.webots.protos import saved_hidden
 from dualtwin.webots.step_hints import step_value
@@ -596,12 +597,13 @@ def node_as_saved(sim: Simulation, top: SceneNode, state: bool = True) -> SceneN
     writes them; a PROTO instance's internal state goes to its ``hidden`` fields, as Webots saves it. Without
     ``state``, only the poses that fields carry (a regenerated instance's geometry comes from its template)."""
     copy_top = top.copy()
+    saved: set[tuple[int, str]] = set()  # (id of the copied node, field) written from the physics
     for original, copy in zip(top.walk(), copy_top.walk(), strict=True):
         solid = sim.solid_for(original)
         if solid is not None:
             pose = sim.solid_local_pose(solid)
-            _save_field(copy, "translation", tuple(pose.t))
-            _save_field(copy, "rotation", tuple(m3.axis_angle_from_mat(pose.R)))
+            _save_field(copy, "translation", tuple(pose.t), saved)
+            _save_field(copy, "rotation", tuple(m3.axis_angle_from_mat(pose.R)), saved)
             body = solid.body
             if state and body is not None and body.root is solid and not body.removed:
                 velocity = sim.solid_velocity(solid)
@@ -610,17 +612,28 @@ def node_as_saved(sim: Simulation, top: SceneNode, state: bool = True) -> SceneN
                         copy.fields[name] = tuple(float(v) for v in value)
         joint = sim.joint_for(original)
         if joint is not None and original.type_name.endswith("Parameters") and original in joint.params:
-            _save_field(copy, "position", float(joint.positions[joint.params.index(original)]))
+            _save_field(copy, "position", float(joint.positions[joint.params.index(original)]), saved)
     for node in copy_top.walk():
+        if node.proto_fields is not None:
+            _bind_interface(node, saved)
         if state and node.proto_name is not None and node.proto_fields is not None:
             node.hidden = {**node.hidden, **saved_hidden(node)}
     return copy_top
 
 
-def _save_field(node: SceneNode, name: str, value: Any) -> None:
+def _save_field(node: SceneNode, name: str, value: Any, saved: set[tuple[int, str]]) -> None:
     if name not in node.fields:
         return
     node.fields[name] = value
-    link = node.is_links.get(name)
-    if link is not None and node.proto_fields is not None and link[0] == node.proto_instance:
-        node.proto_fields[link[1]] = value
+    saved.add((id(node), name))
+
+
+def _bind_interface(root: SceneNode, saved: set[tuple[int, str]]) -> None:
+    """A PROTO instance's interface fields take the values just saved from the physics into the fields ``IS``
+    binds them to (§7.1), through nested and derived PROTOs: a derived PROTO's position is its outer field's."""
+    assert root.proto_fields is not None
+    for name in root.proto_fields:
+        base, _ = linked_fields(root, name)
+        bound = next((node.fields[field] for node, field in base if (id(node), field) in saved), None)
+        if bound is not None:
+            root.proto_fields[name] = copy_value(bound)
