@@ -12,6 +12,7 @@ physics (with a warning that it was "under the scene root"), and a removed one s
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pytest
@@ -75,3 +76,26 @@ def test_a_bounding_object_imported_into_and_removed_from_a_proto_node_field_rea
     bounds.removeSF()
     sup.step(STEP)
     assert sensor.getValue() == pytest.approx(2.0)
+
+
+def test_a_node_read_through_a_proto_node_field_is_the_one_in_the_scene() -> None:
+    """``getMFNode``/``getSFNode`` on the interface field name the node the body's ``IS`` field holds: its pose is
+    the physics', a write of its fields reaches the physics, and the instance is saved with its state. The handle
+    named the parameter outside the scene: its pose read NaN and its writes moved nothing."""
+    hinge = ("HingeJoint { jointParameters HingeJointParameters { axis 0 0 1 } endPoint Solid { translation 0.2 0 0 "
+             "boundingObject Sphere { radius 0.02 } physics Physics { mass 1 } } }")
+    sup = _supervisor(f"DEF B Cradle {{ place 0 0 1 extras [ {hinge} ] }}\n")
+    cradle = sup.getFromDef("B")
+    joint = cradle.getField("extras").getMFNode(0)
+    bob = joint.getField("endPoint").getSFNode()
+    assert bob.getPosition() == pytest.approx([0.2, 0.0, 1.0])
+    joint.getField("jointParameters").getSFNode().getField("position").setSFFloat(0.5)
+    sup.step(STEP)
+    # §4.1: the endPoint turned 0.5 rad about z around the anchor (the Cradle's origin): 0.2 (cos 0.5, sin 0.5)
+    turned = [0.2 * math.cos(0.5), 0.2 * math.sin(0.5), 1.0]
+    assert bob.getPosition() == pytest.approx(turned)
+    # the parameter is written as the scene holds it (not as loaded: no position, translation 0.2 0 0)
+    written = {line.split()[0]: [float(v) for v in line.split()[1:]]
+               for line in cradle.exportString().splitlines() if line.split()[0] in ("position", "translation")}
+    assert written["position"] == pytest.approx([0.5])
+    assert written["translation"] == pytest.approx(turned[:2] + [0.0])  # in the Cradle's frame

@@ -70,7 +70,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "from it (the Solid stays put, its joints keep their anchors); "
              "edits of a PROTO instance's fields follow its IS links (also through nested and derived PROTOs) "
              "to the expanded nodes (a node imported into or removed from a node-valued interface field, such as an "
-             "extension slot, enters or leaves the body's scene tree and physics), and an interface field bound to "
+             "extension slot, enters or leaves the body's scene tree and physics; a node read through such a field is the "
+             "one in the scene, its pose and field writes the physics', and it is saved as it is now), and an interface field bound to "
              "a Solid's translation/rotation or a joint's position reads the physics as that field does; a field read by a procedural PROTO's template (its own, or one in its body the field "
              "reaches through IS) regenerates the instance (expanded again from its fields and current pose, same handle, DEF and id; a reset restores it), except one "
              "holding a Robot or inside one, which warns and follows the IS links only"),

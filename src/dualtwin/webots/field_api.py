@@ -249,7 +249,21 @@ class Field:
 
     def getSFNode(self) -> Any:
         value = self._raw()
-        return self._owner._handle(value) if isinstance(value, SceneNode) else None
+        return self._owner._handle(self._in_scene(value, None)) if isinstance(value, SceneNode) else None
+
+    def _in_scene(self, item: SceneNode, at: int | None) -> SceneNode:
+        """The node the scene holds for ``item``, at ``at`` of this node field (None: SFNode). A PROTO interface
+        field's node is a parameter: the body's field ``IS`` bound to it holds the copy that is in the scene tree
+        and the physics (its pose, its field edits), which a handle must name; else ``item`` itself."""
+        if self._is_base():
+            return item
+        for node, name in linked_fields(self._node, self._name)[0]:
+            value = node.fields.get(name)
+            if at is None and isinstance(value, SceneNode):
+                return value
+            if at is not None and isinstance(value, list) and 0 <= at < len(value) and isinstance(value[at], SceneNode):
+                return value[at]
+        return item
 
     @property
     def value(self) -> Any:
@@ -315,7 +329,10 @@ class Field:
 
     def getMFNode(self, index: Any) -> Any:
         ok, item = self._item("getMFNode", "MFNode", index)
-        return self._owner._handle(item) if ok and isinstance(item, SceneNode) else None
+        if not ok or not isinstance(item, SceneNode):
+            return None
+        i = as_int(index, "Field.getMFNode")
+        return self._owner._handle(self._in_scene(item, i if i >= 0 else len(self._raw()) + i))
 
     # -- SF setters
 

@@ -630,10 +630,14 @@ def _save_field(node: SceneNode, name: str, value: Any, saved: set[tuple[int, st
 
 def _bind_interface(root: SceneNode, saved: set[tuple[int, str]]) -> None:
     """A PROTO instance's interface fields take the values just saved from the physics into the fields ``IS``
-    binds them to (§7.1), through nested and derived PROTOs: a derived PROTO's position is its outer field's."""
+    binds them to (§7.1), through nested and derived PROTOs: a derived PROTO's position is its outer field's. A
+    node-valued field takes the nodes the scene holds for its parameters (:meth:`Field._in_scene`: the ones the
+    physics moves and supervisors edit), as saved."""
     assert root.proto_fields is not None
-    for name in root.proto_fields:
+    for name, value in root.proto_fields.items():
         base, _ = linked_fields(root, name)
-        bound = next((node.fields[field] for node, field in base if (id(node), field) in saved), None)
+        holds_nodes = isinstance(value, SceneNode) or (isinstance(value, list) and any(
+            isinstance(v, SceneNode) for v in value))
+        bound = next((node.fields[field] for node, field in base if holds_nodes or (id(node), field) in saved), None)
         if bound is not None:
             root.proto_fields[name] = copy_value(bound)
