@@ -99,3 +99,15 @@ def test_a_node_read_through_a_proto_node_field_is_the_one_in_the_scene() -> Non
                for line in cradle.exportString().splitlines() if line.split()[0] in ("position", "translation")}
     assert written["position"] == pytest.approx([0.5])
     assert written["translation"] == pytest.approx(turned[:2] + [0.0])  # in the Cradle's frame
+
+
+def test_a_node_removed_through_its_own_handle_leaves_the_proto_node_field_too() -> None:
+    """``Node.remove()`` of a node an extension slot holds: the interface field no longer counts it (the body's copy
+    and the parameter are one node, §7.1), and the Solid leaves the physics."""
+    sup = _supervisor(f"DEF B Cradle {{ place 0 3 0 extras [ {PART} ] }}\n")
+    cradle = sup.getFromDef("B")
+    extras = cradle.getField("extras")
+    extras.getMFNode(0).remove()
+    sup.step(STEP)
+    assert extras.getCount() == 0
+    assert cradle.getCenterOfMass() == pytest.approx([0.0, 3.0, 0.0])  # the Cradle's 1 kg alone

@@ -116,8 +116,27 @@ def _detach(sim: Simulation, node: SceneNode) -> None:
     for key, value in parent.fields.items():
         if value is node:
             parent.fields[key] = None
+            _unbind_parameter(chain[:-1], parent, key, None)
         elif isinstance(value, list) and any(v is node for v in value):
+            at = next(i for i, v in enumerate(value) if v is node)
             value[:] = [v for v in value if v is not node]
+            _unbind_parameter(chain[:-1], parent, key, at)
+
+
+def _unbind_parameter(ancestors: list[SceneNode], parent: SceneNode, key: str, at: int | None) -> None:
+    """A node removed from a field that a PROTO instance's node-valued interface field feeds through ``IS`` is a
+    copy of one of its parameters (§7.1): the parameter goes too, so the interface field counts what the scene
+    holds."""
+    for root in ancestors:
+        for name in list(root.proto_fields or {}):
+            base, _ = linked_fields(root, name)
+            if any(node is parent and field == key for node, field in base):
+                assert root.proto_fields is not None
+                items = root.proto_fields[name]
+                if at is None:
+                    root.proto_fields[name] = None
+                elif isinstance(items, list) and 0 <= at < len(items):
+                    items.pop(at)
 
 
 def _scene_edits(sim: Simulation) -> list[Any]:
