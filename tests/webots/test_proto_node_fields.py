@@ -27,7 +27,7 @@ PART = "Solid { translation 0 0 0.1 physics Physics { density -1 mass 1 centerOf
 
 
 def _supervisor(body: str) -> Supervisor:
-    text = (f'#VRML_SIM R2023b utf8\nEXTERNPROTO "Cradle.proto"\nWorldInfo {{ basicTimeStep {STEP} gravity 0 }}\n'
+    text = (f'#VRML_SIM R2023b utf8\nEXTERNPROTO "Cradle.proto"\nEXTERNPROTO "Crate.proto"\nWorldInfo {{ basicTimeStep {STEP} gravity 0 }}\n'
             'Robot { supervisor TRUE children [ DistanceSensor { name "s0" lookupTable [ 0 0 0, 2 2 0 ] } ] }\n'
             f"{body}")
     return quiet_supervisor(text, HERE / "cradle.wbt")
@@ -111,3 +111,23 @@ def test_a_node_removed_through_its_own_handle_leaves_the_proto_node_field_too()
     sup.step(STEP)
     assert extras.getCount() == 0
     assert cradle.getCenterOfMass() == pytest.approx([0.0, 3.0, 0.0])  # the Cradle's 1 kg alone
+
+
+def test_a_node_imported_into_a_node_field_a_template_reads_regenerates_the_instance_with_it() -> None:
+    """``Crate.proto``'s template reads ``extras``: Webots expands the instance again with the new node in its slot
+    (the box 0.1 m longer), and the node read through the field is the regenerated body's."""
+    sup = _supervisor("DEF C Crate { place 1 0 0 }\n")
+    sensor = sup.getDevice("s0")
+    sensor.enable(STEP)
+    crate = sup.getFromDef("C")
+    sup.step(STEP)
+    assert sensor.getValue() == pytest.approx(0.9)  # a 0.2 m box centred 1 m ahead: 1 - 0.2 / 2
+    crate.getField("extras").importMFNodeFromString(-1, PART)
+    sup.step(STEP)
+    assert sensor.getValue() == pytest.approx(0.85)  # 0.2 + 0.1 = 0.3 m long: 1 - 0.3 / 2
+    assert crate.getCenterOfMass() == pytest.approx([1.0, 0.0, 0.05])  # merged 1 kg at z 0.1, as above
+    assert crate.getField("extras").getMFNode(0).getPosition() == pytest.approx([1.0, 0.0, 0.1])
+    crate.getField("extras").removeMF(0)
+    sup.step(STEP)
+    assert sensor.getValue() == pytest.approx(0.9)
+    assert crate.getCenterOfMass() == pytest.approx([1.0, 0.0, 0.0])

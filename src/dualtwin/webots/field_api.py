@@ -560,9 +560,10 @@ class Field:
             self._changed()
             return
         self._owner._number(nodes)  # the parameter nodes have ids too (getMFNode handles)
+        placed = insert_linked_nodes(self._node, self._name, at, nodes)  # (a regeneration writes the body's)
         if feeds_template(self._node, self._name) and self._regenerate(self._node):
             return  # the instance is expanded again from its fields, the new nodes with them
-        self._owner._imported(insert_linked_nodes(self._node, self._name, at, nodes))
+        self._owner._imported(placed)
 
     def _nodes_removed(self, item: SceneNode, at: int | None) -> None:
         """A node just taken from ``at`` of this node field (None: SFNode) leaves the scene; for a PROTO interface
@@ -571,10 +572,10 @@ class Field:
             self._owner._removed(item)
             self._changed()
             return
-        if feeds_template(self._node, self._name) and self._regenerate(self._node):
-            return
         for copy in remove_linked_nodes(self._node, self._name, at):
             self._owner._removed(copy)
+        if feeds_template(self._node, self._name):
+            self._regenerate(self._node)  # expanded again without it (else the IS links were followed above)
 
     def _not_importable(self, method: str, text: str) -> bool:
         """Webots' refusal of a PROTO the world does not declare IMPORTABLE (its error line; nothing imported)."""
