@@ -158,7 +158,8 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Plane", "geometry", "supported", "static infinite plane (a Plane on a body stays static)"),
     Coverage("IndexedFaceSet", "geometry", "supported", "ODE triangle mesh"),
     Coverage("ElevationGrid", "geometry", "partial", "static height field (in a scaled Transform: spacings by the "
-             "scale's x and y, heights by its z); on a dynamic body it stays static"),
+             "scale's x and y, heights by its z), rebuilt when a supervisor edits its fields (heights, spacings, "
+             "thickness); on a dynamic body it stays static"),
     Coverage("Mesh", "geometry", "supported",
              "ODE triangle mesh of the file's triangles, as an IndexedFaceSet (contacts, ray sensors, touch "
              "sensors; inside Pose/Transform/Group/Shape, Transform scale per axis); mass by dMassSetTrimesh at "

@@ -299,6 +299,7 @@ _SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
     "dGeomHeightfieldDataBuildDouble": (None, [P, P, I, D, D, I, I, D, D, D, I]),
     "dGeomHeightfieldDataSetBounds": (None, [P, D, D]),
     "dCreateHeightfield": (P, [P, P, I]),
+    "dGeomHeightfieldSetHeightfieldData": (None, [P, P]),
     "dCollide": (c_int, [P, P, I, P, I]),
     # joints
     "dJointGroupCreate": (P, [I]),

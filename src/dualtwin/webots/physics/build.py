@@ -586,7 +586,8 @@ class SceneBuilder(SimulationCore):
                 local = local * extra
                 if solid.body is not None:
                     self.warn(f"Solid '{solid.name}': ElevationGrid on a dynamic body stays static")
-                gr = GeomRec(ptr=ptr, solid=solid, kind=t, local=local, body=None, keepalive=keep, source=node)
+                gr = GeomRec(ptr=ptr, solid=solid, kind=t, local=local, body=None, keepalive=keep, source=node,
+                             scale=tuple(float(v) for v in scale))
                 self._register_geom(gr)
                 self._place_static_geom(gr, solid_world)
                 return
@@ -640,8 +641,18 @@ class SceneBuilder(SimulationCore):
     def _heightfield(
         self, node: Node, scale: Sequence[float] = (1.0, 1.0, 1.0)
     ) -> tuple[int, tuple[Any, ...], Pose] | None:
-        """An ODE heightfield for an ElevationGrid, in a Transform ``scale``d frame (§3.4): spacings scaled by the
-        scale's x and y, heights and thickness by its z (per axis, as a Box's sizes)."""
+        """An ODE heightfield geom for an ElevationGrid (:meth:`_heightfield_data`): (geom, what it is made of,
+        the grid's frame in the geom's)."""
+        built = self._heightfield_data(node, scale)
+        if built is None:
+            return None
+        data, arr, extra = built
+        return self._lib.dCreateHeightfield(self._space, data, 1), (data, arr, extra), extra
+
+    def _heightfield_data(self, node: Node, scale: Sequence[float] = (1.0, 1.0, 1.0)) -> tuple[Any, Any, Pose] | None:
+        """ODE heightfield data for an ElevationGrid, in a Transform ``scale``d frame (§3.4): spacings scaled by the
+        scale's x and y, heights and thickness by its z (per axis, as a Box's sizes); with the grid's frame in the
+        heightfield geom's (ODE centres the field)."""
         nx, ny = int(_f(node, "xDimension", 0)), int(_f(node, "yDimension", 0))
         sx, sy = float(_f(node, "xSpacing", 1.0)) * scale[0], float(_f(node, "ySpacing", 1.0)) * scale[1]
         heights = [float(h) * scale[2] for h in (_f(node, "height", []) or [])]
@@ -664,9 +675,8 @@ class SceneBuilder(SimulationCore):
             data, arr, 1, width, depth, nx, ny, 1.0, 0.0, max(thickness, 1e-6), 0
         )
         lib.dGeomHeightfieldDataSetBounds(data, min(data_vals), max(data_vals))
-        ptr = lib.dCreateHeightfield(self._space, data, 1)
         extra = Pose(m3.rot_axis_angle((1.0, 0.0, 0.0, math.pi / 2)), (width / 2, depth / 2, 0.0))
-        return ptr, (data, arr), extra
+        return data, arr, extra
 
     # -- devices
 

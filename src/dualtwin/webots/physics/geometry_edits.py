@@ -1,5 +1,5 @@
 """Supervisor edits of bounding geometry (``Box.size``, ``Sphere.radius``, ``Cylinder``/``Capsule``
-``radius``/``height``, an ``IndexedFaceSet``'s ``Coordinate.point``; a ``Mesh``'s file fields, see
+``radius``/``height``, an ``IndexedFaceSet``'s ``Coordinate.point``, an ``ElevationGrid``'s fields; a ``Mesh``'s file fields, see
 :mod:`.scene_changes`) reaching the ODE scene.
 
 Webots re-applies a geometry field to its ODE geom as soon as the field changes (``WbBox::updateSize`` and
@@ -118,6 +118,19 @@ class GeometryEdits(CollisionPass):
             gr.keepalive = built
             if old:
                 lib.dGeomTriMeshDataDestroy(old[0])
+        elif gr.kind == "ElevationGrid":
+            # Webots rebuilds the field's ODE data from the grid's fields (WbElevationGrid's applyToOdeData); the
+            # geom keeps its place, the grid's corner, as its size moves ODE's centre
+            built = self._heightfield_data(src, gr.scale)
+            if built is None:
+                return False
+            old = gr.keepalive
+            grid = gr.local * old[2].inverse()  # the grid's frame in the Solid's
+            lib.dGeomHeightfieldSetHeightfieldData(gr.ptr, built[0])
+            gr.keepalive = built
+            gr.local = grid * built[2]
+            lib.dGeomHeightfieldDataDestroy(old[0])
+            self._place_static_geom(gr, self.solid_world_pose(gr.solid))
         else:
             return False
         return True
