@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from dualtwin.artifacts import check_size, verify_logs
+from dualtwin.artifacts import check_size, resolved, verify_logs
 from dualtwin.divergence.metrics import (
     FloatArray,
     default_resolution,
@@ -162,12 +162,16 @@ def load_tsv(path: Path) -> tuple[list[str], FloatArray]:
         when the log holds only a header.
 
     Raises:
-        DualtwinError: On a file larger than :data:`MAX_LOG_BYTES`, a missing ``time_s`` column, a malformed
-            row or an unparsable value. A short last row without a trailing newline is dropped: a run that
-            crashed mid-write leaves one.
+        DualtwinError: On a file larger than :data:`MAX_LOG_BYTES`, bytes that are not UTF-8, a missing
+            ``time_s`` column, a malformed row, an unparsable value, or a time stamp that is not finite or does
+            not increase. A short last row without a trailing newline is dropped: a run that crashed mid-write
+            leaves one.
     """
     check_size(path, "run log", MAX_LOG_BYTES)
-    text = Path(path).read_text(encoding="utf-8")
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise DualtwinError(f"{path}: not a UTF-8 text run log (binary data at byte {exc.start})") from None
     lines = text.splitlines()
     if not lines or not lines[0].strip():
         raise DualtwinError(f"{path}: empty log, expected a header row")
@@ -194,12 +198,27 @@ def load_tsv(path: Path) -> tuple[list[str], FloatArray]:
                 break
             raise DualtwinError(f"{path}:{lineno}: {exc}") from None
     data = np.asarray(rows, dtype=np.float64).reshape(len(rows), len(header))
+    _check_time(path, data[:, 0], [lineno for lineno, line in enumerate(body, start=2) if line.strip()])
     return header, data
+
+
+def _check_time(path: Path, t: FloatArray, linenos: list[int]) -> None:
+    """Every writer of run logs (the suite runner, the importers, lockstep) stamps rows on a clock that only
+    moves forward: a NaN or a stamp that repeats or goes back was written in by hand or by another tool, and
+    would reach the metrics as a silent NaN or a resampling error that names no file."""
+    bad = ~np.isfinite(t)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise DualtwinError(f"{path}:{linenos[i]}: time_s {float(t[i])} is not a finite number")
+    back = np.diff(t) <= 0
+    if back.any():
+        i = int(np.argmax(back)) + 1
+        raise DualtwinError(f"{path}:{linenos[i]}: time_s must increase: {float(t[i])!r} s after {float(t[i - 1])!r} s")
 
 
 def _confined(root: Path, rel: str | None, where: str, source: str) -> str | None:
     """``rel`` if it names a path inside the run folder: a manifest is data and must not point readers elsewhere."""
-    if rel is not None and not (root / rel).resolve().is_relative_to(root.resolve()):
+    if rel is not None and not resolved(root / rel).is_relative_to(resolved(root)):
         raise DualtwinError(f"{where}: {source} log {rel!r} is outside the run folder")
     return rel
 

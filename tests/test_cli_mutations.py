@@ -1,0 +1,127 @@
+"""Well-formed but semantically mutated inputs (found by a seeded mutation fuzz of the files the project itself
+writes: run folders, recordings, mappings): each is exit code 2 and one ``error:`` line naming the file, never a
+traceback, a silent success or a folder left behind -- the promise of docs/getting-started.md ("The promise").
+
+Each case here is one the fuzz found breaking that promise, reduced to the smallest input that shows it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from dualtwin.cli import main
+from tests.support.rundirs import cartpole_like, fabricate_run
+
+
+def run_cli(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, list[str]]:
+    capsys.readouterr()
+    code = main(list(argv))
+    err = capsys.readouterr().err
+    assert "Traceback" not in err, err
+    return code, [line for line in err.splitlines() if line.strip()]
+
+
+def two_runs(tmp_path: Path) -> tuple[Path, Path]:
+    t = np.arange(1, 33) * 0.032
+    return (fabricate_run(tmp_path / "ref", {"00_fall": cartpole_like(t)}),
+            fabricate_run(tmp_path / "tgt", {"00_fall": cartpole_like(t, gain=1.1)}))
+
+
+def rewrite_line(path: Path, lineno: int, time_cell: str) -> None:
+    """Replace the time stamp of line ``lineno`` (1-based, the header is line 1)."""
+    lines = path.read_text().splitlines()
+    cells = lines[lineno - 1].split("\t")
+    cells[0] = time_cell
+    lines[lineno - 1] = "\t".join(cells)
+    path.write_text("\n".join(lines) + "\n")
+
+
+def assert_one_error(code: int, lines: list[str], *expected: str) -> None:
+    assert code == 2 and len(lines) == 1 and lines[0].startswith("error: "), lines
+    for text in expected:
+        assert text in lines[0], lines
+
+
+# ------------------------------------------------------------------ run logs
+# Every writer of run logs stamps rows on a clock that only moves forward (the runner: k * control period; the
+# importers refuse stamps that do not increase). A NaN stamp used to pass silently into the metrics (compare
+# exited 0 with NaN-derived numbers); a repeated or backward stamp was refused only by the metric, as "series A:
+# time must be strictly increasing", naming neither the run nor the file.
+@pytest.mark.parametrize(("cell", "message"), [
+    ("nan", "ground_truth.tsv:4: time_s nan is not a finite number"),
+    ("inf", "ground_truth.tsv:4: time_s inf is not a finite number"),
+    # line 4 repeats line 3's stamp (row 2: 2 * 0.032 = 0.064 s)
+    ("0.064", "ground_truth.tsv:4: time_s must increase: 0.064 s after 0.064 s"),
+    ("-5", "ground_truth.tsv:4: time_s must increase: -5.0 s after 0.064 s"),
+])
+def test_a_run_log_time_stamp_that_is_not_finite_or_does_not_increase(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], cell: str, message: str) -> None:
+    ref, tgt = two_runs(tmp_path)
+    rewrite_line(ref / "scenarios/00_fall/ground_truth.tsv", 4, cell)
+    code, lines = run_cli(capsys, "compare", "--reference-run", str(ref), "--target-run", str(tgt),
+                          "--out", str(tmp_path / "report"))
+    assert_one_error(code, lines, message, str(ref))
+    assert not (tmp_path / "report").exists()
+
+
+def test_a_run_log_with_bytes_that_are_not_utf8(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Was a UnicodeDecodeError traceback (compare) or a line naming no file (analyze)."""
+    ref, tgt = two_runs(tmp_path)
+    log = ref / "scenarios/00_fall/ground_truth.tsv"
+    data = log.read_bytes()
+    log.write_bytes(data[:40] + b"\xff\xfe" + data[40:])
+    for command in ("compare", "analyze"):
+        code, lines = run_cli(capsys, command, "--reference-run", str(ref), "--target-run", str(tgt),
+                              "--out", str(tmp_path / command))
+        assert_one_error(code, lines, f"{log}: not a UTF-8 text run log (binary data at byte 40)")
+        assert not (tmp_path / command).exists()
+
+
+# ------------------------------------------------------------------ symbolic link loops
+# Python 3.11's Path.resolve() raises RuntimeError("Symlink loop ...") where a link leads back to itself: every
+# confinement check of a path read from a document (a manifest's logs, a mapping's files) was a traceback.
+def self_link(path: Path) -> Path:
+    path.unlink(missing_ok=True)
+    os.symlink(path.name, path)
+    return path
+
+
+def test_a_run_log_that_links_to_itself(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    ref, tgt = two_runs(tmp_path)
+    log = self_link(ref / "scenarios/00_fall/onboard.tsv")
+    code, lines = run_cli(capsys, "compare", "--reference-run", str(ref), "--target-run", str(tgt),
+                          "--out", str(tmp_path / "report"))
+    assert_one_error(code, lines, f"{log}: a symbolic link loop")
+    assert not (tmp_path / "report").exists()
+
+
+def test_a_log_record_of_the_manifest_that_links_to_itself(tmp_path: Path,
+                                                           capsys: pytest.CaptureFixture[str]) -> None:
+    """The manifest's ``logs`` records are verified (row count, SHA-256) before anything is read."""
+    ref, tgt = two_runs(tmp_path)
+    manifest = json.loads((ref / "manifest.json").read_text())
+    manifest["logs"] = {"scenarios/00_fall/extra.tsv": {"rows": 1, "sha256": "0" * 64}}
+    (ref / "manifest.json").write_text(json.dumps(manifest))
+    log = self_link(ref / "scenarios/00_fall/extra.tsv")
+    code, lines = run_cli(capsys, "analyze", "--reference-run", str(ref), "--target-run", str(tgt),
+                          "--out", str(tmp_path / "analysis"))
+    assert_one_error(code, lines, f"{log}: a symbolic link loop")
+    assert not (tmp_path / "analysis").exists()
+
+
+def test_a_recording_that_links_to_itself(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    mapping = tmp_path / "mapping.yaml"
+    mapping.write_text(yaml.safe_dump({"files": [f"log_{i}.csv" for i in range(6)],
+                                       "time": {"column": "t", "unit": "s"},
+                                       "channels": [{"name": "pole_angle_rad", "column": "a", "unit": "rad"}]}))
+    log = self_link(tmp_path / "log_0.csv")
+    code, lines = run_cli(capsys, "import", "table", str(mapping), "--scenarios", "cartpole", "--robot",
+                          "cartpole", "--out", str(tmp_path / "run"))
+    assert_one_error(code, lines, f"{log}: a symbolic link loop")
+    assert not (tmp_path / "run").exists()
