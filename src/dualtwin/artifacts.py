@@ -307,6 +307,17 @@ def check_input_file(path: Path, what: str = "file") -> Path:
     return path
 
 
+def resolved(path: Path) -> Path:
+    """``path.resolve()`` for a path a user or a document named: a symbolic link that leads back to itself (a
+    loop) is one clear error naming the path. Python 3.11's pathlib raises ``RuntimeError`` for a loop, which
+    is no user's error to read as a traceback; later versions raise ``OSError`` (``ELOOP``) or leave the loop
+    unresolved, and the file is then missing to whoever opens it."""
+    try:
+        return Path(path).resolve()
+    except RuntimeError:
+        raise DualtwinError(f"{path}: a symbolic link loop (the link leads back to itself)") from None
+
+
 def confined_file(folder: Path, name: Any, where: str) -> Path:
     """``folder / name`` for a file name read from an untrusted document in ``folder`` (a manifest, a contract).
 
@@ -316,8 +327,8 @@ def confined_file(folder: Path, name: Any, where: str) -> Path:
     """
     if not isinstance(name, str) or not name or "\x00" in name:
         raise DualtwinError(f"{where}: expected a file name inside {folder}, got {name!r}")
-    root = Path(folder).resolve()
-    path = (root / name).resolve()
+    root = resolved(Path(folder))
+    path = resolved(root / name)
     if Path(name).is_absolute() or not path.is_relative_to(root):
         raise DualtwinError(f"{where}: {name!r} points outside {folder}; refused")
     return path
@@ -550,9 +561,9 @@ def verify_logs(folder: Path, logs: Mapping[str, Any], where: Path | None = None
     where = where or folder / "manifest.json"
     if not isinstance(logs, Mapping):
         raise DualtwinError(f"{where}: 'logs' must be an object of file records")
-    root = folder.resolve()
+    root = resolved(folder)
     for rel, record in logs.items():
-        file = (folder / rel).resolve()
+        file = resolved(folder / rel)
         if not file.is_relative_to(root):
             raise DualtwinError(f"{where}: log path {rel!r} leaves the run folder")
         if not isinstance(record, Mapping) or "sha256" not in record:

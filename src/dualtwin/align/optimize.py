@@ -61,7 +61,7 @@ from dualtwin.align.core import (
     residual_norm,
     screen_integers,
 )
-from dualtwin.artifacts import write_json
+from dualtwin.artifacts import resolved, write_json
 from dualtwin.errors import DualtwinError
 from dualtwin.suite.loader import read_json
 
@@ -200,8 +200,8 @@ def confined_path(folder: Path, value: Any, where: str) -> Path:
     """``folder / value`` if that stays inside ``folder``; else a :class:`DualtwinError` naming ``where``."""
     if not isinstance(value, str) or not value:
         raise DualtwinError(f"{where}: expected a file name inside {folder}, got {value!r}")
-    root = folder.resolve()
-    path = (root / value).resolve()
+    root = resolved(folder)
+    path = resolved(root / value)
     if not path.is_relative_to(root):
         raise DualtwinError(f"{where}: {value!r} points outside the output folder {folder}; refused")
     return path

@@ -41,6 +41,7 @@ from typing import Literal
 
 from pydantic import Field, ValidationError, field_validator, model_validator
 
+from dualtwin.artifacts import resolved
 from dualtwin.errors import DualtwinError
 from dualtwin.models import FrozenModel
 
@@ -200,7 +201,7 @@ def resolve_files(files: str | list[str], data_dir: Path, where: str) -> list[Pa
     Raises:
         DualtwinError: A path that leaves ``data_dir``, a listed file that is missing, or a glob matching none.
     """
-    root = Path(data_dir).resolve()
+    root = resolved(Path(data_dir))
     if isinstance(files, str) and globlib.has_magic(files):
         found = sorted((Path(p) for p in globlib.glob(str(root / files))), key=_natural_key)
         if not found:
@@ -210,7 +211,7 @@ def resolve_files(files: str | list[str], data_dir: Path, where: str) -> list[Pa
         names = [files] if isinstance(files, str) else list(files)
     out: list[Path] = []
     for name in names:
-        candidate = (root / name).resolve()
+        candidate = resolved(root / name)
         if not candidate.is_relative_to(root):
             raise DualtwinError(f"{where}: files: {name!r} is outside the data folder {data_dir}")
         out.append(candidate)

@@ -24,6 +24,7 @@ from dualtwin.artifacts import (
     copy_file,
     log_record,
     package_versions,
+    resolved,
     sha256_file,
     verify_logs,
     write_json,
@@ -278,7 +279,7 @@ class SuiteRun:
                 if s.onboard is None or s.ground_truth is None:
                     continue
                 names = [s.onboard, s.ground_truth]
-                outside = [n for n in names if not (out / n).resolve().is_relative_to(out.resolve())]
+                outside = [n for n in names if not resolved(out / n).is_relative_to(resolved(out))]
                 if outside:
                     raise DualtwinError(f"{manifest_path}: cannot resume: scenario {s.id!r} names a log outside "
                                         f"the run folder: {outside[0]!r}")
