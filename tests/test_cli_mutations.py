@@ -125,3 +125,28 @@ def test_a_recording_that_links_to_itself(tmp_path: Path, capsys: pytest.Capture
                           "cartpole", "--out", str(tmp_path / "run"))
     assert_one_error(code, lines, f"{log}: a symbolic link loop")
     assert not (tmp_path / "run").exists()
+
+
+# ------------------------------------------------------------------ aligned knobs and DR ranges for training
+# align writes knobs.json and dr_ranges.json with at least one knob (it fits at least one). A file whose knobs
+# are all gone trained "aligned" or "with DR" in the nominal twin, exit 0, while the run recorded the file.
+TRAIN = ("train", "--env", "dualtwin/CartPole-MuJoCo-Continuous-v0", "--steps", "64")
+KNOBS = {"schema": "dualtwin.knobs/1", "twin": "mujoco", "robot": "cartpole", "values": {},
+         "knobs": {"joint.pole_hinge.damping": {"nominal": 0.0, "fitted": 0.01}}}
+
+
+@pytest.mark.parametrize(("option", "document", "message"), [
+    ("--aligned", {**KNOBS, "knobs": {}}, "names no knob"),
+    ("--aligned", {}, "names no knob"),
+    # without its 'knobs' the file was read as a plain {name: value} mapping: "knob 'schema' needs a number"
+    ("--aligned", {key: value for key, value in KNOBS.items() if key != "knobs"},
+     "'knobs' must be an object of knob records, got None"),
+    ("--dr", {"schema": "dualtwin.dr/1", "knobs": {}}, "knobs: Dictionary should have at least 1 item"),
+])
+def test_training_from_a_file_that_names_no_knob(tmp_path: Path, capsys: pytest.CaptureFixture[str], option: str,
+                                                 document: dict[str, object], message: str) -> None:
+    path = tmp_path / "knobs.json"
+    path.write_text(json.dumps(document))
+    code, lines = run_cli(capsys, *TRAIN, option, str(path), "--out", str(tmp_path / "run"))
+    assert_one_error(code, lines, str(path), message)
+    assert not (tmp_path / "run").exists()

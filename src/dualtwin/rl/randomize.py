@@ -19,7 +19,7 @@ from typing import Any, Literal
 
 import gymnasium as gym
 import numpy as np
-from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from dualtwin.errors import DualtwinError
 from dualtwin.models import FrozenModel
@@ -54,7 +54,9 @@ class KnobRange(FrozenModel):
 class _RangesFile(BaseModel):
     model_config = ConfigDict(extra="allow")
 
-    knobs: dict[str, KnobRange]
+    # At least one: training "with DR" from a file that names no knob would randomise nothing while its run
+    # records that it did.
+    knobs: dict[str, KnobRange] = Field(min_length=1)
 
 
 def _read_mapping(source: Path | str | Mapping[str, Any], what: str) -> tuple[dict[str, Any], str]:
@@ -84,7 +86,14 @@ def load_ranges(source: Path | str | Mapping[str, Any]) -> dict[str, KnobRange]:
 def load_knob_values(source: Path | str | Mapping[str, Any]) -> dict[str, float]:
     """Aligned knob values from ``{"knobs": {name: {"fitted": v, ...}}}`` or a plain ``{name: value}``."""
     data, origin = _read_mapping(source, "knobs")
+    if "schema" in data and not isinstance(data.get("knobs"), Mapping):
+        # align's knobs.json (it has a schema): read as a plain mapping, its 'schema' would be the first "knob"
+        raise DualtwinError(f"{origin}: 'knobs' must be an object of knob records, got {data.get('knobs')!r}")
     entries = data["knobs"] if isinstance(data.get("knobs"), Mapping) else data
+    if not entries:
+        # An "aligned" training run from a file that names no knob would train in the nominal twin while its
+        # run records the alignment.
+        raise DualtwinError(f"{origin}: names no knob (an aligned-knobs file holds at least one fitted knob)")
     values: dict[str, float] = {}
     for name, entry in entries.items():
         if isinstance(entry, Mapping):
