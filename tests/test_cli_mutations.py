@@ -150,3 +150,15 @@ def test_training_from_a_file_that_names_no_knob(tmp_path: Path, capsys: pytest.
     code, lines = run_cli(capsys, *TRAIN, option, str(path), "--out", str(tmp_path / "run"))
     assert_one_error(code, lines, str(path), message)
     assert not (tmp_path / "run").exists()
+
+
+def test_training_with_a_dr_range_outside_the_knobs_bounds(tmp_path: Path,
+                                                           capsys: pytest.CaptureFixture[str]) -> None:
+    """The bounds were checked only where the environment workers build their envs: inside a subprocess, after
+    the run folder existed, as the worker's traceback. A damping below 0 is outside every twin's bounds."""
+    path = tmp_path / "dr_ranges.json"
+    path.write_text(json.dumps({"schema": "dualtwin.dr/1", "knobs": {
+        "joint.pole_hinge.damping": {"nominal": 0.0, "fitted": 0.0, "low": -1, "high": 0.01}}}))
+    code, lines = run_cli(capsys, *TRAIN, "--dr", str(path), "--out", str(tmp_path / "run"))
+    assert_one_error(code, lines, str(path), "range of 'joint.pole_hinge.damping' [-1, 0.01] leaves the knob's bounds")
+    assert not (tmp_path / "run").exists()

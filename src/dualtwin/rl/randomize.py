@@ -145,6 +145,17 @@ def check_knob_names(names: list[str], known: dict[str, Knob], origin: str) -> N
                             f"(it has: {', '.join(sorted(known))})")
 
 
+def check_ranges(ranges: Mapping[str, KnobRange], known: dict[str, Knob], origin: str) -> None:
+    """Every range names a knob of the twin and stays inside the knob's bounds, else an error naming ``origin``."""
+    check_knob_names(list(ranges), known, origin)
+    for name, r in ranges.items():
+        knob = known[name]
+        lo, hi = (r.low, r.high) if r.operation == "abs" else (r.low * knob.nominal, r.high * knob.nominal)
+        if min(lo, hi) < knob.lower or max(lo, hi) > knob.upper:
+            raise DualtwinError(f"{origin}: range of {name!r} [{lo:g}, {hi:g}] leaves the knob's "
+                                f"bounds [{knob.lower:g}, {knob.upper:g}]")
+
+
 def draw_knobs(ranges: Mapping[str, KnobRange], nominal: Mapping[str, float],
                rng: np.random.Generator) -> dict[str, float]:
     """One draw per knob, in sorted-name order so the stream does not depend on file order. Pure."""
@@ -183,14 +194,8 @@ class DomainRandomization(gym.Wrapper[Any, Any, Any, Any], gym.utils.RecordConst
         else:
             self.ranges = load_ranges(ranges)
         known = _twin_knobs(env)
-        check_knob_names(list(self.ranges), known, "domain randomisation")
+        check_ranges(self.ranges, known, "domain randomisation")
         self.nominal = {name: known[name].nominal for name in self.ranges}
-        for name, r in self.ranges.items():
-            lo, hi = (r.low, r.high) if r.operation == "abs" else (r.low * self.nominal[name], r.high * self.nominal[name])
-            knob = known[name]
-            if min(lo, hi) < knob.lower or max(lo, hi) > knob.upper:
-                raise DualtwinError(f"domain randomisation: range of {name!r} [{lo:g}, {hi:g}] leaves the knob's "
-                                    f"bounds [{knob.lower:g}, {knob.upper:g}]")
         self._own_seed = seed
         self._rng = np.random.default_rng(seed)
         self.last_draw: dict[str, float] = {}
@@ -233,4 +238,4 @@ def apply_knobs(env: gym.Env[Any, Any], knobs_file: Path | str | Mapping[str, An
 
 
 __all__ = ["DomainRandomization", "FixedKnobs", "KnobRange", "apply_knobs", "check_aligned_twin", "draw_knobs",
-           "load_knob_values", "load_ranges", "read_aligned"]
+           "check_ranges", "load_knob_values", "load_ranges", "read_aligned"]

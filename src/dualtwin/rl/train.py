@@ -153,7 +153,10 @@ def train(env_id: str, config_path: Path | str | Mapping[str, Any] | PPOConfig |
     if total <= 0:
         raise DualtwinError(f"total_timesteps must be positive, got {total}")
     out = Path(out_dir)
-    dr = {k: v.model_dump(exclude_none=True) for k, v in load_ranges(dr_ranges).items()} if dr_ranges else None
+    ranges = load_ranges(dr_ranges) if dr_ranges else None
+    if ranges is not None:
+        _check_ranges(env_id, config, ranges, str(dr_ranges) if isinstance(dr_ranges, str | Path) else "dr ranges")
+    dr = {k: v.model_dump(exclude_none=True) for k, v in ranges.items()} if ranges is not None else None
     config_record = config.model_dump(mode="json")
     run_path = out / "run.json"
 
@@ -254,6 +257,20 @@ def _aligned_record(env_id: str, config: PPOConfig, aligned: Path | str | Mappin
             raise DualtwinError(f"{record.get('file') or 'aligned knobs'}: {name} = {value:g} is outside the "
                                 f"knob's bounds [{knob.lower:g}, {knob.upper:g}]")
     return record
+
+
+def _check_ranges(env_id: str, config: PPOConfig, ranges: Mapping[str, Any], origin: str) -> None:
+    """The DR ranges against this env's twin, before any training: in the environment workers the same check
+    (DomainRandomization) fails inside a subprocess, after the run folder exists, as a worker's traceback."""
+    from dualtwin.rl import make_env
+    from dualtwin.rl.randomize import check_ranges
+
+    env: Any = make_env(env_id, **{k: v for k, v in config.env_kwargs.items() if k != "knobs"})
+    try:
+        known = env.unwrapped.twin.knobs()
+    finally:
+        env.close()
+    check_ranges(ranges, known, f"{origin} ({env_id})")
 
 
 def _without_steps(config: Any) -> Any:
