@@ -162,3 +162,39 @@ def test_training_with_a_dr_range_outside_the_knobs_bounds(tmp_path: Path,
     code, lines = run_cli(capsys, *TRAIN, "--dr", str(path), "--out", str(tmp_path / "run"))
     assert_one_error(code, lines, str(path), "range of 'joint.pole_hinge.damping' [-1, 0.01] leaves the knob's bounds")
     assert not (tmp_path / "run").exists()
+
+
+# ------------------------------------------------------------------ align's inputs
+def align_args(tmp_path: Path, *extra: str) -> list[str]:
+    suite = tmp_path / "suite.json"
+    suite.write_text('{"suite_name": "s", "scenarios": [{"name": "a", "duration_s": 0.1, "initial_angle": 0.1}]}')
+    return ["align", "--reference", "webots", "--target", "mujoco", "--robot", "cartpole", "--scenarios", str(suite),
+            "--budget", "6", "--executor", "serial", "--out", str(tmp_path / "aligned"), *extra]
+
+
+SYSID = {"joint.pole_hinge.damping": {"name": "joint.pole_hinge.damping", "nominal": [0.0], "min_value": [0.0],
+                                      "max_value": [1.0], "value": [0.0], "frozen": False}}
+
+
+@pytest.mark.parametrize(("name", "message"), [
+    # a name that is no knob was refused as "twin 'mujoco': knob 'no.such.knob' matches no knob", naming no file
+    ("no.such.knob", "twin 'mujoco': knob 'no.such.knob' matches no knob of the twin"),
+    # a number was turned into the text of its digits, then refused as a knob name, again naming no file
+    (10**30, "parameter 'joint.pole_hinge.damping': name must be a knob name or glob, got 10000"),
+])
+def test_a_sysid_parameter_whose_name_is_no_knob(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                 name: object, message: str) -> None:
+    path = tmp_path / "sysid.yaml"
+    path.write_text(yaml.safe_dump({key: {**entry, "name": name} for key, entry in SYSID.items()}))
+    code, lines = run_cli(capsys, *align_args(tmp_path, "--sysid-params", str(path)))
+    assert_one_error(code, lines, f"{path}: ", message)
+    assert not (tmp_path / "aligned").exists()
+
+
+def test_align_thresholds_for_a_channel_that_is_not_fitted(tmp_path: Path,
+                                                           capsys: pytest.CaptureFixture[str]) -> None:
+    """The objective resolved the thresholds after align_config.json was written: the folder was left behind."""
+    code, lines = run_cli(capsys, *align_args(tmp_path, "--knobs", "joint.pole_hinge.damping",
+                                              "--thresholds", "no_such_channel=1"))
+    assert_one_error(code, lines, "thresholds given for unknown channels ['no_such_channel']")
+    assert not (tmp_path / "aligned").exists()

@@ -105,7 +105,7 @@ PARAMS: dict[str, str] = {
     "dr_top_fraction": "number", "dr_generations": "number", "dr_min_rel_width": "number",
     "reference_knobs": "text", "bounds": "text", "thresholds": "text", "weights": "text", "scales": "text",
     "channels": "text", "ray_address": "address", "global_search": "choice", "starts": "number", "tie": "text",
-    "sysid_params": "text", "batch": "choice", "exclude": "scenario", "intervals": "choice",
+    "sysid_params": "yaml", "batch": "choice", "exclude": "scenario", "intervals": "choice",
 }
 
 # Issue 27's families: structure no reader should trust (deep nesting, the same key twice) and, for suites,

@@ -64,6 +64,7 @@ from dualtwin.align.writers import (
     write_patched_model,
 )
 from dualtwin.artifacts import remove_output_dir, write_json
+from dualtwin.divergence.comparison import resolve_thresholds
 from dualtwin.divergence.runs import load_run
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding, resolve_robot
@@ -218,6 +219,9 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
                                         f"shared: {shared.channels}")
             left = shared.left_out
             check_reference_run(Path(config.reference), channel_info, shared.scenarios)
+        if thresholds:  # the objective resolves them after the output folder is written: a typo is caught here
+            fitted = config.channels if config.channels is not None else shared.channels if kind == "run" else channel_names
+            resolve_thresholds(fitted, thresholds)
         members: list[dict[str, float]] = []
         if config.ensemble != "off":
             members = ensemble_members_of(config.reference, kind, fitted_ids + held, binding)
@@ -227,6 +231,8 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
         patterns, bounds = list(config.knobs), dict(config.bounds)
         if config.sysid_params:
             sysid_names, sysid_bounds = read_sysid_params(Path(config.sysid_params))
+            # each of the file's names must match a knob, in an error that names the file
+            select_knobs(registry, sysid_names, sysid_bounds, where=f"{config.sysid_params}: twin {config.target!r}")
             patterns += [n for n in sysid_names if n not in patterns]
             bounds = {**sysid_bounds, **bounds}  # bounds given to align win over the file's
         specs = select_knobs(registry, patterns, bounds, where=f"twin {config.target!r}")

@@ -29,7 +29,7 @@ from typing import Any
 import yaml
 
 from dualtwin.align.writers import KnobFit
-from dualtwin.artifacts import write_text
+from dualtwin.artifacts import read_yaml, write_text
 from dualtwin.errors import DualtwinError
 
 SYSID_FILE = "sysid_params.yaml"
@@ -55,11 +55,9 @@ def read_sysid_params(path: Path) -> tuple[list[str], dict[str, tuple[float, flo
     Raises:
         DualtwinError: Unreadable or malformed file, a non-scalar parameter, or bounds not below one another.
     """
-    try:
-        doc = yaml.safe_load(Path(path).read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise DualtwinError(f"{path}: cannot read the mujoco.sysid parameter file ({type(exc).__name__})") from None
-    return _knobs_of(doc, str(path))
+    # The shared careful reader: binary data, a directory, duplicate keys (of which YAML would keep the last
+    # silently) or deep nesting is one line naming the file, line and column.
+    return _knobs_of(read_yaml(Path(path), "mujoco.sysid parameter file"), str(path))
 
 
 def sysid_knobs(params: Any) -> tuple[list[str], dict[str, tuple[float, float]]]:
@@ -93,7 +91,9 @@ def _knobs_of(doc: Any, source: str) -> tuple[list[str], dict[str, tuple[float, 
             raise DualtwinError(f"{where}: needs min_value and max_value")
         if entry.get("frozen", False):
             continue
-        name = str(entry.get("name", key))
+        name = entry.get("name", key)
+        if not isinstance(name, str) or not name.strip():
+            raise DualtwinError(f"{where}: name must be a knob name or glob, got {name!r}")
         lower, upper = _scalar(entry["min_value"], where + " min_value"), _scalar(entry["max_value"], where + " max_value")
         if not lower < upper:
             raise DualtwinError(f"{where}: min_value {lower:g} is not below max_value {upper:g}")
