@@ -198,3 +198,20 @@ def test_align_thresholds_for_a_channel_that_is_not_fitted(tmp_path: Path,
                                               "--thresholds", "no_such_channel=1"))
     assert_one_error(code, lines, "thresholds given for unknown channels ['no_such_channel']")
     assert not (tmp_path / "aligned").exists()
+
+
+def test_resuming_from_a_checkpoint_whose_incumbent_has_another_residual_length(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A checkpointed point went back into the cache unchecked: a residual one entry longer than the objective's
+    was resumed from (exit 0 here; where the incumbent was the fitted point, the fuzz got a NumPy broadcasting
+    traceback from the interval estimate's finite differences)."""
+    args = align_args(tmp_path, "--knobs", "joint.pole_hinge.damping")
+    args[args.index("--budget") + 1] = "12"  # CMA needs a generation or two to checkpoint an incumbent
+    code, lines = run_cli(capsys, *args)
+    assert code == 0, lines
+    checkpoint = tmp_path / "aligned" / "checkpoint.json"
+    state = json.loads(checkpoint.read_text())
+    state["incumbent"]["residual"].append(0.0)
+    checkpoint.write_text(json.dumps(state))
+    code, lines = run_cli(capsys, *args, "--resume")
+    assert_one_error(code, lines, f"{checkpoint}: damaged CMA checkpoint", "is not a finite vector of")

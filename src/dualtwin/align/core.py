@@ -117,9 +117,23 @@ class CachedProblem(ABC):
         return {"u": point.u, "train": point.train, "holdout": point.holdout, "residual": point.residual.tolist()}
 
     def restore_point(self, state: Mapping[str, Any]) -> None:
-        """Put a checkpointed point back into the cache, so a resumed run simulates exactly what the original would."""
+        """Put a checkpointed point back into the cache, so a resumed run simulates exactly what the original would.
+
+        Raises:
+            ValueError: A point this problem cannot have produced (the checkpoint was edited): its unit-cube
+                coordinates are not one per knob in [0, 1], or its residual is not finite or not as long as
+                those simulated here (a Jacobian would subtract residuals of different lengths).
+        """
         u = [float(x) for x in state["u"]]
-        self._cache[tuple(u)] = Point(u, float(state["train"]), state["holdout"], np.asarray(state["residual"], float))
+        if len(u) != len(self.specs) or not all(0.0 <= x <= 1.0 for x in u):
+            raise ValueError(f"point {u} is not {len(self.specs)} unit-cube coordinates in [0, 1]")
+        residual = np.asarray(state["residual"], float)
+        simulated = next(iter(self._cache.values()), None)
+        if residual.ndim != 1 or not np.isfinite(residual).all() or (
+                simulated is not None and residual.shape != simulated.residual.shape):
+            entries = "" if simulated is None else f" of {len(simulated.residual)} entries"
+            raise ValueError(f"the residual of point {u} is not a finite vector{entries}")
+        self._cache[tuple(u)] = Point(u, float(state["train"]), state["holdout"], residual)
 
     def run(self, points: Sequence[Sequence[float]]) -> list[Point]:
         points = [[min(1.0, max(0.0, float(x))) for x in p] for p in points]

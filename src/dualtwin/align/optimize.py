@@ -113,6 +113,8 @@ def fit_cma(problem: Problem, config: AlignConfig, out_dir: Path, x0: Sequence[f
             archive: list[list[tuple[list[float], float]]] = [[(list(u), float(f)) for u, f in gen]
                                                               for gen in state["archive"]]
             best_u, best_f, stale = list(state["best_u"]), float(state["best_value"]), int(state["stale"])
+            if len(best_u) != len(problem.specs):
+                raise ValueError(f"best_u has {len(best_u)} coordinates for {len(problem.specs)} knobs")
             if state.get("incumbent"):
                 problem.restore_point(state["incumbent"])
         except (KeyError, TypeError, ValueError) as exc:
