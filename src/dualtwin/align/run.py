@@ -220,8 +220,9 @@ def run_trajectory(config: AlignConfig, out_dir: Path, *, resume: bool = False, 
             left = shared.left_out
             check_reference_run(Path(config.reference), channel_info, shared.scenarios)
         if thresholds:  # the objective resolves them after the output folder is written: a typo is caught here
-            fitted = config.channels if config.channels is not None else shared.channels if kind == "run" else channel_names
-            resolve_thresholds(fitted, thresholds)
+            fit_channels = (config.channels if config.channels is not None
+                            else shared.channels if kind == "run" else channel_names)
+            resolve_thresholds(fit_channels, thresholds)
         members: list[dict[str, float]] = []
         if config.ensemble != "off":
             members = ensemble_members_of(config.reference, kind, fitted_ids + held, binding)
