@@ -215,3 +215,34 @@ def test_resuming_from_a_checkpoint_whose_incumbent_has_another_residual_length(
     checkpoint.write_text(json.dumps(state))
     code, lines = run_cli(capsys, *args, "--resume")
     assert_one_error(code, lines, f"{checkpoint}: damaged CMA checkpoint", "is not a finite vector of")
+
+
+# ------------------------------------------------------------------ robot bindings
+def binding_with_model(tmp_path: Path, model: str) -> Path:
+    from dualtwin.robots.binding import BUNDLED
+
+    document = yaml.safe_load((BUNDLED / "cartpole" / "binding.yaml").read_text())
+    document["twins"]["mujoco"]["model"] = model
+    path = tmp_path / "binding.yaml"
+    path.write_text(yaml.safe_dump(document))
+    return path
+
+
+def test_a_binding_whose_model_links_to_itself(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    binding = binding_with_model(tmp_path, "model.xml")
+    link = self_link(tmp_path / "model.xml")
+    code, lines = run_cli(capsys, "suite", "validate", "--scenarios", "cartpole", "--robot", str(binding))
+    assert_one_error(code, lines, f"{link}: a symbolic link loop")
+
+
+def test_a_binding_whose_model_has_no_extension(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
+    """MuJoCo chooses its decoder by the extension; without one it printed "MuJoCo warning: Must provide
+    extension or content_type" twice on stderr (from C, hence capfd) before the error line."""
+    from dualtwin.robots.binding import BUNDLED
+
+    (tmp_path / "cartpole").write_bytes((BUNDLED / "cartpole" / "cartpole.xml").read_bytes())
+    binding = binding_with_model(tmp_path, "cartpole")
+    code, lines = run_cli(capfd, "suite", "run", "--twin", "mujoco", "--robot", str(binding), "--scenarios",
+                          "cartpole", "--out", str(tmp_path / "run"))
+    assert_one_error(code, lines, f"{tmp_path / 'cartpole'}: a model file needs its extension (.xml)")
+    assert not (tmp_path / "run").exists()

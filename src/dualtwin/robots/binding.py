@@ -19,6 +19,7 @@ from typing import Literal
 
 from pydantic import Field, ValidationError, field_validator, model_validator
 
+from dualtwin.artifacts import resolved
 from dualtwin.errors import DualtwinError
 from dualtwin.models import FrozenModel
 
@@ -155,7 +156,7 @@ class RobotBinding:
         if twin not in self.spec.twins:
             raise DualtwinError(f"{self.path}: robot {self.name!r} has no model for twin {twin!r} "
                                 f"(it has: {', '.join(sorted(self.spec.twins))})")
-        path = (self.root / self.spec.twins[twin].model).resolve()
+        path = resolved(self.root / self.spec.twins[twin].model)
         if not path.is_file():
             raise DualtwinError(f"{self.path}: model file for twin {twin!r} not found: {path}")
         return path

@@ -90,7 +90,7 @@ def _check_hfields(path: Path, folder: Path | None = None, seen: set[Path] | Non
         for base in (path.parent, folder):
             try:
                 included = (base / name).resolve()
-            except (OSError, ValueError):
+            except (OSError, ValueError, RuntimeError):  # Python 3.11 raises RuntimeError for a loop of links
                 continue  # (a NUL, a loop of links) MuJoCo's parser reports it
             if included in seen or len(seen) >= MAX_INCLUDED_FILES:
                 continue  # (an include cycle is MuJoCo's error to report)
@@ -101,6 +101,10 @@ def _check_hfields(path: Path, folder: Path | None = None, seen: set[Path] | Non
 def load_spec(path: Path) -> mujoco.MjSpec:
     if not Path(path).is_file():
         raise DualtwinError(f"{path}: model file not found")
+    if not Path(path).suffix:
+        # MuJoCo picks its decoder by the extension: without one it prints two warnings of its own on stderr
+        # before its error, where the command line promises one line
+        raise DualtwinError(f"{path}: a model file needs its extension (.xml): MuJoCo chooses its parser by it")
     _check_hfields(Path(path))
     try:
         return mujoco.MjSpec.from_file(str(path))
