@@ -309,9 +309,9 @@ def check_input_file(path: Path, what: str = "file") -> Path:
 
 def resolved(path: Path) -> Path:
     """``path.resolve()`` for a path a user or a document named: a symbolic link that leads back to itself (a
-    loop) is one clear error naming the path. Python 3.11's pathlib raises ``RuntimeError`` for a loop, which
-    is no user's error to read as a traceback; later versions raise ``OSError`` (``ELOOP``) or leave the loop
-    unresolved, and the file is then missing to whoever opens it."""
+    loop) is one clear error naming the path. Python 3.11 and 3.12's pathlib raise ``RuntimeError`` for a loop,
+    which is no user's error to read as a traceback; from 3.13 the loop is left unresolved, and whoever opens
+    the file gets ``OSError`` (``ELOOP``), which names it."""
     try:
         return Path(path).resolve()
     except RuntimeError:
