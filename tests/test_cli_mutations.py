@@ -246,3 +246,14 @@ def test_a_binding_whose_model_has_no_extension(tmp_path: Path, capfd: pytest.Ca
                           "cartpole", "--out", str(tmp_path / "run"))
     assert_one_error(code, lines, f"{tmp_path / 'cartpole'}: a model file needs its extension (.xml)")
     assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("value", ["0", "-1"])
+def test_align_thresholds_that_are_not_positive(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                value: str) -> None:
+    """A crossing threshold is a level |y| crosses (divergence.metrics.Threshold, mode 'abs'): 0 or below was
+    Threshold's ValueError inside the objective, a traceback."""
+    code, lines = run_cli(capsys, *align_args(tmp_path, "--knobs", "joint.pole_hinge.damping",
+                                              "--thresholds", f"pole_angle_rad={value}"))
+    assert_one_error(code, lines, "--thresholds pole_angle_rad: Input should be greater than 0")
+    assert not (tmp_path / "aligned").exists()

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import Field
 
@@ -32,6 +32,9 @@ from dualtwin.parallel import ExecutorKind
 Optimizer = Literal["cma", "lsq"]
 Objective = Literal["trajectory", "prediction"]
 GlobalSearch = Literal["multistart", "off"]
+#: A crossing threshold is a level the channel's magnitude crosses (divergence.metrics.Threshold, mode 'abs'):
+#: zero or below is refused here with the other options, not as Threshold's ValueError inside the objective.
+CrossingThreshold = Annotated[float, Field(gt=0)]
 Intervals = Literal["auto", "profile", "off"]
 #: Fields added after folders were written without them: left out of the saved config while at their default,
 #: so those folders stay resumable and a run that does not use them writes the same bytes as before.
@@ -71,7 +74,7 @@ class AlignConfig(FrozenModel):
     exclude: list[str] = Field(default_factory=list, description="scenario ids left out of the objective with "
                                "your consent (neither fitted nor held out), e.g. one the fit names as beyond its "
                                "reproducibility floor; the record and report say what was excluded and why")
-    thresholds: dict[str, float] | None = Field(default=None, description="crossing threshold per channel "
+    thresholds: dict[str, CrossingThreshold] | None = Field(default=None, description="crossing threshold per channel "
                                                 "(CHANNEL=VALUE; default 0.99 rad on *_angle_rad)")
     optimizer: Optimizer = Field(default="cma", description="CMA-ES or least squares")
     seed: int = Field(default=0, description="optimiser seed (simulations use the reference run's seed)")
