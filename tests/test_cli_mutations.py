@@ -257,3 +257,24 @@ def test_align_thresholds_that_are_not_positive(tmp_path: Path, capsys: pytest.C
                                               "--thresholds", f"pole_angle_rad={value}"))
     assert_one_error(code, lines, "--thresholds pole_angle_rad: Input should be greater than 0")
     assert not (tmp_path / "aligned").exists()
+
+
+# ------------------------------------------------------------------ recordings
+def test_a_recorded_time_stamp_beyond_any_clock(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A last stamp of 1e308 s still increases, so it passed the import's checks; resampling overflowed to inf
+    (several numpy warnings) and the manifest's JSON could not hold it: a ValueError traceback."""
+    from tests.support.paper_logs import SUITE, write_logs
+
+    logs = write_logs(tmp_path / "logs", starts=[0.0] * 6, ends=[0.1] * 6)
+    log = logs / "simulation_log_SUP_0.tsv"
+    lines = log.read_text().splitlines()
+    lines[-1] = "1e308\t" + lines[-1].split("\t", 1)[1]
+    log.write_text("\n".join(lines) + "\n")
+    code, err = run_cli(capsys, "import", "paper", str(logs), "--scenarios", str(SUITE), "--robot", "cartpole",
+                        "--out", str(tmp_path / "run"))
+    # the logs are read (progress lines) before they are judged: the error is the one error line, the last
+    # (tests/test_cli_robust.py holds the same for values)
+    errors = [line for line in err if line.startswith("error:")]
+    assert code == 2 and len(errors) == 1 and err[-1] == errors[0], err
+    assert f"{log}:{len(lines)}: time stamp 1e+308 s is beyond ±9.2e+09 s" in errors[0], err
+    assert not (tmp_path / "run").exists()

@@ -25,7 +25,7 @@ from dualtwin.recorded.build import (
     write_recording,
 )
 from dualtwin.recorded.delimited import Table, read_table
-from dualtwin.recorded.mapping import BagMapping, TableMapping, load_mapping, resolve_files
+from dualtwin.recorded.mapping import MAX_BAG_TIME_S, BagMapping, TableMapping, load_mapping, resolve_files
 from dualtwin.reporting.progress import ProgressCallback
 from dualtwin.robots.binding import RobotBinding, resolve_robot
 from dualtwin.suite.loader import load_suite
@@ -89,6 +89,15 @@ def _time_axis(table: Table, mapping: TableMapping, period: float) -> tuple[Floa
     if bad.size:
         i = int(bad[0])
         raise DualtwinError(f"{table.path}:{table.line(i)}: time stamp {float(stamps[i])!r} is not a finite number "
+                            f"(column {col}, {spec.column!r})")
+    far = np.flatnonzero(np.abs(stamps) > MAX_BAG_TIME_S)
+    if far.size:
+        # No recording's clock reads more than the bags' int64 nanoseconds hold (about 292 years; wall-clock
+        # stamps are about 1.7e9 s): a stamp beyond is a typo, and 1e308 s overflowed the resampling to inf,
+        # which the manifest's JSON cannot hold (a traceback after warnings)
+        i = int(far[0])
+        raise DualtwinError(f"{table.path}:{table.line(i)}: time stamp {float(stamps[i])!r} s is beyond "
+                            f"±{MAX_BAG_TIME_S:g} s, more than any recording's clock reads "
                             f"(column {col}, {spec.column!r})")
     steps = np.diff(stamps)
     back = np.flatnonzero(steps <= 0)
