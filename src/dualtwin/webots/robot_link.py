@@ -96,7 +96,11 @@ class RobotLink:
         if wanted == 0:
             return self.root()
         node = self._runtime.node_ids()[1].get(wanted)
-        return Node(self, node) if node is not None else None
+        if node is None or not any(n is node for top in self._sim.world.nodes for n in top.walk()):
+            # a deleted node (Node.remove, or a node imported before a simulationReset) keeps its id, which no
+            # other node ever takes, but no longer exists: as getFromDef no longer finds it, getFromId does not
+            return None
+        return Node(self, node)
 
     def root(self) -> Node:
         root = Node(self, SceneNode("Group", {"children": self._sim.world.nodes}))
