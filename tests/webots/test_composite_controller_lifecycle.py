@@ -2,11 +2,17 @@
 robots are removed, imported, reset and run with and without synchronisation.
 
 References: webots-python-api.md (Supervisor.getFromId "unique node id", Node.remove "delete"),
-webots-on-ode.md §6 (simulationReset: added nodes removed), webots-devices.md §11.3.
+webots-on-ode.md §6 (simulationReset: added nodes removed) and §1.6 (a step waits for the synchronized
+controllers), webots-devices.md §11.3-11.4.
 """
 
 from __future__ import annotations
 
+from pathlib import Path
+
+import pytest
+
+from dualtwin.webots.runner import run_world
 from tests.support.quiet_worlds import quiet_supervisor
 
 TS = 8
@@ -44,3 +50,53 @@ def test_get_from_id_no_longer_finds_a_node_the_reset_took_out() -> None:
     sup.simulationReset()
     sup.step(TS)  # the reset is applied at the end of this step
     assert sup.getFromDef("ADDED") is None and sup.getFromId(added.getId()) is None
+
+
+SYNCED = """
+import os
+from controller import Robot
+ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
+robot = Robot()
+with open(os.path.join(ROOT, "synced.txt"), "w") as log:
+    for _ in range(5):
+        log.write(f"{robot.step(8)} {robot.getTime():.3f}\\n")
+open(os.path.join(ROOT, "done"), "w").close()
+"""
+# waits, without stepping, until the synchronized controller has made all its steps (a bound of 30 s of real time
+# only so that a run that holds the synchronized robot still ends, and the test then fails)
+UNSYNCED = """
+import os, time
+from controller import Robot
+ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
+robot = Robot()
+since = time.monotonic()
+while not os.path.exists(os.path.join(ROOT, "done")) and time.monotonic() - since < 30:
+    time.sleep(0.01)
+with open(os.path.join(ROOT, "unsynced.txt"), "w") as log:
+    log.write(f"saw done {os.path.exists(os.path.join(ROOT, 'done'))}\\n")
+    log.write(f"step {robot.step(8)}\\n")
+"""
+SYNC_WORLD = """#VRML_SIM R2023b utf8
+WorldInfo { basicTimeStep 8 }
+Robot { name "synced" controller "synced" }
+Robot { translation 1 0 0 name "unsynced" controller "unsynced" synchronization FALSE }
+"""
+
+
+@pytest.mark.parametrize("isolation", ["process", "threads"])
+def test_a_robot_without_synchronization_does_not_hold_the_synchronized_ones(tmp_path: Path,
+                                                                              isolation: str) -> None:
+    # webots-on-ode.md §1.6 step 1: each basic step waits until every *synchronized* controller has sent its
+    # request; a robot whose synchronization is FALSE is not waited for (webots-devices.md §11.4: its step returns
+    # without holding the others). The synchronized controller steps 8 ms five times: 8, 16, 24, 32, 40 ms, all
+    # while the other one has not stepped yet; that one's own step, the only controller left, then returns 0.
+    for name, script in (("synced", SYNCED), ("unsynced", UNSYNCED)):
+        (tmp_path / "controllers" / name).mkdir(parents=True)
+        (tmp_path / "controllers" / name / f"{name}.py").write_text(script)
+    (tmp_path / "worlds").mkdir()
+    world = tmp_path / "worlds" / "w.wbt"
+    world.write_text(SYNC_WORLD)
+    # no step timeout: what is tested is that nothing waits for the controller that does not step
+    assert run_world(world, None, None, step_timeout_s=0, isolation=isolation) == 0
+    assert (tmp_path / "synced.txt").read_text().splitlines() == [f"0 {t / 1000:.3f}" for t in range(8, 41, 8)]
+    assert (tmp_path / "unsynced.txt").read_text().splitlines() == ["saw done True", "step 0"]

@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 from dualtwin.webots import load_world_text
-from dualtwin.webots.physics import Simulation
+from dualtwin.webots.physics import RobotRec, Simulation
 from dualtwin.webots.runner import run_world
 from dualtwin.webots.runtime import Runtime
 from tests.support.world_runs import run_world_cli
@@ -115,7 +115,10 @@ def test_coupled_motor_robots_receive_their_own_controller_args(
 
 
 class _Fake:
-    """What the runtime needs of a Robot."""
+    """What the runtime needs of a Robot (its robot record: the runtime reads its synchronization field)."""
+
+    def __init__(self, rec: RobotRec) -> None:
+        self._rec = rec
 
     def _after_reset(self) -> None:
         pass
@@ -142,7 +145,7 @@ def test_controllers_ending_at_the_same_step_never_deadlock_1000_times() -> None
                 try:
                     if i < 2:
                         return  # ends without a Robot, as a script that only prints
-                    client = runtime.register(_Fake())
+                    client = runtime.register(_Fake(sim.robots[i]))
                     for _ in range(3):
                         runtime.advance(client, 8)
                     steps.append(i)

@@ -78,7 +78,9 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Robot", "scene", "supported",
              "Python controllers run unchanged, each in its own process (runner), supervisor API, selfCollision "
              "(a supervisor's edit governs the next collision pass), "
-             "controllerArgs; a Robot a supervisor imports at run time starts its controller in its own "
+             "controllerArgs; synchronization FALSE: the simulation does not wait for that robot's controller (its step "
+             "returns once the time it asked for has passed; with no synchronized controller left its steps drive the "
+             "simulation); a Robot a supervisor imports at run time starts its controller in its own "
              "process, stepping with the others from the next step, and remove() (or a reset, which takes imported nodes "
              "out) ends it (its step returns -1; a supervisor's remove() of its own Robot acts at the end of its next step, as "
              "Webots); with several controllers the robots are sampled, draw sensor noise "

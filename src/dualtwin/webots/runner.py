@@ -7,8 +7,9 @@ layout (``worlds/X.wbt`` beside ``controllers/NAME/NAME.py``, NAME = the Robot's
 As Webots does, every controller runs in its own process (:mod:`dualtwin.webots.controller_host`): its own
 ``sys.argv = [script, *controllerArgs]``, working directory (its folder), modules and output, with
 ``from controller import Robot`` answered by proxies of the API objects that live in this process. The
-simulation advances only when every controller has called ``step`` (Webots' synchronisation), and the
-controllers' output is printed in robot order at each step, so the same world prints the same bytes.
+simulation advances only when every controller has called ``step`` (Webots' synchronisation; not waiting for a
+robot whose ``synchronization`` is FALSE), and the controllers' output is printed in robot order at each step, so
+the same world prints the same bytes.
 
 A Robot a supervisor imports during the run gets its controller as at load (:func:`controller_spec`), started
 in its own process and waited for from the next step; a robot removed (or taken out by a reset) has its

@@ -3,7 +3,7 @@
 Timing follows docs/reference/webots-on-ode.md §6: commands issued before ``step(ms)`` act on the physics of that
 call, the simulation advances in basic time steps until ``ms`` elapsed, then sensors due for sampling are read.
 Several controllers may share one :class:`Runtime`: the simulation then advances only once every registered
-controller has asked for the next step. Moved out of :mod:`dualtwin.webots.controller`, which keeps the
+controller whose robot's ``synchronization`` is TRUE has asked for the next step (§1.6 step 1). Moved out of :mod:`dualtwin.webots.controller`, which keeps the
 ``Robot``/``Supervisor`` classes and re-exports these names.
 """
 
@@ -71,7 +71,8 @@ class ControllerStopped(SystemExit):
 
 
 class _Client:
-    __slots__ = ("robot", "target", "waiting", "active", "ended_at", "thread", "controller", "running", "cut")
+    __slots__ = ("robot", "target", "waiting", "active", "ended_at", "thread", "controller", "running", "cut",
+                 "synced")
 
     def __init__(self, robot: RuntimeRobot, controller: Controller | None) -> None:
         self.robot = robot
@@ -83,6 +84,8 @@ class _Client:
         self.controller = controller
         self.running = True  # its controller has not ended (its thread id may be reused once it has)
         self.cut = False  # ended by a supervisor while it waited in a step that had not reached its end
+        #: its robot's ``synchronization`` field: the simulation waits for its step only if True (§1.6 step 1)
+        self.synced = bool(robot._rec.node.fields.get("synchronization", True))
 
 
 class Controller:
@@ -363,6 +366,10 @@ class Runtime:
             if controller is not None:
                 controller.arrived = True
                 controller.clients.append(client)
+                # the start-up barrier may open now: the others' first steps must not wait for this one's first
+                # step as well, which a robot whose synchronization is FALSE may take any time to make
+                self._maybe_advance()
+                self._cond.notify_all()
             return client
 
     def unregister(self, client: _Client) -> None:
@@ -484,25 +491,30 @@ class Runtime:
         self._cond.notify_all()
 
     def _maybe_advance(self) -> None:
-        # caller holds the condition; steps when every active controller is waiting (synchronisation)
+        # caller holds the condition; steps when every active synchronized controller is waiting (synchronisation)
         if sum(c.arrived for c in self._controllers) < self._expected:
             return
         active = [c for c in self._clients if c.active]
-        if not active or not all(c.waiting for c in active):
+        # Webots waits for the robots whose synchronization is TRUE (webots-on-ode.md §1.6 step 1): one with FALSE
+        # does not hold the others, and its step returns once the time it asked for has passed. With no
+        # synchronized controller left, the others' steps drive the simulation (headless, nothing else runs it)
+        driving = [c for c in active if c.synced] or active
+        if not driving or not all(c.waiting for c in driving):
             return
+        waiting = [c for c in active if c.waiting]
         if self.mode == SIMULATION_MODE_PAUSE:
             # every controller waits for time to pass and headless nobody presses play: the run is over
             _warn("a controller paused the simulation and, headless, nothing can resume it: the run ends")
             self.finished = True
-            for c in active:
+            for c in waiting:
                 c.waiting = False
             self._cond.notify_all()
             return
         if self._reset_at is not None:
-            self._reset_now(active)
+            self._reset_now(waiting)
             return
         sim = self.simulation
-        target = min(c.target for c in active)
+        target = min(c.target for c in driving)
         if self.sync_hook is not None:
             self.sync_hook()
         self.advancing = True
@@ -518,7 +530,7 @@ class Runtime:
                         time.sleep(delay)
         except BaseException as exc:
             self.error = exc
-            for c in active:
+            for c in waiting:
                 c.waiting = False
             self._cond.notify_all()
             return
