@@ -100,3 +100,44 @@ def test_a_robot_without_synchronization_does_not_hold_the_synchronized_ones(tmp
     assert run_world(world, None, None, step_timeout_s=0, isolation=isolation) == 0
     assert (tmp_path / "synced.txt").read_text().splitlines() == [f"0 {t / 1000:.3f}" for t in range(8, 41, 8)]
     assert (tmp_path / "unsynced.txt").read_text().splitlines() == ["saw done True", "step 0"]
+
+
+LOOPING = """
+import os
+from controller import Robot
+ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
+robot = Robot()
+steps = 0
+# steps until the unsynchronized controller says it has been idle (a bound on the steps only so that a run in
+# which it was stopped still ends)
+while not os.path.exists(os.path.join(ROOT, "idled")) and steps < 1_000_000:
+    assert robot.step(8) == 0
+    steps += 1
+open(os.path.join(ROOT, "done"), "w").close()
+"""
+IDLE = """
+import os, time
+from controller import Robot
+ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
+robot = Robot()
+time.sleep(1.5)  # three step timeouts without a step
+open(os.path.join(ROOT, "idled"), "w").close()
+while not os.path.exists(os.path.join(ROOT, "done")):
+    time.sleep(0.01)
+with open(os.path.join(ROOT, "idle.txt"), "w") as log:
+    log.write(f"step {robot.step(8)}\\n")
+"""
+
+
+def test_the_step_timeout_does_not_stop_a_controller_nothing_waits_for(tmp_path: Path) -> None:
+    # the step timeout is ours (Webots has none): it stops a controller the simulation waits for in vain. Nothing
+    # waits for a robot whose synchronization is FALSE (webots-on-ode.md §1.6 step 1) while a synchronized
+    # controller steps, so that one idling for three timeouts is not stopped and the run ends well (exit 0)
+    for name, script in (("synced", LOOPING), ("unsynced", IDLE)):
+        (tmp_path / "controllers" / name).mkdir(parents=True)
+        (tmp_path / "controllers" / name / f"{name}.py").write_text(script)
+    (tmp_path / "worlds").mkdir()
+    world = tmp_path / "worlds" / "w.wbt"
+    world.write_text(SYNC_WORLD)
+    assert run_world(world, None, None, step_timeout_s=0.5) == 0
+    assert (tmp_path / "idle.txt").read_text().splitlines() == ["step 0"]

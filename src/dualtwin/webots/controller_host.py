@@ -24,7 +24,8 @@ The main thread watches the children:
   is killed with one line on stderr; the run ends (the others' ``step`` returns -1) with exit code 2. The clock
   runs from its last ``step`` or, before its first, from its last call of the API; until its first call at all
   (the script's own imports: PyTorch alone can take longer than the timeout on a busy machine) it may take
-  :data:`STARTUP_GRACE_S`;
+  :data:`STARTUP_GRACE_S`. A robot whose ``synchronization`` is FALSE holds no one up, so its clock runs only
+  while the simulation waits for it (no synchronized controller left);
 * Ctrl-C or SIGTERM kills and reaps every child and returns 130 (the caller says ``error: interrupted``; the command line catches its own SIGINT first).
 
 A child that crashes prints its traceback (through its stderr) and makes the exit code 1; the others keep
@@ -435,6 +436,10 @@ class _Host:
                     link.out.append((2, f"Warning: controller {link.script.name} was still running "
                                         f"{TERMINATION_GRACE_S:g} s after step() returned -1: forced termination\n"))
                     self._kill(link)
+                elif link.heard and not self.runtime.waits_for(link.robot):
+                    # nothing waits for its steps (synchronization FALSE): it holds no one up, and its time
+                    # without a step counts from when the simulation starts waiting for it
+                    link.last_active = now
                 elif (self.step_timeout_s > 0 and not link.in_step and link.ended_at is None
                         and now - link.last_active >= self._allowed(link)):
                     link.stopped = "timeout"

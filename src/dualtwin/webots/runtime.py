@@ -192,6 +192,14 @@ class Runtime:
         """Whether a supervisor removed this robot during the run."""
         return id(robot_node) in self._gone_nodes
 
+    def waits_for(self, robot_node: SceneNode) -> bool:
+        """Whether the simulation waits for the steps of this robot's controller: its ``synchronization`` is TRUE,
+        or no synchronized controller is left to drive the simulation (see :meth:`_maybe_advance`)."""
+        if robot_node.fields.get("synchronization", True):
+            return True
+        with self._cond:
+            return not any(c.active and c.synced for c in self._clients)
+
     def claim_start(self, robot_node: SceneNode) -> bool:
         """Whether the controller of an imported robot (see :meth:`expect_another`) may start now: False if its
         robot was removed before, and then the run no longer waits for it."""
