@@ -8,11 +8,14 @@ controllers), webots-devices.md §11.3-11.4.
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
 
 import pytest
 
+from dualtwin.webots.controller import Robot, Supervisor
 from dualtwin.webots.runner import run_world
+from dualtwin.webots.runtime import Runtime
 from tests.support.quiet_worlds import quiet_supervisor
 
 TS = 8
@@ -141,3 +144,40 @@ def test_the_step_timeout_does_not_stop_a_controller_nothing_waits_for(tmp_path:
     world.write_text(SYNC_WORLD)
     assert run_world(world, None, None, step_timeout_s=0.5) == 0
     assert (tmp_path / "idle.txt").read_text().splitlines() == ["step 0"]
+
+
+def test_a_step_answered_before_its_robot_is_removed_keeps_its_answer_however_late_its_thread_wakes() -> None:
+    # webots-on-ode.md §6: step(ms) returns with the values of its end; webots-devices.md §11.4: 0 for a
+    # synchronized robot. BOT's controller steps 48 ms at once; the supervisor steps 8 ms six times, which answers
+    # BOT's step at 48 ms, then removes BOT and steps on to the run's end (0.1 s) while BOT's thread has not woken
+    # (the supervisor's thread keeps the runtime's lock, as a busy machine may schedule it). BOT's step still says
+    # 0 and its getTime 0.048: what the simulation answered at 48 ms, not the end of the run it woke at.
+    sim = quiet_supervisor(NODES_WORLD).simulation
+    boss, bot = (rec.node for rec in sim.robots)
+    runtime = Runtime(sim, 0.1)
+    runtime.expect(2)
+    seen: dict[str, float] = {}
+
+    def bot_controller() -> None:
+        runtime.bind_thread(bot)
+        robot = Robot(robot_node=bot, runtime=runtime)
+        seen["step"] = robot.step(48)
+        seen["time"] = robot.getTime()
+        runtime.thread_done()
+
+    thread = threading.Thread(target=bot_controller, daemon=True)
+    thread.start()
+    runtime.bind_thread(boss)
+    sup = Supervisor(robot_node=boss, runtime=runtime)
+    assert sup.step(TS) == 0  # both controllers wait in their steps: BOT's asks for 48 ms
+    with runtime._cond:  # BOT's thread cannot wake before the run is over
+        for _ in range(5):
+            assert sup.step(TS) == 0
+        assert sup.getTime() == pytest.approx(0.048)
+        sup.getFromDef("BOT").remove()
+        while sup.step(TS) != -1:
+            pass
+    thread.join(timeout=10.0)
+    assert not thread.is_alive()
+    assert seen == {"step": 0, "time": pytest.approx(0.048)}
+    runtime.thread_done()

@@ -152,7 +152,9 @@ class Robot:
 
     @step_value
     def getTime(self) -> float:
-        return self.__link._sim.time
+        """The simulated time (s) its last ``step`` returned at (webots-on-ode.md §6: a step returns with the
+        values of its end; the controller sees the world only through its steps)."""
+        return self.__link.client.time
 
     def waitForUserInputEvent(self, event_type: Any, timeout: Any) -> int:
         """Headless there is no user input: ``EVENT_NO_EVENT`` at once (Webots waits ``timeout`` ms first)."""

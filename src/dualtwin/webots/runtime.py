@@ -72,7 +72,7 @@ class ControllerStopped(SystemExit):
 
 class _Client:
     __slots__ = ("robot", "target", "waiting", "active", "ended_at", "thread", "controller", "running", "cut",
-                 "synced")
+                 "synced", "time", "outcome")
 
     def __init__(self, robot: RuntimeRobot, controller: Controller | None) -> None:
         self.robot = robot
@@ -86,6 +86,10 @@ class _Client:
         self.cut = False  # ended by a supervisor while it waited in a step that had not reached its end
         #: its robot's ``synchronization`` field: the simulation waits for its step only if True (§1.6 step 1)
         self.synced = bool(robot._rec.node.fields.get("synchronization", True))
+        #: the simulated time its last step answered with (what its getTime reads) and that step's value: both
+        #: fixed when the simulation answers it (Runtime._answer), however late its thread then wakes
+        self.time = 0.0
+        self.outcome = 0
 
 
 class Controller:
@@ -275,7 +279,7 @@ class Runtime:
                 if client.controller is None and client.active and client.robot._rec.node is robot_node:
                     client.active = False
                     client.cut = client.waiting
-                    client.waiting = False
+                    self._answer(client)
 
     def _end_controllers_of(self, robots: set[int], *, gone: bool, advance: bool = True) -> None:
         """Tell the controllers of these robot nodes -1 at their step and take them out of the synchronisation;
@@ -289,7 +293,7 @@ class Runtime:
                 for client in controller.clients:
                     client.active = False
                     client.cut = client.waiting
-                    client.waiting = False
+                    self._answer(client)
                     if not gone:
                         client.robot._release()
             if advance:
@@ -331,7 +335,7 @@ class Runtime:
         with self._cond:
             self.finished = True
             for c in self._clients:
-                c.waiting = False
+                self._answer(c)
             self._cond.notify_all()
 
     # -- robot binding for argument-less constructors
@@ -367,7 +371,7 @@ class Runtime:
         with self._cond:
             controller = getattr(self._thread_controller, "controller", None)
             client = _Client(robot, controller)
-            client.target = self.simulation.time
+            client.target = client.time = self.simulation.time
             if controller is not None and controller.removed:
                 client.active = False  # its robot was removed before it made its Robot: its step returns -1
             self._clients.append(client)
@@ -457,6 +461,7 @@ class Runtime:
             if self.finished or self._limit_reached():
                 return self._end(client)
             if self.mode == SIMULATION_MODE_PAUSE and duration_ms == 0:
+                client.time = sim.time
                 return 0  # step(0) exchanges commands without time passing, even paused
             n = max(1, math.ceil(duration_ms / sim.basic_time_step - 1e-9))
             by = self._reset_by
@@ -474,10 +479,23 @@ class Runtime:
             if self.error is not None:
                 err, self.error = self.error, None
                 raise err
-            client.waiting = False
+            self._answer(client)  # (the run ended while it waited)
             if client.cut:  # (a step that reached its end before the supervisor's request still counts)
                 return self._end_removed(client)
-            return self._end(client) if self.finished or self._limit_reached() else 0
+            return self._end(client) if client.outcome == -1 else 0
+
+    def _answer(self, client: _Client) -> None:
+        """Release ``client`` from the step it waits in (caller holds the condition). Its controller reads the
+        time of this answer until its next step, as a Webots controller reads the time its last step message
+        brought: once nothing waits for it (its robot removed, its controller restarted, its synchronization
+        FALSE) the simulation goes on while it runs, and reading the live clock gave a time its step never
+        reached, which varied with the scheduling (and a step answered 0 said -1 if its thread woke late)."""
+        if client.waiting:
+            client.time = self.simulation.time
+            # the step that reaches the run's end says -1; one answered before stays 0 even if its thread wakes
+            # only once the run is over (nothing waits for a removed robot's controller: the others run on)
+            client.outcome = -1 if self.finished or self._limit_reached() else 0
+        client.waiting = False
 
     def _reset_now(self, waiting: list[_Client]) -> None:
         """The requested simulationReset, every active controller waiting in its step (caller holds the
@@ -492,7 +510,7 @@ class Runtime:
             c.target = 0.0
             c.robot._after_reset()
         for c in waiting:
-            c.waiting = False
+            self._answer(c)
         self._end_orphans()  # the reset took the robots a supervisor imported out of the scene
         for c in waiting:
             c.cut = c.cut or self._removed(c)  # their step says -1
@@ -515,7 +533,7 @@ class Runtime:
             _warn("a controller paused the simulation and, headless, nothing can resume it: the run ends")
             self.finished = True
             for c in waiting:
-                c.waiting = False
+                self._answer(c)
             self._cond.notify_all()
             return
         if self._reset_at is not None:
@@ -539,14 +557,14 @@ class Runtime:
         except BaseException as exc:
             self.error = exc
             for c in waiting:
-                c.waiting = False
+                self._answer(c)
             self._cond.notify_all()
             return
         finally:
             self.advancing = False
         for c in active:
             if c.target <= sim.time + 1e-9 or self._limit_reached() or self.finished:
-                c.waiting = False
+                self._answer(c)
         self._cond.notify_all()
 
 
