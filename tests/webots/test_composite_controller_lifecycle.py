@@ -181,3 +181,48 @@ def test_a_step_answered_before_its_robot_is_removed_keeps_its_answer_however_la
     assert not thread.is_alive()
     assert seen == {"step": 0, "time": pytest.approx(0.048)}
     runtime.thread_done()
+
+
+RESETTER = """
+import os
+from controller import Supervisor
+ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
+sup = Supervisor()
+with open(os.path.join(ROOT, "sup.txt"), "w") as log:
+    for i in range(3):
+        log.write(f"{sup.step(16)} {sup.getTime():.3f}\\n")
+        if i == 0:
+            sup.simulationReset()
+"""
+STEPPER = """
+import os
+from controller import Robot
+ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
+robot = Robot()
+with open(os.path.join(ROOT, "bot.txt"), "w") as log:
+    for _ in range(6):
+        log.write(f"{robot.step(8)} {robot.getTime():.3f}\\n")
+"""
+RESET_WORLD = """#VRML_SIM R2023b utf8
+WorldInfo { basicTimeStep 8 }
+Robot { name "boss" controller "resetter" supervisor TRUE }
+Robot { translation 1 0 0 name "bot" controller "stepper" }
+"""
+
+
+@pytest.mark.parametrize("isolation", ["process", "threads"])
+def test_a_reset_waits_for_the_end_of_the_longer_step_that_carries_it(tmp_path: Path, isolation: str) -> None:
+    # webots-devices.md §11.3 / webots-on-ode.md §6: simulationReset is applied at the end of the step that carries
+    # the request (time passes in that step). The supervisor steps 16 ms and asks at 16 ms; its step to 32 ms
+    # carries the request while the robot steps 8 ms twice (24, 32 ms); at 32 ms the world is reset and both steps
+    # return at t = 0. Then the supervisor steps to 16 ms while the robot steps to 8 and 16 ms.
+    for name, script in (("resetter", RESETTER), ("stepper", STEPPER)):
+        (tmp_path / "controllers" / name).mkdir(parents=True)
+        (tmp_path / "controllers" / name / f"{name}.py").write_text(script)
+    (tmp_path / "worlds").mkdir()
+    world = tmp_path / "worlds" / "w.wbt"
+    world.write_text(RESET_WORLD)
+    assert run_world(world, None, None, isolation=isolation) == 0
+    assert (tmp_path / "sup.txt").read_text().splitlines() == ["0 0.016", "0 0.000", "0 0.016"]
+    assert (tmp_path / "bot.txt").read_text().splitlines() == [
+        "0 0.008", "0 0.016", "0 0.024", "0 0.000", "0 0.008", "0 0.016"]

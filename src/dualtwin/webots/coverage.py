@@ -85,8 +85,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "out) ends it (its step returns -1; a supervisor's remove() of its own Robot acts at the end of its next step, as "
              "Webots); with several controllers the robots are sampled, draw sensor noise "
              "and exchange packets in world order, the supervisors' translation/rotation, joint position and queued "
-             "velocity writes of a step are executed in their world order, and a simulationReset waits for every controller's step (each "
-             "then returns at t = 0), so the same world and seed give the same output however the processes are "
+             "velocity writes of a step are executed in their world order, and a simulationReset waits for every controller's step and for the end of the "
+             "step that carries it (each then returns at t = 0), so the same world and seed give the same output however the processes are "
              "scheduled; C controllers do not run; battery drained by cpuConsumption and motor consumptionFactor × |torque|; "
              "when it runs out the controller's step returns -1 (it ends) and the motors (Track belts and Propellers too) hold velocity 0 with their "
              "full torque (our reading of Webots' 'stops all motion'); recharged at a Charger"),

@@ -536,10 +536,11 @@ class Runtime:
                 self._answer(c)
             self._cond.notify_all()
             return
-        if self._reset_at is not None:
+        sim = self.simulation
+        if self._reset_at is not None and (sim.time >= self._reset_at - 1e-9 or sim.unstable):
+            # (diverged physics cannot run the step that carries the request: the reset is what recovers it)
             self._reset_now(waiting)
             return
-        sim = self.simulation
         target = min(c.target for c in driving)
         if self.sync_hook is not None:
             self.sync_hook()
@@ -562,6 +563,11 @@ class Runtime:
             return
         finally:
             self.advancing = False
+        if self._reset_at is not None and sim.time >= self._reset_at - 1e-9 and not self.finished:
+            # the step that carries the request has run to its end (a controller stepping less at a time went on
+            # stepping meanwhile): the world is reset now, and every step waiting returns at t = 0
+            self._reset_now(waiting)
+            return
         for c in active:
             if c.target <= sim.time + 1e-9 or self._limit_reached() or self.finished:
                 self._answer(c)
