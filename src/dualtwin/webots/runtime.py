@@ -201,8 +201,9 @@ class Runtime:
         or no synchronized controller is left to drive the simulation (see :meth:`_maybe_advance`)."""
         if robot_node.fields.get("synchronization", True):
             return True
-        with self._cond:
-            return not any(c.active and c.synced for c in self._clients)
+        # read without the lock, which the physics holds while it runs: the watching thread asks every few
+        # hundredths of a second and must not wait for a long step (a stale answer is corrected at the next ask)
+        return not any(c.active and c.synced for c in list(self._clients))
 
     def claim_start(self, robot_node: SceneNode) -> bool:
         """Whether the controller of an imported robot (see :meth:`expect_another`) may start now: False if its
