@@ -9,6 +9,7 @@ controllers), webots-devices.md §11.3-11.4.
 from __future__ import annotations
 
 import threading
+import time
 from pathlib import Path
 
 import pytest
@@ -226,3 +227,41 @@ def test_a_reset_waits_for_the_end_of_the_longer_step_that_carries_it(tmp_path: 
     assert (tmp_path / "sup.txt").read_text().splitlines() == ["0 0.016", "0 0.000", "0 0.016"]
     assert (tmp_path / "bot.txt").read_text().splitlines() == [
         "0 0.008", "0 0.016", "0 0.024", "0 0.000", "0 0.008", "0 0.016"]
+
+
+TWO_SUPERVISORS = f"""#VRML_SIM R2023b utf8
+WorldInfo {{ basicTimeStep {TS} }}
+Robot {{ name "a" supervisor TRUE }}
+Robot {{ translation 0 2 0 name "b" supervisor TRUE }}
+"""
+
+
+def test_simulation_get_mode_reads_the_mode_of_the_last_step_answer() -> None:
+    # webots-devices.md §11.2: simulationGetMode() returns the value cached at the last step. Both supervisors'
+    # steps are answered at 8 ms in FAST mode; then A pauses the simulation before B's thread has woken (A keeps the
+    # runtime's lock). B still reads FAST (2): the pause reaches it with its next step, not in between.
+    sim = quiet_supervisor(TWO_SUPERVISORS).simulation
+    a, b = (rec.node for rec in sim.robots)
+    runtime = Runtime(sim)
+    runtime.expect(2)
+    seen: dict[str, int] = {}
+
+    def b_controller() -> None:
+        runtime.bind_thread(b)
+        sup_b = Supervisor(robot_node=b, runtime=runtime)
+        seen["step"] = sup_b.step(TS)
+        seen["mode"] = sup_b.simulationGetMode()
+        runtime.thread_done()
+
+    thread = threading.Thread(target=b_controller, daemon=True)
+    runtime.bind_thread(a)
+    sup_a = Supervisor(robot_node=a, runtime=runtime)
+    thread.start()
+    time.sleep(0.3)  # B is inside its step now: A's step is the one that runs the simulation
+    with runtime._cond:  # B's thread cannot wake before A has paused
+        assert sup_a.step(TS) == 0
+        sup_a.simulationSetMode(Supervisor.SIMULATION_MODE_PAUSE)
+    thread.join(timeout=10.0)
+    assert not thread.is_alive()
+    assert seen == {"step": 0, "mode": Supervisor.SIMULATION_MODE_FAST}
+    runtime.thread_done()

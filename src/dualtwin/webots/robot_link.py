@@ -151,7 +151,9 @@ class RobotLink:
 
     def step(self, ms: float) -> int:
         result = self._runtime.advance(self.client, ms)
-        self.mode = self._runtime.mode  # simulationGetMode() reports the mode at the last step
+        # simulationGetMode() reports the mode of the last step's answer (webots-devices.md §11.2), not a change
+        # another supervisor made once its step was answered
+        self.mode = self.client.mode
         # sensors were sampled during the step, at the basic steps where they fell due (device_base)
         for item in self.inputs:
             item._after_step(self._sim.time, self._runtime.clock)

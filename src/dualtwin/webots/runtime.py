@@ -72,7 +72,7 @@ class ControllerStopped(SystemExit):
 
 class _Client:
     __slots__ = ("robot", "target", "waiting", "active", "ended_at", "thread", "controller", "running", "cut",
-                 "synced", "time", "outcome")
+                 "synced", "time", "outcome", "mode")
 
     def __init__(self, robot: RuntimeRobot, controller: Controller | None) -> None:
         self.robot = robot
@@ -90,6 +90,7 @@ class _Client:
         #: fixed when the simulation answers it (Runtime._answer), however late its thread then wakes
         self.time = 0.0
         self.outcome = 0
+        self.mode = SIMULATION_MODE_FAST  # the simulation mode at that answer (what simulationGetMode reads)
 
 
 class Controller:
@@ -373,6 +374,7 @@ class Runtime:
             controller = getattr(self._thread_controller, "controller", None)
             client = _Client(robot, controller)
             client.target = client.time = self.simulation.time
+            client.mode = self._mode
             if controller is not None and controller.removed:
                 client.active = False  # its robot was removed before it made its Robot: its step returns -1
             self._clients.append(client)
@@ -462,7 +464,7 @@ class Runtime:
             if self.finished or self._limit_reached():
                 return self._end(client)
             if self.mode == SIMULATION_MODE_PAUSE and duration_ms == 0:
-                client.time = sim.time
+                client.time, client.mode = sim.time, self._mode
                 return 0  # step(0) exchanges commands without time passing, even paused
             n = max(1, math.ceil(duration_ms / sim.basic_time_step - 1e-9))
             by = self._reset_by
@@ -487,12 +489,12 @@ class Runtime:
 
     def _answer(self, client: _Client) -> None:
         """Release ``client`` from the step it waits in (caller holds the condition). Its controller reads the
-        time of this answer until its next step, as a Webots controller reads the time its last step message
+        time (and simulation mode) of this answer until its next step, as a Webots controller reads the time its last step message
         brought: once nothing waits for it (its robot removed, its controller restarted, its synchronization
         FALSE) the simulation goes on while it runs, and reading the live clock gave a time its step never
         reached, which varied with the scheduling (and a step answered 0 said -1 if its thread woke late)."""
         if client.waiting:
-            client.time = self.simulation.time
+            client.time, client.mode = self.simulation.time, self._mode
             # the step that reaches the run's end says -1; one answered before stays 0 even if its thread wakes
             # only once the run is over (nothing waits for a removed robot's controller: the others run on)
             client.outcome = -1 if self.finished or self._limit_reached() else 0
