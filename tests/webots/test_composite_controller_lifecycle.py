@@ -265,3 +265,55 @@ def test_simulation_get_mode_reads_the_mode_of_the_last_step_answer() -> None:
     assert not thread.is_alive()
     assert seen == {"step": 0, "mode": Supervisor.SIMULATION_MODE_FAST}
     runtime.thread_done()
+
+
+QUITTER = """
+import os, time
+from controller import Supervisor
+ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
+sup = Supervisor()
+for _ in range(3):
+    sup.step(8)
+sup.simulationQuit(3)
+# waits without stepping for the other controller to end (a bound of 10 s of real time only so that a run in which
+# it never ends still does, and the test then fails)
+since = time.monotonic()
+while not os.path.exists(os.path.join(ROOT, "bot.txt")) and time.monotonic() - since < 10:
+    time.sleep(0.01)
+with open(os.path.join(ROOT, "sup.txt"), "w") as log:
+    log.write(f"saw the robot end {os.path.exists(os.path.join(ROOT, 'bot.txt'))}\\n")
+    log.write(f"step {sup.step(8)}\\n")
+"""
+QUIT_STEPPER = """
+import os
+from controller import Robot
+ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
+robot = Robot()
+while (value := robot.step(8)) != -1:
+    pass
+with open(os.path.join(ROOT, "bot.txt.part"), "w") as log:
+    log.write(f"{value} {robot.getTime():.3f}\\n")
+os.replace(os.path.join(ROOT, "bot.txt.part"), os.path.join(ROOT, "bot.txt"))
+"""
+QUIT_WORLD = """#VRML_SIM R2023b utf8
+WorldInfo { basicTimeStep 8 }
+Robot { name "boss" controller "quitter" supervisor TRUE }
+Robot { translation 1 0 0 name "bot" controller "stepper" }
+"""
+
+
+@pytest.mark.parametrize("isolation", ["process", "threads"])
+def test_simulation_quit_ends_the_other_controllers_at_once(tmp_path: Path, isolation: str) -> None:
+    # webots-devices.md §11.4: step returns -1 when Webots is about to terminate the controller (quit);
+    # simulationQuit(status) quits with that exit status (webots-python-api.md). The supervisor quits at 24 ms and
+    # does not step again until the robot's controller has ended: the robot's step waiting at 24 ms says -1 then
+    # (not once the supervisor steps), and the run's exit status is 3.
+    for name, script in (("quitter", QUITTER), ("stepper", QUIT_STEPPER)):
+        (tmp_path / "controllers" / name).mkdir(parents=True)
+        (tmp_path / "controllers" / name / f"{name}.py").write_text(script)
+    (tmp_path / "worlds").mkdir()
+    world = tmp_path / "worlds" / "w.wbt"
+    world.write_text(QUIT_WORLD)
+    assert run_world(world, None, 1.0, step_timeout_s=30, isolation=isolation) == 3
+    assert (tmp_path / "bot.txt").read_text().splitlines() == ["-1 0.024"]
+    assert (tmp_path / "sup.txt").read_text().splitlines() == ["saw the robot end True", "step -1"]

@@ -66,8 +66,10 @@ class Supervisor(Robot):
     def simulationQuit(self, status: Any) -> None:
         code = as_int(status, "Supervisor.simulationQuit")
         runtime = link_of(self)._runtime
-        runtime.finished = True
         runtime.exit_status = code
+        # Webots terminates every controller at once (webots-devices.md §11.4: step returns -1 on quit): those
+        # waiting in their step are answered -1 now, not once this supervisor happens to step again or end
+        runtime.finish()
 
     # -- worlds
 
