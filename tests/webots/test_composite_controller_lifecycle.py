@@ -274,7 +274,7 @@ ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
 sup = Supervisor()
 for _ in range(3):
     sup.step(8)
-sup.simulationQuit(3)
+sup.{end}
 # waits without stepping for the other controller to end (a bound of 10 s of real time only so that a run in which
 # it never ends still does, and the test then fails)
 since = time.monotonic()
@@ -295,6 +295,7 @@ with open(os.path.join(ROOT, "bot.txt.part"), "w") as log:
     log.write(f"{value} {robot.getTime():.3f}\\n")
 os.replace(os.path.join(ROOT, "bot.txt.part"), os.path.join(ROOT, "bot.txt"))
 """
+EMPTY_WORLD = "#VRML_SIM R2023b utf8\nWorldInfo { basicTimeStep 8 }\n"
 QUIT_WORLD = """#VRML_SIM R2023b utf8
 WorldInfo { basicTimeStep 8 }
 Robot { name "boss" controller "quitter" supervisor TRUE }
@@ -303,17 +304,21 @@ Robot { translation 1 0 0 name "bot" controller "stepper" }
 
 
 @pytest.mark.parametrize("isolation", ["process", "threads"])
-def test_simulation_quit_ends_the_other_controllers_at_once(tmp_path: Path, isolation: str) -> None:
-    # webots-devices.md §11.4: step returns -1 when Webots is about to terminate the controller (quit);
-    # simulationQuit(status) quits with that exit status (webots-python-api.md). The supervisor quits at 24 ms and
-    # does not step again until the robot's controller has ended: the robot's step waiting at 24 ms says -1 then
-    # (not once the supervisor steps), and the run's exit status is 3.
-    for name, script in (("quitter", QUITTER), ("stepper", QUIT_STEPPER)):
+@pytest.mark.parametrize(("end", "status"), [("simulationQuit(3)", 3), ("worldLoad(os.path.join(ROOT, 'worlds', "
+                                                                         "'empty.wbt'))", 0)])
+def test_quit_and_world_load_end_the_other_controllers_at_once(tmp_path: Path, isolation: str, end: str,
+                                                               status: int) -> None:
+    # webots-devices.md §11.4: step returns -1 when Webots is about to terminate the controller (quit, world
+    # load); simulationQuit(status) quits with that exit status (webots-python-api.md). The supervisor quits (or
+    # loads a world without controllers) at 24 ms and does not step again until the robot's controller has ended:
+    # the robot's step waiting at 24 ms says -1 then (not once the supervisor steps); the exit status is 3 (0).
+    for name, script in (("quitter", QUITTER.replace("{end}", end)), ("stepper", QUIT_STEPPER)):
         (tmp_path / "controllers" / name).mkdir(parents=True)
         (tmp_path / "controllers" / name / f"{name}.py").write_text(script)
     (tmp_path / "worlds").mkdir()
     world = tmp_path / "worlds" / "w.wbt"
     world.write_text(QUIT_WORLD)
-    assert run_world(world, None, 1.0, step_timeout_s=30, isolation=isolation) == 3
+    (tmp_path / "worlds" / "empty.wbt").write_text(EMPTY_WORLD)
+    assert run_world(world, None, 1.0, step_timeout_s=30, isolation=isolation) == status
     assert (tmp_path / "bot.txt").read_text().splitlines() == ["-1 0.024"]
     assert (tmp_path / "sup.txt").read_text().splitlines() == ["saw the robot end True", "step -1"]

@@ -104,7 +104,7 @@ class Supervisor(Robot):
         link = link_of(self)
         # read by the runner (runner.WORLD_REQUEST) once every controller has ended
         link._sim.extensions["world_request"] = (world.resolve(), link._runtime.clock)
-        link._runtime.finished = True
+        link._runtime.finish()  # every controller's step says -1 now, as on quit (webots-devices.md §11.4)
 
     # -- scene tree
 
