@@ -65,8 +65,8 @@ CHILD = """
             if robot.step(8) == -1:
                 log.write("-1\\n")
                 break
-            # the step's own time, counted here: once its controller is restarted, a thread that reads the clock
-            # late may see time its step never reached (the simulation no longer waits for it)
+            # the step's own time, counted here (getTime reads the same: the time of the step's answer, even once
+            # the simulation no longer waits for this controller)
             ms += 8
             log.write(f"{ms / 1000:.3f} {gps.getValues()[0]:.1f}\\n")
 """
