@@ -4,7 +4,8 @@ Each obstacle's centre is 1 m ahead of a one-ray generic distance sensor whose t
 so the reading is ``1 − (the obstacle's half extent along the ray)``, before and after the edit. The edit is
 made on the visual Shape's DEF node while the boundingObject is a USE of it (or the reverse), as worlds do.
 Controls: before this change the field read back the new value but the geom (hence rays and contacts) kept
-the old size, and a sleeping body never noticed its support shrink.
+the old size, and a sleeping body never noticed its support shrink. The last tests move a whole static support
+(a Box or a Plane, by its Solid's translation or a Pose above it) from under, or onto, a sleeping body.
 """
 
 from __future__ import annotations
@@ -75,3 +76,53 @@ def test_a_sleeping_body_wakes_and_falls_when_its_support_shrinks() -> None:
     for _ in range(63):
         sup.step(8)
     assert cube.getPosition()[2] == pytest.approx(0.11, abs=2e-3)  # fell onto the thinner stand
+
+
+# A ball (radius 0.1 m) asleep on a static support, which a supervisor then moves. Nothing awake touches the
+# ball, so only the edit can wake it (a body asleep takes no contact from a static shape, webots-on-ode.md §2.3
+# rule 9); as when the support is moved by a Pose among its Solid's children (test_children_pose_edits.py), the
+# bodies near where a static shape was and where it lands are woken. A ball that fell 1 m rests on the lowered
+# floor with its centre at -1 + 0.1 = -0.9 m (within 1 cm: soft contact), 0.5·g·t² = 1 m taking 0.45 s.
+FLOORS = {
+    "a Box Solid moved by its translation": (
+        'DEF FLOOR Solid { translation 0 0 -0.5 boundingObject Box { size 2 2 1 } }', "FLOOR", [0, 0, -1.5]),
+    "a Plane Solid moved by its translation": ('DEF FLOOR Solid { boundingObject Plane { size 2 2 } }', "FLOOR",
+                                               [0, 0, -1]),
+    "a Plane Solid below a moved Pose": (
+        'Solid { children [ DEF LIFT Pose { children [ Solid { boundingObject Plane { size 2 2 } } ] } ] }', "LIFT",
+        [0, 0, -1]),
+}
+
+
+def _asleep_ball(floor: str) -> tuple[Supervisor, object]:
+    sup = _supervisor(
+        "WorldInfo { basicTimeStep 8 physicsDisableTime 0.2 }\nRobot { supervisor TRUE }\n" + floor + "\n"
+        "DEF BALL Solid { translation 0 0 0.1 boundingObject Sphere { radius 0.1 } physics Physics { } }"
+    )
+    for _ in range(125):  # 1 s: settled, and asleep after 0.2 s at rest
+        sup.step(8)
+    ball = sup.getFromDef("BALL")
+    assert not sup.simulation._lib.dBodyIsEnabled(sup.simulation.solid_for(ball.scene_node).body.ptr)
+    return sup, ball
+
+
+@pytest.mark.parametrize("floor", list(FLOORS), ids=list(FLOORS))
+def test_a_body_asleep_on_a_static_support_a_supervisor_moves_away_wakes_and_falls(floor: str) -> None:
+    text, name, translation = FLOORS[floor]
+    sup, ball = _asleep_ball(text)
+    assert ball.getPosition()[2] == pytest.approx(0.1, abs=2e-3)
+    sup.getFromDef(name).getField("translation").setSFVec3f(translation)
+    for _ in range(125):  # 1 s
+        sup.step(8)
+    assert ball.getPosition()[2] == pytest.approx(-0.9, abs=0.01)
+
+
+def test_a_body_asleep_where_a_supervisor_moves_a_static_solid_wakes_and_is_pushed_out() -> None:
+    # a 0.2 m box Solid (no Physics) teleported to x = 0.18 overlaps the ball (x ∈ [-0.1, 0.1]) by 2 cm: the
+    # contact pushes the ball towards -x; asleep and unwoken, it would stay at x = 0 in the box
+    sup, ball = _asleep_ball('Solid { boundingObject Plane { } }\n'
+                             'DEF WALL Solid { translation 3 0 0.1 boundingObject Box { size 0.2 0.2 0.2 } }')
+    sup.getFromDef("WALL").getField("translation").setSFVec3f([0.18, 0, 0.1])
+    for _ in range(25):  # 0.2 s
+        sup.step(8)
+    assert ball.getPosition()[0] < -0.01

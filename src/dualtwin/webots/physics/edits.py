@@ -120,7 +120,13 @@ class SupervisorEdits(MassEdits):
         for op in ops:
             if op.kind == "pose":
                 translation, rotation = op.value
+                # the body-less shapes it carries wake the bodies asleep where they were and where they land, as
+                # when a Pose carries them (FrameEdits._carry); a sleeping body takes no contact from them (§2.3)
+                static = [g for s in op.target.subtree() for g in s.geoms if g.body is None]
+                reach = self._static_reach(static)
                 self._teleport_solid(op.target, translation, rotation)
+                if static:
+                    self._wake_reaching(reach + self._static_reach(static))
             elif op.kind == "joint":
                 axis_index, position = op.value
                 self._teleport_joint(op.target, axis_index, position)

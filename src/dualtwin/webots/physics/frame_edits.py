@@ -230,14 +230,14 @@ class FrameEdits(PhysicsChanges):
             lib.dBodySetPosition(body.ptr, *new_root.apply(body.com))
             lib.dBodySetRotation(body.ptr, rot_matrix(new_root.R))
             self._wake_body(body.index)
-        static = [g for s in subtree for g in s.geoms if g.body is None and not g.is_plane]
-        boxes = [self._aabb(g) for g in static]
+        static = [g for s in subtree for g in s.geoms if g.body is None]
+        reach = self._static_reach(static)
         for s in subtree:
             for g in s.geoms:
                 if g.body is None:
                     self._place_static_geom(g, self.solid_world_pose(s))
         if static:  # a body asleep against a static shape that left, or where one arrived, must wake
-            self._wake_near(boxes + [self._aabb(g) for g in static], None)
+            self._wake_reaching(reach + self._static_reach(static))
         for body in moved:
             if body.fixed_joint:
                 lib.dJointSetFixed(body.fixed_joint)

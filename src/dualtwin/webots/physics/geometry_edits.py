@@ -15,6 +15,7 @@ tell (see :mod:`dualtwin.webots.rays`).
 from __future__ import annotations
 
 import ctypes
+from collections.abc import Iterable, Sequence
 from typing import Any
 
 from dualtwin.webots.bounding_mesh import trimesh_data
@@ -153,6 +154,42 @@ class GeometryEdits(CollisionPass):
             other = self._aabb(g)
             if all(other[2 * k] <= hi[k] and other[2 * k + 1] >= lo[k] for k in range(3)):
                 woken.add(g.body.index)
+        for index in woken:
+            self._wake_body(index)
+
+    def _static_reach(self, geoms: Iterable[GeomRec]) -> list[tuple[float, ...]]:
+        """Where body-less geoms are now, for :meth:`_wake_reaching`: a geom's bounding box (six values: min x,
+        max x, min y, ...) or, for a Plane, its half-space ``(nx, ny, nz, d)`` (ODE gives a plane an infinite
+        box, which would reach every body in the world)."""
+        reach: list[tuple[float, ...]] = []
+        params = (ctypes.c_double * 4)()
+        for g in geoms:
+            if g.is_plane:
+                self._lib.dGeomPlaneGetParams(g.ptr, params)
+                reach.append(tuple(params))
+            else:
+                reach.append(tuple(self._aabb(g)))
+        return reach
+
+    def _wake_reaching(self, reach: Sequence[tuple[float, ...]]) -> None:
+        """Wake every body with a geom within :data:`_WAKE_MARGIN` of one of ``reach``'s boxes or half-spaces
+        (:meth:`_static_reach`): a body asleep on a static shape that moved away from under it, or asleep where
+        one arrived, is not touched by anything awake, so no contact would wake it."""
+        woken: set[int] = set()
+        for g in self.geoms.values():
+            if g.body is None or g.body.index in woken or g.body.removed:
+                continue
+            box = self._aabb(g)
+            for region in reach:
+                if len(region) == 4:  # a half-space n·p <= d: the box's lowest corner along n
+                    low = sum(n * (box[2 * k] if n >= 0 else box[2 * k + 1]) for k, n in enumerate(region[:3]))
+                    touches = low <= region[3] + _WAKE_MARGIN
+                else:
+                    touches = all(box[2 * k] <= region[2 * k + 1] + _WAKE_MARGIN
+                                  and box[2 * k + 1] >= region[2 * k] - _WAKE_MARGIN for k in range(3))
+                if touches:
+                    woken.add(g.body.index)
+                    break
         for index in woken:
             self._wake_body(index)
 
