@@ -2,7 +2,7 @@
 both, used by the collision geoms, the mass rules and the supervisor's geometry edits.
 
 Webots makes an ODE triangle mesh (``dCreateTriMesh`` on ``dGeomTriMeshDataBuildDouble`` data) of both: of an
-IndexedFaceSet's ``coordIndex`` polygons (:func:`dualtwin.webots.shapes.indexed_face_set_mesh`: fan-triangulated,
+IndexedFaceSet's ``coordIndex`` polygons (:func:`dualtwin.webots.shapes.indexed_face_set_mesh`: triangulated,
 ``ccw`` honoured, a polygon naming a point that does not exist left out), and of the
 triangles of a Mesh's file as :mod:`dualtwin.webots.mesh_files` reads them (url, ``name``, ``materialIndex`` and
 ``ccw`` applied). A Transform's ``scale`` above the geometry scales the vertices per axis. A Mesh whose file

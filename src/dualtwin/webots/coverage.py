@@ -160,7 +160,8 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Capsule", "geometry", "supported", "ODE capsule"),
     Coverage("Cylinder", "geometry", "supported", "ODE cylinder (upstream 0.16 contacts may differ from the fork)"),
     Coverage("Plane", "geometry", "supported", "static infinite plane (a Plane on a body stays static)"),
-    Coverage("IndexedFaceSet", "geometry", "supported", "ODE triangle mesh"),
+    Coverage("IndexedFaceSet", "geometry", "supported", "ODE triangle mesh of its faces, each cut into "
+             "triangles that cover it (a concave face too), as the rays and the camera see it"),
     Coverage("ElevationGrid", "geometry", "partial", "static height field (in a scaled Transform: spacings by the "
              "scale's x and y, heights by its z), rebuilt when a supervisor edits its fields (heights, spacings, "
              "thickness); on a dynamic body it stays static"),

@@ -20,6 +20,7 @@ import numpy.typing as npt
 
 from dualtwin.webots.mesh_files import read_mesh_node
 from dualtwin.webots.nodes import Node
+from dualtwin.webots.polygons import triangulate_polygon
 
 __all__ = ["CAD_SHAPE_RGBA", "SURFACE_NODES", "appearance_rgba", "indexed_face_set_mesh", "surface_triangles"]
 
@@ -46,7 +47,8 @@ def appearance_rgba(shape: Any) -> list[float] | None:
 
 
 def indexed_face_set_mesh(node: Node, scale: float = 1.0) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int64]]:
-    """Vertices and fan-triangulated faces of an IndexedFaceSet (``-1`` ends a polygon; ``ccw FALSE`` flips).
+    """Vertices and triangulated faces of an IndexedFaceSet (``-1`` ends a polygon; ``ccw FALSE`` flips): each face
+    cut into triangles that cover it (:func:`~dualtwin.webots.polygons.triangulate_polygon`: a concave face too).
 
     A polygon that names a point ``coord`` does not have is left out (the rest of the surface stays), so the
     collision geometry, the mass, the rays and the drawn shape all see the same triangles."""
@@ -59,8 +61,7 @@ def indexed_face_set_mesh(node: Node, scale: float = 1.0) -> tuple[npt.NDArray[n
             polygon.append(int(index))
             continue
         if all(i < len(points) for i in polygon):
-            for k in range(1, len(polygon) - 1):
-                faces.append((polygon[0], polygon[k], polygon[k + 1]))
+            faces.extend(triangulate_polygon(points, polygon))
         polygon = []
     tri = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     if not node.get("ccw", True):
@@ -70,7 +71,7 @@ def indexed_face_set_mesh(node: Node, scale: float = 1.0) -> tuple[npt.NDArray[n
 
 def surface_triangles(node: Node) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int64]]:
     """Vertices (n, 3) in the node's frame, unscaled, and triangles (m, 3) of a node of :data:`SURFACE_NODES`:
-    an IndexedFaceSet's fan-triangulated faces, a Mesh's file by its ``name``, ``materialIndex`` and ``ccw``,
+    an IndexedFaceSet's triangulated faces, a Mesh's file by its ``name``, ``materialIndex`` and ``ccw``,
     or every mesh of a CadShape's file (its ``ccw`` honoured).
 
     Raises:
