@@ -6,10 +6,13 @@ The face is an L: the square [0, 2] × [0, 2] at z = 0 less its corner [1, 2] ×
 corners listed from (2, 0), a corner that does not see the notch's far side. Fanned from that corner, the triangle
 (2, 0), (1, 1), (1, 2) lies partly in the notch: at y = 1.3 it spans x ∈ [1, 1.35] (the edge from (2, 0) to
 (1, 2) is x = 2 − y/2), so a floor made of that fan holds a ball dropped at (1.2, 1.3) though the face has
-nothing there. Controls: before this change the ball rested on that phantom triangle at z = 0.05.
+nothing there. The same face in an OBJ file (a bounding Mesh) is cut the same way. Controls: before this change
+the ball rested on that phantom triangle at z = 0.05.
 """
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -67,3 +70,21 @@ DEF BALL Solid {{ translation {x} {y} 0.5 boundingObject Sphere {{ radius 0.05 }
         assert z == pytest.approx(0.05, abs=0.005)  # on the face: its radius above z = 0
     else:
         assert z < -4.0
+
+
+def test_a_ball_falls_through_the_notch_of_an_l_shaped_obj_face(tmp_path: Path) -> None:
+    # the same L as one OBJ face (1-based corners); Webots reads the file's polygons as triangles covering them
+    (tmp_path / "worlds").mkdir()
+    (tmp_path / "worlds" / "l.obj").write_text(
+        "".join(f"v {x} {y} {z}\n" for x, y, z in L_CORNERS) + "f 1 2 3 4 5 6\n")
+    sup = quiet_supervisor(f"""#VRML_SIM R2023b utf8
+WorldInfo {{ basicTimeStep {TS} }}
+Robot {{ supervisor TRUE }}
+Solid {{ boundingObject Mesh {{ url "l.obj" }} }}
+DEF NOTCH Solid {{ translation 1.2 1.3 0.5 boundingObject Sphere {{ radius 0.05 }} physics Physics {{ }} }}
+DEF ON_L Solid {{ translation 0.5 0.5 0.5 boundingObject Sphere {{ radius 0.05 }} physics Physics {{ }} }}
+""", tmp_path / "worlds" / "w.wbt")
+    for _ in range(125):  # 1 s
+        sup.step(TS)
+    assert sup.getFromDef("NOTCH").getPosition()[2] < -4.0
+    assert sup.getFromDef("ON_L").getPosition()[2] == pytest.approx(0.05, abs=0.005)

@@ -13,9 +13,9 @@ that cannot be read gives one :class:`MeshFileError` line, never a traceback):
 - **STL**, binary or ASCII (an ASCII file starts with ``solid`` and has ``facet`` lines): its triangles; the
   ASCII ``solid`` name is the mesh's name; material index 0.
 - **OBJ**: ``v`` and ``f`` lines (``v/vt/vn`` forms, negative indices counting back from the last vertex,
-  polygons fan-triangulated); a face's names are its current ``o`` object and ``g`` group names, its material
-  index is the order in which its ``usemtl`` name was first used (our reading of Assimp's numbering; the
-  ``.mtl`` file is not read). Faces before any ``usemtl`` have index 0 and shift the others by one, as
+  polygons cut into triangles that cover them, concave ones too); a face's names are its current ``o`` object
+  and ``g`` group names, its material index is the order in which its ``usemtl`` name was first used (our
+  reading of Assimp's numbering; the ``.mtl`` file is not read). Faces before any ``usemtl`` have index 0 and shift the others by one, as
   Assimp's default material does.
 - **COLLADA** (``.dae``, through pycollada): every geometry instanced in the file's scene, with its node
   transforms, scaled by the asset's ``unit meter``; a mesh's name is its geometry's ``name`` or ``id``, its
@@ -48,6 +48,7 @@ import numpy as np
 
 from dualtwin.errors import DualtwinError
 from dualtwin.webots.nodes import Node
+from dualtwin.webots.polygons import triangulate_polygon
 from dualtwin.webots.proto_cache import (
     FetchError,
     ProtoCache,
@@ -315,10 +316,11 @@ def _obj(data: bytes) -> list[_Part]:
     vertices = np.array(positions, dtype=np.float64)
     parts = []
     for (obj, group, mat), polygons in groups.items():
-        triangles = [(p[0], p[i], p[i + 1]) for p in polygons for i in range(1, len(p) - 1)]
-        tri = np.array(triangles, dtype=np.int64)
-        if tri.min() < 0 or tri.max() >= len(vertices):
+        if any(min(p) < 0 or max(p) >= len(positions) for p in polygons):
             raise MeshFileError("OBJ face refers to a vertex that does not exist")
+        # each face cut into triangles that cover it, a concave one too (as an IndexedFaceSet's faces)
+        triangles = [t for p in polygons for t in triangulate_polygon(positions, p)]
+        tri = np.array(triangles, dtype=np.int64)
         used, local = np.unique(tri, return_inverse=True)
         parts.append(_Part(vertices[used], local.reshape(-1, 3), (obj, group), mat))
     if not parts:
