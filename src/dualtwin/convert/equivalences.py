@@ -43,6 +43,7 @@ FloatArray = npt.NDArray[np.float64]
 __all__ = [
     "CONTACT_FRICTION_TAIL",
     "DAMPING_NOTE",
+    "IDLE_MOTOR_NOTE",
     "KINEMATIC_MASS",
     "MAX_TIMESTEP_MS",
     "apply_joint_dynamics",
@@ -85,6 +86,12 @@ CONTACT_FRICTION_TAIL = (0.005, 0.0001)
 DAMPING_NOTE = ("is not converted: ODE scales each body's own centre-of-mass and angular velocity by (1 - d)^h "
                 "every step, MuJoCo's joint damping acts on joint rates (one coefficient for a free joint's six "
                 "dofs) and its viscosity on geom shapes, so no MJCF attribute reproduces it")
+#: Why a motor with maxTorque/maxForce 0 gets no actuator. Its available torque is 0 from load on and a controller
+#: cannot raise it (setAvailableTorque takes min(f, maxTorque)), so Webots never drives the joint: u = 0 and ODE's
+#: motor row holds only staticFriction (on-ODE §5.1-5.3), which the joint's frictionloss already is. MuJoCo refuses a
+#: force range [0, 0], and an actuator without one would let the MuJoCo twin assume its default torque.
+IDLE_MOTOR_NOTE = ("has maxTorque/maxForce 0: Webots never drives its joint (available torque 0, on-ODE §5.2-5.3), "
+                   "so it gets no MuJoCo actuator and the joint moves freely (its staticFriction kept)")
 #: Webots' coulombFriction -1 means infinite friction; MuJoCo needs a number.
 INFINITE_FRICTION = 100.0
 

@@ -63,6 +63,7 @@ from dualtwin.convert.conversion import Conversion, ConversionError, JointInfo, 
 from dualtwin.convert.coupled import harmonise_coupled_motors
 from dualtwin.convert.equivalences import (
     DAMPING_NOTE,
+    IDLE_MOTOR_NOTE,
     KINEMATIC_MASS,
     apply_joint_dynamics,
     camera_fovy_degrees,
@@ -574,6 +575,9 @@ class _Converter:
                 if (kind == "LinearMotor") != linear:
                     self.warn(f"{kind} {name!r} on a {'slider' if linear else 'hinge'}", d)
                 limit = float(d.get("maxForce" if kind == "LinearMotor" else "maxTorque"))
+                if limit == 0.0:
+                    self.warn(f"motor {name!r} {IDLE_MOTOR_NOTE}", d)
+                    continue
                 act_name = self.unique("actuator", name)
                 act = self.spec.add_actuator(name=act_name, target=info.name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
                 act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
