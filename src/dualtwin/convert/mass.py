@@ -21,7 +21,8 @@ from dualtwin.webots.nodes import Node
 
 FloatArray = npt.NDArray[np.float64]
 
-__all__ = ["REFERENCE_DENSITY", "MassProps", "Primitive", "bounding_primitives", "combine", "solid_mass"]
+__all__ = ["REFERENCE_DENSITY", "MassProps", "Primitive", "axis_scales", "bounding_primitives", "combine", "round_scale",
+           "solid_mass"]
 
 
 @dataclass
@@ -65,40 +66,58 @@ def combine(parts: Sequence[MassProps]) -> MassProps | None:
 # boundingObject traversal
 
 
+def axis_scales(scale: float | Sequence[float] | FloatArray) -> FloatArray:
+    """A scale as its three factors (x, y, z): a uniform one repeated."""
+    return np.broadcast_to(np.asarray(scale, dtype=float), (3,)).copy()
+
+
 @dataclass
 class Primitive:
-    """One geometry of a boundingObject with its pose in the Solid frame."""
+    """One geometry of a boundingObject with its pose in the Solid frame and the scale of the Transforms above it,
+    per axis of the geometry's frame (a Box's sizes and a mesh's vertices scale per axis, the round primitives by
+    the largest factor: :func:`round_scale`)."""
 
     geometry: Node
     rotation: FloatArray
     translation: FloatArray
-    scale: float = 1.0
+    scale: FloatArray
+
+
+def round_scale(scale: float | FloatArray) -> float:
+    """The factor a Sphere's radius and a Cylinder's or Capsule's radius and height take in a scaled Transform: the
+    largest of the three, as our Webots twin builds their ODE geoms and :mod:`dualtwin.webots.mass_rules` their mass
+    (on-ODE §3.4 says only that geometries in a scaled Transform use scaled dimensions)."""
+    return float(np.max(scale))
 
 
 def bounding_primitives(node: Node | None, rotation: FloatArray | None = None,
-                        translation: FloatArray | None = None, scale: float = 1.0) -> Iterator[Primitive]:
-    """Geometries of a boundingObject: a geometry, a Shape, a Pose/Transform (one child) or a Group."""
+                        translation: FloatArray | None = None,
+                        scale: float | FloatArray = 1.0) -> Iterator[Primitive]:
+    """Geometries of a boundingObject: a geometry, a Shape, a Pose/Transform (one child) or a Group.
+
+    ``scale`` (uniform, from the Transforms above the Solid, or per axis) times each Transform's own ``scale``, per
+    axis, scales the geometries and the translations of the frames below, as in :mod:`dualtwin.webots.mass_rules`
+    (whose mass the converter writes) and in our Webots twin's geoms: a non-uniform scale used to be read as its x
+    factor alone, so a Box in ``Transform { scale 1 1 3 }`` collided as a third of its height."""
     if node is None:
         return
     R = np.eye(3) if rotation is None else rotation
     t = np.zeros(3) if translation is None else translation
+    scales = axis_scales(scale)
     kind = node.type_name
     if kind == "Shape":
-        yield from bounding_primitives(node.get("geometry"), R, t, scale)
+        yield from bounding_primitives(node.get("geometry"), R, t, scales)
     elif kind in ("Pose", "Transform"):
-        local_scale = scale
-        if kind == "Transform":
-            sx, sy, sz = node.get("scale", (1.0, 1.0, 1.0))
-            local_scale = scale * float(sx)  # non-uniform scales are rejected by the converter
+        local_scales = scales * axis_scales(node.get("scale", (1.0, 1.0, 1.0))) if kind == "Transform" else scales
         R2 = R @ axis_angle_matrix(node.get("rotation", (0, 0, 1, 0)))
-        t2 = t + R @ (np.asarray(node.get("translation", (0, 0, 0)), dtype=float) * scale)
+        t2 = t + R @ (np.asarray(node.get("translation", (0, 0, 0)), dtype=float) * scales)
         for child in node.children():
-            yield from bounding_primitives(child, R2, t2, local_scale)
+            yield from bounding_primitives(child, R2, t2, local_scales)
     elif kind == "Group":
         for child in node.children():
-            yield from bounding_primitives(child, R, t, scale)
+            yield from bounding_primitives(child, R, t, scales)
     else:
-        yield Primitive(node, R, t, scale)
+        yield Primitive(node, R, t, scales)
 
 
 def solid_mass(solid: Node, *, scale: float = 1.0) -> tuple[MassProps | None, list[str]]:

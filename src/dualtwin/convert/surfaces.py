@@ -28,6 +28,7 @@ from collections.abc import Callable
 import mujoco
 
 from dualtwin.convert.conversion import ConversionError
+from dualtwin.convert.mass import FloatArray
 from dualtwin.webots.mesh_files import MeshFileError
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.shapes import surface_triangles
@@ -39,9 +40,9 @@ def _where(node: Node) -> str:
     return str(node.location) if node.location is not None else "<unknown location>"
 
 
-def add_surface_mesh(spec: mujoco.MjSpec, geometry: Node, scale: float, name: Callable[[], str], *,
+def add_surface_mesh(spec: mujoco.MjSpec, geometry: Node, scale: float | FloatArray, name: Callable[[], str], *,
                      collision: bool, warn: Callable[[str, Node | None], None]) -> str | None:
-    """Add the mesh asset of ``geometry`` (IndexedFaceSet, Mesh or CadShape, uniformly scaled by ``scale``) to
+    """Add the mesh asset of ``geometry`` (IndexedFaceSet, Mesh or CadShape, its vertices scaled by ``scale``, per axis or uniform) to
     ``spec`` and return its name (``name()`` is called only for a mesh that is added); None when it is skipped
     (``warn`` tells why). See the module's text for the rules.
 

@@ -22,7 +22,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from dualtwin.convert.mass import bounding_primitives
+from dualtwin.convert.mass import FloatArray, bounding_primitives, round_scale
 from dualtwin.webots.nodes import Node
 
 __all__ = ["TOUCH_MARGIN", "touch_site_notes", "touch_site_volume"]
@@ -33,14 +33,14 @@ TOUCH_MARGIN = 0.005
 DEFAULT_RADIUS = 0.02
 
 
-def _half_extents(geometry: Node, scale: float) -> np.ndarray | None:
+def _half_extents(geometry: Node, scale: FloatArray) -> np.ndarray | None:
     kind = geometry.type_name
     if kind == "Box":
         return np.asarray(geometry["size"], dtype=float) * scale / 2.0
     if kind == "Sphere":
-        return np.full(3, float(geometry["radius"]) * scale)
+        return np.full(3, float(geometry["radius"]) * round_scale(scale))
     if kind in ("Cylinder", "Capsule"):  # axis along z (R2022a+); a Capsule's height is its cylindrical part
-        r, h = float(geometry["radius"]) * scale, float(geometry["height"]) * scale
+        r, h = float(geometry["radius"]) * round_scale(scale), float(geometry["height"]) * round_scale(scale)
         return np.array([r, r, h / 2.0 + (r if kind == "Capsule" else 0.0)])
     return None
 

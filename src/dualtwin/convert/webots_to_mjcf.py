@@ -79,7 +79,7 @@ from dualtwin.convert.equivalences import (
     world_notes,
 )
 from dualtwin.convert.initial_state import add_initial_keyframe
-from dualtwin.convert.mass import FloatArray, MassProps, bounding_primitives, combine, solid_mass
+from dualtwin.convert.mass import FloatArray, MassProps, bounding_primitives, combine, round_scale, solid_mass
 from dualtwin.convert.sensor_models import TABLED, RayTargets, add_sensor_model, distance_notes
 from dualtwin.convert.surfaces import add_surface_mesh
 from dualtwin.convert.touch_sites import touch_site_notes
@@ -218,31 +218,31 @@ class _Converter:
                                       type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL)
 
     # -- geometry
-    def add_geom(self, body: Any, geometry: Node, T: FloatArray, scale: float, name: str, *, collision: bool,
-                 shape: Node | None, material: str, static: bool) -> None:
-        kind = geometry.type_name
+    def add_geom(self, body: Any, geometry: Node, T: FloatArray, scale: float | FloatArray, name: str, *,
+                 collision: bool, shape: Node | None, material: str, static: bool) -> None:
+        kind, scales, uniform = geometry.type_name, scale * np.ones(3), round_scale(scale)  # see mass.Primitive
         R, t = T[:3, :3], T[:3, 3]
         kwargs: dict[str, Any] = {"pos": [float(v) for v in t], "quat": _quat(R)}
         if kind == "Box":
-            size = [float(v) * scale / 2.0 for v in geometry["size"]]
+            size = [float(v) * s / 2.0 for v, s in zip(geometry["size"], scales, strict=True)]
             kwargs.update(type=mujoco.mjtGeom.mjGEOM_BOX, size=size)
         elif kind == "Sphere":
-            kwargs.update(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[float(geometry["radius"]) * scale, 0, 0])
+            kwargs.update(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[float(geometry["radius"]) * uniform, 0, 0])
         elif kind in ("Cylinder", "Capsule"):
             # Both have their axis along local z, as MuJoCo (R2022a+); Capsule height = cylindrical part.
             gtype = mujoco.mjtGeom.mjGEOM_CYLINDER if kind == "Cylinder" else mujoco.mjtGeom.mjGEOM_CAPSULE
-            kwargs.update(type=gtype, size=[float(geometry["radius"]) * scale,
-                                            float(geometry["height"]) * scale / 2.0, 0])
+            kwargs.update(type=gtype, size=[float(geometry["radius"]) * uniform,
+                                            float(geometry["height"]) * uniform / 2.0, 0])
         elif kind == "Plane":
             if not static:
                 self.warn("a Plane cannot move with a body (Webots keeps it static): skipped", geometry)
                 return
-            sx, sy = (float(v) * scale for v in geometry["size"])
+            sx, sy = (float(v) * s for v, s in zip(geometry["size"], scales[:2], strict=True))
             # Collision planes are infinite in both simulators; a visual plane keeps its drawn size.
             size = [0.0, 0.0, 1.0] if collision else [sx / 2.0, sy / 2.0, 1.0]
             kwargs.update(type=mujoco.mjtGeom.mjGEOM_PLANE, size=size)
         elif kind in SURFACE_NODES:  # IndexedFaceSet, Mesh, CadShape: dualtwin.convert.surfaces
-            mesh_name = add_surface_mesh(self.spec, geometry, scale, lambda: self.unique("mesh", f"{name}_mesh"),
+            mesh_name = add_surface_mesh(self.spec, geometry, scales, lambda: self.unique("mesh", f"{name}_mesh"),
                                          collision=collision, warn=self.warn)
             if mesh_name is None:
                 return
@@ -250,7 +250,7 @@ class _Converter:
         elif kind == "ElevationGrid":
             if not static:
                 raise self.unsupported(geometry, "ElevationGrid on a moving body")
-            kwargs.update(self.hfield(geometry, name, scale, T))
+            kwargs.update(self.hfield(geometry, name, scales, T))
         elif kind == "Cone":
             if collision:
                 raise self.unsupported(geometry, "as a boundingObject")
@@ -280,19 +280,20 @@ class _Converter:
                     geom.rgba = list(rgba)
                 self.shapes[name] = shape
 
-    def hfield(self, grid: Node, name: str, scale: float, T: FloatArray) -> dict[str, Any]:
+    def hfield(self, grid: Node, name: str, scale: FloatArray, T: FloatArray) -> dict[str, Any]:
+        """Spacings scaled by the scale's x and y, heights and thickness by its z (as the Webots twin does)."""
         nx, ny = int(grid["xDimension"]), int(grid["yDimension"])
-        heights = np.asarray(grid["height"], dtype=float) * scale
+        heights = np.asarray(grid["height"], dtype=float) * scale[2]
         if nx < 2 or ny < 2 or heights.size != nx * ny:
             raise ConversionError(f"{_where(grid)}: ElevationGrid needs xDimension, yDimension >= 2 and "
                                   f"xDimension*yDimension heights (got {nx}x{ny}, {heights.size} heights)")
-        lx, ly = float(grid["xSpacing"]) * scale * (nx - 1), float(grid["ySpacing"]) * scale * (ny - 1)
+        lx, ly = float(grid["xSpacing"]) * scale[0] * (nx - 1), float(grid["ySpacing"]) * scale[1] * (ny - 1)
         lo, hi = float(heights.min()), float(heights.max())
         span = max(hi - lo, 1e-6)
         field_name = self.unique("hfield", f"{name}_hfield")
         # Webots height[i + j*xDimension] is x index i, y index j; MuJoCo's rows run along y too.
         self.spec.add_hfield(name=field_name, nrow=ny, ncol=nx,
-                             size=[lx / 2, ly / 2, span, max(float(grid["thickness"]) * scale, 1e-3)],
+                             size=[lx / 2, ly / 2, span, max(float(grid["thickness"]) * scale[2], 1e-3)],
                              userdata=((heights - lo) / span).tolist())
         centre = T[:3, :3] @ np.array([lx / 2, ly / 2, lo]) + T[:3, 3]
         return {"type": mujoco.mjtGeom.mjGEOM_HFIELD, "hfieldname": field_name,
