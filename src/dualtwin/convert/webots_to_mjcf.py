@@ -56,6 +56,7 @@ import mujoco
 import numpy as np
 
 from dualtwin.convert import sensor_models
+from dualtwin.convert.ball_joint import ball_joint_notes
 from dualtwin.convert.bindings import key
 from dualtwin.convert.checks import Finding, lint_spec, lint_world_rotations
 from dualtwin.convert.contacts import ContactGeom, Stop, apply_contacts, apply_stops
@@ -522,10 +523,8 @@ class _Converter:
                 j = body.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_BALL,
                                    pos=point_in_child(params.get("anchor", (0.0, 0.0, 0.0))))
                 self.set_dynamics(j, params, where)
-                if devices or jnode.get("device2") or jnode.get("device3"):
-                    self.warn("BallJoint devices (motors/sensors) are not converted", jnode)
-                if position:
-                    self.warn("BallJoint position is ignored (MuJoCo ball joints start at the XML pose)", jnode)
+                for note in ball_joint_notes(jnode):
+                    self.warn(note, jnode)
                 self.joints.append(JointInfo(name, "ball", body_name))
                 return
             name = self.joint_name(jnode, devices)
