@@ -8,11 +8,15 @@ effective inertia from the compiled model. The mappings themselves are in :mod:`
 Contacts: the ContactProperties matching a robot geom's and the environment's ``contactMaterial`` (default
 values if none matches) give that geom's ``friction``, ``solref`` and ``solimp``. MuJoCo mixes a contact's
 parameters from its two geoms and takes the larger friction, so each environment material keeps the pair with
-the smallest friction among the robot materials that meet it.
+the smallest friction among the robot materials that meet it. Where that mixing does not give a robot geom and an
+environment geom their own pair's values (the world has several environment materials, or robot materials of
+different softness), an explicit MuJoCo ``<pair>`` carries them; MuJoCo then skips the mixed contact of those two
+geoms, and the MuJoCo twin's geom knobs move the pair with its geoms (:func:`dualtwin.twins.mujoco_knobs.follow_pairs`).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -106,6 +110,36 @@ def apply_contacts(spec: mujoco.MjSpec, geoms: Sequence[ContactGeom], world_info
         geom.friction = [env[0], *CONTACT_FRICTION_TAIL]
         geom.solref = env[1]
         geom.solimp = env[2]
+    targets: dict[tuple[str, str], ContactParams] = {}
+    for g in robot_geoms:
+        for e in env_geoms:
+            key = (g.material, e.material)
+            if key not in targets:
+                targets[key] = contact_pair(contact_properties(world_info, *key), m_eff, step, mujoco_step_s)
+            target = targets[key]
+            if not _same(_mixed(spec.geom(g.name), spec.geom(e.name)), target):
+                spin, roll = CONTACT_FRICTION_TAIL
+                spec.add_pair(geomname1=g.name, geomname2=e.name, condim=3,
+                              friction=[target[0], target[0], spin, roll, roll],
+                              solref=target[1], solimp=target[2])
+
+
+#: A material pair's contact in MuJoCo: (friction, solref, solimp).
+ContactParams = tuple[float, list[float], list[float]]
+
+
+def _mixed(a: Any, b: Any) -> ContactParams:
+    """The contact MuJoCo makes of geoms ``a`` and ``b`` (equal priority and solmix, as the converter writes them):
+    the larger friction, the mean solref and solimp (MuJoCo's mj_contactParam)."""
+    return (max(float(a.friction[0]), float(b.friction[0])),
+            [(float(x) + float(y)) / 2.0 for x, y in zip(a.solref, b.solref, strict=True)],
+            [(float(x) + float(y)) / 2.0 for x, y in zip(a.solimp, b.solimp, strict=True)])
+
+
+def _same(a: ContactParams, b: ContactParams) -> bool:
+    return math.isclose(a[0], b[0], rel_tol=1e-9) and all(
+        math.isclose(float(x), float(y), rel_tol=1e-9, abs_tol=1e-12) for x, y in zip([*a[1], *a[2]], [*b[1], *b[2]],
+                                                                                       strict=True))
 
 
 def apply_stops(spec: mujoco.MjSpec, stops: Sequence[Stop], *, basic_ms: float, mujoco_step_s: float,

@@ -1,0 +1,50 @@
+"""Each robot/environment contact takes the ContactProperties of its own two contactMaterials (on-ODE §2.1-2.3),
+whatever other materials the world holds. MuJoCo mixes a contact's parameters from its two geoms (the larger
+friction, the mean solref and solimp), so the converter gives each geom the values of one pair; for a pair that
+mixing does not reproduce it now writes an explicit MuJoCo ``<pair>`` with that pair's values. Before, a robot geom
+took its pair with the first environment material in the file: a default-material wall listed before an icy floor
+gave the robot on the ice the default friction 1 instead of 0.05.
+
+Hand computation: a 1 kg box sliding at 1 m/s on the ice (coulombFriction 0.05) decelerates at 0.05 g =
+0.4905 m/s^2 and after 0.8 s has gone 1 x 0.8 - 0.4905 x 0.8^2 / 2 = 0.643 m (it stops only after 2.04 s); 1 cm
+is allowed for the two contact models. With friction 1 it would stop within 5 cm.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import mujoco
+import pytest
+
+from dualtwin.convert import convert_world_text
+from tests.support.converted_twins import converted_twins, world_text
+
+ICE = world_text(
+    'DEF WALL Solid { translation 5 0 0.5 name "wall" boundingObject Box { size 0.1 1 1 } }\n'
+    'DEF R Robot { controller "<extern>" translation 0 0 0.05 linearVelocity 1 0 0 contactMaterial "rubber" '
+    'physics Physics { density -1 mass 1 } boundingObject Box { size 0.1 0.1 0.1 } children [ GPS { name "gps" } ] }\n'
+    'DEF FLOOR Solid { name "floor" contactMaterial "ice" boundingObject Plane { size 10 10 } }',
+    'basicTimeStep 4 contactProperties [ ContactProperties { material1 "rubber" material2 "ice" '
+    "coulombFriction [ 0.05 ] bounce 0 } ]")
+
+
+def test_the_robot_touches_the_ice_with_the_ice_pairs_friction() -> None:
+    model = convert_world_text(ICE, "ice.wbt").compile()
+    data = mujoco.MjData(model)
+    data.qpos[2] -= 1e-3  # sink 1 mm so that the box touches the floor
+    mujoco.mj_forward(model, data)
+    floor = {model.geom("FLOOR").id, model.geom("R").id}
+    touching = [c for c in data.contact[:data.ncon] if {c.geom1, c.geom2} == floor]
+    assert touching
+    assert [c.friction[0] for c in touching] == pytest.approx([0.05] * len(touching))
+
+
+def test_both_twins_slide_the_box_as_far_on_the_ice(tmp_path: Path) -> None:
+    with converted_twins(ICE, tmp_path, 0.008) as (_, webots, mujoco_twin):
+        for _ in range(100):  # 0.8 s
+            webots.step()
+            mujoco_twin.step()
+        assert webots.body_position("R")[0] == pytest.approx(0.643, abs=0.01)
+        assert mujoco_twin.body_position("R")[0] == pytest.approx(0.643, abs=0.01)
+
