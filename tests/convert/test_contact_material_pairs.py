@@ -48,3 +48,16 @@ def test_both_twins_slide_the_box_as_far_on_the_ice(tmp_path: Path) -> None:
         assert webots.body_position("R")[0] == pytest.approx(0.643, abs=0.01)
         assert mujoco_twin.body_position("R")[0] == pytest.approx(0.643, abs=0.01)
 
+
+def test_a_geoms_friction_knob_reaches_its_pairs(tmp_path: Path) -> None:
+    # The MuJoCo twin's knob geom.R.friction sets the robot geom's friction (nominal 1: its pair with the wall's
+    # default material); the ice pair follows by the factor MuJoCo's mix of the two geoms changed, max(2, 0.05) /
+    # max(1, 0.05) = 2: 0.05 x 2 = 0.1. Setting no knob puts it back.
+    with converted_twins(ICE, tmp_path, 0.008) as (_, _webots, mujoco_twin):
+        model = mujoco_twin.model  # type: ignore[attr-defined]
+        assert model.npair == 1
+        assert mujoco_twin.knobs()["geom.R.friction"].nominal == pytest.approx(1.0)
+        mujoco_twin.set_knobs({"geom.R.friction": 2.0})
+        assert model.pair_friction[0, :2] == pytest.approx([0.1, 0.1])
+        mujoco_twin.set_knobs({})
+        assert model.pair_friction[0, :2] == pytest.approx([0.05, 0.05])

@@ -57,7 +57,14 @@ from dualtwin.twins.knob_table import BoundKnob
 from dualtwin.twins.mass_constants import MassConstants
 from dualtwin.twins.mjcf_files import compile_spec, load_spec
 from dualtwin.twins.motors import MotorState, assign_groups, relay_command, servo_inertia, servo_steps
-from dualtwin.twins.mujoco_knobs import MAX_DELAY_PERIODS, MUJOCO_KNOBS, KnobPass, KnobTarget, nominal_values
+from dualtwin.twins.mujoco_knobs import (
+    MAX_DELAY_PERIODS,
+    MUJOCO_KNOBS,
+    KnobPass,
+    KnobTarget,
+    follow_pairs,
+    nominal_values,
+)
 from dualtwin.twins.mujoco_state import StatePlan, scale_contact_depths
 from dualtwin.twins.ode_friction import FrictionBox, contact_semantics
 from dualtwin.webots.lut import discretize
@@ -692,7 +699,8 @@ class MuJoCoTwin(Twin):
             raise DualtwinError(f"{self._origin}: unknown knobs: {', '.join(unknown)}")
         m, nominal = self.model, self._nominal
         for field in ("dof_damping", "dof_frictionloss", "geom_friction", "geom_solref", "geom_size", "geom_rbound",
-                      "geom_aabb", "jnt_solref", "geom_solimp", "jnt_solimp", "body_mass", "body_inertia", "body_ipos"):
+                      "geom_aabb", "jnt_solref", "geom_solimp", "jnt_solimp", "body_mass", "body_inertia", "body_ipos",
+                      "pair_friction", "pair_solref", "pair_solimp"):
             getattr(m, field)[:] = nominal[field]
         m.opt.impratio = float(nominal["impratio"])
         self._armature[:] = nominal["dof_armature"]
@@ -711,6 +719,7 @@ class MuJoCoTwin(Twin):
         for key, value in values.items():
             bound = registry[key]
             bound.kind.apply(self, bound.handle, float(value))
+        follow_pairs(m, nominal)
         inertia_scale, changed_inertia = knob_pass.inertia_scale, knob_pass.changed_inertia
         # Inertia follows the mass (same shape, denser material), times an optional extra factor.
         for b in range(m.nbody):

@@ -42,7 +42,32 @@ def nominal_values(model: mujoco.MjModel) -> dict[str, np.ndarray]:
         "geom_solimp": m.geom_solimp.copy(), "jnt_solimp": m.jnt_solimp.copy(),
         "geom_size": m.geom_size.copy(), "geom_rbound": m.geom_rbound.copy(), "geom_aabb": m.geom_aabb.copy(),
         "impratio": np.array(m.opt.impratio),
+        "pair_friction": m.pair_friction.copy(), "pair_solref": m.pair_solref.copy(),
+        "pair_solimp": m.pair_solimp.copy(),
     }
+
+
+def follow_pairs(model: mujoco.MjModel, nominal: dict[str, np.ndarray]) -> None:
+    """Explicit contact pairs follow their geoms' knobs: each pair's friction, solref and solimp (dmin, dmax) change
+    by the factor by which MuJoCo's mix of its two geoms (the larger friction, the mean solref and solimp) changed
+    from nominal. The converter writes a ``<pair>`` where mixing cannot give a material pair its own values
+    (:mod:`dualtwin.convert.contacts`), and MuJoCo then reads that pair, not the geoms: without this a geom's
+    friction knob would not reach the contacts those pairs cover."""
+    m = model
+    for p in range(m.npair):
+        a, b = int(m.pair_geom1[p]), int(m.pair_geom2[p])
+        m.pair_friction[p] = nominal["pair_friction"][p] * _ratio(
+            max(m.geom_friction[a, 0], m.geom_friction[b, 0]),
+            max(nominal["geom_friction"][a, 0], nominal["geom_friction"][b, 0]))
+        for i in range(2):
+            m.pair_solref[p, i] = nominal["pair_solref"][p, i] * _ratio(
+                m.geom_solref[a, i] + m.geom_solref[b, i], nominal["geom_solref"][a, i] + nominal["geom_solref"][b, i])
+            m.pair_solimp[p, i] = min(IMPEDANCE_BOUNDS[1], nominal["pair_solimp"][p, i] * _ratio(
+                m.geom_solimp[a, i] + m.geom_solimp[b, i], nominal["geom_solimp"][a, i] + nominal["geom_solimp"][b, i]))
+
+
+def _ratio(now: float, before: float) -> float:
+    return float(now / before) if before else 1.0
 
 
 def restitution_to_dampratio(restitution: float, nominal: float) -> float:
