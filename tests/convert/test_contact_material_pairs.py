@@ -61,3 +61,25 @@ def test_a_geoms_friction_knob_reaches_its_pairs(tmp_path: Path) -> None:
         assert model.pair_friction[0, :2] == pytest.approx([0.1, 0.1])
         mujoco_twin.set_knobs({})
         assert model.pair_friction[0, :2] == pytest.approx([0.05, 0.05])
+
+
+LOOSE = world_text(
+    'DEF R Robot { controller "<extern>" translation 0 2 0.05 contactMaterial "rubber" '
+    'physics Physics { density -1 mass 1 } boundingObject Box { size 0.1 0.1 0.1 } children [ GPS { name "gps" } ] }\n'
+    'DEF BOX Solid { translation 0 0 0.05 name "box" linearVelocity 1 0 0 physics Physics { density -1 mass 1 } '
+    "boundingObject Box { size 0.1 0.1 0.1 } }\n"
+    'DEF FLOOR Solid { name "floor" boundingObject Plane { size 10 10 } }',
+    'basicTimeStep 4 contactProperties [ ContactProperties { material1 "rubber" material2 "default" '
+    "coulombFriction [ 0.05 ] bounce 0 } ContactProperties { coulombFriction [ 0.3 ] bounce 0 } ]")
+
+
+def test_a_loose_object_slides_on_its_own_materials_pair(tmp_path: Path) -> None:
+    # A loose 1 kg box (material "default") thrown at 1 m/s on the default floor: their pair's friction is 0.3, so it
+    # stops after 1 / (0.3 x 9.81) = 0.34 s, having gone 1^2 / (2 x 0.3 x 9.81) = 0.170 m. Before, its geoms carried
+    # the robot's pair with the floor (rubber/default, 0.05) and it would have gone 0.643 m in 0.8 s.
+    with converted_twins(LOOSE, tmp_path, 0.008) as (_, webots, mujoco_twin):
+        for _ in range(100):  # 0.8 s
+            webots.step()
+            mujoco_twin.step()
+        assert webots.body_position("BOX")[0] == pytest.approx(0.170, abs=0.01)
+        assert mujoco_twin.body_position("BOX")[0] == pytest.approx(0.170, abs=0.01)

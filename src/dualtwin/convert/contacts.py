@@ -12,6 +12,8 @@ the smallest friction among the robot materials that meet it. Where that mixing 
 environment geom their own pair's values (the world has several environment materials, or robot materials of
 different softness), an explicit MuJoCo ``<pair>`` carries them; MuJoCo then skips the mixed contact of those two
 geoms, and the MuJoCo twin's geom knobs move the pair with its geoms (:func:`dualtwin.twins.mujoco_knobs.follow_pairs`).
+Loose environment objects (Solids with Physics outside the robot) get the same against the rest of the environment:
+their geoms carry the robot's pairs, so without a pair a box on the floor slid on the robot's friction.
 """
 
 from __future__ import annotations
@@ -116,12 +118,35 @@ def apply_contacts(spec: mujoco.MjSpec, geoms: Sequence[ContactGeom], world_info
             key = (g.material, e.material)
             if key not in targets:
                 targets[key] = contact_pair(contact_properties(world_info, *key), m_eff, step, mujoco_step_s)
-            target = targets[key]
-            if not _same(_mixed(spec.geom(g.name), spec.geom(e.name)), target):
-                spin, roll = CONTACT_FRICTION_TAIL
-                spec.add_pair(geomname1=g.name, geomname2=e.name, condim=3,
-                              friction=[target[0], target[0], spin, roll, roll],
-                              solref=target[1], solimp=target[2])
+            _pair_where_mixing_differs(spec, g.name, e.name, targets[key])
+    # Loose environment objects (free bodies) against the rest of the environment: their own materials' pair, on the
+    # mass of the lighter moving body (as the robot's contacts are sized on the robot's mass).
+    for i, a in enumerate(env_geoms):
+        for b in env_geoms[i + 1:]:
+            masses = [float(spec.body(x).mass) for x in (a.body, b.body) if x != WORLD]
+            if not masses or a.body == b.body or _joined(spec, a.body, b.body):
+                continue  # static against static, one body, or a joint between them: they never touch
+            _pair_where_mixing_differs(spec, a.name, b.name, contact_pair(
+                contact_properties(world_info, a.material, b.material), contact_effective_mass(min(masses), 1), step,
+                mujoco_step_s))
+
+
+#: The MuJoCo world body's name (the static environment's geoms hang on it).
+WORLD = "world"
+
+
+def _joined(spec: mujoco.MjSpec, a: str, b: str) -> bool:
+    """Whether bodies ``a`` and ``b`` are parent and child (a joint between them: ODE, MuJoCo and Webots skip their
+    contacts, which an explicit pair would force)."""
+    return any(x != WORLD and y != WORLD and spec.body(y).parent.name == x for x, y in ((a, b), (b, a)))
+
+
+def _pair_where_mixing_differs(spec: mujoco.MjSpec, geom1: str, geom2: str, target: ContactParams) -> None:
+    """An explicit ``<pair>`` of the two geoms with ``target`` where MuJoCo's mixing of them would not give it."""
+    if not _same(_mixed(spec.geom(geom1), spec.geom(geom2)), target):
+        spin, roll = CONTACT_FRICTION_TAIL
+        spec.add_pair(geomname1=geom1, geomname2=geom2, condim=3, friction=[target[0], target[0], spin, roll, roll],
+                      solref=target[1], solimp=target[2])
 
 
 #: A material pair's contact in MuJoCo: (friction, solref, solimp).
