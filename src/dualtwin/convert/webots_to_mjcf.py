@@ -81,6 +81,7 @@ from dualtwin.convert.equivalences import (
 )
 from dualtwin.convert.initial_state import add_initial_keyframe
 from dualtwin.convert.mass import FloatArray, MassProps, bounding_primitives, combine, round_scale, solid_mass
+from dualtwin.convert.scales import transform_scale
 from dualtwin.convert.sensor_models import TABLED, RayTargets, add_sensor_model, distance_notes
 from dualtwin.convert.surfaces import add_surface_mesh
 from dualtwin.convert.touch_sites import touch_site_notes
@@ -123,7 +124,7 @@ def _quat(R: FloatArray) -> list[float]:
     return [float(v) for v in mujoco_quat(R)]
 
 
-def _pose(node: Node, scale: float = 1.0) -> FloatArray:
+def _pose(node: Node, scale: float | FloatArray = 1.0) -> FloatArray:
     T = np.eye(4)
     T[:3, :3] = axis_angle_matrix(node.get("rotation", (0.0, 0.0, 1.0, 0.0)))
     T[:3, 3] = np.asarray(node.get("translation", (0.0, 0.0, 0.0)), dtype=float) * scale
@@ -304,19 +305,13 @@ class _Converter:
     def solid_name(self, solid: Node) -> str:
         return solid.def_name or str(solid.get("name") or solid.type_name.lower())
 
-    def check_scale(self, node: Node) -> float:
-        sx, sy, sz = (float(v) for v in node.get("scale", (1.0, 1.0, 1.0)))
-        if not (math.isclose(sx, sy) and math.isclose(sy, sz)):
-            raise self.unsupported(node, f"non-uniform scale {sx:g} {sy:g} {sz:g}")
-        return sx
-
-    def collect_solid(self, solid: Node, T: FloatArray, scale: float, body: Any, label: str,
+    def collect_solid(self, solid: Node, T: FloatArray, scale: float | FloatArray, body: Any, label: str,
                       masses: list[MassProps], *, dynamic: bool, static: bool) -> None:
         """Add one Solid's geoms, devices, mass and child joints to ``body`` (Solid frame = T in body frame)."""
         if solid.type_name in UNSUPPORTED:
             raise self.unsupported(solid)
         material = str(solid.get("contactMaterial", "default"))
-        props, mass_warnings = solid_mass(solid, scale=scale)
+        props, mass_warnings = solid_mass(solid, scale=round_scale(scale))  # uniform (dualtwin.convert.scales)
         if (solid.get("physics") or {}).get("damping") is not None:
             self.warn(f"{label}: Physics damping {DAMPING_NOTE}", solid)
         for w in mass_warnings:
@@ -331,7 +326,7 @@ class _Converter:
             name = self.unique("geom", label if i == 0 else f"{label}_{i}")
             self.add_geom(body, prim.geometry, T @ local, prim.scale, name, collision=True, shape=None,
                           material=material, static=static)
-        self.device(solid, T, body, label, scale)
+        self.device(solid, T, body, label, round_scale(scale))
         self.children(solid.children(), T, scale, body, label, masses, dynamic=dynamic, static=static,
                       material=material)
 
@@ -378,7 +373,7 @@ class _Converter:
                       solid)
         self.sensors[device_name] = kind
 
-    def children(self, nodes: list[Node], T: FloatArray, scale: float, body: Any, label: str,
+    def children(self, nodes: list[Node], T: FloatArray, scale: float | FloatArray, body: Any, label: str,
                  masses: list[MassProps], *, dynamic: bool, static: bool, material: str) -> None:
         shape_index = 0
         for child in nodes:
@@ -402,11 +397,11 @@ class _Converter:
                 self.children(child.children(), T, scale, body, label, masses, dynamic=dynamic, static=static,
                               material=material)
             elif kind in ("Pose", "Transform"):
-                s = scale * self.check_scale(child) if kind == "Transform" else scale
+                s = scale * transform_scale(child) if kind == "Transform" else scale
                 self.children(child.children(), T @ _pose(child, scale), s, body, label, masses, dynamic=dynamic,
                               static=static, material=material)
             elif kind in schema.JOINT_TYPES:
-                self.joint(child, T, scale, body, dynamic=dynamic, static=static)
+                self.joint(child, T, round_scale(scale), body, dynamic=dynamic, static=static)
             elif kind == "Slot":
                 end = child.get("endPoint")
                 if end is not None:
@@ -429,7 +424,8 @@ class _Converter:
             else:
                 raise self.unsupported(child)
 
-    def make_body(self, parent: Any, solid: Node, T: FloatArray, scale: float, *, static: bool) -> tuple[Any, str]:
+    def make_body(self, parent: Any, solid: Node, T: FloatArray, scale: float | FloatArray, *,
+                  static: bool) -> tuple[Any, str]:
         base = self.solid_name(solid)
         name = self.unique("body", base)
         body = parent.add_body(name=name, pos=[float(v) for v in T[:3, 3]], quat=_quat(T[:3, :3]))
@@ -450,7 +446,7 @@ class _Converter:
         body.explicitinertial = True
         self.body_mass[name] = total.mass
 
-    def build_body(self, parent: Any, solid: Node, T: FloatArray, scale: float, *, static: bool,
+    def build_body(self, parent: Any, solid: Node, T: FloatArray, scale: float | FloatArray, *, static: bool,
                    add_joint: Any = None) -> tuple[Any, str]:
         """A MuJoCo body for ``solid`` at pose T in ``parent``; ``add_joint(body)`` adds its joint(s)."""
         body, name = self.make_body(parent, solid, T, scale, static=static)
@@ -693,7 +689,7 @@ class _Converter:
             description=f"{robot_node.get('name')} converted from {os.path.basename(self.world_path)}"
                         + (f" ({title})" if title else ""))
 
-    def environment(self, node: Node, T: FloatArray, scale: float) -> None:
+    def environment(self, node: Node, T: FloatArray, scale: float | FloatArray) -> None:
         kind = node.type_name
         if kind in IGNORED or kind in ("DirectionalLight",):
             return
@@ -701,7 +697,7 @@ class _Converter:
             self.warn(f"robot {node.get('name')!r} is not the converted robot: skipped", node)
             return
         if kind in ("Pose", "Transform", "Group"):
-            s = scale * self.check_scale(node) if kind == "Transform" else scale
+            s = scale * transform_scale(node) if kind == "Transform" else scale
             inner = T if kind == "Group" else T @ _pose(node, scale)
             for child in node.children():
                 self.environment(child, inner, s)
