@@ -35,7 +35,7 @@ from dualtwin.convert.equivalences import (
 )
 from dualtwin.webots import schema
 
-__all__ = ["ContactGeom", "Stop", "apply_contacts", "apply_stops", "contact_properties"]
+__all__ = ["ContactGeom", "Stop", "apply_contacts", "apply_stops", "contact_properties", "exclude_static_contacts"]
 
 
 @dataclass
@@ -70,6 +70,7 @@ def apply_contacts(spec: mujoco.MjSpec, geoms: Sequence[ContactGeom], world_info
     """Write friction, solref and solimp on every collision geom (module docstring)."""
     robot_geoms = [g for g in geoms if g.robot]
     env_geoms = [g for g in geoms if not g.robot]
+    separated = exclude_static_contacts(spec)
     if not robot_geoms:
         return
     env_materials = list(dict.fromkeys(g.material for g in env_geoms)) or ["default"]
@@ -118,13 +119,15 @@ def apply_contacts(spec: mujoco.MjSpec, geoms: Sequence[ContactGeom], world_info
             key = (g.material, e.material)
             if key not in targets:
                 targets[key] = contact_pair(contact_properties(world_info, *key), m_eff, step, mujoco_step_s)
-            _pair_where_mixing_differs(spec, g.name, e.name, targets[key])
+            if frozenset((g.body, e.body)) not in separated:
+                _pair_where_mixing_differs(spec, g.name, e.name, targets[key])
     # Loose environment objects (free bodies) against the rest of the environment: their own materials' pair, on the
     # mass of the lighter moving body (as the robot's contacts are sized on the robot's mass).
     for i, a in enumerate(env_geoms):
         for b in env_geoms[i + 1:]:
             masses = [float(spec.body(x).mass) for x in (a.body, b.body) if x != WORLD]
-            if not masses or a.body == b.body or _joined(spec, a.body, b.body):
+            if (not masses or a.body == b.body or _joined(spec, a.body, b.body)
+                    or frozenset((a.body, b.body)) in separated):
                 continue  # static against static, one body, or a joint between them: they never touch
             _pair_where_mixing_differs(spec, a.name, b.name, contact_pair(
                 contact_properties(world_info, a.material, b.material), contact_effective_mass(min(masses), 1), step,
@@ -133,6 +136,33 @@ def apply_contacts(spec: mujoco.MjSpec, geoms: Sequence[ContactGeom], world_info
 
 #: The MuJoCo world body's name (the static environment's geoms hang on it).
 WORLD = "world"
+
+
+def exclude_static_contacts(spec: mujoco.MjSpec) -> set[frozenset[str]]:
+    """Keep each body jointed to the static environment from touching it, as Webots does (on-ODE §2.3 rule 6: ODE
+    reports a body attached to the static environment by a joint as connected to body 0, and Webots skips its
+    contacts with every static geom: a pendulum hinged to a static base passes through a static floor). The static
+    part is every body welded to the world: the world body (the environment's static Solids) and a robot without
+    Physics (its fixed base). MuJoCo would let them collide (its parent filter spares the world), so each such
+    pair of bodies gets an ``<exclude>``; the pairs are returned (an explicit ``<pair>`` would bypass them)."""
+    welded = [b for b in spec.bodies if _welded(b)]
+    separated: set[frozenset[str]] = set()
+    for body in spec.bodies:
+        jointed = [j for j in body.joints if j.type != mujoco.mjtJoint.mjJNT_FREE]
+        if jointed and body.parent is not None and _welded(body.parent):
+            for static in welded:
+                spec.add_exclude(bodyname1=static.name, bodyname2=body.name)
+                separated.add(frozenset((static.name, body.name)))
+    return separated
+
+
+def _welded(body: Any) -> bool:
+    """Whether ``body`` is fixed to the world: it and every body above it without a joint."""
+    while body is not None and body.name != WORLD:
+        if len(body.joints):
+            return False
+        body = body.parent
+    return True
 
 
 def _joined(spec: mujoco.MjSpec, a: str, b: str) -> bool:
