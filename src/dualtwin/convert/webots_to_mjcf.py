@@ -36,8 +36,10 @@ Stops, contacts, cameras, world
     ``solimp`` (a second pass once the model is whole, :mod:`dualtwin.convert.contacts`); FLU cameras turn into
     MuJoCo's camera frame with a vertical ``fovy``; the world gets a ``timestep`` dividing ``basicTimeStep``,
     gravity (0, 0, -g) (ENU) or (0, -g, 0) (NUE, EUN), ``implicitfast``, ``cone="pyramidal"`` (ODE's friction
-    pyramid), ``angle="radian"``. Robot parts collide only with ``selfCollision``; ``bounce`` and Damping nodes have
-    no MuJoCo equivalent (reported); initial velocities -> keyframe (:mod:`dualtwin.convert.initial_state`).
+    pyramid), ``angle="radian"``. Robot parts collide only with ``selfCollision``, a body jointed to the static
+    environment never with it, and each material pair has its own contact (explicit pairs where MuJoCo's mixing
+    differs; :mod:`dualtwin.convert.contacts`); ``bounce`` and Damping nodes have no MuJoCo equivalent (reported);
+    initial velocities -> keyframe (:mod:`dualtwin.convert.initial_state`).
 
 Every ODE -> MuJoCo equivalence, with its reasoning, is a function in :mod:`dualtwin.convert.equivalences`;
 this module walks the world and writes the MjSpec; the result types are in :mod:`dualtwin.convert.conversion`.
