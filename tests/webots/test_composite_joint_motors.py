@@ -7,6 +7,8 @@ steps; its inertia about the hinge is I = 0.25 + 0.4·0.05² ≈ 0.251 kg·m²),
 
 from __future__ import annotations
 
+from typing import Any
+
 import pytest
 
 from dualtwin.webots.controller import Supervisor
@@ -68,13 +70,9 @@ DEF ROBOT Robot { supervisor TRUE children [
 """)
 
 
-def test_reset_physics_of_a_kinematic_robot_restarts_its_motors_ramp() -> None:
-    # §6: resetting a Solid's physics zeroes the joint motors' current velocity (WbSolid.resetSingleSolidPhysics,
-    # run for each Solid of the subtree, webots-python-api.md: "the Solid and descendants"), a kinematic joint's
-    # too: its motor then ramps up again from rest (§5.3: "acceleration limited by min(acceleration, available
-    # torque)"). Hand computation, 10 ms steps, acceleration 1 rad/s², velocity control at 1 rad/s: after 100 steps
-    # the motor turns at 1 rad/s; from rest, the next 10 steps turn the joint by Σ 0.01·k·0.01 (k = 1..10) =
-    # 0.0055 rad, where a motor still at 1 rad/s turns it by 10·0.01 = 0.1 rad.
+def _turning_kinematic_arm() -> tuple[Supervisor, Any]:
+    """:func:`_kinematic_arm` after 101 steps of 10 ms in velocity control at 1 rad/s (its motor at full speed),
+    and its position sensor."""
     sup = _kinematic_arm()
     m, s = sup.getDevice("m"), sup.getDevice("s")
     s.enable(10)
@@ -82,6 +80,17 @@ def test_reset_physics_of_a_kinematic_robot_restarts_its_motors_ramp() -> None:
     m.setVelocity(1.0)
     for _ in range(101):
         assert sup.step(10) != -1
+    return sup, s
+
+
+def test_reset_physics_of_a_kinematic_robot_restarts_its_motors_ramp() -> None:
+    # §6: resetting a Solid's physics zeroes the joint motors' current velocity (WbSolid.resetSingleSolidPhysics,
+    # run for each Solid of the subtree, webots-python-api.md: "the Solid and descendants"), a kinematic joint's
+    # too: its motor then ramps up again from rest (§5.3: "acceleration limited by min(acceleration, available
+    # torque)"). Hand computation, 10 ms steps, acceleration 1 rad/s², velocity control at 1 rad/s: after 100 steps
+    # the motor turns at 1 rad/s; from rest, the next 10 steps turn the joint by Σ 0.01·k·0.01 (k = 1..10) =
+    # 0.0055 rad, where a motor still at 1 rad/s turns it by 10·0.01 = 0.1 rad.
+    sup, s = _turning_kinematic_arm()
     before = s.getValue()
     for _ in range(10):
         assert sup.step(10) != -1
@@ -98,13 +107,7 @@ def test_a_position_edit_of_a_kinematic_joint_restarts_its_motors_ramp() -> None
     # the motor's current velocity zeroed (WbJoint.resetPhysics), a kinematic joint's as a dynamic one's; in
     # velocity control the motor then carries the joint on from the new position, ramping up from rest (§5.3).
     # Hand computation as in the test above: 0.0055 rad in the 10 steps after the edit, not 0.1 rad.
-    sup = _kinematic_arm()
-    m, s = sup.getDevice("m"), sup.getDevice("s")
-    s.enable(10)
-    m.setPosition(float("inf"))
-    m.setVelocity(1.0)
-    for _ in range(101):
-        assert sup.step(10) != -1
+    sup, s = _turning_kinematic_arm()
     sup.getFromDef("PARAMS").getField("position").setSFFloat(2.0)
     for _ in range(10):
         assert sup.step(10) != -1
