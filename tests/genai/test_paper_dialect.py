@@ -342,9 +342,14 @@ def test_the_terminal_says_every_assumption_of_a_paper_answer(tmp_path: Path) ->
 
 
 def test_the_smoke_test_fails_when_the_twins_do_not_move_alike(tmp_path: Path) -> None:
-    """A welded wheeled robot (built past the mobile-base check, as a world file could be) passes MuJoCo's own
-    smoke test, but its wheels turn in Webots and not in MuJoCo: the twin check names them; the same robot
-    unwelded passes the whole smoke test (the control)."""
+    """A welded wheeled robot (built past the mobile-base check, as a world file could be) turns its wheels in the
+    air in both twins (its wheels are jointed to the static environment, so neither touches the floor: Webots'
+    rule, webots-on-ode.md §2.3 rule 6, and the converter's contact excludes): the twin check finds its wheels
+    alike (the control). Its converted model edited so that MuJoCo's wheels cannot turn (a damping no motor
+    overcomes: what a converter bug would do) still passes MuJoCo's own checks, and the twin check names the
+    wheels."""
+    import re
+
     from dualtwin.convert.webots_to_mjcf import convert_world_text
     from dualtwin.genai.agreement import motion_disagreements
     from dualtwin.genai.generate import check_description, default_suite
@@ -361,6 +366,12 @@ def test_the_smoke_test_fails_when_the_twins_do_not_move_alike(tmp_path: Path) -
     suite = tmp_path / "suite.json"
     suite.write_text(json.dumps(default_suite(compiled.conversion.binding_dict(files["xml"].name,
                                                                                files["wbt"].name))))
+    wheels = {f"wheel{i}_joint_position_rad" for i in range(1, 5)}
+    assert not {d.channel for d in motion_disagreements(files["binding"], suite)} & wheels
+    model = Path(files["xml"])
+    stuck, n = re.subn(r'(<joint name="wheel\d_joint")', r'\1 damping="1e12"', model.read_text())
+    assert n == 4
+    model.write_text(stuck)
     found = motion_disagreements(files["binding"], suite)
-    assert {d.channel for d in found} >= {f"wheel{i}_joint_position_rad" for i in range(1, 5)}
+    assert {d.channel for d in found} >= wheels
     assert all(d.webots_range > 0.5 and d.mujoco_range < 0.01 for d in found if "joint_position" in d.channel)
