@@ -322,3 +322,29 @@ def test_quit_and_world_load_end_the_other_controllers_at_once(tmp_path: Path, i
     assert run_world(world, None, 1.0, step_timeout_s=30, isolation=isolation) == status
     assert (tmp_path / "bot.txt").read_text().splitlines() == ["-1 0.024"]
     assert (tmp_path / "sup.txt").read_text().splitlines() == ["saw the robot end True", "step -1"]
+
+
+FLAGS_WORLD = f"""#VRML_SIM R2023b utf8
+WorldInfo {{ basicTimeStep {TS} }}
+DEF BOSS Robot {{ name "boss" supervisor TRUE }}
+DEF SYNCED Robot {{ translation 1 0 0 name "synced" }}
+DEF UNSYNCED Robot {{ translation 2 0 0 name "unsynced" synchronization FALSE }}
+"""
+
+
+def test_the_step_timeout_asks_what_the_synchronisation_goes_by_after_a_supervisor_writes_the_field() -> None:
+    # webots-on-ode.md §1.6 step 1: a step waits for the synchronized controllers. The runtime takes a robot's
+    # synchronization when its controller makes its Robot, and waits accordingly; the step timeout (ours) asks
+    # Runtime.waits_for whether the simulation waits for a controller. A supervisor then writes both fields the
+    # other way: SYNCED's controller is still waited for (the boss's step blocks until SYNCED steps), so the
+    # timeout must still watch it; UNSYNCED's is still not waited for while SYNCED drives the simulation, so its
+    # idling must not be stopped. (The reference is silent on a write at run time; the two must agree.)
+    sup = quiet_supervisor(FLAGS_WORLD)
+    runtime = Runtime(sup.simulation)
+    nodes = [rec.node for rec in sup.simulation.robots]  # BOSS, SYNCED, UNSYNCED
+    robots = [Robot(robot_node=node, runtime=runtime) for node in nodes]
+    assert runtime.waits_for(nodes[1]) and not runtime.waits_for(nodes[2])
+    sup.getFromDef("SYNCED").getField("synchronization").setSFBool(False)
+    sup.getFromDef("UNSYNCED").getField("synchronization").setSFBool(True)
+    assert runtime.waits_for(nodes[1]) and not runtime.waits_for(nodes[2])
+    del robots  # (held until here: a Robot dropped before leaves the synchronisation)

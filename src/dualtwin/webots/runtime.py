@@ -199,12 +199,17 @@ class Runtime:
 
     def waits_for(self, robot_node: SceneNode) -> bool:
         """Whether the simulation waits for the steps of this robot's controller: its ``synchronization`` is TRUE,
-        or no synchronized controller is left to drive the simulation (see :meth:`_maybe_advance`)."""
-        if robot_node.fields.get("synchronization", True):
-            return True
+        or no synchronized controller is left to drive the simulation (see :meth:`_maybe_advance`). The flag is the
+        one :meth:`_maybe_advance` goes by, read when the controller made its Robot (:class:`_Client`), not the
+        field now: a supervisor's later write must not tell the step timeout otherwise than the synchronisation
+        (it would never stop a controller the simulation still waits for, or stop one nothing waits for)."""
         # read without the lock, which the physics holds while it runs: the watching thread asks every few
         # hundredths of a second and must not wait for a long step (a stale answer is corrected at the next ask)
-        return not any(c.active and c.synced for c in list(self._clients))
+        clients = list(self._clients)
+        own = [c for c in clients if c.robot._rec.node is robot_node]
+        # (before its controller made its Robot, the field is what the flag will be read from)
+        synced = own[-1].synced if own else bool(robot_node.fields.get("synchronization", True))
+        return synced or not any(c.active and c.synced for c in clients)
 
     def claim_start(self, robot_node: SceneNode) -> bool:
         """Whether the controller of an imported robot (see :meth:`expect_another`) may start now: False if its
