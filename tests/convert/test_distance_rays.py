@@ -191,3 +191,17 @@ def test_infra_red_reflection_is_written_only_with_an_infra_red_sensor() -> None
 
     assert reflections(f'type "infra-red" {METRES}') == [[pytest.approx(0.6)]]
     assert reflections(METRES) == []
+
+
+@pytest.mark.parametrize("factor", [0.0, -0.5])
+def test_a_reflection_factor_that_is_not_positive_is_not_read(factor: float) -> None:
+    # Webots' factor is 0.2 + 0.8·red·(1 − 0.5·roughness), 0.2 to 1 (§1.4), and the distance divides by it: a hand-
+    # edited model's 0 or negative factor is not Webots' and is not read (factor 1), as a malformed rays numeric is
+    # not. One infra-red ray along +x to the red wall's near face at 0.51 − 0.01 = 0.5 m, f = 1: 0.5.
+    spec = convert_world_text(_world(f'type "infra-red" {METRES}', RED_WALL), "t.wbt").spec
+    edited = [n for n in spec.numerics if n.name.startswith("webots_reflection.")]
+    assert len(edited) == 1
+    edited[0].data = [factor]
+    twin = MuJoCoTwin(spec, PERIOD)
+    twin.step()
+    assert twin.sensor("ds") == pytest.approx(0.5, abs=1e-9)

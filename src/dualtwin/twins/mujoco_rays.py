@@ -250,14 +250,18 @@ def read_rays(m: mujoco.MjModel) -> dict[int, DistanceRays]:
 
 
 def _reflections(m: mujoco.MjModel) -> np.ndarray:
-    """Each geom's infra-red reflection factor from its ``webots_reflection.<geom>`` numeric (1 without one)."""
+    """Each geom's infra-red reflection factor from its ``webots_reflection.<geom>`` numeric (1 without one, or
+    with one that is not a positive number: Webots' factor is 0.2 to 1, and the distance divides by the weighted
+    factor, so a 0 in a hand-edited model would fail the sensor's reading, as a malformed rays numeric is not
+    read either)."""
     out = np.ones(m.ngeom)
     for i in range(m.nnumeric):
         name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_NUMERIC, i) or ""
         geom = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, name[len(REFLECTION_NUMERIC):]) \
             if name.startswith(REFLECTION_NUMERIC) and m.numeric_size[i] >= 1 else -1
-        if geom >= 0:
-            out[geom] = float(m.numeric_data[m.numeric_adr[i]])
+        factor = float(m.numeric_data[m.numeric_adr[i]]) if geom >= 0 else math.nan
+        if factor > 0 and math.isfinite(factor):
+            out[geom] = factor
     return out
 
 
