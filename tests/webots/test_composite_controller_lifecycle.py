@@ -257,7 +257,10 @@ def test_simulation_get_mode_reads_the_mode_of_the_last_step_answer() -> None:
     runtime.bind_thread(a)
     sup_a = Supervisor(robot_node=a, runtime=runtime)
     thread.start()
-    time.sleep(0.3)  # B is inside its step now: A's step is the one that runs the simulation
+    # until B waits inside its step: A's step is then the one that runs the simulation (a fixed sleep let a slow
+    # machine start A's step first, B's step then ran the simulation and read the mode before A paused it)
+    while thread.is_alive() and not any(c.waiting for c in list(runtime._clients)):
+        time.sleep(0.001)
     with runtime._cond:  # B's thread cannot wake before A has paused
         assert sup_a.step(TS) == 0
         sup_a.simulationSetMode(Supervisor.SIMULATION_MODE_PAUSE)
