@@ -18,6 +18,7 @@ from dualtwin.webots.controller import Robot, Supervisor
 from dualtwin.webots.runner import run_world
 from dualtwin.webots.runtime import Runtime
 from tests.support.quiet_worlds import quiet_supervisor
+from tests.support.webots_scene import write_controllers
 
 TS = 8
 NODES_WORLD = f"""#VRML_SIM R2023b utf8
@@ -26,6 +27,16 @@ DEF BOSS Robot {{ name "boss" supervisor TRUE }}
 DEF BOT Robot {{ translation 1 0 0 name "bot" children [ DEF INNER Solid {{ name "inner" }} ] }}
 DEF BOX Solid {{ translation 0 2 0 name "box" }}
 """
+
+
+def _project(folder: Path, world_text: str, controllers: dict[str, str]) -> Path:
+    """A Webots project in ``folder``: ``worlds/w.wbt`` holding ``world_text`` and the ``controllers`` (name ->
+    script, :func:`write_controllers`); returns the world's path."""
+    write_controllers(folder, controllers)
+    (folder / "worlds").mkdir()
+    world = folder / "worlds" / "w.wbt"
+    world.write_text(world_text)
+    return world
 
 
 def test_get_from_id_no_longer_finds_a_removed_node_or_its_descendants() -> None:
@@ -94,12 +105,7 @@ def test_a_robot_without_synchronization_does_not_hold_the_synchronized_ones(tmp
     # request; a robot whose synchronization is FALSE is not waited for (webots-devices.md §11.4: its step returns
     # without holding the others). The synchronized controller steps 8 ms five times: 8, 16, 24, 32, 40 ms, all
     # while the other one has not stepped yet; that one's own step, the only controller left, then returns 0.
-    for name, script in (("synced", SYNCED), ("unsynced", UNSYNCED)):
-        (tmp_path / "controllers" / name).mkdir(parents=True)
-        (tmp_path / "controllers" / name / f"{name}.py").write_text(script)
-    (tmp_path / "worlds").mkdir()
-    world = tmp_path / "worlds" / "w.wbt"
-    world.write_text(SYNC_WORLD)
+    world = _project(tmp_path, SYNC_WORLD, {"synced": SYNCED, "unsynced": UNSYNCED})
     # no step timeout: what is tested is that nothing waits for the controller that does not step
     assert run_world(world, None, None, step_timeout_s=0, isolation=isolation) == 0
     assert (tmp_path / "synced.txt").read_text().splitlines() == [f"0 {t / 1000:.3f}" for t in range(8, 41, 8)]
@@ -137,12 +143,7 @@ def test_the_step_timeout_does_not_stop_a_controller_nothing_waits_for(tmp_path:
     # the step timeout is ours (Webots has none): it stops a controller the simulation waits for in vain. Nothing
     # waits for a robot whose synchronization is FALSE (webots-on-ode.md §1.6 step 1) while a synchronized
     # controller steps, so that one idling for three timeouts is not stopped and the run ends well (exit 0)
-    for name, script in (("synced", LOOPING), ("unsynced", IDLE)):
-        (tmp_path / "controllers" / name).mkdir(parents=True)
-        (tmp_path / "controllers" / name / f"{name}.py").write_text(script)
-    (tmp_path / "worlds").mkdir()
-    world = tmp_path / "worlds" / "w.wbt"
-    world.write_text(SYNC_WORLD)
+    world = _project(tmp_path, SYNC_WORLD, {"synced": LOOPING, "unsynced": IDLE})
     assert run_world(world, None, None, step_timeout_s=0.5) == 0
     assert (tmp_path / "idle.txt").read_text().splitlines() == ["step 0"]
 
@@ -217,12 +218,7 @@ def test_a_reset_waits_for_the_end_of_the_longer_step_that_carries_it(tmp_path: 
     # the request (time passes in that step). The supervisor steps 16 ms and asks at 16 ms; its step to 32 ms
     # carries the request while the robot steps 8 ms twice (24, 32 ms); at 32 ms the world is reset and both steps
     # return at t = 0. Then the supervisor steps to 16 ms while the robot steps to 8 and 16 ms.
-    for name, script in (("resetter", RESETTER), ("stepper", STEPPER)):
-        (tmp_path / "controllers" / name).mkdir(parents=True)
-        (tmp_path / "controllers" / name / f"{name}.py").write_text(script)
-    (tmp_path / "worlds").mkdir()
-    world = tmp_path / "worlds" / "w.wbt"
-    world.write_text(RESET_WORLD)
+    world = _project(tmp_path, RESET_WORLD, {"resetter": RESETTER, "stepper": STEPPER})
     assert run_world(world, None, None, isolation=isolation) == 0
     assert (tmp_path / "sup.txt").read_text().splitlines() == ["0 0.016", "0 0.000", "0 0.016"]
     assert (tmp_path / "bot.txt").read_text().splitlines() == [
@@ -315,12 +311,7 @@ def test_quit_and_world_load_end_the_other_controllers_at_once(tmp_path: Path, i
     # load); simulationQuit(status) quits with that exit status (webots-python-api.md). The supervisor quits (or
     # loads a world without controllers) at 24 ms and does not step again until the robot's controller has ended:
     # the robot's step waiting at 24 ms says -1 then (not once the supervisor steps); the exit status is 3 (0).
-    for name, script in (("quitter", QUITTER.replace("{end}", end)), ("stepper", QUIT_STEPPER)):
-        (tmp_path / "controllers" / name).mkdir(parents=True)
-        (tmp_path / "controllers" / name / f"{name}.py").write_text(script)
-    (tmp_path / "worlds").mkdir()
-    world = tmp_path / "worlds" / "w.wbt"
-    world.write_text(QUIT_WORLD)
+    world = _project(tmp_path, QUIT_WORLD, {"quitter": QUITTER.replace("{end}", end), "stepper": QUIT_STEPPER})
     (tmp_path / "worlds" / "empty.wbt").write_text(EMPTY_WORLD)
     assert run_world(world, None, 1.0, step_timeout_s=30, isolation=isolation) == status
     assert (tmp_path / "bot.txt").read_text().splitlines() == ["-1 0.024"]
