@@ -5,7 +5,8 @@ Solids and joints the converter needs one factor: a Solid's mass and inertia sca
 which a per-axis scale would shear, and a joint's anchor and a body's frame have no sheared counterpart in MuJoCo.
 Above Shapes alone (what a Robot's drawing is made of) a per-axis scale is only drawn: the converter scales each
 visual geom per axis as it does a boundingObject's (a Box's extents and a mesh's vertices per axis, the round
-primitives by the largest factor). Such a Transform used to stop the conversion of the whole world; above a Solid or joint it still does.
+primitives by the largest factor). Such a Transform used to stop the conversion of the whole world; above a
+Solid or joint it still does.
 """
 
 from __future__ import annotations

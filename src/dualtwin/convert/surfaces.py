@@ -42,9 +42,9 @@ def _where(node: Node) -> str:
 
 def add_surface_mesh(spec: mujoco.MjSpec, geometry: Node, scale: float | FloatArray, name: Callable[[], str], *,
                      collision: bool, warn: Callable[[str, Node | None], None]) -> str | None:
-    """Add the mesh asset of ``geometry`` (IndexedFaceSet, Mesh or CadShape, its vertices scaled by ``scale``, per axis or uniform) to
-    ``spec`` and return its name (``name()`` is called only for a mesh that is added); None when it is skipped
-    (``warn`` tells why). See the module's text for the rules.
+    """Add the mesh asset of ``geometry`` (IndexedFaceSet, Mesh or CadShape, its vertices scaled by ``scale``,
+    per axis or uniform) to ``spec`` and return its name (``name()`` is called only for a mesh that is added);
+    None when it is skipped (``warn`` tells why). See the module's text for the rules.
 
     Raises:
         ConversionError: a CadShape or an unreadable mesh file in a boundingObject.

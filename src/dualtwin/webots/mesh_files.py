@@ -15,8 +15,8 @@ that cannot be read gives one :class:`MeshFileError` line, never a traceback):
 - **OBJ**: ``v`` and ``f`` lines (``v/vt/vn`` forms, negative indices counting back from the last vertex,
   polygons cut into triangles that cover them, concave ones too); a face's names are its current ``o`` object
   and ``g`` group names, its material index is the order in which its ``usemtl`` name was first used (our
-  reading of Assimp's numbering; the ``.mtl`` file is not read). Faces before any ``usemtl`` have index 0 and shift the others by one, as
-  Assimp's default material does.
+  reading of Assimp's numbering; the ``.mtl`` file is not read). Faces before any ``usemtl`` have index 0
+  and shift the others by one, as Assimp's default material does.
 - **COLLADA** (``.dae``, through pycollada): every geometry instanced in the file's scene, with its node
   transforms, scaled by the asset's ``unit meter``; a mesh's name is its geometry's ``name`` or ``id``, its
   material index the position of its material in ``library_materials``. The ``up_axis`` is not applied:

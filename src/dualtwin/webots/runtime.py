@@ -3,8 +3,8 @@
 Timing follows docs/reference/webots-on-ode.md §6: commands issued before ``step(ms)`` act on the physics of that
 call, the simulation advances in basic time steps until ``ms`` elapsed, then sensors due for sampling are read.
 Several controllers may share one :class:`Runtime`: the simulation then advances only once every registered
-controller whose robot's ``synchronization`` is TRUE has asked for the next step (§1.6 step 1). Moved out of :mod:`dualtwin.webots.controller`, which keeps the
-``Robot``/``Supervisor`` classes and re-exports these names.
+controller whose robot's ``synchronization`` is TRUE has asked for the next step (§1.6 step 1). Moved out of
+:mod:`dualtwin.webots.controller`, which keeps the ``Robot``/``Supervisor`` classes and re-exports these names.
 """
 
 from __future__ import annotations
@@ -494,10 +494,11 @@ class Runtime:
 
     def _answer(self, client: _Client) -> None:
         """Release ``client`` from the step it waits in (caller holds the condition). Its controller reads the
-        time (and simulation mode) of this answer until its next step, as a Webots controller reads the time its last step message
-        brought: once nothing waits for it (its robot removed, its controller restarted, its synchronization
-        FALSE) the simulation goes on while it runs, and reading the live clock gave a time its step never
-        reached, which varied with the scheduling (and a step answered 0 said -1 if its thread woke late)."""
+        time (and simulation mode) of this answer until its next step, as a Webots controller reads the time its
+        last step message brought: once nothing waits for it (its robot removed, its controller restarted, its
+        synchronization FALSE) the simulation goes on while it runs, and reading the live clock gave a time its
+        step never reached, which varied with the scheduling (and a step answered 0 said -1 if its thread woke
+        late)."""
         if client.waiting:
             client.time, client.mode = self.simulation.time, self._mode
             # the step that reaches the run's end says -1; one answered before stays 0 even if its thread wakes

@@ -271,11 +271,13 @@ class SupervisorEdits(MassEdits):
         Webots reacts to field edits at run time (WbJoint/WbMotor/WbPhysics/WbContactProperties update
         their ODE objects). Supported: joint ``dampingConstant``/``springConstant``/``staticFriction``/``stopERP``/
         ``stopCFM``,
-        motor ``maxVelocity``/``maxTorque``/``maxForce``/``acceleration``, ``Physics`` ``mass``/``density``/``centerOfMass``/
-        ``inertiaMatrix`` (the body's mass properties summed again as at load, :mod:`.mass_edits`), a
+        motor ``maxVelocity``/``maxTorque``/``maxForce``/``acceleration``, ``Physics``
+        ``mass``/``density``/``centerOfMass``/``inertiaMatrix`` (the body's mass properties summed again as at
+        load, :mod:`.mass_edits`), a
         ``Damping`` node's ``linear``/``angular`` (bodies and, for ``WorldInfo.defaultDamping``, the world),
         ``ContactProperties`` friction/bounce/soft ERP/CFM, a Solid's ``contactMaterial``, a Robot's
-        ``selfCollision``, ``WorldInfo`` ERP/CFM, and the dimensions of bounding geometries (:mod:`.geometry_edits`; the mass properties of a body they bound follow).
+        ``selfCollision``, ``WorldInfo`` ERP/CFM, and the dimensions of bounding geometries
+        (:mod:`.geometry_edits`; the mass properties of a body they bound follow).
         Returns False for fields whose edit has no physics effect here.
         """
         applied = self._apply_field(node, name)

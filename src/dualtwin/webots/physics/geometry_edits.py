@@ -1,6 +1,6 @@
 """Supervisor edits of bounding geometry (``Box.size``, ``Sphere.radius``, ``Cylinder``/``Capsule``
-``radius``/``height``, an ``IndexedFaceSet``'s ``Coordinate.point``, an ``ElevationGrid``'s fields; a ``Mesh``'s file fields, see
-:mod:`.scene_changes`) reaching the ODE scene.
+``radius``/``height``, an ``IndexedFaceSet``'s ``Coordinate.point``, an ``ElevationGrid``'s fields; a
+``Mesh``'s file fields, see :mod:`.scene_changes`) reaching the ODE scene.
 
 Webots re-applies a geometry field to its ODE geom as soon as the field changes (``WbBox::updateSize`` and
 friends call ``applyToOdeData``), so contacts and ray sensors see the new shape from the next step on, and a
