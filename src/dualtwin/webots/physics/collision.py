@@ -39,7 +39,7 @@ class CollisionPass(JointBuilder):
         self._surfaces = {}
         self._default_surface = self._make_surface(None)
         self._plans = {}
-        self._run_time_links = set()
+        self._run_time_links = {}
         self._contact_modifiers = {}
         self._buffer = 0
         self._used = [[], []]
@@ -186,12 +186,14 @@ class CollisionPass(JointBuilder):
         """Declare (or undo) a joint created at run time between two bodies (a locked Connector, a vacuum
         gripper's hold): like any jointed pair, their geoms then stop colliding. ``b2`` None is the static
         environment: while so jointed, ``b1`` collides with no static geom (§2.3 rule 6, as a body jointed to the
-        world at load)."""
+        world at load). Counted: two holds of one pair (two suction cups, a gripper on a locked connector) keep it
+        filtered until the last is undone, as ODE's test is whether any joint connects the two."""
         key = frozenset((b1.index, WORLD_INDEX if b2 is None else b2.index))
-        if linked:
-            self._run_time_links.add(key)
+        count = self._run_time_links.get(key, 0) + (1 if linked else -1)
+        if count > 0:
+            self._run_time_links[key] = count
         else:
-            self._run_time_links.discard(key)
+            self._run_time_links.pop(key, None)
         self._plans.clear()
 
     def _bodies_connected(self, b1: BodyRec, b2: BodyRec) -> bool:

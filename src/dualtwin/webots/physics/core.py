@@ -95,7 +95,7 @@ class SimulationCore:
     _surfaces: dict[int, Surface]
     _default_surface: Surface
     _plans: dict[tuple[int, int], Any]
-    _run_time_links: set[frozenset[int]]
+    _run_time_links: dict[frozenset[int], int]  # pair of body indices -> how many run-time joints join them
     _contact_modifiers: dict[int, Callable[[Any, list[int], int], None]]
     _buffer: int
     _used: list[list[BodyRec]]
