@@ -47,6 +47,11 @@ _in_native = [0]
 
 def _on_sigint(signum: int, frame: Any) -> None:
     if _state[1] and not _in_native[0]:
+        if _within(frame, _on_unraisable):
+            # the handler runs inside the hook that re-sends a lost Ctrl-C (a loaded machine ran the re-sent signal
+            # before the hook had returned): raised here it would be ignored once more and the stop lost
+            _send_again_later()
+            return
         _state[0] = False
         _state[2] = True
         raise Interrupted()
@@ -62,11 +67,25 @@ def _on_unraisable(unraisable: Any) -> None:
     # sent again a moment later, from another thread, so that the handler runs outside the callback (raising it
     # here would raise it inside this hook, ignored again); should that land in a callback too, it comes back here.
     if isinstance(unraisable.exc_value, Interrupted):
-        timer = threading.Timer(0.001, os.kill, (os.getpid(), signal.SIGINT))
-        timer.daemon = True
-        timer.start()
+        _send_again_later()
         return
     _previous_unraisable[0](unraisable)
+
+
+def _send_again_later() -> None:
+    """SIGINT again in a moment, from another thread, so that the handler runs wherever the main thread is then."""
+    timer = threading.Timer(0.001, os.kill, (os.getpid(), signal.SIGINT))
+    timer.daemon = True
+    timer.start()
+
+
+def _within(frame: Any, function: Any) -> bool:
+    """Whether ``frame`` or a frame that called it runs ``function``."""
+    while frame is not None:
+        if frame.f_code is function.__code__:
+            return True
+        frame = frame.f_back
+    return False
 
 
 _previous_unraisable: list[Any] = [sys.unraisablehook]
