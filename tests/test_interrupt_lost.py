@@ -27,7 +27,11 @@ a = A()
 r = weakref.ref(a, callback)
 try:
     del a  # the callback runs now
-    deadline = time.monotonic() + 10
+{wait}"""
+
+
+#: The end of both scripts: up to 10 s for the Ctrl-C to stop them ("interrupted"), else "lost".
+WAIT = """    deadline = time.monotonic() + 10
     while time.monotonic() < deadline:
         pass
     print("lost")
@@ -36,9 +40,14 @@ except interrupts.Interrupted:
 """
 
 
+def _run(script: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-c", script.replace("{wait}", WAIT)], capture_output=True, text=True,
+                          timeout=60, cwd=ROOT, env={"PYTHONPATH": str(ROOT / "src"), "PATH": "/usr/bin:/bin"},
+                          check=False)
+
+
 def test_a_ctrl_c_in_a_weakref_callback_still_stops_the_command() -> None:
-    done = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True, timeout=60, cwd=ROOT,
-                          env={"PYTHONPATH": str(ROOT / "src"), "PATH": "/usr/bin:/bin"}, check=False)
+    done = _run(SCRIPT)
     assert done.stdout.strip() == "interrupted", (done.stdout, done.stderr)
     assert "Traceback" not in done.stderr and "Exception ignored" not in done.stderr, done.stderr
 
@@ -60,18 +69,11 @@ except interrupts.Interrupted:
     print("raised inside the hook")  # where Python ignores it: the stop is lost
     sys.exit(0)
 try:
-    deadline = time.monotonic() + 10
-    while time.monotonic() < deadline:
-        pass
-    print("lost")
-except interrupts.Interrupted:
-    print("interrupted")
-"""
+{wait}"""
 
 
 def test_a_ctrl_c_whose_handler_runs_inside_the_resending_hook_is_sent_again() -> None:
     # the hook that re-sends a lost Ctrl-C is a place where Python ignores exceptions too ("Exception ignored in
     # sys.unraisablehook": a full test run on a loaded machine lost the stop that way in the test above)
-    done = subprocess.run([sys.executable, "-c", IN_THE_HOOK], capture_output=True, text=True, timeout=60, cwd=ROOT,
-                          env={"PYTHONPATH": str(ROOT / "src"), "PATH": "/usr/bin:/bin"}, check=False)
+    done = _run(IN_THE_HOOK)
     assert done.stdout.strip() == "interrupted", (done.stdout, done.stderr)
