@@ -142,20 +142,13 @@ class GeometryEdits(CollisionPass):
         return list(box)
 
     def _wake_around(self, gr: GeomRec, before: list[float]) -> None:
-        """Wake the geom's body and every body with a geom within reach of the geom's old or new bounding box
-        (a body resting on a support that shrank is no longer touching it, yet must fall)."""
+        """Wake the geom's body and every body with a geom within reach of the box holding the geom's old and new
+        bounding boxes (a body resting on a support that shrank is no longer touching it, yet must fall)."""
         after = self._aabb(gr)
-        lo = [min(before[2 * k], after[2 * k]) - _WAKE_MARGIN for k in range(3)]
-        hi = [max(before[2 * k + 1], after[2 * k + 1]) + _WAKE_MARGIN for k in range(3)]
-        woken = {gr.body.index} if gr.body is not None else set()
-        for g in self.geoms.values():
-            if g.body is None or g.body.index in woken or g.is_plane:
-                continue
-            other = self._aabb(g)
-            if all(other[2 * k] <= hi[k] and other[2 * k + 1] >= lo[k] for k in range(3)):
-                woken.add(g.body.index)
-        for index in woken:
-            self._wake_body(index)
+        self._wake_reaching([tuple(min(before[k], after[k]) if k % 2 == 0 else max(before[k], after[k])
+                                   for k in range(6))])
+        if gr.body is not None:
+            self._wake_body(gr.body.index)
 
     def _static_reach(self, geoms: Iterable[GeomRec]) -> list[tuple[float, ...]]:
         """Where body-less geoms are now, for :meth:`_wake_reaching`: a geom's bounding box (six values: min x,

@@ -33,7 +33,6 @@ from collections.abc import Iterable
 
 from dualtwin.webots._math3 import Pose
 from dualtwin.webots.nodes import Node, copy_value
-from dualtwin.webots.physics.geometry_edits import _WAKE_MARGIN
 from dualtwin.webots.physics.joint_changes import JointChanges
 from dualtwin.webots.physics.records import (
     JOINT_TYPES,
@@ -359,17 +358,10 @@ class SceneChanges(JointChanges):
         self._plans.clear()  # cached pair plans name the destroyed geoms (ODE may reuse their addresses)
 
     def _wake_near(self, boxes: list[list[float]], body: BodyRec | None) -> None:
-        woken = {body.index} if body is not None else set()
-        for g in self.geoms.values():
-            if g.body is None or g.body.index in woken or g.is_plane:
-                continue
-            other = self._aabb(g)
-            if any(all(other[2 * k] <= box[2 * k + 1] + _WAKE_MARGIN and other[2 * k + 1] >= box[2 * k] - _WAKE_MARGIN
-                       for k in range(3)) for box in boxes):  # fmt: skip
-                woken.add(g.body.index)
-        for index in woken:
-            if not self.bodies[index].removed:
-                self._wake_body(index)
+        """Wake ``body`` and every body with a geom within reach of one of ``boxes`` (:meth:`_wake_reaching`)."""
+        self._wake_reaching([tuple(box) for box in boxes])
+        if body is not None and not body.removed:
+            self._wake_body(body.index)
 
     def live_bodies(self) -> list[BodyRec]:
         """The bodies still in the world (a removed Solid's body is kept, disabled, outside it)."""
