@@ -44,3 +44,10 @@ def run_in_both_modes(folder: Path, world: str, script: str, duration_s: float |
 
 def _same_addresses(text: str, project: Path) -> str:
     return re.sub(r"0x[0-9a-fA-F]+", "0x?", text.replace(str(project), "<project>"))
+
+
+def assert_threads_print(runs: dict[str, Outcome], expected: str) -> None:
+    """The thread mode printed ``expected`` (nothing on stderr, exit 0), and a controller process did exactly the
+    same."""
+    assert runs["threads"] == (expected, "", 0)
+    assert runs["process"] == runs["threads"]

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from tests.support.isolation_runs import run_in_both_modes
+from tests.support.isolation_runs import assert_threads_print, run_in_both_modes
 
 WORLD = """#VRML_SIM R2023b utf8
 WorldInfo { basicTimeStep 8 }
@@ -38,8 +38,7 @@ def test_robot_devices_is_the_name_to_device_dict_of_getdevice(tmp_path: Path) -
     """
     runs = run_in_both_modes(tmp_path, WORLD, script, 0.016)
     expected = "['gps', 'ps', 'rm']\nTrue\nMotor gps\n"
-    assert runs["threads"] == (expected, "", 0)
-    assert runs["process"] == runs["threads"]
+    assert_threads_print(runs, expected)
 
 
 CONTACT_WORLD = """#VRML_SIM R2023b utf8
@@ -76,8 +75,7 @@ def test_a_value_getter_called_with_arguments_raises_pythons_type_error(tmp_path
     runs = run_in_both_modes(tmp_path, CONTACT_WORLD, script, 0.032)
     # Python's words for a one-parameter method (self) given a second positional argument
     expected = "ok\nTypeError ContactPoint.getNodeId() takes 1 positional argument but 2 were given\n"
-    assert runs["threads"] == (expected, "", 0)
-    assert runs["process"] == runs["threads"]
+    assert_threads_print(runs, expected)
 
 
 def test_two_handles_of_one_node_are_equal_and_print_the_node(tmp_path: Path) -> None:
@@ -96,8 +94,7 @@ def test_two_handles_of_one_node_are_equal_and_print_the_node(tmp_path: Path) ->
     # the Robot node DEF ME, three handles of it; a Field (no __eq__ of its own in Webots' class) is equal to itself
     # only, and each getField call gives a new one
     expected = "True False 1 False\n<Node Robot 'ME'> <Node Robot 'ME'>\nFalse\n"
-    assert runs["threads"] == (expected, "", 0)
-    assert runs["process"] == runs["threads"]
+    assert_threads_print(runs, expected)
 
 
 LIDAR_WORLD = """#VRML_SIM R2023b utf8
@@ -131,8 +128,7 @@ def test_value_objects_compare_and_print_as_the_api_classes(tmp_path: Path) -> N
     # every one of the 4 rays hits the wall 1 m ahead (fov 1 rad: rays within 0.5 rad of the axis), each at its
     # own point: the two reads of one step give 4 distinct points, equal ray by ray
     expected = "True False 4 False\nTrue\n"
-    assert runs["threads"] == (expected, "", 0)
-    assert runs["process"] == runs["threads"]
+    assert_threads_print(runs, expected)
 
 
 LED_WORLD = """#VRML_SIM R2023b utf8
@@ -163,8 +159,7 @@ def test_a_command_given_a_whole_number_beyond_a_c_int_raises_at_the_call(tmp_pa
     runs = run_in_both_modes(tmp_path, LED_WORLD, script, 0.1)
     # both beyond [-2**31, 2**31 - 1]; then 1, within the LED's one colour, is taken
     expected = "TypeError at the call\nTypeError at the call\nstep 0 0\nstep 0 1\n"
-    assert runs["threads"] == (expected, "", 0)
-    assert runs["process"] == runs["threads"]
+    assert_threads_print(runs, expected)
 
 
 def test_controller_stopped_is_a_system_exit_in_a_controller_process(tmp_path: Path) -> None:
@@ -181,8 +176,7 @@ def test_controller_stopped_is_a_system_exit_in_a_controller_process(tmp_path: P
     """
     runs = run_in_both_modes(tmp_path, WORLD, script, 0.1)
     expected = "True False\n"
-    assert runs["threads"] == (expected, "", 0)
-    assert runs["process"] == runs["threads"]
+    assert_threads_print(runs, expected)
 
 
 def test_an_error_escaping_the_script_prints_the_scripts_own_traceback(tmp_path: Path) -> None:
@@ -242,8 +236,7 @@ def test_api_classes_introspect_as_the_real_ones(tmp_path: Path) -> None:
     expected = ("dualtwin.webots.robot dualtwin.webots.joint_devices Robot.step Motor.setPosition\n"
                 "(self, time_step: 'Any' = None) -> 'int' (position: 'Any') -> 'None'\n"
                 "<dualtwin.webots.robot.Robot object at 0x?>\n")
-    assert runs["threads"] == (expected, "", 0)
-    assert runs["process"] == runs["threads"]
+    assert_threads_print(runs, expected)
 
 
 def test_an_argument_of_the_scripts_own_class_is_refused_by_the_api_not_the_channel(tmp_path: Path) -> None:
@@ -278,8 +271,7 @@ def test_an_argument_of_the_scripts_own_class_is_refused_by_the_api_not_the_chan
     refusal = "Motor.setPosition() expects a number (a Python or NumPy scalar or a one-element array), got "
     expected = (f"{refusal}Angle Angle(0.5)\n{refusal}generator <generator object <genexpr> at 0x?>\n"
                 "0 8 0.0\n")
-    assert runs["threads"] == (expected, "", 0)
-    assert runs["process"] == runs["threads"]
+    assert_threads_print(runs, expected)
 
 
 CAMERA_WORLD = """#VRML_SIM R2023b utf8
@@ -338,8 +330,7 @@ def test_value_objects_copy_pickle_and_go_back_to_the_api(tmp_path: Path) -> Non
     point = runs["threads"].out.splitlines()[-1][len(refusal):]
     assert point.startswith("LidarPoint LidarPoint(x=") and point.endswith(")"), point
     expected = f"True True True\nLidarPoint True\n{refusal}{point}\n"
-    assert runs["threads"] == (expected, "", 0)
-    assert runs["process"] == runs["threads"]
+    assert_threads_print(runs, expected)
 
 
 def test_an_error_crosses_with_its_arguments(tmp_path: Path) -> None:
@@ -357,8 +348,7 @@ def test_an_error_crosses_with_its_arguments(tmp_path: Path) -> None:
     runs = run_in_both_modes(tmp_path, WORLD, script, 0.1)
     # index y * width + x = 1 * "w" + "x" = "wx", not a key of the empty dict
     expected = "KeyError('wx') ('wx',) 'wx'\n"
-    assert runs["threads"] == (expected, "", 0)
-    assert runs["process"] == runs["threads"]
+    assert_threads_print(runs, expected)
 
 
 def test_a_scripts_own_warning_prints_as_python_prints_it(tmp_path: Path) -> None:
@@ -399,8 +389,7 @@ def test_a_numpy_object_that_does_not_pickle_is_refused_by_the_api(tmp_path: Pat
     runs = run_in_both_modes(tmp_path, WORLD, script, 0.1)
     refusal = "Motor.setPosition() expects a number (a Python or NumPy scalar or a one-element array), got "
     expected = f"{refusal}flatiter <numpy.flatiter object at 0x?>\n{refusal}str_ np.str_('a')\n"
-    assert runs["threads"] == (expected, "", 0)
-    assert runs["process"] == runs["threads"]
+    assert_threads_print(runs, expected)
 
 
 def test_a_step_given_an_object_of_the_scripts_class_is_refused_at_the_call(tmp_path: Path) -> None:
@@ -453,5 +442,4 @@ def test_a_container_holding_an_object_of_the_scripts_class_is_refused_by_the_ap
     refusal = "Motor.setPosition() expects a number (a Python or NumPy scalar or a one-element array), got "
     expected = (f"{refusal}set {{Angle(0.5)}}\n{refusal}deque deque([Angle(0.5)])\n"
                 f"{refusal}a NumPy array of shape (1,) and dtype object\n0\n")
-    assert runs["threads"] == (expected, "", 0)
-    assert runs["process"] == runs["threads"]
+    assert_threads_print(runs, expected)
