@@ -25,7 +25,8 @@ import yaml
 
 from dualtwin.artifacts import write_text
 from dualtwin.convert.conversion import Conversion
-from dualtwin.convert.webots_to_mjcf import convert_loaded, select_robot
+from dualtwin.convert.webots_to_mjcf import convert_loaded
+from dualtwin.convert.world_robots import select_robot
 from dualtwin.errors import DualtwinError
 from dualtwin.robots.binding import RobotBinding, load_binding
 from dualtwin.webots import schema

@@ -11,7 +11,8 @@ Bodies and masses
     ``compiler inertiafromgeom="false"`` so no geom adds mass. boundingObject geometry becomes collision
     geoms (group 3, ``mass=0``); Shapes become visual geoms (group 2, ``contype=conaffinity=0``, ``density=0``).
     IndexedFaceSet, Mesh (its file's triangles) and CadShape become MuJoCo meshes (:mod:`dualtwin.convert.surfaces`).
-    A root Robot with Physics gets a freejoint, without Physics it is welded to the world (fixed base).
+    A root Robot with Physics gets a freejoint, without Physics it is welded to the world (fixed base). The
+    robot may sit in Group/Pose/Transform nodes (:mod:`dualtwin.convert.world_robots`).
 
 Joints
     HingeJoint -> hinge, SliderJoint -> slide, BallJoint -> ball, Hinge2Joint -> two hinges in the child
@@ -57,7 +58,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from dualtwin.convert import sensor_models
+from dualtwin.convert import sensor_models, world_robots
 from dualtwin.convert.ball_joint import ball_joint_notes
 from dualtwin.convert.bindings import key
 from dualtwin.convert.checks import Finding, lint_spec, lint_world_rotations
@@ -87,7 +88,8 @@ from dualtwin.convert.scales import transform_scale
 from dualtwin.convert.sensor_models import TABLED, RayTargets, add_sensor_model, distance_notes
 from dualtwin.convert.surfaces import add_surface_mesh
 from dualtwin.convert.touch_sites import touch_site_notes
-from dualtwin.geometry import axis_angle_matrix, mujoco_quat
+from dualtwin.convert.world_robots import pose_matrix
+from dualtwin.geometry import mujoco_quat
 from dualtwin.webots import schema
 from dualtwin.webots.nodes import Node, World
 from dualtwin.webots.protos import load_world, load_world_text
@@ -126,13 +128,6 @@ def _quat(R: FloatArray) -> list[float]:
     return [float(v) for v in mujoco_quat(R)]
 
 
-def _pose(node: Node, scale: float | FloatArray = 1.0) -> FloatArray:
-    T = np.eye(4)
-    T[:3, :3] = axis_angle_matrix(node.get("rotation", (0.0, 0.0, 1.0, 0.0)))
-    T[:3, 3] = np.asarray(node.get("translation", (0.0, 0.0, 0.0)), dtype=float) * scale
-    return T
-
-
 def _inv(T: FloatArray) -> FloatArray:
     out = np.eye(4)
     out[:3, :3], out[:3, 3] = T[:3, :3].T, -T[:3, :3].T @ T[:3, 3]
@@ -168,6 +163,7 @@ class _Converter:
         self.body_solids: list[tuple[str, Node]] = []  # (body, the Solid it was built from): initial velocities
         self.in_robot = False
         self.self_collision = False
+        self.robot_node: Node | None = None
         self.missing_defs: list[str] = []
         self.stops: list[Stop] = []
 
@@ -400,7 +396,7 @@ class _Converter:
                               material=material)
             elif kind in ("Pose", "Transform"):
                 s = scale * transform_scale(child) if kind == "Transform" else scale
-                self.children(child.children(), T @ _pose(child, scale), s, body, label, masses, dynamic=dynamic,
+                self.children(child.children(), T @ pose_matrix(child, scale), s, body, label, masses, dynamic=dynamic,
                               static=static, material=material)
             elif kind in schema.JOINT_TYPES:
                 self.joint(child, T, round_scale(scale), body, dynamic=dynamic, static=static)
@@ -414,7 +410,7 @@ class _Converter:
                     self.warn("nested Robot converted as a Solid", child)
                 sub_label = self.solid_name(child) if child.type_name in ("Solid", "Robot") else str(
                     child.get("name") or kind.lower())
-                frame_T = T @ _pose(child, scale)
+                frame_T = T @ pose_matrix(child, scale)
                 # Merged Solids keep their frame as a site so their name survives the merge.
                 if kind in ("Solid", "Robot"):
                     site = body.add_site(name=self.unique("site", sub_label),
@@ -490,7 +486,7 @@ class _Converter:
                 self.missing_defs.append(f"{kind} at {_where(jnode)}")
             if not end.def_name:
                 self.missing_defs.append(f"endPoint {end.type_name} {end.get('name')!r} at {_where(end)}")
-        child_T = T @ _pose(end, scale)
+        child_T = T @ pose_matrix(end, scale)
         to_child = _inv(child_T)
 
         def in_child(axis: Sequence[float]) -> list[float]:
@@ -641,13 +637,12 @@ class _Converter:
         for top in self.world.nodes:
             self.findings += lint_world_rotations(top)
         # Static environment first, so the floor comes first in the file.
+        self.robot_node = robot_node
         for top in self.world.nodes:
-            if top is robot_node:
-                continue
             self.environment(top, np.eye(4), 1.0)
         self.in_robot = True
         self.self_collision = bool(robot_node.get("selfCollision", False))
-        T = _pose(robot_node)
+        T, scale = world_robots.robot_frame(self.world, robot_node)
         free = robot_node.get("physics") is not None
         root_name = ""
 
@@ -657,9 +652,9 @@ class _Converter:
             body.add_freejoint(name=self.unique("joint", f"{body_name}_free"))
 
         if free:
-            _, root_name = self.build_body(self.spec.worldbody, robot_node, T, 1.0, static=False, add_joint=add_free)
+            _, root_name = self.build_body(self.spec.worldbody, robot_node, T, scale, static=False, add_joint=add_free)
         else:
-            _, root_name = self.build_body(self.spec.worldbody, robot_node, T, 1.0, static=False)
+            _, root_name = self.build_body(self.spec.worldbody, robot_node, T, scale, static=False)
             self.warn("robot has no Physics: converted with a fixed base (welded to the world)", robot_node)
         self.in_robot = False
         if self.missing_defs:
@@ -696,11 +691,12 @@ class _Converter:
         if kind in IGNORED or kind in ("DirectionalLight",):
             return
         if kind == "Robot":
-            self.warn(f"robot {node.get('name')!r} is not the converted robot: skipped", node)
+            if node is not self.robot_node:
+                self.warn(f"robot {node.get('name')!r} is not the converted robot: skipped", node)
             return
         if kind in ("Pose", "Transform", "Group"):
             s = scale * transform_scale(node) if kind == "Transform" else scale
-            inner = T if kind == "Group" else T @ _pose(node, scale)
+            inner = T if kind == "Group" else T @ pose_matrix(node, scale)
             for child in node.children():
                 self.environment(child, inner, s)
             return
@@ -711,7 +707,7 @@ class _Converter:
                               collision=False, shape=node, material="default", static=True)
             return
         if schema.is_solid_type(kind):
-            frame = T @ _pose(node, scale)
+            frame = T @ pose_matrix(node, scale)
             if node.get("physics") is not None:
                 # A loose physical object: a free body, like in Webots.
                 def add_free(body: Any, body_name: str) -> None:
@@ -733,39 +729,10 @@ class _Converter:
 # public API
 
 
-def find_robots(world: World) -> list[Node]:
-    """Top-level Robot nodes (PROTO instances included, they are expanded to Robot)."""
-    return [n for n in world.nodes if n.type_name == "Robot"]
-
-
-def select_robot(world: World, robot: str | None, origin: str) -> tuple[Node, str]:
-    """The Robot node chosen by DEF or ``name`` (or the only one), and the label the binding uses for it."""
-    robots = find_robots(world)
-    if not robots:
-        raise ConversionError(f"{origin}: world has no robot (no top-level Robot node)")
-
-    def label(node: Node) -> str:
-        return node.def_name or str(node.get("name"))
-
-    if robot is None:
-        if len(robots) > 1:
-            names = ", ".join(label(r) for r in robots)
-            raise ConversionError(f"{origin}: world has {len(robots)} robots ({names}); choose one with --robot")
-        return robots[0], label(robots[0])
-    for node in robots:
-        if node.def_name == robot or node.proto_name == robot:
-            return node, label(node)
-    for node in robots:
-        if str(node.get("name")) == robot:
-            return node, label(node)
-    names = ", ".join(label(r) for r in robots)
-    raise ConversionError(f"{origin}: no robot with DEF or name {robot!r} (robots: {names})")
-
-
 def convert_loaded(world: World, robot: str | None = None, *, world_path: str | None = None) -> Conversion:
     """Convert an already loaded world (see :func:`convert_world`)."""
     path = world_path or world.path
-    node, label = select_robot(world, robot, path)
+    node, label = world_robots.select_robot(world, robot, path)
     return _Converter(world, path).convert(node, label)
 
 

@@ -1,0 +1,93 @@
+"""A world's robots as the converter sees them: where each one is and which one is converted.
+
+Webots accepts a Robot inside top-level grouping nodes (Group, Pose, Transform, nested in each other), and so does
+the Webots twin (it finds every Robot in the scene tree). Such a robot's world pose is the product of its ancestors'
+frames (on-ODE §3.1: "World pose = product of ancestor matrices"), a Transform's uniform ``scale`` scaling what lies
+below it, as the converter scales the environment's Solids below a Transform. Before, only top-level Robots were
+found: a world whose robot sat in a Group had "no robot".
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+
+from dualtwin.convert.conversion import ConversionError
+from dualtwin.convert.mass import FloatArray
+from dualtwin.convert.scales import transform_scale
+from dualtwin.geometry import axis_angle_matrix
+from dualtwin.webots.nodes import Node, World
+
+__all__ = ["GROUPING", "find_robots", "pose_matrix", "robot_frame", "robot_label", "select_robot"]
+
+#: The nodes that group others without being a body: a Robot below them is still a robot of the world.
+GROUPING = ("Group", "Pose", "Transform")
+
+
+def pose_matrix(node: Node, scale: float | FloatArray = 1.0) -> FloatArray:
+    """The 4x4 frame of a Pose-derived node in its parent, its translation scaled by the ancestors' ``scale``."""
+    T = np.eye(4)
+    T[:3, :3] = axis_angle_matrix(node.get("rotation", (0.0, 0.0, 1.0, 0.0)))
+    T[:3, 3] = np.asarray(node.get("translation", (0.0, 0.0, 0.0)), dtype=float) * scale
+    return T
+
+
+def _placed_robots(nodes: list[Node], ancestors: tuple[Node, ...] = ()) -> Iterator[tuple[Node, tuple[Node, ...]]]:
+    """Each Robot at the top or below grouping nodes only, in file order, with its grouping ancestors."""
+    for node in nodes:
+        if node.type_name == "Robot":
+            yield node, ancestors
+        elif node.type_name in GROUPING:
+            yield from _placed_robots(node.children(), (*ancestors, node))
+
+
+def find_robots(world: World) -> list[Node]:
+    """The world's Robot nodes (PROTO instances included, they are expanded to Robot), at the top or below Group, Pose
+    and Transform nodes. A Robot inside a Solid or another Robot is part of that body (converted as a Solid)."""
+    return [robot for robot, _ in _placed_robots(world.nodes)]
+
+
+def robot_frame(world: World, robot: Node) -> tuple[FloatArray, float | FloatArray]:
+    """``robot``'s frame in the world and the scale its ancestors' Transforms give it (1 for none).
+
+    Raises:
+        ConversionError: a non-uniform Transform scale above it (:func:`dualtwin.convert.scales.transform_scale`).
+    """
+    for node, ancestors in _placed_robots(world.nodes):
+        if node is robot:
+            T: FloatArray = np.eye(4)
+            scale: float | FloatArray = 1.0
+            for parent in ancestors:  # as the converter's environment walk composes them
+                if parent.type_name != "Group":
+                    T = T @ pose_matrix(parent, scale)
+                if parent.type_name == "Transform":
+                    scale = scale * transform_scale(parent)
+            return T @ pose_matrix(robot, scale), scale
+    return pose_matrix(robot), 1.0
+
+
+def robot_label(node: Node) -> str:
+    """How the binding and the messages name a robot: its DEF, else its ``name``."""
+    return node.def_name or str(node.get("name"))
+
+
+def select_robot(world: World, robot: str | None, origin: str) -> tuple[Node, str]:
+    """The Robot node chosen by DEF or ``name`` (or the only one), and the label the binding uses for it."""
+    robots = find_robots(world)
+    if not robots:
+        raise ConversionError(f"{origin}: world has no robot (no Robot node at the top or in a Group, Pose or "
+                              "Transform)")
+    if robot is None:
+        if len(robots) > 1:
+            names = ", ".join(robot_label(r) for r in robots)
+            raise ConversionError(f"{origin}: world has {len(robots)} robots ({names}); choose one with --robot")
+        return robots[0], robot_label(robots[0])
+    for node in robots:
+        if node.def_name == robot or node.proto_name == robot:
+            return node, robot_label(node)
+    for node in robots:
+        if str(node.get("name")) == robot:
+            return node, robot_label(node)
+    names = ", ".join(robot_label(r) for r in robots)
+    raise ConversionError(f"{origin}: no robot with DEF or name {robot!r} (robots: {names})")
