@@ -53,10 +53,14 @@ def test_bundled_cartpole_converts_with_the_same_names(tmp_path: Path) -> None:
     assert twin.joint_velocity("wheel1_hinge") == pytest.approx(1.0, abs=0.05)
 
 
-@pytest.mark.parametrize(("robot", "bodies"), [("FOUR_WHEELS", 6), ("ACKERMAN", 8), ("OMNI_WHEELS", 6)])
-def test_four_wheels_robots_convert(webots_fixtures: Path, robot: str, bodies: int) -> None:
+@pytest.mark.parametrize(("robot", "motors"), [("FOUR_WHEELS", 4), ("ACKERMAN", 6), ("OMNI_WHEELS", 4)])
+def test_four_wheels_robots_convert(webots_fixtures: Path, robot: str, motors: int) -> None:
     conv = convert_world(webots_fixtures / "four_wheels.wbt", robot)
-    _check(conv, bodies)
+    # Every conversion holds the three robots (dualtwin.convert.world_robots): the world body, FOUR_WHEELS' and
+    # OMNI_WHEELS' chassis and four wheels, ACKERMAN's chassis, two steering knuckles and four wheels: 1 + 5 + 5 + 7.
+    _check(conv, 18)
+    assert len(conv.motors) == motors  # its own only (ACKERMAN's four wheels and two steering motors); 14 in the model
+    assert conv.compile().nu == 14
     assert conv.compile().body(robot).mass[0] == pytest.approx({"FOUR_WHEELS": 8.0, "ACKERMAN": 8.0, "OMNI_WHEELS": 9.0}[robot])
 
 

@@ -22,11 +22,13 @@ def world_text(scene: str, info: str = "") -> str:
 
 
 @contextlib.contextmanager
-def converted_twins(text: str, folder: Path, period: float) -> Iterator[tuple[Conversion, Twin, Twin]]:
-    """(conversion, Webots twin, MuJoCo twin) of the world ``text``, stepped every ``period`` seconds."""
+def converted_twins(text: str, folder: Path, period: float,
+                    robot: str | None = None) -> Iterator[tuple[Conversion, Twin, Twin]]:
+    """(conversion, Webots twin, MuJoCo twin) of the world ``text`` (its robot ``robot``: DEF or name, may be left out
+    when it has one), stepped every ``period`` seconds."""
     world = folder / "world.wbt"
     world.write_text(text, encoding="utf-8")
-    conv = convert_world(world)
+    conv = convert_world(world, robot)
     conv.write(folder / "model.xml", folder / "binding.yaml")
     binding = load_binding(folder / "binding.yaml")
     with warnings.catch_warnings():

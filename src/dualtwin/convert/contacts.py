@@ -46,6 +46,9 @@ class ContactGeom:
     body: str
     material: str
     robot: bool
+    #: Geoms sharing a non-empty group never touch (one robot without selfCollision that is not the converted one:
+    #: dualtwin.convert.world_robots); no explicit pair may bring them together.
+    group: str = ""
 
 
 #: A limited joint waiting for its stop softness: (MjSpec joint, ERP, CFM).
@@ -128,9 +131,9 @@ def apply_contacts(spec: mujoco.MjSpec, geoms: Sequence[ContactGeom], world_info
     for i, a in enumerate(env_geoms):
         for b in env_geoms[i + 1:]:
             masses = [float(spec.body(x).mass) for x in (a.body, b.body) if x != WORLD]
-            if (not masses or a.body == b.body or _joined(spec, a.body, b.body)
+            if (not masses or a.body == b.body or _joined(spec, a.body, b.body) or (a.group and a.group == b.group)
                     or frozenset((a.body, b.body)) in separated):
-                continue  # static against static, one body, or a joint between them: they never touch
+                continue  # static against static, one body, a joint between them or one robot: they never touch
             _if_mixing_differs(spec, loose_pairs, a.name, b.name, contact_pair(
                 contact_properties(world_info, a.material, b.material), contact_effective_mass(min(masses), 1), step,
                 mujoco_step_s))

@@ -12,7 +12,8 @@ Bodies and masses
     geoms (group 3, ``mass=0``); Shapes become visual geoms (group 2, ``contype=conaffinity=0``, ``density=0``).
     IndexedFaceSet, Mesh (its file's triangles) and CadShape become MuJoCo meshes (:mod:`dualtwin.convert.surfaces`).
     A root Robot with Physics gets a freejoint, without Physics it is welded to the world (fixed base). The
-    robot may sit in Group/Pose/Transform nodes (:mod:`dualtwin.convert.world_robots`).
+    robot may sit in Group/Pose/Transform nodes; the world's other robots become bodies, joints and motors outside
+    the conversion's lists (:mod:`dualtwin.convert.world_robots`).
 
 Joints
     HingeJoint -> hinge, SliderJoint -> slide, BallJoint -> ball, Hinge2Joint -> two hinges in the child
@@ -164,6 +165,8 @@ class _Converter:
         self.in_robot = False
         self.self_collision = False
         self.robot_node: Node | None = None
+        self.others: list[tuple[Node, FloatArray, float | FloatArray]] = []  # the other robots, in file order
+        self.other: world_robots.OtherRobot | None = None  # the other robot being written
         self.missing_defs: list[str] = []
         self.stops: list[Stop] = []
 
@@ -260,14 +263,16 @@ class _Converter:
             raise self.unsupported(geometry, "as a geometry")
         geom = body.add_geom(name=name, **kwargs)
         if collision:
-            robot = self.in_robot
+            robot, other = self.in_robot, self.other
             geom.contype = ROBOT_CONTYPE if robot and not self.self_collision else (3 if robot else ENV_CONTYPE)
             geom.conaffinity = ROBOT_CONAFFINITY if robot and not self.self_collision else (3 if robot else ENV_CONAFFINITY)
+            if other is not None:  # dualtwin.convert.world_robots
+                geom.contype, geom.conaffinity = other.contype, other.conaffinity
             geom.group = COLLISION_GROUP
             geom.mass = 0.0
             geom.density = 0.0
             geom.rgba = [0.5, 0.5, 0.5, 0.3]
-            self.geoms.append(ContactGeom(name, str(body.name), material, robot))
+            self.geoms.append(ContactGeom(name, str(body.name), material, robot, other.group if other else ""))
         else:
             geom.contype = 0
             geom.conaffinity = 0
@@ -330,7 +335,7 @@ class _Converter:
 
     def device(self, solid: Node, T: FloatArray, body: Any, label: str, scale: float = 1.0) -> None:
         kind = solid.type_name
-        if kind in ("Solid", "Robot"):
+        if kind in ("Solid", "Robot") or self.other is not None:  # no controller reads another robot's devices
             return
         device_name = str(solid.get("name") or kind.lower())
         if kind == "Camera":
@@ -572,7 +577,7 @@ class _Converter:
                 if limit == 0.0:
                     self.warn(f"motor {name!r} {IDLE_MOTOR_NOTE}", d)
                     continue
-                act_name = self.unique("actuator", name)
+                act_name = self.unique("actuator", f"{self.other.label}/{name}" if self.other else name)
                 act = self.spec.add_actuator(name=act_name, target=info.name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
                 act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
                 act.forcerange = [-limit, limit]
@@ -584,7 +589,7 @@ class _Converter:
                 info.motors.append(act_name)
                 self.motors.append(MotorInfo(act_name, info.name, kind == "LinearMotor", limit,
                                              float(d.get("maxVelocity", 10.0))))
-            elif kind == "PositionSensor":
+            elif kind == "PositionSensor" and self.other is None:
                 sensor_name = self.unique("sensor", name)
                 sensor = self.spec.add_sensor(name=sensor_name, type=mujoco.mjtSensor.mjSENS_JOINTPOS,
                                               objtype=mujoco.mjtObj.mjOBJ_JOINT, objname=info.name)
@@ -593,7 +598,7 @@ class _Converter:
                 self.sensors[sensor_name] = kind
             elif kind == "Brake":
                 self.warn(f"Brake {name!r} is not converted", d)
-            else:
+            elif kind != "PositionSensor":
                 raise self.unsupported(d, "as a joint device")
 
     def hinge2(self, jnode: Node, end: Node, child_T: FloatArray, T: FloatArray, scale: float, parent: Any,
@@ -636,27 +641,18 @@ class _Converter:
         self.setup()
         for top in self.world.nodes:
             self.findings += lint_world_rotations(top)
-        # Static environment first, so the floor comes first in the file.
+        # Static environment first, so the floor comes first in the file; the other robots last, so that the
+        # converted robot's names are its own (dualtwin.convert.world_robots).
         self.robot_node = robot_node
         for top in self.world.nodes:
             self.environment(top, np.eye(4), 1.0)
         self.in_robot = True
         self.self_collision = bool(robot_node.get("selfCollision", False))
-        T, scale = world_robots.robot_frame(self.world, robot_node)
-        free = robot_node.get("physics") is not None
-        root_name = ""
-
-        def add_free(body: Any, body_name: str) -> None:
-            nonlocal root_name
-            root_name = body_name
-            body.add_freejoint(name=self.unique("joint", f"{body_name}_free"))
-
-        if free:
-            _, root_name = self.build_body(self.spec.worldbody, robot_node, T, scale, static=False, add_joint=add_free)
-        else:
-            _, root_name = self.build_body(self.spec.worldbody, robot_node, T, scale, static=False)
+        free, root_name = self.robot_body(robot_node, *world_robots.robot_frame(self.world, robot_node))
+        if not free:
             self.warn("robot has no Physics: converted with a fixed base (welded to the world)", robot_node)
         self.in_robot = False
+        self.other_robots(robot_label)
         if self.missing_defs:
             # The Webots twin addresses joints and bodies by DEF; generated names exist in MuJoCo only.
             self.warn(f"{len(self.missing_defs)} joint(s)/endPoint(s) have no DEF (first: {self.missing_defs[0]}); "
@@ -686,13 +682,41 @@ class _Converter:
             description=f"{robot_node.get('name')} converted from {os.path.basename(self.world_path)}"
                         + (f" ({title})" if title else ""))
 
+    def robot_body(self, node: Node, T: FloatArray, scale: float | FloatArray) -> tuple[bool, str]:
+        """A robot's root body at T: free with Physics, welded to the world without (whether free, its name)."""
+        if node.get("physics") is None:
+            return False, self.build_body(self.spec.worldbody, node, T, scale, static=False)[1]
+
+        def add_free(body: Any, body_name: str) -> None:
+            body.add_freejoint(name=self.unique("joint", f"{body_name}_free"))
+
+        return True, self.build_body(self.spec.worldbody, node, T, scale, static=False, add_joint=add_free)[1]
+
+    def other_robots(self, chosen: str) -> None:
+        """The robots not converted, as bodies, joints and motors outside the conversion's own lists."""
+        mine = self.joints, self.motors, self.sensors
+        for index, (node, T, scale) in enumerate(self.others):
+            blocker = next((n for n in node.walk() if n.type_name in UNSUPPORTED - {"Cone"}), None)
+            if blocker is not None:  # the user's robot converts; this one's absence is said
+                self.warn(f"robot {node.def_name or node.get('name')!r} is not the converted robot and holds a "
+                          f"{blocker.type_name} ({_where(blocker)}), which the converter cannot map to MuJoCo: "
+                          "skipped (the converted model lacks its bodies)", node)
+                continue
+            self.other = other = world_robots.OtherRobot.place(node, T, scale, index, len(self.others))
+            self.joints, self.motors, self.sensors = [], [], {}
+            self.robot_body(node, other.frame, other.scale)
+            for note in world_robots.other_robot_notes(other, chosen):
+                self.warn(note, node)
+        self.joints, self.motors, self.sensors = mine
+        self.other = None
+
     def environment(self, node: Node, T: FloatArray, scale: float | FloatArray) -> None:
         kind = node.type_name
         if kind in IGNORED or kind in ("DirectionalLight",):
             return
         if kind == "Robot":
             if node is not self.robot_node:
-                self.warn(f"robot {node.get('name')!r} is not the converted robot: skipped", node)
+                self.others.append((node, T @ pose_matrix(node, scale), scale))
             return
         if kind in ("Pose", "Transform", "Group"):
             s = scale * transform_scale(node) if kind == "Transform" else scale

@@ -1,15 +1,30 @@
-"""A world's robots as the converter sees them: where each one is and which one is converted.
+"""A world's robots as the converter sees them: where each one is, which one is converted, and what becomes of the
+others.
 
-Webots accepts a Robot inside top-level grouping nodes (Group, Pose, Transform, nested in each other), and so does
-the Webots twin (it finds every Robot in the scene tree). Such a robot's world pose is the product of its ancestors'
-frames (on-ODE §3.1: "World pose = product of ancestor matrices"), a Transform's uniform ``scale`` scaling what lies
-below it, as the converter scales the environment's Solids below a Transform. Before, only top-level Robots were
-found: a world whose robot sat in a Group had "no robot".
+Where: Webots accepts a Robot inside top-level grouping nodes (Group, Pose, Transform, nested in each other), and so
+does the Webots twin (it finds every Robot in the scene tree). Such a robot's world pose is the product of its
+ancestors' frames (on-ODE §3.1: "World pose = product of ancestor matrices"), a Transform's uniform ``scale``
+scaling what lies below it, as the converter scales the environment's Solids below a Transform. Before, only
+top-level Robots were found: a world whose robot sat in a Group had "no robot".
+
+The others: every Robot but the converted one is a Solid tree with its own controller. The Webots twin drives the
+chosen robot only; the others' controllers do not run there, so their motors keep Webots' initial state, a position
+servo holding the joint's initial position (on-ODE §5.1), and their bodies collide with everything else. They used
+to be skipped, collision geometry included, so the converted model lacked obstacles the Webots twin has. Now each
+becomes bodies as the chosen robot's do (a free root with Physics, a root welded to the world without; joints as
+joints), and its motors MuJoCo actuators under the same Webots motor law (:mod:`dualtwin.twins.mujoco`), which hold
+their initial position while nothing commands them. Their names start with the robot's label and ``/`` and they are
+left out of the conversion's joints, motors and sensors, so the binding exposes the chosen robot's devices only.
+Their sensors and other devices (cameras, lights, emitters...) are not converted: no controller reads them.
+
+Contacts follow on-ODE §2.3 rule 4: the parts of one robot touch each other only with ``selfCollision``. Each other
+robot gets a collision bit of its own that its geoms' ``conaffinity`` leaves out unless it has ``selfCollision``.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterator
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -19,10 +34,15 @@ from dualtwin.convert.scales import transform_scale
 from dualtwin.geometry import axis_angle_matrix
 from dualtwin.webots.nodes import Node, World
 
-__all__ = ["GROUPING", "find_robots", "pose_matrix", "robot_frame", "robot_label", "select_robot"]
+__all__ = ["GROUPING", "OTHER_ROBOT_BITS", "OtherRobot", "find_robots", "other_robot_notes", "pose_matrix",
+           "robot_frame", "robot_label", "select_robot"]
 
 #: The nodes that group others without being a body: a Robot below them is still a robot of the world.
 GROUPING = ("Group", "Pose", "Transform")
+#: Collision bits: the environment's is 1, the converted robot's 2; each other robot one of the next ones, up to
+#: MuJoCo's 32-bit ``contype`` less its sign bit.
+_FIRST_OTHER_BIT = 2
+OTHER_ROBOT_BITS = 31 - _FIRST_OTHER_BIT
 
 
 def pose_matrix(node: Node, scale: float | FloatArray = 1.0) -> FloatArray:
@@ -91,3 +111,40 @@ def select_robot(world: World, robot: str | None, origin: str) -> tuple[Node, st
             return node, robot_label(node)
     names = ", ".join(robot_label(r) for r in robots)
     raise ConversionError(f"{origin}: no robot with DEF or name {robot!r} (robots: {names})")
+
+
+@dataclass(frozen=True)
+class OtherRobot:
+    """A robot of the world that is not the converted one, as the converter writes it."""
+
+    node: Node
+    frame: FloatArray  # in the world
+    scale: float | FloatArray
+    label: str
+    contype: int
+    conaffinity: int
+    #: The name its geoms share so that contact pairs are never written between them ("" with selfCollision).
+    group: str
+
+    @staticmethod
+    def place(node: Node, frame: FloatArray, scale: float | FloatArray, index: int, count: int) -> OtherRobot:
+        """The ``index``-th of ``count`` other robots: its own collision bit (the last one shared by those past
+        :data:`OTHER_ROBOT_BITS`, whose parts then touch each other)."""
+        label = robot_label(node) or f"robot{index + 1}"
+        bit = 1 << (_FIRST_OTHER_BIT + min(index, OTHER_ROBOT_BITS - 1))
+        every = 3 | sum(1 << (_FIRST_OTHER_BIT + k) for k in range(min(count, OTHER_ROBOT_BITS)))
+        shared = count > OTHER_ROBOT_BITS and index >= OTHER_ROBOT_BITS - 1
+        apart = not bool(node.get("selfCollision", False)) and not shared
+        return OtherRobot(node, frame, scale, label, bit, every & ~bit if apart else every, label if apart else "")
+
+
+def other_robot_notes(other: OtherRobot, chosen: str) -> list[str]:
+    """What the conversion of a robot that is not the converted one leaves out (the module docstring)."""
+    notes = [f"robot {other.label!r} is not the converted robot: its bodies, joints and motors are converted (named "
+             f"'{other.label}/<motor>'; its motors hold their initial positions, as Webots' do while no controller "
+             "moves them: on-ODE §5.1), not its controller, sensors or other devices; the binding exposes robot "
+             f"{chosen!r} only"]
+    if not other.group and not other.node.get("selfCollision", False):
+        notes.append(f"robot {other.label!r}: more robots than MuJoCo's {OTHER_ROBOT_BITS + 2} collision bits; its "
+                     "parts touch each other as with selfCollision")
+    return notes
