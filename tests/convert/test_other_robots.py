@@ -14,6 +14,8 @@ x = 0.4, above the arm:
   quarter period of a 90 deg swing 1.18 * pi/2 * sqrt(0.4 / 9.81) = 0.37 s): at 0.4 s it is past the vertical
   (> pi/2: a turn about +y takes +x toward -z), through the floor, which a body jointed to the static environment
   never touches (on-ODE §2.3 rule 6).
+The twins' states hold the converted robot's joints only (the Webots twin's state is its robot's joints and the
+world's top-level DEF bodies).
 """
 
 from __future__ import annotations
@@ -100,14 +102,15 @@ def test_an_other_robot_the_converter_cannot_map_is_skipped_with_a_warning() -> 
 
 
 def test_no_contact_pair_brings_two_parts_of_one_robot_together() -> None:
-    # OTHER's two arms (materials a and b, whose ContactProperties differ from MuJoCo's mixing of their geoms) never
-    # touch in Webots (no selfCollision): no explicit <pair> may join them (MuJoCo's mixing gives them the larger friction,
-    # 1.3, for 0.2). ARM0 meets the floor (default) by one (MuJoCo's mixing: 1, the floor's, for 0.7); OTHER has
-    # Physics, so its arms are not jointed to the static environment, which they would then never touch.
+    # OTHER's two arms (materials a and b, whose ContactProperties differ from MuJoCo's mixing of their geoms)
+    # never touch in Webots (no selfCollision): no explicit <pair> may join them (MuJoCo's mixing gives them the
+    # larger friction, 1.3, for 0.2). ARM0 meets the floor (default) by one (MuJoCo's mixing: 1, the floor's, for
+    # 0.7); OTHER has Physics, so its arms are not jointed to the static environment, which they would never touch.
     arms = "".join(f"HingeJoint {{ endPoint DEF ARM{i} Solid {{ translation {x} 0 0 contactMaterial \"{m}\" "
                    "boundingObject Box { size 0.1 0.1 0.1 } physics Physics { } } } "
                    for i, (x, m) in enumerate(((0.2, "a"), (-0.2, "b"))))
-    text = world_text(FLOOR + f"DEF OTHER Robot {{ translation 0 0 1 children [ {arms} ] physics Physics {{ density -1 mass 1 }} }}\n" + CUBE,
+    other = f"DEF OTHER Robot {{ translation 0 0 1 children [ {arms} ] physics Physics {{ density -1 mass 1 }} }}\n"
+    text = world_text(FLOOR + other + CUBE,
                       "contactProperties [ ContactProperties { material1 \"a\" material2 \"b\" coulombFriction 0.2 }"
                       " ContactProperties { material1 \"default\" material2 \"a\" coulombFriction 0.7 }"
                       " ContactProperties { material1 \"default\" material2 \"b\" coulombFriction 1.3 } ]")
@@ -131,6 +134,20 @@ def test_both_twins_rest_the_dropped_robot_on_the_other_robots_held_arm(tmp_path
         for twin in (webots, mujoco_twin):
             assert twin.body_position("R")[2] == pytest.approx(0.625, abs=3e-3), twin.name
             assert twin.joint_position("H") == pytest.approx(0.0, abs=2e-3), twin.name  # the motor holds it
+
+
+@pytest.mark.parametrize("physics", ["", "physics Physics { density -1 mass 1 }"])
+def test_both_twins_state_holds_the_converted_robots_joints_only(tmp_path: Path, physics: str) -> None:
+    # The Webots twin's state is its robot's joints and the world's top-level DEF bodies (OTHER with Physics): the
+    # MuJoCo twin's leaves OTHER's joint H and its motor's hold out too, so a state passes between the twins.
+    text = _arm_world(HELD).replace("size 0.1 0.1 0.1 } }", f"size 0.1 0.1 0.1 }} {physics} }}")
+    with converted_twins(text, tmp_path, 0.02, robot="R") as (_, webots, mujoco_twin):
+        states = webots.get_state(), mujoco_twin.get_state()
+        bodies = {"R", "OTHER"} if physics else {"R"}
+        for state in states:
+            assert set(state.bodies) == bodies and not state.joint_positions and not state.holds
+        webots.set_state(states[1])
+        mujoco_twin.set_state(states[0])
 
 
 def test_both_twins_swing_the_other_robots_arm_without_a_motor(tmp_path: Path) -> None:

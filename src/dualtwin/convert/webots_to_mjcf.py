@@ -91,6 +91,7 @@ from dualtwin.convert.surfaces import add_surface_mesh
 from dualtwin.convert.touch_sites import touch_site_notes
 from dualtwin.convert.world_robots import pose_matrix
 from dualtwin.geometry import mujoco_quat
+from dualtwin.twins.mujoco_state import ROBOT_TEXT
 from dualtwin.webots import schema
 from dualtwin.webots.nodes import Node, World
 from dualtwin.webots.protos import load_world, load_world_text
@@ -652,7 +653,7 @@ class _Converter:
         if not free:
             self.warn("robot has no Physics: converted with a fixed base (welded to the world)", robot_node)
         self.in_robot = False
-        self.other_robots(robot_label)
+        self.other_robots(robot_label, root_name)
         if self.missing_defs:
             # The Webots twin addresses joints and bodies by DEF; generated names exist in MuJoCo only.
             self.warn(f"{len(self.missing_defs)} joint(s)/endPoint(s) have no DEF (first: {self.missing_defs[0]}); "
@@ -692,8 +693,11 @@ class _Converter:
 
         return True, self.build_body(self.spec.worldbody, node, T, scale, static=False, add_joint=add_free)[1]
 
-    def other_robots(self, chosen: str) -> None:
-        """The robots not converted, as bodies, joints and motors outside the conversion's own lists."""
+    def other_robots(self, chosen: str, root: str) -> None:
+        """The robots not converted, as bodies, joints and motors outside the conversion's own lists; the MuJoCo
+        twin's state then holds the joints below the converted robot's ``root`` body only, as the Webots twin's."""
+        if self.others:
+            self.spec.add_text(name=ROBOT_TEXT, data=root)
         mine = self.joints, self.motors, self.sensors
         for index, (node, T, scale) in enumerate(self.others):
             blocker = next((n for n in node.walk() if n.type_name in UNSUPPORTED - {"Cone"}), None)

@@ -15,7 +15,10 @@ becomes bodies as the chosen robot's do (a free root with Physics, a root welded
 joints), and its motors MuJoCo actuators under the same Webots motor law (:mod:`dualtwin.twins.mujoco`), which hold
 their initial position while nothing commands them. Their names start with the robot's label and ``/`` and they are
 left out of the conversion's joints, motors and sensors, so the binding exposes the chosen robot's devices only.
-Their sensors and other devices (cameras, lights, emitters...) are not converted: no controller reads them.
+Their sensors and other devices (cameras, lights, emitters...) are not converted: no controller reads them. The
+model then names the converted robot's root body (:data:`dualtwin.twins.mujoco_state.ROBOT_TEXT`), so that the MuJoCo
+twin's state holds that robot's joints only, as the Webots twin's does (its robot's joints and the world's top-level
+DEF bodies): a state passes between the twins.
 
 Contacts follow on-ODE §2.3 rule 4: the parts of one robot touch each other only with ``selfCollision``. Each other
 robot gets a collision bit of its own that its geoms' ``conaffinity`` leaves out unless it has ``selfCollision``.

@@ -16,7 +16,8 @@ from dualtwin.twins.base import BALL_COMPONENTS, StateLayout
 
 
 class StatePlan:
-    """Where each state entry lives in qpos/qvel: free bodies, hinge/slide joints, then ball joints."""
+    """Where each state entry lives in qpos/qvel: free bodies, hinge/slide joints, then ball joints (those
+    below the :data:`ROBOT_TEXT` body when the model names one)."""
 
     def __init__(self, m: mujoco.MjModel, inverse: dict[str, str]) -> None:
         self.body_names: list[str] = []
@@ -24,6 +25,7 @@ class StatePlan:
         scalars: list[tuple[str, int, int]] = []
         balls: list[tuple[str, int, int]] = []
         kinds = mujoco.mjtJoint
+        robot = robot_body(m)
         for j in range(m.njnt):
             kind = int(m.jnt_type[j])
             qa, da = int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j])
@@ -34,7 +36,7 @@ class StatePlan:
                     self.bodies.append((qa, da))
                 continue
             name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j)
-            if name:
+            if name and (robot < 0 or _below(m, int(m.jnt_bodyid[j]), robot)):
                 (balls if kind == kinds.mjJNT_BALL else scalars).append((inverse.get(name, name), qa, da))
         self.scalar = len(scalars)
         self.joint_names = [n for n, _, _ in scalars] + [f"{n}/{c}" for n, _, _ in balls for c in BALL_COMPONENTS]
@@ -117,6 +119,29 @@ def scale_contact_depths(m: mujoco.MjModel, d: mujoco.MjData, ratio: float) -> N
 
 #: The keyframe a converted model starts from (Webots' initial velocities, dualtwin.convert.initial_state): the
 #: twin resets to it when the model has one.
+#: The custom text naming the converted robot's root body, written when its world has other robots
+#: (:mod:`dualtwin.convert.world_robots`): only the joints below that body are state, as the Webots twin's
+#: state holds its robot's joints only (the other robots' joints, and their motors' holds, stay out of it).
+ROBOT_TEXT = "webots_robot"
+
+
+def robot_body(m: mujoco.MjModel) -> int:
+    """The id of the body the model's :data:`ROBOT_TEXT` names; -1 without one (every named joint is state)."""
+    index = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TEXT, ROBOT_TEXT)
+    if index < 0:
+        return -1
+    adr, size = int(m.text_adr[index]), int(m.text_size[index])
+    name = bytes(m.text_data[adr:adr + size]).rstrip(b"\0").decode()
+    return int(mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, name))
+
+
+def _below(m: mujoco.MjModel, body: int, root: int) -> bool:
+    """Whether ``body`` is ``root`` or in its subtree."""
+    while body > 0 and body != root:
+        body = int(m.body_parentid[body])
+    return body == root
+
+
 INITIAL_KEYFRAME = "webots_initial"
 #: Per-sensor numerics a converted model carries (``webots_sensor.<sensor>`` = [resolution]).
 SENSOR_NUMERIC = "webots_sensor."
