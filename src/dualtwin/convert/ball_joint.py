@@ -9,6 +9,17 @@ position. MuJoCo's ball joint has one stiffness, damping and friction for every 
 cone on the rotation angle, so per-axis stops, devices, positions and dynamics have no counterpart there: each is
 reported. Before, stops were dropped without a word, and a BallJoint that Webots holds within its stops swung
 freely in MuJoCo.
+
+Why the stops stay unconverted: Webots' stops bound each Euler angle of the AMotor (a box in the three angles,
+each axis's stops from its own parameters node), MuJoCo's ball ``range`` only the total rotation angle from the
+reference pose (a ball around it, from zero). No cone reproduces a box: the inscribed one (the smallest stop)
+blocks the diagonal turns Webots allows about sqrt(3) times further (small angles), a circumscribed one lets the joint pass each
+stop, and an asymmetric stop (0 to 1 rad) or one stopped axis among free ones has no cone at all. The faithful
+form, three hinges in the child body along the Euler axes (MuJoCo composes a body's joints in order, as the
+AMotor's angles compose) with a range each, is another joint for the rest of the project: the twins' state holds
+a ball joint as one rotation vector (``/rx /ry /rz`` entries), which three hinges would not match, and a hinge
+chain locks at the middle angle's +-pi/2 where a ball joint does not. So the conversion keeps the ball joint and
+says its stops are missing.
 """
 
 from __future__ import annotations
