@@ -16,11 +16,9 @@ from dualtwin.webots.device_base import SolidSensor
 from dualtwin.webots.lut import discretize, lookup, table_from_field
 from dualtwin.webots.physics import Simulation
 from dualtwin.webots.step_hints import step_value
+from dualtwin.webots.world_frame import axes
 
 __all__ = ["Compass", "coordinate_system", "north"]
-
-_AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
-
 
 def coordinate_system(sim: Simulation) -> str:
     """``WorldInfo.coordinateSystem`` (``ENU``, ``NUE`` or ``EUN``; ENU when absent or unknown)."""
@@ -30,8 +28,8 @@ def coordinate_system(sim: Simulation) -> str:
 
 
 def north(sim: Simulation) -> m3.Vec3:
-    """The world's north direction for its ``coordinateSystem``."""
-    return _AXES["xyz"[coordinate_system(sim).index("N")]]
+    """The world's north direction for its ``coordinateSystem`` (the one the GPS's WGS84 latitude grows along)."""
+    return axes(coordinate_system(sim)).north
 
 
 class Compass(SolidSensor):

@@ -1,8 +1,10 @@
 """How a world is oriented (``WorldInfo.coordinateSystem``) and where it is on Earth (``gpsCoordinateSystem``,
 ``gpsReference``): what the InertialUnit and the GPS need to report in the world's conventions.
 
-``coordinateSystem`` names the world axes: ``"ENU"`` (x East, y North, z Up: Webots' default since R2022a),
-``"NUE"`` (x North, y Up, z East: worlds from before R2022a) or ``"EUN"`` (x East, y Up). The *reference
+``coordinateSystem`` names the world axes, a letter per axis: ``"ENU"`` (x East, y North, z Up: Webots' default
+since R2022a), ``"NUE"`` (x North, y Up, z East: worlds from before R2022a) or ``"EUN"`` (x East, y Up, z North:
+the letters, as the Compass reads them, so that a world has one north for its Compass and its GPS, even though
+East × Up is then +North, the mirror of the Earth's frame). The *reference
 frame* of an orientation sensor is the world's x axis as forward, its up axis as z and y completing a right-
 handed frame (ENU: the world frame itself; NUE/EUN: x, −z, y). The InertialUnit reads its own rotation in that
 frame, with its own axes read the same way, i.e. the world rotation conjugated by the reference frame: a
@@ -40,13 +42,12 @@ class Axes:
 
 
 def axes(coordinate_system: str) -> Axes:
-    """East/North/Up of ``"ENU"``, ``"NUE"`` or ``"EUN"`` (anything else reads as ENU, Webots' default)."""
+    """East/North/Up of ``"ENU"``, ``"NUE"`` or ``"EUN"``: the axis each letter stands at (anything else reads as
+    ENU, Webots' default)."""
     cs = coordinate_system.upper()
-    if cs == "NUE":
-        return Axes((0.0, 0.0, 1.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0))
-    if cs == "EUN":
-        return Axes((1.0, 0.0, 0.0), (0.0, 0.0, -1.0), (0.0, 1.0, 0.0))
-    return Axes((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    cs = cs if cs in ("ENU", "NUE", "EUN") else "ENU"
+    unit = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    return Axes(unit[cs.index("E")], unit[cs.index("N")], unit[cs.index("U")])
 
 
 def reference_frame(coordinate_system: str) -> m3.Mat3:

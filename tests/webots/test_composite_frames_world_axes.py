@@ -1,0 +1,46 @@
+"""Composite: devices that report a direction or a place on Earth, in a world whose ``coordinateSystem`` is not ENU.
+
+webots-on-ode.md §1.1: ``coordinateSystem`` names the world axes, "ENU" x=East, y=North, z=Up, and "NUE" and "EUN"
+are accepted as well: each letter names the axis at its place, so in "EUN" x is East, y is Up and z is North. One
+world has one north: the Compass's north and the GPS's WGS84 latitude must both take it from those letters.
+Before this test the GPS took an EUN world's north as -z (a right-handed East-North-Up read into a y-up world)
+while its Compass read +z as north: walking toward the Compass's north lowered the GPS latitude.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from tests.support.quiet_worlds import quiet_supervisor
+
+
+def _readings(system: str, translation: str) -> tuple[list[float], list[float]]:
+    """(GPS WGS84 reading, Compass reading) of a robot standing at ``translation`` (no physics: it stays)."""
+    sup = quiet_supervisor(f"""#VRML_SIM R2023b utf8
+WorldInfo {{ basicTimeStep 8 coordinateSystem "{system}" gpsCoordinateSystem "WGS84" gpsReference 46.5 6.6 400 }}
+Robot {{ supervisor TRUE translation {translation} children [ GPS {{ name "gps" }} Compass {{ name "compass" }} ] }}
+""")
+    gps, compass = sup.getDevice("gps"), sup.getDevice("compass")
+    gps.enable(8)
+    compass.enable(8)
+    sup.step(8)
+    return list(gps.getValues()), list(compass.getValues())
+
+
+def test_an_eun_world_has_one_north_for_its_gps_and_its_compass() -> None:
+    # The same place on Earth written in both systems: 30 m East, 20 m North, 5 m Up is (30, 20, 5) in ENU and
+    # (30, 5, 20) in EUN (x East, y Up, z North), so the two GPS read the same latitude, longitude and altitude.
+    enu, enu_north = _readings("ENU", "30 20 5")
+    eun, eun_north = _readings("EUN", "30 5 20")
+    assert eun == pytest.approx(enu, abs=1e-12)
+    assert enu_north == pytest.approx([0.0, 1.0, 0.0], abs=1e-12)
+    assert eun_north == pytest.approx([0.0, 0.0, 1.0], abs=1e-12)  # the Compass: north is +z
+
+
+def test_walking_toward_the_compass_north_raises_the_latitude_in_every_system() -> None:
+    for system, north_step in (("ENU", "0 10 0"), ("NUE", "10 0 0"), ("EUN", "0 0 10")):
+        origin, _ = _readings(system, "0 0 0")
+        moved, _ = _readings(system, north_step)
+        # 10 m north is about 10/111 km of latitude (9e-5°), and almost no change of longitude (grid convergence)
+        assert moved[0] - origin[0] == pytest.approx(10.0 / 111_180.0, rel=0.01), system
+        assert abs(moved[1] - origin[1]) < 1e-5, system
