@@ -35,6 +35,13 @@ with an infra-red sensor also gets each Shape's reflection factor, ``0.2 + 0.8·
 appearance (:func:`dualtwin.webots.visual_rays.infra_red_reflection`), as
 ``<numeric name="webots_reflection.<visual geom>" data="f">`` (:func:`add_reflections`).
 
+A GPS reads the world position of its origin plus ``WorldInfo.gpsReference`` (the world origin in the GPS
+coordinate system; Webots' WorldInfo page, :func:`dualtwin.webots.world_frame.gps_position`); MuJoCo's ``framepos``
+reads the site's world position. A converted GPS in a world with a reference is therefore measured from the
+world-fixed site :data:`GPS_REFERENCE_SITE` at -gpsReference, with the world's axes (``framepos`` relative to it:
+the position plus the reference, exactly). A ``gpsCoordinateSystem "WGS84"`` world's GPS reads latitude and
+longitude in Webots, which MuJoCo cannot: the converted GPS reads metres, and the conversion says so.
+
 A Compass reads the world's north (the axis ``WorldInfo.coordinateSystem`` names N: +y in ENU, +x in NUE, +z in
 EUN) as a unit vector in its frame (the Webots twin's ``webots.compass``); MuJoCo's ``magnetometer`` reads the
 model's magnetic field in its site frame, by default (0, -0.5, 0), which read -0.5 times Webots' vector in ENU. A
@@ -54,13 +61,15 @@ from dualtwin.twins.sensor_tables import LUT_NUMERIC
 from dualtwin.webots.lut import table_from_field
 from dualtwin.webots.visual_rays import infra_red_reflection
 
-__all__ = ["QUANTISED", "TABLED", "RayTargets", "add_distance_rays", "add_lookup_table", "add_reflections",
+__all__ = ["GPS_REFERENCE_SITE", "QUANTISED", "TABLED", "RayTargets", "add_distance_rays", "add_lookup_table", "add_reflections",
            "add_resolution", "add_sensor_model", "distance_notes", "north"]
 
 #: The devices whose ``resolution`` the converter writes (see the module docstring).
 QUANTISED = frozenset({"PositionSensor", "GPS", "Gyro", "Accelerometer", "Compass", "DistanceSensor"})
 #: The devices whose ``lookupTable`` the converter writes (see the module docstring).
 TABLED = frozenset({"Gyro", "Accelerometer", "Compass", "DistanceSensor"})
+#: The world-fixed site a converted GPS is measured from when the world has a ``gpsReference`` (module docstring).
+GPS_REFERENCE_SITE = "webots_gps_reference"
 #: Webots' DistanceSensor types (case-insensitive; any other string is a sonar, as in Webots).
 DISTANCE_TYPES = {"generic": "generic", "infra-red": "infra-red", "infrared": "infra-red", "laser": "laser"}
 
@@ -142,12 +151,28 @@ def add_reflections(spec: mujoco.MjSpec, shapes: Mapping[str, Any]) -> None:
             spec.add_numeric(name=REFLECTION_NUMERIC + geom, data=[infra_red_reflection(shape)])
 
 
+def add_gps_reference(spec: mujoco.MjSpec, sensor: Any, world_info: Mapping[str, Any]) -> list[str]:
+    """Measure the converted GPS ``sensor`` (a ``framepos``) from the world's ``gpsReference`` (module docstring);
+    what the model cannot reproduce of it (a WGS84 world), as notes."""
+    if str(world_info.get("gpsCoordinateSystem", "local")) == "WGS84":
+        return ['WorldInfo gpsCoordinateSystem "WGS84": the converted GPS reads metres in the world frame, not '
+                "latitude, longitude and altitude (MuJoCo has no geodetic sensor)"]
+    reference = [float(v) for v in world_info.get("gpsReference", (0.0, 0.0, 0.0))]
+    if any(reference):
+        if spec.site(GPS_REFERENCE_SITE) is None:
+            spec.worldbody.add_site(name=GPS_REFERENCE_SITE, pos=[-v for v in reference], group=4)
+        sensor.reftype = mujoco.mjtObj.mjOBJ_SITE
+        sensor.refname = GPS_REFERENCE_SITE
+    return []
+
+
 def add_sensor_model(spec: mujoco.MjSpec, sensor: Any, device: Any, world_info: Mapping[str, Any],
-                     targets: RayTargets | None = None) -> None:
+                     targets: RayTargets | None = None) -> list[str]:
     """What the MuJoCo sensor ``sensor`` (an ``MjsSensor``) of the Webots ``device`` needs besides itself: its
     ``noise`` (a GPS's ``accuracy``) as MuJoCo's sensor noise, its lookup table (:func:`add_lookup_table`), its
-    resolution (:func:`add_resolution`), a DistanceSensor's rays (:func:`add_distance_rays`, hitting ``targets``)
-    and, for a Compass, the model's magnetic field set to the world's north."""
+    resolution (:func:`add_resolution`), a DistanceSensor's rays (:func:`add_distance_rays`, hitting ``targets``),
+    a GPS's reference (:func:`add_gps_reference`) and, for a Compass, the model's magnetic field set to the
+    world's north. Returns what of the device the model does not reproduce, as notes."""
     noise = float(device.get("noise", 0.0) or 0.0)
     if noise > 0:
         sensor.noise = noise
@@ -162,3 +187,6 @@ def add_sensor_model(spec: mujoco.MjSpec, sensor: Any, device: Any, world_info: 
             add_distance_rays(spec, sensor.name, device, targets)
     if device.type_name == "Compass":
         spec.option.magnetic = north(world_info)
+    if device.type_name == "GPS":
+        return add_gps_reference(spec, sensor, world_info)
+    return []

@@ -368,8 +368,9 @@ class _Converter:
             self.warn(f"{kind} {device_name!r} outside the robot", solid)
         sensor = self.spec.add_sensor(name=self.unique("sensor", device_name), type=sensor_type,
                                       objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site_name)
-        add_sensor_model(self.spec, sensor, solid, self.info, RayTargets(
-            COLLISION_GROUP, VISUAL_GROUP, robot=self.in_robot, self_collision=self.self_collision))
+        for note in add_sensor_model(self.spec, sensor, solid, self.info, RayTargets(
+                COLLISION_GROUP, VISUAL_GROUP, robot=self.in_robot, self_collision=self.self_collision)):
+            self.warn(note, solid)
         if solid.get("lookupTable") and kind not in TABLED:
             self.warn(f"{kind} {device_name!r}: lookupTable not converted (MuJoCo reports raw values)", solid)
         if kind == "InertialUnit":
