@@ -42,6 +42,10 @@ world-fixed site :data:`GPS_REFERENCE_SITE` at -gpsReference, with the world's a
 the position plus the reference, exactly). A ``gpsCoordinateSystem "WGS84"`` world's GPS reads latitude and
 longitude in Webots, which MuJoCo cannot: the converted GPS reads metres, and the conversion says so.
 
+An Accelerometer, Gyro, Compass or InertialUnit with ``xAxis``, ``yAxis`` or ``zAxis`` FALSE reads NaN for that
+component (angle) in Webots (their reference pages; the Webots twin does so); a MuJoCo sensor has no such switch
+and reads it, so the conversion says so.
+
 A Compass reads the world's north (the axis ``WorldInfo.coordinateSystem`` names N: +y in ENU, +x in NUE, +z in
 EUN) as a unit vector in its frame (the Webots twin's ``webots.compass``); MuJoCo's ``magnetometer`` reads the
 model's magnetic field in its site frame, by default (0, -0.5, 0), which read -0.5 times Webots' vector in ENU. A
@@ -61,13 +65,16 @@ from dualtwin.twins.sensor_tables import LUT_NUMERIC
 from dualtwin.webots.lut import table_from_field
 from dualtwin.webots.visual_rays import infra_red_reflection
 
-__all__ = ["GPS_REFERENCE_SITE", "QUANTISED", "TABLED", "RayTargets", "add_distance_rays", "add_lookup_table", "add_reflections",
-           "add_resolution", "add_sensor_model", "distance_notes", "north"]
+__all__ = ["AXED", "GPS_REFERENCE_SITE", "QUANTISED", "TABLED", "RayTargets", "add_distance_rays", "add_gps_reference",
+           "add_lookup_table", "add_reflections", "add_resolution", "add_sensor_model", "disabled_axes_notes",
+           "distance_notes", "north"]
 
 #: The devices whose ``resolution`` the converter writes (see the module docstring).
 QUANTISED = frozenset({"PositionSensor", "GPS", "Gyro", "Accelerometer", "Compass", "DistanceSensor"})
 #: The devices whose ``lookupTable`` the converter writes (see the module docstring).
 TABLED = frozenset({"Gyro", "Accelerometer", "Compass", "DistanceSensor"})
+#: The devices whose ``xAxis``/``yAxis``/``zAxis`` FALSE turn a component off (module docstring).
+AXED = frozenset({"Accelerometer", "Gyro", "Compass", "InertialUnit"})
 #: The world-fixed site a converted GPS is measured from when the world has a ``gpsReference`` (module docstring).
 GPS_REFERENCE_SITE = "webots_gps_reference"
 #: Webots' DistanceSensor types (case-insensitive; any other string is a sonar, as in Webots).
@@ -151,6 +158,14 @@ def add_reflections(spec: mujoco.MjSpec, shapes: Mapping[str, Any]) -> None:
             spec.add_numeric(name=REFLECTION_NUMERIC + geom, data=[infra_red_reflection(shape)])
 
 
+def disabled_axes_notes(device: Any) -> list[str]:
+    """A note when ``device`` (one of :data:`AXED`) has an axis turned off (module docstring), else nothing."""
+    off = [axis for axis in ("xAxis", "yAxis", "zAxis") if device.type_name in AXED and not device.get(axis, True)]
+    if not off:
+        return []
+    return [f"{' and '.join(off)} FALSE not converted: Webots reads NaN for that component, MuJoCo reads it"]
+
+
 def add_gps_reference(spec: mujoco.MjSpec, sensor: Any, world_info: Mapping[str, Any]) -> list[str]:
     """Measure the converted GPS ``sensor`` (a ``framepos``) from the world's ``gpsReference`` (module docstring);
     what the model cannot reproduce of it (a WGS84 world), as notes."""
@@ -187,6 +202,7 @@ def add_sensor_model(spec: mujoco.MjSpec, sensor: Any, device: Any, world_info: 
             add_distance_rays(spec, sensor.name, device, targets)
     if device.type_name == "Compass":
         spec.option.magnetic = north(world_info)
+    notes = disabled_axes_notes(device)
     if device.type_name == "GPS":
-        return add_gps_reference(spec, sensor, world_info)
-    return []
+        notes += add_gps_reference(spec, sensor, world_info)
+    return notes
