@@ -5,12 +5,19 @@ are accepted as well: each letter names the axis at its place, so in "EUN" x is 
 world has one north: the Compass's north and the GPS's WGS84 latitude must both take it from those letters.
 Before this test the GPS took an EUN world's north as -z (a right-handed East-North-Up read into a y-up world)
 while its Compass read +z as north: walking toward the Compass's north lowered the GPS latitude.
+
+A ``coordinateSystem`` (or ``gpsCoordinateSystem``) the devices cannot read falls back to Webots' default, as
+before, but no longer silently: the build names it in one line.
 """
 
 from __future__ import annotations
 
+import warnings
+
 import pytest
 
+from dualtwin.webots import load_world_text
+from dualtwin.webots.physics import Simulation
 from tests.support.quiet_worlds import quiet_supervisor
 
 
@@ -44,3 +51,23 @@ def test_walking_toward_the_compass_north_raises_the_latitude_in_every_system() 
         # 10 m north is about 10/111 km of latitude (9e-5°), and almost no change of longitude (grid convergence)
         assert moved[0] - origin[0] == pytest.approx(10.0 / 111_180.0, rel=0.01), system
         assert abs(moved[1] - origin[1]) < 1e-5, system
+
+
+def _world_info_warnings(info: str) -> list[str]:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sim = Simulation(load_world_text(f"#VRML_SIM R2023b utf8\nWorldInfo {{ {info} }}\n"))
+    return [w for w in sim.build_warnings if "WorldInfo" in w and "oordinateSystem" in w]
+
+
+def test_a_coordinate_system_the_devices_cannot_read_is_named_in_one_line() -> None:
+    # bad input gets one clear line: the world is read as ENU, and a GPS system other than local/WGS84 as local
+    # (the GPS compares the exact text, as Webots' WorldInfo page writes it); the readings themselves are unchanged
+    assert _world_info_warnings('coordinateSystem "NED"') == [
+        'WorldInfo: coordinateSystem "NED" is not "ENU", "NUE" or "EUN": the world is read as ENU (gravity along -z, '
+        "north +y)"]
+    assert _world_info_warnings('gpsCoordinateSystem "wgs84"') == [
+        'WorldInfo: gpsCoordinateSystem "wgs84" is not "local" or "WGS84": GPS devices read local coordinates']
+    # controls: the values Webots names, the coordinate system in any case, say nothing
+    for info in ('coordinateSystem "NUE" gpsCoordinateSystem "WGS84"', 'coordinateSystem "eun"', ""):
+        assert _world_info_warnings(info) == [], info

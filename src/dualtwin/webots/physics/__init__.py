@@ -198,8 +198,16 @@ class Simulation(FrameEdits):
         self.dt = step_ms * 0.001
         g = float(_f(info, "gravity", 9.81))
         # one reading for gravity and every device (the Compass's): ENU, NUE or EUN in any case, else ENU
-        cs = str(_f(info, "coordinateSystem", "ENU")).upper()
+        written = str(_f(info, "coordinateSystem", "ENU"))
+        cs = written.upper()
+        if cs not in ("ENU", "NUE", "EUN"):
+            self.warn_once(f'WorldInfo: coordinateSystem "{written}" is not "ENU", "NUE" or "EUN": the world is read as '
+                           "ENU (gravity along -z, north +y)")
         self.coordinate_system = cs = cs if cs in ("ENU", "NUE", "EUN") else "ENU"
+        gps_system = str(_f(info, "gpsCoordinateSystem", "local"))
+        if gps_system not in ("local", "WGS84"):
+            self.warn_once(f'WorldInfo: gpsCoordinateSystem "{gps_system}" is not "local" or "WGS84": GPS devices read '
+                           "local coordinates")
         up = world_frame.axes(cs).up  # gravity along the system's down
         self.gravity = (-g * up[0] if up[0] else 0.0, -g * up[1] if up[1] else 0.0, -g * up[2] if up[2] else 0.0)
         erp = float(_f(info, "ERP", 0.2))
