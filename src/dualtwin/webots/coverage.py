@@ -365,7 +365,7 @@ REGISTRY: tuple[Coverage, ...] = (
              "the physics step; cellDistance and cellSpeed are not modelled"),
     Coverage("LightSensor", "device", "supported",
              "irradiance of Directional/Point/SpotLights (attenuation, radius, linear spot fall-off, cos θ, "
-             "ambient), colorFilter averaged over RGB, occlusion rays (the Solid carrying the light does not "
+             "ambient; a DirectionalLight's direction is global wherever it sits), colorFilter averaged over RGB, occlusion rays (the Solid carrying the light does not "
              "hide it), lookupTable and resolution, from the poses after the physics step"),
     Coverage("Emitter", "device", "partial",
              "in-process channels: channel filters, range and maxRange, medium type, buffer size, baud rate, "

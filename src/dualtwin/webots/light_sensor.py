@@ -5,7 +5,8 @@ sensor axis ``x`` and ``d`` the distance from the light to the sensor:
 
 * ``E_k = on_k · att_k · spot_k · (ambientIntensity_k + intensity_k · max(0, cos θ_k)) · colour_k``,
   ``θ_k`` the angle between the sensor's x axis and the direction to the light (for a DirectionalLight,
-  the direction opposite to the light's ``direction``);
+  the direction opposite to the light's ``direction``, a world direction wherever the light sits: Webots'
+  DirectionalLight page gives it "in the global coordinate system");
 * ``att_k = 1`` for a DirectionalLight, ``1 / (a1 + a2·d + a3·d²)`` for the ``attenuation`` (a1, a2, a3) of a
   Point/SpotLight, and 0 beyond the light's ``radius``;
 * ``spot_k`` (SpotLight only) with ``α`` the angle between the spot's ``direction`` and the light-to-sensor
@@ -79,7 +80,9 @@ def irradiance(sim: Simulation, pose: m3.Pose, colour_filter: Any, occlusion: bo
             continue
         lp = light.world_pose(sim)
         if node.type_name == "DirectionalLight":
-            toward = m3.normalized(m3.scale(lp.rotate(f.get("direction", (0.0, 0.0, -1.0))), -1.0))
+            # Webots' DirectionalLight page: its direction is "in the global coordinate system", so the Solid or
+            # Pose it sits in does not turn it (VRML's is in the local frame; Webots' is not)
+            toward = m3.normalized(m3.scale(f.get("direction", (0.0, 0.0, -1.0)), -1.0))
             distance = math.inf
             factor = 1.0
         else:

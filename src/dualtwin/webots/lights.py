@@ -2,7 +2,8 @@
 
 A light is a plain node: at the top level its ``location``/``direction`` are world coordinates; inside a Solid
 (possibly under ``Pose``/``Transform`` nodes) they are in that frame and the light moves with the Solid, as in
-Webots. :func:`light_sources` walks the scene once (and again after a supervisor changed it) and keeps, for
+Webots, except a DirectionalLight's ``direction``, which Webots' DirectionalLight page gives "in the global
+coordinate system" wherever the node sits (its users read the field as it is). :func:`light_sources` walks the scene once (and again after a supervisor changed it) and keeps, for
 each light, the Solid it rides on and its pose in that Solid's frame; :meth:`LightSource.world_pose` composes the Solid's current pose.
 """
 
