@@ -116,8 +116,11 @@ def world_notes(info: dict[str, Any]) -> list[str]:
     gravity follows it, the model is not rotated), and ``defaultDamping`` has no MuJoCo equivalent
     (:data:`DAMPING_NOTE` says why)."""
     notes = []
-    if str(info.get("coordinateSystem", "ENU")).upper() in ("NUE", "EUN"):
+    system = str(info.get("coordinateSystem", "ENU"))
+    if system.upper() in ("NUE", "EUN"):
         notes.append("WorldInfo coordinateSystem is NUE or EUN: converted as written (no rotation to ENU)")
+    elif system.upper() != "ENU":  # read as ENU, as the Webots twin reads it (and says so)
+        notes.append(f'WorldInfo coordinateSystem "{system}" is not "ENU", "NUE" or "EUN": converted as ENU')
     if info.get("defaultDamping") is not None:
         notes.append(f"WorldInfo defaultDamping {DAMPING_NOTE}")
     return notes
