@@ -26,8 +26,11 @@ The rules, as Webots applies them (``WbSolid::updateMass`` and ``WbSolidUtilitie
 
 Scale: a Transform's ``scale`` inside the boundingObject scales the primitives the way the twin's collision
 geoms are scaled (per axis for a Box and mesh vertices, by the largest factor for round primitives) and the
-translations of the frames below it. The converter passes the uniform scale of the Transforms above the Solid
-as ``scale``; the twin ignores those (it warns when building), so it passes none.
+translations of the frames below it. The Transforms above the Solid (one factor ``s``,
+:mod:`dualtwin.webots.solid_scale`) magnify its whole mass distribution, whatever mode defines it (§3.2: "mass ∝
+s³ and inertia ∝ s⁵"): the mass is computed at scale 1, then its mass multiplied by s³, its centre of mass by s and
+its inertia by s⁵ (a given ``mass`` and ``inertiaMatrix`` included); with a density that is what the scaled
+boundingObject weighs. Both twins pass that factor: the Webots twin for each Solid, the converter for each body.
 """
 
 from __future__ import annotations
@@ -50,6 +53,7 @@ __all__ = [
     "SolidInertial",
     "bounding_mass",
     "field_or",
+    "magnify",
     "mass_zero",
     "rot_matrix",
     "solid_inertial",
@@ -184,12 +188,33 @@ def _add_trimesh(node: Node, m: ode.dMass, warn: Warn, scale: Scale) -> bool:
     return False
 
 
-def solid_mass(solid: Node, name: str, warn: Warn, scale: Scale = _UNIT) -> tuple[ode.dMass, float]:
+def solid_mass(solid: Node, name: str, warn: Warn, scale: float = 1.0) -> tuple[ode.dMass, float]:
     """§3.2: the ODE mass of one Solid with Physics, in the Solid's own frame, and its boundingObject volume.
 
     ``name`` labels the warnings (``Solid '<name>': ...``). The mass's ``I`` is about the Solid's origin (ODE
     keeps it about the point of reference; ``c`` is the centre of mass), as the twin needs it for merging.
+    ``scale`` is the factor of the Transforms above the Solid (the module docstring): the Solid's frame is that
+    many times larger than its fields say, and so is its mass distribution.
     """
+    m, volume = _unscaled_solid_mass(solid, name, warn)
+    if scale != 1.0:
+        magnify(m, scale)
+        volume *= scale**3
+    return m, volume
+
+
+def magnify(m: ode.dMass, s: float) -> None:
+    """Scale an ODE mass distribution about its point of reference by ``s`` in every direction: mass × s³,
+    centre of mass × s and inertia (about the point of reference) × s⁵ (§3.2; a length² per unit mass)."""
+    m.mass *= s**3
+    for k in range(3):
+        m.c[k] *= s
+    for k in range(12):
+        m.I[k] *= s**5
+
+
+def _unscaled_solid_mass(solid: Node, name: str, warn: Warn) -> tuple[ode.dMass, float]:
+    """:func:`solid_mass` at scale 1."""
     lib = ode.load()
     phys: Node = solid.fields["physics"]
     density = float(_f(phys, "density", 1000.0))
@@ -201,10 +226,8 @@ def solid_mass(solid: Node, name: str, warn: Warn, scale: Scale = _UNIT) -> tupl
     ref = mass_zero()
     volume = 0.0
     if isinstance(bo, Node):
-        volume = bounding_mass(bo, ref, warn, scale)
+        volume = bounding_mass(bo, ref, warn)
     com = tuple(float(v) for v in com_list[0]) if com_list else None
-    if com is not None and scale != _UNIT:
-        com = tuple(v * k for v, k in zip(com, scale, strict=True))
     if mass > 0 and density > 0 and density != 1000.0 and not inertia:
         warn(f"Solid '{name}': both mass and density given, density ignored")
     if inertia:
@@ -259,7 +282,7 @@ def solid_inertial(solid: Node, name: str, warn: Warn, scale: float = 1.0) -> So
         return None
     ode.ensure_thread()
     lib = ode.load()
-    m, _ = solid_mass(solid, name, warn, (scale, scale, scale) if scale != 1.0 else _UNIT)
+    m, _ = solid_mass(solid, name, warn, scale)
     com = (float(m.c[0]), float(m.c[1]), float(m.c[2]))
     lib.dMassTranslate(byref(m), -com[0], -com[1], -com[2])
     inertia = tuple(float(m.I[k]) for k in (0, 1, 2, 4, 5, 6, 8, 9, 10))

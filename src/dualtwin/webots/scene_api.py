@@ -25,6 +25,7 @@ from dualtwin.webots.physics.records import RobotRec, is_robot
 from dualtwin.webots.proto_links import linked_fields
 from dualtwin.webots.proto_regeneration import join_physics, regenerate
 from dualtwin.webots.protos import saved_hidden
+from dualtwin.webots.solid_scale import scaled_local, transform_factor
 from dualtwin.webots.step_hints import step_value
 from dualtwin.webots.writer import write_node
 
@@ -370,13 +371,14 @@ class Node:
             warn("Node: this node is no longer in the scene (removed); its pose reads NaN")
             nan = math.nan
             return m3.Pose((nan,) * 9, (nan, nan, nan))
-        pose = m3.Pose()
+        pose, scale = m3.Pose(), 1.0
         for n in chain:
             s = self._sim.solid_for(n)
             if s is not None:
-                pose = self._sim.solid_world_pose(s)
+                pose, scale = self._sim.solid_world_pose(s), s.scale
             elif "translation" in n.fields and "rotation" in n.fields:
-                pose = pose * m3.Pose.from_fields(n.fields.get("translation"), n.fields.get("rotation"))
+                # a frame below a scaled Transform: its translation scaled (solid_scale), its own scale applies below
+                pose, scale = pose * scaled_local(n, scale), scale * transform_factor(n, lambda _: None)
         return pose
 
     @step_value
@@ -459,8 +461,8 @@ class Node:
             for n in self._node.walk():
                 solid = self._sim.solid_for(n)
                 if solid is not None and solid.joint is None:
-                    rot = m3.axis_angle_from_mat(solid.load_rel.R)
-                    self._sim.queue_set_pose(solid, tuple(solid.load_rel.t), rot)
+                    rot = m3.axis_angle_from_mat(solid.load_rel.R)  # (the translation in the field's units)
+                    self._sim.queue_set_pose(solid, m3.scale(solid.load_rel.t, 1.0 / solid.scale), rot)
                 joint = self._sim.joint_for(n)
                 if joint is not None:
                     for axis, initial in enumerate(joint.initial_positions):

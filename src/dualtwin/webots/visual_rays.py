@@ -53,8 +53,8 @@ class VisualGeoms:
         self._extent: dict[int, tuple[float, ...]] = {}  # geom pointer → its box in its own frame
         self._world: dict[int, Pose] = {}  # geom pointer → world pose at the last place()
         for solid in sim.solids:
-            for child in solid.node.children():
-                self._walk(child, Pose(), (1.0, 1.0, 1.0), solid)
+            for child in solid.node.children():  # a Solid below a scaled Transform: its Shapes scaled too
+                self._walk(child, Pose(), (solid.scale,) * 3, solid)
 
     def _walk(self, node: Node, local: Pose, scale: Sequence[float], solid: SolidRec) -> None:
         if is_solid(node):

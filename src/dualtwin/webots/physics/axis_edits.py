@@ -42,7 +42,7 @@ class JointAxisEdits(SupervisorEdits):
                 self._set_axes_and_anchor(joint, axes, joint.anchor_local)
             return axes is not None
         if name == "anchor" and i == 0 and joint.kind != "slider":
-            anchor = tuple(float(v) for v in field_or(joint.params[0], "anchor", (0.0, 0.0, 0.0)))
+            anchor = tuple(float(v) * joint.scale for v in field_or(joint.params[0], "anchor", (0.0, 0.0, 0.0)))
             self._set_axes_and_anchor(joint, list(joint.axis_local), anchor)  # type: ignore[arg-type]
             return True
         return super()._apply_joint_field(joint, i, name)

@@ -41,6 +41,7 @@ from dualtwin.webots.physics.records import (
 from dualtwin.webots.physics.records import (
     field_or as _f,
 )
+from dualtwin.webots.solid_scale import scaled_local, transform_factor
 
 #: joint parameters fields that must not be negative (webots-on-ode.md §4.5: staticFriction ≥ 0); Webots' field checks
 #: reset a negative one to 0 with a warning. Negative constants also let h·K + B be 0 in the spring's and the
@@ -84,20 +85,17 @@ class SceneBuilder(SimulationCore):
     def _walk_top(self, node: Node) -> None:
         self._walk_children([node], Pose(), None, None)
 
-    def _walk_children(
-        self,
-        children: Iterable[Node | None],
-        frame_rel: Pose,
-        parent: SolidRec | None,
-        robot: RobotRec | None,
-    ) -> None:
+    def _walk_children(self, children: Iterable[Node | None], frame_rel: Pose, parent: SolidRec | None,
+                       robot: RobotRec | None, scale: float | None = None) -> None:
+        """``scale``: the factor of the Transforms above ``frame_rel`` (solid_scale; by default the parent's)."""
+        scale = (parent.scale if parent is not None else 1.0) if scale is None else scale
         for child in children:
             if child is None:
                 continue
             if is_solid(child):
-                self._add_solid(child, frame_rel, parent, robot, None)
+                self._add_solid(child, frame_rel, parent, robot, None, scale)
             elif child.type_name in JOINT_TYPES:
-                self._add_joint(child, frame_rel, parent, robot)
+                self._add_joint(child, frame_rel, parent, robot, scale)
             elif child.type_name in ATTACHMENT_TYPES:
                 self.attachments.append(AttachmentRec(child, frame_rel, parent, robot))
             elif "translation" in child.fields and "rotation" in child.fields and "children" in child.fields:
@@ -106,15 +104,12 @@ class SceneBuilder(SimulationCore):
                     # in the Track's frame (its hidden translation)
                     x, z = (float(v) for v in _f(child, "position", (0.0, 0.0)))
                     child.fields["translation"] = (x, 0.0, z)
-                local = Pose.from_fields(_f(child, "translation", None), _f(child, "rotation", None))
-                scale = _f(child, "scale", (1.0, 1.0, 1.0))
-                if tuple(scale) != (1.0, 1.0, 1.0):
-                    self.warn(f"Transform scale {tuple(scale)} ignored outside boundingObjects")
-                self._walk_children(child.children(), frame_rel * local, parent, robot)
+                inner = scale * transform_factor(child, self.warn_once)
+                self._walk_children(child.children(), frame_rel * scaled_local(child, scale), parent, robot, inner)
             elif "children" in child.fields:
-                self._walk_children(child.children(), frame_rel, parent, robot)
+                self._walk_children(child.children(), frame_rel, parent, robot, scale)
             elif child.type_name == "Slot" and isinstance(_f(child, "endPoint", None), Node):
-                self._walk_children([child.fields["endPoint"]], frame_rel, parent, robot)
+                self._walk_children([child.fields["endPoint"]], frame_rel, parent, robot, scale)
 
     def _add_solid(
         self,
@@ -123,11 +118,11 @@ class SceneBuilder(SimulationCore):
         parent: SolidRec | None,
         robot: RobotRec | None,
         joint: JointRec | None,
+        scale: float = 1.0,
     ) -> SolidRec:
-        local = Pose.from_fields(_f(node, "translation", None), _f(node, "rotation", None))
-        rel = frame_rel * local
+        rel = frame_rel * scaled_local(node, scale)
         solid = SolidRec(
-            node=node, parent=parent, robot=robot, rel=rel, pre=frame_rel, load_rel=rel, joint=joint
+            node=node, parent=parent, robot=robot, rel=rel, pre=frame_rel, load_rel=rel, joint=joint, scale=scale
         )
         solid.index = len(self.solids)
         self.solids.append(solid)
@@ -162,7 +157,7 @@ class SceneBuilder(SimulationCore):
                 node.fields[name] = 0.0
 
     def _add_joint(
-        self, node: Node, frame_rel: Pose, parent: SolidRec | None, robot: RobotRec | None
+        self, node: Node, frame_rel: Pose, parent: SolidRec | None, robot: RobotRec | None, scale: float = 1.0
     ) -> None:
         kind = {"HingeJoint": "hinge", "SliderJoint": "slider", "Hinge2Joint": "hinge2", "BallJoint": "ball"}[
             node.type_name
@@ -175,7 +170,7 @@ class SceneBuilder(SimulationCore):
             params.append(p if isinstance(p, Node) else None)
             if isinstance(p, Node):
                 self.check_joint_parameters(p)
-        axes, anchor = self._joint_axes(kind, params)
+        axes, anchor = self._joint_axes(kind, params, scale)
         positions = []
         for i, p in enumerate(params):
             hidden = ["position", "position2", "position3"][i]
@@ -202,6 +197,7 @@ class SceneBuilder(SimulationCore):
             static_friction=[float(_f(p, "staticFriction", 0.0)) for p in params],
             raw_angles=[0.0] * n,
             brakes=[None] * n,
+            scale=scale,
         )
         self.joints.append(joint)
         self._joint_by_node[id(node)] = joint
@@ -218,7 +214,7 @@ class SceneBuilder(SimulationCore):
         while isinstance(end, Node) and end.type_name == "Slot":
             end = _f(end, "endPoint", None)  # a Slot pair is a pass-through: no frame of its own
         if isinstance(end, Node) and is_solid(end):
-            joint.child = self._add_solid(end, frame_rel, parent, robot, joint)
+            joint.child = self._add_solid(end, frame_rel, parent, robot, joint, scale)
         elif isinstance(end, Node) and end.type_name == "SolidReference":
             joint.reference = end
             self._loops.append((joint, str(_f(end, "solidName", ""))))  # closed once every body exists
@@ -230,9 +226,10 @@ class SceneBuilder(SimulationCore):
                     if dev_rec is not None:
                         robot.devices.setdefault(dev_rec.name, dev_rec)
 
-    def _joint_axes(self, kind: str, params: Sequence[Node | None]) -> tuple[list[m3.Vec3], m3.Vec3]:
+    def _joint_axes(self, kind: str, params: Sequence[Node | None],
+                    scale: float = 1.0) -> tuple[list[m3.Vec3], m3.Vec3]:
         """A joint's axes and anchor in its frame, from its (Hinge)JointParameters nodes (defaults where a
-        jointParameters field is empty)."""
+        jointParameters field is empty); the anchor times the ``scale`` of the Transforms above the joint."""
         default_axis = (0.0, 0.0, 1.0) if kind == "slider" else (1.0, 0.0, 0.0)
         axes = [self._axis(params[0], default_axis)]
         if kind == "hinge2":
@@ -248,7 +245,7 @@ class SceneBuilder(SimulationCore):
             axes = [a1, m3.cross(a3, a1), a3]
         if kind == "slider":
             axes[0] = m3.normalized(axes[0])  # §4.3: Webots normalises the slider axis
-        anchor = tuple(float(v) for v in _f(params[0], "anchor", (0.0, 0.0, 0.0)))
+        anchor = tuple(float(v) * scale for v in _f(params[0], "anchor", (0.0, 0.0, 0.0)))
         return axes, anchor  # type: ignore[return-value]
 
     def _axis(self, params: Node | None, default: m3.Vec3) -> m3.Vec3:
@@ -365,7 +362,7 @@ class SceneBuilder(SimulationCore):
 
     def _solid_mass(self, solid: SolidRec) -> tuple[ode.dMass, float]:
         """§3.2: mass of one Solid in its own frame and its boundingObject volume (:mod:`..mass_rules`)."""
-        return solid_mass(solid.node, solid.name, self.warn_once)
+        return solid_mass(solid.node, solid.name, self.warn_once, solid.scale)
 
     def _merged_mass(self, body: BodyRec) -> tuple[ode.dMass, list[tuple[float, Node | None]]]:
         """§3.3: the masses of the body's Solids summed in its root Solid's frame (CoM not yet moved to the
@@ -510,7 +507,7 @@ class SceneBuilder(SimulationCore):
             return
         if world is None:
             world = self.world_pose_at_load(solid)
-        self._bo_geoms(bo, Pose(), solid, world, (1.0, 1.0, 1.0))
+        self._bo_geoms(bo, Pose(), solid, world, (solid.scale,) * 3)
 
     def _bo_geoms(
         self, node: Node, local: Pose, solid: SolidRec, solid_world: Pose, scale: Sequence[float]

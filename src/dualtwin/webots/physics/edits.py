@@ -146,7 +146,7 @@ class SupervisorEdits(MassEdits):
         R = m3.rot_axis_angle(rotation) if rotation is not None else current.R
         node.fields["translation"] = t
         node.fields["rotation"] = tuple(rotation) if rotation is not None else m3.axis_angle_from_mat(R)
-        local = Pose(R, t)
+        local = Pose(R, m3.scale(t, solid.scale))  # the field's translation in its scaled frame (solid_scale)
         old_world = self.solid_world_pose(solid)
         if solid.parent is None:
             new_world = solid.pre * local
@@ -493,12 +493,15 @@ class SupervisorEdits(MassEdits):
         return self.solid_world_pose(solid).t
 
     def solid_local_pose(self, solid: SolidRec) -> Pose:
-        """The Solid's current pose in the frame its ``translation``/``rotation`` fields refer to."""
+        """The Solid's current pose in the frame its ``translation``/``rotation`` fields refer to, in the fields'
+        units: below a scaled Transform the translation is the field's, the frame's length divided by the scale."""
         if solid.body is None and (solid.joint is None or not solid.joint.kinematic):
-            return solid.pre.inverse() * solid.rel
-        world = self.solid_world_pose(solid)
-        parent = self.solid_world_pose(solid.parent) if solid.parent is not None else Pose()
-        return solid.pre.inverse() * parent.inverse() * world
+            local = solid.pre.inverse() * solid.rel
+        else:
+            world = self.solid_world_pose(solid)
+            parent = self.solid_world_pose(solid.parent) if solid.parent is not None else Pose()
+            local = solid.pre.inverse() * parent.inverse() * world
+        return local if solid.scale == 1.0 else Pose(local.R, m3.scale(local.t, 1.0 / solid.scale))
 
     def wake(self, joint: JointRec) -> None:
         """Re-enable a joint's sleeping bodies (a motor command changed, UNVERIFIED)."""

@@ -21,8 +21,9 @@ The Shapes are drawn and ray-cast from the fields at their next use (the geometr
 copies of the frame are one node in Webots: they move together. A reset restores the fields and applies the
 edit again, which puts every frame back where the load had it.
 
-A Transform's ``scale`` is applied to the Shapes seen by rays; the load ignores it for Solids (with a warning),
-so the Solids below a scaled Transform are placed without it here too.
+A Transform's ``scale`` scales the translations below it (:mod:`dualtwin.webots.solid_scale`), as at load. A
+run-time edit of the ``scale`` itself reaches the Shapes seen by rays and the boundingObjects it is inside, not
+the Solids and joints below it: their frames, geoms and masses keep the load's scale (a warning says so).
 """
 
 from __future__ import annotations
@@ -42,6 +43,7 @@ from dualtwin.webots.physics.records import (
     field_or,
     is_solid,
 )
+from dualtwin.webots.solid_scale import holds_bodies, scaled_local, transform_factor
 
 __all__ = ["FrameEdits", "FRAME_FIELDS"]
 
@@ -53,6 +55,10 @@ class FrameEdits(PhysicsChanges):
 
     def _apply_field(self, node: Node, name: str) -> bool:
         if node.type_name in ("Pose", "Transform") and name in FRAME_FIELDS:
+            if name == "scale" and holds_bodies(node):
+                self.warn_once(f"a run-time edit of a Transform's scale above Solids or joints is not applied to "
+                               f"them (their frames, geoms and masses keep the load's scale): {node.location}")
+                return self._bounding_frame_changed(self.linked_nodes(node))
             # Its DEF/USE copies (one walk of the world) take the new value before anything is placed again.
             linked = self.linked_nodes(node)
             value = node.fields.get(name)
@@ -64,8 +70,7 @@ class FrameEdits(PhysicsChanges):
             solid = self._solid_by_node.get(id(node))
             if solid is not None and self._is_merged(solid):
                 # a reset restored the fields of a merged Solid a supervisor moved: back to its load place
-                solid.rel = solid.pre * Pose.from_fields(field_or(node, "translation", None),
-                                                         field_or(node, "rotation", None))
+                solid.rel = solid.pre * scaled_local(node, solid.scale)
                 self._rebody(solid, solid.body)  # type: ignore[arg-type]
                 return True
         return super()._apply_field(node, name)
@@ -85,8 +90,9 @@ class FrameEdits(PhysicsChanges):
         joints = []
         tops: list[tuple[Iterable[Node], SolidRec | None]] = [(self.world.nodes, None)]
         tops += [(s.node.children(), s) for s in self.solids]
-        for children, _ in tops:
-            for kind, item, frame, under in self._frames(children, Pose(), False, ids):
+        for children, top in tops:
+            scale = top.scale if top is not None else 1.0
+            for kind, item, frame, under in self._frames(children, Pose(), False, ids, scale):
                 found = True
                 if not under:
                     continue
@@ -115,7 +121,7 @@ class FrameEdits(PhysicsChanges):
         return True
 
     def _frames(
-        self, children: Iterable[Node | None], frame: Pose, under: bool, ids: set[int]
+        self, children: Iterable[Node | None], frame: Pose, under: bool, ids: set[int], scale: float
     ) -> Iterator[tuple[str, Node, Pose, bool]]:
         """Walk a Solid's children as the load does: each Solid, joint and attachment met with the frame it
         hangs in (in the Solid's frame) and whether an edited node lies above it. Yields ("frame", node, ...)
@@ -135,15 +141,15 @@ class FrameEdits(PhysicsChanges):
             elif child.type_name in ATTACHMENT_TYPES:
                 yield "attachment", child, frame, under
             elif "translation" in child.fields and "rotation" in child.fields and "children" in child.fields:
-                local = Pose.from_fields(field_or(child, "translation", None), field_or(child, "rotation", None))
                 inside = under or id(child) in ids
                 if id(child) in ids:
                     yield "frame", child, frame, True
-                yield from self._frames(child.children(), frame * local, inside, ids)
+                inner = scale * transform_factor(child, self.warn_once)
+                yield from self._frames(child.children(), frame * scaled_local(child, scale), inside, ids, inner)
             elif "children" in child.fields:
-                yield from self._frames(child.children(), frame, under, ids)
+                yield from self._frames(child.children(), frame, under, ids, scale)
             elif child.type_name == "Slot" and isinstance(field_or(child, "endPoint", None), Node):
-                yield from self._frames([child.fields["endPoint"]], frame, under, ids)
+                yield from self._frames([child.fields["endPoint"]], frame, under, ids, scale)
 
     def _reframe(self, solid: SolidRec, frame: Pose) -> None:
         """Put ``solid`` in its new parent frame ``frame`` (its own translation and rotation kept) and move what
@@ -185,11 +191,11 @@ class FrameEdits(PhysicsChanges):
             return
         node = solid.node
         current = solid.pre.inverse() * solid.rel
-        t = tuple(float(v) for v in translation) if translation is not None else current.t
+        t = tuple(float(v) for v in translation) if translation is not None else m3.scale(current.t, 1 / solid.scale)
         R = m3.rot_axis_angle(rotation) if rotation is not None else current.R
         node.fields["translation"] = t
         node.fields["rotation"] = tuple(rotation) if rotation is not None else m3.axis_angle_from_mat(R)
-        solid.rel = solid.pre * Pose(R, t)
+        solid.rel = solid.pre * Pose(R, m3.scale(t, solid.scale))
         self._rebody(solid, body)
         self._edited[(id(node), "translation")] = node  # simulationReset puts it back (_apply_field)
 

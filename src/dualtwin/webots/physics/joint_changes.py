@@ -149,7 +149,7 @@ class JointChanges(Stepper):
             self.check_joint_parameters(node)
             self._joint_by_node[id(node)] = joint
             joint.positions[axis] = float(field_or(node, "position", joint.positions[axis]))
-        axes, anchor = self._joint_axes(joint.kind, joint.params)
+        axes, anchor = self._joint_axes(joint.kind, joint.params, joint.scale)
         joint.axis_local[:] = axes
         joint.anchor_local = anchor
         joint.zero_axes[:] = axes  # a later position teleport moves the endPoint about these

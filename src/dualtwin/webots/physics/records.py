@@ -127,6 +127,9 @@ class SolidRec(_ShortRepr):
     child_joints: list[JointRec] = field(default_factory=list)
     volume: float = 0.0
     index: int = 0
+    #: the factor of the Transforms above it (dualtwin.webots.solid_scale): its translation, its children's frames
+    #: and its boundingObject are that many times larger than their fields say, its mass s³ times
+    scale: float = 1.0
 
     @property
     def name(self) -> str:
@@ -338,6 +341,7 @@ class JointRec(_ShortRepr):
     load_anchor: m3.Vec3 = m3.ZERO
     zero_axes: list[m3.Vec3] = field(default_factory=list)
     zero_anchor: m3.Vec3 = m3.ZERO
+    scale: float = 1.0  # the factor of the Transforms above it: its anchor is that many times the field's
 
     @property
     def kinematic(self) -> bool:

@@ -44,6 +44,7 @@ from dualtwin.webots.physics.records import (
     field_or,
     is_solid,
 )
+from dualtwin.webots.solid_scale import scaled_local, transform_factor
 
 __all__ = ["SceneChanges"]
 
@@ -127,18 +128,18 @@ class SceneChanges(JointChanges):
             self._plans.clear()  # the two bodies are jointed now (no contacts between them)
             self._geoms_changed()
             return []
-        frame = Pose()
+        frame, scale = Pose(), parent.scale if parent is not None else 1.0
         for node in chain[at + 1 :]:  # Pose/Transform chain above the node (Groups add nothing)
             if "translation" in node.fields and "rotation" in node.fields:
-                frame = frame * Pose.from_fields(field_or(node, "translation", None), field_or(node, "rotation", None))
+                frame, scale = frame * scaled_local(node, scale), scale * transform_factor(node, self.warn_once)
         n_solids, n_bodies, n_joints = len(self.solids), len(self.bodies), len(self.joints)
         n_robots, n_motors, n_loops = len(self.robots), len(self.motors), len(self._loops)
         robot = parent.robot if parent is not None else None
         if joint is not None and end is not None:
-            joint.child = self._add_solid(end, joint.frame_rel, parent, robot, joint)
+            joint.child = self._add_solid(end, joint.frame_rel, parent, robot, joint, joint.scale)
             self._at_joint_position(joint.child)
         else:
-            self._walk_children([top], frame, parent, robot)
+            self._walk_children([top], frame, parent, robot, scale)
         solids = self.solids[n_solids:]
         self._assign_bodies(solids)
         bodies = self.bodies[n_bodies:]

@@ -170,7 +170,7 @@ class Stepper(JointAxisEdits):
         moved = Pose(m3.mat_mul(turn, world.R), m3.add(world.t, m3.scale(v[:3], dt)))
         frame = solid.pre if solid.parent is None else self.solid_world_pose(solid.parent) * solid.pre
         local = frame.inverse() * moved
-        self._teleport_solid(solid, local.t, m3.axis_angle_from_mat(local.R))
+        self._teleport_solid(solid, m3.scale(local.t, 1.0 / solid.scale), m3.axis_angle_from_mat(local.R))
 
     def _kinematic_motor(self, motor: MotorRec, dt: float) -> None:
         """§5.3 kinematic joints: the motor moves the joint itself, its speed ramping (motor_law.kinematic_motion)."""
