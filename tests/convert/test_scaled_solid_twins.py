@@ -82,3 +82,16 @@ def test_both_twins_swing_a_pendulum_below_a_scaled_transform_alike(tmp_path: Pa
         if half_period_x is not None:
             assert webots.body_position("BOB")[0] == pytest.approx(half_period_x, abs=2e-3)
 
+
+def test_a_non_positive_scale_above_a_solid_is_reset_to_1_in_both_twins(tmp_path: Path) -> None:
+    # zero and negative components are reset to 1 (solid_scale.positive_scale): the robot rests as unscaled, at
+    # 0.15 m (the converter used to read 0 -1 0 as a non-uniform scale and refuse the world)
+    text = scaled_robot(1.0).replace("scale 1.0 1.0 1.0", "scale 0 -1 0")
+    with converted_twins(text, tmp_path, 0.008) as (conv, webots, mujoco_twin):
+        for _ in range(100):
+            webots.step()
+            mujoco_twin.step()
+        assert webots.body_position("R")[2] == pytest.approx(0.15, abs=5e-3)
+        assert mujoco_twin.body_position("R")[2] == pytest.approx(0.15, abs=5e-3)
+    assert sum("Transform scale 0 -1 0: a scale component must be positive; reset to 1" in w
+               for w in conv.warnings) == 1

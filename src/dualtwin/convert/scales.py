@@ -11,23 +11,28 @@ Solid or joint it still does.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from dualtwin.convert.conversion import ConversionError
 from dualtwin.convert.mass import FloatArray, axis_scales
 from dualtwin.webots import schema
 from dualtwin.webots.nodes import Node
+from dualtwin.webots.solid_scale import positive_scale
 
 __all__ = ["transform_scale"]
 
 
-def transform_scale(transform: Node) -> float | FloatArray:
-    """The Transform's scale: one factor when uniform, its three factors when it holds no Solid or joint.
+def transform_scale(transform: Node, warn: Callable[[str], None] = lambda _: None) -> float | FloatArray:
+    """The Transform's scale: one factor when uniform, its three factors when it holds no Solid or joint; a zero,
+    negative or non-finite component is reset to 1, with a ``warn`` line, as the Webots twin does
+    (:func:`dualtwin.webots.solid_scale.positive_scale`).
 
     Raises:
         ConversionError: a non-uniform scale above a Solid or a joint.
     """
-    scales = axis_scales(transform.get("scale", (1.0, 1.0, 1.0)))
+    scales = axis_scales(positive_scale(transform, warn))
     if np.allclose(scales, scales[0], rtol=1e-9, atol=0.0):
         return float(scales[0])
     if any(schema.is_solid_type(n.type_name) or n.type_name in schema.JOINT_TYPES for n in transform.walk()):

@@ -402,7 +402,7 @@ class _Converter:
                 self.children(child.children(), T, scale, body, label, masses, dynamic=dynamic, static=static,
                               material=material)
             elif kind in ("Pose", "Transform"):
-                s = scale * transform_scale(child) if kind == "Transform" else scale
+                s = scale * transform_scale(child, self.warn) if kind == "Transform" else scale
                 self.children(child.children(), T @ pose_matrix(child, scale), s, body, label, masses, dynamic=dynamic,
                               static=static, material=material)
             elif kind in schema.JOINT_TYPES:
@@ -724,7 +724,7 @@ class _Converter:
                 self.others.append((node, T @ pose_matrix(node, scale), scale))
             return
         if kind in ("Pose", "Transform", "Group"):
-            s = scale * transform_scale(node) if kind == "Transform" else scale
+            s = scale * transform_scale(node, self.warn) if kind == "Transform" else scale
             inner = T if kind == "Group" else T @ pose_matrix(node, scale)
             for child in node.children():
                 self.environment(child, inner, s)
