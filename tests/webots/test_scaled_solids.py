@@ -176,3 +176,43 @@ def test_a_run_time_scale_edit_above_a_solid_is_not_applied_to_it_and_says_so() 
         assert sup.simulation.bodies[0].mass == pytest.approx(1000 * 0.2**3)
     finally:
         sup.simulation.close()
+
+
+def test_a_box_resized_at_run_time_below_a_scaled_transform_stays_scaled() -> None:
+    # the 0.1 m cube set to 0.2 m below scale 2: a 0.4 m cube of 1000·0.4³ = 64 kg, resting 0.2 m above the floor
+    sup = supervisor_in("Transform { scale 2 2 2 children [ DEF BOX Solid { translation 0 0 0.5 "
+                        "boundingObject DEF CUBE Box { size 0.1 0.1 0.1 } physics Physics { } } ] }\n" + FLOOR, 4,
+                        gravity=9.81)
+    try:
+        sup.getFromDef("CUBE").getField("size").setSFVec3f([0.2, 0.2, 0.2])
+        sup.step(4)
+        assert sup.simulation.bodies[0].mass == pytest.approx(1000 * 0.4**3)
+        while sup.getTime() < 1.5:
+            sup.step(4)
+        # (ODE's soft contacts sink deeper under a heavier body: about 3 mm under these 64 kg)
+        assert sup.getFromDef("BOX").getPosition()[2] == pytest.approx(0.2, abs=5e-3)
+    finally:
+        sup.simulation.close()
+
+
+@pytest.mark.parametrize(("scale", "speed"), [
+    # the pool Fluid { translation 0 0 0.25, Box 2 x 2 x 0.5 } in scale 2: a 4 x 4 x 1 m box, its surface 1 m up; the
+    # 0.2 m cube of density 500 at 0.5 m is wholly under it: F/m = (1000/500)·g, one 16 ms step from rest adds
+    # h·(2g - g) = 0.016·9.81 = 0.15696 m/s upwards
+    (2.0, 0.016 * 9.81),
+    (1.0, 0.0),  # control: the surface 0.5 m up, the cube half under it, F/m = g: it stays at rest
+])
+def test_a_fluid_below_a_scaled_transform_is_scaled(scale: float, speed: float) -> None:
+    world = load_world_text(HEADER.format(step=16) + (
+        f"Transform {{ scale {scale} {scale} {scale} children [ Fluid {{ translation 0 0 0.25 "
+        "boundingObject Box { size 2 2 0.5 } } ] }\n"
+        "DEF FLOATER Solid { translation 0 0 0.5 boundingObject Box { size 0.2 0.2 0.2 } "
+        'physics Physics { density 500 } immersionProperties [ ImmersionProperties { fluidName "fluid" } ] }\n'),
+        "pool.wbt")
+    sim = Simulation(world)
+    try:
+        (body,) = sim.bodies
+        sim.step()
+        assert body.lvel[2] == pytest.approx(speed, abs=1e-9)
+    finally:
+        sim.close()

@@ -128,7 +128,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "buoyancy (Archimedes: density x immersed volume x gravity, at the immersed volume's centroid, "
              "before each physics step) on the bodies of Solids whose immersionProperties name it; its "
              "boundingObject must be Boxes (the top face is the surface); no drag, viscosity or streamVelocity "
-             "(a world that would need them says so once at load); a Fluid inside a Solid is not simulated"),
+             "(a world that would need them says so once at load); a Fluid inside a Solid is not simulated; "
+             "below a scaled Transform its place and Boxes are scaled"),
     Coverage("ImmersionProperties", "scene", "partial",
              "fluidName selects the Fluid whose buoyancy acts on the Solid: Box bounding objects exactly, Sphere "
              "exactly below the surface (the fluid's side walls are not cut), Cylinder and Capsule through a "

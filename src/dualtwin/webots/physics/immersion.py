@@ -45,6 +45,7 @@ from dualtwin.webots.physics.immersed_volume import (
 )
 from dualtwin.webots.physics.records import GeomRec, SolidRec, is_solid
 from dualtwin.webots.physics.records import field_or as _f
+from dualtwin.webots.solid_scale import scaled_local, transform_factor
 
 __all__ = ["Buoyancy", "install"]
 
@@ -148,14 +149,15 @@ class Buoyancy:
         del dt
         fluids = []
         for fluid in self._fluids:
-            pose = Pose()
+            pose, k = Pose(), 1.0  # k: the factor of the scaled Transforms above the Fluid (solid_scale)
             for frame in fluid.frames:
-                pose = pose * Pose.from_fields(_f(frame, "translation", None), _f(frame, "rotation", None))
-            pose = pose * Pose.from_fields(_f(fluid.node, "translation", None), _f(fluid.node, "rotation", None))
+                pose, k = pose * scaled_local(frame, k), k * transform_factor(frame, lambda _: None)
+            pose = pose * scaled_local(fluid.node, k)
             bo = _f(fluid.node, "boundingObject", None)
             boxes: list[tuple[Pose, tuple[float, float, float]]] = []
             if isinstance(bo, Node):
                 _fluid_boxes(bo, Pose(), boxes)
+                boxes = [(Pose(p.R, m3.scale(p.t, k)), (h[0] * k, h[1] * k, h[2] * k)) for p, h in boxes]
             name = str(_f(fluid.node, "name", "fluid"))
             density = float(_f(fluid.node, "density", 1000.0))
             for local, half in boxes:
