@@ -165,8 +165,8 @@ def test_run_time_moves_below_a_scaled_transform_are_scaled_as_at_load() -> None
 
 def test_a_run_time_scale_edit_above_a_solid_is_not_applied_to_it_and_says_so() -> None:
     # decided (the reference is silent on run-time scale edits): the Solid keeps the load's scale, a warning says so
-    sup = supervisor_in("DEF T Transform { scale 2 2 2 children [ DEF BOX Solid { translation 0 0 0.5 "
-                        "boundingObject Box { size 0.1 0.1 0.1 } physics Physics { } } ] }", 4)
+    sup = supervisor_in("DEF T Transform { scale 2 2 2 children [ Pose { translation 0 0 0.5 children [ DEF BOX "
+                        "Solid { boundingObject Box { size 0.1 0.1 0.1 } physics Physics { } } ] } ] }", 4)
     try:
         with pytest.warns(UserWarning, match="run-time edit of a Transform's scale above Solids or joints is not "
                                              "applied to them"):
@@ -174,6 +174,10 @@ def test_a_run_time_scale_edit_above_a_solid_is_not_applied_to_it_and_says_so() 
             sup.step(4)
         assert sup.getFromDef("BOX").getPosition() == pytest.approx((0.0, 0.0, 1.0), abs=1e-12)
         assert sup.simulation.bodies[0].mass == pytest.approx(1000 * 0.2**3)
+        # a later move of the Transform keeps that scale below it, for the Pose too: 1 + 2·0.5 = 2 m up (not 2.5)
+        sup.getFromDef("T").getField("translation").setSFVec3f([0.0, 0.0, 1.0])
+        sup.step(4)
+        assert sup.getFromDef("BOX").getPosition() == pytest.approx((0.0, 0.0, 2.0), abs=1e-12)
     finally:
         sup.simulation.close()
 

@@ -167,6 +167,7 @@ class Simulation(FrameEdits):
         self._loops = []  # joints whose endPoint is a SolidReference
         self._solid_by_node = {}
         self._joint_by_node = {}
+        self._frame_factors = {}
         self._pending = []
         self._edited = {}
         self._unstable = False

@@ -41,7 +41,7 @@ from dualtwin.webots.physics.records import (
 from dualtwin.webots.physics.records import (
     field_or as _f,
 )
-from dualtwin.webots.solid_scale import scaled_local, transform_factor
+from dualtwin.webots.solid_scale import scaled_local
 
 #: joint parameters fields that must not be negative (webots-on-ode.md §4.5: staticFriction ≥ 0); Webots' field checks
 #: reset a negative one to 0 with a warning. Negative constants also let h·K + B be 0 in the spring's and the
@@ -104,7 +104,7 @@ class SceneBuilder(SimulationCore):
                     # in the Track's frame (its hidden translation)
                     x, z = (float(v) for v in _f(child, "position", (0.0, 0.0)))
                     child.fields["translation"] = (x, 0.0, z)
-                inner = scale * transform_factor(child, self.warn_once)
+                inner = self.factor_below(child, scale)
                 self._walk_children(child.children(), frame_rel * scaled_local(child, scale), parent, robot, inner)
             elif "children" in child.fields:
                 self._walk_children(child.children(), frame_rel, parent, robot, scale)

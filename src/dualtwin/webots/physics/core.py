@@ -33,6 +33,7 @@ from dualtwin.webots.physics.records import (
     SolidRec,
     Surface,
 )
+from dualtwin.webots.solid_scale import transform_factor
 
 
 class SimulationCore:
@@ -61,6 +62,8 @@ class SimulationCore:
     _loops: list[tuple[JointRec, str]]  # joints whose endPoint is a SolidReference
     _solid_by_node: dict[int, SolidRec]
     _joint_by_node: dict[int, JointRec]
+    #: id of a Pose/Transform among the scene's frames -> (it, the factor below it at load: solid_scale)
+    _frame_factors: dict[int, tuple[Node, float]]
     _pending: list[PendingOp]
     _edited: dict[tuple[int, str], Node]
     _unstable: bool
@@ -142,6 +145,17 @@ class SimulationCore:
                 return solid.body
             solid = solid.parent
         return None
+
+    def factor_below(self, frame: Node, scale: float) -> float:
+        """The factor of the scaled Transforms below ``frame``, a Pose or Transform among the scene's frames
+        met in a frame scaled by ``scale``: the one found when it was first built (a run-time scale edit is
+        not applied to the Solids below it, physics/frame_edits.py), else from its fields."""
+        known = self._frame_factors.get(id(frame))
+        if known is not None and known[0] is frame:
+            return known[1]
+        factor = scale * transform_factor(frame, self.warn_once)
+        self._frame_factors[id(frame)] = (frame, factor)
+        return factor
 
     def world_pose_at_load(self, solid: SolidRec) -> Pose:
         pose = solid.load_rel

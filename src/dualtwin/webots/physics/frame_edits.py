@@ -43,7 +43,7 @@ from dualtwin.webots.physics.records import (
     field_or,
     is_solid,
 )
-from dualtwin.webots.solid_scale import holds_bodies, scaled_local, transform_factor
+from dualtwin.webots.solid_scale import holds_bodies, scaled_local
 
 __all__ = ["FrameEdits", "FRAME_FIELDS"]
 
@@ -55,16 +55,17 @@ class FrameEdits(PhysicsChanges):
 
     def _apply_field(self, node: Node, name: str) -> bool:
         if node.type_name in ("Pose", "Transform") and name in FRAME_FIELDS:
-            if name == "scale" and holds_bodies(node):
-                self.warn_once(f"a run-time edit of a Transform's scale above Solids or joints is not applied to "
-                               f"them (their frames, geoms and masses keep the load's scale): {node.location}")
-                return self._bounding_frame_changed(self.linked_nodes(node))
             # Its DEF/USE copies (one walk of the world) take the new value before anything is placed again.
             linked = self.linked_nodes(node)
             value = node.fields.get(name)
             for other in linked[1:]:
                 other.fields[name] = copy_value(value)
             bounded = self._bounding_frame_changed(linked)  # the frame may sit in boundingObjects (scene_changes)
+            if name == "scale" and holds_bodies(node):
+                self.warn_once(f"{node.location}: a run-time edit of a Transform's scale above Solids or joints is "
+                               "not applied to them (their frames, geoms and masses keep the load's scale)")
+                self._geoms_changed()  # the Shapes that rays and cameras see follow the field
+                return True
             return self._children_frame_changed(linked) or bounded
         if name in ("translation", "rotation") and is_solid(node):
             solid = self._solid_by_node.get(id(node))
@@ -144,7 +145,7 @@ class FrameEdits(PhysicsChanges):
                 inside = under or id(child) in ids
                 if id(child) in ids:
                     yield "frame", child, frame, True
-                inner = scale * transform_factor(child, self.warn_once)
+                inner = self.factor_below(child, scale)
                 yield from self._frames(child.children(), frame * scaled_local(child, scale), inside, ids, inner)
             elif "children" in child.fields:
                 yield from self._frames(child.children(), frame, under, ids, scale)

@@ -44,7 +44,7 @@ from dualtwin.webots.physics.records import (
     field_or,
     is_solid,
 )
-from dualtwin.webots.solid_scale import scaled_local, transform_factor
+from dualtwin.webots.solid_scale import scaled_local
 
 __all__ = ["SceneChanges"]
 
@@ -131,7 +131,7 @@ class SceneChanges(JointChanges):
         frame, scale = Pose(), parent.scale if parent is not None else 1.0
         for node in chain[at + 1 :]:  # Pose/Transform chain above the node (Groups add nothing)
             if "translation" in node.fields and "rotation" in node.fields:
-                frame, scale = frame * scaled_local(node, scale), scale * transform_factor(node, self.warn_once)
+                frame, scale = frame * scaled_local(node, scale), self.factor_below(node, scale)
         n_solids, n_bodies, n_joints = len(self.solids), len(self.bodies), len(self.joints)
         n_robots, n_motors, n_loops = len(self.robots), len(self.motors), len(self._loops)
         robot = parent.robot if parent is not None else None
