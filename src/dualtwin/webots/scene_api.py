@@ -25,7 +25,7 @@ from dualtwin.webots.physics.records import RobotRec, is_robot
 from dualtwin.webots.proto_links import linked_fields
 from dualtwin.webots.proto_regeneration import join_physics, regenerate
 from dualtwin.webots.protos import saved_hidden
-from dualtwin.webots.solid_scale import scaled_local, transform_factor
+from dualtwin.webots.solid_scale import scaled_local
 from dualtwin.webots.step_hints import step_value
 from dualtwin.webots.writer import write_node
 
@@ -378,7 +378,7 @@ class Node:
                 pose, scale = self._sim.solid_world_pose(s), s.scale
             elif "translation" in n.fields and "rotation" in n.fields:
                 # a frame below a scaled Transform: its translation scaled (solid_scale), its own scale applies below
-                pose, scale = pose * scaled_local(n, scale), scale * transform_factor(n, lambda _: None)
+                pose, scale = pose * scaled_local(n, scale), self._sim.factor_below(n, scale)
         return pose
 
     @step_value
