@@ -220,3 +220,20 @@ def test_a_fluid_below_a_scaled_transform_is_scaled(scale: float, speed: float) 
         assert body.lvel[2] == pytest.approx(speed, abs=1e-9)
     finally:
         sim.close()
+
+
+def test_a_camera_draws_a_solid_below_a_non_uniform_scale_as_the_physics_sizes_it() -> None:
+    # scale 1 1 2 above a Solid acts as 2 (its largest factor) in the physics; the drawing used its x factor (1), so
+    # cameras saw a 0.1 m cube where a 0.2 m one collides: the drawn box's half extents are 0.1 m, like the geom's
+    from dualtwin.webots.visual_scene import WebotsVisualScene
+
+    with pytest.warns(UserWarning, match="not uniform above a Solid or joint"):
+        sup = supervisor_in("Transform { scale 1 1 2 children [ Solid { children [ Shape { geometry DEF CUBE Box { "
+                            "size 0.1 0.1 0.1 } } ] boundingObject USE CUBE } ] }", 4)
+    try:
+        scene = WebotsVisualScene(sup)
+        assert [list(scene.model.geom_size[i]) for i in range(scene.model.ngeom)] == [pytest.approx([0.1] * 3)]
+        (geom,) = [g for g in sup.simulation.geoms.values() if g.kind == "Box"]
+        assert geom.scale == (2.0, 2.0, 2.0)
+    finally:
+        sup.simulation.close()

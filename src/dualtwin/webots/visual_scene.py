@@ -44,6 +44,7 @@ from dualtwin.webots import schema
 from dualtwin.webots.mesh_files import MeshFileError
 from dualtwin.webots.render import ResolvedCamera
 from dualtwin.webots.shapes import CAD_SHAPE_RGBA, appearance_rgba, surface_triangles
+from dualtwin.webots.solid_scale import holds_bodies, positive_scale, transform_factor
 
 __all__ = ["VISUAL_GEOMETRY", "WebotsVisualScene"]
 
@@ -57,6 +58,18 @@ def rotation_matrix(rotation: Any) -> np.ndarray:
     agree to rounding, and this keeps the scene's fixed poses bit for bit those of the ODE world it draws.
     """
     return np.asarray(m3.rot_axis_angle(rotation), dtype=float).reshape(3, 3)
+
+
+def _drawn_factor(transform: Any) -> float:
+    """The factor a Transform scales what it holds by in the drawing: above Solids or joints the physics' one
+    factor (:mod:`dualtwin.webots.solid_scale`: a non-uniform scale's largest), above Shapes alone its x factor
+    (a non-positive one reset to 1, as the physics does; the load warned about it)."""
+    def quiet(_: str) -> None:
+        return None
+
+    if holds_bodies(transform):
+        return transform_factor(transform, quiet)
+    return positive_scale(transform, quiet)[0]
 
 
 def _pose(fields: dict[str, Any], scale: float) -> np.ndarray:
@@ -192,10 +205,9 @@ class WebotsVisualScene:
                 if geom is not None:
                     geoms.append(geom)
         elif kind in ("Pose", "Transform", "TrackWheel"):  # a TrackWheel: a Pose at (position.x, 0, position.y)
-            sx = float(node.get("scale", (1.0, 1.0, 1.0))[0]) if kind == "Transform" else 1.0
             inner = T @ _pose(node.fields, scale)
             for child in _children(handle, "children"):
-                self._walk(child, inner, scale * sx, geoms)
+                self._walk(child, inner, scale * _drawn_factor(node) if kind == "Transform" else scale, geoms)
         elif kind == "Group":
             for child in _children(handle, "children"):
                 self._walk(child, T, scale, geoms)
