@@ -21,7 +21,7 @@ field names starts, with the clock going on and none of its devices enabled.
 ``simulationReset``. As in Webots, a controller that calls ``step`` again after -1 is ended there (exit status
 0), and one still running 1 s of real time after its -1 is killed with a warning (Webots' "Forced
 termination"). Unlike Webots, a controller that does not call ``step`` for ``step_timeout_s`` seconds of real
-time is stopped (exit code 2), so a run always ends. A script that raises has its traceback printed on stderr
+time is stopped (exit code 2), so a run always ends, in either isolation. A script that raises has its traceback printed on stderr
 and makes the exit code 1 (the other controllers keep running); a ``SimulationUnstable`` it lets through (the
 physics blew up in its step) prints its message on one line instead. ``keys`` names a key script replayed by
 ``Keyboard`` (:mod:`dualtwin.webots.keyboard`). Ctrl-C or SIGTERM: the children are killed, ``error: interrupted``,
@@ -29,7 +29,10 @@ exit code 130.
 
 ``isolation="threads"`` keeps the former runtime (every controller a thread of this process, sharing argv,
 working directory and modules) as a baseline for the benchmark and a reference the tests compare the processes'
-output with; it starts and restarts controllers during the run the same way, as threads. Robots whose controller is not a Python script
+output with; it starts and restarts controllers during the run the same way, as threads. Its step timeout stops
+a thread running Python code at once; one blocked in a call that never returns cannot be killed, and is left
+behind (a daemon thread) :data:`TERMINATION_GRACE_S` later, so the run still ends. Before its first step, its
+clock runs from its Robot's creation (a process's, from its last call of the API, which threads do not see). Robots whose controller is not a Python script
 found on disk (C controllers, ``<generic>``, ``<extern>``, ``<none>``) run without a controller: their motors
 keep the initial hold (docs/reference/webots-on-ode.md §5.1).
 """
@@ -54,11 +57,11 @@ from types import TracebackType
 
 from dualtwin.errors import DualtwinError
 from dualtwin.webots import controller as api
-from dualtwin.webots.controller_host import DEFAULT_STEP_TIMEOUT_S, run_in_processes
+from dualtwin.webots.controller_host import DEFAULT_STEP_TIMEOUT_S, STARTUP_GRACE_S, run_in_processes
 from dualtwin.webots.keyboard import KeyScript, load_key_script
 from dualtwin.webots.nodes import Node, World
 from dualtwin.webots.physics import Simulation, SimulationUnstable
-from dualtwin.webots.runtime import NO_CONTROLLER
+from dualtwin.webots.runtime import NO_CONTROLLER, Controller
 
 SHIM_DIR = Path(__file__).resolve().parent / "shim"
 #: Real seconds a controller may keep running after step() returned -1 (Webots waits 1 s, then terminates it).
@@ -205,15 +208,19 @@ _GUARD = threading.Lock()
 
 
 class _ScriptResult:
-    def __init__(self) -> None:
+    def __init__(self, script: Path) -> None:
+        self.script = script
         self.code = 0
         self.running = False
         self.forced = False
+        #: wall time at which the step timeout stopped it (None: it was not)
+        self.timed_out_at: float | None = None
         self.thread: int | None = None
+        self.controller: Controller | None = None
 
 
 def _run_script(runtime: api.Runtime, spec: ControllerSpec, result: _ScriptResult) -> None:
-    runtime.bind_thread(spec.robot)
+    result.controller = runtime.bind_thread(spec.robot)
     saved_argv = sys.argv
     result.thread = threading.get_ident()
     try:
@@ -226,7 +233,9 @@ def _run_script(runtime: api.Runtime, spec: ControllerSpec, result: _ScriptResul
             with _GUARD:  # from here on the watchdog leaves this thread alone
                 result.running = False
     except api.ControllerStopped:
-        if result.forced:
+        if result.timed_out_at is not None:
+            result.code = 2  # (its line was printed when it was stopped)
+        elif result.forced:
             print(
                 f"Warning: controller {spec.script.name} was still running {TERMINATION_GRACE_S:g} s after "
                 "step() returned -1: forced termination",
@@ -391,20 +400,60 @@ def _run_loaded(world: World, path: Path, proto_paths: tuple[str | os.PathLike[s
 _PACKAGE = str(Path(__file__).resolve().parents[1])  # the dualtwin package's folder
 
 
-def _watch(runtime: api.Runtime, results: list[_ScriptResult], stop: threading.Event) -> None:
-    """Terminate controllers still running ``TERMINATION_GRACE_S`` real seconds after their -1."""
+def _watch(runtime: api.Runtime, results: list[_ScriptResult], stop: threading.Event, step_timeout_s: float) -> None:
+    """Terminate controllers still running ``TERMINATION_GRACE_S`` real seconds after their -1, and stop one that
+    does not call ``step`` for ``step_timeout_s`` (0: never), as the processes' host does
+    (:mod:`dualtwin.webots.controller_host`): one line, the run ends (the others' steps return -1), exit code 2."""
+    # wall time from which a controller nothing waits for (synchronization FALSE) counts its time without a step
+    waited_from: dict[int, float] = {}
     while not stop.wait(0.02):
         now = time.monotonic()
+        ended_threads = set()
         for thread, ended in runtime.ended_clients():
+            ended_threads.add(thread)
             if now - ended < TERMINATION_GRACE_S:
                 continue
             for result in list(results):
                 with _GUARD:
                     if result.thread == thread and result.running and not result.forced:
                         result.forced = True
-                        ctypes.pythonapi.PyThreadState_SetAsyncExc(
-                            ctypes.c_ulong(thread), ctypes.py_object(api.ControllerStopped)
-                        )
+                        _stop_thread(thread)
+        if step_timeout_s > 0:
+            for result in list(results):
+                if result.thread not in ended_threads:
+                    _check_step_timeout(runtime, result, step_timeout_s, now, waited_from)
+
+
+def _check_step_timeout(runtime: api.Runtime, result: _ScriptResult, step_timeout_s: float, now: float,
+                        waited_from: dict[int, float]) -> None:
+    controller = result.controller
+    if controller is None or controller.in_step or result.timed_out_at is not None or not result.running:
+        return
+    heard = controller.arrived  # it made its Robot (past its imports)
+    if heard and controller.robot_node is not None and not runtime.waits_for(controller.robot_node):
+        waited_from[id(result)] = now  # it holds no one up
+        return
+    since = max(controller.progress, waited_from.get(id(result), 0.0))
+    allowed = step_timeout_s if heard else max(step_timeout_s, STARTUP_GRACE_S)
+    if now - since < allowed:
+        return
+    with _GUARD:
+        if not result.running:
+            return
+        result.timed_out_at = now
+    print(f"Error: controller {result.script.name} did not call step() for {step_timeout_s:g} s of real time "
+          "(--step-timeout): stopped", file=sys.stderr)
+    # the run ends before the thread is stopped: its end would otherwise let the others step on without it
+    runtime.finish()
+    with _GUARD:
+        if result.running and result.thread is not None:
+            # a script running Python code stops at once; one blocked in a call that does not return is left
+            # behind once the grace is over (_Threads.join), as its process would be killed
+            _stop_thread(result.thread)
+
+
+def _stop_thread(thread: int) -> None:
+    ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(thread), ctypes.py_object(api.ControllerStopped))
 
 
 def run_controllers(
@@ -424,7 +473,7 @@ def run_controllers(
     """
     later = _LaterControllers(Path(sim.world.path), specs)
     if isolation == "threads":
-        return _run_in_threads(sim, specs, duration_s, keys, later)
+        return _run_in_threads(sim, specs, duration_s, keys, later, step_timeout_s)
     if isolation != "process":
         raise ValueError(f"isolation must be 'process' or 'threads', got {isolation!r}")
     runtime = api.Runtime(sim, duration_s, keys=keys, stop_after_end=True)
@@ -469,7 +518,7 @@ class _Threads:
         self._closed = False
 
     def thread(self, spec: ControllerSpec, claim: bool = False) -> threading.Thread:
-        result = _ScriptResult()
+        result = _ScriptResult(spec.script)
         target = self._claimed if claim else _run_script
         thread = threading.Thread(target=target, args=(self.runtime, spec, result),
                                   name=f"controller-{len(self.threads)}", daemon=True)
@@ -495,25 +544,32 @@ class _Threads:
             _run_script(runtime, spec, result)
 
     def join(self) -> None:
-        """Wait for every controller thread, those started meanwhile too; then no more start."""
+        """Wait for every controller thread, those started meanwhile too; then no more start. One the step timeout
+        stopped is waited for :data:`TERMINATION_GRACE_S` at most: blocked in a call that never returns, it cannot
+        be stopped (a thread cannot be killed), and it is left behind (a daemon thread) rather than hang the run."""
         joined = 0
         while True:
             with self._lock:
                 if joined == len(self.threads):
                     self._closed = True
                     return
-                thread = self.threads[joined]
-            if thread.ident is not None:  # the main thread ran the only controller of the load itself
-                thread.join()
+                thread, result = self.threads[joined], self.results[joined]
+            while thread.is_alive():
+                thread.join(0.05)
+                stopped = result.timed_out_at
+                if stopped is not None and time.monotonic() - stopped >= TERMINATION_GRACE_S:
+                    break
             joined += 1
 
     def code(self) -> int:
+        if any(r.timed_out_at is not None for r in self.results):
+            return 2  # as the processes' run: the step timeout's code comes first
         return next((r.code for r in self.results if r.code != 0), 0)
 
 
 def _run_in_threads(
     sim: Simulation, specs: list[ControllerSpec], duration_s: float | None, keys: KeyScript | None,
-    later: Callable[[Node], tuple[Path, list[str]] | None],
+    later: Callable[[Node], tuple[Path, list[str]] | None], step_timeout_s: float,
 ) -> int:
     """The former runtime: every controller a thread of this process (shared argv, cwd and modules)."""
     runtime = api.Runtime(sim, duration_s, keys=keys, stop_after_end=True)
@@ -521,7 +577,8 @@ def _run_in_threads(
     threads = _Threads(runtime, later)
     runtime.controller_starter = threads.start_later
     stop_watch = threading.Event()
-    watchdog = threading.Thread(target=_watch, args=(runtime, threads.results, stop_watch), daemon=True)
+    watchdog = threading.Thread(target=_watch, args=(runtime, threads.results, stop_watch, step_timeout_s),
+                                daemon=True)
     watchdog.start()
     saved_cwd = os.getcwd()
     saved_path = list(sys.path)
@@ -540,14 +597,15 @@ def _run_in_threads(
                     file=sys.stderr,
                 )
             os.chdir(specs[0].script.parent)
-            loaded = [threads.thread(s) for s in specs]
-            if len(specs) == 1:  # run in this thread (a Ctrl-C reaches it)
-                _run_script(runtime, specs[0], threads.results[0])
-            else:
-                for t in loaded:
-                    t.start()
+            # every controller in a thread of its own, the only one too: the step timeout can leave one that
+            # blocks behind, which this thread could not do with its own
+            for t in [threads.thread(s) for s in specs]:
+                t.start()
         threads.join()
         code = _finish(sim, runtime, duration_s, threads.code())
+    except BaseException:  # Ctrl-C while it waits: the controller threads' steps return -1 rather than wait on
+        runtime.finish()
+        raise
     finally:
         stop_watch.set()
         watchdog.join()

@@ -98,7 +98,7 @@ class Controller:
     serving thread). An object, not a thread id: ids of ended threads are reused by new ones, which made the
     start-up barrier count two controllers as one and wait forever (issue 26.3)."""
 
-    __slots__ = ("robot_node", "arrived", "clients", "removed")
+    __slots__ = ("robot_node", "arrived", "clients", "removed", "in_step", "progress")
 
     def __init__(self, robot_node: SceneNode | None) -> None:
         self.robot_node = robot_node
@@ -106,6 +106,11 @@ class Controller:
         self.clients: list[_Client] = []
         #: a supervisor removed its robot or restarted its controller: its next (or current) step returns -1
         self.removed = False
+        #: for the threads runner's step timeout: whether it waits in a step (then the others hold it, not its own
+        #: script), and the wall time (time.monotonic) of its last sign of progress: its start, its Robot made, a
+        #: step returned
+        self.in_step = False
+        self.progress = time.monotonic()
 
 
 class Runtime:
@@ -385,6 +390,7 @@ class Runtime:
             self._clients.append(client)
             if controller is not None:
                 controller.arrived = True
+                controller.progress = time.monotonic()
                 controller.clients.append(client)
                 # the start-up barrier may open now: the others' first steps must not wait for this one's first
                 # step as well, which a robot whose synchronization is FALSE may take any time to make
@@ -453,6 +459,17 @@ class Runtime:
 
     def advance(self, client: _Client, duration_ms: float) -> int:
         """Advance the shared simulation by ``duration_ms`` for ``client`` (blocking until done)."""
+        controller = client.controller
+        if controller is None:
+            return self._advance(client, duration_ms)
+        controller.in_step = True
+        try:
+            return self._advance(client, duration_ms)
+        finally:
+            controller.in_step = False
+            controller.progress = time.monotonic()
+
+    def _advance(self, client: _Client, duration_ms: float) -> int:
         sim = self.simulation
         self._start_requested()  # a supervisor's imports and restarts act on this step
         with self._cond:
