@@ -29,7 +29,8 @@ The main thread watches the children:
 * Ctrl-C or SIGTERM kills and reaps every child and returns 130 (the caller says ``error: interrupted``; the command line catches its own SIGINT first).
 
 A child that crashes prints its traceback (through its stderr) and makes the exit code 1; the others keep
-running, as in Webots. Children die with this process (``PR_SET_PDEATHSIG``) and are always reaped.
+running, as in Webots. Once a supervisor called ``simulationQuit(status)``, a child's end no longer decides the
+code: Webots exits with that status. Children die with this process (``PR_SET_PDEATHSIG``) and are always reaped.
 """
 
 from __future__ import annotations
@@ -99,6 +100,8 @@ class _Link:
         self.ended_at: float | None = None  # wall time at which step() returned -1
         self.exit_code: int | None = None  # as the child reported it
         self.stopped: str | None = None  # why the parent killed it: "forced" or "timeout"
+        #: it ended once a supervisor had called simulationQuit: its exit status is not the run's
+        self.after_quit = False
         self.deferred: BaseException | None = None  # raised by a queued command, reported at the next call
         #: the marked getters the child reads, (handle, name) -> bound method, in the child's order: their
         #: values go with every step's answer
@@ -292,6 +295,7 @@ class _Host:
                     break
         finally:
             self.state.link = None
+            link.after_quit = runtime.exit_status is not None
             runtime.thread_done()
             link.done.set()
             self.changed.set()
@@ -484,7 +488,9 @@ class _Host:
             if link.stopped == "timeout":
                 return 2
         for link in self.links:
-            if link.stopped == "forced":
+            if link.stopped == "forced" or link.after_quit:
+                # (once a supervisor quit with a status, Webots exits with it whatever a controller then does: its
+                # traceback is output, the caller gives the status)
                 continue
             code = link.exit_code
             if code is None:  # died without saying how: killed by a signal, or the interpreter failed

@@ -21,11 +21,12 @@ field names starts, with the clock going on and none of its devices enabled.
 ``simulationReset``. As in Webots, a controller that calls ``step`` again after -1 is ended there (exit status
 0), and one still running 1 s of real time after its -1 is killed with a warning (Webots' "Forced
 termination"). Unlike Webots, a controller that does not call ``step`` for ``step_timeout_s`` seconds of real
-time is stopped (exit code 2), so a run always ends, in either isolation. A script that raises has its traceback printed on stderr
-and makes the exit code 1 (the other controllers keep running); a ``SimulationUnstable`` it lets through (the
-physics blew up in its step) prints its message on one line instead. ``keys`` names a key script replayed by
-``Keyboard`` (:mod:`dualtwin.webots.keyboard`). Ctrl-C or SIGTERM: the children are killed, ``error: interrupted``,
-exit code 130.
+time is stopped (exit code 2), so a run always ends, in either isolation. A script that raises has its traceback
+printed on stderr and makes the exit code 1 (the other controllers keep running), unless a supervisor called
+``simulationQuit(status)`` before: the run then exits with that status, as Webots does. A ``SimulationUnstable``
+it lets through (the physics blew up in its step) prints its message on one line instead. ``keys`` names a key
+script replayed by ``Keyboard`` (:mod:`dualtwin.webots.keyboard`). Ctrl-C or SIGTERM: the children are killed,
+``error: interrupted``, exit code 130.
 
 ``isolation="threads"`` keeps the former runtime (every controller a thread of this process, sharing argv,
 working directory and modules) as a baseline for the benchmark and a reference the tests compare the processes'
@@ -217,6 +218,8 @@ class _ScriptResult:
         self.timed_out_at: float | None = None
         self.thread: int | None = None
         self.controller: Controller | None = None
+        #: it ended once a supervisor had called simulationQuit: its exit status is not the run's
+        self.after_quit = False
 
 
 def _run_script(runtime: api.Runtime, spec: ControllerSpec, result: _ScriptResult) -> None:
@@ -255,6 +258,7 @@ def _run_script(runtime: api.Runtime, spec: ControllerSpec, result: _ScriptResul
         result.code = 1
     finally:
         sys.argv = saved_argv
+        result.after_quit = runtime.exit_status is not None
         runtime.thread_done()
 
 
@@ -564,7 +568,9 @@ class _Threads:
     def code(self) -> int:
         if any(r.timed_out_at is not None for r in self.results):
             return 2  # as the processes' run: the step timeout's code comes first
-        return next((r.code for r in self.results if r.code != 0), 0)
+        # once a supervisor quit with a status, Webots exits with it whatever the controllers then do (a traceback
+        # is output in the console): an end after the quit does not decide the code (_finish gives the status)
+        return next((r.code for r in self.results if r.code != 0 and not r.after_quit), 0)
 
 
 def _run_in_threads(
