@@ -6,6 +6,10 @@ refuse floats and NumPy integers with a ``ctypes.ArgumentError``. Users pass all
 real scalar, 0-d array and one-element array, and whole numbers where Webots wants an ``int``. Anything else is
 a ``TypeError`` raised at the call and naming the method: storing a bad value would fail much later, inside
 the physics step, far from its cause.
+
+Text arguments (names, labels, messages) are encoded by Webots' wrapper before the C call (``str.encode``), so
+anything but a ``str`` raises a ``TypeError`` there; :func:`as_text` raises it too, also where the text is not used
+headless (a label, a robot-window message), so a script that fails in Webots fails here.
 """
 
 from __future__ import annotations
@@ -18,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["as_float", "as_floats", "as_int", "error", "finite", "warn"]
+__all__ = ["as_float", "as_floats", "as_int", "as_text", "error", "finite", "warn"]
 
 
 C_INT_MIN, C_INT_MAX = -(2**31), 2**31 - 1
@@ -110,3 +114,14 @@ def as_floats(values: Any, method: str, count: int | None = None) -> list[float]
     if count is not None and len(out) != count:
         raise ValueError(f"{method}() expects {count} values, got {len(out)}")
     return out
+
+
+def as_text(value: Any, method: str) -> str:
+    """``value`` if it is a ``str`` (a subclass too, as ``str.encode`` takes it), as a plain ``str``.
+
+    Raises:
+        TypeError: anything else (bytes, a number, None), naming ``method`` and what was passed.
+    """
+    if isinstance(value, str):
+        return str(value)  # (a plain str: what the API stores and answers)
+    raise TypeError(f"{method}() expects a str, got {_describe(value)}")

@@ -30,7 +30,7 @@ import numpy as np
 
 from dualtwin.artifacts import write_bytes
 from dualtwin.errors import DualtwinError
-from dualtwin.webots.api_args import as_float, as_int, error, warn
+from dualtwin.webots.api_args import as_float, as_int, as_text, error, warn
 from dualtwin.webots.device_base import Device
 from dualtwin.webots.protos import MAX_IMAGE_SIDE  # (the world loader's cap on a Display's own size)
 
@@ -126,6 +126,7 @@ class Display(Device):
         self._opacity = o
 
     def setFont(self, font: str, size: Any, anti_aliasing: bool) -> None:
+        as_text(font, "Display.setFont")
         if as_int(size, "Display.setFont") <= 0:
             warn("Display.setFont(): the size must be > 0")
 
@@ -234,8 +235,7 @@ class Display(Device):
         self._paint(inside)
 
     def drawText(self, text: str, x: Any, y: Any) -> None:
-        if not isinstance(text, str):
-            raise TypeError("Display.drawText() expects a str")
+        as_text(text, "Display.drawText")
         int(x), int(y)  # argument check only: no font rasteriser headless
 
     # -- images

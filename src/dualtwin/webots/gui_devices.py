@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from dualtwin.webots.api_args import as_float, as_int, warn
+from dualtwin.webots.api_args import as_float, as_int, as_text, warn
 from dualtwin.webots.device_base import Device
 
 __all__ = ["Skin", "Speaker"]
@@ -35,6 +35,7 @@ class Speaker(Device):
     def playSound(left: Speaker, right: Speaker, sound: str, volume: Any, pitch: Any, balance: Any,
                   loop: Any) -> None:
         """Nothing is played headless (the sound file is not even opened)."""
+        as_text(sound, "Speaker.playSound")
         for value in (volume, pitch, balance):
             as_float(value, "Speaker.playSound")
 
@@ -45,20 +46,21 @@ class Speaker(Device):
         return False
 
     def speak(self, text: str, volume: Any) -> None:
+        as_text(text, "Speaker.speak")
         as_float(volume, "Speaker.speak")
 
     def isSpeaking(self) -> bool:
         return False
 
     def setEngine(self, engine: str) -> bool:
-        if engine not in _ENGINES:
+        if as_text(engine, "Speaker.setEngine") not in _ENGINES:
             warn(f"Speaker.setEngine(): unknown engine {engine!r} (available: {', '.join(_ENGINES)})")
             return False
         self._engine = engine
         return True
 
     def setLanguage(self, language: str) -> bool:
-        if language not in _LANGUAGES:
+        if as_text(language, "Speaker.setLanguage") not in _LANGUAGES:
             warn(f"Speaker.setLanguage(): unsupported language {language!r}")
             return False
         self._language = language

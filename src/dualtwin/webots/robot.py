@@ -22,7 +22,7 @@ import sys
 from pathlib import Path
 from typing import Any, ClassVar
 
-from dualtwin.webots.api_args import as_float, as_int, error, warn
+from dualtwin.webots.api_args import as_float, as_int, as_text, error, warn
 from dualtwin.webots.battery import battery_sensor
 from dualtwin.webots.device_base import Device, bind_host
 from dualtwin.webots.joystick import Joystick
@@ -174,7 +174,7 @@ class Robot:
         return str(self.__link._rec.node.fields.get("customData", ""))
 
     def setCustomData(self, data: str) -> None:
-        self.__link._rec.node.fields["customData"] = str(data)
+        self.__link._rec.node.fields["customData"] = as_text(data, "Robot.setCustomData")
 
     def getSupervisor(self) -> bool:
         return self.__link._rec.supervisor
@@ -214,6 +214,7 @@ class Robot:
 
     def wwiSendText(self, text: str) -> None:
         """No robot window is open headless: the message is dropped, as Webots drops it without a window."""
+        as_text(text, "Robot.wwiSendText")
 
     def wwiReceiveText(self) -> str | None:
         return None
@@ -239,7 +240,7 @@ class Robot:
 
     def getDevice(self, name: str) -> Device | None:
         link = self.__link
-        rec = link._rec.devices.get(name)
+        rec = link._rec.devices.get(as_text(name, "Robot.getDevice"))
         if rec is None:
             error(f'Device "{name}" was not found on robot "{link._rec.name}".')
             return None

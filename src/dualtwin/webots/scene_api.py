@@ -14,7 +14,7 @@ from collections.abc import Sequence
 from typing import Any, Protocol
 
 from dualtwin.webots import _math3 as m3
-from dualtwin.webots.api_args import as_float, as_floats, as_int, finite, warn
+from dualtwin.webots.api_args import as_float, as_floats, as_int, as_text, finite, warn
 from dualtwin.webots.contacts import contact_points, solids_of, static_balance
 from dualtwin.webots.field_api import Field, parse_nodes
 from dualtwin.webots.node_types import node_type_of
@@ -231,6 +231,7 @@ class Node:
 
     def getFromProtoDef(self, DEF: str) -> Node | None:  # noqa: N803 - Webots' parameter name
         """The node DEF'd ``DEF`` inside this PROTO instance's own body."""
+        as_text(DEF, "Node.getFromProtoDef")
         if not self.isProto():
             return None
         found = next((n for n in self._node.walk() if n.proto_def_name == DEF), None)
@@ -255,6 +256,7 @@ class Node:
         return self._node.proto_fields if self._node.proto_fields is not None else self._node.fields
 
     def getField(self, name: str) -> Field | None:
+        as_text(name, "Node.getField")
         values = self._interface()
         if name not in values:
             return None
@@ -270,6 +272,7 @@ class Node:
 
     def getProtoField(self, name: str) -> Field | None:
         """A field of the base node a PROTO instance expands to (None for a non-PROTO node)."""
+        as_text(name, "Node.getProtoField")
         if not self.isProto() or name not in self._node.fields:
             return None
         return Field(self, name)
@@ -504,6 +507,8 @@ class Node:
 
     def setVisibility(self, fromNode: Node, visible: bool) -> None:
         """Only cameras and viewpoints see visibility; headless cameras draw no nodes, so nothing changes."""
+        if not isinstance(fromNode, Node):  # Webots' wrapper passes its node reference on (fromNode._ref)
+            raise TypeError(f"Node.setVisibility() expects a Node, got {type(fromNode).__name__}")
 
     # -- forces
 

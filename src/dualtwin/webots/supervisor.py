@@ -17,7 +17,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from dualtwin.webots.api_args import as_float, as_int, warn
+from dualtwin.webots.api_args import as_float, as_int, as_text, warn
 from dualtwin.webots.robot import Robot, link_of
 from dualtwin.webots.runtime import SIMULATION_MODE_FAST, SIMULATION_MODE_PAUSE, SIMULATION_MODE_REAL_TIME
 from dualtwin.webots.scene_api import Node, descendants, find_def, world_as_saved
@@ -120,7 +120,7 @@ class Supervisor(Robot):
         link = link_of(self)
         scope = list(link._sim.world.nodes)
         found = None
-        for part in str(d).split("."):
+        for part in as_text(d, "Supervisor.getFromDef").split("."):
             found = None
             for top in scope:
                 found = find_def(top, part)
@@ -152,6 +152,8 @@ class Supervisor(Robot):
                  font: str = "Arial") -> None:
         """Labels are drawn on the 3D view; headless there is none, so the label is checked and not drawn."""
         as_int(id, "Supervisor.setLabel")
+        as_text(label, "Supervisor.setLabel")
+        as_text(font, "Supervisor.setLabel")
         for value in (x, y, size, transparency):
             as_float(value, "Supervisor.setLabel")
         as_int(color, "Supervisor.setLabel")
