@@ -116,3 +116,64 @@ Robot { supervisor TRUE children [ TouchSensor { name "t" type "force" lookupTab
     sup.step(4)
     assert dev.getValue() == 3.0
     assert dev.getType() == dev.FORCE
+
+
+SENSOR_MASS = 2.0
+_SENSOR = ('DEF T TouchSensor {{ name "t" type "{type}" translation 0.2 0 0 {rotation} lookupTable [ ] '
+           'boundingObject Box {{ size 0.1 0.1 0.1 }} physics Physics {{ mass 2 }} }}')
+_HOLDERS = {
+    "fixed": "{sensor}",  # a child Solid: Webots fixes it to its parent (webots-devices.md §2.2)
+    "slider endPoint": "SliderJoint {{ jointParameters JointParameters {{ axis 1 0 0 }} endPoint {sensor} }}",
+    "hinge endPoint": "HingeJoint {{ jointParameters HingeJointParameters {{ axis 1 0 0 }} endPoint {sensor} }}",
+}
+
+
+def _held(holder: str, sensor_type: str, rotation: str = "") -> Supervisor:
+    sensor = _SENSOR.format(type=sensor_type, rotation=rotation)
+    text = f"""#VRML_SIM R2023b utf8
+WorldInfo {{ basicTimeStep 8 }}
+Robot {{ translation 0 0 0.5 supervisor TRUE children [ {_HOLDERS[holder].format(sensor=sensor)} ] }}
+"""
+    return Supervisor(simulation=Simulation(load_world_text(text)), robot_node=None)
+
+
+@pytest.mark.parametrize("holder", list(_HOLDERS))
+def test_a_force_sensor_at_the_end_of_a_joint_reads_what_its_joint_carries(
+    holder: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # webots-devices.md §2.2-2.3: with Physics the sensor has its own body (never merged) and reads f1, the force
+    # that what holds it applies to its parent. A joint's endPoint has no fixed joint: the joint holds it (the
+    # reference is silent on this case), and it warned "needs Physics" and read lookup(0) = 0. The robot has no
+    # Physics (static) and both joints' axes are horizontal through the sensor's centre, so the holder carries its
+    # weight alone: f1 = (0, 0, -m g) = (0, 0, -2 × 9.81) = (0, 0, -19.62) N, pressing down on the robot.
+    # force-3d with an empty table (raw newtons), sensor unrotated: R_sensorᵀ·f1 = (0, 0, -19.62).
+    sup = _held(holder, "force-3d")
+    values = _settle(sup, "t", 0.1).getValues()
+    assert values == pytest.approx([0.0, 0.0, -SENSOR_MASS * G], rel=1e-3, abs=1e-3)
+    # force: the sensor's x axis turned up (rotation about y by -π/2: x̂ = (0, 0, 1)), p = x̂·f1 = -19.62 < 0, so
+    # the input is the push -p = 19.62 N
+    sup = _held(holder, "force", "rotation 0 1 0 -1.5707963267948966")
+    assert _settle(sup, "t", 0.1).getValue() == pytest.approx(SENSOR_MASS * G, rel=1e-3)
+    assert "needs Physics" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("touch_first", [True, False])
+def test_the_joint_force_is_read_alongside_the_motor_force_feedback(touch_first: bool) -> None:
+    # ODE keeps one feedback buffer per joint, which Motor.enableForceFeedback also sets: the sensor reads through
+    # whichever the joint has, in either order. A vertical slider whose motor holds the sensor carries its weight
+    # along its axis: f1 = (0, 0, -2 × 9.81) N as above.
+    text = """#VRML_SIM R2023b utf8
+WorldInfo { basicTimeStep 8 }
+Robot { translation 0 0 0.5 supervisor TRUE children [
+  SliderJoint { jointParameters JointParameters { axis 0 0 1 } device [ LinearMotor { name "m" maxForce 100 } ]
+    endPoint TouchSensor { name "t" type "force-3d" translation 0.2 0 0 lookupTable [ ]
+      boundingObject Box { size 0.1 0.1 0.1 } physics Physics { mass 2 } } } ] }
+"""
+    sup = Supervisor(simulation=Simulation(load_world_text(text)), robot_node=None)
+    touch, motor = sup.getDevice("t"), sup.getDevice("m")
+    for enable in ((touch.enable, motor.enableForceFeedback) if touch_first
+                   else (motor.enableForceFeedback, touch.enable)):
+        enable(8)
+    for _ in range(20):
+        sup.step(8)
+    assert touch.getValues() == pytest.approx([0.0, 0.0, -SENSOR_MASS * G], rel=1e-3, abs=1e-3)

@@ -323,7 +323,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "coordinate along the world's up axis, Gaussian accuracy noise, resolution"),
     Coverage("TouchSensor", "device", "supported",
              "bumper from contacts of its bounding object in any step since the last sample; force and "
-             "force-3d from the feedback of the fixed joint to its own body, with lookup table and resolution"),
+             "force-3d from the feedback of the joint holding its own body (its fixed joint, or the joint whose "
+             "endPoint it is), with lookup table and resolution"),
     Coverage("Lidar", "device", "partial",
              "one ray per pixel against the visual Shapes (as Webots renders them): layers, fov, tilt, "
              "cylindrical (Euclidean) or planar (depth) ranges, +inf outside [minRange, maxRange), noise, "

@@ -12,7 +12,8 @@ Bumper
 Force and force-3d
     With Physics, the sensor is *not* merged into its parent: it has its own body, attached to the parent's
     (or to the static environment) by a fixed joint whose ``dJointFeedback`` gives the force the joint applies
-    to the parent, ``f1`` (world frame). force: the push along the sensor's −x axis (onto the robot),
+    to the parent, ``f1`` (world frame). A sensor that is a joint's endPoint is held by that joint instead (no
+    fixed joint; the reference is silent on this case), whose feedback is read the same way. force: the push along the sensor's −x axis (onto the robot),
     ``input = max(0, −x̂·f1)``; force-3d: ``R_sensorᵀ·f1``, each component through the table separately (with the
     default table, negative components read 0, as in Webots). Then the lookup table (empty: raw newtons) and
     the resolution. The joint also carries the sensor's own weight, as in Webots. Without Physics the force
@@ -33,7 +34,7 @@ from dualtwin.webots import ode
 from dualtwin.webots.api_args import error, warn
 from dualtwin.webots.device_base import SolidSensor
 from dualtwin.webots.lut import discretize, lookup, table_from_field
-from dualtwin.webots.physics import GeomRec, Simulation, SolidRec
+from dualtwin.webots.physics import GeomRec, JointRec, Simulation, SolidRec
 from dualtwin.webots.step_hints import step_value
 
 __all__ = ["TouchSensor", "bumper_touches"]
@@ -125,15 +126,34 @@ class TouchSensor(SolidSensor):
             self._table = table_from_field(self._record.node.fields.get("lookupTable", []))
             self._resolution = float(self._record.node.fields.get("resolution", -1.0))
             self._feedback: ode.dJointFeedback | None = None
+            self._holder: JointRec | None = None
             self._touched = False
-            body = self._record.solid.body
             if kind != self.BUMPER:
-                if body is None or body.root is not self._record.solid or not body.fixed_joint:
-                    warn(f"TouchSensor '{self._name}': a force sensor needs Physics; it reads lookup(0)")
-                else:
-                    self._feedback = ode.dJointFeedback()
-                    ode.load().dJointSetFeedback(body.fixed_joint, ctypes.byref(self._feedback))
+                self._attach_feedback()
         return kind
+
+    def _attach_feedback(self) -> None:
+        """Watch the joint that holds the sensor's body to its parent: its fixed joint, or the joint whose
+        endPoint it is (a Solid with Physics there is never merged, and has no fixed joint)."""
+        solid = self._record.solid
+        body = solid.body
+        if body is None or body.root is not solid:
+            warn(f"TouchSensor '{self._name}': a force sensor needs Physics; it reads lookup(0)")
+            return
+        lib = ode.load()
+        if body.fixed_joint:
+            self._feedback = ode.dJointFeedback()
+            lib.dJointSetFeedback(body.fixed_joint, ctypes.byref(self._feedback))
+            return
+        holder = next((j for j in body.joints if j.child is solid and j.ptr), None)
+        if holder is None:  # (a body nothing holds: no force reaches a parent)
+            return
+        self._holder = holder
+        # one feedback buffer per ODE joint: a motor's force feedback (or the battery) may have set it, or set its
+        # own later; the reading goes through whichever the joint has (_force_on_parent)
+        if not lib.dJointGetFeedback(holder.ptr):
+            self._feedback = ode.dJointFeedback()
+            lib.dJointSetFeedback(holder.ptr, ctypes.byref(self._feedback))
 
     def enable(self, samplingPeriod: Any) -> None:
         kind = self._kind()
@@ -157,14 +177,23 @@ class TouchSensor(SolidSensor):
         self._value = math.nan
 
     def _force_on_parent(self) -> m3.Vec3:
-        fb = self._feedback
-        if fb is None:
-            return (0.0, 0.0, 0.0)
+        holder = self._holder
+        if holder is not None:
+            address = ode.load().dJointGetFeedback(holder.ptr) if holder.ptr else None
+            if not address:
+                return (0.0, 0.0, 0.0)
+            fb = ode.dJointFeedback.from_address(address)
+            sensor_first = holder.parent_body is None
+        else:
+            if self._feedback is None:
+                return (0.0, 0.0, 0.0)
+            fb = self._feedback
+            body = self._record.solid.body
+            sensor_first = body is not None and body.fixed_to is None
         f = (fb.f1[0], fb.f1[1], fb.f1[2])
-        body = self._record.solid.body
-        # fixed to the static environment, ODE makes the sensor body the joint's first body: f1 is then the force
+        # held by the static environment, ODE makes the sensor body the joint's first body: f1 is then the force
         # on the sensor, and the force on the "parent" (the environment) is its opposite
-        return m3.scale(f, -1.0) if body is not None and body.fixed_to is None else f
+        return m3.scale(f, -1.0) if sensor_first else f
 
     def _read(self) -> None:
         kind = self._kind()
