@@ -122,6 +122,21 @@ def test_propeller_negative_speed_gives_negative_thrust() -> None:
     assert (v1[2] - v0[2]) == pytest.approx(-0.5, rel=1e-3)
 
 
+@pytest.mark.parametrize("mount", ["Solid {{ children [ {} ] }}", "Pose {{ children [ Solid {{ children [ {} ] }} ] }}"])
+def test_a_propeller_in_a_solid_without_physics_pushes_the_body_that_carries_it(mount: str) -> None:
+    # D:334-337: applied to "the body of the closest upper Solid (its merged body)"; "No Physics upstream =>
+    # warning, no effect". Here the closest upper Solid has no Physics but the Robot above it has: no warning, and
+    # the Robot's body is pushed (it had no effect, and no warning either). As in the shaftAxis tests: T = 1e-4·100²
+    # = 1 N along z on the 1 kg Robot (the Solid without Physics adds no mass) for 0.5 s: 0.5 m/s.
+    propeller = ('Propeller { shaftAxis 0 0 1 thrustConstants 1e-4 0 torqueConstants 0 0 '
+                 'device RotationalMotor { name "prop" maxVelocity 200 maxTorque 1000 } }')
+    sup = _sup("DEF DRONE Robot { supervisor TRUE boundingObject Box { size 0.1 0.1 0.1 } physics Physics { mass 1 } "
+               f"children [ {mount.format(propeller)} ] }}")
+    v0, v1 = _spin(sup, 100.0, 50, 125)
+    assert (v1[2] - v0[2]) == pytest.approx(0.5, rel=1e-3)
+    assert not [w for w in sup.simulation.build_warnings if "Propeller" in w]
+
+
 def test_propeller_thrust_at_the_centre_of_thrust_also_turns_the_body() -> None:
     # D:335-336: F = T·a applied at the centre of thrust (0.1, 0, 0): torque r × F = (0, -0.1·T, 0) with T = 1 N;
     # a 0.1 m cube of 1 kg has I = 1/600: -60 rad/s² about y. Measured over 4 ms right after spin-up

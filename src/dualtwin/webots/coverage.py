@@ -249,8 +249,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "wheels of a Track are turned only visually in Webots; its children are placed at (position.x, 0, "
              "position.y) in the Track's frame (so cameras and range sensors see them there), not turned"),
     Coverage("Propeller", "joint", "partial",
-             "thrust and torque from its constants and the motor's kinematic speed, applied to the parent body "
-             "at the centre of thrust; its motor is a device (a Motor) with the Motor API's checks, clipping and "
+             "thrust and torque from its constants and the motor's kinematic speed, applied to the body carrying "
+             "its closest upper Solid (for a Solid without Physics, its nearest ancestor's) at the centre of thrust; its motor is a device (a Motor) with the Motor API's checks, clipping and "
              "raw echoes of a joint motor (available torque at most maxTorque; no torque feedback); without "
              "Physics above it, a warning and no effect; the helices "
              "are not simulated and a "

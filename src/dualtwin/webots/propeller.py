@@ -11,7 +11,8 @@ read as rad/s²) when the acceleration is -1 or larger than that; in position mo
 the force ``T·a`` is applied at the centre of thrust and the torque ``−Q·a`` to the body (``a`` = the shaft axis
 in the world), which is woken up. Webots projects V on the shaft axis expressed in the propeller's *parent
 frame* (not rotated to the world), a quirk reproduced here. The helix Solids are visual and not simulated.
-Without a body upstream there is no effect (and a build warning, as in Webots).
+The body is the one that carries the closest upper Solid (its own, or, for a Solid without Physics, its nearest
+ancestor's). Without a body upstream there is no effect (and a build warning, as in Webots).
 """
 
 from __future__ import annotations
@@ -148,7 +149,9 @@ class _Propellers:
             rec.control(dt)
             rec.thrust = rec.torque = 0.0
             solid = rec.site.solid
-            body = solid.body if solid is not None else None
+            # the closest upper Solid's merged body: a Solid without Physics inside a body is carried by its
+            # nearest ancestor's (the build warns only when no Solid upstream has Physics, webots-devices.md §8)
+            body = body_of(solid)
             if rec.omega == 0.0 or body is None or solid is None:
                 continue
             frame = sim.solid_world_pose(solid) * rec.site.frame_rel
