@@ -4,18 +4,21 @@ from __future__ import annotations
 
 import math
 import warnings
+from pathlib import Path
 
 import pytest
 
 from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Robot, Runtime
 from dualtwin.webots.physics import Simulation
+from tests.support.isolation_runs import assert_threads_print, run_in_both_modes
 
 
 def _robots(
-    emitter: str = "", receiver: str = "", rx_pose: str = "translation 2 0 0", wall: str = ""
+    emitter: str = "", receiver: str = "", rx_pose: str = "translation 2 0 0", wall: str = "", stepping: str = "b"
 ) -> tuple[Robot, Robot]:
-    """Robot A (emitter at the origin) and robot B (receiver); only B's controller steps the simulation."""
+    """Robot A (emitter at the origin) and robot B (receiver); only the ``stepping`` one's controller steps the
+    simulation (the other's devices work, but nothing waits for its steps)."""
     text = f"""#VRML_SIM R2023b utf8
 WorldInfo {{ basicTimeStep 8 randomSeed 1 }}
 {wall}
@@ -27,8 +30,8 @@ Robot {{ name "b" {rx_pose} children [ Receiver {{ name "rx" {receiver} }} ] }}
         sim = Simulation(load_world_text(text))
     runtime = Runtime(sim)
     a = Robot(runtime=runtime, robot_node=sim.robots[0].node)
-    a.cleanup()  # A's devices work, but only B's controller waits for steps
     b = Robot(runtime=runtime, robot_node=sim.robots[1].node)
+    (b if stepping == "a" else a).cleanup()
     return a, b
 
 
@@ -101,21 +104,54 @@ def test_set_range_channel_and_disabled_receiver() -> None:
 
 
 def test_buffers_and_baud_rate() -> None:
-    a, b = _robots("bufferSize 5 baudRate 800", "bufferSize 6")
+    # the emitter's controller steps: its baud budget grows with the steps it asks for (webots-devices.md §5.2
+    # step 2, "per wb_robot_step")
+    a, b = _robots("bufferSize 5 baudRate 800", "bufferSize 6", stepping="a")
     tx, rx = a.getDevice("tx"), b.getDevice("rx")
     rx.enable(8)
     tx.send(b"abcd")
     tx.send(b"ef")  # 6 bytes queued > bufferSize 5: refused
-    # 800 bit/s at 8 bits per byte: 0.8 byte per 8 ms step; the 4-byte packet leaves after 5 steps
+    # 800 bit/s at 8 bits per byte: 0.8 byte per 8 ms step; the 4-byte packet leaves with the 5th step
     for _ in range(4):
-        b.step(8)
+        a.step(8)
         assert rx.getQueueLength() == 0
-    b.step(8)
+    a.step(8)
     assert rx.getBytes() == b"abcd"
     tx.send(b"xyz")  # 4 + 3 > the receiver's 6 bytes: dropped on arrival
     for _ in range(5):
-        b.step(8)
+        a.step(8)
     assert rx.getQueueLength() == 1
+
+
+BAUD_WORLD = """#VRML_SIM R2023b utf8
+WorldInfo { basicTimeStep 8 }
+Robot { name "tx" controller "probe" children [ Emitter { name "tx" baudRate 8000 } ] }
+Robot { translation 2 0 0 name "rx" controller "probe" children [ Receiver { name "rx" } ] }
+"""
+BAUD_SCRIPT = """
+from controller import Robot
+robot = Robot()
+if robot.getName() == "tx":
+    robot.getDevice("tx").send(b"x" * 30)
+    robot.step(32)
+    robot.step(32)
+else:
+    rx = robot.getDevice("rx")
+    rx.enable(8)
+    while robot.step(8) != -1:
+        if rx.getQueueLength():
+            print(f"arrived by {robot.getTime() * 1000:.0f} ms")
+            break
+"""
+
+
+def test_the_baud_budget_grows_with_the_emitters_controller_step(tmp_path: Path) -> None:
+    # webots-devices.md §5.2 step 2: "Per wb_robot_step: ... a byte budget grows by baudRate/byteSize/1000·step_ms
+    # and whole packets go while they fit". 8000 bit/s at 8 bits a byte is 1 byte/ms: the emitter's step(32) gives
+    # 32 bytes, so the 30-byte packet leaves with that step's first basic step and the receiver, sampling every
+    # 8 ms, has it by 8 ms. (Granted per basic step, 8 bytes each, it left only with the 4th: by 32 ms.)
+    runs = run_in_both_modes(tmp_path, BAUD_WORLD, BAUD_SCRIPT, duration_s=0.1)
+    assert_threads_print(runs, "arrived by 8 ms\n")
 
 
 def test_infra_red_needs_line_of_sight_and_aperture() -> None:

@@ -10,6 +10,7 @@ import math
 import sys
 import threading
 import weakref
+from collections.abc import Callable
 from typing import Any, NamedTuple, Protocol
 
 from dualtwin.webots import _math3 as m3
@@ -43,6 +44,9 @@ class DeviceHost(Protocol):
 
     #: objects sampled at each step that are not devices (keyboards, mice, joysticks, motions)
     inputs: list[Any]
+
+    #: called with a step's duration (ms) when the controller asks for it, before the simulation runs it
+    step_listeners: list[Callable[[float], None]]
 
     def getTime(self) -> float: ...  # noqa: N802 - Webots' method name
 

@@ -5,7 +5,10 @@ Pipeline (Webots' ``WbEmitter``/``WbReceiver``):
 1. ``Emitter.send`` queues a packet (at least one byte) with the emitter's current channel and range; with a
    ``bufferSize`` the packet is refused when the queued bytes would exceed it.
 2. At the next simulation step (before physics) the emitter releases its queue — all of it when ``baudRate`` is
-   -1, else whole packets while a byte budget growing by ``baudRate / byteSize / 1000`` per millisecond allows —
+   -1, else the whole packets that a byte budget allowed when its controller asked for that step: the budget grows
+   by ``baudRate / byteSize / 1000`` per millisecond of each ``step`` the controller asks for (webots-devices.md
+   §5.2 step 2: "per wb_robot_step", the controller library's count, not per basic step), and a packet larger than
+   what is left waits for the next steps —
    to every receiver that is enabled at that moment, has the same ``type``, a matching channel (equal, or either
    is -1) and belongs to *another* robot.
 3. After the physics step, radio and serial packets farther than the emitter's range (origin to origin) are
@@ -83,6 +86,7 @@ class _Medium:
         self.in_flight.clear()
         for emitter in self.emitters.values():
             emitter._queue.clear()
+            emitter._ready.clear()
             emitter._budget = 0.0
         for receiver in self.receivers.values():
             receiver._arrived.clear()
@@ -183,21 +187,28 @@ class Emitter(Device):
         self._buffer_size = int(f.get("bufferSize", -1))
         self._allowed = [int(c) for c in f.get("allowedChannels", []) or []]
         self._queue: list[_Packet] = []
+        self._ready: list[_Packet] = []  # what the budget let go at the controller's last step request
         self._budget = 0.0
         register_in_world_order(_medium(robot._sim).emitters, self)
+        if self._baud >= 0:
+            robot.step_listeners.append(self._controller_step)
+
+    def _controller_step(self, ms: float) -> None:
+        """The controller asks for a step of ``ms``: the budget grows by what the baud rate sends in that time, and
+        the whole packets it covers leave with the request (released at the step's first basic step)."""
+        self._budget += self._baud / self._byte_size / 1000.0 * ms
+        while self._queue and len(self._queue[0].data) <= self._budget:
+            packet = self._queue.pop(0)
+            self._budget -= len(packet.data)
+            self._ready.append(packet)
+        if not self._queue:
+            self._budget = 0.0
 
     def _release(self, ms: float) -> list[_Packet]:
         if self._baud < 0:
             out, self._queue = self._queue, []
             return out
-        self._budget += self._baud / self._byte_size / 1000.0 * ms
-        out = []
-        while self._queue and len(self._queue[0].data) <= self._budget:
-            packet = self._queue.pop(0)
-            self._budget -= len(packet.data)
-            out.append(packet)
-        if not self._queue:
-            self._budget = 0.0
+        out, self._ready = self._ready, []
         return out
 
     def send(self, message: Any, length: Any = None) -> None:

@@ -9,6 +9,7 @@ user's object. The link advances the runtime on ``step`` and samples the enabled
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 from dualtwin.webots.api_args import as_int
@@ -77,6 +78,9 @@ class RobotLink:
         self._sensors: dict[int, Sensor] = {}
         #: objects stepped with the robot that are not sensors (keyboards, mice, joysticks)
         self.inputs: list[Any] = []
+        #: called with a step's duration (ms) when the controller asks for it, before the simulation runs it (what
+        #: the controller library does at wb_robot_step: an Emitter's baud budget)
+        self.step_listeners: list[Callable[[float], None]] = []
         self.mode = runtime.mode
         self.pending_step: float | None = None  # stepBegin's duration, run by stepEnd
         self.movie_failed = False
@@ -150,6 +154,8 @@ class RobotLink:
     # -- stepping
 
     def step(self, ms: float) -> int:
+        for listener in self.step_listeners:
+            listener(ms)
         result = self._runtime.advance(self.client, ms)
         # simulationGetMode() reports the mode of the last step's answer (webots-devices.md §11.2), not a change
         # another supervisor made once its step was answered
