@@ -558,6 +558,8 @@ class _Threads:
                     self._closed = True
                     return
                 thread, result = self.threads[joined], self.results[joined]
+            while thread.ident is None:  # (one a supervisor's import added is started right after it is listed)
+                time.sleep(0.001)
             while thread.is_alive():
                 thread.join(0.05)
                 stopped = result.timed_out_at
