@@ -15,8 +15,10 @@ from dualtwin.webots.lut import discretize
 from dualtwin.webots.mass_rules import rot_matrix
 from dualtwin.webots.motor_api import check_maxima
 from dualtwin.webots.nodes import Node
+from dualtwin.webots.physics.edit_stamps import note_edit
 from dualtwin.webots.physics.geometry_edits import GEOMETRY_TYPES
 from dualtwin.webots.physics.mass_edits import MASS_FIELDS, MassEdits
+from dualtwin.webots.physics.motor_edits import MOTOR_FIELDS, apply_motor_field, remember_load
 from dualtwin.webots.physics.records import (
     BodyRec,
     JointRec,
@@ -271,15 +273,18 @@ class SupervisorEdits(MassEdits):
         Webots reacts to field edits at run time (WbJoint/WbMotor/WbPhysics/WbContactProperties update
         their ODE objects). Supported: joint ``dampingConstant``/``springConstant``/``staticFriction``/``stopERP``/
         ``stopCFM``,
-        motor ``maxVelocity``/``maxTorque``/``maxForce``/``acceleration``, ``Physics``
+        motor ``maxVelocity``/``maxTorque``/``maxForce``/``acceleration`` and (:mod:`.motor_edits`)
+        ``controlPID``/``minPosition``/``maxPosition``/``multiplier``, ``Physics``
         ``mass``/``density``/``centerOfMass``/``inertiaMatrix`` (the body's mass properties summed again as at
         load, :mod:`.mass_edits`), a
         ``Damping`` node's ``linear``/``angular`` (bodies and, for ``WorldInfo.defaultDamping``, the world),
         ``ContactProperties`` friction/bounce/soft ERP/CFM, a Solid's ``contactMaterial``, a Robot's
         ``selfCollision``, ``WorldInfo`` ERP/CFM, and the dimensions of bounding geometries
         (:mod:`.geometry_edits`; the mass properties of a body they bound follow).
+        Every write is counted (:mod:`.edit_stamps`): the devices of the node read their fields again.
         Returns False for fields whose edit has no physics effect here.
         """
+        note_edit(self, node)
         applied = self._apply_field(node, name)
         if applied:
             # simulationReset restores the field; reset() then re-applies it so ODE follows.
@@ -297,6 +302,7 @@ class SupervisorEdits(MassEdits):
             return self._apply_joint_field(joint, i, name)
         motor = next((m for m in self.motors if m.node is node), None)
         if motor is not None:
+            remember_load(self, motor)  # (what simulationReset puts back)
             check_maxima(node, self.warn)  # a negative maximum, as at load
             value = node.fields.get(name)
             if name == "maxVelocity":
@@ -311,7 +317,7 @@ class SupervisorEdits(MassEdits):
                 # §5.2: the field is the motor's acceleration (setAcceleration replaces it), -1 unlimited
                 motor.acceleration = float(value)
                 return True
-            return False
+            return name in MOTOR_FIELDS and apply_motor_field(self, motor, name)
         if node.type_name == "Physics" and name in MASS_FIELDS:
             return self._apply_physics_mass(node, name)
         if node.type_name == "Damping" and name in ("linear", "angular"):

@@ -1,0 +1,83 @@
+"""A supervisor's edit of a motor's ``controlPID``, ``minPosition``/``maxPosition`` or ``multiplier`` at run time,
+and what ``simulationReset`` puts back.
+
+S = webots-on-ode.md, D = webots-devices.md. Webots' WbMotor connects these fields to update slots that take the
+new value from the next step on and configure the motor's controller again (its getters follow):
+
+* ``controlPID``: the gains of the position loop (S §5.3 step 2); the error integral and the previous error start
+  again from 0, as for ``setControlPID``, which replaces the same field (S §5.2).
+* ``minPosition``/``maxPosition``: the soft limits ``setPosition`` clips into (S §5.2). A target the new limits
+  leave outside is clipped into them now, without a warning (dualtwin's reading where the sources are silent:
+  otherwise the joint would keep servoing to a position the motor no longer allows).
+* ``multiplier``: what the next ``setPosition``/``setVelocity``/``setForce`` (and their relays to coupled
+  siblings) are scaled by (D §9); 0 is refused as at load, with the same warning, and 1 used.
+
+The coupled motors' limits harmonised at load (D §9, "at load (postFinalize)") are not harmonised again after an
+edit. A reset restores every motor edited here to its configuration of the load (with the load's widening and
+harmonisation, which the restored fields alone do not give back).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from dualtwin.webots.motor_api import MULTIPLIER_ZERO
+from dualtwin.webots.physics.records import MotorRec
+
+__all__ = ["MOTOR_FIELDS", "apply_motor_field", "remember_load"]
+
+#: the motor fields this module applies (maxVelocity, maxTorque/maxForce and acceleration are applied by edits.py)
+MOTOR_FIELDS = ("controlPID", "minPosition", "maxPosition", "multiplier")
+
+_KEY = "motor_load_config"
+_CONFIG = ("min_position", "max_position", "multiplier", "max_velocity", "max_force")
+
+
+def remember_load(sim: Any, motor: MotorRec) -> None:
+    """Keep ``motor``'s load configuration before its first edit, and have ``simulationReset`` put it back."""
+    kept: dict[int, tuple[MotorRec, tuple[float, ...]]] | None = sim.extensions.get(_KEY)
+    if kept is None:
+        table: dict[int, tuple[MotorRec, tuple[float, ...]]] = {}
+        kept = sim.extensions[_KEY] = table
+
+        def reset() -> None:
+            for rec, values in table.values():
+                for name, value in zip(_CONFIG, values, strict=True):
+                    setattr(rec, name, value)
+                rec.reset_state()  # §5.1 again, on the load limits: target velocity = the load maxVelocity
+
+        sim.reset_hooks.append(reset)
+    if id(motor) not in kept:
+        kept[id(motor)] = (motor, tuple(getattr(motor, name) for name in _CONFIG))
+
+
+def apply_motor_field(sim: Any, motor: MotorRec, name: str) -> bool:
+    """Apply the edit of ``motor``'s field ``name`` (one of :data:`MOTOR_FIELDS`); False for another field."""
+    fields = motor.node.fields
+    if name == "controlPID":
+        motor.kp, motor.ki, motor.kd = (float(v) for v in fields.get("controlPID", (10.0, 0.0, 0.0)))
+        motor.integral = 0.0
+        motor.prev_error = 0.0
+        return True
+    if name in ("minPosition", "maxPosition"):
+        motor.min_position = float(fields.get("minPosition", 0.0))
+        motor.max_position = float(fields.get("maxPosition", 0.0))
+        _clip_target(motor)
+        return True
+    if name == "multiplier":
+        multiplier = float(fields.get("multiplier", 1.0))
+        if multiplier == 0.0:
+            sim.warn(MULTIPLIER_ZERO.format(name=motor.name))
+            multiplier = 1.0
+        motor.multiplier = multiplier
+        return True
+    return False
+
+
+def _clip_target(motor: MotorRec) -> None:
+    """Clip a finite target into limits (min ≠ max), silently: a reset applies the load limits again before it
+    puts the motors back in their initial state, and would warn about a target it is about to replace."""
+    lo, hi = motor.min_position, motor.max_position
+    if lo != hi and math.isfinite(motor.target_position):
+        motor.target_position = min(max(motor.target_position, lo), hi)

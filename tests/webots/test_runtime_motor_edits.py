@@ -1,0 +1,192 @@
+"""A supervisor's edit of a motor's ``controlPID``, ``minPosition``/``maxPosition`` or ``multiplier`` acts from the
+next step, as Webots' WbMotor update slots make it, the motor's getters follow, and ``simulationReset`` puts the
+load configuration back.
+
+S = shared/reference/webots-on-ode.md, D = shared/reference/webots-devices.md. The position loop is S §5.3 step 2:
+e = Pt − pos, I += e·ts, u = Kp·e + Ki·I (+ Kd·D), clipped to ±maxVelocity; the arm's 1 kg bob (no gravity) is
+light enough for a 1000 N·m motor to reach u within one 4 ms step, so one step moves the joint by u·ts (a step
+needs at most u/ts·I = 5/0.004·0.251 ≈ 314 N·m, hand computation), within the softness of the motor row (world
+CFM, S §5.3 step 4: the steps below come within 0.1 % of u·ts, hence the tolerances). Expected values are hand computations from
+these rules, never runs of this code; each test has its control (the same run without the edit)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from dualtwin.webots.controller import Supervisor
+from tests.support.hinge_arm import BOB, DT, TS, load_arm
+
+
+def _arm(motor: str = "", extra_joint: str = "", name: str = "m") -> tuple[Supervisor, Any, Any]:
+    """The arm with a RotationalMotor ``name`` (strong, fast; ``motor`` adds fields) and a PositionSensor 's'."""
+    joint = ("HingeJoint { jointParameters HingeJointParameters { axis 0 1 0 } "
+             f'device [ RotationalMotor {{ name "{name}" maxTorque 1000 maxVelocity 100 {motor} }} '
+             f'PositionSensor {{ name "s" }} ] endPoint {BOB.format(t="0.5 0 0")} }}')
+    _, sup = load_arm(joint + extra_joint)
+    sensor = sup.getDevice("s")
+    sensor.enable(TS)
+    return sup, sup.getDevice(name), sensor
+
+
+def _motor_node(sup: Supervisor, index: int = 0) -> Any:
+    joint = sup.getSelf().getField("children").getMFNode(index)
+    return joint.getField("device").getMFNode(0)
+
+
+def _step(sup: Supervisor, n: int = 1) -> None:
+    for _ in range(n):
+        assert sup.step(TS) != -1
+
+
+def _moved(sup: Supervisor, sensor: Any) -> tuple[float, float]:
+    """(position before, its change over) one step."""
+    before = sensor.getValue()
+    _step(sup)
+    return before, sensor.getValue() - before
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_control_pid_edit_sets_the_gains_from_the_next_step(edit: bool) -> None:
+    sup, motor, sensor = _arm()
+    motor.setPosition(0.5)
+    _step(sup)  # Kp 10 (default): u = 10·0.5 = 5 rad/s, the joint at 0.02
+    if edit:
+        _motor_node(sup).getField("controlPID").setSFVec3f([1.0, 0.0, 0.0])
+    before, moved = _moved(sup, sensor)
+    assert before == pytest.approx(5.0 * DT, rel=2e-3)
+    kp = 1.0 if edit else 10.0  # control: the load gain
+    # (the motor row brakes from 5 rad/s here: within 1 % of u·ts, a tenth of the factor 10 the test tells apart)
+    assert moved == pytest.approx(kp * (0.5 - before) * DT, rel=1e-2)
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_control_pid_edit_starts_the_error_integral_again(edit: bool) -> None:
+    # Kp 1, Ki 100: over 3 steps the integral gathers Σe·ts; an edit to Ki 50 starts it from 0 (S §5.2: the gains
+    # replaced, the integral and previous error reset), so the next step's u = e + 50·(e·ts); the control keeps
+    # the integral, u = e + 100·(I + e·ts)
+    sup, motor, sensor = _arm("controlPID 1 100 0")
+    motor.setPosition(0.5)
+    integral, position = 0.0, 0.0
+    for _ in range(3):
+        e = 0.5 - position
+        integral += e * DT
+        _step(sup)
+        position = sensor.getValue()
+    if edit:
+        _motor_node(sup).getField("controlPID").setSFVec3f([1.0, 50.0, 0.0])
+    before, moved = _moved(sup, sensor)
+    assert before == pytest.approx(position)
+    e = 0.5 - before
+    u = e + 50.0 * (e * DT) if edit else e + 100.0 * (integral + e * DT)
+    assert moved == pytest.approx(u * DT, rel=2e-3)
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_max_position_edit_clips_the_target_and_the_getters_follow(edit: bool, capsys: Any) -> None:
+    sup, motor, sensor = _arm("minPosition -1 maxPosition 1")
+    motor.setPosition(0.8)
+    _step(sup)
+    if edit:
+        _motor_node(sup).getField("maxPosition").setSFFloat(0.3)
+    _step(sup, 400)
+    # the target 0.8 left outside [−1, 0.3] is clipped to 0.3, where the joint settles; the control reaches 0.8
+    assert sensor.getValue() == pytest.approx(0.3 if edit else 0.8, abs=1e-4)
+    assert motor.getMaxPosition() == (0.3 if edit else 1.0)
+    assert motor.getTargetPosition() == pytest.approx(0.3 if edit else 0.8)
+    capsys.readouterr()
+    motor.setPosition(0.9)  # S §5.2: setPosition clips into the limits of now, with a warning
+    assert motor.getTargetPosition() == (0.3 if edit else 0.9)
+    assert ("outside [minPosition, maxPosition]" in capsys.readouterr().err) == edit
+
+
+def test_min_position_edit_clips_a_target_below_it() -> None:
+    sup, motor, sensor = _arm("minPosition -1 maxPosition 1")
+    motor.setPosition(-0.6)
+    _step(sup)
+    _motor_node(sup).getField("minPosition").setSFFloat(-0.2)
+    _step(sup, 400)
+    assert motor.getMinPosition() == -0.2
+    assert sensor.getValue() == pytest.approx(-0.2, abs=1e-4)
+
+
+def test_limits_set_at_run_time_on_an_unlimited_motor_clip_its_target() -> None:
+    # min = max = 0 means no limits (S §5.1); writing maxPosition 0.4 makes [0, 0.4] the limits
+    sup, motor, sensor = _arm()
+    motor.setPosition(0.7)
+    _step(sup)
+    _motor_node(sup).getField("maxPosition").setSFFloat(0.4)
+    _step(sup, 400)
+    assert sensor.getValue() == pytest.approx(0.4, abs=1e-4)
+
+
+def test_limits_do_not_touch_velocity_control() -> None:
+    # a velocity-controlled motor (target +inf, S §5.2: ±inf kept, never clipped) keeps turning
+    sup, motor, sensor = _arm("minPosition -1 maxPosition 1")
+    motor.setPosition(float("inf"))
+    motor.setVelocity(2.0)
+    _step(sup)
+    _motor_node(sup).getField("maxPosition").setSFFloat(0.5)
+    _, moved = _moved(sup, sensor)
+    assert moved == pytest.approx(2.0 * DT, rel=2e-3)
+    assert motor.getTargetPosition() == float("inf")
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_multiplier_edit_scales_the_next_commands(edit: bool) -> None:
+    sup, motor, sensor = _arm()
+    _step(sup)
+    if edit:
+        _motor_node(sup).getField("multiplier").setSFFloat(2.0)
+    _step(sup)
+    assert motor.getMultiplier() == (2.0 if edit else 1.0)
+    motor.setPosition(0.2)  # D §9: target = 0.2·multiplier
+    _step(sup, 400)
+    assert sensor.getValue() == pytest.approx(0.4 if edit else 0.2, abs=1e-4)
+
+
+def test_multiplier_edited_to_zero_warns_and_keeps_one() -> None:
+    sup, motor, sensor = _arm("multiplier 3")
+    _step(sup)
+    with pytest.warns(UserWarning, match="multiplier 0"):  # D §9: 0 → 1 with a warning, as at load
+        _motor_node(sup).getField("multiplier").setSFFloat(0.0)
+    _step(sup)
+    assert motor.getMultiplier() == 1.0
+
+
+def test_reset_restores_the_load_gains_limits_and_multiplier() -> None:
+    sup, motor, sensor = _arm("minPosition -1 maxPosition 1")
+    _step(sup)
+    node = _motor_node(sup)
+    node.getField("controlPID").setSFVec3f([1.0, 0.0, 0.0])
+    node.getField("maxPosition").setSFFloat(0.3)
+    node.getField("multiplier").setSFFloat(2.0)
+    _step(sup)
+    sup.simulationReset()
+    _step(sup)
+    assert (motor.getMaxPosition(), motor.getMultiplier()) == (1.0, 1.0)
+    # the load gain Kp 10 again: one step toward 0.5 from the load position 0 moves 10·0.5·ts
+    motor.setPosition(0.5)
+    before, moved = _moved(sup, sensor)
+    assert before == pytest.approx(0.0, abs=1e-6)
+    assert moved == pytest.approx(10.0 * 0.5 * DT, rel=2e-3)
+
+
+def test_reset_restores_a_coupled_motors_harmonised_limits() -> None:
+    # D §9: at load the sibling 'g::b' (multiplier 2) takes maxVelocity and limits from 'g::a' scaled by 2:
+    # [−2, 2], maxVelocity 200, whatever its own fields say ([0, 0]); after an edit of its maxPosition, a reset
+    # gives back those load values, not its fields
+    second = ('HingeJoint { jointParameters HingeJointParameters { axis 0 1 0 } '
+              'device [ RotationalMotor { name "g::b" multiplier 2 } ] '
+              'endPoint Solid { translation 0 0.5 0 name "bob2" boundingObject Sphere { radius 0.05 } '
+              'physics Physics { density -1 mass 1 } } }')
+    sup, _, _ = _arm("minPosition -1 maxPosition 1", extra_joint=" " + second, name="g::a")
+    sibling = sup.getDevice("g::b")
+    assert (sibling.getMinPosition(), sibling.getMaxPosition(), sibling.getMaxVelocity()) == (-2.0, 2.0, 200.0)
+    _motor_node(sup, 1).getField("maxPosition").setSFFloat(0.5)
+    _step(sup)
+    assert (sibling.getMinPosition(), sibling.getMaxPosition()) == (0.0, 0.5)  # its fields now: [0, 0.5]
+    sup.simulationReset()
+    _step(sup)
+    assert (sibling.getMinPosition(), sibling.getMaxPosition(), sibling.getMaxVelocity()) == (-2.0, 2.0, 200.0)
