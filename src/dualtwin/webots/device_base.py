@@ -11,12 +11,13 @@ import sys
 import threading
 import weakref
 from collections.abc import Callable
-from typing import Any, NamedTuple, Protocol
+from typing import Any, NamedTuple, Protocol, TypeVar
 
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots.api_args import as_int
 from dualtwin.webots.node_types import node_type_of
 from dualtwin.webots.physics import DeviceRec, RobotRec, Simulation
+from dualtwin.webots.physics.edit_stamps import edit_stamp
 from dualtwin.webots.step_hints import step_value
 
 
@@ -85,6 +86,8 @@ class DeviceBinding(NamedTuple):
     tag: int
 
 
+_Config = TypeVar("_Config")
+
 _local = threading.local()
 _process_hosts: list[weakref.ref[Any]] = []  # the process's first robot (weakly: tests make many)
 
@@ -149,6 +152,34 @@ class Device:
     def _setup(self) -> None:
         """Per-class initialisation from ``self._record`` (device classes override this, not ``__init__``, so
         every class keeps Webots' constructor signature)."""
+
+    def _configured(self, key: str, build: Callable[[], _Config]) -> _Config:
+        """What the device derives from its node's fields (``build()``), kept under ``key`` and derived again after
+        a supervisor wrote one of them (or a reset restored them): Webots' device ``update*`` slots, which act
+        on the device from the next step and configure its controller again (:mod:`.physics.edit_stamps`)."""
+        stamp = edit_stamp(self._robot._sim, self._record.node)
+        kept = self.__dict__.get(key)
+        if kept is None or kept[0] != stamp:
+            kept = self.__dict__[key] = (stamp, build())
+        return kept[1]  # type: ignore[no-any-return]
+
+    def _fields_changed(self, names: tuple[str, ...]) -> set[str]:
+        """Which of the fields ``names`` a supervisor wrote since this device last read them (all of them at the
+        first read), or a reset restored: the fields whose Webots ``update*`` slot runs. A setting the controller
+        changed (an Emitter's ``setChannel``) stays until its own field is written."""
+        sim, node = self._robot._sim, self._record.node
+        stamp = edit_stamp(sim, node)
+        seen: dict[str, int] = self.__dict__.setdefault("_fields_seen", {})
+        if seen and self.__dict__.get("_fields_stamp") == stamp:
+            return set()
+        self._fields_stamp = stamp
+        changed = set()
+        for name in names:
+            field_stamp = edit_stamp(sim, node, name)
+            if seen.get(name) != field_stamp:
+                seen[name] = field_stamp
+                changed.add(name)
+        return changed
 
     def getName(self) -> str:
         return self._name

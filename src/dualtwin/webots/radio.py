@@ -93,6 +93,11 @@ class _Medium:
             receiver._queue.clear()
 
     def before_physics(self, dt: float) -> None:
+        # a supervisor's edit of the step before acts on this step's packets
+        for emitter in self.emitters.values():
+            emitter._follow()
+        for receiver in self.receivers.values():
+            receiver._follow()
         for emitter in list(self.emitters.values()):
             for packet in emitter._release(dt * 1000.0):
                 for receiver in self.receivers.values():
@@ -163,6 +168,13 @@ def _medium(sim: Simulation) -> _Medium:
     return medium
 
 
+#: the fields each end reads (again after a supervisor's edit)
+_EMITTER_FIELDS = ("type", "range", "maxRange", "aperture", "channel", "baudRate", "byteSize", "bufferSize",
+                   "allowedChannels")
+_RECEIVER_FIELDS = ("type", "aperture", "channel", "bufferSize", "signalStrengthNoise", "directionNoise",
+                    "allowedChannels")
+
+
 def _kind(fields: dict[str, Any]) -> str:
     kind = str(fields.get("type", "radio"))
     return kind if kind in ("radio", "serial", "infra-red") else "radio"
@@ -174,28 +186,43 @@ class Emitter(Device):
     CHANNEL_BROADCAST = CHANNEL_BROADCAST
 
     def _setup(self) -> None:
+        self._follow()
+        self._queue: list[_Packet] = []
+        self._ready: list[_Packet] = []  # what the budget let go at the controller's last step request
+        self._budget = 0.0
+        register_in_world_order(_medium(self._robot._sim).emitters, self)
+        # (always: a supervisor may give the emitter a baud rate at run time)
+        self._robot.step_listeners.append(self._controller_step)
+
+    def _follow(self) -> None:
+        """Read the fields a supervisor edited (all of them at load), as WbEmitter's update slots: from the next
+        step the packets go with the new channel and range, at the new rate, and the getters follow. A channel or
+        range the controller set stays until that field is written."""
+        changed = self._fields_changed(_EMITTER_FIELDS)
+        if not changed:
+            return
         f = self._record.node.fields
-        robot = self._robot
-        self._kind = _kind(f)
-        self._max_range = float(f.get("maxRange", -1.0))
-        r = float(f.get("range", -1.0))
-        self._range = self._max_range if r < 0 else (min(r, self._max_range) if self._max_range >= 0 else r)
-        self._aperture = float(f.get("aperture", -1.0)) if self._kind == "infra-red" else -1.0
-        self._channel = int(f.get("channel", 0))
+        if "type" in changed:
+            self._kind = _kind(f)
+        if changed & {"range", "maxRange"}:
+            self._max_range = float(f.get("maxRange", -1.0))
+            r = float(f.get("range", -1.0))
+            self._range = self._max_range if r < 0 else (min(r, self._max_range) if self._max_range >= 0 else r)
+        if changed & {"type", "aperture"}:
+            self._aperture = float(f.get("aperture", -1.0)) if self._kind == "infra-red" else -1.0
+        if "channel" in changed:
+            self._channel = int(f.get("channel", 0))
         self._baud = int(f.get("baudRate", -1))
         self._byte_size = max(8, int(f.get("byteSize", 8)))
         self._buffer_size = int(f.get("bufferSize", -1))
         self._allowed = [int(c) for c in f.get("allowedChannels", []) or []]
-        self._queue: list[_Packet] = []
-        self._ready: list[_Packet] = []  # what the budget let go at the controller's last step request
-        self._budget = 0.0
-        register_in_world_order(_medium(robot._sim).emitters, self)
-        if self._baud >= 0:
-            robot.step_listeners.append(self._controller_step)
 
     def _controller_step(self, ms: float) -> None:
         """The controller asks for a step of ``ms``: the budget grows by what the baud rate sends in that time, and
         the whole packets it covers leave with the request (released at the step's first basic step)."""
+        self._follow()
+        if self._baud < 0:
+            return
         self._budget += self._baud / self._byte_size / 1000.0 * ms
         while self._queue and len(self._queue[0].data) <= self._budget:
             packet = self._queue.pop(0)
@@ -206,12 +233,14 @@ class Emitter(Device):
 
     def _release(self, ms: float) -> list[_Packet]:
         if self._baud < 0:
-            out, self._queue = self._queue, []
+            # (a baudRate edited to -1 lets what was already released and what waits go together)
+            out, self._ready, self._queue = self._ready + self._queue, [], []
             return out
         out, self._ready = self._ready, []
         return out
 
     def send(self, message: Any, length: Any = None) -> None:
+        self._follow()
         if isinstance(message, str):
             data = message.encode("utf-8")[: len(message)]
         elif isinstance(message, (bytes, bytearray)):
@@ -232,9 +261,11 @@ class Emitter(Device):
         self._queue.append(_Packet(data, self._channel, self._range, self))
 
     def getChannel(self) -> int:
+        self._follow()
         return self._channel
 
     def setChannel(self, channel: Any) -> None:
+        self._follow()
         c = as_int(channel, "Emitter.setChannel")
         if c < CHANNEL_BROADCAST or (self._allowed and c not in self._allowed):
             error(f"Emitter.setChannel(): channel {c} is not allowed")
@@ -242,9 +273,11 @@ class Emitter(Device):
         self._channel = c
 
     def getRange(self) -> float:
+        self._follow()
         return self._range
 
     def setRange(self, range: Any) -> None:  # noqa: A002 - Webots' parameter name
+        self._follow()
         r = as_float(range, "Emitter.setRange")
         if r < 0:
             r = self._max_range
@@ -253,6 +286,7 @@ class Emitter(Device):
         self._range = r
 
     def getBufferSize(self) -> int:
+        self._follow()
         return self._buffer_size
 
     buffer_size = property(lambda self: self.getBufferSize())
@@ -266,23 +300,32 @@ class Receiver(SolidSensor):
     CHANNEL_BROADCAST = CHANNEL_BROADCAST
 
     def _setup(self) -> None:
+        self._follow()
+        self._arrived: list[_Packet] = []
+        self._queue: list[_Packet] = []
+        register_in_world_order(_medium(self._robot._sim).receivers, self)
+
+    def _follow(self) -> None:
+        """Read the fields a supervisor edited (all of them at load), as WbReceiver's update slots (see
+        :meth:`Emitter._follow`)."""
+        changed = self._fields_changed(_RECEIVER_FIELDS)
+        if not changed:
+            return
         f = self._record.node.fields
-        robot = self._robot
         self._kind = _kind(f)
         self._aperture = float(f.get("aperture", -1.0)) if self._kind == "infra-red" else -1.0
-        self._channel = int(f.get("channel", 0))
+        if "channel" in changed:
+            self._channel = int(f.get("channel", 0))
         self._buffer_size = int(f.get("bufferSize", -1))
         self._strength_noise = float(f.get("signalStrengthNoise", 0.0))
         self._direction_noise = float(f.get("directionNoise", 0.0))
         self._allowed = [int(c) for c in f.get("allowedChannels", []) or []]
-        self._arrived: list[_Packet] = []
-        self._queue: list[_Packet] = []
-        register_in_world_order(_medium(robot._sim).receivers, self)
 
     def _invalidate(self) -> None:
         pass  # the queue survives re-enabling, as in Webots
 
     def _read(self) -> None:
+        self._follow()
         for packet in self._arrived:
             used = sum(len(p.data) for p in self._queue)
             if self._buffer_size < 0 or used + len(packet.data) <= self._buffer_size:
@@ -342,9 +385,11 @@ class Receiver(SolidSensor):
         return list(head.direction) if head is not None else [math.nan] * 3
 
     def getChannel(self) -> int:
+        self._follow()
         return self._channel
 
     def setChannel(self, channel: Any) -> None:
+        self._follow()
         c = as_int(channel, "Receiver.setChannel")
         if c < CHANNEL_BROADCAST or (self._allowed and c not in self._allowed):
             warn(f"Receiver.setChannel(): channel {c} is not allowed")

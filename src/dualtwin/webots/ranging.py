@@ -170,7 +170,8 @@ def sample_ray_sensors(sim: Simulation, sensors: Sequence[Any]) -> None:
         key = tuple(id(d) for d in devices)
         batch = cache.get(key)
         if batch is None or any(
-            _anchor(d._record.solid)[1] is not stamp or spec[0] is not old[0]  # moved, or other rays (rotating lidar)
+            # moved, or other rays (a rotating lidar, a device whose fields a supervisor edited)
+            _anchor(d._record.solid)[1] is not stamp or spec[0] is not old[0] or spec[1] is not old[1]
             for d, stamp, spec, old in zip(batch.devices, batch.stamps, specs, batch.specs, strict=True)
         ):
             batch = cache[key] = _build_batch(devices, specs)
@@ -294,10 +295,9 @@ class DistanceSensor(SolidSensor):
         return self._model().kind == self.INFRA_RED
 
     def _model(self) -> DistanceModel:
-        model = getattr(self, "_model_cache", None)
-        if model is None:
-            model = self._model_cache = DistanceModel.from_node(self._record.node.fields)
-        return model
+        # Webots' updateLookupTable / updateRaySetup: a supervisor's edit of any of these fields takes effect from
+        # the next sample, and the getters (max and min value, aperture, type, lookup table) follow it
+        return self._configured("_model_cache", lambda: DistanceModel.from_node(self._record.node.fields))
 
     def _invalidate(self) -> None:
         self._value = math.nan

@@ -1,5 +1,5 @@
-"""How many times a supervisor has written the fields of a node: the stamp a device compares with the one its
-configuration was read at, to read its fields again after an edit.
+"""How many times a supervisor has written the fields of a node (and each field): the stamp a device compares
+with the one its configuration was read at, to read its fields again after an edit.
 
 Webots connects each device field to an ``update*`` slot (WbDistanceSensor's lookup table and rays, WbEmitter's
 channel and range, ...) that recomputes what the device derives from the field and marks the device to be
@@ -19,22 +19,25 @@ __all__ = ["edit_stamp", "note_edit"]
 _KEY = "field_edit_stamps"
 
 
-def note_edit(sim: Any, node: Node) -> None:
-    """Count a write of one of ``node``'s fields (``Simulation.field_changed`` calls it for every write)."""
-    stamps: dict[int, int] | None = sim.extensions.get(_KEY)
+def note_edit(sim: Any, node: Node, name: str) -> None:
+    """Count a write of ``node``'s field ``name`` (``Simulation.field_changed`` calls it for every write)."""
+    stamps: dict[Any, int] | None = sim.extensions.get(_KEY)
     if stamps is None:
-        table: dict[int, int] = {}
+        table: dict[Any, int] = {}
         stamps = sim.extensions[_KEY] = table
 
-        def reset() -> None:  # simulationReset restored every edited field: each such node reads them again
+        def reset() -> None:  # simulationReset restored every edited field: each one is read again
             for key in table:
                 table[key] += 1
 
         sim.reset_hooks.append(reset)
-    stamps[id(node)] = stamps.get(id(node), 0) + 1
+    for key in (id(node), (id(node), name)):
+        stamps[key] = stamps.get(key, 0) + 1
 
 
-def edit_stamp(sim: Any, node: Node) -> int:
-    """The number of writes of ``node``'s fields so far (0 for a node never edited)."""
-    stamps: dict[int, int] | None = sim.extensions.get(_KEY)
-    return 0 if stamps is None else stamps.get(id(node), 0)
+def edit_stamp(sim: Any, node: Node, name: str | None = None) -> int:
+    """The number of writes of ``node``'s field ``name`` (of any of its fields when None) so far, 0 if none."""
+    stamps: dict[Any, int] | None = sim.extensions.get(_KEY)
+    if stamps is None:
+        return 0
+    return stamps.get(id(node) if name is None else (id(node), name), 0)

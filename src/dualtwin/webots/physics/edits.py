@@ -284,7 +284,7 @@ class SupervisorEdits(MassEdits):
         Every write is counted (:mod:`.edit_stamps`): the devices of the node read their fields again.
         Returns False for fields whose edit has no physics effect here.
         """
-        note_edit(self, node)
+        note_edit(self, node, name)
         applied = self._apply_field(node, name)
         if applied:
             # simulationReset restores the field; reset() then re-applies it so ODE follows.

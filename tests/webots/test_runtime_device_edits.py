@@ -1,0 +1,239 @@
+"""A supervisor's edit of a device's fields acts from the device's next sample or step and its getters follow, as
+Webots' device ``update*`` slots make it (WbDistanceSensor's lookup table and ray set-up, WbEmitter/WbReceiver's
+channel and range); ``simulationReset`` restores the fields and the devices read them again.
+
+D = shared/reference/webots-devices.md. Expected values are hand computations from D's rules (each test shows
+it), never runs of this code; each test has its control (the same run without the edit)."""
+
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+import warnings
+from typing import Any
+
+import pytest
+
+from dualtwin.webots import load_world_text
+from dualtwin.webots.controller import Robot, Runtime, Supervisor
+from dualtwin.webots.physics import Simulation
+from tests.support.sensor_worlds import sensor_world
+from tests.support.world_runs import ROOT
+
+STEP = 8
+# a wall whose near face is the plane x = 0.5, in front of the sensor (axis +x) at the robot's origin
+WALL = "Solid { translation 0.6 0 0.1 boundingObject Box { size 0.2 4 4 } }"
+
+
+def _distance_sensor(fields: str = "") -> tuple[Supervisor, Any, Any]:
+    sup = sensor_world(f'DEF DS DistanceSensor {{ name "ds" {fields} }}', WALL, step=STEP)
+    ds = sup.getDevice("ds")
+    ds.enable(STEP)
+    return sup, ds, sup.getFromDef("DS")
+
+
+def _set_table(node: Any, rows: list[list[float]]) -> None:
+    table = node.getField("lookupTable")
+    while table.getCount():
+        table.removeMF(0)
+    for row in rows:
+        table.insertMFVec3f(-1, row)
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_distance_sensor_lookup_table_edit_sets_range_values_and_getters(edit: bool) -> None:
+    # D §1.4: the default table [0 0 0, 0.1 1000 0] reaches 0.1 m, short of the wall: no hit reads the last
+    # output, 1000. Edited to [0 0 0, 1 3000 0] the ray (1 m long, the last input) reaches the wall at 0.5 m:
+    # 0.5·3000 = 1500; getMaxValue = the largest output, 3000 (D §0.3)
+    sup, ds, node = _distance_sensor()
+    sup.step(STEP)
+    assert ds.getValue() == pytest.approx(1000.0)
+    if edit:
+        _set_table(node, [[0.0, 0.0, 0.0], [1.0, 3000.0, 0.0]])
+    sup.step(STEP)
+    assert ds.getValue() == pytest.approx(1500.0 if edit else 1000.0, rel=1e-6)
+    assert ds.getMaxValue() == (3000.0 if edit else 1000.0)
+    assert ds.getLookupTable() == ([0.0, 0.0, 0.0, 1.0, 3000.0, 0.0] if edit else [0.0, 0.0, 0.0, 0.1, 1000.0, 0.0])
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_distance_sensor_number_of_rays_and_aperture_edit_lays_the_rays_again(edit: bool) -> None:
+    # D §1.2: 3 rays lie at (0, 1), (2π/3, 1), (−2π/3, 1), each θ = k·aperture/2 = 0.5 rad off the axis for an
+    # aperture of 1: each meets the plane x = 0.5 at 0.5/cos 0.5, with equal weights; table [0 0 0, 1 1000 0]
+    # reads 1000·0.5/cos(0.5) = 569.77. The control keeps one ray on the axis: 500
+    sup, ds, node = _distance_sensor("lookupTable [ 0 0 0, 1 1000 0 ]")
+    sup.step(STEP)
+    assert ds.getValue() == pytest.approx(500.0, rel=1e-6)
+    if edit:
+        node.getField("numberOfRays").setSFInt32(3)
+        node.getField("aperture").setSFFloat(1.0)
+    sup.step(STEP)
+    assert ds.getValue() == pytest.approx(1000.0 * 0.5 / math.cos(0.5) if edit else 500.0, rel=1e-6)
+    assert ds.getAperture() == (1.0 if edit else 1.5708)
+
+
+def test_distance_sensor_resolution_edit_rounds_the_next_sample() -> None:
+    # D §0.4: discretize(500, 300) = int(500/300 + 0.5)·300 = 600
+    sup, ds, node = _distance_sensor("lookupTable [ 0 0 0, 1 1000 0 ]")
+    sup.step(STEP)
+    node.getField("resolution").setSFFloat(300.0)
+    sup.step(STEP)
+    assert ds.getValue() == pytest.approx(600.0)
+
+
+def test_distance_sensor_reset_restores_the_load_table() -> None:
+    sup, ds, node = _distance_sensor()
+    sup.step(STEP)
+    _set_table(node, [[0.0, 0.0, 0.0], [1.0, 3000.0, 0.0]])
+    sup.step(STEP)
+    sup.simulationReset()
+    sup.step(STEP)
+    sup.step(STEP)
+    assert ds.getMaxValue() == 1000.0
+    assert ds.getValue() == pytest.approx(1000.0)
+
+
+# ------------------------------------------------------------------------------------------ Emitter / Receiver
+
+
+def _radio(emitter: str = "", receiver: str = "") -> tuple[Robot, Supervisor]:
+    """Robot A (emitter at the origin) and the supervisor B 2 m away (receiver); only B steps the simulation."""
+    text = f"""#VRML_SIM R2023b utf8
+WorldInfo {{ basicTimeStep {STEP} }}
+Robot {{ name "a" children [ DEF TX Emitter {{ name "tx" {emitter} }} ] }}
+Robot {{ name "b" translation 2 0 0 supervisor TRUE children [ DEF RX Receiver {{ name "rx" {receiver} }} ] }}
+"""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sim = Simulation(load_world_text(text))
+    runtime = Runtime(sim)
+    a = Robot(runtime=runtime, robot_node=sim.robots[0].node)
+    a.cleanup()  # A's devices work, but only B's controller waits for steps
+    b = Supervisor(runtime=runtime, robot_node=sim.robots[1].node)
+    b.getDevice("rx").enable(STEP)
+    return a, b
+
+
+def _heard(a: Robot, b: Supervisor) -> int:
+    """How many packets of one sent now the receiver has after the next step."""
+    rx = b.getDevice("rx")
+    while rx.getQueueLength():
+        rx.nextPacket()
+    a.getDevice("tx").send(b"x")
+    b.step(STEP)
+    return int(rx.getQueueLength())
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_emitter_channel_edit_sends_on_the_new_channel(edit: bool) -> None:
+    # D §5.2 step 3: a packet reaches a receiver of the same channel only; both start on 3, B listens on 3
+    a, b = _radio("channel 3", "channel 3")
+    assert _heard(a, b) == 1
+    if edit:
+        b.getFromDef("TX").getField("channel").setSFInt32(4)
+    b.step(STEP)
+    assert a.getDevice("tx").getChannel() == (4 if edit else 3)
+    assert _heard(a, b) == (0 if edit else 1)
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_receiver_channel_edit_listens_on_the_new_channel(edit: bool) -> None:
+    a, b = _radio("channel 4", "channel 3")
+    assert _heard(a, b) == 0
+    if edit:
+        b.getFromDef("RX").getField("channel").setSFInt32(4)
+    b.step(STEP)
+    assert b.getDevice("rx").getChannel() == (4 if edit else 3)
+    assert _heard(a, b) == (1 if edit else 0)
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_emitter_range_edit_limits_the_next_packets(edit: bool) -> None:
+    # D §5.2 step 4: a packet beyond the emitter's range (origin distance 2 m here) is dropped
+    a, b = _radio("range 3")
+    assert _heard(a, b) == 1
+    if edit:
+        b.getFromDef("TX").getField("range").setSFFloat(1.5)
+    b.step(STEP)
+    assert a.getDevice("tx").getRange() == (1.5 if edit else 3.0)
+    assert _heard(a, b) == (0 if edit else 1)
+
+
+def test_a_channel_the_controller_set_stays_until_the_channel_field_is_written() -> None:
+    # the controller's setChannel is the emitter's channel until a supervisor writes that field; an edit of
+    # another field (range) does not undo it
+    a, b = _radio("channel 3", "channel 5")
+    tx = a.getDevice("tx")
+    tx.setChannel(5)
+    b.getFromDef("TX").getField("range").setSFFloat(10.0)
+    b.step(STEP)
+    assert tx.getChannel() == 5 and tx.getRange() == 10.0
+    assert _heard(a, b) == 1
+    b.getFromDef("TX").getField("channel").setSFInt32(3)
+    b.step(STEP)
+    assert tx.getChannel() == 3
+    assert _heard(a, b) == 0
+
+
+def test_radio_reset_restores_the_load_channel() -> None:
+    a, b = _radio("channel 3", "channel 3")
+    b.getFromDef("TX").getField("channel").setSFInt32(4)
+    b.step(STEP)
+    b.simulationReset()
+    b.step(STEP)
+    assert a.getDevice("tx").getChannel() == 3
+    assert _heard(a, b) == 1
+
+
+# ------------------------------------------------------------------------------------------ controller processes
+
+PROCESS_WORLD = """#VRML_SIM R2023b utf8
+WorldInfo { basicTimeStep 8 }
+Robot { name "a" controller "reader" children [
+  DEF TX Emitter { name "tx" channel 3 }
+  DEF DS DistanceSensor { name "ds" }
+  HingeJoint { device [ DEF M RotationalMotor { name "m" minPosition -1 maxPosition 1 } ]
+               endPoint Solid { translation 0.2 0 0 physics Physics { } boundingObject Sphere { radius 0.01 } } }
+] }
+Robot { name "b" supervisor TRUE controller "editor" }
+"""
+
+READER = """from controller import Robot
+robot = Robot()
+tx, ds, m = robot.getDevice("tx"), robot.getDevice("ds"), robot.getDevice("m")
+print("LOAD", tx.getChannel(), ds.getMaxValue(), m.getMaxPosition())
+for _ in range(3):
+    robot.step(8)
+print("LATER", tx.getChannel(), ds.getMaxValue(), m.getMaxPosition())
+"""
+
+EDITOR = """from controller import Supervisor
+sup = Supervisor()
+sup.step(8)
+sup.getFromDef("TX").getField("channel").setSFInt32(7)
+sup.getFromDef("DS").getField("lookupTable").setMFVec3f(1, [0.1, 250.0, 0.0])
+sup.getFromDef("M").getField("maxPosition").setSFFloat(0.5)
+for _ in range(3):
+    sup.step(8)
+"""
+
+
+def test_a_controller_process_reads_the_edited_configuration(tmp_path: Any) -> None:
+    # the reader runs in its own process, as in Webots: its getters give the load values before the edit, the
+    # edited ones (channel 7, the table's largest output 250, maxPosition 0.5) after its next steps
+    for name, text in (("reader", READER), ("editor", EDITOR)):
+        folder = tmp_path / "controllers" / name
+        folder.mkdir(parents=True)
+        (folder / f"{name}.py").write_text(text, encoding="utf-8")
+    world = tmp_path / "worlds" / "edits.wbt"
+    world.parent.mkdir()
+    world.write_text(PROCESS_WORLD, encoding="utf-8")
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src") + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    run = subprocess.run([sys.executable, "-m", "dualtwin.cli", "webots", "run", str(world), "--duration", "0.1"],
+                         capture_output=True, text=True, timeout=120, env=env, cwd=ROOT, check=False)
+    assert run.returncode == 0, run.stderr
+    lines = {line.split()[0]: line.split()[1:] for line in run.stdout.splitlines() if line[:4] in ("LOAD", "LATE")}
+    assert [float(v) for v in lines["LOAD"]] == [3.0, 1000.0, 1.0]
+    assert [float(v) for v in lines["LATER"]] == [7.0, 250.0, 0.5]
