@@ -19,7 +19,7 @@ import pytest
 from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Robot, Runtime, Supervisor
 from dualtwin.webots.physics import Simulation
-from tests.support.sensor_worlds import sensor_world
+from tests.support.sensor_worlds import sensor_world, unit_noise
 from tests.support.world_runs import ROOT
 
 STEP = 8
@@ -93,6 +93,66 @@ def test_distance_sensor_reset_restores_the_load_table() -> None:
     sup.step(STEP)
     assert ds.getMaxValue() == 1000.0
     assert ds.getValue() == pytest.approx(1000.0)
+
+
+# ------------------------------------------------------------------------------------------ other sensors
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_accelerometer_lookup_table_edit_maps_the_next_sample(edit: bool) -> None:
+    # a static robot's accelerometer reads R^T·(a − g) = (0, 0, 9.81) through its table (empty: the identity,
+    # D §0.3); edited to [−100 −200 0, 100 200 0] it doubles: 19.62
+    sup = sensor_world('DEF ACC Accelerometer { name "acc" }', "", step=STEP)
+    acc = sup.getDevice("acc")
+    acc.enable(STEP)
+    sup.step(STEP)
+    assert acc.getValues() == pytest.approx([0.0, 0.0, 9.81], abs=1e-9)
+    if edit:
+        _set_table(sup.getFromDef("ACC"), [[-100.0, -200.0, 0.0], [100.0, 200.0, 0.0]])
+    sup.step(STEP)
+    assert acc.getValues()[2] == pytest.approx(19.62 if edit else 9.81, rel=1e-9)
+    assert acc.getLookupTable() == ([-100.0, -200.0, 0.0, 100.0, 200.0, 0.0] if edit else [])
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_touch_sensor_lookup_table_and_resolution_edits(edit: bool) -> None:
+    # a force sensor without Physics reads lookup(0) (the first output, D §0.3): 3 with [0 3 0, 10 13 0]; edited to
+    # [0 7.3 0, 10 17 0] and resolution 0.5: discretize(7.3, 0.5) = int(14.6 + 0.5)·0.5 = 7.5 (D §0.4)
+    sup = sensor_world('DEF T TouchSensor { name "t" type "force" lookupTable [ 0 3 0, 10 13 0 ] }', "", step=STEP)
+    touch = sup.getDevice("t")
+    touch.enable(STEP)
+    sup.step(STEP)
+    assert touch.getValue() == 3.0
+    if edit:
+        _set_table(sup.getFromDef("T"), [[0.0, 7.3, 0.0], [10.0, 17.0, 0.0]])
+        sup.getFromDef("T").getField("resolution").setSFFloat(0.5)
+    sup.step(STEP)
+    assert touch.getValue() == pytest.approx(7.5 if edit else 3.0)
+    assert touch.getLookupTable()[1] == (7.3 if edit else 3.0)
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_position_sensor_resolution_and_noise_edits(edit: bool) -> None:
+    # S §5.4 (webots-on-ode.md): value + N(0, noise²), then the resolution. A joint at 0.26 with resolution 0.1
+    # reads int(2.6 + 0.5)·0.1 = 0.3; with noise 0.02 and every Gaussian draw +1 (unit_noise) it reads
+    # discretize(0.28, 0.1) = 0.3 too, so the noise is checked alone: 0.26 + 0.02 = 0.28
+    sup = sensor_world('HingeJoint { jointParameters HingeJointParameters { position 0.26 } '
+                       'device [ DEF PS PositionSensor { name "ps" } ] endPoint Solid { } }', "", step=STEP)
+    unit_noise(sup)
+    ps = sup.getDevice("ps")
+    ps.enable(STEP)
+    sup.step(STEP)
+    assert ps.getValue() == pytest.approx(0.26)
+    node = sup.getFromDef("PS")
+    if edit:
+        node.getField("resolution").setSFFloat(0.1)
+    sup.step(STEP)
+    assert ps.getValue() == pytest.approx(0.3 if edit else 0.26)
+    node.getField("resolution").setSFFloat(-1.0)
+    if edit:
+        node.getField("noise").setSFFloat(0.02)
+    sup.step(STEP)
+    assert ps.getValue() == pytest.approx(0.28 if edit else 0.26)
 
 
 # ------------------------------------------------------------------------------------------ Emitter / Receiver

@@ -77,10 +77,9 @@ class _TableSensor(_SolidSensor):
     _c_values = ""  # the C getter of ``getValues`` (named in the error line of a disabled read)
 
     def _table(self) -> Table:
-        table = getattr(self, "_table_cache", None)
-        if table is None:
-            table = self._table_cache = table_from_field(self._record.node.fields.get("lookupTable", []))
-        return table
+        # read again after a supervisor's edit of the table (Webots' updateLookupTable), from the next sample on
+        return self._configured("_table_cache",
+                                lambda: table_from_field(self._record.node.fields.get("lookupTable", [])))
 
     def getLookupTable(self) -> list[float]:
         return [v for row in self._table() for v in row]

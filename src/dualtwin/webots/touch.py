@@ -33,7 +33,7 @@ from dualtwin.webots import _math3 as m3
 from dualtwin.webots import ode
 from dualtwin.webots.api_args import error, warn
 from dualtwin.webots.device_base import SolidSensor
-from dualtwin.webots.lut import discretize, lookup, table_from_field
+from dualtwin.webots.lut import Table, discretize, lookup, table_from_field
 from dualtwin.webots.physics import GeomRec, JointRec, Simulation, SolidRec
 from dualtwin.webots.step_hints import step_value
 
@@ -123,8 +123,6 @@ class TouchSensor(SolidSensor):
                 warn(f"TouchSensor '{self._name}': unknown type '{raw}', using 'bumper'")
                 kind = self.BUMPER
             self._kind_cache = kind
-            self._table = table_from_field(self._record.node.fields.get("lookupTable", []))
-            self._resolution = float(self._record.node.fields.get("resolution", -1.0))
             self._feedback: ode.dJointFeedback | None = None
             self._holder: JointRec | None = None
             self._touched = False
@@ -154,6 +152,15 @@ class TouchSensor(SolidSensor):
         if not lib.dJointGetFeedback(holder.ptr):
             self._feedback = ode.dJointFeedback()
             lib.dJointSetFeedback(holder.ptr, ctypes.byref(self._feedback))
+
+    def _table(self) -> Table:
+        # its lookupTable and resolution are read again after a supervisor's edit, from the next sample on (the
+        # type, which decides the ODE feedback set up at load, is not)
+        return self._configured("_table_cache",
+                                lambda: table_from_field(self._record.node.fields.get("lookupTable", [])))
+
+    def _resolution(self) -> float:
+        return float(self._record.node.fields.get("resolution", -1.0))
 
     def enable(self, samplingPeriod: Any) -> None:
         kind = self._kind()
@@ -206,10 +213,10 @@ class TouchSensor(SolidSensor):
         f1 = self._force_on_parent()
         if kind == self.FORCE:
             p = m3.dot(m3.mat_vec(R, (1.0, 0.0, 0.0)), f1)
-            self._value = discretize(lookup(self._table, -p if p < 0 else 0.0, sim.rng), self._resolution)
+            self._value = discretize(lookup(self._table(), -p if p < 0 else 0.0, sim.rng), self._resolution())
         else:
             local = m3.mat_t_vec(R, f1)
-            self._values = [discretize(lookup(self._table, v, sim.rng), self._resolution) for v in local]
+            self._values = [discretize(lookup(self._table(), v, sim.rng), self._resolution()) for v in local]
 
     @step_value
     def getValue(self) -> float:
@@ -229,7 +236,7 @@ class TouchSensor(SolidSensor):
 
     def getLookupTable(self) -> list[float]:
         self._kind()
-        return [v for row in self._table for v in row]
+        return [v for row in self._table() for v in row]
 
     def getType(self) -> int:
         return self._kind()

@@ -18,7 +18,12 @@ from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics.edit_stamps import note_edit
 from dualtwin.webots.physics.geometry_edits import GEOMETRY_TYPES
 from dualtwin.webots.physics.mass_edits import MASS_FIELDS, MassEdits
-from dualtwin.webots.physics.motor_edits import MOTOR_FIELDS, apply_motor_field, remember_load
+from dualtwin.webots.physics.motor_edits import (
+    MOTOR_FIELDS,
+    apply_motor_field,
+    apply_position_sensor_field,
+    remember_load,
+)
 from dualtwin.webots.physics.records import (
     BodyRec,
     JointRec,
@@ -274,7 +279,8 @@ class SupervisorEdits(MassEdits):
         their ODE objects). Supported: joint ``dampingConstant``/``springConstant``/``staticFriction``/``stopERP``/
         ``stopCFM``,
         motor ``maxVelocity``/``maxTorque``/``maxForce``/``acceleration`` and (:mod:`.motor_edits`)
-        ``controlPID``/``minPosition``/``maxPosition``/``multiplier``, ``Physics``
+        ``controlPID``/``minPosition``/``maxPosition``/``multiplier``, a joint's PositionSensor ``noise``/``resolution``,
+        ``Physics``
         ``mass``/``density``/``centerOfMass``/``inertiaMatrix`` (the body's mass properties summed again as at
         load, :mod:`.mass_edits`), a
         ``Damping`` node's ``linear``/``angular`` (bodies and, for ``WorldInfo.defaultDamping``, the world),
@@ -318,6 +324,10 @@ class SupervisorEdits(MassEdits):
                 motor.acceleration = float(value)
                 return True
             return name in MOTOR_FIELDS and apply_motor_field(self, motor, name)
+        if node.type_name == "PositionSensor":
+            sensor = next((s for j in self.joints for s in j.sensors if s is not None and s.node is node), None)
+            if sensor is not None:
+                return apply_position_sensor_field(sensor, name)
         if node.type_name == "Physics" and name in MASS_FIELDS:
             return self._apply_physics_mass(node, name)
         if node.type_name == "Damping" and name in ("linear", "angular"):

@@ -12,6 +12,8 @@ new value from the next step on and configure the motor's controller again (its 
 * ``multiplier``: what the next ``setPosition``/``setVelocity``/``setForce`` (and their relays to coupled
   siblings) are scaled by (D §9); 0 is refused as at load, with the same warning, and 1 used.
 
+A joint's PositionSensor takes an edited ``noise`` or ``resolution`` from its next sample (S §5.4).
+
 The coupled motors' limits harmonised at load (D §9, "at load (postFinalize)") are not harmonised again after an
 edit. A reset restores every motor edited here to its configuration of the load (with the load's widening and
 harmonisation, which the restored fields alone do not give back).
@@ -23,9 +25,9 @@ import math
 from typing import Any
 
 from dualtwin.webots.motor_api import MULTIPLIER_ZERO
-from dualtwin.webots.physics.records import MotorRec
+from dualtwin.webots.physics.records import MotorRec, PositionSensorRec
 
-__all__ = ["MOTOR_FIELDS", "apply_motor_field", "remember_load"]
+__all__ = ["MOTOR_FIELDS", "apply_motor_field", "apply_position_sensor_field", "remember_load"]
 
 #: the motor fields this module applies (maxVelocity, maxTorque/maxForce and acceleration are applied by edits.py)
 MOTOR_FIELDS = ("controlPID", "minPosition", "maxPosition", "multiplier")
@@ -71,6 +73,18 @@ def apply_motor_field(sim: Any, motor: MotorRec, name: str) -> bool:
             sim.warn(MULTIPLIER_ZERO.format(name=motor.name))
             multiplier = 1.0
         motor.multiplier = multiplier
+        return True
+    return False
+
+
+def apply_position_sensor_field(sensor: PositionSensorRec, name: str) -> bool:
+    """Apply the edit of a PositionSensor's ``noise`` or ``resolution``; False for another field (a reset applies the
+    restored load value the same way)."""
+    if name == "noise":
+        sensor.noise = float(sensor.node.fields.get("noise", 0.0))
+        return True
+    if name == "resolution":
+        sensor.resolution = float(sensor.node.fields.get("resolution", -1.0))
         return True
     return False
 
