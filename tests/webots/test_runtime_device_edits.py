@@ -155,6 +155,59 @@ def test_position_sensor_resolution_and_noise_edits(edit: bool) -> None:
     assert ps.getValue() == pytest.approx(0.28 if edit else 0.26)
 
 
+# ------------------------------------------------------------------------------------------ depth devices, camera
+
+# the wall with a visual Shape: Lidar and RangeFinder rays hit what Webots renders (D §3.2)
+SEEN_WALL = ("Solid { translation 0.6 0 0.1 children [ Shape { geometry Box { size 0.2 4 4 } } ] "
+             "boundingObject Box { size 0.2 4 4 } }")
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_lidar_max_range_edit_sets_the_next_scan(edit: bool) -> None:
+    # one column, one layer: a ray straight ahead (azimuth fov/2 − ½·fov = 0) meets the wall at 0.5 m, inside
+    # [minRange 0.01, maxRange 1); with maxRange 0.4 it is beyond the range: +inf (D §3.2)
+    sup = sensor_world('DEF L Lidar { name "l" horizontalResolution 1 numberOfLayers 1 fieldOfView 0.1 }',
+                       SEEN_WALL, step=STEP)
+    lidar = sup.getDevice("l")
+    lidar.enable(STEP)
+    sup.step(STEP)
+    assert lidar.getRangeImage() == pytest.approx([0.5])
+    if edit:
+        sup.getFromDef("L").getField("maxRange").setSFFloat(0.4)
+    sup.step(STEP)
+    assert lidar.getRangeImage() == ([math.inf] if edit else pytest.approx([0.5]))
+    assert lidar.getMaxRange() == (0.4 if edit else 1.0)
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_range_finder_min_range_edit_sets_the_next_image(edit: bool) -> None:
+    # one pixel looking along +x: depth 0.5; a minRange of 0.6 leaves it short of the range: +inf (D §3.2)
+    sup = sensor_world('DEF RF RangeFinder { name "rf" width 1 height 1 }', SEEN_WALL, step=STEP)
+    rf = sup.getDevice("rf")
+    rf.enable(STEP)
+    sup.step(STEP)
+    assert rf.getRangeImage() == pytest.approx([0.5])
+    if edit:
+        sup.getFromDef("RF").getField("minRange").setSFFloat(0.6)
+    sup.step(STEP)
+    assert rf.getRangeImage() == ([math.inf] if edit else pytest.approx([0.5]))
+    assert rf.getMinRange() == (0.6 if edit else 0.01)
+    assert rf.getWidth() == 1
+
+
+def test_camera_field_of_view_edit_reaches_its_getter_and_keeps_other_settings() -> None:
+    sup = sensor_world('DEF C Camera { name "c" width 4 height 4 }', "", step=STEP)
+    cam = sup.getDevice("c")
+    cam.setExposure(2.0)  # the controller's setting, which an edit of another field leaves as it is
+    assert cam.getFov() == pytest.approx(0.7854)
+    sup.getFromDef("C").getField("fieldOfView").setSFFloat(0.5)
+    sup.step(STEP)
+    assert (cam.getFov(), cam.getExposure(), cam.getWidth()) == (0.5, 2.0, 4)
+    sup.getFromDef("C").getField("exposure").setSFFloat(3.0)
+    sup.step(STEP)
+    assert cam.getExposure() == 3.0
+
+
 # ------------------------------------------------------------------------------------------ Emitter / Receiver
 
 

@@ -77,6 +77,11 @@ def bgra_from_rgb(rgb: np.ndarray) -> np.ndarray:
     return out
 
 
+#: (field, CameraModel attribute, default) of the fields a supervisor's edit changes at run time
+_EDITABLE = (("fieldOfView", "fov", 0.7854), ("near", "near", 0.01), ("far", "far", 0.0), ("noise", "noise", 0.0),
+             ("exposure", "exposure", 1.0))
+
+
 class CameraModel:
     """A Camera node's fields, read once (Webots' defaults where a field is absent)."""
 
@@ -92,6 +97,13 @@ class CameraModel:
         self.projection = str(fields.get("projection", "planar"))
         if self.projection != "planar":
             warn(f"Camera: the {self.projection} projection is drawn as planar")
+
+    def follow(self, fields: dict[str, Any], changed: set[str]) -> None:
+        """Take the edited fields of ``changed`` (Webots' update slots: from the next image on, the getters too).
+        The image size stays that of the load, as the controller's image buffer does."""
+        for name, attr, default in _EDITABLE:
+            if name in changed:
+                setattr(self, attr, float(fields.get(name, default)))
 
     def fovy_degrees(self) -> float:
         """The vertical field of view (degrees) of a horizontal ``fov`` at this aspect ratio."""
@@ -138,9 +150,13 @@ class Camera(SolidSensor):
     """Webots ``Camera``; see the module docstring."""
 
     def _model(self) -> CameraModel:
+        fields = self._record.node.fields
+        changed = self._fields_changed(tuple(name for name, _, _ in _EDITABLE))
         model = getattr(self, "_model_cache", None)
         if model is None:
-            model = self._model_cache = CameraModel(self._record.node.fields)
+            model = self._model_cache = CameraModel(fields)
+        elif changed:
+            model.follow(fields, changed)
         return model
 
     def _invalidate(self) -> None:

@@ -391,6 +391,10 @@ def _range_limits(fields: dict[str, Any]) -> tuple[float, float]:
     return lo, hi
 
 
+#: the fields of a Lidar or RangeFinder whose edit at run time changes its next image
+_DEPTH_EDITABLE = ("fieldOfView", "minRange", "maxRange", "near", "noise", "resolution")
+
+
 def _pitch(dirs: np.ndarray, angle: float) -> np.ndarray:
     """Rotate directions about the device's y axis so that +x tilts up by ``angle``."""
     c, s = math.cos(angle), math.sin(angle)
@@ -479,7 +483,16 @@ class Lidar(_DepthDevice):
     """Webots ``Lidar``, fixed or rotating (:mod:`.lidar_head`); see the module docstring."""
 
     def _model(self) -> LidarModel:
+        changed = self._fields_changed(_DEPTH_EDITABLE + ("verticalFieldOfView", "tiltAngle", "projection"))
         model = getattr(self, "_model_cache", None)
+        if model is not None and changed:
+            # Webots' update slots (field of view, ranges, noise, resolution): the rays and values of the next
+            # scan; the image's size and the head's state (type, frequency) stay
+            kept = {"horizontalResolution": model.width, "numberOfLayers": model.layers,
+                    "type": "rotating" if model.rotating else "fixed"}
+            new = LidarModel.from_node({**self._record.node.fields, **kept})
+            for name in ("fov", "vfov", "tilt", "planar", "grid", "azimuths", "elevations"):
+                setattr(model, name, getattr(new, name))
         if model is None:
             model = self._model_cache = LidarModel.from_node(self._record.node.fields)
             self._cloud = False
@@ -657,10 +670,13 @@ class RangeFinder(_DepthDevice):
     """Webots ``RangeFinder`` (planar depth image); see the module docstring."""
 
     def _model(self) -> tuple[int, int, float, _Grid]:
+        changed = self._fields_changed(_DEPTH_EDITABLE)
         model = getattr(self, "_model_cache", None)
-        if model is None:
+        if model is None or changed:
+            # built again after an edit of its field of view, ranges, noise or resolution (Webots' update slots),
+            # from the next image on; the image's size stays that of the load
             f = self._record.node.fields
-            w, h = max(1, int(f.get("width", 64))), max(1, int(f.get("height", 64)))
+            w, h = (max(1, int(f.get("width", 64))), max(1, int(f.get("height", 64)))) if model is None else model[:2]
             fov = float(f.get("fieldOfView", 0.7854))
             if str(f.get("projection", "planar")) != "planar":
                 warn("RangeFinder: only the planar projection is cast; spherical/cylindrical read as planar")
