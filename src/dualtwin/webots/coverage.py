@@ -265,7 +265,11 @@ REGISTRY: tuple[Coverage, ...] = (
              "modes); on a kinematic joint (endPoint without Physics) the motor moves the endPoint itself, its "
              "speed ramping by the acceleration or, when that is -1 or larger, by the available torque (Webots' "
              "kinematic controller); a supervisor's write of its acceleration field sets its acceleration as "
-             "setAcceleration does, and simulationReset restores the loaded one; coupled motors ('name::suffix') relay setPosition/setVelocity/setForce with their "
+             "setAcceleration does, and simulationReset restores the loaded one; a supervisor's edit of "
+             "maxVelocity, maxTorque/maxForce, controlPID (the error integral starts again), minPosition/"
+             "maxPosition (a target left outside is clipped into them) or multiplier acts from the next step and "
+             "the getters follow (not harmonised again across coupled motors), simulationReset puts the load "
+             "configuration back; coupled motors ('name::suffix') relay setPosition/setVelocity/setForce with their "
              "multipliers and their limits are harmonised at load to the first motor's (getTargetPosition and "
              "getVelocity echo the raw value given to the motor itself, the multiplied one for its siblings, as "
              "libController caches them); as in libController, a "
@@ -279,7 +283,7 @@ REGISTRY: tuple[Coverage, ...] = (
              "these are not confirmed against Webots)"),
     Coverage("LinearMotor", "device", "partial", "as RotationalMotor"),
     Coverage("PositionSensor", "device", "supported",
-             "sampled joint position with noise and resolution (a read while disabled prints Webots' error and "
+             "sampled joint position with noise and resolution (edited at run time: from the next sample; a read while disabled prints Webots' error and "
              "returns the last sample, as every sensor's); a motor, position sensor or brake a supervisor "
              "imports into a joint's device field joins its robot's devices (getDevice, getNumberOfDevices, in "
              "scene-tree order for getDeviceByIndex) and acts on the axis from the next step (a motor holding the "
@@ -296,11 +300,12 @@ REGISTRY: tuple[Coverage, ...] = (
              "are not applied"),
     Coverage("Gyro", "device", "supported",
              "angular velocity of the carrying body in the device frame, per-axis lookup table (noise), "
-             "resolution, disabled axes read NaN"),
+             "resolution (both also edited at run time, from the next sample), disabled axes read NaN"),
     Coverage("Accelerometer", "device", "supported",
              "proper acceleration of the device origin as a point of its body (lever-arm centripetal and "
              "tangential terms), change of point velocity over the last basic step minus gravity, in the "
-             "device frame; per-axis lookup table (noise), resolution, disabled axes read NaN"),
+             "device frame; per-axis lookup table (noise), resolution (both also edited at run time, from the next "
+             "sample), disabled axes read NaN"),
     Coverage("InertialUnit", "device", "supported",
              "roll/pitch/yaw and quaternion of the device frame in the world's reference frame (ENU as is; "
              "NUE/EUN read with their up axis as z, so a turn about the vertical is a yaw), resolution, "
@@ -315,7 +320,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "sensor, judged in that Shape's own frame; transparent ones skipped), weighted by the reflection "
              "factor of the hit Shape's red (Material diffuseColor or PBR baseColor and roughness; no "
              "textures; a CadShape's default grey) and redColorSensitivity; a Mesh Shape or CadShape is hit on its "
-             "file's triangles"),
+             "file's triangles; a supervisor's edit of lookupTable, numberOfRays, aperture, gaussianWidth, type or "
+             "resolution acts from the next sample and the getters follow"),
     Coverage("Compass", "device", "supported",
              "north of WorldInfo.coordinateSystem (+y ENU, +x NUE, +z EUN) in the device frame, per-axis "
              "lookupTable and resolution"),
@@ -324,7 +330,8 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("TouchSensor", "device", "supported",
              "bumper from contacts of its bounding object in any step since the last sample; force and "
              "force-3d from the feedback of the joint holding its own body (its fixed joint, or the joint whose "
-             "endPoint it is), with lookup table and resolution"),
+             "endPoint it is), with lookup table and resolution (edited at run time: from the next sample; the type "
+             "stays that of the load)"),
     Coverage("Lidar", "device", "partial",
              "one ray per pixel against the visual Shapes (as Webots renders them): layers, fov, tilt, "
              "cylindrical (Euclidean) or planar (depth) ranges, +inf outside [minRange, maxRange), noise, "
@@ -335,10 +342,13 @@ REGISTRY: tuple[Coverage, ...] = (
              "new controller enables the lidar); Mesh Shapes and CadShapes "
              "are hit on their files' triangles; Webots' load-time layer check (numberOfLayers at most "
              "verticalFieldOfView·horizontalResolution/fieldOfView, 2π for a rotating one: else rewritten, with "
-             "a warning)"),
+             "a warning); a supervisor's edit of fieldOfView, verticalFieldOfView, tiltAngle, projection, "
+             "minRange, maxRange, near, noise or resolution sets the next scan and the getters (the image size, "
+             "type and frequency stay)"),
     Coverage("RangeFinder", "device", "partial",
              "planar depth image as one ray per pixel against the visual Shapes (as Webots renders them); "
-             "+inf outside [minRange, maxRange), noise, resolution; no lens, motion blur or saveImage; Mesh Shapes "
+             "+inf outside [minRange, maxRange), noise, resolution (fieldOfView, ranges, noise and resolution "
+             "edited at run time set the next image; its size stays); no lens, motion blur or saveImage; Mesh Shapes "
              "and CadShapes are hit on their files' triangles"),
     Coverage("Camera", "device", "partial",
              "planar BGRA image of the world's Shapes in their flat colours, drawn headless by the MuJoCo "
@@ -346,7 +356,9 @@ REGISTRY: tuple[Coverage, ...] = (
              "sampling, getImageArray, imageGet*, saveImage (PNG/JPEG); the sky in the Background's first "
              "skyColor; no textures (a textured Background shows its skyColor), "
              "exposure, lens, motion blur or spherical/cylindrical projection (drawn planar); the scene is "
-             "drawn again after a supervisor changed it (nodes imported or removed, a Pose moved); a Mesh Shape is "
+             "drawn again after a supervisor changed it (nodes imported or removed, a Pose moved; its own "
+             "fieldOfView, near, far, noise or exposure edited: the next image and the getters, its size stays); "
+             "a Mesh Shape is "
              "drawn from its file's triangles in its appearance's colour, a CadShape in grey 0.6 (materials "
              "of mesh files are not read); a mesh file that cannot be read is not drawn"),
     Coverage("Recognition", "device", "partial",
@@ -378,10 +390,12 @@ REGISTRY: tuple[Coverage, ...] = (
              "in-process channels: channel filters, range and maxRange, medium type, buffer size, baud rate, "
              "infra-red line of sight and aperture, judged from the poses after the physics step of the "
              "packet's arrival; packets of one step reach a receiver in world order (robot, then device), "
-             "whichever controller sent first; simulationReset clears the queues"),
+             "whichever controller sent first; simulationReset clears the queues; a supervisor's edit of a field "
+             "(channel, range, maxRange, aperture, baudRate, bufferSize...) acts from the next step and the getters "
+             "follow (a channel or range set by the controller stays until that field is written)"),
     Coverage("Receiver", "device", "partial",
              "queue, channel filter, buffer size, signal strength 1/d² with noise, emitter direction with noise; "
-             "no physics-plugin copy of channel 0"),
+             "fields edited at run time act from the next step, as the Emitter's; no physics-plugin copy of channel 0"),
     Coverage("Display", "device", "partial",
              "RGBA frame buffer: colour, alpha, opacity, pixels, lines, rectangles, ovals, polygons, image "
              "new/copy/paste/save (PNG)/load/delete; text is not rasterised and attachCamera shows nothing"),
