@@ -80,6 +80,7 @@ def bgra_from_rgb(rgb: np.ndarray) -> np.ndarray:
 #: (field, CameraModel attribute, default) of the fields a supervisor's edit changes at run time
 _EDITABLE = (("fieldOfView", "fov", 0.7854), ("near", "near", 0.01), ("far", "far", 0.0), ("noise", "noise", 0.0),
              ("exposure", "exposure", 1.0))
+_EDITABLE_NAMES = tuple(name for name, _, _ in _EDITABLE)
 
 
 class CameraModel:
@@ -98,7 +99,7 @@ class CameraModel:
         if self.projection != "planar":
             warn(f"Camera: the {self.projection} projection is drawn as planar")
 
-    def follow(self, fields: dict[str, Any], changed: set[str]) -> None:
+    def follow(self, fields: dict[str, Any], changed: frozenset[str]) -> None:
         """Take the edited fields of ``changed`` (Webots' update slots: from the next image on, the getters too).
         The image size stays that of the load, as the controller's image buffer does."""
         for name, attr, default in _EDITABLE:
@@ -151,7 +152,7 @@ class Camera(SolidSensor):
 
     def _model(self) -> CameraModel:
         fields = self._record.node.fields
-        changed = self._fields_changed(tuple(name for name, _, _ in _EDITABLE))
+        changed = self._fields_changed(_EDITABLE_NAMES)
         model = getattr(self, "_model_cache", None)
         if model is None:
             model = self._model_cache = CameraModel(fields)

@@ -17,7 +17,7 @@ from dualtwin.webots import _math3 as m3
 from dualtwin.webots.api_args import as_int
 from dualtwin.webots.node_types import node_type_of
 from dualtwin.webots.physics import DeviceRec, RobotRec, Simulation
-from dualtwin.webots.physics.edit_stamps import edit_stamp
+from dualtwin.webots.physics.edit_stamps import stamps_of
 from dualtwin.webots.step_hints import step_value
 
 
@@ -87,6 +87,7 @@ class DeviceBinding(NamedTuple):
 
 
 _Config = TypeVar("_Config")
+_NONE: frozenset[str] = frozenset()
 
 _local = threading.local()
 _process_hosts: list[weakref.ref[Any]] = []  # the process's first robot (weakly: tests make many)
@@ -153,33 +154,41 @@ class Device:
         """Per-class initialisation from ``self._record`` (device classes override this, not ``__init__``, so
         every class keeps Webots' constructor signature)."""
 
+    def _edit_stamp(self, name: str | None = None) -> int:
+        """How many times a supervisor wrote this device's node (its field ``name`` if given), or a reset restored
+        it (:mod:`.physics.edit_stamps`). Devices ask at every sample: the table is kept, the ask is a look-up."""
+        stamps: dict[Any, int] | None = self.__dict__.get("_stamps")
+        if stamps is None:
+            stamps = self._stamps = stamps_of(self._robot._sim)
+        key = id(self._record.node)
+        return stamps.get(key if name is None else (key, name), 0)
+
     def _configured(self, key: str, build: Callable[[], _Config]) -> _Config:
         """What the device derives from its node's fields (``build()``), kept under ``key`` and derived again after
         a supervisor wrote one of them (or a reset restored them): Webots' device ``update*`` slots, which act
-        on the device from the next step and configure its controller again (:mod:`.physics.edit_stamps`)."""
-        stamp = edit_stamp(self._robot._sim, self._record.node)
+        on the device from the next step and configure its controller again."""
+        stamp = self._edit_stamp()
         kept = self.__dict__.get(key)
         if kept is None or kept[0] != stamp:
             kept = self.__dict__[key] = (stamp, build())
         return kept[1]  # type: ignore[no-any-return]
 
-    def _fields_changed(self, names: tuple[str, ...]) -> set[str]:
+    def _fields_changed(self, names: tuple[str, ...]) -> frozenset[str]:
         """Which of the fields ``names`` a supervisor wrote since this device last read them (all of them at the
         first read), or a reset restored: the fields whose Webots ``update*`` slot runs. A setting the controller
         changed (an Emitter's ``setChannel``) stays until its own field is written."""
-        sim, node = self._robot._sim, self._record.node
-        stamp = edit_stamp(sim, node)
-        seen: dict[str, int] = self.__dict__.setdefault("_fields_seen", {})
-        if seen and self.__dict__.get("_fields_stamp") == stamp:
-            return set()
+        stamp = self._edit_stamp()
+        if self.__dict__.get("_fields_stamp") == stamp:
+            return _NONE
         self._fields_stamp = stamp
+        seen: dict[str, int] = self.__dict__.setdefault("_fields_seen", {})
         changed = set()
         for name in names:
-            field_stamp = edit_stamp(sim, node, name)
+            field_stamp = self._edit_stamp(name)
             if seen.get(name) != field_stamp:
                 seen[name] = field_stamp
                 changed.add(name)
-        return changed
+        return frozenset(changed)
 
     def getName(self) -> str:
         return self._name

@@ -292,12 +292,19 @@ class DistanceSensor(SolidSensor):
     @property
     def _visual_rays(self) -> bool:
         """Infra-red rays hit visual Shapes (:mod:`.visual_rays`); the other types hit bounding objects."""
-        return self._model().kind == self.INFRA_RED
+        return self._sampled_model().kind == self.INFRA_RED
 
     def _model(self) -> DistanceModel:
         # Webots' updateLookupTable / updateRaySetup: a supervisor's edit of any of these fields takes effect from
         # the next sample, and the getters (max and min value, aperture, type, lookup table) follow it
+        kept = self.__dict__.get("_model_cache")
+        if kept is not None and kept[0] == self._edit_stamp():  # (the common case, without building a lambda)
+            return kept[1]  # type: ignore[no-any-return]
         return self._configured("_model_cache", lambda: DistanceModel.from_node(self._record.node.fields))
+
+    def _sampled_model(self) -> DistanceModel:
+        """The model :meth:`_ray_spec` took at the start of this sample (the batch asks it several times)."""
+        return self.__dict__["_model_cache"][1]  # type: ignore[no-any-return]
 
     def _invalidate(self) -> None:
         self._value = math.nan
@@ -313,11 +320,11 @@ class DistanceSensor(SolidSensor):
         return model.spec()
 
     def _ray_result(self, hits: RayHits, dirs: np.ndarray) -> None:
-        self._value = self._model().finish(self._robot._sim, hits, dirs)
+        self._value = self._sampled_model().finish(self._robot._sim, hits, dirs)
 
     @property
     def _needs_normals(self) -> bool:
-        return self._model().kind == self.SONAR
+        return self._sampled_model().kind == self.SONAR
 
     @step_value
     def getValue(self) -> float:
@@ -393,6 +400,7 @@ def _range_limits(fields: dict[str, Any]) -> tuple[float, float]:
 
 #: the fields of a Lidar or RangeFinder whose edit at run time changes its next image
 _DEPTH_EDITABLE = ("fieldOfView", "minRange", "maxRange", "near", "noise", "resolution")
+_LIDAR_EDITABLE = (*_DEPTH_EDITABLE, "verticalFieldOfView", "tiltAngle", "projection")
 
 
 def _pitch(dirs: np.ndarray, angle: float) -> np.ndarray:
@@ -483,7 +491,7 @@ class Lidar(_DepthDevice):
     """Webots ``Lidar``, fixed or rotating (:mod:`.lidar_head`); see the module docstring."""
 
     def _model(self) -> LidarModel:
-        changed = self._fields_changed(_DEPTH_EDITABLE + ("verticalFieldOfView", "tiltAngle", "projection"))
+        changed = self._fields_changed(_LIDAR_EDITABLE)
         model = getattr(self, "_model_cache", None)
         if model is not None and changed:
             # Webots' update slots (field of view, ranges, noise, resolution): the rays and values of the next

@@ -14,13 +14,14 @@ from typing import Any
 
 from dualtwin.webots.nodes import Node
 
-__all__ = ["edit_stamp", "note_edit"]
+__all__ = ["edit_stamp", "note_edit", "stamps_of"]
 
 _KEY = "field_edit_stamps"
 
 
-def note_edit(sim: Any, node: Node, name: str) -> None:
-    """Count a write of ``node``'s field ``name`` (``Simulation.field_changed`` calls it for every write)."""
+def stamps_of(sim: Any) -> dict[Any, int]:
+    """The simulation's write counts: by ``id(node)`` (any field of the node) and by ``(id(node), name)``. A device
+    keeps this one dict and reads its node's count with one look-up (devices ask at every sample)."""
     stamps: dict[Any, int] | None = sim.extensions.get(_KEY)
     if stamps is None:
         table: dict[Any, int] = {}
@@ -31,6 +32,12 @@ def note_edit(sim: Any, node: Node, name: str) -> None:
                 table[key] += 1
 
         sim.reset_hooks.append(reset)
+    return stamps
+
+
+def note_edit(sim: Any, node: Node, name: str) -> None:
+    """Count a write of ``node``'s field ``name`` (``Simulation.field_changed`` calls it for every write)."""
+    stamps = stamps_of(sim)
     for key in (id(node), (id(node), name)):
         stamps[key] = stamps.get(key, 0) + 1
 
