@@ -177,6 +177,11 @@ def test_lidar_max_range_edit_sets_the_next_scan(edit: bool) -> None:
     sup.step(STEP)
     assert lidar.getRangeImage() == ([math.inf] if edit else pytest.approx([0.5]))
     assert lidar.getMaxRange() == (0.4 if edit else 1.0)
+    sup.simulationReset()  # the load maxRange again (the restored field read again)
+    sup.step(STEP)
+    sup.step(STEP)
+    assert lidar.getMaxRange() == 1.0
+    assert lidar.getRangeImage() == pytest.approx([0.5])
 
 
 @pytest.mark.parametrize("edit", [True, False])
