@@ -84,7 +84,8 @@ _EDITABLE_NAMES = tuple(name for name, _, _ in _EDITABLE)
 
 
 class CameraModel:
-    """A Camera node's fields, read once (Webots' defaults where a field is absent)."""
+    """A Camera node's fields (Webots' defaults where a field is absent), read at load and, for those of
+    :data:`_EDITABLE`, again after a supervisor's edit (:meth:`follow`)."""
 
     def __init__(self, fields: dict[str, Any]) -> None:
         self.width = max(1, int(fields.get("width", 64)))

@@ -23,6 +23,10 @@ So a packet sent before ``step()`` *k* is readable when the receiver's ``step()`
 period has elapsed. ``send`` with a ``str`` sends its UTF-8 bytes cut to ``len(str)`` (Webots' Python wrapper
 does that); a list or tuple is packed as doubles, or as 32-bit ints when every item is an int or a bool. Not
 modelled: the physics-plugin copy of channel 0. ``simulationReset`` clears every queue.
+
+A supervisor's write of a field of either end (channel, range, maxRange, aperture, baudRate, bufferSize, noise...)
+acts from the next step and the getters follow (Webots' update slots); a channel or range the controller set stays
+until that same field is written.
 """
 
 from __future__ import annotations

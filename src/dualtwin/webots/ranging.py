@@ -201,7 +201,7 @@ def _np_pose(pose: Any) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass
 class DistanceModel:
-    """A DistanceSensor's fields, normalised as Webots does at load."""
+    """A DistanceSensor's fields, normalised as Webots does at load (and built again after a supervisor's edit)."""
 
     kind: int
     table: Table
