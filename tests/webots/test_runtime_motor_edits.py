@@ -17,6 +17,7 @@ import pytest
 
 from dualtwin.webots.controller import Supervisor
 from tests.support.hinge_arm import BOB, DT, TS, load_arm
+from tests.support.quiet_worlds import quiet_supervisor
 
 
 def _arm(motor: str = "", extra_joint: str = "", name: str = "m") -> tuple[Supervisor, Any, Any]:
@@ -190,3 +191,63 @@ def test_reset_restores_a_coupled_motors_harmonised_limits() -> None:
     sup.simulationReset()
     _step(sup)
     assert (sibling.getMinPosition(), sibling.getMaxPosition(), sibling.getMaxVelocity()) == (-2.0, 2.0, 200.0)
+
+
+# ------------------------------------------------------------------------------------------ a Track's motor
+
+TRACK = ('Robot { supervisor TRUE children [ Track { translation 0 0 0.2 boundingObject Box { size 2 0.4 0.1 } '
+         'physics Physics { mass 5 } device [ DEF TM LinearMotor { %s } PositionSensor { name "s" } ] } ] }')
+
+
+def _track(motor: str = "") -> tuple[Supervisor, Any, Any]:
+    """A Track whose belt travel the sensor reads: the belt follows the motor law exactly (D §7.2: v = u, the
+    position integrates v·dt), so the values below are the law's, without ODE's softness."""
+    sup = quiet_supervisor(f"#VRML_SIM R2023b utf8\nWorldInfo {{ basicTimeStep {TS} gravity 0 }}\n" + TRACK % motor)
+    sensor = sup.getDevice("s")
+    sensor.enable(TS)
+    return sup, sup.getDevice("linear motor"), sensor
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_track_motor_max_velocity_and_multiplier_edits(edit: bool) -> None:
+    # velocity control at 5 m/s (maxVelocity 10); maxVelocity edited to 2 clips the target: 2·ts per step; with
+    # multiplier 2 a setVelocity(0.5) then commands 1 m/s (D §9)
+    sup, motor, sensor = _track()
+    motor.setPosition(float("inf"))
+    motor.setVelocity(5.0)
+    _step(sup)
+    if edit:
+        sup.getFromDef("TM").getField("maxVelocity").setSFFloat(2.0)
+    _, moved = _moved(sup, sensor)
+    assert moved == pytest.approx((2.0 if edit else 5.0) * DT)
+    assert motor.getMaxVelocity() == (2.0 if edit else 10.0)
+    if edit:
+        sup.getFromDef("TM").getField("multiplier").setSFFloat(2.0)
+    motor.setVelocity(0.5)
+    _, moved = _moved(sup, sensor)
+    assert moved == pytest.approx((1.0 if edit else 0.5) * DT)
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_track_motor_control_pid_and_limits_edits(edit: bool) -> None:
+    # position control toward 0.8 within [−1, 1]: Kp 10 moves 10·0.8 = 8 m/s (< maxVelocity 10) the first step;
+    # Kp edited to 1 moves 1·(0.8 − p)·ts the next one; maxPosition edited to 0.3 then leaves the belt at 0.3
+    sup, motor, sensor = _track("minPosition -1 maxPosition 1")
+    motor.setPosition(0.8)
+    _step(sup)
+    if edit:
+        sup.getFromDef("TM").getField("controlPID").setSFVec3f([1.0, 0.0, 0.0])
+    before, moved = _moved(sup, sensor)
+    assert before == pytest.approx(8.0 * DT)
+    assert moved == pytest.approx((1.0 if edit else 10.0) * (0.8 - before) * DT)
+    if edit:
+        sup.getFromDef("TM").getField("maxPosition").setSFFloat(0.3)
+    _step(sup, 3000)
+    # (Kp 1 closes the last gap by a factor 1 − ts per step: 0.27·0.996^3000 ≈ 2e-6 left)
+    assert sensor.getValue() == pytest.approx(0.3 if edit else 0.8, abs=1e-5)
+    sup.simulationReset()  # the load gains and limits again: Kp 10 from the belt's 0
+    _step(sup)
+    motor.setPosition(0.8)
+    _, moved = _moved(sup, sensor)
+    assert moved == pytest.approx(8.0 * DT)
+    assert motor.getMaxPosition() == 1.0

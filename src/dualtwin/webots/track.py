@@ -10,6 +10,9 @@ involving a Track geom gets a surface velocity (``dContactMotion1``). Per step, 
 * no motor, or no body (a Track without Physics): the belt does not move;
 * the belt position (what the PositionSensor reads) integrates ``v``.
 
+A supervisor's edit of the motor's maxVelocity, maxForce, acceleration, controlPID, minPosition/maxPosition or
+multiplier acts from the next step, as a joint motor's (``physics/motor_edits.py``).
+
 In the collision pass, for each contact point (normal ``n`` negated when the Track is the pair's second geom):
 ``c = n·ẑ_track``; the surface speed is ``v·s·|acos(c) − π/2|/(π/2)`` with the sign ``s`` chosen from the raw
 normal's component along the dominant gravity axis (z in ENU, y in NUE/EUN) and the sign of ``c`` as Webots
@@ -34,6 +37,7 @@ from dualtwin.webots.motor_api import MULTIPLIER_ZERO, check_maxima, clamp_force
 from dualtwin.webots.motor_law import motor_velocity
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import Simulation, SolidRec
+from dualtwin.webots.physics.edit_stamps import stamps_of
 from dualtwin.webots.step_hints import buffered
 
 __all__ = ["TrackBrake", "TrackMotor", "TrackPositionSensor", "TrackRec", "gravity_axis", "install"]
@@ -69,6 +73,9 @@ class TrackRec:
     position: float = 0.0  # belt travel (m)
     velocity: float = 0.0  # belt speed (m/s)
     devices: dict[str, Any] = field(default_factory=dict)
+    #: the motor's write stamps when its fields were last read (physics/edit_stamps.py): the node's and each field's
+    motor_stamp: int = 0
+    field_stamps: dict[str, int] = field(default_factory=dict)
 
     def control(self, dt: float) -> None:
         body = self.solid.body
@@ -99,26 +106,51 @@ def _make(solid: SolidRec, sim: Simulation) -> TrackRec:
     rec = TrackRec(solid=solid, motor=motor, sensor=found.get("PositionSensor"), brake=found.get("Brake"))
     if motor is not None:
         check_maxima(motor, sim.warn)
-        f = motor.fields
-        pid = tuple(f.get("controlPID", (10.0, 0.0, 0.0)))
-        rec.max_velocity = float(f.get("maxVelocity", 10.0))
-        rec.max_force = rec.available = float(f.get("maxForce", 10.0))
-        rec.acceleration = rec.load_acceleration = float(f.get("acceleration", -1.0))
-        rec.kp, rec.ki, rec.kd = (float(v) for v in pid)
-        rec.multiplier = float(f.get("multiplier", 1.0)) or 1.0
-        rec.min_position = float(f.get("minPosition", 0.0))
-        rec.max_position = float(f.get("maxPosition", 0.0))
+        _read_motor(rec, sim, _MOTOR_FIELDS)
+        rec.load_acceleration = rec.acceleration
         rec.target_velocity = rec.max_velocity  # Webots' initial hold: the current position at full speed
     return rec
+
+
+#: the LinearMotor fields a Track reads, at load and again after a supervisor's edit (as a joint's motor does,
+#: physics/motor_edits.py: from the next step, the getters too)
+_MOTOR_FIELDS = ("maxVelocity", "maxForce", "acceleration", "controlPID", "minPosition", "maxPosition", "multiplier")
+
+
+def _read_motor(rec: TrackRec, sim: Simulation, names: Any) -> None:
+    """Read the motor fields ``names`` into ``rec``: new gains start the error integral again, a finite target
+    left outside new limits is clipped into them, a target velocity beyond a new maxVelocity too, and a multiplier
+    of 0 is refused with the load's warning (webots-devices.md §9)."""
+    assert rec.motor is not None
+    f = rec.motor.fields
+    if "maxVelocity" in names:
+        rec.max_velocity = float(f.get("maxVelocity", 10.0))
+        rec.target_velocity = max(-rec.max_velocity, min(rec.max_velocity, rec.target_velocity))
+    if "maxForce" in names:
+        rec.max_force = rec.available = float(f.get("maxForce", 10.0))
+    if "acceleration" in names:
+        rec.acceleration = float(f.get("acceleration", -1.0))
+    if "controlPID" in names:
+        rec.kp, rec.ki, rec.kd = (float(v) for v in f.get("controlPID", (10.0, 0.0, 0.0)))
+        rec.integral = rec.prev_error = 0.0
+    if "minPosition" in names or "maxPosition" in names:
+        rec.min_position = float(f.get("minPosition", 0.0))
+        rec.max_position = float(f.get("maxPosition", 0.0))
+        if rec.min_position != rec.max_position and math.isfinite(rec.target_position):
+            rec.target_position = min(max(rec.target_position, rec.min_position), rec.max_position)
+    if "multiplier" in names:
+        rec.multiplier = float(f.get("multiplier", 1.0))
+        if rec.multiplier == 0.0:
+            sim.warn(MULTIPLIER_ZERO.format(name=f.get("name", "linear motor")))
+            rec.multiplier = 1.0
 
 
 class _Tracks:
     def __init__(self, sim: Simulation) -> None:
         self.sim = sim
         self.recs = [_make(s, sim) for s in sim.solids if s.node.type_name == "Track"]
+        self.stamps = stamps_of(sim)
         for rec in self.recs:
-            if rec.motor is not None and float(rec.motor.fields.get("multiplier", 1.0)) == 0.0:
-                sim.warn(MULTIPLIER_ZERO.format(name=rec.motor.fields.get("name", "linear motor")))
             robot = rec.solid.robot
             if robot is not None:
                 for node, default, api in ((rec.motor, "linear motor", TrackMotor),
@@ -136,6 +168,9 @@ class _Tracks:
     def reset(self) -> None:
         """simulationReset: the belt back at 0, the motor holding it there (Webots resets Track positions)."""
         for rec in self.recs:
+            if rec.motor is not None:  # the load values the reset restored in the fields a supervisor edited
+                edited = {name for name in _MOTOR_FIELDS if self.stamps.get((id(rec.motor), name), 0)}
+                _read_motor(rec, self.sim, edited)
             rec.position = rec.velocity = rec.current_velocity = rec.integral = rec.prev_error = 0.0
             rec.target_position = 0.0
             rec.target_velocity = rec.max_velocity
@@ -148,7 +183,20 @@ class _Tracks:
 
     def control(self, dt: float) -> None:
         for rec in self.recs:
+            self.follow(rec)
             rec.control(dt)
+
+    def follow(self, rec: TrackRec) -> None:
+        """Read the motor fields a supervisor wrote since they were last read (or a reset restored)."""
+        if rec.motor is None or self.stamps.get(id(rec.motor), 0) == rec.motor_stamp:
+            return
+        key = id(rec.motor)
+        rec.motor_stamp = self.stamps.get(key, 0)
+        changed = {name for name in _MOTOR_FIELDS
+                   if self.stamps.get((key, name), 0) != rec.field_stamps.get(name, 0)}
+        rec.field_stamps.update({name: self.stamps.get((key, name), 0) for name in changed})
+        check_maxima(rec.motor, self.sim.warn)  # a negative maximum, as at load
+        _read_motor(rec, self.sim, changed)
 
     def _modifier(self, rec: TrackRec) -> Any:
         sim = self.sim
@@ -224,7 +272,10 @@ class TrackMotor(KinematicMotor):
     _record: _Handle
 
     def _state(self) -> TrackRec:
-        return self._record.track
+        rec = self._record.track
+        # an edit of the motor's fields acts on the commands and getters from now on, as on a joint's motor
+        self._robot._sim.extensions["tracks"].follow(rec)
+        return rec
 
     def _position_set(self) -> None:
         self._state().force_mode = False
