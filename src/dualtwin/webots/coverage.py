@@ -243,7 +243,8 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Track", "joint", "partial",
              "belt motion through ODE contact surface velocity (Webots' per-contact sign rule), its LinearMotor "
              "(a Motor: position/velocity/force control, with the Motor API's checks, clipping and raw echoes of a "
-             "joint motor; no force feedback, no energy use), PositionSensor and Brake (damping the belt in force "
+             "joint motor; no force feedback, no energy use; its fields edited at run time act as a joint motor's), "
+             "PositionSensor and Brake (damping the belt in force "
              "control) are devices; a Track without a body does not move; no texture or geometry animation"),
     Coverage("TrackWheel", "joint", "visual",
              "wheels of a Track are turned only visually in Webots; its children are placed at (position.x, 0, "
