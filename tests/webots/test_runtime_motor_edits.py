@@ -251,3 +251,42 @@ def test_track_motor_control_pid_and_limits_edits(edit: bool) -> None:
     _, moved = _moved(sup, sensor)
     assert moved == pytest.approx(8.0 * DT)
     assert motor.getMaxPosition() == 1.0
+
+
+# ------------------------------------------------------------------------------------------ a Propeller
+
+
+def _drone() -> Supervisor:
+    """A 1 kg drone, no gravity, whose propeller pushes along z: T = t1·ω·|ω| = 1e-4·ω² (D §8), no torque."""
+    return quiet_supervisor(
+        f"#VRML_SIM R2023b utf8\nWorldInfo {{ basicTimeStep {TS} gravity 0 }}\n"
+        "DEF DRONE Robot { supervisor TRUE boundingObject Box { size 0.1 0.1 0.1 } physics Physics { mass 1 } "
+        "children [ DEF P Propeller { shaftAxis 0 0 1 thrustConstants 1e-4 0 torqueConstants 0 0 "
+        'device DEF PM RotationalMotor { name "prop" maxVelocity 200 maxTorque 1000 } } ] }')
+
+
+def _gain(sup: Supervisor, steps: int) -> float:
+    """The drone's gain of vertical speed over ``steps`` steps."""
+    before = sup.getFromDef("DRONE").getVelocity()[2]
+    _step(sup, steps)
+    return float(sup.getFromDef("DRONE").getVelocity()[2] - before)
+
+
+@pytest.mark.parametrize("edit", ["", "thrustConstants", "maxVelocity"])
+def test_propeller_and_its_motor_edits_act_from_the_next_step(edit: str) -> None:
+    # ω = 100 rad/s (reached after 0.1 s at the maxTorque ramp of 1000 rad/s²): T = 1 N, 0.5 m/s gained in 0.5 s on
+    # 1 kg. thrustConstants edited to 2e-4 0: T = 2 N, 1 m/s. maxVelocity edited to 50: the target clipped to 50 rad/s
+    # (reached within 0.05 s), T = 1e-4·2500 = 0.25 N, 0.125 m/s
+    sup = _drone()
+    prop = sup.getDevice("prop")
+    prop.setPosition(float("inf"))
+    prop.setVelocity(100.0)
+    _step(sup, 50)
+    if edit == "thrustConstants":
+        sup.getFromDef("P").getField("thrustConstants").setSFVec2f([2e-4, 0.0])
+    elif edit == "maxVelocity":
+        sup.getFromDef("PM").getField("maxVelocity").setSFFloat(50.0)
+    _step(sup, 25)
+    gained = _gain(sup, 125)
+    assert gained == pytest.approx({"": 0.5, "thrustConstants": 1.0, "maxVelocity": 0.125}[edit], rel=1e-3)
+    assert prop.getMaxVelocity() == (50.0 if edit == "maxVelocity" else 200.0)

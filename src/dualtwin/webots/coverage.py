@@ -251,8 +251,11 @@ REGISTRY: tuple[Coverage, ...] = (
              "position.y) in the Track's frame (so cameras and range sensors see them there), not turned"),
     Coverage("Propeller", "joint", "partial",
              "thrust and torque from its constants and the motor's kinematic speed, applied to the body carrying "
-             "its closest upper Solid (for a Solid without Physics, its nearest ancestor's) at the centre of thrust; its motor is a device (a Motor) with the Motor API's checks, clipping and "
-             "raw echoes of a joint motor (available torque at most maxTorque; no torque feedback); without "
+             "its closest upper Solid (for a Solid without Physics, its nearest ancestor's) at the centre of thrust; "
+             "its motor is a device (a Motor) with the Motor API's checks, clipping and "
+             "raw echoes of a joint motor (available torque at most maxTorque; no torque feedback); a "
+             "supervisor's edit of shaftAxis, centerOfThrust, thrustConstants, torqueConstants or of the motor's "
+             "fields acts from the next step; without "
              "Physics above it, a warning and no effect; the helices "
              "are not simulated and a "
              "PositionSensor on it is not exposed"),

@@ -12,7 +12,9 @@ the force ``T·a`` is applied at the centre of thrust and the torque ``−Q·a``
 in the world), which is woken up. Webots projects V on the shaft axis expressed in the propeller's *parent
 frame* (not rotated to the world), a quirk reproduced here. The helix Solids are visual and not simulated.
 The body is the one that carries the closest upper Solid (its own, or, for a Solid without Physics, its nearest
-ancestor's). Without a body upstream there is no effect (and a build warning, as in Webots).
+ancestor's). Without a body upstream there is no effect (and a build warning, as in Webots). A supervisor's edit of
+the Propeller's shaftAxis, centerOfThrust, thrustConstants or torqueConstants, or of its motor's fields, acts from
+the next step.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from dualtwin.webots.motor_api import MULTIPLIER_ZERO, check_maxima
 from dualtwin.webots.motor_law import kinematic_motion
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import AttachmentRec, Simulation
+from dualtwin.webots.physics.edit_stamps import stamps_of
 
 __all__ = ["PropellerMotor", "PropellerRec", "install"]
 
@@ -64,6 +67,8 @@ class PropellerRec:
     thrust: float = 0.0  # last applied values, for inspection
     torque: float = 0.0
     load_acceleration: float = field(init=False, default=-1.0)  # the acceleration field as loaded
+    #: the write stamps (physics/edit_stamps.py) of the propeller's and its motor's fields when last read
+    stamps: dict[Any, int] = field(init=False, default_factory=dict)
 
     def __post_init__(self) -> None:
         self.load_acceleration = self.acceleration  # the motor's acceleration field as loaded
@@ -95,27 +100,74 @@ class PropellerRec:
 
 
 def _make(site: AttachmentRec, sim: Simulation) -> PropellerRec:
-    f = site.node.fields
-    axis = _vec(f.get("shaftAxis"), (1.0, 0.0, 0.0))
-    if m3.norm(axis) == 0.0:
-        warn("Propeller: a zero shaftAxis is replaced by (0, 1, 0)")
-        axis = (0.0, 1.0, 0.0)
-    motor = f.get("device")
+    motor = site.node.fields.get("device")
     motor = motor if isinstance(motor, Node) and motor.type_name == "RotationalMotor" else None
     if motor is not None:
         check_maxima(motor, sim.warn)
-    mf = motor.fields if motor is not None else {}
-    t1, t2 = _vec(f.get("thrustConstants"), (1.0, 0.0))
-    q1, q2 = _vec(f.get("torqueConstants"), (1.0, 0.0))
-    multiplier = float(mf.get("multiplier", 1.0)) or 1.0
-    return PropellerRec(
-        site=site, motor=motor, name=str(mf.get("name", "rotational motor")),
-        axis=m3.normalized(axis), center=_vec(f.get("centerOfThrust"), (0.0, 0.0, 0.0)),  # type: ignore[arg-type]
-        t1=t1, t2=t2, q1=q1, q2=q2,
-        max_velocity=float(mf.get("maxVelocity", 10.0)), max_torque=float(mf.get("maxTorque", 10.0)),
-        acceleration=float(mf.get("acceleration", -1.0)), multiplier=multiplier,
-        min_position=float(mf.get("minPosition", 0.0)), max_position=float(mf.get("maxPosition", 0.0)),
-    )  # fmt: skip
+    name = str(motor.fields.get("name", "rotational motor")) if motor is not None else "rotational motor"
+    rec = PropellerRec(site=site, motor=motor, name=name, axis=(1.0, 0.0, 0.0), center=(0.0, 0.0, 0.0), t1=1.0,
+                       t2=0.0, q1=1.0, q2=0.0, max_velocity=10.0, max_torque=10.0, acceleration=-1.0, multiplier=1.0)
+    _read(rec, sim, PROPELLER_FIELDS, MOTOR_FIELDS)
+    rec.load_acceleration = rec.acceleration
+    rec.initial()
+    return rec
+
+
+#: the Propeller's and its motor's fields, read at load and again after a supervisor's edit (from the next step;
+#: the motor's commands and getters at once, as a joint motor's, physics/motor_edits.py)
+PROPELLER_FIELDS = ("shaftAxis", "centerOfThrust", "thrustConstants", "torqueConstants")
+MOTOR_FIELDS = ("maxVelocity", "maxTorque", "acceleration", "minPosition", "maxPosition", "multiplier")
+
+
+def _read(rec: PropellerRec, sim: Simulation, names: Any, motor_names: Any) -> None:
+    """Read the Propeller fields ``names`` and the motor fields ``motor_names`` into ``rec``: a target beyond new
+    limits (velocity, position) is clipped into them, a multiplier of 0 refused with the load's warning."""
+    f = rec.site.node.fields
+    if "shaftAxis" in names:
+        axis = _vec(f.get("shaftAxis"), (1.0, 0.0, 0.0))
+        if m3.norm(axis) == 0.0:
+            warn("Propeller: a zero shaftAxis is replaced by (0, 1, 0)")
+            axis = (0.0, 1.0, 0.0)
+        rec.axis = m3.normalized(axis)  # type: ignore[arg-type]
+    if "centerOfThrust" in names:
+        rec.center = _vec(f.get("centerOfThrust"), (0.0, 0.0, 0.0))  # type: ignore[assignment]
+    if "thrustConstants" in names:
+        rec.t1, rec.t2 = _vec(f.get("thrustConstants"), (1.0, 0.0))
+    if "torqueConstants" in names:
+        rec.q1, rec.q2 = _vec(f.get("torqueConstants"), (1.0, 0.0))
+    if rec.motor is None:
+        return
+    mf = rec.motor.fields
+    if "maxVelocity" in motor_names:
+        rec.max_velocity = float(mf.get("maxVelocity", 10.0))
+        rec.target_velocity = max(-rec.max_velocity, min(rec.max_velocity, rec.target_velocity))
+    if "maxTorque" in motor_names:
+        rec.max_torque = rec.available = float(mf.get("maxTorque", 10.0))
+    if "acceleration" in motor_names:
+        rec.acceleration = float(mf.get("acceleration", -1.0))
+    if "minPosition" in motor_names or "maxPosition" in motor_names:
+        rec.min_position = float(mf.get("minPosition", 0.0))
+        rec.max_position = float(mf.get("maxPosition", 0.0))
+        if rec.min_position != rec.max_position and math.isfinite(rec.target_position):
+            rec.target_position = min(max(rec.target_position, rec.min_position), rec.max_position)
+    if "multiplier" in motor_names:
+        rec.multiplier = float(mf.get("multiplier", 1.0))
+        if rec.multiplier == 0.0:
+            sim.warn(MULTIPLIER_ZERO.format(name=rec.name))
+            rec.multiplier = 1.0
+
+
+def _edited(stamps: dict[Any, int], node: Node | None, names: tuple[str, ...], since: dict[Any, int]) -> set[str]:
+    """The fields of ``node`` among ``names`` written since the stamps ``since`` (which are brought up to date)."""
+    if node is None:
+        return set()
+    changed = set()
+    for name in names:
+        key = (id(node), name)
+        if stamps.get(key, 0) != since.get(key, 0):
+            since[key] = stamps.get(key, 0)
+            changed.add(name)
+    return changed
 
 
 class _Propellers:
@@ -124,9 +176,8 @@ class _Propellers:
     def __init__(self, sim: Simulation) -> None:
         self.sim = sim
         self.recs = [_make(site, sim) for site in sim.attachments if site.node.type_name == "Propeller"]
+        self.stamps = stamps_of(sim)
         for rec in self.recs:
-            if rec.motor is not None and float(rec.motor.fields.get("multiplier", 1.0)) == 0.0:
-                sim.warn(MULTIPLIER_ZERO.format(name=rec.name))
             robot = rec.site.robot
             if rec.motor is not None and robot is not None:
                 robot.devices.setdefault(rec.name, rec)
@@ -135,8 +186,26 @@ class _Propellers:
         sim.pre_step_hooks.append(self.apply)
         sim.reset_hooks.append(self.reset)
 
+    def follow(self, rec: PropellerRec) -> None:
+        """Read the fields of the propeller and its motor written since they were last read (or restored)."""
+        stamps, node, motor = self.stamps, rec.site.node, rec.motor
+        if stamps.get(id(node), 0) == rec.stamps.get(id(node), 0) and (
+                motor is None or stamps.get(id(motor), 0) == rec.stamps.get(id(motor), 0)):
+            return
+        for key in (id(node),) if motor is None else (id(node), id(motor)):
+            rec.stamps[key] = stamps.get(key, 0)
+        changed = _edited(stamps, node, PROPELLER_FIELDS, rec.stamps)
+        motor_changed = _edited(stamps, motor, MOTOR_FIELDS, rec.stamps)
+        if motor is not None:
+            check_maxima(motor, self.sim.warn)  # a negative maximum, as at load
+        _read(rec, self.sim, changed, motor_changed)
+
     def reset(self) -> None:
         for rec in self.recs:
+            # the load values the reset restored in the fields a supervisor edited
+            stamps = self.stamps
+            _read(rec, self.sim, {n for n in PROPELLER_FIELDS if stamps.get((id(rec.site.node), n), 0)},
+                  {n for n in MOTOR_FIELDS if rec.motor is not None and stamps.get((id(rec.motor), n), 0)})
             # setAcceleration replaced the motor's acceleration field, which a reset restores (webots-on-ode.md
             # §5.2, webots-devices.md §11.3), as for joint motors
             rec.acceleration = rec.load_acceleration
@@ -146,6 +215,7 @@ class _Propellers:
         sim = self.sim
         lib = sim._lib
         for rec in self.recs:
+            self.follow(rec)
             rec.control(dt)
             rec.thrust = rec.torque = 0.0
             solid = rec.site.solid
@@ -187,6 +257,11 @@ class PropellerMotor(KinematicMotor):
 
     ROTATIONAL = 0
     _record: PropellerRec
+
+    def _state(self) -> PropellerRec:
+        # an edit of the motor's fields acts on the commands and getters from now on, as on a joint's motor
+        self._robot._sim.extensions["propellers"].follow(self._record)
+        return self._record
 
     def getType(self) -> int:
         return self.ROTATIONAL
