@@ -290,3 +290,10 @@ def test_propeller_and_its_motor_edits_act_from_the_next_step(edit: str) -> None
     gained = _gain(sup, 125)
     assert gained == pytest.approx({"": 0.5, "thrustConstants": 1.0, "maxVelocity": 0.125}[edit], rel=1e-3)
     assert prop.getMaxVelocity() == (50.0 if edit == "maxVelocity" else 200.0)
+    sup.simulationReset()  # the load fields again: T = 1e-4·100² = 1 N once ω is back at 100 rad/s
+    _step(sup)
+    prop.setPosition(float("inf"))
+    prop.setVelocity(100.0)
+    _step(sup, 50)
+    assert prop.getMaxVelocity() == 200.0
+    assert _gain(sup, 125) == pytest.approx(0.5, rel=1e-3)
