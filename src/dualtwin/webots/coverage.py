@@ -51,7 +51,11 @@ REGISTRY: tuple[Coverage, ...] = (
              "follow Webots; randomSeed seeds sensor noise (same seed, same noise; not Webots' own numbers); "
              "coordinateSystem (ENU/NUE/EUN) sets the gravity direction and the InertialUnit's and GPS's "
              "reference axes; gpsCoordinateSystem WGS84 and gpsReference drive GPS latitude/longitude through "
-             "UTM, and gpsReference offsets local GPS readings"),
+             "UTM, and gpsReference offsets local GPS readings; a supervisor's edit of gravity (bodies asleep "
+             "woken, buoyancy following), ERP/CFM, physicsDisableTime and its thresholds (the world and every body) "
+             "or basicTimeStep (the next steps that long, the time going on, damping, springs and suspensions "
+             "converted again for it) reaches ODE at the next step and a reset restores it; coordinateSystem and "
+             "randomSeed are read at load only"),
     Coverage("Solid", "scene", "supported",
              "bodies with mass from Physics/boundingObject, merging and the static basis, kinematic solids "
              "(one that no body or joint carries moves by its linearVelocity/angularVelocity every step, "

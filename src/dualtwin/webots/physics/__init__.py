@@ -83,7 +83,7 @@ from typing import Any
 
 from dualtwin.errors import SimulationUnstable
 from dualtwin.webots import _math3 as m3
-from dualtwin.webots import ode, world_frame
+from dualtwin.webots import ode
 from dualtwin.webots.nodes import Node, World
 from dualtwin.webots.physics import immersion
 from dualtwin.webots.physics.frame_edits import FrameEdits
@@ -106,6 +106,7 @@ from dualtwin.webots.physics.records import (
     damping_per_step,
 )
 from dualtwin.webots.physics.records import field_or as _f
+from dualtwin.webots.physics.world_edits import gravity_vector
 
 __all__ = [
     "Simulation",
@@ -173,6 +174,8 @@ class Simulation(FrameEdits):
         self._unstable = False
         self._closed = False
         self.step_count = 0
+        self._time_base = 0.0
+        self._steps_base = 0
         self._seed_override = seed
         self._accel_prev = {}
         self._accel_cur = {}
@@ -209,8 +212,7 @@ class Simulation(FrameEdits):
         if gps_system not in ("local", "WGS84"):
             self.warn_once(f'WorldInfo: gpsCoordinateSystem "{gps_system}" is not "local" or "WGS84": GPS devices read '
                            "local coordinates")
-        up = world_frame.axes(cs).up  # gravity along the system's down
-        self.gravity = (-g * up[0] if up[0] else 0.0, -g * up[1] if up[1] else 0.0, -g * up[2] if up[2] else 0.0)
+        self.gravity = gravity_vector(g, cs)  # along the system's down
         erp = float(_f(info, "ERP", 0.2))
         cfm = float(_f(info, "CFM", 0.00001))
         self.erp = erp if 0.0 <= erp <= 1.0 else 0.2
@@ -365,6 +367,8 @@ class Simulation(FrameEdits):
         self._rng = random.Random(self._rng_seed())
         self._unstable = False
         self.step_count = 0
+        self._time_base = 0.0
+        self._steps_base = 0
         for hook in self.reset_hooks:
             hook()
         self._collide()

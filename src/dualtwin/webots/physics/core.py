@@ -69,6 +69,8 @@ class SimulationCore:
     _unstable: bool
     _closed: bool
     step_count: int
+    _time_base: float  # s: the time when basicTimeStep last changed (WorldInfoEdits), 0 at load and reset
+    _steps_base: int  # the step_count then
     _seed_override: int | None
     _accel_prev: dict[int, tuple[float, float, float]]
     _accel_cur: dict[int, tuple[float, float, float]]
@@ -118,7 +120,7 @@ class SimulationCore:
     @property
     def time(self) -> float:
         """Simulated time in seconds."""
-        return self.step_count * self.basic_time_step / 1000.0
+        return self._time_base + (self.step_count - self._steps_base) * self.basic_time_step / 1000.0
 
     @property
     def unstable(self) -> bool:

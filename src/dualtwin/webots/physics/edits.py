@@ -17,7 +17,7 @@ from dualtwin.webots.motor_api import check_maxima
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics.edit_stamps import note_edit
 from dualtwin.webots.physics.geometry_edits import GEOMETRY_TYPES
-from dualtwin.webots.physics.mass_edits import MASS_FIELDS, MassEdits
+from dualtwin.webots.physics.mass_edits import MASS_FIELDS
 from dualtwin.webots.physics.motor_edits import (
     MOTOR_FIELDS,
     apply_motor_field,
@@ -32,9 +32,10 @@ from dualtwin.webots.physics.records import (
     SolidRec,
     field_or,
 )
+from dualtwin.webots.physics.world_edits import WorldInfoEdits
 
 
-class SupervisorEdits(MassEdits):
+class SupervisorEdits(WorldInfoEdits):
     """Teleports, field edits, velocities and sensor readings (see the module docstring)."""
 
     def reset_physics(self, solid: SolidRec | None = None) -> None:
@@ -285,8 +286,12 @@ class SupervisorEdits(MassEdits):
         load, :mod:`.mass_edits`), a
         ``Damping`` node's ``linear``/``angular`` (bodies and, for ``WorldInfo.defaultDamping``, the world),
         ``ContactProperties`` friction/bounce/soft ERP/CFM, a Solid's ``contactMaterial``, a Robot's
-        ``selfCollision``, ``WorldInfo`` ERP/CFM, and the dimensions of bounding geometries
-        (:mod:`.geometry_edits`; the mass properties of a body they bound follow).
+        ``selfCollision``, ``WorldInfo`` ``ERP``/``CFM``/``gravity``/``basicTimeStep`` and the sleep fields
+        ``physicsDisableTime``/``physicsDisableLinearThreshold``/``physicsDisableAngularThreshold``
+        (:mod:`.world_edits`), and the dimensions of bounding geometries
+        (:mod:`.geometry_edits`; the mass properties of a body they bound follow). The layers above add joint
+        ``minStop``/``maxStop``/``axis``/``anchor`` and Hinge2 suspensions (:mod:`.axis_edits`), Solid and frame
+        poses (:mod:`.frame_edits`) and bounding Meshes (:mod:`.scene_changes`).
         Every write is counted (:mod:`.edit_stamps`): the devices of the node read their fields again.
         Returns False for fields whose edit has no physics effect here.
         """
@@ -300,7 +305,6 @@ class SupervisorEdits(MassEdits):
     def _apply_field(self, node: Node, name: str) -> bool:
         if node.type_name in GEOMETRY_TYPES:
             return self._apply_geometry(node, name)
-        lib = self._lib
         value: Any = node.fields.get(name)
         joint = next((j for j in self.joints if node in j.params), None)
         if joint is not None:
@@ -346,17 +350,8 @@ class SupervisorEdits(MassEdits):
             if robot is not None:
                 self._set_self_collision(robot, bool(value))
                 return True
-        if node.type_name == "WorldInfo" and name in ("ERP", "CFM"):
-            # Checked as at load and as Webots' WorldInfo does, which resets a value out of range to its default:
-            # an ERP of -1e308 written at run time stopped ODE inside its step (found by fuzzing the API)
-            number = float(value)
-            if name == "ERP" and not 0.0 <= number <= 1.0 or name == "CFM" and not number > 0.0:
-                default = 0.2 if name == "ERP" else 0.00001
-                self.warn(f"WorldInfo.{name} {number:g} is out of range ({'[0, 1]' if name == 'ERP' else '> 0'}); "
-                          f"reset to {default:g}")
-                number = node.fields[name] = default
-            (lib.dWorldSetERP if name == "ERP" else lib.dWorldSetCFM)(self._world, number)
-            return True
+        if node.type_name == "WorldInfo":
+            return self._apply_world_info(node, name)
         return False
 
     def _set_self_collision(self, robot: RobotRec, self_collision: bool) -> None:

@@ -137,7 +137,7 @@ class Buoyancy:
     def __init__(self, lib: Any, gravity: Sequence[float], up: Sequence[float], fluids: list[_Fluid],
                  immersed_solids: list[SolidRec], closed: ClosedMeshes) -> None:
         self._lib = lib
-        self._gravity = tuple(float(v) for v in gravity)
+        self.gravity = tuple(float(v) for v in gravity)  # WorldInfo's, set again by a run-time edit
         self._up = tuple(float(v) for v in up)
         self._fluids = fluids
         self._solids = immersed_solids
@@ -177,7 +177,7 @@ class Buoyancy:
                     volume, centroid = self._immersed(geom, planes, top)
                     if volume <= 0.0:
                         continue
-                    force = m3.scale(self._gravity, -density * volume)
+                    force = m3.scale(self.gravity, -density * volume)
                     add_force(body.ptr, *force, *centroid)
                     self.last_forces.append((solid, force, centroid))
 
