@@ -59,7 +59,8 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Solid", "scene", "supported",
              "bodies with mass from Physics/boundingObject, merging and the static basis, kinematic solids "
              "(one that no body or joint carries moves by its linearVelocity/angularVelocity every step, "
-             "sensors and getVelocity seeing it), supervisor pose/velocity edits (a merged Solid moved takes its new "
+             "sensors and getVelocity seeing it; a supervisor's write of them starts, changes or stops that motion, "
+             "and on the Solid a body is rooted at sets the body's velocity), supervisor pose/velocity edits (a merged Solid moved takes its new "
              "place in its body, whose mass follows, the root Solid staying put; a static Solid moved, by its "
              "translation/rotation or a Pose above it, Planes included, wakes the bodies asleep where it was and "
              "where it lands); Box/Sphere/Cylinder/Capsule/IndexedFaceSet/Mesh edits (also through "

@@ -86,7 +86,6 @@ from dualtwin.webots import _math3 as m3
 from dualtwin.webots import ode
 from dualtwin.webots.nodes import Node, World
 from dualtwin.webots.physics import immersion
-from dualtwin.webots.physics.frame_edits import FrameEdits
 from dualtwin.webots.physics.records import (
     ATTACHMENT_TYPES,
     JOINT_TYPES,
@@ -106,6 +105,7 @@ from dualtwin.webots.physics.records import (
     damping_per_step,
 )
 from dualtwin.webots.physics.records import field_or as _f
+from dualtwin.webots.physics.velocity_edits import SolidVelocityEdits
 from dualtwin.webots.physics.world_edits import gravity_vector
 
 __all__ = [
@@ -129,7 +129,7 @@ __all__ = [
 ]
 
 
-class Simulation(FrameEdits):
+class Simulation(SolidVelocityEdits):
     """A Webots world simulated on ODE with Webots' stepping semantics.
 
     Args:

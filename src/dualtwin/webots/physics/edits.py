@@ -291,7 +291,8 @@ class SupervisorEdits(WorldInfoEdits):
         (:mod:`.world_edits`), and the dimensions of bounding geometries
         (:mod:`.geometry_edits`; the mass properties of a body they bound follow). The layers above add joint
         ``minStop``/``maxStop``/``axis``/``anchor`` and Hinge2 suspensions (:mod:`.axis_edits`), Solid and frame
-        poses (:mod:`.frame_edits`) and bounding Meshes (:mod:`.scene_changes`).
+        poses (:mod:`.frame_edits`), bounding Meshes (:mod:`.scene_changes`) and a Solid's ``linearVelocity``/
+        ``angularVelocity`` (:mod:`.velocity_edits`).
         Every write is counted (:mod:`.edit_stamps`): the devices of the node read their fields again.
         Returns False for fields whose edit has no physics effect here.
         """
