@@ -70,6 +70,7 @@ _SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
     "dBodyGetJoint": (P, [P, N]),
     "dJointGetType": (N, [P]),
     "dJointGetBody": (P, [P, N]),
+    "dJointGetHinge2Param": (D, [P, N]),
 }
 _LIB: Any = None
 CONTACT_JOINT = 4  # dJointTypeContact

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import pytest
 
-from dualtwin.webots import load_world_text
+from dualtwin.webots import load_world_text, ode
 from dualtwin.webots.controller import Supervisor
 from dualtwin.webots.physics import Simulation
 from tests.support.kicks import supervisor_in
@@ -244,6 +244,35 @@ def test_a_slider_spring_is_converted_again_for_the_new_step_length() -> None:
     h = 0.016
     # -0.15601 m/s; the spring rows of 8 ms (ERP 1, CFM 1.25) stepped over 16 ms gave -0.07899 (an implied K of 50)
     assert sup.getFromDef("BALL").getVelocity()[0] == pytest.approx(-h * k * x0 / (1 + h * h * k), rel=1e-6)
+
+
+HINGE2 = """
+Solid {
+  boundingObject Sphere { radius 0.1 }
+  physics Physics { }
+  children [
+    Hinge2Joint {
+      jointParameters HingeJointParameters { axis 0 0 1 suspensionSpringConstant 100 suspensionDampingConstant 2 }
+      jointParameters2 JointParameters { axis 0 1 0 }
+      endPoint Solid { translation 0.3 0 0 boundingObject Sphere { radius 0.05 } physics Physics { } }
+    }
+  ]
+}
+"""
+
+
+def test_a_hinge2_suspension_is_converted_again_for_the_new_step_length() -> None:
+    sup = _unstepped(HINGE2)
+    joint = next(j for j in sup.simulation.joints if j.kind == "hinge2")
+
+    def suspension() -> tuple[float, float]:
+        return (probe().dJointGetHinge2Param(joint.ptr, ode.dParamSuspensionERP),
+                probe().dJointGetHinge2Param(joint.ptr, ode.dParamSuspensionCFM))
+
+    # S §4.4/§4.5: ERP = hK/(hK + B), CFM = 1/(hK + B) with K = 100, B = 2
+    assert suspension() == pytest.approx((0.8 / 2.8, 1 / 2.8), rel=1e-12)  # the control: h = 8 ms
+    _info(sup).getField("basicTimeStep").setSFFloat(16.0)
+    assert suspension() == pytest.approx((1.6 / 3.6, 1 / 3.6), rel=1e-12)
 
 
 # ---------------------------------------------------------------------------------------------- reset

@@ -278,7 +278,7 @@ class SupervisorEdits(WorldInfoEdits):
 
         Webots reacts to field edits at run time (WbJoint/WbMotor/WbPhysics/WbContactProperties update
         their ODE objects). Supported: joint ``dampingConstant``/``springConstant``/``staticFriction``/``stopERP``/
-        ``stopCFM``,
+        ``stopCFM``/``minStop``/``maxStop`` and a Hinge2's ``suspensionSpringConstant``/``suspensionDampingConstant``,
         motor ``maxVelocity``/``maxTorque``/``maxForce``/``acceleration`` and (:mod:`.motor_edits`)
         ``controlPID``/``minPosition``/``maxPosition``/``multiplier``, a joint's PositionSensor ``noise``/``resolution``,
         ``Physics``
@@ -290,7 +290,7 @@ class SupervisorEdits(WorldInfoEdits):
         ``physicsDisableTime``/``physicsDisableLinearThreshold``/``physicsDisableAngularThreshold``
         (:mod:`.world_edits`), and the dimensions of bounding geometries
         (:mod:`.geometry_edits`; the mass properties of a body they bound follow). The layers above add joint
-        ``minStop``/``maxStop``/``axis``/``anchor`` and Hinge2 suspensions (:mod:`.axis_edits`), Solid and frame
+        ``axis``/``anchor`` (:mod:`.axis_edits`), Solid and frame
         poses (:mod:`.frame_edits`), bounding Meshes (:mod:`.scene_changes`) and a Solid's ``linearVelocity``/
         ``angularVelocity`` (:mod:`.velocity_edits`).
         Every write is counted (:mod:`.edit_stamps`): the devices of the node read their fields again.
