@@ -141,7 +141,9 @@ REGISTRY: tuple[Coverage, ...] = (
              "24-sided polyhedron of revolution (a capsule: 4 latitude bands per hemisphere) scaled to the true volume, "
              "closed IndexedFaceSet and Mesh bounding objects exactly (any shape, convex or not: signed "
              "tetrahedra clipped by the fluid box; an open mesh encloses nothing and warns once at load); drag "
-             "and viscous resistance coefficients are not simulated (a non-zero one warns once at load)"),
+             "and viscous resistance coefficients are not simulated (a non-zero one warns once at load); read at "
+             "every step, so one a supervisor imports or removes, or a Solid given Physics at run time, counts from "
+             "the next step (a Fluid imported at run time does not)"),
     # -- physics
     Coverage("Physics", "physics", "supported",
              "density or mass, centerOfMass, inertiaMatrix, damping (volume-weighted over merged solids); a "

@@ -5,16 +5,17 @@ A Solid with a body whose ``immersionProperties`` hold an ``ImmersionProperties`
 §1.6), by ``−ρ_fluid · V · g`` at the centroid of ``V`` (``dBodyAddForceAtPos``), ``V`` being the part of each geom
 of the Solid's boundingObject, in its current pose, that lies inside the Fluid's boundingObject Box (its top face
 is the surface). :mod:`.immersed_volume` computes ``V`` (Box and Sphere exactly, Cylinder and Capsule through a
-polyhedron of revolution, closed triangle meshes, IndexedFaceSet and Mesh, exactly). A world without a Fluid, or
-without a Solid that has both a body and immersionProperties, registers nothing, so its steps are unchanged.
+polyhedron of revolution, closed triangle meshes, IndexedFaceSet and Mesh, exactly). A world without a Fluid
+registers nothing, so its steps are unchanged.
 
 Not simulated (one warning at load names what a world would miss): drag and viscous resistance (the
 ImmersionProperties coefficients, with the Fluid's streamVelocity and viscosity), fluids whose boundingObject is
 not a Box, Fluids inside a Solid, open meshes (they enclose no volume), and immersed ElevationGrids and Planes.
 Fluids are read
-from the scene tree at every step (a supervisor's edit of their pose, size or density counts); the immersed
-Solids are those of the load with immersionProperties (their fluidName is read at every step; a Solid or a
-Fluid imported at run time takes no part).
+from the scene tree at every step (a supervisor's edit of their pose, size or density counts), and so are the
+immersed Solids: every Solid with a body and ImmersionProperties naming a Fluid, at that step (a supervisor's
+import or removal of ImmersionProperties, or of a Solid's Physics, and an imported Solid count); the Fluids are
+those of the load (a Fluid imported at run time takes no part).
 """
 
 from __future__ import annotations
@@ -135,12 +136,12 @@ class Buoyancy:
     """The per-step pre-physics hook: Archimedes' force on every immersed Solid's body (see the module)."""
 
     def __init__(self, lib: Any, gravity: Sequence[float], up: Sequence[float], fluids: list[_Fluid],
-                 immersed_solids: list[SolidRec], closed: ClosedMeshes) -> None:
+                 solids: list[SolidRec], closed: ClosedMeshes) -> None:
         self._lib = lib
         self.gravity = tuple(float(v) for v in gravity)  # WorldInfo's, set again by a run-time edit
         self._up = tuple(float(v) for v in up)
         self._fluids = fluids
-        self._solids = immersed_solids
+        self._solids = solids  # the simulation's own list: Solids imported or removed at run time included
         self._meshes: dict[tuple[str, float, float], tuple[Mesh, float]] = {}  # and true / polyhedron volume
         self._closed = closed
         self.last_forces: list[tuple[SolidRec, tuple[float, float, float], tuple[float, float, float]]] = []
@@ -169,7 +170,11 @@ class Buoyancy:
             body = solid.body
             if body is None or body.removed:
                 continue
-            names = _fluid_names(solid)  # read at every step: a supervisor may rename the fluid a Solid is in
+            # read at every step: a supervisor may import or remove ImmersionProperties, give a Solid Physics, or
+            # rename the fluid a Solid is in
+            names = _fluid_names(solid)
+            if not names:
+                continue
             for name, density, (planes, top) in fluids:
                 if name not in names:
                     continue
@@ -274,14 +279,11 @@ def install(sim: Any) -> Buoyancy | None:
     if any(not _fluid_boxes(bo, Pose(), []) for bo in (_f(f.node, "boundingObject", None) for f in fluids)
            if isinstance(bo, Node)):
         missing.append("fluids whose boundingObject is not a Box (they push nothing)")
-    immersed_solids = []
     closed: ClosedMeshes = {}
     drag = False
     other_shapes: set[str] = set()
     for solid in sim.solids:
         props = _properties(solid)
-        if props and solid.body is not None:
-            immersed_solids.append(solid)
         if not _fluid_names(solid) & names:
             continue
         drag = drag or any(_nonzero(_f(p, field, 0.0)) for p in props for field in _DRAG_FIELDS)
@@ -295,12 +297,10 @@ def install(sim: Any) -> Buoyancy | None:
     if missing:
         sim.warn("the world has a Fluid node: buoyancy of immersed Box, Sphere, Cylinder, Capsule and closed "
                  f"IndexedFaceSet and Mesh bounding objects is simulated, but {'; '.join(missing)} are not simulated here (docs/webots-coverage.md)")
-    if not immersed_solids:
-        return None
     g = sim.gravity
     up = m3.normalized(m3.scale(g, -1.0)) if any(g) else ((0.0, 0.0, 1.0) if sim.coordinate_system == "ENU"
                                                            else (0.0, 1.0, 0.0))
-    hook = Buoyancy(sim._lib, g, up, fluids, immersed_solids, closed)
+    hook = Buoyancy(sim._lib, g, up, fluids, sim.solids, closed)
     sim.pre_step_hooks.append(hook)
     sim.extensions["buoyancy"] = hook
     return hook
