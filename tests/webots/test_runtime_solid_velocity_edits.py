@@ -82,3 +82,13 @@ def test_a_solid_merged_into_its_parents_body_has_no_velocity_of_its_own() -> No
     assert _moved(sup, 5) == [0.0, 0.0, 0.0]
     sup.getFromDef("P").getField("linearVelocity").setSFVec3f([1.0, 0.0, 0.0])  # the control: the body's root
     assert _moved(sup, 5) == pytest.approx([5 * H, 0.0, 0.0], abs=1e-12)
+
+
+def test_a_reset_makes_a_solid_stopped_at_run_time_drift_again_as_loaded() -> None:
+    sup = supervisor_in(STATIC.replace("Solid {", "Solid { linearVelocity 1 0 0"), TS)
+    sup.getFromDef("S").getField("linearVelocity").setSFVec3f([0.0, 0.0, 0.0])
+    assert _moved(sup, 5) == [0.0, 0.0, 0.0]  # stopped by the write
+    sup.simulationReset()
+    sup.step(TS)  # the reset happens at the end of this step
+    assert sup.getFromDef("S").getPosition()[0] == 0.0  # back at its load place, time 0
+    assert _moved(sup, 5) == pytest.approx([5 * H, 0.0, 0.0], abs=1e-12)  # (without the edit applied again: 0)
