@@ -137,6 +137,17 @@ def test_a_physics_disable_time_of_zero_wakes_the_bodies_and_keeps_them_awake() 
     assert probe().dBodyGetAutoDisableFlag(body.ptr) == 0  # S §1.3: physicsDisableTime 0 turns the feature off
 
 
+def test_a_physics_disable_time_set_on_a_world_loaded_without_sleeping_puts_a_resting_body_to_sleep() -> None:
+    sup = _unstepped(RESTING, gravity=9.81, info="physicsDisableTime 0")
+    for _ in range(250):  # 2 s at rest
+        sup.step(TS)
+    assert not _asleep(sup)  # the control: no sleeping in this world (S §1.3)
+    _info(sup).getField("physicsDisableTime").setSFFloat(1.0)
+    for _ in range(140):  # more than the 1 s of rest it now takes
+        sup.step(TS)
+    assert _asleep(sup)  # (before: awake, the body kept the load's flag off)
+
+
 def test_a_higher_linear_threshold_puts_a_slowly_sliding_body_to_sleep() -> None:
     # A box slides on a frictionless floor (ODE never puts a body without any joint, contacts included, to sleep)
     sup = _unstepped("DEF BALL Solid { translation 0 0 0.1 boundingObject Box { size 0.2 0.2 0.2 } "
