@@ -7,9 +7,10 @@ Layout: this module is the façade (construction, build order, reset, close). Th
 module each, every layer calling only the layers below it: ``records`` (the dataclasses), ``core`` (shared
 state, scene-graph poses), ``build`` (traversal, bodies with the mass rules of
 :mod:`dualtwin.webots.mass_rules`, geoms, devices), ``joints``, ``collision`` (the contact pass),
-``edits`` (supervisor requests, field edits, sensor readings), ``axis_edits`` (run-time joint axis and
-anchor edits), ``stepping`` and ``scene_changes`` (nodes a
-supervisor imports or removes at run time).
+``world_edits`` (run-time WorldInfo edits: gravity, ERP/CFM, sleep, basicTimeStep), ``edits`` (supervisor
+requests, field edits, sensor readings), ``axis_edits`` (run-time joint axis and anchor edits), ``stepping`` and
+``scene_changes`` (nodes a supervisor imports or removes at run time), ``physics_changes``, ``frame_edits`` and
+``velocity_edits`` (a Solid's velocity fields written at run time).
 
 What follows Webots
     One ``dWorldStep`` per ``basicTimeStep``, ENU gravity, world ERP/CFM, damping conversion, max angular
