@@ -1,5 +1,6 @@
 """A supervisor's run-time edit of a ``WorldInfo`` field that the physics reads, applied to ODE before the next
-step as Webots applies it (WbWorldInfo checks the value, then its ODE context sets the world again).
+step. The reference gives the load's mapping of each field (§1.1-§1.5) and is silent on run-time writes; these
+follow the rule that every field write reaches ODE at the next step, with the load's checks and ODE calls.
 
 * ``ERP`` and ``CFM`` (§1.1): ``dWorldSetERP``/``dWorldSetCFM``; a value out of range is reset to its default
   with a warning, as at load and as WbWorldInfo does.
@@ -10,7 +11,9 @@ step as Webots applies it (WbWorldInfo checks the value, then its ODE context se
 * ``physicsDisableTime``, ``physicsDisableLinearThreshold``, ``physicsDisableAngularThreshold`` (§1.3): the world's
   auto-disable time and every body's flag, thresholds and time, set as at load (:meth:`SceneBuilder._set_auto_disable`);
   a time of 0 turns sleeping off and wakes the bodies asleep (a world loaded that way has none asleep), and the
-  near callback's rule 9 (§2.3, no contact between sleeping bodies) follows the feature on or off.
+  near callback's rule 9 (§2.3, no contact between sleeping bodies) follows the feature on or off. ODE's own
+  idle count of a body goes on (``dBodySetAutoDisableTime`` does not restart it): a body resting since before
+  the edit sleeps when its count runs out, one that moves afterwards counts the new time from its last motion.
 * ``basicTimeStep`` (§1.1, §1.5): the following steps are ``dWorldStep``\\ s of the new length (a value ≤ 0 is reset
   to 32 with a warning, as at load); the simulated time goes on from where it was, ``Robot.getBasicTimeStep``
   returns the new value, and what Webots converts with the step length is converted again: the world's and the
