@@ -173,6 +173,10 @@ def test_field_value_property_and_type_names(tmp_path: Path) -> None:
     data = sup.getSelf().getField("customData")
     assert data.value == "init" and data.type == Field.SF_STRING and data.name == "customData"
     data.value = "changed"
+    # a field write reaches the robot's own library with the next step's answer (webots-python-api.md: "Supervisor
+    # field setters take effect at the next step"); until then getCustomData keeps what the last step brought
+    assert data.value == "changed" and sup.getCustomData() == "init"
+    sup.step(8)
     assert sup.getCustomData() == "changed"
     with pytest.raises(AttributeError):
         data.count = 3  # type: ignore[misc]

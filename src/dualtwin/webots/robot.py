@@ -171,10 +171,14 @@ class Robot:
         return str(self.__link._rec.node.fields.get("model", ""))
 
     def getCustomData(self) -> str:
-        return str(self.__link._rec.node.fields.get("customData", ""))
+        """The ``customData`` its last ``step`` answered with, or what it set since: a supervisor's write of the
+        field reaches this controller with its next step, not while it computes (webots-on-ode.md §6: a controller
+        sees the world through its steps)."""
+        return self.__link.client.custom_data
 
     def setCustomData(self, data: str) -> None:
-        self.__link._rec.node.fields["customData"] = as_text(data, "Robot.setCustomData")
+        link = self.__link
+        link.client.custom_data = link._rec.node.fields["customData"] = as_text(data, "Robot.setCustomData")
 
     def getSupervisor(self) -> bool:
         return self.__link._rec.supervisor

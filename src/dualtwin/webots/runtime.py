@@ -70,9 +70,13 @@ class ControllerStopped(SystemExit):
         super().__init__(0)
 
 
+def _custom_data(robot: RuntimeRobot) -> str:
+    return str(robot._rec.node.fields.get("customData", ""))
+
+
 class _Client:
     __slots__ = ("robot", "target", "waiting", "active", "ended_at", "thread", "controller", "running", "cut",
-                 "synced", "time", "outcome", "mode")
+                 "synced", "time", "outcome", "mode", "custom_data")
 
     def __init__(self, robot: RuntimeRobot, controller: Controller | None) -> None:
         self.robot = robot
@@ -91,6 +95,10 @@ class _Client:
         self.time = 0.0
         self.outcome = 0
         self.mode = SIMULATION_MODE_FAST  # the simulation mode at that answer (what simulationGetMode reads)
+        #: its robot's ``customData`` at that answer (what getCustomData reads until its next step, unless it sets
+        #: it itself): Webots' libController keeps the string it last got; a supervisor's write of the field reaches
+        #: the robot with the answer of the step it was applied in (WbRobot::updateData -> C_ROBOT_DATA)
+        self.custom_data = _custom_data(robot)
 
 
 class Controller:
@@ -518,6 +526,7 @@ class Runtime:
         late)."""
         if client.waiting:
             client.time, client.mode = self.simulation.time, self._mode
+            client.custom_data = _custom_data(client.robot)
             # the step that reaches the run's end says -1; one answered before stays 0 even if its thread wakes
             # only once the run is over (nothing waits for a removed robot's controller: the others run on)
             client.outcome = -1 if self.finished or self._limit_reached() else 0
