@@ -401,12 +401,13 @@ REGISTRY: tuple[Coverage, ...] = (
              "in-process channels: channel filters, range and maxRange, medium type, buffer size, baud rate, "
              "infra-red line of sight and aperture, judged from the poses after the physics step of the "
              "packet's arrival; packets of one step reach a receiver in world order (robot, then device), "
-             "whichever controller sent first; simulationReset clears the queues; a supervisor's edit of a field "
-             "(channel, range, maxRange, aperture, baudRate, bufferSize...) acts from the next step and the getters "
-             "follow (a channel or range set by the controller stays until that field is written)"),
+             "whichever controller sent first; simulationReset clears the queues; setChannel and setRange write "
+             "the channel and range fields; a supervisor's edit of a field (channel, range, maxRange, aperture, "
+             "baudRate, bufferSize...) acts from the next step and the getters follow"),
     Coverage("Receiver", "device", "partial",
              "queue, channel filter, buffer size, signal strength 1/d² with noise, emitter direction with noise; "
-             "fields edited at run time act from the next step, as the Emitter's; no physics-plugin copy of channel 0"),
+             "setChannel writes the channel field; fields edited at run time act from the next step, as the "
+             "Emitter's; no physics-plugin copy of channel 0"),
     Coverage("Display", "device", "partial",
              "RGBA frame buffer: colour, alpha, opacity, pixels, lines, rectangles, ovals, polygons, image "
              "new/copy/paste/save (PNG)/load/delete; text is not rasterised and attachCamera shows nothing"),

@@ -20,7 +20,15 @@ Pipeline (Webots' ``WbEmitter``/``WbReceiver``):
 5. At the receiver's sample the packets reach its queue, kept only if they fit its ``bufferSize`` (-1: any).
 
 So a packet sent before ``step()`` *k* is readable when the receiver's ``step()`` *k* returns, if its sampling
-period has elapsed. ``send`` with a ``str`` sends its UTF-8 bytes cut to ``len(str)`` (Webots' Python wrapper
+period has elapsed.
+
+``setChannel`` (Emitter, Receiver) and ``setRange`` (Emitter) also write the node's ``channel``/``range`` field:
+Webots keeps these values in the device node's fields (emitter.md, receiver.md: setChannel "modifies the channel
+field of the corresponding node"; WbEmitter handles the set-range message the same way), so a supervisor reading
+the field sees what the controller set, and a restarted controller starts with it (its library reads the device's
+fields when it connects).
+
+``send`` with a ``str`` sends its UTF-8 bytes cut to ``len(str)`` (Webots' Python wrapper
 does that); a list or tuple is packed as doubles, or as 32-bit ints when every item is an int or a bool. Not
 modelled: the physics-plugin copy of channel 0. ``simulationReset`` clears every queue.
 
@@ -274,7 +282,7 @@ class Emitter(Device):
         if c < CHANNEL_BROADCAST or (self._allowed and c not in self._allowed):
             error(f"Emitter.setChannel(): channel {c} is not allowed")
             return
-        self._channel = c
+        self._channel = self._record.node.fields["channel"] = c  # and its field: module docstring
 
     def getRange(self) -> float:
         self._follow()
@@ -287,7 +295,7 @@ class Emitter(Device):
             r = self._max_range
         elif self._max_range >= 0:
             r = min(r, self._max_range)
-        self._range = r
+        self._range = self._record.node.fields["range"] = r  # and its field: module docstring
 
     def getBufferSize(self) -> int:
         self._follow()
@@ -398,7 +406,7 @@ class Receiver(SolidSensor):
         if c < CHANNEL_BROADCAST or (self._allowed and c not in self._allowed):
             warn(f"Receiver.setChannel(): channel {c} is not allowed")
             return
-        self._channel = c
+        self._channel = self._record.node.fields["channel"] = c  # and its field: module docstring
 
     queue_length = property(lambda self: self.getQueueLength())
     data = property(lambda self: self.getData())
