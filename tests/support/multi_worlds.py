@@ -12,9 +12,13 @@ from pathlib import Path
 from dualtwin.webots.runner import run_world
 
 
-def write_project(folder: Path, world: str, controllers: dict[str, str]) -> Path:
-    """``folder/worlds/w.wbt`` (an R2023b header, then ``world``) and ``folder/controllers/NAME/NAME.py`` for each
-    controller; the world's path."""
+def write_project(folder: Path, world: str, controllers: dict[str, str], protos: dict[str, str] | None = None) -> Path:
+    """``folder/worlds/w.wbt`` (an R2023b header, then ``world``), ``folder/controllers/NAME/NAME.py`` for each
+    controller and ``folder/protos/NAME.proto`` for each PROTO (the world declares it as
+    ``EXTERNPROTO "../protos/NAME.proto"``); the world's path."""
+    for name, source in (protos or {}).items():
+        (folder / "protos").mkdir(parents=True, exist_ok=True)
+        (folder / "protos" / f"{name}.proto").write_text(textwrap.dedent(source).lstrip(), encoding="utf-8")
     for name, source in controllers.items():
         (folder / "controllers" / name).mkdir(parents=True)
         (folder / "controllers" / name / f"{name}.py").write_text(textwrap.dedent(source), encoding="utf-8")
@@ -25,12 +29,12 @@ def write_project(folder: Path, world: str, controllers: dict[str, str]) -> Path
 
 
 def run_multi(folder: Path, world: str, controllers: dict[str, str], isolation: str,
-              duration_s: float | None = None) -> list[str]:
+              duration_s: float | None = None, protos: dict[str, str] | None = None) -> list[str]:
     """Run the project written by :func:`write_project` (exit code 0 asserted); the lines the controllers printed,
     in the order they reached the output (one controller's lines keep their order)."""
     out = io.StringIO()
     with contextlib.redirect_stdout(out):
-        assert run_world(write_project(folder, world, controllers), None, duration_s, isolation=isolation) == 0
+        assert run_world(write_project(folder, world, controllers, protos), None, duration_s, isolation=isolation) == 0
     return out.getvalue().splitlines()
 
 

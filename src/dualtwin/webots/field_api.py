@@ -144,7 +144,19 @@ class Field:
         return self._owner._node
 
     def _raw(self) -> Any:
+        """The value this handle's node stores (what a write of this handle edits)."""
         return self._values.get(self._name)
+
+    def _current(self) -> Any:
+        """The value a read gives. An interface field IS-bound to a base field is one value with it (§7.1): the
+        base field holds what changed inside the instance too (the robot's own setCustomData, an Emitter's
+        setChannel), which Webots passes up to the PROTO's field; a supervisor's write of the interface field
+        came down to it. (Node-valued fields: see _in_scene.)"""
+        if not self._is_base() and not self._vrml.endswith("Node"):
+            for node, name in linked_fields(self._node, self._name)[0]:
+                if name in node.fields:
+                    return node.fields[name]
+        return self._raw()
 
     def _is_base(self) -> bool:
         return self._values is self._node.fields
@@ -175,7 +187,7 @@ class Field:
         return self._vrml
 
     def getCount(self) -> int:
-        value = self._raw()
+        value = self._current()
         return len(value) if isinstance(value, list) else -1
 
     name = property(lambda self: self.getName())
@@ -198,10 +210,10 @@ class Field:
     # -- SF getters
 
     def getSFBool(self) -> int:
-        return int(bool(self._raw())) if self._check("getSFBool", "SFBool") else 0
+        return int(bool(self._current())) if self._check("getSFBool", "SFBool") else 0
 
     def getSFInt32(self) -> int:
-        return int(self._raw()) if self._check("getSFInt32", "SFInt32") else 0
+        return int(self._current()) if self._check("getSFInt32", "SFInt32") else 0
 
     def getSFFloat(self) -> float:
         if not self._check("getSFFloat", "SFFloat"):
@@ -214,10 +226,10 @@ class Field:
             params = joint.params
             index = params.index(self._node) if self._node in params else 0
             return float(joint.positions[index])
-        return float(self._raw())
+        return float(self._current())
 
     def getSFVec2f(self) -> list[float]:
-        return [float(v) for v in self._raw()] if self._check("getSFVec2f", "SFVec2f") else [math.nan] * 2
+        return [float(v) for v in self._current()] if self._check("getSFVec2f", "SFVec2f") else [math.nan] * 2
 
     def getSFVec3f(self) -> list[float]:
         if not self._check("getSFVec3f", "SFVec3f"):
@@ -228,7 +240,7 @@ class Field:
         solid = self._sim.solid_for(self._node)
         if solid is not None and self._name == "translation" and not self._sim.has_pending(solid):
             return list(self._sim.solid_local_pose(solid).t)
-        return [float(v) for v in self._raw()]
+        return [float(v) for v in self._current()]
 
     def getSFRotation(self) -> list[float]:
         if not self._check("getSFRotation", "SFRotation"):
@@ -239,13 +251,13 @@ class Field:
         solid = self._sim.solid_for(self._node)
         if solid is not None and self._name == "rotation" and not self._sim.has_pending(solid):
             return list(m3.axis_angle_from_mat(self._sim.solid_local_pose(solid).R))
-        return [float(v) for v in self._raw()]
+        return [float(v) for v in self._current()]
 
     def getSFColor(self) -> list[float]:
-        return [float(v) for v in self._raw()] if self._check("getSFColor", "SFColor") else [math.nan] * 3
+        return [float(v) for v in self._current()] if self._check("getSFColor", "SFColor") else [math.nan] * 3
 
     def getSFString(self) -> str:
-        return str(self._raw()) if self._check("getSFString", "SFString") else ""
+        return str(self._current()) if self._check("getSFString", "SFString") else ""
 
     def getSFNode(self) -> Any:
         value = self._raw()
@@ -288,7 +300,7 @@ class Field:
     def _item(self, method: str, kind: str, index: Any) -> tuple[bool, Any]:
         if not self._check(method, kind):
             return False, None
-        items = self._raw() or []
+        items = self._current() or []
         i = as_int(index, f"Field.{method}")
         if not -len(items) <= i < len(items):
             warn(f"Field.{method}(): index {i} out of range for '{self._name}' ({len(items)} items)")

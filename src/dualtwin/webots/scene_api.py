@@ -623,13 +623,12 @@ def node_as_saved(sim: Simulation, top: SceneNode, state: bool = True) -> SceneN
     writes them; a PROTO instance's internal state goes to its ``hidden`` fields, as Webots saves it. Without
     ``state``, only the poses that fields carry (a regenerated instance's geometry comes from its template)."""
     copy_top = top.copy()
-    saved: set[tuple[int, str]] = set()  # (id of the copied node, field) written from the physics
     for original, copy in zip(top.walk(), copy_top.walk(), strict=True):
         solid = sim.solid_for(original)
         if solid is not None:
             pose = sim.solid_local_pose(solid)
-            _save_field(copy, "translation", tuple(pose.t), saved)
-            _save_field(copy, "rotation", tuple(m3.axis_angle_from_mat(pose.R)), saved)
+            _save_field(copy, "translation", tuple(pose.t))
+            _save_field(copy, "rotation", tuple(m3.axis_angle_from_mat(pose.R)))
             body = solid.body
             if state and body is not None and body.root is solid and not body.removed:
                 velocity = sim.solid_velocity(solid)
@@ -638,32 +637,29 @@ def node_as_saved(sim: Simulation, top: SceneNode, state: bool = True) -> SceneN
                         copy.fields[name] = tuple(float(v) for v in value)
         joint = sim.joint_for(original)
         if joint is not None and original.type_name.endswith("Parameters") and original in joint.params:
-            _save_field(copy, "position", float(joint.positions[joint.params.index(original)]), saved)
+            _save_field(copy, "position", float(joint.positions[joint.params.index(original)]))
     for node in copy_top.walk():
         if node.proto_fields is not None:
-            _bind_interface(node, saved)
+            _bind_interface(node)
         if state and node.proto_name is not None and node.proto_fields is not None:
             node.hidden = {**node.hidden, **saved_hidden(node)}
     return copy_top
 
 
-def _save_field(node: SceneNode, name: str, value: Any, saved: set[tuple[int, str]]) -> None:
-    if name not in node.fields:
-        return
-    node.fields[name] = value
-    saved.add((id(node), name))
+def _save_field(node: SceneNode, name: str, value: Any) -> None:
+    if name in node.fields:
+        node.fields[name] = value
 
 
-def _bind_interface(root: SceneNode, saved: set[tuple[int, str]]) -> None:
-    """A PROTO instance's interface fields take the values just saved from the physics into the fields ``IS``
-    binds them to (§7.1), through nested and derived PROTOs: a derived PROTO's position is its outer field's. A
-    node-valued field takes the nodes the scene holds for its parameters (:meth:`Field._in_scene`: the ones the
-    physics moves and supervisors edit), as saved."""
+def _bind_interface(root: SceneNode) -> None:
+    """A PROTO instance's interface fields take the values of the fields ``IS`` binds them to (§7.1: one value),
+    through nested and derived PROTOs: the values just saved from the physics (a derived PROTO's position is its
+    outer field's) and what changed inside the instance (a robot's own setCustomData). A node-valued field takes
+    the nodes the scene holds for its parameters (:meth:`Field._in_scene`: the ones the physics moves and
+    supervisors edit), as saved."""
     assert root.proto_fields is not None
-    for name, value in root.proto_fields.items():
+    for name in root.proto_fields:
         base, _ = linked_fields(root, name)
-        holds_nodes = isinstance(value, SceneNode) or (isinstance(value, list) and any(
-            isinstance(v, SceneNode) for v in value))
-        bound = next((node.fields[field] for node, field in base if holds_nodes or (id(node), field) in saved), None)
+        bound = next((node.fields[field] for node, field in base if field in node.fields), None)
         if bound is not None:
             root.proto_fields[name] = copy_value(bound)
