@@ -238,8 +238,10 @@ class Field:
         if live is not None and live._vrml == "SFVec3f":
             return live.getSFVec3f()
         solid = self._sim.solid_for(self._node)
-        if solid is not None and self._name == "translation" and not self._sim.has_pending(solid):
-            return list(self._sim.solid_local_pose(solid).t)
+        if solid is not None and self._name == "translation":
+            # the field follows the physics; this supervisor's own write not yet executed reads back
+            own = self._sim.pending_pose(solid)[0]
+            return [float(v) for v in own] if own is not None else list(self._sim.solid_local_pose(solid).t)
         return [float(v) for v in self._current()]
 
     def getSFRotation(self) -> list[float]:
@@ -249,7 +251,10 @@ class Field:
         if live is not None and live._vrml == "SFRotation":
             return live.getSFRotation()
         solid = self._sim.solid_for(self._node)
-        if solid is not None and self._name == "rotation" and not self._sim.has_pending(solid):
+        if solid is not None and self._name == "rotation":
+            own = self._sim.pending_pose(solid)[1]  # (as for translation)
+            if own is not None:
+                return [float(v) for v in own]
             return list(m3.axis_angle_from_mat(self._sim.solid_local_pose(solid).R))
         return [float(v) for v in self._current()]
 

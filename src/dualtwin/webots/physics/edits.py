@@ -81,9 +81,18 @@ class SupervisorEdits(WorldInfoEdits):
         """The joint of a joint node or of one of its (Hinge)JointParameters nodes."""
         return self._joint_by_node.get(id(node))
 
-    def has_pending(self, target: Any) -> bool:
-        """Whether a queued teleport (pose or joint position) targets ``target`` (a SolidRec or JointRec)."""
-        return any(op.target is target and op.kind != "velocity" for op in self._pending)
+    def pending_pose(self, solid: SolidRec) -> tuple[Sequence[float] | None, Sequence[float] | None]:
+        """The translation and the rotation that the supervisor making the current request queued for ``solid``
+        (each None when it queued none). What it reads back of its own writes before the step executes them: the
+        other supervisors still read the pose, as a write reaches Webots with its author's step and is executed at
+        the beginning of the next step (§6)."""
+        requester = self._request_order()
+        translation = rotation = None
+        for op in self._pending:
+            if op.kind == "pose" and op.target is solid and op.order == requester:
+                translation = op.value[0] if op.value[0] is not None else translation
+                rotation = op.value[1] if op.value[1] is not None else rotation
+        return translation, rotation
 
     def _teleport_pending_for(self, body: BodyRec) -> bool:
         """Whether a queued teleport will move (and maybe reset) ``body``."""
