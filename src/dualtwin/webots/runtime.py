@@ -177,6 +177,8 @@ class Runtime:
         self.controller_starter: Callable[[SceneNode], None] | None = None
         #: (robot, restart) a supervisor asked for since the last step: started when it next steps (or ends)
         self._to_start: list[tuple[SceneNode, bool]] = []
+        #: robot node id -> (run clock, controller) of its controller's last start on request (see _start_requested)
+        self._started_at: dict[int, tuple[float, str]] = {}
         self._gone_nodes: dict[int, SceneNode] = {}  # removed robots' subtrees (kept, so their ids stay theirs)
         # the simulation executes the supervisors' queued writes of a step in their scene-tree order (§6)
         simulation.extensions["request_order"] = self._request_order
@@ -253,7 +255,8 @@ class Runtime:
         """Carry out the imports' starts and the restarts requested since the last step (called by any controller
         as it steps or ends, so before the simulation can advance). All of it under the condition: the
         simulation cannot advance between a restarted controller's end and its successor's start. A robot asked
-        for twice in one step starts one controller."""
+        for twice in one step starts one controller, also when the requests come from two supervisors, each
+        carried out as its author steps."""
         if not self._to_start:  # the common case, read without the lock (a request comes before its step)
             return
         with self._cond:
@@ -268,6 +271,12 @@ class Runtime:
                 if self.robot_gone(node) or self.finished:
                     continue
                 name = str(node.fields.get("controller", ""))
+                if restart and self._started_at.get(id(node)) == (self.clock, name):
+                    # this controller was already started for this step, at another supervisor's request: each
+                    # robot has one controller, and the one just started has not run yet (two controllers ran
+                    # side by side when the first was still starting in its process)
+                    continue
+                self._started_at[id(node)] = (self.clock, name)
                 if self.controller_starter is None:
                     what = "restarted" if restart else "started"
                     _warn(f"the controller of robot '{node.fields.get('name', 'robot')}' is not {what}: only a "
