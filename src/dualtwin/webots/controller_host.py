@@ -244,7 +244,7 @@ class _Host:
             if self.stopping:
                 return
             link = _Link(len(self.links), robot, script, args, HandleTable(self.exports, self.roles))
-            self.runtime.expect_another()
+            self.runtime.expect_another(robot)
             self.links.append(link)
             spin_us = spin_budget_us(len(self.links))
             if spin_us < self.spin_us:  # now more controllers than cores: this side stops polling (the

@@ -539,7 +539,7 @@ class _Threads:
         with self._lock:
             if self._closed:
                 return
-            self.runtime.expect_another()
+            self.runtime.expect_another(robot)
         self.thread(ControllerSpec(robot, *found), claim=True).start()
 
     @staticmethod

@@ -38,6 +38,10 @@ __all__ = [
 
 _warn = warn
 
+#: Real seconds a restart waits for a controller of the same robot that is still starting (a process takes tens of
+#: milliseconds to come up), so that it can end it; then it goes on without.
+START_WAIT_S = 10.0
+
 #: ``controller`` field values that start no controller (C controllers aside, as Webots: none, extern, generic).
 NO_CONTROLLER = frozenset({"", "<none>", "<generic>", "<extern>", "void"})
 
@@ -179,6 +183,8 @@ class Runtime:
         self._to_start: list[tuple[SceneNode, bool]] = []
         #: robot node id -> (run clock, controller) of its controller's last start on request (see _start_requested)
         self._started_at: dict[int, tuple[float, str]] = {}
+        #: robot node id -> controllers started for it during the run that have not yet taken part (bind_thread)
+        self._starting: dict[int, int] = {}
         self._gone_nodes: dict[int, SceneNode] = {}  # removed robots' subtrees (kept, so their ids stay theirs)
         # the simulation executes the supervisors' queued writes of a step in their scene-tree order (§6)
         simulation.extensions["request_order"] = self._request_order
@@ -203,10 +209,14 @@ class Runtime:
         """Hold the first step until ``n`` controllers (see :meth:`bind_thread`) registered a Robot or ended."""
         self._expected = n
 
-    def expect_another(self) -> None:
-        """One more controller joins the run (a Robot imported at run time): the next step waits for it too."""
+    def expect_another(self, robot_node: SceneNode | None = None) -> None:
+        """One more controller joins the run (a Robot imported at run time, a restarted controller): the next step
+        waits for it too. ``robot_node``: its robot, whose restart then waits for it to take part (see
+        :meth:`_start_requested`) before it can end it."""
         with self._cond:
             self._expected = max(self._expected, len(self._controllers)) + 1
+            if robot_node is not None:
+                self._starting[id(robot_node)] = self._starting.get(id(robot_node), 0) + 1
 
     def robot_gone(self, robot_node: SceneNode) -> bool:
         """Whether a supervisor removed this robot during the run."""
@@ -232,6 +242,7 @@ class Runtime:
         with self._cond:
             if id(robot_node) not in self._gone_nodes:
                 return True
+            self._started(robot_node)
             self._expected -= 1
             self._maybe_advance()
             self._cond.notify_all()
@@ -283,6 +294,7 @@ class Runtime:
                           f"runner (dualtwin webots run, run_world) starts controllers ('{name}')")
                     continue
                 if restart:
+                    self._wait_started(node)
                     self._end_controllers_of({id(node)}, gone=False, advance=False)
                 if name not in NO_CONTROLLER:
                     self.controller_starter(node)  # the runtime expects it before this returns
@@ -376,8 +388,24 @@ class Runtime:
             if id(robot_node) in self._gone_nodes:  # its robot was removed before its process started
                 controller.removed = controller.arrived = True
             self._controllers.append(controller)
+            self._started(robot_node)
         self._thread_controller.controller = controller
         return controller
+
+    def _wait_started(self, robot_node: SceneNode) -> None:
+        """Wait until the controllers started for ``robot_node`` at earlier requests take part (caller holds the
+        condition): one still starting (its process not yet up) must be ended by a restart too, and it takes part
+        within moments."""
+        key = id(robot_node)
+        self._cond.wait_for(lambda: not self._starting.get(key), timeout=START_WAIT_S)
+
+    def _started(self, robot_node: SceneNode) -> None:
+        """A controller counted by :meth:`expect_another` for ``robot_node`` took part (or never will: its robot is
+        gone); caller holds the condition."""
+        count = self._starting.get(id(robot_node), 0)
+        if count:
+            self._starting[id(robot_node)] = count - 1
+            self._cond.notify_all()
 
     def _request_order(self) -> int:
         """The scene-tree place (robot Solid index) of the robot whose controller runs in the calling thread; 0 for
