@@ -79,7 +79,9 @@ REGISTRY: tuple[Coverage, ...] = (
              "to the expanded nodes (a node imported into or removed from a node-valued interface field, such as an "
              "extension slot, enters or leaves the body's scene tree and physics; a node read through such a field is the "
              "one in the scene, its pose and field writes the physics', and it is saved as it is now), and an interface field bound to "
-             "a Solid's translation/rotation or a joint's position reads the physics as that field does; a field read by a procedural PROTO's template (its own, or one in its body the field "
+             "a Solid's translation/rotation or a joint's position reads the physics as that field does, and one bound to another "
+             "field reads what changed inside the instance too (a PROTO robot's own setCustomData, its Emitter's setChannel; "
+             "worldSave writes it); a field read by a procedural PROTO's template (its own, or one in its body the field "
              "reaches through IS) regenerates the instance (expanded again from its fields and current pose, same handle, DEF and id; a reset restores it), except one "
              "holding a Robot or inside one, which warns and follows the IS links only"),
     Coverage("Robot", "scene", "supported",
@@ -92,7 +94,10 @@ REGISTRY: tuple[Coverage, ...] = (
              "out) ends it (its step returns -1; a supervisor's remove() of its own Robot acts at the end of its next step, as "
              "Webots); with several controllers the robots are sampled, draw sensor noise "
              "and exchange packets in world order, the supervisors' translation/rotation, joint position and queued "
-             "velocity writes of a step are executed in their world order, and a simulationReset waits for every controller's step and for the end of the "
+             "velocity writes of a step are executed in their world order (until then only the supervisor that wrote "
+             "reads its value back from the field; the others read the pose), a supervisor's write of a robot's customData "
+             "reaches that robot's getCustomData with its next step, two restarts of one robot's controller in a step "
+             "leave it one controller, and a simulationReset waits for every controller's step and for the end of the "
              "step that carries it (each then returns at t = 0), so the same world and seed give the same output however the processes are "
              "scheduled; C controllers do not run; battery drained by cpuConsumption and motor consumptionFactor × |torque|; "
              "when it runs out the controller's step returns -1 (it ends) and the motors (Track belts and Propellers too) hold velocity 0 with their "
