@@ -151,8 +151,14 @@ class Field:
         """The value a read gives. An interface field IS-bound to a base field is one value with it (§7.1): the
         base field holds what changed inside the instance too (the robot's own setCustomData, an Emitter's
         setChannel), which Webots passes up to the PROTO's field; a supervisor's write of the interface field
-        came down to it. (Node-valued fields: see _in_scene.)"""
-        if not self._is_base() and not self._vrml.endswith("Node"):
+        came down to it. A write of another supervisor is read once a step executed it (§6). (Node-valued
+        fields: see _in_scene.)"""
+        if self._vrml.endswith("Node"):
+            return self._raw()
+        hidden, before = self._sim.unexecuted_before(self._node, self._name)
+        if hidden:  # another supervisor's write that no step executed yet
+            return before
+        if not self._is_base():
             for node, name in linked_fields(self._node, self._name)[0]:
                 if name in node.fields:
                     return node.fields[name]
@@ -437,10 +443,16 @@ class Field:
             self._values[self._name] = converted
             return
         changed = converted != self._values.get(self._name)
+        self._note_write()
         self._values[self._name] = converted
         self._changed()
         if changed and self._name == "controller" and kind == "SFString" and self._is_base() and is_robot(self._node):
             self._owner._controller_changed()  # Webots restarts the robot's controller with the new one
+
+    def _note_write(self) -> None:
+        """Before this supervisor's write of a (non-node) value: the others read the value before it until a step
+        executes the write (see _current)."""
+        self._sim.note_unexecuted_write(self._node, self._name, copy_value(self._raw()))
 
     def setSFBool(self, value: Any) -> None:
         self._set("setSFBool", "SFBool", value)
@@ -481,15 +493,13 @@ class Field:
             self._values[self._name] = items
         i = as_int(index, f"Field.{method}")
         n = len(items)
+        if not (-(n + 1) <= i <= n if insert else -n <= i < n):
+            warn(f"Field.{method}(): index {i} out of range for '{self._name}' ({n} items)")
+            return
+        self._note_write()
         if insert:
-            if not -(n + 1) <= i <= n:
-                warn(f"Field.{method}(): index {i} out of range for '{self._name}' ({n} items)")
-                return
             items.insert(i if i >= 0 else n + 1 + i, converted)
         else:
-            if not -n <= i < n:
-                warn(f"Field.{method}(): index {i} out of range for '{self._name}' ({n} items)")
-                return
             items[i] = converted
         self._changed()
 
@@ -551,6 +561,8 @@ class Field:
             warn(f"Field.removeMF(): index {i} out of range for '{self._name}' ({len(items)} items)")
             return
         at = i if i >= 0 else len(items) + i
+        if not isinstance(items[at], SceneNode):
+            self._note_write()
         item = items.pop(at)
         if isinstance(item, SceneNode):
             self._nodes_removed(item, at)

@@ -171,6 +171,7 @@ class Simulation(SolidVelocityEdits):
         self._joint_by_node = {}
         self._frame_factors = {}
         self._pending = []
+        self._unexecuted = {}
         self._edited = {}
         self._unstable = False
         self._closed = False
@@ -317,6 +318,7 @@ class Simulation(SolidVelocityEdits):
             raise SimulationUnstable(f"{self._broken}; this world cannot be reset: load it again")
         lib = self._lib
         self._pending.clear()
+        self._unexecuted.clear()
         self._restore_fields()
         self.contact_properties_changed()  # (a supervisor may have imported or removed some)
         for body in self.bodies:

@@ -65,6 +65,9 @@ class SimulationCore:
     #: id of a Pose/Transform among the scene's frames -> (it, the factor below it at load: solid_scale)
     _frame_factors: dict[int, tuple[Node, float]]
     _pending: list[PendingOp]
+    #: (id of node, field) -> (value before, scene-tree places of the supervisors that wrote it) for the field writes
+    #: of supervisors not yet executed by a step (see SupervisorEdits.note_unexecuted_write)
+    _unexecuted: dict[tuple[int, str], tuple[Any, set[int]]]
     _edited: dict[tuple[int, str], Node]
     _unstable: bool
     _closed: bool

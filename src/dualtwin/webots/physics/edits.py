@@ -81,6 +81,20 @@ class SupervisorEdits(WorldInfoEdits):
         """The joint of a joint node or of one of its (Hinge)JointParameters nodes."""
         return self._joint_by_node.get(id(node))
 
+    def note_unexecuted_write(self, node: Node, name: str, before: Any) -> None:
+        """The supervisor making the current request wrote ``node``'s field ``name``, which held ``before``. The
+        value is stored at once (the physics steps only once every controller waits in its step), but the write is
+        executed at the beginning of the next step (§6): until then the other supervisors read ``before``."""
+        self._unexecuted.setdefault((id(node), name), (before, set()))[1].add(self._request_order())
+
+    def unexecuted_before(self, node: Node, name: str) -> tuple[bool, Any]:
+        """``(True, value before)`` when another supervisor than the one making the current request wrote ``node``'s
+        field ``name`` and no step executed it yet (see :meth:`note_unexecuted_write`), else ``(False, None)``."""
+        entry = self._unexecuted.get((id(node), name))
+        if entry is None or self._request_order() in entry[1]:
+            return False, None
+        return True, entry[0]
+
     def pending_pose(self, solid: SolidRec) -> tuple[Sequence[float] | None, Sequence[float] | None]:
         """The translation and the rotation that the supervisor making the current request queued for ``solid``
         (each None when it queued none). What it reads back of its own writes before the step executes them: the

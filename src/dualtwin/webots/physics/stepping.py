@@ -77,6 +77,8 @@ class Stepper(JointAxisEdits):
                 raise SimulationUnstable("simulation is unstable; call reset()")
             if self._pending:
                 self._apply_pending()
+            if self._unexecuted:
+                self._unexecuted.clear()  # the supervisors' writes are executed now: every controller reads them
             self._pre_physics()
             for pre_hook in self.pre_step_hooks:
                 pre_hook(self.dt)
