@@ -1,10 +1,10 @@
-"""One supervisor's translation/rotation write of a Solid, read as a field by itself and by another supervisor
-before the step executes it (webots-on-ode.md §6: the write is "queued and executed at the beginning of the next
+"""One supervisor's field writes (a Solid's translation/rotation; a robot's customData and controllerArgs), read by
+itself and by another supervisor before the step executes them (webots-on-ode.md §6: the write is "queued and executed at the beginning of the next
 step", and until then the Solid is where the physics has it; §3.1/§6: a Solid's translation field follows the
 physics, so a top-level Solid's translation is its getPosition()).
 
 Only the supervisor that wrote reads its value back (its own request, not yet executed); another supervisor reads
-the field as it is: the Solid's current pose. A rotation write leaves the translation field alone: it still
+the field as it is: the Solid's current pose, the other fields' values before the write. A rotation write leaves the translation field alone: it still
 follows the physics. Supervisor s2 waits a real time before its step, long enough for s1 to read meanwhile (no
 timing is asserted: the wait only orders the calls)."""
 
