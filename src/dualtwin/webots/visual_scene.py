@@ -151,14 +151,14 @@ class WebotsVisualScene:
                         color * float(node.get("intensity", 1.0)), color * float(node.get("ambientIntensity", 0.0)))
         elif kind in ("PointLight", "SpotLight") and node.get("on", True):
             color = np.asarray(node.get("color", (1.0, 1.0, 1.0)), dtype=float)
-            light = self._light(mujoco.mjtLightType.mjLIGHT_POINT if kind == "PointLight"
-                                else mujoco.mjtLightType.mjLIGHT_SPOT,
+            # A PointLight is a spot of cone 180°, OpenGL's uniform point light (GL_SPOT_CUTOFF): MuJoCo's
+            # renderer draws its own "point" lights as nothing, so a PointLight lit no pixel before.
+            light = self._light(mujoco.mjtLightType.mjLIGHT_SPOT,
                                 node.get("location", (0.0, 0.0, 0.0)), node.get("direction", (0.0, 0.0, -1.0)),
                                 color * float(node.get("intensity", 1.0)),
                                 color * float(node.get("ambientIntensity", 0.0)))
             light.attenuation = [float(v) for v in node.get("attenuation", (1.0, 0.0, 0.0))]
-            if kind == "SpotLight":
-                light.cutoff = math.degrees(float(node.get("cutOffAngle", math.pi / 2)))
+            light.cutoff = 180.0 if kind == "PointLight" else math.degrees(float(node.get("cutOffAngle", math.pi / 2)))
         elif kind == "Viewpoint":
             self._viewpoint = handle
         elif kind == "Background":
