@@ -1,6 +1,8 @@
-"""Composite: a Camera's image of a white box lit by the world's lights.
+"""Composite: a Camera's image of a white box lit by a light the robot carries.
 
-The twin's camera drew its PointLights as MuJoCo "point" lights, which MuJoCo's renderer draws as nothing.
+In Webots a light is a child like any other: a PointLight inside a Solid has its ``location`` in the Solid's frame
+and moves with it (PointLight reference page). The twin's camera drew only the world's top-level lights, and its
+PointLights (MuJoCo "point" lights, which MuJoCo's renderer draws as nothing) not at all.
 
 Expected values are relative: every image is compared with a control world drawn by the same renderer, the
 same light at top level at the world place worked out by hand (the same pixel), or no light (MuJoCo's headlight
@@ -12,6 +14,7 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+import pytest
 
 from dualtwin.webots.camera import Camera
 from dualtwin.webots.controller import Supervisor
@@ -22,7 +25,15 @@ from dualtwin.webots.protos import load_world_text
 # axis the world's -x. The white box's near face is at y = 1.9, straight ahead of the camera.
 ROBOT_AT = "0.5 0 0"
 # Dim lamps (attenuation 1/d²) so that the box stays below white: a brighter pixel means more light.
-DIM = "attenuation 0 0 1 intensity 0.01"  # 0.01/0.4² = 0.0625 on the face 0.4 m away
+LAMP = "attenuation 0 0 1 intensity 0.05"
+# location 1.5 -0.2 0.3 in the robot's frame is the world point (0.5, 0, 0) + (0.2, 1.5, 0.3) = (0.7, 1.5, 0.3)
+CARRIED = f"PointLight {{ location 1.5 -0.2 0.3 {LAMP} }}"
+SAME_AT_TOP = f"PointLight {{ location 0.7 1.5 0.3 {LAMP} }}"
+# a spot 0.4 m in front of the face's centre, pointing at it: location 1.5 0 0 is the world point (0.5, 1.5, 0),
+# direction 1 0 0 (the robot's x axis) the world's +y
+DIM = "attenuation 0 0 1 intensity 0.01"
+CARRIED_SPOT = f"SpotLight {{ location 1.5 0 0 direction 1 0 0 {DIM} }}"
+SPOT_AT_TOP = f"SpotLight {{ location 0.5 1.5 0 direction 0 1 0 {DIM} }}"
 
 
 def _world(top: str, carried: str, robot_at: str = ROBOT_AT) -> str:
@@ -66,3 +77,52 @@ def test_a_point_light_lights_the_box() -> None:
     dark = _pixel(_world("", ""))
     lit = _pixel(_world(f"PointLight {{ location 0.5 1.5 0 {DIM} }}", ""))
     assert (lit > dark + 5).all(), (lit, dark)
+
+
+@pytest.mark.parametrize(("carried", "at_top"), [(CARRIED, SAME_AT_TOP), (CARRIED_SPOT, SPOT_AT_TOP)],
+                         ids=["PointLight", "SpotLight"])
+def test_a_light_the_robot_carries_lights_the_box_as_the_same_light_at_its_world_place(carried: str,
+                                                                                     at_top: str) -> None:
+    dark = _pixel(_world("", ""))
+    control = _pixel(_world(at_top, ""))
+    assert (control > dark + 5).all(), (control, dark)  # the control light does light the box
+    lit = _pixel(_world("", f"Pose {{ children [ {carried} ] }}"))
+    np.testing.assert_allclose(lit, control, atol=1.0)
+    # the fields read as world coordinates would be another place (the point light 1.7 m from the face, the spot
+    # pointing along +x, away from it)
+    elsewhere = _pixel(_world(carried, ""))
+    assert (np.abs(elsewhere - lit) > 5).all(), (elsewhere, lit)
+    # a carried light switched off by its own field lights nothing
+    kind = carried.split(" ")[0]
+    off = _pixel(_world("", carried.replace(f"{kind} {{", f"{kind} {{ on FALSE")))
+    np.testing.assert_allclose(off, dark, atol=1.0)
+
+
+def test_a_carried_point_light_moves_with_the_robot() -> None:
+    sup, cam = _open(_world("", CARRIED))
+    _box_bgr(sup, cam)
+    robot = sup.getFromDef("ROBOT")
+    assert robot is not None
+    robot.getField("translation").setSFVec3f([0.2, 0.0, 0.0])
+    moved = _box_bgr(sup, cam)
+    # control: the robot loaded there, the light at top level at (0.2, 0, 0) + (0.2, 1.5, 0.3) = (0.4, 1.5, 0.3)
+    control = _pixel(_world(f"PointLight {{ location 0.4 1.5 0.3 {LAMP} }}", "", robot_at="0.2 0 0"))
+    np.testing.assert_allclose(moved, control, atol=1.0)
+    # and not as a light left where it was loaded, (0.7, 1.5, 0.3)
+    stuck = _pixel(_world(SAME_AT_TOP, "", robot_at="0.2 0 0"))
+    assert (np.abs(stuck - moved) > 5).all(), (stuck, moved)
+
+
+def test_a_supervisor_switching_a_light_or_changing_its_colour_shows_at_the_next_image() -> None:
+    # Webots' lights follow their edited fields (the PointLight page's `on`, `color`, `intensity`)
+    dark = _pixel(_world("", ""))
+    white = _pixel(_world(SPOT_AT_TOP, ""))
+    assert (white > dark + 5).all(), (white, dark)
+    sup, cam = _open(_world(f"DEF LAMP {SPOT_AT_TOP}", ""))
+    np.testing.assert_allclose(_box_bgr(sup, cam), white, atol=1.0)
+    lamp = sup.getFromDef("LAMP")
+    assert lamp is not None
+    lamp.getField("color").setSFColor([0.0, 1.0, 0.0])  # green: G as with white light, B and R as without light
+    np.testing.assert_allclose(_box_bgr(sup, cam), [dark[0], white[1], dark[2]], atol=1.0)
+    lamp.getField("on").setSFBool(False)
+    np.testing.assert_allclose(_box_bgr(sup, cam), dark, atol=1.0)

@@ -11,8 +11,13 @@ renderer as the MuJoCo twin (:class:`dualtwin.twins.camera.FrameRenderer`):
   Mesh and a CadShape are MuJoCo meshes of :func:`~dualtwin.webots.shapes.surface_triangles` (a CadShape in
   :data:`~dualtwin.webots.shapes.CAD_SHAPE_RGBA`: its file's materials are not read); a mesh file that cannot
   be read is not drawn (a line in :attr:`WebotsVisualScene.warnings`);
-* DirectionalLight/PointLight/SpotLight become MuJoCo lights; MuJoCo's default headlight is kept, as in every
-  MuJoCo model;
+* DirectionalLight/PointLight/SpotLight become MuJoCo lights wherever they sit, as in Webots where a light is a
+  child like any other: a Point/SpotLight inside a Solid (through Pose/Transform/Group) is a light of the Solid's
+  body, its ``location``/``direction`` in that frame, so it moves with the Solid; a DirectionalLight's
+  ``direction`` is a world direction wherever it sits (Webots' DirectionalLight page: "in the global coordinate
+  system"; the LightSensor reads it so too: :mod:`.lights`). Each frame, :meth:`WebotsVisualScene.sync` switches
+  them and sets their colour from their ``on``/``color``/``intensity`` fields. MuJoCo's default headlight is
+  kept, as in every MuJoCo model;
 * the Background: with ``background=True`` (a ``Camera`` device's scene) the sky is the first Background's
   first ``skyColor``, as Webots draws it where no cube-map texture is set (the TexturedBackground PROTO says so
   of its ``skyColor``); its textures are not drawn (a line in :attr:`WebotsVisualScene.warnings`). It is a flat
@@ -32,6 +37,7 @@ rendered by Webots itself: add a ``Camera`` device and read ``Camera.getImage()`
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 from typing import Any
 
 import mujoco
@@ -49,6 +55,17 @@ from dualtwin.webots.solid_scale import holds_bodies, positive_scale, transform_
 __all__ = ["VISUAL_GEOMETRY", "WebotsVisualScene"]
 
 VISUAL_GEOMETRY = ("Box", "Sphere", "Cylinder", "Capsule", "Plane", "IndexedFaceSet", "Mesh")
+_LIGHTS = ("DirectionalLight", "PointLight", "SpotLight")
+_SPECULAR = 0.3  # the highlight of a white light (Webots' lights have no specular field)
+
+
+@dataclass
+class _Parts:
+    """What a walk collects for one body (a Solid's, or the world's): geoms, and lights with their frame and
+    scale in the body's frame."""
+
+    geoms: list[dict[str, Any]] = field(default_factory=list)
+    lights: list[tuple[Any, np.ndarray, float]] = field(default_factory=list)
 
 
 def rotation_matrix(rotation: Any) -> np.ndarray:
@@ -117,19 +134,22 @@ class WebotsVisualScene:
         self._background: Any = None
         #: The sky's RGB bytes when the scene draws a Background colour (a skybox), else None (black).
         self.sky: tuple[int, int, int] | None = None
-        self._world_geoms: list[dict[str, Any]] = []
+        self._world = _Parts()
         self._names: set[str] = set()
+        #: every light drawn: (its MuJoCo name, its node)
+        self._lights: list[tuple[str, Any]] = []
         root = supervisor.getRoot()
         if not hasattr(root, "scene_node"):
             raise DualtwinError("the Webots visual scene needs dualtwin's headless runtime; in real Webots add a "
                                 "Camera device and use Camera.getImage()")
         for top in _children(root, "children"):
             self._top(top)
-        for geom in self._world_geoms:
+        for geom in self._world.geoms:
             self.spec.worldbody.add_geom(**geom)
+        self._add_lights(self.spec.worldbody, self._world)
         if background and self._background is not None:
             self._sky(self._background)
-        if not self._solids and not self._world_geoms and not allow_empty:
+        if not self._solids and not self._world.geoms and not allow_empty:
             raise DualtwinError("the Webots world has no visible Shape in any Solid: nothing to render")
         try:
             self.model = self.spec.compile()
@@ -138,36 +158,22 @@ class WebotsVisualScene:
         self.data = mujoco.MjData(self.model)
         self._mocap = [int(self.model.body_mocapid[mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, name)])
                        for _, name in self._solids]
+        self._light_ids = [mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_LIGHT, name) for name, _ in self._lights]
         self.sync()
 
     # ------------------------------------------------------------------ building
     def _top(self, handle: Any) -> None:
         kind = handle.getBaseTypeName()
         node = handle.scene_node
-        if kind == "DirectionalLight" and node.get("on", True):
-            color = np.asarray(node.get("color", (1.0, 1.0, 1.0)), dtype=float)
-            direction = np.asarray(node.get("direction", (0.0, 0.0, -1.0)), dtype=float)
-            self._light(mujoco.mjtLightType.mjLIGHT_DIRECTIONAL, [0.0, 0.0, 10.0], direction,
-                        color * float(node.get("intensity", 1.0)), color * float(node.get("ambientIntensity", 0.0)))
-        elif kind in ("PointLight", "SpotLight") and node.get("on", True):
-            color = np.asarray(node.get("color", (1.0, 1.0, 1.0)), dtype=float)
-            # A PointLight is a spot of cone 180°, OpenGL's uniform point light (GL_SPOT_CUTOFF): MuJoCo's
-            # renderer draws its own "point" lights as nothing, so a PointLight lit no pixel before.
-            light = self._light(mujoco.mjtLightType.mjLIGHT_SPOT,
-                                node.get("location", (0.0, 0.0, 0.0)), node.get("direction", (0.0, 0.0, -1.0)),
-                                color * float(node.get("intensity", 1.0)),
-                                color * float(node.get("ambientIntensity", 0.0)))
-            light.attenuation = [float(v) for v in node.get("attenuation", (1.0, 0.0, 0.0))]
-            light.cutoff = 180.0 if kind == "PointLight" else math.degrees(float(node.get("cutOffAngle", math.pi / 2)))
-        elif kind == "Viewpoint":
+        if kind == "Viewpoint":
             self._viewpoint = handle
         elif kind == "Background":
             # Webots uses the first Background of the world
             if self._background is None:
                 self._background = node
         else:
-            # Shapes outside any Solid are static scenery, drawn in the world frame.
-            self._walk(handle, np.eye(4), 1.0, self._world_geoms)
+            # Shapes and lights outside any Solid are static scenery, in the world frame.
+            self._walk(handle, np.eye(4), 1.0, self._world)
 
     def _sky(self, node: Any) -> None:
         """The Background's first skyColor as a flat skybox (nothing for black, MuJoCo's clear colour)."""
@@ -186,31 +192,52 @@ class WebotsVisualScene:
         self.spec.add_texture(name="webots_background", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
                               builtin=mujoco.mjtBuiltin.mjBUILTIN_FLAT, rgb1=colour, rgb2=colour, width=4, height=4)
 
-    def _light(self, kind: Any, pos: Any, direction: Any, diffuse: np.ndarray, ambient: np.ndarray) -> Any:
-        d = np.asarray(direction, dtype=float)
-        d = d / max(float(np.linalg.norm(d)), 1e-9)
-        return self.spec.worldbody.add_light(type=kind, pos=[float(v) for v in pos], dir=[float(v) for v in d],
-                                             diffuse=[float(v) for v in diffuse], ambient=[float(v) for v in ambient],
-                                             specular=[0.3, 0.3, 0.3], castshadow=False)
+    def _add_lights(self, body: Any, parts: _Parts) -> None:
+        """Add the Point/SpotLights of ``parts`` to ``body`` (their frames are in its frame) and its
+        DirectionalLights to the world (a world direction wherever they sit). Every light is added, on or not:
+        :meth:`sync` switches them."""
+        for node, T, scale in parts.lights:
+            kind = node.type_name
+            direction = np.asarray(node.get("direction", (0.0, 0.0, -1.0)), dtype=float)
+            direction = direction / max(float(np.linalg.norm(direction)), 1e-9)
+            name = f"webots_light{len(self._lights)}"
+            if kind == "DirectionalLight":
+                light = self.spec.worldbody.add_light(name=name, type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
+                                                      pos=[0.0, 0.0, 10.0], dir=[float(v) for v in direction])
+            else:
+                location = np.asarray(node.get("location", (0.0, 0.0, 0.0)), dtype=float) * scale
+                # A PointLight is a spot of cone 180°, OpenGL's uniform point light (GL_SPOT_CUTOFF): MuJoCo's
+                # renderer draws its own "point" lights as nothing, so a PointLight lit no pixel before.
+                cutoff = 180.0 if kind == "PointLight" else math.degrees(float(node.get("cutOffAngle", math.pi / 2)))
+                light = body.add_light(name=name, type=mujoco.mjtLightType.mjLIGHT_SPOT, cutoff=cutoff,
+                                       pos=[float(v) for v in T[:3, :3] @ location + T[:3, 3]],
+                                       dir=[float(v) for v in T[:3, :3] @ direction])
+                light.attenuation = [float(v) for v in node.get("attenuation", (1.0, 0.0, 0.0))]
+            light.castshadow = False
+            self._lights.append((name, node))
 
-    def _walk(self, handle: Any, T: np.ndarray, scale: float, geoms: list[dict[str, Any]] | None) -> None:
-        """Visit ``handle``: Solids get their own body; Shapes add to ``geoms`` (the enclosing Solid's)."""
+    def _walk(self, handle: Any, T: np.ndarray, scale: float, parts: _Parts | None) -> None:
+        """Visit ``handle``: Solids get their own body; Shapes and lights add to ``parts`` (the enclosing
+        Solid's)."""
         kind = handle.getBaseTypeName()
         node = handle.scene_node
         if schema.is_solid_type(kind):
             self._solid(handle, kind, scale)
         elif kind in ("Shape", "CadShape"):
-            if geoms is not None:
+            if parts is not None:
                 geom = self._shape(node, T, scale)
                 if geom is not None:
-                    geoms.append(geom)
+                    parts.geoms.append(geom)
+        elif kind in _LIGHTS:
+            if parts is not None:
+                parts.lights.append((node, T, scale))
         elif kind in ("Pose", "Transform", "TrackWheel"):  # a TrackWheel: a Pose at (position.x, 0, position.y)
             inner = T @ _pose(node.fields, scale)
             for child in _children(handle, "children"):
-                self._walk(child, inner, scale * _drawn_factor(node) if kind == "Transform" else scale, geoms)
+                self._walk(child, inner, scale * _drawn_factor(node) if kind == "Transform" else scale, parts)
         elif kind == "Group":
             for child in _children(handle, "children"):
-                self._walk(child, T, scale, geoms)
+                self._walk(child, T, scale, parts)
         elif kind in schema.JOINT_TYPES or kind == "Slot":
             # The endPoint Solid moves on its own: it is a body of its own, posed by the supervisor.
             for child in _children(handle, "endPoint"):
@@ -220,13 +247,14 @@ class WebotsVisualScene:
         node = handle.scene_node
         if kind == "Camera":
             self._cameras[str(node.get("name", "camera"))] = handle
-        geoms: list[dict[str, Any]] = []
+        parts = _Parts()
         for child in _children(handle, "children"):
-            self._walk(child, np.eye(4), scale, geoms)
+            self._walk(child, np.eye(4), scale, parts)
         if kind == "Lidar":  # its rotatingHead Solid (webots-devices.md §3.1), a body of its own that the lidar turns
             for head in _children(handle, "rotatingHead"):
                 self._walk(head, np.eye(4), scale, None)
-        if not geoms:  # nothing visible: no body to pose each frame
+        if not parts.geoms and all(light.type_name == "DirectionalLight" for light, _, _ in parts.lights):
+            self._add_lights(self.spec.worldbody, parts)  # nothing that moves with the Solid: no body to pose
             return
         # Bodies are named after the Solid's DEF (else its name field), as the binding names bodies.
         base = node.def_name or str(node.get("name") or kind.lower())
@@ -235,8 +263,9 @@ class WebotsVisualScene:
             name, n = f"{base}({n})", n + 1
         self._names.add(name)
         body = self.spec.worldbody.add_body(name=name, mocap=True)
-        for geom in geoms:
+        for geom in parts.geoms:
             body.add_geom(**geom)
+        self._add_lights(body, parts)
         self._solids.append((handle, name))
 
     def _shape(self, shape: Any, T: np.ndarray, scale: float) -> dict[str, Any] | None:
@@ -292,13 +321,25 @@ class WebotsVisualScene:
 
     # ------------------------------------------------------------------ per frame
     def sync(self) -> None:
-        """Copy every Solid's current supervisor pose into its mocap body."""
+        """Copy every Solid's current supervisor pose into its mocap body, and every light's state (on, colour,
+        intensities) into the model."""
         d = self.data
         for (handle, _), mocap in zip(self._solids, self._mocap, strict=True):
             d.mocap_pos[mocap] = handle.getPosition()
             R = np.asarray(handle.getOrientation(), dtype=float).reshape(3, 3)
             mujoco.mju_mat2Quat(d.mocap_quat[mocap], R.reshape(9))
+        self._sync_lights()
         mujoco.mj_forward(self.model, d)
+
+    def _sync_lights(self) -> None:
+        m = self.model
+        for (_, node), light in zip(self._lights, self._light_ids, strict=True):
+            rgb = np.asarray(node.get("color", (1.0, 1.0, 1.0)), dtype=float)
+            m.light_active[light] = bool(node.get("on", True))
+            m.light_diffuse[light] = rgb * float(node.get("intensity", 1.0))
+            m.light_ambient[light] = rgb * float(node.get("ambientIntensity", 0.0))
+            # a highlight of the light's colour (a red LED's light leaves no white glint)
+            m.light_specular[light] = rgb * _SPECULAR
 
     def snapshot(self) -> tuple[np.ndarray, np.ndarray]:
         """The Solids' current poses (mocap positions and quaternions), to be drawn later by :meth:`restore`."""
