@@ -126,3 +126,15 @@ def test_a_supervisor_switching_a_light_or_changing_its_colour_shows_at_the_next
     np.testing.assert_allclose(_box_bgr(sup, cam), [dark[0], white[1], dark[2]], atol=1.0)
     lamp.getField("on").setSFBool(False)
     np.testing.assert_allclose(_box_bgr(sup, cam), dark, atol=1.0)
+
+
+def test_a_directional_light_in_a_turned_solid_shines_along_its_world_direction() -> None:
+    # Webots' DirectionalLight page: its direction is "in the global coordinate system" wherever the node sits.
+    # 0 1 0 shines onto the near face (its normal is -y); turned with the Solid (a quarter turn about z) it would
+    # be -x, along the face, lighting nothing of it.
+    dark = _pixel(_world("", ""))
+    sun = "DirectionalLight { direction 0 1 0 intensity 0.1 }"
+    control = _pixel(_world(sun, ""))
+    assert (control > dark + 5).all(), (control, dark)
+    lit = _pixel(_world(f"Solid {{ rotation 0 0 1 1.5707963267948966 children [ {sun} ] }}", ""))
+    np.testing.assert_allclose(lit, control, atol=1.0)
