@@ -1,8 +1,10 @@
-"""Composite: a Camera's image of a white box lit by a light the robot carries.
+"""Composite: a Camera's image of a white box lit by a light the robot carries, or by an LED's light.
 
 In Webots a light is a child like any other: a PointLight inside a Solid has its ``location`` in the Solid's frame
-and moves with it (PointLight reference page). The twin's camera drew only the world's top-level lights, and its
-PointLights (MuJoCo "point" lights, which MuJoCo's renderer draws as nothing) not at all.
+and moves with it (PointLight reference page), and an LED switches the lights among its children: off while the
+LED is off (``set(0)``, its state at start), on in the colour its value selects otherwise (LED reference page).
+The twin's camera drew only the world's top-level lights, and its PointLights (MuJoCo "point" lights, which
+MuJoCo's renderer draws as nothing) not at all.
 
 Expected values are relative: every image is compared with a control world drawn by the same renderer, the
 same light at top level at the world place worked out by hand (the same pixel), or no light (MuJoCo's headlight
@@ -18,6 +20,7 @@ import pytest
 
 from dualtwin.webots.camera import Camera
 from dualtwin.webots.controller import Supervisor
+from dualtwin.webots.led import LED
 from dualtwin.webots.physics import Simulation
 from dualtwin.webots.protos import load_world_text
 
@@ -61,11 +64,16 @@ def _open(text: str) -> tuple[Supervisor, Camera]:
     return sup, cam
 
 
-def _box_bgr(sup: Supervisor, cam: Camera) -> np.ndarray:
-    """The mean B, G, R bytes of the image's centre (on the box's near face) after one more step."""
-    sup.step(16)
+def _centre_bgr(cam: Camera) -> np.ndarray:
+    """The mean B, G, R bytes of the image's centre (on the box's near face)."""
     image = np.frombuffer(cam.getImage(), dtype=np.uint8).reshape(16, 16, 4)
     return np.asarray(image[6:10, 6:10, :3], dtype=float).mean(axis=(0, 1))
+
+
+def _box_bgr(sup: Supervisor, cam: Camera) -> np.ndarray:
+    """:func:`_centre_bgr` after one more step."""
+    sup.step(16)
+    return _centre_bgr(cam)
 
 
 def _pixel(text: str) -> np.ndarray:
@@ -111,6 +119,39 @@ def test_a_carried_point_light_moves_with_the_robot() -> None:
     # and not as a light left where it was loaded, (0.7, 1.5, 0.3)
     stuck = _pixel(_world(SAME_AT_TOP, "", robot_at="0.2 0 0"))
     assert (np.abs(stuck - moved) > 5).all(), (stuck, moved)
+
+
+def test_an_led_switches_its_light_and_gives_it_its_colour() -> None:
+    dark = _pixel(_world("", ""))
+    white = _pixel(_world(SPOT_AT_TOP, ""))
+    assert (white > dark + 5).all(), (white, dark)
+    led = f'LED {{ name "led" color [ 1 1 1, 0 0 1 ] children [ {CARRIED_SPOT} ] }}'
+    sup, cam = _open(_world("", led))
+    device = sup.getDevice("led")
+    assert isinstance(device, LED)
+    # off at start: the light's own `on TRUE` does not light it
+    np.testing.assert_allclose(_box_bgr(sup, cam), dark, atol=1.0)
+    sup.step(16)
+    device.set(1)
+    # the image of the step just done, read after the set: the value goes out with the next step request
+    np.testing.assert_allclose(_centre_bgr(cam), dark, atol=1.0)
+    np.testing.assert_allclose(_box_bgr(sup, cam), white, atol=1.0)
+    device.set(2)  # blue: the image's B byte as with the white light, G and R as without light
+    np.testing.assert_allclose(_box_bgr(sup, cam), [white[0], dark[1], dark[2]], atol=1.0)
+    device.set(0)
+    np.testing.assert_allclose(_box_bgr(sup, cam), dark, atol=1.0)
+
+
+def test_a_gradual_led_gives_its_light_the_value_read_as_rgb() -> None:
+    dark = _pixel(_world("", ""))
+    white = _pixel(_world(SPOT_AT_TOP, ""))
+    assert (white > dark + 5).all(), (white, dark)
+    sup, cam = _open(_world("", f'LED {{ name "led" gradual TRUE color [] children [ {CARRIED_SPOT} ] }}'))
+    device = sup.getDevice("led")
+    assert isinstance(device, LED)
+    device.set(0xFF0000)
+    # red: R (the image's third byte) as with the white light, B and G as without light
+    np.testing.assert_allclose(_box_bgr(sup, cam), [dark[0], dark[1], white[2]], atol=1.0)
 
 
 def test_a_supervisor_switching_a_light_or_changing_its_colour_shows_at_the_next_image() -> None:

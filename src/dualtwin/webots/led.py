@@ -1,8 +1,10 @@
-"""LED: a light a controller switches; it has no physics and lights nothing headless.
+"""LED: a light a controller switches; it has no physics.
 
 ``set(value)``: 0 is off; without ``gradual`` a value 1..n selects the n-th entry of ``color`` (other values are
 refused with a message, as Webots does); with ``gradual`` TRUE (a single colour or RGB LED) the value is the
-0xRRGGBB colour itself. ``get()`` returns the last value set (0 at start).
+0xRRGGBB colour itself. ``get()`` returns the last value set (0 at start). The lights among the LED's children
+follow the value sent with the controller's next step request (:mod:`.led_lights`): cameras and light sensors
+see them switched from that step on. The LED's own Shapes keep their colour in camera images.
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ from typing import Any
 
 from dualtwin.webots.api_args import as_int, warn
 from dualtwin.webots.device_base import Device
+from dualtwin.webots.led_lights import commit_led_value
 from dualtwin.webots.step_hints import buffered, command_value
 
 __all__ = ["LED"]
@@ -20,6 +23,13 @@ class LED(Device):
     """Webots ``LED`` (module docstring)."""
 
     _state = 0  # off until set (per instance once set)
+
+    def _setup(self) -> None:
+        self._robot.step_listeners.append(self._controller_step)
+
+    def _controller_step(self, _ms: float) -> None:
+        # libController sends the value with the step request: the world's lights follow it from this step
+        commit_led_value(self._robot._sim, self._record.node, self._state)
 
     @buffered(int)
     def set(self, v: Any) -> None:

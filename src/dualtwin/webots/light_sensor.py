@@ -11,9 +11,10 @@ sensor axis ``x`` and ``d`` the distance from the light to the sensor:
   Point/SpotLight, and 0 beyond the light's ``radius``;
 * ``spot_k`` (SpotLight only) with ``α`` the angle between the spot's ``direction`` and the light-to-sensor
   vector: 1 within ``beamWidth``, 0 beyond ``cutOffAngle``, linear in between (VRML's fall-off);
-* ``on_k``: the light's ``on`` field, and with ``occlusion TRUE`` 0 when a ray from the sensor to the light
-  hits a bounding object first (the Solid carrying the light and the sensor's own robot, unless it has
-  selfCollision, are not obstacles);
+* ``on_k`` and ``colour_k``: the light's ``on`` and ``color`` fields, or for a light an LED drives the LED's
+  state (off at 0, else on in the LED's colour: :mod:`.led_lights`); with ``occlusion TRUE`` ``on_k`` is 0 when
+  a ray from the sensor to the light hits a bounding object first (the Solid carrying the light and the
+  sensor's own robot, unless it has selfCollision, are not obstacles);
 * the colour is weighted by ``colorFilter`` and the three channels averaged, so white light through the
   default white filter counts once; then the lookup table (default ``[0 0 0, 1 1000 0]``) and ``resolution``.
 
@@ -29,6 +30,7 @@ import numpy as np
 
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots.device_base import SolidSensor
+from dualtwin.webots.led_lights import light_state
 from dualtwin.webots.lights import LightSource, light_sources
 from dualtwin.webots.lut import Table, discretize, lookup, table_from_field
 from dualtwin.webots.physics import GeomRec, Simulation
@@ -76,7 +78,8 @@ def irradiance(sim: Simulation, pose: m3.Pose, colour_filter: Any, occlusion: bo
     for light in light_sources(sim):
         node = light.node
         f = node.fields
-        if not f.get("on", True):
+        on, colour = light_state(sim, node, light.led)
+        if not on:
             continue
         lp = light.world_pose(sim)
         if node.type_name == "DirectionalLight":
@@ -108,7 +111,6 @@ def irradiance(sim: Simulation, pose: m3.Pose, colour_filter: Any, occlusion: bo
             continue
         if occlusion and not _visible(sim, light, pose.t, toward, min(distance, 1e6), robot):
             continue
-        colour = [float(c) for c in f.get("color", (1.0, 1.0, 1.0))]
         total += factor * light_level * sum(c * w for c, w in zip(colour, filt, strict=False)) / 3.0
     return total
 

@@ -3,8 +3,10 @@
 A light is a plain node: at the top level its ``location``/``direction`` are world coordinates; inside a Solid
 (possibly under ``Pose``/``Transform`` nodes) they are in that frame and the light moves with the Solid, as in
 Webots, except a DirectionalLight's ``direction``, which Webots' DirectionalLight page gives "in the global
-coordinate system" wherever the node sits (its users read the field as it is). :func:`light_sources` walks the scene once (and again after a supervisor changed it) and keeps, for
-each light, the Solid it rides on and its pose in that Solid's frame; :meth:`LightSource.world_pose` composes the Solid's current pose.
+coordinate system" wherever the node sits (its users read the field as it is). :func:`light_sources` walks the scene
+once (and again after a supervisor changed it) and keeps, for each light, the Solid it rides on, its pose in that
+Solid's frame and the LED driving it (the light's closest Solid is an LED: :mod:`.led_lights`);
+:meth:`LightSource.world_pose` composes the Solid's current pose.
 """
 
 from __future__ import annotations
@@ -24,11 +26,13 @@ _GROUPING = ("children", "endPoint")
 
 @dataclass
 class LightSource:
-    """One light node, the Solid carrying it (None: the world) and its frame in that Solid's frame."""
+    """One light node, the Solid carrying it (None: the world), its frame in that Solid's frame and the LED that
+    switches it (None: its own ``on`` field does)."""
 
     node: Node
     solid: SolidRec | None
     frame: m3.Pose
+    led: Node | None = None
 
     def world_pose(self, sim: Simulation) -> m3.Pose:
         if self.solid is None:
@@ -36,21 +40,23 @@ class LightSource:
         return sim.solid_world_pose(self.solid) * self.frame
 
 
-def _walk(sim: Simulation, node: Any, solid: SolidRec | None, frame: m3.Pose, out: list[LightSource]) -> None:
+def _walk(sim: Simulation, node: Any, solid: SolidRec | None, frame: m3.Pose, out: list[LightSource],
+          led: Node | None = None) -> None:
     if not isinstance(node, Node):
         return
     if node.type_name in LIGHT_TYPES:
-        out.append(LightSource(node, solid, frame))
+        out.append(LightSource(node, solid, frame, led))
         return
     rec = sim.solid_for(node)
     if rec is not None:
-        solid, frame = rec, m3.Pose()
+        # an LED drives the lights among its own children, not those of a Solid inside it (a device of its own)
+        solid, frame, led = rec, m3.Pose(), node if node.type_name == "LED" else None
     elif "translation" in node.fields and "rotation" in node.fields:  # Pose / Transform
         frame = frame * m3.Pose.from_fields(node.fields.get("translation"), node.fields.get("rotation"))
     for name in _GROUPING:
         value = node.fields.get(name)
         for child in value if isinstance(value, list) else [value]:
-            _walk(sim, child, solid, frame, out)
+            _walk(sim, child, solid, frame, out, led)
 
 
 def light_sources(sim: Simulation) -> list[LightSource]:

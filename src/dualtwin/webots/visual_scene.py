@@ -16,8 +16,8 @@ renderer as the MuJoCo twin (:class:`dualtwin.twins.camera.FrameRenderer`):
   body, its ``location``/``direction`` in that frame, so it moves with the Solid; a DirectionalLight's
   ``direction`` is a world direction wherever it sits (Webots' DirectionalLight page: "in the global coordinate
   system"; the LightSensor reads it so too: :mod:`.lights`). Each frame, :meth:`WebotsVisualScene.sync` switches
-  them and sets their colour from their ``on``/``color``/``intensity`` fields. MuJoCo's default headlight is
-  kept, as in every MuJoCo model;
+  them and sets their colour from their ``on``/``color``/``intensity`` fields, or for the lights of an LED
+  from the LED's state (:mod:`.led_lights`). MuJoCo's default headlight is kept, as in every MuJoCo model;
 * the Background: with ``background=True`` (a ``Camera`` device's scene) the sky is the first Background's
   first ``skyColor``, as Webots draws it where no cube-map texture is set (the TexturedBackground PROTO says so
   of its ``skyColor``); its textures are not drawn (a line in :attr:`WebotsVisualScene.warnings`). It is a flat
@@ -47,6 +47,7 @@ from dualtwin.errors import DualtwinError
 from dualtwin.geometry import mujoco_quat
 from dualtwin.webots import _math3 as m3
 from dualtwin.webots import schema
+from dualtwin.webots.led_lights import light_state
 from dualtwin.webots.mesh_files import MeshFileError
 from dualtwin.webots.render import ResolvedCamera
 from dualtwin.webots.shapes import CAD_SHAPE_RGBA, appearance_rgba, surface_triangles
@@ -62,10 +63,11 @@ _SPECULAR = 0.3  # the highlight of a white light (Webots' lights have no specul
 @dataclass
 class _Parts:
     """What a walk collects for one body (a Solid's, or the world's): geoms, and lights with their frame and
-    scale in the body's frame."""
+    scale in the body's frame; ``led``: the LED whose lights these are (the body is an LED's)."""
 
     geoms: list[dict[str, Any]] = field(default_factory=list)
     lights: list[tuple[Any, np.ndarray, float]] = field(default_factory=list)
+    led: Any = None
 
 
 def rotation_matrix(rotation: Any) -> np.ndarray:
@@ -136,12 +138,13 @@ class WebotsVisualScene:
         self.sky: tuple[int, int, int] | None = None
         self._world = _Parts()
         self._names: set[str] = set()
-        #: every light drawn: (its MuJoCo name, its node)
-        self._lights: list[tuple[str, Any]] = []
+        #: every light drawn: (its MuJoCo name, its node, the LED driving it or None)
+        self._lights: list[tuple[str, Any, Any]] = []
         root = supervisor.getRoot()
         if not hasattr(root, "scene_node"):
             raise DualtwinError("the Webots visual scene needs dualtwin's headless runtime; in real Webots add a "
                                 "Camera device and use Camera.getImage()")
+        self._sim = root._sim  # where an LED's state is (led_lights)
         for top in _children(root, "children"):
             self._top(top)
         for geom in self._world.geoms:
@@ -158,7 +161,7 @@ class WebotsVisualScene:
         self.data = mujoco.MjData(self.model)
         self._mocap = [int(self.model.body_mocapid[mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, name)])
                        for _, name in self._solids]
-        self._light_ids = [mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_LIGHT, name) for name, _ in self._lights]
+        self._light_ids = [mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_LIGHT, name) for name, _, _ in self._lights]
         self.sync()
 
     # ------------------------------------------------------------------ building
@@ -214,7 +217,7 @@ class WebotsVisualScene:
                                        dir=[float(v) for v in T[:3, :3] @ direction])
                 light.attenuation = [float(v) for v in node.get("attenuation", (1.0, 0.0, 0.0))]
             light.castshadow = False
-            self._lights.append((name, node))
+            self._lights.append((name, node, parts.led))
 
     def _walk(self, handle: Any, T: np.ndarray, scale: float, parts: _Parts | None) -> None:
         """Visit ``handle``: Solids get their own body; Shapes and lights add to ``parts`` (the enclosing
@@ -247,7 +250,8 @@ class WebotsVisualScene:
         node = handle.scene_node
         if kind == "Camera":
             self._cameras[str(node.get("name", "camera"))] = handle
-        parts = _Parts()
+        # an LED drives the lights among its own children (Webots' LED page), not those of a Solid inside it
+        parts = _Parts(led=node if kind == "LED" else None)
         for child in _children(handle, "children"):
             self._walk(child, np.eye(4), scale, parts)
         if kind == "Lidar":  # its rotatingHead Solid (webots-devices.md §3.1), a body of its own that the lidar turns
@@ -322,7 +326,7 @@ class WebotsVisualScene:
     # ------------------------------------------------------------------ per frame
     def sync(self) -> None:
         """Copy every Solid's current supervisor pose into its mocap body, and every light's state (on, colour,
-        intensities) into the model."""
+        intensities; an LED's state for its lights) into the model."""
         d = self.data
         for (handle, _), mocap in zip(self._solids, self._mocap, strict=True):
             d.mocap_pos[mocap] = handle.getPosition()
@@ -333,9 +337,10 @@ class WebotsVisualScene:
 
     def _sync_lights(self) -> None:
         m = self.model
-        for (_, node), light in zip(self._lights, self._light_ids, strict=True):
-            rgb = np.asarray(node.get("color", (1.0, 1.0, 1.0)), dtype=float)
-            m.light_active[light] = bool(node.get("on", True))
+        for (_, node, led), light in zip(self._lights, self._light_ids, strict=True):
+            on, colour = light_state(self._sim, node, led)
+            rgb = np.asarray(colour, dtype=float)
+            m.light_active[light] = on
             m.light_diffuse[light] = rgb * float(node.get("intensity", 1.0))
             m.light_ambient[light] = rgb * float(node.get("ambientIntensity", 0.0))
             # a highlight of the light's colour (a red LED's light leaves no white glint)
