@@ -400,8 +400,10 @@ REGISTRY: tuple[Coverage, ...] = (
              "the physics step; cellDistance and cellSpeed are not modelled"),
     Coverage("LightSensor", "device", "supported",
              "irradiance of Directional/Point/SpotLights (attenuation, radius, linear spot fall-off, cos θ, "
-             "ambient; a DirectionalLight's direction is global wherever it sits), colorFilter averaged over RGB, occlusion rays (the Solid carrying the light does not "
-             "hide it), lookupTable and resolution, from the poses after the physics step"),
+             "ambient; a DirectionalLight's direction is global wherever it sits; lights inside Solids at the "
+             "Solid's pose; an LED's lights follow the LED), colorFilter averaged over RGB, occlusion rays (the "
+             "Solid carrying the light does not hide it), lookupTable and resolution, from the poses after the "
+             "physics step"),
     Coverage("Emitter", "device", "partial",
              "in-process channels: channel filters, range and maxRange, medium type, buffer size, baud rate, "
              "infra-red line of sight and aperture, judged from the poses after the physics step of the "
@@ -417,7 +419,10 @@ REGISTRY: tuple[Coverage, ...] = (
              "RGBA frame buffer: colour, alpha, opacity, pixels, lines, rectangles, ovals, polygons, image "
              "new/copy/paste/save (PNG)/load/delete; text is not rasterised and attachCamera shows nothing"),
     Coverage("Speaker", "device", "not", "not yet: no sound"),
-    Coverage("LED", "device", "supported", "set/get with colour index or gradual RGB; no light emitted"),
+    Coverage("LED", "device", "supported",
+             "set/get with colour index or gradual RGB; the lights among its children follow it in Camera images "
+             "and LightSensor readings from the next step (off at 0 and at start, else on in the LED's colour); "
+             "its Shapes' colour does not change"),
     Coverage("Pen", "device", "partial",
              "write/setInkColor keep their state; ink is visual only in Webots and is not drawn headless"),
     Coverage("Connector", "device", "partial",
@@ -450,9 +455,16 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Background", "visual", "visual", "Camera images show its first skyColor behind the Shapes, "
              "rounded to the nearest byte; its cube-map textures are not drawn (a warning); luminosity is not "
              "used"),
-    Coverage("DirectionalLight", "visual", "visual", "lights Camera images (no shadows)"),
-    Coverage("PointLight", "visual", "visual", "lights Camera images (no shadows)"),
-    Coverage("SpotLight", "visual", "visual", "lights Camera images (no shadows)"),
+    Coverage("DirectionalLight", "visual", "visual",
+             "lights Camera images wherever it sits, its direction global (no shadows); on, color and intensities "
+             "followed at each image, an LED's state for an LED's light"),
+    Coverage("PointLight", "visual", "visual",
+             "lights Camera images (an OpenGL point light, with its attenuation; no shadows); inside a Solid it "
+             "moves with it; on, color and intensities followed at each image, an LED's state for an LED's light"),
+    Coverage("SpotLight", "visual", "visual",
+             "lights Camera images (cone of cutOffAngle, MuJoCo's fall-off rather than beamWidth; no shadows); "
+             "inside a Solid it moves with it; on, color and intensities followed at each image, an LED's state "
+             "for an LED's light"),
     Coverage("Fog", "visual", "visual", "not rendered"),
     Coverage("Viewpoint", "visual", "visual", "no viewer headless"),
 )
