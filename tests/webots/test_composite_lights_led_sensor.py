@@ -12,6 +12,7 @@ irradiance with the colour weighted by the white default ``colorFilter``).
 from __future__ import annotations
 
 import warnings
+from pathlib import Path
 
 import pytest
 
@@ -20,6 +21,7 @@ from dualtwin.webots.controller import Supervisor
 from dualtwin.webots.led import LED
 from dualtwin.webots.light_sensor import LightSensor
 from dualtwin.webots.physics import Simulation
+from tests.support.isolation_runs import assert_threads_print, run_in_both_modes
 
 UP = "rotation 0 1 0 -1.5707963267948966"  # the sensor's x axis points up, +z
 # 1 m above the sensor, straight along its axis: d = 1, cos θ = 1, E = 0.5/1² = 0.5 for white light
@@ -82,3 +84,27 @@ def test_a_light_in_a_lamp_solid_is_read_where_a_supervisor_moved_it() -> None:
     lamp.getField("translation").setSFVec3f([0.0, 0.0, 1.0])
     # now at (0, 0, 2): d = 2, E = 0.5/4
     assert _after_step(sup, sensor) == pytest.approx(125.0, abs=1e-6)
+
+
+def test_a_controller_in_its_own_process_switches_the_led_light_with_its_step(tmp_path: Path) -> None:
+    # LED.set is buffered in a controller process and goes with the step request, as in libController: the
+    # readings are those of the thread mode, 0 (off at start), 500 (white), 500/3 (red), 0 as above
+    world = f"""#VRML_SIM R2023b utf8
+WorldInfo {{ basicTimeStep 16 gravity 0 }}
+Robot {{
+  children [ LightSensor {{ name "ls" {UP} }} LED {{ name "led" color [ 1 0 0, 1 1 1 ] children [ {LAMP} ] }} ]
+  controller "probe"
+}}
+"""
+    script = """
+        from controller import Robot
+        robot = Robot()
+        sensor, led = robot.getDevice("ls"), robot.getDevice("led")
+        sensor.enable(16)
+        for value in (0, 2, 1, 0):
+            led.set(value)
+            robot.step(16)
+            print(round(sensor.getValue(), 3))
+    """
+    assert_threads_print(run_in_both_modes(tmp_path, world, script, 0.064), "0.0\n500.0\n166.667\n0.0\n")
+
