@@ -210,7 +210,7 @@ class WebotsVisualScene:
             else:
                 location = np.asarray(node.get("location", (0.0, 0.0, 0.0)), dtype=float) * scale
                 # A PointLight is a spot of cone 180°, OpenGL's uniform point light (GL_SPOT_CUTOFF): MuJoCo's
-                # renderer draws its own "point" lights as nothing, so a PointLight lit no pixel before.
+                # renderer draws its own "point" lights as nothing.
                 cutoff = 180.0 if kind == "PointLight" else math.degrees(float(node.get("cutOffAngle", math.pi / 2)))
                 light = body.add_light(name=name, type=mujoco.mjtLightType.mjLIGHT_SPOT, cutoff=cutoff,
                                        pos=[float(v) for v in T[:3, :3] @ location + T[:3, 3]],
