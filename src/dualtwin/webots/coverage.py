@@ -359,8 +359,10 @@ REGISTRY: tuple[Coverage, ...] = (
              "are hit on their files' triangles; Webots' load-time layer check (numberOfLayers at most "
              "verticalFieldOfView·horizontalResolution/fieldOfView, 2π for a rotating one: else rewritten, with "
              "a warning); a supervisor's edit of fieldOfView, verticalFieldOfView, tiltAngle, projection, "
-             "minRange, maxRange, near, noise or resolution sets the next scan and the getters (the image size, "
-             "type and frequency stay)"),
+             "minRange, maxRange, near, noise or resolution sets the next scan and the getters; one of "
+             "horizontalResolution or numberOfLayers sizes the next scan (the load's layer check applied again), "
+             "minFrequency/maxFrequency set setFrequency's bounds (the frequency clamped into them) and "
+             "defaultFrequency the frequency; a type edit is not applied (a warning line)"),
     Coverage("RangeFinder", "device", "partial",
              "planar depth image as one ray per pixel against the visual Shapes (as Webots renders them); "
              "+inf outside [minRange, maxRange), noise, resolution (fieldOfView, ranges, noise and resolution "

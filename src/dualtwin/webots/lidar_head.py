@@ -194,6 +194,12 @@ class RotatingScan:
         self.rays = (np.arange(self.layers)[:, None] * self.width + self.columns[None, :]).ravel()
         return directions[self.rays], lengths[self.rays]
 
+    def resize(self, width: int, layers: int) -> None:
+        """A supervisor's edit gave the image another size (:mod:`.lidar_edits`): every column is cast anew."""
+        self.width, self.layers = width, layers
+        self.times = np.zeros(width)
+        self.columns = self.rays = np.empty(0, dtype=int)
+
     def clear(self) -> None:
         """The image was cleared (simulationReset, a first enable): every column was cast at time 0."""
         self.times[:] = 0.0

@@ -45,6 +45,7 @@ from dualtwin.artifacts import write_bytes
 from dualtwin.webots.api_args import as_float, as_int, error, warn
 from dualtwin.webots.device_base import SolidSensor
 from dualtwin.webots.display import png_bytes
+from dualtwin.webots.lidar_edits import HEAD_FIELDS, edited_model
 from dualtwin.webots.lidar_head import RotatingScan, frequencies
 from dualtwin.webots.lidar_point import LidarPoint
 from dualtwin.webots.lut import Table, discretize, lookup, table_from_field
@@ -400,7 +401,7 @@ def _range_limits(fields: dict[str, Any]) -> tuple[float, float]:
 
 #: the fields of a Lidar or RangeFinder whose edit at run time changes its next image
 _DEPTH_EDITABLE = ("fieldOfView", "minRange", "maxRange", "near", "noise", "resolution")
-_LIDAR_EDITABLE = (*_DEPTH_EDITABLE, "verticalFieldOfView", "tiltAngle", "projection")
+_LIDAR_EDITABLE = (*_DEPTH_EDITABLE, "verticalFieldOfView", "tiltAngle", "projection", *HEAD_FIELDS)
 
 
 def _pitch(dirs: np.ndarray, angle: float) -> np.ndarray:
@@ -494,13 +495,7 @@ class Lidar(_DepthDevice):
         changed = self._fields_changed(_LIDAR_EDITABLE)
         model = getattr(self, "_model_cache", None)
         if model is not None and changed:
-            # Webots' update slots (field of view, ranges, noise, resolution): the rays and values of the next
-            # scan; the image's size and the head's state (type, frequency) stay
-            kept = {"horizontalResolution": model.width, "numberOfLayers": model.layers,
-                    "type": "rotating" if model.rotating else "fixed"}
-            new = LidarModel.from_node({**self._record.node.fields, **kept})
-            for name in ("fov", "vfov", "tilt", "planar", "grid", "azimuths", "elevations"):
-                setattr(model, name, getattr(new, name))
+            model = self._model_cache = self._edited(model, changed)
         if model is None:
             model = self._model_cache = LidarModel.from_node(self._record.node.fields)
             self._cloud = False
@@ -508,6 +503,15 @@ class Lidar(_DepthDevice):
             self._scan = RotatingScan(self._robot._sim, self._record, model.width, model.layers) if model.rotating \
                 else None  # fmt: skip
         return model
+
+    def _edited(self, model: LidarModel, changed: frozenset[str]) -> LidarModel:
+        """The model after a supervisor's edit (Webots' update slots; :mod:`.lidar_edits`)."""
+        new = edited_model(model, self._record.node.fields, changed, self._name, LidarModel.from_node)
+        if (new.width, new.layers) != (model.width, model.layers):
+            self._image = None  # zeros of the new size until the next sample
+            if self._scan is not None:
+                self._scan.resize(new.width, new.layers)
+        return new
 
     def _rotating(self) -> RotatingScan | None:
         self._model()

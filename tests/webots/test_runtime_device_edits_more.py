@@ -1,0 +1,130 @@
+"""A supervisor's edit of the fields of the devices ``test_runtime_device_edits`` leaves out: a Lidar's image size,
+frequencies and type (the choices of :mod:`dualtwin.webots.lidar_edits`, where D is silent on run-time edits),
+Recognition, Battery, and the devices that read their fields live (Connector, VacuumGripper, Compass, GPS, ...).
+
+D = shared/reference/webots-devices.md. Expected values are hand computations from D's rules (each test shows
+it), never runs of this code; each test has its control (the same run without the edit)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from tests.support.sensor_worlds import sensor_world
+
+STEP = 8
+# a wall with a visual Shape whose near face is the plane x = 0.5: Lidar rays hit what Webots renders (D §3.2)
+SEEN_WALL = ("Solid { translation 0.6 0 0.1 children [ Shape { geometry Box { size 0.2 4 4 } } ] "
+             "boundingObject Box { size 0.2 4 4 } }")
+# one column, one layer, straight ahead: the ray meets the wall at 0.5 m
+ONE_RAY = 'DEF L Lidar { name "l" horizontalResolution 1 numberOfLayers 1 fieldOfView 0.1 }'
+
+
+def _lidar(node: str = ONE_RAY) -> tuple:  # type: ignore[type-arg]
+    sup = sensor_world(node, SEEN_WALL, step=STEP)
+    lidar = sup.getDevice("l")
+    lidar.enable(STEP)
+    sup.step(STEP)
+    return sup, lidar, sup.getFromDef("L")
+
+
+# ------------------------------------------------------------------------------------------------------ Lidar
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_lidar_horizontal_resolution_edit_sizes_the_next_scan(edit: bool) -> None:
+    # D §3.2: fixed lidar θ_j = fov/2 − (j+½)·fov/W; W = 2, fov 0.1: θ = ±0.025, each ray (elevation 0) meets the
+    # plane x = 0.5 at the Euclidean distance 0.5/cos(0.025). Layer check (D §3.1): 1 ≤ 0.2·2/0.1 = 4, kept.
+    # The control keeps W = 1: [0.5]
+    sup, lidar, node = _lidar()
+    assert lidar.getRangeImage() == pytest.approx([0.5])
+    if edit:
+        node.getField("horizontalResolution").setSFInt32(2)
+    sup.step(STEP)
+    expected = [0.5 / math.cos(0.025)] * 2 if edit else [0.5]
+    assert lidar.getHorizontalResolution() == (2 if edit else 1)
+    assert lidar.getRangeImage() == pytest.approx(expected, rel=1e-9)
+    assert lidar.getRangeImageArray() == [pytest.approx(expected, rel=1e-9)]
+    sup.simulationReset()  # the load's horizontalResolution again (the restored field read again)
+    sup.step(STEP)
+    sup.step(STEP)
+    assert lidar.getHorizontalResolution() == 1
+    assert lidar.getRangeImage() == pytest.approx([0.5])
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_lidar_number_of_layers_edit_sizes_the_next_scan_with_the_load_check(
+    edit: bool, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # D §3.1/§3.2: layers φ_i = vfov/2 − i·vfov/(L−1); L = 2, vfov 0.2: φ = ±0.1, the ray straight ahead in
+    # azimuth meets x = 0.5 at 0.5/cos(0.1). The layer check at load: L ≤ vfov·W/fov = 0.2·1/0.1 = 2, so a 5
+    # written is cut to 2 with a warning as at load (lidar_edits' choice for a run-time edit)
+    sup, lidar, node = _lidar()
+    capsys.readouterr()
+    if edit:
+        node.getField("numberOfLayers").setSFInt32(5)
+    sup.step(STEP)
+    warned = capsys.readouterr().err
+    assert ("numberOfLayers 5 is more than" in warned) == edit
+    assert lidar.getNumberOfLayers() == (2 if edit else 1)
+    expected = [0.5 / math.cos(0.1)] * 2 if edit else [0.5]
+    assert lidar.getRangeImage() == pytest.approx(expected, rel=1e-9)
+    assert len(lidar.getRangeImageArray()) == (2 if edit else 1)
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_rotating_lidar_horizontal_resolution_edit_sizes_its_turning_image(edit: bool) -> None:
+    # a rotating lidar's image spans 2π (D §3.1), cast column by column as its head turns (D §3.2); at 10 Hz and
+    # 8 ms per step the head turns 0.08 turn a step, so 13 steps (1.04 turns) cast every column. W = 16 instead
+    # of 8: 16 ranges, none 0 (the wall or +inf beyond maxRange 1)
+    sup, lidar, node = _lidar('DEF L Lidar { name "l" type "rotating" horizontalResolution 8 numberOfLayers 1 }')
+    if edit:
+        node.getField("horizontalResolution").setSFInt32(16)
+    for _ in range(13):
+        sup.step(STEP)
+    image = lidar.getRangeImage()
+    assert lidar.getHorizontalResolution() == len(image) == (16 if edit else 8)
+    assert all(v > 0.0 for v in image)
+    assert len(lidar.getPointCloud()) == 0  # the cloud is off: a warning and no point, whatever the size
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_lidar_frequency_field_edits_set_its_bounds_and_frequency(edit: bool) -> None:
+    # D §3.1/§3.3: defaults 1/25 Hz, defaultFrequency 10; setFrequency outside [min, max] is refused (error).
+    # maxFrequency 8 written: the bounds are [1, 8] and the current 10 is clamped to 8 (lidar_edits' choice);
+    # setFrequency(9) is then refused. defaultFrequency 5 written: the frequency is 5, replacing what the
+    # controller set (6)
+    sup, lidar, node = _lidar()
+    if edit:
+        node.getField("maxFrequency").setSFFloat(8.0)
+    sup.step(STEP)
+    assert lidar.getMaxFrequency() == (8.0 if edit else 25.0)
+    assert lidar.getFrequency() == (8.0 if edit else 10.0)
+    lidar.setFrequency(9.0)
+    assert lidar.getFrequency() == (8.0 if edit else 9.0)
+    lidar.setFrequency(6.0)
+    if edit:
+        node.getField("defaultFrequency").setSFFloat(5.0)
+    sup.step(STEP)
+    assert lidar.getFrequency() == (5.0 if edit else 6.0)
+    assert lidar.getMinFrequency() == 1.0
+    sup.simulationReset()  # the load's bounds and frequency again (the restored fields read again)
+    sup.step(STEP)
+    assert (lidar.getMaxFrequency(), lidar.getFrequency()) == ((25.0, 10.0) if edit else (25.0, 6.0))
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_lidar_type_edit_is_named_and_not_applied(edit: bool, capsys: pytest.CaptureFixture[str]) -> None:
+    # a fixed lidar's type written "rotating": the image keeps the fixed lidar's fieldOfView span (one ray ahead,
+    # 0.5) and one warning line says the edit is not applied (lidar_edits' choice; D is silent)
+    sup, lidar, node = _lidar()
+    capsys.readouterr()
+    if edit:
+        node.getField("type").setSFString("rotating")
+    sup.step(STEP)
+    sup.step(STEP)
+    assert lidar.getFov() == 0.1
+    assert lidar.getRangeImage() == pytest.approx([0.5])
+    warned = capsys.readouterr().err
+    assert warned.count("a run-time edit of type is not applied") == (1 if edit else 0)
