@@ -8,6 +8,10 @@ What Webots documents (Connector reference page) and this module does:
   axes, pointing out of each connector) are opposite within ``axisTolerance``; and, unless
   ``numberOfRotations`` is 0, the z axes differ by a multiple of ``2π/numberOfRotations`` about the docking
   axis within ``rotationTolerance``.
+* **Run-time edits**: every field is read when used, so a supervisor's write of a tolerance, ``type``,
+  ``model``, ``autoLock``, ``unilateralLock``/``unilateralUnlock``, ``snap`` or a strength acts from the next
+  step; a write of ``isLocked`` acts as ``lock()``/``unlock()`` would at the next step (the reference is silent:
+  the Connector page calls the field the locking state those calls change).
 * ``getPresence()`` reads 1 while the connector is docked to a peer or a compatible peer is in position, else
   0; a ``passive`` connector has no presence sensor and reads -1 (Webots' "not applicable").
 * **Lock**: ``lock()`` sets ``isLocked``; at the next physics step, if a compatible peer is in position and
@@ -44,6 +48,7 @@ from dualtwin.webots import _math3 as m3
 from dualtwin.webots.device_base import Device, DeviceBinding, SampledDevice
 from dualtwin.webots.fixed_link import FixedLink, body_of
 from dualtwin.webots.physics import Simulation, SolidRec
+from dualtwin.webots.physics.edit_stamps import stamps_of
 
 __all__ = ["Connector", "ConnectorState", "install"]
 
@@ -58,6 +63,7 @@ class ConnectorState:
     link: FixedLink | None = None
     owner: bool = False  # the joint's first body is this side's
     pending: bool = False  # lock() was called: try to dock at the next step
+    written: int = 0  # the edit stamp of the isLocked field when this state last followed it
 
     def field(self, name: str, default: Any) -> Any:
         return self.solid.node.fields.get(name, default)
@@ -105,6 +111,7 @@ class Connectors:
         ]
         for state in self.states:
             state.pending = state.locked
+        self.stamps = stamps_of(sim)
         sim.pre_step_hooks.append(self.before_step)
         sim.step_hooks.append(self.after_step)
         sim.reset_hooks.append(self.reset)
@@ -195,8 +202,20 @@ class Connectors:
 
     # -- hooks
 
+    def _follow_written_lock(self, state: ConnectorState) -> None:
+        """A supervisor wrote ``isLocked``, the field that is the connector's locking state (the Connector page:
+        the state lock() and unlock() change): a value other than the state acts as that call would."""
+        stamp = self.stamps.get((id(state.solid.node), "isLocked"), 0)
+        if stamp == state.written:
+            return
+        state.written = stamp
+        wanted = bool(state.field("isLocked", False))
+        if wanted != state.locked:
+            (self.lock if wanted else self.unlock)(state)
+
     def before_step(self, _dt: float) -> None:
         for state in self.states:
+            self._follow_written_lock(state)
             if not state.locked or state.peer is not None:
                 continue
             if not (state.pending or bool(state.field("autoLock", False))):

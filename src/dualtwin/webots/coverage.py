@@ -430,7 +430,8 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("Connector", "device", "partial",
              "presence with model/type and distance/axis/rotation tolerances, lock/unlock (unilateral), "
              "autoLock, isLocked at load, ODE fixed joint, snap (the carrying body moves), tensile/shear "
-             "breaking with the locked sides' strengths summed; in Webots' connector_detach test the pair "
+             "breaking with the locked sides' strengths summed; a supervisor's write of a field acts from the next "
+             "step (of isLocked: as lock()/unlock()); in Webots' connector_detach test the pair "
              "separates at 0.448 s instead of 0.736 s: the fixed joint carries a third of the pull (the floor "
              "contacts the rest), then ODE's cylinder-plane collider (double precision) drops from 4 contact points "
              "to 1 once the pulled robot tilts by 4.5e-4 rad (1 - cos(tilt) > 1e-7), at a pull of about 1 N; the 32 ms "
@@ -438,7 +439,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "strength rule tried gives 0.448 or 0.608 s; with the pull split we measure, no rule gives 0.736 s)"),
     Coverage("VacuumGripper", "device", "supported",
              "turnOn/turnOff, isOn at load, grasps a body touching its boundingObject with >= contactPoints "
-             "points (fixed joint), tensile/shear breaking, presence"),
+             "points (fixed joint), tensile/shear breaking, presence; a supervisor's write of a field acts from the "
+             "next step (of isOn: as turnOn()/turnOff())"),
     Coverage("Keyboard", "device", "supported",
              "headless getKey() is -1 (and an error line at each read while disabled); 'webots run --keys FILE' "
              "replays scripted presses", node=False),

@@ -11,6 +11,9 @@ What Webots documents and this module does:
   body's centre of mass) and shear parts; above ``tensileStrength``/``shearStrength`` (-1 = unbreakable) the
   hold breaks; the gripper stays on but grasps that body again only after it lost contact once;
 * ``getPresence()`` is True while something is held (sampled like every Webots sensor).
+* Run-time edits: ``contactPoints`` and the strengths are read when used, so a supervisor's write acts from the
+  next step; a write of ``isOn`` acts as ``turnOn()``/``turnOff()`` would at the next step (the reference is
+  silent: the field is the gripper's state those calls change).
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from dualtwin.webots import _math3 as m3
 from dualtwin.webots.device_base import Device, DeviceBinding, SampledDevice
 from dualtwin.webots.fixed_link import FixedLink, body_of
 from dualtwin.webots.physics import BodyRec, Simulation, SolidRec
+from dualtwin.webots.physics.edit_stamps import stamps_of
 
 __all__ = ["GripperState", "VacuumGripper", "install"]
 
@@ -35,6 +39,7 @@ class GripperState:
     link: FixedLink | None = None
     contacts: dict[int, int] = field(default_factory=dict)  # body index -> contact points this pass
     released: set[int] = field(default_factory=set)  # bodies that broke free and have not let go yet
+    written: int = 0  # the edit stamp of the isOn field when this state last followed it
 
     def field(self, name: str, default: Any) -> Any:
         return self.solid.node.fields.get(name, default)
@@ -53,6 +58,7 @@ class VacuumGrippers:
         for state in self.states:
             if state.solid.geoms:
                 sim.set_contact_modifier(state.solid, self._counter(state))
+        self.stamps = stamps_of(sim)
         sim.step_hooks.append(self.after_step)
         sim.reset_hooks.append(self.reset)
 
@@ -92,8 +98,22 @@ class VacuumGrippers:
         held: BodyRec = self.sim.bodies[index]
         state.link = FixedLink(self.sim, held, own)
 
+    def _follow_written_switch(self, state: GripperState) -> None:
+        """A supervisor wrote ``isOn``, the field that is the gripper's state: a value other than the state acts
+        as turnOn()/turnOff() would (turning off releases what it holds)."""
+        stamp = self.stamps.get((id(state.solid.node), "isOn"), 0)
+        if stamp == state.written:
+            return
+        state.written = stamp
+        wanted = bool(state.field("isOn", False))
+        if wanted != state.on:
+            state.on = wanted
+            if not wanted:
+                self.release(state)
+
     def after_step(self) -> None:
         for state in self.states:
+            self._follow_written_switch(state)
             state.released &= {i for i, n in state.contacts.items() if n > 0}
             if state.on and state.link is None:
                 self._grasp(state)
