@@ -128,3 +128,108 @@ def test_lidar_type_edit_is_named_and_not_applied(edit: bool, capsys: pytest.Cap
     assert lidar.getRangeImage() == pytest.approx([0.5])
     warned = capsys.readouterr().err
     assert warned.count("a run-time edit of type is not applied") == (1 if edit else 0)
+
+
+# ------------------------------------------- devices that read their fields at every sample (guards, live already)
+
+
+def _sensor(node: str, enable: str = "enable") -> tuple:  # type: ignore[type-arg]
+    sup = sensor_world(node, "", step=STEP)
+    device = sup.getDevice("s")
+    getattr(device, enable)(STEP)
+    sup.step(STEP)
+    return sup, device, sup.getFromDef("S")
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_compass_resolution_edit_rounds_the_next_sample(edit: bool) -> None:
+    # ENU: north is +y; an unrotated compass reads [0, 1, 0]; resolution 0.3 rounds 1 to int(1/0.3 + 0.5)·0.3 = 0.9
+    # (D §0.4)
+    sup, compass, node = _sensor('DEF S Compass { name "s" }')
+    assert compass.getValues() == pytest.approx([0.0, 1.0, 0.0], abs=1e-12)
+    if edit:
+        node.getField("resolution").setSFFloat(0.3)
+    sup.step(STEP)
+    assert compass.getValues() == pytest.approx([0.0, 0.9 if edit else 1.0, 0.0], abs=1e-12)
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_gps_and_altimeter_resolution_edit_rounds_the_next_sample(edit: bool) -> None:
+    # the robot's origin is 0.1 m up: resolution 0.08 rounds 0.1 to int(0.1/0.08 + 0.5)·0.08 = 0.08 (D §0.4)
+    sup = sensor_world('DEF G GPS { name "g" } DEF A Altimeter { name "a" }', "", step=STEP)
+    gps, altimeter = sup.getDevice("g"), sup.getDevice("a")
+    gps.enable(STEP)
+    altimeter.enable(STEP)
+    sup.step(STEP)
+    if edit:
+        sup.getFromDef("G").getField("resolution").setSFFloat(0.08)
+        sup.getFromDef("A").getField("resolution").setSFFloat(0.08)
+    sup.step(STEP)
+    assert gps.getValues()[2] == pytest.approx(0.08 if edit else 0.1, abs=1e-12)
+    assert altimeter.getValue() == pytest.approx(0.08 if edit else 0.1, abs=1e-12)
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_inertial_unit_axis_edit_disables_the_roll(edit: bool) -> None:
+    # xAxis FALSE: the roll reads NaN (the InertialUnit page); the unrotated unit's angles are 0
+    sup, unit, node = _sensor('DEF S InertialUnit { name "s" }')
+    if edit:
+        node.getField("xAxis").setSFBool(False)
+    sup.step(STEP)
+    roll, pitch, yaw = unit.getRollPitchYaw()
+    assert math.isnan(roll) is edit
+    assert (pitch, yaw) == (pytest.approx(0.0, abs=1e-12), pytest.approx(0.0, abs=1e-12))
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_led_color_list_edit_sets_the_values_it_takes(edit: bool) -> None:
+    # a non-gradual LED takes 0..len(color) (the LED page): with one colour, set(2) is refused; a second colour
+    # inserted makes 2 a valid value
+    sup = sensor_world('DEF S LED { name "s" color [ 1 0 0 ] }', "", step=STEP)
+    led = sup.getDevice("s")
+    if edit:
+        sup.getFromDef("S").getField("color").insertMFColor(-1, [0.0, 1.0, 0.0])
+    led.set(2)
+    sup.step(STEP)
+    assert led.get() == (2 if edit else 0)
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_battery_and_cpu_consumption_edits_drain_from_the_next_step(edit: bool) -> None:
+    # each step takes dt·cpuConsumption: 0.008 s · 10 W = 0.08 J (the Robot page; no motor). The level written
+    # 50 and cpuConsumption 20 W: 50 − 0.008·20 = 49.84 J after one step; the control 100 − 2·0.08 = 99.84 J
+    sup = sensor_world("", "", robot_extra="battery [ 100, 100, 0 ] cpuConsumption 10", step=STEP)
+    sup.batterySensorEnable(STEP)
+    sup.step(STEP)
+    assert sup.batterySensorGetValue() == pytest.approx(99.92)
+    robot = sup.getSelf()
+    if edit:
+        robot.getField("battery").setMFFloat(0, 50.0)
+        robot.getField("cpuConsumption").setSFFloat(20.0)
+    sup.step(STEP)
+    assert sup.batterySensorGetValue() == pytest.approx(49.84 if edit else 99.84)
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_recognition_max_range_and_max_objects_edits_act_at_the_next_sample(edit: bool) -> None:
+    # two recognisable 0.2 m cubes straight ahead of the camera (axis +x) at 2 m and 1 m, side by side: with
+    # maxRange 1.5 only the near one is reported; maxRange 3 written adds the far one, and maxObjects 1 written
+    # then keeps one (D §4: the Recognition fields maxRange, maxObjects)
+    cube = ('Solid {{ translation {x} {y} 0.1 recognitionColors [ 1 0 0 ] children [ Shape {{ geometry Box '
+            '{{ size 0.2 0.2 0.2 }} }} ] boundingObject Box {{ size 0.2 0.2 0.2 }} }}')
+    walls = cube.format(x=2.0, y=0.3) + " " + cube.format(x=1.0, y=-0.3)
+    sup = sensor_world('Camera { name "c" width 32 height 32 recognition DEF R Recognition { maxRange 1.5 } }',
+                       walls, step=STEP)
+    camera = sup.getDevice("c")
+    camera.recognitionEnable(STEP)
+    sup.step(STEP)
+    assert camera.getRecognitionNumberOfObjects() == 1
+    recognition = sup.getFromDef("R")
+    if edit:
+        recognition.getField("maxRange").setSFFloat(3.0)
+    sup.step(STEP)
+    assert camera.getRecognitionNumberOfObjects() == (2 if edit else 1)
+    if edit:
+        recognition.getField("maxObjects").setSFInt32(1)
+    sup.step(STEP)
+    assert camera.getRecognitionNumberOfObjects() == 1
