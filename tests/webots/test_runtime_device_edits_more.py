@@ -1,5 +1,5 @@
 """A supervisor's edit of the fields of the devices ``test_runtime_device_edits`` leaves out: a Lidar's image size,
-frequencies and type (the choices of :mod:`dualtwin.webots.lidar_edits`, where D is silent on run-time edits),
+frequencies and type (the choices of :mod:`dualtwin.webots.image_edits`, where D is silent on run-time edits),
 Recognition, Battery, and the devices that read their fields live (Connector, VacuumGripper, Compass, GPS, ...).
 
 D = shared/reference/webots-devices.md. Expected values are hand computations from D's rules (each test shows
@@ -59,7 +59,7 @@ def test_lidar_number_of_layers_edit_sizes_the_next_scan_with_the_load_check(
 ) -> None:
     # D §3.1/§3.2: layers φ_i = vfov/2 − i·vfov/(L−1); L = 2, vfov 0.2: φ = ±0.1, the ray straight ahead in
     # azimuth meets x = 0.5 at 0.5/cos(0.1). The layer check at load: L ≤ vfov·W/fov = 0.2·1/0.1 = 2, so a 5
-    # written is cut to 2 with a warning as at load (lidar_edits' choice for a run-time edit)
+    # written is cut to 2 with a warning as at load (image_edits' choice for a run-time edit)
     sup, lidar, node = _lidar()
     capsys.readouterr()
     if edit:
@@ -92,7 +92,7 @@ def test_rotating_lidar_horizontal_resolution_edit_sizes_its_turning_image(edit:
 @pytest.mark.parametrize("edit", [True, False])
 def test_lidar_frequency_field_edits_set_its_bounds_and_frequency(edit: bool) -> None:
     # D §3.1/§3.3: defaults 1/25 Hz, defaultFrequency 10; setFrequency outside [min, max] is refused (error).
-    # maxFrequency 8 written: the bounds are [1, 8] and the current 10 is clamped to 8 (lidar_edits' choice);
+    # maxFrequency 8 written: the bounds are [1, 8] and the current 10 is clamped to 8 (image_edits' choice);
     # setFrequency(9) is then refused. defaultFrequency 5 written: the frequency is 5, replacing what the
     # controller set (6)
     sup, lidar, node = _lidar()
@@ -117,7 +117,7 @@ def test_lidar_frequency_field_edits_set_its_bounds_and_frequency(edit: bool) ->
 @pytest.mark.parametrize("edit", [True, False])
 def test_lidar_type_edit_is_named_and_not_applied(edit: bool, capsys: pytest.CaptureFixture[str]) -> None:
     # a fixed lidar's type written "rotating": the image keeps the fixed lidar's fieldOfView span (one ray ahead,
-    # 0.5) and one warning line says the edit is not applied (lidar_edits' choice; D is silent)
+    # 0.5) and one warning line says the edit is not applied (image_edits' choice; D is silent)
     sup, lidar, node = _lidar()
     capsys.readouterr()
     if edit:
@@ -128,6 +128,58 @@ def test_lidar_type_edit_is_named_and_not_applied(edit: bool, capsys: pytest.Cap
     assert lidar.getRangeImage() == pytest.approx([0.5])
     warned = capsys.readouterr().err
     assert warned.count("a run-time edit of type is not applied") == (1 if edit else 0)
+
+
+# ------------------------------------------------------------------------------------ RangeFinder, Camera
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_range_finder_width_edit_sizes_the_next_image(edit: bool, capsys: pytest.CaptureFixture[str]) -> None:
+    # D §3.2: a planar range is the perpendicular depth to the image plane, 0.5 for every pixel that sees the
+    # plane x = 0.5 (3 columns span ±tan(fov/2)·2/3 = ±0.276 sideways, well inside the 4 m wall). A width of 0
+    # written afterwards keeps 3 with a warning (image_edits' choice)
+    sup = sensor_world('DEF RF RangeFinder { name "rf" width 1 height 1 }', SEEN_WALL, step=STEP)
+    rf = sup.getDevice("rf")
+    rf.enable(STEP)
+    sup.step(STEP)
+    node = sup.getFromDef("RF")
+    if edit:
+        node.getField("width").setSFInt32(3)
+    sup.step(STEP)
+    size = 3 if edit else 1
+    assert (rf.getWidth(), rf.getHeight()) == (size, 1)
+    assert rf.getRangeImage() == pytest.approx([0.5] * size, rel=1e-9)
+    capsys.readouterr()
+    if edit:
+        node.getField("width").setSFInt32(0)
+    sup.step(STEP)
+    assert rf.getWidth() == size
+    assert ("width 0 is not in 1..16384; it stays 3" in capsys.readouterr().err) is edit
+    sup.simulationReset()  # the load's width again
+    sup.step(STEP)
+    sup.step(STEP)
+    assert rf.getWidth() == 1 and len(rf.getRangeImage()) == 1
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_camera_size_edit_sizes_the_next_image(edit: bool) -> None:
+    # D §4: the image is BGRA, 4·width·height bytes; width 6, height 2 written: 48 bytes from the next sample
+    sup = sensor_world('DEF C Camera { name "c" width 4 height 4 }', SEEN_WALL, step=STEP)
+    camera = sup.getDevice("c")
+    camera.enable(STEP)
+    sup.step(STEP)
+    assert len(camera.getImage()) == 4 * 4 * 4
+    if edit:
+        node = sup.getFromDef("C")
+        node.getField("width").setSFInt32(6)
+        node.getField("height").setSFInt32(2)
+    sup.step(STEP)
+    width, height = (6, 2) if edit else (4, 4)
+    assert (camera.getWidth(), camera.getHeight()) == (width, height)
+    image = camera.getImage()
+    assert len(image) == 4 * width * height
+    assert set(image[3::4]) == {255}  # drawn (opaque), not the black zeros of an image not sampled yet
+    assert len(camera.getImageArray()) == width and len(camera.getImageArray()[0]) == height
 
 
 # ------------------------------------------- devices that read their fields at every sample (guards, live already)

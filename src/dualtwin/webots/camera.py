@@ -61,6 +61,7 @@ from dualtwin.webots.camera_recognition import (
 )
 from dualtwin.webots.device_base import SolidSensor
 from dualtwin.webots.display import png_bytes
+from dualtwin.webots.image_edits import SIZE_FIELDS, edited_image_size
 from dualtwin.webots.recognition import CameraRecognitionObject
 
 __all__ = ["Camera", "CameraModel", "bgra_from_rgb"]
@@ -80,7 +81,7 @@ def bgra_from_rgb(rgb: np.ndarray) -> np.ndarray:
 #: (field, CameraModel attribute, default) of the fields a supervisor's edit changes at run time
 _EDITABLE = (("fieldOfView", "fov", 0.7854), ("near", "near", 0.01), ("far", "far", 0.0), ("noise", "noise", 0.0),
              ("exposure", "exposure", 1.0))
-_EDITABLE_NAMES = tuple(name for name, _, _ in _EDITABLE)
+_EDITABLE_NAMES = (*(name for name, _, _ in _EDITABLE), *SIZE_FIELDS)
 
 
 class CameraModel:
@@ -100,12 +101,14 @@ class CameraModel:
         if self.projection != "planar":
             warn(f"Camera: the {self.projection} projection is drawn as planar")
 
-    def follow(self, fields: dict[str, Any], changed: frozenset[str]) -> None:
-        """Take the edited fields of ``changed`` (Webots' update slots: from the next image on, the getters too).
-        The image size stays that of the load, as the controller's image buffer does."""
-        for name, attr, default in _EDITABLE:
-            if name in changed:
-                setattr(self, attr, float(fields.get(name, default)))
+    def follow(self, fields: dict[str, Any], changed: frozenset[str], name: str) -> None:
+        """Take the edited fields of ``changed`` (Webots' update slots: from the next image on, the getters too),
+        the image size as :mod:`.image_edits` says."""
+        for field, attr, default in _EDITABLE:
+            if field in changed:
+                setattr(self, attr, float(fields.get(field, default)))
+        if changed & {"width", "height"}:
+            self.width, self.height = edited_image_size(fields, (self.width, self.height), "Camera", name)
 
     def fovy_degrees(self) -> float:
         """The vertical field of view (degrees) of a horizontal ``fov`` at this aspect ratio."""
@@ -151,6 +154,8 @@ def _visual_scene(robot: Any) -> Any:
 class Camera(SolidSensor):
     """Webots ``Camera``; see the module docstring."""
 
+    _image: np.ndarray | None  # the last image drawn (None: none since the last sample, reset or resize)
+
     def _model(self) -> CameraModel:
         fields = self._record.node.fields
         changed = self._fields_changed(_EDITABLE_NAMES)
@@ -158,12 +163,16 @@ class Camera(SolidSensor):
         if model is None:
             model = self._model_cache = CameraModel(fields)
         elif changed:
-            model.follow(fields, changed)
+            size = (model.width, model.height)
+            model.follow(fields, changed, self._name)
+            if (model.width, model.height) != size:  # a black image of the new size until the next sample
+                self._image = None
+                self.__dict__.pop("_segmentation_frame", None)
         return model
 
     def _invalidate(self) -> None:
         super()._invalidate()
-        self._image: np.ndarray | None = None
+        self._image = None
         self._pending = False
 
     def _read(self) -> None:
@@ -185,23 +194,23 @@ class Camera(SolidSensor):
         frame, and again (the former one closed) when the visual scene was built again."""
         from dualtwin.webots.render import FrameRenderer
 
-        renderers: dict[str, tuple[Any, Any]] = self.__dict__.setdefault("_renderers", {})
+        renderers: dict[str, tuple[Any, Any, tuple[int, int]]] = self.__dict__.setdefault("_renderers", {})
         held = renderers.get(purpose)
-        if held is not None and held[0] is scene:
-            return held[1]
-        if held is not None:
-            held[1].close()
         m = self._model()
+        if held is not None and held[0] is scene and held[2] == (m.width, m.height):
+            return held[1]
+        if held is not None:  # the scene was built again, or a supervisor's edit resized the image
+            held[1].close()
         renderer = FrameRenderer(scene.model, m.width, m.height, supersample=supersample,
                                  sky=purpose == "image" and scene.sky is not None)
-        renderers[purpose] = (scene, renderer)
+        renderers[purpose] = (scene, renderer, (m.width, m.height))
         return renderer
 
     def _controller_ended(self) -> None:
         """Its controller's thread ends: the renderers it drew with are closed in that thread. An EGL context
         is current in the thread that made it, and Python's collector, freeing one later in another thread,
         failed (EGL_BAD_ACCESS, printed as an ignored exception with its traceback)."""
-        for _, renderer in self.__dict__.pop("_renderers", {}).values():
+        for _, renderer, _ in self.__dict__.pop("_renderers", {}).values():
             renderer.close()
 
     def _render(self) -> np.ndarray:

@@ -366,7 +366,7 @@ REGISTRY: tuple[Coverage, ...] = (
     Coverage("RangeFinder", "device", "partial",
              "planar depth image as one ray per pixel against the visual Shapes (as Webots renders them); "
              "+inf outside [minRange, maxRange), noise, resolution (fieldOfView, ranges, noise and resolution "
-             "edited at run time set the next image; its size stays); no lens, motion blur or saveImage; Mesh Shapes "
+             "edited at run time set the next image, as width and height its size); no lens, motion blur or saveImage; Mesh Shapes "
              "and CadShapes are hit on their files' triangles"),
     Coverage("Camera", "device", "partial",
              "planar BGRA image of the world's Shapes in their flat colours, drawn headless by the MuJoCo "
@@ -375,7 +375,7 @@ REGISTRY: tuple[Coverage, ...] = (
              "skyColor; no textures (a textured Background shows its skyColor), "
              "exposure, lens, motion blur or spherical/cylindrical projection (drawn planar); the scene is "
              "drawn again after a supervisor changed it (nodes imported or removed, a Pose moved; its own "
-             "fieldOfView, near, far, noise or exposure edited: the next image and the getters, its size stays); "
+             "fieldOfView, near, far, noise, exposure, width or height edited: the next image and the getters); "
              "a Mesh Shape is "
              "drawn from its file's triangles in its appearance's colour, a CadShape in grey 0.6 (materials "
              "of mesh files are not read); a mesh file that cannot be read is not drawn"),
@@ -391,7 +391,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "occlusion 1 and 2 both cast one ray to that box's centre against bounding objects (Webots' ray "
              "rules: the camera's robot does not hide); the camera's Solid and the Solids it is mounted on "
              "are never reported, other parts of its robot are; a Solid without colours is painted in the "
-             "nearest colours above it; frameColor and frameThickness draw nothing headless"),
+             "nearest colours above it; frameColor and frameThickness draw nothing headless; its fields are read at "
+             "every sample, so a supervisor's edit acts from the next one"),
     Coverage("Lens", "device", "not", "not yet (Camera)"),
     Coverage("LensFlare", "device", "not", "not yet (Camera)"),
     Coverage("Focus", "device", "not", "not yet (Camera)"),

@@ -195,7 +195,7 @@ class RotatingScan:
         return directions[self.rays], lengths[self.rays]
 
     def resize(self, width: int, layers: int) -> None:
-        """A supervisor's edit gave the image another size (:mod:`.lidar_edits`): every column is cast anew."""
+        """A supervisor's edit gave the image another size (:mod:`.image_edits`): every column is cast anew."""
         self.width, self.layers = width, layers
         self.times = np.zeros(width)
         self.columns = self.rays = np.empty(0, dtype=int)

@@ -45,7 +45,7 @@ from dualtwin.artifacts import write_bytes
 from dualtwin.webots.api_args import as_float, as_int, error, warn
 from dualtwin.webots.device_base import SolidSensor
 from dualtwin.webots.display import png_bytes
-from dualtwin.webots.lidar_edits import HEAD_FIELDS, edited_model
+from dualtwin.webots.image_edits import HEAD_FIELDS, SIZE_FIELDS, edited_image_size, edited_model
 from dualtwin.webots.lidar_head import RotatingScan, frequencies
 from dualtwin.webots.lidar_point import LidarPoint
 from dualtwin.webots.lut import Table, discretize, lookup, table_from_field
@@ -402,6 +402,7 @@ def _range_limits(fields: dict[str, Any]) -> tuple[float, float]:
 #: the fields of a Lidar or RangeFinder whose edit at run time changes its next image
 _DEPTH_EDITABLE = ("fieldOfView", "minRange", "maxRange", "near", "noise", "resolution")
 _LIDAR_EDITABLE = (*_DEPTH_EDITABLE, "verticalFieldOfView", "tiltAngle", "projection", *HEAD_FIELDS)
+_RANGE_FINDER_EDITABLE = (*_DEPTH_EDITABLE, *SIZE_FIELDS)
 
 
 def _pitch(dirs: np.ndarray, angle: float) -> np.ndarray:
@@ -505,7 +506,7 @@ class Lidar(_DepthDevice):
         return model
 
     def _edited(self, model: LidarModel, changed: frozenset[str]) -> LidarModel:
-        """The model after a supervisor's edit (Webots' update slots; :mod:`.lidar_edits`)."""
+        """The model after a supervisor's edit (Webots' update slots; :mod:`.image_edits`)."""
         new = edited_model(model, self._record.node.fields, changed, self._name, LidarModel.from_node)
         if (new.width, new.layers) != (model.width, model.layers):
             self._image = None  # zeros of the new size until the next sample
@@ -682,13 +683,16 @@ class RangeFinder(_DepthDevice):
     """Webots ``RangeFinder`` (planar depth image); see the module docstring."""
 
     def _model(self) -> tuple[int, int, float, _Grid]:
-        changed = self._fields_changed(_DEPTH_EDITABLE)
+        changed = self._fields_changed(_RANGE_FINDER_EDITABLE)
         model = getattr(self, "_model_cache", None)
         if model is None or changed:
-            # built again after an edit of its field of view, ranges, noise or resolution (Webots' update slots),
-            # from the next image on; the image's size stays that of the load
+            # built again after an edit of its size, field of view, ranges, noise or resolution (Webots' update
+            # slots), from the next image on (:mod:`.image_edits`)
             f = self._record.node.fields
             w, h = (max(1, int(f.get("width", 64))), max(1, int(f.get("height", 64)))) if model is None else model[:2]
+            if model is not None and changed & {"width", "height"}:
+                w, h = edited_image_size(f, (w, h), "RangeFinder", self._name)
+                self._image = None  # zeros of the new size until the next sample
             fov = float(f.get("fieldOfView", 0.7854))
             if str(f.get("projection", "planar")) != "planar":
                 warn("RangeFinder: only the planar projection is cast; spherical/cylindrical read as planar")

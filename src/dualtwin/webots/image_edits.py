@@ -1,8 +1,15 @@
-"""What a supervisor's edit of a Lidar's image size, frequencies or type does at run time.
+"""What a supervisor's edit of a Lidar's, RangeFinder's or Camera's image size, or of a Lidar's frequencies or
+type, does at run time.
 
-Webots connects each Lidar field to an ``update*`` slot of WbLidar that sets the device up again and configures
-its controller at the next step. The reference (webots-devices.md §3.1) gives the fields and the load-time layer
-check; it is silent on run-time edits of these fields, so this module's choices are:
+Webots connects each of these fields to an ``update*`` slot of the device (WbLidar, WbAbstractCamera) that sets
+the device up again and configures its controller at the next step. The reference (webots-devices.md §3.1, §4)
+gives the fields and the load-time layer check; it is silent on run-time edits of these fields, so this module's
+choices are:
+
+* a Camera's or RangeFinder's ``width``/``height``: the next image has the new size and ``getWidth``/
+  ``getHeight`` follow (the image reads zeros of that size until the next sample); a side outside
+  1..``MAX_IMAGE_SIDE`` keeps the current one, with a warning (at load such a side takes its default), and a
+  RangeFinder's height is cut to the rays dualtwin casts on one image (``MAX_DEPTH_RAYS``), as at load.
 
 * ``horizontalResolution`` and ``numberOfLayers``: the next scan has the new size and the controller's
   ``getHorizontalResolution``/``getNumberOfLayers`` follow (the image is cleared to zeros of that size until
@@ -26,10 +33,13 @@ from typing import Any, Protocol, TypeVar
 from dualtwin.webots.api_args import warn
 from dualtwin.webots.lidar_head import frequencies
 from dualtwin.webots.physics.build import MAX_DEPTH_RAYS
+from dualtwin.webots.protos import MAX_IMAGE_SIDE
 
-__all__ = ["HEAD_FIELDS", "edited_frequencies", "edited_model", "edited_size", "warn_type_edit"]
+__all__ = ["HEAD_FIELDS", "SIZE_FIELDS", "edited_frequencies", "edited_image_size", "edited_model", "edited_lidar_size",
+           "warn_type_edit"]
 
-SIZE_FIELDS = frozenset({"horizontalResolution", "numberOfLayers"})
+SIZE_FIELDS = ("width", "height")  # a Camera's or RangeFinder's
+LIDAR_SIZE_FIELDS = frozenset({"horizontalResolution", "numberOfLayers"})
 FREQUENCY_FIELDS = frozenset({"minFrequency", "maxFrequency", "defaultFrequency"})
 #: the fields of this module, watched by the lidar besides those of its rays
 HEAD_FIELDS = ("horizontalResolution", "numberOfLayers", "minFrequency", "maxFrequency", "defaultFrequency", "type")
@@ -55,8 +65,8 @@ def edited_model(
     """The model ``build`` makes of the edited ``fields`` (the rays of the next scan: field of view, ranges,
     noise, resolution), with the size and frequencies this module's docstring gives and the load's type."""
     width, layers = model.width, model.layers
-    if changed & SIZE_FIELDS:
-        width, layers = edited_size(fields, model.rotating, name, warn)
+    if changed & LIDAR_SIZE_FIELDS:
+        width, layers = edited_lidar_size(fields, model.rotating, name, warn)
     if "type" in changed:
         warn_type_edit(fields, model.rotating, name, warn)
     kept = {"horizontalResolution": width, "numberOfLayers": layers, "minFrequency": model.min_frequency,
@@ -69,7 +79,7 @@ def edited_model(
     return new
 
 
-def edited_size(fields: dict[str, Any], rotating: bool, name: str, warn: Callable[[str], None]) -> tuple[int, int]:
+def edited_lidar_size(fields: dict[str, Any], rotating: bool, name: str, warn: Callable[[str], None]) -> tuple[int, int]:
     """``(horizontalResolution, numberOfLayers)`` of the edited ``fields``, checked as the load checks them."""
     width = max(1, int(fields.get("horizontalResolution", 512)))
     layers = max(1, int(fields.get("numberOfLayers", 4)))
@@ -104,3 +114,21 @@ def warn_type_edit(fields: dict[str, Any], rotating: bool, name: str, warn: Call
     if (str(fields.get("type", "fixed")) == "rotating") != rotating:
         warn(f"Lidar '{name}': a run-time edit of type is not applied; it stays "
              f"{'rotating' if rotating else 'fixed'}")
+
+
+def edited_image_size(fields: dict[str, Any], current: tuple[int, int], kind: str, name: str) -> tuple[int, int]:
+    """``(width, height)`` of a Camera's or RangeFinder's (``kind``) edited ``fields`` (module docstring)."""
+    sides = []
+    for field, now in zip(SIZE_FIELDS, current, strict=True):
+        value = int(fields.get(field, now))
+        if not 1 <= value <= MAX_IMAGE_SIDE:
+            warn(f"{kind} '{name}': {field} {value} is not in 1..{MAX_IMAGE_SIDE}; it stays {now}")
+            value = now
+        sides.append(value)
+    width, height = sides
+    if kind == "RangeFinder" and width * height > MAX_DEPTH_RAYS:
+        fitted = max(1, MAX_DEPTH_RAYS // width)
+        warn(f"RangeFinder '{name}': width * height = {width} * {height} rays is more than dualtwin casts "
+             f"({MAX_DEPTH_RAYS}); height set to {fitted}")
+        height = fitted
+    return width, height
