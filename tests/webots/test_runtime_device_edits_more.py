@@ -8,10 +8,15 @@ it), never runs of this code; each test has its control (the same run without th
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
 from tests.support.sensor_worlds import sensor_world
+from tests.support.world_runs import ROOT
 
 STEP = 8
 # a wall with a visual Shape whose near face is the plane x = 0.5: Lidar rays hit what Webots renders (D §3.2)
@@ -285,3 +290,57 @@ def test_recognition_max_range_and_max_objects_edits_act_at_the_next_sample(edit
         recognition.getField("maxObjects").setSFInt32(1)
     sup.step(STEP)
     assert camera.getRecognitionNumberOfObjects() == 1
+
+
+# ------------------------------------------------------------------------------------------ controller processes
+
+PROCESS_WORLD = """#VRML_SIM R2023b utf8
+WorldInfo { basicTimeStep 8 }
+Robot { name "a" controller "reader" children [
+  DEF L Lidar { name "l" horizontalResolution 4 numberOfLayers 1 fieldOfView 0.4 }
+  DEF C Camera { name "c" width 4 height 4 }
+] }
+Robot { name "b" supervisor TRUE controller "editor" }
+"""
+
+READER = """from controller import Robot
+robot = Robot()
+lidar, camera = robot.getDevice("l"), robot.getDevice("c")
+lidar.enable(8)
+camera.enable(8)
+print("LOAD", lidar.getHorizontalResolution(), lidar.getMaxFrequency(), camera.getWidth())
+for _ in range(3):
+    robot.step(8)
+print("LATER", lidar.getHorizontalResolution(), len(lidar.getRangeImage()), lidar.getMaxFrequency(),
+      camera.getWidth(), len(camera.getImage()))
+"""
+
+EDITOR = """from controller import Supervisor
+sup = Supervisor()
+sup.step(8)
+sup.getFromDef("L").getField("horizontalResolution").setSFInt32(8)
+sup.getFromDef("L").getField("maxFrequency").setSFFloat(20.0)
+sup.getFromDef("C").getField("width").setSFInt32(2)
+for _ in range(3):
+    sup.step(8)
+"""
+
+
+def test_a_controller_process_reads_the_edited_sizes(tmp_path: Path) -> None:
+    # the reader runs in its own process, as in Webots: before the edit (before its first step, which the
+    # editor's edit follows) 4 columns, maxFrequency 25, a 4-pixel-wide camera; after its next steps 8 columns
+    # (8 ranges), 20 Hz, a 2×4 camera (4·2·4 = 32 bytes)
+    for name, text in (("reader", READER), ("editor", EDITOR)):
+        folder = tmp_path / "controllers" / name
+        folder.mkdir(parents=True)
+        (folder / f"{name}.py").write_text(text, encoding="utf-8")
+    world = tmp_path / "worlds" / "edits.wbt"
+    world.parent.mkdir()
+    world.write_text(PROCESS_WORLD, encoding="utf-8")
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src") + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    run = subprocess.run([sys.executable, "-m", "dualtwin.cli", "webots", "run", str(world), "--duration", "0.1"],
+                         capture_output=True, text=True, timeout=120, env=env, cwd=ROOT, check=False)
+    assert run.returncode == 0, run.stderr
+    lines = {line.split()[0]: line.split()[1:] for line in run.stdout.splitlines() if line[:4] in ("LOAD", "LATE")}
+    assert [float(v) for v in lines["LOAD"]] == [4, 25.0, 4]
+    assert [float(v) for v in lines["LATER"]] == [8, 8, 20.0, 2, 32]
