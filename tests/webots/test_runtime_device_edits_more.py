@@ -292,6 +292,39 @@ def test_recognition_max_range_and_max_objects_edits_act_at_the_next_sample(edit
     assert camera.getRecognitionNumberOfObjects() == 1
 
 
+@pytest.mark.parametrize("edit", [True, False])
+def test_light_sensor_color_filter_edit_acts_at_the_next_sample(edit: bool) -> None:
+    # a light sensor facing up (x axis turned to +z) under a DirectionalLight reads more than 0; a colorFilter of
+    # 0 0 0 written filters every channel out: irradiance 0, read lookup(0) = 0 on the default table
+    sup = sensor_world('DEF S LightSensor { name "s" rotation 0 1 0 -1.5708 }', "",
+                       head="DirectionalLight { direction 0 0 -1 }", step=STEP)
+    sensor = sup.getDevice("s")
+    sensor.enable(STEP)
+    sup.step(STEP)
+    assert sensor.getValue() > 0.0
+    if edit:
+        sup.getFromDef("S").getField("colorFilter").setSFColor([0.0, 0.0, 0.0])
+    sup.step(STEP)
+    assert (sensor.getValue() == 0.0) is edit
+
+
+@pytest.mark.parametrize("edit", [True, False])
+def test_radar_max_range_edit_acts_at_the_next_sample(edit: bool) -> None:
+    # a target (radarCrossSection > 0) 5 m ahead on the radar's x axis, inside [minRange 1, maxRange 50]: one
+    # target; maxRange 3 written leaves it beyond the range (the Radar page)
+    target = ("Solid { translation 5 0 0.1 radarCrossSection 1 children [ Shape { geometry Box { size 0.5 0.5 0.5 } } ] "
+              "boundingObject Box { size 0.5 0.5 0.5 } }")
+    sup = sensor_world('DEF S Radar { name "s" }', target, step=STEP)
+    radar = sup.getDevice("s")
+    radar.enable(STEP)
+    sup.step(STEP)
+    assert radar.getNumberOfTargets() == 1
+    if edit:
+        sup.getFromDef("S").getField("maxRange").setSFFloat(3.0)
+    sup.step(STEP)
+    assert radar.getNumberOfTargets() == (0 if edit else 1)
+
+
 # ------------------------------------------------------------------------------------------ controller processes
 
 PROCESS_WORLD = """#VRML_SIM R2023b utf8
