@@ -185,6 +185,10 @@ def test_camera_size_edit_sizes_the_next_image(edit: bool) -> None:
     assert len(image) == 4 * width * height
     assert set(image[3::4]) == {255}  # drawn (opaque), not the black zeros of an image not sampled yet
     assert len(camera.getImageArray()) == width and len(camera.getImageArray()[0]) == height
+    sup.simulationReset()  # the load's 4×4 again (the restored fields read again)
+    sup.step(STEP)
+    sup.step(STEP)
+    assert (camera.getWidth(), camera.getHeight(), len(camera.getImage())) == (4, 4, 64)
 
 
 # ------------------------------------------- devices that read their fields at every sample (guards, live already)

@@ -122,6 +122,11 @@ def test_vacuum_gripper_is_on_written_false_releases(write: bool) -> None:
     assert cup.isOn() is not write
     rise = _pull(sup)
     assert rise > 0.01 if write else abs(rise) < 1e-3
+    sup.simulationReset()  # the load's isOn TRUE again: the box back on the plate is held again
+    for _ in range(10):
+        sup.step(TS)
+    assert cup.isOn()
+    assert abs(_pull(sup)) < 1e-3
 
 
 @pytest.mark.parametrize("write", [True, False])

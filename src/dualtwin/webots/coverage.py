@@ -420,7 +420,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "Emitter's; no physics-plugin copy of channel 0"),
     Coverage("Display", "device", "partial",
              "RGBA frame buffer: colour, alpha, opacity, pixels, lines, rectangles, ovals, polygons, image "
-             "new/copy/paste/save (PNG)/load/delete; text is not rasterised and attachCamera shows nothing"),
+             "new/copy/paste/save (PNG)/load/delete; text is not rasterised and attachCamera shows nothing; its width "
+             "and height are the load's (a supervisor's edit of them is not applied)"),
     Coverage("Speaker", "device", "not", "not yet: no sound"),
     Coverage("LED", "device", "supported",
              "set/get with colour index or gradual RGB; the lights among its children follow it in Camera images "
