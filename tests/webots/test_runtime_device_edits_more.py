@@ -58,6 +58,18 @@ def test_lidar_horizontal_resolution_edit_sizes_the_next_scan(edit: bool) -> Non
     assert lidar.getRangeImage() == pytest.approx([0.5])
 
 
+def test_lidar_horizontal_resolution_beyond_the_image_side_keeps_the_size(capsys: pytest.CaptureFixture[str]) -> None:
+    # a side of 10^9 columns (a typo) would cast 10^9 rays: as a Camera's side, one outside 1..16384 keeps the
+    # current size with one warning line (image_edits' choice; the load takes the default for such a side)
+    sup, lidar, node = _lidar()
+    capsys.readouterr()
+    node.getField("horizontalResolution").setSFInt32(10**9)
+    sup.step(STEP)
+    assert lidar.getHorizontalResolution() == 1
+    assert lidar.getRangeImage() == pytest.approx([0.5])
+    assert "Lidar 'l': horizontalResolution 1000000000 is not in 1..16384; it stays 1" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("edit", [True, False])
 def test_lidar_number_of_layers_edit_sizes_the_next_scan_with_the_load_check(
     edit: bool, capsys: pytest.CaptureFixture[str]
