@@ -434,8 +434,11 @@ class Runtime:
                 client.active = False  # its robot was removed before it made its Robot: its step returns -1
             self._clients.append(client)
             if controller is not None:
-                controller.arrived = True
+                # its sign of progress before it counts as arrived: the step timeout's watch, which reads both without
+                # the lock, must never see it arrived with the time of its start (its imports may have taken longer
+                # than the timeout, which holds from its Robot on)
                 controller.progress = time.monotonic()
+                controller.arrived = True
                 controller.clients.append(client)
                 # the start-up barrier may open now: the others' first steps must not wait for this one's first
                 # step as well, which a robot whose synchronization is FALSE may take any time to make
@@ -511,8 +514,10 @@ class Runtime:
         try:
             return self._advance(client, duration_ms)
         finally:
-            controller.in_step = False
+            # the time of its return before it leaves the step: the step timeout's watch, which reads both without
+            # the lock, must never see it out of a step that lasted longer than the timeout with that step's start
             controller.progress = time.monotonic()
+            controller.in_step = False
 
     def _advance(self, client: _Client, duration_ms: float) -> int:
         sim = self.simulation
