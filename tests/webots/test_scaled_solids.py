@@ -237,3 +237,25 @@ def test_a_camera_draws_a_solid_below_a_non_uniform_scale_as_the_physics_sizes_i
         assert geom.scale == (2.0, 2.0, 2.0)
     finally:
         sup.simulation.close()
+
+
+def test_a_camera_draws_a_solid_below_an_edited_scale_as_the_physics_and_the_rays_keep_it() -> None:
+    # decided (the reference is silent on run-time scale edits): the Solid keeps the load's scale 2, so its 0.1 m cube
+    # collides and is seen by rays as a 0.2 m cube after 'scale 3 3 3' is written, and is drawn so (half size 0.1 m);
+    # the camera drew it with the written scale, a 0.3 m cube (half size 0.15 m) around the body scale 2 placed
+    from dualtwin.webots.visual_rays import VisualGeoms
+    from dualtwin.webots.visual_scene import WebotsVisualScene
+
+    sup = supervisor_in("DEF T Transform { scale 2 2 2 children [ Solid { children [ Shape { geometry DEF CUBE Box { "
+                        "size 0.1 0.1 0.1 } } ] boundingObject USE CUBE } ] }", 4)
+    try:
+        with pytest.warns(UserWarning, match="run-time edit of a Transform's scale above Solids or joints"):
+            sup.getFromDef("T").getField("scale").setSFVec3f([3.0, 3.0, 3.0])
+            sup.step(4)
+        scene = WebotsVisualScene(sup)
+        assert [list(scene.model.geom_size[i]) for i in range(scene.model.ngeom)] == [pytest.approx([0.1] * 3)]
+        rays = VisualGeoms(sup.simulation)
+        assert [geom.scale for geom in rays.geoms] == [(2.0, 2.0, 2.0)]  # the box the rays see: 2 · 0.1 m
+        rays.close()
+    finally:
+        sup.simulation.close()

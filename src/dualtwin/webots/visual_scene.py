@@ -248,6 +248,10 @@ class WebotsVisualScene:
 
     def _solid(self, handle: Any, kind: str, scale: float) -> None:
         node = handle.scene_node
+        # its Shapes at the factor the physics sizes and places the Solid with (the load's: a run-time edit of a
+        # scale above it is not applied to it, physics/frame_edits.py), not the one the fields say now
+        solid = handle._sim.solid_for(node)
+        scale = solid.scale if solid is not None else scale
         if kind == "Camera":
             self._cameras[str(node.get("name", "camera"))] = handle
         # an LED drives the lights among its own children (Webots' LED page), not those of a Solid inside it

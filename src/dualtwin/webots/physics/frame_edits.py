@@ -22,8 +22,9 @@ copies of the frame are one node in Webots: they move together. A reset restores
 edit again, which puts every frame back where the load had it.
 
 A Transform's ``scale`` scales the translations below it (:mod:`dualtwin.webots.solid_scale`), as at load. A
-run-time edit of the ``scale`` itself reaches the Shapes seen by rays and the boundingObjects it is inside, not
-the Solids and joints below it: their frames, geoms and masses keep the load's scale (a warning says so).
+run-time edit of the ``scale`` itself reaches the Shapes seen by rays and cameras and the boundingObjects it is
+inside, not the Solids and joints below it: their frames, geoms, masses and own Shapes keep the load's scale (a
+warning says so).
 """
 
 from __future__ import annotations
@@ -64,7 +65,8 @@ class FrameEdits(PhysicsChanges):
             if name == "scale" and holds_bodies(node):
                 self.warn_once(f"{node.location}: a run-time edit of a Transform's scale above Solids or joints is "
                                "not applied to them (their frames, geoms and masses keep the load's scale)")
-                self._geoms_changed()  # the Shapes that rays and cameras see follow the field
+                # the Shapes beside those Solids follow the field, for rays and cameras (theirs go with them)
+                self._geoms_changed()
                 return True
             return self._children_frame_changed(linked) or bounded
         if name in ("translation", "rotation") and is_solid(node):
