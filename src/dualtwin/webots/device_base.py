@@ -157,11 +157,11 @@ class Device:
     def _edit_stamp(self, name: str | None = None) -> int:
         """How many times a supervisor wrote this device's node (its field ``name`` if given), or a reset restored
         it (:mod:`.physics.edit_stamps`). Devices ask at every sample: the table is kept, the ask is a look-up."""
-        stamps: dict[Any, int] | None = self.__dict__.get("_stamps")
-        if stamps is None:
-            stamps = self._stamps = stamps_of(self._robot._sim)
-        key = id(self._record.node)
-        return stamps.get(key if name is None else (key, name), 0)
+        key: int | None = self.__dict__.get("_stamp_key")
+        if key is None:  # (the table and the node's key are kept: the ask is one look-up)
+            self._stamps: dict[Any, int] = stamps_of(self._robot._sim)
+            key = self._stamp_key = id(self._record.node)
+        return self._stamps.get(key if name is None else (key, name), 0)
 
     def _configured(self, key: str, build: Callable[[], _Config]) -> _Config:
         """What the device derives from its node's fields (``build()``), kept under ``key`` and derived again after

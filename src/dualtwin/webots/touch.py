@@ -211,12 +211,13 @@ class TouchSensor(SolidSensor):
             return
         R = self._pose().R
         f1 = self._force_on_parent()
+        table, resolution = self._table(), self._resolution()  # (once a sample, for the three axes too)
         if kind == self.FORCE:
             p = m3.dot(m3.mat_vec(R, (1.0, 0.0, 0.0)), f1)
-            self._value = discretize(lookup(self._table(), -p if p < 0 else 0.0, sim.rng), self._resolution())
+            self._value = discretize(lookup(table, -p if p < 0 else 0.0, sim.rng), resolution)
         else:
             local = m3.mat_t_vec(R, f1)
-            self._values = [discretize(lookup(self._table(), v, sim.rng), self._resolution()) for v in local]
+            self._values = [discretize(lookup(table, v, sim.rng), resolution) for v in local]
 
     @step_value
     def getValue(self) -> float:

@@ -44,10 +44,17 @@ class Axes:
 def axes(coordinate_system: str) -> Axes:
     """East/North/Up of ``"ENU"``, ``"NUE"`` or ``"EUN"``: the axis each letter stands at (anything else reads as
     ENU, Webots' default)."""
-    cs = coordinate_system.upper()
-    cs = cs if cs in ("ENU", "NUE", "EUN") else "ENU"
+    return _AXES.get(coordinate_system.upper(), _AXES["ENU"])
+
+
+def _letters(coordinate_system: str) -> Axes:
     unit = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
-    return Axes(unit[cs.index("E")], unit[cs.index("N")], unit[cs.index("U")])
+    return Axes(unit[coordinate_system.index("E")], unit[coordinate_system.index("N")],
+                unit[coordinate_system.index("U")])
+
+
+#: the three systems' axes, made once: a Compass asks at every sample
+_AXES = {cs: _letters(cs) for cs in ("ENU", "NUE", "EUN")}
 
 
 def reference_frame(coordinate_system: str) -> m3.Mat3:
