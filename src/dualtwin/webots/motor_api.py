@@ -18,12 +18,31 @@ from typing import Any, TypeVar
 from dualtwin.webots.api_args import warn
 
 __all__ = ["MULTIPLIER_ZERO", "check_maxima", "clamp_force", "clamp_position", "clamp_velocity", "coupled_groups",
-           "echo", "refuse_acceleration", "refuse_available", "refuse_nan", "refuse_velocity"]
+           "echo", "field_multiplier", "refuse_acceleration", "refuse_available", "refuse_nan", "refuse_velocity",
+           "target_in_limits"]
 
 T = TypeVar("T")
 
 #: the load warning of a motor whose multiplier is 0 (webots-devices.md §9: "0 → reset to 1 with warning")
 MULTIPLIER_ZERO = "motor '{name}': multiplier 0 is not allowed; using 1"
+
+
+def field_multiplier(motor: Any, name: str, report: Callable[[str], None]) -> float:
+    """A motor node's ``multiplier`` field, 0 refused with :data:`MULTIPLIER_ZERO` and 1 used (at load and after a
+    supervisor's edit)."""
+    multiplier = float(motor.fields.get("multiplier", 1.0))
+    if multiplier == 0.0:
+        report(MULTIPLIER_ZERO.format(name=name))
+        return 1.0
+    return multiplier
+
+
+def target_in_limits(target: float, min_position: float, max_position: float) -> float:
+    """A finite target position that new limits (min ≠ max) leave outside, clipped into them silently: what a
+    supervisor's edit of ``minPosition``/``maxPosition`` does to the target (physics/motor_edits.py)."""
+    if min_position != max_position and math.isfinite(target):
+        return min(max(target, min_position), max_position)
+    return target
 
 
 def check_maxima(motor: Any, report: Callable[[str], None]) -> None:

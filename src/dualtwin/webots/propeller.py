@@ -27,7 +27,7 @@ from dualtwin.webots import _math3 as m3
 from dualtwin.webots.api_args import warn
 from dualtwin.webots.fixed_link import body_of
 from dualtwin.webots.kinematic_motor import KinematicMotor
-from dualtwin.webots.motor_api import MULTIPLIER_ZERO, check_maxima
+from dualtwin.webots.motor_api import check_maxima, field_multiplier, target_in_limits
 from dualtwin.webots.motor_law import kinematic_motion
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import AttachmentRec, Simulation
@@ -148,13 +148,9 @@ def _read(rec: PropellerRec, sim: Simulation, names: Any, motor_names: Any) -> N
     if "minPosition" in motor_names or "maxPosition" in motor_names:
         rec.min_position = float(mf.get("minPosition", 0.0))
         rec.max_position = float(mf.get("maxPosition", 0.0))
-        if rec.min_position != rec.max_position and math.isfinite(rec.target_position):
-            rec.target_position = min(max(rec.target_position, rec.min_position), rec.max_position)
+        rec.target_position = target_in_limits(rec.target_position, rec.min_position, rec.max_position)
     if "multiplier" in motor_names:
-        rec.multiplier = float(mf.get("multiplier", 1.0))
-        if rec.multiplier == 0.0:
-            sim.warn(MULTIPLIER_ZERO.format(name=rec.name))
-            rec.multiplier = 1.0
+        rec.multiplier = field_multiplier(rec.motor, rec.name, sim.warn)
 
 
 def _edited(stamps: dict[Any, int], node: Node | None, names: tuple[str, ...], since: dict[Any, int]) -> set[str]:

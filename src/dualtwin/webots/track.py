@@ -33,7 +33,13 @@ from dualtwin.webots.api_args import as_float, finite, warn
 from dualtwin.webots.device_base import Device
 from dualtwin.webots.joint_devices import Brake, PositionSensor
 from dualtwin.webots.kinematic_motor import KinematicMotor
-from dualtwin.webots.motor_api import MULTIPLIER_ZERO, check_maxima, clamp_force, refuse_nan
+from dualtwin.webots.motor_api import (
+    check_maxima,
+    clamp_force,
+    field_multiplier,
+    refuse_nan,
+    target_in_limits,
+)
 from dualtwin.webots.motor_law import motor_velocity
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import Simulation, SolidRec
@@ -136,13 +142,9 @@ def _read_motor(rec: TrackRec, sim: Simulation, names: Any) -> None:
     if "minPosition" in names or "maxPosition" in names:
         rec.min_position = float(f.get("minPosition", 0.0))
         rec.max_position = float(f.get("maxPosition", 0.0))
-        if rec.min_position != rec.max_position and math.isfinite(rec.target_position):
-            rec.target_position = min(max(rec.target_position, rec.min_position), rec.max_position)
+        rec.target_position = target_in_limits(rec.target_position, rec.min_position, rec.max_position)
     if "multiplier" in names:
-        rec.multiplier = float(f.get("multiplier", 1.0))
-        if rec.multiplier == 0.0:
-            sim.warn(MULTIPLIER_ZERO.format(name=f.get("name", "linear motor")))
-            rec.multiplier = 1.0
+        rec.multiplier = field_multiplier(rec.motor, str(f.get("name", "linear motor")), sim.warn)
 
 
 class _Tracks:

@@ -21,10 +21,9 @@ harmonisation, which the restored fields alone do not give back).
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
-from dualtwin.webots.motor_api import MULTIPLIER_ZERO
+from dualtwin.webots.motor_api import field_multiplier, target_in_limits
 from dualtwin.webots.physics.records import MotorRec, PositionSensorRec
 
 __all__ = ["MOTOR_FIELDS", "apply_motor_field", "apply_position_sensor_field", "remember_load"]
@@ -65,14 +64,12 @@ def apply_motor_field(sim: Any, motor: MotorRec, name: str) -> bool:
     if name in ("minPosition", "maxPosition"):
         motor.min_position = float(fields.get("minPosition", 0.0))
         motor.max_position = float(fields.get("maxPosition", 0.0))
-        _clip_target(motor)
+        # (silently: a reset applies the load limits again before it puts the motors back in their initial state,
+        # and would warn about a target it is about to replace)
+        motor.target_position = target_in_limits(motor.target_position, motor.min_position, motor.max_position)
         return True
     if name == "multiplier":
-        multiplier = float(fields.get("multiplier", 1.0))
-        if multiplier == 0.0:
-            sim.warn(MULTIPLIER_ZERO.format(name=motor.name))
-            multiplier = 1.0
-        motor.multiplier = multiplier
+        motor.multiplier = field_multiplier(motor.node, motor.name, sim.warn)
         return True
     return False
 
@@ -88,10 +85,3 @@ def apply_position_sensor_field(sensor: PositionSensorRec, name: str) -> bool:
         return True
     return False
 
-
-def _clip_target(motor: MotorRec) -> None:
-    """Clip a finite target into limits (min ≠ max), silently: a reset applies the load limits again before it
-    puts the motors back in their initial state, and would warn about a target it is about to replace."""
-    lo, hi = motor.min_position, motor.max_position
-    if lo != hi and math.isfinite(motor.target_position):
-        motor.target_position = min(max(motor.target_position, lo), hi)
