@@ -117,8 +117,6 @@ def scale_contact_depths(m: mujoco.MjModel, d: mujoco.MjData, ratio: float) -> N
     mujoco.mj_forward(m, d)
 
 
-#: The keyframe a converted model starts from (Webots' initial velocities, dualtwin.convert.initial_state): the
-#: twin resets to it when the model has one.
 #: The custom text naming the converted robot's root body, written when its world has other robots
 #: (:mod:`dualtwin.convert.world_robots`): only the joints below that body are state, as the Webots twin's
 #: state holds its robot's joints only (the other robots' joints, and their motors' holds, stay out of it).
@@ -142,6 +140,8 @@ def _below(m: mujoco.MjModel, body: int, root: int) -> bool:
     return body == root
 
 
+#: The keyframe a converted model starts from (Webots' initial velocities, dualtwin.convert.initial_state): the
+#: twin resets to it when the model has one.
 INITIAL_KEYFRAME = "webots_initial"
 #: Per-sensor numerics a converted model carries (``webots_sensor.<sensor>`` = [resolution]).
 SENSOR_NUMERIC = "webots_sensor."
