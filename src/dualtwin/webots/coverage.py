@@ -115,12 +115,12 @@ REGISTRY: tuple[Coverage, ...] = (
              "scale honoured inside boundingObjects (per axis for Boxes and meshes, the largest factor for round "
              "primitives) and above Solids: the frames below it (Solids, joints' anchors, devices) placed at "
              "scaled translations, boundingObjects scaled, mass x s^3 and inertia x s^5 whatever the Physics "
-             "mode; above a Solid or joint one factor (a non-uniform scale acts as its largest, a non-positive "
+             "mode, a Propeller's centre of thrust scaled; above a Solid or joint one factor (a non-uniform scale acts as its largest, a non-positive "
              "component is reset to 1, each with a warning); sensor ranges are not scaled. Inside boundingObjects "
              "a supervisor's translation/rotation/scale edit moves and resizes their geoms at the next step as a "
              "Pose's does; among a Solid's children a translation/rotation edit moves what is below it as a "
              "Pose's does (a scale edit there: the Shapes seen by rays and cameras only, not the Solids below, "
-             "which keep the load's scale, with a warning)"),
+             "which keep the load's scale, their own Shapes too, with a warning)"),
     Coverage("Slot", "scene", "supported",
              "its endPoint is placed as a child; a Slot pair as a joint endPoint passes the joint through"),
     Coverage("Billboard", "scene", "visual", "a view-facing group; no physics"),

@@ -222,7 +222,9 @@ class _Propellers:
                 continue
             frame = sim.solid_world_pose(solid) * rec.site.frame_rel
             a_world = frame.rotate(rec.axis)
-            p_world = frame.apply(rec.center)
+            # (upperPose·centerOfThrust: the upper Pose's matrix holds the scale of the Transforms above it, on-ODE
+            # §3.1, so below a scaled Transform the centre of thrust is as far from the frame as the scale says)
+            p_world = frame.apply(m3.scale(rec.center, rec.site.scale))
             # velocity of the centre of thrust: v + w × (p − CoM)
             w = (body.avel[0], body.avel[1], body.avel[2])
             r = m3.sub(p_world, (body.pos[0], body.pos[1], body.pos[2]))

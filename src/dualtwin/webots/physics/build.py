@@ -97,7 +97,7 @@ class SceneBuilder(SimulationCore):
             elif child.type_name in JOINT_TYPES:
                 self._add_joint(child, frame_rel, parent, robot, scale)
             elif child.type_name in ATTACHMENT_TYPES:
-                self.attachments.append(AttachmentRec(child, frame_rel, parent, robot))
+                self.attachments.append(AttachmentRec(child, frame_rel, parent, robot, scale))
             elif "translation" in child.fields and "rotation" in child.fields and "children" in child.fields:
                 if child.type_name == "TrackWheel":
                     # webots-devices.md §7.1: Webots places a TrackWheel's children at (position.x, 0, position.y)

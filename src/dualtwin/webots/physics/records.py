@@ -296,6 +296,9 @@ class AttachmentRec(_ShortRepr):
     frame_rel: Pose  # the closest upper Pose frame, in the parent Solid's frame
     solid: SolidRec | None
     robot: RobotRec | None
+    #: the factor of the Transforms above it (dualtwin.webots.solid_scale): a position its fields give in its frame
+    #: (a Propeller's centerOfThrust) is that many times longer
+    scale: float = 1.0
 
 
 @dataclass(eq=False, repr=False)
