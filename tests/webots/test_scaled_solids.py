@@ -9,6 +9,7 @@ Every expected value is computed by hand in the test's comment; each test has it
 from __future__ import annotations
 
 import math
+import warnings
 
 import pytest
 
@@ -289,3 +290,28 @@ def test_a_propeller_below_a_scaled_transform_pushes_at_its_scaled_centre_of_thr
         assert sup.getFromDef("DRONE").getVelocity()[4] - before == pytest.approx(spin, rel=2e-2)
     finally:
         sup.simulation.close()
+
+
+@pytest.mark.parametrize(("scale", "inside", "seen"), [
+    # a zero component is reset to 1, as the load says in its warning (solid_scale): the rays saw no box at all
+    ("0 1 1", "", (1.0, 1.0, 1.0)),
+    # beside a Solid, the non-uniform scale acts as its largest factor, as the camera draws it: the rays took it per
+    # axis, a 0.1 x 0.1 x 0.2 m box where the camera draws a 0.2 m cube
+    ("1 1 2", "Solid { name \"inner\" }", (2.0, 2.0, 2.0)),
+    ("1 1 2", "", (1.0, 1.0, 2.0)),  # control: Shapes alone, per axis in both versions
+])
+def test_rays_see_the_shapes_below_a_transform_scale_as_the_load_reads_it(scale: str, inside: str,
+                                                                          seen: tuple[float, ...]) -> None:
+    from dualtwin.webots.visual_rays import VisualGeoms
+
+    world = load_world_text(HEADER.format(step=4) + f"Solid {{ children [ Transform {{ scale {scale} children [ "
+                            f"Shape {{ geometry Box {{ size 0.1 0.1 0.1 }} }} {inside} ] }} ] }}")
+    with warnings.catch_warnings():  # (the load's line about the scale)
+        warnings.simplefilter("ignore")
+        sim = Simulation(world)
+    try:
+        rays = VisualGeoms(sim)
+        assert [geom.scale for geom in rays.geoms] == [seen]
+        rays.close()
+    finally:
+        sim.close()

@@ -34,10 +34,25 @@ from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import GeomRec, Simulation, SolidRec
 from dualtwin.webots.physics.records import is_solid
 from dualtwin.webots.shapes import CAD_SHAPE_RGBA, SURFACE_NODES, appearance_rgba, surface_triangles
+from dualtwin.webots.solid_scale import holds_bodies, positive_scale, transform_factor
 
 __all__ = ["VisualGeoms", "infra_red_reflection", "scene_of", "visual_targets"]
 
 _PLANE_THICKNESS = 1e-6  # m: a Plane is a rectangle; rays hit its flat box from either side
+
+
+
+def _shapes_scale(transform: Node) -> tuple[float, float, float]:
+    """The scale a Transform among a Solid's children gives the Shapes below it, as the physics and the cameras take
+    it (:mod:`dualtwin.webots.solid_scale`, the load warned): a non-positive component reset to 1, and above a Solid
+    or joint one factor, its largest."""
+    def quiet(_: str) -> None:
+        return None
+
+    if holds_bodies(transform):
+        factor = transform_factor(transform, quiet)
+        return factor, factor, factor
+    return positive_scale(transform, quiet)
 
 
 class VisualGeoms:
@@ -67,7 +82,7 @@ class VisualGeoms:
             sub = local * Pose.from_fields(translation, node.fields.get("rotation"))
             sc = tuple(scale)
             if t == "Transform":
-                s = node.fields.get("scale", (1.0, 1.0, 1.0))
+                s = _shapes_scale(node)
                 sc = (scale[0] * s[0], scale[1] * s[1], scale[2] * s[2])
             for c in node.children():
                 self._walk(c, sub, sc, solid)
