@@ -16,6 +16,8 @@ Each test has its control (the same world without the edit, or the value before 
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from dualtwin.webots import load_world_text, ode
@@ -23,6 +25,7 @@ from dualtwin.webots.controller import Supervisor
 from dualtwin.webots.physics import Simulation
 from tests.support.kicks import supervisor_in
 from tests.support.ode_probe import probe
+from tests.support.quiet_worlds import quiet_supervisor
 
 TS = 8
 H = TS / 1000
@@ -322,3 +325,39 @@ def test_simulation_reset_restores_the_fall_and_the_step_length() -> None:
     sup.simulationReset()
     sup.step(16)
     assert _fall(sup, 10) == pytest.approx(-9.81 * 10 * H, rel=1e-9)  # ten steps of 8 ms under 9.81 m/s² again
+
+
+def _belt_carries(sup: Supervisor, steps: int) -> float:
+    """How far along x the belt carries the box in ``steps`` steps, the box pressed onto it by 20 N."""
+    box = sup.getFromDef("BOX")
+    start = box.getPosition()[0]
+    for _ in range(steps):
+        box.addForce([0.0, 0.0, -20.0], False)
+        sup.step(TS)
+    return box.getPosition()[0] - start
+
+
+def test_a_gravity_edit_reaches_the_belt_rule_of_a_track() -> None:
+    # D §7.2: the belt's surface speed is v·sign with sign = ±g_z, g the unit gravity of the world, so a gravity
+    # written upward (a negative WorldInfo.gravity: S §1.1, along the down axis) reverses the belt's drive. A box
+    # pressed by 20 N onto a belt running at v = 0.2 m/s (the gravity, ±0.01 m/s², barely weighs: the 50 kg Track
+    # stays on the ground under the 20 N) is carried 0.2 m/s · 0.496 s = 0.0992 m along x, less 0.001 m while it
+    # catches up (μ·N/m = 20 m/s²: 0.01 s at half the speed): 0.098 m. After the edit the belt runs the other way:
+    # the box turns from +0.2 to -0.2 m/s in 0.02 s, losing 0.2·0.02 = 0.004 m: 0.0992 - 0.004 = 0.095 m back
+    sup = quiet_supervisor(f"#VRML_SIM R2023b utf8\nWorldInfo {{ basicTimeStep {TS} gravity 0.01 }}\n"
+                           "Robot { supervisor TRUE children [ Track { translation 0 0 0.05 boundingObject Box { size "
+                           "2 0.4 0.1 } physics Physics { mass 50 } device [ LinearMotor { maxVelocity 1 } ] } ] }\n"
+                           "Solid { translation 0 0 -0.5 boundingObject Box { size 10 10 1 } }\n"
+                           "DEF BOX Solid { translation 0 0 0.15 boundingObject Box { size 0.1 0.1 0.1 } "
+                           "physics Physics { density -1 mass 1 } }\n")
+    try:
+        motor = sup.getDevice("linear motor")
+        motor.setPosition(float("inf"))
+        motor.setVelocity(0.2)
+        before = _belt_carries(sup, 62)  # 0.496 s
+        assert abs(before) == pytest.approx(0.098, abs=3e-3)  # the control, before the edit
+        _info(sup).getField("gravity").setSFFloat(-0.01)
+        after = _belt_carries(sup, 62)
+        assert after == pytest.approx(-math.copysign(0.095, before), abs=3e-3)  # (before the mend: +0.099)
+    finally:
+        sup.simulation.close()

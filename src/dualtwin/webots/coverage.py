@@ -52,7 +52,7 @@ REGISTRY: tuple[Coverage, ...] = (
              "coordinateSystem (ENU/NUE/EUN) sets the gravity direction and the InertialUnit's and GPS's "
              "reference axes; gpsCoordinateSystem WGS84 and gpsReference drive GPS latitude/longitude through "
              "UTM, and gpsReference offsets local GPS readings; a supervisor's edit of gravity (bodies asleep "
-             "woken, buoyancy following), ERP/CFM, physicsDisableTime and its thresholds (the world and every body) "
+             "woken, buoyancy and the Tracks' belt rule following), ERP/CFM, physicsDisableTime and its thresholds (the world and every body) "
              "or basicTimeStep (the next steps that long, the time going on, damping, springs and suspensions "
              "converted again for it) reaches ODE at the next step and a reset restores it; coordinateSystem and "
              "randomSeed are read at load only"),

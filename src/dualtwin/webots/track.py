@@ -203,12 +203,13 @@ class _Tracks:
     def _modifier(self, rec: TrackRec) -> Any:
         sim = self.sim
         own = {g.ptr for g in rec.solid.geoms}
-        up, g_up = gravity_axis(sim.gravity)  # (WorldInfo's gravity is read at load only)
 
         def modify(contacts: Any, indices: list[int], o1: int) -> None:
             v = rec.velocity
             if v == 0.0:
                 return
+            # the gravity of this step: a supervisor may have written WorldInfo's (physics/world_edits.py)
+            up, g_up = gravity_axis(sim.gravity)
             track_first = o1 in own
             pose = sim.solid_world_pose(rec.solid)
             z_axis = pose.rotate((0.0, 0.0, 1.0))
