@@ -10,11 +10,14 @@ g·h per step (ODE: v ← v + h·F/m); without buoyancy it loses g·h per step.
 
 from __future__ import annotations
 
+import math
 import warnings
 
 import pytest
 
+from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Supervisor
+from dualtwin.webots.physics import Simulation
 from tests.support.kicks import supervisor_in
 
 TS = 8
@@ -63,3 +66,24 @@ def test_a_solid_given_physics_at_run_time_is_pushed_by_the_fluid() -> None:
     sup.getFromDef("BOX").getField("physics").importSFNodeFromString("Physics { density 500 }")
     sup.step(TS)  # its first step from rest, buoyancy included
     assert _gain(sup) == pytest.approx(G * H, rel=1e-9)  # (before: -g·h, the load had no immersed body)
+
+
+def test_a_gravity_edit_turns_the_fluid_surface_with_it() -> None:
+    # The surface of a Fluid box is its face the most against the gravity: with the gravity written upward (-9.81:
+    # S §1.1, along the down axis) it is the pool's bottom face z = 0. A 0.1 m ball centred on that face is half
+    # immersed: V = (2/3)·π·0.1³ = 2.0944e-3 m³, pushed by -ρ·V·g = -1000·2.0944e-3·9.81 = -20.546 N along z (down,
+    # against the new gravity). The surface was left at the top face z = 1, and the ball counted as wholly
+    # immersed below it: twice that force.
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sup = Supervisor(simulation=Simulation(load_world_text(
+            f"#VRML_SIM R2023b utf8\nWorldInfo {{ basicTimeStep {TS} gravity {G} }}\n{POOL}\n"
+            "DEF BALL Solid { boundingObject Sphere { radius 0.1 } physics Physics { density -1 mass 1 } "
+            f"immersionProperties [ {IMMERSION} ] }}\nRobot {{ supervisor TRUE }}\n")))
+    try:
+        sup.getRoot().getField("children").getMFNode(0).getField("gravity").setSFFloat(-G)
+        sup.step(TS)  # (the first step: the force is reckoned with the ball where the world put it)
+        ((_, force, _),) = sup.simulation.extensions["buoyancy"].last_forces
+        assert force == pytest.approx((0.0, 0.0, -1000 * (2 / 3) * math.pi * 0.1**3 * G), rel=1e-6)
+    finally:
+        sup.simulation.close()

@@ -138,13 +138,25 @@ class Buoyancy:
     def __init__(self, lib: Any, gravity: Sequence[float], up: Sequence[float], fluids: list[_Fluid],
                  solids: list[SolidRec], closed: ClosedMeshes) -> None:
         self._lib = lib
-        self.gravity = tuple(float(v) for v in gravity)  # WorldInfo's, set again by a run-time edit
         self._up = tuple(float(v) for v in up)
+        self.gravity = gravity  # WorldInfo's, set again by a run-time edit
         self._fluids = fluids
         self._solids = solids  # the simulation's own list: Solids imported or removed at run time included
         self._meshes: dict[tuple[str, float, float], tuple[Mesh, float]] = {}  # and true / polyhedron volume
         self._closed = closed
         self.last_forces: list[tuple[SolidRec, tuple[float, float, float], tuple[float, float, float]]] = []
+
+    @property
+    def gravity(self) -> m3.Vec3:
+        """The world's gravity the fluids push against; setting it (a supervisor's edit of WorldInfo.gravity) turns
+        the fluids' surface to the new up as well: the face of each Fluid box the most against the gravity."""
+        return self._gravity
+
+    @gravity.setter
+    def gravity(self, gravity: Sequence[float]) -> None:
+        self._gravity: m3.Vec3 = (float(gravity[0]), float(gravity[1]), float(gravity[2]))
+        if any(self._gravity):  # (without gravity the former up stays: nothing is pushed anyway)
+            self._up = m3.normalized(m3.scale(self._gravity, -1.0))
 
     def __call__(self, dt: float) -> None:
         del dt
