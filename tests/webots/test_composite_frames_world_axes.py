@@ -17,6 +17,7 @@ import warnings
 import pytest
 
 from dualtwin.webots import load_world_text
+from dualtwin.webots.controller import Supervisor
 from dualtwin.webots.physics import Simulation
 from tests.support.quiet_worlds import quiet_supervisor
 
@@ -71,3 +72,25 @@ def test_a_coordinate_system_the_devices_cannot_read_is_named_in_one_line() -> N
     # controls: the values Webots names, the coordinate system in any case, say nothing
     for info in ('coordinateSystem "NUE" gpsCoordinateSystem "WGS84"', 'coordinateSystem "eun"', ""):
         assert _world_info_warnings(info) == [], info
+
+
+def test_a_compass_keeps_the_north_of_the_load_when_a_supervisor_writes_the_coordinate_system() -> None:
+    # The coordinateSystem is read at load only, for the gravity and every device (the coverage registry's WorldInfo
+    # entry): a Compass with the world's axes reads north = +y of an ENU world, (0, 1, 0), before and after
+    # "NUE" is written; it read the field at every sample, and took +x (NUE's north) while the gravity stayed ENU's
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sim = Simulation(load_world_text("#VRML_SIM R2023b utf8\nWorldInfo { basicTimeStep 8 }\n"
+                                         'Robot { supervisor TRUE children [ Compass { name "c" } ] }\n'))
+    sup = Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    try:
+        compass = sup.getDevice("c")
+        compass.enable(8)
+        sup.step(8)
+        assert compass.getValues() == pytest.approx([0.0, 1.0, 0.0])  # the control
+        sup.getRoot().getField("children").getMFNode(0).getField("coordinateSystem").setSFString("NUE")
+        sup.step(8)
+        assert compass.getValues() == pytest.approx([0.0, 1.0, 0.0])
+        assert sim.gravity == (0.0, 0.0, -9.81)
+    finally:
+        sim.close()

@@ -21,10 +21,9 @@ from dualtwin.webots.world_frame import axes
 __all__ = ["Compass", "coordinate_system", "north"]
 
 def coordinate_system(sim: Simulation) -> str:
-    """``WorldInfo.coordinateSystem`` (``ENU``, ``NUE`` or ``EUN``; ENU when absent or unknown)."""
-    info = sim.world.world_info()
-    system = str(info.fields.get("coordinateSystem", "ENU")).upper() if info is not None else "ENU"
-    return system if system in ("ENU", "NUE", "EUN") else "ENU"
+    """``WorldInfo.coordinateSystem`` (``ENU``, ``NUE`` or ``EUN``; ENU when absent or unknown) as the load read it,
+    the one reading the gravity and every device go by (a supervisor's later write of the field is not applied)."""
+    return sim.coordinate_system
 
 
 def north(sim: Simulation) -> m3.Vec3:
