@@ -1,12 +1,12 @@
-"""The threads runtime's step-timeout watch reads a controller's state without the runtime's lock, from its own thread,
-every few hundredths of a second, and may look at any moment between two lines of the controller's thread. At no such
-moment may it see a controller that has just made its Robot, or has just come back from a long step, with the time of
-its start as its last sign of progress: it would stop a controller that is doing what it should.
+"""The threads runtime's step-timeout watch reads a controller's state (``arrived``, ``in_step``, ``progress``) without
+the runtime's lock, from its own thread, every few hundredths of a second, and may look at any moment between two
+lines of the controller's thread. It stops a controller that has arrived (made its Robot), is not in a step, and whose
+last sign of progress is older than the timeout. So at no moment may a controller that has just made its Robot, or has
+just come back from a step, count as arrived or out of its step with a sign of progress older than that moment: after
+imports or a step longer than the timeout (both normal), the watch would stop a controller doing what it should.
 
-The check runs here at every line the controller's thread executes in the runtime's ``register`` and ``advance``
-(a trace function), so each moment is looked at, deterministically. The wall time these take is given by moving the
-controller's last sign of progress back (no test waits): 30 s of imports, within the 60 s start-up grace but past the
-5 s timeout, and a step that lasted 30 s.
+The state is read here at every line the controller's thread executes in the runtime's ``register`` and ``advance``
+(a trace function), so each moment is looked at, deterministically, without waiting.
 """
 
 from __future__ import annotations
@@ -16,7 +16,6 @@ import time
 import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
-from pathlib import Path
 from types import FrameType
 from typing import Any
 
@@ -26,32 +25,24 @@ from dualtwin.webots import runtime as runtime_module
 from dualtwin.webots.physics import Simulation
 from dualtwin.webots.protos import load_world_text
 from dualtwin.webots.robot import Robot
-from dualtwin.webots.runner import _check_step_timeout, _ScriptResult
-from dualtwin.webots.runtime import Runtime
-
-TIMEOUT_S = 5.0  # the default --step-timeout
-LONG_AGO_S = 30.0  # past the timeout, within the start-up grace (STARTUP_GRACE_S = 60 s)
+from dualtwin.webots.runtime import Controller, Runtime
 
 
 @contextmanager
-def _watched(runtime: Runtime, result: _ScriptResult, step_lasts: float = 0.0) -> Iterator[list[str]]:
-    """Run the watch's check before every line (and at every return) of ``Runtime.register``/``advance`` in this
-    thread; yields the list of the places where it stopped the controller. ``step_lasts``: the wall time each step
-    is taken to have lasted (its start moved back when it returns)."""
-    stopped: list[str] = []
-    waited: dict[int, float] = {}
-    controller = result.controller
-    assert controller is not None
+def _watched(controller: Controller, since: list[float]) -> Iterator[list[str]]:
+    """Look at ``controller`` before every line (and at every return) of ``Runtime.register``/``advance`` in this
+    thread; yields the places where it counted as arrived and out of a step with a sign of progress older than
+    ``since[0]`` (a step's end moves ``since[0]`` to the time it returned)."""
+    stale: list[str] = []
 
     def local(frame: FrameType, event: str, arg: Any) -> Any:
         if frame.f_code.co_name == "_advance":
-            if event == "return" and step_lasts:
-                controller.progress -= step_lasts
+            if event == "return":
+                since[0] = time.monotonic()  # the step is over: its own start is no sign of progress any more
             return local
-        if event in ("line", "return") and result.timed_out_at is None:
-            _check_step_timeout(runtime, result, TIMEOUT_S, time.monotonic(), waited)
-            if result.timed_out_at is not None:
-                stopped.append(f"{frame.f_code.co_name}:{frame.f_lineno}")
+        if event in ("line", "return") and controller.arrived and not controller.in_step \
+                and controller.progress < since[0]:
+            stale.append(f"{frame.f_code.co_name}:{frame.f_lineno}")
         return local
 
     def calls(frame: FrameType, event: str, arg: Any) -> Any:
@@ -63,7 +54,7 @@ def _watched(runtime: Runtime, result: _ScriptResult, step_lasts: float = 0.0) -
     previous = sys.gettrace()  # (a coverage tracer's, given back after)
     sys.settrace(calls)
     try:
-        yield stopped
+        yield stale
     finally:
         sys.settrace(previous)
 
@@ -76,38 +67,36 @@ def sim() -> Iterator[Simulation]:
     simulation.close()
 
 
-def _controller(sim: Simulation) -> tuple[Runtime, _ScriptResult]:
-    runtime = Runtime(sim)
-    result = _ScriptResult(Path("probe.py"))
-    result.controller = runtime.bind_thread(sim.robots[0].node)
-    result.running = True  # (result.thread stays None: the check never stops this test's own thread)
-    return runtime, result
-
-
-def test_a_controller_that_makes_its_robot_after_long_imports_is_not_stopped(sim: Simulation) -> None:
-    runtime, result = _controller(sim)
-    assert result.controller is not None
-    result.controller.progress -= LONG_AGO_S  # its imports took 30 s
+def _robot(sim: Simulation, runtime: Runtime) -> Robot:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        with _watched(runtime, result) as stopped:
-            robot = Robot(runtime=runtime, robot_node=sim.robots[0].node)
+        return Robot(runtime=runtime, robot_node=sim.robots[0].node)
+
+
+def test_a_controller_counts_as_arrived_only_with_the_time_it_arrived(sim: Simulation) -> None:
+    runtime = Runtime(sim)
+    controller = runtime.bind_thread(sim.robots[0].node)  # its sign of progress: now, before its imports
+    since = [time.monotonic()]  # its imports are over: what came before is no sign of progress
+    with _watched(controller, since) as stale:
+        robot = _robot(sim, runtime)
     try:
-        # (it stopped it between 'arrived = True' and the new progress time on the previous code)
-        assert stopped == []
+        # (it arrived with the time of its start on the previous code: 'arrived = True' came before the new time)
+        assert stale == []
+        assert controller.arrived
     finally:
         robot.cleanup()
 
 
-def test_a_controller_back_from_a_step_longer_than_the_timeout_is_not_stopped(sim: Simulation) -> None:
-    runtime, result = _controller(sim)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        robot = Robot(runtime=runtime, robot_node=sim.robots[0].node)
+def test_a_controller_leaves_a_step_only_with_the_time_it_returned(sim: Simulation) -> None:
+    runtime = Runtime(sim)
+    controller = runtime.bind_thread(sim.robots[0].node)
+    robot = _robot(sim, runtime)
     try:
-        with _watched(runtime, result, step_lasts=LONG_AGO_S) as stopped:
+        since = [0.0]
+        with _watched(controller, since) as stale:
             assert robot.step(8) == 0
-        # (it stopped it between 'in_step = False' and the new progress time on the previous code)
-        assert stopped == []
+        # (it left the step with the time of the step's start on the previous code: 'in_step = False' came first)
+        assert stale == []
+        assert not controller.in_step and controller.progress >= since[0] > 0.0
     finally:
         robot.cleanup()
