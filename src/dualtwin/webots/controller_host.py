@@ -333,9 +333,11 @@ class _Host:
                     try:
                         value: Any = getattr(target, name)(*args, **kwargs)
                     finally:
-                        link.in_step = False
-                        link.stepped = True
+                        # progress first: the watchdog reads in_step and last_active without a lock, and must not
+                        # see the step ended with the time from before it
                         link.last_active = time.monotonic()
+                        link.stepped = True
+                        link.in_step = False
                     if value == -1 and link.ended_at is None:
                         link.ended_at = time.monotonic()
                     fresh = self._fresh(link)
