@@ -8,9 +8,6 @@ it), never runs of this code; each test has its control (the same run without th
 from __future__ import annotations
 
 import math
-import os
-import subprocess
-import sys
 import warnings
 from typing import Any
 
@@ -20,7 +17,7 @@ from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Robot, Runtime, Supervisor
 from dualtwin.webots.physics import Simulation
 from tests.support.sensor_worlds import sensor_world, unit_noise
-from tests.support.world_runs import ROOT
+from tests.support.world_runs import run_project_cli
 
 STEP = 8
 # a wall whose near face is the plane x = 0.5, in front of the sensor (axis +x) at the robot's origin
@@ -341,16 +338,7 @@ for _ in range(3):
 def test_a_controller_process_reads_the_edited_configuration(tmp_path: Any) -> None:
     # the reader runs in its own process, as in Webots: its getters give the load values before the edit, the
     # edited ones (channel 7, the table's largest output 250, maxPosition 0.5) after its next steps
-    for name, text in (("reader", READER), ("editor", EDITOR)):
-        folder = tmp_path / "controllers" / name
-        folder.mkdir(parents=True)
-        (folder / f"{name}.py").write_text(text, encoding="utf-8")
-    world = tmp_path / "worlds" / "edits.wbt"
-    world.parent.mkdir()
-    world.write_text(PROCESS_WORLD, encoding="utf-8")
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "src") + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    run = subprocess.run([sys.executable, "-m", "dualtwin.cli", "webots", "run", str(world), "--duration", "0.1"],
-                         capture_output=True, text=True, timeout=120, env=env, cwd=ROOT, check=False)
+    run = run_project_cli(tmp_path, PROCESS_WORLD, {"reader": READER, "editor": EDITOR}, 0.1)
     assert run.returncode == 0, run.stderr
     lines = {line.split()[0]: line.split()[1:] for line in run.stdout.splitlines() if line[:4] in ("LOAD", "LATE")}
     assert [float(v) for v in lines["LOAD"]] == [3.0, 1000.0, 1.0]

@@ -8,15 +8,12 @@ it), never runs of this code; each test has its control (the same run without th
 from __future__ import annotations
 
 import math
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from tests.support.sensor_worlds import sensor_world
-from tests.support.world_runs import ROOT
+from tests.support.world_runs import run_project_cli
 
 STEP = 8
 # a wall with a visual Shape whose near face is the plane x = 0.5: Lidar rays hit what Webots renders (D §3.2)
@@ -379,16 +376,7 @@ def test_a_controller_process_reads_the_edited_sizes(tmp_path: Path) -> None:
     # the reader runs in its own process, as in Webots: before the edit (before its first step, which the
     # editor's edit follows) 4 columns, maxFrequency 25, a 4-pixel-wide camera; after its next steps 8 columns
     # (8 ranges), 20 Hz, a 2×4 camera (4·2·4 = 32 bytes)
-    for name, text in (("reader", READER), ("editor", EDITOR)):
-        folder = tmp_path / "controllers" / name
-        folder.mkdir(parents=True)
-        (folder / f"{name}.py").write_text(text, encoding="utf-8")
-    world = tmp_path / "worlds" / "edits.wbt"
-    world.parent.mkdir()
-    world.write_text(PROCESS_WORLD, encoding="utf-8")
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "src") + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    run = subprocess.run([sys.executable, "-m", "dualtwin.cli", "webots", "run", str(world), "--duration", "0.1"],
-                         capture_output=True, text=True, timeout=120, env=env, cwd=ROOT, check=False)
+    run = run_project_cli(tmp_path, PROCESS_WORLD, {"reader": READER, "editor": EDITOR}, 0.1)
     assert run.returncode == 0, run.stderr
     lines = {line.split()[0]: line.split()[1:] for line in run.stdout.splitlines() if line[:4] in ("LOAD", "LATE")}
     assert [float(v) for v in lines["LOAD"]] == [4, 25.0, 4]
