@@ -17,6 +17,7 @@ from dualtwin.webots import _math3 as m3
 from dualtwin.webots.api_args import as_float, as_floats, as_int, as_text, finite, warn
 from dualtwin.webots.contacts import contact_points, solids_of, static_balance
 from dualtwin.webots.field_api import Field, parse_nodes
+from dualtwin.webots.node_states import load_state, save_state
 from dualtwin.webots.node_types import node_type_of
 from dualtwin.webots.nodes import Node as SceneNode
 from dualtwin.webots.nodes import World, copy_value, path_to_node
@@ -84,12 +85,6 @@ def find_def(node: SceneNode, name: str) -> SceneNode | None:
         if found is not None:
             return found
     return None
-
-
-def _registry(sim: Simulation, key: str, factory: Any) -> Any:
-    if key not in sim.extensions:
-        sim.extensions[key] = factory()
-    return sim.extensions[key]
 
 
 def _forget_imported(sim: Simulation) -> None:
@@ -443,49 +438,17 @@ class Node:
         self._sim.queue_set_joint_position(joint, axis, value)
 
     def saveState(self, stateName: str) -> None:
-        """Remember this subtree's fields and its Solids' poses and velocities under ``stateName``."""
-        states = _registry(self._sim, "node_states", dict)
-        fields = [(n, {k: copy_value(v) for k, v in n.fields.items()}) for n in self._node.walk()]
-        motion = []
-        for n in self._node.walk():
-            solid = self._sim.solid_for(n)
-            if solid is not None:
-                local = self._sim.solid_local_pose(solid)
-                moving = solid.body is not None and solid.body.root is solid
-                motion.append((solid, local, self._sim.solid_velocity(solid) if moving else None))
-        joints = [(j, list(j.positions)) for n in self._node.walk() if (j := self._sim.joint_for(n)) is not None]
-        states[(id(self._node), str(stateName))] = (fields, motion, joints)
+        """Remember this subtree's fields and its Solids' poses and velocities under ``stateName`` (:mod:`.node_states`)."""
+        save_state(self._sim, self._node, str(stateName))
 
     def loadState(self, stateName: str) -> None:
-        """Restore a ``saveState`` snapshot (``'__init__'``: the state at load), applied at the next step."""
-        states = _registry(self._sim, "node_states", dict)
-        saved = states.get((id(self._node), str(stateName)))
-        if saved is None and stateName == "__init__":
-            for n in self._node.walk():
-                solid = self._sim.solid_for(n)
-                if solid is not None and solid.joint is None:
-                    rot = m3.axis_angle_from_mat(solid.load_rel.R)  # (the translation in the field's units)
-                    self._sim.queue_set_pose(solid, m3.scale(solid.load_rel.t, 1.0 / solid.scale), rot)
-                joint = self._sim.joint_for(n)
-                if joint is not None:
-                    for axis, initial in enumerate(joint.initial_positions):
-                        self._sim.queue_set_joint_position(joint, axis, initial)
-            self.resetPhysics()
-            return
-        if saved is None:
+        """Restore a ``saveState`` snapshot (``'__init__'``: the state at load), its restored fields acting as written
+        ones, poses and joints at the next step (:mod:`.node_states`)."""
+        restored = load_state(self._sim, self._node, str(stateName))
+        if restored is None:
             warn(f"Node.loadState(): no state named {stateName!r} was saved for this node")
-            return
-        fields, motion, joints = saved
-        for n, values in fields:
-            n.fields.update({k: copy_value(v) for k, v in values.items()})
-        for solid, local, velocity in motion:
-            if solid.joint is None:
-                self._sim.queue_set_pose(solid, tuple(local.t), m3.axis_angle_from_mat(local.R))
-            if velocity is not None:
-                self._sim.set_body_velocity(solid, list(velocity))
-        for joint, positions in joints:
-            for axis, position in enumerate(positions):
-                self._sim.queue_set_joint_position(joint, axis, position)
+        elif restored == "load":
+            self.resetPhysics()
 
     def restartController(self) -> None:
         """End this Robot's controller and start the one its ``controller`` field names, at the next step (as

@@ -258,6 +258,10 @@ class Simulation(SolidVelocityEdits):
                 snap.append((node, copied(node.fields), interface))
         return snap
 
+    def load_fields(self, node: Node) -> dict[str, Any] | None:
+        """The values ``node``'s fields had at load (what ``simulationReset`` restores), None for a node added since."""
+        return next((dict(values) for n, values, _ in self._snapshot if n is node), None)
+
     def _restore_fields(self) -> None:
         for node, values, interface in self._snapshot:
             node.fields.clear()
