@@ -27,6 +27,7 @@ from dualtwin.webots.api_args import as_float, as_floats, as_int, warn
 from dualtwin.webots.nodes import Node as SceneNode
 from dualtwin.webots.nodes import copy_value
 from dualtwin.webots.physics import JointRec, Simulation
+from dualtwin.webots.physics.edits import UNRECORDED
 from dualtwin.webots.physics.records import is_robot
 from dualtwin.webots.proto_links import (
     feeds_template,
@@ -151,13 +152,14 @@ class Field:
         """The value a read gives. An interface field IS-bound to a base field is one value with it (§7.1): the
         base field holds what changed inside the instance too (the robot's own setCustomData, an Emitter's
         setChannel), which Webots passes up to the PROTO's field; a supervisor's write of the interface field
-        came down to it. A write of another supervisor is read once a step executed it (§6). (Node-valued
+        came down to it. A write of another supervisor is read once a step executed it, and its author reads its own
+        write back until then, even one that a supervisor later in the scene tree overrode (§6). (Node-valued
         fields: see _in_scene.)"""
         if self._vrml.endswith("Node"):
             return self._raw()
-        hidden, before = self._sim.unexecuted_before(self._node, self._name)
-        if hidden:  # another supervisor's write that no step executed yet
-            return before
+        decided, value = self._sim.unexecuted_before(self._node, self._name)
+        if decided:  # a write no step executed yet: the value before it for the others, its own for the writer
+            return value
         if not self._is_base():
             for node, name in linked_fields(self._node, self._name)[0]:
                 if name in node.fields:
@@ -443,16 +445,19 @@ class Field:
             self._values[self._name] = converted
             return
         changed = converted != self._values.get(self._name)
-        self._note_write()
+        if not self._note_write(converted):
+            return  # a supervisor later in the scene tree wrote it in this step: its value is the one executed last
         self._values[self._name] = converted
         self._changed()
         if changed and self._name == "controller" and kind == "SFString" and self._is_base() and is_robot(self._node):
             self._owner._controller_changed()  # Webots restarts the robot's controller with the new one
 
-    def _note_write(self) -> None:
-        """Before this supervisor's write of a (non-node) value: the others read the value before it until a step
-        executes the write (see _current)."""
-        self._sim.note_unexecuted_write(self._node, self._name, copy_value(self._raw()))
+    def _note_write(self, written: Any = UNRECORDED) -> bool:
+        """Before this supervisor's write of a (non-node) value, ``written`` (an SF value; an MF item edit records
+        none): the others read the value before it until a step executes the write (see _current). False when a
+        supervisor later in the scene tree already wrote the field in this step, whose write is executed after this
+        one (§6: scene-tree order): this one is not stored, its author reads it back until the step."""
+        return self._sim.note_unexecuted_write(self._node, self._name, copy_value(self._raw()), copy_value(written))
 
     def setSFBool(self, value: Any) -> None:
         self._set("setSFBool", "SFBool", value)

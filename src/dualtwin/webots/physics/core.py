@@ -67,7 +67,7 @@ class SimulationCore:
     _pending: list[PendingOp]
     #: (id of node, field) -> (value before, scene-tree places of the supervisors that wrote it) for the field writes
     #: of supervisors not yet executed by a step (see SupervisorEdits.note_unexecuted_write)
-    _unexecuted: dict[tuple[int, str], tuple[Any, set[int]]]
+    _unexecuted: dict[tuple[int, str], tuple[Any, dict[int, Any]]]  # value before, writer order -> its value
     _edited: dict[tuple[int, str], Node]
     _unstable: bool
     _closed: bool

@@ -34,6 +34,9 @@ from dualtwin.webots.physics.records import (
 )
 from dualtwin.webots.physics.world_edits import WorldInfoEdits
 
+#: the written value of an MF item edit, which is not recorded (its author reads the stored list back)
+UNRECORDED = object()
+
 
 class SupervisorEdits(WorldInfoEdits):
     """Teleports, field edits, velocities and sensor readings (see the module docstring)."""
@@ -81,19 +84,32 @@ class SupervisorEdits(WorldInfoEdits):
         """The joint of a joint node or of one of its (Hinge)JointParameters nodes."""
         return self._joint_by_node.get(id(node))
 
-    def note_unexecuted_write(self, node: Node, name: str, before: Any) -> None:
-        """The supervisor making the current request wrote ``node``'s field ``name``, which held ``before``. The
-        value is stored at once (the physics steps only once every controller waits in its step), but the write is
-        executed at the beginning of the next step (§6): until then the other supervisors read ``before``."""
-        self._unexecuted.setdefault((id(node), name), (before, set()))[1].add(self._request_order())
+    def note_unexecuted_write(self, node: Node, name: str, before: Any, written: Any = UNRECORDED) -> bool:
+        """The supervisor making the current request writes ``node``'s field ``name``, which holds ``before``, with
+        ``written`` (UNRECORDED for an MF item edit). The value is stored at once (the physics steps only once every
+        controller waits in its step), but the write is executed at the beginning of the next step (§6): until then
+        the other supervisors read ``before`` and the writer its own value. The writes of one step are executed in
+        the supervisors' scene-tree order, so the last one in the tree wins whichever came first: False when a
+        supervisor later in the tree already wrote the field in this step (this write must not be stored; its
+        author still reads it back until the step)."""
+        requester = self._request_order()
+        writers = self._unexecuted.setdefault((id(node), name), (before, {}))[1]
+        writers[requester] = written
+        return written is UNRECORDED or all(order <= requester for order in writers)
 
     def unexecuted_before(self, node: Node, name: str) -> tuple[bool, Any]:
-        """``(True, value before)`` when another supervisor than the one making the current request wrote ``node``'s
-        field ``name`` and no step executed it yet (see :meth:`note_unexecuted_write`), else ``(False, None)``."""
+        """``(True, value)`` when a supervisor's write of ``node``'s field ``name`` that no step executed yet decides
+        what the one making the current request reads (see :meth:`note_unexecuted_write`): the value before the
+        write for another supervisor, its own value for the writer. ``(False, None)``: the stored value is read."""
         entry = self._unexecuted.get((id(node), name))
-        if entry is None or self._request_order() in entry[1]:
+        if entry is None:
             return False, None
-        return True, entry[0]
+        before, writers = entry
+        requester = self._request_order()
+        if requester not in writers:
+            return True, before
+        own = writers[requester]
+        return (False, None) if own is UNRECORDED else (True, own)
 
     def pending_pose(self, solid: SolidRec) -> tuple[Sequence[float] | None, Sequence[float] | None]:
         """The translation and the rotation that the supervisor making the current request queued for ``solid``
