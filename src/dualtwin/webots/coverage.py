@@ -64,7 +64,7 @@ REGISTRY: tuple[Coverage, ...] = (
              "place in its body, whose mass follows, the root Solid staying put; a static Solid moved, by its "
              "translation/rotation or a Pose above it, Planes included, wakes the bodies asleep where it was and "
              "where it lands); Box/Sphere/Cylinder/Capsule/IndexedFaceSet/Mesh edits (also through "
-             "DEF/USE) resize the ODE geom at the next step, wake bodies around it and reach ray sensors, and "
+             "DEF/USE, a PROTO body's DEF that getFromProtoDef reaches with its USEs in that body) resize the ODE geom at the next step, wake bodies around it and reach ray sensors, and "
              "the body's mass, centre of mass and inertia follow the new shape as at load (with a density the "
              "mass follows too, a given mass stays); a "
              "Solid a supervisor imports joins the physics at once by the load's rules (merged into its parent's "

@@ -42,8 +42,9 @@ class GeometryEdits(CollisionPass):
     geometry_version: int = 0
 
     def linked_nodes(self, node: Node) -> list[Node]:
-        """``node`` and the nodes that are the same node in Webots: its DEF and every USE of that DEF."""
-        name = node.def_name or node.use_name
+        """``node`` and the nodes that are the same node in Webots: its DEF and every USE of that DEF (a DEF in a PROTO
+        body too, which getFromProtoDef reaches, and its USEs in that instance's body)."""
+        name = node.def_name or node.use_name or node.proto_def_name
         if not name:
             return [node]
         out = [node]
