@@ -455,8 +455,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "its geometry is a collision shape inside boundingObjects; Camera images draw Box, Sphere, "
              "Cylinder, Capsule, Plane and IndexedFaceSet shapes"),
     Coverage("Appearance", "visual", "visual", "only its colour and transparency reach Camera images"),
-    Coverage("PBRAppearance", "visual", "visual", "only its colour and transparency reach Camera images"),
-    Coverage("Material", "visual", "visual", "only its colour and transparency reach Camera images"),
+    Coverage("PBRAppearance", "visual", "visual", "only its colour and transparency reach Camera images (and its red the infra-red rays); a supervisor's edit of its colour, transparency and roughness shows from the next image or sample, on its DEF/USE copies too"),
+    Coverage("Material", "visual", "visual", "only its colour and transparency reach Camera images (and its red the infra-red rays); a supervisor's edit of its colour and transparency shows from the next image or sample, on its DEF/USE copies too"),
     Coverage("ImageTexture", "visual", "visual", "not rendered; never downloaded"),
     Coverage("TextureTransform", "visual", "visual", "not rendered"),
     Coverage("Color", "visual", "visual", "not rendered"),

@@ -15,6 +15,7 @@ from dualtwin.webots.lut import discretize
 from dualtwin.webots.mass_rules import rot_matrix
 from dualtwin.webots.motor_api import check_maxima
 from dualtwin.webots.nodes import Node
+from dualtwin.webots.physics.appearance_edits import APPEARANCE_FIELDS, apply_appearance_field
 from dualtwin.webots.physics.edit_stamps import note_edit
 from dualtwin.webots.physics.geometry_edits import GEOMETRY_TYPES
 from dualtwin.webots.physics.mass_edits import MASS_FIELDS
@@ -328,7 +329,9 @@ class SupervisorEdits(WorldInfoEdits):
         ``selfCollision``, ``WorldInfo`` ``ERP``/``CFM``/``gravity``/``basicTimeStep`` and the sleep fields
         ``physicsDisableTime``/``physicsDisableLinearThreshold``/``physicsDisableAngularThreshold``
         (:mod:`.world_edits`), and the dimensions of bounding geometries
-        (:mod:`.geometry_edits`; the mass properties of a body they bound follow). The layers above add joint
+        (:mod:`.geometry_edits`; the mass properties of a body they bound follow), a PBRAppearance's or Material's
+        colour, transparency and roughness (:mod:`.appearance_edits`: Camera images, infra-red rays). The layers
+        above add joint
         ``axis``/``anchor`` (:mod:`.axis_edits`), Solid and frame
         poses (:mod:`.frame_edits`), bounding Meshes (:mod:`.scene_changes`) and a Solid's ``linearVelocity``/
         ``angularVelocity`` (:mod:`.velocity_edits`).
@@ -392,6 +395,8 @@ class SupervisorEdits(WorldInfoEdits):
                 return True
         if node.type_name == "WorldInfo":
             return self._apply_world_info(node, name)
+        if node.type_name in APPEARANCE_FIELDS:
+            return apply_appearance_field(self, node, name)
         return False
 
     def _set_self_collision(self, robot: RobotRec, self_collision: bool) -> None:
