@@ -101,7 +101,9 @@ class SupervisorEdits(WorldInfoEdits):
     def unexecuted_before(self, node: Node, name: str) -> tuple[bool, Any]:
         """``(True, value)`` when a supervisor's write of ``node``'s field ``name`` that no step executed yet decides
         what the one making the current request reads (see :meth:`note_unexecuted_write`): the value before the
-        write for another supervisor, its own value for the writer. ``(False, None)``: the stored value is read."""
+        write for another supervisor, its own value for a writer whose value a supervisor later in the scene tree
+        replaced. ``(False, None)``: the stored value is read (by the writer whose value it is: as the field's checks
+        left it, a basicTimeStep of 0 read back as 32)."""
         entry = self._unexecuted.get((id(node), name))
         if entry is None:
             return False, None
@@ -110,7 +112,9 @@ class SupervisorEdits(WorldInfoEdits):
         if requester not in writers:
             return True, before
         own = writers[requester]
-        return (False, None) if own is UNRECORDED else (True, own)
+        if own is UNRECORDED or all(order <= requester for order in writers):
+            return False, None
+        return True, own
 
     def pending_pose(self, solid: SolidRec) -> tuple[Sequence[float] | None, Sequence[float] | None]:
         """The translation and the rotation that the supervisor making the current request queued for ``solid``
