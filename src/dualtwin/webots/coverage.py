@@ -468,7 +468,8 @@ REGISTRY: tuple[Coverage, ...] = (
              "followed at each image, an LED's state for an LED's light"),
     Coverage("PointLight", "visual", "visual",
              "lights Camera images (an OpenGL point light, with its attenuation; no shadows); inside a Solid it "
-             "moves with it; on, color and intensities followed at each image, an LED's state for an LED's light"),
+             "moves with it; on, color and intensities followed at each image (and LightSensor sample; a DEF'd light's edit "
+             "reaches its USEs), an LED's state for an LED's light"),
     Coverage("SpotLight", "visual", "visual",
              "lights Camera images (cone of cutOffAngle, MuJoCo's fall-off rather than beamWidth; no shadows); "
              "inside a Solid it moves with it; on, color and intensities followed at each image, an LED's state "

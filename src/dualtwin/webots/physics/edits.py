@@ -14,7 +14,7 @@ from dualtwin.webots._math3 import Pose
 from dualtwin.webots.lut import discretize
 from dualtwin.webots.mass_rules import rot_matrix
 from dualtwin.webots.motor_api import check_maxima
-from dualtwin.webots.nodes import Node
+from dualtwin.webots.nodes import Node, copy_value
 from dualtwin.webots.physics.appearance_edits import APPEARANCE_FIELDS, apply_appearance_field
 from dualtwin.webots.physics.edit_stamps import note_edit
 from dualtwin.webots.physics.geometry_edits import GEOMETRY_TYPES
@@ -34,6 +34,7 @@ from dualtwin.webots.physics.records import (
     field_or,
 )
 from dualtwin.webots.physics.world_edits import WorldInfoEdits
+from dualtwin.webots.schema import USE_FORBIDDEN_TYPES
 
 #: the written value of an MF item edit, which is not recorded (its author reads the stored list back)
 UNRECORDED = object()
@@ -343,11 +344,26 @@ class SupervisorEdits(WorldInfoEdits):
         Returns False for fields whose edit has no physics effect here.
         """
         note_edit(self, node, name)
+        self._copy_to_uses(node, name)
         applied = self._apply_field(node, name)
         if applied:
             # simulationReset restores the field; reset() then re-applies it so ODE follows.
             self._edited[(id(node), name)] = node
         return applied
+
+    def _copy_to_uses(self, node: Node, name: str) -> None:
+        """A DEF'd node and its USEs are one node (the twin's DEF/USE rule): the value goes to every copy, whose write
+        is counted too, before anything reads it, so what reads a copy where it sits (a USE'd light, an
+        ImmersionProperties, a Material) follows. Node-valued fields are imports and removals (scene_api); Solids,
+        joints and joint parameters have no USEs (S §7.1)."""
+        if not (node.def_name or node.use_name or node.proto_def_name) or node.type_name in USE_FORBIDDEN_TYPES:
+            return
+        value = node.fields.get(name)
+        if isinstance(value, Node) or (isinstance(value, list) and any(isinstance(v, Node) for v in value)):
+            return
+        for other in self.linked_nodes(node)[1:]:
+            other.fields[name] = copy_value(value)
+            note_edit(self, other, name)
 
     def _apply_field(self, node: Node, name: str) -> bool:
         if node.type_name in GEOMETRY_TYPES:
