@@ -91,7 +91,7 @@ from dualtwin.convert.surfaces import add_surface_mesh
 from dualtwin.convert.touch_sites import touch_site_notes
 from dualtwin.convert.world_robots import pose_matrix
 from dualtwin.geometry import mujoco_quat
-from dualtwin.twins.mujoco_state import ROBOT_TEXT
+from dualtwin.twins.mujoco_state import ROBOT_TEXT, SCENERY_TEXT
 from dualtwin.webots import schema
 from dualtwin.webots.nodes import Node, World
 from dualtwin.webots.protos import load_world, load_world_text
@@ -655,6 +655,9 @@ class _Converter:
             self.warn("robot has no Physics: converted with a fixed base (welded to the world)", robot_node)
         self.in_robot = False
         self.other_robots(robot_label, root_name)
+        scenery = world_robots.scenery_bodies(self.spec, self.body_solids, self.world, robot_node)
+        if scenery:
+            self.spec.add_text(name=SCENERY_TEXT, data=" ".join(scenery))
         if self.missing_defs:
             # The Webots twin addresses joints and bodies by DEF; generated names exist in MuJoCo only.
             self.warn(f"{len(self.missing_defs)} joint(s)/endPoint(s) have no DEF (first: {self.missing_defs[0]}); "

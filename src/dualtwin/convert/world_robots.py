@@ -28,7 +28,9 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import Any
 
+import mujoco
 import numpy as np
 
 from dualtwin.convert.conversion import ConversionError
@@ -38,7 +40,7 @@ from dualtwin.geometry import axis_angle_matrix
 from dualtwin.webots.nodes import Node, World
 
 __all__ = ["GROUPING", "OTHER_ROBOT_BITS", "OtherRobot", "find_robots", "other_robot_notes", "pose_matrix",
-           "robot_frame", "robot_label", "select_robot"]
+           "robot_frame", "robot_label", "scenery_bodies", "select_robot"]
 
 #: The nodes that group others without being a body: a Robot below them is still a robot of the world.
 GROUPING = ("Group", "Pose", "Transform")
@@ -151,3 +153,14 @@ def other_robot_notes(other: OtherRobot, chosen: str) -> list[str]:
         notes.append(f"robot {other.label!r}: more robots than MuJoCo's {OTHER_ROBOT_BITS + 2} collision bits; its "
                      "parts touch each other as with selfCollision")
     return notes
+
+
+def scenery_bodies(spec: Any, bodies: list[tuple[str, Node]], world: World, robot: Node) -> list[str]:
+    """The free bodies built from ``bodies`` ((body, Solid)) that the Webots twin's state leaves out: it holds the
+    converted ``robot`` and the world's top-level Solids with a DEF (and a body) only, so a loose Solid without a
+    DEF, or one below a top-level Group or Pose (another robot too), is scenery; the MuJoCo twin's state leaves the
+    bodies :data:`dualtwin.twins.mujoco_state.SCENERY_TEXT` lists out as well, and a state passes between the twins
+    (before, such a body was state in MuJoCo only, and the Webots twin refused the MuJoCo twin's state)."""
+    free = {b.name for b in spec.bodies if any(j.type == mujoco.mjtJoint.mjJNT_FREE for j in b.joints)}
+    named_top = {id(n) for n in world.nodes if n.def_name}
+    return [name for name, solid in bodies if name in free and solid is not robot and id(solid) not in named_top]

@@ -26,12 +26,13 @@ class StatePlan:
         balls: list[tuple[str, int, int]] = []
         kinds = mujoco.mjtJoint
         robot = robot_body(m)
+        scenery = set(model_text(m, SCENERY_TEXT).split())
         for j in range(m.njnt):
             kind = int(m.jnt_type[j])
             qa, da = int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j])
             if kind == kinds.mjJNT_FREE:
                 name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, int(m.jnt_bodyid[j]))
-                if name:  # unnamed bodies and joints are scenery, not robot state
+                if name and name not in scenery:  # unnamed bodies and joints are scenery, not robot state
                     self.body_names.append(inverse.get(name, name))
                     self.bodies.append((qa, da))
                 continue
@@ -123,14 +124,26 @@ def scale_contact_depths(m: mujoco.MjModel, d: mujoco.MjData, ratio: float) -> N
 ROBOT_TEXT = "webots_robot"
 
 
+#: The custom text listing, space-separated, the free bodies of a converted world that are not state: the Webots
+#: twin's state holds its robot and the world's top-level Solids with a DEF and a body only
+#: (:class:`dualtwin.twins.webots_state.StateStructure`), so a loose Solid without a DEF, or one inside a top-level
+#: Group or Pose, is scenery in both twins (written only when there is one: :mod:`dualtwin.convert.world_robots`).
+SCENERY_TEXT = "webots_scenery"
+
+
+def model_text(m: mujoco.MjModel, name: str) -> str:
+    """The data of the model's custom text ``name`` ("" without one)."""
+    index = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TEXT, name)
+    if index < 0:
+        return ""
+    adr, size = int(m.text_adr[index]), int(m.text_size[index])
+    return bytes(m.text_data[adr:adr + size]).rstrip(b"\0").decode()
+
+
 def robot_body(m: mujoco.MjModel) -> int:
     """The id of the body the model's :data:`ROBOT_TEXT` names; -1 without one (every named joint is state)."""
-    index = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TEXT, ROBOT_TEXT)
-    if index < 0:
-        return -1
-    adr, size = int(m.text_adr[index]), int(m.text_size[index])
-    name = bytes(m.text_data[adr:adr + size]).rstrip(b"\0").decode()
-    return int(mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, name))
+    name = model_text(m, ROBOT_TEXT)
+    return int(mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, name)) if name else -1
 
 
 def _below(m: mujoco.MjModel, body: int, root: int) -> bool:
