@@ -13,7 +13,7 @@ from typing import Any
 
 from dualtwin.webots.api_args import as_int, warn
 from dualtwin.webots.device_base import Device
-from dualtwin.webots.led_lights import commit_led_value
+from dualtwin.webots.led_lights import send_led_value
 from dualtwin.webots.step_hints import buffered, command_value
 
 __all__ = ["LED"]
@@ -28,8 +28,8 @@ class LED(Device):
         self._robot.step_listeners.append(self._controller_step)
 
     def _controller_step(self, _ms: float) -> None:
-        # libController sends the value with the step request: the world's lights follow it from this step
-        commit_led_value(self._robot._sim, self._record.node, self._state)
+        # libController sends the value with the step request: the world's lights follow it from the step it makes
+        send_led_value(self._robot._sim, self._record.node, self._state)
 
     @buffered(int)
     def set(self, v: Any) -> None:

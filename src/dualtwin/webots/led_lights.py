@@ -6,38 +6,66 @@ non-``gradual`` LED the ``color`` entry its value selects (1 the first), for a `
 0xRRGGBB. The light's own ``on`` and ``color`` fields are not what it shines with while an LED drives it.
 
 A controller's ``LED.set`` reaches the world with its next step request (libController sends the actuator
-commands buffered since the last step with it), so the value the lights follow is the one committed then
-(:func:`commit_led_value`), not a value set after the step that a camera image of that step must not show.
+commands buffered since the last step with it: :func:`send_led_value`), and it acts on the physics step that
+request makes (webots-on-ode.md §6: "commands issued before call k act on the physics of call k"): the lights
+follow it from that physics step on. Not from the request itself: a camera draws its image when its controller
+reads it, after its step, and another controller's request sent meanwhile must not show in the image of the step
+before (it did, depending on which controller ran first).
 """
 
 from __future__ import annotations
 
+import threading
 from typing import Any
 
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import Simulation
 
-__all__ = ["Colour", "commit_led_value", "led_colour", "led_value", "light_state"]
+__all__ = ["Colour", "led_colour", "led_value", "light_state", "send_led_value"]
 
 Colour = tuple[float, float, float]
 _KEY = "led_values"
+_MADE = threading.Lock()  # the first controllers of a run may send their values at the same time
 
 
-def _values(sim: Simulation) -> dict[Node, int]:
-    values: dict[Node, int] | None = sim.extensions.get(_KEY)
+class _LedValues:
+    """The values the LEDs show, and those their controllers sent that the next physics step executes."""
+
+    def __init__(self) -> None:
+        self.shown: dict[Node, int] = {}
+        self.sent: dict[Node, int] = {}
+        # (a controller whose synchronization is FALSE may send while the physics steps)
+        self.lock = threading.Lock()
+
+    def execute(self, _dt: float) -> None:
+        with self.lock:
+            self.shown.update(self.sent)
+            self.sent.clear()
+
+
+def _values(sim: Simulation) -> _LedValues:
+    values: _LedValues | None = sim.extensions.get(_KEY)
     if values is None:
-        values = sim.extensions[_KEY] = {}
+        with _MADE:
+            values = sim.extensions.get(_KEY)
+            if values is None:
+                values = _LedValues()
+                sim.pre_step_hooks.append(values.execute)
+                sim.extensions[_KEY] = values
     return values
 
 
-def commit_led_value(sim: Simulation, led: Node, value: int) -> None:
-    """The value ``led`` shows from this step on (a controller's last ``LED.set`` before its step request)."""
-    _values(sim)[led] = value
+def send_led_value(sim: Simulation, led: Node, value: int) -> None:
+    """``led``'s value sent with a step request (its controller's last ``LED.set`` before it): shown from the
+    physics step that executes the request on."""
+    values = _values(sim)
+    with values.lock:
+        values.sent[led] = value
 
 
 def led_value(sim: Simulation, led: Node) -> int:
-    """The value ``led`` shows now: 0 (off) until a controller's step sent another."""
-    return _values(sim).get(led, 0)
+    """The value ``led`` shows now: 0 (off) until a physics step executed another."""
+    return _values(sim).shown.get(led, 0)
 
 
 def led_colour(led: Node, value: int) -> Colour | None:
