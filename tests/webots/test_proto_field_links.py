@@ -249,3 +249,29 @@ def test_a_derived_proto_is_saved_where_the_physics_has_it() -> None:
         sup.step(STEP)
     line = next(line.split() for line in wall.exportString().splitlines() if line.strip().startswith("at "))
     assert [float(v) for v in line[1:]] == pytest.approx([0.08, 2.0, 1.0])  # 1 m/s × 10 × 8 ms along x
+
+
+TAGGED = """#VRML_SIM R2023b utf8
+PROTO Tagged [ field SFString tag "a" ]
+{ Solid { children [ DEF HOLDER Solid { name IS tag } ] } }
+"""
+
+
+def test_an_interface_field_reads_its_own_value_once_the_node_it_was_bound_to_is_removed(tmp_path: Path) -> None:
+    # an interface field reads the base field IS bound to it (§7.1: one value); the base node gone, nothing binds
+    # it and it reads what was written to it. Guards the reads' walk of the PROTO body, kept between reads until
+    # the scene tree changes: kept past the removal, the read gave the removed node's "a"
+    (tmp_path / "Tagged.proto").write_text(TAGGED, encoding="utf-8")
+    text = 'EXTERNPROTO "Tagged.proto"\nRobot { supervisor TRUE }\nDEF T Tagged { }\n'
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sim = Simulation(load_world_text(f"#VRML_SIM R2023b utf8\n{text}", tmp_path / "w.wbt"))
+    sup = Supervisor(simulation=sim, robot_node=sim.robots[0].node)
+    tagged = sup.getFromDef("T")
+    tag = tagged.getField("tag")
+    assert tag.getSFString() == "a"
+    tagged.getFromProtoDef("HOLDER").remove()
+    tag.setSFString("b")
+    assert tag.getSFString() == "b"
+    sup.step(STEP)
+    assert tagged.getField("tag").getSFString() == "b"

@@ -161,10 +161,25 @@ class Field:
         if decided:  # a write no step executed yet: the value before it for the others, its own for the writer
             return value
         if not self._is_base():
-            for node, name in linked_fields(self._node, self._name)[0]:
+            for node, name in self._bound_base():
                 if name in node.fields:
                     return node.fields[name]
         return self._raw()
+
+    def _bound_base(self) -> list[tuple[SceneNode, str]]:
+        """The base-node fields ``IS`` bound to this interface field (:func:`linked_fields`), walked once for the
+        scene tree as it is: a read of such a field walked the whole PROTO body every time (hundreds of
+        microseconds for a robot PROTO, and supervisors read their robots' customData every step)."""
+        key = (id(self._node), self._name)
+        memo: dict[tuple[int, str], tuple[int, SceneNode, list[tuple[SceneNode, str]]]]
+        memo = self._sim.extensions.setdefault("is_bound_base", {})
+        version = self._sim.scene_version  # read first: a change meanwhile leaves a stale version, walked again
+        held = memo.get(key)
+        if held is not None and held[0] == version and held[1] is self._node:
+            return held[2]
+        base = linked_fields(self._node, self._name)[0]
+        memo[key] = (version, self._node, base)
+        return base
 
     def _is_base(self) -> bool:
         return self._values is self._node.fields
@@ -179,7 +194,7 @@ class Field:
         translation`` of a PROTO robot reads where the robot is now. None for a base field or no such link."""
         if self._is_base():
             return None
-        for node, name in linked_fields(self._node, self._name)[0]:
+        for node, name in self._bound_base():
             bound = Field(self._owner._handle(node), name)
             if (name in ("translation", "rotation") and self._sim.solid_for(node) is not None) or bound._joint():
                 return bound

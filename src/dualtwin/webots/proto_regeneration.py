@@ -77,6 +77,7 @@ def regenerate(sim: Simulation, node: SceneNode, text: str, parse: Callable[[str
     vars(node).update(vars(fresh[0]))  # the same object: handles and the parent's field still hold it
     record.inner = [n for n in node.walk() if n is not node]
     number([node])
+    sim.scene_version += 1  # its nodes are new (join_physics may build nothing of them)
     join_physics(sim, node)
     return True
 

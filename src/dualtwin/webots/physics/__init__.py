@@ -378,6 +378,7 @@ class Simulation(SolidVelocityEdits):
         self._steps_base = 0
         for hook in self.reset_hooks:
             hook()
+        self.scene_version += 1  # (the tree as at load, without the nodes added since)
         self._collide()
 
     def close(self) -> None:

@@ -69,6 +69,9 @@ class SimulationCore:
     #: of supervisors not yet executed by a step (see SupervisorEdits.note_unexecuted_write)
     _unexecuted: dict[tuple[int, str], tuple[Any, dict[int, Any]]]  # value before, writer order -> its value
     _edited: dict[tuple[int, str], Node]
+    #: moves after every change of the scene tree's nodes (added, removed, restored by a reset), once it is made:
+    #: what a reader caches of the tree's shape is good while it stays (Field's IS-bound base fields)
+    scene_version: int = 0
     _unstable: bool
     _closed: bool
     step_count: int

@@ -104,6 +104,7 @@ class SceneChanges(JointChanges):
         own body, fixed to the nearest body above or to the world (static basis); a Solid without Physics
         has body-less geoms (inside a robot they follow it every step). Everything is placed where the parent
         Solid is now, not where it was at load."""
+        self.scene_version += 1  # (the caller has put top in the tree)
         chain = list(ancestors)
         if top.type_name == "Damping":  # into a Physics node's or WorldInfo's damping field
             self._apply_damping(top, "")
@@ -188,6 +189,7 @@ class SceneChanges(JointChanges):
 
     def remove_nodes(self, top: Node) -> None:
         """Take every Solid of the subtree ``top`` out of the physics (no-op for nodes that have none)."""
+        self.scene_version += 1  # (the caller has taken top out of the tree)
         if top.type_name == "Damping":  # out of a Physics node's or WorldInfo's damping field
             self._apply_damping(top, "")
             return
