@@ -169,6 +169,26 @@ def test_a_supervisor_switching_a_light_or_changing_its_colour_shows_at_the_next
     np.testing.assert_allclose(_box_bgr(sup, cam), dark, atol=1.0)
 
 
+
+def test_a_supervisors_light_edit_is_not_in_the_image_of_the_step_before() -> None:
+    # webots-on-ode.md §6: a supervisor's field write is "executed at the beginning of the next step"; Webots draws
+    # a camera image during its step, so the image of the step just done, read after the write, shows the light
+    # as it was. The twin draws an image when it is first read: it showed the write at once
+    dark = _pixel(_world("", ""))
+    white = _pixel(_world(SPOT_AT_TOP, ""))
+    sup, cam = _open(_world(f"DEF LAMP {SPOT_AT_TOP}", ""))
+    lamp = sup.getFromDef("LAMP")
+    assert lamp is not None
+    sup.step(16)
+    lamp.getField("on").setSFBool(False)
+    np.testing.assert_allclose(_centre_bgr(cam), white, atol=1.0)
+    np.testing.assert_allclose(_box_bgr(sup, cam), dark, atol=1.0)  # control: the step executed it
+    lamp.getField("on").setSFBool(True)
+    sup.step(16)
+    lamp.getField("ambientIntensity").setSFFloat(0.2)  # an ambient light of 0.2 everywhere: brighter
+    np.testing.assert_allclose(_centre_bgr(cam), white, atol=1.0)
+    assert (_box_bgr(sup, cam) > white + 5).all()
+
 def test_a_directional_light_in_a_turned_solid_shines_along_its_world_direction() -> None:
     # Webots' DirectionalLight page: its direction is "in the global coordinate system" wherever the node sits.
     # 0 1 0 shines onto the near face (its normal is -y); turned with the Solid (a quarter turn about z) it would

@@ -83,10 +83,10 @@ def led_colour(led: Node, value: int) -> Colour | None:
 
 def light_state(sim: Simulation, light: Node, led: Node | None) -> tuple[bool, Colour]:
     """Whether ``light`` shines now and in which colour: its own ``on``/``color``, or those ``led`` gives it."""
-    if led is None:
-        colour: Any = light.fields.get("color", (1.0, 1.0, 1.0))
+    if led is None:  # (a supervisor's write of them acts from the step that executes it)
+        colour: Any = sim.executed_value(light, "color", (1.0, 1.0, 1.0))
         red, green, blue = (float(c) for c in colour)
-        return bool(light.fields.get("on", True)), (red, green, blue)
+        return bool(sim.executed_value(light, "on", True)), (red, green, blue)
     shown = led_colour(led, led_value(sim, led))
     if shown is None:
         return False, (0.0, 0.0, 0.0)

@@ -345,8 +345,10 @@ class WebotsVisualScene:
             on, colour = light_state(self._sim, node, led)
             rgb = np.asarray(colour, dtype=float)
             m.light_active[light] = on
-            m.light_diffuse[light] = rgb * float(node.get("intensity", 1.0))
-            m.light_ambient[light] = rgb * float(node.get("ambientIntensity", 0.0))
+            # as the steps executed the fields: a camera's image of the step just done, drawn when first read, does
+            # not show a supervisor's write sent after that step (Webots drew it during the step)
+            m.light_diffuse[light] = rgb * float(self._sim.executed_value(node, "intensity", 1.0))
+            m.light_ambient[light] = rgb * float(self._sim.executed_value(node, "ambientIntensity", 0.0))
             # a highlight of the light's colour (a red LED's light leaves no white glint)
             m.light_specular[light] = rgb * _SPECULAR
 

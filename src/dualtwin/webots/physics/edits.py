@@ -117,6 +117,13 @@ class SupervisorEdits(WorldInfoEdits):
             return False, None
         return True, own
 
+    def executed_value(self, node: Node, name: str, default: Any = None) -> Any:
+        """``node``'s field ``name`` as the steps executed it: the value before any supervisor's write that no step
+        executed yet (see :meth:`note_unexecuted_write`). What an image of the step just done shows: Webots draws
+        it during its step, before the writes sent after it."""
+        entry = self._unexecuted.get((id(node), name))
+        return node.fields.get(name, default) if entry is None else entry[0]
+
     def pending_pose(self, solid: SolidRec) -> tuple[Sequence[float] | None, Sequence[float] | None]:
         """The translation and the rotation that the supervisor making the current request queued for ``solid``
         (each None when it queued none). What it reads back of its own writes before the step executes them: the
