@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.support.multi_worlds import run_multi
 from tests.support.sensor_worlds import sensor_world
-from tests.support.world_runs import run_project_cli
 
 STEP = 8
 # a wall with a visual Shape whose near face is the plane x = 0.5: Lidar rays hit what Webots renders (D §3.2)
@@ -340,7 +340,7 @@ def test_radar_max_range_edit_acts_at_the_next_sample(edit: bool) -> None:
 
 # ------------------------------------------------------------------------------------------ controller processes
 
-PROCESS_WORLD = """#VRML_SIM R2023b utf8
+PROCESS_WORLD = """
 WorldInfo { basicTimeStep 8 }
 Robot { name "a" controller "reader" children [
   DEF L Lidar { name "l" horizontalResolution 4 numberOfLayers 1 fieldOfView 0.4 }
@@ -376,8 +376,7 @@ def test_a_controller_process_reads_the_edited_sizes(tmp_path: Path) -> None:
     # the reader runs in its own process, as in Webots: before the edit (before its first step, which the
     # editor's edit follows) 4 columns, maxFrequency 25, a 4-pixel-wide camera; after its next steps 8 columns
     # (8 ranges), 20 Hz, a 2×4 camera (4·2·4 = 32 bytes)
-    run = run_project_cli(tmp_path, PROCESS_WORLD, {"reader": READER, "editor": EDITOR}, 0.1)
-    assert run.returncode == 0, run.stderr
-    lines = {line.split()[0]: line.split()[1:] for line in run.stdout.splitlines() if line[:4] in ("LOAD", "LATE")}
+    out = run_multi(tmp_path, PROCESS_WORLD, {"reader": READER, "editor": EDITOR}, "process", duration_s=0.1)
+    lines = {line.split()[0]: line.split()[1:] for line in out if line[:4] in ("LOAD", "LATE")}
     assert [float(v) for v in lines["LOAD"]] == [4, 25.0, 4]
     assert [float(v) for v in lines["LATER"]] == [8, 8, 20.0, 2, 32]
