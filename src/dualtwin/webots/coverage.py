@@ -465,15 +465,15 @@ REGISTRY: tuple[Coverage, ...] = (
              "used"),
     Coverage("DirectionalLight", "visual", "visual",
              "lights Camera images wherever it sits, its direction global (no shadows); on, color and intensities "
-             "followed at each image, an LED's state for an LED's light"),
+             "edited show from the next step's image, an LED's state for an LED's light"),
     Coverage("PointLight", "visual", "visual",
              "lights Camera images (an OpenGL point light, with its attenuation; no shadows); inside a Solid it "
-             "moves with it; on, color and intensities followed at each image (and LightSensor sample; a DEF'd light's edit "
-             "reaches its USEs), an LED's state for an LED's light"),
+             "moves with it; on, color and intensities edited show from the next step's image (and LightSensor "
+             "sample; a DEF'd light's edit reaches its USEs), an LED's state for an LED's light"),
     Coverage("SpotLight", "visual", "visual",
              "lights Camera images (cone of cutOffAngle, MuJoCo's fall-off rather than beamWidth; no shadows); "
-             "inside a Solid it moves with it; on, color and intensities followed at each image, an LED's state "
-             "for an LED's light"),
+             "inside a Solid it moves with it; on, color and intensities edited show from the next step's image, "
+             "an LED's state for an LED's light"),
     Coverage("Fog", "visual", "visual", "not rendered"),
     Coverage("Viewpoint", "visual", "visual", "no viewer headless"),
 )
