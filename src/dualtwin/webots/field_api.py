@@ -472,7 +472,7 @@ class Field:
         none): the others read the value before it until a step executes the write (see _current). False when a
         supervisor later in the scene tree already wrote the field in this step, whose write is executed after this
         one (§6: scene-tree order): this one is not stored, its author reads it back until the step."""
-        return self._sim.note_unexecuted_write(self._node, self._name, copy_value(self._raw()), copy_value(written))
+        return self._sim.note_unexecuted_write(self._node, self._name, self._raw(), copy_value(written))
 
     def setSFBool(self, value: Any) -> None:
         self._set("setSFBool", "SFBool", value)

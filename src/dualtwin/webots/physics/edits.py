@@ -86,16 +86,21 @@ class SupervisorEdits(WorldInfoEdits):
         """The joint of a joint node or of one of its (Hinge)JointParameters nodes."""
         return self._joint_by_node.get(id(node))
 
-    def note_unexecuted_write(self, node: Node, name: str, before: Any, written: Any = UNRECORDED) -> bool:
-        """The supervisor making the current request writes ``node``'s field ``name``, which holds ``before``, with
+    def note_unexecuted_write(self, node: Node, name: str, current: Any, written: Any = UNRECORDED) -> bool:
+        """The supervisor making the current request writes ``node``'s field ``name``, which holds ``current``, with
         ``written`` (UNRECORDED for an MF item edit). The value is stored at once (the physics steps only once every
         controller waits in its step), but the write is executed at the beginning of the next step (§6): until then
-        the other supervisors read ``before`` and the writer its own value. The writes of one step are executed in
-        the supervisors' scene-tree order, so the last one in the tree wins whichever came first: False when a
-        supervisor later in the tree already wrote the field in this step (this write must not be stored; its
-        author still reads it back until the step)."""
+        the other supervisors read the value before the step's first write (a copy of ``current`` made then, not at
+        every write: a supervisor writing the points of a long MF field one by one copied the whole field at each)
+        and the writer its own value. The writes of one step are executed in the supervisors' scene-tree order, so
+        the last one in the tree wins whichever came first: False when a supervisor later in the tree already wrote
+        the field in this step (this write must not be stored; its author still reads it back until the step)."""
         requester = self._request_order()
-        writers = self._unexecuted.setdefault((id(node), name), (before, {}))[1]
+        key = (id(node), name)
+        entry = self._unexecuted.get(key)
+        if entry is None:
+            entry = self._unexecuted[key] = (copy_value(current), {})
+        writers = entry[1]
         writers[requester] = written
         return written is UNRECORDED or all(order <= requester for order in writers)
 
