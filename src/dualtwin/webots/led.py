@@ -23,13 +23,17 @@ class LED(Device):
     """Webots ``LED`` (module docstring)."""
 
     _state = 0  # off until set (per instance once set)
+    _sent: int | None = None  # the value its last step request sent (None: none yet, its first step sends one)
 
     def _setup(self) -> None:
         self._robot.step_listeners.append(self._controller_step)
 
     def _controller_step(self, _ms: float) -> None:
-        # libController sends the value with the step request: the world's lights follow it from the step it makes
-        send_led_value(self._robot._sim, self._record.node, self._state)
+        # libController sends the value with the step request (when it changed): the world's lights follow it from
+        # the step the request makes
+        if self._state != self._sent:
+            self._sent = self._state
+            send_led_value(self._robot._sim, self._record.node, self._state)
 
     @buffered(int)
     def set(self, v: Any) -> None:
