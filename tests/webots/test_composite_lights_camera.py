@@ -189,6 +189,24 @@ def test_a_supervisors_light_edit_is_not_in_the_image_of_the_step_before() -> No
     np.testing.assert_allclose(_centre_bgr(cam), white, atol=1.0)
     assert (_box_bgr(sup, cam) > white + 5).all()
 
+
+def test_a_supervisors_edit_of_an_leds_colours_is_not_in_the_image_of_the_step_before() -> None:
+    # as above for an LED's color list, which gives its lights their colour (LED reference page)
+    dark = _pixel(_world("", ""))
+    white = _pixel(_world(SPOT_AT_TOP, ""))
+    sup, cam = _open(_world("", f'DEF LED LED {{ name "led" color [ 1 1 1 ] children [ {CARRIED_SPOT} ] }}'))
+    device = sup.getDevice("led")
+    assert isinstance(device, LED)
+    device.set(1)
+    np.testing.assert_allclose(_box_bgr(sup, cam), white, atol=1.0)
+    led = sup.getFromDef("LED")
+    assert led is not None
+    sup.step(16)
+    led.getField("color").setMFColor(0, [0.0, 0.0, 1.0])
+    np.testing.assert_allclose(_centre_bgr(cam), white, atol=1.0)
+    # control: blue from the step that executed the edit (B as with white light, G and R as without light)
+    np.testing.assert_allclose(_box_bgr(sup, cam), [white[0], dark[1], dark[2]], atol=1.0)
+
 def test_a_directional_light_in_a_turned_solid_shines_along_its_world_direction() -> None:
     # Webots' DirectionalLight page: its direction is "in the global coordinate system" wherever the node sits.
     # 0 1 0 shines onto the near face (its normal is -y); turned with the Solid (a quarter turn about z) it would

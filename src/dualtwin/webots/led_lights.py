@@ -68,13 +68,14 @@ def led_value(sim: Simulation, led: Node) -> int:
     return _values(sim).shown.get(led, 0)
 
 
-def led_colour(led: Node, value: int) -> Colour | None:
-    """The colour of ``led`` showing ``value``, or None when that value is off."""
+def led_colour(sim: Simulation, led: Node, value: int) -> Colour | None:
+    """The colour of ``led`` showing ``value``, or None when that value is off; its ``gradual`` and ``color`` fields
+    as the steps executed them (see :func:`light_state`)."""
     if value <= 0:
         return None
-    if led.fields.get("gradual", False):
+    if sim.executed_value(led, "gradual", False):
         return ((value >> 16 & 0xFF) / 255.0, (value >> 8 & 0xFF) / 255.0, (value & 0xFF) / 255.0)
-    colours = led.fields.get("color") or []
+    colours = sim.executed_value(led, "color") or []
     if value > len(colours):  # LED.set refuses such a value; a colour removed since leaves the LED dark
         return None
     red, green, blue = (float(c) for c in colours[value - 1])
@@ -82,12 +83,14 @@ def led_colour(led: Node, value: int) -> Colour | None:
 
 
 def light_state(sim: Simulation, light: Node, led: Node | None) -> tuple[bool, Colour]:
-    """Whether ``light`` shines now and in which colour: its own ``on``/``color``, or those ``led`` gives it."""
-    if led is None:  # (a supervisor's write of them acts from the step that executes it)
+    """Whether ``light`` shines now and in which colour: its own ``on``/``color``, or those ``led`` gives it. The
+    fields are read as the steps executed them: a supervisor's write acts from the step that executes it (a camera
+    draws the image of the step just done when its controller first reads it, maybe after the write)."""
+    if led is None:
         colour: Any = sim.executed_value(light, "color", (1.0, 1.0, 1.0))
         red, green, blue = (float(c) for c in colour)
         return bool(sim.executed_value(light, "on", True)), (red, green, blue)
-    shown = led_colour(led, led_value(sim, led))
+    shown = led_colour(sim, led, led_value(sim, led))
     if shown is None:
         return False, (0.0, 0.0, 0.0)
     return True, shown
