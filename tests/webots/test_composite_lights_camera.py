@@ -207,6 +207,25 @@ def test_a_supervisors_edit_of_an_leds_colours_is_not_in_the_image_of_the_step_b
     # control: blue from the step that executed the edit (B as with white light, G and R as without light)
     np.testing.assert_allclose(_box_bgr(sup, cam), [white[0], dark[1], dark[2]], atol=1.0)
 
+
+def test_a_supervisor_moving_or_turning_a_light_shows_at_the_next_image() -> None:
+    # Webots' lights follow their edited location, direction, attenuation and cutOffAngle as their on/color (the
+    # PointLight and SpotLight pages' fields; the LightSensor reads them so: light_sensor.py). Control worlds: the
+    # same spot loaded where the edit puts it (0.1 m in front of the face's centre rather than 0.4 m), and the spot
+    # turned away from the box (no light on the face: the no-light pixel)
+    dark = _pixel(_world("", ""))
+    closer = _pixel(_world(f"SpotLight {{ location 0.5 1.8 0 direction 0 1 0 {DIM} }}", ""))
+    white = _pixel(_world(SPOT_AT_TOP, ""))
+    assert (np.abs(closer - white) > 0.5).all(), (closer, white)
+    sup, cam = _open(_world(f"DEF LAMP {SPOT_AT_TOP}", ""))
+    lamp = sup.getFromDef("LAMP")
+    assert lamp is not None
+    np.testing.assert_allclose(_box_bgr(sup, cam), white, atol=0.1)
+    lamp.getField("location").setSFVec3f([0.5, 1.8, 0.0])
+    np.testing.assert_allclose(_box_bgr(sup, cam), closer, atol=0.1)
+    lamp.getField("direction").setSFVec3f([0.0, -1.0, 0.0])
+    np.testing.assert_allclose(_box_bgr(sup, cam), dark, atol=1.0)
+
 def test_a_directional_light_in_a_turned_solid_shines_along_its_world_direction() -> None:
     # Webots' DirectionalLight page: its direction is "in the global coordinate system" wherever the node sits.
     # 0 1 0 shines onto the near face (its normal is -y); turned with the Solid (a quarter turn about z) it would

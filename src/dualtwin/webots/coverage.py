@@ -464,16 +464,17 @@ REGISTRY: tuple[Coverage, ...] = (
              "rounded to the nearest byte; its cube-map textures are not drawn (a warning); luminosity is not "
              "used"),
     Coverage("DirectionalLight", "visual", "visual",
-             "lights Camera images wherever it sits, its direction global (no shadows); on, color and intensities "
-             "edited show from the next step's image, an LED's state for an LED's light"),
+             "lights Camera images wherever it sits, its direction global (no shadows); on, color, intensities "
+             "and direction edited show from the next step's image, an LED's state for an LED's light"),
     Coverage("PointLight", "visual", "visual",
              "lights Camera images (an OpenGL point light, with its attenuation; no shadows); inside a Solid it "
-             "moves with it; on, color and intensities edited show from the next step's image (and LightSensor "
-             "sample; a DEF'd light's edit reaches its USEs), an LED's state for an LED's light"),
+             "moves with it; on, color, intensities, location and attenuation edited show from the next step's "
+             "image (and LightSensor sample; a DEF'd light's edit reaches its USEs), an LED's state for an LED's "
+             "light"),
     Coverage("SpotLight", "visual", "visual",
              "lights Camera images (cone of cutOffAngle, MuJoCo's fall-off rather than beamWidth; no shadows); "
-             "inside a Solid it moves with it; on, color and intensities edited show from the next step's image, "
-             "an LED's state for an LED's light"),
+             "inside a Solid it moves with it; on, color, intensities, location, direction, attenuation and "
+             "cutOffAngle edited show from the next step's image, an LED's state for an LED's light"),
     Coverage("Fog", "visual", "visual", "not rendered"),
     Coverage("Viewpoint", "visual", "visual", "no viewer headless"),
 )

@@ -15,9 +15,11 @@ renderer as the MuJoCo twin (:class:`dualtwin.twins.camera.FrameRenderer`):
   child like any other: a Point/SpotLight inside a Solid (through Pose/Transform/Group) is a light of the Solid's
   body, its ``location``/``direction`` in that frame, so it moves with the Solid; a DirectionalLight's
   ``direction`` is a world direction wherever it sits (Webots' DirectionalLight page: "in the global coordinate
-  system"; the LightSensor reads it so too: :mod:`.lights`). Each frame, :meth:`WebotsVisualScene.sync` switches
-  them and sets their colour from their ``on``/``color``/``intensity`` fields, or for the lights of an LED
-  from the LED's state (:mod:`.led_lights`). MuJoCo's default headlight is kept, as in every MuJoCo model;
+  system"; the LightSensor reads it so too: :mod:`.lights`). Each frame, :meth:`WebotsVisualScene.sync` sets
+  them from their fields as the steps executed them (a supervisor's edit shows from the next step's image): on
+  and colour from ``on``/``color``/``intensity``/``ambientIntensity``, or for the lights of an LED from the LED's
+  state (:mod:`.led_lights`), and place from ``location``/``direction``/``attenuation``/``cutOffAngle``. MuJoCo's
+  default headlight is kept, as in every MuJoCo model;
 * the Background: with ``background=True`` (a ``Camera`` device's scene) the sky is the first Background's
   first ``skyColor``, as Webots draws it where no cube-map texture is set (the TexturedBackground PROTO says so
   of its ``skyColor``); its textures are not drawn (a line in :attr:`WebotsVisualScene.warnings`). It is a flat
@@ -58,6 +60,24 @@ __all__ = ["VISUAL_GEOMETRY", "WebotsVisualScene"]
 VISUAL_GEOMETRY = ("Box", "Sphere", "Cylinder", "Capsule", "Plane", "IndexedFaceSet", "Mesh")
 _LIGHTS = ("DirectionalLight", "PointLight", "SpotLight")
 _SPECULAR = 0.3  # the highlight of a white light (Webots' lights have no specular field)
+
+
+#: (field, default) of a light that its MuJoCo light follows, besides on and color (light_state)
+_LIGHT_FIELDS = (("intensity", 1.0), ("ambientIntensity", 0.0), ("location", (0.0, 0.0, 0.0)),
+                 ("direction", (0.0, 0.0, -1.0)), ("attenuation", (1.0, 0.0, 0.0)), ("cutOffAngle", math.pi / 2))
+
+
+@dataclass
+class _Light:
+    """A light drawn: its MuJoCo name, its node, the LED driving it (or None), its frame and scale in its body's
+    frame, and what :meth:`WebotsVisualScene.sync` last set of it (None: nothing yet)."""
+
+    name: str
+    node: Any
+    led: Any
+    frame: np.ndarray
+    scale: float
+    shown: Any = None
 
 
 @dataclass
@@ -138,8 +158,7 @@ class WebotsVisualScene:
         self.sky: tuple[int, int, int] | None = None
         self._world = _Parts()
         self._names: set[str] = set()
-        #: every light drawn: (its MuJoCo name, its node, the LED driving it or None)
-        self._lights: list[tuple[str, Any, Any]] = []
+        self._lights: list[_Light] = []  # every light drawn
         root = supervisor.getRoot()
         if not hasattr(root, "scene_node"):
             raise DualtwinError("the Webots visual scene needs dualtwin's headless runtime; in real Webots add a "
@@ -161,7 +180,7 @@ class WebotsVisualScene:
         self.data = mujoco.MjData(self.model)
         self._mocap = [int(self.model.body_mocapid[mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, name)])
                        for _, name in self._solids]
-        self._light_ids = [mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_LIGHT, name) for name, _, _ in self._lights]
+        self._light_ids = [mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_LIGHT, light.name) for light in self._lights]
         self.sync()
 
     # ------------------------------------------------------------------ building
@@ -198,26 +217,18 @@ class WebotsVisualScene:
     def _add_lights(self, body: Any, parts: _Parts) -> None:
         """Add the Point/SpotLights of ``parts`` to ``body`` (their frames are in its frame) and its
         DirectionalLights to the world (a world direction wherever they sit). Every light is added, on or not:
-        :meth:`sync` switches them."""
+        :meth:`sync` sets it from its fields (switched, coloured, placed)."""
         for node, T, scale in parts.lights:
-            kind = node.type_name
-            direction = np.asarray(node.get("direction", (0.0, 0.0, -1.0)), dtype=float)
-            direction = direction / max(float(np.linalg.norm(direction)), 1e-9)
             name = f"webots_light{len(self._lights)}"
-            if kind == "DirectionalLight":
+            if node.type_name == "DirectionalLight":
                 light = self.spec.worldbody.add_light(name=name, type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
-                                                      pos=[0.0, 0.0, 10.0], dir=[float(v) for v in direction])
+                                                      pos=[0.0, 0.0, 10.0])
             else:
-                location = np.asarray(node.get("location", (0.0, 0.0, 0.0)), dtype=float) * scale
                 # A PointLight is a spot of cone 180°, OpenGL's uniform point light (GL_SPOT_CUTOFF): MuJoCo's
                 # renderer draws its own "point" lights as nothing.
-                cutoff = 180.0 if kind == "PointLight" else math.degrees(float(node.get("cutOffAngle", math.pi / 2)))
-                light = body.add_light(name=name, type=mujoco.mjtLightType.mjLIGHT_SPOT, cutoff=cutoff,
-                                       pos=[float(v) for v in T[:3, :3] @ location + T[:3, 3]],
-                                       dir=[float(v) for v in T[:3, :3] @ direction])
-                light.attenuation = [float(v) for v in node.get("attenuation", (1.0, 0.0, 0.0))]
+                light = body.add_light(name=name, type=mujoco.mjtLightType.mjLIGHT_SPOT)
             light.castshadow = False
-            self._lights.append((name, node, parts.led))
+            self._lights.append(_Light(name, node, parts.led, T, scale))
 
     def _walk(self, handle: Any, T: np.ndarray, scale: float, parts: _Parts | None) -> None:
         """Visit ``handle``: Solids get their own body; Shapes and lights add to ``parts`` (the enclosing
@@ -340,17 +351,37 @@ class WebotsVisualScene:
         mujoco.mj_forward(self.model, d)
 
     def _sync_lights(self) -> None:
-        m = self.model
-        for (_, node, led), light in zip(self._lights, self._light_ids, strict=True):
-            on, colour = light_state(self._sim, node, led)
+        """Each light as its fields (an LED's state for an LED's lights) are now, as the steps executed them (a
+        camera draws the image of the step just done when its controller first reads it, maybe after a
+        supervisor's write): set in the model when they changed since the last frame."""
+        sim, m = self._sim, self.model
+        for light, index in zip(self._lights, self._light_ids, strict=True):
+            node = light.node
+            fields: tuple[Any, ...] = tuple(
+                tuple(v) if isinstance(v, list) else v
+                for v in (sim.executed_value(node, name, default) for name, default in _LIGHT_FIELDS)
+            )
+            state = (light_state(sim, node, light.led), fields)
+            if state == light.shown:
+                continue
+            light.shown = state
+            (on, colour), (intensity, ambient, location, direction, attenuation, cutoff) = state
             rgb = np.asarray(colour, dtype=float)
-            m.light_active[light] = on
-            # as the steps executed the fields: a camera's image of the step just done, drawn when first read, does
-            # not show a supervisor's write sent after that step (Webots drew it during the step)
-            m.light_diffuse[light] = rgb * float(self._sim.executed_value(node, "intensity", 1.0))
-            m.light_ambient[light] = rgb * float(self._sim.executed_value(node, "ambientIntensity", 0.0))
+            m.light_active[index] = on
+            m.light_diffuse[index] = rgb * float(intensity)
+            m.light_ambient[index] = rgb * float(ambient)
             # a highlight of the light's colour (a red LED's light leaves no white glint)
-            m.light_specular[light] = rgb * _SPECULAR
+            m.light_specular[index] = rgb * _SPECULAR
+            d = np.asarray(direction, dtype=float)
+            d = d / max(float(np.linalg.norm(d)), 1e-9)
+            if node.type_name == "DirectionalLight":
+                m.light_dir[index] = d
+                continue
+            R, t = light.frame[:3, :3], light.frame[:3, 3]
+            m.light_pos[index] = R @ (np.asarray(location, dtype=float) * light.scale) + t
+            m.light_dir[index] = R @ d
+            m.light_attenuation[index] = [float(v) for v in attenuation]
+            m.light_cutoff[index] = 180.0 if node.type_name == "PointLight" else math.degrees(float(cutoff))
 
     def snapshot(self) -> tuple[np.ndarray, np.ndarray]:
         """The Solids' current poses (mocap positions and quaternions), to be drawn later by :meth:`restore`."""
