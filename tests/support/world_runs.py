@@ -22,19 +22,3 @@ def run_world_cli(folder: Path, name: str, world: str, controller: str) -> subpr
     return subprocess.run([sys.executable, "-m", "dualtwin.cli", "webots", "run", str(path), "--controller",
                            str(script)], capture_output=True, text=True, timeout=120, env=env, cwd=ROOT, check=False)
 
-
-def run_project_cli(folder: Path, world: str, controllers: dict[str, str],
-                    duration_s: float) -> subprocess.CompletedProcess[str]:
-    """``dualtwin webots run worlds/edits.wbt --duration S`` in a child interpreter (this checkout's ``src`` first on
-    its path), with ``controllers/NAME/NAME.py`` written for each controller the world names: each controller then
-    runs in its own process, as in Webots. Output captured."""
-    for name, text in controllers.items():
-        (folder / "controllers" / name).mkdir(parents=True)
-        (folder / "controllers" / name / f"{name}.py").write_text(text, encoding="utf-8")
-    path = folder / "worlds" / "edits.wbt"
-    path.parent.mkdir()
-    path.write_text(world, encoding="utf-8")
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "src") + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    return subprocess.run([sys.executable, "-m", "dualtwin.cli", "webots", "run", str(path), "--duration",
-                           f"{duration_s:g}"], capture_output=True, text=True, timeout=120, env=env, cwd=ROOT,
-                          check=False)

@@ -16,8 +16,8 @@ import pytest
 from dualtwin.webots import load_world_text
 from dualtwin.webots.controller import Robot, Runtime, Supervisor
 from dualtwin.webots.physics import Simulation
+from tests.support.multi_worlds import run_multi
 from tests.support.sensor_worlds import sensor_world, unit_noise
-from tests.support.world_runs import run_project_cli
 
 STEP = 8
 # a wall whose near face is the plane x = 0.5, in front of the sensor (axis +x) at the robot's origin
@@ -338,8 +338,7 @@ for _ in range(3):
 def test_a_controller_process_reads_the_edited_configuration(tmp_path: Any) -> None:
     # the reader runs in its own process, as in Webots: its getters give the load values before the edit, the
     # edited ones (channel 7, the table's largest output 250, maxPosition 0.5) after its next steps
-    run = run_project_cli(tmp_path, PROCESS_WORLD, {"reader": READER, "editor": EDITOR}, 0.1)
-    assert run.returncode == 0, run.stderr
-    lines = {line.split()[0]: line.split()[1:] for line in run.stdout.splitlines() if line[:4] in ("LOAD", "LATE")}
+    out = run_multi(tmp_path, PROCESS_WORLD, {"reader": READER, "editor": EDITOR}, "process", duration_s=0.1)
+    lines = {line.split()[0]: line.split()[1:] for line in out if line[:4] in ("LOAD", "LATE")}
     assert [float(v) for v in lines["LOAD"]] == [3.0, 1000.0, 1.0]
     assert [float(v) for v in lines["LATER"]] == [7.0, 250.0, 0.5]
