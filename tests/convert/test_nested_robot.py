@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dualtwin.convert import ConversionError, convert_world_text
+from dualtwin.convert import convert_world_text
 from dualtwin.convert.world_robots import find_robots
 from dualtwin.webots.protos import load_world_text
 from tests.support.converted_twins import converted_twins, world_text
@@ -57,10 +57,13 @@ def test_a_transform_scale_above_the_robot_scales_it() -> None:
     assert np.allclose(model.geom("R").size, [0.2, 0.2, 0.2], atol=1e-12)
 
 
-def test_a_non_uniform_scale_above_the_robot_is_one_clear_error() -> None:
+def test_a_non_uniform_scale_above_the_robot_acts_as_its_largest_factor_with_one_warning() -> None:
+    # as in the Webots twin (webots.solid_scale.body_factor): the cube's 0.2 m becomes 0.4 m, and one warning says why
     text = world_text(f"Transform {{ scale 1 2 1 children [ DEF R Robot {{ {CUBE} }} ] }}")
-    with pytest.raises(ConversionError, match=r"w\.wbt:\d+:\d+: unsupported node Transform \(non-uniform scale 1 2 1"):
-        convert_world_text(text, "w.wbt")
+    conv = convert_world_text(text, "w.wbt")
+    assert np.allclose(conv.compile().geom("R").size, [0.2, 0.2, 0.2], atol=1e-12)
+    assert sum("Transform scale 1 2 1 is not uniform above a Solid or joint: scaled by its largest factor 2" in w
+               for w in conv.warnings) == 1
 
 
 def test_both_twins_start_the_nested_robot_at_its_world_pose_and_drop_it_on_the_floor(tmp_path: Path) -> None:

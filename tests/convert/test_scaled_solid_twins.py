@@ -95,3 +95,16 @@ def test_a_non_positive_scale_above_a_solid_is_reset_to_1_in_both_twins(tmp_path
         assert mujoco_twin.body_position("R")[2] == pytest.approx(0.15, abs=5e-3)
     assert sum("Transform scale 0 -1 0: a scale component must be positive; reset to 1" in w
                for w in conv.warnings) == 1
+
+
+def test_a_non_uniform_scale_above_a_solid_acts_as_its_largest_factor_in_both_twins(tmp_path: Path) -> None:
+    # scale 1 2 1 above the box Solid: both twins take 2 (webots.solid_scale.body_factor), so the robot rests at
+    # 0.3 m as with scale 2 2 2 (the converter refused the world before), with one warning in the conversion
+    text = scaled_robot(1.0).replace("scale 1.0 1.0 1.0", "scale 1 2 1")
+    with converted_twins(text, tmp_path, 0.008) as (conv, webots, mujoco_twin):
+        for _ in range(100):
+            webots.step()
+            mujoco_twin.step()
+        assert webots.body_position("R")[2] == pytest.approx(0.3, abs=5e-3)
+        assert mujoco_twin.body_position("R")[2] == pytest.approx(0.3, abs=5e-3)
+    assert sum("Transform scale 1 2 1 is not uniform above a Solid or joint" in w for w in conv.warnings) == 1

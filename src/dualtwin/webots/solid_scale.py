@@ -31,7 +31,7 @@ from collections.abc import Callable
 from dualtwin.webots._math3 import Pose
 from dualtwin.webots.nodes import Node
 
-__all__ = ["holds_bodies", "positive_scale", "scaled_local", "transform_factor"]
+__all__ = ["body_factor", "holds_bodies", "positive_scale", "scaled_local", "transform_factor"]
 
 JOINTS = frozenset({"HingeJoint", "SliderJoint", "Hinge2Joint", "BallJoint"})
 
@@ -48,7 +48,13 @@ def transform_factor(node: Node, warn: Callable[[str], None]) -> float:
     or joint taken as its largest component, each with one warning line."""
     if node.type_name != "Transform":
         return 1.0
-    scale = positive_scale(node, warn)
+    return body_factor(node, positive_scale(node, warn), warn)
+
+
+def body_factor(node: Node, scale: tuple[float, float, float], warn: Callable[[str], None]) -> float:
+    """The one factor the Transform ``node`` with the positive ``scale`` magnifies Solids and joints by: its largest
+    component, with one warning line when the scale is not uniform and the Transform holds a Solid or joint (the
+    converter takes the same, so the twins agree)."""
     largest = max(scale)
     if min(scale) != largest and holds_bodies(node):
         warn(f"{_where(node)}Transform scale {_text(node)} is not uniform above a Solid or joint: scaled by its "
