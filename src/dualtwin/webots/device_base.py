@@ -17,7 +17,7 @@ from dualtwin.webots import _math3 as m3
 from dualtwin.webots.api_args import as_int
 from dualtwin.webots.node_types import node_type_of
 from dualtwin.webots.physics import DeviceRec, RobotRec, Simulation
-from dualtwin.webots.physics.edit_stamps import stamps_of
+from dualtwin.webots.physics.edit_stamps import note_edit, stamps_of
 from dualtwin.webots.step_hints import step_value
 
 
@@ -172,6 +172,15 @@ class Device:
         if kept is None or kept[0] != stamp:
             kept = self.__dict__[key] = (stamp, build())
         return kept[1]  # type: ignore[no-any-return]
+
+    def _own_field(self, name: str, value: Any) -> Any:
+        """A setting the controller makes that Webots keeps in the device's field (an Emitter's ``setChannel``
+        "modifies the channel field"): written there and counted as a write of it, so that the device reads the field
+        again when a ``simulationReset`` restores it (before, the device kept the controller's channel while its field
+        read the load's). ``value`` is returned."""
+        self._record.node.fields[name] = value
+        note_edit(self._robot._sim, self._record.node, name)
+        return value
 
     def _fields_changed(self, names: tuple[str, ...]) -> frozenset[str]:
         """Which of the fields ``names`` a supervisor wrote since this device last read them (all of them at the

@@ -282,7 +282,7 @@ class Emitter(Device):
         if c < CHANNEL_BROADCAST or (self._allowed and c not in self._allowed):
             error(f"Emitter.setChannel(): channel {c} is not allowed")
             return
-        self._channel = self._record.node.fields["channel"] = c  # and its field: module docstring
+        self._channel = self._own_field("channel", c)
 
     def getRange(self) -> float:
         self._follow()
@@ -295,7 +295,7 @@ class Emitter(Device):
             r = self._max_range
         elif self._max_range >= 0:
             r = min(r, self._max_range)
-        self._range = self._record.node.fields["range"] = r  # and its field: module docstring
+        self._range = self._own_field("range", r)
 
     def getBufferSize(self) -> int:
         self._follow()
@@ -406,7 +406,7 @@ class Receiver(SolidSensor):
         if c < CHANNEL_BROADCAST or (self._allowed and c not in self._allowed):
             warn(f"Receiver.setChannel(): channel {c} is not allowed")
             return
-        self._channel = self._record.node.fields["channel"] = c  # and its field: module docstring
+        self._channel = self._own_field("channel", c)
 
     queue_length = property(lambda self: self.getQueueLength())
     data = property(lambda self: self.getData())
