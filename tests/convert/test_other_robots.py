@@ -159,3 +159,16 @@ def test_both_twins_swing_the_other_robots_arm_without_a_motor(tmp_path: Path) -
             mujoco_twin.step()
         assert webots.joint_position("H") > math.pi / 2
         assert mujoco_twin.joint_position("H") == pytest.approx(webots.joint_position("H"), abs=0.05)
+
+
+def test_the_mujoco_twin_offers_no_knob_for_the_other_robots_motors(tmp_path: Path) -> None:
+    # OTHER's motor is no device of R in either twin (the binding exposes R's devices only), so no knob tunes it: a
+    # glob such as 'motor.*.gain' reaches the converted robot's motors only. Control: the same world with the motor on
+    # R's side (R a robot with a hinge and a motor of its own) has that motor's knobs
+    (tmp_path / "other").mkdir()
+    with converted_twins(_arm_world(HELD), tmp_path / "other", 0.02, robot="R") as (_, _, mujoco_twin):
+        assert not [name for name in mujoco_twin.knobs() if name.startswith("motor.")]
+    (tmp_path / "own").mkdir()
+    own = _arm_world(HELD).replace("DEF OTHER Robot {", 'DEF OTHER Robot { controller "<extern>"')
+    with converted_twins(own, tmp_path / "own", 0.02, robot="OTHER") as (_, _, mujoco_twin):
+        assert "motor.m.max_torque" in mujoco_twin.knobs()

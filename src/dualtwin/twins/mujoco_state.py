@@ -146,6 +146,13 @@ def robot_body(m: mujoco.MjModel) -> int:
     return int(mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, name)) if name else -1
 
 
+def in_converted_robot(m: mujoco.MjModel, body: int) -> bool:
+    """Whether ``body`` belongs to the converted robot: below the :data:`ROBOT_TEXT` body, or any body when the model
+    names none (a world without other robots)."""
+    robot = robot_body(m)
+    return robot < 0 or _below(m, body, robot)
+
+
 def _below(m: mujoco.MjModel, body: int, root: int) -> bool:
     """Whether ``body`` is ``root`` or in its subtree."""
     while body > 0 and body != root:
