@@ -157,7 +157,7 @@ class Camera(SolidSensor):
     _image: np.ndarray | None  # the last image drawn (None: none since the last sample, reset or resize)
 
     def _model(self) -> CameraModel:
-        fields = self._record.node.fields
+        fields = self._fields()
         changed = self._fields_changed(_EDITABLE_NAMES)
         model = getattr(self, "_model_cache", None)
         if model is None:

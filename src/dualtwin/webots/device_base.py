@@ -163,6 +163,12 @@ class Device:
             key = self._stamp_key = id(self._record.node)
         return self._stamps.get(key if name is None else (key, name), 0)
 
+    def _fields(self) -> dict[str, Any]:
+        """The device node's fields as the steps executed them (what :meth:`_configured` builds and
+        :meth:`_fields_changed`'s readers read): a supervisor's write reaches the device with the step that
+        executes it (webots-on-ode.md §6), also when the device is first read between the write and that step."""
+        return self._robot._sim.executed_fields(self._record.node)  # type: ignore[no-any-return]
+
     def _configured(self, key: str, build: Callable[[], _Config]) -> _Config:
         """What the device derives from its node's fields (``build()``), kept under ``key`` and derived again after
         a supervisor wrote one of them (or a reset restored them): Webots' device ``update*`` slots, which act

@@ -79,7 +79,7 @@ class _TableSensor(_SolidSensor):
     def _table(self) -> Table:
         # read again after a supervisor's edit of the table (Webots' updateLookupTable), from the next sample on
         return self._configured("_table_cache",
-                                lambda: table_from_field(self._record.node.fields.get("lookupTable", [])))
+                                lambda: table_from_field(self._fields().get("lookupTable", [])))
 
     def getLookupTable(self) -> list[float]:
         return [v for row in self._table() for v in row]

@@ -213,7 +213,7 @@ class Emitter(Device):
         changed = self._fields_changed(_EMITTER_FIELDS)
         if not changed:
             return
-        f = self._record.node.fields
+        f = self._fields()
         if "type" in changed:
             self._kind = _kind(f)
         if changed & {"range", "maxRange"}:
@@ -323,7 +323,7 @@ class Receiver(SolidSensor):
         changed = self._fields_changed(_RECEIVER_FIELDS)
         if not changed:
             return
-        f = self._record.node.fields
+        f = self._fields()
         self._kind = _kind(f)
         self._aperture = float(f.get("aperture", -1.0)) if self._kind == "infra-red" else -1.0
         if "channel" in changed:

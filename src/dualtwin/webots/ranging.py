@@ -301,7 +301,7 @@ class DistanceSensor(SolidSensor):
         kept = self.__dict__.get("_model_cache")
         if kept is not None and kept[0] == self._edit_stamp():  # (the common case, without building a lambda)
             return kept[1]  # type: ignore[no-any-return]
-        return self._configured("_model_cache", lambda: DistanceModel.from_node(self._record.node.fields))
+        return self._configured("_model_cache", lambda: DistanceModel.from_node(self._fields()))
 
     def _sampled_model(self) -> DistanceModel:
         """The model :meth:`_ray_spec` took at the start of this sample (the batch asks it several times)."""
@@ -498,7 +498,7 @@ class Lidar(_DepthDevice):
         if model is not None and changed:
             model = self._model_cache = self._edited(model, changed)
         if model is None:
-            model = self._model_cache = LidarModel.from_node(self._record.node.fields)
+            model = self._model_cache = LidarModel.from_node(self._fields())
             self._cloud = False
             self._sampled_at = 0.0
             self._scan = RotatingScan(self._robot._sim, self._record, model.width, model.layers) if model.rotating \
@@ -507,7 +507,7 @@ class Lidar(_DepthDevice):
 
     def _edited(self, model: LidarModel, changed: frozenset[str]) -> LidarModel:
         """The model after a supervisor's edit (Webots' update slots; :mod:`.image_edits`)."""
-        new = edited_model(model, self._record.node.fields, changed, self._name, LidarModel.from_node)
+        new = edited_model(model, self._fields(), changed, self._name, LidarModel.from_node)
         if (new.width, new.layers) != (model.width, model.layers):
             self._image = None  # zeros of the new size until the next sample
             if self._scan is not None:
@@ -688,7 +688,7 @@ class RangeFinder(_DepthDevice):
         if model is None or changed:
             # built again after an edit of its size, field of view, ranges, noise or resolution (Webots' update
             # slots), from the next image on (:mod:`.image_edits`)
-            f = self._record.node.fields
+            f = self._fields()
             w, h = (max(1, int(f.get("width", 64))), max(1, int(f.get("height", 64)))) if model is None else model[:2]
             if model is not None and changed & {"width", "height"}:
                 w, h = edited_image_size(f, (w, h), "RangeFinder", self._name)

@@ -157,7 +157,7 @@ class TouchSensor(SolidSensor):
         # its lookupTable and resolution are read again after a supervisor's edit, from the next sample on (the
         # type, which decides the ODE feedback set up at load, is not)
         return self._configured("_table_cache",
-                                lambda: table_from_field(self._record.node.fields.get("lookupTable", [])))
+                                lambda: table_from_field(self._fields().get("lookupTable", [])))
 
     def _resolution(self) -> float:
         return float(self._record.node.fields.get("resolution", -1.0))

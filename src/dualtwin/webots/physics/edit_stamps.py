@@ -6,6 +6,11 @@ channel and range, ...) that recomputes what the device derives from the field a
 configured again in its controller at the next step. A device here derives the same from its node's fields
 once, and again when the stamp of its node moved: after any write through the Field API, and after a
 ``simulationReset`` that put the edited fields back.
+
+A write counts from the beginning of the step that executes it (:func:`execute_edits`), not when the supervisor
+makes it: webots-on-ode.md §6, a write is executed at the beginning of the next step and a controller sees the world
+through its steps, so another robot's device getter (``getLookupTable``, an Emitter's ``getChannel``) read between
+the write and that step gives what the steps executed, whichever controller's request came first in real time.
 """
 
 from __future__ import annotations
@@ -14,9 +19,11 @@ from typing import Any
 
 from dualtwin.webots.nodes import Node
 
-__all__ = ["edit_stamp", "note_edit", "stamps_of"]
+__all__ = ["WrittenCounts", "edit_stamp", "execute_edits", "note_edit", "stamps_of"]
 
 _KEY = "field_edit_stamps"
+#: the writes made since the last step began, counted as the stamps are (moved into them by execute_edits)
+_UNEXECUTED_KEY = "field_edit_stamps_unexecuted"
 
 
 def stamps_of(sim: Any) -> dict[Any, int]:
@@ -28,6 +35,7 @@ def stamps_of(sim: Any) -> dict[Any, int]:
         stamps = sim.extensions[_KEY] = table
 
         def reset() -> None:  # simulationReset restored every edited field: each one is read again
+            execute_edits(sim)
             for key in table:
                 table[key] += 1
 
@@ -35,11 +43,44 @@ def stamps_of(sim: Any) -> dict[Any, int]:
     return stamps
 
 
+def _unexecuted_of(sim: Any) -> dict[Any, int]:
+    unexecuted: dict[Any, int] | None = sim.extensions.get(_UNEXECUTED_KEY)
+    if unexecuted is None:
+        unexecuted = sim.extensions[_UNEXECUTED_KEY] = {}
+    return unexecuted
+
+
+class WrittenCounts:
+    """The writes so far, those no step executed yet included, keyed as :func:`stamps_of`: what a motor command
+    made in the step of a write reads the motor's fields by (a Track's or a Propeller's motor, as a joint motor,
+    whose record a write configures at once), while its getters and samples follow the stamps."""
+
+    def __init__(self, sim: Any) -> None:
+        self._stamps = stamps_of(sim)
+        self._unexecuted = _unexecuted_of(sim)
+
+    def get(self, key: Any, default: int = 0) -> int:
+        return self._stamps.get(key, default) + self._unexecuted.get(key, 0)
+
+
 def note_edit(sim: Any, node: Node, name: str) -> None:
-    """Count a write of ``node``'s field ``name`` (``Simulation.field_changed`` calls it for every write)."""
-    stamps = stamps_of(sim)
+    """Count a write of ``node``'s field ``name`` (``Simulation.field_changed`` calls it for every write); the count
+    shows from the beginning of the next step (:func:`execute_edits`)."""
+    unexecuted = _unexecuted_of(sim)
     for key in (id(node), (id(node), name)):
-        stamps[key] = stamps.get(key, 0) + 1
+        unexecuted[key] = unexecuted.get(key, 0) + 1
+
+
+def execute_edits(sim: Any) -> None:
+    """The beginning of a step: the writes counted since the last one move the stamps, so the devices of their nodes
+    read their fields again from this step on (the simulation's step calls it, and a reset)."""
+    unexecuted: dict[Any, int] | None = sim.extensions.get(_UNEXECUTED_KEY)
+    if not unexecuted:
+        return
+    stamps = stamps_of(sim)
+    for key, count in unexecuted.items():
+        stamps[key] = stamps.get(key, 0) + count
+    unexecuted.clear()
 
 
 def edit_stamp(sim: Any, node: Node, name: str | None = None) -> int:

@@ -16,13 +16,15 @@ from dualtwin.webots.mass_rules import rot_matrix
 from dualtwin.webots.motor_api import check_maxima
 from dualtwin.webots.nodes import Node, copy_value
 from dualtwin.webots.physics.appearance_edits import APPEARANCE_FIELDS, apply_appearance_field
-from dualtwin.webots.physics.edit_stamps import note_edit
+from dualtwin.webots.physics.edit_stamps import execute_edits, note_edit
 from dualtwin.webots.physics.geometry_edits import GEOMETRY_TYPES
 from dualtwin.webots.physics.mass_edits import MASS_FIELDS
 from dualtwin.webots.physics.motor_edits import (
     MOTOR_FIELDS,
     apply_motor_field,
     apply_position_sensor_field,
+    execute_motor_edits,
+    remember_executed,
     remember_load,
 )
 from dualtwin.webots.physics.records import (
@@ -129,6 +131,16 @@ class SupervisorEdits(WorldInfoEdits):
         entry = self._unexecuted.get((id(node), name))
         return node.fields.get(name, default) if entry is None else entry[0]
 
+    def executed_fields(self, node: Node) -> dict[str, Any]:
+        """``node``'s fields as the steps executed them (see :meth:`executed_value`): ``node.fields`` itself when no
+        write of it waits for its step, else a copy with the values before the waiting writes."""
+        if not self._unexecuted:
+            return node.fields
+        key = id(node)
+        # (a copy of the items: another controller's thread may write meanwhile)
+        waiting = {name: before for (owner, name), (before, _) in list(self._unexecuted.items()) if owner == key}
+        return {**node.fields, **waiting} if waiting else node.fields
+
     def pending_pose(self, solid: SolidRec) -> tuple[Sequence[float] | None, Sequence[float] | None]:
         """The translation and the rotation that the supervisor making the current request queued for ``solid``
         (each None when it queued none). What it reads back of its own writes before the step executes them: the
@@ -171,6 +183,8 @@ class SupervisorEdits(WorldInfoEdits):
         if threading.get_ident() != self._thread:
             ode.ensure_thread()
         self._apply_pending()
+        execute_edits(self)
+        execute_motor_edits(self)
 
     def _request_order(self) -> int:
         """The scene-tree place of the supervisor making the current request: the ``request_order`` extension (set
@@ -388,6 +402,7 @@ class SupervisorEdits(WorldInfoEdits):
         motor = next((m for m in self.motors if m.node is node), None)
         if motor is not None:
             remember_load(self, motor)  # (what simulationReset puts back)
+            remember_executed(self, motor)  # (what the getters read until the next step)
             check_maxima(node, self.warn)  # a negative maximum, as at load
             value = node.fields.get(name)
             if name == "maxVelocity":

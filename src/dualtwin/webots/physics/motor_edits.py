@@ -12,6 +12,11 @@ new value from the next step on and configure the motor's controller again (its 
 * ``multiplier``: what the next ``setPosition``/``setVelocity``/``setForce`` (and their relays to coupled
   siblings) are scaled by (D §9); 0 is refused as at load, with the same warning, and 1 used.
 
+The motor's getters (``getMaxVelocity``, ``getMaxTorque``, ``getMinPosition``, ...) give its configuration as the
+steps executed it (:func:`executed_config`): the write of any of these fields is executed at the beginning of the
+next step and reaches a controller with that step's answer (S §6), so a robot reading the getter between a
+supervisor's write and that step reads the value before it, whichever of the two requests came first in real time.
+
 A joint's PositionSensor takes an edited ``noise`` or ``resolution`` from its next sample (S §5.4).
 
 The coupled motors' limits harmonised at load (D §9, "at load (postFinalize)") are not harmonised again after an
@@ -26,13 +31,22 @@ from typing import Any
 from dualtwin.webots.motor_api import field_multiplier, target_in_limits
 from dualtwin.webots.physics.records import MotorRec, PositionSensorRec
 
-__all__ = ["MOTOR_FIELDS", "apply_motor_field", "apply_position_sensor_field", "remember_load"]
+__all__ = [
+    "MOTOR_FIELDS",
+    "apply_motor_field",
+    "apply_position_sensor_field",
+    "execute_motor_edits",
+    "executed_config",
+    "remember_executed",
+    "remember_load",
+]
 
 #: the motor fields this module applies (maxVelocity, maxTorque/maxForce and acceleration are applied by edits.py)
 MOTOR_FIELDS = ("controlPID", "minPosition", "maxPosition", "multiplier")
 
 _KEY = "motor_load_config"
 _CONFIG = ("min_position", "max_position", "multiplier", "max_velocity", "max_force")
+_EXECUTED_KEY = "motor_executed_config"
 
 
 def remember_load(sim: Any, motor: MotorRec) -> None:
@@ -51,6 +65,32 @@ def remember_load(sim: Any, motor: MotorRec) -> None:
         sim.reset_hooks.append(reset)
     if id(motor) not in kept:
         kept[id(motor)] = (motor, tuple(getattr(motor, name) for name in _CONFIG))
+
+
+def remember_executed(sim: Any, motor: MotorRec) -> None:
+    """Keep ``motor``'s configuration as the steps executed it, before the first write of one of its fields that no
+    step executed yet changes it (the getters read it until the next step: :func:`executed_config`)."""
+    kept: dict[int, dict[str, float]] | None = sim.extensions.get(_EXECUTED_KEY)
+    if kept is None:
+        kept = sim.extensions[_EXECUTED_KEY] = {}
+        sim.reset_hooks.append(kept.clear)  # (the reset put back the load configuration, which every getter reads)
+    if id(motor) not in kept:
+        kept[id(motor)] = {name: getattr(motor, name) for name in _CONFIG}
+
+
+def executed_config(sim: Any, motor: MotorRec, name: str) -> float:
+    """``motor``'s configuration value ``name`` (one of ``min_position``, ``max_position``, ``multiplier``,
+    ``max_velocity``, ``max_force``) as the steps executed it: before the writes of this step, if any."""
+    kept: dict[int, dict[str, float]] | None = sim.extensions.get(_EXECUTED_KEY)
+    values = kept.get(id(motor)) if kept else None
+    return float(getattr(motor, name) if values is None else values[name])
+
+
+def execute_motor_edits(sim: Any) -> None:
+    """The beginning of a step executes the supervisors' writes: every getter reads the motors' new configuration."""
+    kept: dict[int, dict[str, float]] | None = sim.extensions.get(_EXECUTED_KEY)
+    if kept:
+        kept.clear()
 
 
 def apply_motor_field(sim: Any, motor: MotorRec, name: str) -> bool:

@@ -12,6 +12,8 @@ from dualtwin.webots import ode
 from dualtwin.webots._math3 import Pose
 from dualtwin.webots.motor_law import kinematic_motion
 from dualtwin.webots.physics.axis_edits import JointAxisEdits
+from dualtwin.webots.physics.edit_stamps import execute_edits
+from dualtwin.webots.physics.motor_edits import execute_motor_edits
 from dualtwin.webots.physics.records import (
     JointRec,
     MotorRec,
@@ -79,6 +81,8 @@ class Stepper(JointAxisEdits):
                 self._apply_pending()
             if self._unexecuted:
                 self._unexecuted.clear()  # the supervisors' writes are executed now: every controller reads them
+            execute_edits(self)  # and the devices of the nodes they wrote read their fields again
+            execute_motor_edits(self)
             self._pre_physics()
             for pre_hook in self.pre_step_hooks:
                 pre_hook(self.dt)
