@@ -107,3 +107,56 @@ def test_the_stress_world_prints_the_same_in_every_run_and_mode(tmp_path: Path) 
     # r2's customData: s2 is after s1 in the scene tree, so its write of step i wins, read from the step to
     # 0.008·(i+2) on (S §6, scene-tree order)
     assert lines_of(lines, "r2 t=0.024") == ["r2 t=0.024 custom='s2-1' channel=21 channel=21 custom='s2-1'"]
+
+
+MOTOR_WORLD = """
+WorldInfo { basicTimeStep 8 gravity 0 }
+DEF R1 Robot {
+  name "r1" controller "commander"
+  children [
+    HingeJoint {
+      device [ DEF M RotationalMotor { name "m" } PositionSensor { name "ps" } ]
+      endPoint Solid { physics Physics { density -1 mass 1 } boundingObject Sphere { radius 0.05 } }
+    }
+  ]
+}
+DEF S1 Robot { name "s1" controller "configurer" supervisor TRUE }
+"""
+
+# r1 waits a real time before its command, long enough for s1 to write meanwhile (only to provoke that order)
+COMMANDER = """
+import time
+from controller import Robot
+robot = Robot()
+m, ps = robot.getDevice("m"), robot.getDevice("ps")
+ps.enable(8)
+m.setPosition(float("inf"))
+m.setVelocity(0.0)
+robot.step(8)
+time.sleep(0.3)
+m.setVelocity(1.5)
+print("r1 before", m.getMaxVelocity(), m.getMultiplier())
+robot.step(8)
+print("r1 after", m.getMaxVelocity(), m.getMultiplier(), f"{ps.getValue() / 0.008:.2f}")
+"""
+
+CONFIGURER = """
+from controller import Supervisor
+sup = Supervisor()
+sup.step(8)
+sup.getFromDef("M").getField("maxVelocity").setSFFloat(2.0)
+sup.getFromDef("M").getField("multiplier").setSFFloat(2.0)
+sup.step(8)
+"""
+
+
+@pytest.mark.parametrize("isolation", ["process", "threads"])
+def test_a_motor_command_in_the_step_of_a_supervisors_write_uses_the_configuration_before_it(tmp_path: Path,
+                                                                                              isolation: str) -> None:
+    lines = run_multi(tmp_path, MOTOR_WORLD, {"commander": COMMANDER, "configurer": CONFIGURER}, isolation)
+    # S §6: the writes (maxVelocity 2, multiplier 2) are executed at the beginning of the step to 0.016, after the
+    # commands sent for it: setVelocity(1.5) is multiplied by 1 within maxVelocity 10 (webots-devices.md §9), then
+    # the new maxVelocity 2 leaves 1.5 as it is. Whichever came first, the joint turns at 1.5 rad/s in that step: its
+    # angle at 0.016 is 1.5·0.008 (the sphere's inertia 2/5·1·0.05² = 0.001 needs 0.001·1.5/0.008 = 0.19 N·m of the
+    # 10 available to reach it in the step), read /0.008 as 1.50; the getters follow from that step
+    assert lines_of(lines, "r1") == ["r1 before 10.0 1.0", "r1 after 2.0 2.0 1.50"]

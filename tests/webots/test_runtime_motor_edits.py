@@ -150,9 +150,10 @@ def test_multiplier_edit_scales_the_next_commands(edit: bool) -> None:
 def test_multiplier_edited_to_zero_warns_and_keeps_one() -> None:
     sup, motor, sensor = _arm("multiplier 3")
     _step(sup)
-    with pytest.warns(UserWarning, match="multiplier 0"):  # D §9: 0 → 1 with a warning, as at load
+    # D §9: 0 → 1 with a warning, as at load; the motor takes the field at the step that executes the write (S §6)
+    with pytest.warns(UserWarning, match="multiplier 0"):
         _motor_node(sup).getField("multiplier").setSFFloat(0.0)
-    _step(sup)
+        _step(sup)
     assert motor.getMultiplier() == 1.0
 
 
@@ -211,7 +212,7 @@ def _track(motor: str = "") -> tuple[Supervisor, Any, Any]:
 @pytest.mark.parametrize("edit", [True, False])
 def test_track_motor_max_velocity_and_multiplier_edits(edit: bool) -> None:
     # velocity control at 5 m/s (maxVelocity 10); maxVelocity edited to 2 clips the target: 2·ts per step; with
-    # multiplier 2 a setVelocity(0.5) then commands 1 m/s (D §9)
+    # multiplier 2 a setVelocity(0.5) made after the step that executes the write (S §6) commands 1 m/s (D §9)
     sup, motor, sensor = _track()
     motor.setPosition(float("inf"))
     motor.setVelocity(5.0)
@@ -223,6 +224,7 @@ def test_track_motor_max_velocity_and_multiplier_edits(edit: bool) -> None:
     assert motor.getMaxVelocity() == (2.0 if edit else 10.0)
     if edit:
         sup.getFromDef("TM").getField("multiplier").setSFFloat(2.0)
+    _step(sup)
     motor.setVelocity(0.5)
     _, moved = _moved(sup, sensor)
     assert moved == pytest.approx((1.0 if edit else 0.5) * DT)

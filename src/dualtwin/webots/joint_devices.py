@@ -16,7 +16,6 @@ from dualtwin.webots import motor_api, ode
 from dualtwin.webots.api_args import as_float, finite, warn
 from dualtwin.webots.device_base import Device, SampledDevice, api_property
 from dualtwin.webots.physics import BrakeRec, MotorRec, PositionSensorRec
-from dualtwin.webots.physics.motor_edits import executed_config
 from dualtwin.webots.step_hints import buffered, command_value, step_value
 
 __all__ = ["Brake", "Motor", "PositionSensor"]
@@ -278,11 +277,6 @@ class Motor(Device):
         rec.integral = 0.0
         rec.prev_error = 0.0
 
-    def _configuration(self, name: str) -> float:
-        """The motor's configuration value ``name`` as the steps executed its fields: a supervisor's write reaches the
-        getters with the step that executes it (S §6; :func:`.physics.motor_edits.executed_config`)."""
-        return executed_config(self._robot._sim, self._record, name)
-
     def _echo(self, value: float, echo: tuple[float, float] | None) -> float:
         """What Webots' libController caches for a target this motor was last given: the raw, unmultiplied
         value (§9), in its own units when its limits clipped it; the simulation's target otherwise (a sibling's
@@ -294,17 +288,17 @@ class Motor(Device):
         return self._echo(self._record.target_position, self._echo_position)
 
     def getMinPosition(self) -> float:
-        return self._configuration("min_position")
+        return self._record.min_position
 
     def getMaxPosition(self) -> float:
-        return self._configuration("max_position")
+        return self._record.max_position
 
     @command_value
     def getVelocity(self) -> float:
         return self._echo(self._record.target_velocity, self._echo_velocity)
 
     def getMaxVelocity(self) -> float:
-        return self._configuration("max_velocity")
+        return self._record.max_velocity
 
     @command_value
     def getAcceleration(self) -> float:
@@ -317,12 +311,12 @@ class Motor(Device):
     getAvailableTorque = getAvailableForce
 
     def getMaxForce(self) -> float:
-        return self._configuration("max_force")
+        return self._record.max_force
 
     getMaxTorque = getMaxForce
 
     def getMultiplier(self) -> float:
-        return self._configuration("multiplier")
+        return self._record.multiplier
 
     def getType(self) -> int:
         return self.ROTATIONAL if self._record.rotational else self.LINEAR

@@ -31,7 +31,7 @@ from dualtwin.webots.motor_api import check_maxima, field_multiplier, target_in_
 from dualtwin.webots.motor_law import kinematic_motion
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import AttachmentRec, Simulation
-from dualtwin.webots.physics.edit_stamps import WrittenCounts, stamps_of
+from dualtwin.webots.physics.edit_stamps import stamps_of
 
 __all__ = ["PropellerMotor", "PropellerRec", "install"]
 
@@ -153,7 +153,7 @@ def _read(rec: PropellerRec, sim: Simulation, names: Any, motor_names: Any) -> N
         rec.multiplier = field_multiplier(rec.motor, rec.name, sim.warn)
 
 
-def _edited(stamps: WrittenCounts, node: Node | None, names: tuple[str, ...], since: dict[Any, int]) -> set[str]:
+def _edited(stamps: dict[Any, int], node: Node | None, names: tuple[str, ...], since: dict[Any, int]) -> set[str]:
     """The fields of ``node`` among ``names`` written since the stamps ``since`` (which are brought up to date)."""
     if node is None:
         return set()
@@ -173,7 +173,6 @@ class _Propellers:
         self.sim = sim
         self.recs = [_make(site, sim) for site in sim.attachments if site.node.type_name == "Propeller"]
         self.stamps = stamps_of(sim)
-        self.written = WrittenCounts(sim)
         for rec in self.recs:
             robot = rec.site.robot
             if rec.motor is not None and robot is not None:
@@ -184,10 +183,8 @@ class _Propellers:
         sim.reset_hooks.append(self.reset)
 
     def follow(self, rec: PropellerRec) -> None:
-        """Read the fields of the propeller and its motor written since they were last read (or restored), the
-        writes of this step included: a command of this step uses them, as a joint motor's (its record follows a
-        write at once)."""
-        stamps, node, motor = self.written, rec.site.node, rec.motor
+        """Read the fields of the propeller and its motor written since they were last read (or restored)."""
+        stamps, node, motor = self.stamps, rec.site.node, rec.motor
         if stamps.get(id(node), 0) == rec.stamps.get(id(node), 0) and (
                 motor is None or stamps.get(id(motor), 0) == rec.stamps.get(id(motor), 0)):
             return

@@ -43,7 +43,7 @@ from dualtwin.webots.motor_api import (
 from dualtwin.webots.motor_law import motor_velocity
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import Simulation, SolidRec
-from dualtwin.webots.physics.edit_stamps import WrittenCounts, stamps_of
+from dualtwin.webots.physics.edit_stamps import stamps_of
 from dualtwin.webots.step_hints import buffered
 
 __all__ = ["TrackBrake", "TrackMotor", "TrackPositionSensor", "TrackRec", "gravity_axis", "install"]
@@ -152,7 +152,6 @@ class _Tracks:
         self.sim = sim
         self.recs = [_make(s, sim) for s in sim.solids if s.node.type_name == "Track"]
         self.stamps = stamps_of(sim)
-        self.written = WrittenCounts(sim)
         for rec in self.recs:
             robot = rec.solid.robot
             if robot is not None:
@@ -190,16 +189,14 @@ class _Tracks:
             rec.control(dt)
 
     def follow(self, rec: TrackRec) -> None:
-        """Read the motor fields a supervisor wrote since they were last read (or a reset restored), the writes of
-        this step included: a command of this step uses them, as a joint motor's (its record follows a write at
-        once)."""
-        written = self.written
-        if rec.motor is None or written.get(id(rec.motor)) == rec.motor_stamp:
+        """Read the motor fields a supervisor wrote since they were last read (or a reset restored)."""
+        if rec.motor is None or self.stamps.get(id(rec.motor), 0) == rec.motor_stamp:
             return
         key = id(rec.motor)
-        rec.motor_stamp = written.get(key)
-        changed = {name for name in _MOTOR_FIELDS if written.get((key, name)) != rec.field_stamps.get(name, 0)}
-        rec.field_stamps.update({name: written.get((key, name)) for name in changed})
+        rec.motor_stamp = self.stamps.get(key, 0)
+        changed = {name for name in _MOTOR_FIELDS
+                   if self.stamps.get((key, name), 0) != rec.field_stamps.get(name, 0)}
+        rec.field_stamps.update({name: self.stamps.get((key, name), 0) for name in changed})
         check_maxima(rec.motor, self.sim.warn)  # a negative maximum, as at load
         _read_motor(rec, self.sim, changed)
 

@@ -87,6 +87,7 @@ from dualtwin.webots import _math3 as m3
 from dualtwin.webots import ode
 from dualtwin.webots.nodes import Node, World
 from dualtwin.webots.physics import immersion
+from dualtwin.webots.physics.motor_edits import execute_motor_edits
 from dualtwin.webots.physics.records import (
     ATTACHMENT_TYPES,
     JOINT_TYPES,
@@ -324,6 +325,7 @@ class Simulation(SolidVelocityEdits):
         self._pending.clear()
         self._unexecuted.clear()
         self._restore_fields()
+        execute_motor_edits(self)  # the restored fields now, the load configuration then (reset hooks) over them
         self.contact_properties_changed()  # (a supervisor may have imported or removed some)
         for body in self.bodies:
             for g in body.groups:

@@ -19,7 +19,7 @@ from typing import Any
 
 from dualtwin.webots.nodes import Node
 
-__all__ = ["WrittenCounts", "edit_stamp", "execute_edits", "note_edit", "stamps_of"]
+__all__ = ["edit_stamp", "execute_edits", "note_edit", "stamps_of"]
 
 _KEY = "field_edit_stamps"
 #: the writes made since the last step began, counted as the stamps are (moved into them by execute_edits)
@@ -48,19 +48,6 @@ def _unexecuted_of(sim: Any) -> dict[Any, int]:
     if unexecuted is None:
         unexecuted = sim.extensions[_UNEXECUTED_KEY] = {}
     return unexecuted
-
-
-class WrittenCounts:
-    """The writes so far, those no step executed yet included, keyed as :func:`stamps_of`: what a motor command
-    made in the step of a write reads the motor's fields by (a Track's or a Propeller's motor, as a joint motor,
-    whose record a write configures at once), while its getters and samples follow the stamps."""
-
-    def __init__(self, sim: Any) -> None:
-        self._stamps = stamps_of(sim)
-        self._unexecuted = _unexecuted_of(sim)
-
-    def get(self, key: Any, default: int = 0) -> int:
-        return self._stamps.get(key, default) + self._unexecuted.get(key, 0)
 
 
 def note_edit(sim: Any, node: Node, name: str) -> None:

@@ -20,11 +20,10 @@ from dualtwin.webots.physics.edit_stamps import execute_edits, note_edit
 from dualtwin.webots.physics.geometry_edits import GEOMETRY_TYPES
 from dualtwin.webots.physics.mass_edits import MASS_FIELDS
 from dualtwin.webots.physics.motor_edits import (
-    MOTOR_FIELDS,
-    apply_motor_field,
+    QUEUED_MOTOR_FIELDS,
     apply_position_sensor_field,
     execute_motor_edits,
-    remember_executed,
+    queue_motor_field,
     remember_load,
 )
 from dualtwin.webots.physics.records import (
@@ -402,22 +401,11 @@ class SupervisorEdits(WorldInfoEdits):
         motor = next((m for m in self.motors if m.node is node), None)
         if motor is not None:
             remember_load(self, motor)  # (what simulationReset puts back)
-            remember_executed(self, motor)  # (what the getters read until the next step)
             check_maxima(node, self.warn)  # a negative maximum, as at load
-            value = node.fields.get(name)
-            if name == "maxVelocity":
-                motor.max_velocity = float(value)
-                motor.target_velocity = max(-motor.max_velocity, min(motor.max_velocity, motor.target_velocity))
-                return True
-            if name in ("maxTorque", "maxForce"):
-                motor.max_force = float(value)
-                motor.available = motor.max_force
-                return True
-            if name == "acceleration":
-                # §5.2: the field is the motor's acceleration (setAcceleration replaces it), -1 unlimited
-                motor.acceleration = float(value)
-                return True
-            return name in MOTOR_FIELDS and apply_motor_field(self, motor, name)
+            if name not in QUEUED_MOTOR_FIELDS:
+                return False
+            queue_motor_field(self, motor, name)  # (the motor takes it at the beginning of the next step)
+            return True
         if node.type_name == "PositionSensor":
             sensor = next((s for j in self.joints for s in j.sensors if s is not None and s.node is node), None)
             if sensor is not None:

@@ -12,10 +12,12 @@ new value from the next step on and configure the motor's controller again (its 
 * ``multiplier``: what the next ``setPosition``/``setVelocity``/``setForce`` (and their relays to coupled
   siblings) are scaled by (D §9); 0 is refused as at load, with the same warning, and 1 used.
 
-The motor's getters (``getMaxVelocity``, ``getMaxTorque``, ``getMinPosition``, ...) give its configuration as the
-steps executed it (:func:`executed_config`): the write of any of these fields is executed at the beginning of the
-next step and reaches a controller with that step's answer (S §6), so a robot reading the getter between a
-supervisor's write and that step reads the value before it, whichever of the two requests came first in real time.
+A write of any of these fields, or of ``maxVelocity``, ``maxTorque``/``maxForce`` or ``acceleration``, is executed at
+the beginning of the next step (S §6: "queued and executed at the beginning of the next step"), after the motor
+commands of the step before it (:func:`queue_motor_field`, :func:`execute_motor_edits`): a command made in the same
+step as the write, by whichever controller and whichever came first in real time, is multiplied and clipped with the
+configuration before the write (and clipped into the new limits when it executes), and the motor's getters give the
+configuration before the write until that step.
 
 A joint's PositionSensor takes an edited ``noise`` or ``resolution`` from its next sample (S §5.4).
 
@@ -33,20 +35,22 @@ from dualtwin.webots.physics.records import MotorRec, PositionSensorRec
 
 __all__ = [
     "MOTOR_FIELDS",
-    "apply_motor_field",
+    "QUEUED_MOTOR_FIELDS",
     "apply_position_sensor_field",
     "execute_motor_edits",
-    "executed_config",
-    "remember_executed",
+    "queue_motor_field",
     "remember_load",
 ]
 
-#: the motor fields this module applies (maxVelocity, maxTorque/maxForce and acceleration are applied by edits.py)
+#: the fields this module documents (maxVelocity, maxTorque/maxForce and acceleration are queued too)
 MOTOR_FIELDS = ("controlPID", "minPosition", "maxPosition", "multiplier")
 
+#: the motor fields whose write waits for the beginning of the next step (see the module docstring)
+QUEUED_MOTOR_FIELDS = ("maxVelocity", "maxTorque", "maxForce", "acceleration", *MOTOR_FIELDS)
+
 _KEY = "motor_load_config"
+_QUEUE_KEY = "motor_field_writes"
 _CONFIG = ("min_position", "max_position", "multiplier", "max_velocity", "max_force")
-_EXECUTED_KEY = "motor_executed_config"
 
 
 def remember_load(sim: Any, motor: MotorRec) -> None:
@@ -67,51 +71,57 @@ def remember_load(sim: Any, motor: MotorRec) -> None:
         kept[id(motor)] = (motor, tuple(getattr(motor, name) for name in _CONFIG))
 
 
-def remember_executed(sim: Any, motor: MotorRec) -> None:
-    """Keep ``motor``'s configuration as the steps executed it, before the first write of one of its fields that no
-    step executed yet changes it (the getters read it until the next step: :func:`executed_config`)."""
-    kept: dict[int, dict[str, float]] | None = sim.extensions.get(_EXECUTED_KEY)
-    if kept is None:
-        kept = sim.extensions[_EXECUTED_KEY] = {}
-        sim.reset_hooks.append(kept.clear)  # (the reset put back the load configuration, which every getter reads)
-    if id(motor) not in kept:
-        kept[id(motor)] = {name: getattr(motor, name) for name in _CONFIG}
-
-
-def executed_config(sim: Any, motor: MotorRec, name: str) -> float:
-    """``motor``'s configuration value ``name`` (one of ``min_position``, ``max_position``, ``multiplier``,
-    ``max_velocity``, ``max_force``) as the steps executed it: before the writes of this step, if any."""
-    kept: dict[int, dict[str, float]] | None = sim.extensions.get(_EXECUTED_KEY)
-    values = kept.get(id(motor)) if kept else None
-    return float(getattr(motor, name) if values is None else values[name])
+def queue_motor_field(sim: Any, motor: MotorRec, name: str) -> None:
+    """A supervisor wrote ``motor``'s field ``name`` (one of :data:`QUEUED_MOTOR_FIELDS`): the motor takes the
+    field's value at the beginning of the next step (:func:`execute_motor_edits`); until then it keeps its
+    configuration."""
+    queued: dict[tuple[int, str], tuple[MotorRec, str]] | None = sim.extensions.get(_QUEUE_KEY)
+    if queued is None:
+        queued = sim.extensions[_QUEUE_KEY] = {}
+    queued[(id(motor), name)] = (motor, name)
 
 
 def execute_motor_edits(sim: Any) -> None:
-    """The beginning of a step executes the supervisors' writes: every getter reads the motors' new configuration."""
-    kept: dict[int, dict[str, float]] | None = sim.extensions.get(_EXECUTED_KEY)
-    if kept:
-        kept.clear()
+    """The beginning of a step: every motor takes the fields written since the last one, in the order they were
+    first written (the value is the field's, which the supervisors' scene-tree order decided). A reset calls it
+    too, for the fields it restored, before it puts the load configuration back."""
+    queued: dict[tuple[int, str], tuple[MotorRec, str]] | None = sim.extensions.get(_QUEUE_KEY)
+    if not queued:
+        return
+    writes = list(queued.values())
+    queued.clear()
+    for motor, name in writes:
+        _apply_motor_field(sim, motor, name)
 
 
-def apply_motor_field(sim: Any, motor: MotorRec, name: str) -> bool:
-    """Apply the edit of ``motor``'s field ``name`` (one of :data:`MOTOR_FIELDS`); False for another field."""
+def _apply_motor_field(sim: Any, motor: MotorRec, name: str) -> None:
     fields = motor.node.fields
+    if name == "maxVelocity":
+        motor.max_velocity = float(fields.get(name, 10.0))
+        motor.target_velocity = max(-motor.max_velocity, min(motor.max_velocity, motor.target_velocity))
+        return
+    if name in ("maxTorque", "maxForce"):
+        motor.max_force = float(fields.get(name, 10.0))
+        motor.available = motor.max_force
+        return
+    if name == "acceleration":
+        # §5.2: the field is the motor's acceleration (setAcceleration replaces it), -1 unlimited
+        motor.acceleration = float(fields.get(name, -1.0))
+        return
     if name == "controlPID":
         motor.kp, motor.ki, motor.kd = (float(v) for v in fields.get("controlPID", (10.0, 0.0, 0.0)))
         motor.integral = 0.0
         motor.prev_error = 0.0
-        return True
+        return
     if name in ("minPosition", "maxPosition"):
         motor.min_position = float(fields.get("minPosition", 0.0))
         motor.max_position = float(fields.get("maxPosition", 0.0))
         # (silently: a reset applies the load limits again before it puts the motors back in their initial state,
         # and would warn about a target it is about to replace)
         motor.target_position = target_in_limits(motor.target_position, motor.min_position, motor.max_position)
-        return True
+        return
     if name == "multiplier":
         motor.multiplier = field_multiplier(motor.node, motor.name, sim.warn)
-        return True
-    return False
 
 
 def apply_position_sensor_field(sensor: PositionSensorRec, name: str) -> bool:
