@@ -24,7 +24,10 @@ DEF R1 Robot {
   name "r1" controller "reader"
   children [
     DEF DS DistanceSensor { name "ds" lookupTable [ 0 0 0, 0.1 1000 0 ] }
-    HingeJoint { device [ DEF M RotationalMotor { name "m" maxVelocity 10 } ] endPoint Solid { } }
+    HingeJoint {
+      device [ DEF M RotationalMotor { name "m" maxVelocity 10 } PositionSensor { name "ps" } ]
+      endPoint Solid { physics Physics { density -1 mass 1 } boundingObject Sphere { radius 0.05 } }
+    }
     DEF EM Emitter { name "em" channel 1 }
   ]
 }
@@ -35,7 +38,8 @@ DEF S2 Robot { name "s2" controller "writer" supervisor TRUE }
 """
 
 #: each robot reads what the supervisors write of its own devices and customData; r1's Emitter sends its step
-#: number on the channel s2 writes (10 + i), r3's Receiver hears channel 13 only (the supervisors read the box)
+#: number on the channel s2 writes (10 + i), r3's Receiver hears channel 13 only (the supervisors read the box);
+#: r1 commands its motor in the steps where s1 writes its maxVelocity and s2 its multiplier, and prints its angle
 READER = """
 import os, random, time
 from controller import Robot
@@ -49,6 +53,10 @@ if rx:
     rx.enable(8)
 if ds:
     ds.enable(8)
+if m:
+    ps = robot.getDevice("ps")
+    ps.enable(8)
+    m.setPosition(float("inf"))
 for i in range(STEPS):
     robot.step(8)
     jitter()
@@ -71,6 +79,9 @@ for i in range(STEPS):
         rx.nextPacket()
     seen.append(f"custom={robot.getCustomData()!r}")
     print(name, *seen)
+    if m:
+        m.setVelocity(30.0 if i % 2 else 3.0)
+        print(f"{name}m t={robot.getTime():.3f} angle={ps.getValue():.9f} velocity={m.getVelocity()}")
 """
 
 WRITER = """
@@ -95,6 +106,7 @@ for i in range(STEPS):
         node("EM").getField("channel").setSFInt32(10 + i)
         node("EM2").getField("channel").setSFInt32(20 + i)
         node("R2").getField("customData").setSFString(f"s2-{i}")
+        node("M").getField("multiplier").setSFFloat(1.0 + i % 3)
         if i % 2:
             node("BOX").getField("translation").setSFVec3f([0.5, 0.0, 2.0 + i])
     jitter()
