@@ -160,3 +160,42 @@ def test_a_motor_command_in_the_step_of_a_supervisors_write_uses_the_configurati
     # angle at 0.016 is 1.5·0.008 (the sphere's inertia 2/5·1·0.05² = 0.001 needs 0.001·1.5/0.008 = 0.19 N·m of the
     # 10 available to reach it in the step), read /0.008 as 1.50; the getters follow from that step
     assert lines_of(lines, "r1") == ["r1 before 10.0 1.0", "r1 after 2.0 2.0 1.50"]
+
+
+LED_WORLD = """
+WorldInfo { basicTimeStep 8 }
+DEF R1 Robot { name "r1" controller "switcher" children [ DEF LED LED { name "led" color [ 1 0 0 ] } ] }
+DEF S1 Robot { name "s1" controller "painter" supervisor TRUE }
+"""
+
+# r1 waits a real time before its set(), long enough for s1 to write meanwhile (only to provoke that order)
+SWITCHER = """
+import time
+from controller import Robot
+robot = Robot()
+led = robot.getDevice("led")
+robot.step(8)
+time.sleep(0.3)
+led.set(2)
+print("r1 before", led.get())
+robot.step(8)
+led.set(2)
+print("r1 after", led.get())
+"""
+
+PAINTER = """
+from controller import Supervisor
+sup = Supervisor()
+sup.step(8)
+sup.getFromDef("LED").getField("color").insertMFColor(-1, [0.0, 0.0, 1.0])
+sup.step(8)
+"""
+
+
+@pytest.mark.parametrize("isolation", ["process", "threads"])
+def test_an_led_value_is_checked_against_the_colours_the_steps_executed(tmp_path: Path, isolation: str) -> None:
+    lines = run_multi(tmp_path, LED_WORLD, {"switcher": SWITCHER, "painter": PAINTER}, isolation)
+    # webots-devices LED: a value 1..n selects one of the n colours, others are refused. In the step of s1's write
+    # (a second colour) the LED has one colour: set(2) is refused, get() keeps 0; from the step that executes the
+    # write (S §6) it has two, and set(2) is taken
+    assert lines_of(lines, "r1") == ["r1 before 0", "r1 after 2"]

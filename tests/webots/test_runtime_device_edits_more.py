@@ -254,11 +254,12 @@ def test_inertial_unit_axis_edit_disables_the_roll(edit: bool) -> None:
 @pytest.mark.parametrize("edit", [True, False])
 def test_led_color_list_edit_sets_the_values_it_takes(edit: bool) -> None:
     # a non-gradual LED takes 0..len(color) (the LED page): with one colour, set(2) is refused; a second colour
-    # inserted makes 2 a valid value
+    # inserted makes 2 a valid value from the step that executes the write (webots-on-ode.md §6)
     sup = sensor_world('DEF S LED { name "s" color [ 1 0 0 ] }', "", step=STEP)
     led = sup.getDevice("s")
     if edit:
         sup.getFromDef("S").getField("color").insertMFColor(-1, [0.0, 1.0, 0.0])
+    sup.step(STEP)
     led.set(2)
     sup.step(STEP)
     assert led.get() == (2 if edit else 0)

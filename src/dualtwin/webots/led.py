@@ -38,7 +38,9 @@ class LED(Device):
     @buffered(int)
     def set(self, v: Any) -> None:
         value = as_int(v, "LED.set")
-        fields = self._record.node.fields
+        # the colours as the steps executed them: a supervisor's write of the list counts from the step that
+        # executes it, whichever came first in real time (webots-on-ode.md §6)
+        fields = self._fields()
         if not fields.get("gradual", False):
             colours = len(fields.get("color", []) or [])
             if value < 0 or value > colours:
