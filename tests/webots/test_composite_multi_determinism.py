@@ -199,3 +199,58 @@ def test_an_led_value_is_checked_against_the_colours_the_steps_executed(tmp_path
     # (a second colour) the LED has one colour: set(2) is refused, get() keeps 0; from the step that executes the
     # write (S §6) it has two, and set(2) is taken
     assert lines_of(lines, "r1") == ["r1 before 0", "r1 after 2"]
+
+
+FIELDS_WORLD = """
+WorldInfo { basicTimeStep 8 }
+DEF R1 Robot {
+  name "r1" controller "asker" model "old" controllerArgs [ "a" ]
+  children [ DEF C Compass { name "c" lookupTable [ -1 -1 0, 1 1 0 ] } DEF IU InertialUnit { name "iu" } ]
+}
+DEF S1 Robot { name "s1" controller "renamer" supervisor TRUE }
+"""
+
+# r1 waits a real time before it reads, long enough for s1 to write meanwhile (only to provoke that order)
+ASKER = """
+import time
+from controller import Robot
+robot = Robot()
+compass, unit = robot.getDevice("c"), robot.getDevice("iu")
+unit.enable(8)
+def show(when):
+    print("r1", when, robot.getModel(), robot.getControllerArguments(), robot.getSynchronization(),
+          compass.getLookupTable(), unit.getRollPitchYaw()[0], unit.getNoise())
+robot.step(8)
+time.sleep(0.3)
+show("before")
+robot.step(8)
+show("after")
+"""
+
+RENAMER = """
+from controller import Supervisor
+sup = Supervisor()
+sup.step(8)
+r1 = sup.getFromDef("R1")
+r1.getField("model").setSFString("new")
+r1.getField("controllerArgs").setMFString(0, "b")
+r1.getField("synchronization").setSFBool(False)
+sup.getFromDef("C").getField("lookupTable").setMFVec3f(1, [1.0, 2.0, 0.0])
+sup.getFromDef("IU").getField("xAxis").setSFBool(False)
+sup.getFromDef("IU").getField("noise").setSFFloat(0.5)
+sup.step(8)
+"""
+
+
+@pytest.mark.parametrize("isolation", ["process", "threads"])
+def test_a_robots_own_field_getters_follow_a_write_from_the_step_that_executes_it(tmp_path: Path,
+                                                                                   isolation: str) -> None:
+    lines = run_multi(tmp_path, FIELDS_WORLD, {"asker": ASKER, "renamer": RENAMER}, isolation)
+    # S §6: until the step to 0.016 executes s1's writes, r1 reads its model, arguments, synchronization (TRUE by
+    # default), the compass's table and the inertial unit's axes and noise as loaded: the unit of a robot at rest at
+    # the origin reads roll 0; from that step on, the written values: roll disabled (xAxis FALSE) reads NaN
+    # (webots-devices InertialUnit), noise 0.5 (which moves pitch and yaw, not printed)
+    assert lines_of(lines, "r1") == [
+        "r1 before old ['a'] True [-1.0, -1.0, 0.0, 1.0, 1.0, 0.0] 0.0 0.0",
+        "r1 after new ['b'] False [-1.0, -1.0, 0.0, 1.0, 2.0, 0.0] nan 0.5",
+    ]

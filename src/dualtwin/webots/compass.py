@@ -51,7 +51,8 @@ class Compass(SolidSensor):
         return list(self._values)
 
     def getLookupTable(self) -> list[float]:
-        return [v for row in table_from_field(self._record.node.fields.get("lookupTable", [])) for v in row]
+        # (as the steps executed it, as every device getter: webots-on-ode.md §6)
+        return [v for row in table_from_field(self._fields().get("lookupTable", [])) for v in row]
 
     value = property(getValues)
     lookup_table = property(getLookupTable)

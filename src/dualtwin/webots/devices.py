@@ -258,7 +258,7 @@ class InertialUnit(_SolidSensor):
         self._check_enabled("wb_inertial_unit_get_roll_pitch_yaw")
         if self._angles is None:
             return [math.nan] * 3
-        fields = self._record.node.fields
+        fields = self._fields()  # (as the steps executed them: webots-on-ode.md §6)
         resolution = float(fields.get("resolution", -1.0))
         return [
             discretize(a, resolution) if fields.get(flag, True) else math.nan
@@ -285,7 +285,7 @@ class InertialUnit(_SolidSensor):
         return self.getQuaternion()
 
     def getNoise(self) -> float:
-        return float(self._record.node.fields.get("noise", 0.0))
+        return float(self._fields().get("noise", 0.0))
 
     @property
     def noise(self) -> float:

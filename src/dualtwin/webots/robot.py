@@ -168,7 +168,12 @@ class Robot:
         return self.__link._rec.name
 
     def getModel(self) -> str:
-        return str(self.__link._rec.node.fields.get("model", ""))
+        return str(self.__fields().get("model", ""))
+
+    def __fields(self) -> dict[str, Any]:
+        """The robot node's fields as the steps executed them: a supervisor's write reaches this controller with the
+        step that executes it (webots-on-ode.md §6), whichever request came first in real time."""
+        return self.__link._sim.executed_fields(self.__link._rec.node)  # type: ignore[no-any-return]
 
     def getCustomData(self) -> str:
         """The ``customData`` its last ``step`` answered with, or what it set since: a supervisor's write of the
@@ -184,7 +189,7 @@ class Robot:
         return self.__link._rec.supervisor
 
     def getSynchronization(self) -> bool:
-        return bool(self.__link._rec.node.fields.get("synchronization", True))
+        return bool(self.__fields().get("synchronization", True))
 
     def getProjectPath(self) -> str:
         """The project folder: the parent of the world's ``worlds`` folder."""
@@ -195,7 +200,7 @@ class Robot:
 
     def getControllerArguments(self) -> list[str]:
         """The robot's ``controllerArgs`` (a dualtwin extension; Webots passes them as ``sys.argv``)."""
-        return [str(a) for a in self.__link._rec.node.fields.get("controllerArgs", []) or []]
+        return [str(a) for a in self.__fields().get("controllerArgs", []) or []]
 
     def getUrdf(self, prefix: str = "") -> str:
         """URDF text of the robot: links for Solids, joints for hinges and sliders (no mass or inertia)."""
