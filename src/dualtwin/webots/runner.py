@@ -590,6 +590,9 @@ def _run_in_threads(
     watchdog.start()
     saved_cwd = os.getcwd()
     saved_path = list(sys.path)
+    # each controller thread sets sys.argv to its own and puts back what it found, which may be another
+    # controller's: the caller's is restored here, whichever thread ended last
+    saved_argv = list(sys.argv)
     saved_module = sys.modules.pop("controller", None)
     previous_runtime = api.current_runtime()
     api.set_current_runtime(runtime)
@@ -620,6 +623,7 @@ def _run_in_threads(
         runtime.controller_starter = None
         os.chdir(saved_cwd)
         sys.path[:] = saved_path
+        sys.argv = saved_argv
         sys.modules.pop("controller", None)
         if saved_module is not None:
             sys.modules["controller"] = saved_module
