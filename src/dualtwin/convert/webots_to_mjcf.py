@@ -700,7 +700,7 @@ class _Converter:
     def other_robots(self, chosen: str, root: str) -> None:
         """The robots not converted, as bodies, joints and motors outside the conversion's own lists; the MuJoCo
         twin's state then holds the joints below the converted robot's ``root`` body only, as the Webots twin's."""
-        if self.others:
+        if self.others or world_robots.environment_joints(self.world, self.robot_node):
             self.spec.add_text(name=ROBOT_TEXT, data=root)
         mine = self.joints, self.motors, self.sensors
         for index, (node, T, scale) in enumerate(self.others):

@@ -38,9 +38,10 @@ from dualtwin.convert.mass import FloatArray
 from dualtwin.convert.scales import transform_scale
 from dualtwin.geometry import axis_angle_matrix
 from dualtwin.webots.nodes import Node, World
+from dualtwin.webots.schema import JOINT_TYPES
 
-__all__ = ["GROUPING", "OTHER_ROBOT_BITS", "OtherRobot", "find_robots", "other_robot_notes", "pose_matrix",
-           "robot_frame", "robot_label", "scenery_bodies", "select_robot"]
+__all__ = ["GROUPING", "OTHER_ROBOT_BITS", "OtherRobot", "environment_joints", "find_robots", "other_robot_notes",
+           "pose_matrix", "robot_frame", "robot_label", "scenery_bodies", "select_robot"]
 
 #: The nodes that group others without being a body: a Robot below them is still a robot of the world.
 GROUPING = ("Group", "Pose", "Transform")
@@ -164,3 +165,11 @@ def scenery_bodies(spec: Any, bodies: list[tuple[str, Node]], world: World, robo
     free = {b.name for b in spec.bodies if any(j.type == mujoco.mjtJoint.mjJNT_FREE for j in b.joints)}
     named_top = {id(n) for n in world.nodes if n.def_name}
     return [name for name, solid in bodies if name in free and solid is not robot and id(solid) not in named_top]
+
+
+def environment_joints(world: World, robot: Node | None) -> bool:
+    """Whether the world has joints outside the converted ``robot`` (another robot's, a door hinged to a wall...): the
+    Webots twin's state holds the robot's joints only, so the model then names the robot's root body
+    (:data:`dualtwin.twins.mujoco_state.ROBOT_TEXT`) and the MuJoCo twin's state leaves the others out as well."""
+    mine = {id(n) for n in robot.walk()} if robot is not None else set()
+    return any(n.type_name in JOINT_TYPES and id(n) not in mine for top in world.nodes for n in top.walk())
