@@ -28,6 +28,7 @@ import pytest
 
 from dualtwin.convert import convert_world_text
 from dualtwin.convert.world_robots import OTHER_ROBOT_BITS, OtherRobot
+from dualtwin.errors import DualtwinError
 from dualtwin.webots import schema
 from dualtwin.webots.nodes import Node
 from tests.support.converted_twins import converted_twins, world_text
@@ -172,3 +173,13 @@ def test_the_mujoco_twin_offers_no_knob_for_the_other_robots_motors(tmp_path: Pa
     own = _arm_world(HELD).replace("DEF OTHER Robot {", 'DEF OTHER Robot { controller "<extern>"')
     with converted_twins(own, tmp_path / "own", 0.02, robot="OTHER") as (_, _, mujoco_twin):
         assert "motor.m.max_torque" in mujoco_twin.knobs()
+
+
+@pytest.mark.parametrize("name", ["OTHER/m", "m"])
+def test_neither_twin_takes_a_command_for_the_other_robots_motor(tmp_path: Path, name: str) -> None:
+    # the Webots twin drives R's devices only; the MuJoCo twin took a command for OTHER's actuator by its name and
+    # moved a motor the Webots twin cannot reach
+    with converted_twins(_arm_world(HELD), tmp_path, 0.02, robot="R") as (_, webots, mujoco_twin):
+        for twin in (webots, mujoco_twin):
+            with pytest.raises(DualtwinError, match="no motor named"):
+                twin.command(name, "velocity", 1.0)

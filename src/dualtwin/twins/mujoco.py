@@ -140,7 +140,8 @@ class MuJoCoTwin(Twin):
         self._knob_pass = KnobPass()  # what the last set_knobs collected (see mujoco_knobs)
         self._knob_index: dict[str, BoundKnob[KnobTarget]] | None = None
         self._motors = self._build_motors()
-        self._motor_by_name = {m.name: m for m in self._motors}
+        # (the converted robot's: another robot's motors hold their place, commanded by nothing, as in the Webots twin)
+        self._motor_by_name = {m.name: m for m in self._motors if mujoco_state.robot_actuator(self.model, m.index)}
         assign_groups(self._motors)
         # command()'s lookup: motor names and the aliases that resolve to one (an alias wins, as in _id).
         self._command_index = {name: self._motor_by_name[self._aliases.get(name, name)]

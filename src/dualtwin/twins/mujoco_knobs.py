@@ -18,7 +18,7 @@ import mujoco
 import numpy as np
 
 from dualtwin.twins.knob_table import KnobGroup, KnobKind, KnobTable
-from dualtwin.twins.mujoco_state import in_converted_robot
+from dualtwin.twins.mujoco_state import robot_actuator
 
 # Geoms whose size[0] is a radius (the geom.<g>.radius knob).
 ROUND_GEOMS = frozenset({int(mujoco.mjtGeom.mjGEOM_CYLINDER), int(mujoco.mjtGeom.mjGEOM_SPHERE),
@@ -167,9 +167,7 @@ def _bodies(tw: KnobTarget) -> Iterator[tuple[str, int]]:
 def _motors(tw: KnobTarget) -> Iterator[tuple[str, Any]]:
     # the converted robot's motors: another robot's (held at their initial position, dualtwin.convert.world_robots)
     # are no device of the robot in either twin, so the Webots twin has no knob for them either
-    m = tw.model
-    return ((mo.name, mo) for mo in tw._motors
-            if in_converted_robot(m, int(m.jnt_bodyid[m.actuator_trnid[mo.index, 0]])))
+    return ((mo.name, mo) for mo in tw._motors if robot_actuator(tw.model, mo.index))
 
 
 def _sensors(tw: KnobTarget) -> Iterator[tuple[str, int]]:

@@ -153,6 +153,12 @@ def in_converted_robot(m: mujoco.MjModel, body: int) -> bool:
     return robot < 0 or _below(m, body, robot)
 
 
+def robot_actuator(m: mujoco.MjModel, actuator: int) -> bool:
+    """Whether the joint actuator ``actuator`` drives a joint of the converted robot (:func:`in_converted_robot`):
+    another robot's motors hold their initial position and are no device of the robot, in either twin."""
+    return in_converted_robot(m, int(m.jnt_bodyid[m.actuator_trnid[actuator, 0]]))
+
+
 def _below(m: mujoco.MjModel, body: int, root: int) -> bool:
     """Whether ``body`` is ``root`` or in its subtree."""
     while body > 0 and body != root:
