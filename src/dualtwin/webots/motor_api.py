@@ -12,14 +12,14 @@ from __future__ import annotations
 
 import math
 import sys
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Container, Iterable
 from typing import Any, TypeVar
 
 from dualtwin.webots.api_args import warn
 
 __all__ = ["MULTIPLIER_ZERO", "check_maxima", "clamp_force", "clamp_position", "clamp_velocity", "coupled_groups",
-           "echo", "field_multiplier", "refuse_acceleration", "refuse_available", "refuse_nan", "refuse_velocity",
-           "target_in_limits"]
+           "echo", "field_multiplier", "read_motor_fields", "refuse_acceleration", "refuse_available", "refuse_nan",
+           "refuse_velocity", "target_in_limits"]
 
 T = TypeVar("T")
 
@@ -43,6 +43,34 @@ def target_in_limits(target: float, min_position: float, max_position: float) ->
     if min_position != max_position and math.isfinite(target):
         return min(max(target, min_position), max_position)
     return target
+
+
+def read_motor_fields(rec: Any, motor: Any, names: Container[str], label: str, report: Callable[[str], None]) -> None:
+    """Read the motor node ``motor``'s fields ``names`` into its record ``rec`` (a joint motor's, a Track's
+    LinearMotor's or a Propeller's RotationalMotor's, which keep them under the same names): at load and after a
+    supervisor's edit. A target velocity beyond a new maxVelocity is clipped into it, ``maxTorque``/``maxForce`` is
+    also the available force, new gains (``controlPID``) start the error integral again, a finite target left outside
+    new limits is clipped into them (:func:`target_in_limits`), and a multiplier of 0 is refused with the load's
+    warning, naming the motor ``label`` (:func:`field_multiplier`; webots-devices.md §9)."""
+    f = motor.fields
+    if "maxVelocity" in names:
+        rec.max_velocity = float(f.get("maxVelocity", 10.0))
+        rec.target_velocity = max(-rec.max_velocity, min(rec.max_velocity, rec.target_velocity))
+    for force in ("maxTorque", "maxForce"):
+        if force in names:
+            rec.max_force = rec.available = float(f.get(force, 10.0))
+    if "acceleration" in names:
+        # §5.2: the field is the motor's acceleration (setAcceleration replaces it), -1 unlimited
+        rec.acceleration = float(f.get("acceleration", -1.0))
+    if "controlPID" in names:
+        rec.kp, rec.ki, rec.kd = (float(v) for v in f.get("controlPID", (10.0, 0.0, 0.0)))
+        rec.integral = rec.prev_error = 0.0
+    if "minPosition" in names or "maxPosition" in names:
+        rec.min_position = float(f.get("minPosition", 0.0))
+        rec.max_position = float(f.get("maxPosition", 0.0))
+        rec.target_position = target_in_limits(rec.target_position, rec.min_position, rec.max_position)
+    if "multiplier" in names:
+        rec.multiplier = field_multiplier(motor, label, report)
 
 
 def check_maxima(motor: Any, report: Callable[[str], None]) -> None:

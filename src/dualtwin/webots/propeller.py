@@ -27,7 +27,7 @@ from dualtwin.webots import _math3 as m3
 from dualtwin.webots.api_args import warn
 from dualtwin.webots.fixed_link import body_of
 from dualtwin.webots.kinematic_motor import KinematicMotor
-from dualtwin.webots.motor_api import check_maxima, field_multiplier, target_in_limits
+from dualtwin.webots.motor_api import check_maxima, read_motor_fields
 from dualtwin.webots.motor_law import kinematic_motion
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import AttachmentRec, Simulation
@@ -54,7 +54,7 @@ class PropellerRec:
     q1: float
     q2: float
     max_velocity: float
-    max_torque: float
+    max_force: float  # the motor's maxTorque, under the name every motor's record uses (motor_api)
     acceleration: float
     multiplier: float
     min_position: float = 0.0
@@ -79,12 +79,7 @@ class PropellerRec:
         velocity maxVelocity and available torque maxTorque; at rest."""
         self.omega = self.angle = self.target_position = 0.0
         self.target_velocity = self.max_velocity
-        self.available = self.max_torque
-
-    @property
-    def max_force(self) -> float:
-        """maxTorque, under the name the Motor API code shares with linear motors."""
-        return self.max_torque
+        self.available = self.max_force
 
     @property
     def api_class(self) -> type[PropellerMotor]:
@@ -106,7 +101,7 @@ def _make(site: AttachmentRec, sim: Simulation) -> PropellerRec:
         check_maxima(motor, sim.warn)
     name = str(motor.fields.get("name", "rotational motor")) if motor is not None else "rotational motor"
     rec = PropellerRec(site=site, motor=motor, name=name, axis=(1.0, 0.0, 0.0), center=(0.0, 0.0, 0.0), t1=1.0,
-                       t2=0.0, q1=1.0, q2=0.0, max_velocity=10.0, max_torque=10.0, acceleration=-1.0, multiplier=1.0)
+                       t2=0.0, q1=1.0, q2=0.0, max_velocity=10.0, max_force=10.0, acceleration=-1.0, multiplier=1.0)
     _read(rec, sim, PROPELLER_FIELDS, MOTOR_FIELDS)
     rec.load_acceleration = rec.acceleration
     rec.initial()
@@ -137,20 +132,7 @@ def _read(rec: PropellerRec, sim: Simulation, names: Any, motor_names: Any) -> N
         rec.q1, rec.q2 = _vec(f.get("torqueConstants"), (1.0, 0.0))
     if rec.motor is None:
         return
-    mf = rec.motor.fields
-    if "maxVelocity" in motor_names:
-        rec.max_velocity = float(mf.get("maxVelocity", 10.0))
-        rec.target_velocity = max(-rec.max_velocity, min(rec.max_velocity, rec.target_velocity))
-    if "maxTorque" in motor_names:
-        rec.max_torque = rec.available = float(mf.get("maxTorque", 10.0))
-    if "acceleration" in motor_names:
-        rec.acceleration = float(mf.get("acceleration", -1.0))
-    if "minPosition" in motor_names or "maxPosition" in motor_names:
-        rec.min_position = float(mf.get("minPosition", 0.0))
-        rec.max_position = float(mf.get("maxPosition", 0.0))
-        rec.target_position = target_in_limits(rec.target_position, rec.min_position, rec.max_position)
-    if "multiplier" in motor_names:
-        rec.multiplier = field_multiplier(rec.motor, rec.name, sim.warn)
+    read_motor_fields(rec, rec.motor, motor_names, rec.name, sim.warn)
 
 
 def _edited(stamps: dict[Any, int], node: Node | None, names: tuple[str, ...], since: dict[Any, int]) -> set[str]:
@@ -233,7 +215,7 @@ class _Propellers:
             om = rec.omega
             thrust = rec.t1 * om * abs(om) - rec.t2 * abs(om) * speed
             torque = rec.q1 * om * abs(om) - rec.q2 * abs(om) * speed
-            torque = max(-rec.max_torque, min(rec.max_torque, torque))
+            torque = max(-rec.max_force, min(rec.max_force, torque))
             rec.thrust, rec.torque = thrust, torque
             f = m3.scale(a_world, thrust)
             lib.dBodyAddForceAtPos(body.ptr, f[0], f[1], f[2], p_world[0], p_world[1], p_world[2])

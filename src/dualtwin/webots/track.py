@@ -36,9 +36,8 @@ from dualtwin.webots.kinematic_motor import KinematicMotor
 from dualtwin.webots.motor_api import (
     check_maxima,
     clamp_force,
-    field_multiplier,
+    read_motor_fields,
     refuse_nan,
-    target_in_limits,
 )
 from dualtwin.webots.motor_law import motor_velocity
 from dualtwin.webots.nodes import Node
@@ -124,27 +123,9 @@ _MOTOR_FIELDS = ("maxVelocity", "maxForce", "acceleration", "controlPID", "minPo
 
 
 def _read_motor(rec: TrackRec, sim: Simulation, names: Any) -> None:
-    """Read the motor fields ``names`` into ``rec``: new gains start the error integral again, a finite target
-    left outside new limits is clipped into them, a target velocity beyond a new maxVelocity too, and a multiplier
-    of 0 is refused with the load's warning (webots-devices.md §9)."""
+    """Read the motor fields ``names`` into ``rec``, as a joint motor does (:func:`.motor_api.read_motor_fields`)."""
     assert rec.motor is not None
-    f = rec.motor.fields
-    if "maxVelocity" in names:
-        rec.max_velocity = float(f.get("maxVelocity", 10.0))
-        rec.target_velocity = max(-rec.max_velocity, min(rec.max_velocity, rec.target_velocity))
-    if "maxForce" in names:
-        rec.max_force = rec.available = float(f.get("maxForce", 10.0))
-    if "acceleration" in names:
-        rec.acceleration = float(f.get("acceleration", -1.0))
-    if "controlPID" in names:
-        rec.kp, rec.ki, rec.kd = (float(v) for v in f.get("controlPID", (10.0, 0.0, 0.0)))
-        rec.integral = rec.prev_error = 0.0
-    if "minPosition" in names or "maxPosition" in names:
-        rec.min_position = float(f.get("minPosition", 0.0))
-        rec.max_position = float(f.get("maxPosition", 0.0))
-        rec.target_position = target_in_limits(rec.target_position, rec.min_position, rec.max_position)
-    if "multiplier" in names:
-        rec.multiplier = field_multiplier(rec.motor, str(f.get("name", "linear motor")), sim.warn)
+    read_motor_fields(rec, rec.motor, names, str(rec.motor.fields.get("name", "linear motor")), sim.warn)
 
 
 class _Tracks:

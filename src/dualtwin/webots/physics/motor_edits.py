@@ -30,7 +30,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from dualtwin.webots.motor_api import field_multiplier, target_in_limits
+from dualtwin.webots.motor_api import read_motor_fields
 from dualtwin.webots.physics.records import MotorRec, PositionSensorRec
 
 __all__ = [
@@ -95,33 +95,9 @@ def execute_motor_edits(sim: Any) -> None:
 
 
 def _apply_motor_field(sim: Any, motor: MotorRec, name: str) -> None:
-    fields = motor.node.fields
-    if name == "maxVelocity":
-        motor.max_velocity = float(fields.get(name, 10.0))
-        motor.target_velocity = max(-motor.max_velocity, min(motor.max_velocity, motor.target_velocity))
-        return
-    if name in ("maxTorque", "maxForce"):
-        motor.max_force = float(fields.get(name, 10.0))
-        motor.available = motor.max_force
-        return
-    if name == "acceleration":
-        # §5.2: the field is the motor's acceleration (setAcceleration replaces it), -1 unlimited
-        motor.acceleration = float(fields.get(name, -1.0))
-        return
-    if name == "controlPID":
-        motor.kp, motor.ki, motor.kd = (float(v) for v in fields.get("controlPID", (10.0, 0.0, 0.0)))
-        motor.integral = 0.0
-        motor.prev_error = 0.0
-        return
-    if name in ("minPosition", "maxPosition"):
-        motor.min_position = float(fields.get("minPosition", 0.0))
-        motor.max_position = float(fields.get("maxPosition", 0.0))
-        # (silently: a reset applies the load limits again before it puts the motors back in their initial state,
-        # and would warn about a target it is about to replace)
-        motor.target_position = target_in_limits(motor.target_position, motor.min_position, motor.max_position)
-        return
-    if name == "multiplier":
-        motor.multiplier = field_multiplier(motor.node, motor.name, sim.warn)
+    # (a limit edit clips the target silently: a reset applies the load limits again before it puts the motors back
+    # in their initial state, and would warn about a target it is about to replace)
+    read_motor_fields(motor, motor.node, (name,), motor.name, sim.warn)
 
 
 def apply_position_sensor_field(sensor: PositionSensorRec, name: str) -> bool:
