@@ -17,7 +17,7 @@ from dualtwin.webots import _math3 as m3
 from dualtwin.webots.api_args import as_int
 from dualtwin.webots.node_types import node_type_of
 from dualtwin.webots.physics import DeviceRec, RobotRec, Simulation
-from dualtwin.webots.physics.edit_stamps import note_edit, stamps_of
+from dualtwin.webots.physics.edit_stamps import note_edit, stamps_of, written_since
 from dualtwin.webots.step_hints import step_value
 
 
@@ -192,18 +192,14 @@ class Device:
         """Which of the fields ``names`` a supervisor wrote since this device last read them (all of them at the
         first read), or a reset restored: the fields whose Webots ``update*`` slot runs. A setting the controller
         changed (an Emitter's ``setChannel``) stays until its own field is written."""
-        stamp = self._edit_stamp()
-        if self.__dict__.get("_fields_stamp") == stamp:
+        stamp = self._edit_stamp()  # (the table and the node's key, kept)
+        seen: dict[Any, int] | None = self.__dict__.get("_fields_seen")
+        if seen is None:
+            self._fields_seen: dict[Any, int] = {}
+            seen = self._fields_seen
+        elif seen.get(self._stamp_key) == stamp:  # (the per-sample case, without a call)
             return _NONE
-        self._fields_stamp = stamp
-        seen: dict[str, int] = self.__dict__.setdefault("_fields_seen", {})
-        changed = set()
-        for name in names:
-            field_stamp = self._edit_stamp(name)
-            if seen.get(name) != field_stamp:
-                seen[name] = field_stamp
-                changed.add(name)
-        return frozenset(changed)
+        return written_since(self._stamps, self._record.node, names, seen, never=-1)
 
     def getName(self) -> str:
         return self._name

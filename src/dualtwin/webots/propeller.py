@@ -31,7 +31,7 @@ from dualtwin.webots.motor_api import check_maxima, read_motor_fields
 from dualtwin.webots.motor_law import kinematic_motion
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import AttachmentRec, Simulation
-from dualtwin.webots.physics.edit_stamps import stamps_of
+from dualtwin.webots.physics.edit_stamps import stamps_of, written_since
 
 __all__ = ["PropellerMotor", "PropellerRec", "install"]
 
@@ -135,19 +135,6 @@ def _read(rec: PropellerRec, sim: Simulation, names: Any, motor_names: Any) -> N
     read_motor_fields(rec, rec.motor, motor_names, rec.name, sim.warn)
 
 
-def _edited(stamps: dict[Any, int], node: Node | None, names: tuple[str, ...], since: dict[Any, int]) -> set[str]:
-    """The fields of ``node`` among ``names`` written since the stamps ``since`` (which are brought up to date)."""
-    if node is None:
-        return set()
-    changed = set()
-    for name in names:
-        key = (id(node), name)
-        if stamps.get(key, 0) != since.get(key, 0):
-            since[key] = stamps.get(key, 0)
-            changed.add(name)
-    return changed
-
-
 class _Propellers:
     """Per-simulation pre-physics hook applying every propeller's thrust and torque."""
 
@@ -166,14 +153,11 @@ class _Propellers:
 
     def follow(self, rec: PropellerRec) -> None:
         """Read the fields of the propeller and its motor written since they were last read (or restored)."""
-        stamps, node, motor = self.stamps, rec.site.node, rec.motor
-        if stamps.get(id(node), 0) == rec.stamps.get(id(node), 0) and (
-                motor is None or stamps.get(id(motor), 0) == rec.stamps.get(id(motor), 0)):
+        motor = rec.motor
+        changed = written_since(self.stamps, rec.site.node, PROPELLER_FIELDS, rec.stamps)
+        motor_changed = written_since(self.stamps, motor, MOTOR_FIELDS, rec.stamps)
+        if not (changed or motor_changed):
             return
-        for key in (id(node),) if motor is None else (id(node), id(motor)):
-            rec.stamps[key] = stamps.get(key, 0)
-        changed = _edited(stamps, node, PROPELLER_FIELDS, rec.stamps)
-        motor_changed = _edited(stamps, motor, MOTOR_FIELDS, rec.stamps)
         if motor is not None:
             check_maxima(motor, self.sim.warn)  # a negative maximum, as at load
         _read(rec, self.sim, changed, motor_changed)

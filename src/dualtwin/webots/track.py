@@ -42,7 +42,7 @@ from dualtwin.webots.motor_api import (
 from dualtwin.webots.motor_law import motor_velocity
 from dualtwin.webots.nodes import Node
 from dualtwin.webots.physics import Simulation, SolidRec
-from dualtwin.webots.physics.edit_stamps import stamps_of
+from dualtwin.webots.physics.edit_stamps import stamps_of, written_since
 from dualtwin.webots.step_hints import buffered
 
 __all__ = ["TrackBrake", "TrackMotor", "TrackPositionSensor", "TrackRec", "gravity_axis", "install"]
@@ -79,8 +79,7 @@ class TrackRec:
     velocity: float = 0.0  # belt speed (m/s)
     devices: dict[str, Any] = field(default_factory=dict)
     #: the motor's write stamps when its fields were last read (physics/edit_stamps.py): the node's and each field's
-    motor_stamp: int = 0
-    field_stamps: dict[str, int] = field(default_factory=dict)
+    stamps: dict[Any, int] = field(default_factory=dict)
 
     def control(self, dt: float) -> None:
         body = self.solid.body
@@ -171,13 +170,9 @@ class _Tracks:
 
     def follow(self, rec: TrackRec) -> None:
         """Read the motor fields a supervisor wrote since they were last read (or a reset restored)."""
-        if rec.motor is None or self.stamps.get(id(rec.motor), 0) == rec.motor_stamp:
+        changed = written_since(self.stamps, rec.motor, _MOTOR_FIELDS, rec.stamps)
+        if rec.motor is None or not changed:
             return
-        key = id(rec.motor)
-        rec.motor_stamp = self.stamps.get(key, 0)
-        changed = {name for name in _MOTOR_FIELDS
-                   if self.stamps.get((key, name), 0) != rec.field_stamps.get(name, 0)}
-        rec.field_stamps.update({name: self.stamps.get((key, name), 0) for name in changed})
         check_maxima(rec.motor, self.sim.warn)  # a negative maximum, as at load
         _read_motor(rec, self.sim, changed)
 

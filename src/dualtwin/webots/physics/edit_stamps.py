@@ -15,13 +15,15 @@ the write and that step gives what the steps executed, whichever controller's re
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import Any
 
 from dualtwin.webots.nodes import Node
 
-__all__ = ["edit_stamp", "execute_edits", "note_edit", "stamps_of"]
+__all__ = ["edit_stamp", "execute_edits", "note_edit", "stamps_of", "written_since"]
 
 _KEY = "field_edit_stamps"
+_NONE: frozenset[str] = frozenset()
 #: the writes made since the last step began, counted as the stamps are (moved into them by execute_edits)
 _UNEXECUTED_KEY = "field_edit_stamps_unexecuted"
 
@@ -68,6 +70,28 @@ def execute_edits(sim: Any) -> None:
     for key, count in unexecuted.items():
         stamps[key] = stamps.get(key, 0) + count
     unexecuted.clear()
+
+
+def written_since(stamps: dict[Any, int], node: Node | None, names: Iterable[str], seen: dict[Any, int],
+                  never: int = 0) -> frozenset[str]:
+    """The fields of ``node`` among ``names`` written (or restored by a reset) since ``seen``, the stamps they were
+    last read at (keyed as ``stamps``, :func:`stamps_of`; ``never`` for a key not read yet: 0, nothing is new at the
+    first read, -1, everything is), brought up to date. None at one look-up while the node's own stamp has not moved
+    (what a device, a Track or a Propeller asks at every sample or step)."""
+    if node is None:
+        return _NONE
+    key = id(node)
+    stamp = stamps.get(key, 0)
+    if seen.get(key, never) == stamp:
+        return _NONE
+    seen[key] = stamp
+    changed = []
+    for name in names:
+        field_stamp = stamps.get((key, name), 0)
+        if seen.get((key, name), never) != field_stamp:
+            seen[(key, name)] = field_stamp
+            changed.append(name)
+    return frozenset(changed)
 
 
 def edit_stamp(sim: Any, node: Node, name: str | None = None) -> int:
