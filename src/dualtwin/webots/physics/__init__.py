@@ -108,7 +108,7 @@ from dualtwin.webots.physics.records import (
 )
 from dualtwin.webots.physics.records import field_or as _f
 from dualtwin.webots.physics.velocity_edits import SolidVelocityEdits
-from dualtwin.webots.physics.world_edits import gravity_vector
+from dualtwin.webots.physics.world_edits import gravity_vector, sleep_settings
 
 __all__ = [
     "Simulation",
@@ -220,9 +220,7 @@ class Simulation(SolidVelocityEdits):
         cfm = float(_f(info, "CFM", 0.00001))
         self.erp = erp if 0.0 <= erp <= 1.0 else 0.2
         self.cfm = cfm if cfm > 0.0 else 0.00001
-        self.disable_time = float(_f(info, "physicsDisableTime", 1.0))
-        self.disable_lin = float(_f(info, "physicsDisableLinearThreshold", 0.01))
-        self.disable_ang = float(_f(info, "physicsDisableAngularThreshold", 0.01))
+        self.disable_time, self.disable_lin, self.disable_ang = sleep_settings(info)
         damping = _f(info, "defaultDamping", None)
         self.world_damping = (
             (

@@ -46,6 +46,12 @@ def gravity_vector(g: float, coordinate_system: str) -> m3.Vec3:
     return (-g * up[0] if up[0] else 0.0, -g * up[1] if up[1] else 0.0, -g * up[2] if up[2] else 0.0)
 
 
+def sleep_settings(info: Node | None) -> tuple[float, float, float]:
+    """WorldInfo's ``physicsDisableTime`` and its linear and angular thresholds (§1.3), at load and after an edit."""
+    return (float(_f(info, "physicsDisableTime", 1.0)), float(_f(info, "physicsDisableLinearThreshold", 0.01)),
+            float(_f(info, "physicsDisableAngularThreshold", 0.01)))
+
+
 class WorldInfoEdits(MassEdits):
     """Run-time edits of WorldInfo's physics fields (see the module docstring)."""
 
@@ -87,9 +93,7 @@ class WorldInfoEdits(MassEdits):
 
     def _set_sleep(self, node: Node) -> None:
         """§1.3 set again from the three fields, on the world and on every body, as at load."""
-        self.disable_time = float(_f(node, "physicsDisableTime", 1.0))
-        self.disable_lin = float(_f(node, "physicsDisableLinearThreshold", 0.01))
-        self.disable_ang = float(_f(node, "physicsDisableAngularThreshold", 0.01))
+        self.disable_time, self.disable_lin, self.disable_ang = sleep_settings(node)
         self._lib.dWorldSetAutoDisableTime(self._world, max(self.disable_time, 0.0))
         for body in self.bodies:
             if not body.removed:
