@@ -75,11 +75,9 @@ def find_robots(world: World) -> list[Node]:
 
 
 def robot_frame(world: World, robot: Node) -> tuple[FloatArray, float | FloatArray]:
-    """``robot``'s frame in the world and the scale its ancestors' Transforms give it (1 for none).
-
-    Raises:
-        ConversionError: a non-uniform Transform scale above it (:func:`dualtwin.convert.scales.transform_scale`).
-    """
+    """``robot``'s frame in the world and the scale its ancestors' Transforms give it (1 for none; a non-uniform one
+    acts as its largest factor, :func:`dualtwin.convert.scales.transform_scale`, whose warning the environment's walk
+    of the same Transforms gives)."""
     for node, ancestors in _placed_robots(world.nodes):
         if node is robot:
             T: FloatArray = np.eye(4)
